@@ -1,0 +1,98 @@
+"""Force kernels: springs (Hooke + damping, Provot), gravity, air drag, wind on triangles."""
+
+import warp as wp
+
+
+@wp.func
+def spring_force(xi: wp.vec3, xj: wp.vec3, vi: wp.vec3, vj: wp.vec3, rest: float, ks: float, kd: float):
+    # f_i = ks (L - L0) n + kd ((v_j - v_i) . n) n,  n = (x_j - x_i) / L   (seed eq. 2.7-2.8)
+    d = xj - xi
+    length = wp.length(d)
+    if length == 0.0:
+        return wp.vec3(0.0)
+    n = d / length
+    return (ks * (length - rest) + kd * wp.dot(vj - vi, n)) * n
+
+
+@wp.kernel
+def eval_springs(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    spring_indices: wp.array(dtype=wp.vec2i),
+    spring_rest_length: wp.array(dtype=float),
+    spring_stiffness: wp.array(dtype=float),
+    spring_damping: wp.array(dtype=float),
+    f: wp.array(dtype=wp.vec3),
+):
+    s = wp.tid()
+    ij = spring_indices[s]
+    fi = spring_force(x[ij[0]], x[ij[1]], v[ij[0]], v[ij[1]], spring_rest_length[s], spring_stiffness[s], spring_damping[s])
+    wp.atomic_add(f, ij[0], fi)
+    wp.atomic_sub(f, ij[1], fi)
+
+
+@wp.kernel
+def eval_particle_forces(
+    v: wp.array(dtype=wp.vec3),
+    particle_mass: wp.array(dtype=float),
+    gravity: wp.vec3,
+    drag_rate: float,
+    f: wp.array(dtype=wp.vec3),
+):
+    # f = m g - m c v   (overwrites f: this launch also clears the accumulator)
+    i = wp.tid()
+    m = particle_mass[i]
+    f[i] = m * (gravity - drag_rate * v[i])
+
+
+@wp.func
+def wind_force(xa: wp.vec3, xb: wp.vec3, xc: wp.vec3, v_mean: wp.vec3, wind: wp.vec3, coefficient: float):
+    # f = c_w A (n . u) n,  u = W - v_mean   (seed eq. 2.6 with relative air velocity)
+    c = wp.cross(xb - xa, xc - xa)
+    twice_area = wp.length(c)
+    if twice_area == 0.0:
+        return wp.vec3(0.0)
+    n = c / twice_area
+    return coefficient * 0.5 * twice_area * wp.dot(n, wind - v_mean) * n
+
+
+@wp.kernel
+def eval_wind(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    tri_indices: wp.array(dtype=wp.vec3i),
+    wind: wp.array(dtype=wp.vec3),
+    coefficient: float,
+    f: wp.array(dtype=wp.vec3),
+):
+    t = wp.tid()
+    abc = tri_indices[t]
+    v_mean = (v[abc[0]] + v[abc[1]] + v[abc[2]]) / 3.0
+    ft = wind_force(x[abc[0]], x[abc[1]], x[abc[2]], v_mean, wind[0], coefficient) / 3.0
+    wp.atomic_add(f, abc[0], ft)
+    wp.atomic_add(f, abc[1], ft)
+    wp.atomic_add(f, abc[2], ft)
+
+
+@wp.kernel
+def eval_wind_schedule(
+    time: wp.array(dtype=wp.float64),
+    schedule_start: wp.array(dtype=float),
+    schedule_wind: wp.array(dtype=wp.vec3),
+    period: float,
+    wind: wp.array(dtype=wp.vec3),
+):
+    # W(t) = schedule_wind[k] for the last k with schedule_start[k] <= t (mod period if period > 0)
+    t = float(time[0])
+    if period > 0.0:
+        t = wp.mod(t, period)
+    w = wp.vec3(0.0)
+    for k in range(schedule_start.shape[0]):
+        if schedule_start[k] <= t:
+            w = schedule_wind[k]
+    wind[0] = w
+
+
+@wp.kernel
+def advance_time(time: wp.array(dtype=wp.float64), dt: wp.float64):
+    time[0] = time[0] + dt

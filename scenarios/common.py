@@ -1,0 +1,133 @@
+"""What every scenario shares: its configuration, its builder and its run."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import warp as wp
+
+from ..errors import WarpclothError, require_int, require_positive
+from ..forces import Control
+from ..integrators import make_integrator
+from ..model import BendModel, build_grid_cloth, default_spring_params
+from ..simulator import RunResult, Simulator
+
+
+@dataclass
+class ScenarioConfig:
+    """Parameters of a scenario run; ``None`` means the scenario's or integrator's default.
+
+    stiffness / damping: one number for every spring type, or three (structural, shear, bend).
+    """
+
+    rows: int = 32
+    cols: int = 32
+    width: float = 1.0
+    height: float = 1.0
+    mass: float = 0.2
+    integrator: str = "explicit_euler"
+    integrator_options: dict = field(default_factory=dict)
+    dt: float | None = None
+    duration: float = 10.0
+    fps: float = 60.0
+    stiffness: float | tuple | None = None
+    damping: float | tuple | None = None
+    drag: float | None = None
+    bend: str = "provot"
+    device: str | None = None
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named scenario: defaults, a builder of the model and control, and how a run ends.
+
+    Attributes:
+        name: scenario name (CLI, CSV).
+        description: one line.
+        defaults: the :class:`ScenarioConfig` of a plain run.
+        pins: function (rows, cols) -> pinned particle indices.
+        control: function (config, device) -> :class:`~warpcloth.forces.Control`.
+        origin: function (config) -> position of particle [0, 0].
+        stop_at_equilibrium: whether a run ends once the cloth is at rest.
+    """
+
+    name: str
+    description: str
+    defaults: ScenarioConfig
+    pins: Callable[[int, int], list]
+    control: Callable[[ScenarioConfig, str], Control]
+    origin: Callable[[ScenarioConfig], tuple]
+    stop_at_equilibrium: bool
+    plane: str = "vertical"
+
+    def config(self, **overrides) -> ScenarioConfig:
+        """The default configuration with ``overrides`` (None values keep the default)."""
+        unknown = set(overrides) - set(ScenarioConfig.__dataclass_fields__)
+        if unknown:
+            raise WarpclothError(f"unknown scenario parameter {sorted(unknown)[0]!r}")
+        return replace(self.defaults, **{k: v for k, v in overrides.items() if v is not None})
+
+    def build(self, config: ScenarioConfig | None = None, **overrides) -> Simulator:
+        """A :class:`~warpcloth.simulator.Simulator` for this scenario."""
+        cfg = replace(config, **overrides) if config is not None else self.config(**overrides)
+        device = resolve_device(cfg.device)
+        require_positive("mass", cfg.mass, "kg")
+        try:
+            bend = BendModel(cfg.bend)
+        except ValueError:
+            raise WarpclothError(f"bend must be one of {', '.join(b.value for b in BendModel)}, got {cfg.bend!r}") from None
+        min_dim = 2 if bend == BendModel.NONE else 3
+        rows = require_int("rows", cfg.rows, min_dim)
+        cols = require_int("cols", cfg.cols, min_dim)
+        integrator = make_integrator(cfg.integrator, **cfg.integrator_options)
+        params = default_spring_params(cfg.mass / (rows * cols), cfg.stiffness, cfg.damping)
+        with wp.ScopedDevice(device):
+            model = build_grid_cloth(
+                rows, cols, cfg.width, cfg.height, cfg.mass, spring_params=params, pins=self.pins(rows, cols),
+                origin=self.origin(cfg), plane=self.plane, bend=bend, device=device,
+            )
+            control = self.control(cfg, device)
+            return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name)
+
+    def run(self, config: ScenarioConfig | None = None, usd_path: str | None = None, wall_cap: float | None = None, **overrides) -> RunResult:
+        """Build and run; writes a USD file when ``usd_path`` is given."""
+        cfg = replace(config, **overrides) if config is not None else self.config(**overrides)
+        require_positive("duration", cfg.duration, "s")
+        require_positive("fps", cfg.fps, "1/s")
+        writer = None
+        if usd_path is not None:
+            from ..usd import check_usd_path
+
+            check_usd_path(usd_path)
+        sim = self.build(cfg)
+        if usd_path is not None:
+            from ..usd import UsdWriter
+
+            writer = UsdWriter(usd_path, sim.model, cfg.fps)
+        try:
+            result = sim.run(cfg.duration, fps=cfg.fps, stop_at_equilibrium=self.stop_at_equilibrium, wall_cap=wall_cap, usd=writer)
+        except BaseException:
+            if writer is not None:
+                writer.abort()
+            raise
+        if writer is not None:
+            writer.close()
+        return result
+
+
+def resolve_device(device: str | None) -> str:
+    """A Warp device name (default ``"cpu"``; ``"cuda"`` means the first GPU), with a clear
+    error when it is not present."""
+    if device is None:
+        return "cpu"
+    name = str(device)
+    available = [str(d) for d in wp.get_devices()]
+    if name == "cuda":
+        cuda = [d for d in available if d.startswith("cuda")]
+        if not cuda:
+            raise WarpclothError(f"device {name!r} is not available: no CUDA device found (available: {', '.join(available)})")
+        return cuda[0]
+    if name not in available:
+        raise WarpclothError(f"device {name!r} is not available (available: {', '.join(available)})")
+    return name

@@ -1,0 +1,35 @@
+"""warpcloth: a mass-spring cloth simulator and integrator laboratory on NVIDIA Warp.
+
+The same kernels run on the CPU and on a CUDA GPU. Typical use::
+
+    import warpcloth
+    from warpcloth.scenarios import sheet
+    sim = sheet.build(rows=32, cols=32, integrator="rk4")
+    result = sim.run(duration=5.0)
+    print(result.to_json())
+"""
+
+import os
+
+import warp as wp
+
+__version__ = "0.1.0"
+
+# Warp prints a banner and per-module load lines on stdout; warpcloth keeps stdout for results.
+if not os.environ.get("WARPCLOTH_WARP_VERBOSE"):
+    if hasattr(wp, "LOG_WARNING"):
+        wp.config.log_level = wp.LOG_WARNING
+    wp.config.quiet = True
+
+from .errors import WarpclothError  # noqa: E402
+from .forces import Control, WindSchedule  # noqa: E402
+from .integrators import Integrator, integrator_names, make_integrator  # noqa: E402
+from .model import BendModel, ClothModel, SpringParams, SpringType, build_grid_cloth, expected_spring_counts  # noqa: E402
+from .simulator import RunResult, Simulator  # noqa: E402
+from .state import State  # noqa: E402
+
+__all__ = [
+    "BendModel", "ClothModel", "Control", "Integrator", "RunResult", "Simulator", "SpringParams", "SpringType",
+    "State", "WarpclothError", "WindSchedule", "build_grid_cloth", "expected_spring_counts", "integrator_names",
+    "make_integrator", "__version__",
+]

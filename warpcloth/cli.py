@@ -1,0 +1,201 @@
+"""The ``warpcloth`` command line.
+
+    warpcloth run SCENARIO [--integrator NAME] [--rows N] [--cols N] [--dt S] ... [--usd PATH] [--json]
+    warpcloth list
+
+Bad input prints one line, ``warpcloth: error: ...``, and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from .errors import WarpclothError
+
+EXIT_USAGE = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, status 2 (argparse prints usage too; keep it short)
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
+def _number_list(text: str):
+    """'1000' -> 1000.0 ; '1000,500,100' -> (1000.0, 500.0, 100.0) (structural, shear, bend)."""
+    parts = [p for p in text.split(",") if p.strip()]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers, got {text!r}") from None
+    if len(values) == 1:
+        return values[0]
+    if len(values) == 3:
+        return tuple(values)
+    raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers (structural,shear,bend), got {text!r}")
+
+
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
+    """Flags of a scenario run (shared by ``warpcloth run`` and ``python -m warpcloth.scenarios.X``)."""
+    from .integrators import integrator_names
+
+    p.add_argument("--integrator", "-i", default=None, metavar="NAME", help=f"one of: {', '.join(integrator_names())} (default: explicit_euler)")
+    p.add_argument("--rows", type=int, default=None, help="particles per column (scenario default)")
+    p.add_argument("--cols", type=int, default=None, help="particles per row (scenario default)")
+    p.add_argument("--width", type=float, default=None, help="cloth width [m]")
+    p.add_argument("--height", type=float, default=None, help="cloth height [m]")
+    p.add_argument("--dt", type=float, default=None, help="time step [s] (default: the integrator's own, stable on the scenario)")
+    p.add_argument("--duration", type=float, default=None, help="simulated time [s] (default 10)")
+    p.add_argument("--num-frames", type=int, default=None, help="run this many frames instead of --duration")
+    p.add_argument("--fps", type=float, default=None, help="frame rate of sampling and USD export [1/s] (default 60)")
+    p.add_argument("--device", default=None, help="Warp device: cpu (default), cuda, cuda:N")
+    p.add_argument("--stiffness", type=_number_list, default=None, metavar="KS", help="spring stiffness [N/m]: one value, or structural,shear,bend")
+    p.add_argument("--damping", type=_number_list, default=None, metavar="KD", help="spring damping [N s/m]: one value, or structural,shear,bend (default scales with particle mass)")
+    p.add_argument("--mass", type=float, default=None, help="total cloth mass [kg]")
+    p.add_argument("--drag", type=float, default=None, help="linear air drag rate [1/s]")
+    p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
+    _add_integrator_options(p)
+    p.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH", help="write the animation to this USD file (.usd/.usda/.usdc)")
+    p.add_argument("--wall-cap", type=float, default=None, help="stop after this many wall-clock seconds")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
+
+
+def _add_integrator_options(p: argparse.ArgumentParser) -> None:
+    """One flag per integrator option, declared by the integrators themselves."""
+    from .integrators import all_options
+
+    group = p.add_argument_group("integrator options")
+    for name, (opt, owners) in all_options().items():
+        kwargs = {"choices": list(opt.choices)} if opt.choices else {}
+        group.add_argument(opt.flag, dest="opt_" + name, type=str, default=None, metavar=opt.type.__name__.upper(),
+                           help=f"{opt.help} [{', '.join(owners)}; default {opt.default}]", **kwargs)
+
+
+def integrator_options_from_args(integrator: str, args) -> dict:
+    """Options given on the command line for ``integrator``; an option it does not take is an error."""
+    from .integrators import all_options, integrator_class
+
+    taken = {o.name for o in integrator_class(integrator).options}
+    out = {}
+    for name, (opt, owners) in all_options().items():
+        value = getattr(args, "opt_" + name, None)
+        if value is None:
+            continue
+        if name not in taken:
+            raise WarpclothError(f"{opt.flag} does not apply to integrator {integrator!r} (it applies to {', '.join(owners)})")
+        out[name] = opt.parse(value)
+    return out
+
+
+def config_from_args(scenario, args):
+    """A ScenarioConfig from parsed flags (unset flags keep the scenario defaults)."""
+    from .integrators import integrator_class
+
+    integrator = args.integrator or scenario.defaults.integrator
+    integrator_class(integrator)  # unknown name -> clear error
+    cfg = scenario.config(
+        rows=args.rows, cols=args.cols, width=args.width, height=args.height, integrator=integrator, dt=args.dt,
+        duration=args.duration, fps=args.fps, stiffness=args.stiffness, damping=args.damping, mass=args.mass,
+        drag=args.drag, bend=args.bend, device=args.device,
+        integrator_options=integrator_options_from_args(integrator, args),
+    )
+    if args.num_frames is not None:
+        if args.num_frames < 1:
+            raise WarpclothError(f"--num-frames must be >= 1, got {args.num_frames}")
+        cfg.duration = args.num_frames / cfg.fps
+    return cfg
+
+
+def summary(result) -> str:
+    """A short human-readable summary of a RunResult."""
+    lines = [
+        f"{result.scenario}: {result.integrator} on {result.device}, {result.rows}x{result.cols} "
+        f"({result.particles} particles, {result.springs} springs), dt={result.dt:.3g} s",
+        f"  simulated {result.sim_time:.3f} s in {result.steps} steps, {result.wall_time:.2f} s wall "
+        f"(+{result.compile_time:.2f} s compile)",
+        f"  {result.ms_per_step:.4f} ms/step, {result.steps_per_sec:,.0f} steps/s, real-time factor {result.realtime_factor:.2f}",
+        f"  stable: {'yes' if result.stable else 'NO (' + result.unstable_reason + ')'}, max strain {100 * result.max_strain:.2f} %",
+    ]
+    if result.scenario != "flag" or result.equilibrium_reached:
+        eq = f"yes, at t={result.time_to_equilibrium:.2f} s" if result.equilibrium_reached else "not reached"
+        lines.append(f"  equilibrium: {eq}")
+    if result.solver:
+        lines.append("  solver: " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.solver.items()))
+    return "\n".join(lines)
+
+
+def _run(scenario_name: str, args) -> int:
+    from .scenarios import get_scenario
+
+    scenario = get_scenario(scenario_name)
+    cfg = config_from_args(scenario, args)
+    result = scenario.run(cfg, usd_path=args.usd, wall_cap=args.wall_cap)
+    if args.json:
+        print(result.to_json())
+    else:
+        print(summary(result))
+        if args.usd:
+            print(f"  wrote {args.usd} ({result.frames + 1} frames, export {result.export_time:.2f} s)")
+    return 0
+
+
+def _list(args) -> int:
+    from .integrators import integrator_class, integrator_names
+    from .scenarios import get_scenario, scenario_names
+
+    print("scenarios:")
+    for name in scenario_names():
+        print(f"  {name:16s} {get_scenario(name).description}")
+    print("integrators:")
+    for name in integrator_names():
+        doc = (integrator_class(name).__doc__ or sys.modules[integrator_class(name).__module__].__doc__ or "").strip().splitlines()
+        print(f"  {name:16s} {doc[0] if doc else ''}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
+    parser = _Parser(prog="warpcloth", description="Mass-spring cloth simulator and integrator laboratory on NVIDIA Warp.")
+    parser.add_argument("--version", action="version", version=f"warpcloth {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    run = sub.add_parser("run", help="run a scenario and print a summary")
+    run.add_argument("scenario", help="scenario name (see 'warpcloth list')")
+    add_run_arguments(run)
+    sub.add_parser("list", help="list scenarios and integrators")
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "run":
+            return _run(args.scenario, args)
+        if args.command == "list":
+            return _list(args)
+    except WarpclothError as exc:
+        print(f"warpcloth: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("warpcloth: interrupted", file=sys.stderr)
+        return 130
+    parser.error(f"unknown command {args.command!r}")
+    return EXIT_USAGE
+
+
+def scenario_main(name: str, argv=None) -> None:
+    """Entry point of ``python -m warpcloth.scenarios.<name>`` (Warp-example style flags)."""
+    parser = _Parser(prog=f"python -m warpcloth.scenarios.{name}", description=f"Run the {name} scenario.")
+    add_run_arguments(parser)
+    args = parser.parse_args(argv)
+    try:
+        sys.exit(_run(name, args))
+    except WarpclothError as exc:
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        sys.exit(EXIT_USAGE)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

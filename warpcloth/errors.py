@@ -1,0 +1,51 @@
+"""User-facing errors.
+
+Every check on user input raises :class:`WarpclothError` (a ``ValueError``) with a one-line
+message that names the bad value and what is allowed. The CLI prints it and exits with status 2.
+"""
+
+
+class WarpclothError(ValueError):
+    """Bad user input: the message names the value and what is allowed."""
+
+
+def require(condition: bool, message: str) -> None:
+    """Raise :class:`WarpclothError` with ``message`` unless ``condition`` holds."""
+    if not condition:
+        raise WarpclothError(message)
+
+
+def require_positive(name: str, value, unit: str = "") -> float:
+    """Return ``value`` as a float if it is a finite number > 0, else raise."""
+    v = _as_float(name, value)
+    require(v > 0.0, f"{name} must be > 0{(' ' + unit) if unit else ''}, got {value!r}")
+    return v
+
+
+def require_non_negative(name: str, value, unit: str = "") -> float:
+    """Return ``value`` as a float if it is a finite number >= 0, else raise."""
+    v = _as_float(name, value)
+    require(v >= 0.0, f"{name} must be >= 0{(' ' + unit) if unit else ''}, got {value!r}")
+    return v
+
+
+def require_int(name: str, value, minimum: int) -> int:
+    """Return ``value`` as an int if it is an integer >= ``minimum``, else raise."""
+    try:
+        iv = int(value)
+    except (TypeError, ValueError):
+        raise WarpclothError(f"{name} must be an integer >= {minimum}, got {value!r}") from None
+    require(iv == value if isinstance(value, float) else True, f"{name} must be an integer >= {minimum}, got {value!r}")
+    require(iv >= minimum, f"{name} must be an integer >= {minimum}, got {value!r}")
+    return iv
+
+
+def _as_float(name: str, value) -> float:
+    import math
+
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise WarpclothError(f"{name} must be a number, got {value!r}") from None
+    require(math.isfinite(v), f"{name} must be a finite number, got {value!r}")
+    return v

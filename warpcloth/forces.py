@@ -1,0 +1,136 @@
+"""External forces and the force evaluation shared by every force-based integrator.
+
+:class:`Control` holds the time-varying input (Newton's "Control"): gravity, linear air drag and
+a wind schedule W(t). Its simulated time and current wind live in device arrays, so a captured
+frame replays with the right wind.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from .errors import WarpclothError, require, require_non_negative
+from warpcloth.kernels import forces as fk
+
+GRAVITY = (0.0, -9.81, 0.0)
+
+
+@dataclass(frozen=True)
+class WindSchedule:
+    """Piecewise-constant wind velocity W(t) [m/s].
+
+    ``W(t) = winds[k]`` for the last ``k`` with ``starts[k] <= t`` (zero before the first start);
+    with ``period > 0`` the schedule repeats: t is taken modulo the period.
+    """
+
+    starts: tuple[float, ...] = ()
+    winds: tuple[tuple[float, float, float], ...] = ()
+    period: float = 0.0
+
+    def __post_init__(self):
+        require(len(self.starts) == len(self.winds), "wind schedule needs one wind vector per start time")
+        require(all(b >= a for a, b in zip(self.starts, self.starts[1:])), f"wind schedule start times must be increasing, got {list(self.starts)}")
+        require_non_negative("wind schedule period", self.period, "s")
+
+    @classmethod
+    def constant(cls, wind) -> "WindSchedule":
+        return cls(starts=(0.0,), winds=(tuple(float(c) for c in wind),))
+
+    @classmethod
+    def gusts(cls, wind, on: float, off: float, base=(0.0, 0.0, 0.0)) -> "WindSchedule":
+        """Gusts of ``wind`` for ``on`` seconds, then ``base`` for ``off`` seconds, repeating."""
+        require(on > 0 and off > 0, f"gust on/off durations must be > 0 s, got on={on!r}, off={off!r}")
+        return cls(starts=(0.0, float(on)), winds=(tuple(map(float, wind)), tuple(map(float, base))), period=float(on + off))
+
+    def __call__(self, t: float) -> np.ndarray:
+        """W(t) evaluated on the host (for tests and reports)."""
+        if self.period > 0:
+            t = t % self.period
+        w = np.zeros(3)
+        for s, wk in zip(self.starts, self.winds):
+            if s <= t:
+                w = np.asarray(wk, dtype=float)
+        return w
+
+
+@dataclass
+class Control:
+    """Time-varying external input of a simulation.
+
+    Attributes:
+        gravity: gravitational acceleration [m/s^2].
+        drag_rate: linear air drag rate c [1/s]; the force on a particle is -m c v.
+        wind_coefficient: c_w [kg/(m^2 s)] in f = c_w A (n . u) n on each triangle; 0 disables wind.
+        wind_schedule: the wind velocity W(t).
+        time: simulated time [s], device array of shape (1,), float64.
+        wind: current wind velocity [m/s], device array of shape (1,), vec3.
+    """
+
+    gravity: tuple[float, float, float] = GRAVITY
+    drag_rate: float = 0.0
+    wind_coefficient: float = 0.0
+    wind_schedule: WindSchedule = field(default_factory=WindSchedule)
+    device: str | None = None
+
+    def __post_init__(self):
+        require_non_negative("drag", self.drag_rate, "1/s")
+        require_non_negative("wind coefficient", self.wind_coefficient, "kg/(m^2 s)")
+        require(len(self.gravity) == 3, f"gravity must have 3 components, got {self.gravity!r}")
+        self.device = str(wp.get_device(self.device))
+        with wp.ScopedDevice(self.device):
+            self.time = wp.zeros(1, dtype=wp.float64)
+            self.wind = wp.zeros(1, dtype=wp.vec3)
+            n = max(1, len(self.wind_schedule.starts))
+            starts = np.full(n, np.inf, dtype=np.float32)
+            winds = np.zeros((n, 3), dtype=np.float32)
+            if self.wind_schedule.starts:
+                starts[:] = self.wind_schedule.starts
+                winds[:] = self.wind_schedule.winds
+            self._schedule_start = wp.array(starts, dtype=float)
+            self._schedule_wind = wp.array(winds, dtype=wp.vec3)
+
+    @property
+    def has_wind(self) -> bool:
+        return self.wind_coefficient > 0.0 and len(self.wind_schedule.starts) > 0
+
+    @property
+    def gravity_magnitude(self) -> float:
+        return float(np.linalg.norm(self.gravity))
+
+    def set_time(self, t: float) -> None:
+        """Set the simulated time [s] (host write; not for use inside a captured frame)."""
+        self.time.fill_(float(t))
+        self.update()
+
+    def update(self) -> None:
+        """Evaluate W(time) into :attr:`wind` on the device."""
+        if self.has_wind:
+            wp.launch(fk.eval_wind_schedule, dim=1, inputs=[self.time, self._schedule_start, self._schedule_wind, float(self.wind_schedule.period)], outputs=[self.wind], device=self.device)
+
+    def advance(self, dt: float) -> None:
+        """time += dt, on the device."""
+        wp.launch(fk.advance_time, dim=1, inputs=[self.time, wp.float64(dt)], device=self.device)
+
+
+def eval_forces(model, x: wp.array, v: wp.array, control: Control, f: wp.array) -> None:
+    """f = gravity + drag + springs + wind at positions ``x`` and velocities ``v`` (overwrites f)."""
+    device = model.device
+    wp.launch(fk.eval_particle_forces, dim=model.particle_count, inputs=[v, model.particle_mass, wp.vec3(*control.gravity), float(control.drag_rate)], outputs=[f], device=device)
+    if model.spring_count:
+        wp.launch(
+            fk.eval_springs,
+            dim=model.spring_count,
+            inputs=[x, v, model.spring_indices, model.spring_rest_length, model.spring_stiffness, model.spring_damping],
+            outputs=[f],
+            device=device,
+        )
+    if control.has_wind:
+        wp.launch(fk.eval_wind, dim=model.tri_count, inputs=[x, v, model.tri_indices, control.wind, float(control.wind_coefficient)], outputs=[f], device=device)
+
+
+def check_control_device(model, control: Control) -> None:
+    if str(control.device) != str(model.device):
+        raise WarpclothError(f"control is on device {control.device!r} but the model is on {model.device!r}")

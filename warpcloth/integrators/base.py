@@ -1,0 +1,174 @@
+"""The interface every integrator shares.
+
+An integrator is made with its options, bound to a model once (:meth:`Integrator.bind`
+allocates every scratch array), then advances a :class:`~warpcloth.state.State` in place:
+``step(state, control, dt)``. A step launches kernels only: it allocates nothing and never
+reads back to the host, so a frame of steps can be captured and replayed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, ClassVar
+
+import numpy as np
+
+import warp as wp
+
+from ..errors import WarpclothError
+
+
+@dataclass(frozen=True)
+class Option:
+    """A user-settable integrator option (constructor keyword, CLI flag ``--name-with-dashes``,
+    XML attribute ``name``).
+
+    Attributes:
+        name: keyword name, e.g. ``"cg_tol"``.
+        type: ``float``, ``int`` or ``str``.
+        default: value when not given.
+        help: one line, with units.
+        check: function(value) -> error message or None.
+        choices: allowed values for ``str`` options.
+    """
+
+    name: str
+    type: type
+    default: object
+    help: str
+    check: Callable | None = None
+    choices: tuple = ()
+
+    @property
+    def flag(self) -> str:
+        return "--" + self.name.replace("_", "-")
+
+    def parse(self, value):
+        """``value`` converted and checked; raises :class:`WarpclothError` naming it."""
+        try:
+            v = self.type(value)
+        except (TypeError, ValueError):
+            raise WarpclothError(f"{self.name} must be {self.type.__name__}, got {value!r}") from None
+        if self.choices and v not in self.choices:
+            raise WarpclothError(f"{self.name} must be one of {', '.join(map(str, self.choices))}, got {value!r}")
+        if self.check is not None:
+            msg = self.check(v)
+            if msg:
+                raise WarpclothError(f"{self.name} {msg}, got {value!r}")
+        return v
+
+
+class Integrator:
+    """Base class of all integrators.
+
+    Subclasses set :attr:`name`, :attr:`force_evals_per_step` and implement :meth:`_allocate`
+    and :meth:`step`; they may override :meth:`begin` (called before the first step after a
+    bind, a switch, a change of dt or an outside change of the state).
+    """
+
+    name: ClassVar[str] = ""
+    force_evals_per_step: ClassVar[int] = 1
+    #: True for integrators that evaluate spring forces (Provot deformation constraints apply).
+    force_based: ClassVar[bool] = True
+    #: Fraction of :func:`stable_dt_estimate` used by :meth:`default_dt`.
+    default_dt_factor: ClassVar[float] = 0.8
+    #: Largest default dt [s] (one 60 Hz frame unless an integrator says otherwise).
+    default_dt_cap: ClassVar[float] = 1.0 / 60.0
+
+    #: User-settable options; each becomes an attribute of the instance.
+    options: ClassVar[tuple[Option, ...]] = ()
+
+    def __init__(self, **options):
+        known = {o.name: o for o in self.options}
+        for key in options:
+            if key not in known:
+                allowed = ", ".join(known) or "none"
+                raise WarpclothError(f"integrator {self.name!r} has no option {key!r} (its options: {allowed})")
+        for name, opt in known.items():
+            setattr(self, name, opt.parse(options[name]) if options.get(name) is not None else opt.default)
+        self.model = None
+
+    def option_values(self) -> dict:
+        """The value of every option of this integrator."""
+        return {o.name: getattr(self, o.name) for o in self.options}
+
+    # -- binding -----------------------------------------------------------------------
+    def bind(self, model) -> "Integrator":
+        """Allocate scratch arrays for ``model``. Rebinding to another model reallocates."""
+        if self.model is not model:
+            self.model = model
+            with wp.ScopedDevice(model.device):
+                self._allocate(model)
+        return self
+
+    def _allocate(self, model) -> None:
+        """Allocate scratch arrays (override)."""
+
+    def begin(self, state, control, dt: float) -> None:
+        """Prepare to step ``state`` with ``dt`` (override where an integrator keeps history)."""
+
+    def step(self, state, control, dt: float) -> None:  # pragma: no cover - interface
+        """Advance ``state`` by ``dt`` in place."""
+        raise NotImplementedError
+
+    def stats(self) -> dict:
+        """Per-run solver statistics (e.g. CG iterations); empty by default."""
+        return {}
+
+    def reset_stats(self) -> None:
+        """Forget statistics gathered so far."""
+
+    # -- time step -------------------------------------------------------------------------
+    def default_dt(self, model, drag_rate: float = 0.0) -> float:
+        """A time step [s] that is stable on ``model``: :attr:`default_dt_factor` times
+        :func:`stable_dt_estimate`, capped at :attr:`default_dt_cap`."""
+        return min(self.default_dt_cap, self.default_dt_factor * stable_dt_estimate(model, drag_rate))
+
+    def _require_bound(self):
+        if self.model is None:
+            raise WarpclothError(f"integrator {self.name!r} is not bound to a model: call bind(model) first")
+
+
+def explicit_euler_dt_bound(model) -> float:
+    """The seed's explicit-Euler stability estimate 0.4 pi sqrt(m/K) [s] (Vassilev et al. 2001),
+    m the particle mass and K the largest spring stiffness."""
+    k = model.max_stiffness()
+    if k <= 0.0:
+        return math.inf
+    return 0.4 * math.pi * math.sqrt(model.particle_mass_value / k)
+
+
+def stable_dt_estimate(model, drag_rate: float = 0.0) -> float:
+    """A guaranteed-stable dt [s] for symplectic (explicit) Euler on ``model``.
+
+    By Gershgorin, the stiffness matrix's eigenvalues are below 2 sum_j ks_ij at each particle,
+    so omega^2 <= max_i 2 sum_j ks_ij / m_i; likewise the damping rate c <= max_i 2 sum_j kd_ij /
+    m_i + drag. Symplectic Euler on x'' = -omega^2 x - c x' is stable while
+    h^2 omega^2 + 2 h c < 4, i.e. h < (sqrt(c^2 + 4 omega^2) - c) / omega^2. Unlike the seed's
+    single-spring estimate 0.4 pi sqrt(m/K), this accounts for every spring at a particle.
+    """
+    h = model.host
+    n = model.particle_count
+    ks_sum = np.zeros(n)
+    kd_sum = np.zeros(n)
+    ks = model.spring_stiffness.numpy().astype(np.float64)
+    kd = model.spring_damping.numpy().astype(np.float64)
+    for end in (0, 1):
+        np.add.at(ks_sum, h["pairs"][:, end], ks)
+        np.add.at(kd_sum, h["pairs"][:, end], kd)
+    mass = h["mass"].astype(np.float64)
+    omega2 = float(np.max(2.0 * ks_sum / mass))
+    c = float(np.max(2.0 * kd_sum / mass)) + float(drag_rate)
+    if omega2 <= 0.0:
+        return math.inf if c <= 0.0 else 2.0 / c
+    return (math.sqrt(c * c + 4.0 * omega2) - c) / omega2
+
+
+def scratch_like(model, count: int = 1):
+    """``count`` zeroed vec3 arrays of the model's particle count on its device."""
+    arrays = [wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device) for _ in range(count)]
+    return arrays if count > 1 else arrays[0]
+
+
+__all__ = ["Integrator", "Option", "explicit_euler_dt_bound", "scratch_like", "stable_dt_estimate"]

@@ -1,0 +1,319 @@
+"""The cloth model: immutable topology and parameters of a Provot mass-spring grid.
+
+A :class:`ClothModel` holds particle masses, pins, springs (structural, shear, bend) with their
+rest lengths and per-type stiffness/damping, and the two triangles of each grid cell. It is
+built once per run by :func:`build_grid_cloth`; :meth:`ClothModel.state` makes a fresh
+:class:`~warpcloth.state.State`.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from .errors import WarpclothError, require, require_int, require_non_negative, require_positive
+
+
+class SpringType(enum.IntEnum):
+    """Kinds of spring in the Provot grid (seed 2.1.2)."""
+
+    STRUCTURAL = 0
+    SHEAR = 1
+    BEND = 2
+
+
+class BendModel(str, enum.Enum):
+    """Which bend (flexion) springs a grid gets."""
+
+    PROVOT = "provot"  # [i,j]-[i+2,j], [i,j]-[i,j+2]
+    CHOI_KO = "choi_ko"  # Provot's plus the diagonals [i,j]-[i+2,j+2], [i+2,j]-[i,j+2]
+    NONE = "none"
+
+
+@dataclass(frozen=True)
+class SpringParams:
+    """Stiffness ks [N/m] and damping kd [N s/m] of one spring type."""
+
+    stiffness: float
+    damping: float
+
+
+def expected_spring_counts(rows: int, cols: int, bend: str | BendModel = BendModel.PROVOT) -> dict[str, int]:
+    """Spring counts of a rows x cols Provot grid, from seed eq. 2.2 (Choi-Ko adds 2(m-2)(n-2))."""
+    m, n = rows, cols
+    bend = BendModel(bend)
+    counts = {
+        "structural": 2 * (m - 1) * (n - 1) + (m - 1) + (n - 1),
+        "shear": 2 * (m - 1) * (n - 1),
+        "bend": 0,
+    }
+    if bend != BendModel.NONE:
+        counts["bend"] = 2 * (m - 2) * (n - 2) + 2 * ((m - 2) + (n - 2))
+    if bend == BendModel.CHOI_KO:
+        counts["bend"] += 2 * (m - 2) * (n - 2)
+    return counts
+
+
+@dataclass
+class ClothModel:
+    """Immutable cloth topology and parameters, with device copies of every array.
+
+    Attributes (device arrays are ``wp.array`` on :attr:`device`):
+        rows, cols: grid size (particles per column and per row).
+        particle_count: rows * cols.
+        particle_q: initial particle positions [m], shape (particle_count,), vec3.
+        particle_mass: particle masses [kg], shape (particle_count,).
+        particle_inv_mass: inverse masses [1/kg]; 0 for pinned particles.
+        pinned: indices of pinned particles (NumPy, int).
+        spring_indices: particle pairs (i, j), shape (spring_count,), vec2i.
+        spring_type: :class:`SpringType` of each spring (NumPy).
+        spring_rest_length: rest lengths L0 [m], shape (spring_count,).
+        spring_stiffness: ks [N/m] per spring, filled from the per-type parameters.
+        spring_damping: kd [N s/m] per spring, filled from the per-type parameters.
+        tri_indices: triangles (a, b, c), two per grid cell, shape (tri_count,), vec3i.
+        spring_params: per-type :class:`SpringParams`.
+    """
+
+    rows: int
+    cols: int
+    width: float
+    height: float
+    total_mass: float
+    device: str
+    particle_q: wp.array
+    particle_mass: wp.array
+    particle_inv_mass: wp.array
+    pinned: np.ndarray
+    spring_indices: wp.array
+    spring_type: np.ndarray
+    spring_rest_length: wp.array
+    spring_stiffness: wp.array
+    spring_damping: wp.array
+    tri_indices: wp.array
+    spring_params: dict[SpringType, SpringParams]
+    bend: BendModel = BendModel.PROVOT
+    host: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def particle_count(self) -> int:
+        return self.rows * self.cols
+
+    @property
+    def spring_count(self) -> int:
+        return int(self.spring_type.shape[0])
+
+    @property
+    def tri_count(self) -> int:
+        return int(self.tri_indices.shape[0])
+
+    @property
+    def particle_mass_value(self) -> float:
+        """Mass of one particle [kg] (the total split evenly, seed 4.2.4)."""
+        return self.total_mass / self.particle_count
+
+    def spring_counts(self) -> dict[str, int]:
+        """Number of springs of each type."""
+        return {t.name.lower(): int(np.count_nonzero(self.spring_type == t)) for t in SpringType}
+
+    def max_stiffness(self) -> float:
+        """Largest spring stiffness K [N/m] in the model."""
+        return max(p.stiffness for t, p in self.spring_params.items() if np.any(self.spring_type == t))
+
+    def state(self, requires_grad: bool = False):
+        """A new :class:`~warpcloth.state.State` at the rest configuration with zero velocity."""
+        from .state import State
+
+        return State.from_model(self)
+
+    def with_spring_params(self, params: dict[SpringType, SpringParams]) -> None:
+        """Refill per-spring stiffness and damping from per-type parameters (same topology)."""
+        _validate_spring_params(params)
+        ks = np.array([params[SpringType(t)].stiffness for t in self.spring_type], dtype=np.float32)
+        kd = np.array([params[SpringType(t)].damping for t in self.spring_type], dtype=np.float32)
+        self.spring_stiffness.assign(ks)
+        self.spring_damping.assign(kd)
+        self.spring_params = dict(params)
+
+
+def _validate_spring_params(params: dict[SpringType, SpringParams]) -> None:
+    for t in SpringType:
+        require(t in params, f"spring parameters for {t.name.lower()} springs are missing")
+        require_non_negative(f"{t.name.lower()} stiffness", params[t].stiffness, "N/m")
+        require_non_negative(f"{t.name.lower()} damping", params[t].damping, "N s/m")
+
+
+def grid_springs(rows: int, cols: int, bend: BendModel = BendModel.PROVOT) -> tuple[np.ndarray, np.ndarray]:
+    """Provot springs of a rows x cols grid as (pairs (S, 2) int32, types (S,) int32).
+
+    Particle [r, c] has index r * cols + c. Structural: [r,c]-[r+1,c], [r,c]-[r,c+1]; shear:
+    [r,c]-[r+1,c+1], [r+1,c]-[r,c+1]; bend: [r,c]-[r+2,c], [r,c]-[r,c+2] (Choi-Ko adds
+    [r,c]-[r+2,c+2], [r+2,c]-[r,c+2]).
+    """
+    idx = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
+    pairs, types = [], []
+
+    def add(a, b, t):
+        pairs.append(np.stack([a.ravel(), b.ravel()], axis=1))
+        types.append(np.full(a.size, int(t), dtype=np.int32))
+
+    add(idx[:-1, :], idx[1:, :], SpringType.STRUCTURAL)
+    add(idx[:, :-1], idx[:, 1:], SpringType.STRUCTURAL)
+    add(idx[:-1, :-1], idx[1:, 1:], SpringType.SHEAR)
+    add(idx[1:, :-1], idx[:-1, 1:], SpringType.SHEAR)
+    if bend != BendModel.NONE:
+        add(idx[:-2, :], idx[2:, :], SpringType.BEND)
+        add(idx[:, :-2], idx[:, 2:], SpringType.BEND)
+    if bend == BendModel.CHOI_KO:
+        add(idx[:-2, :-2], idx[2:, 2:], SpringType.BEND)
+        add(idx[2:, :-2], idx[:-2, 2:], SpringType.BEND)
+    return np.concatenate(pairs).astype(np.int32), np.concatenate(types)
+
+
+def grid_triangles(rows: int, cols: int) -> np.ndarray:
+    """Two counter-clockwise triangles per grid cell, shape (2 (rows-1)(cols-1), 3)."""
+    idx = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    c, d = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    t1 = np.stack([a, c, b], axis=1)
+    t2 = np.stack([b, c, d], axis=1)
+    return np.concatenate([t1, t2]).astype(np.int32)
+
+
+def grid_positions(rows: int, cols: int, width: float, height: float, origin=(0.0, 0.0, 0.0), plane: str = "vertical") -> np.ndarray:
+    """Particle positions of the grid [m]: row 0 at the origin, columns along +x.
+
+    ``plane="vertical"``: rows go down (-y), the cloth lies in the x-y plane (y up).
+    ``plane="horizontal"``: rows go along +z, the cloth lies flat in the x-z plane.
+    """
+    r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    u = c.ravel() * (width / (cols - 1))
+    w = r.ravel() * (height / (rows - 1))
+    q = np.zeros((rows * cols, 3), dtype=np.float64)
+    q[:, 0] = u
+    if plane == "vertical":
+        q[:, 1] = -w
+    elif plane == "horizontal":
+        q[:, 2] = w
+    else:
+        raise WarpclothError(f"plane must be 'vertical' or 'horizontal', got {plane!r}")
+    return (q + np.asarray(origin, dtype=np.float64)).astype(np.float32)
+
+
+def build_grid_cloth(
+    rows: int,
+    cols: int,
+    width: float = 1.0,
+    height: float = 1.0,
+    total_mass: float = 0.2,
+    spring_params: dict[SpringType, SpringParams] | None = None,
+    pins=(),
+    origin=(0.0, 0.0, 0.0),
+    plane: str = "vertical",
+    bend: str | BendModel = BendModel.PROVOT,
+    device: str | None = None,
+) -> ClothModel:
+    """Build a Provot mass-spring grid cloth.
+
+    Args:
+        rows, cols: particles per column and per row (>= 2; >= 3 with bend springs).
+        width, height: physical size of the cloth [m].
+        total_mass: cloth mass [kg], split evenly over the particles (seed 4.2.4).
+        spring_params: per-type :class:`SpringParams`; default :func:`default_spring_params`.
+        pins: indices of pinned particles (inverse mass 0).
+        origin: position of particle [0, 0] [m].
+        plane: ``"vertical"`` (hanging, x-y plane) or ``"horizontal"`` (x-z plane).
+        bend: ``"provot"``, ``"choi_ko"`` or ``"none"``.
+        device: Warp device (default: Warp's current device).
+    """
+    try:
+        bend = BendModel(bend)
+    except ValueError:
+        raise WarpclothError(f"bend must be one of {[b.value for b in BendModel]}, got {bend!r}") from None
+    min_dim = 2 if bend == BendModel.NONE else 3
+    rows = require_int("rows", rows, min_dim)
+    cols = require_int("cols", cols, min_dim)
+    width = require_positive("width", width, "m")
+    height = require_positive("height", height, "m")
+    total_mass = require_positive("mass", total_mass, "kg")
+    if spring_params is None:
+        spring_params = default_spring_params(total_mass / (rows * cols))
+    _validate_spring_params(spring_params)
+    device = str(wp.get_device(device))
+
+    n = rows * cols
+    pins = np.unique(np.asarray(list(pins), dtype=np.int64))
+    if pins.size:
+        bad = pins[(pins < 0) | (pins >= n)]
+        if bad.size:
+            raise WarpclothError(f"pin index {int(bad[0])} is out of range: particles are 0..{n - 1}")
+    q = grid_positions(rows, cols, width, height, origin, plane)
+    mass = np.full(n, total_mass / n, dtype=np.float32)
+    inv_mass = 1.0 / mass
+    inv_mass[pins] = 0.0
+    pairs, types = grid_springs(rows, cols, bend)
+    rest = np.linalg.norm(q[pairs[:, 1]].astype(np.float64) - q[pairs[:, 0]], axis=1).astype(np.float32)
+    ks = np.array([spring_params[SpringType(t)].stiffness for t in types], dtype=np.float32)
+    kd = np.array([spring_params[SpringType(t)].damping for t in types], dtype=np.float32)
+    tris = grid_triangles(rows, cols)
+
+    with wp.ScopedDevice(device):
+        return ClothModel(
+            rows=rows,
+            cols=cols,
+            width=width,
+            height=height,
+            total_mass=total_mass,
+            device=device,
+            particle_q=wp.array(q, dtype=wp.vec3),
+            particle_mass=wp.array(mass, dtype=float),
+            particle_inv_mass=wp.array(inv_mass, dtype=float),
+            pinned=pins,
+            spring_indices=wp.array(pairs, dtype=wp.vec2i),
+            spring_type=types,
+            spring_rest_length=wp.array(rest, dtype=float),
+            spring_stiffness=wp.array(ks, dtype=float),
+            spring_damping=wp.array(kd, dtype=float),
+            tri_indices=wp.array(tris, dtype=wp.vec3i),
+            spring_params=dict(spring_params),
+            bend=bend,
+            host={"q": q, "pairs": pairs, "rest": rest, "mass": mass, "inv_mass": inv_mass, "tris": tris},
+        )
+
+
+# Defaults: per-spring constants, as in the seed (one k per spring type).
+DEFAULT_STIFFNESS = {SpringType.STRUCTURAL: 1000.0, SpringType.SHEAR: 1000.0, SpringType.BEND: 200.0}
+DEFAULT_DAMPING_RATIO = 0.05
+
+
+def default_damping(stiffness: float, particle_mass: float, ratio: float = DEFAULT_DAMPING_RATIO) -> float:
+    """Spring damping kd = 2 ratio sqrt(ks m) [N s/m]: scales with particle mass, so refining
+    the mesh keeps the same damping ratio and does not make explicit steps unstable."""
+    return 2.0 * ratio * float(np.sqrt(stiffness * particle_mass))
+
+
+def default_spring_params(particle_mass: float, stiffness=None, damping=None) -> dict[SpringType, SpringParams]:
+    """Per-type spring parameters: given ks/kd (a number for all types or a per-type mapping),
+    or the defaults, with kd scaled to the particle mass where not given."""
+
+    def per_type(value, fallback):
+        if value is None:
+            return dict(fallback)
+        if isinstance(value, dict):
+            return {SpringType(k) if not isinstance(k, str) else SpringType[k.upper()]: float(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            require(len(value) == 3, f"per-type values must be 3 (structural, shear, bend), got {list(value)!r}")
+            return {t: float(value[t]) for t in SpringType}
+        return {t: float(value) for t in SpringType}
+
+    ks = per_type(stiffness, DEFAULT_STIFFNESS)
+    for t in SpringType:
+        ks.setdefault(t, DEFAULT_STIFFNESS[t])
+        require_non_negative(f"{t.name.lower()} stiffness", ks[t], "N/m")
+    kd_default = {t: default_damping(ks[t], particle_mass) for t in SpringType}
+    kd = per_type(damping, kd_default)
+    for t in SpringType:
+        kd.setdefault(t, kd_default[t])
+    return {t: SpringParams(ks[t], kd[t]) for t in SpringType}

@@ -1,0 +1,305 @@
+"""The fixed-step simulation loop, decoupled from the frame rate (seed 3.2.2).
+
+Forces are computed every time step ``dt``; frames are sampled every ``1/fps`` seconds of
+simulated time. A frame's steps are pure kernel launches; metrics are reduced on the device
+and read once per frame. A run returns a :class:`RunResult` that serialises to JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field
+
+import warp as wp
+
+from . import __version__
+from .errors import WarpclothError, require, require_positive
+from .forces import Control
+from .integrators import Integrator, make_integrator
+from .metrics import EquilibriumCriteria, EquilibriumDetector, FrameMetrics, MetricsProbe
+
+DEFAULT_INSTABILITY_STRAIN = 1.0
+
+
+@dataclass
+class RunResult:
+    """Outcome and measurements of one run (SI units; times in seconds unless named ``_ms``)."""
+
+    scenario: str
+    integrator: str
+    device: str
+    rows: int
+    cols: int
+    particles: int
+    springs: int
+    dt: float
+    fps: float
+    steps: int = 0
+    frames: int = 0
+    sim_time: float = 0.0
+    wall_time: float = 0.0
+    compile_time: float = 0.0
+    integration_time: float = 0.0
+    other_time: float = 0.0
+    export_time: float = 0.0
+    ms_per_step: float = 0.0
+    steps_per_sec: float = 0.0
+    realtime_factor: float = 0.0
+    stable: bool = True
+    unstable_reason: str = ""
+    unstable_time: float | None = None
+    equilibrium_reached: bool = False
+    time_to_equilibrium: float | None = None
+    time_to_equilibrium_wall: float | None = None
+    equilibrium_criterion: str = "speed+force"
+    force_floor: float = 0.0
+    max_strain: float = 0.0
+    final_max_speed: float = 0.0
+    wall_cap_reached: bool = False
+    solver: dict = field(default_factory=dict)
+    warpcloth_version: str = __version__
+    warp_version: str = wp.config.version
+
+    @property
+    def integration_ms_mean(self) -> float:
+        """Mean integration time per frame [ms]."""
+        return 1000.0 * self.integration_time / self.frames if self.frames else 0.0
+
+    @property
+    def other_ms_mean(self) -> float:
+        """Mean time per frame outside integration (metrics, export, bookkeeping) [ms]."""
+        return 1000.0 * self.other_time / self.frames if self.frames else 0.0
+
+    @property
+    def frames_per_sec(self) -> float:
+        """Frames of 1/fps simulated seconds produced per wall second."""
+        return self.realtime_factor * self.fps
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["integration_ms_mean"] = self.integration_ms_mean
+        d["other_ms_mean"] = self.other_ms_mean
+        d["frames_per_sec"] = self.frames_per_sec
+        return d
+
+    def to_json(self, **kwargs) -> str:
+        return json.dumps(self.to_dict(), **kwargs)
+
+
+class Simulator:
+    """Advances one cloth with a chosen integrator at a fixed time step.
+
+    Args:
+        model: the :class:`~warpcloth.model.ClothModel`.
+        integrator: an :class:`~warpcloth.integrators.Integrator` or its name.
+        control: external forces (:class:`~warpcloth.forces.Control`); default gravity only.
+        dt: time step [s]; default the integrator's :meth:`~Integrator.default_dt`.
+        instability_strain: a spring stretched past (1 + this) x its rest length is unstable.
+        equilibrium: tolerances of the equilibrium test.
+        scenario: a name carried into results.
+    """
+
+    def __init__(
+        self,
+        model,
+        integrator: Integrator | str = "explicit_euler",
+        control: Control | None = None,
+        dt: float | None = None,
+        instability_strain: float = DEFAULT_INSTABILITY_STRAIN,
+        equilibrium: EquilibriumCriteria | None = None,
+        scenario: str = "custom",
+    ):
+        self.model = model
+        self.control = control if control is not None else Control(device=model.device)
+        require(
+            str(self.control.device) == str(model.device),
+            f"control is on device {self.control.device!r} but the model is on {model.device!r}",
+        )
+        self.state = model.state()
+        self.instability_strain = require_positive("instability strain", instability_strain)
+        self.equilibrium = equilibrium or EquilibriumCriteria()
+        self.scenario = scenario
+        self.probe = MetricsProbe(model, self.control)
+        self.integrator: Integrator | None = None
+        self._dt: float | None = None
+        self.set_integrator(integrator, dt)
+        self.sim_time = 0.0
+        self.steps = 0
+
+    # -- configuration -------------------------------------------------------------------
+    @property
+    def dt(self) -> float:
+        return self._dt
+
+    def set_integrator(self, integrator: Integrator | str, dt: float | None = None) -> None:
+        """Switch integrators between steps (the model is not rebuilt); ``dt`` None keeps the
+        current step when one is set, else takes the integrator's default."""
+        if isinstance(integrator, str):
+            integrator = make_integrator(integrator)
+        if not isinstance(integrator, Integrator):
+            raise WarpclothError(f"integrator must be an Integrator or a name, got {integrator!r}")
+        integrator.bind(self.model)
+        if dt is None:
+            dt = self._dt if self._dt is not None else integrator.default_dt(self.model, self.control.drag_rate)
+        self._dt = require_positive("dt", dt, "s")
+        self.integrator = integrator
+        self._needs_begin = True
+
+    def set_dt(self, dt: float) -> None:
+        self._dt = require_positive("dt", dt, "s")
+        self._needs_begin = True
+
+    def reset(self) -> None:
+        """Back to the rest configuration at t = 0."""
+        self.state.assign(self.model.state())
+        self.control.set_time(0.0)
+        self.sim_time, self.steps = 0.0, 0
+        self._needs_begin = True
+
+    # -- stepping ------------------------------------------------------------------------
+    def step(self) -> None:
+        """Advance one time step: W(t) update, integrator step, t += dt (launches only)."""
+        if self._needs_begin:
+            self.integrator.begin(self.state, self.control, self._dt)
+            self._needs_begin = False
+        self._launch_step()
+        self.steps += 1
+        self.sim_time = self.steps * self._dt
+
+    def _launch_step(self) -> None:
+        self.control.update()
+        self.integrator.step(self.state, self.control, self._dt)
+        self.control.advance(self._dt)
+
+    def simulate(self, steps: int) -> None:
+        """Advance ``steps`` time steps."""
+        for _ in range(steps):
+            self.step()
+
+    def measure(self) -> FrameMetrics:
+        """Metrics of the current state (one small read from the device)."""
+        return self.probe.measure(self.state, with_force=self.integrator.force_based)
+
+    def energy(self) -> float:
+        """Total mechanical energy of the current state [J]."""
+        return self.probe.energy(self.state)
+
+    def warm_up(self) -> float:
+        """Compile and load every kernel a step uses, on a scratch copy of the state; returns
+        the seconds it took (reported as compile time, excluded from step timings)."""
+        t0 = time.perf_counter()
+        saved = wp.clone(self.state.particle_q), wp.clone(self.state.particle_qd)
+        saved_time = wp.clone(self.control.time)
+        self.integrator.begin(self.state, self.control, self._dt)
+        self._launch_step()
+        self.measure()
+        wp.copy(self.state.particle_q, saved[0])
+        wp.copy(self.state.particle_qd, saved[1])
+        wp.copy(self.control.time, saved_time)
+        self.control.update()
+        wp.synchronize_device(self.model.device)
+        self.integrator.reset_stats()
+        self._needs_begin = True
+        return time.perf_counter() - t0
+
+    def run(
+        self,
+        duration: float,
+        fps: float = 60.0,
+        stop_at_equilibrium: bool = False,
+        wall_cap: float | None = None,
+        usd=None,
+        warm_up: bool = True,
+    ) -> RunResult:
+        """Run for ``duration`` seconds of simulated time, sampling a frame every 1/fps s.
+
+        Args:
+            duration: simulated time [s].
+            fps: frame rate of sampling (metrics, USD frames) [1/s].
+            stop_at_equilibrium: end the run when equilibrium is confirmed.
+            wall_cap: stop after this many wall-clock seconds (None: no cap).
+            usd: a :class:`~warpcloth.usd.UsdWriter` that receives every frame, or None.
+            warm_up: compile kernels before timing (see :meth:`warm_up`).
+
+        A run that goes unstable stops there and is recorded as unstable; it never raises.
+        """
+        duration = require_positive("duration", duration, "s")
+        fps = require_positive("fps", fps, "1/s")
+        if wall_cap is not None:
+            wall_cap = require_positive("wall cap", wall_cap, "s")
+        m, dt = self.model, self._dt
+        result = RunResult(
+            scenario=self.scenario, integrator=self.integrator.name, device=str(m.device), rows=m.rows, cols=m.cols,
+            particles=m.particle_count, springs=m.spring_count, dt=dt, fps=fps,
+            equilibrium_criterion="speed+force" if self.integrator.force_based else "speed",
+        )
+        if warm_up:
+            result.compile_time = self.warm_up()
+        detector = EquilibriumDetector(self.equilibrium, self.probe.force_floor)
+        result.force_floor = self.probe.force_floor
+        start_steps, start_time = self.steps, self.sim_time
+        total_steps = max(1, math.ceil(duration / dt - 1e-9))
+        frame_dt = 1.0 / fps
+        if usd is not None:
+            t0 = time.perf_counter()
+            usd.write_frame(self.state.particle_q.numpy(), self.sim_time)
+            result.export_time += time.perf_counter() - t0
+
+        loop_start = time.perf_counter()
+        frame = 0
+        done = 0
+        while done < total_steps:
+            frame += 1
+            target = min(total_steps, math.ceil(frame * frame_dt / dt - 1e-9))
+            n = target - done
+            if n <= 0:
+                continue
+            t0 = time.perf_counter()
+            self.simulate(n)
+            wp.synchronize_device(m.device)
+            t1 = time.perf_counter()
+            result.integration_time += t1 - t0
+            done = target
+
+            metrics = self.measure()
+            result.frames += 1
+            if metrics.finite:
+                result.max_strain = max(result.max_strain, metrics.max_strain)
+            result.final_max_speed = metrics.max_speed
+            if not metrics.finite:
+                result.stable, result.unstable_reason = False, "non-finite state"
+            elif metrics.max_strain > self.instability_strain:
+                result.stable = False
+                result.unstable_reason = f"spring strain {metrics.max_strain:.3g} beyond the limit {self.instability_strain:g}"
+            if usd is not None and result.stable:
+                te = time.perf_counter()
+                usd.write_frame(self.state.particle_q.numpy(), self.sim_time)
+                result.export_time += time.perf_counter() - te
+            t2 = time.perf_counter()
+            result.other_time += t2 - t1
+            if not result.stable:
+                result.unstable_time = self.sim_time
+                break
+            if detector.update(self.sim_time - start_time, t2 - loop_start, metrics):
+                if not result.equilibrium_reached:
+                    result.equilibrium_reached = True
+                    result.time_to_equilibrium = detector.rest_since
+                    result.time_to_equilibrium_wall = detector.rest_since_wall
+                if stop_at_equilibrium:
+                    break
+            if wall_cap is not None and t2 - loop_start >= wall_cap:
+                result.wall_cap_reached = True
+                break
+
+        result.wall_time = time.perf_counter() - loop_start
+        result.steps = self.steps - start_steps
+        result.sim_time = result.steps * dt
+        if result.steps and result.integration_time > 0:
+            result.ms_per_step = 1000.0 * result.integration_time / result.steps
+            result.steps_per_sec = result.steps / result.integration_time
+        if result.wall_time > 0:
+            result.realtime_factor = result.sim_time / result.wall_time
+        result.solver = self.integrator.stats()
+        return result

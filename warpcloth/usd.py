@@ -1,0 +1,123 @@
+"""USD export of an animated cloth mesh.
+
+One ``UsdGeomMesh`` (topology written once; points and extent time-sampled per frame), pinned
+particles marked by a ``pinned`` vertex primvar and a ``UsdGeomPoints`` prim, the stage's
+``timeCodesPerSecond`` equal to the frame rate, Y up, metres. The file is written to a temporary
+file beside the target and renamed over it when closed, so a reader never sees half a file.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import numpy as np
+
+from .errors import WarpclothError
+
+USD_EXTENSIONS = (".usd", ".usda", ".usdc")
+
+
+def check_usd_path(path: str) -> str:
+    """Validate an output path before a run starts: a USD extension and a writable folder."""
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in USD_EXTENSIONS:
+        raise WarpclothError(f"USD path {path!r} must end in one of {', '.join(USD_EXTENSIONS)}")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise WarpclothError(f"USD path {path!r}: folder {folder!r} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise WarpclothError(f"USD path {path!r}: folder {folder!r} is not writable")
+    if os.path.isdir(path):
+        raise WarpclothError(f"USD path {path!r} is a folder, not a file")
+    return path
+
+
+class UsdWriter:
+    """Writes a cloth model's frames to a USD stage.
+
+    Args:
+        path: output file (.usd, .usda or .usdc).
+        model: the :class:`~warpcloth.model.ClothModel` (topology, pins).
+        fps: frames per second; frame k is written at time code k.
+    """
+
+    def __init__(self, path: str, model, fps: float = 60.0):
+        from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+
+        self._Gf, self._Vt = Gf, Vt
+        self.path = check_usd_path(path)
+        self.fps = float(fps)
+        folder = os.path.dirname(os.path.abspath(self.path))
+        ext = os.path.splitext(self.path)[1]
+        fd, self._tmp = tempfile.mkstemp(prefix=".warpcloth-", suffix=ext, dir=folder)
+        os.close(fd)
+        os.unlink(self._tmp)
+        self.stage = Usd.Stage.CreateNew(self._tmp)
+        if self.stage is None:  # pragma: no cover - pxr raises before this
+            raise WarpclothError(f"cannot create USD stage at {self.path!r}")
+        UsdGeom.SetStageUpAxis(self.stage, UsdGeom.Tokens.y)
+        UsdGeom.SetStageMetersPerUnit(self.stage, 1.0)
+        self.stage.SetTimeCodesPerSecond(self.fps)
+        self.stage.SetFramesPerSecond(self.fps)
+        root = UsdGeom.Xform.Define(self.stage, "/World")
+        self.stage.SetDefaultPrim(root.GetPrim())
+
+        tris = model.host["tris"]
+        self.mesh = UsdGeom.Mesh.Define(self.stage, "/World/Cloth")
+        self.mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(tris)))
+        self.mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(tris.reshape(-1).tolist()))
+        self.mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        self.mesh.CreateDoubleSidedAttr(True)
+        self.points_attr = self.mesh.CreatePointsAttr()
+        self.extent_attr = self.mesh.CreateExtentAttr()
+        pinned = np.zeros(model.particle_count, dtype=np.int32)
+        pinned[model.pinned] = 1
+        primvar = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("pinned", Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.vertex)
+        primvar.Set(Vt.IntArray(pinned.tolist()))
+        self.pins = UsdGeom.Points.Define(self.stage, "/World/Pins")
+        self.pins.CreateWidthsAttr(Vt.FloatArray([0.02] * len(model.pinned)))
+        self._pin_idx = np.asarray(model.pinned, dtype=np.int64)
+        self.pins_attr = self.pins.CreatePointsAttr()
+        self.frames = 0
+        self._closed = False
+
+    def write_frame(self, points: np.ndarray, sim_time: float | None = None) -> None:
+        """Write one frame of particle positions (N, 3) at the next time code."""
+        Vt, Gf = self._Vt, self._Gf
+        code = float(self.frames)
+        p = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
+        self.points_attr.Set(Vt.Vec3fArray.FromNumpy(p), code)
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        self.extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), code)
+        if self._pin_idx.size:
+            self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(p[self._pin_idx])), code)
+        self.frames += 1
+
+    def close(self) -> str:
+        """Save and move the file into place; returns the path."""
+        if self._closed:
+            return self.path
+        self.stage.SetStartTimeCode(0.0)
+        self.stage.SetEndTimeCode(float(max(0, self.frames - 1)))
+        self.stage.GetRootLayer().Save()
+        del self.stage
+        os.replace(self._tmp, self.path)
+        self._closed = True
+        return self.path
+
+    def abort(self) -> None:
+        """Drop the temporary file without touching the target."""
+        if not self._closed and os.path.exists(self._tmp):
+            os.unlink(self._tmp)
+        self._closed = True
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
