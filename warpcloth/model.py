@@ -99,7 +99,7 @@ class ClothModel:
 
     @property
     def particle_count(self) -> int:
-        return self.rows * self.cols
+        return int(self.host["q"].shape[0])
 
     @property
     def spring_count(self) -> int:
@@ -111,8 +111,9 @@ class ClothModel:
 
     @property
     def particle_mass_value(self) -> float:
-        """Mass of one particle [kg] (the total split evenly, seed 4.2.4)."""
-        return self.total_mass / self.particle_count
+        """Mass of one particle [kg] (the total split evenly, seed 4.2.4; the smallest mass for
+        a non-uniform model)."""
+        return float(self.host["mass"].min())
 
     def spring_counts(self) -> dict[str, int]:
         """Number of springs of each type."""
@@ -122,7 +123,7 @@ class ClothModel:
         """Largest spring stiffness K [N/m] in the model."""
         return max(p.stiffness for t, p in self.spring_params.items() if np.any(self.spring_type == t))
 
-    def state(self, requires_grad: bool = False):
+    def state(self):
         """A new :class:`~warpcloth.state.State` at the rest configuration with zero velocity."""
         from .state import State
 
@@ -243,29 +244,61 @@ def build_grid_cloth(
     _validate_spring_params(spring_params)
     device = str(wp.get_device(device))
 
-    n = rows * cols
+    q = grid_positions(rows, cols, width, height, origin, plane)
+    pairs, types = grid_springs(rows, cols, bend)
+    model = build_model(q, pairs, types, np.full(rows * cols, total_mass / (rows * cols)), spring_params, pins, grid_triangles(rows, cols), device)
+    model.rows, model.cols, model.width, model.height, model.bend = rows, cols, width, height, bend
+    model.total_mass = total_mass
+    return model
+
+
+def build_model(positions, spring_pairs, spring_types, masses, spring_params, pins=(), triangles=None, device=None) -> ClothModel:
+    """Build a mass-spring model from arrays (any topology; the grid builder uses this too).
+
+    Args:
+        positions: (N, 3) rest positions [m].
+        spring_pairs: (S, 2) particle indices.
+        spring_types: (S,) :class:`SpringType` values.
+        masses: (N,) particle masses [kg] (> 0).
+        spring_params: per-type :class:`SpringParams`.
+        pins: indices of pinned particles.
+        triangles: (T, 3) particle indices for wind and rendering (default none).
+        device: Warp device.
+    """
+    q = np.asarray(positions, dtype=np.float32).reshape(-1, 3)
+    n = q.shape[0]
+    require(n >= 1, "a model needs at least one particle")
+    mass = np.asarray(masses, dtype=np.float32).reshape(-1)
+    require(mass.shape[0] == n, f"masses must have one value per particle ({n}), got {mass.shape[0]}")
+    if not np.all(mass > 0):
+        raise WarpclothError(f"particle masses must be > 0 kg, got {float(mass[mass <= 0][0])!r}")
+    _validate_spring_params(spring_params)
+    pairs = np.asarray(spring_pairs, dtype=np.int32).reshape(-1, 2)
+    types = np.asarray(spring_types, dtype=np.int32).reshape(-1)
+    require(types.shape[0] == pairs.shape[0], "spring_types must have one value per spring")
+    if pairs.size and (pairs.min() < 0 or pairs.max() >= n):
+        raise WarpclothError(f"spring particle indices must be in 0..{n - 1}")
     pins = np.unique(np.asarray(list(pins), dtype=np.int64))
     if pins.size:
         bad = pins[(pins < 0) | (pins >= n)]
         if bad.size:
             raise WarpclothError(f"pin index {int(bad[0])} is out of range: particles are 0..{n - 1}")
-    q = grid_positions(rows, cols, width, height, origin, plane)
-    mass = np.full(n, total_mass / n, dtype=np.float32)
-    inv_mass = 1.0 / mass
+    inv_mass = (1.0 / mass).astype(np.float32)
     inv_mass[pins] = 0.0
-    pairs, types = grid_springs(rows, cols, bend)
     rest = np.linalg.norm(q[pairs[:, 1]].astype(np.float64) - q[pairs[:, 0]], axis=1).astype(np.float32)
+    if rest.size and not np.all(rest > 0):
+        raise WarpclothError("every spring must have a rest length > 0 m (two particles at the same place)")
     ks = np.array([spring_params[SpringType(t)].stiffness for t in types], dtype=np.float32)
     kd = np.array([spring_params[SpringType(t)].damping for t in types], dtype=np.float32)
-    tris = grid_triangles(rows, cols)
-
+    tris = np.zeros((0, 3), dtype=np.int32) if triangles is None else np.asarray(triangles, dtype=np.int32).reshape(-1, 3)
+    device = str(wp.get_device(device))
     with wp.ScopedDevice(device):
         return ClothModel(
-            rows=rows,
-            cols=cols,
-            width=width,
-            height=height,
-            total_mass=total_mass,
+            rows=1,
+            cols=n,
+            width=float(np.ptp(q[:, 0])) if n > 1 else 0.0,
+            height=float(np.ptp(q[:, 1])) if n > 1 else 0.0,
+            total_mass=float(mass.astype(np.float64).sum()),
             device=device,
             particle_q=wp.array(q, dtype=wp.vec3),
             particle_mass=wp.array(mass, dtype=float),
@@ -278,7 +311,7 @@ def build_grid_cloth(
             spring_damping=wp.array(kd, dtype=float),
             tri_indices=wp.array(tris, dtype=wp.vec3i),
             spring_params=dict(spring_params),
-            bend=bend,
+            bend=BendModel.NONE,
             host={"q": q, "pairs": pairs, "rest": rest, "mass": mass, "inv_mass": inv_mass, "tris": tris},
         )
 

@@ -25,6 +25,8 @@ def check_usd_path(path: str) -> str:
     if ext not in USD_EXTENSIONS:
         raise WarpclothError(f"USD path {path!r} must end in one of {', '.join(USD_EXTENSIONS)}")
     folder = os.path.dirname(os.path.abspath(path))
+    if os.path.exists(folder) and not os.path.isdir(folder):
+        raise WarpclothError(f"USD path {path!r}: {folder!r} is not a folder")
     if not os.path.isdir(folder):
         raise WarpclothError(f"USD path {path!r}: folder {folder!r} does not exist")
     if not os.access(folder, os.W_OK):

@@ -1,0 +1,77 @@
+"""Small models with analytic answers, and a float64 NumPy reference of the force model."""
+
+import numpy as np
+
+from warpcloth import Control, Simulator, SpringParams, SpringType, build_grid_cloth
+from warpcloth.model import build_model
+
+
+def spring_params(ks: float, kd: float = 0.0) -> dict:
+    return {t: SpringParams(ks, kd) for t in SpringType}
+
+
+def single_spring(ks=40.0, mass=0.1, rest=0.5, stretch=0.05, kd=0.0, device="cpu"):
+    """Particle 0 pinned at the origin, particle 1 hanging on one spring, stretched by ``stretch``
+    along the spring. Without gravity it oscillates with period 2 pi sqrt(m / ks)."""
+    q = [[0.0, 0.0, 0.0], [0.0, -rest, 0.0]]
+    model = build_model(q, [[0, 1]], [SpringType.STRUCTURAL], [mass, mass], spring_params(ks, kd), pins=[0], device=device)
+    return model
+
+
+def displace(sim, index: int, offset) -> None:
+    q = sim.state.particle_q.numpy()
+    q[index] += np.asarray(offset, dtype=np.float32)
+    sim.state.particle_q.assign(q)
+
+
+def small_grid(ks=5.0, kd=0.0, rows=3, cols=3, pins=(0,), device="cpu"):
+    """A 3 x 3 Provot grid of 0.1 kg particles, soft springs, one pin: a smooth nonlinear problem."""
+    return build_grid_cloth(rows, cols, 1.0, 1.0, 0.1 * rows * cols, spring_params=spring_params(ks, kd), pins=list(pins), device=device)
+
+
+def reference_forces(model, x, v, gravity=(0.0, -9.81, 0.0), drag=0.0):
+    """f = m g - m c v + sum of Provot spring forces, in float64 NumPy (design.md formula)."""
+    h = model.host
+    p = h["pairs"]
+    x = np.asarray(x, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    rest = np.linalg.norm(h["q"][p[:, 1]].astype(np.float64) - h["q"][p[:, 0]], axis=1)
+    ks = model.spring_stiffness.numpy().astype(np.float64)
+    kd = model.spring_damping.numpy().astype(np.float64)
+    m = h["mass"].astype(np.float64)
+    d = x[p[:, 1]] - x[p[:, 0]]
+    length = np.linalg.norm(d, axis=1)
+    n = d / length[:, None]
+    fs = (ks * (length - rest) + kd * np.einsum("ij,ij->i", v[p[:, 1]] - v[p[:, 0]], n))[:, None] * n
+    f = np.outer(m, gravity) - drag * m[:, None] * v
+    np.add.at(f, p[:, 0], fs)
+    np.add.at(f, p[:, 1], -fs)
+    return f
+
+
+def reference_rk4(model, duration, steps, gravity=(0.0, -9.81, 0.0)):
+    """Positions after ``duration`` from rest, by float64 RK4 with ``steps`` steps."""
+    h = model.host
+    free = (h["inv_mass"] > 0)[:, None]
+    m = h["mass"].astype(np.float64)[:, None]
+
+    def acc(x, v):
+        return np.where(free, reference_forces(model, x, v, gravity) / m, 0.0)
+
+    x = h["q"].astype(np.float64).copy()
+    v = np.zeros_like(x)
+    dt = duration / steps
+    for _ in range(steps):
+        k1x, k1v = v, acc(x, v)
+        k2x, k2v = v + dt / 2 * k1v, acc(x + dt / 2 * k1x, v + dt / 2 * k1v)
+        k3x, k3v = v + dt / 2 * k2v, acc(x + dt / 2 * k2x, v + dt / 2 * k2v)
+        k4x, k4v = v + dt * k3v, acc(x + dt * k3x, v + dt * k3v)
+        x = x + dt / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
+        v = v + dt / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+    return x
+
+
+def simulate(model, integrator, dt, duration, control=None):
+    sim = Simulator(model, integrator, control or Control(device=model.device), dt=dt)
+    sim.simulate(int(round(duration / dt)))
+    return sim

@@ -1,0 +1,106 @@
+"""The command line: JSON output, summaries, and one-line errors with exit status 2."""
+
+import json
+import math
+import subprocess
+import sys
+
+import pytest
+
+from warpcloth.cli import main
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_run_json_parses_and_is_consistent(capsys):
+    code, out, err = run_cli(capsys, "run", "sheet", "--rows", "6", "--cols", "7", "--duration", "0.5", "--json")
+    assert code == 0
+    d = json.loads(out)
+    for key in ["scenario", "integrator", "device", "rows", "cols", "particles", "springs", "dt", "steps", "sim_time",
+                "wall_time", "ms_per_step", "steps_per_sec", "realtime_factor", "stable", "equilibrium_reached",
+                "time_to_equilibrium", "max_strain"]:
+        assert key in d, key
+    assert d["scenario"] == "sheet" and d["rows"] == 6 and d["cols"] == 7 and d["particles"] == 42
+    assert math.isclose(d["steps"] * d["dt"], d["sim_time"], rel_tol=1e-12)
+    assert d["sim_time"] >= 0.5 - d["dt"] or d["equilibrium_reached"]
+
+
+def test_run_summary_and_flags(capsys, tmp_path):
+    usd = tmp_path / "f.usda"
+    code, out, err = run_cli(capsys, "run", "flag", "-i", "rk4", "--rows", "5", "--cols", "6", "--dt", "1e-3",
+                             "--duration", "0.2", "--fps", "30", "--stiffness", "800,600,100", "--damping", "0.1",
+                             "--mass", "0.2", "--usd", str(usd))
+    assert code == 0, err
+    assert "flag: rk4 on cpu, 5x6" in out and "dt=0.001" in out and "stable: yes" in out
+    assert usd.exists()
+
+
+def test_num_frames_sets_duration(capsys):
+    code, out, err = run_cli(capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "6", "--fps", "60", "--json")
+    assert code == 0
+    assert math.isclose(json.loads(out)["sim_time"], 0.1, abs_tol=json.loads(out)["dt"])
+
+
+def test_list(capsys):
+    code, out, _ = run_cli(capsys, "list")
+    assert code == 0
+    for name in ["sheet", "flag", "explicit_euler", "midpoint", "rk4", "verlet"]:
+        assert name in out
+
+
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["run", "sheet", "--rows", "1"], "rows must be an integer >= 3, got 1"),
+        (["run", "sheet", "--cols", "2"], "cols must be an integer >= 3, got 2"),
+        (["run", "sheet", "--rows", "2", "--cols", "2", "--bend", "none", "--mass", "-1"], "mass must be > 0 kg, got -1.0"),
+        (["run", "sheet", "--mass", "0"], "mass must be > 0 kg"),
+        (["run", "sheet", "--width", "-2"], "width must be > 0 m"),
+        (["run", "sheet", "--dt", "0"], "dt must be > 0 s, got 0.0"),
+        (["run", "sheet", "--dt=-1e-3"], "dt must be > 0 s"),
+        (["run", "sheet", "--duration", "0"], "duration must be > 0 s"),
+        (["run", "sheet", "--fps", "-5"], "fps must be > 0"),
+        (["run", "sheet", "--stiffness", "-5"], "stiffness must be >= 0 N/m, got -5.0"),
+        (["run", "sheet", "--damping", "-0.1"], "damping must be >= 0"),
+        (["run", "sheet", "--stiffness", "1,2"], "three comma-separated numbers"),
+        (["run", "sheet", "--integrator", "leapfrog"], "unknown integrator 'leapfrog'"),
+        (["run", "curtain"], "unknown scenario 'curtain'"),
+        (["run", "sheet", "--device", "cuda:7"], "device 'cuda:7' is not available"),
+        (["run", "sheet", "--usd", "/no/such/folder/x.usda"], "does not exist"),
+        (["run", "sheet", "--usd", "x.txt"], "must end in one of"),
+        (["run", "sheet", "--num-frames", "0"], "--num-frames must be >= 1"),
+        (["run", "sheet", "--rows", "abc"], "invalid int value: 'abc'"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2(capsys, argv, message):
+    with pytest.raises(SystemExit) as exc:
+        code = main(argv)
+        raise SystemExit(code)
+    assert exc.value.code == 2
+    out, err = capsys.readouterr()
+    lines = [line for line in err.splitlines() if line.strip() and "CUDA" not in line]
+    assert len(lines) == 1, err
+    assert message in lines[0] and "Traceback" not in err
+    assert out == ""
+
+
+def test_missing_cuda_device_error(capsys):
+    import warp as wp
+
+    if wp.is_cuda_available():
+        pytest.skip("a CUDA device is present")
+    code, out, err = run_cli(capsys, "run", "sheet", "--device", "cuda")
+    assert code == 2 and "no CUDA device found" in err
+
+
+def test_console_script_and_module_entry_points(tmp_path):
+    """As a user runs them: the installed script, and python -m for a scenario."""
+    out = subprocess.run([sys.executable, "-m", "warpcloth.scenarios.flag", "--rows", "4", "--cols", "5",
+                          "--num-frames", "3", "--json"], capture_output=True, text=True, check=True).stdout
+    assert json.loads(out)["scenario"] == "flag"
+    bad = subprocess.run([sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--dt", "-1"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr and "dt must be > 0" in bad.stderr
