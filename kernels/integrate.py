@@ -2,6 +2,9 @@
 
 import warp as wp
 
+# forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
+wp.set_module_options({"enable_backward": False})
+
 
 @wp.kernel
 def integrate_explicit_euler(

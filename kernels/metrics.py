@@ -2,6 +2,9 @@
 
 import warp as wp
 
+# forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
+wp.set_module_options({"enable_backward": False})
+
 # slots of the metrics buffer
 MAX_STRAIN = 0
 MAX_SPEED = 1

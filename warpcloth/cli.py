@@ -114,7 +114,8 @@ def summary(result) -> str:
         f"({result.particles} particles, {result.springs} springs), dt={result.dt:.3g} s",
         f"  simulated {result.sim_time:.3f} s in {result.steps} steps, {result.wall_time:.2f} s wall "
         f"(+{result.compile_time:.2f} s compile)",
-        f"  {result.ms_per_step:.4f} ms/step, {result.steps_per_sec:,.0f} steps/s, real-time factor {result.realtime_factor:.2f}",
+        f"  {result.ms_per_step:.4f} ms/step, {result.steps_per_sec:,.0f} steps/s, real-time factor {result.realtime_factor:.2f}"
+        + (" (graph replay)" if result.graph else ""),
         f"  stable: {'yes' if result.stable else 'NO (' + result.unstable_reason + ')'}, max strain {100 * result.max_strain:.2f} %",
     ]
     if result.scenario != "flag" or result.equilibrium_reached:
@@ -164,6 +165,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenario", help="scenario name (see 'warpcloth list')")
     add_run_arguments(run)
     sub.add_parser("list", help="list scenarios and integrators")
+    bench = sub.add_parser("bench", help="benchmark integrators x sizes x devices on the sheet (bench/devices.py)")
+    from . import bench as bench_module
+
+    bench_module.add_arguments(bench)
     return parser
 
 
@@ -175,6 +180,10 @@ def main(argv=None) -> int:
             return _run(args.scenario, args)
         if args.command == "list":
             return _list(args)
+        if args.command == "bench":
+            from . import bench as bench_module
+
+            return bench_module.run(args)
     except WarpclothError as exc:
         print(f"warpcloth: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

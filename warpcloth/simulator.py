@@ -23,6 +23,15 @@ from .metrics import EquilibriumCriteria, EquilibriumDetector, FrameMetrics, Met
 DEFAULT_INSTABILITY_STRAIN = 1.0
 
 
+def graph_capture_supported(device) -> bool:
+    """CUDA graphs on a GPU (with mempool); API capture on the CPU from Warp 1.19."""
+    d = wp.get_device(device)
+    if d.is_cuda:
+        return bool(wp.is_mempool_enabled(d))
+    major, minor = (int(p) for p in wp.config.version.split(".")[:2])
+    return (major, minor) >= (1, 19)
+
+
 @dataclass
 class RunResult:
     """Outcome and measurements of one run (SI units; times in seconds unless named ``_ms``)."""
@@ -58,6 +67,7 @@ class RunResult:
     max_strain: float = 0.0
     final_max_speed: float = 0.0
     wall_cap_reached: bool = False
+    graph: bool = False
     solver: dict = field(default_factory=dict)
     warpcloth_version: str = __version__
     warp_version: str = wp.config.version
@@ -99,6 +109,9 @@ class Simulator:
         instability_strain: a spring stretched past (1 + this) x its rest length is unstable.
         equilibrium: tolerances of the equilibrium test.
         scenario: a name carried into results.
+        use_graph: capture a frame's steps once with ``wp.ScopedCapture`` and replay it (CUDA
+            graphs; Warp's API capture on the CPU). None: wherever the device and the
+            integrator support it. Results are bit-identical either way.
     """
 
     def __init__(
@@ -110,6 +123,7 @@ class Simulator:
         instability_strain: float = DEFAULT_INSTABILITY_STRAIN,
         equilibrium: EquilibriumCriteria | None = None,
         scenario: str = "custom",
+        use_graph: bool | None = None,
     ):
         self.model = model
         self.control = control if control is not None else Control(device=model.device)
@@ -124,6 +138,8 @@ class Simulator:
         self.probe = MetricsProbe(model, self.control)
         self.integrator: Integrator | None = None
         self._dt: float | None = None
+        self._use_graph = use_graph
+        self._graphs: dict[int, object] = {}
         self.set_integrator(integrator, dt)
         self.sim_time = 0.0
         self.steps = 0
@@ -146,10 +162,25 @@ class Simulator:
         self._dt = require_positive("dt", dt, "s")
         self.integrator = integrator
         self._needs_begin = True
+        self._graphs.clear()
 
     def set_dt(self, dt: float) -> None:
         self._dt = require_positive("dt", dt, "s")
         self._needs_begin = True
+        self._graphs.clear()
+
+    @property
+    def graph_enabled(self) -> bool:
+        """Whether frames are captured and replayed (see ``use_graph``)."""
+        supported = graph_capture_supported(self.model.device) and self.integrator.graph_capturable
+        if self._use_graph is None:
+            return supported
+        if self._use_graph and not supported:
+            raise WarpclothError(
+                f"graph capture is not available for integrator {self.integrator.name!r} on {self.model.device} "
+                f"with Warp {wp.config.version}"
+            )
+        return bool(self._use_graph)
 
     def reset(self) -> None:
         """Back to the rest configuration at t = 0."""
@@ -174,9 +205,27 @@ class Simulator:
         self.control.advance(self._dt)
 
     def simulate(self, steps: int) -> None:
-        """Advance ``steps`` time steps."""
-        for _ in range(steps):
-            self.step()
+        """Advance ``steps`` time steps (replaying a captured graph of them where enabled)."""
+        if steps <= 0:
+            return
+        if not self.graph_enabled:
+            for _ in range(steps):
+                self.step()
+            return
+        if self._needs_begin:
+            self.integrator.begin(self.state, self.control, self._dt)
+            self._needs_begin = False
+        graph = self._graphs.get(steps)
+        if graph is None:
+            if len(self._graphs) >= 4:  # frames alternate between at most two step counts
+                self._graphs.clear()
+            with wp.ScopedCapture(device=self.model.device) as capture:
+                for _ in range(steps):
+                    self._launch_step()
+            graph = self._graphs[steps] = capture.graph
+        wp.capture_launch(graph)
+        self.steps += steps
+        self.sim_time = self.steps * self._dt
 
     def measure(self) -> FrameMetrics:
         """Metrics of the current state (one small read from the device)."""
@@ -234,6 +283,7 @@ class Simulator:
             scenario=self.scenario, integrator=self.integrator.name, device=str(m.device), rows=m.rows, cols=m.cols,
             particles=m.particle_count, springs=m.spring_count, dt=dt, fps=fps,
             equilibrium_criterion="speed+force" if self.integrator.force_based else "speed",
+            graph=self.graph_enabled,
         )
         if warm_up:
             result.compile_time = self.warm_up()

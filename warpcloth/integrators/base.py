@@ -69,6 +69,9 @@ class Integrator:
 
     name: ClassVar[str] = ""
     force_evals_per_step: ClassVar[int] = 1
+    #: True when a step is pure kernel launches with no host synchronisation, so a frame of
+    #: steps can be captured with ``wp.ScopedCapture`` and replayed.
+    graph_capturable: ClassVar[bool] = True
     #: True for integrators that evaluate spring forces (Provot deformation constraints apply).
     force_based: ClassVar[bool] = True
     #: Fraction of :func:`stable_dt_estimate` used by :meth:`default_dt`.

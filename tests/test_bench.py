@@ -1,0 +1,47 @@
+"""The benchmark runs end to end on tiny sizes and writes a well-formed CSV (no timing asserts)."""
+
+import csv
+import math
+
+import pytest
+
+from warpcloth.bench import COLUMNS, main
+
+
+def test_bench_tiny_end_to_end(tmp_path, capsys):
+    out = tmp_path / "bench.csv"
+    code = main(["--sizes", "8,16", "--steps", "5", "--devices", "cpu", "--integrators", "explicit_euler,rk4",
+                 "--roofline", "--out", str(out)])
+    assert code == 0
+    stdout = capsys.readouterr().out
+    assert "explicit_euler" in stdout and "roofline floor on cpu, 8x8" in stdout
+    rows = list(csv.DictReader(out.open()))
+    assert rows and list(rows[0].keys()) == COLUMNS
+    graphs = {r["graph"] for r in rows}
+    assert len(rows) == 2 * 2 * len(graphs)
+    for r in rows:
+        assert int(r["steps"]) == 5
+        assert int(r["particles"]) == int(r["rows"]) * int(r["cols"])
+        for key in ["ms_per_step", "steps_per_sec", "springs_per_sec", "realtime_factor", "roofline_ms", "floor_multiple", "dt"]:
+            value = float(r[key])
+            assert math.isfinite(value) and value > 0, (key, value)
+        assert math.isclose(float(r["steps_per_sec"]) * float(r["ms_per_step"]), 1000.0, rel_tol=1e-6)
+        assert int(r["force_evals_per_step"]) == {"explicit_euler": 1, "rk4": 4}[r["integrator"]]
+        assert r["stable"] == "1"
+
+
+def test_bench_says_cuda_was_skipped(capsys):
+    import warp as wp
+
+    if wp.is_cuda_available():
+        pytest.skip("a CUDA device is present")
+    assert main(["--sizes", "4", "--steps", "2", "--integrators", "verlet", "--graph", "off"]) == 0
+    assert "CUDA skipped: no CUDA device is present" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv,message", [(["--sizes", "2"], "--sizes must be"), (["--sizes", "x"], "--sizes must be"),
+                                          (["--integrators", "nope"], "unknown integrator 'nope'"),
+                                          (["--devices", "cuda:9"], "not available"), (["--steps", "0"], "--steps must be >= 1")])
+def test_bench_bad_input(capsys, argv, message):
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err

@@ -1,0 +1,276 @@
+"""CPU vs CUDA benchmark of every integrator on the sheet (``python bench/devices.py`` or
+``warpcloth bench``).
+
+For each integrator x mesh size x device, and with and without graph capture, it runs the
+sheet scenario at the integrator's default dt for enough steps to time it well, after a warm-up
+step that compiles the kernels (reported apart as ``compile_s``). Output: a CSV row per
+combination, a table on stdout, and with ``--plot`` a log-log PNG of ms/step against particle
+count (matplotlib, the optional ``warpcloth[plot]`` extra). ``--roofline`` also times the
+speed-of-light force pass (``warpcloth.kernels.roofline``) on each device and reports each
+integrator's ms/step as a multiple of ``force_evals_per_step x floor``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import os
+import sys
+import tempfile
+import time
+
+import numpy as np
+import warp as wp
+
+from .errors import WarpclothError, require
+
+COLUMNS = [
+    "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt", "steps", "ms_per_step",
+    "steps_per_sec", "springs_per_sec", "realtime_factor", "compile_s", "speedup_vs_cpu", "force_evals_per_step",
+    "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean",
+]
+
+
+def parse_sizes(text: str) -> list[int]:
+    try:
+        sizes = [int(s) for s in text.split(",") if s.strip()]
+    except ValueError:
+        raise WarpclothError(f"--sizes must be comma-separated integers >= 3, got {text!r}") from None
+    require(bool(sizes) and all(s >= 3 for s in sizes), f"--sizes must be comma-separated integers >= 3, got {text!r}")
+    return sizes
+
+
+def default_devices() -> list[str]:
+    return ["cpu"] + [str(d) for d in wp.get_cuda_devices()]
+
+
+def roofline_ms(model, repeats: int = 50) -> float:
+    """Median time [ms] of the speed-of-light force pass on ``model``'s device."""
+    from warpcloth.kernels import roofline as rk
+
+    h = model.host
+    order = np.argsort(h["pairs"][:, 0], kind="stable")
+    pairs = h["pairs"][order]
+    counts = np.bincount(pairs[:, 0], minlength=model.particle_count)
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+    d = model.device
+    with wp.ScopedDevice(d):
+        args = [
+            model.particle_q, wp.zeros_like(model.particle_q), wp.array(offsets, dtype=int), wp.array(pairs, dtype=wp.vec2i),
+            wp.array(model.spring_rest_length.numpy()[order]), wp.array(model.spring_stiffness.numpy()[order]),
+            wp.array(model.spring_damping.numpy()[order]), wp.zeros_like(model.particle_q),
+        ]
+        wp.launch(rk.roofline_stream, dim=model.particle_count, inputs=args)
+        wp.synchronize_device(d)
+        # capture a batch of launches so launch overhead does not count (where capture works)
+        from .simulator import graph_capture_supported
+
+        batch = 20
+        if graph_capture_supported(d):
+            with wp.ScopedCapture(device=d) as cap:
+                for _ in range(batch):
+                    wp.launch(rk.roofline_stream, dim=model.particle_count, inputs=args)
+
+            def run():
+                wp.capture_launch(cap.graph)
+        else:
+            def run():
+                for _ in range(batch):
+                    wp.launch(rk.roofline_stream, dim=model.particle_count, inputs=args)
+        run()
+        wp.synchronize_device(d)
+        times = []
+        for _ in range(max(3, repeats // batch)):
+            t0 = time.perf_counter()
+            run()
+            wp.synchronize_device(d)
+            times.append((time.perf_counter() - t0) / batch)
+    return 1000.0 * float(np.median(times))
+
+
+def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int | None, seconds: float) -> dict:
+    """Time one integrator on a size x size sheet; returns a CSV row (without cross-row columns)."""
+    from .scenarios import get_scenario
+
+    sim = get_scenario("sheet").build(integrator=integrator, rows=size, cols=size, device=device)
+    sim._use_graph = graph
+    if graph and not sim.graph_enabled:
+        raise WarpclothError(f"graph capture unavailable for {integrator} on {device}")
+    t0 = time.perf_counter()
+    sim.warm_up()
+    compile_s = time.perf_counter() - t0
+    m = sim.model
+    frame = max(1, round(1.0 / 60.0 / sim.dt))  # one 60 Hz frame of steps per replay
+    sim.simulate(frame)  # first capture / first launches
+    wp.synchronize_device(device)
+    sim.integrator.reset_stats()
+    done, elapsed = 0, 0.0
+    target_steps = steps if steps is not None else math.inf
+    while done < target_steps and (steps is not None or elapsed < seconds):
+        n = frame if steps is None else min(frame, steps - done)
+        t = time.perf_counter()
+        sim.simulate(n)
+        wp.synchronize_device(device)
+        elapsed += time.perf_counter() - t
+        done += n
+    finite = bool(np.all(np.isfinite(sim.state.particle_q.numpy())))
+    ms = 1000.0 * elapsed / done
+    stats = sim.integrator.stats()
+    iters = stats.get("cg_iterations_mean", stats.get("iterations_mean", ""))
+    return {
+        "integrator": integrator, "device": device, "graph": int(graph), "rows": size, "cols": size,
+        "particles": m.particle_count, "springs": m.spring_count, "dt": sim.dt, "steps": done,
+        "ms_per_step": ms, "steps_per_sec": 1000.0 / ms, "springs_per_sec": m.spring_count * 1000.0 / ms,
+        "realtime_factor": sim.dt * 1000.0 / ms, "compile_s": compile_s, "speedup_vs_cpu": "",
+        "force_evals_per_step": sim.integrator.force_evals_per_step, "roofline_ms": "", "floor_multiple": "",
+        "stable": int(finite), "solver_iterations_mean": iters,
+    }
+
+
+def write_csv(path: str, rows: list[dict]) -> None:
+    """Write rows atomically (temporary file, then rename)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".bench-", suffix=".csv", dir=folder)
+    with os.fdopen(fd, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=COLUMNS)
+        w.writeheader()
+        w.writerows(rows)
+    os.replace(tmp, path)
+
+
+def plot(path: str, rows: list[dict]) -> bool:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("bench: --plot needs matplotlib (pip install 'warpcloth[plot]'); no plot written", file=sys.stderr)
+        return False
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    keys = sorted({(r["integrator"], r["device"], r["graph"]) for r in rows})
+    for integ, dev, graph in keys:
+        sel = sorted((r for r in rows if (r["integrator"], r["device"], r["graph"]) == (integ, dev, graph)), key=lambda r: r["particles"])
+        ax.plot([r["particles"] for r in sel], [r["ms_per_step"] for r in sel], marker="o" if dev == "cpu" else "s",
+                linestyle="-" if graph else "--", label=f"{integ} {dev}{' graph' if graph else ''}")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("particles")
+    ax.set_ylabel("ms / step")
+    ax.set_title("warpcloth sheet: ms per step vs particle count")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    return True
+
+
+def format_table(rows: list[dict]) -> str:
+    head = f"{'integrator':15s} {'device':7s} {'graph':5s} {'size':>9s} {'particles':>9s} {'ms/step':>10s} {'steps/s':>10s} {'RT factor':>9s} {'x floor':>8s} {'CUDA x':>7s}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        def fmt(v, spec):
+            return format(v, spec) if isinstance(v, (int, float)) else format(str(v), ">" + spec.split(".")[0].lstrip(">"))
+        lines.append(
+            f"{r['integrator']:15s} {r['device']:7s} {('yes' if r['graph'] else 'no'):5s} {str(r['rows']) + 'x' + str(r['cols']):>9s} "
+            f"{r['particles']:>9d} {r['ms_per_step']:>10.4f} {r['steps_per_sec']:>10.0f} {r['realtime_factor']:>9.3f} "
+            f"{fmt(r['floor_multiple'], '>8.2f')} {fmt(r['speedup_vs_cpu'], '>7.1f')}"
+        )
+    return "\n".join(lines)
+
+
+def build_parser(prog: str = "bench/devices.py") -> argparse.ArgumentParser:
+    from .cli import _Parser
+
+    p = _Parser(prog=prog, description=__doc__.split("\n\n")[0])
+    add_arguments(p)
+    return p
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--integrators", default=None, help="comma-separated names (default: every registered integrator)")
+    p.add_argument("--sizes", default="32,64,128", help="comma-separated sheet sizes N for N x N (default 32,64,128)")
+    p.add_argument("--devices", default=None, help="comma-separated Warp devices (default: cpu and every CUDA device present)")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--steps", type=int, default=None, help="steps to time per combination")
+    group.add_argument("--seconds", type=float, default=1.0, help="wall seconds to time per combination (default 1)")
+    p.add_argument("--graph", choices=["both", "on", "off"], default="both", help="time with graph capture, without, or both (default both)")
+    p.add_argument("--roofline", action="store_true", help="time the speed-of-light force pass and report multiples of it")
+    p.add_argument("--out", default=None, help="write the results to this CSV")
+    p.add_argument("--plot", default=None, help="write a log-log PNG of ms/step vs particles (needs matplotlib)")
+
+
+def run(args) -> int:
+    from .integrators import integrator_class, integrator_names
+    from .scenarios.common import resolve_device
+    from .simulator import graph_capture_supported
+
+    names = integrator_names() if not args.integrators else [s.strip() for s in args.integrators.split(",") if s.strip()]
+    for n in names:
+        integrator_class(n)
+    sizes = parse_sizes(args.sizes)
+    require(args.steps is None or args.steps >= 1, f"--steps must be >= 1, got {args.steps}")
+    require(args.seconds is None or args.seconds > 0, f"--seconds must be > 0, got {args.seconds}")
+    wanted = default_devices() if args.devices is None else [s.strip() for s in args.devices.split(",") if s.strip()]
+    devices, skipped = [], []
+    for d in wanted:
+        try:
+            devices.append(resolve_device(d))
+        except WarpclothError as exc:
+            if args.devices is None:
+                skipped.append(str(exc))
+            else:
+                raise
+    if not any(d.startswith("cuda") for d in devices):
+        reason = "no CUDA device is present" if not wp.get_cuda_devices() else "not asked for (--devices)"
+        print(f"bench: CUDA skipped: {reason}; timing the CPU only", file=sys.stderr)
+    for path in (args.out, args.plot):
+        if path:
+            folder = os.path.dirname(os.path.abspath(path))
+            require(os.path.isdir(folder) and os.access(folder, os.W_OK), f"output path {path!r}: folder {folder!r} is not a writable folder")
+
+    rows, floors = [], {}
+    for device in devices:
+        modes = {"both": [False, True], "on": [True], "off": [False]}[args.graph]
+        for size in sizes:
+            if args.roofline:
+                from .scenarios import get_scenario
+
+                floors[(device, size)] = roofline_ms(get_scenario("sheet").build(rows=size, cols=size, device=device).model)
+            for name in names:
+                for graph in modes:
+                    sim_cls = integrator_class(name)
+                    if graph and not (graph_capture_supported(device) and sim_cls.graph_capturable):
+                        continue
+                    print(f"bench: {name} {size}x{size} on {device}{' (graph)' if graph else ''} ...", file=sys.stderr, flush=True)
+                    row = bench_one(name, size, device, graph, args.steps, args.seconds)
+                    if args.roofline:
+                        floor = floors[(device, size)]
+                        row["roofline_ms"] = floor
+                        row["floor_multiple"] = row["ms_per_step"] / (row["force_evals_per_step"] * floor)
+                    rows.append(row)
+    cpu = {(r["integrator"], r["rows"], r["graph"]): r["ms_per_step"] for r in rows if r["device"] == "cpu"}
+    for r in rows:
+        if r["device"] != "cpu" and (r["integrator"], r["rows"], r["graph"]) in cpu:
+            r["speedup_vs_cpu"] = cpu[(r["integrator"], r["rows"], r["graph"])] / r["ms_per_step"]
+    print(format_table(rows))
+    if args.roofline:
+        for (device, size), floor in sorted(floors.items()):
+            print(f"roofline floor on {device}, {size}x{size}: {floor:.4f} ms per force pass")
+    if args.out:
+        write_csv(args.out, rows)
+        print(f"wrote {args.out}")
+    if args.plot and plot(args.plot, rows):
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return run(args)
+    except WarpclothError as exc:
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        return 2
