@@ -140,6 +140,7 @@ class Simulator:
         self._dt: float | None = None
         self._use_graph = use_graph
         self._graphs: dict[int, object] = {}
+        self._warmed = False
         self.set_integrator(integrator, dt)
         self.sim_time = 0.0
         self.steps = 0
@@ -163,6 +164,7 @@ class Simulator:
         self.integrator = integrator
         self._needs_begin = True
         self._graphs.clear()
+        self._warmed = False
 
     def set_dt(self, dt: float) -> None:
         self._dt = require_positive("dt", dt, "s")
@@ -217,6 +219,10 @@ class Simulator:
             self._needs_begin = False
         graph = self._graphs.get(steps)
         if graph is None:
+            if not self._warmed:  # load every kernel before capturing (older CUDA drivers require it)
+                self.warm_up()
+                self.integrator.begin(self.state, self.control, self._dt)
+                self._needs_begin = False
             if len(self._graphs) >= 4:  # frames alternate between at most two step counts
                 self._graphs.clear()
             with wp.ScopedCapture(device=self.model.device) as capture:
@@ -251,6 +257,7 @@ class Simulator:
         wp.synchronize_device(self.model.device)
         self.integrator.reset_stats()
         self._needs_begin = True
+        self._warmed = True
         return time.perf_counter() - t0
 
     def run(
