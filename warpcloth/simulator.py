@@ -195,11 +195,16 @@ class Simulator:
     def step(self) -> None:
         """Advance one time step: W(t) update, integrator step, t += dt (launches only)."""
         if self._needs_begin:
-            self.integrator.begin(self.state, self.control, self._dt)
-            self._needs_begin = False
+            self._begin()
         self._launch_step()
         self.steps += 1
         self.sim_time = self.steps * self._dt
+
+    def _begin(self) -> None:
+        """Let the integrator start its history from the current state and wind W(t)."""
+        self.control.update()
+        self.integrator.begin(self.state, self.control, self._dt)
+        self._needs_begin = False
 
     def _launch_step(self) -> None:
         self.control.update()
@@ -215,14 +220,12 @@ class Simulator:
                 self.step()
             return
         if self._needs_begin:
-            self.integrator.begin(self.state, self.control, self._dt)
-            self._needs_begin = False
+            self._begin()
         graph = self._graphs.get(steps)
         if graph is None:
             if not self._warmed:  # load every kernel before capturing (older CUDA drivers require it)
                 self.warm_up()
-                self.integrator.begin(self.state, self.control, self._dt)
-                self._needs_begin = False
+                self._begin()
             if len(self._graphs) >= 4:  # frames alternate between at most two step counts
                 self._graphs.clear()
             with wp.ScopedCapture(device=self.model.device) as capture:
@@ -247,7 +250,7 @@ class Simulator:
         t0 = time.perf_counter()
         saved = wp.clone(self.state.particle_q), wp.clone(self.state.particle_qd)
         saved_time = wp.clone(self.control.time)
-        self.integrator.begin(self.state, self.control, self._dt)
+        self._begin()
         self._launch_step()
         self.measure()
         wp.copy(self.state.particle_q, saved[0])
