@@ -118,20 +118,21 @@ def test_iteration_stiffness_formula():
     assert iteration_stiffness(1.0, 7) == 1.0 and iteration_stiffness(0.0, 7) == 0.0
 
 
-@pytest.mark.parametrize("iterations", [1, 5, 20])
-def test_pbd_hanging_mass_rests_at_iteration_independent_extension(iterations):
-    # Stationary state: the projection keeps (1 - k) of the error e + g dt^2, so e = (1 - k)/k g dt^2.
-    k = 0.5
-    sim = Simulator(hanging_mass(), make_integrator("pbd", iterations=iterations, pbd_stiffness=k), Control(device="cpu"), dt=DT)
+@pytest.mark.parametrize("iterations,substeps", [(1, 1), (5, 1), (20, 1), (5, 3)])
+def test_pbd_hanging_mass_rests_at_iteration_independent_extension(iterations, substeps):
+    # Stationary state: the projection keeps (1 - k) of the error e + g h^2, so e = (1 - k)/k g h^2,
+    # h = dt / substeps.
+    k, h = 0.5, DT / substeps
+    sim = Simulator(hanging_mass(), make_integrator("pbd", iterations=iterations, substeps=substeps, pbd_stiffness=k), Control(device="cpu"), dt=DT)
     sim.simulate(300)
     q = sim.state.particle_q.numpy()
     extension = -q[1, 1] - 0.5
-    assert extension == pytest.approx((1.0 - k) / k * G * DT * DT, rel=1e-3)
+    assert extension == pytest.approx((1.0 - k) / k * G * h * h, rel=1e-3)
 
 
 def test_pbd_hanging_mass_without_correction_depends_on_iterations():
     # Without k': e = (1 - k)^n / (1 - (1 - k)^n) g dt^2, 1/31 of the corrected value at n = 5.
-    sim = Simulator(hanging_mass(), make_integrator("pbd", iterations=5, pbd_stiffness=0.5), Control(device="cpu"), dt=DT)
+    sim = Simulator(hanging_mass(), make_integrator("pbd", iterations=5, substeps=1, pbd_stiffness=0.5), Control(device="cpu"), dt=DT)
     sim.integrator.iteration_correction = False
     sim.simulate(300)
     extension = -sim.state.particle_q.numpy()[1, 1] - 0.5
@@ -139,7 +140,7 @@ def test_pbd_hanging_mass_without_correction_depends_on_iterations():
 
 
 def pbd_sheet_sag(iterations, correction=True):
-    sim = sheet.build(integrator="pbd", rows=10, cols=10, integrator_options={"iterations": iterations, "pbd_stiffness": 0.5, "pbd_bend_stiffness": 0.5})
+    sim = sheet.build(integrator="pbd", rows=10, cols=10, integrator_options={"iterations": iterations, "substeps": 1, "pbd_stiffness": 0.5, "pbd_bend_stiffness": 0.5})
     sim.integrator.iteration_correction = correction
     result = sim.run(8.0, stop_at_equilibrium=True, warm_up=False)
     assert result.stable and result.equilibrium_reached
@@ -212,12 +213,10 @@ def test_xpbd_sheet_sag_matches_rk4():
 
 # -- the integrator loop ------------------------------------------------------------------------
 
-@pytest.mark.parametrize("name,options", [("pbd", {}), ("xpbd", {"substeps": 3})])
+@pytest.mark.parametrize("name,options", [("pbd", {"substeps": 1, "pbd_stiffness": 0.0}), ("xpbd", {"substeps": 3})])
 def test_free_fall_is_symplectic_euler(name, options):
     # no constraint acts (k = 0 / ks = 0): after M (sub)steps of h, y = -h^2 g M (M + 1) / 2
     model = custom_model([[0.0, 0.0, 0.0], [0.0, -0.5, 0.0]], [[0, 1]], 0.1, ks=0.0)
-    if name == "pbd":
-        options = {"pbd_stiffness": 0.0}
     integrator = make_integrator(name, **options)
     sim = Simulator(model, integrator, Control(device="cpu"), dt=DT)
     sim.simulate(20)
@@ -229,12 +228,13 @@ def test_free_fall_is_symplectic_euler(name, options):
     np.testing.assert_allclose(sim.state.particle_qd.numpy()[:, 1], -G * m * h, rtol=1e-3)
 
 
-@pytest.mark.parametrize("name,options", [("pbd", {}), ("xpbd", {}), ("xpbd", {"substeps": 4})])
+@pytest.mark.parametrize("name,options", [
+    ("pbd", {"substeps": 1, "pbd_stiffness": 0.0}), ("pbd", {"substeps": 3, "pbd_stiffness": 0.0}),
+    ("xpbd", {"substeps": 1}), ("xpbd", {"substeps": 4}),
+])
 def test_velocity_damping_scales_velocity_per_step(name, options):
     # without forces, v <- (1 - k_damp) v per step dt, whatever the substeps
     model = custom_model([[0.0, 0.0, 0.0], [0.0, -0.5, 0.0]], [[0, 1]], 0.1, ks=0.0)
-    if name == "pbd":
-        options = {"pbd_stiffness": 0.0}
     sim = Simulator(model, make_integrator(name, velocity_damping=0.25, **options), Control(gravity=(0.0, 0.0, 0.0), device="cpu"), dt=DT)
     sim.state.particle_qd.assign(np.array([[0, 0, 0], [1.0, 0, 0]], np.float32))
     sim.simulate(2)
@@ -250,13 +250,15 @@ def test_pins_do_not_move_by_one_bit(name):
     q = sim.state.particle_q.numpy()
     assert np.array_equal(q[pins], q0[pins])
     assert np.array_equal(sim.state.particle_qd.numpy()[pins], np.zeros((len(pins), 3), np.float32))
-    assert np.abs(q - q0).max() > 1e-3  # the rest of the sheet moved
+    assert np.abs(q - q0).max() > 1e-4  # the rest of the sheet moved (a frozen cloth: 0)
 
 
 @pytest.mark.parametrize("name", ["pbd", "xpbd"])
-@pytest.mark.parametrize("scenario,rows,cols", [(sheet, 12, 12), (flag, 10, 15)])
-def test_stable_at_one_frame_step(name, scenario, rows, cols):
-    sim = scenario.build(integrator=name, rows=rows, cols=cols)
+@pytest.mark.parametrize("scenario", [sheet, flag])
+def test_stable_at_one_frame_step_with_defaults(name, scenario):
+    # the scenarios' own meshes (sheet 32 x 32, flag 20 x 30) and the integrators' defaults;
+    # measured max strain 17-38 % over 10 s (with 1 substep instead of 4 the sheet passes 100 %)
+    sim = scenario.build(integrator=name)
     assert sim.dt == DT
     result = sim.run(3.0, warm_up=False)
     assert result.stable, result.unstable_reason
@@ -330,6 +332,7 @@ def test_bound_integrator_uses_a_valid_coloring():
     ("pbd", {"iterations": 0}, "iterations must be an integer >= 1, got 0"),
     ("xpbd", {"iterations": 0}, "iterations must be an integer >= 1, got 0"),
     ("xpbd", {"substeps": 0}, "substeps must be an integer >= 1, got 0"),
+    ("pbd", {"substeps": 0}, "substeps must be an integer >= 1, got 0"),
     ("pbd", {"pbd_stiffness": 1.5}, "pbd_stiffness must be in [0, 1], got 1.5"),
     ("pbd", {"pbd_stiffness": -0.1}, "pbd_stiffness must be in [0, 1], got -0.1"),
     ("pbd", {"pbd_bend_stiffness": 2}, "pbd_bend_stiffness must be in [0, 1], got 2"),
@@ -346,7 +349,7 @@ def test_bad_options_raise_one_line_errors(name, options, message):
 def test_shared_options_mean_the_same():
     pbd, xpbd = make_integrator("pbd"), make_integrator("xpbd")
     shared = {o.name for o in type(pbd).options} & {o.name for o in type(xpbd).options}
-    assert shared == {"iterations", "velocity_damping"}
+    assert shared == {"iterations", "substeps", "velocity_damping"}
     for name in shared:
         assert next(o for o in type(pbd).options if o.name == name) == next(o for o in type(xpbd).options if o.name == name)
     assert not pbd.force_based and not xpbd.force_based
@@ -357,8 +360,10 @@ def test_shared_options_mean_the_same():
 def test_cli_errors(capsys):
     assert cli_main(["run", "sheet", "--integrator", "pbd", "--iterations", "0", "--rows", "4", "--cols", "4"]) == 2
     assert "iterations must be an integer >= 1, got" in capsys.readouterr().err
-    assert cli_main(["run", "sheet", "--integrator", "pbd", "--substeps", "2", "--rows", "4", "--cols", "4"]) == 2
-    assert "--substeps does not apply to integrator 'pbd'" in capsys.readouterr().err
+    assert cli_main(["run", "sheet", "--integrator", "xpbd", "--pbd-stiffness", "0.5", "--rows", "4", "--cols", "4"]) == 2
+    assert "--pbd-stiffness does not apply to integrator 'xpbd'" in capsys.readouterr().err
+    assert cli_main(["run", "sheet", "--integrator", "pbd", "--substeps", "0", "--rows", "4", "--cols", "4"]) == 2
+    assert "substeps must be an integer >= 1" in capsys.readouterr().err
     assert cli_main(["run", "sheet", "--integrator", "pbd", "--pbd-stiffness", "1.2", "--rows", "4", "--cols", "4"]) == 2
     assert "pbd_stiffness must be in [0, 1]" in capsys.readouterr().err
 

@@ -1,13 +1,17 @@
 """Position based dynamics, Müller, Heidelberger, Hennix & Ratcliff 2007 (seed 2, Algorithm 1).
 
-    v <- (1 - k_damp)(v + dt w f_ext) ;  p = x + dt v
+Each of the ``substeps`` substeps of length h = dt / substeps runs Algorithm 1:
+
+    v <- (1 - k_damp)^(1/substeps) (v + h w f_ext) ;  p = x + h v
     repeat n times, colour by colour:  p_i += k' w_i/(w_i + w_j) C n,  p_j -= k' w_j/(w_i + w_j) C n
-    v = (p - x) / dt ;  x = p
+    v = (p - x) / h ;  x = p
 
 with C = |p_j - p_i| - L0, n = (p_j - p_i)/|p_j - p_i| for every spring (bend springs too) and
 the iteration-count correction k' = 1 - (1 - k)^(1/n) (section 3.3), so that after n iterations
-a lone constraint keeps the fraction (1 - k) of its error whatever n is. The stiffness
-k in [0, 1] is not a material constant: it does not map to ks (use ``xpbd`` for that).
+a lone constraint keeps the fraction (1 - k) of its error whatever n is. ``substeps=1`` is the
+paper's algorithm; more substeps (Macklin et al. 2019) make an unconverged solve stiffer. The
+stiffness k in [0, 1] is per substep and not a material constant: it does not map to ks (use
+``xpbd`` for that).
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ from warpcloth.kernels import constraints as ck
 
 from ..model import SpringType
 from .base import Option
-from .position_based import ITERATIONS, VELOCITY_DAMPING, PositionBasedIntegrator, _unit_interval
+from .position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator, _unit_interval
 
 
 def iteration_stiffness(stiffness: float, iterations: int) -> float:
@@ -35,6 +39,7 @@ class PBD(PositionBasedIntegrator):
     name: ClassVar[str] = "pbd"
     options = (
         ITERATIONS,
+        SUBSTEPS,
         Option("pbd_stiffness", float, 1.0, "PBD stiffness k of structural and shear constraints, in [0, 1]", check=_unit_interval),
         Option("pbd_bend_stiffness", float, 1.0, "PBD stiffness k of bend constraints, in [0, 1]", check=_unit_interval),
         VELOCITY_DAMPING,
@@ -53,13 +58,16 @@ class PBD(PositionBasedIntegrator):
 
     def step(self, state, control, dt):
         m = self.model
-        self.predict(state, control, dt, 1.0 - self.velocity_damping)
+        h = dt / self.substeps
+        keep = self.velocity_keep()
         params = [m.spring_indices, m.spring_rest_length, self.spring_type, self.type_stiffness(), m.particle_inv_mass]
         sweep = self.color_sweep(ck.solve_springs_pbd, params, [self.particle_p])
-        for _ in range(self.iterations):
-            for color in sweep:
-                color.launch()
-        self.update(state, dt)
+        for _ in range(self.substeps):
+            self.predict(state, control, h, keep)
+            for _ in range(self.iterations):
+                for color in sweep:
+                    color.launch()
+            self.update(state, h)
 
     def stats(self) -> dict:
-        return {**super().stats(), "iterations": self.iterations}
+        return {**super().stats(), "iterations": self.iterations, "substeps": self.substeps}

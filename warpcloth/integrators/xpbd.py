@@ -24,8 +24,7 @@ import warp as wp
 
 from warpcloth.kernels import constraints as ck
 
-from .base import Option
-from .position_based import ITERATIONS, VELOCITY_DAMPING, PositionBasedIntegrator, _at_least_one
+from .position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator
 
 
 class XPBD(PositionBasedIntegrator):
@@ -34,7 +33,7 @@ class XPBD(PositionBasedIntegrator):
     name: ClassVar[str] = "xpbd"
     options = (
         ITERATIONS,
-        Option("substeps", int, 1, "substeps per time step, each with its own predict / solve / update (Macklin 2019; >= 1)", check=_at_least_one),
+        SUBSTEPS,
         VELOCITY_DAMPING,
     )
 
@@ -45,7 +44,7 @@ class XPBD(PositionBasedIntegrator):
     def step(self, state, control, dt):
         m = self.model
         h = dt / self.substeps
-        keep = (1.0 - self.velocity_damping) ** (1.0 / self.substeps)
+        keep = self.velocity_keep()
         params = [m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, m.particle_inv_mass, state.particle_q, h]
         sweep = self.color_sweep(ck.solve_springs_xpbd, params, [self.spring_lambda, self.particle_p])
         for _ in range(self.substeps):
