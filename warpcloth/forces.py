@@ -131,6 +131,15 @@ def eval_forces(model, x: wp.array, v: wp.array, control: Control, f: wp.array) 
         wp.launch(fk.eval_wind, dim=model.tri_count, inputs=[x, v, model.tri_indices, control.wind, float(control.wind_coefficient)], outputs=[f], device=device)
 
 
+def eval_external_forces(model, x: wp.array, v: wp.array, control: Control, f: wp.array) -> None:
+    """f = gravity + drag + wind at ``x``, ``v``, without springs (overwrites f): the external
+    forces f_ext of the position-based integrators, whose springs are constraints."""
+    device = model.device
+    wp.launch(fk.eval_particle_forces, dim=model.particle_count, inputs=[v, model.particle_mass, wp.vec3(*control.gravity), float(control.drag_rate)], outputs=[f], device=device)
+    if control.has_wind:
+        wp.launch(fk.eval_wind, dim=model.tri_count, inputs=[x, v, model.tri_indices, control.wind, float(control.wind_coefficient)], outputs=[f], device=device)
+
+
 def check_control_device(model, control: Control) -> None:
     if str(control.device) != str(model.device):
         raise WarpclothError(f"control is on device {control.device!r} but the model is on {model.device!r}")

@@ -9,8 +9,10 @@ from __future__ import annotations
 from .base import Integrator, Option, explicit_euler_dt_bound, stable_dt_estimate
 from .explicit_euler import ExplicitEuler
 from .midpoint import Midpoint
+from .pbd import PBD
 from .rk4 import RK4
 from .verlet import Verlet
+from .xpbd import XPBD
 from ..errors import WarpclothError
 
 _REGISTRY: dict[str, type[Integrator]] = {}
@@ -22,7 +24,7 @@ def register(cls: type[Integrator]) -> type[Integrator]:
     return cls
 
 
-for _cls in (ExplicitEuler, Midpoint, RK4, Verlet):
+for _cls in (ExplicitEuler, Midpoint, RK4, Verlet, PBD, XPBD):
     register(_cls)
 
 

@@ -1,0 +1,65 @@
+"""Extended position based dynamics, Macklin, Müller & Chentanez 2016, with the substeps of
+Macklin, Storey, Lu, Terdiman, Chentanez, Jeschke & Müller 2019 ("Small Steps").
+
+Each of the ``substeps`` substeps of length h = dt / substeps runs
+
+    v <- (1 - k_damp)^(1/substeps) (v + h w f_ext) ;  p = x + h v ;  lambda = 0
+    repeat n times, colour by colour (Macklin 2016, eq. 18 and 26):
+        dlambda = (-C - alpha~ lambda - gamma gradC (p - x)) / ((1 + gamma)(w_i + w_j) + alpha~)
+        lambda += dlambda ;  p_i -= w_i n dlambda ;  p_j += w_j n dlambda
+    v = (p - x) / h ;  x = p
+
+for every spring (bend springs too), with C = |p_j - p_i| - L0, compliance alpha = 1/ks,
+alpha~ = alpha / h^2 and damping gamma = alpha kd / h: the spring's own ks [N/m] and
+kd [N s/m], so the material is the same as in the force-based integrators. A spring with
+ks = 0 exerts nothing, as it would as a force. The kernels use the equivalent form multiplied
+through by ks h^2, so no division by ks occurs.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import warp as wp
+
+from warpcloth.kernels import constraints as ck
+
+from .position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator
+
+
+class XPBD(PositionBasedIntegrator):
+    """Extended position based dynamics (Macklin et al. 2016): compliance alpha = 1/ks, substeps."""
+
+    name: ClassVar[str] = "xpbd"
+    options = (
+        ITERATIONS,
+        SUBSTEPS,
+        VELOCITY_DAMPING,
+    )
+
+    def _allocate(self, model) -> None:
+        super()._allocate(model)
+        self.spring_lambda = wp.zeros(model.spring_count, dtype=float)
+
+    def step(self, state, control, dt):
+        m = self.model
+        h = dt / self.substeps
+        keep = self.velocity_keep()
+        params = [m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, m.particle_inv_mass, state.particle_q, h]
+        sweep = self.color_sweep(ck.solve_springs_xpbd, params, [self.spring_lambda, self.particle_p])
+        for _ in range(self.substeps):
+            self.predict(state, control, h, keep)
+            self.clear_lambda()
+            for _ in range(self.iterations):
+                for color in sweep:
+                    color.launch()
+            self.update(state, h)
+
+    def clear_lambda(self) -> None:
+        """lambda = 0 for every constraint."""
+        if self.model.spring_count:
+            wp.launch(ck.clear_lambda, dim=self.model.spring_count, outputs=[self.spring_lambda], device=self.model.device)
+
+    def stats(self) -> dict:
+        return {**super().stats(), "iterations": self.iterations, "substeps": self.substeps}
+
