@@ -7,7 +7,8 @@
   (:attr:`~warpcloth.testlist.RunSpec.key`, built from the run's parameters) is already in the
   file. A run that raises records ``outcome=error`` and its message, and the sweep goes on.
 * ``timestep="max"`` / ``"max*F"`` uses :func:`~warpcloth.maxdt.find_max_dt`, searched once per
-  integrator, scenario, mesh and parameters within a sweep.
+  integrator, scenario, mesh and parameters within a sweep, up to one frame (1/frame_rate): a
+  real-time run takes at least one step per frame, so a larger dt is never useful here.
 * Progress goes to stderr, never to stdout.
 """
 
@@ -116,7 +117,8 @@ class MaxDtCache:
             try:
                 self._results[key] = find_max_dt(
                     get_scenario(spec.scenario), spec.config(), precision=spec.maxdt_precision,
-                    duration=spec.maxdt_duration, wall_cap=spec.cap, on_trial=self.on_trial,
+                    duration=spec.maxdt_duration, dt_max=1.0 / spec.frame_rate, wall_cap=spec.cap,
+                    on_trial=self.on_trial,
                 )
             except Exception as exc:  # recorded in every run that needs it
                 self._results[key] = exc
