@@ -341,7 +341,14 @@ def _read_tree(path: str) -> tuple[_Source, _Element]:
     root: list[_Element] = []
 
     def start(tag, attrs):
-        el = _Element(tag, dict(attrs), parser.CurrentLineNumber, parser.CurrentByteIndex)
+        line = parser.CurrentLineNumber
+        if not stack and tag != ROOT_TAG:
+            raise src.error(line, f"the root element must be <{ROOT_TAG}>, got <{tag}>")
+        if len(stack) == 1 and tag != TEST_TAG:
+            raise src.error(line, f"unknown element <{tag}> inside <{ROOT_TAG}>; only <{TEST_TAG}> is allowed")
+        if len(stack) >= 2:
+            raise src.error(line, f"unknown element <{tag}> inside <{stack[-1].tag}>; give parameters as attributes of <{TEST_TAG}>")
+        el = _Element(tag, dict(attrs), line, parser.CurrentByteIndex)
         (stack[-1].children if stack else root).append(el)
         stack.append(el)
 
@@ -351,7 +358,8 @@ def _read_tree(path: str) -> tuple[_Source, _Element]:
     def text(data):
         if data.strip():
             where = stack[-1].tag if stack else "the document"
-            raise src.error(parser.CurrentLineNumber, f"unexpected text {data.strip()[:40]!r} inside <{where}>; a test list holds only elements and attributes")
+            lead = len(data) - len(data.lstrip())
+            raise src.error(parser.CurrentLineNumber + data[:lead].count("\n"), f"unexpected text {data.strip()[:40]!r} inside <{where}>; a test list holds only elements and attributes")
 
     parser.StartElementHandler = start
     parser.EndElementHandler = end
@@ -369,17 +377,9 @@ def parse_test_list(path: str) -> TestList:
     Raises:
         WarpclothError: ``FILE:LINE: problem`` for the first problem found; no run has started.
     """
-    src, root = _read_tree(str(path))
-    if root.tag != ROOT_TAG:
-        raise src.error(root.line, f"the root element must be <{ROOT_TAG}>, got <{root.tag}>")
+    src, root = _read_tree(str(path))  # checks the structure: test_list > test, nothing else
     if "id" in root.attrs:
         raise src.error(src.attr_line(root, "id"), f"attribute 'id' belongs on <{TEST_TAG}>, not on <{ROOT_TAG}>")
-    for child in root.children:
-        if child.tag != TEST_TAG:
-            raise src.error(child.line, f"unknown element <{child.tag}> inside <{ROOT_TAG}>; only <{TEST_TAG}> is allowed")
-        if child.children:
-            bad = child.children[0]
-            raise src.error(bad.line, f"unknown element <{bad.tag}> inside <{TEST_TAG}>; give parameters as attributes")
     if not root.children:
         raise src.error(root.line, f"empty test list: <{ROOT_TAG}> holds no <{TEST_TAG}> element")
 
