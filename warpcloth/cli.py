@@ -2,6 +2,8 @@
 
     warpcloth run SCENARIO [--integrator NAME] [--rows N] [--cols N] [--dt S] ... [--usd PATH] [--json]
     warpcloth list
+    warpcloth sweep TESTS.xml --out RESULTS.csv [--resume | --overwrite]
+    warpcloth max-dt SCENARIO --integrator NAME [--rows N --cols N --stiffness KS ...] [--precision 0.02]
 
 Bad input prints one line, ``warpcloth: error: ...``, and exits with status 2.
 """
@@ -155,6 +157,62 @@ def _list(args) -> int:
     return 0
 
 
+def _sweep(args) -> int:
+    from .sweep import run_sweep
+
+    summary = run_sweep(args.tests, args.out, resume=args.resume, overwrite=args.overwrite,
+                        progress=None if args.quiet else sys.stderr)
+    line = f"{args.out if args.out != '-' else 'stdout'}: {summary.describe()}"
+    print(line, file=sys.stderr if args.out == "-" else sys.stdout)
+    return 1 if summary.outcomes.get("error") else 0
+
+
+def _add_max_dt_arguments(p: argparse.ArgumentParser) -> None:
+    """Flags of ``warpcloth max-dt``: the model and integrator of a run, and the search."""
+    from .integrators import integrator_names
+    from .maxdt import DEFAULT_DURATION, DEFAULT_PRECISION
+
+    p.add_argument("scenario", help="scenario name (see 'warpcloth list')")
+    p.add_argument("--integrator", "-i", default=None, metavar="NAME", help=f"one of: {', '.join(integrator_names())} (default: explicit_euler)")
+    p.add_argument("--rows", type=int, default=None, help="particles per column (scenario default)")
+    p.add_argument("--cols", type=int, default=None, help="particles per row (scenario default)")
+    p.add_argument("--width", type=float, default=None, help="cloth width [m]")
+    p.add_argument("--height", type=float, default=None, help="cloth height [m]")
+    p.add_argument("--mass", type=float, default=None, help="total cloth mass [kg]")
+    p.add_argument("--stiffness", type=_number_list, default=None, metavar="KS", help="spring stiffness [N/m]: one value, or structural,shear,bend")
+    p.add_argument("--damping", type=_number_list, default=None, metavar="KD", help="spring damping [N s/m]: one value, or structural,shear,bend")
+    p.add_argument("--drag", type=float, default=None, help="linear air drag rate [1/s]")
+    p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
+    p.add_argument("--device", default=None, help="Warp device: cpu (default), cuda, cuda:N")
+    p.add_argument("--fps", type=float, default=None, help="frame rate at which stability is checked [1/s] (default 60)")
+    _add_integrator_options(p)
+    search = p.add_argument_group("search")
+    search.add_argument("--precision", type=float, default=DEFAULT_PRECISION, help=f"relative width of the final bracket (default {DEFAULT_PRECISION})")
+    search.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated time [s] a trial must run without going unstable (default {DEFAULT_DURATION:g})")
+    search.add_argument("--dt-min", type=float, default=None, help="smallest dt tried [s] (default 1e-7)")
+    search.add_argument("--dt-max", type=float, default=None, help="largest dt tried [s] (default 0.1)")
+    search.add_argument("--start", type=float, default=None, help="first dt tried [s] (default: the integrator's default dt)")
+    search.add_argument("--wall-cap", type=float, default=None, help="wall-clock cap of one trial [s] (a capped trial counts as stable)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
+    p.set_defaults(dt=None, num_frames=None)
+
+
+def _max_dt(args) -> int:
+    from .maxdt import DEFAULT_DT_MAX, DEFAULT_DT_MIN, find_max_dt, format_result
+    from .scenarios import get_scenario
+
+    scenario = get_scenario(args.scenario)
+    cfg = config_from_args(scenario, args)
+    result = find_max_dt(
+        scenario, cfg, precision=args.precision, duration=args.duration,
+        dt_min=DEFAULT_DT_MIN if args.dt_min is None else args.dt_min,
+        dt_max=DEFAULT_DT_MAX if args.dt_max is None else args.dt_max,
+        start=args.start, wall_cap=args.wall_cap,
+    )
+    print(json.dumps(result.to_dict()) if args.json else format_result(result))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
 
@@ -169,6 +227,15 @@ def build_parser() -> argparse.ArgumentParser:
     from . import bench as bench_module
 
     bench_module.add_arguments(bench)
+    sweep = sub.add_parser("sweep", help="run an XML test list, one CSV row per run (docs/sweep.md)")
+    sweep.add_argument("tests", metavar="TESTS.xml", help="the test list")
+    sweep.add_argument("--out", "-o", required=True, metavar="RESULTS.csv", help="results file ('-' for stdout)")
+    mode = sweep.add_mutually_exclusive_group()
+    mode.add_argument("--resume", action="store_true", help="continue RESULTS.csv: skip runs already in it")
+    mode.add_argument("--overwrite", action="store_true", help="replace RESULTS.csv if it exists")
+    sweep.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
+    max_dt = sub.add_parser("max-dt", help="find the largest stable time step of an integrator on a scenario")
+    _add_max_dt_arguments(max_dt)
     return parser
 
 
@@ -184,11 +251,16 @@ def main(argv=None) -> int:
             from . import bench as bench_module
 
             return bench_module.run(args)
+        if args.command == "sweep":
+            return _sweep(args)
+        if args.command == "max-dt":
+            return _max_dt(args)
     except WarpclothError as exc:
         print(f"warpcloth: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
-        print("warpcloth: interrupted", file=sys.stderr)
+        hint = f"; finished runs are in {args.out}, continue with --resume" if args.command == "sweep" and args.out != "-" else ""
+        print(f"warpcloth: interrupted{hint}", file=sys.stderr)
         return 130
     parser.error(f"unknown command {args.command!r}")
     return EXIT_USAGE

@@ -1,0 +1,205 @@
+"""The largest stable time step of an integrator on a scenario (design.md, seed 4.2.2).
+
+A time step is *stable* when the scenario runs a fixed simulated duration (default 2 s, from
+rest, without stopping at equilibrium) and never goes unstable by the simulator's definition
+(non-finite state, or a spring strained past the instability limit). The search brackets the
+boundary by doubling or halving a first guess, then bisects (geometric mean) until the
+bracket's relative width is at most the precision. It assumes stability is monotonic in dt,
+as it is for the explicit schemes; it returns the largest dt seen stable.
+
+Each trial reuses one :class:`~warpcloth.simulator.Simulator` (reset to rest, new dt), so the
+model is built and kernels compiled once.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+from .errors import require, require_positive
+
+DEFAULT_PRECISION = 0.02
+DEFAULT_DURATION = 2.0  # s of simulated time a trial must survive
+DEFAULT_DT_MIN = 1.0e-7  # s
+DEFAULT_DT_MAX = 0.1  # s: beyond this the search stops (implicit integrators are stable at any dt)
+
+
+@dataclass
+class Trial:
+    """One trial run of the search."""
+
+    dt: float
+    stable: bool
+    reason: str = ""  # why it went unstable
+    capped: bool = False  # stopped by the wall-clock cap before the duration (counted as stable)
+    wall_time: float = 0.0
+
+
+@dataclass
+class MaxDtResult:
+    """Outcome of :func:`find_max_dt`.
+
+    Attributes:
+        dt: the largest dt [s] found stable (None if none was, down to ``dt_min``).
+        unstable_dt: the smallest dt [s] found unstable (None if none was, up to ``dt_max``).
+        precision: relative precision asked.
+        duration: simulated time of each trial [s].
+        trials: every trial, in order.
+        reference: the seed's explicit-Euler bound 0.4 pi sqrt(m/K) [s] on this model.
+        particle_mass: m [kg]; max_stiffness: K [N/m].
+        wall_time: seconds the search took.
+    """
+
+    scenario: str
+    integrator: str
+    device: str
+    rows: int
+    cols: int
+    dt: float | None
+    unstable_dt: float | None
+    precision: float
+    duration: float
+    dt_min: float
+    dt_max: float
+    reference: float
+    particle_mass: float
+    max_stiffness: float
+    trials: list[Trial] = field(default_factory=list)
+    wall_time: float = 0.0
+
+    @property
+    def limit_reached(self) -> bool:
+        """True when no instability was found up to ``dt_max``."""
+        return self.unstable_dt is None
+
+    @property
+    def inconclusive_trials(self) -> int:
+        return sum(t.capped for t in self.trials)
+
+    def to_dict(self) -> dict:
+        return {
+            "scenario": self.scenario, "integrator": self.integrator, "device": self.device, "rows": self.rows,
+            "cols": self.cols, "max_dt": self.dt, "unstable_dt": self.unstable_dt, "precision": self.precision,
+            "duration": self.duration, "dt_min": self.dt_min, "dt_max": self.dt_max,
+            "explicit_euler_reference": self.reference, "particle_mass": self.particle_mass,
+            "max_stiffness": self.max_stiffness, "trials": [t.__dict__ for t in self.trials], "wall_time": self.wall_time,
+        }
+
+
+def trial_stable(sim, dt: float, duration: float, fps: float = 60.0, wall_cap: float | None = None) -> Trial:
+    """Run ``sim`` from rest for ``duration`` seconds at ``dt``; is it stable?"""
+    sim.reset()
+    sim.set_dt(dt)
+    t0 = time.perf_counter()
+    r = sim.run(duration, fps=fps, stop_at_equilibrium=False, wall_cap=wall_cap, warm_up=False)
+    return Trial(dt=dt, stable=r.stable, reason=r.unstable_reason, capped=r.wall_cap_reached and r.stable, wall_time=time.perf_counter() - t0)
+
+
+def find_max_dt(
+    scenario,
+    config,
+    precision: float = DEFAULT_PRECISION,
+    duration: float = DEFAULT_DURATION,
+    dt_min: float = DEFAULT_DT_MIN,
+    dt_max: float = DEFAULT_DT_MAX,
+    start: float | None = None,
+    wall_cap: float | None = None,
+    on_trial=None,
+) -> MaxDtResult:
+    """The largest stable dt of ``config.integrator`` on ``scenario`` with ``config``.
+
+    Args:
+        scenario: a :class:`~warpcloth.scenarios.Scenario`.
+        config: its :class:`~warpcloth.scenarios.ScenarioConfig` (``dt`` and ``duration`` ignored).
+        precision: stop when (unstable - stable) / stable <= precision.
+        duration: simulated time [s] each trial must survive.
+        dt_min, dt_max: the search's bounds [s].
+        start: first dt tried [s] (default: the integrator's own default dt).
+        wall_cap: wall-clock cap of one trial [s]; a trial that reaches it without going
+            unstable counts as stable (reported in :attr:`MaxDtResult.inconclusive_trials`).
+        on_trial: called with each :class:`Trial` as it finishes.
+    """
+    from .integrators import explicit_euler_dt_bound
+
+    precision = require_positive("precision", precision)
+    require(precision < 1.0, f"precision must be < 1 (relative, e.g. 0.02), got {precision!r}")
+    duration = require_positive("duration", duration, "s")
+    dt_min = require_positive("dt_min", dt_min, "s")
+    dt_max = require_positive("dt_max", dt_max, "s")
+    require(dt_min < dt_max, f"dt_min ({dt_min:g} s) must be below dt_max ({dt_max:g} s)")
+
+    t_start = time.perf_counter()
+    sim = scenario.build(config)
+    model = sim.model
+    result = MaxDtResult(
+        scenario=scenario.name, integrator=sim.integrator.name, device=str(model.device), rows=model.rows,
+        cols=model.cols, dt=None, unstable_dt=None, precision=precision, duration=duration, dt_min=dt_min,
+        dt_max=dt_max, reference=explicit_euler_dt_bound(model), particle_mass=model.particle_mass_value,
+        max_stiffness=model.max_stiffness(),
+    )
+    sim.warm_up()
+
+    def test(dt: float) -> bool:
+        trial = trial_stable(sim, dt, duration, fps=config.fps, wall_cap=wall_cap)
+        result.trials.append(trial)
+        if on_trial is not None:
+            on_trial(trial)
+        return trial.stable
+
+    dt = min(max(start if start is not None else sim.dt, dt_min), dt_max)
+    lo = hi = None
+    # Bracket: double while stable, halve while unstable.
+    if test(dt):
+        lo = dt
+        while hi is None and lo < dt_max:
+            dt = min(2.0 * lo, dt_max)
+            if test(dt):
+                lo = dt
+            else:
+                hi = dt
+    else:
+        hi = dt
+        while lo is None and hi > dt_min:
+            dt = max(0.5 * hi, dt_min)
+            if test(dt):
+                lo = dt
+            else:
+                hi = dt
+    # Bisect.
+    if lo is not None and hi is not None:
+        while (hi - lo) / lo > precision:
+            mid = math.sqrt(lo * hi)
+            if test(mid):
+                lo = mid
+            else:
+                hi = mid
+    result.dt, result.unstable_dt = lo, hi
+    result.wall_time = time.perf_counter() - t_start
+    return result
+
+
+def format_result(r: MaxDtResult) -> str:
+    """The human-readable report of ``warpcloth max-dt``."""
+    lines = [f"{r.scenario}: {r.integrator} on {r.device}, {r.rows}x{r.cols}; stable = {r.duration:g} s simulated without going unstable"]
+    if r.dt is None:
+        lines.append(f"  no stable dt found down to {r.dt_min:.4g} s")
+    elif r.unstable_dt is None:
+        lines.append(f"  max stable dt: >= {r.dt:.4g} s (stable up to the search limit {r.dt_max:.4g} s; no instability found)")
+    else:
+        lines.append(f"  max stable dt: {r.dt:.4g} s")
+        lines.append(f"  bracket: stable at {r.dt:.4g} s, unstable at {r.unstable_dt:.4g} s "
+                     f"(relative width {(r.unstable_dt - r.dt) / r.dt:.2%}, precision {r.precision:.2%})")
+    top = next((t for t in r.trials if not t.stable and t.dt == r.unstable_dt), None)
+    if top is not None:
+        lines.append(f"  at {top.dt:.4g} s: {top.reason}")
+    lines.append(f"  {len(r.trials)} trials in {r.wall_time:.1f} s wall"
+                 + (f" ({r.inconclusive_trials} stopped by the wall cap, counted as stable)" if r.inconclusive_trials else ""))
+    if r.integrator == "explicit_euler":
+        ratio = f"; found / reference = {r.dt / r.reference:.2f}" if r.dt is not None and math.isfinite(r.reference) else ""
+        lines.append(f"  explicit-Euler reference 0.4 pi sqrt(m/K) (seed 4.2.2): {r.reference:.4g} s "
+                     f"(m = {r.particle_mass:.4g} kg, K = {r.max_stiffness:.4g} N/m){ratio}")
+    return "\n".join(lines)
+
+
+__all__ = ["DEFAULT_DURATION", "DEFAULT_PRECISION", "MaxDtResult", "Trial", "find_max_dt", "format_result", "trial_stable"]

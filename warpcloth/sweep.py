@@ -1,0 +1,420 @@
+"""Run an XML test list (seed 4.3) and write one CSV row per run.
+
+* A sheet run ends at equilibrium, at its simulated duration or at its wall-clock cap, whichever
+  comes first; a flag run ends at its duration or its cap.
+* Durability: the header is written atomically when the file is created; each row is written,
+  flushed and fsync'd as its run finishes. ``resume=True`` skips the runs whose key
+  (:attr:`~warpcloth.testlist.RunSpec.key`, built from the run's parameters) is already in the
+  file. A run that raises records ``outcome=error`` and its message, and the sweep goes on.
+* ``timestep="max"`` / ``"max*F"`` uses :func:`~warpcloth.maxdt.find_max_dt`, searched once per
+  integrator, scenario, mesh and parameters within a sweep, up to one frame (1/frame_rate): a
+  real-time run takes at least one step per frame, so a larger dt is never useful here.
+* Progress goes to stderr, never to stdout.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+
+from .errors import WarpclothError
+from .testlist import RunSpec, TestList, parse_test_list
+
+#: Columns of the CSV, in order (docs/sweep.md describes each).
+COLUMNS = [
+    "test_id", "scenario", "integrator", "device", "rows", "cols", "particles", "springs",
+    "timestep", "dt", "max_dt", "unstable_dt",
+    "ks", "ks_shear", "ks_bend", "kd", "kd_shear", "kd_bend", "mass", "drag", "bend", "options",
+    "frame_rate", "duration", "cap",
+    "outcome", "steps", "sim_time", "wall_time", "compile_time", "ms_per_step", "steps_per_sec",
+    "fps", "realtime_factor", "realtime", "integration_ms_mean", "other_ms_mean",
+    "stable", "unstable_reason", "equilibrium_reached", "time_to_equilibrium_sim", "time_to_equilibrium_wall",
+    "max_strain", "wall_cap_reached", "solver_iterations", "solver", "error",
+    "warpcloth_version", "warp_version", "key",
+]
+
+#: The seed's real-time threshold: 30 frames of 1/30 s per wall second, i.e. real-time factor >= 1.
+REALTIME_FPS = 30.0
+
+OUTCOMES = ("equilibrium", "completed", "wall_cap", "unstable", "error")
+
+
+# -- one run ---------------------------------------------------------------------------------
+def parameter_row(spec: RunSpec) -> dict:
+    """The columns known before a run starts."""
+    import warp as wp
+
+    from . import __version__
+    from .model import expected_spring_counts
+
+    ks, kd = spec.stiffness, spec.damping
+    return {
+        "test_id": spec.test_id, "scenario": spec.scenario, "integrator": spec.integrator, "device": spec.device,
+        "rows": spec.rows, "cols": spec.cols, "particles": spec.rows * spec.cols,
+        "springs": sum(expected_spring_counts(spec.rows, spec.cols, spec.bend).values()),
+        "timestep": str(spec.timestep), "ks": ks[0], "ks_shear": ks[1], "ks_bend": ks[2],
+        "kd": kd[0], "kd_shear": kd[1], "kd_bend": kd[2], "mass": spec.mass, "drag": spec.drag, "bend": spec.bend,
+        "options": " ".join(f"{k}={v}" for k, v in spec.options), "frame_rate": spec.frame_rate,
+        "duration": spec.duration, "cap": spec.cap, "warpcloth_version": __version__, "warp_version": wp.config.version,
+        "key": spec.key,
+    }
+
+
+def result_columns(result, stop_at_equilibrium: bool = True) -> dict:
+    """The measured columns of a :class:`~warpcloth.simulator.RunResult`; ``outcome`` says why
+    the run ended (``equilibrium`` only where reaching it ends the run)."""
+    if not result.stable:
+        outcome = "unstable"
+    elif result.equilibrium_reached and stop_at_equilibrium:
+        outcome = "equilibrium"
+    elif result.wall_cap_reached:
+        outcome = "wall_cap"
+    else:
+        outcome = "completed"
+    return {
+        "dt": result.dt, "particles": result.particles, "springs": result.springs, "outcome": outcome,
+        "steps": result.steps, "sim_time": result.sim_time, "wall_time": result.wall_time,
+        "compile_time": result.compile_time, "ms_per_step": result.ms_per_step, "steps_per_sec": result.steps_per_sec,
+        "fps": result.frames_per_sec, "realtime_factor": result.realtime_factor,
+        "realtime": result.realtime_factor >= 1.0,
+        "integration_ms_mean": result.integration_ms_mean, "other_ms_mean": result.other_ms_mean,
+        "stable": result.stable, "unstable_reason": result.unstable_reason,
+        "equilibrium_reached": result.equilibrium_reached, "time_to_equilibrium_sim": result.time_to_equilibrium,
+        "time_to_equilibrium_wall": result.time_to_equilibrium_wall, "max_strain": result.max_strain,
+        "wall_cap_reached": result.wall_cap_reached, "solver_iterations": solver_iterations(result.solver),
+        "solver": result.solver or None,
+    }
+
+
+def solver_iterations(stats: dict):
+    """The iteration count among an integrator's stats: the first numeric entry whose name
+    contains ``iter`` (a name with ``mean`` first); None when the integrator has none."""
+    names = [k for k, v in stats.items() if "iter" in k.lower() and isinstance(v, (int, float)) and not isinstance(v, bool)]
+    names.sort(key=lambda k: "mean" not in k.lower())
+    return stats[names[0]] if names else None
+
+
+class MaxDtCache:
+    """Max-stable-dt searches of one sweep, by :attr:`RunSpec.search_key` (results or errors)."""
+
+    def __init__(self, on_trial=None):
+        self._results: dict = {}
+        self.on_trial = on_trial
+
+    def get(self, spec: RunSpec):
+        from .maxdt import find_max_dt
+        from .scenarios import get_scenario
+
+        key = spec.search_key
+        if key not in self._results:
+            try:
+                self._results[key] = find_max_dt(
+                    get_scenario(spec.scenario), spec.config(), precision=spec.maxdt_precision,
+                    duration=spec.maxdt_duration, dt_max=1.0 / spec.frame_rate, wall_cap=spec.cap,
+                    on_trial=self.on_trial,
+                )
+            except Exception as exc:  # recorded in every run that needs it
+                self._results[key] = exc
+        found = self._results[key]
+        if isinstance(found, Exception):
+            raise found
+        return found
+
+
+def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
+    """Run ``spec`` and return its CSV row; never raises on a failing run (outcome ``error``)."""
+    from .scenarios import get_scenario
+
+    row = parameter_row(spec)
+    try:
+        dt = None
+        if spec.timestep.kind == "value":
+            dt = spec.timestep.value
+        elif spec.timestep.uses_max:
+            found = cache.get(spec)
+            row["max_dt"], row["unstable_dt"] = found.dt, found.unstable_dt
+            if found.dt is None:
+                raise WarpclothError(f"no stable dt found down to {found.dt_min:g} s")
+            dt = found.dt * spec.timestep.value
+        scenario = get_scenario(spec.scenario)
+        sim = scenario.build(spec.config(dt=dt))
+        row["dt"] = sim.dt
+        result = sim.run(spec.duration, fps=spec.frame_rate, stop_at_equilibrium=scenario.stop_at_equilibrium, wall_cap=spec.cap)
+        row.update(result_columns(result, scenario.stop_at_equilibrium))
+    except Exception as exc:
+        row["outcome"] = "error"
+        row["error"] = " ".join(f"{type(exc).__name__}: {exc}".split())
+    return row
+
+
+# -- output ----------------------------------------------------------------------------------
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else str(value)
+    if isinstance(value, dict):
+        return json.dumps(value, sort_keys=True)
+    return str(value)
+
+
+def format_row(row: dict) -> str:
+    """One CSV line (with its newline) for ``row``; missing columns are empty."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([_cell(row.get(c)) for c in COLUMNS])
+    return buf.getvalue()
+
+
+class CsvOutput:
+    """The results file: created with its header atomically, appended one fsync'd row at a time.
+
+    Args:
+        path: file path, or ``-`` for stdout.
+        resume: continue an existing file (its keys are skipped); a missing file is created.
+        overwrite: replace an existing file.
+
+    Raises:
+        WarpclothError: the path cannot be written, exists without ``resume``/``overwrite``, or
+            is a CSV with other columns.
+    """
+
+    def __init__(self, path: str, resume: bool = False, overwrite: bool = False):
+        self.path = str(path)
+        self.done_keys: set[str] = set()
+        self.truncated = False
+        if self.path == "-":
+            if resume:
+                raise WarpclothError("--resume needs a results file, not stdout (-)")
+            self.fh = sys.stdout
+            self._fsync = False
+            self.fh.write(format_row(dict(zip(COLUMNS, COLUMNS))))
+            self.fh.flush()
+            return
+        self._fsync = True
+        directory = os.path.dirname(os.path.abspath(self.path))
+        if os.path.isdir(self.path):
+            raise WarpclothError(f"cannot write results to {self.path}: it is a directory")
+        if not os.path.isdir(directory):
+            raise WarpclothError(f"cannot write results to {self.path}: directory {directory} does not exist")
+        exists = os.path.exists(self.path) and os.path.getsize(self.path) > 0
+        if exists and resume:
+            self._read_existing()
+        elif exists and not overwrite:
+            raise WarpclothError(f"{self.path} already exists: use --resume to continue it or --overwrite to replace it")
+        else:
+            self._create()
+        try:
+            self.fh = open(self.path, "a", newline="", encoding="utf-8")
+        except OSError as exc:
+            raise WarpclothError(f"cannot write results to {self.path}: {exc.strerror or exc}") from None
+
+    def _create(self) -> None:
+        directory = os.path.dirname(os.path.abspath(self.path))
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=".warpcloth-", suffix=".csv.tmp", dir=directory)
+        except OSError as exc:
+            raise WarpclothError(f"cannot write results to {self.path}: {exc.strerror or exc}") from None
+        try:
+            with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
+                fh.write(format_row(dict(zip(COLUMNS, COLUMNS))))
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, self.path)
+        except OSError as exc:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise WarpclothError(f"cannot write results to {self.path}: {exc.strerror or exc}") from None
+        _fsync_dir(directory)
+
+    def _read_existing(self) -> None:
+        try:
+            with open(self.path, "rb") as fh:
+                data = fh.read()
+        except OSError as exc:
+            raise WarpclothError(f"cannot read {self.path} to resume: {exc.strerror or exc}") from None
+        if not data.endswith(b"\n"):  # a row cut short by a kill: drop it, it is run again
+            cut = data.rfind(b"\n") + 1
+            if cut == 0:
+                raise WarpclothError(f"cannot resume {self.path}: it has no complete header line")
+            try:
+                with open(self.path, "r+b") as fh:
+                    fh.truncate(cut)
+            except OSError as exc:
+                raise WarpclothError(f"cannot resume {self.path}: {exc.strerror or exc}") from None
+            data = data[:cut]
+            self.truncated = True
+        reader = csv.reader(io.StringIO(data.decode("utf-8", errors="replace")))
+        header = next(reader, None)
+        if header != COLUMNS:
+            raise WarpclothError(f"cannot resume {self.path}: its header is not this warpcloth's sweep columns "
+                                 "(another program, or another warpcloth version, wrote it)")
+        k = COLUMNS.index("key")
+        for line_no, cells in enumerate(reader, start=2):
+            if len(cells) != len(COLUMNS):
+                raise WarpclothError(f"cannot resume {self.path}: line {line_no} has {len(cells)} cells, expected {len(COLUMNS)}")
+            self.done_keys.add(cells[k])
+
+    def write(self, row: dict) -> None:
+        """Append ``row`` and force it to disk."""
+        self.fh.write(format_row(row))
+        self.fh.flush()
+        if self._fsync:
+            os.fsync(self.fh.fileno())
+
+    def close(self) -> None:
+        if self.fh is not sys.stdout:
+            self.fh.close()
+
+
+def _fsync_dir(directory: str) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+# -- progress --------------------------------------------------------------------------------
+def _clock(seconds: float) -> str:
+    s = int(round(seconds))
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+
+
+class Progress:
+    """Runs done / total, the current run, elapsed and remaining time, on a stream (stderr).
+
+    On a terminal one bar is redrawn in place; otherwise one line is printed per event.
+    """
+
+    def __init__(self, total: int, stream=None, width: int = 24):
+        self.total = total
+        self.stream = stream
+        self.width = width
+        self.done = 0
+        self.start = time.perf_counter()
+        self.tty = bool(stream is not None and getattr(stream, "isatty", lambda: False)())
+        self.current = ""
+
+    def _remaining(self) -> str:
+        if self.done == 0:
+            return "?"
+        elapsed = time.perf_counter() - self.start
+        return "~" + _clock(elapsed / self.done * (self.total - self.done))
+
+    def _line(self, status: str) -> str:
+        filled = int(self.width * self.done / self.total) if self.total else self.width
+        bar = "#" * filled + "-" * (self.width - filled)
+        elapsed = _clock(time.perf_counter() - self.start)
+        return f"[{bar}] {self.done}/{self.total} | {status} | elapsed {elapsed} | remaining {self._remaining()}"
+
+    def _emit(self, text: str) -> None:
+        if self.stream is None:
+            return
+        if self.tty:
+            self.stream.write("\r\033[K" + text)
+        else:
+            self.stream.write(text + "\n")
+        self.stream.flush()
+
+    def running(self, label: str) -> None:
+        self.current = label
+        self._emit(self._line(f"running {label}"))
+
+    def note(self, text: str) -> None:
+        if self.tty:
+            self._emit(self._line(f"{self.current}: {text}"))
+
+    def finished(self, row: dict) -> None:
+        self.done += 1
+        outcome = row.get("outcome", "")
+        if outcome == "error":
+            outcome += f" ({row.get('error', '')[:80]})"
+        self._emit(self._line(f"{self.current}: {outcome}"))
+
+    def close(self) -> None:
+        if self.stream is not None and self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+# -- the sweep -------------------------------------------------------------------------------
+@dataclass
+class SweepSummary:
+    """What a sweep did."""
+
+    total: int  # runs in the test list (after expansion)
+    skipped: int  # already in the CSV (resume)
+    written: int = 0
+    outcomes: dict = field(default_factory=dict)
+    wall_time: float = 0.0
+
+    def describe(self) -> str:
+        parts = ", ".join(f"{n} {k}" for k, n in self.outcomes.items() if n)
+        skipped = f"; {self.skipped} already in the file" if self.skipped else ""
+        return f"{self.written} runs written ({parts or 'none'}){skipped} in {_clock(self.wall_time)}"
+
+
+def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: bool = False, progress=None) -> SweepSummary:
+    """Run every run of a test list and write one CSV row each.
+
+    Args:
+        tests: path of the XML test list, or a parsed :class:`~warpcloth.testlist.TestList`.
+        out: CSV path, or ``-`` for stdout.
+        resume: skip runs already in ``out`` (matched on :attr:`RunSpec.key`).
+        overwrite: replace an existing ``out``.
+        progress: stream for the progress bar (e.g. ``sys.stderr``), or None.
+
+    Raises:
+        WarpclothError: a bad test list or output path, before any run.
+    """
+    test_list = tests if isinstance(tests, TestList) else parse_test_list(tests)
+    output = CsvOutput(out, resume=resume, overwrite=overwrite)
+    todo = [r for r in test_list.runs if r.key not in output.done_keys]
+    summary = SweepSummary(total=len(test_list.runs), skipped=len(test_list.runs) - len(todo))
+    summary.outcomes = {k: 0 for k in OUTCOMES}
+    bar = Progress(len(todo), progress)
+    if progress is not None:
+        if summary.skipped:
+            progress.write(f"resuming {out}: {summary.skipped} of {summary.total} runs already done\n")
+        if output.truncated:
+            progress.write(f"{out}: dropped an incomplete last line (a run cut short); it runs again\n")
+        if test_list.duplicates:
+            progress.write(f"{test_list.path}: {test_list.duplicates} duplicate runs (same parameters) dropped\n")
+    cache = MaxDtCache(on_trial=lambda t: bar.note(f"max-dt trial dt={t.dt:.4g} s {'stable' if t.stable else 'unstable'}"))
+    t0 = time.perf_counter()
+    try:
+        for spec in todo:
+            bar.running(spec.describe())
+            row = execute_run(spec, cache)
+            output.write(row)
+            summary.written += 1
+            summary.outcomes[row["outcome"]] = summary.outcomes.get(row["outcome"], 0) + 1
+            bar.finished(row)
+    finally:
+        bar.close()
+        output.close()
+        summary.wall_time = time.perf_counter() - t0
+    return summary
+
+
+def read_results(path: str) -> list[dict]:
+    """The rows of a sweep CSV as dicts of strings (a convenience for analysis and tests)."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))
+
+
+__all__ = ["COLUMNS", "CsvOutput", "MaxDtCache", "Progress", "SweepSummary", "execute_run", "read_results", "run_sweep"]
