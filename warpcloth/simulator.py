@@ -19,6 +19,7 @@ from .errors import WarpclothError, require, require_positive
 from .forces import Control
 from .integrators import Integrator, make_integrator
 from .metrics import EquilibriumCriteria, EquilibriumDetector, FrameMetrics, MetricsProbe
+from .strain_limit import StrainLimiter
 
 DEFAULT_INSTABILITY_STRAIN = 1.0
 
@@ -99,6 +100,8 @@ class Simulator:
         instability_strain: a spring stretched past (1 + this) x its rest length is unstable.
         equilibrium: tolerances of the equilibrium test.
         scenario: a name carried into results.
+        strain_limit: Provot's deformation constraint tau (> 0, e.g. 0.1 for 10 %) applied after
+            every step of a force-based integrator (:mod:`warpcloth.strain_limit`); None: off.
     """
 
     def __init__(
@@ -110,6 +113,7 @@ class Simulator:
         instability_strain: float = DEFAULT_INSTABILITY_STRAIN,
         equilibrium: EquilibriumCriteria | None = None,
         scenario: str = "custom",
+        strain_limit: float | None = None,
     ):
         self.model = model
         self.control = control if control is not None else Control(device=model.device)
@@ -122,6 +126,7 @@ class Simulator:
         self.equilibrium = equilibrium or EquilibriumCriteria()
         self.scenario = scenario
         self.probe = MetricsProbe(model, self.control)
+        self.strain_limiter = StrainLimiter(model, strain_limit) if strain_limit is not None else None
         self.integrator: Integrator | None = None
         self._dt: float | None = None
         self.set_integrator(integrator, dt)
@@ -140,6 +145,8 @@ class Simulator:
             integrator = make_integrator(integrator)
         if not isinstance(integrator, Integrator):
             raise WarpclothError(f"integrator must be an Integrator or a name, got {integrator!r}")
+        if self.strain_limiter is not None and not integrator.force_based:
+            raise WarpclothError(f"strain limit applies to force-based integrators only, not {integrator.name!r}")
         integrator.bind(self.model)
         if dt is None:
             dt = self._dt if self._dt is not None else integrator.default_dt(self.model, self.control.drag_rate)
@@ -160,7 +167,7 @@ class Simulator:
 
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> None:
-        """Advance one time step: W(t) update, integrator step, t += dt (launches only)."""
+        """Advance one time step: W(t) update, integrator step, strain limit, t += dt (launches only)."""
         if self._needs_begin:
             self.integrator.begin(self.state, self.control, self._dt)
             self._needs_begin = False
@@ -171,6 +178,8 @@ class Simulator:
     def _launch_step(self) -> None:
         self.control.update()
         self.integrator.step(self.state, self.control, self._dt)
+        if self.strain_limiter is not None:
+            self.strain_limiter.apply(self.state, self._dt)
         self.control.advance(self._dt)
 
     def simulate(self, steps: int) -> None:
