@@ -23,14 +23,13 @@ def solve_strain_limit(
     spring_max_length: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
     offset: int,
-    relaxation: float,
 ):
     # one colour of springs (no two share a particle): shorten those longer than L_max = (1 + tau) L0
     s = offset + wp.tid()
     ij = spring_indices[s]
     wi = particle_inv_mass[ij[0]]
     wj = particle_inv_mass[ij[1]]
-    c = relaxation * strain_limit_correction(x[ij[0]], x[ij[1]], wi, wj, spring_max_length[s])
+    c = strain_limit_correction(x[ij[0]], x[ij[1]], wi, wj, spring_max_length[s])
     if wi != 0.0:
         x[ij[0]] = x[ij[0]] + wi * c
     if wj != 0.0:

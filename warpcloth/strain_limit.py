@@ -133,6 +133,6 @@ class StrainLimiter:
         """One pass over all colours, then set the loop flag if a spring is still too long."""
         m = self.model
         for offset, count in self.colors:
-            wp.launch(sk.solve_strain_limit, dim=count, inputs=[x, self.spring_indices, self.spring_max_length, m.particle_inv_mass, offset, 1.0], device=m.device)
+            wp.launch(sk.solve_strain_limit, dim=count, inputs=[x, self.spring_indices, self.spring_max_length, m.particle_inv_mass, offset], device=m.device)
         wp.launch(sk.begin_strain_limit_check, dim=1, inputs=[self.condition, self.passes], device=m.device)
         wp.launch(sk.check_strain_limit, dim=self.spring_indices.shape[0], inputs=[x, self.spring_indices, self.spring_max_length, self.tau, self.tolerance, self.max_passes, self.passes, self.condition], device=m.device)

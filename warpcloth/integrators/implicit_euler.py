@@ -9,10 +9,20 @@ drag Jacobian; wind is treated explicitly. With ``jacobian="approx"`` df/dx is t
 approximated Hessian (eq. 2.23: H_ij = k_ij I, H_ii = -sum_j k_ij I, and likewise k -> kd for
 df/dv), which is constant, so the matrix is assembled once per time step size, not every step.
 
-The matrix is a ``warp.sparse`` BSR matrix of 3x3 blocks whose pattern (one diagonal block per
-particle, one block per spring and direction) is built once at bind; a kernel refills its values
-each step. It is solved by ``warp.optim.linear.cg`` with the Jacobi preconditioner, warm-started
-from the previous dv. Pinned particles have identity rows and zero columns (dv = 0).
+With B_s = h^2 K_s + h D_s per spring (refilled by one kernel each step), A is applied either
+matrix-free (``matrix="free"``, the default: a ``warp.optim.linear.LinearOperator`` gathering
+over each particle's springs) or assembled (``matrix="bsr"``: a ``warp.sparse`` BSR matrix of
+3x3 blocks whose pattern, one diagonal block per particle and one block per spring and direction,
+is built once at bind and whose values a kernel refills). Both give the same A; matrix-free
+measured about twice as fast per CG iteration on the CPU (bench/implicit.py). The system is
+solved by ``warp.optim.linear.cg`` with the Jacobi preconditioner (the operator
+``preconditioner(A, "diag")`` builds, refilled in place), warm-started from the previous dv.
+Pinned particles have identity rows and zero columns (dv = 0).
+
+Statistics: on CUDA, cg checks convergence on the device (``check_every=0``, a conditional graph
+node) and a kernel accumulates iterations and residuals, so a step never syncs with the host. On
+the CPU, cg reads its residual every iteration (``check_every=1``); for a CPU array that is a
+plain memory read, and the statistics are accumulated in Python.
 """
 
 from __future__ import annotations
@@ -60,18 +70,21 @@ class ImplicitEuler(Integrator):
         self.spring_B = wp.zeros(model.spring_count, dtype=wp.mat33)
         self.mass_term = wp.zeros(n, dtype=float)
 
-        # pattern: diagonal blocks + (i, j) and (j, i) per spring, built once
-        rows = np.concatenate([np.arange(n), pairs[:, 0], pairs[:, 1]]).astype(np.int32)
-        cols = np.concatenate([np.arange(n), pairs[:, 1], pairs[:, 0]]).astype(np.int32)
-        ones = np.tile(np.eye(3, dtype=np.float32), (rows.size, 1, 1))
-        self.A = wps.bsr_from_triplets(n, n, wp.array(rows, dtype=int), wp.array(cols, dtype=int), wp.array(ones, dtype=wp.mat33), prune_numerical_zeros=False)
-        self.A.nnz_sync()
-        offsets = self.A.offsets.numpy()[: n + 1].astype(np.int64)
-        columns = self.A.columns.numpy()[: offsets[-1]].astype(np.int64)
-        keys = np.repeat(np.arange(n), np.diff(offsets)) * n + columns  # sorted: row-major, columns ascending
+        if self.matrix == "bsr":
+            # pattern: diagonal blocks + (i, j) and (j, i) per spring, built once
+            rows = np.concatenate([np.arange(n), pairs[:, 0], pairs[:, 1]]).astype(np.int32)
+            cols = np.concatenate([np.arange(n), pairs[:, 1], pairs[:, 0]]).astype(np.int32)
+            ones = np.tile(np.eye(3, dtype=np.float32), (rows.size, 1, 1))
+            self.A = wps.bsr_from_triplets(n, n, wp.array(rows, dtype=int), wp.array(cols, dtype=int), wp.array(ones, dtype=wp.mat33), prune_numerical_zeros=False)
+            self.A.nnz_sync()
+            offsets = self.A.offsets.numpy()[: n + 1].astype(np.int64)
+            columns = self.A.columns.numpy()[: offsets[-1]].astype(np.int64)
+            keys = np.repeat(np.arange(n), np.diff(offsets)) * n + columns  # sorted: row-major, columns ascending
 
-        def block_of(r, c):
-            return np.searchsorted(keys, np.asarray(r) * n + np.asarray(c)).astype(np.int32)
+            def block_of(r, c):
+                return np.searchsorted(keys, np.asarray(r) * n + np.asarray(c)).astype(np.int32)
+        else:
+            self.A = None
 
         # particle -> (spring, neighbour, block (particle, neighbour)) adjacency, grouped by particle
         ends = np.concatenate([pairs[:, 0], pairs[:, 1]])
@@ -83,9 +96,10 @@ class ImplicitEuler(Integrator):
         self.adjacency_offsets = wp.array(adjacency_offsets, dtype=int)
         self.adjacency_spring = wp.array(springs[order].astype(np.int32), dtype=int)
         self.adjacency_other = wp.array(others[order].astype(np.int32), dtype=int)
-        self.adjacency_block = wp.array(block_of(ends[order], others[order]), dtype=int)
-        self.row_offsets = wp.array(offsets.astype(np.int32), dtype=int)
-        self.diag_block = wp.array(block_of(np.arange(n), np.arange(n)), dtype=int)
+        if self.matrix == "bsr":  # where each adjacency entry and each diagonal block sits in A.values
+            self.adjacency_block = wp.array(block_of(ends[order], others[order]), dtype=int)
+            self.row_offsets = wp.array(offsets.astype(np.int32), dtype=int)
+            self.diag_block = wp.array(block_of(np.arange(n), np.arange(n)), dtype=int)
 
         # Jacobi preconditioner: the same operator as preconditioner(A, "diag"), but its inverse
         # diagonal is refilled by the assembly kernel instead of being reallocated each step
@@ -98,7 +112,7 @@ class ImplicitEuler(Integrator):
         if self.matrix == "bsr":
             self.A_op = aslinearoperator(self.A, batch_offsets=single_batch)
         else:
-            self.A_op = LinearOperator(self.A.shape, self.A.dtype, self.A.device, self._matvec, batch_offsets=single_batch)
+            self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._matvec, batch_offsets=single_batch)
         self.solver = cg(
             self.A_op, self.b, self.dv, tol=self.cg_tol, atol=0.0, maxiter=self.cg_max_iter, M=self.M,
             # CUDA: convergence checked on the device (conditional graph), no host sync.
