@@ -19,6 +19,7 @@ class ScenarioConfig:
     """Parameters of a scenario run; ``None`` means the scenario's or integrator's default.
 
     stiffness / damping: one number for every spring type, or three (structural, shear, bend).
+    strain_limit: Provot's deformation constraint tau (None: off), see :class:`Simulator`.
     """
 
     rows: int = 32
@@ -36,6 +37,7 @@ class ScenarioConfig:
     drag: float | None = None
     bend: str = "provot"
     device: str | None = None
+    strain_limit: float | None = None
 
 
 @dataclass(frozen=True)
@@ -88,7 +90,7 @@ class Scenario:
                 origin=self.origin(cfg), plane=self.plane, bend=bend, device=device,
             )
             control = self.control(cfg, device)
-            return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name)
+            return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name, strain_limit=cfg.strain_limit)
 
     def run(self, config: ScenarioConfig | None = None, usd_path: str | None = None, wall_cap: float | None = None, **overrides) -> RunResult:
         """Build and run; writes a USD file when ``usd_path`` is given."""

@@ -506,3 +506,14 @@ def test_docs_describe_every_attribute_and_column():
         assert f"`{name}`" in doc, name
     for column in sweep.COLUMNS:
         assert f"`{column}`" in doc, column
+
+
+def test_strain_limit_attribute(tmp_path):
+    path = write(tmp_path, '<test_list>\n<test integrator="verlet" size="5" strain_limit="0.1 0.2" scenarios="sheet"/>\n</test_list>')
+    runs = parse_test_list(path).runs
+    assert sorted(r.strain_limit for r in runs) == [0.1, 0.2]
+    assert len({r.key for r in runs}) == 2 and all("strain_limit=" in r.key for r in runs)
+    assert runs[0].config().strain_limit in (0.1, 0.2)
+    bad = write(tmp_path, '<test_list>\n<test integrator="pbd" size="5" strain_limit="0.1"/>\n</test_list>', name="bad.xml")
+    with pytest.raises(WarpclothError, match=r":2: .*strain_limit applies to force-based integrators, not 'pbd'"):
+        parse_test_list(bad)

@@ -202,7 +202,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from .integrators import integrator_class, integrator_names
+    from .integrators import integrator_class, integrator_names, make_integrator
     from .scenarios.common import resolve_device
     from .simulator import graph_capture_supported
 
@@ -240,8 +240,7 @@ def run(args) -> int:
                 floors[(device, size)] = roofline_ms(get_scenario("sheet").build(rows=size, cols=size, device=device).model)
             for name in names:
                 for graph in modes:
-                    sim_cls = integrator_class(name)
-                    if graph and not (graph_capture_supported(device) and sim_cls.graph_capturable):
+                    if graph and not (graph_capture_supported(device) and make_integrator(name).capturable_on(device)):
                         continue
                     print(f"bench: {name} {size}x{size} on {device}{' (graph)' if graph else ''} ...", file=sys.stderr, flush=True)
                     row = bench_one(name, size, device, graph, args.steps, args.seconds)

@@ -57,6 +57,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mass", type=float, default=None, help="total cloth mass [kg]")
     p.add_argument("--drag", type=float, default=None, help="linear air drag rate [1/s]")
     p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
+    p.add_argument("--strain-limit", type=float, default=None, metavar="TAU", help="Provot deformation constraint: cap structural/shear strain at TAU (e.g. 0.1), force-based integrators (default off)")
     _add_integrator_options(p)
     p.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH", help="write the animation to this USD file (.usd/.usda/.usdc)")
     p.add_argument("--wall-cap", type=float, default=None, help="stop after this many wall-clock seconds")
@@ -99,7 +100,7 @@ def config_from_args(scenario, args):
     cfg = scenario.config(
         rows=args.rows, cols=args.cols, width=args.width, height=args.height, integrator=integrator, dt=args.dt,
         duration=args.duration, fps=args.fps, stiffness=args.stiffness, damping=args.damping, mass=args.mass,
-        drag=args.drag, bend=args.bend, device=args.device,
+        drag=args.drag, bend=args.bend, device=args.device, strain_limit=args.strain_limit,
         integrator_options=integrator_options_from_args(integrator, args),
     )
     if args.num_frames is not None:
@@ -183,6 +184,7 @@ def _add_max_dt_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--damping", type=_number_list, default=None, metavar="KD", help="spring damping [N s/m]: one value, or structural,shear,bend")
     p.add_argument("--drag", type=float, default=None, help="linear air drag rate [1/s]")
     p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
+    p.add_argument("--strain-limit", type=float, default=None, metavar="TAU", help="Provot deformation constraint: cap structural/shear strain at TAU after each step")
     p.add_argument("--device", default=None, help="Warp device: cpu (default), cuda, cuda:N")
     p.add_argument("--fps", type=float, default=None, help="frame rate at which stability is checked [1/s] (default 60)")
     _add_integrator_options(p)

@@ -19,6 +19,7 @@ from .errors import WarpclothError, require, require_positive
 from .forces import Control
 from .integrators import Integrator, make_integrator
 from .metrics import EquilibriumCriteria, EquilibriumDetector, FrameMetrics, MetricsProbe
+from .strain_limit import StrainLimiter
 
 DEFAULT_INSTABILITY_STRAIN = 1.0
 
@@ -112,6 +113,8 @@ class Simulator:
         use_graph: capture a frame's steps once with ``wp.ScopedCapture`` and replay it (CUDA
             graphs; Warp's API capture on the CPU). None: wherever the device and the
             integrator support it. Results are bit-identical either way.
+        strain_limit: Provot's deformation constraint tau (> 0, e.g. 0.1 for 10 %) applied after
+            every step of a force-based integrator (:mod:`warpcloth.strain_limit`); None: off.
     """
 
     def __init__(
@@ -124,6 +127,7 @@ class Simulator:
         equilibrium: EquilibriumCriteria | None = None,
         scenario: str = "custom",
         use_graph: bool | None = None,
+        strain_limit: float | None = None,
     ):
         self.model = model
         self.control = control if control is not None else Control(device=model.device)
@@ -136,6 +140,7 @@ class Simulator:
         self.equilibrium = equilibrium or EquilibriumCriteria()
         self.scenario = scenario
         self.probe = MetricsProbe(model, self.control)
+        self.strain_limiter = StrainLimiter(model, strain_limit) if strain_limit is not None else None
         self.integrator: Integrator | None = None
         self._dt: float | None = None
         self._use_graph = use_graph
@@ -157,6 +162,8 @@ class Simulator:
             integrator = make_integrator(integrator)
         if not isinstance(integrator, Integrator):
             raise WarpclothError(f"integrator must be an Integrator or a name, got {integrator!r}")
+        if self.strain_limiter is not None and not integrator.force_based:
+            raise WarpclothError(f"strain limit applies to force-based integrators only, not {integrator.name!r}")
         integrator.bind(self.model)
         if dt is None:
             dt = self._dt if self._dt is not None else integrator.default_dt(self.model, self.control.drag_rate)
@@ -174,7 +181,7 @@ class Simulator:
     @property
     def graph_enabled(self) -> bool:
         """Whether frames are captured and replayed (see ``use_graph``)."""
-        supported = graph_capture_supported(self.model.device) and self.integrator.graph_capturable
+        supported = graph_capture_supported(self.model.device) and self.integrator.capturable_on(self.model.device)
         if self._use_graph is None:
             return supported
         if self._use_graph and not supported:
@@ -193,7 +200,7 @@ class Simulator:
 
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> None:
-        """Advance one time step: W(t) update, integrator step, t += dt (launches only)."""
+        """Advance one time step: W(t) update, integrator step, strain limit, t += dt (launches only)."""
         if self._needs_begin:
             self._begin()
         self._launch_step()
@@ -209,6 +216,8 @@ class Simulator:
     def _launch_step(self) -> None:
         self.control.update()
         self.integrator.step(self.state, self.control, self._dt)
+        if self.strain_limiter is not None:
+            self.strain_limiter.apply(self.state, self._dt)
         self.control.advance(self._dt)
 
     def simulate(self, steps: int) -> None:

@@ -206,6 +206,7 @@ ATTRIBUTES: dict[str, Attribute] = {
         Attribute("width", _positive, "cloth width [m]"),
         Attribute("height", _positive, "cloth height [m]"),
         Attribute("drag", _non_negative, "linear air drag rate [1/s]"),
+        Attribute("strain_limit", _positive, "Provot deformation constraint tau (force-based integrators)"),
         Attribute("bend", _choice(lambda: ["provot", "choi_ko", "none"], "bend model"), "bend springs"),
         Attribute("device", _device, "Warp device: cpu, cuda, cuda:N"),
         Attribute("cap", _cap, "wall-clock cap of one run [s], or 'none'"),
@@ -247,6 +248,7 @@ class RunSpec:
     options: tuple = ()
     maxdt_precision: float = DEFAULT_MAXDT_PRECISION
     maxdt_duration: float = DEFAULT_MAXDT_DURATION
+    strain_limit: float | None = None
 
     @property
     def key(self) -> str:
@@ -260,6 +262,8 @@ class RunSpec:
             f"timestep={self.timestep}", f"frame_rate={self.frame_rate!r}", f"duration={self.duration!r}",
             f"cap={'none' if self.cap is None else repr(self.cap)}",
         ]
+        if self.strain_limit is not None:
+            parts.append(f"strain_limit={self.strain_limit!r}")
         if self.timestep.uses_max:
             parts.append(f"maxdt={self.maxdt_precision!r}/{self.maxdt_duration!r}")
         parts.append("options=" + ",".join(f"{k}={_canon(v)}" for k, v in self.options))
@@ -270,7 +274,7 @@ class RunSpec:
         """What the max-stable-dt search depends on (everything but dt, cap and duration)."""
         return (self.scenario, self.integrator, self.device, self.rows, self.cols, self.width, self.height, self.mass,
                 self.stiffness, self.damping, self.drag, self.bend, self.frame_rate, self.options,
-                self.maxdt_precision, self.maxdt_duration)
+                self.maxdt_precision, self.maxdt_duration, self.strain_limit)
 
     def config(self, dt: float | None = None, duration: float | None = None):
         """The :class:`~warpcloth.scenarios.ScenarioConfig` of this run."""
@@ -281,6 +285,7 @@ class RunSpec:
             integrator=self.integrator, integrator_options=dict(self.options), dt=dt,
             duration=self.duration if duration is None else duration, fps=self.frame_rate,
             stiffness=self.stiffness, damping=self.damping, drag=self.drag, bend=self.bend, device=self.device,
+            strain_limit=self.strain_limit,
         )
 
     def describe(self) -> str:
@@ -500,6 +505,7 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         "width": one("width"),
         "height": one("height"),
         "drag": one("drag"),
+        "strain_limit": one("strain_limit"),
         "bend": one("bend", "provot"),
         "device": one("device", "cpu"),
         "cap": one("cap", DEFAULT_CAP),
@@ -516,6 +522,8 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         c = dict(zip(names, combo))
         integrator = c["integrator"]
         taken = {o.name for o in integrator_class(integrator).options}
+        if c["strain_limit"] is not None and not integrator_class(integrator).force_based:
+            raise src.error(el.line, f"{what}: strain_limit applies to force-based integrators, not {integrator!r}")
         options = tuple(sorted((k[7:], v) for k, v in c.items() if k.startswith("option:") and k[7:] in taken))
         scen = get_scenario(c["scenario"])
         d = scen.defaults
@@ -539,6 +547,7 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
             drag=c["drag"], bend=c["bend"], timestep=c["timestep"], frame_rate=c["frame_rate"],
             duration=c["duration"] if c["duration"] is not None else DEFAULT_DURATION.get(c["scenario"], d.duration),
             cap=c["cap"], options=options, maxdt_precision=c["maxdt_precision"], maxdt_duration=c["maxdt_duration"],
+            strain_limit=c["strain_limit"],
         ))
     return runs
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from .base import Integrator, Option, explicit_euler_dt_bound, stable_dt_estimate
 from .explicit_euler import ExplicitEuler
+from .implicit_euler import ImplicitEuler
 from .midpoint import Midpoint
 from .pbd import PBD
 from .rk4 import RK4
@@ -24,7 +25,7 @@ def register(cls: type[Integrator]) -> type[Integrator]:
     return cls
 
 
-for _cls in (ExplicitEuler, Midpoint, RK4, Verlet, PBD, XPBD):
+for _cls in (ExplicitEuler, Midpoint, RK4, Verlet, ImplicitEuler, PBD, XPBD):
     register(_cls)
 
 

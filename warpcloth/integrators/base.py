@@ -105,6 +105,10 @@ class Integrator:
                 self._allocate(model)
         return self
 
+    def capturable_on(self, device) -> bool:
+        """Whether a step on ``device`` can be captured (default :attr:`graph_capturable`)."""
+        return self.graph_capturable
+
     def _allocate(self, model) -> None:
         """Allocate scratch arrays (override)."""
 

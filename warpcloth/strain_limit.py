@@ -1,0 +1,138 @@
+"""Provot's deformation constraints (super-elasticity correction; Provot 1995, seed 2.1.3.3).
+
+After an integrator step, every structural and shear spring longer than (1 + tau) L0 is shortened
+to (1 + tau) L0 by moving its ends along the spring, split by inverse mass (a pinned end does not
+move):
+
+    c = (L - (1 + tau) L0) / (w_i + w_j) n ;  x_i += w_i c ;  x_j -= w_j c
+
+The springs are split once into colours in which no two springs share a particle; a pass solves
+the colours one after the other (parallel within a colour, Gauss-Seidel across colours), the
+springs with a pinned end last. Passes repeat until no spring is longer than (1 + tau) L0 by more
+than ``tolerance`` L0, or ``max_passes`` is reached. A hanging cloth propagates corrections from
+its pins only slowly through such passes, so each step first applies long-range attachments
+(Kim, Chentanez & Mueller 2012): |x_i - x_pin| <= (1 + tau) g_i, g_i the rest length of the
+shortest structural/shear path from particle i to its nearest pin. They are implied by the spring
+limits, so they change no answer, only the number of passes. At the end,
+v += (x_corrected - x_step) / dt keeps velocities consistent with the positions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from warpcloth.kernels import strain_limit as sk
+
+from .errors import require_int, require_positive
+from .model import SpringType
+
+#: Most passes over all colours per step.
+DEFAULT_MAX_PASSES = 200
+#: Passes stop once no spring's strain exceeds tau by more than this.
+DEFAULT_TOLERANCE = 1.0e-4
+
+
+def nearest_pin_paths(pairs: np.ndarray, rest: np.ndarray, particle_count: int, pins) -> tuple[np.ndarray, np.ndarray]:
+    """Multi-source Dijkstra over the springs: for each particle, the nearest pin (-1 if none is
+    connected) and the rest length g of the shortest spring path to it [m]."""
+    import heapq
+
+    neighbours = [[] for _ in range(particle_count)]
+    for (i, j), length in zip(pairs.tolist(), rest.tolist()):
+        neighbours[i].append((j, length))
+        neighbours[j].append((i, length))
+    dist = np.full(particle_count, np.inf)
+    source = np.full(particle_count, -1, dtype=np.int32)
+    heap = []
+    for p in np.asarray(pins, dtype=np.int64).tolist():
+        dist[p], source[p] = 0.0, p
+        heap.append((0.0, p))
+    heapq.heapify(heap)
+    while heap:
+        d, i = heapq.heappop(heap)
+        if d > dist[i]:
+            continue
+        for j, length in neighbours[i]:
+            if d + length < dist[j]:
+                dist[j], source[j] = d + length, source[i]
+                heapq.heappush(heap, (d + length, j))
+    return source, dist
+
+
+def color_springs(pairs: np.ndarray, particle_count: int) -> np.ndarray:
+    """Greedy edge colouring: colour of each spring such that no two springs of one colour share
+    a particle (at most 2 max_degree - 1 colours)."""
+    used = [0] * particle_count  # bit k set: colour k already touches the particle
+    colors = np.empty(len(pairs), dtype=np.int32)
+    for s, (i, j) in enumerate(pairs.tolist()):
+        taken = used[i] | used[j]
+        c = (~taken & (taken + 1)).bit_length() - 1  # lowest free colour
+        colors[s] = c
+        used[i] |= 1 << c
+        used[j] |= 1 << c
+    return colors
+
+
+class StrainLimiter:
+    """Provot's strain limit on the structural and shear springs of a model.
+
+    Args:
+        model: the :class:`~warpcloth.model.ClothModel`.
+        tau: largest allowed strain (L - L0) / L0, > 0 (Provot's tau_c; 0.1 is 10 %).
+        max_passes: most passes over all spring colours per step (>= 1).
+        tolerance: passes stop once every strain is <= tau + tolerance.
+    """
+
+    def __init__(self, model, tau: float, max_passes: int = DEFAULT_MAX_PASSES, tolerance: float = DEFAULT_TOLERANCE):
+        self.model = model
+        self.tau = require_positive("strain limit", tau)
+        self.max_passes = require_int("strain limit passes", max_passes, 1)
+        self.tolerance = require_positive("strain limit tolerance", tolerance)
+        h = model.host
+        limited = np.flatnonzero(np.isin(model.spring_type, [SpringType.STRUCTURAL, SpringType.SHEAR]))
+        pairs = h["pairs"][limited]
+        colors = color_springs(pairs, model.particle_count)
+        # springs with a pinned end get colours of their own, solved last in each pass: they are
+        # one-sided (only the free end moves), so they end every pass exactly satisfied
+        pinned_end = np.isin(pairs, model.pinned).any(axis=1)
+        if pinned_end.any():
+            colors[pinned_end] = colors.max() + 1 + color_springs(pairs[pinned_end], model.particle_count)
+        order = np.argsort(colors, kind="stable")
+        counts = np.bincount(colors, minlength=1) if len(colors) else np.zeros(0, dtype=np.int64)
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if len(counts) else np.zeros(0, dtype=np.int64)
+        #: (offset, count) of each colour in the sorted spring arrays.
+        self.colors = [(int(a), int(n)) for a, n in zip(starts, counts) if n > 0]
+        max_length = (1.0 + self.tau) * h["rest"][limited].astype(np.float64)
+        pin, path = nearest_pin_paths(pairs, h["rest"][limited].astype(np.float64), model.particle_count, model.pinned)
+        path[pin < 0] = 0.0
+        with wp.ScopedDevice(model.device):
+            self.spring_indices = wp.array(pairs[order].astype(np.int32), dtype=wp.vec2i)
+            self.spring_max_length = wp.array(max_length[order].astype(np.float32), dtype=float)
+            self.x_before = wp.zeros(model.particle_count, dtype=wp.vec3)
+            self.attachment_pin = wp.array(pin, dtype=int)
+            self.condition = wp.zeros(1, dtype=wp.int32)
+            self.passes = wp.zeros(1, dtype=wp.int32)
+            self.attachment_max_length = wp.array(((1.0 + self.tau) * path).astype(np.float32), dtype=float)
+
+    def apply(self, state, dt: float) -> None:
+        """Shorten over-stretched springs of ``state`` in place and update its velocities.
+
+        Launches only: the pass loop is ``wp.capture_while`` on a device flag (a conditional
+        node in a captured CUDA graph; on the CPU, a read of that flag in host memory).
+        """
+        m = self.model
+        x = state.particle_q
+        wp.copy(self.x_before, x)
+        wp.launch(sk.solve_long_range_attachment, dim=m.particle_count, inputs=[x, self.attachment_pin, self.attachment_max_length, m.particle_inv_mass], device=m.device)
+        wp.launch(sk.reset_strain_limit_loop, dim=1, inputs=[self.condition, self.passes], device=m.device)
+        wp.capture_while(self.condition, self._pass, x=x)
+        wp.launch(sk.apply_position_correction_velocity, dim=m.particle_count, inputs=[x, self.x_before, m.particle_inv_mass, 1.0 / float(dt)], outputs=[state.particle_qd], device=m.device)
+
+    def _pass(self, x) -> None:
+        """One pass over all colours, then set the loop flag if a spring is still too long."""
+        m = self.model
+        for offset, count in self.colors:
+            wp.launch(sk.solve_strain_limit, dim=count, inputs=[x, self.spring_indices, self.spring_max_length, m.particle_inv_mass, offset], device=m.device)
+        wp.launch(sk.begin_strain_limit_check, dim=1, inputs=[self.condition, self.passes], device=m.device)
+        wp.launch(sk.check_strain_limit, dim=self.spring_indices.shape[0], inputs=[x, self.spring_indices, self.spring_max_length, self.tau, self.tolerance, self.max_passes, self.passes, self.condition], device=m.device)
