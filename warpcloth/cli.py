@@ -38,8 +38,8 @@ def _number_list(text: str):
     raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers (structural,shear,bend), got {text!r}")
 
 
-def add_run_arguments(p: argparse.ArgumentParser) -> None:
-    """Flags of a scenario run (shared by ``warpcloth run`` and ``python -m warpcloth.scenarios.X``)."""
+def add_model_arguments(p: argparse.ArgumentParser) -> None:
+    """Flags that choose the cloth, the integrator and the device (``run`` and ``max-dt``)."""
     from .integrators import integrator_names
 
     p.add_argument("--integrator", "-i", default=None, metavar="NAME", help=f"one of: {', '.join(integrator_names())} (default: explicit_euler)")
@@ -47,10 +47,6 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cols", type=int, default=None, help="particles per row (scenario default)")
     p.add_argument("--width", type=float, default=None, help="cloth width [m]")
     p.add_argument("--height", type=float, default=None, help="cloth height [m]")
-    p.add_argument("--dt", type=float, default=None, help="time step [s] (default: the integrator's own, stable on the scenario)")
-    p.add_argument("--duration", type=float, default=None, help="simulated time [s] (default 10)")
-    p.add_argument("--num-frames", type=int, default=None, help="run this many frames instead of --duration")
-    p.add_argument("--fps", type=float, default=None, help="frame rate of sampling and USD export [1/s] (default 60)")
     p.add_argument("--device", default=None, help="Warp device: cpu (default), cuda, cuda:N")
     p.add_argument("--stiffness", type=_number_list, default=None, metavar="KS", help="spring stiffness [N/m]: one value, or structural,shear,bend")
     p.add_argument("--damping", type=_number_list, default=None, metavar="KD", help="spring damping [N s/m]: one value, or structural,shear,bend (default scales with particle mass)")
@@ -59,6 +55,15 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
     p.add_argument("--strain-limit", type=float, default=None, metavar="TAU", help="Provot deformation constraint: cap structural/shear strain at TAU (e.g. 0.1), force-based integrators (default off)")
     _add_integrator_options(p)
+
+
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
+    """Flags of a scenario run (shared by ``warpcloth run`` and ``python -m warpcloth.scenarios.X``)."""
+    add_model_arguments(p)
+    p.add_argument("--dt", type=float, default=None, help="time step [s] (default: the integrator's own, stable on the scenario)")
+    p.add_argument("--duration", type=float, default=None, help="simulated time [s] (default 10)")
+    p.add_argument("--num-frames", type=int, default=None, help="run this many frames instead of --duration")
+    p.add_argument("--fps", type=float, default=None, help="frame rate of sampling and USD export [1/s] (default 60)")
     p.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH", help="write the animation to this USD file (.usd/.usda/.usdc)")
     p.add_argument("--wall-cap", type=float, default=None, help="stop after this many wall-clock seconds")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
@@ -170,24 +175,11 @@ def _sweep(args) -> int:
 
 def _add_max_dt_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of ``warpcloth max-dt``: the model and integrator of a run, and the search."""
-    from .integrators import integrator_names
     from .maxdt import DEFAULT_DURATION, DEFAULT_PRECISION
 
     p.add_argument("scenario", help="scenario name (see 'warpcloth list')")
-    p.add_argument("--integrator", "-i", default=None, metavar="NAME", help=f"one of: {', '.join(integrator_names())} (default: explicit_euler)")
-    p.add_argument("--rows", type=int, default=None, help="particles per column (scenario default)")
-    p.add_argument("--cols", type=int, default=None, help="particles per row (scenario default)")
-    p.add_argument("--width", type=float, default=None, help="cloth width [m]")
-    p.add_argument("--height", type=float, default=None, help="cloth height [m]")
-    p.add_argument("--mass", type=float, default=None, help="total cloth mass [kg]")
-    p.add_argument("--stiffness", type=_number_list, default=None, metavar="KS", help="spring stiffness [N/m]: one value, or structural,shear,bend")
-    p.add_argument("--damping", type=_number_list, default=None, metavar="KD", help="spring damping [N s/m]: one value, or structural,shear,bend")
-    p.add_argument("--drag", type=float, default=None, help="linear air drag rate [1/s]")
-    p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
-    p.add_argument("--strain-limit", type=float, default=None, metavar="TAU", help="Provot deformation constraint: cap structural/shear strain at TAU after each step")
-    p.add_argument("--device", default=None, help="Warp device: cpu (default), cuda, cuda:N")
+    add_model_arguments(p)
     p.add_argument("--fps", type=float, default=None, help="frame rate at which stability is checked [1/s] (default 60)")
-    _add_integrator_options(p)
     search = p.add_argument_group("search")
     search.add_argument("--precision", type=float, default=DEFAULT_PRECISION, help=f"relative width of the final bracket (default {DEFAULT_PRECISION})")
     search.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated time [s] a trial must run without going unstable (default {DEFAULT_DURATION:g})")
