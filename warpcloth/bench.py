@@ -150,10 +150,13 @@ def plot(path: str, rows: list[dict]) -> bool:
         return False
     fig, ax = plt.subplots(figsize=(8, 5.5))
     keys = sorted({(r["integrator"], r["device"], r["graph"]) for r in rows})
+    integrators = sorted({k[0] for k in keys})
+    colors = {name: plt.get_cmap("tab10")(i % 10) for i, name in enumerate(integrators)}  # one colour per integrator
     for integ, dev, graph in keys:
         sel = sorted((r for r in rows if (r["integrator"], r["device"], r["graph"]) == (integ, dev, graph)), key=lambda r: r["particles"])
-        ax.plot([r["particles"] for r in sel], [r["ms_per_step"] for r in sel], marker="o" if dev == "cpu" else "s",
-                linestyle="-" if graph else "--", label=f"{integ} {dev}{' graph' if graph else ''}")
+        ax.plot([r["particles"] for r in sel], [r["ms_per_step"] for r in sel], color=colors[integ],
+                marker="o" if dev == "cpu" else "s", linestyle="-" if graph else "--",
+                label=f"{integ} {dev}{' graph' if graph else ''}")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("particles")
