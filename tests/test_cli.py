@@ -73,6 +73,8 @@ def test_list(capsys):
         (["run", "sheet", "--usd", "/no/such/folder/x.usda"], "does not exist"),
         (["run", "sheet", "--usd", "x.txt"], "must end in one of"),
         (["run", "sheet", "--num-frames", "0"], "--num-frames must be >= 1"),
+        (["run", "sheet", "--num-frames", "5", "--fps", "0"], "fps must be > 0"),
+        (["run", "sheet", "--stiffness", "1e39"], "must fit in float32"),
         (["run", "sheet", "--rows", "abc"], "invalid int value: 'abc'"),
     ],
 )

@@ -144,3 +144,45 @@ def test_unwritable_usd_folder(tmp_path):
     ro.chmod(0o500)
     with pytest.raises(WarpclothError, match="not writable"):
         get_scenario("sheet").run(usd_path=str(ro / "x.usda"), rows=4, cols=4, duration=0.1)
+
+
+def test_sim_time_follows_dt_changes_and_matches_the_device_clock():
+    sim = sheet.build(rows=5, cols=5, dt=1e-3)
+    sim.simulate(10)
+    sim.set_dt(2e-3)
+    sim.simulate(1)
+    sim.set_integrator("verlet", dt=5e-4)
+    sim.step()
+    assert math.isclose(sim.sim_time, 10e-3 + 2e-3 + 5e-4, rel_tol=1e-12)
+    assert math.isclose(float(sim.control.time.numpy()[0]), sim.sim_time, rel_tol=1e-9)
+
+
+def test_captured_frames_follow_control_changes():
+    a, b = sheet.build(rows=5, cols=5), sheet.build(rows=5, cols=5)
+    a._use_graph, b._use_graph = False, True
+    for sim in (a, b):
+        sim.simulate(20)
+        sim.control.drag_rate = 50.0  # a host value baked into a captured frame
+        sim.simulate(20)
+    assert b.graph_enabled
+    assert np.array_equal(a.state.particle_q.numpy(), b.state.particle_q.numpy())
+
+
+def test_two_runs_equal_one_long_run():
+    a, b = sheet.build(rows=5, cols=5, integrator="verlet"), sheet.build(rows=5, cols=5, integrator="verlet")
+    a.run(duration=0.2)
+    a.run(duration=0.2)
+    b.run(duration=0.4)
+    assert a.steps == b.steps
+    assert np.array_equal(a.state.particle_q.numpy(), b.state.particle_q.numpy())
+
+
+def test_usd_time_codes_are_simulated_time_when_a_step_is_longer_than_a_frame(tmp_path):
+    from pxr import Usd, UsdGeom
+
+    path = tmp_path / "slow.usda"
+    get_scenario("flag").run(usd_path=str(path), rows=5, cols=5, integrator="implicit_euler", dt=1 / 30, duration=1.0, fps=60.0)
+    stage = Usd.Stage.Open(str(path))
+    samples = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth")).GetPointsAttr().GetTimeSamples()
+    assert samples[0] == 0.0 and samples[1] == 2.0 and samples[-1] == 60.0
+    assert stage.GetEndTimeCode() == 60.0

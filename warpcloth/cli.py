@@ -14,7 +14,7 @@ import argparse
 import json
 import sys
 
-from .errors import WarpclothError
+from .errors import WarpclothError, require_positive
 
 EXIT_USAGE = 2
 
@@ -109,6 +109,7 @@ def config_from_args(scenario, args):
         integrator_options=integrator_options_from_args(integrator, args),
     )
     if args.num_frames is not None:
+        require_positive("fps", cfg.fps, "1/s")
         if args.num_frames < 1:
             raise WarpclothError(f"--num-frames must be >= 1, got {args.num_frames}")
         cfg.duration = args.num_frames / cfg.fps
@@ -145,7 +146,8 @@ def _run(scenario_name: str, args) -> int:
     else:
         print(summary(result))
         if args.usd:
-            print(f"  wrote {args.usd} ({result.frames + 1} frames, export {result.export_time:.2f} s)")
+            written = result.frames + (1 if result.stable else 0)  # the first frame, not the unstable last one
+            print(f"  wrote {args.usd} ({written} frames, export {result.export_time:.2f} s)")
     return 0
 
 

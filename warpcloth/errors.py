@@ -48,4 +48,8 @@ def _as_float(name: str, value) -> float:
     except (TypeError, ValueError):
         raise WarpclothError(f"{name} must be a number, got {value!r}") from None
     require(math.isfinite(v), f"{name} must be a finite number, got {value!r}")
+    require(abs(v) <= FLOAT32_MAX, f"{name} must fit in float32 (|value| <= {FLOAT32_MAX:.4g}), got {value!r}")
     return v
+
+
+FLOAT32_MAX = 3.4028234663852886e38

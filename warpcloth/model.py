@@ -96,6 +96,8 @@ class ClothModel:
     spring_params: dict[SpringType, SpringParams]
     bend: BendModel = BendModel.PROVOT
     host: dict = field(default_factory=dict, repr=False)
+    #: Bumped whenever parameters change in place (:meth:`with_spring_params`): caches compare it.
+    version: int = 0
 
     @property
     def particle_count(self) -> int:
@@ -137,6 +139,7 @@ class ClothModel:
         self.spring_stiffness.assign(ks)
         self.spring_damping.assign(kd)
         self.spring_params = dict(params)
+        self.version += 1
 
 
 def _validate_spring_params(params: dict[SpringType, SpringParams]) -> None:

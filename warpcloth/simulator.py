@@ -144,7 +144,7 @@ class Simulator:
         self.integrator: Integrator | None = None
         self._dt: float | None = None
         self._use_graph = use_graph
-        self._graphs: dict[int, object] = {}
+        self._graphs: dict[tuple, object] = {}
         self._warmed = False
         self.set_integrator(integrator, dt)
         self.sim_time = 0.0
@@ -182,6 +182,8 @@ class Simulator:
     def graph_enabled(self) -> bool:
         """Whether frames are captured and replayed (see ``use_graph``)."""
         supported = graph_capture_supported(self.model.device) and self.integrator.capturable_on(self.model.device)
+        if self.strain_limiter is not None and wp.get_device(self.model.device).is_cuda:
+            supported = supported and wp.is_conditional_graph_supported()  # its pass loop is capture_while
         if self._use_graph is None:
             return supported
         if self._use_graph and not supported:
@@ -205,7 +207,14 @@ class Simulator:
             self._begin()
         self._launch_step()
         self.steps += 1
-        self.sim_time = self.steps * self._dt
+        self.sim_time += self._dt
+
+    def _capture_key(self) -> tuple:
+        """Every host value a captured frame bakes in besides dt and the integrator (those clear
+        the cache): a change to any of them captures a new graph."""
+        c = self.control
+        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, self.model.version,
+                tuple(sorted((k, repr(v)) for k, v in self.integrator.option_values().items())))
 
     def _begin(self) -> None:
         """Let the integrator start its history from the current state and wind W(t)."""
@@ -230,7 +239,8 @@ class Simulator:
             return
         if self._needs_begin:
             self._begin()
-        graph = self._graphs.get(steps)
+        key = (steps, self._capture_key())
+        graph = self._graphs.get(key)
         if graph is None:
             if not self._warmed:  # load every kernel before capturing (older CUDA drivers require it)
                 self.warm_up()
@@ -240,10 +250,10 @@ class Simulator:
             with wp.ScopedCapture(device=self.model.device) as capture:
                 for _ in range(steps):
                     self._launch_step()
-            graph = self._graphs[steps] = capture.graph
+            graph = self._graphs[key] = capture.graph
         wp.capture_launch(graph)
         self.steps += steps
-        self.sim_time = self.steps * self._dt
+        self.sim_time += steps * self._dt
 
     def measure(self) -> FrameMetrics:
         """Metrics of the current state (one small read from the device)."""
@@ -304,7 +314,7 @@ class Simulator:
             equilibrium_criterion="speed+force" if self.integrator.force_based else "speed",
             graph=self.graph_enabled,
         )
-        if warm_up:
+        if warm_up and not self._warmed:  # once: a warm-up restarts the integrator's history
             result.compile_time = self.warm_up()
         detector = EquilibriumDetector(self.equilibrium, self.probe.force_floor)
         result.force_floor = self.probe.force_floor

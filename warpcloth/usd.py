@@ -83,12 +83,16 @@ class UsdWriter:
         self._pin_idx = np.asarray(model.pinned, dtype=np.int64)
         self.pins_attr = self.pins.CreatePointsAttr()
         self.frames = 0
+        self.last_code = -1.0
         self._closed = False
 
     def write_frame(self, points: np.ndarray, sim_time: float | None = None) -> None:
-        """Write one frame of particle positions (N, 3) at the next time code."""
+        """Write one frame of particle positions (N, 3) at time code ``round(sim_time * fps)``
+        (the next time code when ``sim_time`` is None), so playback runs at simulated speed even
+        when a step is longer than a frame."""
         Vt, Gf = self._Vt, self._Gf
-        code = float(self.frames)
+        code = float(round(sim_time * self.fps)) if sim_time is not None else float(self.last_code + 1)
+        self.last_code = code
         p = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
         self.points_attr.Set(Vt.Vec3fArray.FromNumpy(p), code)
         lo, hi = p.min(axis=0), p.max(axis=0)
@@ -102,7 +106,7 @@ class UsdWriter:
         if self._closed:
             return self.path
         self.stage.SetStartTimeCode(0.0)
-        self.stage.SetEndTimeCode(float(max(0, self.frames - 1)))
+        self.stage.SetEndTimeCode(max(0.0, self.last_code))
         self.stage.GetRootLayer().Save()
         del self.stage
         os.replace(self._tmp, self.path)

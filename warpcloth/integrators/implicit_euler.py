@@ -105,10 +105,12 @@ class ImplicitEuler(Integrator):
         # diagonal is refilled by the assembly kernel instead of being reallocated each step
         self.M = aslinearoperator(self.inv_diag)
         self._assembled_for = None
-        self._device_side = wp.get_device(device).is_cuda
+        # device-side convergence needs conditional graph nodes (CUDA driver and toolkit 12.4+)
+        is_cuda = wp.get_device(device).is_cuda
+        self._device_side = is_cuda and wp.is_conditional_graph_supported()
         # On the CPU, a single-batch operator makes cg's dot products plain loops (Warp's
         # tiled reduction is for GPUs and is several times slower on the CPU).
-        single_batch = None if self._device_side else wp.array([0, 3 * n], dtype=int)
+        single_batch = None if is_cuda else wp.array([0, 3 * n], dtype=int)
         if self.matrix == "bsr":
             self.A_op = aslinearoperator(self.A, batch_offsets=single_batch)
         else:
@@ -125,8 +127,9 @@ class ImplicitEuler(Integrator):
     # -- stepping ------------------------------------------------------------------------
     def capturable_on(self, device) -> bool:
         """On CUDA, CG checks convergence on the device (a conditional graph node), so a frame
-        can be captured; on the CPU it reads its residual on the host every iteration."""
-        return wp.get_device(device).is_cuda
+        can be captured; on the CPU (or without conditional graph nodes) it reads its residual on
+        the host."""
+        return wp.get_device(device).is_cuda and wp.is_conditional_graph_supported()
 
     def begin(self, state, control, dt):
         self.dv.zero_()
@@ -151,11 +154,11 @@ class ImplicitEuler(Integrator):
         m = self.model
         if self.jacobian == "full":
             wp.launch(ik.eval_spring_jacobians, dim=m.spring_count, inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
-        elif self._assembled_for == (h, drag):
+        elif self._assembled_for == (h, drag, m.version):
             return
         else:
             wp.launch(ik.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
-            self._assembled_for = (h, drag)
+            self._assembled_for = (h, drag, m.version)
         if self.matrix == "bsr":
             wp.launch(
                 ik.assemble_system_rows, dim=m.particle_count,
