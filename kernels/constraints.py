@@ -18,6 +18,9 @@ per colour per iteration.
 
 import warp as wp
 
+# forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
+wp.set_module_options({"enable_backward": False})
+
 
 @wp.func
 def distance_correction_pbd(pi: wp.vec3, pj: wp.vec3, wi: float, wj: float, rest: float, stiffness: float):

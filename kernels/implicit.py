@@ -18,6 +18,9 @@ particle -> (spring, neighbour, block) adjacency built once at bind: no atomics.
 
 import warp as wp
 
+# forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
+wp.set_module_options({"enable_backward": False})
+
 
 @wp.func
 def spring_stiffness_block(xi: wp.vec3, xj: wp.vec3, rest: float, ks: float):

@@ -4,6 +4,9 @@ made consistent with the corrected positions."""
 
 import warp as wp
 
+# forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
+wp.set_module_options({"enable_backward": False})
+
 
 @wp.func
 def strain_limit_correction(xi: wp.vec3, xj: wp.vec3, wi: float, wj: float, max_length: float):
