@@ -118,10 +118,7 @@ def force_floor(model, control) -> float:
     h = model.host
     reach = float(np.abs(h["q"]).max()) + model.width + model.height
     ulp = float(np.spacing(np.float32(reach)))
-    ks_sum = np.zeros(model.particle_count)
-    ks = model.spring_stiffness.numpy().astype(np.float64)
-    for end in (0, 1):
-        np.add.at(ks_sum, h["pairs"][:, end], ks)
+    ks_sum, _ = model.particle_spring_sums()
     g = max(control.gravity_magnitude, 1.0e-6)
     return float(np.max(ks_sum * ulp / (h["mass"] * g)))
 

@@ -125,6 +125,18 @@ class ClothModel:
         """Largest spring stiffness K [N/m] in the model."""
         return max(p.stiffness for t, p in self.spring_params.items() if np.any(self.spring_type == t))
 
+    def particle_spring_sums(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per particle, the sums of ks [N/m] and kd [N s/m] of its springs (float64, host)."""
+        pairs = self.host["pairs"]
+        ks_sum = np.zeros(self.particle_count)
+        kd_sum = np.zeros(self.particle_count)
+        ks = self.spring_stiffness.numpy().astype(np.float64)
+        kd = self.spring_damping.numpy().astype(np.float64)
+        for end in (0, 1):
+            np.add.at(ks_sum, pairs[:, end], ks)
+            np.add.at(kd_sum, pairs[:, end], kd)
+        return ks_sum, kd_sum
+
     def state(self):
         """A new :class:`~warpcloth.state.State` at the rest configuration with zero velocity."""
         from .state import State

@@ -155,16 +155,8 @@ def stable_dt_estimate(model, drag_rate: float = 0.0) -> float:
     h^2 omega^2 + 2 h c < 4, i.e. h < (sqrt(c^2 + 4 omega^2) - c) / omega^2. Unlike the seed's
     single-spring estimate 0.4 pi sqrt(m/K), this accounts for every spring at a particle.
     """
-    h = model.host
-    n = model.particle_count
-    ks_sum = np.zeros(n)
-    kd_sum = np.zeros(n)
-    ks = model.spring_stiffness.numpy().astype(np.float64)
-    kd = model.spring_damping.numpy().astype(np.float64)
-    for end in (0, 1):
-        np.add.at(ks_sum, h["pairs"][:, end], ks)
-        np.add.at(kd_sum, h["pairs"][:, end], kd)
-    mass = h["mass"].astype(np.float64)
+    ks_sum, kd_sum = model.particle_spring_sums()
+    mass = model.host["mass"].astype(np.float64)
     omega2 = float(np.max(2.0 * ks_sum / mass))
     c = float(np.max(2.0 * kd_sum / mass)) + float(drag_rate)
     if omega2 <= 0.0:
