@@ -517,3 +517,9 @@ def test_strain_limit_attribute(tmp_path):
     bad = write(tmp_path, '<test_list>\n<test integrator="pbd" size="5" strain_limit="0.1"/>\n</test_list>', name="bad.xml")
     with pytest.raises(WarpclothError, match=r":2: .*strain_limit applies to force-based integrators, not 'pbd'"):
         parse_test_list(bad)
+
+
+def test_value_beyond_float32_is_a_validation_error(tmp_path):
+    path = write(tmp_path, '<test_list>\n<test integrator="rk4" size="4"\n      stiffness="1e39"/>\n</test_list>')
+    with pytest.raises(WarpclothError, match=r":3: .*'1e39' does not fit in float32"):
+        parse_test_list(path)

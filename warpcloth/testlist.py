@@ -27,7 +27,7 @@ from typing import Callable
 
 import xml.parsers.expat as expat
 
-from .errors import WarpclothError
+from .errors import FLOAT32_MAX, WarpclothError
 
 ROOT_TAG = "test_list"
 TEST_TAG = "test"
@@ -88,6 +88,8 @@ def _float(text: str) -> float:
         raise ValueError(f"{text!r} is not a number") from None
     if not math.isfinite(v):
         raise ValueError(f"{text!r} is not a finite number")
+    if abs(v) > FLOAT32_MAX:
+        raise ValueError(f"{text!r} does not fit in float32 (|value| <= {FLOAT32_MAX:.4g})")
     return v
 
 
