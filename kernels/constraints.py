@@ -14,6 +14,12 @@ atomic accumulation because it converges like Gauss-Seidel (Jacobi needs a relax
 and more iterations for the same error), is deterministic (no atomics, bit-identical runs) and
 conserves the mass-weighted sum of corrections exactly per constraint. Its cost is one launch
 per colour per iteration.
+
+**Increments, not positions.** The predicted positions are carried as the displacement
+dp = p - x of the (sub)step: the constraint sees p_j - p_i = (x_j - x_i) + (dp_j - dp_i), the
+corrections add to dp, and the update is v = dp / h, x += dp. Forming p = x + h v and
+v = (p - x) / h in float32 rounds h v to a multiple of ulp(x) (~1.2e-7 m at 1.5 m): with many
+substeps a free particle floated and a hanging mass's extension was off by 5e-4 relative.
 """
 
 import warp as wp
@@ -23,10 +29,9 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.func
-def distance_correction_pbd(pi: wp.vec3, pj: wp.vec3, wi: float, wj: float, rest: float, stiffness: float):
-    # C = |p_j - p_i| - L0, n = (p_j - p_i)/|p_j - p_i|
+def distance_correction_pbd(d: wp.vec3, wi: float, wj: float, rest: float, stiffness: float):
+    # C = |d| - L0, d = p_j - p_i, n = d/|d|
     # dp_i = +k w_i/(w_i + w_j) C n,  dp_j = -k w_j/(w_i + w_j) C n   (Müller et al. 2007, section 3.3)
-    d = pj - pi
     length = wp.length(d)
     w = wi + wj
     if length == 0.0 or w == 0.0:
@@ -37,43 +42,42 @@ def distance_correction_pbd(pi: wp.vec3, pj: wp.vec3, wi: float, wj: float, rest
 
 @wp.func
 def distance_correction_xpbd(
-    pi: wp.vec3, pj: wp.vec3, xi: wp.vec3, xj: wp.vec3, wi: float, wj: float,
+    d: wp.vec3, dpi: wp.vec3, dpj: wp.vec3, wi: float, wj: float,
     rest: float, ks: float, kd: float, lam: float, h: float,
 ):
+    # C = |d| - L0, d = p_j - p_i, n = d/|d|, dp = p - x (the displacement of this substep)
     # dlam = -(ks h^2 C + kd h gradC.(p - x) + lam) / ((ks h^2 + kd h)(w_i + w_j) + 1)
     # (Macklin et al. 2016, eq. 18 and 26, times 1/alpha_tilde = ks h^2, gamma = kd/(ks h));
     # dp_i = -w_i n dlam, dp_j = +w_j n dlam   (gradC = (-n, n))
-    d = pj - pi
     length = wp.length(d)
     w = wi + wj
     if length == 0.0 or w == 0.0:
         return wp.vec3(0.0), wp.vec3(0.0), 0.0
     n = d / length
     c = length - rest
-    c_dot_h = wp.dot(n, (pj - xj) - (pi - xi))
+    c_dot_h = wp.dot(n, dpj - dpi)
     dlam = -(ks * h * h * c + kd * h * c_dot_h + lam) / ((ks * h * h + kd * h) * w + 1.0)
     return (-wi * dlam) * n, (wj * dlam) * n, dlam
 
 
 @wp.kernel
 def integrate_predict(
-    x: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
     f: wp.array(dtype=wp.vec3),
     particle_inv_mass: wp.array(dtype=float),
     dt: float,
     velocity_keep: float,
-    p: wp.array(dtype=wp.vec3),
+    dp: wp.array(dtype=wp.vec3),
 ):
-    # v <- (1 - k_damp)(v + dt w f_ext) ;  p = x + dt v   (Müller et al. 2007, Alg. 1 lines 5-11)
+    # v <- (1 - k_damp)(v + dt w f_ext) ;  dp = p - x = dt v   (Müller et al. 2007, Alg. 1 lines 5-11)
     i = wp.tid()
     w = particle_inv_mass[i]
     if w == 0.0:
-        p[i] = x[i]
+        dp[i] = wp.vec3(0.0)
         return
     vi = velocity_keep * (v[i] + (dt * w) * f[i])
     v[i] = vi
-    p[i] = x[i] + dt * vi
+    dp[i] = dt * vi
 
 
 @wp.kernel
@@ -85,16 +89,18 @@ def solve_springs_pbd(
     spring_type: wp.array(dtype=wp.int32),
     type_stiffness: wp.vec3,
     particle_inv_mass: wp.array(dtype=float),
-    p: wp.array(dtype=wp.vec3),
+    x: wp.array(dtype=wp.vec3),
+    dp: wp.array(dtype=wp.vec3),
 ):
-    # one colour: p_i += dp_i, p_j += dp_j with k' of the spring's type (no two springs share a particle)
+    # one colour: dp_i += dp_i', dp_j += dp_j' with k' of the spring's type, p - p = (x_j - x_i) + (dp_j - dp_i)
     s = spring_order[start + wp.tid()]
     ij = spring_indices[s]
     i = ij[0]
     j = ij[1]
-    dpi, dpj = distance_correction_pbd(p[i], p[j], particle_inv_mass[i], particle_inv_mass[j], spring_rest_length[s], type_stiffness[spring_type[s]])
-    p[i] = p[i] + dpi
-    p[j] = p[j] + dpj
+    d = (x[j] - x[i]) + (dp[j] - dp[i])
+    ci, cj = distance_correction_pbd(d, particle_inv_mass[i], particle_inv_mass[j], spring_rest_length[s], type_stiffness[spring_type[s]])
+    dp[i] = dp[i] + ci
+    dp[j] = dp[j] + cj
 
 
 @wp.kernel
@@ -109,20 +115,23 @@ def solve_springs_xpbd(
     x: wp.array(dtype=wp.vec3),
     h: float,
     lam: wp.array(dtype=float),
-    p: wp.array(dtype=wp.vec3),
+    dp: wp.array(dtype=wp.vec3),
 ):
-    # one colour: lam += dlam, p_i += dp_i, p_j += dp_j  (compliance alpha = 1/ks, damping beta = kd)
+    # one colour: lam += dlam, dp_i += dp_i', dp_j += dp_j'  (compliance alpha = 1/ks, damping beta = kd)
     s = spring_order[start + wp.tid()]
     ij = spring_indices[s]
     i = ij[0]
     j = ij[1]
-    dpi, dpj, dlam = distance_correction_xpbd(
-        p[i], p[j], x[i], x[j], particle_inv_mass[i], particle_inv_mass[j],
+    dpi = dp[i]
+    dpj = dp[j]
+    d = (x[j] - x[i]) + (dpj - dpi)
+    ci, cj, dlam = distance_correction_xpbd(
+        d, dpi, dpj, particle_inv_mass[i], particle_inv_mass[j],
         spring_rest_length[s], spring_stiffness[s], spring_damping[s], lam[s], h,
     )
     lam[s] = lam[s] + dlam
-    p[i] = p[i] + dpi
-    p[j] = p[j] + dpj
+    dp[i] = dpi + ci
+    dp[j] = dpj + cj
 
 
 @wp.kernel
@@ -135,14 +144,14 @@ def clear_lambda(lam: wp.array(dtype=float)):
 def update_velocities(
     x: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
-    p: wp.array(dtype=wp.vec3),
+    dp: wp.array(dtype=wp.vec3),
     particle_inv_mass: wp.array(dtype=float),
     dt: float,
 ):
-    # v = (p - x) / dt ;  x = p   (Müller et al. 2007, Alg. 1 lines 18-21); pins keep x and v
+    # v = (p - x) / dt = dp / dt ;  x = p = x + dp   (Müller et al. 2007, Alg. 1 lines 18-21); pins keep x and v
     i = wp.tid()
     if particle_inv_mass[i] == 0.0:
         return
-    pi = p[i]
-    v[i] = (pi - x[i]) / dt
-    x[i] = pi
+    d = dp[i]
+    v[i] = d / dt
+    x[i] = x[i] + d

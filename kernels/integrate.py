@@ -103,33 +103,32 @@ def integrate_rk4_final(
 @wp.kernel
 def integrate_verlet(
     x: wp.array(dtype=wp.vec3),
-    x_prev: wp.array(dtype=wp.vec3),
+    displacement: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
     f: wp.array(dtype=wp.vec3),
     particle_inv_mass: wp.array(dtype=float),
     dt: float,
 ):
-    # x_new = 2 x - x_prev + a dt^2 ;  v = (x_new - x) / dt   (seed eq. 2.18)
+    # d = x - x_prev ;  d <- d + a dt^2 ;  x <- x + d ;  v = d / dt   (seed eq. 2.18 carried as an
+    # increment: x_new = 2 x - x_prev + a dt^2 in exact arithmetic, without rounding a dt^2 to ulp(x))
     i = wp.tid()
     w = particle_inv_mass[i]
     if w == 0.0:
         return
-    xi = x[i]
-    x_new = 2.0 * xi - x_prev[i] + (dt * dt * w) * f[i]
-    x_prev[i] = xi
-    x[i] = x_new
-    v[i] = (x_new - xi) / dt
+    d = displacement[i] + (dt * dt * w) * f[i]
+    displacement[i] = d
+    x[i] = x[i] + d
+    v[i] = d / dt
 
 
 @wp.kernel
 def verlet_prime(
-    x: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
     f: wp.array(dtype=wp.vec3),
     particle_inv_mass: wp.array(dtype=float),
     dt: float,
-    x_prev: wp.array(dtype=wp.vec3),
+    displacement: wp.array(dtype=wp.vec3),
 ):
-    # x_prev = x - dt v + dt^2/2 a   (second-order start from the current x, v)
+    # d = x - x_prev = dt v - dt^2/2 a   (second-order start from the current x, v)
     i = wp.tid()
-    x_prev[i] = x[i] - dt * v[i] + (0.5 * dt * dt * particle_inv_mass[i]) * f[i]
+    displacement[i] = dt * v[i] - (0.5 * dt * dt * particle_inv_mass[i]) * f[i]

@@ -55,20 +55,21 @@ def hanging_mass(mass=0.1, rest=0.5, ks=100.0, kd=0.0):
 # -- one projection ----------------------------------------------------------------------------
 
 def project_once(p, inv_mass, rest, xpbd=False, ks=1.0e3, kd=0.0, h=DT):
-    """Positions after projecting the single constraint (0, 1) once with the real kernels."""
+    """Positions after projecting the single constraint (0, 1) once with the real kernels
+    (positions x = p, displacement dp = 0 at the start; p = x + dp after)."""
     with wp.ScopedDevice("cpu"):
-        pw = wp.array(np.asarray(p, np.float32), dtype=wp.vec3)
+        x = wp.array(np.asarray(p, np.float32), dtype=wp.vec3)
+        dp = wp.zeros_like(x)
         args = [wp.array([0], dtype=wp.int32), 0, wp.array([[0, 1]], dtype=wp.vec2i), wp.array([rest], dtype=float)]
         w = wp.array(np.asarray(inv_mass, np.float32), dtype=float)
         if xpbd:
             lam = wp.zeros(1, dtype=float)
-            x = wp.clone(pw)
             args += [wp.array([ks], dtype=float), wp.array([kd], dtype=float), w, x, float(h)]
-            wp.launch(ck.solve_springs_xpbd, dim=1, inputs=args, outputs=[lam, pw])
-            return pw.numpy().astype(np.float64), float(lam.numpy()[0])
-        args += [wp.array([0], dtype=wp.int32), wp.vec3(1.0, 1.0, 1.0), w]
-        wp.launch(ck.solve_springs_pbd, dim=1, inputs=args, outputs=[pw])
-        return pw.numpy().astype(np.float64)
+            wp.launch(ck.solve_springs_xpbd, dim=1, inputs=args, outputs=[lam, dp])
+            return x.numpy().astype(np.float64) + dp.numpy(), float(lam.numpy()[0])
+        args += [wp.array([0], dtype=wp.int32), wp.vec3(1.0, 1.0, 1.0), w, x]
+        wp.launch(ck.solve_springs_pbd, dim=1, inputs=args, outputs=[dp])
+        return x.numpy().astype(np.float64) + dp.numpy()
 
 
 P0 = np.array([[0.1, 0.2, -0.3], [1.0, 1.4, 0.3]])  # a generic direction

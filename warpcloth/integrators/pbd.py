@@ -6,6 +6,9 @@ Each of the ``substeps`` substeps of length h = dt / substeps runs Algorithm 1:
     repeat n times, colour by colour:  p_i += k' w_i/(w_i + w_j) C n,  p_j -= k' w_j/(w_i + w_j) C n
     v = (p - x) / h ;  x = p
 
+(p is carried as the increment dp = p - x, so float32 keeps h v and the corrections whatever
+the substep: see :mod:`warpcloth.kernels.constraints`)
+
 with C = |p_j - p_i| - L0, n = (p_j - p_i)/|p_j - p_i| for every spring (bend springs too) and
 the iteration-count correction k' = 1 - (1 - k)^(1/n) (section 3.3), so that after n iterations
 a lone constraint keeps the fraction (1 - k) of its error whatever n is. ``substeps=1`` is the
@@ -60,8 +63,8 @@ class PBD(PositionBasedIntegrator):
         m = self.model
         h = dt / self.substeps
         keep = self.velocity_keep()
-        params = [m.spring_indices, m.spring_rest_length, self.spring_type, self.type_stiffness(), m.particle_inv_mass]
-        sweep = self.color_sweep(ck.solve_springs_pbd, params, [self.particle_p])
+        params = [m.spring_indices, m.spring_rest_length, self.spring_type, self.type_stiffness(), m.particle_inv_mass, state.particle_q]
+        sweep = self.color_sweep(ck.solve_springs_pbd, params, [self.particle_dp])
         for _ in range(self.substeps):
             self.predict(state, control, h, keep)
             for _ in range(self.iterations):

@@ -48,7 +48,7 @@ class PositionBasedIntegrator(Integrator):
     """Base of :class:`~warpcloth.integrators.pbd.PBD` and :class:`~warpcloth.integrators.xpbd.XPBD`.
 
     Binding colours the springs (:func:`warpcloth.coloring.color_springs`) and allocates the
-    predicted positions p; a step allocates nothing.
+    predicted displacements dp = p - x; a step allocates nothing.
     """
 
     force_based: ClassVar[bool] = False
@@ -66,7 +66,7 @@ class PositionBasedIntegrator(Integrator):
         self.coloring = color_springs(model.host["pairs"], model.particle_count, model.cols)
         self.spring_order = wp.array(self.coloring.order, dtype=wp.int32)
         self.spring_type = wp.array(np.asarray(model.spring_type, dtype=np.int32), dtype=wp.int32)
-        self.particle_p = scratch_like(model)
+        self.particle_dp = scratch_like(model)
         self._sweep_key, self._sweep = None, []
 
     def stats(self) -> dict:
@@ -79,10 +79,10 @@ class PositionBasedIntegrator(Integrator):
         return (1.0 - self.velocity_damping) ** (1.0 / self.substeps)
 
     def predict(self, state, control, h: float, velocity_keep: float) -> None:
-        """v <- velocity_keep (v + h w f_ext);  p = x + h v."""
+        """v <- velocity_keep (v + h w f_ext);  dp = p - x = h v."""
         m = self.model
         eval_external_forces(m, state.particle_q, state.particle_qd, control, state.particle_f)
-        wp.launch(ck.integrate_predict, dim=m.particle_count, inputs=[state.particle_q, state.particle_qd, state.particle_f, m.particle_inv_mass, float(h), float(velocity_keep)], outputs=[self.particle_p], device=m.device)
+        wp.launch(ck.integrate_predict, dim=m.particle_count, inputs=[state.particle_qd, state.particle_f, m.particle_inv_mass, float(h), float(velocity_keep)], outputs=[self.particle_dp], device=m.device)
 
     def color_sweep(self, kernel, params: list, outputs: list) -> list:
         """One Gauss-Seidel sweep over the springs: a launch of ``kernel`` per colour, with
@@ -102,9 +102,9 @@ class PositionBasedIntegrator(Integrator):
         return self._sweep
 
     def update(self, state, h: float) -> None:
-        """v = (p - x) / h;  x = p."""
+        """v = dp / h;  x += dp."""
         m = self.model
-        wp.launch(ck.update_velocities, dim=m.particle_count, inputs=[state.particle_q, state.particle_qd, self.particle_p, m.particle_inv_mass, float(h)], device=m.device)
+        wp.launch(ck.update_velocities, dim=m.particle_count, inputs=[state.particle_q, state.particle_qd, self.particle_dp, m.particle_inv_mass, float(h)], device=m.device)
 
 
 def _argument_key(value):

@@ -9,6 +9,9 @@ Each of the ``substeps`` substeps of length h = dt / substeps runs
         lambda += dlambda ;  p_i -= w_i n dlambda ;  p_j += w_j n dlambda
     v = (p - x) / h ;  x = p
 
+(p is carried as the increment dp = p - x, so float32 keeps h v and the corrections whatever
+the substep: see :mod:`warpcloth.kernels.constraints`)
+
 for every spring (bend springs too), with C = |p_j - p_i| - L0, compliance alpha = 1/ks,
 alpha~ = alpha / h^2 and damping gamma = alpha kd / h: the spring's own ks [N/m] and
 kd [N s/m], so the material is the same as in the force-based integrators. A spring with
@@ -46,7 +49,7 @@ class XPBD(PositionBasedIntegrator):
         h = dt / self.substeps
         keep = self.velocity_keep()
         params = [m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, m.particle_inv_mass, state.particle_q, h]
-        sweep = self.color_sweep(ck.solve_springs_xpbd, params, [self.spring_lambda, self.particle_p])
+        sweep = self.color_sweep(ck.solve_springs_xpbd, params, [self.spring_lambda, self.particle_dp])
         for _ in range(self.substeps):
             self.predict(state, control, h, keep)
             self.clear_lambda()
