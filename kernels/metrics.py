@@ -6,11 +6,16 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 # slots of the metrics buffer
-MAX_STRAIN = 0
-MAX_SPEED = 1
-MAX_FORCE_PER_WEIGHT = 2
-NON_FINITE = 3
+MAX_STRAIN = wp.constant(0)
+MAX_SPEED = wp.constant(1)
+MAX_FORCE_PER_WEIGHT = wp.constant(2)
+NON_FINITE = wp.constant(3)
 METRIC_COUNT = 4
+
+# slots of the float64 energy buffer
+ENERGY_TOTAL = wp.constant(0)
+ENERGY_KINETIC = wp.constant(1)
+ENERGY_COUNT = 2
 
 
 @wp.kernel
@@ -31,9 +36,9 @@ def reduce_spring_strain(
     length = wp.length(x[ij[1]] - x[ij[0]])
     strain = (length - spring_rest_length[s]) / spring_rest_length[s]
     if wp.isfinite(strain):
-        wp.atomic_max(metrics, 0, strain)
+        wp.atomic_max(metrics, MAX_STRAIN, strain)
     else:
-        metrics[3] = 1.0
+        metrics[NON_FINITE] = 1.0
 
 
 @wp.kernel
@@ -49,17 +54,17 @@ def reduce_particle_motion(
     # max |v| and max |f| / (m |g|) over free particles
     i = wp.tid()
     if not (wp.isfinite(x[i]) and wp.isfinite(v[i])):
-        metrics[3] = 1.0
+        metrics[NON_FINITE] = 1.0
         return
     if particle_inv_mass[i] == 0.0:
         return
-    wp.atomic_max(metrics, 1, wp.length(v[i]))
+    wp.atomic_max(metrics, MAX_SPEED, wp.length(v[i]))
     weight = particle_mass[i] * wp.max(gravity_magnitude, 1.0e-6)
     fw = wp.length(f[i]) / weight
     if wp.isfinite(fw):
-        wp.atomic_max(metrics, 2, fw)
+        wp.atomic_max(metrics, MAX_FORCE_PER_WEIGHT, fw)
     else:
-        metrics[3] = 1.0
+        metrics[NON_FINITE] = 1.0
 
 
 @wp.kernel
@@ -73,15 +78,17 @@ def reduce_energy(
     gravity: wp.vec3,
     energy: wp.array(dtype=wp.float64),
 ):
-    # E = sum 1/2 m |v|^2 - m g.x  (particles, tid < n)  +  sum 1/2 ks (L - L0)^2  (springs)
+    # E = sum 1/2 m |v|^2 - m g.x  (particles, tid < n)  +  sum 1/2 ks (L - L0)^2  (springs);
+    # the kinetic part alone goes to ENERGY_KINETIC
     tid = wp.tid()
     n = x.shape[0]
     if tid < n:
         m = particle_mass[tid]
-        e = 0.5 * m * wp.dot(v[tid], v[tid]) - m * wp.dot(gravity, x[tid])
-        wp.atomic_add(energy, 0, wp.float64(e))
+        kinetic = 0.5 * m * wp.dot(v[tid], v[tid])
+        wp.atomic_add(energy, ENERGY_TOTAL, wp.float64(kinetic - m * wp.dot(gravity, x[tid])))
+        wp.atomic_add(energy, ENERGY_KINETIC, wp.float64(kinetic))
     s = tid - n
     if s >= 0 and s < spring_indices.shape[0]:
         ij = spring_indices[s]
         stretch = wp.length(x[ij[1]] - x[ij[0]]) - spring_rest_length[s]
-        wp.atomic_add(energy, 0, wp.float64(0.5 * spring_stiffness[s] * stretch * stretch))
+        wp.atomic_add(energy, ENERGY_TOTAL, wp.float64(0.5 * spring_stiffness[s] * stretch * stretch))

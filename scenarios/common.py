@@ -11,6 +11,7 @@ from ..errors import WarpclothError, require_int, require_positive
 from ..forces import Control
 from ..integrators import make_integrator
 from ..model import BendModel, build_grid_cloth, default_spring_params
+from ..metrics import DEFAULT_INSTABILITY_STRAIN
 from ..simulator import RunResult, Simulator
 
 
@@ -20,6 +21,7 @@ class ScenarioConfig:
 
     stiffness / damping: one number for every spring type, or three (structural, shear, bend).
     strain_limit: Provot's deformation constraint tau (None: off), see :class:`Simulator`.
+    instability_strain: a spring stretched past (1 + this) x its rest length makes the run unstable.
     """
 
     rows: int = 32
@@ -38,6 +40,7 @@ class ScenarioConfig:
     bend: str = "provot"
     device: str | None = None
     strain_limit: float | None = None
+    instability_strain: float = DEFAULT_INSTABILITY_STRAIN
 
 
 @dataclass(frozen=True)
@@ -90,7 +93,8 @@ class Scenario:
                 origin=self.origin(cfg), plane=self.plane, bend=bend, device=device,
             )
             control = self.control(cfg, device)
-            return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name, strain_limit=cfg.strain_limit)
+            return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name, strain_limit=cfg.strain_limit,
+                             instability_strain=cfg.instability_strain)
 
     def run(self, config: ScenarioConfig | None = None, usd_path: str | None = None, wall_cap: float | None = None, **overrides) -> RunResult:
         """Build and run; writes a USD file when ``usd_path`` is given."""

@@ -187,8 +187,9 @@ def test_default_dt_is_below_the_stability_estimate():
     h = stable_dt_estimate(model)
     assert 0 < h < explicit_euler_dt_bound(model) * 10
     for name in EXPLICIT:
-        dt = make_integrator(name).default_dt(model)
+        dt = make_integrator(name).default_dt(model, drag_rate=0.5)
         assert 0 < dt <= h * 1.0001 + 1e-12 or name == "rk4"
+    assert make_integrator("midpoint").default_dt(model) == 0.0  # undamped: RK2 has no stable dt
 
 
 def test_unknown_integrator_and_option():

@@ -54,6 +54,7 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--drag", type=float, default=None, help="linear air drag rate [1/s]")
     p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
     p.add_argument("--strain-limit", type=float, default=None, metavar="TAU", help="Provot deformation constraint: cap structural/shear strain at TAU (e.g. 0.1), force-based integrators (default off)")
+    p.add_argument("--instability-strain", type=float, default=None, metavar="STRAIN", help="a spring strained past this (e.g. 0.5 = 50 %%) makes the run unstable (default 0.5)")
     _add_integrator_options(p)
 
 
@@ -106,6 +107,7 @@ def config_from_args(scenario, args):
         rows=args.rows, cols=args.cols, width=args.width, height=args.height, integrator=integrator, dt=args.dt,
         duration=args.duration, fps=args.fps, stiffness=args.stiffness, damping=args.damping, mass=args.mass,
         drag=args.drag, bend=args.bend, device=args.device, strain_limit=args.strain_limit,
+        instability_strain=args.instability_strain,
         integrator_options=integrator_options_from_args(integrator, args),
     )
     if args.num_frames is not None:
@@ -122,7 +124,7 @@ def summary(result) -> str:
         f"{result.scenario}: {result.integrator} on {result.device}, {result.rows}x{result.cols} "
         f"({result.particles} particles, {result.springs} springs), dt={result.dt:.3g} s",
         f"  simulated {result.sim_time:.3f} s in {result.steps} steps, {result.wall_time:.2f} s wall "
-        f"(+{result.compile_time:.2f} s compile)",
+        f"(+{result.compile_time:.2f} s compile" + (f", +{result.capture_time:.2f} s graph capture" if result.capture_time else "") + ")",
         f"  {result.ms_per_step:.4f} ms/step, {result.steps_per_sec:,.0f} steps/s, real-time factor {result.realtime_factor:.2f}"
         + (" (graph replay)" if result.graph else ""),
         f"  stable: {'yes' if result.stable else 'NO (' + result.unstable_reason + ')'}, max strain {100 * result.max_strain:.2f} %",

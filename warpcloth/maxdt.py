@@ -2,7 +2,9 @@
 
 A time step is *stable* when the scenario runs a fixed simulated duration (default 2 s, from
 rest, without stopping at equilibrium) and never goes unstable by the simulator's definition
-(non-finite state, or a spring strained past the instability limit). The search brackets the
+(non-finite state, a spring strained past the instability strain, or energy growing without
+bound). Where the scheme's stability region on the model holds no dt at all (midpoint without
+damping), the search reports that before any trial instead of a number set by the trial length. The search brackets the
 boundary by doubling or halving a first guess, then bisects (geometric mean) until the
 bracket's relative width is at most the precision. It assumes stability is monotonic in dt,
 as it is for the explicit schemes; it returns the largest dt seen stable.
@@ -34,6 +36,7 @@ class Trial:
     reason: str = ""  # why it went unstable
     capped: bool = False  # stopped by the wall-clock cap before the duration (counted as stable)
     wall_time: float = 0.0
+    max_strain: float = 0.0  # the largest spring strain reached
 
 
 @dataclass
@@ -67,11 +70,15 @@ class MaxDtResult:
     max_stiffness: float
     trials: list[Trial] = field(default_factory=list)
     wall_time: float = 0.0
+    #: Why no dt can be stable (the scheme's stability region on this model), found before any trial.
+    no_stable_reason: str = ""
+    #: The largest spring strain reached in the trial at :attr:`dt`.
+    max_strain: float | None = None
 
     @property
     def limit_reached(self) -> bool:
         """True when no instability was found up to ``dt_max``."""
-        return self.unstable_dt is None
+        return self.unstable_dt is None and not self.no_stable_reason
 
     @property
     def inconclusive_trials(self) -> int:
@@ -84,6 +91,7 @@ class MaxDtResult:
             "duration": self.duration, "dt_min": self.dt_min, "dt_max": self.dt_max,
             "explicit_euler_reference": self.reference, "particle_mass": self.particle_mass,
             "max_stiffness": self.max_stiffness, "trials": [t.__dict__ for t in self.trials], "wall_time": self.wall_time,
+            "max_strain": self.max_strain, "no_stable_reason": self.no_stable_reason,
         }
 
 
@@ -93,7 +101,8 @@ def trial_stable(sim, dt: float, duration: float, fps: float = 60.0, wall_cap: f
     sim.set_dt(dt)
     t0 = time.perf_counter()
     r = sim.run(duration, fps=fps, stop_at_equilibrium=False, wall_cap=wall_cap, warm_up=False)
-    return Trial(dt=dt, stable=r.stable, reason=r.unstable_reason, capped=r.wall_cap_reached and r.stable, wall_time=time.perf_counter() - t0)
+    return Trial(dt=dt, stable=r.stable, reason=r.unstable_reason, capped=r.wall_cap_reached and r.stable,
+                 wall_time=time.perf_counter() - t0, max_strain=r.max_strain)
 
 
 def find_max_dt(
@@ -130,7 +139,7 @@ def find_max_dt(
     require(dt_min < dt_max, f"dt_min ({dt_min:g} s) must be below dt_max ({dt_max:g} s)")
 
     t_start = time.perf_counter()
-    sim = scenario.build(config)
+    sim = scenario.build(config, dt=dt_max)  # an explicit dt: the default may not exist
     model = sim.model
     result = MaxDtResult(
         scenario=scenario.name, integrator=sim.integrator.name, device=str(model.device), rows=model.rows,
@@ -138,6 +147,12 @@ def find_max_dt(
         dt_max=dt_max, reference=explicit_euler_dt_bound(model), particle_mass=model.particle_mass_value,
         max_stiffness=model.max_stiffness(),
     )
+    reason = sim.integrator.no_stable_dt_reason(model, sim.control.drag_rate)
+    if reason:
+        result.no_stable_reason = reason
+        result.wall_time = time.perf_counter() - t_start
+        return result
+    sim.set_dt(sim.integrator.default_dt(model, sim.control.drag_rate))
     sim.warm_up()
 
     def test(dt: float) -> bool:
@@ -175,6 +190,8 @@ def find_max_dt(
             else:
                 hi = mid
     result.dt, result.unstable_dt = lo, hi
+    if lo is not None:
+        result.max_strain = max(t.max_strain for t in result.trials if t.dt == lo and t.stable)
     result.wall_time = time.perf_counter() - t_start
     return result
 
@@ -182,17 +199,21 @@ def find_max_dt(
 def format_result(r: MaxDtResult) -> str:
     """The human-readable report of ``warpcloth max-dt``."""
     lines = [f"{r.scenario}: {r.integrator} on {r.device}, {r.rows}x{r.cols}; stable = {r.duration:g} s simulated without going unstable"]
-    if r.dt is None:
+    if r.no_stable_reason:
+        lines.append(f"  no stable dt exists: {r.no_stable_reason}")
+    elif r.dt is None:
         lines.append(f"  no stable dt found down to {r.dt_min:.4g} s")
     elif r.unstable_dt is None:
         lines.append(f"  max stable dt: >= {r.dt:.4g} s (stable up to the search limit {r.dt_max:.4g} s; no instability found)")
     else:
-        lines.append(f"  max stable dt: {r.dt:.4g} s")
+        lines.append(f"  max stable dt: {r.dt:.4g} s (max strain {100 * r.max_strain:.3g} % at that dt)")
         lines.append(f"  bracket: stable at {r.dt:.4g} s, unstable at {r.unstable_dt:.4g} s "
                      f"(relative width {(r.unstable_dt - r.dt) / r.dt:.2%}, precision {r.precision:.2%})")
     top = next((t for t in r.trials if not t.stable and t.dt == r.unstable_dt), None)
     if top is not None:
         lines.append(f"  at {top.dt:.4g} s: {top.reason}")
+    if r.limit_reached and r.dt is not None:
+        lines.append(f"  max strain at {r.dt:.4g} s: {100 * r.max_strain:.3g} %")
     lines.append(f"  {len(r.trials)} trials in {r.wall_time:.1f} s wall"
                  + (f" ({r.inconclusive_trials} stopped by the wall cap, counted as stable)" if r.inconclusive_trials else ""))
     if r.integrator == "explicit_euler":

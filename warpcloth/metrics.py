@@ -2,8 +2,9 @@
 
 Definitions (shared by every integrator, see design.md):
 
-* **unstable**: a non-finite position, velocity or force, or a spring stretched past
-  ``instability_strain`` (default 1.0, i.e. twice its rest length).
+* **unstable**: a non-finite position, velocity or force; a spring stretched past
+  ``instability_strain`` (:data:`DEFAULT_INSTABILITY_STRAIN`); or mechanical energy growing
+  beyond what the external forces can supply (:class:`EnergyMonitor`).
 * **equilibrium**: over a window of ``window`` seconds of simulated time, at every sampled frame,
   every free particle's speed is below ``speed_tol`` and its net force per unit weight
   |f| / (m |g|) below ``force_tol`` -- or below the float32 force floor, if that is larger:
@@ -26,6 +27,14 @@ from warpcloth.kernels import metrics as mk
 
 from .errors import require_positive
 from .forces import eval_forces
+
+#: Default instability strain: a spring stretched past (1 + this) x its rest length is unstable.
+#: Measured (``python bench/instability_strain.py``, 4 s of sheet, 5 s of flag): rk4 at a half and
+#: a quarter of its default dt reaches 2.8 % on the sheet and 10-14 % on the (fluttering) flag;
+#: explicit Euler and implicit Euler at their defaults the same; pbd/xpbd at their defaults, which
+#: stretch more, 17-28 %. 0.5 leaves a margin of 1.8x over all of those and flags the 83-99.9 %
+#: strains of the flag at the time steps the old criterion (1.0) called stable.
+DEFAULT_INSTABILITY_STRAIN = 0.5
 
 
 @dataclass(frozen=True)
@@ -68,7 +77,7 @@ class MetricsProbe:
         with wp.ScopedDevice(model.device):
             self.buffer = wp.zeros(mk.METRIC_COUNT, dtype=float)
             self.force = wp.zeros(model.particle_count, dtype=wp.vec3)
-            self.energy_buffer = wp.zeros(1, dtype=wp.float64)
+            self.energy_buffer = wp.zeros(mk.ENERGY_COUNT, dtype=wp.float64)
         self.force_floor = force_floor(model, control)
 
     def measure(self, state, with_force: bool = True) -> FrameMetrics:
@@ -100,6 +109,10 @@ class MetricsProbe:
 
     def energy(self, state) -> float:
         """Total mechanical energy [J]: kinetic + gravitational + spring (ks (L - L0)^2 / 2)."""
+        return self.energies(state)[0]
+
+    def energies(self, state) -> tuple[float, float]:
+        """(total mechanical energy, kinetic energy) [J] of ``state`` (one small read)."""
         m = self.model
         self.energy_buffer.zero_()
         wp.launch(
@@ -109,7 +122,8 @@ class MetricsProbe:
             outputs=[self.energy_buffer],
             device=m.device,
         )
-        return float(self.energy_buffer.numpy()[0])
+        e = self.energy_buffer.numpy()
+        return float(e[mk.ENERGY_TOTAL]), float(e[mk.ENERGY_KINETIC])
 
 
 def force_floor(model, control) -> float:
@@ -140,3 +154,84 @@ class EquilibriumDetector:
             return sim_time - self.rest_since >= self.criteria.window - 1e-12
         self.rest_since = self.rest_since_wall = None
         return False
+
+
+def wind_power_bound(model, control, instability_strain: float) -> float:
+    """An upper bound [W] on the power the wind can deliver to the cloth.
+
+    On a triangle of area A and unit normal n moving at v (the mean of its vertices), the wind
+    force c_w A (n.u) n, u = W - v, delivers c_w A (n.W - n.v)(n.v) <= c_w A (n.W)^2 / 4
+    <= c_w A |W|^2 / 4. A stable cloth's area is at most its rest area times
+    (1 + instability_strain)^2, and |W| at most the schedule's largest wind.
+    """
+    if not control.has_wind or model.tri_count == 0:
+        return 0.0
+    q = model.host["q"].astype(np.float64)
+    t = model.host["tris"]
+    area = 0.5 * float(np.linalg.norm(np.cross(q[t[:, 1]] - q[t[:, 0]], q[t[:, 2]] - q[t[:, 0]]), axis=1).sum())
+    w2 = max(float(np.dot(w, w)) for w in control.wind_schedule.winds)
+    return control.wind_coefficient * area * (1.0 + instability_strain) ** 2 * w2 / 4.0
+
+
+@dataclass(frozen=True)
+class EnergyCriteria:
+    """When growing energy counts as unstable (see :class:`EnergyMonitor`)."""
+
+    growth: float = 1.03  # a window's peak excess over the previous window's
+    windows: int = 4  # consecutive growing windows
+    significance: float = 0.25  # the excess as a fraction of the energy exchanged before it grew
+    window_time: float = 0.1  # s of simulated time, at least
+    window_steps: int = 10  # steps, at least
+
+
+class EnergyMonitor:
+    """Flags mechanical energy that grows without bound.
+
+    Gravity is conservative; spring damping and drag only remove energy; the wind supplies at
+    most :func:`wind_power_bound` P. So a faithful run keeps the excess
+    X(t) = E(t) - E(0) - P t at or below zero, up to an integrator's bounded energy error
+    (symplectic Euler's energy oscillates, boundedly, by up to ~ (h omega / 2) / (1 - h omega / 2)
+    of the energy in a mode). The energy is sampled every frame; frames are grouped into windows
+    of at least ``window_time`` seconds and ``window_steps`` steps (several periods of the modes
+    whose energy error oscillates). The run is unstable when the windows' peak excess grew by
+    ``growth`` in each of ``windows`` consecutive windows and exceeds ``significance`` times the
+    energy exchanged before the growth began (the largest kinetic energy, or energy released,
+    seen until then): growth without bound, not an oscillation. Undamped RK2, which amplifies
+    every mode by sqrt(1 + (h omega)^4 / 4) per step, is caught this way.
+    """
+
+    def __init__(self, e0: float, power_bound: float, window_frames: int, scale: float, criteria: EnergyCriteria | None = None):
+        self.criteria = criteria or EnergyCriteria()
+        self.e0 = float(e0)
+        self.power_bound = float(power_bound)
+        self.window_frames = max(1, int(window_frames))
+        self.floor = 1.0e-6 * (abs(self.e0) + float(scale)) + 1.0e-12
+        self.exchanged = self.floor  # energy moved around before the current growth streak
+        self._frames = 0
+        self._peak = -np.inf
+        self._kinetic_peak = 0.0
+        self._e_min = self.e0
+        self._previous_peak = None
+        self.streak = 0
+        self.excess = 0.0
+
+    def update(self, t: float, energy: float, kinetic: float) -> bool:
+        """Feed one frame at simulated time ``t`` since the start [s]; True when unstable."""
+        x = energy - self.e0 - self.power_bound * t
+        self.excess = x
+        self._peak = max(self._peak, x)
+        self._kinetic_peak = max(self._kinetic_peak, kinetic)
+        self._e_min = min(self._e_min, energy)
+        self._frames += 1
+        if self._frames < self.window_frames:
+            return False
+        c, peak, prev = self.criteria, self._peak, self._previous_peak
+        growing = prev is not None and peak > self.floor and peak > c.growth * max(prev, 0.0)
+        if growing:
+            self.streak += 1
+        else:
+            self.streak = 0
+            self.exchanged = max(self.exchanged, self._kinetic_peak, self.e0 - self._e_min)
+        self._previous_peak = peak
+        self._frames, self._peak = 0, -np.inf
+        return self.streak >= c.windows and peak > c.significance * self.exchanged

@@ -18,10 +18,25 @@ from . import __version__
 from .errors import WarpclothError, require, require_positive
 from .forces import Control
 from .integrators import Integrator, make_integrator
-from .metrics import EquilibriumCriteria, EquilibriumDetector, FrameMetrics, MetricsProbe
+from .metrics import (
+    DEFAULT_INSTABILITY_STRAIN,
+    EnergyCriteria,
+    EnergyMonitor,
+    EquilibriumCriteria,
+    EquilibriumDetector,
+    FrameMetrics,
+    MetricsProbe,
+    wind_power_bound,
+)
 from .strain_limit import StrainLimiter
 
-DEFAULT_INSTABILITY_STRAIN = 1.0
+#: Most steps one run may take (a larger count is a typo in dt or duration, not an experiment).
+MAX_RUN_STEPS = 10**12
+#: A frame may be at most this many times shorter than a step (frames shorter than a step are
+#: sampled once per step anyway).
+MAX_FRAMES_PER_STEP = 1000.0
+#: The wall cap is checked after chunks of steps of about this many wall seconds.
+CHUNK_SECONDS = 0.2
 
 
 def graph_capture_supported(device) -> bool:
@@ -51,6 +66,7 @@ class RunResult:
     sim_time: float = 0.0
     wall_time: float = 0.0
     compile_time: float = 0.0
+    capture_time: float = 0.0
     integration_time: float = 0.0
     other_time: float = 0.0
     export_time: float = 0.0
@@ -66,6 +82,7 @@ class RunResult:
     equilibrium_criterion: str = "speed+force"
     force_floor: float = 0.0
     max_strain: float = 0.0
+    instability_strain: float = DEFAULT_INSTABILITY_STRAIN
     final_max_speed: float = 0.0
     wall_cap_reached: bool = False
     graph: bool = False
@@ -107,8 +124,10 @@ class Simulator:
         integrator: an :class:`~warpcloth.integrators.Integrator` or its name.
         control: external forces (:class:`~warpcloth.forces.Control`); default gravity only.
         dt: time step [s]; default the integrator's :meth:`~Integrator.default_dt`.
-        instability_strain: a spring stretched past (1 + this) x its rest length is unstable.
+        instability_strain: a spring stretched past (1 + this) x its rest length is unstable
+            (default :data:`~warpcloth.metrics.DEFAULT_INSTABILITY_STRAIN`).
         equilibrium: tolerances of the equilibrium test.
+        energy: when growing energy counts as unstable (:class:`~warpcloth.metrics.EnergyCriteria`).
         scenario: a name carried into results.
         use_graph: capture a frame's steps once with ``wp.ScopedCapture`` and replay it (CUDA
             graphs; Warp's API capture on the CPU). None: wherever the device and the
@@ -125,6 +144,7 @@ class Simulator:
         dt: float | None = None,
         instability_strain: float = DEFAULT_INSTABILITY_STRAIN,
         equilibrium: EquilibriumCriteria | None = None,
+        energy: EnergyCriteria | None = None,
         scenario: str = "custom",
         use_graph: bool | None = None,
         strain_limit: float | None = None,
@@ -138,6 +158,7 @@ class Simulator:
         self.state = model.state()
         self.instability_strain = require_positive("instability strain", instability_strain)
         self.equilibrium = equilibrium or EquilibriumCriteria()
+        self.energy_criteria = energy or EnergyCriteria()
         self.scenario = scenario
         self.probe = MetricsProbe(model, self.control)
         self.strain_limiter = StrainLimiter(model, strain_limit) if strain_limit is not None else None
@@ -146,6 +167,9 @@ class Simulator:
         self._use_graph = use_graph
         self._graphs: dict[tuple, object] = {}
         self._warmed = False
+        self._step_seconds: float | None = None  # wall time of one step, once measured
+        #: Wall seconds spent capturing frame graphs (excluded from step timings).
+        self.capture_time = 0.0
         self.set_integrator(integrator, dt)
         self.sim_time = 0.0
         self.steps = 0
@@ -165,18 +189,43 @@ class Simulator:
         if self.strain_limiter is not None and not integrator.force_based:
             raise WarpclothError(f"strain limit applies to force-based integrators only, not {integrator.name!r}")
         integrator.bind(self.model)
-        if dt is None:
-            dt = self._dt if self._dt is not None else integrator.default_dt(self.model, self.control.drag_rate)
+        if dt is None and self._dt is None:
+            reason = integrator.no_stable_dt_reason(self.model, self.control.drag_rate)
+            if reason:
+                raise WarpclothError(reason + "; or give dt yourself")
+            dt = integrator.default_dt(self.model, self.control.drag_rate)
+            if not dt > 0.0:
+                raise WarpclothError(
+                    f"the default dt of {integrator.name!r} on this model is {dt:.3g} s (too small to run): "
+                    f"check the mass, stiffness, damping and drag"
+                )
+        elif dt is None:
+            dt = self._dt
         self._dt = require_positive("dt", dt, "s")
         self.integrator = integrator
         self._needs_begin = True
         self._graphs.clear()
         self._warmed = False
+        self._step_seconds = None
 
     def set_dt(self, dt: float) -> None:
         self._dt = require_positive("dt", dt, "s")
         self._needs_begin = True
         self._graphs.clear()
+
+    @property
+    def use_graph(self) -> bool | None:
+        """Graph capture: True (always; an error where unsupported), False (plain launches) or
+        None (wherever the device and the integrator support it). Results are bit-identical."""
+        return self._use_graph
+
+    @use_graph.setter
+    def use_graph(self, value: bool | None) -> None:
+        if value not in (True, False, None):
+            raise WarpclothError(f"use_graph must be True, False or None (auto), got {value!r}")
+        self._use_graph = value
+        self._graphs.clear()
+        self._step_seconds = None
 
     @property
     def graph_enabled(self) -> bool:
@@ -245,12 +294,14 @@ class Simulator:
             if not self._warmed:  # load every kernel before capturing (older CUDA drivers require it)
                 self.warm_up()
                 self._begin()
-            if len(self._graphs) >= 4:  # frames alternate between at most two step counts
+            if len(self._graphs) >= 4:  # frames alternate between at most two step counts (+ chunks)
                 self._graphs.clear()
+            t0 = time.perf_counter()
             with wp.ScopedCapture(device=self.model.device) as capture:
                 for _ in range(steps):
                     self._launch_step()
             graph = self._graphs[key] = capture.graph
+            self.capture_time += time.perf_counter() - t0
         wp.capture_launch(graph)
         self.steps += steps
         self.sim_time += steps * self._dt
@@ -297,30 +348,44 @@ class Simulator:
             duration: simulated time [s].
             fps: frame rate of sampling (metrics, USD frames) [1/s].
             stop_at_equilibrium: end the run when equilibrium is confirmed.
-            wall_cap: stop after this many wall-clock seconds (None: no cap).
+            wall_cap: stop after this many wall-clock seconds (None: no cap). It is checked
+                between chunks of about 0.2 s of steps, so it bounds the run's wall time
+                whatever the number of steps per frame.
             usd: a :class:`~warpcloth.usd.UsdWriter` that receives every frame, or None.
             warm_up: compile kernels before timing (see :meth:`warm_up`).
 
         A run that goes unstable stops there and is recorded as unstable; it never raises.
+        Graph capture time is reported apart (``capture_time``) and excluded from ms/step.
         """
         duration = require_positive("duration", duration, "s")
         fps = require_positive("fps", fps, "1/s")
         if wall_cap is not None:
             wall_cap = require_positive("wall cap", wall_cap, "s")
         m, dt = self.model, self._dt
+        check_run_length(duration, fps, dt)
         result = RunResult(
             scenario=self.scenario, integrator=self.integrator.name, device=str(m.device), rows=m.rows, cols=m.cols,
             particles=m.particle_count, springs=m.spring_count, dt=dt, fps=fps,
             equilibrium_criterion="speed+force" if self.integrator.force_based else "speed",
-            graph=self.graph_enabled,
+            graph=self.graph_enabled, instability_strain=self.instability_strain,
         )
         if warm_up and not self._warmed:  # once: a warm-up restarts the integrator's history
             result.compile_time = self.warm_up()
         detector = EquilibriumDetector(self.equilibrium, self.probe.force_floor)
         result.force_floor = self.probe.force_floor
         start_steps, start_time = self.steps, self.sim_time
+        start_capture = self.capture_time
         total_steps = max(1, math.ceil(duration / dt - 1e-9))
         frame_dt = 1.0 / fps
+        steps_per_frame = frame_dt / dt
+        e0, _ = self.probe.energies(self.state)
+        energy = EnergyMonitor(
+            e0, wind_power_bound(m, self.control, self.instability_strain),
+            window_frames=max(math.ceil(self.energy_criteria.window_time * fps - 1e-9),
+                              math.ceil(self.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9)),
+            scale=m.total_mass * self.control.gravity_magnitude * max(m.width, m.height, 1e-3),
+            criteria=self.energy_criteria,
+        )
         if usd is not None:
             t0 = time.perf_counter()
             usd.write_frame(self.state.particle_q.numpy(), self.sim_time)
@@ -330,28 +395,35 @@ class Simulator:
         frame = 0
         done = 0
         while done < total_steps:
-            frame += 1
-            target = min(total_steps, math.ceil(frame * frame_dt / dt - 1e-9))
+            # the next frame that needs a step (frames shorter than a step are skipped at once)
+            frame = max(frame + 1, math.floor((done + 1e-9) / steps_per_frame) + 1)
+            target = min(total_steps, math.ceil(frame * steps_per_frame - 1e-9))
             n = target - done
             if n <= 0:
                 continue
             t0 = time.perf_counter()
-            self.simulate(n)
-            wp.synchronize_device(m.device)
+            capped = self._advance(n, loop_start, wall_cap)
             t1 = time.perf_counter()
             result.integration_time += t1 - t0
-            done = target
+            done = self.steps - start_steps
 
             metrics = self.measure()
+            e, kinetic = self.probe.energies(self.state)
             result.frames += 1
             if metrics.finite:
                 result.max_strain = max(result.max_strain, metrics.max_strain)
             result.final_max_speed = metrics.max_speed
-            if not metrics.finite:
+            if not metrics.finite or not math.isfinite(e):
                 result.stable, result.unstable_reason = False, "non-finite state"
             elif metrics.max_strain > self.instability_strain:
                 result.stable = False
                 result.unstable_reason = f"spring strain {metrics.max_strain:.3g} beyond the limit {self.instability_strain:g}"
+            elif energy.update(self.sim_time - start_time, e, kinetic):
+                result.stable = False
+                result.unstable_reason = (
+                    f"energy growing without bound: {energy.excess:.3g} J above what gravity and the external forces "
+                    f"can supply, growing in {energy.streak} consecutive windows"
+                )
             if usd is not None and result.stable:
                 te = time.perf_counter()
                 usd.write_frame(self.state.particle_q.numpy(), self.sim_time)
@@ -368,13 +440,15 @@ class Simulator:
                     result.time_to_equilibrium_wall = detector.rest_since_wall
                 if stop_at_equilibrium:
                     break
-            if wall_cap is not None and t2 - loop_start >= wall_cap:
+            if capped or (wall_cap is not None and t2 - loop_start >= wall_cap):
                 result.wall_cap_reached = True
                 break
 
         result.wall_time = time.perf_counter() - loop_start
+        result.capture_time = self.capture_time - start_capture
+        result.integration_time = max(0.0, result.integration_time - result.capture_time)
         result.steps = self.steps - start_steps
-        result.sim_time = result.steps * dt
+        result.sim_time = self.sim_time - start_time
         if result.steps and result.integration_time > 0:
             result.ms_per_step = 1000.0 * result.integration_time / result.steps
             result.steps_per_sec = result.steps / result.integration_time
@@ -382,3 +456,48 @@ class Simulator:
             result.realtime_factor = result.sim_time / result.wall_time
         result.solver = self.integrator.stats()
         return result
+
+    def _advance(self, n: int, loop_start: float, wall_cap: float | None) -> bool:
+        """Advance ``n`` steps in chunks of about :data:`CHUNK_SECONDS` of wall time, checking
+        the wall cap between chunks; True when the cap stopped it early."""
+        device = self.model.device
+        done = 0
+        if self._step_seconds is None:  # size the chunks from a step timed after a first one
+            self.simulate(1)  # may compile or capture
+            wp.synchronize_device(device)
+            done = 1
+            if n < 2:
+                return False
+            t0 = time.perf_counter()
+            self.simulate(1)
+            wp.synchronize_device(device)
+            self._step_seconds = max(time.perf_counter() - t0, 1e-7)
+            done = 2
+        chunk = max(1, int(CHUNK_SECONDS / self._step_seconds))
+        while done < n:
+            if wall_cap is not None and done and time.perf_counter() - loop_start >= wall_cap:
+                return True
+            k = min(chunk, n - done)
+            self.simulate(k)
+            wp.synchronize_device(device)
+            done += k
+        return False
+
+
+def check_run_length(duration: float, fps: float, dt: float) -> None:
+    """Refuse, in one line, runs that cannot be meaningful: a step longer than the run, a frame
+    more than :data:`MAX_FRAMES_PER_STEP` times shorter than a step, or more than
+    :data:`MAX_RUN_STEPS` steps."""
+    if dt > duration:
+        raise WarpclothError(f"dt ({dt:.4g} s) is longer than the duration ({duration:.4g} s): choose dt <= duration")
+    if dt * fps > MAX_FRAMES_PER_STEP:
+        raise WarpclothError(
+            f"fps ({fps:.4g} 1/s) asks for a frame every {1.0 / fps:.3g} s, {dt * fps:.3g} frames per step of {dt:.3g} s "
+            f"(at most {MAX_FRAMES_PER_STEP:g}): choose fps <= {MAX_FRAMES_PER_STEP / dt:.4g}"
+        )
+    steps = duration / dt
+    if steps > MAX_RUN_STEPS:
+        raise WarpclothError(
+            f"duration {duration:.4g} s at dt {dt:.3g} s is {steps:.3g} steps (at most {MAX_RUN_STEPS:.0e}): "
+            f"a larger dt or a shorter duration"
+        )

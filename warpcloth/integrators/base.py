@@ -129,8 +129,13 @@ class Integrator:
     # -- time step -------------------------------------------------------------------------
     def default_dt(self, model, drag_rate: float = 0.0) -> float:
         """A time step [s] that is stable on ``model``: :attr:`default_dt_factor` times
-        :func:`stable_dt_estimate`, capped at :attr:`default_dt_cap`."""
+        :func:`stable_dt_estimate`, capped at :attr:`default_dt_cap` (0.0: no dt is stable,
+        see :meth:`no_stable_dt_reason`)."""
         return min(self.default_dt_cap, self.default_dt_factor * stable_dt_estimate(model, drag_rate))
+
+    def no_stable_dt_reason(self, model, drag_rate: float = 0.0) -> str | None:
+        """Why no time step is stable for this scheme on ``model``, or None when some is."""
+        return None
 
     def _require_bound(self):
         if self.model is None:
@@ -164,10 +169,61 @@ def stable_dt_estimate(model, drag_rate: float = 0.0) -> float:
     return (math.sqrt(c * c + 4.0 * omega2) - c) / omega2
 
 
+def model_spectrum(model, drag_rate: float = 0.0) -> tuple[float, float, float]:
+    """(omega_max [rad/s], alpha [1/s], beta [s]) of the linearised model: omega_max^2 bounds
+    the stiffness eigenvalues by Gershgorin (max_i 2 sum_j ks_ij / m_i), and a mode of angular
+    frequency omega is damped at the rate at least c(omega) = alpha + beta omega^2, alpha the air
+    drag and beta the smallest kd / ks of the springs (damping proportional to stiffness, as the
+    default kd = 2 zeta sqrt(ks m) gives per spring type)."""
+    ks_sum, _ = model.particle_spring_sums()
+    mass = model.host["mass"].astype(np.float64)
+    omega_max = math.sqrt(float(np.max(2.0 * ks_sum / mass))) if ks_sum.size else 0.0
+    ks = model.spring_stiffness.numpy().astype(np.float64)
+    kd = model.spring_damping.numpy().astype(np.float64)
+    stiff = ks > 0
+    beta = float(np.min(kd[stiff] / ks[stiff])) if np.any(stiff) else 0.0
+    return omega_max, float(drag_rate), beta
+
+
+def runge_kutta_stable_dt(amplification: Callable, model, drag_rate: float = 0.0) -> float:
+    """The largest dt [s] for which an explicit Runge-Kutta scheme with stability function
+    ``amplification(z)`` (e.g. 1 + z + z^2/2 for the midpoint rule) keeps every mode of the
+    linearised model bounded, |R(h lambda)| <= 1, for the eigenvalues
+    lambda = -c/2 +- sqrt(c^2/4 - omega^2) of the modes 0 < omega <= omega_max with damping
+    c(omega) = alpha + beta omega^2 (:func:`model_spectrum`). 0.0 when no dt is stable: RK2
+    without any damping amplifies every mode by sqrt(1 + (h omega)^4 / 4) per step.
+    """
+    omega_max, alpha, beta = model_spectrum(model, drag_rate)
+    if omega_max <= 0.0:
+        return math.inf
+    omega = omega_max * np.logspace(-3.0, 0.0, 400)
+    c = alpha + beta * omega * omega
+    root = np.sqrt((0.25 * c * c - omega * omega).astype(complex))
+    lambdas = np.concatenate([-0.5 * c + root, -0.5 * c - root])
+
+    def stable(h: float) -> bool:
+        return bool(np.all(np.abs(amplification(h * lambdas)) <= 1.0 + 1e-12))
+
+    if alpha == 0.0 and beta == 0.0 and abs(amplification(0.1j)) > 1.0:
+        return 0.0  # undamped modes grow at every dt (float64 cannot see |R| - 1 ~ (h omega)^4 below 1e-4)
+    lo, hi = 1e-6 / omega_max, 4.0 / omega_max
+    if not stable(lo):
+        return 0.0
+    if stable(hi):
+        return hi
+    for _ in range(60):  # bisection to ~1e-15 relative
+        mid = math.sqrt(lo * hi)
+        if stable(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
 def scratch_like(model, count: int = 1):
     """``count`` zeroed vec3 arrays of the model's particle count on its device."""
     arrays = [wp.zeros(model.particle_count, dtype=wp.vec3, device=model.device) for _ in range(count)]
     return arrays if count > 1 else arrays[0]
 
 
-__all__ = ["Integrator", "Option", "explicit_euler_dt_bound", "scratch_like", "stable_dt_estimate"]
+__all__ = ["Integrator", "Option", "explicit_euler_dt_bound", "model_spectrum", "runge_kutta_stable_dt", "scratch_like", "stable_dt_estimate"]
