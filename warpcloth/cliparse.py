@@ -34,6 +34,12 @@ class Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = _NEGATIVE_NUMBER
 
+    def _parse_optional(self, arg_string):
+        # before argparse's prefix matching, which reads "-inf" as "-i nf" (--integrator)
+        if arg_string and _NEGATIVE_NUMBER.match(arg_string) and not self._has_negative_number_optionals:
+            return None
+        return super()._parse_optional(arg_string)
+
     def error(self, message):
         self.exit(EXIT_USAGE, f"{ERROR_PREFIX}{message}\n")
 
