@@ -371,6 +371,11 @@ def _read_tree(path: str) -> tuple[_Source, _Element]:
             lead = len(data) - len(data.lstrip())
             raise src.error(parser.CurrentLineNumber + data[:lead].count("\n"), f"unexpected text {data.strip()[:40]!r} inside <{where}>; a test list holds only elements and attributes")
 
+    def doctype(name, *args):
+        raise src.error(parser.CurrentLineNumber, f"<!DOCTYPE {name} ...> is not allowed in a test list (no DTDs, entities "
+                                                  "or other declarations; only <test_list> and <test> elements)")
+
+    parser.StartDoctypeDeclHandler = doctype
     parser.StartElementHandler = start
     parser.EndElementHandler = end
     parser.CharacterDataHandler = text
@@ -531,9 +536,10 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
     names = list(dims)
     count = math.prod(len(v) for v in dims.values())  # without expanding
     if count > room:
-        factors = " x ".join(str(len(v)) for v in dims.values() if len(v) > 1) or "1"
+        sizes = [str(len(v)) for v in dims.values() if len(v) > 1]
+        factors = f" ({' x '.join(sizes)})" if len(sizes) > 1 else ""
         before = f" (after {max_runs - room} runs of the tests before it)" if room < max_runs else ""
-        raise src.error(el.line, f"{what}: expands to {count} runs ({factors}){before}, more than the limit of "
+        raise src.error(el.line, f"{what}: expands to {count} runs{factors}{before}, more than the limit of "
                                  f"{max_runs} runs; raise it with --max-runs N if you mean it")
     runs = []
     for combo in itertools.product(*dims.values()):
