@@ -2,10 +2,12 @@
 
     warpcloth run SCENARIO [--integrator NAME] [--rows N] [--cols N] [--dt S] ... [--usd PATH] [--json]
     warpcloth list
-    warpcloth sweep TESTS.xml --out RESULTS.csv [--resume | --overwrite]
+    warpcloth sweep TESTS.xml --out RESULTS.csv [--resume | --overwrite] [--max-runs N]
     warpcloth max-dt SCENARIO --integrator NAME [--rows N --cols N --stiffness KS ...] [--precision 0.02]
 
-Bad input prints one line, ``warpcloth: error: ...``, and exits with status 2.
+Bad input prints one line, ``warpcloth: error: ...``, and exits with status 2; an output that
+cannot be written during the work exits 74, SIGTERM 143, Ctrl-C 130, a closed stdout 141
+(:func:`warpcloth.cliparse.guarded`). Every subcommand takes ``--verbose`` (Warp's messages).
 """
 
 from __future__ import annotations
