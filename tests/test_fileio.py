@@ -65,7 +65,7 @@ def test_resume_keeps_a_copy_of_the_dropped_partial_line(tmp_path, capsys):
     cut = full[: full.rstrip(b"\n").rfind(b"\n") + 1 + 30]  # the last row cut after 30 bytes
     out.write_bytes(cut)
     capsys.readouterr()
-    assert main(["sweep", path, "-o", str(out), "--resume"]) == 0
+    assert main(["sweep", path, "-o", str(out), "--resume", "-q"]) == 0  # said even with --quiet
     err = capsys.readouterr().err
     (side,) = [p for p in tmp_path.iterdir() if p.name.startswith("r.csv.dropped-")]
     assert side.read_bytes() == cut[-30:]

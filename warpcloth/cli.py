@@ -231,7 +231,7 @@ def _sweep(args) -> int:
     from .sweep import run_sweep
 
     summary = run_sweep(args.tests, args.out, resume=args.resume, overwrite=args.overwrite,
-                        progress=None if args.quiet else sys.stderr, max_runs=args.max_runs)
+                        progress=None if args.quiet else sys.stderr, max_runs=args.max_runs, report=sys.stderr)
     line = f"{args.out if args.out != '-' else 'stdout'}: {summary.describe()}"
     print(line, file=sys.stderr if args.out == "-" else sys.stdout)
     return 1 if summary.outcomes.get("error") else 0

@@ -407,7 +407,7 @@ class SweepSummary:
 
 
 def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: bool = False, progress=None,
-              max_runs: int | None = None) -> SweepSummary:
+              max_runs: int | None = None, report=None) -> SweepSummary:
     """Run every run of a test list and write one CSV row each.
 
     Args:
@@ -418,6 +418,8 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
         progress: stream for the progress bar (e.g. ``sys.stderr``), or None.
         max_runs: refuse a test list that expands to more runs (default
             :data:`~warpcloth.testlist.DEFAULT_MAX_RUNS`).
+        report: stream for notes about the file that ``--quiet`` must not hide (stale
+            temporaries removed, an incomplete last line dropped); default ``progress``.
 
     Raises:
         WarpclothError: a bad test list or output path, before any run.
@@ -426,16 +428,17 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
         test_list = tests
     else:
         test_list = parse_test_list(tests) if max_runs is None else parse_test_list(tests, max_runs=max_runs)
-    output = CsvOutput(out, resume=resume, overwrite=overwrite, report=progress)
+    report = progress if report is None else report
+    output = CsvOutput(out, resume=resume, overwrite=overwrite, report=report)
     todo = [r for r in test_list.runs if r.key not in output.done_keys]
     summary = SweepSummary(total=len(test_list.runs), skipped=len(test_list.runs) - len(todo))
     summary.outcomes = {k: 0 for k in OUTCOMES}
     bar = Progress(len(todo), progress)
+    if output.truncated and report is not None:
+        report.write(output.dropped_note() + "\n")
     if progress is not None:
         if summary.skipped:
             progress.write(f"resuming {out}: {summary.skipped} of {summary.total} runs already done\n")
-        if output.truncated:
-            progress.write(output.dropped_note() + "\n")
         if test_list.duplicates:
             progress.write(f"{test_list.path}: {test_list.duplicates} duplicate runs (same parameters) dropped\n")
     cache = MaxDtCache(on_trial=lambda t: bar.note(f"max-dt trial dt={t.dt:.4g} s {'stable' if t.stable else 'unstable'}"))
