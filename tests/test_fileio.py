@@ -350,3 +350,12 @@ def test_sigterm_during_run_usd_removes_the_temporary(tmp_path):
     assert proc.returncode == 143
     assert err_lines(err) == ["warpcloth: terminated (SIGTERM)"]
     assert no_temporaries(tmp_path) == [] and not target.exists()
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+@pytest.mark.parametrize("argv", [["list"], ["run", "sheet", "--rows", "4", "--cols", "4", "--duration", "0.05", "--json"]])
+def test_any_command_onto_a_full_stdout_is_one_line(argv):
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run(WARPCLOTH + argv, stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
+    assert proc.returncode == fileio.EXIT_IO
+    assert err_lines(proc.stderr) == ["warpcloth: error: cannot write to stdout: No space left on device"]

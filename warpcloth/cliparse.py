@@ -135,7 +135,14 @@ def guarded(args, body, interrupted_hint: str = "") -> int:
     try:
         try:
             code = body()
-            sys.stdout.flush()
+            try:
+                sys.stdout.flush()
+            except BrokenPipeError:
+                raise
+            except OSError as exc:  # e.g. `warpcloth run sheet --json > /dev/full`
+                err = OutputError(f"cannot write to stdout: {exc.strerror or exc}")
+                err.stdout = True
+                raise err from None
             return code
         except OutputError as exc:
             if getattr(exc, "stdout", False):
@@ -148,6 +155,14 @@ def guarded(args, body, interrupted_hint: str = "") -> int:
         except BrokenPipeError:
             _silence_stdout()
             return EXIT_PIPE
+        except OSError as exc:
+            # An I/O error no writer turned into a message: still one line. Every file writer
+            # of warpcloth reports its own path, so one without a file name is stdout (print).
+            where = exc.filename or "stdout"
+            if exc.filename is None:
+                _silence_stdout()
+            print_error(f"cannot write to {where}: {exc.strerror or exc}")
+            return EXIT_IO
         except KeyboardInterrupt as exc:
             what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
             print(f"warpcloth: {what}{interrupted_hint}", file=sys.stderr)
