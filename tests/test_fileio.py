@@ -270,7 +270,7 @@ def immutable_file(tmp_path):
 
 BAD_TARGETS = {
     "folder": (lambda tmp, ext: (tmp / f"dir{ext}").mkdir() or str(tmp / f"dir{ext}"), "is a folder, not a file"),
-    "proc": (lambda tmp, ext: f"/proc/warpcloth{ext}", "cannot create a file in '/proc'"),
+    "proc": (lambda tmp, ext: f"/proc/warpcloth{ext}", "folder '/proc' is not writable (creating a file there failed"),
     "long name": (lambda tmp, ext: str(tmp / ("a" * 300 + ext)), "more than the 255 this file system allows"),
     "missing folder": (lambda tmp, ext: str(tmp / "no" / f"x{ext}"), "does not exist"),
 }

@@ -152,7 +152,8 @@ def check_output_path(path: str, what: str = "output", extensions: tuple | None 
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     except OSError as exc:
-        raise WarpclothError(f"{what} path {p!r}: cannot create a file in {folder!r}: {exc.strerror or exc}") from None
+        raise WarpclothError(f"{what} path {p!r}: folder {folder!r} is not writable (creating a file there failed: "
+                             f"{exc.strerror or exc})") from None
     os.close(fd)
     try:
         os.unlink(tmp)
