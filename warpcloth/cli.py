@@ -17,7 +17,7 @@ import json
 import os
 import sys
 
-from .cliparse import EXIT_USAGE, Parser, guarded
+from .cliparse import EXIT_USAGE, Parser, guarded  # noqa: F401  (EXIT_USAGE: kept importable from cli)
 from .errors import WarpclothError, require_positive
 
 def _number_list(text: str):
