@@ -6,8 +6,11 @@ import subprocess
 import sys
 
 import pytest
+from pathlib import Path
 
 from warpcloth.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def run_cli(capsys, *argv):
@@ -106,3 +109,72 @@ def test_console_script_and_module_entry_points(tmp_path):
     assert json.loads(out)["scenario"] == "flag"
     bad = subprocess.run([sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--dt", "-1"], capture_output=True, text=True)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr and "dt must be > 0" in bad.stderr
+
+
+# -- issue 19 item 7, 10.14: messages name what the user typed and why it cannot work ----------
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["run", "sheet", "--mass", "1e30"], "default time step computed from --mass 1e+30 is 0.0 s, not a usable dt"),
+        (["run", "sheet", "--damping", "1e38"], "computed from --damping 1e+38 is 0.0 s"),
+        (["run", "sheet", "--drag", "1e38"], "computed from --drag 1e+38 is 0.0 s"),
+        (["run", "sheet", "--height", "1e-30"], "--height 1e-30 m over 32 particles puts neighbours 3.23e-32 m apart, below float32's resolution"),
+        (["run", "sheet", "--dt", "-inf"], "dt must be a finite number, got -inf"),
+        (["run", "sheet", "--mass", "-inf"], "mass must be a finite number, got -inf"),
+        (["run", "sheet", "--dt", "-1e-3"], "dt must be > 0 s, got -0.001"),
+        (["run", "sheet", "--stiffness", "1,,2,3"], "'1,,2,3' has an empty item"),
+        (["run", "sheet", "--integrator", ""], "--integrator is empty; choose one of explicit_euler"),
+        (["bench", "--integrators", ","], "--integrators ',' names no integrator"),
+        (["bench", "--devices", ""], "--devices '' names no device"),
+        (["max-dt", "sheet", "--start", "inf"], "start must be a finite dt within [dt_min, dt_max] = [1e-07, 0.1] s, got inf"),
+        (["max-dt", "sheet", "--start", "1e40"], "got 1e+40"),
+        (["max-dt", "sheet", "--start", "0"], "got 0.0"),
+        (["max-dt", "sheet", "--start", "-1"], "got -1.0"),
+        (["max-dt", "sheet", "--start", "1e-9"], "within [dt_min, dt_max]"),
+    ],
+)
+def test_messages_name_the_input(capsys, argv, message):
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse's own errors exit from parse_args
+        code = exc.code
+    out, err = capsys.readouterr()
+    assert code == 2
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("warpcloth: error: ") and message in lines[0], err
+
+
+# -- issue 19 item 8: one error format, no Warp start-up lines unless --verbose -------------------
+@pytest.mark.parametrize("argv", [["run", "sheet", "--rows", "abc"], ["run", "sheet", "--mass", "0"], ["sweep", "x.xml"],
+                                  ["max-dt", "sheet", "--bogus"], ["bench", "--sizes", "2"]])
+def test_errors_are_exactly_one_stderr_line_from_the_console(argv):
+    p = subprocess.run([sys.executable, "-m", "warpcloth.cli", *argv], capture_output=True, text=True)
+    assert p.returncode == 2
+    lines = p.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warpcloth: error: "), p.stderr  # not "warpcloth run: error:", no CUDA line
+    assert p.stdout == ""
+
+
+def test_bench_script_and_scenario_module_use_the_same_error_format():
+    for cmd in ([sys.executable, str(REPO / "bench" / "devices.py"), "--sizes", "2"],
+                [sys.executable, "-m", "warpcloth.scenarios.sheet", "--rows", "1"]):
+        p = subprocess.run(cmd, capture_output=True, text=True)
+        assert p.returncode == 2 and p.stderr.splitlines()[0].startswith("warpcloth: error: ") and len(p.stderr.splitlines()) == 1, p.stderr
+
+
+def test_verbose_shows_warp_start_up_messages():
+    import warp as wp
+
+    quiet = subprocess.run([sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--mass", "0"], capture_output=True, text=True)
+    loud = subprocess.run([sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--mass", "0", "--verbose"], capture_output=True, text=True)
+    assert quiet.returncode == loud.returncode == 2
+    assert "Warp" not in quiet.stdout + quiet.stderr
+    assert "Warp" in loud.stdout + loud.stderr  # the banner (and, without a GPU, the CUDA driver line)
+    if not wp.is_cuda_available():
+        assert "CUDA" in loud.stderr
+
+
+# -- 10.10: bench and cli do not import each other --------------------------------------------------
+def test_bench_does_not_import_cli():
+    code = "import sys, warpcloth.bench; assert 'warpcloth.cli' not in sys.modules, 'bench imported cli'"
+    subprocess.run([sys.executable, "-c", code], check=True)

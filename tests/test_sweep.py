@@ -160,6 +160,9 @@ BAD = [
     ("id list", '<test_list>\n<test id="a b" integrator="rk4"/></test_list>', 2, "takes one value"),
     ("id on root", '<test_list id="x">\n<test integrator="rk4"/></test_list>', 1, "'id' belongs on <test>"),
     ("precision", '<test_list>\n<test integrator="rk4" maxdt_precision="2"/></test_list>', 2, "between 0 and 1"),
+    ("unknown declaration", '<test_list>\n<!FOO bar>\n<test integrator="rk4"/></test_list>', 2, "malformed XML"),
+    ("doctype", '<?xml version="1.0"?>\n<!DOCTYPE test_list [<!ENTITY e SYSTEM "/etc/passwd">]>\n<test_list><test integrator="rk4">&e;</test></test_list>',
+     2, "<!DOCTYPE test_list ...> is not allowed"),
 ]
 
 
@@ -262,7 +265,7 @@ def test_small_sweep_rows_are_consistent(small_sweep):
         assert int(r["particles"]) == n * n
         assert int(r["springs"]) == sum(expected_spring_counts(n, n).values())
         assert r["stable"] == "true" and r["error"] == "" and r["unstable_reason"] == ""
-        assert float(r["fps"]) == pytest.approx(float(r["realtime_factor"]) * 30.0)
+        assert float(r["frames_per_wall_second"]) == pytest.approx(float(r["realtime_factor"]) * 30.0)
         assert r["realtime"] == ("true" if float(r["realtime_factor"]) >= 1.0 else "false")
         assert float(r["realtime_factor"]) == pytest.approx(sim_time / float(r["wall_time"]))
         assert float(r["ks"]) == 1000.0 and float(r["ks_bend"]) == 200.0
@@ -523,3 +526,44 @@ def test_value_beyond_float32_is_a_validation_error(tmp_path):
     path = write(tmp_path, '<test_list>\n<test integrator="rk4" size="4"\n      stiffness="1e39"/>\n</test_list>')
     with pytest.raises(WarpclothError, match=r":3: .*'1e39' does not fit in float32"):
         parse_test_list(path)
+
+
+# -- issue 10.13: a product too large to run is refused before it is expanded ---------------------
+def test_a_huge_product_is_refused_without_expanding(tmp_path):
+    values = " ".join(str(v) for v in range(1, 21))
+    attrs = ["stiffness", "stiffness_shear", "stiffness_bend", "damping", "damping_shear", "damping_bend", "mass", "width",
+             "height", "drag", "duration", "frame_rate"]
+    body = " ".join(f'{a}="{values}"' for a in attrs)
+    path = write(tmp_path, f'<test_list>\n<test integrator="rk4" {body}/>\n</test_list>')
+    assert os.path.getsize(path) < 2200
+    with pytest.raises(WarpclothError) as err:
+        parse_test_list(path)
+    assert str(err.value).startswith(f"{path}:2: test '1': expands to {20 ** 12 * 2} runs (")
+    assert "more than the limit of 10000 runs; raise it with --max-runs N" in str(err.value)
+
+
+def test_max_runs_flag_raises_and_lowers_the_limit(tmp_path, monkeypatch, capsys):
+    path = write(tmp_path, """
+        <test_list timestep="1e-3" duration="0.05" scenarios="sheet">
+          <test integrator="rk4 verlet" size="4 5"/>
+          <test integrator="midpoint" size="4 5 6"/>
+        </test_list>
+    """)
+    monkeypatch.setattr(sweep, "execute_run", lambda spec, cache: {**sweep.parameter_row(spec), "outcome": "completed"})
+    assert main(["sweep", path, "-o", str(tmp_path / "a.csv"), "--max-runs", "6", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"warpcloth: error: {path}:3: test '2': expands to 3 runs (after 4 runs of the tests before it), more than the limit of 6")
+    assert not (tmp_path / "a.csv").exists()
+    assert main(["sweep", path, "-o", str(tmp_path / "a.csv"), "--max-runs", "7", "-q"]) == 0
+    assert len(sweep.read_results(str(tmp_path / "a.csv"))) == 7
+    assert main(["sweep", path, "-o", str(tmp_path / "b.csv"), "--max-runs", "0"]) == 2
+    assert "--max-runs must be an integer >= 1, got 0" in capsys.readouterr().err
+
+
+# -- issue 10.9: one meaning of fps; the seed plan's comment is true -------------------------------
+def test_sweep_column_is_frames_per_wall_second_and_seed_plan_note_is_gone():
+    assert "fps" not in sweep.COLUMNS and "frames_per_wall_second" in sweep.COLUMNS
+    doc = (REPO / "docs" / "sweep.md").read_text()
+    assert "`frames_per_wall_second`" in doc and "called this column `fps`" in doc
+    plan = (REPO / "examples" / "seed_plan.xml").read_text()
+    assert "rejected" not in plan and "until they are merged" not in plan

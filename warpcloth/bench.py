@@ -14,16 +14,18 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import math
 import os
 import sys
-import tempfile
 import time
 
 import numpy as np
 import warp as wp
 
+from .cliparse import Parser, guarded
 from .errors import WarpclothError, require
+from .fileio import AtomicFile, OutputError, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
 
 COLUMNS = [
     "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt", "steps", "ms_per_step",
@@ -129,14 +131,13 @@ def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int |
 
 
 def write_csv(path: str, rows: list[dict]) -> None:
-    """Write rows atomically (temporary file, then rename)."""
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".bench-", suffix=".csv", dir=folder)
-    with os.fdopen(fd, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=COLUMNS)
-        w.writeheader()
-        w.writerows(rows)
-    os.replace(tmp, path)
+    """Write rows atomically (temporary file, then rename); on failure (disk full) raises
+    :class:`~warpcloth.fileio.OutputError` and leaves ``path`` as it was, no temporary left."""
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    write_atomic(path, buf.getvalue(), "benchmark CSV")
 
 
 def plot(path: str, rows: list[dict]) -> bool:
@@ -165,7 +166,16 @@ def plot(path: str, rows: list[dict]) -> bool:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    out = AtomicFile(path, "plot", mode="wb")
+    try:
+        fig.savefig(out.fh, dpi=120, format=os.path.splitext(path)[1].lstrip(".").lower() or "png")
+    except OSError as exc:
+        out.abort()
+        raise OutputError(describe_write_error(exc, path, "plot")) from None
+    except BaseException:
+        out.abort()
+        raise
+    out.commit()
     return True
 
 
@@ -184,10 +194,9 @@ def format_table(rows: list[dict]) -> str:
 
 
 def build_parser(prog: str = "bench/devices.py") -> argparse.ArgumentParser:
-    from .cli import _Parser
-
-    p = _Parser(prog=prog, description=__doc__.split("\n\n")[0])
+    p = Parser(prog=prog, description=__doc__.split("\n\n")[0])
     add_arguments(p)
+    p.add_argument("--verbose", action="store_true", help="show Warp's start-up and module-load messages on stderr")
     return p
 
 
@@ -209,13 +218,18 @@ def run(args) -> int:
     from .scenarios.common import resolve_device
     from .simulator import graph_capture_supported
 
-    names = integrator_names() if not args.integrators else [s.strip() for s in args.integrators.split(",") if s.strip()]
+    if args.integrators is None:
+        names = integrator_names()
+    else:
+        names = [s.strip() for s in args.integrators.split(",") if s.strip()]
+        require(bool(names), f"--integrators {args.integrators!r} names no integrator; give comma-separated names from {', '.join(integrator_names())}")
     for n in names:
         integrator_class(n)
     sizes = parse_sizes(args.sizes)
     require(args.steps is None or args.steps >= 1, f"--steps must be >= 1, got {args.steps}")
     require(args.seconds is None or args.seconds > 0, f"--seconds must be > 0, got {args.seconds}")
     wanted = default_devices() if args.devices is None else [s.strip() for s in args.devices.split(",") if s.strip()]
+    require(bool(wanted), f"--devices {args.devices!r} names no device; give comma-separated Warp devices, e.g. cpu,cuda:0")
     devices, skipped = [], []
     for d in wanted:
         try:
@@ -228,10 +242,15 @@ def run(args) -> int:
     if not any(d.startswith("cuda") for d in devices):
         reason = "no CUDA device is present" if not wp.get_cuda_devices() else "not asked for (--devices)"
         print(f"bench: CUDA skipped: {reason}; timing the CPU only", file=sys.stderr)
-    for path in (args.out, args.plot):
-        if path:
-            folder = os.path.dirname(os.path.abspath(path))
-            require(os.path.isdir(folder) and os.access(folder, os.W_OK), f"output path {path!r}: folder {folder!r} is not a writable folder")
+    # every output path is checked before the benchmark starts, not after it
+    if args.out:
+        check_output_path(args.out, "--out")
+    if args.plot:
+        check_output_path(args.plot, "--plot", extensions=(".png", ".pdf", ".svg"))
+    require(not (args.out and args.plot and os.path.abspath(args.out) == os.path.abspath(args.plot)),
+            f"--out and --plot are the same file {args.out!r}")
+    for path in {os.path.dirname(os.path.abspath(p)) for p in (args.out, args.plot) if p}:
+        sweep_stale_temporaries(path, sys.stderr)
 
     rows, floors = [], {}
     for device in devices:
@@ -271,8 +290,4 @@ def run(args) -> int:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        return run(args)
-    except WarpclothError as exc:
-        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
-        return 2
+    return guarded(args, lambda: run(args))

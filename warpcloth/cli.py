@@ -2,31 +2,29 @@
 
     warpcloth run SCENARIO [--integrator NAME] [--rows N] [--cols N] [--dt S] ... [--usd PATH] [--json]
     warpcloth list
-    warpcloth sweep TESTS.xml --out RESULTS.csv [--resume | --overwrite]
+    warpcloth sweep TESTS.xml --out RESULTS.csv [--resume | --overwrite] [--max-runs N]
     warpcloth max-dt SCENARIO --integrator NAME [--rows N --cols N --stiffness KS ...] [--precision 0.02]
 
-Bad input prints one line, ``warpcloth: error: ...``, and exits with status 2.
+Bad input prints one line, ``warpcloth: error: ...``, and exits with status 2; an output that
+cannot be written during the work exits 74, SIGTERM 143, Ctrl-C 130, a closed stdout 141
+(:func:`warpcloth.cliparse.guarded`). Every subcommand takes ``--verbose`` (Warp's messages).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
+from .cliparse import EXIT_USAGE, Parser, guarded  # noqa: F401  (EXIT_USAGE: kept importable from cli)
 from .errors import WarpclothError, require_positive
-
-EXIT_USAGE = 2
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # one line, status 2 (argparse prints usage too; keep it short)
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
-
 
 def _number_list(text: str):
     """'1000' -> 1000.0 ; '1000,500,100' -> (1000.0, 500.0, 100.0) (structural, shear, bend)."""
-    parts = [p for p in text.split(",") if p.strip()]
+    parts = text.split(",")
+    if len(parts) > 1 and any(not p.strip() for p in parts):
+        raise argparse.ArgumentTypeError(f"{text!r} has an empty item: give one number, or three separated by single commas (structural,shear,bend)")
     try:
         values = [float(p) for p in parts]
     except ValueError:
@@ -101,6 +99,10 @@ def config_from_args(scenario, args):
     """A ScenarioConfig from parsed flags (unset flags keep the scenario defaults)."""
     from .integrators import integrator_class
 
+    if args.integrator is not None and not args.integrator.strip():
+        from .integrators import integrator_names
+
+        raise WarpclothError(f"--integrator is empty; choose one of {', '.join(integrator_names())}")
     integrator = args.integrator or scenario.defaults.integrator
     integrator_class(integrator)  # unknown name -> clear error
     cfg = scenario.config(
@@ -137,12 +139,72 @@ def summary(result) -> str:
     return "\n".join(lines)
 
 
+def _check_spacing(scenario, cfg) -> None:
+    """Refuse a cloth whose particles float32 cannot tell apart (e.g. ``--height 1e-30``),
+    naming the flag, rather than failing later on springs of rest length 0."""
+    import numpy as np
+
+    try:
+        rows, cols, width, height = int(cfg.rows), int(cfg.cols), float(cfg.width), float(cfg.height)
+        origin = [float(v) for v in scenario.origin(cfg)]
+    except (TypeError, ValueError):
+        return  # the builder names the bad value
+    extent = max(abs(v) for v in origin) + max(abs(width), abs(height))
+    if not np.isfinite(extent):
+        return
+    ulp = float(np.spacing(np.float32(extent)))
+    for flag, size, n in (("--width", width, cols), ("--height", height, rows)):
+        if n >= 2 and size > 0 and size / (n - 1) <= ulp:
+            raise WarpclothError(
+                f"{flag} {size:g} m over {n} particles puts neighbours {size / (n - 1):.3g} m apart, below float32's "
+                f"resolution ({ulp:.3g} m) at the cloth's position, so they would coincide; use at least {4 * ulp * (n - 1):.2g} m")
+
+
+class _DefaultDtExplained:
+    """Turns "dt must be > 0 s, got 0.0" from a *computed* default dt (the user gave none) into
+    a message naming the flags the default came from (``--mass 1e30`` underflows it)."""
+
+    FLAGS = (("mass", "--mass"), ("stiffness", "--stiffness"), ("damping", "--damping"), ("drag", "--drag"))
+
+    def __init__(self, args):
+        self.args = args
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None or not issubclass(exc_type, WarpclothError) or getattr(self.args, "dt", None) is not None:
+            return False
+        text = str(exc)
+        if not text.startswith("dt must be"):
+            return False
+        given = []
+        for attr, flag in self.FLAGS:
+            value = getattr(self.args, attr, None)
+            if value is not None:
+                shown = ",".join(f"{v:g}" for v in value) if isinstance(value, tuple) else f"{value:g}"
+                given.append(f"{flag} {shown}")
+        cause = " ".join(given) if given else "the scenario's parameters"
+        got = text.split("got", 1)[-1].strip() if "got" in text else "?"
+        raise WarpclothError(
+            f"the integrator's default time step computed from {cause} is {got} s, not a usable dt "
+            "(the stability estimate under- or overflows at these values); use values nearer the defaults, or give --dt") from None
+
+
 def _run(scenario_name: str, args) -> int:
+    from .fileio import sweep_stale_temporaries
     from .scenarios import get_scenario
 
     scenario = get_scenario(scenario_name)
     cfg = config_from_args(scenario, args)
-    result = scenario.run(cfg, usd_path=args.usd, wall_cap=args.wall_cap)
+    _check_spacing(scenario, cfg)
+    if args.usd:
+        from .usd import check_usd_path
+
+        check_usd_path(args.usd)  # before any work: a path that cannot be written fails now
+        sweep_stale_temporaries(os.path.dirname(os.path.abspath(args.usd)), sys.stderr)
+    with _DefaultDtExplained(args):
+        result = scenario.run(cfg, usd_path=args.usd, wall_cap=args.wall_cap)
     if args.json:
         print(result.to_json())
     else:
@@ -171,7 +233,7 @@ def _sweep(args) -> int:
     from .sweep import run_sweep
 
     summary = run_sweep(args.tests, args.out, resume=args.resume, overwrite=args.overwrite,
-                        progress=None if args.quiet else sys.stderr)
+                        progress=None if args.quiet else sys.stderr, max_runs=args.max_runs, report=sys.stderr)
     line = f"{args.out if args.out != '-' else 'stdout'}: {summary.describe()}"
     print(line, file=sys.stderr if args.out == "-" else sys.stdout)
     return 1 if summary.outcomes.get("error") else 0
@@ -201,79 +263,87 @@ def _max_dt(args) -> int:
 
     scenario = get_scenario(args.scenario)
     cfg = config_from_args(scenario, args)
-    result = find_max_dt(
-        scenario, cfg, precision=args.precision, duration=args.duration,
-        dt_min=DEFAULT_DT_MIN if args.dt_min is None else args.dt_min,
-        dt_max=DEFAULT_DT_MAX if args.dt_max is None else args.dt_max,
-        start=args.start, wall_cap=args.wall_cap,
-    )
+    _check_spacing(scenario, cfg)
+    with _DefaultDtExplained(args):
+            result = find_max_dt(
+            scenario, cfg, precision=args.precision, duration=args.duration,
+            dt_min=DEFAULT_DT_MIN if args.dt_min is None else args.dt_min,
+            dt_max=DEFAULT_DT_MAX if args.dt_max is None else args.dt_max,
+            start=args.start, wall_cap=args.wall_cap,
+        )
     print(json.dumps(result.to_dict()) if args.json else format_result(result))
     return 0
 
 
+def _add_verbose(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--verbose", action="store_true", help="show Warp's start-up and module-load messages on stderr")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
+    from .testlist import DEFAULT_MAX_RUNS
 
-    parser = _Parser(prog="warpcloth", description="Mass-spring cloth simulator and integrator laboratory on NVIDIA Warp.")
+    parser = Parser(prog="warpcloth", description="Mass-spring cloth simulator and integrator laboratory on NVIDIA Warp.")
     parser.add_argument("--version", action="version", version=f"warpcloth {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     run = sub.add_parser("run", help="run a scenario and print a summary")
     run.add_argument("scenario", help="scenario name (see 'warpcloth list')")
     add_run_arguments(run)
-    sub.add_parser("list", help="list scenarios and integrators")
+    _add_verbose(run)
+    _add_verbose(sub.add_parser("list", help="list scenarios and integrators"))
     bench = sub.add_parser("bench", help="benchmark integrators x sizes x devices on the sheet (bench/devices.py)")
     from . import bench as bench_module
 
     bench_module.add_arguments(bench)
+    _add_verbose(bench)
     sweep = sub.add_parser("sweep", help="run an XML test list, one CSV row per run (docs/sweep.md)")
     sweep.add_argument("tests", metavar="TESTS.xml", help="the test list")
     sweep.add_argument("--out", "-o", required=True, metavar="RESULTS.csv", help="results file ('-' for stdout)")
     mode = sweep.add_mutually_exclusive_group()
     mode.add_argument("--resume", action="store_true", help="continue RESULTS.csv: skip runs already in it")
     mode.add_argument("--overwrite", action="store_true", help="replace RESULTS.csv if it exists")
+    sweep.add_argument("--max-runs", type=int, default=DEFAULT_MAX_RUNS, metavar="N",
+                       help=f"refuse a test list that expands to more than N runs (default {DEFAULT_MAX_RUNS})")
     sweep.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
+    _add_verbose(sweep)
     max_dt = sub.add_parser("max-dt", help="find the largest stable time step of an integrator on a scenario")
     _add_max_dt_arguments(max_dt)
+    _add_verbose(max_dt)
     return parser
+
+
+def _dispatch(args) -> int:
+    if args.command == "run":
+        return _run(args.scenario, args)
+    if args.command == "list":
+        return _list(args)
+    if args.command == "bench":
+        from . import bench as bench_module
+
+        return bench_module.run(args)
+    if args.command == "sweep":
+        return _sweep(args)
+    if args.command == "max-dt":
+        return _max_dt(args)
+    raise WarpclothError(f"unknown command {args.command!r}")
 
 
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        if args.command == "run":
-            return _run(args.scenario, args)
-        if args.command == "list":
-            return _list(args)
-        if args.command == "bench":
-            from . import bench as bench_module
-
-            return bench_module.run(args)
-        if args.command == "sweep":
-            return _sweep(args)
-        if args.command == "max-dt":
-            return _max_dt(args)
-    except WarpclothError as exc:
-        print(f"warpcloth: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        hint = f"; finished runs are in {args.out}, continue with --resume" if args.command == "sweep" and args.out != "-" else ""
-        print(f"warpcloth: interrupted{hint}", file=sys.stderr)
-        return 130
-    parser.error(f"unknown command {args.command!r}")
-    return EXIT_USAGE
+    hint = ""
+    if args.command == "sweep" and args.out != "-":
+        hint = f"; finished runs are in {args.out}, continue with --resume"
+    return guarded(args, lambda: _dispatch(args), hint)
 
 
 def scenario_main(name: str, argv=None) -> None:
     """Entry point of ``python -m warpcloth.scenarios.<name>`` (Warp-example style flags)."""
-    parser = _Parser(prog=f"python -m warpcloth.scenarios.{name}", description=f"Run the {name} scenario.")
+    parser = Parser(prog=f"python -m warpcloth.scenarios.{name}", description=f"Run the {name} scenario.")
     add_run_arguments(parser)
+    _add_verbose(parser)
     args = parser.parse_args(argv)
-    try:
-        sys.exit(_run(name, args))
-    except WarpclothError as exc:
-        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
-        sys.exit(EXIT_USAGE)
+    sys.exit(guarded(args, lambda: _run(name, args)))
 
 
 if __name__ == "__main__":

@@ -137,6 +137,9 @@ def find_max_dt(
     dt_min = require_positive("dt_min", dt_min, "s")
     dt_max = require_positive("dt_max", dt_max, "s")
     require(dt_min < dt_max, f"dt_min ({dt_min:g} s) must be below dt_max ({dt_max:g} s)")
+    if start is not None:  # a first dt outside the search's bounds is refused, not clamped
+        require(isinstance(start, (int, float)) and math.isfinite(start) and dt_min <= start <= dt_max,
+                f"start must be a finite dt within [dt_min, dt_max] = [{dt_min:g}, {dt_max:g}] s, got {start!r}")
 
     t_start = time.perf_counter()
     sim = scenario.build(config, dt=dt_max)  # an explicit dt: the default may not exist

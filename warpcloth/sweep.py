@@ -20,11 +20,12 @@ import json
 import math
 import os
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 
 from .errors import WarpclothError
+from .fileio import (OutputError, WriterLock, check_output_path, describe_write_error,
+                     sweep_stale_temporaries, write_atomic)
 from .testlist import RunSpec, TestList, parse_test_list
 
 #: Columns of the CSV, in order (docs/sweep.md describes each).
@@ -34,7 +35,7 @@ COLUMNS = [
     "ks", "ks_shear", "ks_bend", "kd", "kd_shear", "kd_bend", "mass", "drag", "strain_limit", "bend", "options",
     "frame_rate", "duration", "cap",
     "outcome", "steps", "sim_time", "wall_time", "compile_time", "ms_per_step", "steps_per_sec",
-    "fps", "realtime_factor", "realtime", "integration_ms_mean", "other_ms_mean",
+    "frames_per_wall_second", "realtime_factor", "realtime", "integration_ms_mean", "other_ms_mean",
     "stable", "unstable_reason", "equilibrium_reached", "time_to_equilibrium_sim", "time_to_equilibrium_wall",
     "max_strain", "wall_cap_reached", "solver_iterations", "solver", "error",
     "warpcloth_version", "warp_version", "key",
@@ -82,7 +83,7 @@ def result_columns(result, stop_at_equilibrium: bool = True) -> dict:
         "dt": result.dt, "particles": result.particles, "springs": result.springs, "outcome": outcome,
         "steps": result.steps, "sim_time": result.sim_time, "wall_time": result.wall_time,
         "compile_time": result.compile_time, "ms_per_step": result.ms_per_step, "steps_per_sec": result.steps_per_sec,
-        "fps": result.frames_per_sec, "realtime_factor": result.realtime_factor,
+        "frames_per_wall_second": result.frames_per_sec, "realtime_factor": result.realtime_factor,
         "realtime": result.realtime_factor >= 1.0,
         "integration_ms_mean": result.integration_ms_mean, "other_ms_mean": result.other_ms_mean,
         "stable": result.stable, "unstable_reason": result.unstable_reason,
@@ -177,115 +178,152 @@ def format_row(row: dict) -> str:
 class CsvOutput:
     """The results file: created with its header atomically, appended one fsync'd row at a time.
 
+    The file is locked (:class:`~warpcloth.fileio.WriterLock`) from before it is read or
+    created until :meth:`close`: a second writer is refused, naming the holder's pid.
+
     Args:
         path: file path, or ``-`` for stdout.
         resume: continue an existing file (its keys are skipped); a missing file is created.
         overwrite: replace an existing file.
+        report: stream for one-line notes (stale temporaries removed), or None.
 
     Raises:
-        WarpclothError: the path cannot be written, exists without ``resume``/``overwrite``, or
-            is a CSV with other columns.
+        WarpclothError: the path cannot be written, is being written by another warpcloth,
+            exists without ``resume``/``overwrite``, or is a CSV with other columns. In every
+            such case the file is left exactly as it was.
     """
 
-    def __init__(self, path: str, resume: bool = False, overwrite: bool = False):
+    def __init__(self, path: str, resume: bool = False, overwrite: bool = False, report=None):
         self.path = str(path)
         self.done_keys: set[str] = set()
         self.truncated = False
+        self.dropped: bytes = b""  # the incomplete last line dropped on resume
+        self.dropped_path: str | None = None  # where a copy of it was saved
+        self.lock: WriterLock | None = None
+        self.rows = 0
         if self.path == "-":
             if resume:
                 raise WarpclothError("--resume needs a results file, not stdout (-)")
             self.fh = sys.stdout
             self._fsync = False
-            self.fh.write(format_row(dict(zip(COLUMNS, COLUMNS))))
-            self.fh.flush()
+            self._write(format_row(dict(zip(COLUMNS, COLUMNS))))
             return
         self._fsync = True
-        directory = os.path.dirname(os.path.abspath(self.path))
         if os.path.isdir(self.path):
             raise WarpclothError(f"cannot write results to {self.path}: it is a directory")
+        directory = os.path.dirname(os.path.abspath(self.path))
         if not os.path.isdir(directory):
             raise WarpclothError(f"cannot write results to {self.path}: directory {directory} does not exist")
-        exists = os.path.exists(self.path) and os.path.getsize(self.path) > 0
-        if exists and resume:
-            self._read_existing()
-        elif exists and not overwrite:
-            raise WarpclothError(f"{self.path} already exists: use --resume to continue it or --overwrite to replace it")
-        else:
-            self._create()
         try:
-            self.fh = open(self.path, "a", newline="", encoding="utf-8")
-        except OSError as exc:
-            raise WarpclothError(f"cannot write results to {self.path}: {exc.strerror or exc}") from None
+            check_output_path(self.path, "results")
+        except WarpclothError as exc:
+            raise WarpclothError(f"cannot write results to {self.path}: {exc}") from None
+        self.lock = WriterLock(self.path).acquire()
+        try:
+            sweep_stale_temporaries(directory, report)
+            exists = os.path.exists(self.path) and os.path.getsize(self.path) > 0
+            if exists and resume:
+                self._read_existing()
+            elif exists and not overwrite:
+                raise WarpclothError(f"{self.path} already exists: use --resume to continue it or --overwrite to replace it")
+            else:
+                self._create()
+            try:
+                self.fh = open(self.path, "a", newline="", encoding="utf-8")
+            except OSError as exc:
+                raise WarpclothError(f"cannot write results to {self.path}: {exc.strerror or exc}") from None
+        except BaseException:
+            self.lock.release()
+            raise
 
     def _create(self) -> None:
-        directory = os.path.dirname(os.path.abspath(self.path))
         try:
-            fd, tmp = tempfile.mkstemp(prefix=".warpcloth-", suffix=".csv.tmp", dir=directory)
-        except OSError as exc:
-            raise WarpclothError(f"cannot write results to {self.path}: {exc.strerror or exc}") from None
-        try:
-            with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
-                fh.write(format_row(dict(zip(COLUMNS, COLUMNS))))
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, self.path)
-        except OSError as exc:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise WarpclothError(f"cannot write results to {self.path}: {exc.strerror or exc}") from None
-        _fsync_dir(directory)
+            write_atomic(self.path, format_row(dict(zip(COLUMNS, COLUMNS))), "results CSV")
+        except OutputError as exc:
+            raise WarpclothError(str(exc)) from None
 
     def _read_existing(self) -> None:
+        """Validate the whole file first; change it (drop a cut last line) only once it is
+        known to be ours and the resume goes ahead."""
         try:
             with open(self.path, "rb") as fh:
                 data = fh.read()
         except OSError as exc:
             raise WarpclothError(f"cannot read {self.path} to resume: {exc.strerror or exc}") from None
-        if not data.endswith(b"\n"):  # a row cut short by a kill: drop it, it is run again
-            cut = data.rfind(b"\n") + 1
-            if cut == 0:
-                raise WarpclothError(f"cannot resume {self.path}: it has no complete header line")
-            try:
-                with open(self.path, "r+b") as fh:
-                    fh.truncate(cut)
-            except OSError as exc:
-                raise WarpclothError(f"cannot resume {self.path}: {exc.strerror or exc}") from None
-            data = data[:cut]
-            self.truncated = True
-        reader = csv.reader(io.StringIO(data.decode("utf-8", errors="replace")))
-        header = next(reader, None)
+        cut = data.rfind(b"\n") + 1
+        if cut == 0:
+            raise WarpclothError(f"cannot resume {self.path}: it has no complete header line (left unchanged)")
+        complete, tail = data[:cut], data[cut:]
+        try:
+            text = complete.decode("utf-8")
+        except UnicodeDecodeError:
+            text = None
+        reader = csv.reader(io.StringIO(text or ""))
+        header = next(reader, None) if text is not None else None
         if header != COLUMNS:
             raise WarpclothError(f"cannot resume {self.path}: its header is not this warpcloth's sweep columns "
-                                 "(another program, or another warpcloth version, wrote it)")
+                                 "(another program, or another warpcloth version, wrote it); left unchanged")
         k = COLUMNS.index("key")
+        keys = set()
         for line_no, cells in enumerate(reader, start=2):
             if len(cells) != len(COLUMNS):
-                raise WarpclothError(f"cannot resume {self.path}: line {line_no} has {len(cells)} cells, expected {len(COLUMNS)}")
-            self.done_keys.add(cells[k])
+                raise WarpclothError(f"cannot resume {self.path}: line {line_no} has {len(cells)} cells, expected {len(COLUMNS)} (left unchanged)")
+            keys.add(cells[k])
+        if tail:  # a row cut short by a kill: keep a copy, drop it; its run runs again
+            self.dropped = tail
+            side = f"{self.path}.dropped-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}-{os.getpid()}"
+            try:
+                write_atomic(side, tail, "copy of the dropped line")
+                self.dropped_path = side
+            except (OSError, WarpclothError):
+                self.dropped_path = None  # the bytes are shown in the message instead
+            try:
+                os.truncate(self.path, cut)
+            except OSError as exc:
+                raise WarpclothError(f"cannot resume {self.path}: {exc.strerror or exc}") from None
+            self.truncated = True
+        self.done_keys = keys
+        self.rows = len(keys)
+
+    def dropped_note(self) -> str:
+        """One line about the dropped incomplete last line (empty if none)."""
+        if not self.truncated:
+            return ""
+        where = f"a copy is in {self.dropped_path}" if self.dropped_path else f"it was {self.dropped[:120]!r}"
+        return f"{self.path}: dropped an incomplete last line ({len(self.dropped)} bytes, a run cut short; {where}); it runs again"
+
+    def _write(self, text: str) -> None:
+        try:
+            self.fh.write(text)
+            self.fh.flush()
+            if self._fsync:
+                os.fsync(self.fh.fileno())
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            if self.fh is sys.stdout:
+                err = OutputError(f"cannot write the CSV to stdout: {exc.strerror or exc}")
+                err.stdout = True
+                raise err from None
+            line = describe_write_error(exc, self.path, "results CSV", needed=len(text.encode("utf-8")))
+            line = line.replace(f"; {self.path} is unchanged", "")
+            raise OutputError(f"{line}; the {self.rows} rows before it are kept (a cut last row is dropped on --resume)") from None
 
     def write(self, row: dict) -> None:
         """Append ``row`` and force it to disk."""
-        self.fh.write(format_row(row))
-        self.fh.flush()
-        if self._fsync:
-            os.fsync(self.fh.fileno())
+        self._write(format_row(row))
+        self.rows += 1
 
     def close(self) -> None:
-        if self.fh is not sys.stdout:
-            self.fh.close()
-
-
-def _fsync_dir(directory: str) -> None:
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+        try:
+            if self.fh is not sys.stdout:
+                try:
+                    self.fh.close()
+                except OSError:
+                    pass
+        finally:
+            if self.lock is not None:
+                self.lock.release()
 
 
 # -- progress --------------------------------------------------------------------------------
@@ -368,7 +406,8 @@ class SweepSummary:
         return f"{self.written} runs written ({parts or 'none'}){skipped} in {_clock(self.wall_time)}"
 
 
-def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: bool = False, progress=None) -> SweepSummary:
+def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: bool = False, progress=None,
+              max_runs: int | None = None, report=None) -> SweepSummary:
     """Run every run of a test list and write one CSV row each.
 
     Args:
@@ -377,21 +416,29 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
         resume: skip runs already in ``out`` (matched on :attr:`RunSpec.key`).
         overwrite: replace an existing ``out``.
         progress: stream for the progress bar (e.g. ``sys.stderr``), or None.
+        max_runs: refuse a test list that expands to more runs (default
+            :data:`~warpcloth.testlist.DEFAULT_MAX_RUNS`).
+        report: stream for notes about the file that ``--quiet`` must not hide (stale
+            temporaries removed, an incomplete last line dropped); default ``progress``.
 
     Raises:
         WarpclothError: a bad test list or output path, before any run.
     """
-    test_list = tests if isinstance(tests, TestList) else parse_test_list(tests)
-    output = CsvOutput(out, resume=resume, overwrite=overwrite)
+    if isinstance(tests, TestList):
+        test_list = tests
+    else:
+        test_list = parse_test_list(tests) if max_runs is None else parse_test_list(tests, max_runs=max_runs)
+    report = progress if report is None else report
+    output = CsvOutput(out, resume=resume, overwrite=overwrite, report=report)
     todo = [r for r in test_list.runs if r.key not in output.done_keys]
     summary = SweepSummary(total=len(test_list.runs), skipped=len(test_list.runs) - len(todo))
     summary.outcomes = {k: 0 for k in OUTCOMES}
     bar = Progress(len(todo), progress)
+    if output.truncated and report is not None:
+        report.write(output.dropped_note() + "\n")
     if progress is not None:
         if summary.skipped:
             progress.write(f"resuming {out}: {summary.skipped} of {summary.total} runs already done\n")
-        if output.truncated:
-            progress.write(f"{out}: dropped an incomplete last line (a run cut short); it runs again\n")
         if test_list.duplicates:
             progress.write(f"{test_list.path}: {test_list.duplicates} duplicate runs (same parameters) dropped\n")
     cache = MaxDtCache(on_trial=lambda t: bar.note(f"max-dt trial dt={t.dt:.4g} s {'stable' if t.stable else 'unstable'}"))

@@ -42,6 +42,9 @@ DEFAULT_FRAME_RATE = 30.0
 #: Defaults of the max-stable-dt search used by ``timestep="max"``.
 DEFAULT_MAXDT_PRECISION = 0.02
 DEFAULT_MAXDT_DURATION = 2.0
+#: Most runs a test list may expand to unless raised (``warpcloth sweep --max-runs N``): a
+#: 2 KB file can name 20^12 combinations; the count is computed before anything is expanded.
+DEFAULT_MAX_RUNS = 10_000
 
 SPRING_TYPES = ("structural", "shear", "bend")
 
@@ -368,6 +371,11 @@ def _read_tree(path: str) -> tuple[_Source, _Element]:
             lead = len(data) - len(data.lstrip())
             raise src.error(parser.CurrentLineNumber + data[:lead].count("\n"), f"unexpected text {data.strip()[:40]!r} inside <{where}>; a test list holds only elements and attributes")
 
+    def doctype(name, *args):
+        raise src.error(parser.CurrentLineNumber, f"<!DOCTYPE {name} ...> is not allowed in a test list (no DTDs, entities "
+                                                  "or other declarations; only <test_list> and <test> elements)")
+
+    parser.StartDoctypeDeclHandler = doctype
     parser.StartElementHandler = start
     parser.EndElementHandler = end
     parser.CharacterDataHandler = text
@@ -378,12 +386,18 @@ def _read_tree(path: str) -> tuple[_Source, _Element]:
     return src, root[0]
 
 
-def parse_test_list(path: str) -> TestList:
+def parse_test_list(path: str, max_runs: int = DEFAULT_MAX_RUNS) -> TestList:
     """Parse, validate and expand the test list at ``path``.
+
+    Args:
+        max_runs: refuse a list whose tests expand to more runs than this (counted as the
+            product of each test's value lists, before expanding; duplicates count).
 
     Raises:
         WarpclothError: ``FILE:LINE: problem`` for the first problem found; no run has started.
     """
+    if isinstance(max_runs, bool) or not isinstance(max_runs, int) or max_runs < 1:
+        raise WarpclothError(f"--max-runs must be an integer >= 1, got {max_runs!r}")
     src, root = _read_tree(str(path))  # checks the structure: test_list > test, nothing else
     if "id" in root.attrs:
         raise src.error(src.attr_line(root, "id"), f"attribute 'id' belongs on <{TEST_TAG}>, not on <{ROOT_TAG}>")
@@ -399,7 +413,7 @@ def parse_test_list(path: str) -> TestList:
         if test_id in seen_ids:
             raise src.error(el.line, f"duplicate test id {test_id!r} (first used on line {seen_ids[test_id]})")
         seen_ids[test_id] = el.line
-        runs.extend(_expand(src, el, root, test_id, defaults, values))
+        runs.extend(_expand(src, el, root, test_id, defaults, values, max_runs - len(runs), max_runs))
     unique: dict[str, RunSpec] = {}
     for run in runs:
         unique.setdefault(run.key, run)
@@ -440,7 +454,8 @@ def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
     return out
 
 
-def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: dict, own: dict) -> list[RunSpec]:
+def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: dict, own: dict,
+            room: int = DEFAULT_MAX_RUNS, max_runs: int = DEFAULT_MAX_RUNS) -> list[RunSpec]:
     """The runs of one ``test``: the product of its value lists, for each scenario."""
     from .integrators import all_options, integrator_class, integrator_names
     from .model import default_spring_params
@@ -519,6 +534,13 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         "scenario": one("scenarios", None) if "scenarios" in values else ["sheet", "flag"],
     }
     names = list(dims)
+    count = math.prod(len(v) for v in dims.values())  # without expanding
+    if count > room:
+        sizes = [str(len(v)) for v in dims.values() if len(v) > 1]
+        factors = f" ({' x '.join(sizes)})" if len(sizes) > 1 else ""
+        before = f" (after {max_runs - room} runs of the tests before it)" if room < max_runs else ""
+        raise src.error(el.line, f"{what}: expands to {count} runs{factors}{before}, more than the limit of "
+                                 f"{max_runs} runs; raise it with --max-runs N if you mean it")
     runs = []
     for combo in itertools.product(*dims.values()):
         c = dict(zip(names, combo))

@@ -3,37 +3,42 @@
 One ``UsdGeomMesh`` (topology written once; points and extent time-sampled per frame), pinned
 particles marked by a ``pinned`` vertex primvar and a ``UsdGeomPoints`` prim, the stage's
 ``timeCodesPerSecond`` equal to the frame rate, Y up, metres. The file is written to a temporary
-file beside the target and renamed over it when closed, so a reader never sees half a file.
+file beside the target (``.warpcloth-<pid>-<token>.usda``, see :mod:`warpcloth.fileio`) and
+renamed over it when closed, so a reader never sees half a file; on any failure (disk full, an
+interrupt) the temporary is removed and the target is left as it was.
 """
 
 from __future__ import annotations
 
 import os
-import tempfile
 
 import numpy as np
 
 from .errors import WarpclothError
+from .fileio import OutputError, check_output_path, describe_write_error, fsync_dir, remove_temporary, temp_path
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc")
 
 
 def check_usd_path(path: str) -> str:
-    """Validate an output path before a run starts: a USD extension and a writable folder."""
-    path = os.fspath(path)
-    ext = os.path.splitext(path)[1].lower()
-    if ext not in USD_EXTENSIONS:
-        raise WarpclothError(f"USD path {path!r} must end in one of {', '.join(USD_EXTENSIONS)}")
-    folder = os.path.dirname(os.path.abspath(path))
-    if os.path.exists(folder) and not os.path.isdir(folder):
-        raise WarpclothError(f"USD path {path!r}: {folder!r} is not a folder")
-    if not os.path.isdir(folder):
-        raise WarpclothError(f"USD path {path!r}: folder {folder!r} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise WarpclothError(f"USD path {path!r}: folder {folder!r} is not writable")
-    if os.path.isdir(path):
-        raise WarpclothError(f"USD path {path!r} is a folder, not a file")
-    return path
+    """Validate an output path before a run starts: a USD extension, a name the file system
+    takes, a folder where a file can be created, not an immutable file
+    (:func:`~warpcloth.fileio.check_output_path`)."""
+    return check_output_path(path, "USD", extensions=USD_EXTENSIONS)
+
+
+def _usd_failure(exc: BaseException, target: str, tmp: str) -> OutputError:
+    """One line for a failed USD write (pxr's error text can be thousands of lines)."""
+    import errno
+
+    text = str(exc)
+    written = os.path.getsize(tmp) if os.path.exists(tmp) else None
+    if "No space left" in text or (isinstance(exc, OSError) and exc.errno == errno.ENOSPC):
+        return OutputError(describe_write_error(OSError(errno.ENOSPC, "No space left on device"), target, "USD file", written=written))
+    if isinstance(exc, OSError):
+        return OutputError(describe_write_error(exc, target, "USD file"))
+    first = next((line.strip() for line in text.splitlines() if line.strip()), type(exc).__name__)
+    return OutputError(f"cannot write the USD file {target}: {first[:200]}; {target} is unchanged")
 
 
 class UsdWriter:
@@ -51,13 +56,16 @@ class UsdWriter:
         self._Gf, self._Vt = Gf, Vt
         self.path = check_usd_path(path)
         self.fps = float(fps)
-        folder = os.path.dirname(os.path.abspath(self.path))
-        ext = os.path.splitext(self.path)[1]
-        fd, self._tmp = tempfile.mkstemp(prefix=".warpcloth-", suffix=ext, dir=folder)
-        os.close(fd)
-        os.unlink(self._tmp)
-        self.stage = Usd.Stage.CreateNew(self._tmp)
+        self._tmp = temp_path(self.path)
+        self._closed = False
+        try:
+            self.stage = Usd.Stage.CreateNew(self._tmp)
+        except Exception as exc:
+            remove_temporary(self._tmp)
+            self._closed = True
+            raise _usd_failure(exc, self.path, self._tmp) from None
         if self.stage is None:  # pragma: no cover - pxr raises before this
+            remove_temporary(self._tmp)
             raise WarpclothError(f"cannot create USD stage at {self.path!r}")
         UsdGeom.SetStageUpAxis(self.stage, UsdGeom.Tokens.y)
         UsdGeom.SetStageMetersPerUnit(self.stage, 1.0)
@@ -84,7 +92,6 @@ class UsdWriter:
         self.pins_attr = self.pins.CreatePointsAttr()
         self.frames = 0
         self.last_code = -1.0
-        self._closed = False
 
     def write_frame(self, points: np.ndarray, sim_time: float | None = None) -> None:
         """Write one frame of particle positions (N, 3) at time code ``round(sim_time * fps)``
@@ -105,18 +112,32 @@ class UsdWriter:
         """Save and move the file into place; returns the path."""
         if self._closed:
             return self.path
-        self.stage.SetStartTimeCode(0.0)
-        self.stage.SetEndTimeCode(max(0.0, self.last_code))
-        self.stage.GetRootLayer().Save()
-        del self.stage
-        os.replace(self._tmp, self.path)
+        try:
+            self.stage.SetStartTimeCode(0.0)
+            self.stage.SetEndTimeCode(max(0.0, self.last_code))
+            if not self.stage.GetRootLayer().Save():
+                raise OSError(f"USD could not save {self._tmp}")
+            del self.stage
+            os.replace(self._tmp, self.path)
+        except BaseException as exc:
+            failure = _usd_failure(exc, self.path, self._tmp) if isinstance(exc, Exception) else None
+            self.abort()
+            if failure is not None:
+                raise failure from None
+            raise
         self._closed = True
+        fsync_dir(os.path.dirname(os.path.abspath(self.path)))
         return self.path
 
     def abort(self) -> None:
-        """Drop the temporary file without touching the target."""
-        if not self._closed and os.path.exists(self._tmp):
-            os.unlink(self._tmp)
+        """Drop the temporary file (and USD's own safe-save file) without touching the target."""
+        if not self._closed:
+            if hasattr(self, "stage"):
+                try:
+                    del self.stage  # release the layer so a later writer may reuse nothing of it
+                except AttributeError:
+                    pass
+            remove_temporary(self._tmp)
         self._closed = True
 
     def __enter__(self):

@@ -1,0 +1,175 @@
+"""The argument parser every warpcloth command line uses (``warpcloth``, ``bench/devices.py``,
+``python -m warpcloth.scenarios.X``): errors are one line, ``warpcloth: error: ...``, exit 2.
+
+A module of its own so that :mod:`warpcloth.cli` and :mod:`warpcloth.bench` both import it
+without importing each other.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import signal
+import sys
+
+from .errors import WarpclothError
+from .fileio import EXIT_IO, OutputError
+
+#: Exit status of bad input.
+EXIT_USAGE = 2
+#: What every error line starts with.
+ERROR_PREFIX = "warpcloth: error: "
+
+# argparse takes "-inf", "-1e-3" or "-nan" for options (its own test accepts only "-1" and
+# "-.5"), so "--dt -1e-3" said "expected one argument". Any float spelling is a value here.
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*([eE][-+]?\d+)?|\.\d+([eE][-+]?\d+)?|inf(inity)?|nan)$", re.IGNORECASE)
+
+
+class Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one line, ``warpcloth: error: ...``, status 2,
+    and which reads negative numbers in any float spelling (``-inf``, ``-1e-3``) as values."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
+
+    def _parse_optional(self, arg_string):
+        # before argparse's prefix matching, which reads "-inf" as "-i nf" (--integrator)
+        if arg_string and _NEGATIVE_NUMBER.match(arg_string) and not self._has_negative_number_optionals:
+            return None
+        return super()._parse_optional(arg_string)
+
+    def error(self, message):
+        self.exit(EXIT_USAGE, f"{ERROR_PREFIX}{message}\n")
+
+
+def print_error(message: str, stream=None) -> None:
+    """Print ``warpcloth: error: message`` as one line."""
+    text = " ".join(str(message).split())
+    print(f"{ERROR_PREFIX}{text}", file=stream or sys.stderr)
+
+
+#: Exit status after SIGTERM (128 + 15, as a shell reports a process it terminated).
+EXIT_SIGTERM = 143
+#: Exit status after SIGINT (Ctrl-C).
+EXIT_SIGINT = 130
+#: Exit status when the reader of stdout went away (128 + SIGPIPE, as a tool killed by it).
+EXIT_PIPE = 141
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C: every cleanup path that runs on Ctrl-C runs on it too."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
+def init_warp(verbose: bool = False) -> None:
+    """``wp.init()`` without Warp's start-up lines on stderr (e.g. "CUDA driver not found",
+    printed by its native library) unless ``verbose``; they are shown if init fails."""
+    import tempfile
+
+    import warp as wp
+
+    if verbose:
+        wp.config.quiet = False
+        if hasattr(wp, "LOG_INFO"):
+            wp.config.log_level = wp.LOG_INFO
+        wp.init()
+        return
+    wp.config.quiet = True
+    try:
+        from warp import context as _ctx
+
+        if getattr(_ctx, "runtime", None) is not None:
+            return
+    except ImportError:  # pragma: no cover - Warp layout changed
+        pass
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        wp.init()
+        return
+    with tempfile.TemporaryFile() as captured:
+        os.dup2(captured.fileno(), 2)
+        try:
+            wp.init()
+        except BaseException:
+            os.dup2(saved, 2)
+            captured.seek(0)
+            sys.stderr.write(captured.read().decode("utf-8", "replace"))
+            raise
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
+def _silence_stdout() -> None:
+    """After a failed write to stdout (closed pipe, full device): point fd 1 at /dev/null so
+    the interpreter's final flush does not print a second error."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):
+        return
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+    except OSError:
+        pass
+
+
+def guarded(args, body, interrupted_hint: str = "") -> int:
+    """Run ``body()`` as a command: one-line errors (status 2 for bad input, 74 for an output
+    that could not be written), a quiet exit when stdout's reader went away (141), and SIGTERM
+    handled like Ctrl-C (143 and 130; temporary files are removed on the way out)."""
+    import threading
+
+    init_warp(getattr(args, "verbose", False))
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        try:
+            code = body()
+            try:
+                sys.stdout.flush()
+            except BrokenPipeError:
+                raise
+            except OSError as exc:  # e.g. `warpcloth run sheet --json > /dev/full`
+                err = OutputError(f"cannot write to stdout: {exc.strerror or exc}")
+                err.stdout = True
+                raise err from None
+            return code
+        except OutputError as exc:
+            if getattr(exc, "stdout", False):
+                _silence_stdout()
+            print_error(exc)
+            return EXIT_IO
+        except WarpclothError as exc:
+            print_error(exc)
+            return EXIT_USAGE
+        except BrokenPipeError:
+            _silence_stdout()
+            return EXIT_PIPE
+        except OSError as exc:
+            # An I/O error no writer turned into a message: still one line. Every file writer
+            # of warpcloth reports its own path, so one without a file name is stdout (print).
+            where = exc.filename or "stdout"
+            if exc.filename is None:
+                _silence_stdout()
+            print_error(f"cannot write to {where}: {exc.strerror or exc}")
+            return EXIT_IO
+        except KeyboardInterrupt as exc:
+            what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+            print(f"warpcloth: {what}{interrupted_hint}", file=sys.stderr)
+            return EXIT_SIGTERM if isinstance(exc, Terminated) else EXIT_SIGINT
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+__all__ = ["ERROR_PREFIX", "EXIT_IO", "EXIT_PIPE", "EXIT_SIGINT", "EXIT_SIGTERM", "EXIT_USAGE", "Parser", "Terminated", "guarded", "init_warp", "print_error"]

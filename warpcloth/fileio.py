@@ -1,0 +1,355 @@
+"""File safety shared by every writer (USD export, sweep CSV, benchmark CSV and plot).
+
+* :func:`check_output_path`: decide before any work whether an output path can be written: a
+  name the file system takes, an existing folder, not a folder or a device, an existing file
+  that may be replaced (not immutable), and a folder where a file can really be created (a
+  temporary file is created and removed: ``os.access`` says yes to everything for root).
+* :func:`temp_path`: temporaries are named ``.warpcloth-<pid>-<token><ext>`` beside their
+  target, so :func:`sweep_stale_temporaries` can later recognise ours and remove those whose
+  process is dead (a kill -9 leaves them; USD's own partial file during ``Save`` starts with
+  the same name).
+* :class:`AtomicFile` / :func:`write_atomic`: write a temporary, fsync, rename over the target;
+  on any failure the temporary is removed and the target is left as it was.
+* :class:`WriterLock`: one writer per results file (an ``flock`` on a lock file beside it).
+* :class:`OutputError`: an output could not be written during the work (disk full, I/O error);
+  the CLI prints it as one line and exits with :data:`EXIT_IO`.
+"""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import os
+import re
+import secrets
+import shutil
+
+from .errors import WarpclothError
+
+#: Prefix of every temporary file warpcloth creates beside a target.
+TEMP_PREFIX = ".warpcloth-"
+_TEMP_RE = re.compile(r"^\.warpcloth-(\d+)-")
+#: Exit status when an output cannot be written during the work (sysexits.h EX_IOERR).
+EXIT_IO = 74
+
+
+class OutputError(WarpclothError):
+    """An output could not be written during the work (disk full, I/O error)."""
+
+
+def _name_max(folder: str) -> int:
+    try:
+        return os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255
+
+
+def _path_max(folder: str) -> int:
+    try:
+        return os.pathconf(folder, "PC_PATH_MAX")
+    except (OSError, ValueError):
+        return 4096
+
+
+def temp_path(target: str, ext: str | None = None) -> str:
+    """A fresh temporary name beside ``target``: ``.warpcloth-<pid>-<token><ext>`` (``ext``
+    defaults to the target's extension, which USD needs to pick its file format)."""
+    folder = os.path.dirname(os.path.abspath(target))
+    if ext is None:
+        ext = os.path.splitext(target)[1]
+    return os.path.join(folder, f"{TEMP_PREFIX}{os.getpid()}-{secrets.token_hex(4)}{ext}")
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid <= 0:
+        return True  # not ours to judge
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    except OSError:
+        return True
+    return True
+
+
+def sweep_stale_temporaries(folder: str, report=None) -> list[str]:
+    """Remove ``.warpcloth-<pid>-*`` files in ``folder`` whose process is dead (left by a
+    kill -9 or a power cut); says so in one line on ``report`` (a stream) when it removes any.
+    Returns the removed paths. Files of live processes (this one included) are kept."""
+    removed, freed = [], 0
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return removed
+    for name in names:
+        m = _TEMP_RE.match(name)
+        if not m:
+            continue
+        pid = int(m.group(1))
+        if pid == os.getpid() or _pid_alive(pid):
+            continue
+        path = os.path.join(folder, name)
+        try:
+            if not os.path.isfile(path) or os.path.islink(path):
+                continue
+            size = os.path.getsize(path)
+            os.unlink(path)
+        except OSError:
+            continue
+        removed.append(path)
+        freed += size
+    if removed and report is not None:
+        report.write(f"warpcloth: removed {len(removed)} stale temporary file(s) of dead warpcloth processes in "
+                     f"{folder} ({freed} bytes): {', '.join(os.path.basename(p) for p in removed)}\n")
+        report.flush()
+    return removed
+
+
+def check_output_path(path: str, what: str = "output", extensions: tuple | None = None) -> str:
+    """Check, before any work, that ``path`` can be written atomically; returns it.
+
+    Raises:
+        WarpclothError: one line naming the path and why it cannot be written.
+    """
+    p = os.fspath(path)
+    if not p:
+        raise WarpclothError(f"{what} path is empty")
+    if extensions is not None and os.path.splitext(p)[1].lower() not in extensions:
+        raise WarpclothError(f"{what} path {p!r} must end in one of {', '.join(extensions)}")
+    full = os.path.abspath(p)
+    folder, name = os.path.split(full)
+    if os.path.isdir(full):
+        raise WarpclothError(f"{what} path {p!r} is a folder, not a file")
+    probe = folder
+    while probe and not os.path.isdir(probe):
+        parent = os.path.dirname(probe)
+        probe = parent if parent != probe else ""
+    name_max = _name_max(probe or "/")
+    for part in full.split(os.sep):
+        if len(os.fsencode(part)) > name_max:
+            raise WarpclothError(f"{what} path {p!r}: the name {part[:40]!r}... is {len(os.fsencode(part))} bytes, "
+                                 f"more than the {name_max} this file system allows")
+    path_max = _path_max(probe or "/")
+    if len(os.fsencode(full)) >= path_max:
+        raise WarpclothError(f"{what} path {p!r} is {len(os.fsencode(full))} bytes, more than the {path_max} allowed")
+    if os.path.lexists(folder) and not os.path.isdir(folder):
+        raise WarpclothError(f"{what} path {p!r}: {folder!r} is not a folder")
+    if not os.path.isdir(folder):
+        raise WarpclothError(f"{what} path {p!r}: folder {folder!r} does not exist")
+    if os.path.lexists(full):
+        if not os.path.isfile(full):
+            raise WarpclothError(f"{what} path {p!r} exists and is not a regular file")
+        try:  # an immutable or append-only file cannot be replaced (rename fails with EPERM)
+            fd = os.open(full, os.O_WRONLY)
+            os.close(fd)
+        except OSError as exc:
+            if exc.errno in (errno.EPERM, errno.EROFS):
+                raise WarpclothError(f"{what} path {p!r} cannot be replaced: {exc.strerror} "
+                                     "(an immutable or append-only file, or a read-only file system)") from None
+    tmp = temp_path(full)
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except OSError as exc:
+        raise WarpclothError(f"{what} path {p!r}: folder {folder!r} is not writable (creating a file there failed: "
+                             f"{exc.strerror or exc})") from None
+    os.close(fd)
+    try:
+        os.unlink(tmp)
+    except OSError:
+        pass
+    return p
+
+
+def remove_temporary(tmp: str) -> None:
+    """Remove ``tmp`` and any ``tmp.*`` a library made from its name (USD's safe-save file)."""
+    folder, name = os.path.split(tmp)
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        names = []
+    for other in [name] + [n for n in names if n.startswith(name + ".")]:
+        try:
+            os.unlink(os.path.join(folder, other))
+        except FileNotFoundError:
+            pass
+        except OSError:
+            pass
+
+
+def fsync_dir(directory: str) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def describe_write_error(exc: OSError, target: str, what: str, needed: int | None = None, written: int | None = None) -> str:
+    """One line for a failed write: what, where, and how much was needed where known."""
+    folder = os.path.dirname(os.path.abspath(target))
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        try:
+            free = shutil.disk_usage(folder).free
+        except OSError:
+            free = None
+        amounts = []
+        if needed is not None:
+            amounts.append(f"{needed} bytes needed")
+        if written is not None:
+            amounts.append(f"{written} bytes written before it filled")
+        if free is not None:
+            amounts.append(f"{free} bytes free")
+        more = f" ({', '.join(amounts)})" if amounts else ""
+        return f"no space left on the device of {folder} writing the {what} {target}{more}; {target} is unchanged"
+    return f"cannot write the {what} {target}: {exc.strerror or exc}; {target} is unchanged"
+
+
+class AtomicFile:
+    """A temporary file beside ``path``, renamed over it on :meth:`commit`; :meth:`abort`
+    (or any exception in a ``with`` block) removes it and leaves ``path`` as it was."""
+
+    def __init__(self, path: str, what: str = "output", mode: str = "w", **open_kwargs):
+        self.path = os.fspath(path)
+        self.what = what
+        self.tmp = temp_path(self.path)
+        fd = os.open(self.tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        self.fh = os.fdopen(fd, mode, **open_kwargs)
+        self.done = False
+
+    def commit(self, needed: int | None = None) -> str:
+        try:
+            self.fh.flush()
+            os.fsync(self.fh.fileno())
+            self.fh.close()
+            os.replace(self.tmp, self.path)
+        except OSError as exc:
+            written = os.path.getsize(self.tmp) if os.path.exists(self.tmp) else None
+            self.abort()
+            raise OutputError(describe_write_error(exc, self.path, self.what, needed=needed, written=written)) from None
+        except BaseException:
+            self.abort()
+            raise
+        self.done = True
+        fsync_dir(os.path.dirname(os.path.abspath(self.path)))
+        return self.path
+
+    def abort(self) -> None:
+        if self.done:
+            return
+        try:
+            self.fh.close()
+        except OSError:
+            pass
+        remove_temporary(self.tmp)
+        self.done = True
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            self.commit()
+        else:
+            self.abort()
+            if isinstance(exc, OSError) and not isinstance(exc, WarpclothError):
+                raise OutputError(describe_write_error(exc, self.path, self.what)) from None
+
+
+def write_atomic(path: str, data: str | bytes, what: str = "output") -> str:
+    """Write ``data`` to ``path`` atomically (see :class:`AtomicFile`); raises
+    :class:`OutputError` (the size needed, the target unchanged) when it cannot."""
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    try:
+        f = AtomicFile(path, what, mode="wb")
+    except OSError as exc:
+        raise OutputError(describe_write_error(exc, path, what, needed=len(raw))) from None
+    try:
+        f.fh.write(raw)
+    except OSError as exc:
+        f.abort()
+        raise OutputError(describe_write_error(exc, path, what, needed=len(raw))) from None
+    except BaseException:
+        f.abort()
+        raise
+    return f.commit(needed=len(raw))
+
+
+class WriterLock:
+    """An exclusive lock on ``target`` for as long as a writer works on it: ``flock`` on a lock
+    file beside it (``.NAME.lock``), holding the writer's pid. A second writer gets a
+    :class:`~warpcloth.errors.WarpclothError` naming the holder's pid. The lock goes with the
+    process (also on kill -9); the lock file is removed on :meth:`release`."""
+
+    def __init__(self, target: str, what: str = "results file"):
+        self.target = os.fspath(target)
+        self.what = what
+        folder, name = os.path.split(os.path.abspath(self.target))
+        lock_name = f".{name}.lock"
+        if len(os.fsencode(lock_name)) > _name_max(folder):
+            lock_name = f".warpcloth-lock-{hashlib.sha1(os.fsencode(name)).hexdigest()[:16]}"
+        self.path = os.path.join(folder, lock_name)
+        self.fd: int | None = None
+
+    def acquire(self) -> "WriterLock":
+        import fcntl
+
+        while True:
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise WarpclothError(f"cannot lock the {self.what} {self.target}: cannot create {self.path}: {exc.strerror or exc}") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as exc:
+                holder = ""
+                try:
+                    holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+                except OSError:
+                    pass
+                os.close(fd)
+                if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    who = f"pid {holder}" if holder else "another process"
+                    raise WarpclothError(f"{self.target} is being written by another warpcloth ({who}, lock {self.path}); "
+                                         "wait for it to finish or write elsewhere") from None
+                raise WarpclothError(f"cannot lock the {self.what} {self.target}: {exc.strerror or exc}") from None
+            try:  # the file may have been removed by the previous holder between open and flock
+                same = os.path.samestat(os.fstat(fd), os.stat(self.path))
+            except FileNotFoundError:
+                same = False
+            if not same:
+                os.close(fd)
+                continue
+            try:  # the holder's pid, for the message a second writer gets (best effort: a full disk)
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+            except OSError:
+                pass
+            self.fd = fd
+            return self
+
+    def release(self) -> None:
+        if self.fd is None:
+            return
+        try:
+            os.unlink(self.path)  # while still holding it: a waiter re-checks the inode
+        except OSError:
+            pass
+        os.close(self.fd)
+        self.fd = None
+
+    def __enter__(self):
+        return self.acquire()
+
+    def __exit__(self, *exc):
+        self.release()
+
+
+__all__ = ["AtomicFile", "EXIT_IO", "OutputError", "TEMP_PREFIX", "WriterLock", "check_output_path", "describe_write_error",
+           "fsync_dir", "remove_temporary", "sweep_stale_temporaries", "temp_path", "write_atomic"]
