@@ -185,7 +185,7 @@ class _DefaultDtExplained:
                 shown = ",".join(f"{v:g}" for v in value) if isinstance(value, tuple) else f"{value:g}"
                 given.append(f"{flag} {shown}")
         cause = " ".join(given) if given else "the scenario's parameters"
-        got = text.split("got", 1)[-1].strip() if "got" in text else "?"
+        got = text.split("got", 1)[-1].strip().split()[0] if "got" in text else "?"
         raise WarpclothError(
             f"the integrator's default time step computed from {cause} is {got} s, not a usable dt "
             "(the stability estimate under- or overflows at these values); use values nearer the defaults, or give --dt") from None

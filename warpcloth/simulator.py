@@ -196,8 +196,8 @@ class Simulator:
             dt = integrator.default_dt(self.model, self.control.drag_rate)
             if not dt > 0.0:
                 raise WarpclothError(
-                    f"the default dt of {integrator.name!r} on this model is {dt:.3g} s (too small to run): "
-                    f"check the mass, stiffness, damping and drag"
+                    f"dt must be > 0 s, got {dt!r} (the default dt of {integrator.name!r} on this model underflowed: "
+                    f"check the mass, stiffness, damping and drag)"
                 )
         elif dt is None:
             dt = self._dt
