@@ -168,16 +168,15 @@ class Float64Model:
         n = d / length[:, None]
         nn = n[:, :, None] * n[:, None, :]
         K = self.ks[:, None, None] * (nn + (1.0 - self.rest / length)[:, None, None] * (np.eye(3)[None] - nn))
+        shape = K.shape  # (S, 3, 3): entry [s, r, c] goes to row 3a + r, column 3b + c
         r3 = np.arange(3)
         rows, cols, vals = [], [], []
         for a, b, sign in ((i, i, 1.0), (j, j, 1.0), (i, j, -1.0), (j, i, -1.0)):
-            rows.append((3 * a[:, None, None] + r3[None, :, None]) + 0 * r3[None, None, :])
-            cols.append((3 * b[:, None, None] + r3[None, None, :]) + 0 * r3[None, :, None])
-            vals.append(sign * K)
-        rows = np.concatenate([r.ravel() for r in rows])
-        cols = np.concatenate([c.ravel() for c in cols])
-        vals = np.concatenate([v.ravel() for v in vals])
-        return sp.csr_matrix((vals, (rows, cols)), shape=(n_dof, n_dof))
+            rows.append(np.broadcast_to(3 * a[:, None, None] + r3[None, :, None], shape).ravel())
+            cols.append(np.broadcast_to(3 * b[:, None, None] + r3[None, None, :], shape).ravel())
+            vals.append((sign * K).ravel())
+        # duplicate (row, column) pairs add up: a particle's diagonal block sums its springs
+        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_dof, n_dof))
 
 
 def _scatter_add(f: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
