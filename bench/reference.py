@@ -4,6 +4,7 @@ agreement with warpcloth's float32 integrators on the study's transients, and th
     python bench/reference.py                       # 6x6 sheet swing 0.3 s, 5x6 flag 0.5 s, 8x8 static
     python bench/reference.py --rows 16 --cols 16 --swing 1.0 --flag 0.5
     python bench/reference.py --conditioning       # also: how a 1e-7 m perturbation of x0 grows
+    python bench/reference.py --floor              # also: rk4 and explicit_euler at tiny dt (float32 floor)
 
 Prints one line per measurement. CPU only; a few seconds to a minute.
 """
@@ -66,6 +67,7 @@ def main(argv=None):
     ap.add_argument("--flag", type=float, default=0.5, help="flag duration [s]")
     ap.add_argument("--static-size", type=int, default=8)
     ap.add_argument("--conditioning", action="store_true", help="also integrate from a perturbed x0")
+    ap.add_argument("--floor", action="store_true", help="also run rk4 and explicit_euler at tiny dt")
     args = ap.parse_args(argv)
     wp.init()
 
@@ -73,14 +75,18 @@ def main(argv=None):
     drag = s.control.drag_rate
     transient(f"sheet swing {args.rows}x{args.cols}", s.model, lambda: Control(drag_rate=drag), swing_from_horizontal(s.model),
               args.swing, 0.01,
-              [("explicit_euler", 1e-4), ("explicit_euler", 5e-5), ("rk4", 1 / 400), ("rk4", 1 / 800), ("rk4", 1 / 1600)], args.conditioning)
+              [("explicit_euler", 1e-4), ("explicit_euler", 5e-5), ("rk4", 1 / 400), ("rk4", 1 / 800), ("rk4", 1 / 1600)]
+              + ([("rk4", 1 / 2000), ("rk4", 1 / 4000), ("rk4", 1 / 8000), ("explicit_euler", 2.5e-5)] if args.floor else []),
+              args.conditioning)
 
     f = flag.build(rows=args.rows, cols=args.cols, device="cpu")
     fc = f.control
     transient(f"flag {args.rows}x{args.cols}", f.model,
               lambda: Control(drag_rate=fc.drag_rate, wind_coefficient=fc.wind_coefficient, wind_schedule=fc.wind_schedule),
               f.model.host["q"], args.flag, 0.01,
-              [("explicit_euler", 1e-4), ("explicit_euler", 5e-5), ("rk4", 1 / 1000), ("rk4", 1 / 2000)], args.conditioning)
+              [("explicit_euler", 1e-4), ("explicit_euler", 5e-5), ("rk4", 1 / 1000), ("rk4", 1 / 2000)]
+              + ([("rk4", 1 / 4000), ("rk4", 1 / 8000), ("explicit_euler", 2.5e-5)] if args.floor else []),
+              args.conditioning)
 
     n = args.static_size
     st = sheet.build(rows=n, cols=n, device="cpu")

@@ -199,7 +199,8 @@ WIND = dict(wind_coefficient=0.6, wind_schedule=WindSchedule.gusts((8.0, 0.0, 3.
 @pytest.mark.parametrize("t", [0.3, 2.0])  # in a gust, in the lull
 def test_reference_forces_agree_with_the_warp_kernels(part, ks, kd, control, t):
     """NumPy float64 forces vs eval_forces (float32) on a deformed, moving 5x6 flag grid (bend
-    springs too), one force term at a time and all together: relative agreement ~1e-7."""
+    springs too), one force term at a time and all together: relative agreement ~1e-7
+    (float32 rounding), required < 1e-6."""
     model = build_grid_cloth(5, 6, 1.5, 1.0, 0.3, spring_params=spring_params(ks, kd), pins=[0, 6, 12], device="cpu")
     rng = np.random.default_rng(7)
     x = (model.host["q"] + rng.normal(0.0, 0.03, model.host["q"].shape)).astype(np.float32)
@@ -209,7 +210,7 @@ def test_reference_forces_agree_with_the_warp_kernels(part, ks, kd, control, t):
     got = _warp_forces(model, ctl, x, v, t)
     scale = np.abs(ref).max()
     assert scale > 0.05, part
-    assert np.abs(got - ref).max() / scale < 1e-5, part
+    assert np.abs(got - ref).max() / scale < 1e-6, part  # measured 0.9e-7 .. 2.0e-7
 
 
 # -- convergence and agreement with the float32 integrators ------------------------------------
