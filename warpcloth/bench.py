@@ -96,7 +96,7 @@ def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int |
     from .scenarios import get_scenario
 
     sim = get_scenario("sheet").build(integrator=integrator, rows=size, cols=size, device=device)
-    sim._use_graph = graph
+    sim.use_graph = graph
     if graph and not sim.graph_enabled:
         raise WarpclothError(f"graph capture unavailable for {integrator} on {device}")
     t0 = time.perf_counter()
@@ -215,7 +215,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     from .integrators import integrator_class, integrator_names, make_integrator
-    from .scenarios.common import resolve_device
+    from .device import device_name as resolve_device
     from .simulator import graph_capture_supported
 
     if args.integrators is None:

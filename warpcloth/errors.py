@@ -33,7 +33,7 @@ def require_int(name: str, value, minimum: int) -> int:
     """Return ``value`` as an int if it is an integer >= ``minimum``, else raise."""
     try:
         iv = int(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: inf
         raise WarpclothError(f"{name} must be an integer >= {minimum}, got {value!r}") from None
     require(iv == value if isinstance(value, float) else True, f"{name} must be an integer >= {minimum}, got {value!r}")
     require(iv >= minimum, f"{name} must be an integer >= {minimum}, got {value!r}")

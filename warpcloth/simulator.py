@@ -18,6 +18,7 @@ from . import __version__
 from .errors import WarpclothError, require, require_positive
 from .forces import Control
 from .integrators import Integrator, make_integrator
+from .model import ClothModel
 from .metrics import (
     DEFAULT_INSTABILITY_STRAIN,
     EnergyCriteria,
@@ -149,11 +150,15 @@ class Simulator:
         use_graph: bool | None = None,
         strain_limit: float | None = None,
     ):
+        if not isinstance(model, ClothModel):
+            raise WarpclothError(f"model must be a ClothModel (from build_grid_cloth or build_model), got {model!r:.80}")
+        if control is not None and not isinstance(control, Control):
+            raise WarpclothError(f"control must be a warpcloth.Control or None, got {control!r:.80}")
         self.model = model
         self.control = control if control is not None else Control(device=model.device)
         require(
             str(self.control.device) == str(model.device),
-            f"control is on device {self.control.device!r} but the model is on {model.device!r}",
+            f"control is on device '{self.control.device}' but the model is on '{model.device}'",
         )
         self.state = model.state()
         self.instability_strain = require_positive("instability strain", instability_strain)
@@ -170,9 +175,11 @@ class Simulator:
         self._step_seconds: float | None = None  # wall time of one step, once measured
         #: Wall seconds spent capturing frame graphs (excluded from step timings).
         self.capture_time = 0.0
-        self.set_integrator(integrator, dt)
+        #: Simulated time [s]: t_base + n dt after n steps of the current dt (as Control.time).
         self.sim_time = 0.0
         self.steps = 0
+        self._time_base, self._base_steps = 0.0, 0
+        self.set_integrator(integrator, dt)
 
     # -- configuration -------------------------------------------------------------------
     @property
@@ -201,6 +208,7 @@ class Simulator:
                 )
         elif dt is None:
             dt = self._dt
+        self._rebase_clock()
         self._dt = require_positive("dt", dt, "s")
         self.integrator = integrator
         self._needs_begin = True
@@ -209,7 +217,9 @@ class Simulator:
         self._step_seconds = None
 
     def set_dt(self, dt: float) -> None:
-        self._dt = require_positive("dt", dt, "s")
+        dt = require_positive("dt", dt, "s")
+        self._rebase_clock()
+        self._dt = dt
         self._needs_begin = True
         self._graphs.clear()
 
@@ -247,7 +257,16 @@ class Simulator:
         self.state.assign(self.model.state())
         self.control.set_time(0.0)
         self.sim_time, self.steps = 0.0, 0
+        self._rebase_clock()
         self._needs_begin = True
+
+    def _rebase_clock(self) -> None:
+        """Count steps from now (before dt changes); the device clock follows in :meth:`_begin`."""
+        self._time_base, self._base_steps = self.sim_time, self.steps
+
+    def _count_steps(self, n: int) -> None:
+        self.steps += n
+        self.sim_time = self._time_base + (self.steps - self._base_steps) * self._dt
 
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> None:
@@ -255,8 +274,7 @@ class Simulator:
         if self._needs_begin:
             self._begin()
         self._launch_step()
-        self.steps += 1
-        self.sim_time += self._dt
+        self._count_steps(1)
 
     def _capture_key(self) -> tuple:
         """Every host value a captured frame bakes in besides dt and the integrator (those clear
@@ -267,6 +285,8 @@ class Simulator:
 
     def _begin(self) -> None:
         """Let the integrator start its history from the current state and wind W(t)."""
+        self._rebase_clock()
+        self.control.rebase()
         self.control.update()
         self.integrator.begin(self.state, self.control, self._dt)
         self._needs_begin = False
@@ -303,8 +323,7 @@ class Simulator:
             graph = self._graphs[key] = capture.graph
             self.capture_time += time.perf_counter() - t0
         wp.capture_launch(graph)
-        self.steps += steps
-        self.sim_time += steps * self._dt
+        self._count_steps(steps)
 
     def measure(self) -> FrameMetrics:
         """Metrics of the current state (one small read from the device)."""
@@ -326,6 +345,7 @@ class Simulator:
         wp.copy(self.state.particle_q, saved[0])
         wp.copy(self.state.particle_qd, saved[1])
         wp.copy(self.control.time, saved_time)
+        self.control.rebase()
         self.control.update()
         wp.synchronize_device(self.model.device)
         self.integrator.reset_stats()
