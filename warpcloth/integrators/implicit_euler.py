@@ -20,9 +20,12 @@ solved by ``warp.optim.linear.cg`` with the Jacobi preconditioner (the operator
 Pinned particles have identity rows and zero columns (dv = 0).
 
 Statistics: on CUDA, cg checks convergence on the device (``check_every=0``, a conditional graph
-node) and a kernel accumulates iterations and residuals, so a step never syncs with the host. On
-the CPU, cg reads its residual every iteration (``check_every=1``); for a CPU array that is a
-plain memory read, and the statistics are accumulated in Python.
+node) and a kernel accumulates iterations, residuals and the count of steps that ended at the
+iteration cap above the tolerance, so a step never syncs with the host; :meth:`ImplicitEuler.stats`
+reads them once, at the end of a run. On the CPU, cg reads its residual every iteration
+(``check_every=1``); for a CPU array that is a plain memory read, and the statistics are
+accumulated in Python. A run with a capped step reports ``solver_converged = False`` and warns
+once (:meth:`ImplicitEuler.convergence`).
 """
 
 from __future__ import annotations
@@ -47,6 +50,12 @@ def _check_tol(value: float):
 
 def _check_max_iter(value: int):
     return None if value >= 1 else "must be >= 1"
+
+
+def _sci(x: float) -> str:
+    """Two significant digits, exponents unpadded: 3.7, 0.00055, 1e-5."""
+    mantissa, _, exponent = f"{x:.2g}".partition("e")
+    return f"{mantissa}e{int(exponent)}" if exponent else mantissa
 
 
 class ImplicitEuler(Integrator):
@@ -121,7 +130,7 @@ class ImplicitEuler(Integrator):
             # CPU: the residual is read every iteration; on the CPU that is a plain memory read.
             check_every=0 if self._device_side else 1, use_cuda_graph=True, run=False,
         )
-        self._stats = wp.zeros(5, dtype=wp.float64)
+        self._stats = wp.zeros(6, dtype=wp.float64)
         self.reset_stats()
 
     # -- stepping ------------------------------------------------------------------------
@@ -197,23 +206,40 @@ class ImplicitEuler(Integrator):
             s[2] = max(s[2], iterations)
             s[3] += relative
             s[4] = max(s[4], relative)
+            s[5] += not (residual <= tolerance)  # ended above its tolerance: at the cap (or NaN)
 
     # -- statistics ----------------------------------------------------------------------
     def stats(self) -> dict:
-        """CG iterations and final relative residual |b - A dv| / |b| per step: mean and max."""
+        """CG iterations and final relative residual |b - A dv| / |b| per step (mean and max),
+        and ``cg_capped_steps``: the steps whose CG ended at ``cg_max_iter`` above ``cg_tol``.
+        On CUDA this is the run's one read of the device-side counters."""
         s = self._stats.numpy() if self._device_side else self._host_stats
         solves = int(s[0])
         return {
             "jacobian": self.jacobian,
             "cg_tol": self.cg_tol,
+            "cg_max_iter": self.cg_max_iter,
             "cg_solves": solves,
             "cg_iterations_mean": float(s[1] / solves) if solves else 0.0,
             "cg_iterations_max": int(s[2]),
             "cg_residual_mean": float(s[3] / solves) if solves else 0.0,
             "cg_residual_max": float(s[4]),
+            "cg_capped_steps": int(s[5]),
         }
 
+    def convergence(self, stats: dict) -> tuple[bool | None, int, str | None]:
+        """Converged when no step's CG ended above ``cg_tol``; else a warning naming the count
+        of capped steps and the worst final relative residual."""
+        capped, solves = stats["cg_capped_steps"], stats["cg_solves"]
+        if not capped:
+            return True, 0, None
+        return False, capped, (
+            f"{self.name}: CG hit its {self.cg_max_iter}-iteration cap in {capped} of {solves} steps "
+            f"(worst final relative residual {_sci(stats['cg_residual_max'])} > tolerance {_sci(self.cg_tol)}); "
+            "the result does not meet the tolerance asked"
+        )
+
     def reset_stats(self) -> None:
-        self._host_stats = [0, 0, 0, 0.0, 0.0]
+        self._host_stats = [0, 0, 0, 0.0, 0.0, 0]
         if self.model is not None:
             self._stats.zero_()
