@@ -28,6 +28,7 @@ def test_bench_tiny_end_to_end(tmp_path, capsys):
         assert math.isclose(float(r["steps_per_sec"]) * float(r["ms_per_step"]), 1000.0, rel_tol=1e-6)
         assert int(r["force_evals_per_step"]) == {"explicit_euler": 1, "rk4": 4}[r["integrator"]]
         assert r["stable"] == "1"
+        assert r["solver_converged"] == "" and r["solver_capped_steps"] == "0"  # no iterative solver
 
 
 def test_bench_says_cuda_was_skipped(capsys):
@@ -45,3 +46,20 @@ def test_bench_says_cuda_was_skipped(capsys):
 def test_bench_bad_input(capsys, argv, message):
     assert main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("cap, converged", [(2, "0"), (1000, "1")])
+def test_bench_records_whether_cg_met_its_tolerance(tmp_path, capsys, monkeypatch, cap, converged):
+    import dataclasses
+
+    from warpcloth.integrators.implicit_euler import ImplicitEuler
+
+    # the bench runs each integrator with its defaults: lower the default CG cap
+    options = tuple(dataclasses.replace(o, default=cap) if o.name == "cg_max_iter" else o for o in ImplicitEuler.options)
+    monkeypatch.setattr(ImplicitEuler, "options", options)
+    out = tmp_path / "bench.csv"
+    assert main(["--sizes", "8", "--steps", "3", "--devices", "cpu", "--integrators", "implicit_euler", "--graph", "off",
+                 "--out", str(out)]) == 0
+    (row,) = list(csv.DictReader(out.open()))
+    assert row["solver_converged"] == converged
+    assert row["solver_capped_steps"] == ("3" if cap == 2 else "0")
