@@ -63,3 +63,41 @@ def test_bench_records_whether_cg_met_its_tolerance(tmp_path, capsys, monkeypatc
     (row,) = list(csv.DictReader(out.open()))
     assert row["solver_converged"] == converged
     assert row["solver_capped_steps"] == ("3" if cap == 2 else "0")
+
+
+def _bench_script(name):
+    import importlib.util
+    import pathlib
+    import sys
+
+    folder = pathlib.Path(__file__).resolve().parents[1] / "bench"
+    sys.path.insert(0, str(folder))  # cpu_dot.py imports implicit.py from its folder
+    try:
+        spec = importlib.util.spec_from_file_location(f"bench_{name}", folder / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(folder))
+    return module
+
+
+def test_bench_implicit_repeats_print_medians_and_ratios(capsys):
+    _bench_script("implicit").main(["--sizes", "5", "--steps", "2", "--explicit-steps", "3", "--repeats", "2"])
+    out = capsys.readouterr().out
+    rows = [line.split() for line in out.splitlines() if line.startswith("   5x5") and "ms/step" not in line]
+    assert [r[1] for r in rows] == ["free", "bsr", "free", "bsr"]  # alternating
+    (summary,) = [line for line in out.splitlines() if "bsr/free" in line]
+    assert summary.startswith("   5x5") and "per step" in summary and "per CG iteration" in summary
+
+
+def test_bench_cpu_dot_times_both_reductions_with_the_same_solve(capsys):
+    from warpcloth.integrators.implicit_euler import ImplicitEuler
+
+    _bench_script("cpu_dot").main(["--sizes", "5", "--steps", "2", "--repeats", "2"])
+    assert ImplicitEuler.cpu_single_batch_dot is True  # restored
+    out = capsys.readouterr().out
+    cases = [line.split() for line in out.splitlines() if line.startswith("   5x5") and "ms/step" not in line]
+    assert [c[1] for c in cases] == ["single", "tiled", "single", "tiled"]
+    iterations = {float(c[3]) for c in cases}
+    assert max(iterations) - min(iterations) <= 1.0  # same system, same CG up to rounding
+    assert "tiled/single" in out

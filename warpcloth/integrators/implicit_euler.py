@@ -67,8 +67,12 @@ class ImplicitEuler(Integrator):
         Option("cg_tol", float, 1.0e-3, "CG relative residual tolerance |b - A dv| / |b|", _check_tol),
         Option("cg_max_iter", int, 1000, "CG iteration cap per step", _check_max_iter),
         Option("jacobian", str, "full", "spring Jacobian: full (exact, refilled each step) or approx (seed eq. 2.23, constant)", choices=JACOBIANS),
-        Option("matrix", str, "free", "system matrix: free (matrix-free LinearOperator, faster) or bsr (assembled warp.sparse BSR)", choices=MATRICES),
+        Option("matrix", str, "free", "system matrix: free (matrix-free LinearOperator; faster on the CPU, see bench/implicit.py) or bsr (assembled warp.sparse BSR)", choices=MATRICES),
     )
+
+    #: On the CPU, give cg a single-batch operator (plain-loop dot products); False keeps Warp's
+    #: tiled reduction (for bench/cpu_dot.py). Read at bind.
+    cpu_single_batch_dot: bool = True
 
     # -- binding -----------------------------------------------------------------------
     def _allocate(self, model):
@@ -117,9 +121,10 @@ class ImplicitEuler(Integrator):
         # device-side convergence needs conditional graph nodes (CUDA driver and toolkit 12.4+)
         is_cuda = wp.get_device(device).is_cuda
         self._device_side = is_cuda and wp.is_conditional_graph_supported()
-        # On the CPU, a single-batch operator makes cg's dot products plain loops (Warp's
-        # tiled reduction is for GPUs and is several times slower on the CPU).
-        single_batch = None if is_cuda else wp.array([0, 3 * n], dtype=int)
+        # On the CPU, a single-batch operator makes cg's dot products plain loops instead of
+        # Warp's tiled reduction, which is made for GPUs: with the tiled one a step took 24x
+        # (32^2) and 62x (64^2) as long (medians, bench/results/cpu-dot.txt: python bench/cpu_dot.py).
+        single_batch = None if is_cuda or not self.cpu_single_batch_dot else wp.array([0, 3 * n], dtype=int)
         if self.matrix == "bsr":
             self.A_op = aslinearoperator(self.A, batch_offsets=single_batch)
         else:
