@@ -13,9 +13,11 @@ With B_s = h^2 K_s + h D_s per spring (refilled by one kernel each step), A is a
 matrix-free (``matrix="free"``, the default: a ``warp.optim.linear.LinearOperator`` gathering
 over each particle's springs) or assembled (``matrix="bsr"``: a ``warp.sparse`` BSR matrix of
 3x3 blocks whose pattern, one diagonal block per particle and one block per spring and direction,
-is built once at bind and whose values a kernel refills). Both give the same A; matrix-free
-measured about twice as fast per CG iteration on the CPU (bench/implicit.py). The system is
-solved by ``warp.optim.linear.cg`` with the Jacobi preconditioner (the operator
+is built once at bind and whose values a kernel refills). Both give the same A; on the CPU
+matrix-free is the faster, by a margin that grows with the sheet: BSR took 1.45x, 1.67x and 2.0x
+its time per step at 32^2, 64^2 and 128^2 (medians of 5 alternating repeats on a loaded 2-core
+CPU, ranges and an earlier run in bench/results/: ``python bench/implicit.py --sizes 32 64 128
+--steps 10 --repeats 5``). The system is solved by ``warp.optim.linear.cg`` with the Jacobi preconditioner (the operator
 ``preconditioner(A, "diag")`` builds, refilled in place), warm-started from the previous dv.
 Pinned particles have identity rows and zero columns (dv = 0).
 
