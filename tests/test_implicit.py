@@ -406,6 +406,14 @@ def test_tiny_iteration_cap_is_reported_not_converged_with_one_warning(capsys):
     assert "> tolerance 1e-5" in err and "does not meet the tolerance asked" in err
 
 
+def test_each_run_counts_its_own_capped_steps(capsys):
+    sim = capped_sheet(cg_max_iter=2, rows=5)
+    for _ in range(2):  # the second run continues the trajectory; its counts are its own
+        result = sim.run(0.1)
+        assert result.steps == result.solver["cg_solves"] == result.solver_capped_steps == 6
+        assert capsys.readouterr().err.count("cap in 6 of 6 steps") == 1
+
+
 def test_generous_iteration_cap_converges_with_no_warning(capsys):
     result = capped_sheet(cg_max_iter=1000, cg_tol=1e-3).run(0.2)
     assert result.solver_converged is True and result.solver_capped_steps == 0

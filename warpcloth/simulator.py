@@ -385,6 +385,7 @@ class Simulator:
         if result.wall_time > 0:
             result.realtime_factor = result.sim_time / result.wall_time
         result.solver = self.integrator.stats()
+        self.integrator.reset_stats()  # the next run's statistics (and capped-step count) start here
         result.solver_converged, result.solver_capped_steps, warning = self.integrator.convergence(result.solver)
         if warning:
             warn(warning)  # once per run
