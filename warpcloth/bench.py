@@ -30,7 +30,7 @@ from .fileio import AtomicFile, OutputError, check_output_path, describe_write_e
 COLUMNS = [
     "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt", "steps", "ms_per_step",
     "steps_per_sec", "springs_per_sec", "realtime_factor", "compile_s", "speedup_vs_cpu", "force_evals_per_step",
-    "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean",
+    "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean", "solver_converged", "solver_capped_steps",
 ]
 
 
@@ -120,6 +120,7 @@ def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int |
     ms = 1000.0 * elapsed / done
     stats = sim.integrator.stats()
     iters = next((v for k, v in stats.items() if "iterations" in k and "mean" in k), stats.get("iterations", ""))
+    converged, capped, _ = sim.integrator.convergence(stats)
     return {
         "integrator": integrator, "device": device, "graph": int(graph), "rows": size, "cols": size,
         "particles": m.particle_count, "springs": m.spring_count, "dt": sim.dt, "steps": done,
@@ -127,6 +128,7 @@ def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int |
         "realtime_factor": sim.dt * 1000.0 / ms, "compile_s": compile_s, "speedup_vs_cpu": "",
         "force_evals_per_step": sim.integrator.force_evals_per_step, "roofline_ms": "", "floor_multiple": "",
         "stable": int(finite), "solver_iterations_mean": iters,
+        "solver_converged": "" if converged is None else int(converged), "solver_capped_steps": capped,
     }
 
 

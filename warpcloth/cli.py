@@ -134,6 +134,10 @@ def summary(result) -> str:
     if result.scenario != "flag" or result.equilibrium_reached:
         eq = f"yes, at t={result.time_to_equilibrium:.2f} s" if result.equilibrium_reached else "not reached"
         lines.append(f"  equilibrium: {eq}")
+    if result.solver_converged is not None:
+        converged = "yes" if result.solver_converged else (
+            f"NO (iteration cap hit above tolerance in {result.solver_capped_steps} of {result.steps} steps)")
+        lines.append(f"  solver converged: {converged}")
     if result.solver:
         lines.append("  solver: " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.solver.items()))
     return "\n".join(lines)

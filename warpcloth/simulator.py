@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 import warp as wp
 
 from . import __version__
-from .errors import WarpclothError, require, require_positive
+from .errors import WarpclothError, require, require_positive, warn
 from .forces import Control
 from .integrators import Integrator, make_integrator
 from .model import ClothModel
@@ -88,6 +88,10 @@ class RunResult:
     wall_cap_reached: bool = False
     graph: bool = False
     solver: dict = field(default_factory=dict)
+    #: False when the integrator's iterative solver missed its own tolerance in at least one
+    #: step; None where not applicable (no iterative solver with a tolerance).
+    solver_converged: bool | None = None
+    solver_capped_steps: int = 0
     warpcloth_version: str = __version__
     warp_version: str = wp.config.version
 
@@ -475,6 +479,10 @@ class Simulator:
         if result.wall_time > 0:
             result.realtime_factor = result.sim_time / result.wall_time
         result.solver = self.integrator.stats()
+        self.integrator.reset_stats()  # the next run's statistics (and capped-step count) start here
+        result.solver_converged, result.solver_capped_steps, warning = self.integrator.convergence(result.solver)
+        if warning:
+            warn(warning)  # once per run
         return result
 
     def _advance(self, n: int, loop_start: float, wall_cap: float | None) -> bool:
