@@ -28,6 +28,7 @@ from .metrics import (
     MetricsProbe,
     wind_power_bound,
 )
+from .pins import apply_pins
 from .strain_limit import StrainLimiter
 
 #: Most steps one run may take (a larger count is a typo in dt or duration, not an experiment).
@@ -156,6 +157,8 @@ class Simulator:
             f"control is on device {self.control.device!r} but the model is on {model.device!r}",
         )
         self.state = model.state()
+        self._pins_version = 0
+        self._bind_pin_tracks(self.control.pin_tracks)
         self.instability_strain = require_positive("instability strain", instability_strain)
         self.equilibrium = equilibrium or EquilibriumCriteria()
         self.energy_criteria = energy or EnergyCriteria()
@@ -207,6 +210,23 @@ class Simulator:
         self._graphs.clear()
         self._warmed = False
         self._step_seconds = None
+
+    def set_pin_track(self, *tracks) -> None:
+        """Move pinned particles along :class:`~warpcloth.pins.PinTrack` s from the next step
+        (replacing the tracks set before; no argument: every pin stays where it is)."""
+        self._bind_pin_tracks(tracks)
+        self._needs_begin = True
+        self._graphs.clear()
+
+    def _bind_pin_tracks(self, tracks) -> None:
+        from .pins import KinematicPins, PinTrack
+
+        if isinstance(tracks, PinTrack):
+            tracks = (tracks,)
+        tracks = tuple(tracks or ())
+        self.control.pin_tracks = tracks
+        self.control.kinematic_pins = KinematicPins(self.model, tracks) if tracks else None
+        self._pins_version += 1
 
     def set_dt(self, dt: float) -> None:
         self._dt = require_positive("dt", dt, "s")
@@ -262,12 +282,13 @@ class Simulator:
         """Every host value a captured frame bakes in besides dt and the integrator (those clear
         the cache): a change to any of them captures a new graph."""
         c = self.control
-        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, self.model.version,
+        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, self.model.version, self._pins_version,
                 tuple(sorted((k, repr(v)) for k, v in self.integrator.option_values().items())))
 
     def _begin(self) -> None:
         """Let the integrator start its history from the current state and wind W(t)."""
         self.control.update()
+        apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # pins on their track at t
         self.integrator.begin(self.state, self.control, self._dt)
         self._needs_begin = False
 
@@ -277,6 +298,7 @@ class Simulator:
         if self.strain_limiter is not None:
             self.strain_limiter.apply(self.state, self._dt)
         self.control.advance(self._dt)
+        apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # x = track(t + dt), v = track'(t + dt)
 
     def simulate(self, steps: int) -> None:
         """Advance ``steps`` time steps (replaying a captured graph of them where enabled)."""
