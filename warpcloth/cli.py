@@ -53,6 +53,11 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
     p.add_argument("--strain-limit", type=float, default=None, metavar="TAU", help="Provot deformation constraint: cap structural/shear strain at TAU (e.g. 0.1), force-based integrators (default off)")
     p.add_argument("--instability-strain", type=float, default=None, metavar="STRAIN", help="a spring strained past this (e.g. 0.5 = 50 %%) makes the run unstable (default 0.5)")
+    mesh = p.add_argument_group("mesh scenarios (mesh, scenario files)")
+    mesh.add_argument("--mesh", default=None, metavar="FILE", help="the cloth's triangle mesh: .obj or .usd/.usda/.usdc/.usdz")
+    mesh.add_argument("--prim", default=None, metavar="PATH", help="the UsdGeom.Mesh prim in a USD --mesh (default: the first mesh)")
+    mesh.add_argument("--pin-group", action="append", default=None, metavar="NAME", help="pin a vertex group of the mesh (repeatable)")
+    mesh.add_argument("--pin", dest="pin_where", default=None, metavar="EXPR", help="pin the vertices where EXPR holds, e.g. 'y > 0.95 * y.max()' (x, y, z [m])")
     _add_integrator_options(p)
 
 
@@ -111,6 +116,8 @@ def config_from_args(scenario, args):
         drag=args.drag, bend=args.bend, device=args.device, strain_limit=args.strain_limit,
         instability_strain=args.instability_strain,
         integrator_options=integrator_options_from_args(integrator, args),
+        mesh=getattr(args, "mesh", None), prim=getattr(args, "prim", None), pin_where=getattr(args, "pin_where", None),
+        pin_group=tuple(args.pin_group) if getattr(args, "pin_group", None) else None,
     )
     if args.num_frames is not None:
         require_positive("fps", cfg.fps, "1/s")
@@ -291,7 +298,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"warpcloth {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     run = sub.add_parser("run", help="run a scenario and print a summary")
-    run.add_argument("scenario", help="scenario name (see 'warpcloth list')")
+    run.add_argument("scenario", help="scenario name (see 'warpcloth list') or a scenario file, path/to/scenario.toml")
     add_run_arguments(run)
     _add_verbose(run)
     _add_verbose(sub.add_parser("list", help="list scenarios and integrators"))
