@@ -171,3 +171,37 @@ def test_bad_tracks_are_refused():
         Simulator(hanging_grid(), "explicit_euler", Control(pin_tracks=[PinTrack.rigid([99])]), dt=1e-4)
     with pytest.raises(WarpclothError, match=r"particle 0 is in two pin tracks"):
         Simulator(hanging_grid(), "explicit_euler", Control(pin_tracks=[PinTrack.rigid([0], name="a"), PinTrack.rigid([0, 1], name="b")]), dt=1e-4)
+
+
+@pytest.mark.parametrize("integrator", ["midpoint", "rk4"])
+def test_runge_kutta_stages_see_the_pin_at_the_stage_times(integrator):
+    """One step of a spring whose pin moves up along it at 1 m/s: the float64 Runge-Kutta step
+    with the pin at track(t + c_k h) in each stage (c = 0, 1/2 for midpoint; 0, 1/2, 1/2, 1 for RK4)."""
+    ks, kd, m, h, rest = 40.0, 0.2, 0.1, 0.01, 0.5
+    model = single_spring(ks=ks, kd=kd, mass=m, rest=rest, stretch=0.0)
+    q = model.host["q"].astype(np.float64)
+    track = PinTrack.rigid([0], velocity=(0.0, 1.0, 0.0))
+    sim = Simulator(model, integrator, Control(pin_tracks=[track]), dt=h, use_graph=False)
+    sim.step()
+    g = np.array([0.0, -9.81, 0.0])
+
+    def accel(t, x, v):
+        xp, vp = q[0] + t * np.array([0.0, 1.0, 0.0]), np.array([0.0, 1.0, 0.0])
+        d = xp - x
+        L = np.linalg.norm(d)
+        n = d / L
+        return (ks * (L - rest) + kd * np.dot(vp - v, n)) * n / m + g
+
+    x, v = q[1], np.zeros(3)
+    if integrator == "midpoint":
+        xm, vm = x + 0.5 * h * v, v + 0.5 * h * accel(0.0, x, v)
+        want_x, want_v = x + h * vm, v + h * accel(0.5 * h, xm, vm)
+    else:
+        k1x, k1v = v, accel(0.0, x, v)
+        k2x, k2v = v + 0.5 * h * k1v, accel(0.5 * h, x + 0.5 * h * k1x, v + 0.5 * h * k1v)
+        k3x, k3v = v + 0.5 * h * k2v, accel(0.5 * h, x + 0.5 * h * k2x, v + 0.5 * h * k2v)
+        k4x, k4v = v + h * k3v, accel(h, x + h * k3x, v + h * k3v)
+        want_x, want_v = x + h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x), v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+    np.testing.assert_allclose(sim.state.particle_qd.numpy()[1], want_v, atol=2e-6)
+    np.testing.assert_allclose(sim.state.particle_q.numpy()[1], want_x, atol=1e-7)
+    np.testing.assert_allclose(sim.state.particle_q.numpy()[0], q[0] + [0.0, h, 0.0], atol=1e-7)
