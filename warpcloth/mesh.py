@@ -234,7 +234,7 @@ def _straight_bends(v, t, topo: MeshTopology, is_diag: np.ndarray) -> np.ndarray
     corner_a = [p, u, p, w, lone[:, 1], lone[:, 2], lone[:, 0]]
     corner_b = [q, w, q, u, lone[:, 2], lone[:, 0], lone[:, 1]]
     cc, ca, cb = (np.concatenate(x).astype(np.int64) for x in (corner_c, corner_a, corner_b))
-    corner_keys = np.unique((cc * n + np.minimum(ca, cb)) * n + np.maximum(ca, cb))
+    corner_keys = np.sort((cc * n + np.minimum(ca, cb)) * n + np.maximum(ca, cb))  # membership by binary search
     cos_limit = math.cos(math.radians(STRAIGHT_ANGLE_DEG))
     found = []
     for d in range(1, centre.size):  # pairs of neighbours of one centre, offset d apart in the sorted list
@@ -243,15 +243,17 @@ def _straight_bends(v, t, topo: MeshTopology, is_diag: np.ndarray) -> np.ndarray
             break
         c, a, b = centre[same], other[same], other[same + d]
         key = (c * n + np.minimum(a, b)) * n + np.maximum(a, b)
-        keep = ~np.isin(key, corner_keys, assume_unique=False)
+        at = np.minimum(np.searchsorted(corner_keys, key), corner_keys.size - 1)
+        keep = corner_keys[at] != key
         da, db = v[a] - v[c], v[b] - v[c]
         cos = np.einsum("ij,ij->i", da, db) / (np.linalg.norm(da, axis=1) * np.linalg.norm(db, axis=1))
         keep &= cos <= cos_limit + 1e-12
-        found.append(np.stack([np.minimum(a, b)[keep], np.maximum(a, b)[keep]], axis=1))
+        found.append((np.minimum(a, b) * n + np.maximum(a, b))[keep])
     if not found:
         return np.zeros((0, 2), dtype=np.int64)
-    bends = np.concatenate(found)
-    return np.unique(bends, axis=0) if bends.size else bends
+    keys = np.sort(np.concatenate(found))
+    keys = keys[np.append(True, keys[1:] != keys[:-1])] if keys.size else keys  # one spring per pair
+    return np.stack([keys // n, keys % n], axis=1)
 
 
 # -- masses --------------------------------------------------------------------------------
