@@ -102,11 +102,12 @@ def load_scenario(path: str) -> Scenario:
     path = os.path.abspath(os.fspath(path))
     if not os.path.isfile(path):
         raise WarpclothError(f"scenario file {path!r} does not exist" if not os.path.exists(path) else f"scenario file {path!r} is not a file")
-    return _load(path, os.stat(path).st_mtime_ns)
+    st = os.stat(path)
+    return _load(path, st.st_mtime_ns, st.st_size)
 
 
 @functools.lru_cache(maxsize=16)
-def _load(path: str, mtime_ns: int) -> Scenario:
+def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     tomllib = _toml()
     where = os.path.basename(path)
     try:

@@ -317,3 +317,14 @@ def test_bad_files_are_refused(tmp_path):
     (tmp_path / "n.obj").write_text("v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     with pytest.raises(WarpclothError, match="vertex 0 is not finite"):
         load_mesh(str(tmp_path / "n.obj"))
+
+
+def test_mass_options_are_checked():
+    v, t = _grid()
+    with pytest.raises(WarpclothError, match="give a total mass or an areal density, not both"):
+        build_mesh_cloth(v, t, total_mass=1.0, density=0.2)
+    with pytest.raises(WarpclothError, match="mass mode must be one of area, uniform, got 'lumped'"):
+        build_mesh_cloth(v, t, mass_mode="lumped")
+    with pytest.raises(WarpclothError, match="density must be > 0 kg/m\\^2, got -1"):
+        build_mesh_cloth(v, t, density=-1)
+    assert build_mesh_cloth(v, t, density=0.5).host["mass"].astype(float).sum() == pytest.approx(0.5 * 1.0 * 1.0, rel=1e-6)

@@ -185,3 +185,13 @@ def test_registry_lists_new_scenarios_and_takes_user_ones():
     with pytest.raises(WarpclothError, match="is built in"):
         register(Scenario(name="sheet", description="", defaults=mine.defaults, pins=mine.pins, control=mine.control,
                           origin=mine.origin, stop_at_equilibrium=False))
+
+
+def test_scenario_files_on_python_3_10_name_what_they_need(monkeypatch, scenario_file):
+    from warpcloth.scenarios import file as file_scenarios
+
+    monkeypatch.setitem(sys.modules, "tomllib", None)  # as on Python 3.10 without tomli
+    monkeypatch.setitem(sys.modules, "tomli", None)
+    file_scenarios._load.cache_clear()
+    with pytest.raises(WarpclothError, match=r"needs Python 3.11 \(tomllib\) or the tomli package \(pip install tomli\)"):
+        get_scenario(str(scenario_file))
