@@ -173,7 +173,9 @@ def test_bad_mesh_flags_are_one_line_exit_2(capsys, tmp_path):
     assert "does not exist" in one_line_exit_2(capsys, "run", "mesh", "--mesh", str(tmp_path / "none.obj"))
     (tmp_path / "m.ply").write_text("ply")
     assert "unsupported format '.ply'" in one_line_exit_2(capsys, "run", "mesh", "--mesh", str(tmp_path / "m.ply"))
-    assert "scenario file" in one_line_exit_2(capsys, "run", str(tmp_path / "nothing.toml")) 
+    assert "scenario file" in one_line_exit_2(capsys, "run", str(tmp_path / "nothing.toml"))
+    assert "--rows does not apply to scenario 'mesh': its cloth is a mesh" in one_line_exit_2(capsys, "run", "mesh", "--rows", "5")
+    assert "--pin-group does not apply to scenario 'sheet': its cloth is a grid" in one_line_exit_2(capsys, "run", "sheet", "--pin-group", "a")
 
 
 def test_registry_lists_new_scenarios_and_takes_user_ones():

@@ -110,6 +110,7 @@ def config_from_args(scenario, args):
         raise WarpclothError(f"--integrator is empty; choose one of {', '.join(integrator_names())}")
     integrator = args.integrator or scenario.defaults.integrator
     integrator_class(integrator)  # unknown name -> clear error
+    _check_cloth_flags(scenario, args)
     cfg = scenario.config(
         rows=args.rows, cols=args.cols, width=args.width, height=args.height, integrator=integrator, dt=args.dt,
         duration=args.duration, fps=args.fps, stiffness=args.stiffness, damping=args.damping, mass=args.mass,
@@ -125,6 +126,17 @@ def config_from_args(scenario, args):
             raise WarpclothError(f"--num-frames must be >= 1, got {args.num_frames}")
         cfg.duration = args.num_frames / cfg.fps
     return cfg
+
+
+def _check_cloth_flags(scenario, args) -> None:
+    """Grid flags on a mesh scenario, or mesh flags on a grid scenario, are refused (not ignored)."""
+    is_mesh = scenario.model is not None
+    flags = (("--mesh", "mesh"), ("--prim", "prim"), ("--pin-group", "pin_group"), ("--pin", "pin_where")) if not is_mesh else \
+        (("--rows", "rows"), ("--cols", "cols"), ("--width", "width"), ("--height", "height"))
+    for flag, attr in flags:
+        if getattr(args, attr, None) is not None:
+            kind = "a mesh: its size comes from the mesh file" if is_mesh else "a grid; --mesh, --prim, --pin-group and --pin apply to the mesh scenario and scenario files"
+            raise WarpclothError(f"{flag} does not apply to scenario {scenario.name!r}: its cloth is {kind}")
 
 
 def summary(result) -> str:
