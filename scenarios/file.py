@@ -66,7 +66,7 @@ import numpy as np
 
 from ..errors import WarpclothError, require
 from ..forces import GRAVITY, Control, WindSchedule
-from ..mesh import build_mesh_cloth, lumped_masses, resolve_pins, select_vertices
+from ..mesh import build_mesh_cloth, lumped_masses, resolve_pins
 from ..meshio import load_mesh
 from ..pins import PinTrack
 from .common import Scenario, ScenarioConfig
@@ -261,4 +261,4 @@ def _track(t: dict, positions: np.ndarray, groups: dict, where: str) -> PinTrack
         raise WarpclothError(f"{where}: {exc}") from None
 
 
-__all__ = ["is_scenario_file", "load_scenario", "select_vertices"]
+__all__ = ["is_scenario_file", "load_scenario"]

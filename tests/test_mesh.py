@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from warpcloth import SpringType, WarpclothError, build_grid_cloth, build_mesh_cloth, load_mesh
-from warpcloth.mesh import lumped_masses, mesh_springs, parse_predicate, select_vertices
+from warpcloth.mesh import lumped_masses, parse_predicate, select_vertices
 from warpcloth.meshio import write_obj
 from warpcloth.model import grid_positions, grid_triangles
 

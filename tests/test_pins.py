@@ -9,7 +9,7 @@ import pytest
 from warpcloth import Control, Simulator, WarpclothError, build_grid_cloth, integrator_names
 from warpcloth.pins import PinTrack
 
-from helpers import single_spring, spring_params
+from helpers import single_spring
 
 ROWS, COLS = 4, 5
 TOP = list(range(COLS))

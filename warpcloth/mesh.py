@@ -81,7 +81,8 @@ def check_mesh(vertices, triangles, what: str = "mesh") -> tuple[np.ndarray, np.
     require(v.size > 0, f"{what} is empty: no vertices")
     require(v.ndim == 2 and v.shape[1] == 3, f"{what}: vertices must have shape (N, 3), got {v.shape}")
     bad = np.flatnonzero(~np.all(np.isfinite(v), axis=1))
-    require(bad.size == 0, f"{what}: vertex {bad[0] if bad.size else 0} is not finite ({v[bad[0]].tolist() if bad.size else ''}); vertices must be finite numbers")
+    if bad.size:
+        raise WarpclothError(f"{what}: vertex {int(bad[0])} is not finite ({v[bad[0]].tolist()}); vertices must be finite numbers")
     t = np.asarray(triangles)
     require(t.size > 0, f"{what} is empty: no triangles")
     require(t.ndim == 2 and t.shape[1] == 3, f"{what}: triangles must have shape (T, 3), got {t.shape}")

@@ -183,7 +183,8 @@ def read_usd(path: str, prim: str | None = None) -> TriangleMesh:
         name = subset.GetPrim().GetName()
         if kind == UsdGeom.Tokens.face:
             bad = idx[(idx < 0) | (idx >= counts.size)]
-            require(bad.size == 0, f"USD subset {subset.GetPath()}: face index {int(bad[0]) if bad.size else 0} out of range 0..{counts.size - 1}")
+            if bad.size:
+                raise WarpclothError(f"USD subset {subset.GetPath()}: face index {int(bad[0])} out of range 0..{counts.size - 1}")
             groups[name] = np.unique(triangles[np.isin(face_of_tri, idx)].ravel())
         else:
             groups[name] = np.unique(idx)

@@ -22,7 +22,7 @@ and wind see the moving pin), and the pin positions equal the track at every ste
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
