@@ -328,3 +328,20 @@ def test_mass_options_are_checked():
     with pytest.raises(WarpclothError, match="density must be > 0 kg/m\\^2, got -1"):
         build_mesh_cloth(v, t, density=-1)
     assert build_mesh_cloth(v, t, density=0.5).host["mass"].astype(float).sum() == pytest.approx(0.5 * 1.0 * 1.0, rel=1e-6)
+
+
+def test_uvs_read_from_an_obj_go_to_the_exported_usd(tmp_path):
+    from pxr import Usd, UsdGeom
+
+    from warpcloth.usd import UsdWriter
+
+    (tmp_path / "strip.obj").write_text(OBJ_TEXT)
+    mesh = load_mesh(str(tmp_path / "strip.obj"))
+    model = build_mesh_cloth(mesh)
+    with UsdWriter(str(tmp_path / "s.usda"), model) as w:
+        w.write_frame(model.host["q"], 0.0)
+    stage = Usd.Stage.Open(str(tmp_path / "s.usda"))  # held: a prim is valid while its stage lives
+    prim = stage.GetPrimAtPath("/World/Cloth")
+    st = np.asarray(UsdGeom.PrimvarsAPI(prim).GetPrimvar("st").Get())
+    np.testing.assert_array_equal(st, mesh.uv.reshape(-1, 2))
+    assert np.asarray(UsdGeom.Mesh(prim).GetFaceVertexIndicesAttr().Get()).tolist() == mesh.triangles.ravel().tolist()
