@@ -284,7 +284,14 @@ def build_grid_cloth(
     model = build_model(q, pairs, types, np.full(rows * cols, total_mass / (rows * cols)), spring_params, pins, grid_triangles(rows, cols), device)
     model.rows, model.cols, model.width, model.height, model.bend = rows, cols, width, height, bend
     model.total_mass = total_mass
+    model.host["uv"] = grid_uvs(rows, cols)[model.host["tris"]].reshape(-1, 2)
     return model
+
+
+def grid_uvs(rows: int, cols: int) -> np.ndarray:
+    """Texture coordinates per particle, u = col / (cols - 1), v = 1 - row / (rows - 1), (N, 2)."""
+    r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    return np.stack([c.ravel() / (cols - 1), 1.0 - r.ravel() / (rows - 1)], axis=1).astype(np.float32)
 
 
 def build_model(positions, spring_pairs, spring_types, masses, spring_params, pins=(), triangles=None, device=None) -> ClothModel:
@@ -319,8 +326,11 @@ def build_model(positions, spring_pairs, spring_types, masses, spring_params, pi
     rest = np.linalg.norm(q[pairs[:, 1]].astype(np.float64) - q[pairs[:, 0]], axis=1).astype(np.float32)
     if rest.size and not np.all(rest > 0):
         raise WarpclothError("every spring must have a rest length > 0 m (two particles at the same place)")
-    ks = np.array([spring_params[SpringType(t)].stiffness for t in types], dtype=np.float32)
-    kd = np.array([spring_params[SpringType(t)].damping for t in types], dtype=np.float32)
+    if types.size and (types.min() < 0 or types.max() > max(SpringType)):
+        raise WarpclothError(f"spring types must be in 0..{int(max(SpringType))} (SpringType)")
+    # per-type lookup by indexing (a Python loop over 300k springs took 0.5 s)
+    ks = np.array([spring_params[t].stiffness for t in SpringType], dtype=np.float32)[types]
+    kd = np.array([spring_params[t].damping for t in SpringType], dtype=np.float32)[types]
     tris = np.zeros((0, 3), dtype=np.int32) if triangles is None else np.asarray(triangles, dtype=np.int32).reshape(-1, 3)
     device = resolve_device(device)
     with wp.ScopedDevice(device):

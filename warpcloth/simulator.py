@@ -30,6 +30,7 @@ from .metrics import (
     MetricsProbe,
     wind_power_bound,
 )
+from .pins import apply_pins
 from .strain_limit import StrainLimiter
 
 #: Most steps one run may take (a larger count is a typo in dt or duration, not an experiment).
@@ -166,6 +167,8 @@ class Simulator:
             f"control is on device '{self.control.device}' but the model is on '{model.device}'",
         )
         self.state = model.state()
+        self._pins_version = 0
+        self._bind_pin_tracks(self.control.pin_tracks)
         self.instability_strain = require_positive("instability strain", instability_strain)
         self.equilibrium = equilibrium or EquilibriumCriteria()
         self.energy_criteria = energy or EnergyCriteria()
@@ -233,6 +236,7 @@ class Simulator:
                 f"got {model.particle_count} on {model.device}"
             )
         self.model = model
+        self._bind_pin_tracks(self.control.pin_tracks)  # kinematic pins: checked and bound to the new model
         self.probe = MetricsProbe(model, self.control)
         if self.strain_limiter is not None:
             self.strain_limiter = StrainLimiter(model, self.strain_limiter.tau)
@@ -240,6 +244,34 @@ class Simulator:
         self._needs_begin = True
         self._graphs.clear()
         self._warmed = False
+
+    def set_pin_track(self, *tracks) -> None:
+        """Move pinned particles along :class:`~warpcloth.pins.PinTrack` s from the next step
+        (replacing the tracks set before; no argument: every pin stays where it is)."""
+        self._bind_pin_tracks(tracks)
+        self._needs_begin = True
+        self._graphs.clear()
+
+    def _bind_pin_tracks(self, tracks) -> None:
+        from .pins import KinematicPins, PinTrack
+
+        if isinstance(tracks, PinTrack):
+            tracks = (tracks,)
+        tracks = tuple(tracks or ())
+        self.control.pin_tracks = tracks
+        self.control.kinematic_pins = KinematicPins(self.model, tracks) if tracks else None
+        self._pins_version += 1
+
+    def _pins_moving_until(self) -> float:
+        """Simulated time [s] after which no kinematic pin moves (0 without tracks; inf for a
+        rigid motion that never stops)."""
+        end = 0.0
+        for track in self.control.pin_tracks:
+            if track.kind == "keyframes":
+                end = max(end, float(track.times[-1]))
+            elif any(track.velocity) or track.angular_velocity or (track.swing_amplitude and track.swing_frequency):
+                end = math.inf
+        return end
 
     def set_dt(self, dt: float) -> None:
         dt = require_positive("dt", dt, "s")
@@ -305,7 +337,7 @@ class Simulator:
         """Every host value a captured frame bakes in besides dt and the integrator (those clear
         the cache): a change to any of them captures a new graph."""
         c = self.control
-        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule,
+        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, self._pins_version,
                 tuple(sorted((k, repr(v)) for k, v in self.integrator.option_values().items())))
 
     def _begin(self) -> None:
@@ -313,6 +345,7 @@ class Simulator:
         self._rebase_clock()
         self.control.rebase()
         self.control.update()
+        apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # pins on their track at t
         self.integrator.begin(self.state, self.control, self._dt)
         self._needs_begin = False
 
@@ -322,6 +355,7 @@ class Simulator:
         if self.strain_limiter is not None:
             self.strain_limiter.apply(self.state, self._dt)
         self.control.advance(self._dt)
+        apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # x = track(t + dt), v = track'(t + dt)
 
     def simulate(self, steps: int) -> None:
         """Advance ``steps`` time steps (replaying a captured graph of them where enabled)."""
@@ -446,13 +480,20 @@ class Simulator:
         frame_dt = 1.0 / fps
         steps_per_frame = frame_dt / dt
         e0, _ = self.probe.energies(self.state)
-        energy = EnergyMonitor(
-            e0, wind_power_bound(m, self.control, self.instability_strain),
-            window_frames=max(math.ceil(self.energy_criteria.window_time * fps - 1e-9),
-                              math.ceil(self.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9)),
-            scale=m.total_mass * self.control.gravity_magnitude * max(m.width, m.height, 1e-3),
-            criteria=self.energy_criteria,
-        )
+
+        def energy_monitor(e_start: float) -> EnergyMonitor:
+            return EnergyMonitor(
+                e_start, wind_power_bound(m, self.control, self.instability_strain),
+                window_frames=max(math.ceil(self.energy_criteria.window_time * fps - 1e-9),
+                                  math.ceil(self.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9)),
+                scale=m.total_mass * self.control.gravity_magnitude * max(m.width, m.height, 1e-3),
+                criteria=self.energy_criteria,
+            )
+
+        energy, energy_start = energy_monitor(e0), start_time
+        # moving kinematic pins do work no a-priori bound knows: the energy criterion waits until
+        # they stop and starts from the energy then (non-finite state and strain still apply)
+        pins_move_until = self._pins_moving_until()
         if usd is not None:
             t0 = time.perf_counter()
             usd.write_frame(self.state.particle_q.numpy(), self.sim_time)
@@ -485,7 +526,11 @@ class Simulator:
             elif metrics.max_strain > self.instability_strain:
                 result.stable = False
                 result.unstable_reason = f"spring strain {metrics.max_strain:.3g} beyond the limit {self.instability_strain:g}"
-            elif energy.update(self.sim_time - start_time, e, kinetic):
+            elif self.sim_time < pins_move_until:
+                energy, energy_start = None, None
+            elif energy is None:
+                energy, energy_start = energy_monitor(e), self.sim_time
+            elif energy.update(self.sim_time - energy_start, e, kinetic):
                 result.stable = False
                 result.unstable_reason = (
                     f"energy growing without bound: {energy.excess:.3g} J above what gravity and the external forces "

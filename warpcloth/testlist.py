@@ -174,6 +174,19 @@ def _scenarios() -> list[str]:
     return scenario_names()
 
 
+def _scenario(text: str) -> str:
+    """A scenario name, or a scenario file (.toml, relative to the working folder) that loads."""
+    from .scenarios import get_scenario
+
+    if text.lower().endswith(".toml"):
+        try:
+            get_scenario(text)
+        except WarpclothError as exc:
+            raise ValueError(str(exc)) from None
+        return text
+    return _choice(_scenarios, "scenario")(text)
+
+
 def _device(text: str) -> str:
     from .device import device_name as resolve_device
 
@@ -198,7 +211,7 @@ ATTRIBUTES: dict[str, Attribute] = {
     for a in [
         Attribute("id", str, "name of the test, carried into the CSV (default: its position, 1, 2, ...)", is_list=False),
         Attribute("integrator", _choice(_integrators, "integrator", keyword_all=True), "integrator name(s), or 'all'"),
-        Attribute("scenarios", _choice(_scenarios, "scenario"), "scenarios to run (default: sheet flag)"),
+        Attribute("scenarios", _scenario, "scenarios to run: names or scenario files (.toml) (default: sheet flag)"),
         Attribute("size", _size, "mesh size N (N x N) or ROWSxCOLS; excludes rows/cols"),
         Attribute("rows", _grid_dim, "particles per column (with cols)"),
         Attribute("cols", _grid_dim, "particles per row (with rows)"),
@@ -552,7 +565,7 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         scen = get_scenario(c["scenario"])
         d = scen.defaults
         rows, cols = c["mesh"] if c["mesh"] is not None else (d.rows, d.cols)
-        if c["bend"] != "none" and min(rows, cols) < 3:  # pragma: no cover - _grid_dim already requires 3
+        if scen.model is None and c["bend"] != "none" and min(rows, cols) < 3:  # a grid (mesh scenarios: rows 1, cols N)  # pragma: no cover - _grid_dim already requires 3
             raise src.error(el.line, f"{what}: a mesh needs at least 3 x 3 particles with bend springs")
         mass = c["mass"] if c["mass"] is not None else d.mass
         ks = [c[f"stiffness_{t}"] if c[f"stiffness_{t}"] is not None else c["stiffness"] for t in SPRING_TYPES]

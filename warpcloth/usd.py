@@ -101,6 +101,10 @@ class UsdWriter:
         pinned[model.pinned] = 1
         primvar = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("pinned", Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.vertex)
         primvar.Set(Vt.IntArray(pinned.tolist()))
+        uv = model.host.get("uv")
+        if uv is not None:  # texture coordinates per triangle corner (grids, meshes read with UVs)
+            st = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+            st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(uv, dtype=np.float32).reshape(-1, 2)))
         self.pins = UsdGeom.Points.Define(self.stage, "/World/Pins")
         self.pins.CreateWidthsAttr(Vt.FloatArray([0.02] * len(model.pinned)))
         self._pin_idx = np.asarray(model.pinned, dtype=np.int64)
