@@ -6,6 +6,12 @@ particles marked by a ``pinned`` vertex primvar and a ``UsdGeomPoints`` prim, th
 file beside the target (``.warpcloth-<pid>-<token>.usda``, see :mod:`warpcloth.fileio`) and
 renamed over it when closed, so a reader never sees half a file; on any failure (disk full, an
 interrupt) the temporary is removed and the target is left as it was.
+
+Pipeline extras: the layer's ``customLayerData`` holds the run's provenance under ``warpcloth``
+(:mod:`warpcloth.provenance`); ``/World/Pins`` carries an extent and is written once (no time
+samples) while the pins do not move; ``color="strain"`` writes a vertex ``primvars:displayColor``
+per frame, spring strain from blue (0) to red (``strain_scale``, default 10 %); a ``.usdz``
+target is a ``.usdc`` stage packaged with ``UsdUtils.CreateNewUsdzPackage``.
 """
 
 from __future__ import annotations
@@ -17,7 +23,11 @@ import numpy as np
 from .errors import WarpclothError
 from .fileio import OutputError, check_output_path, describe_write_error, fsync_dir, remove_temporary, temp_path
 
-USD_EXTENSIONS = (".usd", ".usda", ".usdc")
+USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+#: Colourings of ``primvars:displayColor`` (``--usd-color``).
+USD_COLORS = ("none", "strain")
+#: Strain at the red end of the displayColor ramp by default (10 %).
+DEFAULT_STRAIN_SCALE = 0.1
 
 
 def check_usd_path(path: str) -> str:
@@ -41,22 +51,51 @@ def _usd_failure(exc: BaseException, target: str, tmp: str) -> OutputError:
     return OutputError(f"cannot write the USD file {target}: {first[:200]}; {target} is unchanged")
 
 
+def _usd_dict(value):
+    """A JSON-able value as USD dictionary data: None (no USD value) becomes the string "none",
+    lists of mixed types become strings."""
+    if isinstance(value, dict):
+        return {str(k): _usd_dict(v) for k, v in value.items()}
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):
+        return float(value)
+    if isinstance(value, (list, tuple)):
+        return [str(v) for v in value]
+    return str(value)
+
+
 class UsdWriter:
     """Writes a cloth model's frames to a USD stage.
 
     Args:
-        path: output file (.usd, .usda or .usdc).
+        path: output file (.usd, .usda, .usdc or .usdz).
         model: the :class:`~warpcloth.model.ClothModel` (topology, pins).
         fps: frames per second; frame k is written at time code k.
+        provenance: stored in the layer's ``customLayerData["warpcloth"]`` (None values as "none").
+        color: ``"strain"`` for a per-frame vertex ``primvars:displayColor`` of spring strain.
+        strain_scale: the strain at the red end of the colour ramp.
     """
 
-    def __init__(self, path: str, model, fps: float = 60.0):
+    def __init__(self, path: str, model, fps: float = 60.0, provenance: dict | None = None, color: str | None = None,
+                 strain_scale: float = DEFAULT_STRAIN_SCALE):
         from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
         self._Gf, self._Vt = Gf, Vt
         self.path = check_usd_path(path)
         self.fps = float(fps)
-        self._tmp = temp_path(self.path)
+        color = color or "none"
+        if color not in USD_COLORS:
+            raise WarpclothError(f"USD colour must be one of {', '.join(USD_COLORS)}, got {color!r}")
+        self.color = color
+        self.strain_scale = float(strain_scale)
+        self.usdz = os.path.splitext(self.path)[1].lower() == ".usdz"
+        self._tmp = temp_path(self.path, ".usdc" if self.usdz else None)
+        self._package = temp_path(self.path) if self.usdz else None
         self._closed = False
         try:
             self.stage = Usd.Stage.CreateNew(self._tmp)
@@ -71,6 +110,8 @@ class UsdWriter:
         UsdGeom.SetStageMetersPerUnit(self.stage, 1.0)
         self.stage.SetTimeCodesPerSecond(self.fps)
         self.stage.SetFramesPerSecond(self.fps)
+        if provenance:
+            self.stage.GetRootLayer().customLayerData = {"warpcloth": _usd_dict(provenance)}
         root = UsdGeom.Xform.Define(self.stage, "/World")
         self.stage.SetDefaultPrim(root.GetPrim())
 
@@ -90,6 +131,17 @@ class UsdWriter:
         self.pins.CreateWidthsAttr(Vt.FloatArray([0.02] * len(model.pinned)))
         self._pin_idx = np.asarray(model.pinned, dtype=np.int64)
         self.pins_attr = self.pins.CreatePointsAttr()
+        self.pins_extent_attr = self.pins.CreateExtentAttr()
+        self._pins_first: np.ndarray | None = None  # the pins' first positions, written once while they stay
+        self._pins_moving = False
+        self.color_attr = None
+        if self.color == "strain":
+            from .frames import spring_arrays
+
+            self._springs = spring_arrays(model)
+            pv = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
+            self.color_attr = pv.GetAttr()
+            self.mesh.GetPrim().SetCustomDataByKey("warpcloth:displayColor", f"spring strain, blue 0 to red {self.strain_scale:g}")
         self.frames = 0
         self.last_code = -1.0
 
@@ -105,8 +157,38 @@ class UsdWriter:
         lo, hi = p.min(axis=0), p.max(axis=0)
         self.extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), code)
         if self._pin_idx.size:
-            self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(p[self._pin_idx])), code)
+            self._write_pins(np.ascontiguousarray(p[self._pin_idx]), code)
+        if self.color_attr is not None:
+            from .frames import strain_colors, vertex_strain
+
+            rgb = strain_colors(vertex_strain(p, *self._springs), self.strain_scale)
+            self.color_attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(rgb)), code)
         self.frames += 1
+
+    def _pin_extent(self, pins: np.ndarray):
+        Gf, Vt = self._Gf, self._Vt
+        r = 0.01  # half the pins' width
+        lo, hi = pins.min(axis=0) - r, pins.max(axis=0) + r
+        return Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))])
+
+    def _write_pins(self, pins: np.ndarray, code: float) -> None:
+        """Pins as one default value (no time samples) while they stay where they were; time
+        samples from the first frame they move (the first frame's sample added then)."""
+        Vt = self._Vt
+        if self._pins_first is None:
+            self._pins_first, self._pins_first_code = pins.copy(), code
+            self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(pins))
+            self.pins_extent_attr.Set(self._pin_extent(pins))
+            return
+        if not self._pins_moving and np.array_equal(pins, self._pins_first):
+            return
+        if not self._pins_moving:
+            self._pins_moving = True
+            first = self._pins_first
+            self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(first), self._pins_first_code)
+            self.pins_extent_attr.Set(self._pin_extent(first), self._pins_first_code)
+        self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(pins), code)
+        self.pins_extent_attr.Set(self._pin_extent(pins), code)
 
     def close(self) -> str:
         """Save and move the file into place; returns the path."""
@@ -118,7 +200,15 @@ class UsdWriter:
             if not self.stage.GetRootLayer().Save():
                 raise OSError(f"USD could not save {self._tmp}")
             del self.stage
-            os.replace(self._tmp, self.path)
+            if self.usdz:
+                from pxr import UsdUtils
+
+                if not UsdUtils.CreateNewUsdzPackage(self._tmp, self._package):
+                    raise OSError(f"USD could not package {self._tmp} as .usdz")
+                remove_temporary(self._tmp)
+                os.replace(self._package, self.path)
+            else:
+                os.replace(self._tmp, self.path)
         except BaseException as exc:
             failure = _usd_failure(exc, self.path, self._tmp) if isinstance(exc, Exception) else None
             self.abort()
@@ -138,6 +228,8 @@ class UsdWriter:
                 except AttributeError:
                     pass
             remove_temporary(self._tmp)
+            if self._package:
+                remove_temporary(self._package)
         self._closed = True
 
     def __enter__(self):
