@@ -60,11 +60,20 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of a scenario run (shared by ``warpcloth run`` and ``python -m warpcloth.scenarios.X``)."""
     add_model_arguments(p)
     p.add_argument("--dt", type=float, default=None, help="time step [s] (default: the integrator's own, stable on the scenario)")
-    p.add_argument("--duration", type=float, default=None, help="simulated time [s] (default 10)")
-    p.add_argument("--num-frames", type=int, default=None, help="run this many frames instead of --duration")
+    length = p.add_mutually_exclusive_group()
+    length.add_argument("--duration", type=float, default=None, help="simulated time [s] (default 10)")
+    length.add_argument("--num-frames", type=int, default=None, help="run this many frames instead of --duration")
     p.add_argument("--fps", type=float, default=None, help="frame rate of sampling and USD export [1/s] (default 60)")
-    p.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH", help="write the animation to this USD file (.usd/.usda/.usdc)")
+    out = p.add_argument_group("outputs")
+    out.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH",
+                     help="write the animation to this USD file (.usd/.usda/.usdc, or .usdz: a package)")
+    out.add_argument("--usd-color", choices=["none", "strain"], default="none",
+                     help="strain: a per-frame primvars:displayColor of spring strain, blue 0 to red 10%% (default none)")
+    out.add_argument("--html", default=None, metavar="PATH", help="write a self-contained HTML player of the animation (WebGL, no network)")
+    out.add_argument("--preview", default=None, metavar="PATH",
+                     help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs warpcloth[plot]")
     p.add_argument("--wall-cap", type=float, default=None, help="stop after this many wall-clock seconds")
+    p.add_argument("--fail-unstable", action="store_true", help="exit with status 3 when the run goes unstable")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
 
 
@@ -195,27 +204,74 @@ class _DefaultDtExplained:
             "(the stability estimate under- or overflows at these values); use values nearer the defaults, or give --dt") from None
 
 
-def _run(scenario_name: str, args) -> int:
+#: Exit status of ``run --fail-unstable`` when the run went unstable.
+EXIT_UNSTABLE = 3
+
+
+def _output_writers(scenario_name: str, args) -> list:
+    """Check every output path of a run (before any work) and return the writer factories
+    ``(sim, cfg) -> writer`` that :meth:`Scenario.run` calls once the model is built."""
     from .fileio import sweep_stale_temporaries
+    from .provenance import provenance
+
+    argv = getattr(args, "argv", None)
+    paths, writers = [], []
+
+    def info(sim, cfg):
+        return provenance(sim, scenario_name, cfg.fps, argv)
+
+    if getattr(args, "preview", None):
+        from .preview import check_preview_path
+
+        check_preview_path(args.preview)  # also: matplotlib installed
+        paths.append(args.preview)
+    if args.usd:
+        from .usd import UsdWriter, check_usd_path
+
+        check_usd_path(args.usd)  # before any work: a path that cannot be written fails now
+        paths.append(args.usd)
+        color = getattr(args, "usd_color", "none")
+        writers.append(lambda sim, cfg: UsdWriter(args.usd, sim.model, cfg.fps, provenance=info(sim, cfg), color=color))
+    if getattr(args, "html", None):
+        from .player import HtmlWriter, check_html_path
+
+        check_html_path(args.html)
+        paths.append(args.html)
+        writers.append(lambda sim, cfg: HtmlWriter(args.html, sim.model, cfg.fps, title=f"warpcloth {scenario_name}: {sim.integrator.name}, "
+                                                   f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s", info=info(sim, cfg)))
+    if getattr(args, "preview", None):
+        from .preview import PreviewWriter
+
+        writers.append(lambda sim, cfg: PreviewWriter(args.preview, sim.model, cfg.fps, title=f"{scenario_name}, {sim.integrator.name}"))
+    if len({os.path.abspath(p) for p in paths}) < len(paths):
+        raise WarpclothError("two outputs name the same file: " + ", ".join(paths))
+    for folder in sorted({os.path.dirname(os.path.abspath(p)) for p in paths}):
+        sweep_stale_temporaries(folder, sys.stderr)
+    return writers
+
+
+def _run(scenario_name: str, args) -> int:
     from .scenarios import get_scenario
 
     scenario = get_scenario(scenario_name)
     cfg = config_from_args(scenario, args)
     _check_spacing(scenario, cfg)
-    if args.usd:
-        from .usd import check_usd_path
-
-        check_usd_path(args.usd)  # before any work: a path that cannot be written fails now
-        sweep_stale_temporaries(os.path.dirname(os.path.abspath(args.usd)), sys.stderr)
+    writers = _output_writers(scenario_name, args)
     with _DefaultDtExplained(args):
-        result = scenario.run(cfg, usd_path=args.usd, wall_cap=args.wall_cap)
+        result = scenario.run(cfg, wall_cap=args.wall_cap, writers=writers)
+    quiet = getattr(args, "quiet", False)
     if args.json:
         print(result.to_json())
-    else:
+    elif not quiet:
         print(summary(result))
-        if args.usd:
-            written = result.frames + (1 if result.stable else 0)  # the first frame, not the unstable last one
-            print(f"  wrote {args.usd} ({written} frames, export {result.export_time:.2f} s)")
+        written = result.frames + (1 if result.stable else 0)  # the first frame, not the unstable last one
+        for path in (args.usd, getattr(args, "html", None), getattr(args, "preview", None)):
+            if path:
+                print(f"  wrote {path} ({os.path.getsize(path):,} bytes, {written} frames)")
+    if getattr(args, "fail_unstable", False) and not result.stable:
+        if not args.json:
+            print(f"warpcloth: the run went unstable ({result.unstable_reason}); exit {EXIT_UNSTABLE}", file=sys.stderr)
+        return EXIT_UNSTABLE
     return 0
 
 
@@ -279,8 +335,10 @@ def _max_dt(args) -> int:
     return 0
 
 
-def _add_verbose(p: argparse.ArgumentParser) -> None:
+def _add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
     p.add_argument("--verbose", action="store_true", help="show Warp's start-up and module-load messages on stderr")
+    if quiet:
+        p.add_argument("--quiet", "-q", action="store_true", help="print nothing on success (no summary, no progress); errors still print")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -309,7 +367,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--max-runs", type=int, default=DEFAULT_MAX_RUNS, metavar="N",
                        help=f"refuse a test list that expands to more than N runs (default {DEFAULT_MAX_RUNS})")
     sweep.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
-    _add_verbose(sweep)
+    _add_verbose(sweep, quiet=False)
     max_dt = sub.add_parser("max-dt", help="find the largest stable time step of an integrator on a scenario")
     _add_max_dt_arguments(max_dt)
     _add_verbose(max_dt)
@@ -335,6 +393,7 @@ def _dispatch(args) -> int:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
     hint = ""
     if args.command == "sweep" and args.out != "-":
         hint = f"; finished runs are in {args.out}, continue with --resume"
