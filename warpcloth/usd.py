@@ -151,7 +151,7 @@ class UsdWriter:
         when a step is longer than a frame."""
         Vt, Gf = self._Vt, self._Gf
         code = float(round(sim_time * self.fps)) if sim_time is not None else float(self.last_code + 1)
-        self.last_code = code
+        self._prev_code, self.last_code = self.last_code, code
         p = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
         self.points_attr.Set(Vt.Vec3fArray.FromNumpy(p), code)
         lo, hi = p.min(axis=0), p.max(axis=0)
@@ -184,9 +184,10 @@ class UsdWriter:
             return
         if not self._pins_moving:
             self._pins_moving = True
-            first = self._pins_first
-            self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(first), self._pins_first_code)
-            self.pins_extent_attr.Set(self._pin_extent(first), self._pins_first_code)
+            first = self._pins_first  # held from the first frame to the frame before this one
+            for held in sorted({self._pins_first_code, self._prev_code}):
+                self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(first), held)
+                self.pins_extent_attr.Set(self._pin_extent(first), held)
         self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(pins), code)
         self.pins_extent_attr.Set(self._pin_extent(pins), code)
 
