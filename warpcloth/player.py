@@ -9,7 +9,8 @@ computes normals and, on request, spring strain per frame), the pinned particles
 colliders (empty: warpcloth has none yet; the player's ``drawColliders`` is the hook).
 
 Open ``out.html#t=0.5`` to seek to t = 0.5 s and pause; ``#t=0.5&strain=1`` also colours the
-cloth by strain (the legend's scale is the run's largest strain, rounded up).
+cloth by strain (the legend runs from 0 to the 99th percentile of the vertices' strain in the
+frame where that is largest, rounded up; the run's largest strain is printed under it).
 """
 
 from __future__ import annotations
@@ -28,6 +29,9 @@ from .frames import nice_scale, spring_arrays, vertex_strain
 HTML_EXTENSIONS = (".html", ".htm")
 #: Where the page template lives (package data).
 TEMPLATE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "player.html")
+#: The legend's end is this percentile of the vertices' strain in the frame where it is largest
+#: (rounded up to 1, 2, 2.5 or 5 x 10^k); strain above it is red.
+STRAIN_PERCENTILE = 99.0
 #: Bytes of float32 positions held in memory before the run is refused (about 2 GB).
 MAX_BUFFER_BYTES = 2 * 1024**3
 
@@ -75,6 +79,7 @@ class HtmlWriter:
         self.frames: list[np.ndarray] = []
         self.times: list[float] = []
         self.max_strain = 0.0
+        self.strain_p99 = 0.0
         self._closed = False
 
     def write_frame(self, points: np.ndarray, sim_time: float | None = None) -> None:
@@ -87,7 +92,10 @@ class HtmlWriter:
             return  # an unstable frame has nothing to show
         self.frames.append(p)
         self.times.append(t)
-        self.max_strain = max(self.max_strain, float(vertex_strain(p, self.pairs, self.rest).max(initial=0.0)))
+        strain = vertex_strain(p, self.pairs, self.rest)
+        self.max_strain = max(self.max_strain, float(strain.max(initial=0.0)))
+        if strain.size:  # the legend's scale: most of the cloth, not the few vertices at a pin
+            self.strain_p99 = max(self.strain_p99, float(np.percentile(strain, STRAIN_PERCENTILE)))
 
     def document(self) -> str:
         """The page as text."""
@@ -110,7 +118,8 @@ class HtmlWriter:
             "rest": _b64(self.rest.astype("<f4")),
             "pins": self.pins,
             "colliders": [],
-            "strainScale": nice_scale(self.max_strain),
+            "strainScale": nice_scale(self.strain_p99),
+            "maxStrain": self.max_strain,
             "info": self.info,
         }
         text = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")  # never closes the script element

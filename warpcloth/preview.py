@@ -107,7 +107,9 @@ class PreviewWriter:
         shade = 0.25 + 0.75 * np.abs(n @ light)  # two-sided
         base = np.array([0.80, 0.70, 0.55])
         poly.set_verts(tri)
-        poly.set_facecolor(np.clip(shade[:, None] * base, 0, 1))
+        rgb = np.clip(shade[:, None] * base, 0, 1)
+        poly.set_facecolor(rgb)
+        poly.set_edgecolor(rgb)  # no seams between the triangles
         if self.pins.size:
             q = p[self.pins]
             pins._offsets3d = (q[:, 0], q[:, 1], q[:, 2])
