@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 
@@ -217,8 +218,10 @@ def _output_writers(scenario_name: str, args) -> list:
     argv = getattr(args, "argv", None)
     paths, writers = [], []
 
+    prefix = getattr(args, "command_prefix", ("warpcloth",))
+
     def info(sim, cfg):
-        return provenance(sim, scenario_name, cfg.fps, argv)
+        return provenance(sim, scenario_name, cfg.fps, argv, prefix=prefix)
 
     if getattr(args, "preview", None):
         from .preview import check_preview_path
@@ -257,6 +260,10 @@ def _run(scenario_name: str, args) -> int:
     cfg = config_from_args(scenario, args)
     _check_spacing(scenario, cfg)
     writers = _output_writers(scenario_name, args)
+    if not getattr(args, "quiet", False):
+        from .progress import RunProgress
+
+        writers.insert(0, lambda sim, cfg: RunProgress(cfg.duration, label=f"run {scenario_name}"))
     with _DefaultDtExplained(args):
         result = scenario.run(cfg, wall_cap=args.wall_cap, writers=writers)
     quiet = getattr(args, "quiet", False)
@@ -275,10 +282,35 @@ def _run(scenario_name: str, args) -> int:
     return 0
 
 
+def examples_dir() -> str:
+    """The folder of the XML test lists shipped in the package (``warpcloth.examples``)."""
+    from . import examples
+
+    return os.path.dirname(os.path.abspath(examples.__file__))
+
+
+def example_names() -> list[str]:
+    return sorted(os.path.splitext(n)[0] for n in os.listdir(examples_dir()) if n.endswith(".xml"))
+
+
+def example_path(name: str) -> str:
+    names = example_names()
+    if name not in names:
+        raise WarpclothError(f"no example test list {name!r}; the examples are {', '.join(names)} ('warpcloth list --examples')")
+    return os.path.join(examples_dir(), name + ".xml")
+
+
 def _list(args) -> int:
     from .integrators import integrator_class, integrator_names
     from .scenarios import get_scenario, scenario_names
 
+    if getattr(args, "examples", False):
+        if not args.quiet:
+            for name in example_names():
+                print(f"{name:12s} {example_path(name)}")
+        return 0
+    if args.quiet:
+        return 0
     print("scenarios:")
     for name in scenario_names():
         print(f"  {name:16s} {get_scenario(name).description}")
@@ -292,10 +324,13 @@ def _list(args) -> int:
 def _sweep(args) -> int:
     from .sweep import run_sweep
 
-    summary = run_sweep(args.tests, args.out, resume=args.resume, overwrite=args.overwrite,
+    if (args.tests is None) == (args.example is None):
+        raise WarpclothError("give a test list (TESTS.xml) or --example NAME, not " + ("both" if args.tests else "neither"))
+    tests = args.tests if args.tests is not None else example_path(args.example)
+    summary = run_sweep(tests, args.out, resume=args.resume, overwrite=args.overwrite,
                         progress=None if args.quiet else sys.stderr, max_runs=args.max_runs, report=sys.stderr)
     line = f"{args.out if args.out != '-' else 'stdout'}: {summary.describe()}"
-    print(line, file=sys.stderr if args.out == "-" else sys.stdout)
+    print(line, file=sys.stderr if args.out == "-" else sys.stdout)  # the result's summary, also with --quiet
     return 1 if summary.outcomes.get("error") else 0
 
 
@@ -324,14 +359,37 @@ def _max_dt(args) -> int:
     scenario = get_scenario(args.scenario)
     cfg = config_from_args(scenario, args)
     _check_spacing(scenario, cfg)
+    from .progress import Progress
+
+    progress = Progress(f"max-dt {args.scenario} {cfg.integrator}", enabled=not args.quiet)
+    trials = []
+
+    def on_trial(trial):
+        trials.append(trial)
+        stable = [t.dt for t in trials if t.stable]
+        unstable = [t.dt for t in trials if not t.stable]
+        total = None
+        if stable and unstable and min(unstable) > max(stable):  # bisection: the trials left are known
+            ratio = math.log(min(unstable) / max(stable))
+            left = max(0, math.ceil(math.log2(max(ratio / math.log1p(args.precision), 1.0))))
+            total = len(trials) + left
+        note = f"trial {len(trials)}: dt={trial.dt:.4g} s {'stable' if trial.stable else 'unstable'}"
+        progress.update(len(trials), total, note=note, unit=" trials")
+
     with _DefaultDtExplained(args):
+        try:
             result = find_max_dt(
-            scenario, cfg, precision=args.precision, duration=args.duration,
-            dt_min=DEFAULT_DT_MIN if args.dt_min is None else args.dt_min,
-            dt_max=DEFAULT_DT_MAX if args.dt_max is None else args.dt_max,
-            start=args.start, wall_cap=args.wall_cap,
-        )
-    print(json.dumps(result.to_dict()) if args.json else format_result(result))
+                scenario, cfg, precision=args.precision, duration=args.duration,
+                dt_min=DEFAULT_DT_MIN if args.dt_min is None else args.dt_min,
+                dt_max=DEFAULT_DT_MAX if args.dt_max is None else args.dt_max,
+                start=args.start, wall_cap=args.wall_cap, on_trial=on_trial,
+            )
+        finally:
+            progress.close()
+    if args.json:
+        print(json.dumps(result.to_dict()))
+    elif not args.quiet:
+        print(format_result(result))
     return 0
 
 
@@ -352,21 +410,24 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenario", help="scenario name (see 'warpcloth list')")
     add_run_arguments(run)
     _add_verbose(run)
-    _add_verbose(sub.add_parser("list", help="list scenarios and integrators"))
+    listing = sub.add_parser("list", help="list scenarios and integrators (--examples: the shipped XML test lists)")
+    listing.add_argument("--examples", action="store_true", help="list the example test lists shipped with warpcloth and their paths")
+    _add_verbose(listing)
     bench = sub.add_parser("bench", help="benchmark integrators x sizes x devices on the sheet (bench/devices.py)")
     from . import bench as bench_module
 
     bench_module.add_arguments(bench)
     _add_verbose(bench)
     sweep = sub.add_parser("sweep", help="run an XML test list, one CSV row per run (docs/sweep.md)")
-    sweep.add_argument("tests", metavar="TESTS.xml", help="the test list")
+    sweep.add_argument("tests", metavar="TESTS.xml", nargs="?", default=None, help="the test list")
+    sweep.add_argument("--example", default=None, metavar="NAME", help="run a test list shipped with warpcloth (quick, seed_plan; see 'list --examples')")
     sweep.add_argument("--out", "-o", required=True, metavar="RESULTS.csv", help="results file ('-' for stdout)")
     mode = sweep.add_mutually_exclusive_group()
     mode.add_argument("--resume", action="store_true", help="continue RESULTS.csv: skip runs already in it")
     mode.add_argument("--overwrite", action="store_true", help="replace RESULTS.csv if it exists")
     sweep.add_argument("--max-runs", type=int, default=DEFAULT_MAX_RUNS, metavar="N",
                        help=f"refuse a test list that expands to more than N runs (default {DEFAULT_MAX_RUNS})")
-    sweep.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
+    sweep.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr (the closing summary line still prints)")
     _add_verbose(sweep, quiet=False)
     max_dt = sub.add_parser("max-dt", help="find the largest stable time step of an integrator on a scenario")
     _add_max_dt_arguments(max_dt)
@@ -406,6 +467,8 @@ def scenario_main(name: str, argv=None) -> None:
     add_run_arguments(parser)
     _add_verbose(parser)
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
+    args.command_prefix = ("python", "-m", f"warpcloth.scenarios.{name}")
     sys.exit(guarded(args, lambda: _run(name, args)))
 
 

@@ -10,13 +10,13 @@ import shlex
 import sys
 
 
-def command_line(argv=None) -> str:
+def command_line(argv=None, prefix=("warpcloth",)) -> str:
     """The command as typed (``warpcloth run ...``), quoted for a shell."""
     args = list(sys.argv[1:] if argv is None else argv)
-    return shlex.join(["warpcloth", *args])
+    return shlex.join([*prefix, *args])
 
 
-def provenance(sim, scenario: str, fps: float, argv=None, extra: dict | None = None) -> dict:
+def provenance(sim, scenario: str, fps: float, argv=None, extra: dict | None = None, prefix=("warpcloth",)) -> dict:
     """A JSON-able dict about the run of ``sim`` (a :class:`~warpcloth.simulator.Simulator`)."""
     import warp as wp
 
@@ -43,7 +43,7 @@ def provenance(sim, scenario: str, fps: float, argv=None, extra: dict | None = N
         "strain_limit": None if sim.strain_limiter is None else float(sim.strain_limiter.tau),
         "device": str(m.device),
         "date": datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat(),
-        "command_line": command_line(argv),
+        "command_line": command_line(argv, prefix),
     }
     if extra:
         info.update(extra)
