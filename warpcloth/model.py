@@ -97,8 +97,6 @@ class ClothModel:
     spring_params: dict[SpringType, SpringParams]
     bend: BendModel = BendModel.PROVOT
     host: dict = field(default_factory=dict, repr=False)
-    #: Bumped whenever parameters change in place (:meth:`with_spring_params`): caches compare it.
-    version: int = 0
 
     @property
     def particle_count(self) -> int:
@@ -144,15 +142,17 @@ class ClothModel:
 
         return State.from_model(self)
 
-    def with_spring_params(self, params: dict[SpringType, SpringParams]) -> None:
-        """Refill per-spring stiffness and damping from per-type parameters (same topology)."""
+    def with_spring_params(self, params: dict[SpringType, SpringParams]) -> "ClothModel":
+        """A new model with per-spring stiffness and damping from per-type ``params`` (the same
+        topology, masses and pins, shared); this model is left unchanged. A
+        :class:`~warpcloth.simulator.Simulator` switches with :meth:`~warpcloth.simulator.Simulator.set_model`."""
+        from dataclasses import replace
+
         _validate_spring_params(params)
         ks = np.array([params[SpringType(t)].stiffness for t in self.spring_type], dtype=np.float32)
         kd = np.array([params[SpringType(t)].damping for t in self.spring_type], dtype=np.float32)
-        self.spring_stiffness.assign(ks)
-        self.spring_damping.assign(kd)
-        self.spring_params = dict(params)
-        self.version += 1
+        with wp.ScopedDevice(self.device):
+            return replace(self, spring_stiffness=wp.array(ks, dtype=float), spring_damping=wp.array(kd, dtype=float), spring_params=dict(params))
 
 
 def _validate_spring_params(params: dict[SpringType, SpringParams]) -> None:

@@ -220,6 +220,26 @@ class Simulator:
         self._warmed = False
         self._step_seconds = None
 
+    def set_model(self, model) -> None:
+        """Continue the current state on ``model`` (the same particles, e.g. from
+        :meth:`~warpcloth.model.ClothModel.with_spring_params`): the integrator, metrics and
+        strain limiter rebind to it (scratch is reallocated; this is not a step)."""
+        if not isinstance(model, ClothModel):
+            raise WarpclothError(f"model must be a ClothModel, got {model!r:.80}")
+        if model.particle_count != self.model.particle_count or str(model.device) != str(self.model.device):
+            raise WarpclothError(
+                f"set_model needs the same particles on the same device ({self.model.particle_count} on {self.model.device}), "
+                f"got {model.particle_count} on {model.device}"
+            )
+        self.model = model
+        self.probe = MetricsProbe(model, self.control)
+        if self.strain_limiter is not None:
+            self.strain_limiter = StrainLimiter(model, self.strain_limiter.tau)
+        self.integrator.bind(model)
+        self._needs_begin = True
+        self._graphs.clear()
+        self._warmed = False
+
     def set_dt(self, dt: float) -> None:
         dt = require_positive("dt", dt, "s")
         self._rebase_clock()
@@ -284,7 +304,7 @@ class Simulator:
         """Every host value a captured frame bakes in besides dt and the integrator (those clear
         the cache): a change to any of them captures a new graph."""
         c = self.control
-        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, self.model.version,
+        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule,
                 tuple(sorted((k, repr(v)) for k, v in self.integrator.option_values().items())))
 
     def _begin(self) -> None:

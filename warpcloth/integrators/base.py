@@ -145,10 +145,6 @@ class Integrator:
         """Why no time step is stable for this scheme on ``model``, or None when some is."""
         return None
 
-    def _require_bound(self):
-        if self.model is None:
-            raise WarpclothError(f"integrator {self.name!r} is not bound to a model: call bind(model) first")
-
 
 def explicit_euler_dt_bound(model) -> float:
     """The seed's explicit-Euler stability estimate 0.4 pi sqrt(m/K) [s] (Vassilev et al. 2001),

@@ -170,11 +170,11 @@ class ImplicitEuler(Integrator):
         m = self.model
         if self.jacobian == "full":
             wp.launch(ik.eval_spring_jacobians, dim=m.spring_count, inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
-        elif self._assembled_for == (h, drag, m.version):
+        elif self._assembled_for == (h, drag):
             return
         else:
             wp.launch(ik.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
-            self._assembled_for = (h, drag, m.version)
+            self._assembled_for = (h, drag)
         if self.matrix == "bsr":
             wp.launch(
                 ik.assemble_system_rows, dim=m.particle_count,
