@@ -66,6 +66,22 @@ def test_page_is_self_contained(flag_page):
     path = flag_page[0]
     page = path.read_text(encoding="utf-8")
     assert page.startswith("<!DOCTYPE html>")
+    from html.parser import HTMLParser
+
+    class Tags(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.tags, self.open = [], []
+
+        def handle_starttag(self, tag, attrs):
+            self.tags.append((tag, dict(attrs)))
+
+    parser = Tags()
+    parser.feed(page)
+    parser.close()
+    names = [t for t, _ in parser.tags]
+    assert names.count("canvas") == 1 and names.count("script") == 2 and ("link" not in names) and ("img" not in names)
+    assert all("src" not in attrs for tag, attrs in parser.tags if tag == "script")  # inline scripts only
     assert "http://" not in page and "https://" not in page
     assert not re.search(r"""(src|href)\s*=\s*["']?(//|[a-z]+:)""", page, re.I), "an external resource"
     assert not re.search(r"@import|url\(", page), "a stylesheet that fetches"
@@ -169,37 +185,62 @@ def read_png(path) -> np.ndarray:
     return out.reshape(h, w, c)[:, :, :3].astype(np.uint8)
 
 
-def _screenshot(browser, url, out, tmp_path):
-    cmd = [browser, "--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-           "--hide-scrollbars", "--window-size=640,480", "--virtual-time-budget=4000", f"--user-data-dir={tmp_path / 'profile'}",
-           f"--screenshot={out}", url]
-    subprocess.run(cmd, capture_output=True, timeout=120)
-    assert os.path.exists(out), "Chromium wrote no screenshot"
-    return read_png(out)
+CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                  "--hide-scrollbars", "--window-size=640,480", "--virtual-time-budget=4000"]
+
+
+def _chromium_run(browser, args, tmp_path, tag):
+    p = subprocess.run([browser, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / ('profile-' + tag)}", *args],
+                       capture_output=True, text=True, timeout=180)
+    return p.stdout, p.stderr[-600:]
+
+
+def _dom(browser, url, tmp_path, tries=2):
+    """The DOM after the page ran (one retry: a headless browser on a loaded machine may stop early)."""
+    for k in range(tries):
+        dom, err = _chromium_run(browser, ["--dump-dom", url], tmp_path, f"dom{k}")
+        if "data-frame=" in dom:
+            break
+    return dom, err
+
+
+def _screenshot(browser, url, out, tmp_path, ok=lambda img: True, tries=2):
+    """A screenshot as an array; taken again once if ``ok`` says it is not what a drawn page shows."""
+    img, err = None, ""
+    for k in range(tries):
+        if os.path.exists(out):
+            os.unlink(out)
+        _, err = _chromium_run(browser, [f"--screenshot={out}", url], tmp_path, f"{os.path.basename(out)}{k}")
+        if os.path.exists(out):
+            img = read_png(out)
+            if ok(img):
+                break
+    assert img is not None, f"Chromium wrote no screenshot: {err}"
+    return img
 
 
 @pytest.mark.skipif(_chromium() is None, reason="no Chromium installed (apt-get install chromium)")
 def test_chromium_draws_the_canvas_and_it_moves(flag_page, tmp_path):
     browser = _chromium()
     url = flag_page[0].resolve().as_uri()
-    dom = subprocess.run([browser, "--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
-                          "--enable-unsafe-swiftshader", "--virtual-time-budget=4000", f"--user-data-dir={tmp_path / 'dom'}",
-                          "--dump-dom", url + "#t=0.25"], capture_output=True, text=True, timeout=120).stdout
-    assert 'data-frame="15"' in dom and "data-error" not in dom, dom[-400:]
-    first = _screenshot(browser, url + "#t=0", tmp_path / "t0.png", tmp_path)
-    last = _screenshot(browser, url + "#t=0.5", tmp_path / "t1.png", tmp_path)
-    strain = _screenshot(browser, url + "#t=0.5&strain=1", tmp_path / "t2.png", tmp_path)
-    h = first.shape[0]
+    dom, err = _dom(browser, url + "#t=0.25", tmp_path)
+    assert 'data-frame="15"' in dom and "data-error" not in dom, (dom[-400:], err)
 
     def view(img):  # the canvas between the labels and the bar
-        return img[60:h - 60].astype(int)
+        return img[60:img.shape[0] - 60].astype(int)
 
     def cloth(img):  # the cloth's warm beige, not the blue-grey background, floor grid or labels
         v = view(img)
         return (v[:, :, 0] - v[:, :, 2]) > 12
 
+    def drawn(img):
+        return cloth(img).mean() > 0.02
+
+    first = _screenshot(browser, url + "#t=0", tmp_path / "t0.png", tmp_path, drawn)
+    last = _screenshot(browser, url + "#t=0.5", tmp_path / "t1.png", tmp_path, drawn)
+    strain = _screenshot(browser, url + "#t=0.5&strain=1", tmp_path / "t2.png", tmp_path, lambda img: not drawn(img))
     for img in (first, last):
-        assert cloth(img).mean() > 0.02, "the cloth is not drawn"
+        assert drawn(img), f"the cloth is not drawn ({100 * cloth(img).mean():.2f} % of the canvas)"
     changed = np.abs(view(first) - view(last)).sum(axis=2) > 30
     assert changed.mean() > 0.01, "the picture did not change between t=0 and t=0.5"
     v = view(strain)
