@@ -246,3 +246,11 @@ def test_chromium_draws_the_canvas_and_it_moves(flag_page, tmp_path):
     v = view(strain)
     blue = (v[:, :, 2] - v[:, :, 0]) > 60  # the ramp's blue end (low strain) where the cloth was beige
     assert (blue & cloth(last)).sum() > 0.5 * cloth(last).sum(), "strain colours not shown"
+
+
+def test_too_many_frames_refused_before_the_run(capsys, tmp_path):
+    # 512 x 512 particles x 60 fps x 200 s = 12,001 frames x 3 MiB: far past the 2 GiB the player may hold
+    code, out, err = _run(capsys, "run", "flag", "--rows", "512", "--cols", "512", "--duration", "200", "--dt", "1e-3",
+                          "--html", str(tmp_path / "big.html"))
+    assert code == 2 and "would hold 12001 frames" in err and err.count("\n") == 1 and out == ""
+    assert os.listdir(tmp_path) == []

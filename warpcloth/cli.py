@@ -220,6 +220,9 @@ def _output_writers(scenario_name: str, args) -> list:
 
     prefix = getattr(args, "command_prefix", ("warpcloth",))
 
+    def frames(cfg):  # frames a run of cfg writes at most (the first one too)
+        return math.ceil(cfg.duration * cfg.fps - 1e-9) + 1
+
     def info(sim, cfg):
         return provenance(sim, scenario_name, cfg.fps, argv, prefix=prefix)
 
@@ -241,11 +244,13 @@ def _output_writers(scenario_name: str, args) -> list:
         check_html_path(args.html)
         paths.append(args.html)
         writers.append(lambda sim, cfg: HtmlWriter(args.html, sim.model, cfg.fps, title=f"warpcloth {scenario_name}: {sim.integrator.name}, "
-                                                   f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s", info=info(sim, cfg)))
+                                                   f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s", info=info(sim, cfg),
+                                                   expected_frames=frames(cfg)))
     if getattr(args, "preview", None):
         from .preview import PreviewWriter
 
-        writers.append(lambda sim, cfg: PreviewWriter(args.preview, sim.model, cfg.fps, title=f"{scenario_name}, {sim.integrator.name}"))
+        writers.append(lambda sim, cfg: PreviewWriter(args.preview, sim.model, cfg.fps, title=f"{scenario_name}, {sim.integrator.name}",
+                                                      expected_frames=frames(cfg)))
     if len({os.path.abspath(p) for p in paths}) < len(paths):
         raise WarpclothError("two outputs name the same file: " + ", ".join(paths))
     for folder in sorted({os.path.dirname(os.path.abspath(p)) for p in paths}):

@@ -36,6 +36,16 @@ STRAIN_PERCENTILE = 99.0
 MAX_BUFFER_BYTES = 2 * 1024**3
 
 
+def check_frame_memory(model, frames: int | None, what: str) -> None:
+    """Refuse, before the run, a writer that would hold more than :data:`MAX_BUFFER_BYTES` of frames."""
+    if frames is None:
+        return
+    need = int(frames) * int(model.particle_count) * 12
+    if need > MAX_BUFFER_BYTES:
+        raise WarpclothError(f"{what} would hold {frames} frames of {model.particle_count} particles, {need / 2**30:.1f} GiB "
+                             f"(at most {MAX_BUFFER_BYTES / 2**30:.0f} GiB); use fewer frames (--fps, --duration) or a smaller cloth")
+
+
 def check_html_path(path: str) -> str:
     """Validate an HTML output path before a run (see :func:`~warpcloth.fileio.check_output_path`)."""
     return check_output_path(path, "HTML", extensions=HTML_EXTENSIONS)
@@ -67,8 +77,10 @@ class HtmlWriter:
         info: extra JSON-able facts stored in the page (provenance).
     """
 
-    def __init__(self, path: str, model, fps: float = 60.0, title: str = "warpcloth", info: dict | None = None):
+    def __init__(self, path: str, model, fps: float = 60.0, title: str = "warpcloth", info: dict | None = None,
+                 expected_frames: int | None = None):
         self.path = check_html_path(path)
+        check_frame_memory(model, expected_frames, "the HTML player")
         self.fps = float(fps)
         self.title = str(title)
         self.info = dict(info or {})

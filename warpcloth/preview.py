@@ -47,9 +47,13 @@ def gif_stride(frames: int, max_frames: int = MAX_GIF_FRAMES) -> int:
 class PreviewWriter:
     """Collects frames; on :meth:`close` draws the PNG (last frame) or GIF (every k-th)."""
 
-    def __init__(self, path: str, model, fps: float = 60.0, title: str = ""):
+    def __init__(self, path: str, model, fps: float = 60.0, title: str = "", expected_frames: int | None = None):
         self.path = check_preview_path(path)
         self.gif = os.path.splitext(self.path)[1].lower() == ".gif"
+        if self.gif:
+            from .player import check_frame_memory
+
+            check_frame_memory(model, expected_frames, "the GIF preview")
         self.fps = float(fps)
         self.title = title
         self.tris = np.asarray(model.host["tris"], dtype=np.int64).reshape(-1, 3)
