@@ -13,7 +13,7 @@ import numpy as np
 import warp as wp
 
 from .device import resolve_device
-from .errors import WarpclothError, require, require_non_negative
+from .errors import WarpclothError, require, require_non_negative, require_vector
 from warpcloth.kernels import forces as fk
 
 GRAVITY = (0.0, -9.81, 0.0)
@@ -80,7 +80,7 @@ class Control:
     def __post_init__(self):
         require_non_negative("drag", self.drag_rate, "1/s")
         require_non_negative("wind coefficient", self.wind_coefficient, "kg/(m^2 s)")
-        require(len(self.gravity) == 3, f"gravity must have 3 components, got {self.gravity!r}")
+        self.gravity = require_vector("gravity", self.gravity, 3, "m/s^2")
         self.device = resolve_device(self.device)
         with wp.ScopedDevice(self.device):
             self.time = wp.zeros(1, dtype=wp.float64)

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 from dataclasses import asdict, dataclass, field
 
 import warp as wp
 
 from . import __version__
-from .errors import WarpclothError, require, require_positive, warn
+from .errors import WarpclothError, require, require_count, require_positive, warn
 from .forces import Control
 from .integrators import Integrator, make_integrator
 from .model import ClothModel
@@ -324,7 +325,8 @@ class Simulator:
 
     def simulate(self, steps: int) -> None:
         """Advance ``steps`` time steps (replaying a captured graph of them where enabled)."""
-        if steps <= 0:
+        steps = require_count("steps", steps)
+        if steps == 0:
             return
         if not self.graph_enabled:
             for _ in range(steps):
@@ -385,6 +387,7 @@ class Simulator:
         wall_cap: float | None = None,
         usd=None,
         warm_up: bool = True,
+        **unknown,
     ) -> RunResult:
         """Run for ``duration`` seconds of simulated time, sampling a frame every 1/fps s.
 
@@ -395,18 +398,38 @@ class Simulator:
             wall_cap: stop after this many wall-clock seconds (None: no cap). It is checked
                 between chunks of about 0.2 s of steps, so it bounds the run's wall time
                 whatever the number of steps per frame.
-            usd: a :class:`~warpcloth.usd.UsdWriter` that receives every frame, or None.
+            usd: a :class:`~warpcloth.usd.UsdWriter` that receives every frame, a path
+                (.usd/.usda/.usdc: a writer is made, checked before the run and closed after),
+                or None.
             warm_up: compile kernels before timing (see :meth:`warm_up`).
 
         A run that goes unstable stops there and is recorded as unstable; it never raises.
         Graph capture time is reported apart (``capture_time``) and excluded from ms/step.
         """
+        if unknown:
+            raise WarpclothError(
+                f"Simulator.run got an unknown keyword {sorted(unknown)[0]!r}; its keywords are duration, fps, "
+                "stop_at_equilibrium, wall_cap, usd, warm_up"
+            )
         duration = require_positive("duration", duration, "s")
         fps = require_positive("fps", fps, "1/s")
         if wall_cap is not None:
             wall_cap = require_positive("wall cap", wall_cap, "s")
         m, dt = self.model, self._dt
         check_run_length(duration, fps, dt)
+        if isinstance(usd, (str, os.PathLike)):
+            from .usd import UsdWriter
+
+            writer = UsdWriter(os.fspath(usd), m, fps)
+            try:
+                result = self.run(duration, fps, stop_at_equilibrium, wall_cap, writer, warm_up)
+            except BaseException:
+                writer.abort()
+                raise
+            writer.close()
+            return result
+        if usd is not None and not callable(getattr(usd, "write_frame", None)):
+            raise WarpclothError(f"usd must be a UsdWriter, a .usd/.usda/.usdc path or None, got {usd!r:.80}")
         result = RunResult(
             scenario=self.scenario, integrator=self.integrator.name, device=str(m.device), rows=m.rows, cols=m.cols,
             particles=m.particle_count, springs=m.spring_count, dt=dt, fps=fps,

@@ -19,8 +19,15 @@ from ..forces import eval_external_forces
 from .base import Integrator, Option, scratch_like
 
 
+#: Most iterations or substeps per step: beyond, one step takes minutes (and a captured frame
+#: holds millions of launches); no run needs it.
+MAX_COUNT = 10_000
+
+
 def _at_least_one(value) -> str | None:
-    return None if value >= 1 else "must be an integer >= 1"
+    if value < 1:
+        return "must be an integer >= 1"
+    return None if value <= MAX_COUNT else f"must be at most {MAX_COUNT} (one step would take minutes)"
 
 
 def _unit_interval(value) -> str | None:
