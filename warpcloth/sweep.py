@@ -560,7 +560,10 @@ class ParallelPlan:
                 if not d.startswith("cuda"):
                     raise WarpclothError(f"--devices: {d!r} is not a CUDA device; --devices lists the GPUs (cuda:0,cuda:1) "
                                          "that the CUDA runs are spread over")
-                name = device_name(d)  # WarpclothError: not present, naming those that are
+                try:
+                    name = device_name(d)
+                except WarpclothError as exc:  # not present: the message names those that are
+                    raise WarpclothError(f"--devices: {exc}") from None
                 if name in names:
                     raise WarpclothError(f"--devices: {d!r} is given twice")
                 names.append(name)

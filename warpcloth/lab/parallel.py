@@ -193,6 +193,8 @@ class LocalPool:
                             attempts[k] = unit.attempts
                         w.conn.send([(j.key, j.payload) for j in unit.jobs])
                         busy += 1
+                if not queue and not any(w.unit is not None for w in self.workers):
+                    raise RuntimeError(f"{remaining} job(s) were neither queued nor running (a bug in the pool)")
                 for w in self.workers:
                     if w.unit is not None and w.pending:
                         concurrent[w.pending[0]] = max(concurrent.get(w.pending[0], 0), busy)
@@ -212,6 +214,11 @@ class LocalPool:
                         continue
                     w = sentinels[ready]
                     w.process.join(timeout=1)
+                    for msg in self._drain(w):  # rows it sent before it died count
+                        done = self._handle(w, msg, by_key, attempts, concurrent, reported)
+                        if done is not None:
+                            remaining -= 1
+                            yield done
                     for done in self._replace(w, queue, by_key, attempts, reported):
                         remaining -= 1
                         yield done
@@ -236,6 +243,16 @@ class LocalPool:
         if kind == "row":
             return Done(by_key[key], msg[2], place, concurrent.get(key, 1), attempts.get(key, 1))
         return Done(by_key[key], None, place, concurrent.get(key, 1), attempts.get(key, 1), error=msg[2])
+
+    @staticmethod
+    def _drain(w: _Worker) -> list:
+        msgs = []
+        try:
+            while w.conn.poll():
+                msgs.append(w.conn.recv())
+        except (EOFError, OSError):
+            pass
+        return msgs
 
     def _replace(self, w: _Worker, queue, by_key, attempts, reported) -> Iterator[Done]:
         code = w.process.exitcode
