@@ -309,3 +309,18 @@ def test_ray_killed_worker_loses_and_duplicates_nothing(serial, ray_cluster, tmp
     assert len(par) == 8 and len({r["key"] for r in par}) == 8  # retried by Ray, written once
     assert same_runs(rows, par)
     assert f"ray:{killed}" not in {r["worker"].split(":gpu")[0] for r in par}
+
+
+def test_a_worker_device_moves_cuda_runs_only_and_keeps_the_key(tmp_path, monkeypatch):
+    from warpcloth.lab.parallel import Place
+
+    path = write(tmp_path, TINY)
+    spec = parse_test_list(path).runs[0]
+    seen = []
+    monkeypatch.setattr(sweep, "execute_run", lambda s, cache: seen.append(s.device) or {"key": s.key, "device": s.device})
+    monkeypatch.setattr(sweep, "_WORKER_CACHE", None)
+    cuda = __import__("dataclasses").replace(spec, device="cuda:0")  # as parsed on a GPU machine
+    row = sweep.parallel_run(cuda, Place("h", "local:2", "cuda:1"))
+    assert seen == ["cuda:1"] and row["device"] == "cuda:1" and row["key"] == cuda.key
+    row = sweep.parallel_run(spec, Place("h", "local:2", "cuda:1"))  # a CPU run stays on the CPU
+    assert seen[-1] == "cpu" and row["key"] == spec.key

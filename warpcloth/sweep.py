@@ -447,7 +447,13 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
         test_list = parse_test_list(tests) if max_runs is None else parse_test_list(tests, max_runs=max_runs)
     report = progress if report is None else report
     plan = ParallelPlan.check(test_list.runs, workers, devices, ray)
-    output = CsvOutput(out, resume=resume, overwrite=overwrite, report=report)
+    pool = plan.pool(max_retries, report)  # Ray: connected here, before the file is touched
+    try:
+        output = CsvOutput(out, resume=resume, overwrite=overwrite, report=report)
+    except BaseException:
+        if pool is not None:
+            pool.close()
+        raise
     todo = [r for r in test_list.runs if r.key not in output.done_keys]
     summary = SweepSummary(total=len(test_list.runs), skipped=len(test_list.runs) - len(todo))
     summary.outcomes = {k: 0 for k in OUTCOMES}
@@ -485,16 +491,10 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
                 row.update(host=host, worker="main", concurrent_runs=1)
                 record(row)
         elif todo:
-            from .lab.parallel import Job, run_jobs
-
-            def on_event(text: str) -> None:
-                if report is not None:
-                    report.write(f"warpcloth: {text}\n")
-                    report.flush()
+            from .lab.parallel import Job
 
             jobs = [Job(spec.key, spec, spec.device, spec.search_key if spec.timestep.uses_max else None) for spec in todo]
-            for done in run_jobs(parallel_run, jobs, workers=plan.workers, devices=plan.devices, ray_address=plan.ray,
-                                 init=parallel_init, max_retries=max_retries, on_event=on_event):
+            for done in pool.run(jobs):
                 spec = done.job.payload
                 row = done.row
                 if row is None:
@@ -508,6 +508,8 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
                 record(row)
     finally:
         bar.close()
+        if pool is not None:
+            pool.close()
         output.close()
         summary.wall_time = time.perf_counter() - t0
     return summary
@@ -532,6 +534,28 @@ class ParallelPlan:
             return f"as Ray tasks ({self.ray})"
         on = f" on {','.join(self.devices)}" if self.devices else ""
         return f"in {self.workers} worker processes{on}"
+
+    def pool(self, max_retries: int = 2, report=None):
+        """The worker pool of a parallel plan (None when serial); a Ray pool is connected, or a
+        WarpclothError says why it could not be."""
+        if not self.parallel:
+            return None
+        from .lab.parallel import LocalPool, RayPool
+
+        def on_event(text: str) -> None:
+            if report is not None:
+                report.write(f"warpcloth: {text}\n")
+                report.flush()
+
+        if self.ray is None:
+            return LocalPool(parallel_run, self.workers, devices=self.devices, init=parallel_init,
+                             max_retries=max_retries, on_event=on_event)
+        pool = RayPool(parallel_run, self.ray, init=parallel_init, max_retries=max_retries, on_event=on_event)
+        try:
+            pool.connect()
+        except ConnectionError as exc:
+            raise WarpclothError(f"--ray {self.ray}: {exc}") from None
+        return pool
 
     @classmethod
     def check(cls, runs, workers=None, devices=None, ray=None) -> "ParallelPlan":

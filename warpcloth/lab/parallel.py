@@ -371,8 +371,7 @@ class RayPool:
             else:
                 ray.init(address=self.address, **kwargs)
         except Exception as exc:  # noqa: BLE001 - Ray's connection errors vary by version
-            raise ConnectionError(f"cannot connect to the Ray cluster at {self.address!r}: "
-                                  f"{' '.join(str(exc).split())[:300]}") from None
+            raise ConnectionError(f"cannot connect to the Ray cluster: {' '.join(str(exc).split())[:300]}") from None
         self.started = True
 
     def _slots(self) -> dict:
@@ -435,7 +434,6 @@ class RayPool:
                     ray.cancel(ref, force=True)
                 except Exception:  # noqa: BLE001
                     pass
-            self.close()
 
     def close(self) -> None:
         if self.started and self.ray.is_initialized():
@@ -452,7 +450,10 @@ def run_jobs(fn: Callable, jobs: Iterable[Job], workers: int = 1, devices: list[
         pool = RayPool(fn, ray_address, init=init, max_retries=max_retries, on_event=on_event)
     else:
         pool = LocalPool(fn, workers, devices=devices, init=init, max_retries=max_retries, on_event=on_event)
-    yield from pool.run(jobs)
+    try:
+        yield from pool.run(jobs)
+    finally:
+        pool.close()
 
 
 __all__ = ["Done", "Job", "LocalPool", "Place", "RAY_INSTALL_HINT", "RayPool", "import_ray", "is_cuda", "run_jobs", "units_of"]
