@@ -30,7 +30,7 @@ from .progress import format_seconds
 from .fileio import AtomicFile, OutputError, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
 
 COLUMNS = [
-    "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt", "steps", "ms_per_step",
+    "scenario", "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt", "steps", "ms_per_step",
     "steps_per_sec", "springs_per_sec", "realtime_factor", "compile_s", "speedup_vs_cpu", "force_evals_per_step",
     "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean", "solver_converged", "solver_capped_steps",
 ]
@@ -93,11 +93,18 @@ def roofline_ms(model, repeats: int = 50) -> float:
     return 1000.0 * float(np.median(times))
 
 
-def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int | None, seconds: float) -> dict:
-    """Time one integrator on a size x size sheet; returns a CSV row (without cross-row columns)."""
+def _build(scenario: str, size: int | None, device: str, **kwargs):
+    """A Simulator of ``scenario``: a size x size grid, or the scenario's own mesh (``size`` None)."""
     from .scenarios import get_scenario
 
-    sim = get_scenario("sheet").build(integrator=integrator, rows=size, cols=size, device=device)
+    grid = {} if size is None else {"rows": size, "cols": size}
+    return get_scenario(scenario).build(device=device, **grid, **kwargs)
+
+
+def bench_one(integrator: str, size: int | None, device: str, graph: bool, steps: int | None, seconds: float, scenario: str = "sheet") -> dict:
+    """Time one integrator on a size x size grid of ``scenario`` (the sheet by default), or on a
+    mesh scenario's own mesh (``size`` None); returns a CSV row (without cross-row columns)."""
+    sim = _build(scenario, size, device, integrator=integrator)
     sim.use_graph = graph
     if graph and not sim.graph_enabled:
         raise WarpclothError(f"graph capture unavailable for {integrator} on {device}")
@@ -124,7 +131,7 @@ def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int |
     iters = next((v for k, v in stats.items() if "iterations" in k and "mean" in k), stats.get("iterations", ""))
     converged, capped, _ = sim.integrator.convergence(stats)
     return {
-        "integrator": integrator, "device": device, "graph": int(graph), "rows": size, "cols": size,
+        "scenario": scenario, "integrator": integrator, "device": device, "graph": int(graph), "rows": m.rows, "cols": m.cols,
         "particles": m.particle_count, "springs": m.spring_count, "dt": sim.dt, "steps": done,
         "ms_per_step": ms, "steps_per_sec": 1000.0 / ms, "springs_per_sec": m.spring_count * 1000.0 / ms,
         "realtime_factor": sim.dt * 1000.0 / ms, "compile_s": compile_s, "speedup_vs_cpu": "",
@@ -211,7 +218,8 @@ def build_parser(prog: str = "bench/devices.py") -> argparse.ArgumentParser:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--integrators", default=None, help="comma-separated names (default: every registered integrator)")
-    p.add_argument("--sizes", default="32,64,128", help="comma-separated sheet sizes N for N x N (default 32,64,128)")
+    p.add_argument("--scenario", default="sheet", help="scenario name or scenario file (.toml) to time (default sheet)")
+    p.add_argument("--sizes", default=None, help="comma-separated grid sizes N for N x N (default 32,64,128; not for mesh scenarios)")
     p.add_argument("--devices", default=None, help="comma-separated Warp devices (default: cpu and every CUDA device present)")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--steps", type=int, default=None, help="steps to time per combination")
@@ -235,7 +243,14 @@ def run(args) -> int:
         require(bool(names), f"--integrators {args.integrators!r} names no integrator; give comma-separated names from {', '.join(integrator_names())}")
     for n in names:
         integrator_class(n)
-    sizes = parse_sizes(args.sizes)
+    from .scenarios import get_scenario
+
+    scenario = get_scenario(args.scenario)  # unknown name or bad file: one line
+    if scenario.model is not None:  # a mesh: its own particles, no grid sizes
+        require(args.sizes is None, f"--sizes does not apply to the mesh scenario {args.scenario!r} (it has its own mesh)")
+        sizes = [None]
+    else:
+        sizes = parse_sizes("32,64,128" if args.sizes is None else args.sizes)
     require(args.steps is None or args.steps >= 1, f"--steps must be >= 1, got {args.steps}")
     require(args.seconds is None or args.seconds > 0, f"--seconds must be > 0, got {args.seconds}")
     wanted = default_devices() if args.devices is None else [s.strip() for s in args.devices.split(",") if s.strip()]
@@ -277,17 +292,15 @@ def run(args) -> int:
     rows, floors = [], {}
     for k, (device, size, name, graph) in enumerate(combos):
         if args.roofline and (device, size) not in floors:
-            from .scenarios import get_scenario
-
-            floors[(device, size)] = roofline_ms(get_scenario("sheet").build(rows=size, cols=size, device=device).model)
-        what = f"{name} {size}x{size} on {device}{' (graph)' if graph else ''}"
+            floors[(device, size)] = roofline_ms(_build(args.scenario, size, device).model)
+        what = f"{name} {args.scenario if size is None else f'{size}x{size}'} on {device}{' (graph)' if graph else ''}"
         if progress.tty:
             progress.update(k, len(combos), note=what, force=True)
         elif not quiet:  # a plain line per combination, with the ETA once one is timed
             eta = progress.eta(k, len(combos))
             more = f" ({k + 1}/{len(combos)}" + (f", ETA {format_seconds(eta)})" if eta is not None else ")")
             print(f"bench: {what} ...{more}", file=sys.stderr, flush=True)
-        row = bench_one(name, size, device, graph, args.steps, args.seconds)
+        row = bench_one(name, size, device, graph, args.steps, args.seconds, scenario=args.scenario)
         if args.roofline:
             floor = floors[(device, size)]
             row["roofline_ms"] = floor
