@@ -20,6 +20,7 @@ import os
 import sys
 
 from .cliparse import EXIT_USAGE, Parser, guarded  # noqa: F401  (EXIT_USAGE: kept importable from cli)
+from .colliders import parse_collider
 from .errors import WarpclothError, require_positive
 
 def _number_list(text: str):
@@ -54,6 +55,9 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--drag", type=float, default=None, help="linear air drag rate [1/s]")
     p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
     p.add_argument("--strain-limit", type=float, default=None, metavar="TAU", help="Provot deformation constraint: cap structural/shear strain at TAU (e.g. 0.1), force-based integrators (default off)")
+    p.add_argument("--collider", action="append", default=None, metavar="KIND:K=V,...",
+                   help="add a collider (repeatable): plane|sphere|capsule|box with settings, vectors as x/y/z, e.g. "
+                        "sphere:center=0/1/0,radius=0.3,thickness=0.005,friction=0.4 (docs/colliders.md)")
     p.add_argument("--instability-strain", type=float, default=None, metavar="STRAIN", help="a spring strained past this (e.g. 0.5 = 50 %%) makes the run unstable (default 0.5)")
     mesh = p.add_argument_group("mesh scenarios (mesh, scenario files)")
     mesh.add_argument("--mesh", default=None, metavar="FILE", help="the cloth's triangle mesh: .obj or .usd/.usda/.usdc/.usdz")
@@ -127,6 +131,7 @@ def config_from_args(scenario, args):
         duration=args.duration, fps=args.fps, stiffness=args.stiffness, damping=args.damping, mass=args.mass,
         drag=args.drag, bend=args.bend, device=args.device, strain_limit=args.strain_limit,
         instability_strain=args.instability_strain,
+        colliders=tuple(parse_collider(c) for c in (getattr(args, "collider", None) or ())) or None,
         integrator_options=integrator_options_from_args(integrator, args),
         mesh=getattr(args, "mesh", None), prim=getattr(args, "prim", None), pin_where=getattr(args, "pin_where", None),
         pin_group=tuple(args.pin_group) if getattr(args, "pin_group", None) else None,
