@@ -85,7 +85,12 @@ def test_search_with_precision_stops_early_but_stays_accurate():
 
 def test_search_reports_nothing_when_the_floor_is_above_the_tolerance():
     found = search_steps_per_frame(lambda k: 0.02 + 1.0 / k, 0.01, k_max=256)
-    assert found.k is None and found.dt() is None and found.k_inaccurate == 256
+    assert found.k is None and found.dt() is None and found.k_inaccurate == 256 and not found.stalled
+    calls = []
+    flat = search_steps_per_frame(lambda k: calls.append(k) or 0.05 * (1 + 0.01 / k), 0.01, k_max=4096)
+    assert flat.k is None and flat.stalled and calls == [1, 2, 4, 8]  # a plateau: gives up after 3 doublings
+    noisy = search_steps_per_frame(lambda k: float("inf") if k < 16 else 0.5 / k, 0.01, precision=0.0)
+    assert noisy.k == 50 and not noisy.stalled  # unstable (inf) trials do not count as a plateau
 
 
 def test_search_treats_nan_as_inaccurate():

@@ -112,25 +112,30 @@ class AccurateSearch:
         trials: (k, e) in the order tried.
         bounded: True when k == k_start was accurate: the max accurate dt is at least the upper
             bound of the search (the max stable dt or one frame), not a found boundary.
+        stalled: True when the bracket gave up because e stopped falling as dt shrank (an error
+            floor above the tolerance: float32 noise, or a scheme whose error is not set by dt).
     """
 
     k: int | None
     k_inaccurate: int | None
     trials: list = field(default_factory=list)
     bounded: bool = False
+    stalled: bool = False
 
     def dt(self, frame_dt: float = FRAME_DT) -> float | None:
         return None if self.k is None else frame_dt / self.k
 
 
 def search_steps_per_frame(error: Callable[[int], float], tolerance: float, k_start: int = 1, k_max: int = 4096,
-                           precision: float = 0.05) -> AccurateSearch:
+                           precision: float = 0.05, stall_doublings: int = 3) -> AccurateSearch:
     """The fewest steps per frame k (the largest dt = frame/k) with ``error(k) <= tolerance``.
 
     Brackets by doubling k from ``k_start`` (the smallest k allowed, e.g. the one of the max
     stable dt) until accurate, then bisects on integers until (k_hi - k_lo) / k_lo <=
     ``precision`` or the two are adjacent. Assumes error(k) decreases monotonically as k grows
-    (dt shrinks); NaN counts as inaccurate.
+    (dt shrinks); NaN counts as inaccurate. The bracket gives up (``stalled``) when
+    ``stall_doublings`` doublings in a row have not lowered the smallest finite e seen by 20 %:
+    e has reached a floor above the tolerance and smaller dts would not help.
     """
     require(tolerance > 0, f"tolerance must be > 0, got {tolerance!r}")
     k_start = max(1, int(k_start))
@@ -147,12 +152,21 @@ def search_steps_per_frame(error: Callable[[int], float], tolerance: float, k_st
     lo = k_start  # inaccurate
     hi = None
     k = k_start
+    best, since = out.trials[-1][1], 0
     while k < k_max:
         k = min(2 * k, k_max)
         if ok(k):
             hi = k
             break
         lo = k
+        e = out.trials[-1][1]
+        if math.isfinite(e) and (not math.isfinite(best) or e < best / 1.2):
+            best, since = e, 0
+        elif math.isfinite(best):
+            since += 1
+            if since >= stall_doublings:
+                out.stalled = True
+                break
     out.k_inaccurate = lo
     if hi is None:
         return out
