@@ -80,14 +80,15 @@ def eval_wind(
 @wp.kernel
 def eval_wind_schedule(
     time: wp.array(dtype=wp.float64),
-    schedule_start: wp.array(dtype=float),
+    schedule_start: wp.array(dtype=wp.float64),
     schedule_wind: wp.array(dtype=wp.vec3),
-    period: float,
+    period: wp.float64,
     wind: wp.array(dtype=wp.vec3),
 ):
-    # W(t) = schedule_wind[k] for the last k with schedule_start[k] <= t (mod period if period > 0)
-    t = float(time[0])
-    if period > 0.0:
+    # W(t) = schedule_wind[k] for the last k with schedule_start[k] <= t (mod period if period > 0);
+    # in float64, as WindSchedule.__call__ on the host: a float32 t switched a step late at exact times
+    t = time[0]
+    if period > wp.float64(0.0):
         t = wp.mod(t, period)
     w = wp.vec3(0.0)
     for k in range(schedule_start.shape[0]):
@@ -97,5 +98,15 @@ def eval_wind_schedule(
 
 
 @wp.kernel
-def advance_time(time: wp.array(dtype=wp.float64), dt: wp.float64):
-    time[0] = time[0] + dt
+def advance_time(time: wp.array(dtype=wp.float64), time_base: wp.array(dtype=wp.float64), clock: wp.array(dtype=wp.int64), dt: wp.float64):
+    # t = t_base + n dt after n steps of dt (not a running sum: n dt lands exactly on switch times)
+    n = clock[0] + wp.int64(1)
+    clock[0] = n
+    time[0] = time_base[0] + wp.float64(n) * dt
+
+
+@wp.kernel
+def rebase_time(time: wp.array(dtype=wp.float64), time_base: wp.array(dtype=wp.float64), clock: wp.array(dtype=wp.int64)):
+    # t_base = t, n = 0 (before stepping with a new dt)
+    time_base[0] = time[0]
+    clock[0] = wp.int64(0)

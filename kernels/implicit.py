@@ -236,8 +236,10 @@ def record_cg_stats(
     tol: float,
     stats: wp.array(dtype=wp.float64),
 ):
-    # stats = [solves, sum iterations, max iterations, sum residual, max residual],
-    # residual = |r| / |b| = tol sqrt(r.r / atol^2) with atol = tol |b|
+    # stats = [solves, sum iterations, max iterations, sum residual, max residual, capped solves],
+    # residual = |r| / |b| = tol sqrt(r.r / atol^2) with atol = tol |b|; a solve is capped when it
+    # ended above its tolerance (CG stops early only when r.r <= atol^2, as warp's cg tests it;
+    # a NaN residual counts as capped)
     it = wp.float64(iterations[0])
     res = wp.float64(tol * wp.sqrt(residual_sq[0] / wp.max(tolerance_sq[0], 1.0e-30)))
     stats[0] = stats[0] + wp.float64(1.0)
@@ -245,3 +247,5 @@ def record_cg_stats(
     stats[2] = wp.max(stats[2], it)
     stats[3] = stats[3] + res
     stats[4] = wp.max(stats[4], res)
+    if not (residual_sq[0] <= tolerance_sq[0]):
+        stats[5] = stats[5] + wp.float64(1.0)

@@ -7,6 +7,7 @@ from typing import Callable
 
 import warp as wp
 
+from ..device import resolve_device
 from ..errors import WarpclothError, require_int, require_positive
 from ..forces import Control
 from ..integrators import make_integrator
@@ -120,20 +121,3 @@ class Scenario:
         if writer is not None:
             writer.close()
         return result
-
-
-def resolve_device(device: str | None) -> str:
-    """A Warp device name (default ``"cpu"``; ``"cuda"`` means the first GPU), with a clear
-    error when it is not present."""
-    if device is None:
-        return "cpu"
-    name = str(device)
-    available = [str(d) for d in wp.get_devices()]
-    if name == "cuda":
-        cuda = [d for d in available if d.startswith("cuda")]
-        if not cuda:
-            raise WarpclothError(f"device {name!r} is not available: no CUDA device found (available: {', '.join(available)})")
-        return cuda[0]
-    if name not in available:
-        raise WarpclothError(f"device {name!r} is not available (available: {', '.join(available)})")
-    return name

@@ -28,6 +28,7 @@ def test_bench_tiny_end_to_end(tmp_path, capsys):
         assert math.isclose(float(r["steps_per_sec"]) * float(r["ms_per_step"]), 1000.0, rel_tol=1e-6)
         assert int(r["force_evals_per_step"]) == {"explicit_euler": 1, "rk4": 4}[r["integrator"]]
         assert r["stable"] == "1"
+        assert r["solver_converged"] == "" and r["solver_capped_steps"] == "0"  # no iterative solver
 
 
 def test_bench_says_cuda_was_skipped(capsys):
@@ -45,3 +46,58 @@ def test_bench_says_cuda_was_skipped(capsys):
 def test_bench_bad_input(capsys, argv, message):
     assert main(argv) == 2
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("cap, converged", [(2, "0"), (1000, "1")])
+def test_bench_records_whether_cg_met_its_tolerance(tmp_path, capsys, monkeypatch, cap, converged):
+    import dataclasses
+
+    from warpcloth.integrators.implicit_euler import ImplicitEuler
+
+    # the bench runs each integrator with its defaults: lower the default CG cap
+    options = tuple(dataclasses.replace(o, default=cap) if o.name == "cg_max_iter" else o for o in ImplicitEuler.options)
+    monkeypatch.setattr(ImplicitEuler, "options", options)
+    out = tmp_path / "bench.csv"
+    assert main(["--sizes", "8", "--steps", "3", "--devices", "cpu", "--integrators", "implicit_euler", "--graph", "off",
+                 "--out", str(out)]) == 0
+    (row,) = list(csv.DictReader(out.open()))
+    assert row["solver_converged"] == converged
+    assert row["solver_capped_steps"] == ("3" if cap == 2 else "0")
+
+
+def _bench_script(name):
+    import importlib.util
+    import pathlib
+    import sys
+
+    folder = pathlib.Path(__file__).resolve().parents[1] / "bench"
+    sys.path.insert(0, str(folder))  # cpu_dot.py imports implicit.py from its folder
+    try:
+        spec = importlib.util.spec_from_file_location(f"bench_{name}", folder / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(folder))
+    return module
+
+
+def test_bench_implicit_repeats_print_medians_and_ratios(capsys):
+    _bench_script("implicit").main(["--sizes", "5", "--steps", "2", "--explicit-steps", "3", "--repeats", "2"])
+    out = capsys.readouterr().out
+    rows = [line.split() for line in out.splitlines() if line.startswith("   5x5") and "ms/step" not in line]
+    assert [r[1] for r in rows] == ["free", "bsr", "free", "bsr"]  # alternating
+    (summary,) = [line for line in out.splitlines() if "bsr/free" in line]
+    assert summary.startswith("   5x5") and "per step" in summary and "per CG iteration" in summary
+
+
+def test_bench_cpu_dot_times_both_reductions_with_the_same_solve(capsys):
+    from warpcloth.integrators.implicit_euler import ImplicitEuler
+
+    _bench_script("cpu_dot").main(["--sizes", "5", "--steps", "2", "--repeats", "2"])
+    assert ImplicitEuler.cpu_single_batch_dot is True  # restored
+    out = capsys.readouterr().out
+    cases = [line.split() for line in out.splitlines() if line.startswith("   5x5") and "ms/step" not in line]
+    assert [c[1] for c in cases] == ["single", "tiled", "single", "tiled"]
+    iterations = {float(c[3]) for c in cases}
+    assert max(iterations) - min(iterations) <= 1.0  # same system, same CG up to rounding
+    assert "tiled/single" in out

@@ -371,3 +371,98 @@ def test_cli_runs_implicit_euler(scenario, capsys):
 def test_cli_rejects_bad_solver_values(capsys):
     assert cli_main(["run", "sheet", "-i", "implicit_euler", "--cg-tol", "-1"]) == 2
     assert "cg_tol" in capsys.readouterr().err
+
+
+# -- convergence: a run that misses its CG tolerance says so (issue 20) -------------------------
+def test_record_cg_stats_kernel_counts_solves_that_end_above_tolerance():
+    """The device-side (CUDA) statistics kernel, launched on the CPU: a solve is capped when
+    r.r > atol^2 (or NaN), not when it meets the tolerance exactly."""
+    stats = wp.zeros(6, dtype=wp.float64)
+    cases = [(2, 4.0, 1.0), (1, 1.0, 1.0), (2, 0.25, 1.0), (2, float("nan"), 1.0), (2, 9.0, 1.0)]
+    for iterations, residual_sq, tolerance_sq in cases:
+        wp.launch(ik.record_cg_stats, dim=1, inputs=[wp.array([iterations], dtype=int), wp.array([residual_sq], dtype=float),
+                                                      wp.array([tolerance_sq], dtype=float), 1e-3], outputs=[stats])
+    s = stats.numpy()
+    assert s[0] == 5 and s[1] == 9 and s[2] == 2
+    assert s[5] == 3  # 4 > 1, NaN, 9 > 1
+
+
+def capped_sheet(cg_max_iter, cg_tol=1e-5, rows=6):
+    return sheet.build(rows=rows, cols=rows, integrator="implicit_euler", dt=1.0 / 60.0,
+                       integrator_options={"cg_tol": cg_tol, "cg_max_iter": cg_max_iter})
+
+
+def test_tiny_iteration_cap_is_reported_not_converged_with_one_warning(capsys):
+    sim = capped_sheet(cg_max_iter=2)
+    result = sim.run(0.2)
+    assert result.steps == 12
+    assert result.solver["cg_iterations_max"] == 2 and result.solver["cg_residual_max"] > 1e-5
+    assert result.solver_converged is False
+    assert result.solver_capped_steps == result.solver["cg_capped_steps"] == result.steps  # every step capped
+    assert result.to_dict()["solver_converged"] is False and result.to_dict()["solver_capped_steps"] == 12
+    err = capsys.readouterr().err
+    assert err.count("warpcloth: warning:") == 1
+    assert "implicit_euler: CG hit its 2-iteration cap in 12 of 12 steps" in err
+    assert "> tolerance 1e-5" in err and "does not meet the tolerance asked" in err
+
+
+def test_each_run_counts_its_own_capped_steps(capsys):
+    sim = capped_sheet(cg_max_iter=2, rows=5)
+    for _ in range(2):  # the second run continues the trajectory; its counts are its own
+        result = sim.run(0.1)
+        assert result.steps == result.solver["cg_solves"] == result.solver_capped_steps == 6
+        assert capsys.readouterr().err.count("cap in 6 of 6 steps") == 1
+
+
+def test_generous_iteration_cap_converges_with_no_warning(capsys):
+    result = capped_sheet(cg_max_iter=1000, cg_tol=1e-3).run(0.2)
+    assert result.solver_converged is True and result.solver_capped_steps == 0
+    assert result.solver["cg_capped_steps"] == 0 and result.solver["cg_residual_max"] <= 1e-3
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_capped_steps_are_exactly_the_steps_that_end_at_the_cap_above_tolerance():
+    """A cap near the mean iteration count: some steps cap, some converge. Step by step, the
+    counter goes up exactly when that step used every iteration and ended above the tolerance."""
+    tol = 1e-5
+    probe = capped_sheet(cg_max_iter=1000, cg_tol=tol)
+    probe.simulate(10)
+    cap = max(2, int(probe.integrator.stats()["cg_iterations_mean"]))
+    sim = capped_sheet(cg_max_iter=cap, cg_tol=tol)
+    integ = sim.integrator
+    capped_by_hand = 0
+    for _ in range(10):
+        before = integ.stats()
+        sim.simulate(1)
+        after = integ.stats()
+        iterations = after["cg_iterations_mean"] * after["cg_solves"] - before["cg_iterations_mean"] * before["cg_solves"]
+        residual = after["cg_residual_mean"] * after["cg_solves"] - before["cg_residual_mean"] * before["cg_solves"]
+        at_cap = round(iterations) == cap and residual > tol
+        capped_by_hand += at_cap
+        assert after["cg_capped_steps"] - before["cg_capped_steps"] == int(at_cap)
+    assert 0 < capped_by_hand < 10, "the cap should make some steps, not all, miss the tolerance"
+    assert integ.convergence(integ.stats())[:2] == (False, capped_by_hand)
+
+
+def test_integrators_without_an_iterative_solver_report_not_applicable(capsys):
+    result = sheet.build(rows=5, cols=5, integrator="explicit_euler").run(0.05)
+    assert result.solver_converged is None and result.solver_capped_steps == 0
+    assert "warning" not in capsys.readouterr().err
+
+
+def test_cli_summary_and_json_say_the_tolerance_was_missed(capsys):
+    argv = ["run", "sheet", "-i", "implicit_euler", "--rows", "5", "--cols", "5", "--num-frames", "6", "--cg-tol", "1e-5", "--cg-max-iter", "2"]
+    assert cli_main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "solver converged: NO (iteration cap hit above tolerance in 6 of 6 steps)" in out
+    assert err.count("warpcloth: warning:") == 1 and "cap in 6 of 6 steps" in err
+    assert cli_main(argv + ["--json"]) == 0
+    import json
+
+    out, err = capsys.readouterr()
+    data = json.loads(out)
+    assert data["solver_converged"] is False and data["solver_capped_steps"] == 6 == data["steps"]
+    assert err.count("warpcloth: warning:") == 1
+    assert cli_main(argv[:-1] + ["1000"]) == 0
+    out, err = capsys.readouterr()
+    assert "solver converged: yes" in out and "warning" not in err

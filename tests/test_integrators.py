@@ -215,7 +215,7 @@ def test_graph_replay_is_bit_identical_to_launches(device):
         b = flag.build(rows=6, cols=7, integrator=name, device=device)
         if not b.integrator.capturable_on(device):
             continue
-        a._use_graph, b._use_graph = False, True
+        a.use_graph, b.use_graph = False, True
         assert not a.graph_enabled and b.graph_enabled
         for n in (7, 7, 3, 7):  # replays of a cached graph, and a second step count
             a.simulate(n)
@@ -235,7 +235,7 @@ def test_graph_replay_with_strain_limit_is_bit_identical(device):
         pytest.skip(f"Warp {wp.config.version} cannot capture on {device}")
     a = flag.build(rows=6, cols=7, device=device, stiffness=200.0, strain_limit=0.05)
     b = flag.build(rows=6, cols=7, device=device, stiffness=200.0, strain_limit=0.05)
-    a._use_graph, b._use_graph = False, True
+    a.use_graph, b.use_graph = False, True
     for n in (40, 40):
         a.simulate(n)
         b.simulate(n)

@@ -159,7 +159,7 @@ def test_sim_time_follows_dt_changes_and_matches_the_device_clock():
 
 def test_captured_frames_follow_control_changes():
     a, b = sheet.build(rows=5, cols=5), sheet.build(rows=5, cols=5)
-    a._use_graph, b._use_graph = False, True
+    a.use_graph, b.use_graph = False, True
     for sim in (a, b):
         sim.simulate(20)
         sim.control.drag_rate = 50.0  # a host value baked into a captured frame

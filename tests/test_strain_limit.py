@@ -9,7 +9,8 @@ from warpcloth.errors import WarpclothError
 from warpcloth.model import SpringType, build_grid_cloth
 from warpcloth.scenarios import sheet
 from warpcloth.simulator import Simulator
-from warpcloth.strain_limit import StrainLimiter, color_springs
+from warpcloth.coloring import greedy_spring_colors as color_springs
+from warpcloth.strain_limit import StrainLimiter
 
 TAU = 0.1
 TOL = 1.0e-4  # the limiter's stopping tolerance on strain (DEFAULT_TOLERANCE)

@@ -567,3 +567,25 @@ def test_sweep_column_is_frames_per_wall_second_and_seed_plan_note_is_gone():
     assert "`frames_per_wall_second`" in doc and "called this column `fps`" in doc
     plan = (REPO / "examples" / "seed_plan.xml").read_text()
     assert "rejected" not in plan and "until they are merged" not in plan
+
+
+def test_solver_converged_column(tmp_path, capsys):
+    """implicit_euler with a 2-iteration CG cap misses its tolerance in every step: the row says
+    so; with a generous cap it converges; an integrator without a solver leaves the cell empty."""
+    path = write(tmp_path, """
+        <test_list size="5" scenarios="sheet" duration="0.1" frame_rate="60">
+          <test id="implicit" integrator="implicit_euler" timestep="0.0166666667" cg_tol="1e-5" cg_max_iter="2 1000"/>
+          <test id="explicit" integrator="explicit_euler" timestep="1e-3"/>
+        </test_list>
+    """)
+    out = tmp_path / "r.csv"
+    assert main(["sweep", path, "--out", str(out), "--quiet"]) == 0
+    rows = {(r["integrator"], r["options"]): r for r in sweep.read_results(str(out))}
+    assert all(list(r) == sweep.COLUMNS for r in rows.values())
+    capped = rows[("implicit_euler", "cg_max_iter=2 cg_tol=1e-05")]
+    assert capped["solver_converged"] == "false" and capped["solver_capped_steps"] == capped["steps"] == "6"
+    generous = rows[("implicit_euler", "cg_max_iter=1000 cg_tol=1e-05")]
+    assert generous["solver_converged"] == "true" and generous["solver_capped_steps"] == "0"
+    explicit = rows[("explicit_euler", "")]
+    assert explicit["solver_converged"] == "" and explicit["solver_capped_steps"] == "0"
+    assert capsys.readouterr().err.count("warpcloth: warning: implicit_euler: CG hit its 2-iteration cap in 6 of 6 steps") == 1

@@ -30,7 +30,7 @@ from .fileio import AtomicFile, OutputError, check_output_path, describe_write_e
 COLUMNS = [
     "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt", "steps", "ms_per_step",
     "steps_per_sec", "springs_per_sec", "realtime_factor", "compile_s", "speedup_vs_cpu", "force_evals_per_step",
-    "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean",
+    "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean", "solver_converged", "solver_capped_steps",
 ]
 
 
@@ -96,7 +96,7 @@ def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int |
     from .scenarios import get_scenario
 
     sim = get_scenario("sheet").build(integrator=integrator, rows=size, cols=size, device=device)
-    sim._use_graph = graph
+    sim.use_graph = graph
     if graph and not sim.graph_enabled:
         raise WarpclothError(f"graph capture unavailable for {integrator} on {device}")
     t0 = time.perf_counter()
@@ -120,6 +120,7 @@ def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int |
     ms = 1000.0 * elapsed / done
     stats = sim.integrator.stats()
     iters = next((v for k, v in stats.items() if "iterations" in k and "mean" in k), stats.get("iterations", ""))
+    converged, capped, _ = sim.integrator.convergence(stats)
     return {
         "integrator": integrator, "device": device, "graph": int(graph), "rows": size, "cols": size,
         "particles": m.particle_count, "springs": m.spring_count, "dt": sim.dt, "steps": done,
@@ -127,6 +128,7 @@ def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int |
         "realtime_factor": sim.dt * 1000.0 / ms, "compile_s": compile_s, "speedup_vs_cpu": "",
         "force_evals_per_step": sim.integrator.force_evals_per_step, "roofline_ms": "", "floor_multiple": "",
         "stable": int(finite), "solver_iterations_mean": iters,
+        "solver_converged": "" if converged is None else int(converged), "solver_capped_steps": capped,
     }
 
 
@@ -215,7 +217,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     from .integrators import integrator_class, integrator_names, make_integrator
-    from .scenarios.common import resolve_device
+    from .device import device_name as resolve_device
     from .simulator import graph_capture_supported
 
     if args.integrators is None:

@@ -45,7 +45,7 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cols", type=int, default=None, help="particles per row (scenario default)")
     p.add_argument("--width", type=float, default=None, help="cloth width [m]")
     p.add_argument("--height", type=float, default=None, help="cloth height [m]")
-    p.add_argument("--device", default=None, help="Warp device: cpu (default), cuda, cuda:N")
+    p.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda, cuda:N")
     p.add_argument("--stiffness", type=_number_list, default=None, metavar="KS", help="spring stiffness [N/m]: one value, or structural,shear,bend")
     p.add_argument("--damping", type=_number_list, default=None, metavar="KD", help="spring damping [N s/m]: one value, or structural,shear,bend (default scales with particle mass)")
     p.add_argument("--mass", type=float, default=None, help="total cloth mass [kg]")
@@ -134,6 +134,10 @@ def summary(result) -> str:
     if result.scenario != "flag" or result.equilibrium_reached:
         eq = f"yes, at t={result.time_to_equilibrium:.2f} s" if result.equilibrium_reached else "not reached"
         lines.append(f"  equilibrium: {eq}")
+    if result.solver_converged is not None:
+        converged = "yes" if result.solver_converged else (
+            f"NO (iteration cap hit above tolerance in {result.solver_capped_steps} of {result.steps} steps)")
+        lines.append(f"  solver converged: {converged}")
     if result.solver:
         lines.append("  solver: " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.solver.items()))
     return "\n".join(lines)

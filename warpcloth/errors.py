@@ -2,11 +2,20 @@
 
 Every check on user input raises :class:`WarpclothError` (a ``ValueError``) with a one-line
 message that names the bad value and what is allowed. The CLI prints it and exits with status 2.
+A result that is produced but is not what was asked (e.g. a solver that missed its tolerance)
+prints one line, ``warpcloth: warning: ...``, on stderr (:func:`warn`).
 """
+
+import sys
 
 
 class WarpclothError(ValueError):
     """Bad user input: the message names the value and what is allowed."""
+
+
+def warn(message: str) -> None:
+    """Print ``warpcloth: warning: <message>`` as one line on stderr."""
+    print(f"warpcloth: warning: {message}", file=sys.stderr, flush=True)
 
 
 def require(condition: bool, message: str) -> None:
@@ -33,7 +42,7 @@ def require_int(name: str, value, minimum: int) -> int:
     """Return ``value`` as an int if it is an integer >= ``minimum``, else raise."""
     try:
         iv = int(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: inf
         raise WarpclothError(f"{name} must be an integer >= {minimum}, got {value!r}") from None
     require(iv == value if isinstance(value, float) else True, f"{name} must be an integer >= {minimum}, got {value!r}")
     require(iv >= minimum, f"{name} must be an integer >= {minimum}, got {value!r}")

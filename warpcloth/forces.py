@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from .device import resolve_device
 from .errors import WarpclothError, require, require_non_negative
 from warpcloth.kernels import forces as fk
 
@@ -65,7 +66,8 @@ class Control:
         drag_rate: linear air drag rate c [1/s]; the force on a particle is -m c v.
         wind_coefficient: c_w [kg/(m^2 s)] in f = c_w A (n . u) n on each triangle; 0 disables wind.
         wind_schedule: the wind velocity W(t).
-        time: simulated time [s], device array of shape (1,), float64.
+        time: simulated time [s], device array of shape (1,), float64: t_base + n dt after n
+            steps of dt since the last change of dt, so switch times land exactly on steps.
         wind: current wind velocity [m/s], device array of shape (1,), vec3.
     """
 
@@ -79,18 +81,38 @@ class Control:
         require_non_negative("drag", self.drag_rate, "1/s")
         require_non_negative("wind coefficient", self.wind_coefficient, "kg/(m^2 s)")
         require(len(self.gravity) == 3, f"gravity must have 3 components, got {self.gravity!r}")
-        self.device = str(wp.get_device(self.device))
+        self.device = resolve_device(self.device)
         with wp.ScopedDevice(self.device):
             self.time = wp.zeros(1, dtype=wp.float64)
+            self._time_base = wp.zeros(1, dtype=wp.float64)
+            self._clock = wp.zeros(1, dtype=wp.int64)
             self.wind = wp.zeros(1, dtype=wp.vec3)
-            n = max(1, len(self.wind_schedule.starts))
-            starts = np.full(n, np.inf, dtype=np.float32)
-            winds = np.zeros((n, 3), dtype=np.float32)
-            if self.wind_schedule.starts:
-                starts[:] = self.wind_schedule.starts
-                winds[:] = self.wind_schedule.winds
-            self._schedule_start = wp.array(starts, dtype=float)
-            self._schedule_wind = wp.array(winds, dtype=wp.vec3)
+        self._fill_schedule()
+
+    def __setattr__(self, name, value):
+        super().__setattr__(name, value)
+        if name == "wind_schedule" and "_schedule_start" in self.__dict__:
+            self._fill_schedule()  # the device copy follows the host schedule
+
+    def _fill_schedule(self) -> None:
+        """Copy :attr:`wind_schedule` to the device (float64 start times) and re-evaluate W(t)."""
+        if not isinstance(self.wind_schedule, WindSchedule):
+            raise WarpclothError(f"wind_schedule must be a WindSchedule, got {self.wind_schedule!r}")
+        n = max(1, len(self.wind_schedule.starts))
+        starts = np.full(n, np.inf, dtype=np.float64)
+        winds = np.zeros((n, 3), dtype=np.float32)
+        if self.wind_schedule.starts:
+            starts[:] = self.wind_schedule.starts
+            winds[:] = self.wind_schedule.winds
+        current = self.__dict__.get("_schedule_start")
+        if current is not None and current.shape[0] == n:  # in place: captured graphs keep their arrays
+            current.assign(starts)
+            self._schedule_wind.assign(winds)
+        else:
+            with wp.ScopedDevice(self.device):
+                self._schedule_start = wp.array(starts, dtype=wp.float64)
+                self._schedule_wind = wp.array(winds, dtype=wp.vec3)
+        self.update()
 
     @property
     def has_wind(self) -> bool:
@@ -103,16 +125,21 @@ class Control:
     def set_time(self, t: float) -> None:
         """Set the simulated time [s] (host write; not for use inside a captured frame)."""
         self.time.fill_(float(t))
+        self.rebase()
         self.update()
+
+    def rebase(self) -> None:
+        """Count steps from the current time: after n steps of dt, t = t_now + n dt (on the device)."""
+        wp.launch(fk.rebase_time, dim=1, inputs=[self.time, self._time_base, self._clock], device=self.device)
 
     def update(self) -> None:
         """Evaluate W(time) into :attr:`wind` on the device."""
         if self.has_wind:
-            wp.launch(fk.eval_wind_schedule, dim=1, inputs=[self.time, self._schedule_start, self._schedule_wind, float(self.wind_schedule.period)], outputs=[self.wind], device=self.device)
+            wp.launch(fk.eval_wind_schedule, dim=1, inputs=[self.time, self._schedule_start, self._schedule_wind, wp.float64(self.wind_schedule.period)], outputs=[self.wind], device=self.device)
 
     def advance(self, dt: float) -> None:
-        """time += dt, on the device."""
-        wp.launch(fk.advance_time, dim=1, inputs=[self.time, wp.float64(dt)], device=self.device)
+        """t = t_base + n dt after the n-th step since :meth:`rebase`, on the device."""
+        wp.launch(fk.advance_time, dim=1, inputs=[self.time, self._time_base, self._clock, wp.float64(dt)], device=self.device)
 
 
 def eval_forces(model, x: wp.array, v: wp.array, control: Control, f: wp.array) -> None:
@@ -138,8 +165,3 @@ def eval_external_forces(model, x: wp.array, v: wp.array, control: Control, f: w
     wp.launch(fk.eval_particle_forces, dim=model.particle_count, inputs=[v, model.particle_mass, wp.vec3(*control.gravity), float(control.drag_rate)], outputs=[f], device=device)
     if control.has_wind:
         wp.launch(fk.eval_wind, dim=model.tri_count, inputs=[x, v, model.tri_indices, control.wind, float(control.wind_coefficient)], outputs=[f], device=device)
-
-
-def check_control_device(model, control: Control) -> None:
-    if str(control.device) != str(model.device):
-        raise WarpclothError(f"control is on device {control.device!r} but the model is on {model.device!r}")

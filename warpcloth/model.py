@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
+from .device import require_memory, resolve_device
 from .errors import WarpclothError, require, require_int, require_non_negative, require_positive
 
 
@@ -82,7 +83,7 @@ class ClothModel:
     width: float
     height: float
     total_mass: float
-    device: str
+    device: wp.Device
     particle_q: wp.array
     particle_mass: wp.array
     particle_inv_mass: wp.array
@@ -96,8 +97,6 @@ class ClothModel:
     spring_params: dict[SpringType, SpringParams]
     bend: BendModel = BendModel.PROVOT
     host: dict = field(default_factory=dict, repr=False)
-    #: Bumped whenever parameters change in place (:meth:`with_spring_params`): caches compare it.
-    version: int = 0
 
     @property
     def particle_count(self) -> int:
@@ -143,15 +142,17 @@ class ClothModel:
 
         return State.from_model(self)
 
-    def with_spring_params(self, params: dict[SpringType, SpringParams]) -> None:
-        """Refill per-spring stiffness and damping from per-type parameters (same topology)."""
+    def with_spring_params(self, params: dict[SpringType, SpringParams]) -> "ClothModel":
+        """A new model with per-spring stiffness and damping from per-type ``params`` (the same
+        topology, masses and pins, shared); this model is left unchanged. A
+        :class:`~warpcloth.simulator.Simulator` switches with :meth:`~warpcloth.simulator.Simulator.set_model`."""
+        from dataclasses import replace
+
         _validate_spring_params(params)
         ks = np.array([params[SpringType(t)].stiffness for t in self.spring_type], dtype=np.float32)
         kd = np.array([params[SpringType(t)].damping for t in self.spring_type], dtype=np.float32)
-        self.spring_stiffness.assign(ks)
-        self.spring_damping.assign(kd)
-        self.spring_params = dict(params)
-        self.version += 1
+        with wp.ScopedDevice(self.device):
+            return replace(self, spring_stiffness=wp.array(ks, dtype=float), spring_damping=wp.array(kd, dtype=float), spring_params=dict(params))
 
 
 def _validate_spring_params(params: dict[SpringType, SpringParams]) -> None:
@@ -159,6 +160,19 @@ def _validate_spring_params(params: dict[SpringType, SpringParams]) -> None:
         require(t in params, f"spring parameters for {t.name.lower()} springs are missing")
         require_non_negative(f"{t.name.lower()} stiffness", params[t].stiffness, "N/m")
         require_non_negative(f"{t.name.lower()} damping", params[t].damping, "N s/m")
+
+
+#: Bytes per particle and per spring a run needs at most: device arrays (model, state, the largest
+#: integrator's scratch, metrics) and the host copies and temporaries made while building.
+BYTES_PER_PARTICLE = 400
+BYTES_PER_SPRING = 160
+
+
+def grid_memory_estimate(rows: int, cols: int) -> int:
+    """An upper estimate [bytes] of the memory a rows x cols Provot cloth and its run need
+    (about 8 springs per particle with Choi-Ko bend springs)."""
+    n = int(rows) * int(cols)
+    return n * (BYTES_PER_PARTICLE + 8 * BYTES_PER_SPRING)
 
 
 def grid_springs(rows: int, cols: int, bend: BendModel = BendModel.PROVOT) -> tuple[np.ndarray, np.ndarray]:
@@ -242,7 +256,7 @@ def build_grid_cloth(
         origin: position of particle [0, 0] [m].
         plane: ``"vertical"`` (hanging, x-y plane) or ``"horizontal"`` (x-z plane).
         bend: ``"provot"``, ``"choi_ko"`` or ``"none"``.
-        device: Warp device (default: Warp's current device).
+        device: Warp device (default: Warp's current device, see :mod:`warpcloth.device`).
     """
     try:
         bend = BendModel(bend)
@@ -257,7 +271,8 @@ def build_grid_cloth(
     if spring_params is None:
         spring_params = default_spring_params(total_mass / (rows * cols))
     _validate_spring_params(spring_params)
-    device = str(wp.get_device(device))
+    device = resolve_device(device)
+    require_memory(f"a {rows} x {cols} cloth", grid_memory_estimate(rows, cols), device)
 
     q = grid_positions(rows, cols, width, height, origin, plane)
     pairs, types = grid_springs(rows, cols, bend)
@@ -306,7 +321,7 @@ def build_model(positions, spring_pairs, spring_types, masses, spring_params, pi
     ks = np.array([spring_params[SpringType(t)].stiffness for t in types], dtype=np.float32)
     kd = np.array([spring_params[SpringType(t)].damping for t in types], dtype=np.float32)
     tris = np.zeros((0, 3), dtype=np.int32) if triangles is None else np.asarray(triangles, dtype=np.int32).reshape(-1, 3)
-    device = str(wp.get_device(device))
+    device = resolve_device(device)
     with wp.ScopedDevice(device):
         return ClothModel(
             rows=1,

@@ -15,9 +15,10 @@ from dataclasses import asdict, dataclass, field
 import warp as wp
 
 from . import __version__
-from .errors import WarpclothError, require, require_positive
+from .errors import WarpclothError, require, require_positive, warn
 from .forces import Control
 from .integrators import Integrator, make_integrator
+from .model import ClothModel
 from .metrics import (
     DEFAULT_INSTABILITY_STRAIN,
     EnergyCriteria,
@@ -87,6 +88,10 @@ class RunResult:
     wall_cap_reached: bool = False
     graph: bool = False
     solver: dict = field(default_factory=dict)
+    #: False when the integrator's iterative solver missed its own tolerance in at least one
+    #: step; None where not applicable (no iterative solver with a tolerance).
+    solver_converged: bool | None = None
+    solver_capped_steps: int = 0
     warpcloth_version: str = __version__
     warp_version: str = wp.config.version
 
@@ -149,11 +154,15 @@ class Simulator:
         use_graph: bool | None = None,
         strain_limit: float | None = None,
     ):
+        if not isinstance(model, ClothModel):
+            raise WarpclothError(f"model must be a ClothModel (from build_grid_cloth or build_model), got {model!r:.80}")
+        if control is not None and not isinstance(control, Control):
+            raise WarpclothError(f"control must be a warpcloth.Control or None, got {control!r:.80}")
         self.model = model
         self.control = control if control is not None else Control(device=model.device)
         require(
             str(self.control.device) == str(model.device),
-            f"control is on device {self.control.device!r} but the model is on {model.device!r}",
+            f"control is on device '{self.control.device}' but the model is on '{model.device}'",
         )
         self.state = model.state()
         self.instability_strain = require_positive("instability strain", instability_strain)
@@ -170,9 +179,11 @@ class Simulator:
         self._step_seconds: float | None = None  # wall time of one step, once measured
         #: Wall seconds spent capturing frame graphs (excluded from step timings).
         self.capture_time = 0.0
-        self.set_integrator(integrator, dt)
+        #: Simulated time [s]: t_base + n dt after n steps of the current dt (as Control.time).
         self.sim_time = 0.0
         self.steps = 0
+        self._time_base, self._base_steps = 0.0, 0
+        self.set_integrator(integrator, dt)
 
     # -- configuration -------------------------------------------------------------------
     @property
@@ -201,6 +212,7 @@ class Simulator:
                 )
         elif dt is None:
             dt = self._dt
+        self._rebase_clock()
         self._dt = require_positive("dt", dt, "s")
         self.integrator = integrator
         self._needs_begin = True
@@ -208,8 +220,30 @@ class Simulator:
         self._warmed = False
         self._step_seconds = None
 
+    def set_model(self, model) -> None:
+        """Continue the current state on ``model`` (the same particles, e.g. from
+        :meth:`~warpcloth.model.ClothModel.with_spring_params`): the integrator, metrics and
+        strain limiter rebind to it (scratch is reallocated; this is not a step)."""
+        if not isinstance(model, ClothModel):
+            raise WarpclothError(f"model must be a ClothModel, got {model!r:.80}")
+        if model.particle_count != self.model.particle_count or str(model.device) != str(self.model.device):
+            raise WarpclothError(
+                f"set_model needs the same particles on the same device ({self.model.particle_count} on {self.model.device}), "
+                f"got {model.particle_count} on {model.device}"
+            )
+        self.model = model
+        self.probe = MetricsProbe(model, self.control)
+        if self.strain_limiter is not None:
+            self.strain_limiter = StrainLimiter(model, self.strain_limiter.tau)
+        self.integrator.bind(model)
+        self._needs_begin = True
+        self._graphs.clear()
+        self._warmed = False
+
     def set_dt(self, dt: float) -> None:
-        self._dt = require_positive("dt", dt, "s")
+        dt = require_positive("dt", dt, "s")
+        self._rebase_clock()
+        self._dt = dt
         self._needs_begin = True
         self._graphs.clear()
 
@@ -247,7 +281,16 @@ class Simulator:
         self.state.assign(self.model.state())
         self.control.set_time(0.0)
         self.sim_time, self.steps = 0.0, 0
+        self._rebase_clock()
         self._needs_begin = True
+
+    def _rebase_clock(self) -> None:
+        """Count steps from now (before dt changes); the device clock follows in :meth:`_begin`."""
+        self._time_base, self._base_steps = self.sim_time, self.steps
+
+    def _count_steps(self, n: int) -> None:
+        self.steps += n
+        self.sim_time = self._time_base + (self.steps - self._base_steps) * self._dt
 
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> None:
@@ -255,18 +298,19 @@ class Simulator:
         if self._needs_begin:
             self._begin()
         self._launch_step()
-        self.steps += 1
-        self.sim_time += self._dt
+        self._count_steps(1)
 
     def _capture_key(self) -> tuple:
         """Every host value a captured frame bakes in besides dt and the integrator (those clear
         the cache): a change to any of them captures a new graph."""
         c = self.control
-        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, self.model.version,
+        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule,
                 tuple(sorted((k, repr(v)) for k, v in self.integrator.option_values().items())))
 
     def _begin(self) -> None:
         """Let the integrator start its history from the current state and wind W(t)."""
+        self._rebase_clock()
+        self.control.rebase()
         self.control.update()
         self.integrator.begin(self.state, self.control, self._dt)
         self._needs_begin = False
@@ -303,8 +347,7 @@ class Simulator:
             graph = self._graphs[key] = capture.graph
             self.capture_time += time.perf_counter() - t0
         wp.capture_launch(graph)
-        self.steps += steps
-        self.sim_time += steps * self._dt
+        self._count_steps(steps)
 
     def measure(self) -> FrameMetrics:
         """Metrics of the current state (one small read from the device)."""
@@ -326,6 +369,7 @@ class Simulator:
         wp.copy(self.state.particle_q, saved[0])
         wp.copy(self.state.particle_qd, saved[1])
         wp.copy(self.control.time, saved_time)
+        self.control.rebase()
         self.control.update()
         wp.synchronize_device(self.model.device)
         self.integrator.reset_stats()
@@ -455,6 +499,10 @@ class Simulator:
         if result.wall_time > 0:
             result.realtime_factor = result.sim_time / result.wall_time
         result.solver = self.integrator.stats()
+        self.integrator.reset_stats()  # the next run's statistics (and capped-step count) start here
+        result.solver_converged, result.solver_capped_steps, warning = self.integrator.convergence(result.solver)
+        if warning:
+            warn(warning)  # once per run
         return result
 
     def _advance(self, n: int, loop_start: float, wall_cap: float | None) -> bool:

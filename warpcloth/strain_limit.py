@@ -24,6 +24,7 @@ import warp as wp
 
 from warpcloth.kernels import strain_limit as sk
 
+from .coloring import greedy_spring_colors
 from .errors import require_int, require_positive
 from .model import SpringType
 
@@ -60,20 +61,6 @@ def nearest_pin_paths(pairs: np.ndarray, rest: np.ndarray, particle_count: int, 
     return source, dist
 
 
-def color_springs(pairs: np.ndarray, particle_count: int) -> np.ndarray:
-    """Greedy edge colouring: colour of each spring such that no two springs of one colour share
-    a particle (at most 2 max_degree - 1 colours)."""
-    used = [0] * particle_count  # bit k set: colour k already touches the particle
-    colors = np.empty(len(pairs), dtype=np.int32)
-    for s, (i, j) in enumerate(pairs.tolist()):
-        taken = used[i] | used[j]
-        c = (~taken & (taken + 1)).bit_length() - 1  # lowest free colour
-        colors[s] = c
-        used[i] |= 1 << c
-        used[j] |= 1 << c
-    return colors
-
-
 class StrainLimiter:
     """Provot's strain limit on the structural and shear springs of a model.
 
@@ -92,12 +79,12 @@ class StrainLimiter:
         h = model.host
         limited = np.flatnonzero(np.isin(model.spring_type, [SpringType.STRUCTURAL, SpringType.SHEAR]))
         pairs = h["pairs"][limited]
-        colors = color_springs(pairs, model.particle_count)
+        colors = greedy_spring_colors(pairs, model.particle_count)
         # springs with a pinned end get colours of their own, solved last in each pass: they are
         # one-sided (only the free end moves), so they end every pass exactly satisfied
         pinned_end = np.isin(pairs, model.pinned).any(axis=1)
         if pinned_end.any():
-            colors[pinned_end] = colors.max() + 1 + color_springs(pairs[pinned_end], model.particle_count)
+            colors[pinned_end] = colors.max() + 1 + greedy_spring_colors(pairs[pinned_end], model.particle_count)
         order = np.argsort(colors, kind="stable")
         counts = np.bincount(colors, minlength=1) if len(colors) else np.zeros(0, dtype=np.int64)
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if len(counts) else np.zeros(0, dtype=np.int64)

@@ -37,7 +37,7 @@ COLUMNS = [
     "outcome", "steps", "sim_time", "wall_time", "compile_time", "ms_per_step", "steps_per_sec",
     "frames_per_wall_second", "realtime_factor", "realtime", "integration_ms_mean", "other_ms_mean",
     "stable", "unstable_reason", "equilibrium_reached", "time_to_equilibrium_sim", "time_to_equilibrium_wall",
-    "max_strain", "wall_cap_reached", "solver_iterations", "solver", "error",
+    "max_strain", "wall_cap_reached", "solver_iterations", "solver_converged", "solver_capped_steps", "solver", "error",
     "warpcloth_version", "warp_version", "key",
 ]
 
@@ -90,6 +90,7 @@ def result_columns(result, stop_at_equilibrium: bool = True) -> dict:
         "equilibrium_reached": result.equilibrium_reached, "time_to_equilibrium_sim": result.time_to_equilibrium,
         "time_to_equilibrium_wall": result.time_to_equilibrium_wall, "max_strain": result.max_strain,
         "wall_cap_reached": result.wall_cap_reached, "solver_iterations": solver_iterations(result.solver),
+        "solver_converged": result.solver_converged, "solver_capped_steps": result.solver_capped_steps,
         "solver": result.solver or None,
     }
 

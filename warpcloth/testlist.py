@@ -175,7 +175,7 @@ def _scenarios() -> list[str]:
 
 
 def _device(text: str) -> str:
-    from .scenarios.common import resolve_device
+    from .device import device_name as resolve_device
 
     try:
         return resolve_device(text)

@@ -126,6 +126,14 @@ class Integrator:
     def reset_stats(self) -> None:
         """Forget statistics gathered so far."""
 
+    def convergence(self, stats: dict) -> tuple[bool | None, int, str | None]:
+        """Whether the run whose :meth:`stats` are ``stats`` met the integrator's own solver
+        tolerance: ``(solver_converged, solver_capped_steps, warning)``. ``solver_converged`` is
+        None where not applicable (no iterative solver with a tolerance: the default);
+        ``solver_capped_steps`` counts the steps whose solver stopped at its iteration cap above
+        its tolerance; ``warning`` is one line for stderr when it did not converge, else None."""
+        return None, 0, None
+
     # -- time step -------------------------------------------------------------------------
     def default_dt(self, model, drag_rate: float = 0.0) -> float:
         """A time step [s] that is stable on ``model``: :attr:`default_dt_factor` times
@@ -136,10 +144,6 @@ class Integrator:
     def no_stable_dt_reason(self, model, drag_rate: float = 0.0) -> str | None:
         """Why no time step is stable for this scheme on ``model``, or None when some is."""
         return None
-
-    def _require_bound(self):
-        if self.model is None:
-            raise WarpclothError(f"integrator {self.name!r} is not bound to a model: call bind(model) first")
 
 
 def explicit_euler_dt_bound(model) -> float:

@@ -13,16 +13,21 @@ With B_s = h^2 K_s + h D_s per spring (refilled by one kernel each step), A is a
 matrix-free (``matrix="free"``, the default: a ``warp.optim.linear.LinearOperator`` gathering
 over each particle's springs) or assembled (``matrix="bsr"``: a ``warp.sparse`` BSR matrix of
 3x3 blocks whose pattern, one diagonal block per particle and one block per spring and direction,
-is built once at bind and whose values a kernel refills). Both give the same A; matrix-free
-measured about twice as fast per CG iteration on the CPU (bench/implicit.py). The system is
-solved by ``warp.optim.linear.cg`` with the Jacobi preconditioner (the operator
+is built once at bind and whose values a kernel refills). Both give the same A; on the CPU
+matrix-free is the faster, by a margin that grows with the sheet: BSR took 1.45x, 1.67x and 2.0x
+its time per step at 32^2, 64^2 and 128^2 (medians of 5 alternating repeats on a loaded 2-core
+CPU, ranges and an earlier run in bench/results/: ``python bench/implicit.py --sizes 32 64 128
+--steps 10 --repeats 5``). The system is solved by ``warp.optim.linear.cg`` with the Jacobi preconditioner (the operator
 ``preconditioner(A, "diag")`` builds, refilled in place), warm-started from the previous dv.
 Pinned particles have identity rows and zero columns (dv = 0).
 
 Statistics: on CUDA, cg checks convergence on the device (``check_every=0``, a conditional graph
-node) and a kernel accumulates iterations and residuals, so a step never syncs with the host. On
-the CPU, cg reads its residual every iteration (``check_every=1``); for a CPU array that is a
-plain memory read, and the statistics are accumulated in Python.
+node) and a kernel accumulates iterations, residuals and the count of steps that ended at the
+iteration cap above the tolerance, so a step never syncs with the host; :meth:`ImplicitEuler.stats`
+reads them once, at the end of a run. On the CPU, cg reads its residual every iteration
+(``check_every=1``); for a CPU array that is a plain memory read, and the statistics are
+accumulated in Python. A run with a capped step reports ``solver_converged = False`` and warns
+once (:meth:`ImplicitEuler.convergence`).
 """
 
 from __future__ import annotations
@@ -49,6 +54,12 @@ def _check_max_iter(value: int):
     return None if value >= 1 else "must be >= 1"
 
 
+def _sci(x: float) -> str:
+    """Two significant digits, exponents unpadded: 3.7, 0.00055, 1e-5."""
+    mantissa, _, exponent = f"{x:.2g}".partition("e")
+    return f"{mantissa}e{int(exponent)}" if exponent else mantissa
+
+
 class ImplicitEuler(Integrator):
     """Baraff-Witkin implicit Euler with Jacobi-preconditioned CG (seed eq. 2.19-2.23)."""
 
@@ -58,8 +69,12 @@ class ImplicitEuler(Integrator):
         Option("cg_tol", float, 1.0e-3, "CG relative residual tolerance |b - A dv| / |b|", _check_tol),
         Option("cg_max_iter", int, 1000, "CG iteration cap per step", _check_max_iter),
         Option("jacobian", str, "full", "spring Jacobian: full (exact, refilled each step) or approx (seed eq. 2.23, constant)", choices=JACOBIANS),
-        Option("matrix", str, "free", "system matrix: free (matrix-free LinearOperator, faster) or bsr (assembled warp.sparse BSR)", choices=MATRICES),
+        Option("matrix", str, "free", "system matrix: free (matrix-free LinearOperator; faster on the CPU, see bench/implicit.py) or bsr (assembled warp.sparse BSR)", choices=MATRICES),
     )
+
+    #: On the CPU, give cg a single-batch operator (plain-loop dot products); False keeps Warp's
+    #: tiled reduction (for bench/cpu_dot.py). Read at bind.
+    cpu_single_batch_dot: bool = True
 
     # -- binding -----------------------------------------------------------------------
     def _allocate(self, model):
@@ -108,9 +123,10 @@ class ImplicitEuler(Integrator):
         # device-side convergence needs conditional graph nodes (CUDA driver and toolkit 12.4+)
         is_cuda = wp.get_device(device).is_cuda
         self._device_side = is_cuda and wp.is_conditional_graph_supported()
-        # On the CPU, a single-batch operator makes cg's dot products plain loops (Warp's
-        # tiled reduction is for GPUs and is several times slower on the CPU).
-        single_batch = None if is_cuda else wp.array([0, 3 * n], dtype=int)
+        # On the CPU, a single-batch operator makes cg's dot products plain loops instead of
+        # Warp's tiled reduction, which is made for GPUs: with the tiled one a step took 24x
+        # (32^2) and 62x (64^2) as long (medians, bench/results/cpu-dot.txt: python bench/cpu_dot.py).
+        single_batch = None if is_cuda or not self.cpu_single_batch_dot else wp.array([0, 3 * n], dtype=int)
         if self.matrix == "bsr":
             self.A_op = aslinearoperator(self.A, batch_offsets=single_batch)
         else:
@@ -121,7 +137,7 @@ class ImplicitEuler(Integrator):
             # CPU: the residual is read every iteration; on the CPU that is a plain memory read.
             check_every=0 if self._device_side else 1, use_cuda_graph=True, run=False,
         )
-        self._stats = wp.zeros(5, dtype=wp.float64)
+        self._stats = wp.zeros(6, dtype=wp.float64)
         self.reset_stats()
 
     # -- stepping ------------------------------------------------------------------------
@@ -154,11 +170,11 @@ class ImplicitEuler(Integrator):
         m = self.model
         if self.jacobian == "full":
             wp.launch(ik.eval_spring_jacobians, dim=m.spring_count, inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
-        elif self._assembled_for == (h, drag, m.version):
+        elif self._assembled_for == (h, drag):
             return
         else:
             wp.launch(ik.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
-            self._assembled_for = (h, drag, m.version)
+            self._assembled_for = (h, drag)
         if self.matrix == "bsr":
             wp.launch(
                 ik.assemble_system_rows, dim=m.particle_count,
@@ -197,23 +213,40 @@ class ImplicitEuler(Integrator):
             s[2] = max(s[2], iterations)
             s[3] += relative
             s[4] = max(s[4], relative)
+            s[5] += not (residual <= tolerance)  # ended above its tolerance: at the cap (or NaN)
 
     # -- statistics ----------------------------------------------------------------------
     def stats(self) -> dict:
-        """CG iterations and final relative residual |b - A dv| / |b| per step: mean and max."""
+        """CG iterations and final relative residual |b - A dv| / |b| per step (mean and max),
+        and ``cg_capped_steps``: the steps whose CG ended at ``cg_max_iter`` above ``cg_tol``.
+        On CUDA this is the run's one read of the device-side counters."""
         s = self._stats.numpy() if self._device_side else self._host_stats
         solves = int(s[0])
         return {
             "jacobian": self.jacobian,
             "cg_tol": self.cg_tol,
+            "cg_max_iter": self.cg_max_iter,
             "cg_solves": solves,
             "cg_iterations_mean": float(s[1] / solves) if solves else 0.0,
             "cg_iterations_max": int(s[2]),
             "cg_residual_mean": float(s[3] / solves) if solves else 0.0,
             "cg_residual_max": float(s[4]),
+            "cg_capped_steps": int(s[5]),
         }
 
+    def convergence(self, stats: dict) -> tuple[bool | None, int, str | None]:
+        """Converged when no step's CG ended above ``cg_tol``; else a warning naming the count
+        of capped steps and the worst final relative residual."""
+        capped, solves = stats["cg_capped_steps"], stats["cg_solves"]
+        if not capped:
+            return True, 0, None
+        return False, capped, (
+            f"{self.name}: CG hit its {self.cg_max_iter}-iteration cap in {capped} of {solves} steps "
+            f"(worst final relative residual {_sci(stats['cg_residual_max'])} > tolerance {_sci(self.cg_tol)}); "
+            "the result does not meet the tolerance asked"
+        )
+
     def reset_stats(self) -> None:
-        self._host_stats = [0, 0, 0, 0.0, 0.0]
+        self._host_stats = [0, 0, 0, 0.0, 0.0, 0]
         if self.model is not None:
             self._stats.zero_()

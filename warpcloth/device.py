@@ -1,0 +1,73 @@
+"""One device rule for the whole library.
+
+Every public builder (:func:`~warpcloth.model.build_grid_cloth`, :func:`~warpcloth.model.build_model`,
+:class:`~warpcloth.forces.Control`, the scenarios) resolves its ``device`` argument here, once, to a
+``wp.Device`` that the model then carries: ``None`` means Warp's current device (``wp.get_device()``,
+the CPU unless a script chose otherwise); ``"cuda"`` the first GPU. Only the command line picks a
+default of its own (``cpu``).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from .errors import WarpclothError
+
+
+def resolve_device(device=None) -> wp.Device:
+    """The ``wp.Device`` named by ``device`` (None: Warp's current device; ``"cuda"``: the first
+    GPU), or a :class:`WarpclothError` naming the value and the devices that exist."""
+    if device is None:
+        return wp.get_device()
+    if isinstance(device, wp.Device):
+        return device
+    available = [str(d) for d in wp.get_devices()]
+    if not isinstance(device, str):
+        raise WarpclothError(f"device must be a device name such as 'cpu' or 'cuda:0', got {device!r} (available: {', '.join(available)})")
+    name = device.strip()
+    if name == "cuda":
+        cuda = [d for d in available if d.startswith("cuda")]
+        if not cuda:
+            raise WarpclothError(f"device {device!r} is not available: no CUDA device found (available: {', '.join(available)})")
+        name = cuda[0]
+    if name not in available:
+        raise WarpclothError(f"device {device!r} is not available (available: {', '.join(available)})")
+    return wp.get_device(name)
+
+
+def available_memory(device) -> int:
+    """Bytes that ``device`` can still allocate: free GPU memory, or the host's available RAM."""
+    import os
+
+    d = resolve_device(device)
+    if d.is_cuda:
+        return int(d.free_memory)
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        return 2**63
+
+
+def require_memory(what: str, needed: int, device) -> None:
+    """Refuse, before allocating, a ``needed``-byte ``what`` that ``device`` cannot hold."""
+    have = available_memory(device)
+    if needed > have:
+        raise WarpclothError(
+            f"{what} needs about {_bytes(needed)} but {resolve_device(device)} has {_bytes(have)} available"
+        )
+
+
+def _bytes(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"):
+        if n < 1024 or unit == "EiB":
+            return f"{n:.3g} {unit}"
+        n /= 1024.0
+    return f"{n:.3g} EiB"  # pragma: no cover
+
+
+def device_name(device=None) -> str:
+    """The name of :func:`resolve_device`'s device, e.g. ``"cpu"`` or ``"cuda:0"``."""
+    return str(resolve_device(device))
+
+
+__all__ = ["available_memory", "device_name", "require_memory", "resolve_device"]
