@@ -131,3 +131,136 @@ def test_frontier_inside_and_beyond_the_measured_range():
     h = frontier(n, [1e-1 * v for v in n])  # N* = 10, below 100
     assert h.measured is None and h.none_realtime and h.extrapolated == "below"
     assert frontier([100], [0.5]).fit is None  # one size: no fit
+
+
+# -- the study end to end --------------------------------------------------------------------
+from warpcloth.cli import main  # noqa: E402
+from warpcloth.lab.report import PLOTS  # noqa: E402
+from warpcloth.lab.study import COLUMNS, make_plan, read_rows, run_study  # noqa: E402
+
+def cli(argv) -> int:
+    """``warpcloth ARGV``'s exit status (argparse's errors exit through SystemExit)."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+TINY = ["study", "--profile", "quick", "--integrators", "explicit_euler,pbd", "--sizes", "4", "--accuracy-sizes", "4", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def tiny_study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("study") / "out"
+    import contextlib
+    import io
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = main(TINY + ["--devices", "cpu,cuda:7", "--match-accuracy", "--out", str(out)])
+    return code, out, err.getvalue()
+
+
+def test_tiny_study_end_to_end(tiny_study):
+    code, out, err = tiny_study
+    assert code == 0
+    assert "skipping device cuda:7" in err and err.count("\n") == 1  # the missing device: one line, the rest runs
+    with open(out / "results.csv", newline="") as fh:
+        reader = csv.reader(fh)
+        assert next(reader) == COLUMNS
+        body = list(reader)
+    assert body and all(len(r) == len(COLUMNS) for r in body)
+    rows = read_rows(out / "results.csv")
+    keys = [r["key"] for r in rows]
+    assert len(keys) == len(set(keys))
+    kinds = {r["measurement"] for r in rows}
+    assert {"max_stable_dt", "floor", "error", "max_accurate_dt", "static", "max_static_accurate_dt", "timing", "match_result"} <= kinds
+    for r in rows:
+        assert r["device"] == "cpu" and r["particles"] == 16
+    for r in [r for r in rows if r["measurement"] == "timing"]:
+        assert r["timed_windows"] >= 5 and r["ms_per_step_min"] <= r["ms_per_step_median"] <= r["ms_per_step_max"]
+        assert r["wall_s_per_sim_s"] == pytest.approx(r["ms_per_step_median"] / 1000 / r["dt_s"])
+    acc = {(r["integrator"], r["scenario"]): r for r in rows if r["measurement"] == "max_accurate_dt"}
+    ee = acc[("explicit_euler", "sheet")]
+    assert ee["dt_s"] and ee["error_rel"] <= ee["tolerance_rel"] and ee["floor_error_rel"] < ee["tolerance_rel"] / 100
+    report = (out / "report.md").read_text()
+    for section in ("## Machine and command", "## Method", "## Verdict", "**Null hypothesis**", "**Alternative hypothesis**",
+                    "Cheapest per simulated second", "### Real-time frontier", "### Float32 noise floor", "## Plots",
+                    "## Columns of results.csv", "pbd at 4x4 on cpu", "warpcloth study --profile quick"):
+        assert section in report, section
+    for name in PLOTS:
+        assert (out / name).stat().st_size > 1000 and f"]({name})" in report
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_study_refuses_to_overwrite_without_a_flag(tiny_study, capsys):
+    _, out, _ = tiny_study
+    before = (out / "results.csv").read_bytes()
+    assert main(TINY + ["--out", str(out)]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert (out / "results.csv").read_bytes() == before
+
+
+def test_resume_after_an_interrupt_does_not_redo_finished_measurements(tmp_path):
+    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4], accuracy_sizes=[4])
+    seen = []
+
+    def interrupt_after_five(row):
+        seen.append(row["key"])
+        if len(seen) == 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_study(plan, tmp_path, on_row=interrupt_after_five)
+    first = (tmp_path / "results.csv").read_bytes()
+    assert first.count(b"\n") == 6  # header + the five finished rows, flushed
+    with open(tmp_path / "results.csv", "ab") as fh:
+        fh.write(b"timing,sheet,cut sho")  # a row cut by a kill
+    again = []
+    summary = run_study(plan, tmp_path, resume=True, on_row=lambda r: again.append(r["key"]))
+    data = (tmp_path / "results.csv").read_bytes()
+    assert data.startswith(first) and b"cut sho" not in data
+    assert not set(again) & set(seen)  # nothing finished was measured again
+    assert summary["measured"] == len(again) > 0 and summary["reused"] >= 5
+    keys = [r["key"] for r in read_rows(tmp_path / "results.csv")]
+    assert len(keys) == len(set(keys)) == 5 + len(again)
+    again.clear()
+    summary = run_study(plan, tmp_path, resume=True, on_row=lambda r: again.append(r["key"]))
+    assert summary["measured"] == 0 and not again  # a finished study resumes to nothing
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--profile", "huge"], "invalid choice: 'huge'"),
+    (["--integrators", "euler"], "unknown integrator 'euler'"),
+    (["--integrators", ""], "--integrators must be a comma-separated list"),
+    (["--sizes", ""], "--sizes must be a comma-separated list"),
+    (["--sizes", "8,,16"], "--sizes must be a comma-separated list"),
+    (["--sizes", "2"], "integers >= 3"),
+    (["--tolerance", "0"], "--tolerance must be in (0, 1)"),
+    (["--tolerance", "-0.01"], "--tolerance must be in (0, 1)"),
+    (["--tolerance", "1"], "--tolerance must be in (0, 1)"),
+    (["--tolerance", "nan"], "--tolerance must be in (0, 1)"),
+    (["--devices", "cuda:7"], "none of the devices cuda:7 is available"),
+])
+def test_bad_input_is_one_line_and_status_2(argv, message, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli(["study", "--quiet", "--out", str(out)] + argv) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[-1].startswith("warpcloth: error: ") and message in lines[-1]
+    assert len(lines) == (2 if "--devices" in argv else 1)  # a missing device: its skip line, then the error
+    assert not (out / "results.csv").exists()
+
+
+def test_unwritable_out_is_refused_before_any_work(tmp_path, capsys):
+    (tmp_path / "file").write_text("x")
+    assert main(["study", "--quiet", "--out", str(tmp_path / "file")]) == 2
+    assert "is not a folder" in capsys.readouterr().err
+    assert main(["study", "--quiet", "--out", str(tmp_path / "missing" / "out")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["study", "--quiet", "--out", "/proc/warpcloth-study"]) == 2
+    assert "cannot be created" in capsys.readouterr().err
+    if os.geteuid() != 0:
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o500)
+        assert main(["study", "--quiet", "--out", str(locked)]) == 2
+        assert "not writable" in capsys.readouterr().err

@@ -624,7 +624,7 @@ class Study:
 
 def available_devices(devices: list, stream=None) -> list:
     """The devices of ``devices`` that are present; each missing one is skipped with one line."""
-    from ..scenarios.common import resolve_device
+    from ..device import device_name as resolve_device
 
     out = []
     for d in devices:
@@ -661,9 +661,9 @@ def run_study(plan: StudyPlan, out_dir: str, resume: bool = False, overwrite: bo
     """Run ``plan`` into ``out_dir`` (results.csv, report.md, PNG plots). Returns a summary."""
     from .report import write_report
 
-    csv_path = prepare_out(out_dir)
     devices = available_devices(plan.devices, progress if progress is not None else sys.stderr)
     require(bool(devices), f"none of the devices {', '.join(plan.devices)} is available")
+    csv_path = prepare_out(out_dir)
     plan = replace(plan, devices=devices)
     out = StudyCsv(csv_path, resume=resume, overwrite=overwrite, report=progress)
     t0 = time.perf_counter()
