@@ -78,7 +78,7 @@ class Data:
     def timing(self, d, i, n, label, sc="sheet"):
         for r in self.rows:
             if (r["measurement"] == "timing" and r["device"] == d and r["integrator"] == i and r["rows"] == n
-                    and r["scenario"] == sc and r["options"] is None and r["note"] == f"at the {label} dt"):
+                    and r["scenario"] == sc and (r["options"] is None) == (label != "matched") and r["note"] == f"at the {label} dt"):
                 return r
         return None
 
@@ -247,7 +247,8 @@ def tables(data: Data) -> list[str]:
         out += [f"### Real-time frontier on {d} (30 FPS: wall s per simulated s ≤ 1)", ""]
         body = []
         for i in data.integrators:
-            for label in ("accurate", "stable"):
+            labels = ("accurate", "matched", "stable") if i in ("pbd", "xpbd") and _rows(data.rows, "match_result", integrator=i) else ("accurate", "stable")
+            for label in labels:
                 f = data.frontier(d, i, label)
                 if f is None:
                     body.append([i, label, "–", "–", "–", "–", "–"])
@@ -257,7 +258,8 @@ def tables(data: Data) -> list[str]:
                              _g(f.fit.residual) if f.fit else "–", f.fit.points if f.fit else len({lo, hi})])
         out += _table(["integrator", "at dt", "measured particles", "frontier [particles]", "cost exponent p", "fit residual [decades rms]", "points"], body)
         out += ["", "The frontier in particles: the largest measured count that is real-time; the power-law fit's N* is shown "
-                "with whether it lies within the measured range or is extrapolated beyond it.", ""]
+                "with whether it lies within the measured range or is extrapolated beyond it. “matched”: pbd/xpbd at dt = 1/60 s "
+                "with the iterations x substeps that --match-accuracy found for the tolerance (accuracy sizes only).", ""]
     floors = _rows(data.rows, "floor")
     if floors:
         out += ["### Float32 noise floor of the transients", ""]
