@@ -40,6 +40,8 @@ from warp.optim.linear import LinearOperator, aslinearoperator, cg
 from warpcloth.kernels import implicit as ik
 
 from ..forces import eval_forces
+from ..pins import has_pin_tracks
+from warpcloth.kernels import pins as pk
 from .base import Integrator, Option, scratch_like
 
 JACOBIANS = ("full", "approx")
@@ -84,6 +86,7 @@ class ImplicitEuler(Integrator):
         self.spring_K = wp.zeros(model.spring_count, dtype=wp.mat33)
         self.spring_B = wp.zeros(model.spring_count, dtype=wp.mat33)
         self.mass_term = wp.zeros(n, dtype=float)
+        self.pin_dv = wp.zeros(n, dtype=wp.vec3)  # prescribed dv of kinematic pins (0 elsewhere)
 
         if self.matrix == "bsr":
             # pattern: diagonal blocks + (i, j) and (j, i) per spring, built once
@@ -161,6 +164,9 @@ class ImplicitEuler(Integrator):
         eval_forces(m, x, v, control, f)
         self._assemble(x, h, float(control.drag_rate))
         wp.launch(ik.eval_rhs, dim=m.particle_count, inputs=[f, v, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_K, m.particle_inv_mass, h], outputs=[self.b], device=m.device)
+        if has_pin_tracks(control):  # pinned dv = (track(t + h) - x)/h - v, moved to the free rows' right side
+            control.kinematic_pins.delta(control, x, v, h, 1.0 / h, 1.0, self.pin_dv)
+            wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, m.particle_inv_mass, self.pin_dv], outputs=[self.b], device=m.device)
         self._solve()
         wp.launch(ik.integrate_implicit_euler, dim=m.particle_count, inputs=[x, v, self.dv, m.particle_inv_mass, h], device=m.device)
 
