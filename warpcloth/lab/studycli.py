@@ -50,7 +50,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--resume", action="store_true", help="continue DIR/results.csv: finished measurements are not redone")
     mode.add_argument("--overwrite", action="store_true", help="replace DIR/results.csv if it exists")
-    p.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
+    # --quiet (no progress, no summary) and --verbose come with every subcommand (cli._add_verbose)
 
 
 def run(args) -> int:
@@ -61,7 +61,9 @@ def run(args) -> int:
     command = "warpcloth " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv and sys.argv[0].endswith("warpcloth") else \
         "warpcloth study " + " ".join(shlex.quote(a) for a in _argv(args))
     summary = run_study(plan, args.out, resume=args.resume, overwrite=args.overwrite,
-                        progress=None if args.quiet else sys.stderr, command=command)
+                        progress=None if getattr(args, "quiet", False) else sys.stderr, command=command)
+    if getattr(args, "quiet", False):
+        return 0
     print(f"{args.out}: {summary['measured']} measurements made, {summary['reused']} reused from the file, "
           f"{summary['wall_s']:.0f} s; wrote {', '.join(summary['files'])}")
     return 0
