@@ -438,6 +438,14 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
             "- Frontier: power law wall s per simulated s = a N^p fitted in log-log over the measured sizes at that dt.",
             "",
         ]
+    if plan is not None:
+        missing = [f"{i} {n}x{n} on {d}" for d in plan.devices for n in plan.all_sizes for i in plan.integrators
+                   if not any(r["measurement"] == "timing" and r["device"] == d and r["integrator"] == i and r["rows"] == n for r in rows)]
+        if missing:
+            lines += ["## Not measured", "",
+                      f"The plan has {len(missing)} device x integrator x size groups without a timing row in results.csv "
+                      f"(the study was interrupted, or no stable dt was found; `--resume` continues an interrupted one): "
+                      f"{', '.join(missing)}.", ""]
     lines += ["## Verdict", ""] + [f"- {s}" for s in verdict(data, tolerance)] + [""]
     lines += ["## Tables", ""] + tables(data)
     lines += ["## Plots", ""]
