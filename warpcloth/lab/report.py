@@ -188,7 +188,7 @@ def verdict(data: Data, tolerance) -> list[str]:
                              f"{m['substeps']} substeps ({_g(m['wall_s_per_sim_s'])} wall s per simulated s, real-time at 30 FPS: "
                              f"{_yn(m['realtime_30fps'])}).")
                 elif m is not None:
-                    head += f"; {m['note']}."
+                    head += f"; at dt = 1/60 s (--match-accuracy), {m['note']}."
                 else:
                     head += "; the iterations needed at 1/60 s were not searched (run with --match-accuracy)."
                 out.append(head)
