@@ -486,6 +486,11 @@ def build_parser() -> argparse.ArgumentParser:
     max_dt = sub.add_parser("max-dt", help="find the largest stable time step of an integrator on a scenario")
     _add_max_dt_arguments(max_dt)
     _add_verbose(max_dt)
+    from .lab import studycli
+
+    study = sub.add_parser("study", help="the accuracy-aware study: stable/accurate dt, cost, real-time frontier, report (docs/study.md)")
+    studycli.add_arguments(study)
+    _add_verbose(study)
     return parser
 
 
@@ -502,6 +507,10 @@ def _dispatch(args) -> int:
         return _sweep(args)
     if args.command == "max-dt":
         return _max_dt(args)
+    if args.command == "study":
+        from .lab import studycli
+
+        return studycli.run(args)
     raise WarpclothError(f"unknown command {args.command!r}")
 
 
@@ -512,6 +521,8 @@ def main(argv=None) -> int:
     hint = ""
     if args.command == "sweep" and args.out != "-":
         hint = f"; finished runs are in {args.out}, continue with --resume"
+    if args.command == "study":
+        hint = f"; finished measurements are in {args.out}/results.csv, continue with --resume"
     return guarded(args, lambda: _dispatch(args), hint)
 
 

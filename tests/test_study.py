@@ -1,0 +1,266 @@
+"""The accuracy study (warpcloth.lab: accuracy, frontier, study, report; ``warpcloth study``)."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+
+import numpy as np
+import pytest
+
+from warpcloth.errors import WarpclothError
+from warpcloth.lab.accuracy import (FRAME_DT, AccuracyProblem, Transient, check_tolerance, search_steps_per_frame,
+                                    steps_per_frame_at_most)
+from warpcloth.lab.frontier import fit_power_law, frontier
+
+
+# -- the metric means what it says -------------------------------------------------------------
+@pytest.fixture(scope="module")
+def swing5():
+    from warpcloth.scenarios import sheet
+
+    sim = sheet.build(rows=5, cols=5, integrator="explicit_euler", dt=1e-3)
+    return sim, AccuracyProblem(sim, Transient("sheet", 0.5, swing=True))
+
+
+def test_explicit_euler_error_halves_when_dt_halves(swing5):
+    sim, problem = swing5
+    sim.set_integrator("explicit_euler")
+    e16, e32 = problem.error(sim, 16), problem.error(sim, 32)
+    assert 1e-4 < e32 < e16 < 0.05
+    assert 1.8 < e16 / e32 < 2.2  # first order: dt/2 -> e/2
+
+
+def test_rk4_error_falls_sixteenfold_before_the_float32_floor():
+    from warpcloth.scenarios import sheet
+
+    sim = sheet.build(rows=5, cols=5, integrator="rk4", dt=1e-3, stiffness=20)  # soft: truncation measurable
+    problem = AccuracyProblem(sim, Transient("sheet", 0.5, swing=True))
+    e1, e2, floor = problem.error(sim, 1), problem.error(sim, 2), problem.error(sim, 64)
+    assert e2 > 3 * floor  # both points above the float32 floor
+    assert 10 < e1 / e2 < 25  # fourth order: dt/2 -> e/16
+    assert floor < 1e-5  # the floor is far below the 1 % tolerance
+
+
+def test_unstable_run_is_infinitely_inaccurate(swing5):
+    sim, problem = swing5
+    sim.set_integrator("explicit_euler")
+    assert problem.error(sim, 1) == math.inf  # dt = 1/60 s: explicit Euler blows up
+
+
+def test_transient_must_be_whole_frames(swing5):
+    sim, _ = swing5
+    with pytest.raises(WarpclothError, match="whole number"):
+        AccuracyProblem(sim, Transient("sheet", 0.51, swing=True))
+
+
+# -- the search ------------------------------------------------------------------------------
+@pytest.mark.parametrize("C,p,tol,k_start", [(50.0, 1, 0.01, 1), (3e4, 2, 0.01, 3), (1e6, 4, 1e-3, 1), (2.0, 1, 0.01, 40)])
+def test_search_finds_the_largest_accurate_dt_of_a_synthetic_curve(C, p, tol, k_start):
+    calls = []
+
+    def error(k):
+        calls.append(k)
+        return C * (FRAME_DT / k) ** p
+
+    found = search_steps_per_frame(error, tol, k_start=k_start, precision=0.0)
+    k_true = max(k_start, math.ceil(FRAME_DT / (tol / C) ** (1 / p) - 1e-12))
+    assert found.k == k_true
+    assert error(found.k) <= tol
+    if found.k > k_start:
+        assert found.k_inaccurate == found.k - 1 and error(found.k - 1) > tol
+        assert not found.bounded
+    else:
+        assert found.bounded  # accurate at the search's upper dt bound
+    assert len(calls) <= 2 * math.log2(k_true + 1) + 4  # bracket + bisection, not a scan
+
+
+def test_search_with_precision_stops_early_but_stays_accurate():
+    found = search_steps_per_frame(lambda k: 100.0 * (FRAME_DT / k), 0.01, precision=0.05)
+    k_true = math.ceil(FRAME_DT * 100.0 / 0.01)
+    assert found.k >= k_true and (found.k - found.k_inaccurate) / found.k_inaccurate <= 0.05
+    assert 100.0 * FRAME_DT / found.k <= 0.01
+
+
+def test_search_reports_nothing_when_the_floor_is_above_the_tolerance():
+    found = search_steps_per_frame(lambda k: 0.02 + 1.0 / k, 0.01, k_max=256)
+    assert found.k is None and found.dt() is None and found.k_inaccurate == 256 and not found.stalled
+    calls = []
+    flat = search_steps_per_frame(lambda k: calls.append(k) or 0.05 * (1 + 0.01 / k), 0.01, k_max=4096)
+    assert flat.k is None and flat.stalled and calls == [1, 2, 4, 8]  # a plateau: gives up after 3 doublings
+    noisy = search_steps_per_frame(lambda k: float("inf") if k < 16 else 0.5 / k, 0.01, precision=0.0)
+    assert noisy.k == 50 and not noisy.stalled  # unstable (inf) trials do not count as a plateau
+
+
+def test_search_treats_nan_as_inaccurate():
+    found = search_steps_per_frame(lambda k: float("nan") if k < 8 else 0.0, 0.01, precision=0.0)
+    assert found.k == 8
+
+
+def test_steps_per_frame_at_most():
+    assert steps_per_frame_at_most(None) == 1 and steps_per_frame_at_most(0.1) == 1
+    assert steps_per_frame_at_most(FRAME_DT / 7) == 7
+    assert FRAME_DT / steps_per_frame_at_most(1.3e-4) <= 1.3e-4
+
+
+@pytest.mark.parametrize("bad", [0, -0.1, 1, 1.5, float("nan"), "x"])
+def test_tolerance_must_be_a_fraction(bad):
+    with pytest.raises(WarpclothError, match="tolerance"):
+        check_tolerance(bad)
+
+
+# -- the frontier ----------------------------------------------------------------------------
+def test_power_law_fit_recovers_a_known_exponent():
+    rng = np.random.default_rng(0)
+    n = np.array([64, 256, 1024, 4096, 16384])
+    cost = 2e-4 * n ** 1.3 * np.exp(rng.normal(0, 0.02, n.size))
+    fit = fit_power_law(n, cost)
+    assert abs(fit.p - 1.3) < 0.03 and 0 < fit.residual < 0.02 and fit.points == 5
+    exact = fit_power_law(n, 2e-4 * n ** 1.3)
+    assert abs(exact.p - 1.3) < 1e-9 and exact.residual < 1e-9 and abs(exact.a / 2e-4 - 1) < 1e-9
+
+
+def test_frontier_inside_and_beyond_the_measured_range():
+    n = [100, 400, 1600, 6400]
+    f = frontier(n, [1e-3 * v for v in n])  # real time up to N = 1000
+    assert f.measured == 400 and abs(f.fitted - 1000) < 1e-6 and f.extrapolated == ""
+    assert not f.all_realtime and not f.none_realtime
+    g = frontier(n, [1e-5 * v for v in n])  # N* = 1e5, beyond 6400
+    assert g.measured == 6400 and g.all_realtime and g.extrapolated == "above" and "extrapolated above" in g.describe()
+    h = frontier(n, [1e-1 * v for v in n])  # N* = 10, below 100
+    assert h.measured is None and h.none_realtime and h.extrapolated == "below"
+    assert frontier([100], [0.5]).fit is None  # one size: no fit
+
+
+# -- the study end to end --------------------------------------------------------------------
+from warpcloth.cli import main  # noqa: E402
+from warpcloth.lab.report import PLOTS  # noqa: E402
+from warpcloth.lab.study import COLUMNS, make_plan, read_rows, run_study  # noqa: E402
+
+def cli(argv) -> int:
+    """``warpcloth ARGV``'s exit status (argparse's errors exit through SystemExit)."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+TINY = ["study", "--profile", "quick", "--integrators", "explicit_euler,pbd", "--sizes", "4", "--accuracy-sizes", "4", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def tiny_study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("study") / "out"
+    import contextlib
+    import io
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = main(TINY + ["--devices", "cpu,cuda:7", "--match-accuracy", "--out", str(out)])
+    return code, out, err.getvalue()
+
+
+def test_tiny_study_end_to_end(tiny_study):
+    code, out, err = tiny_study
+    assert code == 0
+    assert "skipping device cuda:7" in err and err.count("\n") == 1  # the missing device: one line, the rest runs
+    with open(out / "results.csv", newline="") as fh:
+        reader = csv.reader(fh)
+        assert next(reader) == COLUMNS
+        body = list(reader)
+    assert body and all(len(r) == len(COLUMNS) for r in body)
+    rows = read_rows(out / "results.csv")
+    keys = [r["key"] for r in rows]
+    assert len(keys) == len(set(keys))
+    kinds = {r["measurement"] for r in rows}
+    assert {"max_stable_dt", "floor", "error", "max_accurate_dt", "static", "max_static_accurate_dt", "timing", "match_result"} <= kinds
+    for r in rows:
+        assert r["device"] == "cpu" and r["particles"] == 16
+    for r in [r for r in rows if r["measurement"] == "timing"]:
+        assert r["timed_windows"] >= 5 and r["ms_per_step_min"] <= r["ms_per_step_median"] <= r["ms_per_step_max"]
+        assert r["wall_s_per_sim_s"] == pytest.approx(r["ms_per_step_median"] / 1000 / r["dt_s"])
+    acc = {(r["integrator"], r["scenario"]): r for r in rows if r["measurement"] == "max_accurate_dt"}
+    ee = acc[("explicit_euler", "sheet")]
+    assert ee["dt_s"] and ee["error_rel"] <= ee["tolerance_rel"] and ee["floor_error_rel"] < ee["tolerance_rel"] / 100
+    report = (out / "report.md").read_text()
+    for section in ("## Machine and command", "## Method", "## Verdict", "**Null hypothesis**", "**Alternative hypothesis**",
+                    "Cheapest per simulated second", "### Real-time frontier", "### Float32 noise floor", "## Plots",
+                    "## Columns of results.csv", "pbd at 4x4 on cpu", "warpcloth study --profile quick"):
+        assert section in report, section
+    for name in PLOTS:
+        assert (out / name).stat().st_size > 1000 and f"]({name})" in report
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_study_refuses_to_overwrite_without_a_flag(tiny_study, capsys):
+    _, out, _ = tiny_study
+    before = (out / "results.csv").read_bytes()
+    assert main(TINY + ["--out", str(out)]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert (out / "results.csv").read_bytes() == before
+
+
+def test_resume_after_an_interrupt_does_not_redo_finished_measurements(tmp_path):
+    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4], accuracy_sizes=[4])
+    seen = []
+
+    def interrupt_after_five(row):
+        seen.append(row["key"])
+        if len(seen) == 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_study(plan, tmp_path, on_row=interrupt_after_five)
+    first = (tmp_path / "results.csv").read_bytes()
+    assert first.count(b"\n") == 6  # header + the five finished rows, flushed
+    with open(tmp_path / "results.csv", "ab") as fh:
+        fh.write(b"timing,sheet,cut sho")  # a row cut by a kill
+    again = []
+    summary = run_study(plan, tmp_path, resume=True, on_row=lambda r: again.append(r["key"]))
+    data = (tmp_path / "results.csv").read_bytes()
+    assert data.startswith(first) and b"cut sho" not in data
+    assert not set(again) & set(seen)  # nothing finished was measured again
+    assert summary["measured"] == len(again) > 0 and summary["reused"] >= 5
+    keys = [r["key"] for r in read_rows(tmp_path / "results.csv")]
+    assert len(keys) == len(set(keys)) == 5 + len(again)
+    again.clear()
+    summary = run_study(plan, tmp_path, resume=True, on_row=lambda r: again.append(r["key"]))
+    assert summary["measured"] == 0 and not again  # a finished study resumes to nothing
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--profile", "huge"], "invalid choice: 'huge'"),
+    (["--integrators", "euler"], "unknown integrator 'euler'"),
+    (["--integrators", ""], "--integrators must be a comma-separated list"),
+    (["--sizes", ""], "--sizes must be a comma-separated list"),
+    (["--sizes", "8,,16"], "--sizes must be a comma-separated list"),
+    (["--sizes", "2"], "integers >= 3"),
+    (["--tolerance", "0"], "--tolerance must be in (0, 1)"),
+    (["--tolerance", "-0.01"], "--tolerance must be in (0, 1)"),
+    (["--tolerance", "1"], "--tolerance must be in (0, 1)"),
+    (["--tolerance", "nan"], "--tolerance must be in (0, 1)"),
+    (["--devices", "cuda:7"], "none of the devices cuda:7 is available"),
+])
+def test_bad_input_is_one_line_and_status_2(argv, message, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli(["study", "--quiet", "--out", str(out)] + argv) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[-1].startswith("warpcloth: error: ") and message in lines[-1]
+    assert len(lines) == (2 if "--devices" in argv else 1)  # a missing device: its skip line, then the error
+    assert not (out / "results.csv").exists()
+
+
+def test_unwritable_out_is_refused_before_any_work(tmp_path, capsys):
+    (tmp_path / "file").write_text("x")
+    assert main(["study", "--quiet", "--out", str(tmp_path / "file")]) == 2
+    assert "is not a folder" in capsys.readouterr().err
+    assert main(["study", "--quiet", "--out", str(tmp_path / "missing" / "out")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert main(["study", "--quiet", "--out", "/proc/warpcloth-study"]) == 2
+    assert "cannot be created" in capsys.readouterr().err
+    if os.geteuid() != 0:
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o500)
+        assert main(["study", "--quiet", "--out", str(locked)]) == 2
+        assert "not writable" in capsys.readouterr().err

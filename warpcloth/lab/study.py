@@ -1,0 +1,685 @@
+"""``warpcloth study``: the seed's question answered with measured, accuracy-aware figures.
+
+For each device x integrator x mesh size (n x n particles) it measures, one CSV row per
+measurement (:data:`COLUMNS`):
+
+* ``max_stable_dt`` (sheet and flag): :func:`warpcloth.maxdt.find_max_dt` up to one 60 FPS frame,
+  with the max strain at that dt;
+* at the *accuracy sizes* (where a float64 reference is computed): ``floor`` (rk4 at a quarter of
+  its default dt: the float32 noise floor of the transient), ``error`` (e at dt = frame/k, every
+  trial), ``max_accurate_dt`` (sheet swing and flag transient, :mod:`warpcloth.lab.accuracy`),
+  ``static`` (the sheet run from rest to equilibrium: static error, sag error, time to
+  equilibrium) and ``max_static_accurate_dt``; with ``match_accuracy``, ``match`` rows for
+  pbd/xpbd (iterations x substeps at one step per frame) and ``match_result``;
+* ``timing`` on the sheet at the max stable dt and the max accurate dt (the smaller of the two
+  transients'): ms/step over ``windows`` timed windows after a warm-up (compile) and an untimed
+  replay (graph capture), median and spread; wall s per simulated s, real time at 30 and 60 FPS;
+* ``static`` at the max stable dt at every size (time to equilibrium; static error where the
+  float64 equilibrium is computed).
+
+Rows are written as they finish (header atomically, each row flushed and fsync'd, a writer lock);
+``resume`` skips measurements whose key is already in the file and reuses their values.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import statistics
+import sys
+import time
+from dataclasses import asdict, dataclass, field, replace
+
+from ..errors import WarpclothError, require
+from ..fileio import OutputError, WriterLock, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
+from .accuracy import (DEFAULT_TOLERANCE, FRAME_DT, AccuracyProblem, StaticProblem, Transient, check_tolerance,
+                       search_steps_per_frame, steps_per_frame_at_most)
+
+COLUMNS = [
+    "measurement", "scenario", "integrator", "options", "device", "rows", "cols", "particles", "springs",
+    "dt_s", "steps_per_frame", "bound_dt_s", "search_bounded", "tolerance_rel", "error_rel", "floor_error_rel",
+    "transient_s", "max_strain_rel", "stable",
+    "ms_per_step_median", "ms_per_step_min", "ms_per_step_max", "timed_windows", "steps_per_window",
+    "wall_s_per_sim_s", "realtime_factor", "realtime_30fps", "realtime_60fps",
+    "equilibrium_reached", "time_to_equilibrium_sim_s", "time_to_equilibrium_wall_s", "static_error_rel",
+    "sag_error_rel", "iterations", "substeps", "trials", "measure_wall_s", "note",
+    "warpcloth_version", "warp_version", "key",
+]
+
+#: Descriptions of the columns (docs/study.md is generated from the same text).
+COLUMN_DOCS = {
+    "measurement": "max_stable_dt, floor, error, max_accurate_dt, static, max_static_accurate_dt, timing, match, match_result",
+    "scenario": "sheet or flag", "integrator": "integrator name", "options": "integrator options (k=v, space-separated)",
+    "device": "Warp device", "rows": "particles per column", "cols": "particles per row", "particles": "rows x cols",
+    "springs": "spring count",
+    "dt_s": "the time step [s] (of the run, or the search's answer)", "steps_per_frame": "k: dt = (1/60 s) / k",
+    "bound_dt_s": "the search bracket's other side [s] (the smallest unstable / largest inaccurate dt)",
+    "search_bounded": "true: the answer is the search's upper bound (one frame, or the max stable dt), not a found boundary",
+    "tolerance_rel": "accuracy tolerance, fraction of the cloth size", "error_rel": "e = max |x - x_ref| / size",
+    "floor_error_rel": "the float32 noise floor of the transient (rk4 at a tiny dt), fraction of the size",
+    "transient_s": "length of the transient [s]", "max_strain_rel": "largest spring strain reached",
+    "stable": "the run stayed stable",
+    "ms_per_step_median": "median over the timed windows [ms]", "ms_per_step_min": "fastest window [ms]",
+    "ms_per_step_max": "slowest window [ms]", "timed_windows": "windows timed", "steps_per_window": "steps per window",
+    "wall_s_per_sim_s": "wall seconds per simulated second (median ms/step / dt)",
+    "realtime_factor": "simulated seconds per wall second", "realtime_30fps": "a 1/30 s frame's steps take <= 1/30 s",
+    "realtime_60fps": "a 1/60 s frame's steps take <= 1/60 s", "equilibrium_reached": "the sheet came to rest",
+    "time_to_equilibrium_sim_s": "simulated time to equilibrium [s]", "time_to_equilibrium_wall_s": "wall time to equilibrium [s]",
+    "static_error_rel": "max |x - x_eq| / size against the float64 equilibrium",
+    "sag_error_rel": "relative error of the sag (largest displacement from rest)",
+    "iterations": "pbd/xpbd iterations", "substeps": "pbd/xpbd substeps", "trials": "runs the search made",
+    "measure_wall_s": "wall seconds the measurement took", "note": "why a value is missing or bounded",
+    "warpcloth_version": "", "warp_version": "", "key": "identity of the measurement (resume)",
+}
+
+SCENARIOS = ("sheet", "flag")
+#: pbd/xpbd iterations x substeps tried by ``--match-accuracy``, cheapest (iterations x substeps) first.
+MATCH_ITERATIONS = (5, 10, 20, 40, 80)
+MATCH_SUBSTEPS = (1, 2, 4, 8, 16)
+
+
+@dataclass
+class StudyPlan:
+    """What a study measures. ``sizes``: the timing/stability ladder (n x n); ``accuracy_sizes``:
+    where the float64 references are computed (their timing is measured too)."""
+
+    profile: str
+    integrators: list
+    sizes: list
+    accuracy_sizes: list
+    devices: list
+    tolerance: float = DEFAULT_TOLERANCE
+    sheet_transient: float = 1.0  # s
+    flag_transient: float = 0.5  # s
+    maxdt_duration: float = 1.0  # s each stability trial must survive
+    maxdt_precision: float = 0.05
+    maxdt_wall_cap: float | None = 30.0
+    accurate_precision: float = 0.05
+    windows: int = 5
+    window_seconds: float = 0.1
+    equilibrium_duration: float = 10.0  # s simulated at most
+    equilibrium_wall_cap: float | None = 30.0
+    static_max_size: int = 64  # the float64 equilibrium (Newton) up to this n
+    error_ladder: tuple = (1, 2, 4, 8, 16, 32, 64)  # steps per frame, at the smallest accuracy size
+    timing_scenarios: tuple = ("sheet",)
+    extra_dt_fractions: tuple = ()  # timing also at max stable dt x each (the seed's "two smaller")
+    match_accuracy: bool = False
+
+    @property
+    def all_sizes(self) -> list:
+        return sorted(set(self.sizes) | set(self.accuracy_sizes))
+
+    def transient(self, scenario: str) -> Transient:
+        return Transient(scenario, self.sheet_transient if scenario == "sheet" else self.flag_transient, swing=scenario == "sheet")
+
+
+PROFILES = {
+    "quick": dict(sizes=[4, 6, 8], accuracy_sizes=[4, 6], sheet_transient=0.5, flag_transient=0.25, maxdt_duration=0.5,
+                  maxdt_precision=0.1, accurate_precision=0.1, window_seconds=0.03, equilibrium_duration=4.0,
+                  equilibrium_wall_cap=5.0, maxdt_wall_cap=5.0, error_ladder=(1, 2, 4, 8, 16, 32)),
+    # sized for a 2-core CPU in about 40 minutes: 128x128 is left out (a 1 s stability trial of
+    # explicit Euler there is ~28k steps; rk4 and midpoint trials reach the wall cap).
+    "standard": dict(sizes=[16, 32, 64], accuracy_sizes=[8, 12, 16], maxdt_wall_cap=15.0, equilibrium_wall_cap=15.0),
+    "seed": dict(sizes=[32, 64, 128], accuracy_sizes=[8, 16], timing_scenarios=("sheet", "flag"),
+                 extra_dt_fractions=(0.5, 0.25), maxdt_duration=2.0, maxdt_precision=0.02, equilibrium_wall_cap=60.0,
+                 maxdt_wall_cap=60.0),
+}
+
+
+def make_plan(profile: str = "quick", integrators=None, sizes=None, devices=None, tolerance=DEFAULT_TOLERANCE,
+              match_accuracy: bool = False, accuracy_sizes=None) -> StudyPlan:
+    """A :class:`StudyPlan` from a profile and explicit overrides (checked; one-line errors)."""
+    from ..integrators import integrator_names
+
+    if profile not in PROFILES:
+        raise WarpclothError(f"unknown profile {profile!r}; choose one of {', '.join(PROFILES)}")
+    names = integrator_names()
+    if integrators is None:
+        integrators = list(names)
+    integrators = list(integrators)
+    require(bool(integrators), "the integrator list is empty")
+    for name in integrators:
+        if name not in names:
+            raise WarpclothError(f"unknown integrator {name!r}; choose from {', '.join(names)}")
+    base = dict(PROFILES[profile])
+    if sizes is not None:
+        sizes = list(sizes)
+        require(bool(sizes), "the size list is empty: give sizes like --sizes 8,16")
+        for s in sizes:
+            require(isinstance(s, int) and s >= 3, f"sizes must be integers >= 3 (n x n particles), got {s!r}")
+        base["sizes"] = sizes
+        if accuracy_sizes is None:
+            base["accuracy_sizes"] = [s for s in sizes if s <= max(PROFILES[profile]["accuracy_sizes"])] or [min(sizes)]
+    if accuracy_sizes is not None:
+        base["accuracy_sizes"] = list(accuracy_sizes)
+    if devices is None:
+        devices = ["cpu", "cuda"] if profile == "seed" else ["cpu"]
+    devices = list(devices)
+    require(bool(devices), "the device list is empty")
+    return StudyPlan(profile=profile, integrators=integrators, devices=devices, tolerance=check_tolerance(tolerance),
+                     match_accuracy=bool(match_accuracy), **base)
+
+
+# -- the results file ------------------------------------------------------------------------
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else str(value)
+    if isinstance(value, (dict, list, tuple)):
+        return json.dumps(value, sort_keys=True)
+    return str(value)
+
+
+def format_row(row: dict) -> str:
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([_cell(row.get(c)) for c in COLUMNS])
+    return buf.getvalue()
+
+
+def parse_cell(text: str):
+    """A CSV cell back to a value: '' -> None, true/false, int, float (inf, nan), else str."""
+    if text == "":
+        return None
+    if text in ("true", "false"):
+        return text == "true"
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def read_rows(path: str) -> list[dict]:
+    """The rows of a study's results.csv, values parsed."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        return [{k: parse_cell(v) for k, v in r.items()} for r in csv.DictReader(fh)]
+
+
+class StudyCsv:
+    """results.csv: header written atomically, one fsync'd row per measurement, a writer lock;
+    ``resume`` validates the whole file first (header, cell counts), drops a cut last line and
+    returns the finished rows by key. The same rules as the sweep's results file."""
+
+    def __init__(self, path: str, resume: bool = False, overwrite: bool = False, report=None):
+        self.path = path
+        self.done: dict[str, dict] = {}
+        self.note = ""
+        directory = os.path.dirname(os.path.abspath(path))
+        try:
+            check_output_path(path, "results")
+        except WarpclothError as exc:
+            raise WarpclothError(f"cannot write results to {path}: {exc}") from None
+        self.lock = WriterLock(path).acquire()
+        try:
+            sweep_stale_temporaries(directory, report)
+            exists = os.path.exists(path) and os.path.getsize(path) > 0
+            if exists and resume:
+                self._read_existing()
+            elif exists and not overwrite:
+                raise WarpclothError(f"{path} already exists: use --resume to continue it or --overwrite to replace it")
+            else:
+                write_atomic(path, format_row(dict(zip(COLUMNS, COLUMNS))), "results CSV")
+            self.fh = open(path, "a", newline="", encoding="utf-8")
+        except OutputError as exc:
+            self.lock.release()
+            raise WarpclothError(str(exc)) from None
+        except BaseException:
+            self.lock.release()
+            raise
+
+    def _read_existing(self) -> None:
+        with open(self.path, "rb") as fh:
+            data = fh.read()
+        cut = data.rfind(b"\n") + 1
+        require(cut > 0, f"cannot resume {self.path}: it has no complete header line (left unchanged)")
+        try:
+            text = data[:cut].decode("utf-8")
+        except UnicodeDecodeError:
+            raise WarpclothError(f"cannot resume {self.path}: not UTF-8 text (left unchanged)") from None
+        reader = csv.reader(io.StringIO(text))
+        header = next(reader, None)
+        if header != COLUMNS:
+            raise WarpclothError(f"cannot resume {self.path}: its header is not this warpcloth's study columns (left unchanged)")
+        rows = {}
+        for line_no, cells in enumerate(reader, start=2):
+            if len(cells) != len(COLUMNS):
+                raise WarpclothError(f"cannot resume {self.path}: line {line_no} has {len(cells)} cells, expected {len(COLUMNS)} (left unchanged)")
+            row = {k: parse_cell(v) for k, v in zip(COLUMNS, cells)}
+            rows[row["key"]] = row
+        if cut < len(data):
+            os.truncate(self.path, cut)
+            self.note = f"{self.path}: dropped an incomplete last line ({len(data) - cut} bytes, a measurement cut short); it runs again"
+        self.done = rows
+
+    def write(self, row: dict) -> None:
+        text = format_row(row)
+        try:
+            self.fh.write(text)
+            self.fh.flush()
+            os.fsync(self.fh.fileno())
+        except OSError as exc:
+            raise OutputError(describe_write_error(exc, self.path, "results CSV", needed=len(text.encode()))
+                              .replace(f"; {self.path} is unchanged", "; the rows before it are kept")) from None
+        self.done[row["key"]] = {k: parse_cell(_cell(row.get(k))) for k in COLUMNS}
+
+    def close(self) -> None:
+        try:
+            self.fh.close()
+        finally:
+            self.lock.release()
+
+
+# -- progress --------------------------------------------------------------------------------
+def _clock(seconds: float) -> str:
+    seconds = max(0, int(round(seconds)))
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}" if seconds >= 3600 else f"{seconds // 60}:{seconds % 60:02d}"
+
+
+class Progress:
+    """A bar with an ETA on ``stream`` (redrawn in place on a terminal, one line per update
+    otherwise). Work is weighted by particle count; the ETA is elapsed x remaining / done."""
+
+    def __init__(self, total_weight: float, stream=None, width: int = 24):
+        self.total = max(total_weight, 1e-9)
+        self.done = 0.0
+        self.stream = stream
+        self.width = width
+        self.start = time.perf_counter()
+        self.tty = bool(stream is not None and getattr(stream, "isatty", lambda: False)())
+
+    def update(self, label: str, finished_weight: float = 0.0) -> None:
+        self.done += finished_weight
+        if self.stream is None:
+            return
+        frac = min(1.0, self.done / self.total)
+        elapsed = time.perf_counter() - self.start
+        eta = f"ETA {_clock(elapsed * (1 - frac) / frac)}" if frac > 0 else "ETA ?"
+        bar = "#" * int(round(frac * self.width))
+        line = f"study [{bar:<{self.width}}] {100 * frac:3.0f}% {_clock(elapsed)} {eta} {label}"
+        if self.tty:
+            self.stream.write("\r\x1b[K" + line)
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.stream is not None and self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+# -- the runner ------------------------------------------------------------------------------
+def _options_text(options: dict) -> str:
+    return " ".join(f"{k}={v}" for k, v in sorted(options.items()))
+
+
+class Study:
+    """Runs a :class:`StudyPlan` into a :class:`StudyCsv` (see the module docstring)."""
+
+    def __init__(self, plan: StudyPlan, out: StudyCsv, progress=None, on_row=None):
+        import warp as wp
+
+        from .. import __version__
+
+        self.plan = plan
+        self.out = out
+        self.progress = progress
+        self.on_row = on_row  # called with each new row (tests: interrupt after N)
+        self.versions = {"warpcloth_version": __version__, "warp_version": wp.config.version}
+        self._sims: dict = {}
+        self._problems: dict = {}
+        self._static: dict = {}
+        self.measured = 0
+        self.reused = 0
+
+    # one measurement, done once ---------------------------------------------------------------
+    def once(self, key: str, base: dict, fn) -> dict:
+        if key in self.out.done:
+            self.reused += 1
+            return self.out.done[key]
+        t0 = time.perf_counter()
+        row = dict(base)
+        row.update(fn())
+        row.setdefault("measure_wall_s", time.perf_counter() - t0)
+        row.update(self.versions)
+        row["key"] = key
+        self.out.write(row)
+        self.measured += 1
+        if self.on_row is not None:
+            self.on_row(row)
+        return self.out.done[key]
+
+    def sim(self, scenario: str, n: int, device: str, integrator: str, options: dict | None = None):
+        from ..integrators import make_integrator
+        from ..scenarios import get_scenario
+
+        key = (scenario, n, device)
+        sim = self._sims.get(key)
+        if sim is None:
+            sim = self._sims[key] = get_scenario(scenario).build(rows=n, cols=n, device=device, integrator=integrator, dt=FRAME_DT)
+        sim.set_integrator(make_integrator(integrator, **(options or {})), dt=FRAME_DT)
+        sim.reset()
+        return sim
+
+    def problem(self, scenario: str, n: int, device: str) -> AccuracyProblem:
+        key = (scenario, n, device)
+        if key not in self._problems:
+            self._problems[key] = AccuracyProblem(self.sim(scenario, n, device, "explicit_euler"), self.plan.transient(scenario))
+        return self._problems[key]
+
+    def static_problem(self, n: int, device: str) -> StaticProblem | None:
+        if n > self.plan.static_max_size:
+            return None
+        key = (n, device)
+        if key not in self._static:
+            self._static[key] = StaticProblem(self.sim("sheet", n, device, "explicit_euler"))
+        return self._static[key]
+
+    def base(self, measurement: str, scenario: str, integrator: str, device: str, n: int, options: dict | None = None) -> dict:
+        from ..model import expected_spring_counts
+
+        return {"measurement": measurement, "scenario": scenario, "integrator": integrator, "options": _options_text(options or {}),
+                "device": device, "rows": n, "cols": n, "particles": n * n,
+                "springs": sum(expected_spring_counts(n, n, "provot").values())}
+
+    # the measurements ---------------------------------------------------------------------------
+    def max_stable_dt(self, scenario: str, integrator: str, device: str, n: int) -> dict:
+        p = self.plan
+        key = f"max_stable_dt|{scenario}|{integrator}|{device}|{n}|dur={p.maxdt_duration}|prec={p.maxdt_precision}|cap={p.maxdt_wall_cap}"
+
+        def run():
+            from ..maxdt import find_max_dt
+            from ..scenarios import get_scenario
+
+            sc = get_scenario(scenario)
+            r = find_max_dt(sc, sc.config(rows=n, cols=n, integrator=integrator, device=device), precision=p.maxdt_precision,
+                            duration=p.maxdt_duration, dt_max=FRAME_DT, wall_cap=p.maxdt_wall_cap)
+            note = r.no_stable_reason or ("stable up to the search limit (one 60 FPS frame)" if r.limit_reached and r.dt else "")
+            if r.inconclusive_trials:
+                note = (note + "; " if note else "") + f"{r.inconclusive_trials} trials stopped by the wall cap (counted stable)"
+            return {"dt_s": r.dt, "bound_dt_s": r.unstable_dt, "search_bounded": r.limit_reached, "max_strain_rel": r.max_strain,
+                    "stable": r.dt is not None, "trials": len(r.trials), "transient_s": p.maxdt_duration, "note": note}
+
+        return self.once(key, self.base("max_stable_dt", scenario, integrator, device, n), run)
+
+    def floor(self, scenario: str, device: str, n: int) -> dict:
+        from ..integrators import make_integrator
+
+        p = self.plan
+        tr = p.transient(scenario)
+        key = f"floor|{scenario}|rk4|{device}|{n}|T={tr.duration}"
+
+        def run():
+            sim = self.sim(scenario, n, device, "rk4")
+            k = 4 * steps_per_frame_at_most(make_integrator("rk4").default_dt(sim.model, sim.control.drag_rate))
+            e = self.problem(scenario, n, device).error(sim, k)
+            return {"dt_s": FRAME_DT / k, "steps_per_frame": k, "error_rel": e, "floor_error_rel": e, "transient_s": tr.duration,
+                    "note": "rk4 at a quarter of its default dt: the float32 noise floor of this transient"}
+
+        return self.once(key, self.base("floor", scenario, "rk4", device, n), run)
+
+    def error(self, scenario: str, integrator: str, device: str, n: int, k: int, options: dict | None = None) -> float:
+        tr = self.plan.transient(scenario)
+        opt = _options_text(options or {})
+        key = f"error|{scenario}|{integrator}|{opt}|{device}|{n}|T={tr.duration}|k={k}"
+
+        def run():
+            sim = self.sim(scenario, n, device, integrator, options)
+            e = self.problem(scenario, n, device).error(sim, k)
+            return {"dt_s": FRAME_DT / k, "steps_per_frame": k, "error_rel": e, "transient_s": tr.duration, "stable": math.isfinite(e),
+                    **({"iterations": options.get("iterations"), "substeps": options.get("substeps")} if options else {})}
+
+        return self.once(key, self.base("error", scenario, integrator, device, n, options), run)["error_rel"]
+
+    def max_accurate_dt(self, scenario: str, integrator: str, device: str, n: int, stable_dt) -> dict:
+        p = self.plan
+        tr = p.transient(scenario)
+        key = f"max_accurate_dt|{scenario}|{integrator}|{device}|{n}|T={tr.duration}|tol={p.tolerance}|prec={p.accurate_precision}"
+        floor = self.floor(scenario, device, n)["error_rel"]
+
+        def run():
+            if stable_dt is None:
+                return {"note": "no stable dt: no accurate dt", "tolerance_rel": p.tolerance, "floor_error_rel": floor}
+            k0 = steps_per_frame_at_most(stable_dt)
+            s = search_steps_per_frame(lambda k: self.error(scenario, integrator, device, n, k), p.tolerance, k_start=k0,
+                                       k_max=max(4096, 64 * k0), precision=p.accurate_precision)
+            e = dict(s.trials).get(s.k) if s.k else None
+            note = "monotone e(dt) assumed"
+            if s.bounded:
+                note += "; accurate at the search's upper bound (the max stable dt or one frame)"
+            if s.k is None:
+                last = s.trials[-1][1] if s.trials else None
+                note += (f"; e stopped falling as dt shrank (about {last:.3g}): no dt is accurate with these options" if s.stalled
+                         else "; no dt found accurate")
+            return {"dt_s": s.dt(), "steps_per_frame": s.k, "bound_dt_s": FRAME_DT / s.k_inaccurate if s.k_inaccurate else None,
+                    "search_bounded": s.bounded, "tolerance_rel": p.tolerance, "error_rel": e, "floor_error_rel": floor,
+                    "transient_s": tr.duration, "trials": len(s.trials), "note": note}
+
+        return self.once(key, self.base("max_accurate_dt", scenario, integrator, device, n), run)
+
+    def static(self, integrator: str, device: str, n: int, k: int, options: dict | None = None) -> dict:
+        p = self.plan
+        opt = _options_text(options or {})
+        key = f"static|sheet|{integrator}|{opt}|{device}|{n}|k={k}|dur={p.equilibrium_duration}|cap={p.equilibrium_wall_cap}"
+
+        def run():
+            sim = self.sim("sheet", n, device, integrator, options)
+            prob = self.static_problem(n, device)
+            dt = FRAME_DT / k
+            if prob is None:
+                sim.set_dt(dt)
+                r = sim.run(p.equilibrium_duration, stop_at_equilibrium=True, wall_cap=p.equilibrium_wall_cap)
+                return {"dt_s": dt, "steps_per_frame": k, "equilibrium_reached": r.equilibrium_reached, "stable": r.stable,
+                        "time_to_equilibrium_sim_s": r.time_to_equilibrium, "time_to_equilibrium_wall_s": r.time_to_equilibrium_wall,
+                        "max_strain_rel": r.max_strain, "note": f"no float64 equilibrium above {p.static_max_size}x{p.static_max_size}"}
+            s = prob.measure(sim, dt, p.equilibrium_duration, p.equilibrium_wall_cap)
+            return {"dt_s": dt, "steps_per_frame": k, "equilibrium_reached": s.equilibrium_reached, "stable": s.stable,
+                    "time_to_equilibrium_sim_s": s.time_to_equilibrium, "time_to_equilibrium_wall_s": s.time_to_equilibrium_wall,
+                    "static_error_rel": s.error, "sag_error_rel": s.sag_error, "tolerance_rel": p.tolerance,
+                    "note": "" if s.equilibrium_reached else f"not at rest after {s.sim_time:.3g} s simulated (cap {p.equilibrium_duration:g} s or {p.equilibrium_wall_cap} s wall)"}
+
+        return self.once(key, self.base("static", "sheet", integrator, device, n, options), run)
+
+    def max_static_accurate_dt(self, integrator: str, device: str, n: int, stable_dt) -> dict:
+        p = self.plan
+        key = f"max_static_accurate_dt|sheet|{integrator}|{device}|{n}|tol={p.tolerance}|dur={p.equilibrium_duration}"
+
+        def run():
+            if stable_dt is None:
+                return {"note": "no stable dt", "tolerance_rel": p.tolerance}
+            k0 = steps_per_frame_at_most(stable_dt)
+
+            def err(k):
+                row = self.static(integrator, device, n, k)
+                return row["static_error_rel"] if row.get("static_error_rel") is not None else math.inf
+
+            s = search_steps_per_frame(err, p.tolerance, k_start=k0, k_max=max(1024, 16 * k0), precision=max(p.accurate_precision, 0.2))
+            note = "monotone static error assumed"
+            if s.bounded:
+                note += "; accurate at the max stable dt (the search's upper bound)"
+            return {"dt_s": s.dt(), "steps_per_frame": s.k, "bound_dt_s": FRAME_DT / s.k_inaccurate if s.k_inaccurate else None,
+                    "search_bounded": s.bounded, "tolerance_rel": p.tolerance, "error_rel": dict(s.trials).get(s.k) if s.k else None,
+                    "trials": len(s.trials), "note": note}
+
+        return self.once(key, self.base("max_static_accurate_dt", "sheet", integrator, device, n), run)
+
+    def timing(self, scenario: str, integrator: str, device: str, n: int, dt: float, label: str, options: dict | None = None) -> dict:
+        import warp as wp
+
+        p = self.plan
+        opt = _options_text(options or {})
+        key = f"timing|{scenario}|{integrator}|{opt}|{device}|{n}|{label}|dt={dt!r}|w={p.windows}"
+
+        def run():
+            sim = self.sim(scenario, n, device, integrator, options)
+            sim.set_dt(dt)
+            sim.warm_up()  # compile: excluded
+            steps_frame = max(1, math.ceil(FRAME_DT / dt - 1e-9))
+            sim.simulate(steps_frame)  # first launches / graph capture: excluded
+            wp.synchronize_device(device)
+            t0 = time.perf_counter()
+            sim.simulate(steps_frame)
+            wp.synchronize_device(device)
+            per_step = max((time.perf_counter() - t0) / steps_frame, 1e-7)
+            replays = max(1, int(math.ceil(p.window_seconds / (per_step * steps_frame))))
+            m = replays * steps_frame  # a window replays the frame's captured steps (no new capture)
+            ms = []
+            for _ in range(p.windows):
+                t0 = time.perf_counter()
+                for _ in range(replays):
+                    sim.simulate(steps_frame)
+                wp.synchronize_device(device)
+                ms.append(1000.0 * (time.perf_counter() - t0) / m)
+            med = statistics.median(ms)
+            cost = med / 1000.0 / dt
+
+            def realtime(fps):
+                steps = math.ceil((1.0 / fps) / dt - 1e-9)
+                return steps * med / 1000.0 <= 1.0 / fps
+
+            return {"dt_s": dt, "ms_per_step_median": med, "ms_per_step_min": min(ms), "ms_per_step_max": max(ms),
+                    "timed_windows": len(ms), "steps_per_window": m, "wall_s_per_sim_s": cost, "realtime_factor": 1.0 / cost,
+                    "realtime_30fps": realtime(30.0), "realtime_60fps": realtime(60.0), "note": f"at the {label} dt",
+                    **({"iterations": options.get("iterations"), "substeps": options.get("substeps")} if options else {})}
+
+        return self.once(key, self.base("timing", scenario, integrator, device, n, options), run)
+
+    def match(self, integrator: str, device: str, n: int) -> dict:
+        """The cheapest iterations x substeps (by their product) at one step per frame reaching the
+        tolerance on both transients."""
+        p = self.plan
+        key = f"match_result|{integrator}|{device}|{n}|tol={p.tolerance}|T={p.sheet_transient},{p.flag_transient}"
+
+        def run():
+            pairs = sorted(((i, s) for i in MATCH_ITERATIONS for s in MATCH_SUBSTEPS), key=lambda t: (t[0] * t[1], t[1]))
+            tried = 0
+            for it, sub in pairs:
+                opts = {"iterations": it, "substeps": sub}
+                tried += 1
+                errs = []
+                for sc in SCENARIOS:
+                    errs.append(self.error(sc, integrator, device, n, 1, opts))
+                    if not errs[-1] <= p.tolerance:
+                        break
+                if len(errs) == len(SCENARIOS) and all(e <= p.tolerance for e in errs):
+                    t = self.timing("sheet", integrator, device, n, FRAME_DT, "matched", opts)
+                    return {"dt_s": FRAME_DT, "steps_per_frame": 1, "iterations": it, "substeps": sub, "error_rel": max(errs),
+                            "tolerance_rel": p.tolerance, "trials": tried, "ms_per_step_median": t["ms_per_step_median"],
+                            "wall_s_per_sim_s": t["wall_s_per_sim_s"], "realtime_30fps": t["realtime_30fps"],
+                            "realtime_60fps": t["realtime_60fps"], "note": "cheapest iterations x substeps reaching the tolerance on both transients at dt = 1/60 s"}
+            return {"dt_s": FRAME_DT, "tolerance_rel": p.tolerance, "trials": tried,
+                    "note": f"no pair up to {MATCH_ITERATIONS[-1]} iterations x {MATCH_SUBSTEPS[-1]} substeps reaches the tolerance"}
+
+        return self.once(key, self.base("match_result", "sheet+flag", integrator, device, n), run)
+
+    # the plan -----------------------------------------------------------------------------------
+    def group(self, device: str, integrator: str, n: int) -> None:
+        p = self.plan
+        stable = {sc: self.max_stable_dt(sc, integrator, device, n)["dt_s"] for sc in SCENARIOS}
+        accurate = None
+        if n in p.accuracy_sizes:
+            acc = {}
+            for sc in SCENARIOS:
+                if n == min(p.accuracy_sizes):  # the error-vs-dt ladder for the plot of orders
+                    k_stable = steps_per_frame_at_most(stable[sc]) if stable[sc] is not None else None
+                    for k in p.error_ladder:
+                        if k_stable is not None and k >= k_stable:
+                            self.error(sc, integrator, device, n, k)
+                acc[sc] = self.max_accurate_dt(sc, integrator, device, n, stable[sc])["dt_s"]
+            if all(v is not None for v in acc.values()):
+                accurate = min(acc.values())
+            ms = self.max_static_accurate_dt(integrator, device, n, stable["sheet"])
+            if accurate is not None:
+                self.static(integrator, device, n, steps_per_frame_at_most(accurate))
+            if p.match_accuracy and integrator in ("pbd", "xpbd"):
+                self.match(integrator, device, n)
+        if stable["sheet"] is not None:
+            self.static(integrator, device, n, steps_per_frame_at_most(stable["sheet"]))
+        for sc in p.timing_scenarios:
+            if stable[sc] is not None:
+                dt_stable = FRAME_DT / steps_per_frame_at_most(stable[sc])
+                self.timing(sc, integrator, device, n, dt_stable, "stable")
+                for f in p.extra_dt_fractions:
+                    self.timing(sc, integrator, device, n, FRAME_DT / steps_per_frame_at_most(stable[sc] * f), f"stable x {f:g}")
+            if accurate is not None:
+                self.timing(sc, integrator, device, n, accurate, "accurate")
+
+    def run(self) -> None:
+        p = self.plan
+        groups = [(d, i, n) for d in p.devices for n in p.all_sizes for i in p.integrators]
+        bar = Progress(sum(n * n * (4 if n in p.accuracy_sizes else 1) for _, _, n in groups), self.progress)
+        for d, i, n in groups:
+            bar.update(f"{i} {n}x{n} {d}")
+            self.group(d, i, n)
+            bar.update(f"{i} {n}x{n} {d} done", n * n * (4 if n in p.accuracy_sizes else 1))
+        bar.close()
+
+
+def available_devices(devices: list, stream=None) -> list:
+    """The devices of ``devices`` that are present; each missing one is skipped with one line."""
+    from ..device import device_name as resolve_device
+
+    out = []
+    for d in devices:
+        try:
+            out.append(resolve_device(d))
+        except WarpclothError as exc:
+            if stream is not None:
+                print(f"warpcloth: study: skipping device {d}: {exc}", file=stream)
+    return list(dict.fromkeys(out))
+
+
+def prepare_out(out_dir: str) -> str:
+    """The output folder, created if missing (its parent must exist); checked writable before
+    any work. Returns the results.csv path."""
+    out_dir = os.fspath(out_dir)
+    require(bool(out_dir.strip()), "--out is empty")
+    if os.path.lexists(out_dir) and not os.path.isdir(out_dir):
+        raise WarpclothError(f"--out {out_dir!r} exists and is not a folder")
+    if not os.path.isdir(out_dir):
+        parent = os.path.dirname(os.path.abspath(out_dir))
+        if not os.path.isdir(parent):
+            raise WarpclothError(f"--out {out_dir!r}: folder {parent!r} does not exist")
+        try:
+            os.mkdir(out_dir)
+        except OSError as exc:
+            raise WarpclothError(f"--out {out_dir!r} cannot be created: {exc.strerror or exc}") from None
+    for name in ("results.csv", "report.md", "wall_per_sim_second.png"):
+        check_output_path(os.path.join(out_dir, name), "study output")
+    return os.path.join(out_dir, "results.csv")
+
+
+def run_study(plan: StudyPlan, out_dir: str, resume: bool = False, overwrite: bool = False, progress=None,
+              command: str = "", on_row=None) -> dict:
+    """Run ``plan`` into ``out_dir`` (results.csv, report.md, PNG plots). Returns a summary."""
+    from .report import write_report
+
+    devices = available_devices(plan.devices, progress if progress is not None else sys.stderr)
+    require(bool(devices), f"none of the devices {', '.join(plan.devices)} is available")
+    csv_path = prepare_out(out_dir)
+    plan = replace(plan, devices=devices)
+    out = StudyCsv(csv_path, resume=resume, overwrite=overwrite, report=progress)
+    t0 = time.perf_counter()
+    try:
+        if out.note and progress is not None:
+            print(out.note, file=progress)
+        study = Study(plan, out, progress, on_row)
+        study.run()
+    finally:
+        out.close()
+    files = write_report(out_dir, read_rows(csv_path), plan, command=command, stream=progress)
+    return {"measured": study.measured, "reused": study.reused, "wall_s": time.perf_counter() - t0, "files": files,
+            "plan": asdict(plan)}
+
+
+__all__ = ["COLUMNS", "COLUMN_DOCS", "PROFILES", "Study", "StudyCsv", "StudyPlan", "available_devices", "make_plan",
+           "prepare_out", "read_rows", "run_study"]

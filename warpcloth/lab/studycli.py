@@ -1,0 +1,89 @@
+"""The ``warpcloth study`` subcommand's flags and entry point (kept here so that cli.py only
+registers it)."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+
+from ..errors import WarpclothError
+from .accuracy import DEFAULT_TOLERANCE
+
+
+def _list(kind: str):
+    def parse(text: str) -> list:
+        items = [t.strip() for t in text.split(",")]
+        if not text.strip() or any(not t for t in items):
+            raise argparse.ArgumentTypeError(f"--{kind} must be a comma-separated list without empty items, got {text!r}")
+        return items
+
+    return parse
+
+
+def _sizes(text: str) -> list:
+    items = _list("sizes")(text)
+    try:
+        sizes = [int(t) for t in items]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--sizes must be comma-separated integers >= 3, got {text!r}") from None
+    if any(s < 3 for s in sizes):
+        raise argparse.ArgumentTypeError(f"--sizes must be comma-separated integers >= 3 (n x n particles), got {text!r}")
+    return sizes
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    from .study import PROFILES
+
+    p.add_argument("--profile", default="quick", choices=list(PROFILES),
+                   help="quick (tiny sizes, a few minutes on 2 CPU cores), standard (sizes 16-128 on the CPU), seed (the seed's plan, for a GPU)")
+    p.add_argument("--integrators", type=_list("integrators"), default=None, metavar="A,B", help="integrators (default: all)")
+    p.add_argument("--sizes", type=_sizes, default=None, metavar="N,M", help="n x n mesh sizes of the timing ladder (default: the profile's)")
+    p.add_argument("--accuracy-sizes", type=_sizes, default=None, metavar="N,M",
+                   help="sizes with a float64 reference (default: the profile's; with --sizes, those up to the profile's largest)")
+    p.add_argument("--devices", type=_list("devices"), default=None, metavar="cpu,cuda",
+                   help="Warp devices (default cpu; seed: cpu,cuda); a missing one is skipped with one line")
+    p.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE, help="accuracy tolerance as a fraction of the cloth size (default 0.01)")
+    p.add_argument("--match-accuracy", action="store_true",
+                   help="for pbd/xpbd, search the cheapest iterations x substeps reaching the tolerance at dt = 1/60 s")
+    p.add_argument("--out", "-o", required=True, metavar="DIR", help="output folder: results.csv, report.md, PNG plots")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--resume", action="store_true", help="continue DIR/results.csv: finished measurements are not redone")
+    mode.add_argument("--overwrite", action="store_true", help="replace DIR/results.csv if it exists")
+    # --quiet (no progress, no summary) and --verbose come with every subcommand (cli._add_verbose)
+
+
+def run(args) -> int:
+    from .study import make_plan, run_study
+
+    plan = make_plan(args.profile, integrators=args.integrators, sizes=args.sizes, devices=args.devices,
+                     tolerance=args.tolerance, match_accuracy=args.match_accuracy, accuracy_sizes=args.accuracy_sizes)
+    command = "warpcloth " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv and sys.argv[0].endswith("warpcloth") else \
+        "warpcloth study " + " ".join(shlex.quote(a) for a in _argv(args))
+    summary = run_study(plan, args.out, resume=args.resume, overwrite=args.overwrite,
+                        progress=None if getattr(args, "quiet", False) else sys.stderr, command=command)
+    if getattr(args, "quiet", False):
+        return 0
+    print(f"{args.out}: {summary['measured']} measurements made, {summary['reused']} reused from the file, "
+          f"{summary['wall_s']:.0f} s; wrote {', '.join(summary['files'])}")
+    return 0
+
+
+def _argv(args) -> list:
+    """The flags of ``args`` again (for the report's command line when not run as ``warpcloth``)."""
+    out = ["--profile", args.profile]
+    for flag, value in (("--integrators", args.integrators), ("--devices", args.devices)):
+        if value:
+            out += [flag, ",".join(value)]
+    for flag, value in (("--sizes", args.sizes), ("--accuracy-sizes", args.accuracy_sizes)):
+        if value:
+            out += [flag, ",".join(map(str, value))]
+    if args.tolerance != DEFAULT_TOLERANCE:
+        out += ["--tolerance", repr(args.tolerance)]
+    for flag, on in (("--match-accuracy", args.match_accuracy), ("--resume", args.resume), ("--overwrite", args.overwrite)):
+        if on:
+            out.append(flag)
+    return out + ["--out", args.out]
+
+
+__all__ = ["add_arguments", "run"]
