@@ -13,6 +13,7 @@ from .midpoint import Midpoint
 from .pbd import PBD
 from .rk4 import RK4
 from .verlet import Verlet
+from .vbd import VBD
 from .xpbd import XPBD
 from ..errors import WarpclothError
 
@@ -25,7 +26,7 @@ def register(cls: type[Integrator]) -> type[Integrator]:
     return cls
 
 
-for _cls in (ExplicitEuler, Midpoint, RK4, Verlet, ImplicitEuler, PBD, XPBD):
+for _cls in (ExplicitEuler, Midpoint, RK4, Verlet, ImplicitEuler, PBD, XPBD, VBD):
     register(_cls)
 
 
