@@ -3,14 +3,13 @@ the vertex colouring, options."""
 
 import numpy as np
 import pytest
-from scipy.optimize import fsolve
 
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
 from warpcloth.coloring import color_vertices, greedy_vertex_colors, is_valid_vertex_coloring
 from warpcloth.integrators.vbd import chebyshev_weights
 from warpcloth.model import build_model, grid_springs, SpringType
 
-from helpers import small_grid, spring_params
+from helpers import backward_euler_step, small_grid, spring_params
 
 
 def hanging_mass(ks=50.0, kd=0.0, mass=0.1, rest=0.5, top=2.0):
@@ -63,37 +62,6 @@ def test_one_iteration_with_one_free_vertex_is_the_local_newton_step(stretch):
     assert np.abs(dx - expected).max() < 2e-6, (dx, expected)
     assert np.abs(sim.state.particle_qd.numpy()[1] - expected / h).max() < 2e-4
     assert np.abs(expected - h * v[1]).max() > 1e-3  # the Newton step did something
-
-
-def backward_euler_step(model, x, v, h, gravity=(0.0, -9.81, 0.0)):
-    """Nonlinear backward Euler of the mass-spring energy with spring damping along the spring:
-    m (dx - h v) / h^2 = f_ext + f_s(x + dx, dx / h), solved in float64 (fsolve)."""
-    host = model.host
-    pairs = host["pairs"]
-    rest = np.linalg.norm(host["q"][pairs[:, 1]].astype(np.float64) - host["q"][pairs[:, 0]], axis=1)
-    ks = model.spring_stiffness.numpy().astype(np.float64)
-    kd = model.spring_damping.numpy().astype(np.float64)
-    m = host["mass"].astype(np.float64)
-    free = host["inv_mass"] > 0
-
-    def residual(flat):
-        dx = np.zeros_like(x)
-        dx[free] = flat.reshape(-1, 3)
-        d = (x[pairs[:, 1]] - x[pairs[:, 0]]) + (dx[pairs[:, 1]] - dx[pairs[:, 0]])
-        length = np.linalg.norm(d, axis=1)
-        n = d / length[:, None]
-        rel = (dx[pairs[:, 1]] - dx[pairs[:, 0]]) / h
-        fs = (ks * (length - rest) + kd * np.einsum("ij,ij->i", rel, n))[:, None] * n
-        f = np.outer(m, gravity)
-        np.add.at(f, pairs[:, 0], fs)
-        np.add.at(f, pairs[:, 1], -fs)
-        r = m[:, None] * (dx - h * v) / h**2 - f
-        return r[free].ravel()
-
-    sol = fsolve(residual, (h * v[free]).ravel(), xtol=1e-13)
-    dx = np.zeros_like(x)
-    dx[free] = sol.reshape(-1, 3)
-    return x + dx
 
 
 @pytest.mark.parametrize("rho", [0.0, 0.6])
