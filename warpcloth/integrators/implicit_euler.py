@@ -32,6 +32,8 @@ once (:meth:`ImplicitEuler.convergence`).
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import warp as wp
 import warp.sparse as wps
@@ -41,9 +43,11 @@ from warpcloth.kernels import implicit as ik
 
 from ..forces import eval_forces
 from .base import Integrator, Option, scratch_like
+from .multigrid import GridMultigrid, grid_structure_reason
 
 JACOBIANS = ("full", "approx")
 MATRICES = ("free", "bsr")
+PRECONDITIONERS = ("jacobi", "block_jacobi", "multigrid")
 
 
 def _check_tol(value: float):
@@ -69,6 +73,12 @@ class ImplicitEuler(Integrator):
         Option("cg_tol", float, 1.0e-3, "CG relative residual tolerance |b - A dv| / |b|", _check_tol),
         Option("cg_max_iter", int, 1000, "CG iteration cap per step", _check_max_iter),
         Option("jacobian", str, "full", "spring Jacobian: full (exact, refilled each step) or approx (seed eq. 2.23, constant)", choices=JACOBIANS),
+        Option(
+            "preconditioner", str, "jacobi",
+            "CG preconditioner: jacobi (1 / diag A), block_jacobi (the inverse 3 x 3 diagonal blocks of A) or multigrid "
+            "(geometric V-cycle on grid models; assembles A as BSR; other models fall back to block_jacobi with a note on stderr)",
+            choices=PRECONDITIONERS,
+        ),
         Option("matrix", str, "free", "system matrix: free (matrix-free LinearOperator; faster on the CPU, see bench/implicit.py) or bsr (assembled warp.sparse BSR)", choices=MATRICES),
     )
 
@@ -84,8 +94,16 @@ class ImplicitEuler(Integrator):
         self.spring_K = wp.zeros(model.spring_count, dtype=wp.mat33)
         self.spring_B = wp.zeros(model.spring_count, dtype=wp.mat33)
         self.mass_term = wp.zeros(n, dtype=float)
+        self.preconditioner_used = self.preconditioner
+        if self.preconditioner == "multigrid":
+            reason = grid_structure_reason(model)
+            if reason:
+                print(f"note: implicit_euler: multigrid needs a grid model ({reason}); using block_jacobi", file=sys.stderr)
+                self.preconditioner_used = "block_jacobi"
+        # the multigrid's Galerkin products need A assembled: it implies the BSR matrix
+        self._bsr = self.matrix == "bsr" or self.preconditioner_used == "multigrid"
 
-        if self.matrix == "bsr":
+        if self._bsr:
             # pattern: diagonal blocks + (i, j) and (j, i) per spring, built once
             rows = np.concatenate([np.arange(n), pairs[:, 0], pairs[:, 1]]).astype(np.int32)
             cols = np.concatenate([np.arange(n), pairs[:, 1], pairs[:, 0]]).astype(np.int32)
@@ -111,14 +129,21 @@ class ImplicitEuler(Integrator):
         self.adjacency_offsets = wp.array(adjacency_offsets, dtype=int)
         self.adjacency_spring = wp.array(springs[order].astype(np.int32), dtype=int)
         self.adjacency_other = wp.array(others[order].astype(np.int32), dtype=int)
-        if self.matrix == "bsr":  # where each adjacency entry and each diagonal block sits in A.values
+        if self._bsr:  # where each adjacency entry and each diagonal block sits in A.values
             self.adjacency_block = wp.array(block_of(ends[order], others[order]), dtype=int)
             self.row_offsets = wp.array(offsets.astype(np.int32), dtype=int)
             self.diag_block = wp.array(block_of(np.arange(n), np.arange(n)), dtype=int)
 
         # Jacobi preconditioner: the same operator as preconditioner(A, "diag"), but its inverse
         # diagonal is refilled by the assembly kernel instead of being reallocated each step
-        self.M = aslinearoperator(self.inv_diag)
+        if self.preconditioner_used == "multigrid":
+            self.multigrid = GridMultigrid(self.A, model.rows, model.cols, model.pinned, device)
+            self.M = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self.multigrid.apply)
+        elif self.preconditioner_used == "block_jacobi":
+            self.inv_block = wp.zeros(n, dtype=wp.mat33)
+            self.M = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._apply_block_jacobi)
+        else:
+            self.M = aslinearoperator(self.inv_diag)
         self._assembled_for = None
         # device-side convergence needs conditional graph nodes (CUDA driver and toolkit 12.4+)
         is_cuda = wp.get_device(device).is_cuda
@@ -127,7 +152,7 @@ class ImplicitEuler(Integrator):
         # Warp's tiled reduction, which is made for GPUs: with the tiled one a step took 24x
         # (32^2) and 62x (64^2) as long (medians, bench/results/cpu-dot.txt: python bench/cpu_dot.py).
         single_batch = None if is_cuda or not self.cpu_single_batch_dot else wp.array([0, 3 * n], dtype=int)
-        if self.matrix == "bsr":
+        if self._bsr:
             self.A_op = aslinearoperator(self.A, batch_offsets=single_batch)
         else:
             self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._matvec, batch_offsets=single_batch)
@@ -175,7 +200,7 @@ class ImplicitEuler(Integrator):
         else:
             wp.launch(ik.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
             self._assembled_for = (h, drag, m.version)
-        if self.matrix == "bsr":
+        if self._bsr:
             wp.launch(
                 ik.assemble_system_rows, dim=m.particle_count,
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.adjacency_block, self.row_offsets, self.diag_block, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
@@ -187,6 +212,14 @@ class ImplicitEuler(Integrator):
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.mass_term, self.inv_diag], device=m.device,
             )
+        if self.preconditioner_used == "multigrid":
+            self.multigrid.update()
+        elif self.preconditioner_used == "block_jacobi":
+            wp.launch(
+                ik.eval_inverse_diagonal_blocks, dim=m.particle_count,
+                inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
+                outputs=[self.inv_block], device=m.device,
+            )
 
     def _matvec(self, x, y, z, alpha, beta) -> None:
         """z = alpha A x + beta y without assembling A (the LinearOperator's matvec)."""
@@ -196,6 +229,11 @@ class ImplicitEuler(Integrator):
             inputs=[x, y, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, self.mass_term, m.particle_inv_mass, float(alpha), float(beta)],
             outputs=[z], device=m.device,
         )
+
+    def _apply_block_jacobi(self, x, y, z, alpha, beta) -> None:
+        """z = alpha P x + beta y with P = blockdiag(A_ii^-1) (the block-Jacobi LinearOperator)."""
+        m = self.model
+        wp.launch(ik.apply_block_diagonal, dim=m.particle_count, inputs=[x, y, self.inv_block, float(alpha), float(beta)], outputs=[z], device=m.device)
 
     def _solve(self) -> None:
         """dv = A^-1 b by Jacobi-preconditioned CG from the previous dv; records iterations and
