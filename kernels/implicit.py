@@ -239,6 +239,22 @@ def scale_add(x: wp.array(dtype=wp.vec3), y: wp.array(dtype=wp.vec3), alpha: flo
 
 
 @wp.kernel
+def galerkin_product(
+    term_offsets: wp.array(dtype=int),
+    term_source: wp.array(dtype=int),
+    term_weight: wp.array(dtype=float),
+    fine_values: wp.array(dtype=wp.mat33),
+    coarse_values: wp.array(dtype=wp.mat33),
+):
+    # (P^T A P)_IJ = sum_(f, g) P_fI A_fg P_gJ: a gather over a fixed list of (fine block, P_fI P_gJ)
+    c = wp.tid()
+    acc = wp.mat33(0.0)
+    for t in range(term_offsets[c], term_offsets[c + 1]):
+        acc = acc + term_weight[t] * fine_values[term_source[t]]
+    coarse_values[c] = acc
+
+
+@wp.kernel
 def eval_rhs(
     f: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),

@@ -100,7 +100,7 @@ class ImplicitEuler(Integrator):
             if reason:
                 print(f"note: implicit_euler: multigrid needs a grid model ({reason}); using block_jacobi", file=sys.stderr)
                 self.preconditioner_used = "block_jacobi"
-        # the multigrid's Galerkin products need A assembled: it implies the BSR matrix
+        # the multigrid's Galerkin products need A assembled (BSR); CG still applies A as ``matrix`` says
         self._bsr = self.matrix == "bsr" or self.preconditioner_used == "multigrid"
 
         if self._bsr:
@@ -152,7 +152,7 @@ class ImplicitEuler(Integrator):
         # Warp's tiled reduction, which is made for GPUs: with the tiled one a step took 24x
         # (32^2) and 62x (64^2) as long (medians, bench/results/cpu-dot.txt: python bench/cpu_dot.py).
         single_batch = None if is_cuda or not self.cpu_single_batch_dot else wp.array([0, 3 * n], dtype=int)
-        if self._bsr:
+        if self.matrix == "bsr":
             self.A_op = aslinearoperator(self.A, batch_offsets=single_batch)
         else:
             self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._matvec, batch_offsets=single_batch)
@@ -206,7 +206,7 @@ class ImplicitEuler(Integrator):
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.adjacency_block, self.row_offsets, self.diag_block, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.A.values, self.inv_diag], device=m.device,
             )
-        else:
+        if self.matrix == "free":
             wp.launch(
                 ik.eval_system_diagonal, dim=m.particle_count,
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
