@@ -117,8 +117,11 @@ class GridMultigrid:
     LinearOperator's matvec) as often as CG needs. All arrays are allocated here.
     """
 
-    def __init__(self, A, rows: int, cols: int, pinned, device, smoothing_steps: int = 1, coarse_steps: int = 10, omega: float = 0.7):
+    def __init__(self, A, rows: int, cols: int, pinned, device, smoothing_steps: int = 1, coarse_steps: int = 10, omega: float = 0.7, fine_residual=None):
+        """``fine_residual(x, b, r)``: r = b - A x on the finest level, where a faster operator
+        than A's BSR product exists (implicit_euler's matrix-free one); default ``bsr_mv``."""
         self.smoothing_steps, self.coarse_steps, self.omega = smoothing_steps, coarse_steps, omega
+        self.fine_residual = fine_residual
         self.device = device
         self.A = [A]
         self.P, self.Pt, self.terms = [], [], []
@@ -161,6 +164,14 @@ class GridMultigrid:
             wps.bsr_get_diag(self.A[level], out=self.diag[level])
             wp.launch(ik.invert_blocks, dim=self.diag[level].shape[0], inputs=[self.diag[level]], outputs=[self.inv_block[level]], device=self.device)
 
+    def _residual(self, level: int, x, b, r) -> None:
+        """r = b - A_l x."""
+        if level == 0 and self.fine_residual is not None:
+            self.fine_residual(x, b, r)
+        else:
+            wp.copy(r, b)
+            wps.bsr_mv(self.A[level], x, r, alpha=-1.0, beta=1.0)
+
     def _smooth(self, level: int, sweeps: int, from_zero: bool) -> None:
         """``sweeps`` damped block-Jacobi sweeps on A_l x = b_l (from x = 0 when ``from_zero``)."""
         A, b, x, r = self.A[level], self.b[level], self.x[level], self.r[level]
@@ -170,8 +181,7 @@ class GridMultigrid:
             if first:
                 wp.copy(r, b)
             else:
-                wp.copy(r, b)
-                wps.bsr_mv(A, x, r, alpha=-1.0, beta=1.0)
+                self._residual(level, x, b, r)
             wp.launch(ik.smooth_jacobi, dim=n, inputs=[r, self.inv_block[level], self.omega, int(first)], outputs=[x], device=self.device)
 
     def _vcycle(self, level: int) -> None:
@@ -181,8 +191,7 @@ class GridMultigrid:
             return
         self._smooth(level, self.smoothing_steps, from_zero=True)
         r = self.r[level]
-        wp.copy(r, self.b[level])
-        wps.bsr_mv(self.A[level], self.x[level], r, alpha=-1.0, beta=1.0)
+        self._residual(level, self.x[level], self.b[level], r)
         wps.bsr_mv(self.Pt[level], r, self.b[level + 1], alpha=1.0, beta=0.0)
         self._vcycle(level + 1)
         wps.bsr_mv(self.P[level], self.x[level + 1], self.x[level], alpha=1.0, beta=1.0)
