@@ -1,7 +1,10 @@
-"""Scenarios: data + a builder each (installed as ``warpcloth.scenarios``).
+"""Scenarios: data + a builder each (installed as ``warpcloth.scenarios``), in a registry.
 
-Each scenario module defines a :class:`~warpcloth.scenarios.common.Scenario` named ``SCENARIO``
-and is runnable as ``python -m warpcloth.scenarios.<name>``.
+Each built-in scenario module defines a :class:`~warpcloth.scenarios.common.Scenario` named
+``SCENARIO`` and is runnable as ``python -m warpcloth.scenarios.<name>``. Users add scenarios
+without touching this package: a TOML file (:mod:`warpcloth.scenarios.file`; pass its path
+wherever a scenario name goes: ``warpcloth run my.toml``, ``scenarios="my.toml"`` in a sweep),
+or a :class:`Scenario` object given to :func:`register` from Python.
 """
 
 from __future__ import annotations
@@ -9,20 +12,39 @@ from __future__ import annotations
 from ..errors import WarpclothError
 from .common import Scenario, ScenarioConfig
 
-_NAMES = ("sheet", "flag")
+_BUILT_IN = ("sheet", "flag", "curtain", "mesh")
+_REGISTERED: dict[str, Scenario] = {}
 
 
 def scenario_names() -> list[str]:
-    return list(_NAMES)
+    """Names of the built-in and registered scenarios (scenario files are not listed)."""
+    return list(_BUILT_IN) + [n for n in _REGISTERED if n not in _BUILT_IN]
+
+
+def register(scenario: Scenario) -> Scenario:
+    """Add ``scenario`` to the registry under ``scenario.name`` (replacing a registered one of
+    that name; a built-in name is refused)."""
+    if not isinstance(scenario, Scenario):
+        raise WarpclothError(f"register takes a Scenario, got {scenario!r}")
+    if scenario.name in _BUILT_IN:
+        raise WarpclothError(f"scenario name {scenario.name!r} is built in; choose another name")
+    _REGISTERED[scenario.name] = scenario
+    return scenario
 
 
 def get_scenario(name: str) -> Scenario:
-    """The scenario called ``name``."""
-    if name not in _NAMES:
-        raise WarpclothError(f"unknown scenario {name!r}; choose from {', '.join(_NAMES)}")
+    """The scenario called ``name``, or the one described by the TOML file at ``name``."""
+    from .file import is_scenario_file, load_scenario
+
+    if is_scenario_file(name):
+        return load_scenario(name)
+    if name in _REGISTERED:
+        return _REGISTERED[name]
+    if name not in _BUILT_IN:
+        raise WarpclothError(f"unknown scenario {name!r}; choose from {', '.join(scenario_names())}, or give a scenario file (.toml)")
     import importlib
 
     return importlib.import_module(f"{__name__}.{name}").SCENARIO
 
 
-__all__ = ["Scenario", "ScenarioConfig", "get_scenario", "scenario_names"]
+__all__ = ["Scenario", "ScenarioConfig", "get_scenario", "register", "scenario_names"]

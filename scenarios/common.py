@@ -23,6 +23,9 @@ class ScenarioConfig:
     stiffness / damping: one number for every spring type, or three (structural, shear, bend).
     strain_limit: Provot's deformation constraint tau (None: off), see :class:`Simulator`.
     instability_strain: a spring stretched past (1 + this) x its rest length makes the run unstable.
+    mesh, prim, pin_group, pin_where, quads: the cloth of a mesh scenario (a mesh file and its USD
+    prim path, the vertex groups and the predicate to pin, quad detection; see
+    :func:`warpcloth.build_mesh_cloth`); grid scenarios ignore them.
     """
 
     rows: int = 32
@@ -42,6 +45,11 @@ class ScenarioConfig:
     device: str | None = None
     strain_limit: float | None = None
     instability_strain: float = DEFAULT_INSTABILITY_STRAIN
+    mesh: str | None = None
+    prim: str | None = None
+    pin_group: tuple | None = None
+    pin_where: str | None = None
+    quads: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -56,6 +64,9 @@ class Scenario:
         control: function (config, device) -> :class:`~warpcloth.forces.Control`.
         origin: function (config) -> position of particle [0, 0].
         stop_at_equilibrium: whether a run ends once the cloth is at rest.
+        model: function (config, device) -> :class:`~warpcloth.model.ClothModel` for a scenario
+            that is not a Provot grid (a mesh); None: the grid of ``pins``, ``origin``, ``plane``.
+        tracks: function (config, model) -> kinematic pin tracks (:class:`~warpcloth.pins.PinTrack`).
     """
 
     name: str
@@ -66,6 +77,8 @@ class Scenario:
     origin: Callable[[ScenarioConfig], tuple]
     stop_at_equilibrium: bool
     plane: str = "vertical"
+    model: Callable | None = None
+    tracks: Callable | None = None
 
     def config(self, **overrides) -> ScenarioConfig:
         """The default configuration with ``overrides`` (None values keep the default)."""
@@ -79,6 +92,10 @@ class Scenario:
         cfg = replace(config, **overrides) if config is not None else self.config(**overrides)
         device = resolve_device(cfg.device)
         require_positive("mass", cfg.mass, "kg")
+        if self.model is not None:  # a mesh: the scenario builds its own model
+            integrator = make_integrator(cfg.integrator, **cfg.integrator_options)
+            with wp.ScopedDevice(device):
+                return self._simulator(cfg, self.model(cfg, device), integrator, device)
         try:
             bend = BendModel(cfg.bend)
         except ValueError:
@@ -93,9 +110,14 @@ class Scenario:
                 rows, cols, cfg.width, cfg.height, cfg.mass, spring_params=params, pins=self.pins(rows, cols),
                 origin=self.origin(cfg), plane=self.plane, bend=bend, device=device,
             )
-            control = self.control(cfg, device)
-            return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name, strain_limit=cfg.strain_limit,
-                             instability_strain=cfg.instability_strain)
+            return self._simulator(cfg, model, integrator, device)
+
+    def _simulator(self, cfg: ScenarioConfig, model, integrator, device: str) -> Simulator:
+        control = self.control(cfg, device)
+        if self.tracks is not None:
+            control.pin_tracks = tuple(self.tracks(cfg, model))
+        return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name, strain_limit=cfg.strain_limit,
+                         instability_strain=cfg.instability_strain)
 
     def run(self, config: ScenarioConfig | None = None, usd_path: str | None = None, wall_cap: float | None = None, **overrides) -> RunResult:
         """Build and run; writes a USD file when ``usd_path`` is given."""

@@ -71,7 +71,7 @@ def test_list(capsys):
         (["run", "sheet", "--damping", "-0.1"], "damping must be >= 0"),
         (["run", "sheet", "--stiffness", "1,2"], "three comma-separated numbers"),
         (["run", "sheet", "--integrator", "leapfrog"], "unknown integrator 'leapfrog'"),
-        (["run", "curtain"], "unknown scenario 'curtain'"),
+        (["run", "sail"], "unknown scenario 'sail'"),
         (["run", "sheet", "--device", "cuda:7"], "device 'cuda:7' is not available"),
         (["run", "sheet", "--usd", "/no/such/folder/x.usda"], "does not exist"),
         (["run", "sheet", "--usd", "x.txt"], "must end in one of"),

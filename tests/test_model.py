@@ -147,3 +147,23 @@ def test_bad_model_input_names_the_value(kwargs, match):
 def test_two_by_two_is_allowed_without_bend_springs():
     model = build_grid_cloth(2, 2, bend="none")
     assert model.spring_counts() == {"structural": 4, "shear": 2, "bend": 0}
+
+
+def test_with_spring_params_returns_a_new_model_and_a_simulator_rebinds():
+    # the model is immutable: new parameters give a new model; a Simulator continues on it
+    from warpcloth import Control, Simulator
+
+    from helpers import single_spring, spring_params
+
+    model = single_spring(ks=40.0, mass=0.1)
+    stiffer = model.with_spring_params(spring_params(160.0))
+    assert stiffer is not model and float(model.spring_stiffness.numpy()[0]) == 40.0
+    assert float(stiffer.spring_stiffness.numpy()[0]) == 160.0 and stiffer.spring_indices is model.spring_indices
+    for integrator in ("explicit_euler", "implicit_euler"):
+        sim = Simulator(model, integrator, Control(drag_rate=20.0, device="cpu"), dt=1e-3)
+        sim.simulate(2000)
+        assert -float(sim.state.particle_q.numpy()[1, 1]) - 0.5 == pytest.approx(0.1 * 9.81 / 40.0, rel=1e-3)
+        sim.set_model(stiffer)
+        assert sim.integrator.model is stiffer
+        sim.simulate(2000)
+        assert -float(sim.state.particle_q.numpy()[1, 1]) - 0.5 == pytest.approx(0.1 * 9.81 / 160.0, rel=1e-3)

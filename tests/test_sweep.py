@@ -589,3 +589,20 @@ def test_solver_converged_column(tmp_path, capsys):
     explicit = rows[("explicit_euler", "")]
     assert explicit["solver_converged"] == "" and explicit["solver_capped_steps"] == "0"
     assert capsys.readouterr().err.count("warpcloth: warning: implicit_euler: CG hit its 2-iteration cap in 6 of 6 steps") == 1
+
+
+def test_instability_strain_attribute(tmp_path):
+    path = write(tmp_path, """
+        <test_list size="4" scenarios="sheet" duration="0.1" timestep="1e-3">
+          <test id="strict" integrator="explicit_euler" instability_strain="0.0001"/>
+          <test id="default" integrator="explicit_euler"/>
+        </test_list>
+    """)
+    runs = parse_test_list(path).runs
+    assert [r.instability_strain for r in runs] == [0.0001, 0.5]
+    assert "instability_strain=0.0001" in runs[0].key and "instability_strain" not in runs[1].key
+    out = tmp_path / "r.csv"
+    assert main(["sweep", path, "--out", str(out), "--quiet"]) == 0
+    rows = {r["test_id"]: r for r in sweep.read_results(str(out))}
+    assert rows["strict"]["outcome"] == "unstable" and rows["strict"]["instability_strain"] == "0.0001"
+    assert rows["default"]["outcome"] != "unstable"

@@ -25,11 +25,14 @@ from .errors import WarpclothError  # noqa: E402
 from .forces import Control, WindSchedule  # noqa: E402
 from .integrators import Integrator, integrator_names, make_integrator  # noqa: E402
 from .model import BendModel, ClothModel, SpringParams, SpringType, build_grid_cloth, expected_spring_counts  # noqa: E402
+from .mesh import TriangleMesh, build_mesh_cloth  # noqa: E402
+from .meshio import load_mesh  # noqa: E402
+from .pins import PinTrack  # noqa: E402
 from .simulator import RunResult, Simulator  # noqa: E402
 from .state import State  # noqa: E402
 
 __all__ = [
-    "BendModel", "ClothModel", "Control", "Integrator", "RunResult", "Simulator", "SpringParams", "SpringType",
-    "State", "WarpclothError", "WindSchedule", "build_grid_cloth", "expected_spring_counts", "integrator_names",
+    "BendModel", "ClothModel", "Control", "Integrator", "PinTrack", "RunResult", "Simulator", "SpringParams", "SpringType",
+    "State", "TriangleMesh", "WarpclothError", "WindSchedule", "build_grid_cloth", "build_mesh_cloth", "load_mesh", "expected_spring_counts", "integrator_names",
     "make_integrator", "__version__",
 ]

@@ -53,6 +53,11 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
     p.add_argument("--strain-limit", type=float, default=None, metavar="TAU", help="Provot deformation constraint: cap structural/shear strain at TAU (e.g. 0.1), force-based integrators (default off)")
     p.add_argument("--instability-strain", type=float, default=None, metavar="STRAIN", help="a spring strained past this (e.g. 0.5 = 50 %%) makes the run unstable (default 0.5)")
+    mesh = p.add_argument_group("mesh scenarios (mesh, scenario files)")
+    mesh.add_argument("--mesh", default=None, metavar="FILE", help="the cloth's triangle mesh: .obj or .usd/.usda/.usdc/.usdz")
+    mesh.add_argument("--prim", default=None, metavar="PATH", help="the UsdGeom.Mesh prim in a USD --mesh (default: the first mesh)")
+    mesh.add_argument("--pin-group", action="append", default=None, metavar="NAME", help="pin a vertex group of the mesh (repeatable)")
+    mesh.add_argument("--pin", dest="pin_where", default=None, metavar="EXPR", help="pin the vertices where EXPR holds, e.g. 'y > 0.95 * y.max()' (x, y, z [m])")
     _add_integrator_options(p)
 
 
@@ -105,12 +110,15 @@ def config_from_args(scenario, args):
         raise WarpclothError(f"--integrator is empty; choose one of {', '.join(integrator_names())}")
     integrator = args.integrator or scenario.defaults.integrator
     integrator_class(integrator)  # unknown name -> clear error
+    _check_cloth_flags(scenario, args)
     cfg = scenario.config(
         rows=args.rows, cols=args.cols, width=args.width, height=args.height, integrator=integrator, dt=args.dt,
         duration=args.duration, fps=args.fps, stiffness=args.stiffness, damping=args.damping, mass=args.mass,
         drag=args.drag, bend=args.bend, device=args.device, strain_limit=args.strain_limit,
         instability_strain=args.instability_strain,
         integrator_options=integrator_options_from_args(integrator, args),
+        mesh=getattr(args, "mesh", None), prim=getattr(args, "prim", None), pin_where=getattr(args, "pin_where", None),
+        pin_group=tuple(args.pin_group) if getattr(args, "pin_group", None) else None,
     )
     if args.num_frames is not None:
         require_positive("fps", cfg.fps, "1/s")
@@ -118,6 +126,17 @@ def config_from_args(scenario, args):
             raise WarpclothError(f"--num-frames must be >= 1, got {args.num_frames}")
         cfg.duration = args.num_frames / cfg.fps
     return cfg
+
+
+def _check_cloth_flags(scenario, args) -> None:
+    """Grid flags on a mesh scenario, or mesh flags on a grid scenario, are refused (not ignored)."""
+    is_mesh = scenario.model is not None
+    flags = (("--mesh", "mesh"), ("--prim", "prim"), ("--pin-group", "pin_group"), ("--pin", "pin_where")) if not is_mesh else \
+        (("--rows", "rows"), ("--cols", "cols"), ("--width", "width"), ("--height", "height"))
+    for flag, attr in flags:
+        if getattr(args, attr, None) is not None:
+            kind = "a mesh: its size comes from the mesh file" if is_mesh else "a grid; --mesh, --prim, --pin-group and --pin apply to the mesh scenario and scenario files"
+            raise WarpclothError(f"{flag} does not apply to scenario {scenario.name!r}: its cloth is {kind}")
 
 
 def summary(result) -> str:
@@ -291,7 +310,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"warpcloth {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     run = sub.add_parser("run", help="run a scenario and print a summary")
-    run.add_argument("scenario", help="scenario name (see 'warpcloth list')")
+    run.add_argument("scenario", help="scenario name (see 'warpcloth list') or a scenario file, path/to/scenario.toml")
     add_run_arguments(run)
     _add_verbose(run)
     _add_verbose(sub.add_parser("list", help="list scenarios and integrators"))

@@ -92,10 +92,16 @@ def sweep_stale_temporaries(folder: str, report=None) -> list[str]:
             continue
         path = os.path.join(folder, name)
         try:
-            if not os.path.isfile(path) or os.path.islink(path):
+            if os.path.islink(path):
                 continue
-            size = os.path.getsize(path)
-            os.unlink(path)
+            if os.path.isdir(path):  # a USD writer's folder of value clips (warpcloth.usd)
+                size = sum(e.stat().st_size for e in os.scandir(path) if e.is_file())
+                shutil.rmtree(path)
+            elif os.path.isfile(path):
+                size = os.path.getsize(path)
+                os.unlink(path)
+            else:
+                continue
         except OSError:
             continue
         removed.append(path)
@@ -171,7 +177,11 @@ def remove_temporary(tmp: str) -> None:
         names = []
     for other in [name] + [n for n in names if n.startswith(name + ".")]:
         try:
-            os.unlink(os.path.join(folder, other))
+            path = os.path.join(folder, other)
+            if os.path.isdir(path) and not os.path.islink(path):
+                shutil.rmtree(path)
+            else:
+                os.unlink(path)
         except FileNotFoundError:
             pass
         except OSError:

@@ -13,7 +13,7 @@ import numpy as np
 import warp as wp
 
 from .device import resolve_device
-from .errors import WarpclothError, require, require_non_negative
+from .errors import WarpclothError, require, require_non_negative, require_vector
 from warpcloth.kernels import forces as fk
 
 GRAVITY = (0.0, -9.81, 0.0)
@@ -66,6 +66,8 @@ class Control:
         drag_rate: linear air drag rate c [1/s]; the force on a particle is -m c v.
         wind_coefficient: c_w [kg/(m^2 s)] in f = c_w A (n . u) n on each triangle; 0 disables wind.
         wind_schedule: the wind velocity W(t).
+        pin_tracks: kinematic pins (:class:`~warpcloth.pins.PinTrack`), bound to the model by the
+            :class:`~warpcloth.simulator.Simulator` (see :mod:`warpcloth.pins`).
         time: simulated time [s], device array of shape (1,), float64: t_base + n dt after n
             steps of dt since the last change of dt, so switch times land exactly on steps.
         wind: current wind velocity [m/s], device array of shape (1,), vec3.
@@ -76,11 +78,12 @@ class Control:
     wind_coefficient: float = 0.0
     wind_schedule: WindSchedule = field(default_factory=WindSchedule)
     device: str | None = None
+    pin_tracks: tuple = ()
 
     def __post_init__(self):
         require_non_negative("drag", self.drag_rate, "1/s")
         require_non_negative("wind coefficient", self.wind_coefficient, "kg/(m^2 s)")
-        require(len(self.gravity) == 3, f"gravity must have 3 components, got {self.gravity!r}")
+        self.gravity = require_vector("gravity", self.gravity, 3, "m/s^2")
         self.device = resolve_device(self.device)
         with wp.ScopedDevice(self.device):
             self.time = wp.zeros(1, dtype=wp.float64)

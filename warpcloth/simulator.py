@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 from dataclasses import asdict, dataclass, field
 
 import warp as wp
 
 from . import __version__
-from .errors import WarpclothError, require, require_positive, warn
+from .errors import WarpclothError, require, require_count, require_positive, warn
 from .forces import Control
 from .integrators import Integrator, make_integrator
 from .model import ClothModel
@@ -29,6 +30,7 @@ from .metrics import (
     MetricsProbe,
     wind_power_bound,
 )
+from .pins import apply_pins
 from .strain_limit import StrainLimiter
 
 #: Most steps one run may take (a larger count is a typo in dt or duration, not an experiment).
@@ -165,6 +167,8 @@ class Simulator:
             f"control is on device '{self.control.device}' but the model is on '{model.device}'",
         )
         self.state = model.state()
+        self._pins_version = 0
+        self._bind_pin_tracks(self.control.pin_tracks)
         self.instability_strain = require_positive("instability strain", instability_strain)
         self.equilibrium = equilibrium or EquilibriumCriteria()
         self.energy_criteria = energy or EnergyCriteria()
@@ -219,6 +223,55 @@ class Simulator:
         self._graphs.clear()
         self._warmed = False
         self._step_seconds = None
+
+    def set_model(self, model) -> None:
+        """Continue the current state on ``model`` (the same particles, e.g. from
+        :meth:`~warpcloth.model.ClothModel.with_spring_params`): the integrator, metrics and
+        strain limiter rebind to it (scratch is reallocated; this is not a step)."""
+        if not isinstance(model, ClothModel):
+            raise WarpclothError(f"model must be a ClothModel, got {model!r:.80}")
+        if model.particle_count != self.model.particle_count or str(model.device) != str(self.model.device):
+            raise WarpclothError(
+                f"set_model needs the same particles on the same device ({self.model.particle_count} on {self.model.device}), "
+                f"got {model.particle_count} on {model.device}"
+            )
+        self.model = model
+        self._bind_pin_tracks(self.control.pin_tracks)  # kinematic pins: checked and bound to the new model
+        self.probe = MetricsProbe(model, self.control)
+        if self.strain_limiter is not None:
+            self.strain_limiter = StrainLimiter(model, self.strain_limiter.tau)
+        self.integrator.bind(model)
+        self._needs_begin = True
+        self._graphs.clear()
+        self._warmed = False
+
+    def set_pin_track(self, *tracks) -> None:
+        """Move pinned particles along :class:`~warpcloth.pins.PinTrack` s from the next step
+        (replacing the tracks set before; no argument: every pin stays where it is)."""
+        self._bind_pin_tracks(tracks)
+        self._needs_begin = True
+        self._graphs.clear()
+
+    def _bind_pin_tracks(self, tracks) -> None:
+        from .pins import KinematicPins, PinTrack
+
+        if isinstance(tracks, PinTrack):
+            tracks = (tracks,)
+        tracks = tuple(tracks or ())
+        self.control.pin_tracks = tracks
+        self.control.kinematic_pins = KinematicPins(self.model, tracks) if tracks else None
+        self._pins_version += 1
+
+    def _pins_moving_until(self) -> float:
+        """Simulated time [s] after which no kinematic pin moves (0 without tracks; inf for a
+        rigid motion that never stops)."""
+        end = 0.0
+        for track in self.control.pin_tracks:
+            if track.kind == "keyframes":
+                end = max(end, float(track.times[-1]))
+            elif any(track.velocity) or track.angular_velocity or (track.swing_amplitude and track.swing_frequency):
+                end = math.inf
+        return end
 
     def set_dt(self, dt: float) -> None:
         dt = require_positive("dt", dt, "s")
@@ -284,7 +337,7 @@ class Simulator:
         """Every host value a captured frame bakes in besides dt and the integrator (those clear
         the cache): a change to any of them captures a new graph."""
         c = self.control
-        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, self.model.version,
+        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, self._pins_version,
                 tuple(sorted((k, repr(v)) for k, v in self.integrator.option_values().items())))
 
     def _begin(self) -> None:
@@ -292,6 +345,7 @@ class Simulator:
         self._rebase_clock()
         self.control.rebase()
         self.control.update()
+        apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # pins on their track at t
         self.integrator.begin(self.state, self.control, self._dt)
         self._needs_begin = False
 
@@ -301,10 +355,12 @@ class Simulator:
         if self.strain_limiter is not None:
             self.strain_limiter.apply(self.state, self._dt)
         self.control.advance(self._dt)
+        apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # x = track(t + dt), v = track'(t + dt)
 
     def simulate(self, steps: int) -> None:
         """Advance ``steps`` time steps (replaying a captured graph of them where enabled)."""
-        if steps <= 0:
+        steps = require_count("steps", steps)
+        if steps == 0:
             return
         if not self.graph_enabled:
             for _ in range(steps):
@@ -365,6 +421,7 @@ class Simulator:
         wall_cap: float | None = None,
         usd=None,
         warm_up: bool = True,
+        **unknown,
     ) -> RunResult:
         """Run for ``duration`` seconds of simulated time, sampling a frame every 1/fps s.
 
@@ -375,18 +432,38 @@ class Simulator:
             wall_cap: stop after this many wall-clock seconds (None: no cap). It is checked
                 between chunks of about 0.2 s of steps, so it bounds the run's wall time
                 whatever the number of steps per frame.
-            usd: a :class:`~warpcloth.usd.UsdWriter` that receives every frame, or None.
+            usd: a :class:`~warpcloth.usd.UsdWriter` that receives every frame, a path
+                (.usd/.usda/.usdc: a writer is made, checked before the run and closed after),
+                or None.
             warm_up: compile kernels before timing (see :meth:`warm_up`).
 
         A run that goes unstable stops there and is recorded as unstable; it never raises.
         Graph capture time is reported apart (``capture_time``) and excluded from ms/step.
         """
+        if unknown:
+            raise WarpclothError(
+                f"Simulator.run got an unknown keyword {sorted(unknown)[0]!r}; its keywords are duration, fps, "
+                "stop_at_equilibrium, wall_cap, usd, warm_up"
+            )
         duration = require_positive("duration", duration, "s")
         fps = require_positive("fps", fps, "1/s")
         if wall_cap is not None:
             wall_cap = require_positive("wall cap", wall_cap, "s")
         m, dt = self.model, self._dt
         check_run_length(duration, fps, dt)
+        if isinstance(usd, (str, os.PathLike)):
+            from .usd import UsdWriter
+
+            writer = UsdWriter(os.fspath(usd), m, fps)
+            try:
+                result = self.run(duration, fps, stop_at_equilibrium, wall_cap, writer, warm_up)
+            except BaseException:
+                writer.abort()
+                raise
+            writer.close()
+            return result
+        if usd is not None and not callable(getattr(usd, "write_frame", None)):
+            raise WarpclothError(f"usd must be a UsdWriter, a .usd/.usda/.usdc path or None, got {usd!r:.80}")
         result = RunResult(
             scenario=self.scenario, integrator=self.integrator.name, device=str(m.device), rows=m.rows, cols=m.cols,
             particles=m.particle_count, springs=m.spring_count, dt=dt, fps=fps,
@@ -403,13 +480,20 @@ class Simulator:
         frame_dt = 1.0 / fps
         steps_per_frame = frame_dt / dt
         e0, _ = self.probe.energies(self.state)
-        energy = EnergyMonitor(
-            e0, wind_power_bound(m, self.control, self.instability_strain),
-            window_frames=max(math.ceil(self.energy_criteria.window_time * fps - 1e-9),
-                              math.ceil(self.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9)),
-            scale=m.total_mass * self.control.gravity_magnitude * max(m.width, m.height, 1e-3),
-            criteria=self.energy_criteria,
-        )
+
+        def energy_monitor(e_start: float) -> EnergyMonitor:
+            return EnergyMonitor(
+                e_start, wind_power_bound(m, self.control, self.instability_strain),
+                window_frames=max(math.ceil(self.energy_criteria.window_time * fps - 1e-9),
+                                  math.ceil(self.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9)),
+                scale=m.total_mass * self.control.gravity_magnitude * max(m.width, m.height, 1e-3),
+                criteria=self.energy_criteria,
+            )
+
+        energy, energy_start = energy_monitor(e0), start_time
+        # moving kinematic pins do work no a-priori bound knows: the energy criterion waits until
+        # they stop and starts from the energy then (non-finite state and strain still apply)
+        pins_move_until = self._pins_moving_until()
         if usd is not None:
             t0 = time.perf_counter()
             usd.write_frame(self.state.particle_q.numpy(), self.sim_time)
@@ -442,7 +526,11 @@ class Simulator:
             elif metrics.max_strain > self.instability_strain:
                 result.stable = False
                 result.unstable_reason = f"spring strain {metrics.max_strain:.3g} beyond the limit {self.instability_strain:g}"
-            elif energy.update(self.sim_time - start_time, e, kinetic):
+            elif self.sim_time < pins_move_until:
+                energy, energy_start = None, None
+            elif energy is None:
+                energy, energy_start = energy_monitor(e), self.sim_time
+            elif energy.update(self.sim_time - energy_start, e, kinetic):
                 result.stable = False
                 result.unstable_reason = (
                     f"energy growing without bound: {energy.excess:.3g} J above what gravity and the external forces "

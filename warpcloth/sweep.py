@@ -32,7 +32,7 @@ from .testlist import RunSpec, TestList, parse_test_list
 COLUMNS = [
     "test_id", "scenario", "integrator", "device", "rows", "cols", "particles", "springs",
     "timestep", "dt", "max_dt", "unstable_dt",
-    "ks", "ks_shear", "ks_bend", "kd", "kd_shear", "kd_bend", "mass", "drag", "strain_limit", "bend", "options",
+    "ks", "ks_shear", "ks_bend", "kd", "kd_shear", "kd_bend", "mass", "drag", "strain_limit", "instability_strain", "bend", "options",
     "frame_rate", "duration", "cap",
     "outcome", "steps", "sim_time", "wall_time", "compile_time", "ms_per_step", "steps_per_sec",
     "frames_per_wall_second", "realtime_factor", "realtime", "integration_ms_mean", "other_ms_mean",
@@ -61,7 +61,8 @@ def parameter_row(spec: RunSpec) -> dict:
         "rows": spec.rows, "cols": spec.cols, "particles": spec.rows * spec.cols,
         "springs": sum(expected_spring_counts(spec.rows, spec.cols, spec.bend).values()),
         "timestep": str(spec.timestep), "ks": ks[0], "ks_shear": ks[1], "ks_bend": ks[2],
-        "kd": kd[0], "kd_shear": kd[1], "kd_bend": kd[2], "mass": spec.mass, "drag": spec.drag, "strain_limit": spec.strain_limit, "bend": spec.bend,
+        "kd": kd[0], "kd_shear": kd[1], "kd_bend": kd[2], "mass": spec.mass, "drag": spec.drag, "strain_limit": spec.strain_limit,
+        "instability_strain": spec.instability_strain, "bend": spec.bend,
         "options": " ".join(f"{k}={v}" for k, v in spec.options), "frame_rate": spec.frame_rate,
         "duration": spec.duration, "cap": spec.cap, "warpcloth_version": __version__, "warp_version": wp.config.version,
         "key": spec.key,

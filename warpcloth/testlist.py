@@ -28,6 +28,7 @@ from typing import Callable
 import xml.parsers.expat as expat
 
 from .errors import FLOAT32_MAX, WarpclothError
+from .metrics import DEFAULT_INSTABILITY_STRAIN
 
 ROOT_TAG = "test_list"
 TEST_TAG = "test"
@@ -174,6 +175,19 @@ def _scenarios() -> list[str]:
     return scenario_names()
 
 
+def _scenario(text: str) -> str:
+    """A scenario name, or a scenario file (.toml, relative to the working folder) that loads."""
+    from .scenarios import get_scenario
+
+    if text.lower().endswith(".toml"):
+        try:
+            get_scenario(text)
+        except WarpclothError as exc:
+            raise ValueError(str(exc)) from None
+        return text
+    return _choice(_scenarios, "scenario")(text)
+
+
 def _device(text: str) -> str:
     from .device import device_name as resolve_device
 
@@ -198,7 +212,7 @@ ATTRIBUTES: dict[str, Attribute] = {
     for a in [
         Attribute("id", str, "name of the test, carried into the CSV (default: its position, 1, 2, ...)", is_list=False),
         Attribute("integrator", _choice(_integrators, "integrator", keyword_all=True), "integrator name(s), or 'all'"),
-        Attribute("scenarios", _choice(_scenarios, "scenario"), "scenarios to run (default: sheet flag)"),
+        Attribute("scenarios", _scenario, "scenarios to run: names or scenario files (.toml) (default: sheet flag)"),
         Attribute("size", _size, "mesh size N (N x N) or ROWSxCOLS; excludes rows/cols"),
         Attribute("rows", _grid_dim, "particles per column (with cols)"),
         Attribute("cols", _grid_dim, "particles per row (with rows)"),
@@ -212,6 +226,7 @@ ATTRIBUTES: dict[str, Attribute] = {
         Attribute("height", _positive, "cloth height [m]"),
         Attribute("drag", _non_negative, "linear air drag rate [1/s]"),
         Attribute("strain_limit", _positive, "Provot deformation constraint tau (force-based integrators)"),
+        Attribute("instability_strain", _positive, "a spring strained past this makes the run unstable (default 0.5)"),
         Attribute("bend", _choice(lambda: ["provot", "choi_ko", "none"], "bend model"), "bend springs"),
         Attribute("device", _device, "Warp device: cpu, cuda, cuda:N"),
         Attribute("cap", _cap, "wall-clock cap of one run [s], or 'none'"),
@@ -254,6 +269,7 @@ class RunSpec:
     maxdt_precision: float = DEFAULT_MAXDT_PRECISION
     maxdt_duration: float = DEFAULT_MAXDT_DURATION
     strain_limit: float | None = None
+    instability_strain: float = DEFAULT_INSTABILITY_STRAIN
 
     @property
     def key(self) -> str:
@@ -269,6 +285,8 @@ class RunSpec:
         ]
         if self.strain_limit is not None:
             parts.append(f"strain_limit={self.strain_limit!r}")
+        if self.instability_strain != DEFAULT_INSTABILITY_STRAIN:
+            parts.append(f"instability_strain={self.instability_strain!r}")
         if self.timestep.uses_max:
             parts.append(f"maxdt={self.maxdt_precision!r}/{self.maxdt_duration!r}")
         parts.append("options=" + ",".join(f"{k}={_canon(v)}" for k, v in self.options))
@@ -279,7 +297,7 @@ class RunSpec:
         """What the max-stable-dt search depends on (everything but dt, cap and duration)."""
         return (self.scenario, self.integrator, self.device, self.rows, self.cols, self.width, self.height, self.mass,
                 self.stiffness, self.damping, self.drag, self.bend, self.frame_rate, self.options,
-                self.maxdt_precision, self.maxdt_duration, self.strain_limit)
+                self.maxdt_precision, self.maxdt_duration, self.strain_limit, self.instability_strain)
 
     def config(self, dt: float | None = None, duration: float | None = None):
         """The :class:`~warpcloth.scenarios.ScenarioConfig` of this run."""
@@ -290,7 +308,7 @@ class RunSpec:
             integrator=self.integrator, integrator_options=dict(self.options), dt=dt,
             duration=self.duration if duration is None else duration, fps=self.frame_rate,
             stiffness=self.stiffness, damping=self.damping, drag=self.drag, bend=self.bend, device=self.device,
-            strain_limit=self.strain_limit,
+            strain_limit=self.strain_limit, instability_strain=self.instability_strain,
         )
 
     def describe(self) -> str:
@@ -523,6 +541,7 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         "height": one("height"),
         "drag": one("drag"),
         "strain_limit": one("strain_limit"),
+        "instability_strain": one("instability_strain", DEFAULT_INSTABILITY_STRAIN),
         "bend": one("bend", "provot"),
         "device": one("device", "cpu"),
         "cap": one("cap", DEFAULT_CAP),
@@ -552,7 +571,7 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         scen = get_scenario(c["scenario"])
         d = scen.defaults
         rows, cols = c["mesh"] if c["mesh"] is not None else (d.rows, d.cols)
-        if c["bend"] != "none" and min(rows, cols) < 3:  # pragma: no cover - _grid_dim already requires 3
+        if scen.model is None and c["bend"] != "none" and min(rows, cols) < 3:  # a grid (mesh scenarios: rows 1, cols N)  # pragma: no cover - _grid_dim already requires 3
             raise src.error(el.line, f"{what}: a mesh needs at least 3 x 3 particles with bend springs")
         mass = c["mass"] if c["mass"] is not None else d.mass
         ks = [c[f"stiffness_{t}"] if c[f"stiffness_{t}"] is not None else c["stiffness"] for t in SPRING_TYPES]
@@ -571,7 +590,7 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
             drag=c["drag"], bend=c["bend"], timestep=c["timestep"], frame_rate=c["frame_rate"],
             duration=c["duration"] if c["duration"] is not None else DEFAULT_DURATION.get(c["scenario"], d.duration),
             cap=c["cap"], options=options, maxdt_precision=c["maxdt_precision"], maxdt_duration=c["maxdt_duration"],
-            strain_limit=c["strain_limit"],
+            strain_limit=c["strain_limit"], instability_strain=c["instability_strain"],
         ))
     return runs
 

@@ -6,18 +6,31 @@ particles marked by a ``pinned`` vertex primvar and a ``UsdGeomPoints`` prim, th
 file beside the target (``.warpcloth-<pid>-<token>.usda``, see :mod:`warpcloth.fileio`) and
 renamed over it when closed, so a reader never sees half a file; on any failure (disk full, an
 interrupt) the temporary is removed and the target is left as it was.
+
+**Bounded memory.** A USD layer keeps every time sample in memory until it is saved. A long or
+large run therefore writes its frames in chunks of ``clip_frames`` frames (by default as many as
+fit in :data:`CLIP_BYTES`, ~64 MiB of samples: 650 frames of a 64 x 64 cloth) to *value clips*:
+each chunk's samples move out of the stage into ``<target>.clips/clip_NNNNN.usdc`` and the
+target's ``/World`` prim gets the clip metadata (asset paths, active clip per time, a manifest),
+so any USD reader sees one animated stage. A run shorter than one chunk stays a single file. The
+clip folder is written under a temporary name and moved into place with the target.
 """
 
 from __future__ import annotations
 
 import os
+import shutil
 
 import numpy as np
 
-from .errors import WarpclothError
+from .errors import WarpclothError, require_int
 from .fileio import OutputError, check_output_path, describe_write_error, fsync_dir, remove_temporary, temp_path
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc")
+#: Bytes of time samples a writer keeps in memory before it moves them to a value clip.
+CLIP_BYTES = 64 * 2**20
+#: Bytes per point per frame in memory (points, pins, extent, and the layer's own overhead).
+_BYTES_PER_POINT_FRAME = 32
 
 
 def check_usd_path(path: str) -> str:
@@ -48,9 +61,11 @@ class UsdWriter:
         path: output file (.usd, .usda or .usdc).
         model: the :class:`~warpcloth.model.ClothModel` (topology, pins).
         fps: frames per second; frame k is written at time code k.
+        clip_frames: frames kept in memory before they move to a value clip (see the module
+            doc); default: as many as fit in :data:`CLIP_BYTES`.
     """
 
-    def __init__(self, path: str, model, fps: float = 60.0):
+    def __init__(self, path: str, model, fps: float = 60.0, clip_frames: int | None = None):
         from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
         self._Gf, self._Vt = Gf, Vt
@@ -86,12 +101,24 @@ class UsdWriter:
         pinned[model.pinned] = 1
         primvar = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("pinned", Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.vertex)
         primvar.Set(Vt.IntArray(pinned.tolist()))
+        uv = model.host.get("uv")
+        if uv is not None:  # texture coordinates per triangle corner (grids, meshes read with UVs)
+            st = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+            st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(uv, dtype=np.float32).reshape(-1, 2)))
         self.pins = UsdGeom.Points.Define(self.stage, "/World/Pins")
         self.pins.CreateWidthsAttr(Vt.FloatArray([0.02] * len(model.pinned)))
         self._pin_idx = np.asarray(model.pinned, dtype=np.int64)
         self.pins_attr = self.pins.CreatePointsAttr()
         self.frames = 0
         self.last_code = -1.0
+        if clip_frames is None:
+            clip_frames = max(60, CLIP_BYTES // (_BYTES_PER_POINT_FRAME * max(1, model.particle_count)))
+        self.clip_frames = require_int("clip_frames", clip_frames, 1)
+        self.frames_in_memory = 0  # frames whose samples are still in the stage's layer
+        self._clips: list[tuple[str, float]] = []  # (file name, first time code)
+        self._clip_first = 0.0
+        self._clip_dir_tmp = self._tmp + ".clips"
+        self._clip_dir = self.path + ".clips"
 
     def write_frame(self, points: np.ndarray, sim_time: float | None = None) -> None:
         """Write one frame of particle positions (N, 3) at time code ``round(sim_time * fps)``
@@ -107,18 +134,78 @@ class UsdWriter:
         if self._pin_idx.size:
             self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(p[self._pin_idx])), code)
         self.frames += 1
+        if self.frames_in_memory == 0:
+            self._clip_first = code
+        self.frames_in_memory += 1
+        if self.frames_in_memory >= self.clip_frames:
+            self._flush_clip()
+
+    def _flush_clip(self) -> None:
+        """Move every time sample of the stage's layer into a new value-clip layer on disk."""
+        from pxr import Sdf
+
+        if self.frames_in_memory == 0:
+            return
+        layer = self.stage.GetRootLayer()
+        sampled = []
+        layer.Traverse(Sdf.Path.absoluteRootPath, lambda path: sampled.append(path) if path.IsPropertyPath() and layer.GetNumTimeSamplesForPath(path) else None)
+        os.makedirs(self._clip_dir_tmp, exist_ok=True)
+        name = f"clip_{len(self._clips):05d}.usdc"
+        clip = Sdf.Layer.CreateNew(os.path.join(self._clip_dir_tmp, name))
+        for path in sampled:
+            prim = Sdf.CreatePrimInLayer(clip, path.GetPrimPath())
+            spec = layer.GetAttributeAtPath(path)
+            Sdf.AttributeSpec(prim, path.name, spec.typeName)
+            for t in layer.ListTimeSamplesForPath(path):
+                clip.SetTimeSample(path, t, layer.QueryTimeSample(path, t))
+                layer.EraseTimeSample(path, t)
+        if not clip.Save():
+            raise OSError(f"USD could not save the value clip {name}")
+        del clip
+        self._clips.append((name, self._clip_first))
+        self.frames_in_memory = 0
+
+    def _finish_clips(self) -> None:
+        """Write the last chunk and the clip metadata on /World (when any chunk left memory)."""
+        from pxr import Sdf, Usd
+
+        if not self._clips:
+            return  # a short run: one file, as before
+        self._flush_clip()
+        folder = os.path.basename(self._clip_dir)
+        api = Usd.ClipsAPI(self.stage.GetPrimAtPath("/World"))
+        api.SetClipAssetPaths(Sdf.AssetPathArray([f"./{folder}/{name}" for name, _ in self._clips]))
+        api.SetClipPrimPath("/World")
+        api.SetClipActive([(first, float(k)) for k, (_, first) in enumerate(self._clips)])
+        api.SetClipTimes([(0.0, 0.0), (max(1.0, self.last_code), max(1.0, self.last_code))])  # identity
+        layers = [Sdf.Layer.FindOrOpen(os.path.join(self._clip_dir_tmp, name)) for name, _ in self._clips]
+        manifest = Usd.ClipsAPI.GenerateClipManifestFromLayers(layers, "/World")  # the final folder does not exist yet
+        manifest.Export(os.path.join(self._clip_dir_tmp, "manifest.usda"))
+        del layers, manifest
+        api.SetClipManifestAssetPath(Sdf.AssetPath(f"./{folder}/manifest.usda"))
 
     def close(self) -> str:
         """Save and move the file into place; returns the path."""
         if self._closed:
             return self.path
         try:
+            self._finish_clips()
             self.stage.SetStartTimeCode(0.0)
             self.stage.SetEndTimeCode(max(0.0, self.last_code))
             if not self.stage.GetRootLayer().Save():
                 raise OSError(f"USD could not save {self._tmp}")
             del self.stage
+            if self._clips:  # the clip folder first, then the stage that names it
+                old = None
+                if os.path.lexists(self._clip_dir):
+                    old = self._tmp + ".old-clips"
+                    os.replace(self._clip_dir, old)
+                os.replace(self._clip_dir_tmp, self._clip_dir)
+                if old is not None:
+                    shutil.rmtree(old, ignore_errors=True)
             os.replace(self._tmp, self.path)
+            if not self._clips and os.path.isdir(self._clip_dir):  # an older long run's clips
+                shutil.rmtree(self._clip_dir, ignore_errors=True)
         except BaseException as exc:
             failure = _usd_failure(exc, self.path, self._tmp) if isinstance(exc, Exception) else None
             self.abort()

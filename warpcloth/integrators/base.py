@@ -46,9 +46,13 @@ class Option:
 
     def parse(self, value):
         """``value`` converted and checked; raises :class:`WarpclothError` naming it."""
+        if self.type is int and (isinstance(value, bool) or (isinstance(value, float) and not value.is_integer())):
+            raise WarpclothError(f"{self.name} must be an integer, got {value!r}")
+        if self.type is float and isinstance(value, bool):
+            raise WarpclothError(f"{self.name} must be a number, got {value!r}")
         try:
             v = self.type(value)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise WarpclothError(f"{self.name} must be {self.type.__name__}, got {value!r}") from None
         if self.choices and v not in self.choices:
             raise WarpclothError(f"{self.name} must be one of {', '.join(map(str, self.choices))}, got {value!r}")
@@ -144,10 +148,6 @@ class Integrator:
     def no_stable_dt_reason(self, model, drag_rate: float = 0.0) -> str | None:
         """Why no time step is stable for this scheme on ``model``, or None when some is."""
         return None
-
-    def _require_bound(self):
-        if self.model is None:
-            raise WarpclothError(f"integrator {self.name!r} is not bound to a model: call bind(model) first")
 
 
 def explicit_euler_dt_bound(model) -> float:

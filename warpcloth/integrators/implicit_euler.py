@@ -28,7 +28,8 @@ and ``multigrid`` (a geometric V-cycle for grid models, :mod:`warpcloth.integrat
 CG iterations nearly independent of the sheet size, 13-14 at 128^2 where Jacobi takes ~300;
 docs/solvers.md). Multigrid assembles A as BSR for its Galerkin products; a model that is not a
 grid falls back to block_jacobi with a note on stderr. The default stays ``jacobi``: multigrid
-wins by 3-5x per step at 128^2 on the CPU but loses at 32^2 (docs/solvers.md).
+took 1/2.8 [1/3.3-1/2.8] of Jacobi's time per step at 128^2 on the CPU but more than it at 32^2
+(bench/results/solvers-cpu.txt and solvers-cpu-32.txt; docs/solvers.md).
 
 Statistics: on CUDA, cg checks convergence on the device (``check_every=0``, a conditional graph
 node) and a kernel accumulates iterations, residuals and the count of steps that ended at the
@@ -51,6 +52,8 @@ from warp.optim.linear import LinearOperator, aslinearoperator, cg
 from warpcloth.kernels import implicit as ik
 
 from ..forces import eval_forces
+from ..pins import has_pin_tracks
+from warpcloth.kernels import pins as pk
 from .base import Integrator, Option, scratch_like
 from .multigrid import GridMultigrid, grid_structure_reason
 
@@ -103,6 +106,7 @@ class ImplicitEuler(Integrator):
         self.spring_K = wp.zeros(model.spring_count, dtype=wp.mat33)
         self.spring_B = wp.zeros(model.spring_count, dtype=wp.mat33)
         self.mass_term = wp.zeros(n, dtype=float)
+        self.pin_dv = wp.zeros(n, dtype=wp.vec3)  # prescribed dv of kinematic pins (0 elsewhere)
         self.preconditioner_used = self.preconditioner
         if self.preconditioner == "multigrid":
             reason = grid_structure_reason(model)
@@ -196,6 +200,9 @@ class ImplicitEuler(Integrator):
         eval_forces(m, x, v, control, f)
         self._assemble(x, h, float(control.drag_rate))
         wp.launch(ik.eval_rhs, dim=m.particle_count, inputs=[f, v, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_K, m.particle_inv_mass, h], outputs=[self.b], device=m.device)
+        if has_pin_tracks(control):  # pinned dv = (track(t + h) - x)/h - v, moved to the free rows' right side
+            control.kinematic_pins.delta(control, x, v, h, 1.0 / h, 1.0, self.pin_dv)
+            wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, m.particle_inv_mass, self.pin_dv], outputs=[self.b], device=m.device)
         self._solve()
         wp.launch(ik.integrate_implicit_euler, dim=m.particle_count, inputs=[x, v, self.dv, m.particle_inv_mass, h], device=m.device)
 
@@ -205,11 +212,11 @@ class ImplicitEuler(Integrator):
         m = self.model
         if self.jacobian == "full":
             wp.launch(ik.eval_spring_jacobians, dim=m.spring_count, inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
-        elif self._assembled_for == (h, drag, m.version):
+        elif self._assembled_for == (h, drag):
             return
         else:
             wp.launch(ik.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
-            self._assembled_for = (h, drag, m.version)
+            self._assembled_for = (h, drag)
         if self._bsr:
             wp.launch(
                 ik.assemble_system_rows, dim=m.particle_count,

@@ -14,6 +14,7 @@ import warp as wp
 from warpcloth.kernels import integrate as ik
 
 from ..forces import eval_forces
+from ..pins import apply_pins
 from .base import Integrator, model_spectrum, runge_kutta_stable_dt, scratch_like
 
 
@@ -48,5 +49,6 @@ class Midpoint(Integrator):
         stage = ik.integrate_rk_stage
         eval_forces(m, x, v, control, f)
         wp.launch(stage, dim=m.particle_count, inputs=[x, v, v, f, m.particle_inv_mass, 0.5 * dt], outputs=[self.x_mid, self.v_mid], device=m.device)
+        apply_pins(control, self.x_mid, self.v_mid, 0.5 * dt)  # kinematic pins at the stage time
         eval_forces(m, self.x_mid, self.v_mid, control, f)
         wp.launch(stage, dim=m.particle_count, inputs=[x, v, self.v_mid, f, m.particle_inv_mass, float(dt)], outputs=[x, v], device=m.device)

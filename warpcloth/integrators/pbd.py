@@ -65,12 +65,12 @@ class PBD(PositionBasedIntegrator):
         keep = self.velocity_keep()
         params = [m.spring_indices, m.spring_rest_length, self.spring_type, self.type_stiffness(), m.particle_inv_mass, state.particle_q]
         sweep = self.color_sweep(ck.solve_springs_pbd, params, [self.particle_dp])
-        for _ in range(self.substeps):
-            self.predict(state, control, h, keep)
+        for k in range(self.substeps):
+            self.predict(state, control, h, keep, (k + 1) * h)
             for _ in range(self.iterations):
                 for color in sweep:
                     color.launch()
-            self.update(state, h)
+            self.update(state, h, control, (k + 1) * h)
 
     def stats(self) -> dict:
         return {**super().stats(), "iterations": self.iterations, "substeps": self.substeps}

@@ -16,11 +16,19 @@ from warpcloth.kernels import constraints as ck
 
 from ..coloring import SpringColoring, color_springs
 from ..forces import eval_external_forces
+from ..pins import has_pin_tracks
 from .base import Integrator, Option, scratch_like
 
 
+#: Most iterations or substeps per step: beyond, one step takes minutes (and a captured frame
+#: holds millions of launches); no run needs it.
+MAX_COUNT = 10_000
+
+
 def _at_least_one(value) -> str | None:
-    return None if value >= 1 else "must be an integer >= 1"
+    if value < 1:
+        return "must be an integer >= 1"
+    return None if value <= MAX_COUNT else f"must be at most {MAX_COUNT} (one step would take minutes)"
 
 
 def _unit_interval(value) -> str | None:
@@ -78,11 +86,14 @@ class PositionBasedIntegrator(Integrator):
         keeps 1 - k_damp whatever the number of substeps."""
         return (1.0 - self.velocity_damping) ** (1.0 / self.substeps)
 
-    def predict(self, state, control, h: float, velocity_keep: float) -> None:
-        """v <- velocity_keep (v + h w f_ext);  dp = p - x = h v."""
+    def predict(self, state, control, h: float, velocity_keep: float, end: float | None = None) -> None:
+        """v <- velocity_keep (v + h w f_ext);  dp = p - x = h v; a kinematic pin's
+        dp = track(t + end) - x (``end`` the substep's end, from the step's start)."""
         m = self.model
         eval_external_forces(m, state.particle_q, state.particle_qd, control, state.particle_f)
         wp.launch(ck.integrate_predict, dim=m.particle_count, inputs=[state.particle_qd, state.particle_f, m.particle_inv_mass, float(h), float(velocity_keep)], outputs=[self.particle_dp], device=m.device)
+        if end is not None and has_pin_tracks(control):
+            control.kinematic_pins.delta(control, state.particle_q, state.particle_qd, end, 1.0, 0.0, self.particle_dp)
 
     def color_sweep(self, kernel, params: list, outputs: list) -> list:
         """One Gauss-Seidel sweep over the springs: a launch of ``kernel`` per colour, with
@@ -101,10 +112,12 @@ class PositionBasedIntegrator(Integrator):
             self._sweep_key = key
         return self._sweep
 
-    def update(self, state, h: float) -> None:
-        """v = dp / h;  x += dp."""
+    def update(self, state, h: float, control=None, end: float | None = None) -> None:
+        """v = dp / h;  x += dp; kinematic pins x = track(t + end), v = track'(t + end)."""
         m = self.model
         wp.launch(ck.update_velocities, dim=m.particle_count, inputs=[state.particle_q, state.particle_qd, self.particle_dp, m.particle_inv_mass, float(h)], device=m.device)
+        if end is not None and has_pin_tracks(control):
+            control.kinematic_pins.apply(control, state.particle_q, state.particle_qd, end)
 
 
 def _argument_key(value):

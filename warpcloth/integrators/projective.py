@@ -33,6 +33,7 @@ from warpcloth.kernels.vbd import update_from_increment
 
 from ..coloring import particle_adjacency
 from ..forces import eval_external_forces
+from ..pins import apply_pins, has_pin_tracks
 from .base import Integrator, Option, scratch_like
 
 
@@ -85,22 +86,25 @@ class Projective(Integrator):
         self.assemble(h)
         eval_external_forces(m, x, v, control, f)
         wp.launch(pk.predict_increment, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
+        if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x: known, enters the residual
+            control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
         for _ in range(self.pd_iterations):
             self.local_step(x, h)
             self.global_step()
         wp.launch(update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
+        apply_pins(control, x, v, h)  # kinematic pins: x = track(t + h), v = track'(t + h)
 
     def assemble(self, h: float) -> None:
         """Fill S = M + h D + h^2 L and its inverse diagonal, when h or the model changed."""
         m = self.model
-        if self._assembled_for == (h, m.version):
+        if self._assembled_for == h:
             return
         wp.launch(
             pk.assemble_global_matrix, dim=m.particle_count,
             inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, m.spring_stiffness, m.spring_damping, m.particle_mass, m.particle_inv_mass, h],
             outputs=[self.values, self.inv_diag], device=m.device,
         )
-        self._assembled_for = (h, m.version)
+        self._assembled_for = h
 
     def local_step(self, x, h: float) -> None:
         """Project every spring to its rest length and form the global residual r (and CG's start)."""

@@ -9,6 +9,7 @@ import warp as wp
 from warpcloth.kernels import integrate as ik
 
 from ..forces import eval_forces
+from ..pins import apply_pins
 from .base import Integrator, scratch_like
 
 
@@ -28,6 +29,7 @@ class RK4(Integrator):
         def stage(v_stage, h, weight, first):
             # acc += weight k(stage) ; (xs, vs) = (x, v) + h k(stage)
             wp.launch(ik.integrate_rk4_stage, dim=n, inputs=[x, v, v_stage, f, w, h, weight, first, self.acc_x, self.acc_v], outputs=[xs, vs], device=m.device)
+            apply_pins(control, xs, vs, h)  # kinematic pins at the stage time t + h
 
         eval_forces(m, x, v, control, f)  # k1
         stage(v, 0.5 * dt, 1.0, 1)

@@ -33,6 +33,7 @@ from warpcloth.kernels import vbd as vk
 
 from ..coloring import VertexColoring, color_vertices, particle_adjacency
 from ..forces import eval_external_forces
+from ..pins import apply_pins, has_pin_tracks
 from .base import Integrator, Option, scratch_like
 
 
@@ -97,6 +98,8 @@ class VBD(Integrator):
         x, v, f = state.particle_q, state.particle_qd, state.particle_f
         eval_external_forces(m, x, v, control, f)
         wp.launch(vk.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
+        if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x, held through the sweeps
+            control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
         sweep = self.color_sweep(x, h)
         accelerate = self.vbd_chebyshev_rho > 0.0
         if accelerate:
@@ -107,12 +110,13 @@ class VBD(Integrator):
             if accelerate:
                 wp.launch(vk.apply_chebyshev, dim=m.particle_count, inputs=[omega], outputs=[self.dx, self.dx_prev1, self.dx_prev2], device=m.device)
         wp.launch(vk.update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
+        apply_pins(control, x, v, h)  # kinematic pins: x = track(t + h), v = track'(t + h)
 
     def color_sweep(self, x, h: float) -> list:
         """One Gauss-Seidel sweep: a recorded launch of the local Newton kernel per colour,
         rebuilt only when the positions array or h change (cuts the Python cost of
         colours x iterations launches)."""
-        key = (x.ptr, h, self.model.version)
+        key = (x.ptr, h)
         if key != self._sweep_key:
             m = self.model
             params = [

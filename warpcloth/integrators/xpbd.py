@@ -50,13 +50,13 @@ class XPBD(PositionBasedIntegrator):
         keep = self.velocity_keep()
         params = [m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, m.particle_inv_mass, state.particle_q, h]
         sweep = self.color_sweep(ck.solve_springs_xpbd, params, [self.spring_lambda, self.particle_dp])
-        for _ in range(self.substeps):
-            self.predict(state, control, h, keep)
+        for k in range(self.substeps):
+            self.predict(state, control, h, keep, (k + 1) * h)
             self.clear_lambda()
             for _ in range(self.iterations):
                 for color in sweep:
                     color.launch()
-            self.update(state, h)
+            self.update(state, h, control, (k + 1) * h)
 
     def clear_lambda(self) -> None:
         """lambda = 0 for every constraint."""

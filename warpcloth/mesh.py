@@ -1,0 +1,501 @@
+"""Cloth from any triangle mesh: springs, lumped masses and pins derived from the mesh.
+
+:func:`build_mesh_cloth` turns vertices and triangles into a
+:class:`~warpcloth.model.ClothModel` (through :func:`~warpcloth.model.build_model`):
+
+- **structural** springs on the unique edges;
+- **bend** springs across each interior edge, between the two vertices opposite it (the usual
+  mass-spring bending of triangle meshes; one per interior edge, an edge shared by more than
+  two triangles gets none);
+- with ``quads=True``, triangle pairs that form a quad are found and treated as quads
+  (rule below): the shared diagonal and the other diagonal become **shear** springs, and the
+  bend springs are the 2-ring straight lines. A triangulated Provot grid then gives exactly
+  the springs of :func:`~warpcloth.model.build_grid_cloth`.
+
+Quad rule (``quads=True``): an interior edge that is the strictly longest edge of both of its
+triangles (longer than each other edge by a factor 1 + 1e-6) is the diagonal of a quad. Each
+triangle has at most one longest edge, so each triangle belongs to at most one quad, and such a
+quad is convex (the angles at the diagonal's ends are below 90 degrees in each triangle).
+The remaining edges are structural. A bend spring joins u and w, two structural neighbours
+of a vertex v, when the edges v-u and v-w are not two sides of one face (a quad or a leftover
+triangle) and the angle u-v-w at rest is at least 150 degrees (a straight line through v).
+
+Masses: a total mass [kg] or an areal density [kg/m^2], lumped by vertex area (a third of the
+area of each adjacent triangle) or split uniformly over the vertices (seed 4.2.4).
+
+Pins: vertex indices, named vertex groups, or a predicate on the rest positions: a Python
+callable ``f(positions (N, 3)) -> bool mask`` or a string such as ``"y > 0.99 * y.max()"``
+(see :func:`select_vertices`), parsed with :mod:`ast` against a whitelist, never ``eval``-ed.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+import operator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import WarpclothError, require, require_positive
+from .model import ClothModel, SpringParams, SpringType, build_model, default_spring_params
+
+#: A bend spring of the quad rule spans at least this angle u-v-w [degrees] at rest.
+STRAIGHT_ANGLE_DEG = 150.0
+#: The quad rule's diagonal is longer than the triangle's other edges by this factor.
+LONGEST_MARGIN = 1e-6
+#: A triangle whose area is below this fraction of the squared bounding-box diagonal is degenerate.
+DEGENERATE_AREA = 1e-12
+
+
+@dataclass
+class TriangleMesh:
+    """A triangle mesh as read from a file.
+
+    Attributes:
+        vertices: rest positions [m], shape (N, 3), float64.
+        triangles: vertex indices, shape (T, 3), int64 (counter-clockwise seen from the front).
+        uv: texture coordinates per triangle corner, shape (T, 3, 2), or None.
+        groups: vertex groups, name -> sorted vertex indices.
+        source: where it came from (a path, or "arrays").
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    uv: np.ndarray | None = None
+    groups: dict = field(default_factory=dict)
+    source: str = "arrays"
+
+
+# -- validation ----------------------------------------------------------------------------
+
+
+def check_mesh(vertices, triangles, what: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (N, 3) float64 and triangles (T, 3) int64, checked: not empty, finite vertices,
+    integer indices in range, no repeated index, no zero-area triangle, every vertex in a
+    triangle. Raises :class:`WarpclothError` naming the first bad value."""
+    try:
+        v = np.asarray(vertices, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise WarpclothError(f"{what}: vertices must be numbers, shape (N, 3)") from None
+    require(v.size > 0, f"{what} is empty: no vertices")
+    require(v.ndim == 2 and v.shape[1] == 3, f"{what}: vertices must have shape (N, 3), got {v.shape}")
+    bad = np.flatnonzero(~np.all(np.isfinite(v), axis=1))
+    if bad.size:
+        raise WarpclothError(f"{what}: vertex {int(bad[0])} is not finite ({v[bad[0]].tolist()}); vertices must be finite numbers")
+    t = np.asarray(triangles)
+    require(t.size > 0, f"{what} is empty: no triangles")
+    require(t.ndim == 2 and t.shape[1] == 3, f"{what}: triangles must have shape (T, 3), got {t.shape}")
+    if not np.issubdtype(t.dtype, np.integer):
+        tf = np.asarray(t, dtype=np.float64)
+        require(np.all(tf == np.round(tf)), f"{what}: triangle indices must be integers")
+        t = tf.astype(np.int64)
+    t = t.astype(np.int64)
+    n = v.shape[0]
+    out = np.flatnonzero(np.any((t < 0) | (t >= n), axis=1))
+    if out.size:
+        k = int(out[0])
+        raise WarpclothError(f"{what}: triangle {k} has vertex index {t[k].tolist()} out of range: vertices are 0..{n - 1}")
+    rep = np.flatnonzero((t[:, 0] == t[:, 1]) | (t[:, 1] == t[:, 2]) | (t[:, 0] == t[:, 2]))
+    if rep.size:
+        k = int(rep[0])
+        raise WarpclothError(f"{what}: triangle {k} repeats a vertex ({t[k].tolist()}): a triangle needs three different vertices")
+    area = triangle_areas(v, t)
+    scale = float(np.sum(np.ptp(v, axis=0) ** 2))
+    flat = np.flatnonzero(area <= DEGENERATE_AREA * max(scale, np.finfo(float).tiny))
+    if flat.size:
+        k = int(flat[0])
+        raise WarpclothError(f"{what}: triangle {k} ({t[k].tolist()}) is degenerate (zero area): remove it or fix its vertices")
+    used = np.zeros(n, dtype=bool)
+    used[t.ravel()] = True
+    if not used.all():
+        k = int(np.flatnonzero(~used)[0])
+        raise WarpclothError(f"{what}: vertex {k} belongs to no triangle (every vertex of a cloth must be in a triangle)")
+    return v, t
+
+
+def triangle_areas(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Area of each triangle [m^2] (float64)."""
+    a, b, c = (vertices[triangles[:, k]] for k in range(3))
+    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+
+# -- topology ------------------------------------------------------------------------------
+
+
+@dataclass
+class MeshTopology:
+    """Unique edges of a triangle mesh and what lies across them (all NumPy, vectorised).
+
+    Attributes:
+        edges: unique edges (E, 2), lower index first, sorted.
+        edge_triangles: number of triangles at each edge (1: boundary, 2: interior).
+        half_edge: edge id of each triangle side, shape (T, 3) (side k joins corners k, k+1).
+        opposite: (E, 2) the vertices opposite each interior edge in its two triangles (-1 else).
+        edge_tris: (E, 2) the two triangles of each interior edge (-1 else).
+    """
+
+    edges: np.ndarray
+    edge_triangles: np.ndarray
+    half_edge: np.ndarray
+    opposite: np.ndarray
+    edge_tris: np.ndarray
+
+    @property
+    def interior(self) -> np.ndarray:
+        return self.edge_triangles == 2
+
+
+def mesh_topology(triangles: np.ndarray, vertex_count: int) -> MeshTopology:
+    """Unique edges by sorting packed keys lo * N + hi (no per-edge Python loop)."""
+    t = np.asarray(triangles, dtype=np.int64)
+    T = t.shape[0]
+    a = t.reshape(-1)
+    b = t[:, [1, 2, 0]].reshape(-1)
+    opp = t[:, [2, 0, 1]].reshape(-1)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    key = lo * np.int64(vertex_count) + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    first = np.ones(ks.size, dtype=bool)
+    first[1:] = ks[1:] != ks[:-1]
+    edge_of_sorted = np.cumsum(first) - 1
+    E = int(edge_of_sorted[-1]) + 1
+    half_edge = np.empty(3 * T, dtype=np.int64)
+    half_edge[order] = edge_of_sorted
+    starts = np.flatnonzero(first)
+    counts = np.diff(np.append(starts, ks.size))
+    edges = np.stack([lo[order[starts]], hi[order[starts]]], axis=1)
+    opposite = np.full((E, 2), -1, dtype=np.int64)
+    edge_tris = np.full((E, 2), -1, dtype=np.int64)
+    two = np.flatnonzero(counts == 2)
+    h0, h1 = order[starts[two]], order[starts[two] + 1]
+    opposite[two, 0], opposite[two, 1] = opp[h0], opp[h1]
+    edge_tris[two, 0], edge_tris[two, 1] = h0 // 3, h1 // 3
+    same = two[opposite[two, 0] == opposite[two, 1]]
+    if same.size:
+        e = int(same[0])
+        raise WarpclothError(f"mesh: triangles {int(edge_tris[e, 0])} and {int(edge_tris[e, 1])} are the same triangle (vertices {[int(edges[e, 0]), int(edges[e, 1]), int(opposite[e, 0])]})")
+    return MeshTopology(edges, counts, half_edge.reshape(T, 3), opposite, edge_tris)
+
+
+def mesh_springs(vertices, triangles, quads: bool = False, bend: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Springs of a triangle mesh as (pairs (S, 2) int32, types (S,) int32); see the module
+    docstring for the rules."""
+    v = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    topo = mesh_topology(t, v.shape[0])
+    edges = topo.edges
+    pairs, types = [], []
+
+    def add(p, kind):
+        p = np.asarray(p, dtype=np.int64).reshape(-1, 2)
+        pairs.append(p)
+        types.append(np.full(p.shape[0], int(kind), dtype=np.int32))
+
+    if not quads:
+        add(edges, SpringType.STRUCTURAL)
+        if bend:
+            add(topo.opposite[topo.interior], SpringType.BEND)
+        return np.concatenate(pairs).astype(np.int32), np.concatenate(types)
+
+    length = np.linalg.norm(v[edges[:, 1]] - v[edges[:, 0]], axis=1)
+    side = length[topo.half_edge]  # (T, 3)
+    longest = np.argmax(side, axis=1)
+    srt = np.sort(side, axis=1)
+    strict = srt[:, 2] > srt[:, 1] * (1.0 + LONGEST_MARGIN)
+    tri_diag = np.where(strict, topo.half_edge[np.arange(t.shape[0]), longest], -1)  # each triangle's longest edge
+    diag_votes = np.bincount(tri_diag[tri_diag >= 0], minlength=edges.shape[0])
+    is_diag = topo.interior & (diag_votes == 2)
+    add(edges[~is_diag], SpringType.STRUCTURAL)
+    add(edges[is_diag], SpringType.SHEAR)
+    add(topo.opposite[is_diag], SpringType.SHEAR)
+    if bend:
+        add(_straight_bends(v, t, topo, is_diag), SpringType.BEND)
+    return np.concatenate(pairs).astype(np.int32), np.concatenate(types)
+
+
+def _straight_bends(v, t, topo: MeshTopology, is_diag: np.ndarray) -> np.ndarray:
+    """Bend pairs (u, w) of the quad rule: u, w structural neighbours of v, v-u and v-w not
+    two sides of one face, angle u-v-w >= STRAIGHT_ANGLE_DEG."""
+    n = np.int64(v.shape[0])
+    structural = topo.edges[~is_diag]
+    centre = np.concatenate([structural[:, 0], structural[:, 1]])
+    other = np.concatenate([structural[:, 1], structural[:, 0]])
+    order = np.lexsort((other, centre))
+    centre, other = centre[order], other[order]
+    # corners of faces: (centre, lower neighbour, higher neighbour) packed into one key
+    diag = np.flatnonzero(is_diag)
+    u, w = topo.edges[diag, 0], topo.edges[diag, 1]
+    p, q = topo.opposite[diag, 0], topo.opposite[diag, 1]
+    in_quad = np.zeros(t.shape[0], dtype=bool)
+    in_quad[topo.edge_tris[diag].ravel()] = True
+    lone = t[~in_quad]
+    corner_c = [u, p, w, q, lone[:, 0], lone[:, 1], lone[:, 2]]
+    corner_a = [p, u, p, w, lone[:, 1], lone[:, 2], lone[:, 0]]
+    corner_b = [q, w, q, u, lone[:, 2], lone[:, 0], lone[:, 1]]
+    cc, ca, cb = (np.concatenate(x).astype(np.int64) for x in (corner_c, corner_a, corner_b))
+    corner_keys = np.sort((cc * n + np.minimum(ca, cb)) * n + np.maximum(ca, cb))  # membership by binary search
+    cos_limit = math.cos(math.radians(STRAIGHT_ANGLE_DEG))
+    found = []
+    for d in range(1, centre.size):  # pairs of neighbours of one centre, offset d apart in the sorted list
+        same = np.flatnonzero(centre[d:] == centre[:-d])
+        if same.size == 0:
+            break
+        c, a, b = centre[same], other[same], other[same + d]
+        key = (c * n + np.minimum(a, b)) * n + np.maximum(a, b)
+        at = np.minimum(np.searchsorted(corner_keys, key), corner_keys.size - 1)
+        keep = corner_keys[at] != key
+        da, db = v[a] - v[c], v[b] - v[c]
+        cos = np.einsum("ij,ij->i", da, db) / (np.linalg.norm(da, axis=1) * np.linalg.norm(db, axis=1))
+        keep &= cos <= cos_limit + 1e-12
+        found.append((np.minimum(a, b) * n + np.maximum(a, b))[keep])
+    if not found:
+        return np.zeros((0, 2), dtype=np.int64)
+    keys = np.sort(np.concatenate(found))
+    keys = keys[np.append(True, keys[1:] != keys[:-1])] if keys.size else keys  # one spring per pair
+    return np.stack([keys // n, keys % n], axis=1)
+
+
+# -- masses --------------------------------------------------------------------------------
+
+MASS_MODES = ("area", "uniform")
+
+
+def lumped_masses(vertices, triangles, total_mass: float | None = None, density: float | None = None, mode: str = "area") -> np.ndarray:
+    """Particle masses [kg] (float64): ``mode="area"`` gives each vertex a third of the area of
+    each adjacent triangle times the density; ``"uniform"`` splits the total evenly. Give the
+    total mass [kg] or the areal density [kg/m^2] (default: 0.2 kg in all)."""
+    require(mode in MASS_MODES, f"mass mode must be one of {', '.join(MASS_MODES)}, got {mode!r}")
+    require(total_mass is None or density is None, "give a total mass or an areal density, not both")
+    v = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    area = triangle_areas(v, t)
+    total_area = float(area.sum())
+    if density is not None:
+        total_mass = require_positive("density", density, "kg/m^2") * total_area
+    elif total_mass is None:
+        total_mass = 0.2
+    total_mass = require_positive("mass", total_mass, "kg")
+    if mode == "uniform":
+        return np.full(v.shape[0], total_mass / v.shape[0])
+    vertex_area = np.zeros(v.shape[0])
+    for k in range(3):
+        np.add.at(vertex_area, t[:, k], area / 3.0)
+    return vertex_area * (total_mass / total_area)
+
+
+# -- pins ----------------------------------------------------------------------------------
+
+_BINOPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
+           ast.Pow: operator.pow, ast.Mod: operator.mod, ast.BitAnd: np.logical_and, ast.BitOr: np.logical_or}
+_CMPOPS = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt, ast.GtE: operator.ge, ast.Eq: operator.eq, ast.NotEq: operator.ne}
+_REDUCTIONS = {"min": np.min, "max": np.max, "mean": np.mean}
+_FUNCTIONS = {"abs": np.abs, "sqrt": np.sqrt}
+_NAMES = ("x", "y", "z")
+
+
+def parse_predicate(text: str):
+    """A vertex predicate from a string, e.g. ``"y > 0.99 * y.max()"`` or
+    ``"(abs(x) < 0.1) & (y > 1.4)"``: a function positions (N, 3) -> bool mask (N,).
+
+    Allowed: the names x, y, z (arrays of the rest coordinates [m]), numbers, + - * / ** %,
+    comparisons (chains too), ``and``/``or``/``not`` and ``&``/``|``/``~`` (element-wise),
+    ``.min()``, ``.max()``, ``.mean()`` of x, y, z, and ``abs()``, ``sqrt()``. Anything else is
+    refused with a :class:`WarpclothError`; the string is parsed with :mod:`ast`, never ``eval``-ed.
+    """
+    require(isinstance(text, str) and text.strip() != "", f"pin predicate must be a non-empty expression, got {text!r}")
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except SyntaxError as exc:
+        raise WarpclothError(f"pin predicate {text!r} is not an expression: {exc.msg}") from None
+
+    def bad(node, what=None):
+        return WarpclothError(
+            f"pin predicate {text!r}: {what or type(node).__name__} is not allowed "
+            f"(use x, y, z, numbers, arithmetic, comparisons, and/or/not, &, |, ~, .min() .max() .mean(), abs(), sqrt())"
+        )
+
+    def ev(node, env):
+        if isinstance(node, ast.Expression):
+            return ev(node.body, env)
+        if isinstance(node, ast.Constant):
+            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+                raise bad(node, f"the constant {node.value!r}")
+            return float(node.value)
+        if isinstance(node, ast.Name):
+            if node.id not in _NAMES:
+                raise bad(node, f"the name {node.id!r}")
+            return env[node.id]
+        if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
+            return _BINOPS[type(node.op)](ev(node.left, env), ev(node.right, env))
+        if isinstance(node, ast.UnaryOp):
+            operand = ev(node.operand, env)
+            if isinstance(node.op, ast.USub):
+                return -operand
+            if isinstance(node.op, ast.UAdd):
+                return +operand
+            if isinstance(node.op, (ast.Not, ast.Invert)):
+                return np.logical_not(operand)
+            raise bad(node)
+        if isinstance(node, ast.BoolOp):
+            values = [ev(x, env) for x in node.values]
+            f = np.logical_and if isinstance(node.op, ast.And) else np.logical_or
+            out = values[0]
+            for val in values[1:]:
+                out = f(out, val)
+            return out
+        if isinstance(node, ast.Compare):
+            left = ev(node.left, env)
+            out = None
+            for op, right_node in zip(node.ops, node.comparators):
+                if type(op) not in _CMPOPS:
+                    raise bad(op)
+                right = ev(right_node, env)
+                r = _CMPOPS[type(op)](left, right)
+                out = r if out is None else np.logical_and(out, r)
+                left = right
+            return out
+        if isinstance(node, ast.Call) and not node.keywords:
+            f = node.func
+            if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id in _NAMES and f.attr in _REDUCTIONS and not node.args:
+                return float(_REDUCTIONS[f.attr](env[f.value.id]))
+            if isinstance(f, ast.Name) and f.id in _FUNCTIONS and len(node.args) == 1:
+                return _FUNCTIONS[f.id](ev(node.args[0], env))
+            raise bad(node, "this call")
+        raise bad(node)
+
+    ev(tree, {k: np.zeros(1) for k in _NAMES})  # validate the whole expression once
+
+    def predicate(positions):
+        p = np.asarray(positions, dtype=np.float64)
+        return ev(tree, {"x": p[:, 0], "y": p[:, 1], "z": p[:, 2]})
+
+    predicate.text = text
+    return predicate
+
+
+def select_vertices(positions, where) -> np.ndarray:
+    """Indices of the vertices for which ``where`` holds: a callable on the (N, 3) positions
+    returning a bool mask (or indices), or a string predicate (:func:`parse_predicate`).
+    A predicate that selects nothing is an error."""
+    p = np.asarray(positions, dtype=np.float64)
+    f = parse_predicate(where) if isinstance(where, str) else where
+    require(callable(f), f"pin predicate must be a callable or a string expression, got {where!r}")
+    try:
+        mask = np.asarray(f(p))
+    except WarpclothError:
+        raise
+    except Exception as exc:
+        raise WarpclothError(f"pin predicate {getattr(f, 'text', f)!r} failed: {exc}") from None
+    if mask.dtype == bool:
+        require(mask.shape == (p.shape[0],), f"pin predicate must return one bool per vertex ({p.shape[0]}), got shape {mask.shape}")
+        idx = np.flatnonzero(mask)
+    else:
+        idx = np.unique(mask.astype(np.int64).ravel())
+    require(idx.size > 0, f"pin predicate {getattr(f, 'text', where)!r} selects no vertex (the mesh spans {_span(p)})")
+    return idx
+
+
+def _span(p: np.ndarray) -> str:
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    return ", ".join(f"{n} in [{a:.4g}, {b:.4g}]" for n, a, b in zip("xyz", lo, hi))
+
+
+def resolve_pins(positions, pins=(), pin_groups=(), pin_where=None, groups=None) -> np.ndarray:
+    """Union of pinned vertex indices given by index, by group name and by predicate."""
+    n = np.asarray(positions).shape[0]
+    groups = groups or {}
+    out = [np.asarray(list(pins), dtype=np.int64).reshape(-1)]
+    if isinstance(pin_groups, str):
+        pin_groups = [pin_groups]
+    for name in pin_groups:
+        if name not in groups:
+            have = ", ".join(sorted(groups)) or "none"
+            raise WarpclothError(f"pin group {name!r} does not exist in the mesh (its vertex groups: {have})")
+        out.append(np.asarray(groups[name], dtype=np.int64))
+    if pin_where is not None:
+        out.append(select_vertices(positions, pin_where))
+    idx = np.unique(np.concatenate(out))
+    bad = idx[(idx < 0) | (idx >= n)]
+    if bad.size:
+        raise WarpclothError(f"pin index {int(bad[0])} is out of range: vertices are 0..{n - 1}")
+    return idx
+
+
+# -- the builder ---------------------------------------------------------------------------
+
+
+def build_mesh_cloth(
+    vertices,
+    triangles=None,
+    total_mass: float | None = None,
+    density: float | None = None,
+    mass_mode: str = "area",
+    spring_params: dict[SpringType, SpringParams] | None = None,
+    stiffness=None,
+    damping=None,
+    pins=(),
+    pin_groups=(),
+    pin_where=None,
+    groups: dict | None = None,
+    uv=None,
+    quads: bool = False,
+    bend: bool = True,
+    device: str | None = None,
+) -> ClothModel:
+    """Build a mass-spring cloth from a triangle mesh (rules in :mod:`warpcloth.mesh`).
+
+    Args:
+        vertices: (N, 3) rest positions [m]; or a :class:`TriangleMesh` (then ``triangles`` is
+            ignored and its uv and groups are used).
+        triangles: (T, 3) vertex indices.
+        total_mass: cloth mass [kg] (default 0.2 kg unless ``density`` is given).
+        density: areal density [kg/m^2] instead of a total mass.
+        mass_mode: ``"area"`` (lumped by vertex area) or ``"uniform"`` (seed 4.2.4).
+        spring_params: per-type :class:`SpringParams`; default :func:`default_spring_params`
+            for the mean particle mass, with ``stiffness`` / ``damping`` as there.
+        pins: vertex indices to pin; pin_groups: names of vertex groups to pin; pin_where: a
+            predicate (callable or string, :func:`parse_predicate`) on the rest positions.
+        groups: vertex groups, name -> indices.
+        uv: texture coordinates per triangle corner (T, 3, 2) or per vertex (N, 2); written to
+            USD as ``primvars:st``.
+        quads: detect triangle pairs forming quads: shear springs on their diagonals, bend
+            springs on 2-ring straight lines (a triangulated grid gives the Provot springs).
+        bend: add bend springs.
+        device: Warp device.
+    """
+    if isinstance(vertices, TriangleMesh):
+        mesh = vertices
+        vertices, triangles = mesh.vertices, mesh.triangles
+        uv = mesh.uv if uv is None else uv
+        groups = {**mesh.groups, **(groups or {})}
+    v, t = check_mesh(vertices, triangles)
+    masses = lumped_masses(v, t, total_mass, density, mass_mode)
+    if spring_params is None:
+        spring_params = default_spring_params(float(masses.mean()), stiffness, damping)
+    pinned = resolve_pins(v, pins, pin_groups, pin_where, groups)
+    pairs, types = mesh_springs(v, t, quads=quads, bend=bend)
+    model = build_model(v, pairs, types, masses, spring_params, pinned, t, device)
+    if uv is not None:
+        model.host["uv"] = corner_uvs(uv, t, v.shape[0])
+    model.host["groups"] = {k: np.asarray(g, dtype=np.int64) for k, g in (groups or {}).items()}
+    return model
+
+
+def corner_uvs(uv, triangles: np.ndarray, vertex_count: int) -> np.ndarray:
+    """Texture coordinates per triangle corner (T * 3, 2) float32 from per-corner (T, 3, 2) or
+    per-vertex (N, 2) values."""
+    a = np.asarray(uv, dtype=np.float32)
+    T = triangles.shape[0]
+    if a.shape == (vertex_count, 2):
+        a = a[triangles]
+    require(a.shape == (T, 3, 2), f"uv must have shape (T, 3, 2) per corner or (N, 2) per vertex, got {a.shape}")
+    require(bool(np.all(np.isfinite(a))), "uv must be finite numbers")
+    return a.reshape(-1, 2)
+
+
+__all__ = [
+    "MASS_MODES", "MeshTopology", "TriangleMesh", "build_mesh_cloth", "check_mesh", "corner_uvs", "lumped_masses",
+    "mesh_springs", "mesh_topology", "parse_predicate", "resolve_pins", "select_vertices", "triangle_areas",
+]
