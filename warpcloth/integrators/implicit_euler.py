@@ -28,8 +28,9 @@ and ``multigrid`` (a geometric V-cycle for grid models, :mod:`warpcloth.integrat
 CG iterations nearly independent of the sheet size, 13-14 at 128^2 where Jacobi takes ~300;
 docs/solvers.md). Multigrid assembles A as BSR for its Galerkin products; a model that is not a
 grid falls back to block_jacobi with a note on stderr. The default stays ``jacobi``: multigrid
-took 1/2.8 [1/3.3-1/2.8] of Jacobi's time per step at 128^2 on the CPU but more than it at 32^2
-(bench/results/solvers-cpu.txt and solvers-cpu-32.txt; docs/solvers.md).
+took 1/2.8 [1/3.3-1/2.8] of Jacobi's time per step at 128^2 on the CPU, but at 32^2 it is no
+faster (jacobi / multigrid 0.96 [0.80-1.00]; bench/results/solvers-cpu.txt and
+solvers-cpu-32.txt; docs/solvers.md).
 
 Statistics: on CUDA, cg checks convergence on the device (``check_every=0``, a conditional graph
 node) and a kernel accumulates iterations, residuals and the count of steps that ended at the

@@ -4,8 +4,9 @@ Levels coarsen the particle grid 2x per direction (coarse nodes on the even rows
 the prolongation P_l is bilinear interpolation (3 x 3 blocks w I), zero on pinned particles, and
 the coarse operators are Galerkin products A_(l+1) = P_l^T A_l P_l, recomputed each step by one
 gather kernel per level over a list of (fine block, weight P_fI P_gJ) terms per coarse block
-built once at bind (the patterns are fixed; at 128^2 ``warp.sparse.bsr_mm`` with a reused
-topology took 158 ms per step for the same products on the CPU). The
+built once at bind (the patterns are fixed; ``warp.sparse.bsr_mm`` with a reused topology
+was over ten times slower for the same products on the CPU in a one-off measurement at 128^2,
+not a committed bench). The
 smoother is damped block Jacobi, ``smoothing_steps`` sweeps before and the same after the coarse
 correction; the coarsest level takes ``coarse_steps`` sweeps from zero. With equal pre- and
 post-smoothing by the same symmetric smoother, the V-cycle is a fixed symmetric positive
