@@ -12,7 +12,10 @@ the residual of S dx_new = M dy + h^2 (J d - L x) - h D 0 at the current dx (the
 the PD objective; solving for delta from 0 is PCG warm-started at the previous dx). Pinned
 particles have identity rows and zero columns (their dx is 0). The solve is Jacobi-preconditioned
 CG with a fixed number of iterations: scalars (r.z, p.Ap) live in device arrays, one per
-iteration, so a step never reads back to the host.
+iteration, so a step never reads back to the host. Dot products are reduced in a fixed order
+(per-particle terms, sums over fixed chunks, then the chunks' sum by one thread), not with
+atomics, so results are bit-identical run to run and between launches and graph replay on CUDA
+too.
 """
 
 import warp as wp
@@ -104,14 +107,15 @@ def eval_local_residual(
     r: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
     p: wp.array(dtype=wp.vec3),
-    rz: wp.array(dtype=float),
+    dot_terms: wp.array(dtype=float),
 ):
-    # local step + residual (module docstring); CG start: z = P^-1 r, p = z, rz[0] += r.z
+    # local step + residual (module docstring); CG start: z = P^-1 r, p = z, dot_terms = r.z
     i = wp.tid()
     if particle_inv_mass[i] == 0.0:
         r[i] = wp.vec3(0.0)
         z[i] = wp.vec3(0.0)
         p[i] = wp.vec3(0.0)
+        dot_terms[i] = 0.0
         return
     xi = x[i]
     dxi = dx[i]
@@ -126,7 +130,7 @@ def eval_local_residual(
     r[i] = res
     z[i] = zi
     p[i] = zi
-    wp.atomic_add(rz, 0, wp.dot(res, zi))
+    dot_terms[i] = wp.dot(res, zi)
 
 
 @wp.kernel
@@ -135,17 +139,16 @@ def csr_matvec_dot(
     columns: wp.array(dtype=int),
     values: wp.array(dtype=float),
     p: wp.array(dtype=wp.vec3),
-    k: int,
     Ap: wp.array(dtype=wp.vec3),
-    pAp: wp.array(dtype=float),
+    dot_terms: wp.array(dtype=float),
 ):
-    # Ap = S p (scalar CSR on vec3: the same matrix for x, y and z);  pAp[k] += p.Ap
+    # Ap = S p (scalar CSR on vec3: the same matrix for x, y and z);  dot_terms = p.Ap
     i = wp.tid()
     acc = wp.vec3(0.0)
     for e in range(row_offsets[i], row_offsets[i + 1]):
         acc = acc + values[e] * p[columns[e]]
     Ap[i] = acc
-    wp.atomic_add(pAp, k, wp.dot(p[i], acc))
+    dot_terms[i] = wp.dot(p[i], acc)
 
 
 @wp.kernel
@@ -159,8 +162,9 @@ def cg_update_solution(
     dx: wp.array(dtype=wp.vec3),
     r: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
+    dot_terms: wp.array(dtype=float),
 ):
-    # alpha = r.z / p.Ap ;  dx += alpha p ;  r -= alpha Ap ;  z = P^-1 r ;  rz[k + 1] += r.z
+    # alpha = r.z / p.Ap ;  dx += alpha p ;  r -= alpha Ap ;  z = P^-1 r ;  dot_terms = r.z (new)
     i = wp.tid()
     alpha = float(0.0)
     if pAp[k] > 0.0:
@@ -170,7 +174,7 @@ def cg_update_solution(
     zi = inv_diag[i] * ri
     r[i] = ri
     z[i] = zi
-    wp.atomic_add(rz, k + 1, wp.dot(ri, zi))
+    dot_terms[i] = wp.dot(ri, zi)
 
 
 @wp.kernel
@@ -181,3 +185,22 @@ def cg_update_direction(z: wp.array(dtype=wp.vec3), rz: wp.array(dtype=float), k
     if rz[k] > 0.0:
         beta = rz[k + 1] / rz[k]
     p[i] = z[i] + beta * p[i]
+
+
+@wp.kernel
+def sum_chunks(terms: wp.array(dtype=float), chunk: int, count: int, partial: wp.array(dtype=float)):
+    # partial[c] = sum of terms[c chunk : (c + 1) chunk], in index order
+    c = wp.tid()
+    acc = float(0.0)
+    for i in range(c * chunk, wp.min((c + 1) * chunk, count)):
+        acc = acc + terms[i]
+    partial[c] = acc
+
+
+@wp.kernel
+def sum_partials(partial: wp.array(dtype=float), k: int, out: wp.array(dtype=float)):
+    # out[k] = sum of the chunk sums, in order (one thread)
+    acc = float(0.0)
+    for c in range(partial.shape[0]):
+        acc = acc + partial[c]
+    out[k] = acc

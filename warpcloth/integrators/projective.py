@@ -75,6 +75,10 @@ class Projective(Integrator):
         self.dx, self.dy, self.r, self.z, self.p, self.Ap = scratch_like(model, 6)
         self.rz = wp.zeros(self.pd_cg_iterations + 1, dtype=float)
         self.pAp = wp.zeros(self.pd_cg_iterations, dtype=float)
+        # dot products in a fixed order: per-particle terms, chunk sums, their sum
+        self.dot_terms = wp.zeros(n, dtype=float)
+        self.dot_chunk = max(1, -(-n // 128))
+        self.dot_partial = wp.zeros(-(-n // self.dot_chunk), dtype=float)
         self._assembled_for = None
 
     def begin(self, state, control, dt):
@@ -109,23 +113,30 @@ class Projective(Integrator):
     def local_step(self, x, h: float) -> None:
         """Project every spring to its rest length and form the global residual r (and CG's start)."""
         m = self.model
-        self.rz.zero_()
-        self.pAp.zero_()
         wp.launch(
             pk.eval_local_residual, dim=m.particle_count,
             inputs=[x, self.dx, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
                     m.spring_rest_length, m.spring_stiffness, m.spring_damping, self.inv_diag, h],
-            outputs=[self.r, self.z, self.p, self.rz], device=m.device,
+            outputs=[self.r, self.z, self.p, self.dot_terms], device=m.device,
         )
+        self._reduce(self.rz, 0)
 
     def global_step(self) -> None:
         """dx += S^-1 r by pd_cg_iterations of Jacobi-preconditioned CG from 0."""
         m, n = self.model, self.model.particle_count
         for k in range(self.pd_cg_iterations):
-            wp.launch(pk.csr_matvec_dot, dim=n, inputs=[self.row_offsets, self.columns, self.values, self.p, k], outputs=[self.Ap, self.pAp], device=m.device)
-            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k], outputs=[self.dx, self.r, self.z], device=m.device)
+            wp.launch(pk.csr_matvec_dot, dim=n, inputs=[self.row_offsets, self.columns, self.values, self.p], outputs=[self.Ap, self.dot_terms], device=m.device)
+            self._reduce(self.pAp, k)
+            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k], outputs=[self.dx, self.r, self.z, self.dot_terms], device=m.device)
+            self._reduce(self.rz, k + 1)
             if k + 1 < self.pd_cg_iterations:
                 wp.launch(pk.cg_update_direction, dim=n, inputs=[self.z, self.rz, k], outputs=[self.p], device=m.device)
+
+    def _reduce(self, out, k: int) -> None:
+        """out[k] = sum of dot_terms, in a fixed order (deterministic on every device)."""
+        d = self.model.device
+        wp.launch(pk.sum_chunks, dim=self.dot_partial.shape[0], inputs=[self.dot_terms, self.dot_chunk, self.model.particle_count], outputs=[self.dot_partial], device=d)
+        wp.launch(pk.sum_partials, dim=1, inputs=[self.dot_partial, k], outputs=[out], device=d)
 
     def global_matrix(self):
         """S as a SciPy CSR matrix (host copy; for tests and diagnostics, not for stepping)."""
