@@ -119,27 +119,37 @@ class Scenario:
         return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name, strain_limit=cfg.strain_limit,
                          instability_strain=cfg.instability_strain)
 
-    def run(self, config: ScenarioConfig | None = None, usd_path: str | None = None, wall_cap: float | None = None, **overrides) -> RunResult:
-        """Build and run; writes a USD file when ``usd_path`` is given."""
+    def run(self, config: ScenarioConfig | None = None, usd_path: str | None = None, wall_cap: float | None = None,
+            writers=(), **overrides) -> RunResult:
+        """Build and run; writes a USD file when ``usd_path`` is given.
+
+        ``writers``: more frame writers, each a function ``(sim, config) -> writer`` called
+        once the :class:`~warpcloth.simulator.Simulator` is built; a writer has ``write_frame(points, sim_time)``, ``close()`` and
+        ``abort()`` (:class:`~warpcloth.frames.FrameSinks`). Every writer is closed after the
+        run, or aborted (its target left as it was) when the run fails.
+        """
+        from ..frames import FrameSinks
+
         cfg = replace(config, **overrides) if config is not None else self.config(**overrides)
         require_positive("duration", cfg.duration, "s")
         require_positive("fps", cfg.fps, "1/s")
-        writer = None
         if usd_path is not None:
             from ..usd import check_usd_path
 
             check_usd_path(usd_path)
         sim = self.build(cfg)
-        if usd_path is not None:
-            from ..usd import UsdWriter
-
-            writer = UsdWriter(usd_path, sim.model, cfg.fps)
+        sinks = FrameSinks()
         try:
-            result = sim.run(cfg.duration, fps=cfg.fps, stop_at_equilibrium=self.stop_at_equilibrium, wall_cap=wall_cap, usd=writer)
+            if usd_path is not None:
+                from ..usd import UsdWriter
+
+                sinks.writers.append(UsdWriter(usd_path, sim.model, cfg.fps))
+            for make in writers:
+                sinks.writers.append(make(sim, cfg))
+            result = sim.run(cfg.duration, fps=cfg.fps, stop_at_equilibrium=self.stop_at_equilibrium, wall_cap=wall_cap,
+                             usd=sinks if sinks else None)
         except BaseException:
-            if writer is not None:
-                writer.abort()
+            sinks.abort()
             raise
-        if writer is not None:
-            writer.close()
+        sinks.close()
         return result

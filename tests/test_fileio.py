@@ -209,7 +209,7 @@ def test_bench_csv_on_a_full_disk_is_one_line(tmp_path, small_disk, monkeypatch,
     target.write_text("old")
     if small_disk is not None:
         (folder / "filler").write_bytes(b"\0" * (64 * 1024 - 8192))
-    monkeypatch.setattr(bench, "bench_one", lambda name, size, device, graph, steps, seconds: {
+    monkeypatch.setattr(bench, "bench_one", lambda name, size, device, graph, steps, seconds, scenario="sheet": {
         c: 1 for c in bench.COLUMNS} | {"integrator": name, "device": device, "graph": graph, "rows": size, "cols": size,
                                         "particles": size * size, "ms_per_step": 1.0, "steps_per_sec": 1000.0,
                                         "realtime_factor": 1.0, "floor_multiple": "", "speedup_vs_cpu": "",
@@ -285,7 +285,7 @@ def test_bench_out_is_refused_before_the_benchmark(tmp_path, monkeypatch, capsys
     else:
         make, message = BAD_TARGETS[case]
         target = make(tmp_path, ".csv")
-    monkeypatch.setattr(bench, "bench_one", lambda *a: pytest.fail("the benchmark started"))
+    monkeypatch.setattr(bench, "bench_one", lambda *a, **k: pytest.fail("the benchmark started"))
     assert bench.main(["--sizes", "4", "--steps", "1", "--devices", "cpu", "--out", target]) == 2
     lines = [l for l in err_lines(capsys.readouterr().err) if not l.startswith("bench:")]
     assert len(lines) == 1 and lines[0].startswith("warpcloth: error: --out path") and message in lines[0]

@@ -196,3 +196,27 @@ def test_scenario_files_on_python_3_10_name_what_they_need(monkeypatch, scenario
     file_scenarios._load.cache_clear()
     with pytest.raises(WarpclothError, match=r"needs Python 3.11 \(tomllib\) or the tomli package \(pip install tomli\)"):
         get_scenario(str(scenario_file))
+
+
+def test_scenario_file_and_mesh_scenario_through_bench(capsys, scenario_file, tmp_path):
+    out = tmp_path / "b.csv"
+    code, _, err = run_cli(capsys, "bench", "--scenario", str(scenario_file), "--integrators", "xpbd", "--devices", "cpu",
+                           "--steps", "2", "--graph", "off", "--out", str(out), "--quiet")
+    assert code == 0, err
+    import csv
+
+    rows = list(csv.DictReader(open(out)))
+    assert [(r["scenario"], r["integrator"], r["particles"]) for r in rows] == [(str(scenario_file), "xpbd", "320")]
+    code, _, err = run_cli(capsys, "bench", "--scenario", str(scenario_file), "--sizes", "8", "--steps", "2")
+    assert code == 2 and "--sizes does not apply to the mesh scenario" in err
+    code, _, err = run_cli(capsys, "bench", "--scenario", "curtain", "--sizes", "6", "--integrators", "rk4", "--devices", "cpu",
+                           "--steps", "2", "--graph", "off", "--out", str(out), "--quiet")
+    assert code == 0, err
+    assert [(r["scenario"], r["rows"], r["cols"]) for r in csv.DictReader(open(out))] == [("curtain", "6", "6")]
+
+
+def test_the_shipped_example_scenario_file_runs(capsys):
+    code, out, err = run_cli(capsys, "run", str(REPO / "examples" / "cape.toml"), "--duration", "0.05", "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["scenario"] == "swaying-cape" and d["particles"] == 320 and d["stable"]

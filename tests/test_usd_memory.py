@@ -72,3 +72,23 @@ def test_default_chunk_bounds_memory_per_point():
     big = flag.build(rows=64, cols=64).model
     frames_64 = UsdWriter.__init__.__defaults__  # noqa: F841  (documented default below)
     assert max(60, CLIP_BYTES // (32 * big.particle_count)) == 512
+
+
+def test_static_pins_read_back_in_every_chunk(tmp_path):
+    from pxr import Usd, UsdGeom
+
+    model = flag.build(rows=4, cols=5).model
+    q = model.host["q"].astype(np.float32)
+    path = str(tmp_path / "c.usdc")
+    with UsdWriter(path, model, clip_frames=4) as w:
+        for k in range(11):
+            p = q.copy()
+            free = np.setdiff1d(np.arange(len(q)), model.pinned)
+            p[free] += np.float32(0.01 * k)
+            w.write_frame(p, k / 60.0)
+    stage = Usd.Stage.Open(path)
+    pins = UsdGeom.Points(stage.GetPrimAtPath("/World/Pins")).GetPointsAttr()
+    cloth = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth")).GetPointsAttr()
+    for t in (0.0, 5.0, 10.0):
+        np.testing.assert_array_equal(np.asarray(pins.Get(t)), q[model.pinned])
+    assert np.asarray(cloth.Get(10.0))[-1, 0] == pytest.approx(q[-1, 0] + 0.1)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import json
 import math
 import os
 import sys
@@ -25,10 +26,11 @@ import warp as wp
 
 from .cliparse import Parser, guarded
 from .errors import WarpclothError, require
+from .progress import format_seconds
 from .fileio import AtomicFile, OutputError, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
 
 COLUMNS = [
-    "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt", "steps", "ms_per_step",
+    "scenario", "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt", "steps", "ms_per_step",
     "steps_per_sec", "springs_per_sec", "realtime_factor", "compile_s", "speedup_vs_cpu", "force_evals_per_step",
     "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean", "solver_converged", "solver_capped_steps",
 ]
@@ -91,11 +93,18 @@ def roofline_ms(model, repeats: int = 50) -> float:
     return 1000.0 * float(np.median(times))
 
 
-def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int | None, seconds: float) -> dict:
-    """Time one integrator on a size x size sheet; returns a CSV row (without cross-row columns)."""
+def _build(scenario: str, size: int | None, device: str, **kwargs):
+    """A Simulator of ``scenario``: a size x size grid, or the scenario's own mesh (``size`` None)."""
     from .scenarios import get_scenario
 
-    sim = get_scenario("sheet").build(integrator=integrator, rows=size, cols=size, device=device)
+    grid = {} if size is None else {"rows": size, "cols": size}
+    return get_scenario(scenario).build(device=device, **grid, **kwargs)
+
+
+def bench_one(integrator: str, size: int | None, device: str, graph: bool, steps: int | None, seconds: float, scenario: str = "sheet") -> dict:
+    """Time one integrator on a size x size grid of ``scenario`` (the sheet by default), or on a
+    mesh scenario's own mesh (``size`` None); returns a CSV row (without cross-row columns)."""
+    sim = _build(scenario, size, device, integrator=integrator)
     sim.use_graph = graph
     if graph and not sim.graph_enabled:
         raise WarpclothError(f"graph capture unavailable for {integrator} on {device}")
@@ -122,7 +131,7 @@ def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int |
     iters = next((v for k, v in stats.items() if "iterations" in k and "mean" in k), stats.get("iterations", ""))
     converged, capped, _ = sim.integrator.convergence(stats)
     return {
-        "integrator": integrator, "device": device, "graph": int(graph), "rows": size, "cols": size,
+        "scenario": scenario, "integrator": integrator, "device": device, "graph": int(graph), "rows": m.rows, "cols": m.cols,
         "particles": m.particle_count, "springs": m.spring_count, "dt": sim.dt, "steps": done,
         "ms_per_step": ms, "steps_per_sec": 1000.0 / ms, "springs_per_sec": m.spring_count * 1000.0 / ms,
         "realtime_factor": sim.dt * 1000.0 / ms, "compile_s": compile_s, "speedup_vs_cpu": "",
@@ -132,14 +141,18 @@ def bench_one(integrator: str, size: int, device: str, graph: bool, steps: int |
     }
 
 
-def write_csv(path: str, rows: list[dict]) -> None:
-    """Write rows atomically (temporary file, then rename); on failure (disk full) raises
-    :class:`~warpcloth.fileio.OutputError` and leaves ``path`` as it was, no temporary left."""
+def csv_text(rows: list[dict]) -> str:
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     w.writeheader()
     w.writerows(rows)
-    write_atomic(path, buf.getvalue(), "benchmark CSV")
+    return buf.getvalue()
+
+
+def write_csv(path: str, rows: list[dict]) -> None:
+    """Write rows atomically (temporary file, then rename); on failure (disk full) raises
+    :class:`~warpcloth.fileio.OutputError` and leaves ``path`` as it was, no temporary left."""
+    write_atomic(path, csv_text(rows), "benchmark CSV")
 
 
 def plot(path: str, rows: list[dict]) -> bool:
@@ -149,7 +162,7 @@ def plot(path: str, rows: list[dict]) -> bool:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        print("bench: --plot needs matplotlib (pip install 'warpcloth[plot]'); no plot written", file=sys.stderr)
+        print("bench: --plot needs matplotlib (pip install 'warpcloth[plot]', from a clone pip install -e '.[plot]'); no plot written", file=sys.stderr)
         return False
     fig, ax = plt.subplots(figsize=(8, 5.5))
     keys = sorted({(r["integrator"], r["device"], r["graph"]) for r in rows})
@@ -199,19 +212,22 @@ def build_parser(prog: str = "bench/devices.py") -> argparse.ArgumentParser:
     p = Parser(prog=prog, description=__doc__.split("\n\n")[0])
     add_arguments(p)
     p.add_argument("--verbose", action="store_true", help="show Warp's start-up and module-load messages on stderr")
+    p.add_argument("--quiet", "-q", action="store_true", help="print nothing on success but what --json or --out - ask for")
     return p
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--integrators", default=None, help="comma-separated names (default: every registered integrator)")
-    p.add_argument("--sizes", default="32,64,128", help="comma-separated sheet sizes N for N x N (default 32,64,128)")
+    p.add_argument("--scenario", default="sheet", help="scenario name or scenario file (.toml) to time (default sheet)")
+    p.add_argument("--sizes", default=None, help="comma-separated grid sizes N for N x N (default 32,64,128; not for mesh scenarios)")
     p.add_argument("--devices", default=None, help="comma-separated Warp devices (default: cpu and every CUDA device present)")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--steps", type=int, default=None, help="steps to time per combination")
     group.add_argument("--seconds", type=float, default=1.0, help="wall seconds to time per combination (default 1)")
     p.add_argument("--graph", choices=["both", "on", "off"], default="both", help="time with graph capture, without, or both (default both)")
     p.add_argument("--roofline", action="store_true", help="time the speed-of-light force pass and report multiples of it")
-    p.add_argument("--out", default=None, help="write the results to this CSV")
+    p.add_argument("--out", "-o", default=None, help="write the results to this CSV ('-' for stdout; the table then goes to stderr)")
+    p.add_argument("--json", action="store_true", help="print the results as one JSON object on stdout (the table goes to stderr)")
     p.add_argument("--plot", default=None, help="write a log-log PNG of ms/step vs particles (needs matplotlib)")
 
 
@@ -227,7 +243,14 @@ def run(args) -> int:
         require(bool(names), f"--integrators {args.integrators!r} names no integrator; give comma-separated names from {', '.join(integrator_names())}")
     for n in names:
         integrator_class(n)
-    sizes = parse_sizes(args.sizes)
+    from .scenarios import get_scenario
+
+    scenario = get_scenario(args.scenario)  # unknown name or bad file: one line
+    if scenario.model is not None:  # a mesh: its own particles, no grid sizes
+        require(args.sizes is None, f"--sizes does not apply to the mesh scenario {args.scenario!r} (it has its own mesh)")
+        sizes = [None]
+    else:
+        sizes = parse_sizes("32,64,128" if args.sizes is None else args.sizes)
     require(args.steps is None or args.steps >= 1, f"--steps must be >= 1, got {args.steps}")
     require(args.seconds is None or args.seconds > 0, f"--seconds must be > 0, got {args.seconds}")
     wanted = default_devices() if args.devices is None else [s.strip() for s in args.devices.split(",") if s.strip()]
@@ -241,51 +264,72 @@ def run(args) -> int:
                 skipped.append(str(exc))
             else:
                 raise
-    if not any(d.startswith("cuda") for d in devices):
+    if not any(d.startswith("cuda") for d in devices) and not getattr(args, "quiet", False):
         reason = "no CUDA device is present" if not wp.get_cuda_devices() else "not asked for (--devices)"
         print(f"bench: CUDA skipped: {reason}; timing the CPU only", file=sys.stderr)
     # every output path is checked before the benchmark starts, not after it
-    if args.out:
+    require(not (args.out == "-" and getattr(args, "json", False)), "--out - and --json both want stdout; choose one")
+    if args.out and args.out != "-":
         check_output_path(args.out, "--out")
     if args.plot:
         check_output_path(args.plot, "--plot", extensions=(".png", ".pdf", ".svg"))
     require(not (args.out and args.plot and os.path.abspath(args.out) == os.path.abspath(args.plot)),
             f"--out and --plot are the same file {args.out!r}")
-    for path in {os.path.dirname(os.path.abspath(p)) for p in (args.out, args.plot) if p}:
+    if args.plot:
+        from .preview import require_matplotlib
+
+        require_matplotlib("--plot")  # before the benchmark, not after it
+    for path in {os.path.dirname(os.path.abspath(p)) for p in (args.out, args.plot) if p and p != "-"}:
         sweep_stale_temporaries(path, sys.stderr)
 
-    rows, floors = [], {}
-    for device in devices:
-        modes = {"both": [False, True], "on": [True], "off": [False]}[args.graph]
-        for size in sizes:
-            if args.roofline:
-                from .scenarios import get_scenario
+    from .progress import Progress
 
-                floors[(device, size)] = roofline_ms(get_scenario("sheet").build(rows=size, cols=size, device=device).model)
-            for name in names:
-                for graph in modes:
-                    if graph and not (graph_capture_supported(device) and make_integrator(name).capturable_on(device)):
-                        continue
-                    print(f"bench: {name} {size}x{size} on {device}{' (graph)' if graph else ''} ...", file=sys.stderr, flush=True)
-                    row = bench_one(name, size, device, graph, args.steps, args.seconds)
-                    if args.roofline:
-                        floor = floors[(device, size)]
-                        row["roofline_ms"] = floor
-                        row["floor_multiple"] = row["ms_per_step"] / (row["force_evals_per_step"] * floor)
-                    rows.append(row)
+    quiet = getattr(args, "quiet", False)
+    modes = {"both": [False, True], "on": [True], "off": [False]}[args.graph]
+    combos = [(device, size, name, graph) for device in devices for size in sizes for name in names for graph in modes
+              if not graph or (graph_capture_supported(device) and make_integrator(name).capturable_on(device))]
+    progress = Progress("bench", enabled=not quiet)
+    rows, floors = [], {}
+    for k, (device, size, name, graph) in enumerate(combos):
+        if args.roofline and (device, size) not in floors:
+            floors[(device, size)] = roofline_ms(_build(args.scenario, size, device).model)
+        what = f"{name} {args.scenario if size is None else f'{size}x{size}'} on {device}{' (graph)' if graph else ''}"
+        if progress.tty:
+            progress.update(k, len(combos), note=what, force=True)
+        elif not quiet:  # a plain line per combination, with the ETA once one is timed
+            eta = progress.eta(k, len(combos))
+            more = f" ({k + 1}/{len(combos)}" + (f", ETA {format_seconds(eta)})" if eta is not None else ")")
+            print(f"bench: {what} ...{more}", file=sys.stderr, flush=True)
+        row = bench_one(name, size, device, graph, args.steps, args.seconds, scenario=args.scenario)
+        if args.roofline:
+            floor = floors[(device, size)]
+            row["roofline_ms"] = floor
+            row["floor_multiple"] = row["ms_per_step"] / (row["force_evals_per_step"] * floor)
+        rows.append(row)
+    progress.close()
     cpu = {(r["integrator"], r["rows"], r["graph"]): r["ms_per_step"] for r in rows if r["device"] == "cpu"}
     for r in rows:
         if r["device"] != "cpu" and (r["integrator"], r["rows"], r["graph"]) in cpu:
             r["speedup_vs_cpu"] = cpu[(r["integrator"], r["rows"], r["graph"])] / r["ms_per_step"]
-    print(format_table(rows))
-    if args.roofline:
-        for (device, size), floor in sorted(floors.items()):
-            print(f"roofline floor on {device}, {size}x{size}: {floor:.4f} ms per force pass")
-    if args.out:
+    to_stdout = args.out == "-"
+    # the table goes to stdout unless stdout carries the CSV or the JSON; --quiet drops it
+    report = None if quiet else (sys.stderr if (to_stdout or getattr(args, "json", False)) else sys.stdout)
+    if report is not None:
+        print(format_table(rows), file=report)
+        if args.roofline:
+            for (device, size), floor in sorted(floors.items()):
+                print(f"roofline floor on {device}, {size}x{size}: {floor:.4f} ms per force pass", file=report)
+    if to_stdout:
+        sys.stdout.write(csv_text(rows))
+    elif args.out:
         write_csv(args.out, rows)
-        print(f"wrote {args.out}")
-    if args.plot and plot(args.plot, rows):
-        print(f"wrote {args.plot}")
+        if report is not None:
+            print(f"wrote {args.out}", file=report)
+    if getattr(args, "json", False):
+        print(json.dumps({"rows": rows, "roofline_ms": {f"{d} {s}x{s}": v for (d, s), v in sorted(floors.items())},
+                          "cuda_skipped": not any(d.startswith("cuda") for d in devices)}))
+    if args.plot and plot(args.plot, rows) and report is not None:
+        print(f"wrote {args.plot}", file=report)
     return 0
 
 

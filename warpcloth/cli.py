@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 
@@ -65,11 +66,20 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of a scenario run (shared by ``warpcloth run`` and ``python -m warpcloth.scenarios.X``)."""
     add_model_arguments(p)
     p.add_argument("--dt", type=float, default=None, help="time step [s] (default: the integrator's own, stable on the scenario)")
-    p.add_argument("--duration", type=float, default=None, help="simulated time [s] (default 10)")
-    p.add_argument("--num-frames", type=int, default=None, help="run this many frames instead of --duration")
+    length = p.add_mutually_exclusive_group()
+    length.add_argument("--duration", type=float, default=None, help="simulated time [s] (default 10)")
+    length.add_argument("--num-frames", type=int, default=None, help="run this many frames instead of --duration")
     p.add_argument("--fps", type=float, default=None, help="frame rate of sampling and USD export [1/s] (default 60)")
-    p.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH", help="write the animation to this USD file (.usd/.usda/.usdc)")
+    out = p.add_argument_group("outputs")
+    out.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH",
+                     help="write the animation to this USD file (.usd/.usda/.usdc, or .usdz: a package)")
+    out.add_argument("--usd-color", choices=["none", "strain"], default="none",
+                     help="strain: a per-frame primvars:displayColor of spring strain, blue 0 to red 10%% (default none)")
+    out.add_argument("--html", default=None, metavar="PATH", help="write a self-contained HTML player of the animation (WebGL, no network)")
+    out.add_argument("--preview", default=None, metavar="PATH",
+                     help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs warpcloth[plot]")
     p.add_argument("--wall-cap", type=float, default=None, help="stop after this many wall-clock seconds")
+    p.add_argument("--fail-unstable", action="store_true", help="exit with status 3 when the run goes unstable")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
 
 
@@ -214,34 +224,117 @@ class _DefaultDtExplained:
             "(the stability estimate under- or overflows at these values); use values nearer the defaults, or give --dt") from None
 
 
-def _run(scenario_name: str, args) -> int:
+#: Exit status of ``run --fail-unstable`` when the run went unstable.
+EXIT_UNSTABLE = 3
+
+
+def _output_writers(scenario_name: str, args) -> list:
+    """Check every output path of a run (before any work) and return the writer factories
+    ``(sim, cfg) -> writer`` that :meth:`Scenario.run` calls once the model is built."""
     from .fileio import sweep_stale_temporaries
+    from .provenance import provenance
+
+    argv = getattr(args, "argv", None)
+    paths, writers = [], []
+
+    prefix = getattr(args, "command_prefix", ("warpcloth",))
+
+    def frames(cfg):  # frames a run of cfg writes at most (the first one too)
+        return math.ceil(cfg.duration * cfg.fps - 1e-9) + 1
+
+    def info(sim, cfg):
+        return provenance(sim, scenario_name, cfg.fps, argv, prefix=prefix)
+
+    if getattr(args, "preview", None):
+        from .preview import check_preview_path
+
+        check_preview_path(args.preview)  # also: matplotlib installed
+        paths.append(args.preview)
+    if args.usd:
+        from .usd import UsdWriter, check_usd_path
+
+        check_usd_path(args.usd)  # before any work: a path that cannot be written fails now
+        paths.append(args.usd)
+        color = getattr(args, "usd_color", "none")
+        writers.append(lambda sim, cfg: UsdWriter(args.usd, sim.model, cfg.fps, provenance=info(sim, cfg), color=color))
+    if getattr(args, "html", None):
+        from .player import HtmlWriter, check_html_path
+
+        check_html_path(args.html)
+        paths.append(args.html)
+        writers.append(lambda sim, cfg: HtmlWriter(args.html, sim.model, cfg.fps, title=f"warpcloth {scenario_name}: {sim.integrator.name}, "
+                                                   f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s", info=info(sim, cfg),
+                                                   expected_frames=frames(cfg)))
+    if getattr(args, "preview", None):
+        from .preview import PreviewWriter
+
+        writers.append(lambda sim, cfg: PreviewWriter(args.preview, sim.model, cfg.fps, title=f"{scenario_name}, {sim.integrator.name}",
+                                                      expected_frames=frames(cfg)))
+    if len({os.path.abspath(p) for p in paths}) < len(paths):
+        raise WarpclothError("two outputs name the same file: " + ", ".join(paths))
+    for folder in sorted({os.path.dirname(os.path.abspath(p)) for p in paths}):
+        sweep_stale_temporaries(folder, sys.stderr)
+    return writers
+
+
+def _run(scenario_name: str, args) -> int:
     from .scenarios import get_scenario
 
     scenario = get_scenario(scenario_name)
     cfg = config_from_args(scenario, args)
     _check_spacing(scenario, cfg)
-    if args.usd:
-        from .usd import check_usd_path
+    writers = _output_writers(scenario_name, args)
+    if not getattr(args, "quiet", False):
+        from .progress import RunProgress
 
-        check_usd_path(args.usd)  # before any work: a path that cannot be written fails now
-        sweep_stale_temporaries(os.path.dirname(os.path.abspath(args.usd)), sys.stderr)
+        writers.insert(0, lambda sim, cfg: RunProgress(cfg.duration, label=f"run {scenario_name}"))
     with _DefaultDtExplained(args):
-        result = scenario.run(cfg, usd_path=args.usd, wall_cap=args.wall_cap)
+        result = scenario.run(cfg, wall_cap=args.wall_cap, writers=writers)
+    quiet = getattr(args, "quiet", False)
     if args.json:
         print(result.to_json())
-    else:
+    elif not quiet:
         print(summary(result))
-        if args.usd:
-            written = result.frames + (1 if result.stable else 0)  # the first frame, not the unstable last one
-            print(f"  wrote {args.usd} ({written} frames, export {result.export_time:.2f} s)")
+        written = result.frames + (1 if result.stable else 0)  # the first frame, not the unstable last one
+        for path in (args.usd, getattr(args, "html", None), getattr(args, "preview", None)):
+            if path:
+                print(f"  wrote {path} ({os.path.getsize(path):,} bytes, {written} frames)")
+    if getattr(args, "fail_unstable", False) and not result.stable:
+        if not args.json:
+            print(f"warpcloth: the run went unstable ({result.unstable_reason}); exit {EXIT_UNSTABLE}", file=sys.stderr)
+        return EXIT_UNSTABLE
     return 0
+
+
+def examples_dir() -> str:
+    """The folder of the XML test lists shipped in the package (``warpcloth.examples``)."""
+    from . import examples
+
+    return os.path.dirname(os.path.abspath(examples.__file__))
+
+
+def example_names() -> list[str]:
+    return sorted(os.path.splitext(n)[0] for n in os.listdir(examples_dir()) if n.endswith(".xml"))
+
+
+def example_path(name: str) -> str:
+    names = example_names()
+    if name not in names:
+        raise WarpclothError(f"no example test list {name!r}; the examples are {', '.join(names)} ('warpcloth list --examples')")
+    return os.path.join(examples_dir(), name + ".xml")
 
 
 def _list(args) -> int:
     from .integrators import integrator_class, integrator_names
     from .scenarios import get_scenario, scenario_names
 
+    if getattr(args, "examples", False):
+        if not args.quiet:
+            for name in example_names():
+                print(f"{name:12s} {example_path(name)}")
+        return 0
+    if args.quiet:
+        return 0
     print("scenarios:")
     for name in scenario_names():
         print(f"  {name:16s} {get_scenario(name).description}")
@@ -255,10 +348,13 @@ def _list(args) -> int:
 def _sweep(args) -> int:
     from .sweep import run_sweep
 
-    summary = run_sweep(args.tests, args.out, resume=args.resume, overwrite=args.overwrite,
+    if (args.tests is None) == (args.example is None):
+        raise WarpclothError("give a test list (TESTS.xml) or --example NAME, not " + ("both" if args.tests else "neither"))
+    tests = args.tests if args.tests is not None else example_path(args.example)
+    summary = run_sweep(tests, args.out, resume=args.resume, overwrite=args.overwrite,
                         progress=None if args.quiet else sys.stderr, max_runs=args.max_runs, report=sys.stderr)
     line = f"{args.out if args.out != '-' else 'stdout'}: {summary.describe()}"
-    print(line, file=sys.stderr if args.out == "-" else sys.stdout)
+    print(line, file=sys.stderr if args.out == "-" else sys.stdout)  # the result's summary, also with --quiet
     return 1 if summary.outcomes.get("error") else 0
 
 
@@ -287,19 +383,44 @@ def _max_dt(args) -> int:
     scenario = get_scenario(args.scenario)
     cfg = config_from_args(scenario, args)
     _check_spacing(scenario, cfg)
+    from .progress import Progress
+
+    progress = Progress(f"max-dt {args.scenario} {cfg.integrator}", enabled=not args.quiet)
+    trials = []
+
+    def on_trial(trial):
+        trials.append(trial)
+        stable = [t.dt for t in trials if t.stable]
+        unstable = [t.dt for t in trials if not t.stable]
+        total = None
+        if stable and unstable and min(unstable) > max(stable):  # bisection: the trials left are known
+            ratio = math.log(min(unstable) / max(stable))
+            left = max(0, math.ceil(math.log2(max(ratio / math.log1p(args.precision), 1.0))))
+            total = len(trials) + left
+        note = f"trial {len(trials)}: dt={trial.dt:.4g} s {'stable' if trial.stable else 'unstable'}"
+        progress.update(len(trials), total, note=note, unit=" trials")
+
     with _DefaultDtExplained(args):
+        try:
             result = find_max_dt(
-            scenario, cfg, precision=args.precision, duration=args.duration,
-            dt_min=DEFAULT_DT_MIN if args.dt_min is None else args.dt_min,
-            dt_max=DEFAULT_DT_MAX if args.dt_max is None else args.dt_max,
-            start=args.start, wall_cap=args.wall_cap,
-        )
-    print(json.dumps(result.to_dict()) if args.json else format_result(result))
+                scenario, cfg, precision=args.precision, duration=args.duration,
+                dt_min=DEFAULT_DT_MIN if args.dt_min is None else args.dt_min,
+                dt_max=DEFAULT_DT_MAX if args.dt_max is None else args.dt_max,
+                start=args.start, wall_cap=args.wall_cap, on_trial=on_trial,
+            )
+        finally:
+            progress.close()
+    if args.json:
+        print(json.dumps(result.to_dict()))
+    elif not args.quiet:
+        print(format_result(result))
     return 0
 
 
-def _add_verbose(p: argparse.ArgumentParser) -> None:
+def _add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
     p.add_argument("--verbose", action="store_true", help="show Warp's start-up and module-load messages on stderr")
+    if quiet:
+        p.add_argument("--quiet", "-q", action="store_true", help="print nothing on success (no summary, no progress); errors still print")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -313,22 +434,25 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("scenario", help="scenario name (see 'warpcloth list') or a scenario file, path/to/scenario.toml")
     add_run_arguments(run)
     _add_verbose(run)
-    _add_verbose(sub.add_parser("list", help="list scenarios and integrators"))
+    listing = sub.add_parser("list", help="list scenarios and integrators (--examples: the shipped XML test lists)")
+    listing.add_argument("--examples", action="store_true", help="list the example test lists shipped with warpcloth and their paths")
+    _add_verbose(listing)
     bench = sub.add_parser("bench", help="benchmark integrators x sizes x devices on the sheet (bench/devices.py)")
     from . import bench as bench_module
 
     bench_module.add_arguments(bench)
     _add_verbose(bench)
     sweep = sub.add_parser("sweep", help="run an XML test list, one CSV row per run (docs/sweep.md)")
-    sweep.add_argument("tests", metavar="TESTS.xml", help="the test list")
+    sweep.add_argument("tests", metavar="TESTS.xml", nargs="?", default=None, help="the test list")
+    sweep.add_argument("--example", default=None, metavar="NAME", help="run a test list shipped with warpcloth (quick, seed_plan; see 'list --examples')")
     sweep.add_argument("--out", "-o", required=True, metavar="RESULTS.csv", help="results file ('-' for stdout)")
     mode = sweep.add_mutually_exclusive_group()
     mode.add_argument("--resume", action="store_true", help="continue RESULTS.csv: skip runs already in it")
     mode.add_argument("--overwrite", action="store_true", help="replace RESULTS.csv if it exists")
     sweep.add_argument("--max-runs", type=int, default=DEFAULT_MAX_RUNS, metavar="N",
                        help=f"refuse a test list that expands to more than N runs (default {DEFAULT_MAX_RUNS})")
-    sweep.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr")
-    _add_verbose(sweep)
+    sweep.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr (the closing summary line still prints)")
+    _add_verbose(sweep, quiet=False)
     max_dt = sub.add_parser("max-dt", help="find the largest stable time step of an integrator on a scenario")
     _add_max_dt_arguments(max_dt)
     _add_verbose(max_dt)
@@ -354,6 +478,7 @@ def _dispatch(args) -> int:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
     hint = ""
     if args.command == "sweep" and args.out != "-":
         hint = f"; finished runs are in {args.out}, continue with --resume"
@@ -366,6 +491,8 @@ def scenario_main(name: str, argv=None) -> None:
     add_run_arguments(parser)
     _add_verbose(parser)
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
+    args.command_prefix = ("python", "-m", f"warpcloth.scenarios.{name}")
     sys.exit(guarded(args, lambda: _run(name, args)))
 
 

@@ -68,6 +68,8 @@ class Control:
         wind_schedule: the wind velocity W(t).
         pin_tracks: kinematic pins (:class:`~warpcloth.pins.PinTrack`), bound to the model by the
             :class:`~warpcloth.simulator.Simulator` (see :mod:`warpcloth.pins`).
+        colliders: :class:`~warpcloth.colliders.Plane`, ``Sphere``, ``Capsule`` or ``Box``
+            objects (see :mod:`warpcloth.colliders`).
         time: simulated time [s], device array of shape (1,), float64: t_base + n dt after n
             steps of dt since the last change of dt, so switch times land exactly on steps.
         wind: current wind velocity [m/s], device array of shape (1,), vec3.
@@ -79,12 +81,17 @@ class Control:
     wind_schedule: WindSchedule = field(default_factory=WindSchedule)
     device: str | None = None
     pin_tracks: tuple = ()
+    colliders: tuple = ()
 
     def __post_init__(self):
         require_non_negative("drag", self.drag_rate, "1/s")
         require_non_negative("wind coefficient", self.wind_coefficient, "kg/(m^2 s)")
         self.gravity = require_vector("gravity", self.gravity, 3, "m/s^2")
         self.device = resolve_device(self.device)
+        from .colliders import ColliderSet
+
+        self.colliders = tuple(self.colliders)
+        self.collision = ColliderSet(self.colliders, self.device) if self.colliders else None
         with wp.ScopedDevice(self.device):
             self.time = wp.zeros(1, dtype=wp.float64)
             self._time_base = wp.zeros(1, dtype=wp.float64)
@@ -96,6 +103,12 @@ class Control:
         super().__setattr__(name, value)
         if name == "wind_schedule" and "_schedule_start" in self.__dict__:
             self._fill_schedule()  # the device copy follows the host schedule
+        if name == "colliders" and "collision" in self.__dict__:
+            from .colliders import ColliderSet
+
+            value = tuple(value)
+            super().__setattr__("colliders", value)
+            super().__setattr__("collision", ColliderSet(value, self.device) if value else None)
 
     def _fill_schedule(self) -> None:
         """Copy :attr:`wind_schedule` to the device (float64 start times) and re-evaluate W(t)."""

@@ -337,7 +337,7 @@ class Simulator:
         """Every host value a captured frame bakes in besides dt and the integrator (those clear
         the cache): a change to any of them captures a new graph."""
         c = self.control
-        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, self._pins_version,
+        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, c.colliders, self._pins_version,
                 tuple(sorted((k, repr(v)) for k, v in self.integrator.option_values().items())))
 
     def _begin(self) -> None:
@@ -352,6 +352,9 @@ class Simulator:
     def _launch_step(self) -> None:
         self.control.update()
         self.integrator.step(self.state, self.control, self._dt)
+        if self.control.collision is not None and not self.integrator.collides_in_solver:
+            self.control.collision.project_velocity(self.model, self.state, self._dt, self.integrator.position_history(),
+                                                    self.integrator.velocity_position_weight)
         if self.strain_limiter is not None:
             self.strain_limiter.apply(self.state, self._dt)
         self.control.advance(self._dt)

@@ -14,6 +14,13 @@ each chunk's samples move out of the stage into ``<target>.clips/clip_NNNNN.usdc
 target's ``/World`` prim gets the clip metadata (asset paths, active clip per time, a manifest),
 so any USD reader sees one animated stage. A run shorter than one chunk stays a single file. The
 clip folder is written under a temporary name and moved into place with the target.
+
+Pipeline extras: the layer's ``customLayerData`` holds the run's provenance under ``warpcloth``
+(:mod:`warpcloth.provenance`); ``/World/Pins`` carries an extent and is written once (no time
+samples) while the pins do not move; ``color="strain"`` writes a vertex ``primvars:displayColor``
+per frame, spring strain from blue (0) to red (``strain_scale``, default 10 %); a ``.usdz``
+target is a ``.usdc`` stage packaged with ``UsdUtils.CreateNewUsdzPackage`` (one package:
+no value clips, so a .usdz keeps its samples in memory until it is written).
 """
 
 from __future__ import annotations
@@ -26,10 +33,14 @@ import numpy as np
 from .errors import WarpclothError, require_int
 from .fileio import OutputError, check_output_path, describe_write_error, fsync_dir, remove_temporary, temp_path
 
-USD_EXTENSIONS = (".usd", ".usda", ".usdc")
+USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+#: Colourings of ``primvars:displayColor`` (``--usd-color``).
+USD_COLORS = ("none", "strain")
+#: Strain at the red end of the displayColor ramp by default (10 %).
+DEFAULT_STRAIN_SCALE = 0.1
 #: Bytes of time samples a writer keeps in memory before it moves them to a value clip.
 CLIP_BYTES = 64 * 2**20
-#: Bytes per point per frame in memory (points, pins, extent, and the layer's own overhead).
+#: Bytes per point per frame in memory (points, pins, extent, colours, and the layer's overhead).
 _BYTES_PER_POINT_FRAME = 32
 
 
@@ -54,24 +65,53 @@ def _usd_failure(exc: BaseException, target: str, tmp: str) -> OutputError:
     return OutputError(f"cannot write the USD file {target}: {first[:200]}; {target} is unchanged")
 
 
+def _usd_dict(value):
+    """A JSON-able value as USD dictionary data: None (no USD value) becomes the string "none",
+    lists of mixed types become strings."""
+    if isinstance(value, dict):
+        return {str(k): _usd_dict(v) for k, v in value.items()}
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):
+        return float(value)
+    if isinstance(value, (list, tuple)):
+        return [str(v) for v in value]
+    return str(value)
+
+
 class UsdWriter:
     """Writes a cloth model's frames to a USD stage.
 
     Args:
-        path: output file (.usd, .usda or .usdc).
+        path: output file (.usd, .usda, .usdc or .usdz).
         model: the :class:`~warpcloth.model.ClothModel` (topology, pins).
         fps: frames per second; frame k is written at time code k.
+        provenance: stored in the layer's ``customLayerData["warpcloth"]`` (None values as "none").
+        color: ``"strain"`` for a per-frame vertex ``primvars:displayColor`` of spring strain.
+        strain_scale: the strain at the red end of the colour ramp.
         clip_frames: frames kept in memory before they move to a value clip (see the module
-            doc); default: as many as fit in :data:`CLIP_BYTES`.
+            doc); default: as many as fit in :data:`CLIP_BYTES` (a .usdz: all, one package).
     """
 
-    def __init__(self, path: str, model, fps: float = 60.0, clip_frames: int | None = None):
+    def __init__(self, path: str, model, fps: float = 60.0, provenance: dict | None = None, color: str | None = None,
+                 strain_scale: float = DEFAULT_STRAIN_SCALE, clip_frames: int | None = None):
         from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
         self._Gf, self._Vt = Gf, Vt
         self.path = check_usd_path(path)
         self.fps = float(fps)
-        self._tmp = temp_path(self.path)
+        color = color or "none"
+        if color not in USD_COLORS:
+            raise WarpclothError(f"USD colour must be one of {', '.join(USD_COLORS)}, got {color!r}")
+        self.color = color
+        self.strain_scale = float(strain_scale)
+        self.usdz = os.path.splitext(self.path)[1].lower() == ".usdz"
+        self._tmp = temp_path(self.path, ".usdc" if self.usdz else None)
+        self._package = temp_path(self.path) if self.usdz else None
         self._closed = False
         try:
             self.stage = Usd.Stage.CreateNew(self._tmp)
@@ -86,6 +126,8 @@ class UsdWriter:
         UsdGeom.SetStageMetersPerUnit(self.stage, 1.0)
         self.stage.SetTimeCodesPerSecond(self.fps)
         self.stage.SetFramesPerSecond(self.fps)
+        if provenance:
+            self.stage.GetRootLayer().customLayerData = {"warpcloth": _usd_dict(provenance)}
         root = UsdGeom.Xform.Define(self.stage, "/World")
         self.stage.SetDefaultPrim(root.GetPrim())
 
@@ -109,9 +151,22 @@ class UsdWriter:
         self.pins.CreateWidthsAttr(Vt.FloatArray([0.02] * len(model.pinned)))
         self._pin_idx = np.asarray(model.pinned, dtype=np.int64)
         self.pins_attr = self.pins.CreatePointsAttr()
+        self.pins_extent_attr = self.pins.CreateExtentAttr()
+        self._pins_first: np.ndarray | None = None  # the pins' first positions, written once while they stay
+        self._pins_moving = False
+        self.color_attr = None
+        if self.color == "strain":
+            from .frames import spring_arrays
+
+            self._springs = spring_arrays(model)
+            pv = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
+            self.color_attr = pv.GetAttr()
+            self.mesh.GetPrim().SetCustomDataByKey("warpcloth:displayColor", f"spring strain, blue 0 to red {self.strain_scale:g}")
         self.frames = 0
         self.last_code = -1.0
-        if clip_frames is None:
+        if self.usdz:  # one package: no clip files beside it
+            clip_frames = 2**62
+        elif clip_frames is None:
             clip_frames = max(60, CLIP_BYTES // (_BYTES_PER_POINT_FRAME * max(1, model.particle_count)))
         self.clip_frames = require_int("clip_frames", clip_frames, 1)
         self.frames_in_memory = 0  # frames whose samples are still in the stage's layer
@@ -126,13 +181,18 @@ class UsdWriter:
         when a step is longer than a frame."""
         Vt, Gf = self._Vt, self._Gf
         code = float(round(sim_time * self.fps)) if sim_time is not None else float(self.last_code + 1)
-        self.last_code = code
+        self._prev_code, self.last_code = self.last_code, code
         p = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
         self.points_attr.Set(Vt.Vec3fArray.FromNumpy(p), code)
         lo, hi = p.min(axis=0), p.max(axis=0)
         self.extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), code)
         if self._pin_idx.size:
-            self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(p[self._pin_idx])), code)
+            self._write_pins(np.ascontiguousarray(p[self._pin_idx]), code)
+        if self.color_attr is not None:
+            from .frames import strain_colors, vertex_strain
+
+            rgb = strain_colors(vertex_strain(p, *self._springs), self.strain_scale)
+            self.color_attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(rgb)), code)
         self.frames += 1
         if self.frames_in_memory == 0:
             self._clip_first = code
@@ -146,6 +206,11 @@ class UsdWriter:
 
         if self.frames_in_memory == 0:
             return
+        if self._pins_first is not None and not self._pins_moving:
+            # every clip holds the pins: if they move later, the clips (not the default, which
+            # would win over them) give their value in the chunks before
+            self.pins_attr.Set(self._Vt.Vec3fArray.FromNumpy(self._pins_first), self._clip_first)
+            self.pins_extent_attr.Set(self._pin_extent(self._pins_first), self._clip_first)
         layer = self.stage.GetRootLayer()
         sampled = []
         layer.Traverse(Sdf.Path.absoluteRootPath, lambda path: sampled.append(path) if path.IsPropertyPath() and layer.GetNumTimeSamplesForPath(path) else None)
@@ -172,6 +237,9 @@ class UsdWriter:
         if not self._clips:
             return  # a short run: one file, as before
         self._flush_clip()
+        if self._pins_moving:  # a default is stronger than clips: the clips alone hold the pins
+            self.pins_attr.ClearDefault()
+            self.pins_extent_attr.ClearDefault()
         folder = os.path.basename(self._clip_dir)
         api = Usd.ClipsAPI(self.stage.GetPrimAtPath("/World"))
         api.SetClipAssetPaths(Sdf.AssetPathArray([f"./{folder}/{name}" for name, _ in self._clips]))
@@ -183,6 +251,32 @@ class UsdWriter:
         manifest.Export(os.path.join(self._clip_dir_tmp, "manifest.usda"))
         del layers, manifest
         api.SetClipManifestAssetPath(Sdf.AssetPath(f"./{folder}/manifest.usda"))
+
+    def _pin_extent(self, pins: np.ndarray):
+        Gf, Vt = self._Gf, self._Vt
+        r = 0.01  # half the pins' width
+        lo, hi = pins.min(axis=0) - r, pins.max(axis=0) + r
+        return Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))])
+
+    def _write_pins(self, pins: np.ndarray, code: float) -> None:
+        """Pins as one default value (no time samples) while they stay where they were; time
+        samples from the first frame they move (the first frame's sample added then)."""
+        Vt = self._Vt
+        if self._pins_first is None:
+            self._pins_first, self._pins_first_code = pins.copy(), code
+            self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(pins))
+            self.pins_extent_attr.Set(self._pin_extent(pins))
+            return
+        if not self._pins_moving and np.array_equal(pins, self._pins_first):
+            return
+        if not self._pins_moving:
+            self._pins_moving = True
+            first = self._pins_first  # held from the first frame to the frame before this one
+            for held in sorted({self._pins_first_code, self._prev_code}):
+                self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(first), held)
+                self.pins_extent_attr.Set(self._pin_extent(first), held)
+        self.pins_attr.Set(Vt.Vec3fArray.FromNumpy(pins), code)
+        self.pins_extent_attr.Set(self._pin_extent(pins), code)
 
     def close(self) -> str:
         """Save and move the file into place; returns the path."""
@@ -203,7 +297,15 @@ class UsdWriter:
                 os.replace(self._clip_dir_tmp, self._clip_dir)
                 if old is not None:
                     shutil.rmtree(old, ignore_errors=True)
-            os.replace(self._tmp, self.path)
+            if self.usdz:
+                from pxr import UsdUtils
+
+                if not UsdUtils.CreateNewUsdzPackage(self._tmp, self._package):
+                    raise OSError(f"USD could not package {self._tmp} as .usdz")
+                remove_temporary(self._tmp)
+                os.replace(self._package, self.path)
+            else:
+                os.replace(self._tmp, self.path)
             if not self._clips and os.path.isdir(self._clip_dir):  # an older long run's clips
                 shutil.rmtree(self._clip_dir, ignore_errors=True)
         except BaseException as exc:
@@ -225,6 +327,8 @@ class UsdWriter:
                 except AttributeError:
                     pass
             remove_temporary(self._tmp)
+            if self._package:
+                remove_temporary(self._package)
         self._closed = True
 
     def __enter__(self):

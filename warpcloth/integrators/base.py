@@ -78,6 +78,12 @@ class Integrator:
     graph_capturable: ClassVar[bool] = True
     #: True for integrators that evaluate spring forces (Provot deformation constraints apply).
     force_based: ClassVar[bool] = True
+    #: True when the integrator projects collision constraints inside its own solver loop; else
+    #: the Simulator projects contacts after each step (:mod:`warpcloth.colliders`).
+    collides_in_solver: ClassVar[bool] = False
+    #: How a velocity change during a step moves x by the step's end, per unit dt (1 where
+    #: x += dt v_new; 1/2 for Runge-Kutta schemes): friction corrects x with it.
+    velocity_position_weight: ClassVar[float] = 1.0
     #: Fraction of :func:`stable_dt_estimate` used by :meth:`default_dt`.
     default_dt_factor: ClassVar[float] = 0.8
     #: Largest default dt [s] (one 60 Hz frame unless an integrator says otherwise).
@@ -115,6 +121,11 @@ class Integrator:
 
     def _allocate(self, model) -> None:
         """Allocate scratch arrays (override)."""
+
+    def position_history(self):
+        """The array a step derives its next positions from besides x and v (Verlet's
+        displacement d = x - x_prev), which a contact resets to v dt; None for most schemes."""
+        return None
 
     def begin(self, state, control, dt: float) -> None:
         """Prepare to step ``state`` with ``dt`` (override where an integrator keeps history)."""

@@ -25,6 +25,7 @@ def rk2_amplification(z):
 
 class Midpoint(Integrator):
     name = "midpoint"
+    velocity_position_weight = 0.5  # x_new = x + dt v + dt^2/2 a: an acceleration moves x with weight 1/2
     force_evals_per_step = 2
     default_dt_factor = 0.8
 

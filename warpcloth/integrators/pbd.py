@@ -67,9 +67,7 @@ class PBD(PositionBasedIntegrator):
         sweep = self.color_sweep(ck.solve_springs_pbd, params, [self.particle_dp])
         for k in range(self.substeps):
             self.predict(state, control, h, keep, (k + 1) * h)
-            for _ in range(self.iterations):
-                for color in sweep:
-                    color.launch()
+            self.solve(state, control, sweep)
             self.update(state, h, control, (k + 1) * h)
 
     def stats(self) -> dict:

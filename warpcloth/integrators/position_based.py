@@ -60,6 +60,7 @@ class PositionBasedIntegrator(Integrator):
     """
 
     force_based: ClassVar[bool] = False
+    collides_in_solver: ClassVar[bool] = True
     force_evals_per_step: ClassVar[int] = 1
     #: Position-based steps are stable at any dt; one 60 Hz frame is the default.
     default_dt_cap: ClassVar[float] = 1.0 / 60.0
@@ -75,6 +76,7 @@ class PositionBasedIntegrator(Integrator):
         self.spring_order = wp.array(self.coloring.order, dtype=wp.int32)
         self.spring_type = wp.array(np.asarray(model.spring_type, dtype=np.int32), dtype=wp.int32)
         self.particle_dp = scratch_like(model)
+        self.contact_normal = wp.zeros(model.particle_count, dtype=float, device=model.device)  # per substep
         self._sweep_key, self._sweep = None, []
 
     def stats(self) -> dict:
@@ -111,6 +113,21 @@ class PositionBasedIntegrator(Integrator):
             ]
             self._sweep_key = key
         return self._sweep
+
+    def solve(self, state, control, sweep) -> None:
+        """``iterations`` Gauss-Seidel sweeps over the springs, each followed by the collision
+        constraints (Müller 2007, Alg. 1 line 13), then friction from the accumulated normal
+        corrections (:mod:`warpcloth.colliders`)."""
+        contacts = control.collision
+        if contacts is not None:
+            self.contact_normal.zero_()
+        for _ in range(self.iterations):
+            for color in sweep:
+                color.launch()
+            if contacts is not None:
+                contacts.project_displacement(self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=False)
+        if contacts is not None:
+            contacts.project_displacement(self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=True)
 
     def update(self, state, h: float, control=None, end: float | None = None) -> None:
         """v = dp / h;  x += dp; kinematic pins x = track(t + end), v = track'(t + end)."""

@@ -15,6 +15,7 @@ from .base import Integrator, scratch_like
 
 class RK4(Integrator):
     name = "rk4"
+    velocity_position_weight = 0.5  # x_new = x + dt v + dt^2/2 a: an acceleration moves x with weight 1/2
     force_evals_per_step = 4
     default_dt_factor = 1.0
 

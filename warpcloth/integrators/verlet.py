@@ -27,6 +27,9 @@ class Verlet(Integrator):
     def _allocate(self, model):
         self.displacement = scratch_like(model)
 
+    def position_history(self):
+        return self.displacement
+
     def begin(self, state, control, dt):
         m = self.model
         eval_forces(m, state.particle_q, state.particle_qd, control, state.particle_f)

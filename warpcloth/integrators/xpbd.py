@@ -53,9 +53,7 @@ class XPBD(PositionBasedIntegrator):
         for k in range(self.substeps):
             self.predict(state, control, h, keep, (k + 1) * h)
             self.clear_lambda()
-            for _ in range(self.iterations):
-                for color in sweep:
-                    color.launch()
+            self.solve(state, control, sweep)
             self.update(state, h, control, (k + 1) * h)
 
     def clear_lambda(self) -> None:

@@ -1,0 +1,123 @@
+"""Colliders against analytic answers: resting at the thickness, Coulomb friction on an incline,
+no penetration of a sphere for any integrator, shapes' distances, bad input."""
+
+import math
+
+import numpy as np
+import pytest
+
+from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, WarpclothError, build_grid_cloth, integrator_names
+from warpcloth.colliders import parse_collider
+from warpcloth.model import SpringParams, SpringType, build_model
+
+G = 9.81
+FREE = {t: SpringParams(0.0, 0.0) for t in SpringType}
+INTEGRATORS = ["explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd", "vbd", "projective"]
+
+
+def particles(positions):
+    n = len(positions)
+    return build_model(positions, np.zeros((0, 2)), np.zeros(0), [0.1] * n, FREE, device="cpu")
+
+
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_a_dropped_particle_rests_at_the_thickness(integrator):
+    sim = Simulator(particles([[0.0, 0.5, 0.0]]), integrator, Control(colliders=(Plane(thickness=0.01),), device="cpu"), dt=1e-3)
+    sim.simulate(800)  # it lands after 0.32 s
+    assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(0.01, abs=1e-6)
+    assert abs(float(sim.state.particle_qd.numpy()[0, 1])) < 1e-4
+
+
+def slide(integrator, theta, mu, duration=0.5, dt=1e-3):
+    """A particle released at rest on a plane inclined by theta: its displacement along the slope."""
+    n = (-math.sin(theta), math.cos(theta), 0.0)
+    down = np.array([-math.cos(theta), -math.sin(theta), 0.0])
+    sim = Simulator(particles([[0.0, 0.0, 0.0]]), integrator, Control(colliders=(Plane(normal=n, friction=mu),), device="cpu"), dt=dt)
+    x0 = sim.state.particle_q.numpy()[0].astype(np.float64)
+    sim.simulate(int(round(duration / dt)))
+    x = sim.state.particle_q.numpy()[0].astype(np.float64)
+    return float(np.dot(x - x0, down)), float(np.dot(x - x0, np.array(n)))
+
+
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_coulomb_friction_on_an_incline(integrator):
+    theta = math.radians(30.0)  # tan = 0.577
+    s, off = slide(integrator, theta, mu=0.3)
+    expected = 0.5 * G * (math.sin(theta) - 0.3 * math.cos(theta)) * 0.5**2  # 0.294 m
+    assert s == pytest.approx(expected, rel=0.02)
+    assert abs(off) < 1e-5  # on the surface
+    s_stick, _ = slide(integrator, theta, mu=0.7)
+    assert abs(s_stick) < 1e-5  # mu > tan(theta): it stays
+    s_free, _ = slide(integrator, theta, mu=0.0)
+    assert s_free == pytest.approx(0.5 * G * math.sin(theta) * 0.25, rel=0.02)
+
+
+def depth_into(sphere, x):
+    return sphere.thickness + sphere.radius - np.linalg.norm(x - np.asarray(sphere.center), axis=1)
+
+
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_a_cloth_dropped_on_a_sphere_never_goes_inside(integrator):
+    sphere = Sphere(center=(0.5, 0.0, 0.5), radius=0.3, thickness=0.005, friction=0.3)
+    model = build_grid_cloth(10, 10, 1.0, 1.0, 0.1, plane="horizontal", origin=(0.0, 0.4, 0.0), device="cpu")
+    sim = Simulator(model, integrator, Control(drag_rate=0.5, colliders=(sphere,), device="cpu"),
+                    dt=1.0 / 60.0 if integrator in ("implicit_euler", "pbd", "xpbd") else None)
+    deepest, touched = 0.0, False
+    for _ in range(40):  # 0.67 s: it lands at 0.16 s and drapes
+        sim.simulate(max(1, round(1.0 / 60.0 / sim.dt)))
+        d = depth_into(sphere, sim.state.particle_q.numpy().astype(np.float64))
+        deepest, touched = max(deepest, d.max()), touched or d.max() > -1e-3
+    assert touched  # it did reach the sphere
+    assert deepest < 1e-5
+    assert np.isfinite(sim.state.particle_q.numpy()).all()
+
+
+@pytest.mark.parametrize("collider,top", [
+    (Box(center=(0.0, -0.5, 0.0), half_extents=(1.0, 0.5, 1.0), thickness=0.002), 0.002),
+    (Box(center=(0.0, -0.5, 0.0), half_extents=(0.5, 1.0, 0.5), rotation=(0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4))), 0.0),
+    (Capsule(a=(-1.0, -0.2, 0.0), b=(1.0, -0.2, 0.0), radius=0.2, thickness=0.001), 0.001),
+    (Sphere(center=(0.0, -0.2, 0.0), radius=0.2), 0.0),
+])
+def test_shapes_hold_a_particle_on_top(collider, top):
+    sim = Simulator(particles([[0.0, 0.3, 0.0]]), "explicit_euler", Control(colliders=(collider,), device="cpu"), dt=1e-3)
+    sim.simulate(600)
+    assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(top, abs=1e-6)
+
+
+def test_pins_win_over_contacts():
+    model = build_grid_cloth(3, 3, 0.2, 0.2, 0.05, pins=[0], origin=(0.0, -0.05, 0.0), device="cpu")  # pin 0 below the ground
+    sim = Simulator(model, "explicit_euler", Control(colliders=(Plane(),), device="cpu"))
+    sim.simulate(50)
+    np.testing.assert_array_equal(sim.state.particle_q.numpy()[0], model.host["q"][0])
+
+
+def test_colliders_can_be_replaced_and_captured_runs_follow():
+    control = Control(colliders=(Plane(),), device="cpu")
+    sim = Simulator(particles([[0.0, 0.2, 0.0]]), "explicit_euler", control, dt=1e-3)
+    sim.simulate(300)
+    assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(0.0, abs=1e-6)
+    control.colliders = (Plane(point=(0.0, -0.5, 0.0)),)
+    sim.simulate(700)
+    assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(-0.5, abs=1e-6)
+
+
+@pytest.mark.parametrize("make,match", [
+    (lambda: Sphere(radius=-1.0), "sphere radius must be > 0"),
+    (lambda: Plane(thickness=-0.1), "collider thickness must be >= 0"),
+    (lambda: Plane(friction=-0.1), "collider friction mu must be >= 0"),
+    (lambda: Box(half_extents=(1.0, 0.0, 1.0)), "degenerate box"),
+    (lambda: Plane(normal=(0, 0, 0)), "plane normal must not be zero"),
+    (lambda: Capsule(radius=float("nan")), "capsule radius must be a finite number"),
+    (lambda: parse_collider("torus:radius=1"), "unknown collider kind 'torus'"),
+    (lambda: parse_collider("sphere:radius=1,colour=2"), "unknown or empty setting 'colour=2'"),
+    (lambda: Control(colliders=("sphere",)), "colliders must be Plane, Sphere, Capsule or Box"),
+])
+def test_bad_colliders_name_the_value(make, match):
+    with pytest.raises(WarpclothError, match=match):
+        make()
+
+
+def test_parse_collider():
+    s = parse_collider("sphere:center=0/1/0,radius=0.3,friction=0.4")
+    assert s == Sphere(center=(0.0, 1.0, 0.0), radius=0.3, friction=0.4)
+    assert parse_collider("plane:thickness=0.01") == Plane(thickness=0.01)

@@ -1,0 +1,256 @@
+"""The HTML player (``run --html``): one self-contained file holding every frame, and, where a
+Chromium is installed, a canvas that a real browser draws and that changes over time."""
+
+import os
+import re
+import shutil
+import struct
+import subprocess
+import zlib
+
+import numpy as np
+import pytest
+
+from warpcloth.cli import main
+from warpcloth.frames import FrameSinks, nice_scale, strain_colors, vertex_strain
+from warpcloth.player import HtmlWriter, quantise, read_player_data
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def flag_page(tmp_path_factory):
+    """A flag run of 30 frames (0.5 s at 60 fps), as a player page and its frames."""
+    from warpcloth.scenarios import flag
+
+    path = tmp_path_factory.mktemp("player") / "flag.html"
+    sim = flag.build(rows=8, cols=12, integrator="rk4", dt=2e-3)
+    writer = HtmlWriter(str(path), sim.model, 60.0, title="flag </script><b>test</b>")
+    frames = []
+
+    class Keep:
+        def write_frame(self, points, sim_time=None):
+            frames.append(np.array(points, dtype=np.float32))
+
+        def close(self):
+            return None
+
+        def abort(self):
+            pass
+
+    sinks = FrameSinks([writer, Keep()])
+    result = sim.run(0.5, fps=60.0, usd=sinks)
+    sinks.close()
+    return path, result, np.stack(frames), sim.model
+
+
+def test_page_holds_every_frame_and_vertex(flag_page):
+    path, result, frames, model = flag_page
+    data = read_player_data(str(path))
+    assert data["frameCount"] == result.frames + 1 == len(frames) == 31  # the first frame too
+    assert data["vertexCount"] == model.particle_count == 96
+    assert len(data["times"]) == data["frameCount"] and data["times"][0] == 0.0
+    assert np.all(np.diff(data["times"]) > 0) and abs(data["times"][-1] - 0.5) < 2e-3
+    assert data["fps"] == 60.0 and data["pins"] == [int(i) for i in model.pinned] and data["colliders"] == []
+    # positions within half a quantisation step of the float32 frames
+    step = (np.array(data["bboxMax"]) - np.array(data["bboxMin"])) / 65535
+    assert np.all(np.abs(data["positions"] - frames) <= step / 2 + 1e-6)
+    assert data["info"] == {}
+
+
+def test_page_is_self_contained(flag_page):
+    path = flag_page[0]
+    page = path.read_text(encoding="utf-8")
+    assert page.startswith("<!DOCTYPE html>")
+    from html.parser import HTMLParser
+
+    class Tags(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.tags, self.open = [], []
+
+        def handle_starttag(self, tag, attrs):
+            self.tags.append((tag, dict(attrs)))
+
+    parser = Tags()
+    parser.feed(page)
+    parser.close()
+    names = [t for t, _ in parser.tags]
+    assert names.count("canvas") == 1 and names.count("script") == 2 and ("link" not in names) and ("img" not in names)
+    assert all("src" not in attrs for tag, attrs in parser.tags if tag == "script")  # inline scripts only
+    assert "http://" not in page and "https://" not in page
+    assert not re.search(r"""(src|href)\s*=\s*["']?(//|[a-z]+:)""", page, re.I), "an external resource"
+    assert not re.search(r"@import|url\(", page), "a stylesheet that fetches"
+    # the title cannot close the data's script element, and is escaped in <title>
+    assert page.count("</script>") == 2
+    assert "<title>flag &lt;/script&gt;&lt;b&gt;test&lt;/b&gt;</title>" in page
+
+
+def test_quantise_error_bound():
+    rng = np.random.default_rng(1)
+    f = rng.uniform(-3, 5, size=(4, 50, 3)).astype(np.float32)
+    q, lo, hi = quantise(f)
+    back = lo + q * ((hi - lo) / 65535)
+    assert q.dtype == np.dtype("<u2") and np.abs(back - f).max() <= ((hi - lo) / 65535).max() / 2 + 1e-6
+    q, lo, hi = quantise(np.zeros((2, 3, 3), np.float32))  # a flat box keeps a usable step
+    assert np.all(hi > lo) and np.all(q == 0)
+
+
+def test_vertex_strain_and_colours():
+    pairs = np.array([[0, 1], [1, 2]])
+    rest = np.array([1.0, 1.0])
+    p = np.array([[0, 0, 0], [1.1, 0, 0], [1.6, 0, 0]], dtype=np.float32)  # +10 %, compressed
+    s = vertex_strain(p, pairs, rest)
+    assert np.allclose(s, [0.1, 0.1, 0.0], atol=1e-6)
+    c = strain_colors(np.array([0.0, 0.2, 1.0]), 0.2)
+    assert np.allclose(c[0], [0.10, 0.25, 0.85]) and np.allclose(c[1], [0.85, 0.12, 0.10]) and np.allclose(c[1], c[2])
+    assert nice_scale(0.13) == 0.2 and nice_scale(0.021) == 0.025 and nice_scale(0.0) == 0.01
+
+
+def test_cli_html_with_usd_and_checks_paths_first(capsys, tmp_path):
+    html = tmp_path / "s.html"
+    usd = tmp_path / "s.usda"
+    code, out, err = _run(capsys, "run", "sheet", "--rows", "5", "--cols", "5", "--num-frames", "6", "--html", str(html), "--usd", str(usd))
+    assert code == 0, err
+    assert f"wrote {html}" in out and f"wrote {usd}" in out
+    data = read_player_data(str(html))
+    assert data["frameCount"] == 7 and data["vertexCount"] == 25
+    assert data["info"]["scenario"] == "sheet" and data["info"]["command_line"].startswith("warpcloth run sheet")
+    # a bad path is refused before the run, in one line, and nothing is written
+    code, out, err = _run(capsys, "run", "sheet", "--num-frames", "2", "--html", str(tmp_path / "no" / "x.html"))
+    assert code == 2 and err.startswith("warpcloth: error: HTML path") and err.count("\n") == 1 and out == ""
+    code, out, err = _run(capsys, "run", "sheet", "--num-frames", "2", "--html", str(tmp_path / "x.txt"))
+    assert code == 2 and ".html, .htm" in err
+    code, out, err = _run(capsys, "run", "sheet", "--num-frames", "2", "--html", str(html), "--usd", str(html))
+    assert code == 2
+    assert sorted(os.listdir(tmp_path)) == ["s.html", "s.usda"]  # no temporaries left
+
+
+# -- in a real browser ------------------------------------------------------------------------
+
+def _chromium():
+    for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+def read_png(path) -> np.ndarray:
+    """A non-interlaced 8-bit RGB/RGBA PNG (what Chromium writes) as an (H, W, C) uint8 array."""
+    raw = open(path, "rb").read()
+    assert raw[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, idat, header = 8, b"", None
+    while pos < len(raw):
+        n, kind = struct.unpack(">I4s", raw[pos:pos + 8])
+        body = raw[pos + 8:pos + 8 + n]
+        if kind == b"IHDR":
+            header = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + n
+    w, h, depth, ctype, _, _, interlace = header
+    assert depth == 8 and interlace == 0 and ctype in (2, 6)
+    c = 3 if ctype == 2 else 4
+    data = zlib.decompress(idat)
+    out = np.zeros((h, w * c), dtype=np.int32)
+    prev = np.zeros(w * c, dtype=np.int32)
+    stride = w * c + 1
+    for y in range(h):
+        f, line = data[y * stride], np.frombuffer(data, np.uint8, w * c, y * stride + 1).astype(np.int32)
+        cur = line.copy()
+        if f == 1:
+            for x in range(c, w * c):
+                cur[x] = (cur[x] + cur[x - c]) & 255
+        elif f == 2:
+            cur = (line + prev) & 255
+        elif f == 3:
+            for x in range(w * c):
+                left = cur[x - c] if x >= c else 0
+                cur[x] = (line[x] + ((left + prev[x]) >> 1)) & 255
+        elif f == 4:
+            for x in range(w * c):
+                a = cur[x - c] if x >= c else 0
+                b = prev[x]
+                cc = prev[x - c] if x >= c else 0
+                pa, pb, pc = abs(b - cc), abs(a - cc), abs(a + b - 2 * cc)
+                pred = a if pa <= pb and pa <= pc else (b if pb <= pc else cc)
+                cur[x] = (line[x] + pred) & 255
+        out[y] = cur
+        prev = cur
+    return out.reshape(h, w, c)[:, :, :3].astype(np.uint8)
+
+
+CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                  "--hide-scrollbars", "--window-size=640,480", "--virtual-time-budget=4000"]
+
+
+def _chromium_run(browser, args, tmp_path, tag):
+    p = subprocess.run([browser, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / ('profile-' + tag)}", *args],
+                       capture_output=True, text=True, timeout=180)
+    return p.stdout, p.stderr[-600:]
+
+
+def _dom(browser, url, tmp_path, tries=2):
+    """The DOM after the page ran (one retry: a headless browser on a loaded machine may stop early)."""
+    for k in range(tries):
+        dom, err = _chromium_run(browser, ["--dump-dom", url], tmp_path, f"dom{k}")
+        if "data-frame=" in dom:
+            break
+    return dom, err
+
+
+def _screenshot(browser, url, out, tmp_path, ok=lambda img: True, tries=2):
+    """A screenshot as an array; taken again once if ``ok`` says it is not what a drawn page shows."""
+    img, err = None, ""
+    for k in range(tries):
+        if os.path.exists(out):
+            os.unlink(out)
+        _, err = _chromium_run(browser, [f"--screenshot={out}", url], tmp_path, f"{os.path.basename(out)}{k}")
+        if os.path.exists(out):
+            img = read_png(out)
+            if ok(img):
+                break
+    assert img is not None, f"Chromium wrote no screenshot: {err}"
+    return img
+
+
+@pytest.mark.skipif(_chromium() is None, reason="no Chromium installed (apt-get install chromium)")
+def test_chromium_draws_the_canvas_and_it_moves(flag_page, tmp_path):
+    browser = _chromium()
+    url = flag_page[0].resolve().as_uri()
+    dom, err = _dom(browser, url + "#t=0.25", tmp_path)
+    assert 'data-frame="15"' in dom and "data-error" not in dom, (dom[-400:], err)
+
+    def view(img):  # the canvas between the labels and the bar
+        return img[60:img.shape[0] - 60].astype(int)
+
+    def cloth(img):  # the cloth's warm beige, not the blue-grey background, floor grid or labels
+        v = view(img)
+        return (v[:, :, 0] - v[:, :, 2]) > 12
+
+    def drawn(img):
+        return cloth(img).mean() > 0.02
+
+    first = _screenshot(browser, url + "#t=0", tmp_path / "t0.png", tmp_path, drawn)
+    last = _screenshot(browser, url + "#t=0.5", tmp_path / "t1.png", tmp_path, drawn)
+    strain = _screenshot(browser, url + "#t=0.5&strain=1", tmp_path / "t2.png", tmp_path, lambda img: not drawn(img))
+    for img in (first, last):
+        assert drawn(img), f"the cloth is not drawn ({100 * cloth(img).mean():.2f} % of the canvas)"
+    changed = np.abs(view(first) - view(last)).sum(axis=2) > 30
+    assert changed.mean() > 0.01, "the picture did not change between t=0 and t=0.5"
+    v = view(strain)
+    blue = (v[:, :, 2] - v[:, :, 0]) > 60  # the ramp's blue end (low strain) where the cloth was beige
+    assert (blue & cloth(last)).sum() > 0.5 * cloth(last).sum(), "strain colours not shown"
+
+
+def test_too_many_frames_refused_before_the_run(capsys, tmp_path):
+    # 512 x 512 particles x 60 fps x 200 s = 12,001 frames x 3 MiB: far past the 2 GiB the player may hold
+    code, out, err = _run(capsys, "run", "flag", "--rows", "512", "--cols", "512", "--duration", "200", "--dt", "1e-3",
+                          "--html", str(tmp_path / "big.html"))
+    assert code == 2 and "would hold 12001 frames" in err and err.count("\n") == 1 and out == ""
+    assert os.listdir(tmp_path) == []

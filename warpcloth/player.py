@@ -1,0 +1,169 @@
+"""A self-contained HTML player of a run (``warpcloth run ... --html out.html``).
+
+One HTML file, nothing fetched when it opens: the page (``player.html`` beside this module, a
+small WebGL 1 program written for warpcloth) and the animation as JSON inside it. Frames are
+stored compactly: every position quantised to uint16 within the animation's bounding box
+(3 x 2 bytes a vertex, base64: 8 bytes a vertex a frame; the step is the box's size / 65535),
+the frames' simulated times, the triangles, the springs and their rest lengths (the player
+computes normals and, on request, spring strain per frame), the pinned particles and a list of
+colliders (empty: warpcloth has none yet; the player's ``drawColliders`` is the hook).
+
+Open ``out.html#t=0.5`` to seek to t = 0.5 s and pause; ``#t=0.5&strain=1`` also colours the
+cloth by strain (the legend runs from 0 to the 99th percentile of the vertices' strain in the
+frame where that is largest, rounded up; the run's largest strain is printed under it).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import os
+
+import numpy as np
+
+from .errors import WarpclothError
+from .fileio import check_output_path, write_atomic
+from .frames import nice_scale, spring_arrays, vertex_strain
+
+HTML_EXTENSIONS = (".html", ".htm")
+#: Where the page template lives (package data).
+TEMPLATE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "player.html")
+#: The legend's end is this percentile of the vertices' strain in the frame where it is largest
+#: (rounded up to 1, 2, 2.5 or 5 x 10^k); strain above it is red.
+STRAIN_PERCENTILE = 99.0
+#: Bytes of float32 positions held in memory before the run is refused (about 2 GB).
+MAX_BUFFER_BYTES = 2 * 1024**3
+
+
+def check_frame_memory(model, frames: int | None, what: str) -> None:
+    """Refuse, before the run, a writer that would hold more than :data:`MAX_BUFFER_BYTES` of frames."""
+    if frames is None:
+        return
+    need = int(frames) * int(model.particle_count) * 12
+    if need > MAX_BUFFER_BYTES:
+        raise WarpclothError(f"{what} would hold {frames} frames of {model.particle_count} particles, {need / 2**30:.1f} GiB "
+                             f"(at most {MAX_BUFFER_BYTES / 2**30:.0f} GiB); use fewer frames (--fps, --duration) or a smaller cloth")
+
+
+def check_html_path(path: str) -> str:
+    """Validate an HTML output path before a run (see :func:`~warpcloth.fileio.check_output_path`)."""
+    return check_output_path(path, "HTML", extensions=HTML_EXTENSIONS)
+
+
+def _b64(array: np.ndarray) -> str:
+    return base64.b64encode(np.ascontiguousarray(array).tobytes()).decode("ascii")
+
+
+def quantise(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions (F, N, 3) -> (uint16 (F, N, 3), box min (3,), box max (3,)); the error is at
+    most half a step, (max - min) / 65535 / 2 per axis."""
+    f = np.asarray(frames, dtype=np.float64)
+    lo, hi = f.min(axis=(0, 1)), f.max(axis=(0, 1))
+    span = np.where(hi > lo, hi - lo, 1.0)
+    q = np.rint((f - lo) / span * 65535.0).clip(0, 65535).astype("<u2")
+    hi = np.where(hi > lo, hi, lo + 1.0)
+    return q, lo, hi
+
+
+class HtmlWriter:
+    """Collects a run's frames and writes the player page on :meth:`close` (atomically).
+
+    Args:
+        path: output file (.html or .htm), checked here.
+        model: the :class:`~warpcloth.model.ClothModel` (triangles, springs, pins).
+        fps: the frame rate of the run (the page plays at the frames' simulated times).
+        title: a line shown in the page's corner and its title.
+        info: extra JSON-able facts stored in the page (provenance).
+    """
+
+    def __init__(self, path: str, model, fps: float = 60.0, title: str = "warpcloth", info: dict | None = None,
+                 expected_frames: int | None = None):
+        self.path = check_html_path(path)
+        check_frame_memory(model, expected_frames, "the HTML player")
+        self.fps = float(fps)
+        self.title = str(title)
+        self.info = dict(info or {})
+        self.tris = np.asarray(model.host["tris"], dtype="<u4").reshape(-1, 3)
+        self.pairs, self.rest = spring_arrays(model)
+        self.pins = [int(i) for i in np.asarray(model.pinned).reshape(-1)]
+        self.vertex_count = int(model.particle_count)
+        self.frames: list[np.ndarray] = []
+        self.times: list[float] = []
+        self.max_strain = 0.0
+        self.strain_p99 = 0.0
+        self._closed = False
+
+    def write_frame(self, points: np.ndarray, sim_time: float | None = None) -> None:
+        p = np.array(points, dtype=np.float32).reshape(-1, 3)
+        if (len(self.frames) + 1) * p.nbytes > MAX_BUFFER_BYTES:
+            raise WarpclothError(f"the HTML player would hold more than {MAX_BUFFER_BYTES >> 20} MiB of frames; "
+                                 "use fewer frames (--fps, --duration) or a smaller cloth")
+        t = float(sim_time) if sim_time is not None else (self.times[-1] + 1.0 / self.fps if self.times else 0.0)
+        if not np.all(np.isfinite(p)):
+            return  # an unstable frame has nothing to show
+        self.frames.append(p)
+        self.times.append(t)
+        strain = vertex_strain(p, self.pairs, self.rest)
+        self.max_strain = max(self.max_strain, float(strain.max(initial=0.0)))
+        if strain.size:  # the legend's scale: most of the cloth, not the few vertices at a pin
+            self.strain_p99 = max(self.strain_p99, float(np.percentile(strain, STRAIN_PERCENTILE)))
+
+    def document(self) -> str:
+        """The page as text."""
+        if not self.frames:
+            raise WarpclothError("the HTML player has no frames to show")
+        q, lo, hi = quantise(np.stack(self.frames))
+        data = {
+            "format": "warpcloth-player/1",
+            "title": self.title,
+            "fps": self.fps,
+            "vertexCount": self.vertex_count,
+            "frameCount": len(self.frames),
+            "times": [round(t, 9) for t in self.times],
+            "bboxMin": [float(v) for v in lo],
+            "bboxMax": [float(v) for v in hi],
+            "quantisation": "uint16 in the bounding box, little-endian, x y z per vertex, frames one after another",
+            "frames": _b64(q),
+            "tris": _b64(self.tris),
+            "springs": _b64(self.pairs.astype("<u4")),
+            "rest": _b64(self.rest.astype("<f4")),
+            "pins": self.pins,
+            "colliders": [],
+            "strainScale": nice_scale(self.strain_p99),
+            "maxStrain": self.max_strain,
+            "info": self.info,
+        }
+        text = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")  # never closes the script element
+        with open(TEMPLATE, encoding="utf-8") as fh:
+            page = fh.read()
+        return page.replace("__TITLE__", html.escape(self.title)).replace("__DATA__", text)
+
+    def close(self) -> str:
+        if self._closed:
+            return self.path
+        text = self.document()
+        self._closed = True
+        self.frames = []
+        return write_atomic(self.path, text, "HTML player")
+
+    def abort(self) -> None:
+        self.frames = []
+        self._closed = True
+
+
+def read_player_data(path: str) -> dict:
+    """The JSON data of a player page written by :class:`HtmlWriter`, with the frames decoded
+    to float32 (F, N, 3) under ``"positions"`` (for tests and tools)."""
+    with open(path, encoding="utf-8") as fh:
+        page = fh.read()
+    start_tag = '<script id="warpcloth-data" type="application/json">'
+    a = page.find(start_tag)
+    b = page.find("</script>", a)
+    if a < 0 or b < 0:
+        raise WarpclothError(f"{path} is not a warpcloth player page")
+    data = json.loads(page[a + len(start_tag):b])
+    q = np.frombuffer(base64.b64decode(data["frames"]), dtype="<u2").reshape(data["frameCount"], data["vertexCount"], 3)
+    lo, hi = np.array(data["bboxMin"]), np.array(data["bboxMax"])
+    data["positions"] = (lo + q * ((hi - lo) / 65535.0)).astype(np.float32)
+    return data

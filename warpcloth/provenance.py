@@ -1,0 +1,62 @@
+"""What made an output: versions, the run's parameters, the device, the date, the command line.
+
+Stored in a USD layer's ``customLayerData`` (under ``warpcloth``) and in the HTML player's data.
+"""
+
+from __future__ import annotations
+
+import datetime
+import shlex
+import sys
+
+
+def command_line(argv=None, prefix=("warpcloth",)) -> str:
+    """The command as typed (``warpcloth run ...``), quoted for a shell."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    return shlex.join([*prefix, *args])
+
+
+def provenance(sim, scenario: str, fps: float, argv=None, extra: dict | None = None, prefix=("warpcloth",)) -> dict:
+    """A JSON-able dict about the run of ``sim`` (a :class:`~warpcloth.simulator.Simulator`)."""
+    import warp as wp
+
+    from . import __version__
+
+    m = sim.model
+    info = {
+        "warpcloth_version": __version__,
+        "warp_version": str(wp.config.version),
+        "scenario": scenario,
+        "integrator": sim.integrator.name,
+        "integrator_options": {k: v for k, v in sim.integrator.option_values().items()},
+        "dt": float(sim.dt),
+        "fps": float(fps),
+        "rows": int(m.rows),
+        "cols": int(m.cols),
+        "width": float(m.width),
+        "height": float(m.height),
+        "mass": float(m.total_mass),
+        "particle_mass": float(m.particle_mass_value),
+        "ks": {t.name.lower(): float(p.stiffness) for t, p in m.spring_params.items()},
+        "kd": {t.name.lower(): float(p.damping) for t, p in m.spring_params.items()},
+        "bend": str(getattr(m.bend, "value", m.bend)),
+        "strain_limit": None if sim.strain_limiter is None else float(sim.strain_limiter.tau),
+        "device": str(m.device),
+        "date": datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat(),
+        "command_line": command_line(argv, prefix),
+    }
+    if extra:
+        info.update(extra)
+    return _jsonable(info)
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if hasattr(value, "item"):
+        return value.item()
+    return str(value)
