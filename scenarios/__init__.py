@@ -12,7 +12,7 @@ from __future__ import annotations
 from ..errors import WarpclothError
 from .common import Scenario, ScenarioConfig
 
-_BUILT_IN = ("sheet", "flag", "curtain", "mesh")
+_BUILT_IN = ("sheet", "flag", "curtain", "mesh", "drape", "tablecloth")
 _REGISTERED: dict[str, Scenario] = {}
 
 

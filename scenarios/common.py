@@ -45,6 +45,7 @@ class ScenarioConfig:
     device: str | None = None
     strain_limit: float | None = None
     instability_strain: float = DEFAULT_INSTABILITY_STRAIN
+    colliders: tuple = ()
     mesh: str | None = None
     prim: str | None = None
     pin_group: tuple | None = None
@@ -114,6 +115,8 @@ class Scenario:
 
     def _simulator(self, cfg: ScenarioConfig, model, integrator, device: str) -> Simulator:
         control = self.control(cfg, device)
+        if cfg.colliders:  # added to the scenario's own (--collider)
+            control.colliders = tuple(control.colliders) + tuple(cfg.colliders)
         if self.tracks is not None:
             control.pin_tracks = tuple(self.tracks(cfg, model))
         return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name, strain_limit=cfg.strain_limit,

@@ -37,6 +37,13 @@ is optional but ``cloth.mesh``; unknown keys are refused, naming the file and th
     axis = [1, 0, 0]
     swing_amplitude = 0.5                # rad; also angular_velocity, swing_frequency, swing_phase, velocity
 
+    [[colliders]]                        # warpcloth.colliders: plane, sphere, capsule, box
+    kind = "sphere"
+    center = [0, 1.0, 0.3]
+    radius = 0.25
+    thickness = 0.005                    # m
+    friction = 0.4                       # Coulomb mu
+
     [forces]
     gravity = [0, -9.81, 0]
     drag = 1.0                           # 1/s
@@ -71,7 +78,7 @@ from ..meshio import load_mesh
 from ..pins import PinTrack
 from .common import Scenario, ScenarioConfig
 
-TOP_KEYS = {"name", "description", "stop_at_equilibrium", "cloth", "pins", "tracks", "forces", "run"}
+TOP_KEYS = {"name", "description", "stop_at_equilibrium", "cloth", "pins", "tracks", "colliders", "forces", "run"}
 CLOTH_KEYS = {"mesh", "prim", "quads", "bend", "mass", "density", "mass_mode", "stiffness", "damping"}
 PIN_KEYS = {"groups", "where", "indices"}
 TRACK_KEYS = PIN_KEYS | {"name", "kind", "times", "offsets", "positions", "interpolation", "tangents", "center", "axis",
@@ -128,6 +135,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     cloth = table(data, "cloth", CLOTH_KEYS, "cloth")
     pins = table(data, "pins", PIN_KEYS, "pins")
     forces = table(data, "forces", FORCE_KEYS, "forces")
+    colliders = _colliders(data.get("colliders", []), where)
     run = table(data, "run", RUN_KEYS, "run")
     tracks = data.get("tracks", [])
     require(isinstance(tracks, list), f"{where}: tracks must be an array of tables ([[tracks]]), got {tracks!r}")
@@ -182,7 +190,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
             if (forces.get("wind") or forces.get("gusts")) and "wind_coefficient" not in forces:
                 coefficient = 0.6
             return Control(gravity=_vec3(forces.get("gravity", GRAVITY), f"{where}: forces.gravity"), drag_rate=drag,
-                           wind_coefficient=coefficient, wind_schedule=schedule, device=device)
+                           wind_coefficient=coefficient, wind_schedule=schedule, device=device, colliders=colliders)
         except (TypeError, WarpclothError) as exc:
             raise WarpclothError(f"{where}: [forces]: {exc}") from None
 
@@ -212,6 +220,28 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     except WarpclothError as exc:
         raise WarpclothError(f"{where}: {exc}") from None
     return scenario
+
+
+def _colliders(tables, where: str) -> tuple:
+    """The [[colliders]] tables: ``kind = "plane" | "sphere" | "capsule" | "box"`` and that
+    collider's settings (warpcloth.colliders), e.g. ``center = [0, 1, 0]``, ``radius = 0.3``."""
+    from ..colliders import COLLIDER_TYPES
+
+    require(isinstance(tables, list), f"{where}: colliders must be an array of tables ([[colliders]]), got {tables!r}")
+    out = []
+    for k, t in enumerate(tables):
+        what = f"{where}: [[colliders]] #{k + 1}"
+        require(isinstance(t, dict), f"{what} must be a table")
+        cls = COLLIDER_TYPES.get(t.get("kind"))
+        if cls is None:
+            raise WarpclothError(f"{what}: kind must be one of {', '.join(COLLIDER_TYPES)}, got {t.get('kind')!r}")
+        settings = {key: value for key, value in t.items() if key != "kind"}
+        _check_keys(settings, set(cls.__dataclass_fields__), what)
+        try:
+            out.append(cls(**{key: tuple(v) if isinstance(v, list) else v for key, v in settings.items()}))
+        except WarpclothError as exc:
+            raise WarpclothError(f"{what}: {exc}") from None
+    return tuple(out)
 
 
 def _check_keys(d: dict, allowed: set, where: str) -> None:

@@ -121,3 +121,59 @@ def test_parse_collider():
     s = parse_collider("sphere:center=0/1/0,radius=0.3,friction=0.4")
     assert s == Sphere(center=(0.0, 1.0, 0.0), radius=0.3, friction=0.4)
     assert parse_collider("plane:thickness=0.01") == Plane(thickness=0.01)
+
+
+@pytest.mark.parametrize("integrator", ["explicit_euler", "verlet", "pbd", "xpbd"])
+def test_the_drape_settles_on_the_sphere(integrator):
+    from warpcloth.scenarios import drape
+
+    sim = drape.build(rows=12, cols=12, integrator=integrator)
+    r = sim.run(12.0, stop_at_equilibrium=True)
+    assert r.stable and r.equilibrium_reached, (r.unstable_reason, r.final_max_speed)
+    x = sim.state.particle_q.numpy().astype(np.float64)
+    rho = np.linalg.norm(x[:, [0, 2]], axis=1)
+    centre = np.argmin(rho)  # resting on the top, at the sphere's surface + thickness
+    expected = drape.RADIUS + math.sqrt((drape.RADIUS + drape.THICKNESS) ** 2 - rho[centre] ** 2)
+    assert expected - 1e-5 < x[centre, 1] < expected + 3e-3  # on it (pbd's stiff bending bridges 2.5 mm)
+    assert x[:, 1].min() < drape.RADIUS  # and hanging down its sides
+
+
+def test_the_tablecloth_hangs_over_the_edges():
+    from warpcloth.scenarios import tablecloth as t
+
+    sim = t.build(rows=14, cols=14)
+    r = sim.run(10.0, stop_at_equilibrium=True)
+    assert r.stable and r.equilibrium_reached
+    x = sim.state.particle_q.numpy().astype(np.float64)
+    on_top = (np.abs(x[:, 0]) < t.HALF - 0.05) & (np.abs(x[:, 2]) < t.HALF - 0.05)
+    assert x[on_top, 1].min() > t.HEIGHT + t.THICKNESS - 1e-5  # never inside the table
+    lying = np.abs(x[on_top, 1] - (t.HEIGHT + t.THICKNESS)) < 2e-3
+    assert lying.mean() > 0.25  # lying on it (the rest in a fold ~3 cm high, measured, with or without friction)
+    outside = (np.abs(x[:, 0]) > t.HALF + 0.05) | (np.abs(x[:, 2]) > t.HALF + 0.05)
+    assert outside.any() and x[outside, 1].max() < t.HEIGHT  # the overhang hangs down
+
+
+def test_collider_flag_and_scenario_file(capsys, tmp_path):
+    import json
+
+    from warpcloth.cli import main
+
+    argv = ["run", "sheet", "--rows", "8", "--cols", "8", "--duration", "0.5", "--json",
+            "--collider", "sphere:center=0/1.3/0.05,radius=0.2,friction=0.3", "--collider", "plane:point=0/1.2/0"]
+    assert main(argv) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["stable"] and d["equilibrium_criterion"] == "speed"
+    assert main(["run", "sheet", "--collider", "torus:radius=1"]) == 2
+    assert "unknown collider kind 'torus'" in capsys.readouterr().err
+    assert main(["run", "sheet", "--collider", "sphere:radius=-1"]) == 2
+    assert "sphere radius must be > 0" in capsys.readouterr().err
+    from warpcloth.scenarios import get_scenario
+
+    (tmp_path / "grid.obj").write_text("v 0 1 0\nv 1 1 0\nv 0 1 1\nv 1 1 1\nf 1 3 4 2\n")
+    path = tmp_path / "s.toml"
+    path.write_text('[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\ncenter = [0.5, 0.5, 0.5]\nradius = 0.3\nfriction = 0.2\n')
+    sim = get_scenario(str(path)).build()
+    assert sim.control.colliders == (Sphere(center=(0.5, 0.5, 0.5), radius=0.3, friction=0.2),)
+    path.write_text('[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\nradius = 0.3\ncolour = 1\n')
+    with pytest.raises(WarpclothError, match=r"\[\[colliders\]\] #1: unknown key 'colour'"):
+        get_scenario(str(path))

@@ -3,6 +3,7 @@
     warpcloth run SCENARIO [--integrator NAME] [--rows N] [--cols N] [--dt S] ... [--usd PATH] [--json]
     warpcloth list
     warpcloth sweep TESTS.xml --out RESULTS.csv [--resume | --overwrite] [--max-runs N]
+                    [--workers N] [--devices cuda:0,cuda:1] [--ray auto|ADDRESS]
     warpcloth max-dt SCENARIO --integrator NAME [--rows N --cols N --stiffness KS ...] [--precision 0.02]
 
 Bad input prints one line, ``warpcloth: error: ...``, and exits with status 2; an output that
@@ -19,6 +20,7 @@ import os
 import sys
 
 from .cliparse import EXIT_USAGE, Parser, guarded  # noqa: F401  (EXIT_USAGE: kept importable from cli)
+from .colliders import parse_collider
 from .errors import WarpclothError, require_positive
 
 def _number_list(text: str):
@@ -53,6 +55,9 @@ def add_model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--drag", type=float, default=None, help="linear air drag rate [1/s]")
     p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
     p.add_argument("--strain-limit", type=float, default=None, metavar="TAU", help="Provot deformation constraint: cap structural/shear strain at TAU (e.g. 0.1), force-based integrators (default off)")
+    p.add_argument("--collider", action="append", default=None, metavar="KIND:K=V,...",
+                   help="add a collider (repeatable): plane|sphere|capsule|box with settings, vectors as x/y/z, e.g. "
+                        "sphere:center=0/1/0,radius=0.3,thickness=0.005,friction=0.4 (docs/colliders.md)")
     p.add_argument("--instability-strain", type=float, default=None, metavar="STRAIN", help="a spring strained past this (e.g. 0.5 = 50 %%) makes the run unstable (default 0.5)")
     mesh = p.add_argument_group("mesh scenarios (mesh, scenario files)")
     mesh.add_argument("--mesh", default=None, metavar="FILE", help="the cloth's triangle mesh: .obj or .usd/.usda/.usdc/.usdz")
@@ -126,6 +131,7 @@ def config_from_args(scenario, args):
         duration=args.duration, fps=args.fps, stiffness=args.stiffness, damping=args.damping, mass=args.mass,
         drag=args.drag, bend=args.bend, device=args.device, strain_limit=args.strain_limit,
         instability_strain=args.instability_strain,
+        colliders=tuple(parse_collider(c) for c in (getattr(args, "collider", None) or ())) or None,
         integrator_options=integrator_options_from_args(integrator, args),
         mesh=getattr(args, "mesh", None), prim=getattr(args, "prim", None), pin_where=getattr(args, "pin_where", None),
         pin_group=tuple(args.pin_group) if getattr(args, "pin_group", None) else None,
@@ -351,8 +357,14 @@ def _sweep(args) -> int:
     if (args.tests is None) == (args.example is None):
         raise WarpclothError("give a test list (TESTS.xml) or --example NAME, not " + ("both" if args.tests else "neither"))
     tests = args.tests if args.tests is not None else example_path(args.example)
+    devices = None
+    if args.devices is not None:
+        devices = [d for d in args.devices.split(",")]
+        if any(not d.strip() for d in devices):
+            raise WarpclothError(f"--devices: {args.devices!r} is not a comma-separated list of CUDA devices (cuda:0,cuda:1)")
     summary = run_sweep(tests, args.out, resume=args.resume, overwrite=args.overwrite,
-                        progress=None if args.quiet else sys.stderr, max_runs=args.max_runs, report=sys.stderr)
+                        progress=None if args.quiet else sys.stderr, max_runs=args.max_runs, report=sys.stderr,
+                        workers=args.workers, devices=devices, ray=args.ray)
     line = f"{args.out if args.out != '-' else 'stdout'}: {summary.describe()}"
     print(line, file=sys.stderr if args.out == "-" else sys.stdout)  # the result's summary, also with --quiet
     return 1 if summary.outcomes.get("error") else 0
@@ -417,6 +429,16 @@ def _max_dt(args) -> int:
     return 0
 
 
+def _workers(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number >= 1") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {n}")
+    return n
+
+
 def _add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
     p.add_argument("--verbose", action="store_true", help="show Warp's start-up and module-load messages on stderr")
     if quiet:
@@ -451,6 +473,14 @@ def build_parser() -> argparse.ArgumentParser:
     mode.add_argument("--overwrite", action="store_true", help="replace RESULTS.csv if it exists")
     sweep.add_argument("--max-runs", type=int, default=DEFAULT_MAX_RUNS, metavar="N",
                        help=f"refuse a test list that expands to more than N runs (default {DEFAULT_MAX_RUNS})")
+    sweep.add_argument("--workers", type=_workers, default=None, metavar="N",
+                       help="run N runs at once in local worker processes (default 1: one after another; more than "
+                            "the devices or cores prints a warning: timings are affected)")
+    sweep.add_argument("--devices", default=None, metavar="cuda:0,cuda:1",
+                       help="spread the CUDA runs over these GPUs, one worker each (--workers defaults to their number)")
+    sweep.add_argument("--ray", default=None, metavar="auto|ADDRESS",
+                       help="run the runs as Ray tasks on a cluster: auto (the local cluster of 'ray start'), HOST:PORT, "
+                            "ray://HOST:PORT, or local (start one in this process); needs pip install 'warpcloth[cluster]'")
     sweep.add_argument("--quiet", "-q", action="store_true", help="no progress bar on stderr (the closing summary line still prints)")
     _add_verbose(sweep, quiet=False)
     max_dt = sub.add_parser("max-dt", help="find the largest stable time step of an integrator on a scenario")

@@ -10,6 +10,10 @@
   integrator, scenario, mesh and parameters within a sweep, up to one frame (1/frame_rate): a
   real-time run takes at least one step per frame, so a larger dt is never useful here.
 * Progress goes to stderr, never to stdout.
+* Parallel (``workers`` > 1, ``devices``, ``ray``): the runs go to
+  :mod:`warpcloth.lab.parallel` (local ``spawn`` worker processes or Ray tasks); this process
+  stays the only writer of the CSV and writes each row as it arrives. Runs that share a max-dt
+  search (:attr:`RunSpec.search_key`) go to one worker, in order, so the search runs once.
 """
 
 from __future__ import annotations
@@ -17,8 +21,10 @@ from __future__ import annotations
 import csv
 import io
 import json
+import dataclasses
 import math
 import os
+import socket
 import sys
 import time
 from dataclasses import dataclass, field
@@ -38,7 +44,7 @@ COLUMNS = [
     "frames_per_wall_second", "realtime_factor", "realtime", "integration_ms_mean", "other_ms_mean",
     "stable", "unstable_reason", "equilibrium_reached", "time_to_equilibrium_sim", "time_to_equilibrium_wall",
     "max_strain", "wall_cap_reached", "solver_iterations", "solver_converged", "solver_capped_steps", "solver", "error",
-    "warpcloth_version", "warp_version", "key",
+    "host", "worker", "concurrent_runs", "warpcloth_version", "warp_version", "key",
 ]
 
 #: The seed's real-time threshold: 30 frames of 1/30 s per wall second, i.e. real-time factor >= 1.
@@ -409,7 +415,8 @@ class SweepSummary:
 
 
 def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: bool = False, progress=None,
-              max_runs: int | None = None, report=None) -> SweepSummary:
+              max_runs: int | None = None, report=None, workers: int | None = None, devices: list[str] | None = None,
+              ray: str | None = None, max_retries: int = 2) -> SweepSummary:
     """Run every run of a test list and write one CSV row each.
 
     Args:
@@ -421,43 +428,211 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
         max_runs: refuse a test list that expands to more runs (default
             :data:`~warpcloth.testlist.DEFAULT_MAX_RUNS`).
         report: stream for notes about the file that ``--quiet`` must not hide (stale
-            temporaries removed, an incomplete last line dropped); default ``progress``.
+            temporaries removed, an incomplete last line dropped, a worker replaced, the
+            timings warning); default ``progress``.
+        workers: run in this many local worker processes (None or 1 without ``devices``: in
+            this process, one run after another).
+        devices: CUDA devices that the CUDA runs are spread over, one per worker in turn
+            (``workers`` defaults to their number).
+        ray: a Ray address (``auto``, ``HOST:PORT``, ``ray://HOST:PORT``, ``local``): the runs
+            as Ray tasks; excludes ``workers`` and ``devices``.
+        max_retries: times a run whose worker died is started again.
 
     Raises:
-        WarpclothError: a bad test list or output path, before any run.
+        WarpclothError: a bad test list, output path or parallel setting, before any run.
     """
     if isinstance(tests, TestList):
         test_list = tests
     else:
         test_list = parse_test_list(tests) if max_runs is None else parse_test_list(tests, max_runs=max_runs)
     report = progress if report is None else report
-    output = CsvOutput(out, resume=resume, overwrite=overwrite, report=report)
+    plan = ParallelPlan.check(test_list.runs, workers, devices, ray)
+    pool = plan.pool(max_retries, report)  # Ray: connected here, before the file is touched
+    try:
+        output = CsvOutput(out, resume=resume, overwrite=overwrite, report=report)
+    except BaseException:
+        if pool is not None:
+            pool.close()
+        raise
     todo = [r for r in test_list.runs if r.key not in output.done_keys]
     summary = SweepSummary(total=len(test_list.runs), skipped=len(test_list.runs) - len(todo))
     summary.outcomes = {k: 0 for k in OUTCOMES}
     bar = Progress(len(todo), progress)
     if output.truncated and report is not None:
         report.write(output.dropped_note() + "\n")
+    if plan.warning and report is not None:
+        report.write(f"warpcloth: warning: {plan.warning}\n")
     if progress is not None:
         if summary.skipped:
             progress.write(f"resuming {out}: {summary.skipped} of {summary.total} runs already done\n")
         if test_list.duplicates:
             progress.write(f"{test_list.path}: {test_list.duplicates} duplicate runs (same parameters) dropped\n")
-    cache = MaxDtCache(on_trial=lambda t: bar.note(f"max-dt trial dt={t.dt:.4g} s {'stable' if t.stable else 'unstable'}"))
+        if plan.parallel and todo:
+            progress.write(f"running {len(todo)} runs {plan.describe()}\n")
     t0 = time.perf_counter()
+    written: set[str] = set()
+
+    def record(row: dict) -> None:
+        if row["key"] in written:  # a key is written once
+            return
+        output.write(row)
+        written.add(row["key"])
+        summary.written += 1
+        summary.outcomes[row["outcome"]] = summary.outcomes.get(row["outcome"], 0) + 1
+        bar.finished(row)
+
     try:
-        for spec in todo:
-            bar.running(spec.describe())
-            row = execute_run(spec, cache)
-            output.write(row)
-            summary.written += 1
-            summary.outcomes[row["outcome"]] = summary.outcomes.get(row["outcome"], 0) + 1
-            bar.finished(row)
+        if not plan.parallel:
+            host = socket.gethostname()
+            cache = MaxDtCache(on_trial=lambda t: bar.note(f"max-dt trial dt={t.dt:.4g} s {'stable' if t.stable else 'unstable'}"))
+            for spec in todo:
+                bar.running(spec.describe())
+                row = execute_run(spec, cache)
+                row.update(host=host, worker="main", concurrent_runs=1)
+                record(row)
+        elif todo:
+            from .lab.parallel import Job
+
+            jobs = [Job(spec.key, spec, spec.device, spec.search_key if spec.timestep.uses_max else None) for spec in todo]
+            for done in pool.run(jobs):
+                spec = done.job.payload
+                row = done.row
+                if row is None:
+                    row = parameter_row(spec)
+                    row.update(outcome="error", error=" ".join(done.error.split()))
+                if done.place is not None:
+                    row.update(host=done.place.host, worker=done.place.worker)
+                row["concurrent_runs"] = done.concurrent
+                row["key"] = spec.key
+                bar.current = spec.describe()
+                record(row)
     finally:
         bar.close()
+        if pool is not None:
+            pool.close()
         output.close()
         summary.wall_time = time.perf_counter() - t0
     return summary
+
+
+# -- parallel runs ---------------------------------------------------------------------------
+@dataclass
+class ParallelPlan:
+    """How a sweep runs: serially, in local worker processes, or on Ray (validated settings)."""
+
+    workers: int = 1
+    devices: list | None = None
+    ray: str | None = None
+    warning: str = ""
+
+    @property
+    def parallel(self) -> bool:
+        return self.ray is not None or self.workers > 1 or bool(self.devices)
+
+    def describe(self) -> str:
+        if self.ray is not None:
+            return f"as Ray tasks ({self.ray})"
+        on = f" on {','.join(self.devices)}" if self.devices else ""
+        return f"in {self.workers} worker processes{on}"
+
+    def pool(self, max_retries: int = 2, report=None):
+        """The worker pool of a parallel plan (None when serial); a Ray pool is connected, or a
+        WarpclothError says why it could not be."""
+        if not self.parallel:
+            return None
+        from .lab.parallel import LocalPool, RayPool
+
+        def on_event(text: str) -> None:
+            if report is not None:
+                report.write(f"warpcloth: {text}\n")
+                report.flush()
+
+        if self.ray is None:
+            return LocalPool(parallel_run, self.workers, devices=self.devices, init=parallel_init,
+                             max_retries=max_retries, on_event=on_event)
+        pool = RayPool(parallel_run, self.ray, init=parallel_init, max_retries=max_retries, on_event=on_event)
+        try:
+            pool.connect()
+        except ConnectionError as exc:
+            raise WarpclothError(f"--ray {self.ray}: {exc}") from None
+        return pool
+
+    @classmethod
+    def check(cls, runs, workers=None, devices=None, ray=None) -> "ParallelPlan":
+        """Validate the parallel settings against the runs; WarpclothError names the problem."""
+        if ray is not None:
+            if workers is not None or devices:
+                raise WarpclothError("--ray runs the sweep on the cluster's CPUs and GPUs: it takes neither --workers nor --devices")
+            if not str(ray).strip():
+                raise WarpclothError("--ray: give 'auto', 'local' or a cluster address HOST:PORT")
+            try:
+                from .lab.parallel import import_ray
+
+                import_ray()
+            except ImportError as exc:
+                raise WarpclothError(f"--ray needs Ray: {str(exc).split(': ', 1)[1]}") from None
+            return cls(ray=str(ray).strip())
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise WarpclothError(f"--workers must be a whole number >= 1, got {workers!r}")
+        names = None
+        if devices is not None:
+            from .device import device_name
+
+            names = []
+            for d in devices:
+                d = str(d).strip()
+                if not d.startswith("cuda"):
+                    raise WarpclothError(f"--devices: {d!r} is not a CUDA device; --devices lists the GPUs (cuda:0,cuda:1) "
+                                         "that the CUDA runs are spread over")
+                try:
+                    name = device_name(d)
+                except WarpclothError as exc:  # not present: the message names those that are
+                    raise WarpclothError(f"--devices: {exc}") from None
+                if name in names:
+                    raise WarpclothError(f"--devices: {d!r} is given twice")
+                names.append(name)
+            if not names:
+                raise WarpclothError("--devices: give at least one CUDA device, e.g. cuda:0,cuda:1")
+        n = workers if workers is not None else (len(names) if names else 1)
+        plan = cls(workers=n, devices=names)
+        if n > 1:
+            cuda = all(r.device.startswith("cuda") for r in runs) and runs
+            if names:
+                slots, what = len(names), f"the {len(names)} devices of --devices"
+            elif cuda:
+                used = sorted({r.device for r in runs})
+                slots, what = len(used), f"the {len(used)} device(s) of the test list ({', '.join(used)})"
+            else:
+                slots, what = os.cpu_count() or 1, f"the {os.cpu_count() or 1} CPU cores"
+            if n > slots:
+                plan.warning = (f"--workers {n} is more than {what}: runs share a device at once and their timings are "
+                                "affected (see the concurrent_runs column)")
+        return plan
+
+
+_WORKER_CACHE: MaxDtCache | None = None
+
+
+def parallel_init(place) -> None:
+    """Run once in each worker process: Warp initialised quietly."""
+    from .cliparse import init_warp
+
+    init_warp(False)
+
+
+def parallel_run(spec: RunSpec, place) -> dict:
+    """A run in a worker process (``warpcloth.lab.parallel``): a CUDA run moves to the worker's
+    device when it has one (its key stays the test list's, so --resume does not depend on where
+    it ran); max-dt searches are cached per process."""
+    global _WORKER_CACHE
+    if _WORKER_CACHE is None:
+        _WORKER_CACHE = MaxDtCache()
+    key = spec.key
+    if place.device and spec.device.startswith("cuda") and place.device != spec.device:
+        spec = dataclasses.replace(spec, device=place.device)
+    row = execute_run(spec, _WORKER_CACHE)
+    row["key"] = key
+    return row
 
 
 def read_results(path: str) -> list[dict]:
@@ -466,4 +641,5 @@ def read_results(path: str) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
-__all__ = ["COLUMNS", "CsvOutput", "MaxDtCache", "Progress", "SweepSummary", "execute_run", "read_results", "run_sweep"]
+__all__ = ["COLUMNS", "CsvOutput", "MaxDtCache", "ParallelPlan", "Progress", "SweepSummary", "execute_run", "parallel_run",
+           "read_results", "run_sweep"]

@@ -1,0 +1,334 @@
+"""Parallel sweeps (CPU): warpcloth.lab.parallel's local worker pool, sweep --workers, --ray
+(skipped without Ray: pip install -e '.[cluster]'), killed workers and an interrupted driver."""
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+import warpcloth.sweep as sweep
+from warpcloth.cli import main
+from warpcloth.errors import WarpclothError
+from warpcloth.lab.parallel import Job, LocalPool, units_of
+from warpcloth.testlist import parse_test_list
+
+from parallel_toy import toy  # noqa: E402 - a job function the spawned workers import without Warp
+
+# 2 integrators x 2 time steps x 2 scenarios = 8 runs in 4 max-dt search groups
+TINY = """
+<test_list size="6" duration="1" cap="30">
+  <test id="t" integrator="explicit_euler verlet" timestep="max max*0.5" maxdt_duration="0.5"/>
+</test_list>
+"""
+# 8 independent runs of about a second each (a fixed dt: no groups)
+SLOW = """
+<test_list size="8" duration="2" timestep="2e-4" cap="60">
+  <test id="s" integrator="explicit_euler verlet" scenarios="sheet flag" mass="0.2 0.25"/>
+</test_list>
+"""
+#: Columns that depend on the machine, the clock or the placement, not on the run.
+TIMING = {"wall_time", "compile_time", "ms_per_step", "steps_per_sec", "frames_per_wall_second", "realtime_factor",
+          "realtime", "integration_ms_mean", "other_ms_mean", "time_to_equilibrium_wall", "host", "worker",
+          "concurrent_runs", "solver"}
+
+
+def write(tmp_path, text, name="tests.xml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def same_runs(a_rows, b_rows):
+    """Rows keyed by run, with every column but the timings and placement."""
+    a = {r["key"]: {c: v for c, v in r.items() if c not in TIMING} for r in a_rows}
+    b = {r["key"]: {c: v for c, v in r.items() if c not in TIMING} for r in b_rows}
+    return a == b
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("serial")
+    path = write(tmp, TINY)
+    sweep.run_sweep(path, str(tmp / "serial.csv"))
+    rows = sweep.read_results(str(tmp / "serial.csv"))
+    assert len(rows) == 8 and all(r["worker"] == "main" and r["concurrent_runs"] == "1" for r in rows)
+    assert all(r["host"] == socket.gethostname() for r in rows)
+    return path, rows
+
+
+# -- the pool on its own (toy jobs, no Warp) ---------------------------------------------------
+def test_units_keep_groups_together_in_order():
+    jobs = [Job("a", 1, group="g"), Job("b", 2), Job("c", 3, group="g"), Job("d", 4, group="h")]
+    assert [[j.key for j in u.jobs] for u in units_of(jobs)] == [["a", "c"], ["b"], ["d"]]
+
+
+def test_pool_reports_every_job_once_and_groups_share_a_worker():
+    jobs = [Job(f"g{i}", ("ok", i), group="g") for i in range(3)] + [Job(f"j{i}", ("ok", i)) for i in range(4)]
+    jobs.append(Job("bad", ("raise", 7)))
+    done = list(LocalPool(toy, 2).run(jobs))
+    assert sorted(d.job.key for d in done) == sorted(j.key for j in jobs)
+    by_key = {d.job.key: d for d in done}
+    assert by_key["bad"].row is None and by_key["bad"].error == "ValueError: bad payload 7"
+    group = [by_key[f"g{i}"] for i in range(3)]
+    assert len({d.row["pid"] for d in group}) == 1  # one worker ran the whole group
+    assert [d.job.key for d in done if d.job.key.startswith("g")] == ["g0", "g1", "g2"]  # in order
+    assert os.getpid() not in {d.row["pid"] for d in done if d.row}  # run in the workers
+    assert all(1 <= d.concurrent <= 2 and d.attempts == 1 for d in done)
+
+
+def test_concurrent_counts_jobs_running_at_once(tmp_path):
+    folder = str(tmp_path)
+    jobs = [Job("a", ("barrier", (folder, "a", "b"))), Job("b", ("barrier", (folder, "b", "a")))]
+    done = list(LocalPool(toy, 2).run(jobs))
+    assert all(d.error == "" for d in done), [d.error for d in done]
+    assert [d.concurrent for d in done] == [2, 2]  # neither could finish before the other started
+
+
+def test_a_worker_killed_mid_job_is_replaced_and_its_unfinished_jobs_run_again(tmp_path):
+    marker = str(tmp_path / "died")
+    jobs = [Job("a", ("ok", "a"), group="g"), Job("b", ("die_once", marker), group="g"), Job("c", ("ok", "c"), group="g"),
+            Job("d", ("ok", "d"))]
+    events = []
+    done = list(LocalPool(toy, 2, on_event=events.append).run(jobs))
+    assert sorted(d.job.key for d in done) == ["a", "b", "c", "d"]  # a reported once, before the kill
+    by_key = {d.job.key: d for d in done}
+    assert by_key["b"].row["value"] == marker and by_key["b"].attempts == 2
+    assert by_key["a"].attempts == 1 and by_key["a"].row["pid"] != by_key["b"].row["pid"]
+    assert len(events) == 1 and "died (killed by signal 9); 2 unfinished run(s) run again" in events[0]
+
+
+def test_a_job_that_always_kills_its_worker_is_given_up():
+    events = []
+    done = list(LocalPool(toy, 1, max_retries=1, on_event=events.append).run([Job("x", ("die", 0)), Job("y", ("ok", 1))]))
+    by_key = {d.job.key: d for d in done}
+    assert by_key["x"].row is None and "died 2 times" in by_key["x"].error
+    assert by_key["y"].row["value"] == 1
+    assert len(events) == 2 and "given up after 2 attempts" in events[1]
+
+
+# -- sweep --workers ---------------------------------------------------------------------------
+def test_workers_2_gives_the_serial_rows(serial, tmp_path, monkeypatch, capsys):
+    path, rows = serial
+    monkeypatch.setattr(os, "cpu_count", lambda: 1)  # 2 workers on "1 core": the warning
+    out = tmp_path / "p.csv"
+    assert main(["sweep", path, "--out", str(out), "--workers", "2"]) == 0
+    err = capsys.readouterr().err
+    assert "warpcloth: warning: --workers 2 is more than the 1 CPU cores" in err
+    assert "running 8 runs in 2 worker processes" in err
+    par = sweep.read_results(str(out))
+    assert len(par) == 8 and len({r["key"] for r in par}) == 8
+    assert same_runs(rows, par)
+    assert {r["worker"] for r in par} <= {"local:1", "local:2"} and all(r["host"] == socket.gethostname() for r in par)
+    assert {r["concurrent_runs"] for r in par} <= {"1", "2"}
+    # the runs of one max-dt search ran on one worker
+    by_search = {}
+    for spec in parse_test_list(path).runs:
+        by_search.setdefault(spec.search_key, set()).add(next(r["worker"] for r in par if r["key"] == spec.key))
+    assert all(len(w) == 1 for w in by_search.values())
+
+
+def _children(pid):
+    """Spawned worker processes of ``pid`` (not its resource tracker)."""
+    kids = []
+    for task in os.listdir(f"/proc/{pid}/task"):
+        try:
+            kids += [int(k) for k in open(f"/proc/{pid}/task/{task}/children").read().split()]
+        except OSError:
+            pass
+    found = []
+    for k in kids:
+        try:
+            if b"spawn_main" in open(f"/proc/{k}/cmdline", "rb").read():
+                found.append(k)
+        except OSError:
+            pass
+    return found
+
+
+def _alive(pid):
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def _wait_rows(out, proc, n, timeout=180):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        if out.exists() and len(out.read_text().splitlines()) >= n + 1:
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"no {n} rows in {out} (sweep exit status {proc.poll()})")
+
+
+def test_a_killed_worker_loses_and_duplicates_nothing(tmp_path):
+    path = write(tmp_path, SLOW)
+    expected = sorted(r.key for r in parse_test_list(path).runs)
+    out = tmp_path / "r.csv"
+    proc = subprocess.Popen([sys.executable, "-m", "warpcloth", "sweep", path, "--out", str(out), "--workers", "2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_rows(out, proc, 1)
+        workers = _children(proc.pid)
+        assert len(workers) == 2, workers
+        os.kill(workers[0], signal.SIGKILL)  # mid-run: 7 runs are left for 2 workers
+        stdout, stderr = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, stderr
+    assert f"(pid {workers[0]}) died (killed by signal 9)" in stderr
+    assert "8 runs written" in stdout
+    keys = [r["key"] for r in sweep.read_results(str(out))]
+    assert sorted(keys) == expected  # nothing lost, nothing twice
+
+
+def test_an_interrupted_parallel_sweep_resumes(tmp_path, capsys):
+    path = write(tmp_path, SLOW)
+    expected = sorted(r.key for r in parse_test_list(path).runs)
+    out = tmp_path / "r.csv"
+    proc = subprocess.Popen([sys.executable, "-m", "warpcloth", "sweep", path, "--out", str(out), "--workers", "2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_rows(out, proc, 2)
+        workers = _children(proc.pid)
+        os.kill(proc.pid, signal.SIGINT)  # the driver only, as `kill -INT`
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, stderr
+    assert "warpcloth: interrupted; finished runs are in" in stderr
+    assert workers and not any(_alive(w) for w in workers)  # no worker outlives the driver
+    first = [r["key"] for r in sweep.read_results(str(out))]
+    assert 2 <= len(first) < 8 and len(set(first)) == len(first)
+
+    assert main(["sweep", path, "--out", str(out), "--resume", "--workers", "2", "--quiet"]) == 0
+    assert f"{8 - len(first)} runs written" in capsys.readouterr().out
+    keys = [r["key"] for r in sweep.read_results(str(out))]
+    assert sorted(keys) == expected and keys[:len(first)] == first
+
+
+# -- bad input ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("args, message", [
+    (["--workers", "0"], "argument --workers: must be at least 1, got 0"),
+    (["--workers", "two"], "argument --workers: 'two' is not a whole number >= 1"),
+    (["--workers", "2", "--ray", "auto"], "--ray runs the sweep on the cluster's CPUs and GPUs: it takes neither --workers nor --devices"),
+    (["--devices", "cuda:0", "--ray", "auto"], "it takes neither --workers nor --devices"),
+    (["--devices", "cpu"], "--devices: 'cpu' is not a CUDA device"),
+    (["--devices", "cuda:7"], "--devices: device 'cuda:7' is not available") if not __import__("warp").is_cuda_available()
+    else (["--devices", "cuda:77"], "device 'cuda:77' is not available"),
+    (["--devices", "cuda:0,,cuda:1"], "is not a comma-separated list of CUDA devices"),
+])
+def test_bad_parallel_flags_are_one_line_exit_2(tmp_path, monkeypatch, capsys, args, message):
+    path = write(tmp_path, TINY)
+    monkeypatch.setattr(sweep, "execute_run", lambda *a: pytest.fail("a run started"))
+    out = tmp_path / "r.csv"
+    try:
+        code = main(["sweep", path, "--out", str(out), *args])
+    except SystemExit as exc:  # argparse's own checks
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("warpcloth: error: ") and message in err, err
+    assert not out.exists()
+
+
+def test_ray_without_ray_says_how_to_install_it(tmp_path, monkeypatch, capsys):
+    path = write(tmp_path, TINY)
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray raises ImportError
+    assert main(["sweep", path, "--out", str(tmp_path / "r.csv"), "--ray", "auto"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("warpcloth: error: --ray needs Ray: pip install 'warpcloth[cluster]' "
+                   "(from a clone: pip install -e '.[cluster]')\n")
+
+
+def test_plan_warns_only_above_the_device_count(monkeypatch):
+    monkeypatch.setattr(os, "cpu_count", lambda: 4)
+    cpu_runs = [type("R", (), {"device": "cpu"})()]
+    assert sweep.ParallelPlan.check(cpu_runs, 4).warning == ""
+    assert "more than the 4 CPU cores" in sweep.ParallelPlan.check(cpu_runs, 5).warning
+    cuda_runs = [type("R", (), {"device": "cuda:0"})()]
+    assert "more than the 1 device(s) of the test list (cuda:0)" in sweep.ParallelPlan.check(cuda_runs, 2).warning
+    assert not sweep.ParallelPlan.check(cpu_runs, None).parallel
+    with pytest.raises(WarpclothError, match="--workers must be a whole number >= 1"):
+        sweep.ParallelPlan.check(cpu_runs, 0)
+
+
+# -- Ray ---------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def ray_cluster():
+    ray = pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[cluster]')")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        yield ray
+    finally:
+        ray.shutdown()
+
+
+def test_ray_gives_the_serial_rows(serial, ray_cluster, tmp_path, capsys):
+    path, rows = serial
+    out = tmp_path / "ray.csv"
+    assert main(["sweep", path, "--out", str(out), "--ray", "auto"]) == 0
+    assert "running 8 runs as Ray tasks (auto)" in capsys.readouterr().err
+    par = sweep.read_results(str(out))
+    assert len(par) == 8 and len({r["key"] for r in par}) == 8
+    assert same_runs(rows, par)
+    assert all(r["worker"].startswith("ray:") and r["host"] == socket.gethostname() for r in par)
+    assert {r["concurrent_runs"] for r in par} <= {"1", "2"}
+
+
+def _ray_task_pids():
+    pids = []
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                if open(f"/proc/{d}/cmdline", "rb").read().startswith(b"ray::_ray_unit"):
+                    pids.append(int(d))
+            except OSError:
+                pass
+    return pids
+
+
+def test_ray_killed_worker_loses_and_duplicates_nothing(serial, ray_cluster, tmp_path):
+    path, rows = serial
+    out = tmp_path / "ray.csv"
+    result = {}
+    thread = threading.Thread(target=lambda: result.setdefault("rc", main(["sweep", path, "--out", str(out), "--ray", "auto", "--quiet"])))
+    thread.start()
+    killed = None
+    deadline = time.monotonic() + 120
+    while killed is None and time.monotonic() < deadline and thread.is_alive():
+        pids = _ray_task_pids()
+        if pids:
+            killed = pids[0]
+            os.kill(killed, signal.SIGKILL)
+        time.sleep(0.05)
+    thread.join(timeout=300)
+    assert killed is not None, "no Ray task was seen running"
+    assert result.get("rc") == 0
+    par = sweep.read_results(str(out))
+    assert len(par) == 8 and len({r["key"] for r in par}) == 8  # retried by Ray, written once
+    assert same_runs(rows, par)
+    assert f"ray:{killed}" not in {r["worker"].split(":gpu")[0] for r in par}
+
+
+def test_a_worker_device_moves_cuda_runs_only_and_keeps_the_key(tmp_path, monkeypatch):
+    from warpcloth.lab.parallel import Place
+
+    path = write(tmp_path, TINY)
+    spec = parse_test_list(path).runs[0]
+    seen = []
+    monkeypatch.setattr(sweep, "execute_run", lambda s, cache: seen.append(s.device) or {"key": s.key, "device": s.device})
+    monkeypatch.setattr(sweep, "_WORKER_CACHE", None)
+    cuda = __import__("dataclasses").replace(spec, device="cuda:0")  # as parsed on a GPU machine
+    row = sweep.parallel_run(cuda, Place("h", "local:2", "cuda:1"))
+    assert seen == ["cuda:1"] and row["device"] == "cuda:1" and row["key"] == cuda.key
+    row = sweep.parallel_run(spec, Place("h", "local:2", "cuda:1"))  # a CPU run stays on the CPU
+    assert seen[-1] == "cpu" and row["key"] == spec.key
