@@ -156,6 +156,104 @@ def eval_system_diagonal(
     inv_diag[i] = inverse_diagonal(diag)
 
 
+@wp.func
+def inverse_block(a: wp.mat33):
+    # the block-Jacobi preconditioner of one row block: A_ii^-1 (SPD, so det > 0)
+    det = wp.determinant(a)
+    if det <= 0.0:
+        return wp.identity(n=3, dtype=float)
+    return wp.inverse(a)
+
+
+@wp.kernel
+def eval_inverse_diagonal_blocks(
+    adjacency_offsets: wp.array(dtype=int),
+    adjacency_spring: wp.array(dtype=int),
+    spring_B: wp.array(dtype=wp.mat33),
+    particle_mass: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    drag_rate: float,
+    h: float,
+    inv_block: wp.array(dtype=wp.mat33),
+):
+    # block Jacobi: inv_block_i = (m (1 + h c) I + sum_s B_s)^-1;  pinned: I
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        inv_block[i] = wp.identity(n=3, dtype=float)
+        return
+    diag = (particle_mass[i] * (1.0 + h * drag_rate)) * wp.identity(n=3, dtype=float)
+    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
+        diag = diag + spring_B[adjacency_spring[a]]
+    inv_block[i] = inverse_block(diag)
+
+
+@wp.kernel
+def apply_block_diagonal(
+    x: wp.array(dtype=wp.vec3),
+    y: wp.array(dtype=wp.vec3),
+    blocks: wp.array(dtype=wp.mat33),
+    alpha: float,
+    beta: float,
+    z: wp.array(dtype=wp.vec3),
+):
+    # z = alpha P x + beta y, P block diagonal (block Jacobi: P_ii = A_ii^-1)
+    i = wp.tid()
+    out = alpha * (blocks[i] * x[i])
+    if beta != 0.0:
+        out = out + beta * y[i]
+    z[i] = out
+
+
+@wp.kernel
+def invert_blocks(blocks: wp.array(dtype=wp.mat33), inverse: wp.array(dtype=wp.mat33)):
+    # inverse_i = blocks_i^-1 (I where singular): the block-Jacobi smoother of a multigrid level
+    i = wp.tid()
+    inverse[i] = inverse_block(blocks[i])
+
+
+@wp.kernel
+def smooth_jacobi(
+    residual: wp.array(dtype=wp.vec3),
+    inv_block: wp.array(dtype=wp.mat33),
+    omega: float,
+    from_zero: int,
+    x: wp.array(dtype=wp.vec3),
+):
+    # damped block Jacobi: x <- x + omega D^-1 (b - A x)  (residual = b - A x given; from_zero: x = 0 before)
+    i = wp.tid()
+    step = omega * (inv_block[i] * residual[i])
+    if from_zero != 0:
+        x[i] = step
+    else:
+        x[i] = x[i] + step
+
+
+@wp.kernel
+def scale_add(x: wp.array(dtype=wp.vec3), y: wp.array(dtype=wp.vec3), alpha: float, beta: float, z: wp.array(dtype=wp.vec3)):
+    # z = alpha x + beta y
+    i = wp.tid()
+    out = alpha * x[i]
+    if beta != 0.0:
+        out = out + beta * y[i]
+    z[i] = out
+
+
+@wp.kernel
+def galerkin_product(
+    term_offsets: wp.array(dtype=int),
+    term_source: wp.array(dtype=int),
+    term_weight: wp.array(dtype=float),
+    fine_values: wp.array(dtype=wp.mat33),
+    coarse_values: wp.array(dtype=wp.mat33),
+):
+    # (P^T A P)_IJ = sum_(f, g) P_fI A_fg P_gJ: a gather over a fixed list of (fine block, P_fI P_gJ)
+    c = wp.tid()
+    acc = wp.mat33(0.0)
+    for t in range(term_offsets[c], term_offsets[c + 1]):
+        acc = acc + term_weight[t] * fine_values[term_source[t]]
+    coarse_values[c] = acc
+
+
 @wp.kernel
 def eval_rhs(
     f: wp.array(dtype=wp.vec3),

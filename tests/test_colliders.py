@@ -12,7 +12,7 @@ from warpcloth.model import SpringParams, SpringType, build_model
 
 G = 9.81
 FREE = {t: SpringParams(0.0, 0.0) for t in SpringType}
-INTEGRATORS = ["explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd"]
+INTEGRATORS = ["explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd", "vbd", "projective"]
 
 
 def particles(positions):

@@ -31,7 +31,7 @@ def ulp32(x):
     return np.spacing(np.abs(np.asarray(x, dtype=np.float32))).astype(np.float64)
 
 
-INTEGRATOR_DT = {"explicit_euler": 2e-4, "midpoint": 2e-4, "rk4": 2e-4, "verlet": 2e-4, "implicit_euler": 1e-3, "pbd": 1e-3, "xpbd": 1e-3}
+INTEGRATOR_DT = {"explicit_euler": 2e-4, "midpoint": 2e-4, "rk4": 2e-4, "verlet": 2e-4, "implicit_euler": 1e-3, "pbd": 1e-3, "xpbd": 1e-3, "vbd": 1e-3, "projective": 1e-3}
 
 
 @pytest.mark.parametrize("integrator", integrator_names())

@@ -11,8 +11,10 @@ from .explicit_euler import ExplicitEuler
 from .implicit_euler import ImplicitEuler
 from .midpoint import Midpoint
 from .pbd import PBD
+from .projective import Projective
 from .rk4 import RK4
 from .verlet import Verlet
+from .vbd import VBD
 from .xpbd import XPBD
 from ..errors import WarpclothError
 
@@ -25,7 +27,7 @@ def register(cls: type[Integrator]) -> type[Integrator]:
     return cls
 
 
-for _cls in (ExplicitEuler, Midpoint, RK4, Verlet, ImplicitEuler, PBD, XPBD):
+for _cls in (ExplicitEuler, Midpoint, RK4, Verlet, ImplicitEuler, PBD, XPBD, VBD, Projective):
     register(_cls)
 
 

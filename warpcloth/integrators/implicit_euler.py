@@ -21,6 +21,17 @@ CPU, ranges and an earlier run in bench/results/: ``python bench/implicit.py --s
 ``preconditioner(A, "diag")`` builds, refilled in place), warm-started from the previous dv.
 Pinned particles have identity rows and zero columns (dv = 0).
 
+Preconditioners (``preconditioner``): ``jacobi`` (1 / diag A, the default), ``block_jacobi``
+(A's inverse 3 x 3 diagonal blocks; on the sheet, whose blocks are nearly diagonal, it takes as
+many iterations as Jacobi, and fewer where the blocks couple the axes: tests/test_preconditioner.py)
+and ``multigrid`` (a geometric V-cycle for grid models, :mod:`warpcloth.integrators.multigrid`:
+CG iterations nearly independent of the sheet size, 13-14 at 128^2 where Jacobi takes ~300;
+docs/solvers.md). Multigrid assembles A as BSR for its Galerkin products; a model that is not a
+grid falls back to block_jacobi with a note on stderr. The default stays ``jacobi``: multigrid
+took 1/2.8 [1/3.3-1/2.8] of Jacobi's time per step at 128^2 on the CPU, but at 32^2 it is no
+faster (jacobi / multigrid 0.96 [0.80-1.00]; bench/results/solvers-cpu.txt and
+solvers-cpu-32.txt; docs/solvers.md).
+
 Statistics: on CUDA, cg checks convergence on the device (``check_every=0``, a conditional graph
 node) and a kernel accumulates iterations, residuals and the count of steps that ended at the
 iteration cap above the tolerance, so a step never syncs with the host; :meth:`ImplicitEuler.stats`
@@ -31,6 +42,8 @@ once (:meth:`ImplicitEuler.convergence`).
 """
 
 from __future__ import annotations
+
+import sys
 
 import numpy as np
 import warp as wp
@@ -43,9 +56,11 @@ from ..forces import eval_forces
 from ..pins import has_pin_tracks
 from warpcloth.kernels import pins as pk
 from .base import Integrator, Option, scratch_like
+from .multigrid import GridMultigrid, grid_structure_reason
 
 JACOBIANS = ("full", "approx")
 MATRICES = ("free", "bsr")
+PRECONDITIONERS = ("jacobi", "block_jacobi", "multigrid")
 
 
 def _check_tol(value: float):
@@ -71,6 +86,12 @@ class ImplicitEuler(Integrator):
         Option("cg_tol", float, 1.0e-3, "CG relative residual tolerance |b - A dv| / |b|", _check_tol),
         Option("cg_max_iter", int, 1000, "CG iteration cap per step", _check_max_iter),
         Option("jacobian", str, "full", "spring Jacobian: full (exact, refilled each step) or approx (seed eq. 2.23, constant)", choices=JACOBIANS),
+        Option(
+            "preconditioner", str, "jacobi",
+            "CG preconditioner: jacobi (1 / diag A), block_jacobi (the inverse 3 x 3 diagonal blocks of A) or multigrid "
+            "(geometric V-cycle on grid models; assembles A as BSR; other models fall back to block_jacobi with a note on stderr)",
+            choices=PRECONDITIONERS,
+        ),
         Option("matrix", str, "free", "system matrix: free (matrix-free LinearOperator; faster on the CPU, see bench/implicit.py) or bsr (assembled warp.sparse BSR)", choices=MATRICES),
     )
 
@@ -87,8 +108,16 @@ class ImplicitEuler(Integrator):
         self.spring_B = wp.zeros(model.spring_count, dtype=wp.mat33)
         self.mass_term = wp.zeros(n, dtype=float)
         self.pin_dv = wp.zeros(n, dtype=wp.vec3)  # prescribed dv of kinematic pins (0 elsewhere)
+        self.preconditioner_used = self.preconditioner
+        if self.preconditioner == "multigrid":
+            reason = grid_structure_reason(model)
+            if reason:
+                print(f"note: implicit_euler: multigrid needs a grid model ({reason}); using block_jacobi", file=sys.stderr)
+                self.preconditioner_used = "block_jacobi"
+        # the multigrid's Galerkin products need A assembled (BSR); CG still applies A as ``matrix`` says
+        self._bsr = self.matrix == "bsr" or self.preconditioner_used == "multigrid"
 
-        if self.matrix == "bsr":
+        if self._bsr:
             # pattern: diagonal blocks + (i, j) and (j, i) per spring, built once
             rows = np.concatenate([np.arange(n), pairs[:, 0], pairs[:, 1]]).astype(np.int32)
             cols = np.concatenate([np.arange(n), pairs[:, 1], pairs[:, 0]]).astype(np.int32)
@@ -114,14 +143,22 @@ class ImplicitEuler(Integrator):
         self.adjacency_offsets = wp.array(adjacency_offsets, dtype=int)
         self.adjacency_spring = wp.array(springs[order].astype(np.int32), dtype=int)
         self.adjacency_other = wp.array(others[order].astype(np.int32), dtype=int)
-        if self.matrix == "bsr":  # where each adjacency entry and each diagonal block sits in A.values
+        if self._bsr:  # where each adjacency entry and each diagonal block sits in A.values
             self.adjacency_block = wp.array(block_of(ends[order], others[order]), dtype=int)
             self.row_offsets = wp.array(offsets.astype(np.int32), dtype=int)
             self.diag_block = wp.array(block_of(np.arange(n), np.arange(n)), dtype=int)
 
         # Jacobi preconditioner: the same operator as preconditioner(A, "diag"), but its inverse
         # diagonal is refilled by the assembly kernel instead of being reallocated each step
-        self.M = aslinearoperator(self.inv_diag)
+        if self.preconditioner_used == "multigrid":
+            free_residual = (lambda x, b, r: self._matvec(x, b, r, -1.0, 1.0)) if self.matrix == "free" else None
+            self.multigrid = GridMultigrid(self.A, model.rows, model.cols, model.pinned, device, fine_residual=free_residual)
+            self.M = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self.multigrid.apply)
+        elif self.preconditioner_used == "block_jacobi":
+            self.inv_block = wp.zeros(n, dtype=wp.mat33)
+            self.M = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._apply_block_jacobi)
+        else:
+            self.M = aslinearoperator(self.inv_diag)
         self._assembled_for = None
         # device-side convergence needs conditional graph nodes (CUDA driver and toolkit 12.4+)
         is_cuda = wp.get_device(device).is_cuda
@@ -181,17 +218,25 @@ class ImplicitEuler(Integrator):
         else:
             wp.launch(ik.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
             self._assembled_for = (h, drag)
-        if self.matrix == "bsr":
+        if self._bsr:
             wp.launch(
                 ik.assemble_system_rows, dim=m.particle_count,
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.adjacency_block, self.row_offsets, self.diag_block, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.A.values, self.inv_diag], device=m.device,
             )
-        else:
+        if self.matrix == "free":
             wp.launch(
                 ik.eval_system_diagonal, dim=m.particle_count,
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.mass_term, self.inv_diag], device=m.device,
+            )
+        if self.preconditioner_used == "multigrid":
+            self.multigrid.update()
+        elif self.preconditioner_used == "block_jacobi":
+            wp.launch(
+                ik.eval_inverse_diagonal_blocks, dim=m.particle_count,
+                inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
+                outputs=[self.inv_block], device=m.device,
             )
 
     def _matvec(self, x, y, z, alpha, beta) -> None:
@@ -202,6 +247,11 @@ class ImplicitEuler(Integrator):
             inputs=[x, y, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, self.mass_term, m.particle_inv_mass, float(alpha), float(beta)],
             outputs=[z], device=m.device,
         )
+
+    def _apply_block_jacobi(self, x, y, z, alpha, beta) -> None:
+        """z = alpha P x + beta y with P = blockdiag(A_ii^-1) (the block-Jacobi LinearOperator)."""
+        m = self.model
+        wp.launch(ik.apply_block_diagonal, dim=m.particle_count, inputs=[x, y, self.inv_block, float(alpha), float(beta)], outputs=[z], device=m.device)
 
     def _solve(self) -> None:
         """dv = A^-1 b by Jacobi-preconditioned CG from the previous dv; records iterations and

@@ -1,0 +1,206 @@
+"""Projective dynamics, Liu, Bargteil, O'Brien & Kavan 2013 ("Fast simulation of mass-spring
+systems"), solved for the increment dx = x_new - x.
+
+Local step: each spring s = (i, j) is projected to its rest length, d_s = L0 e / |e| with
+e = x_j - x_i + dx_j - dx_i. Global step: with S = M + h D + h^2 L (L = sum_s ks A_s^T A_s and
+D = sum_s kd A_s^T A_s, scalar graph Laplacians, constant for fixed h and topology; the same for
+x, y and z), one local-global iteration solves S delta = r and sets dx += delta, with
+
+    r_i = m_i (dy_i - dx_i) + h^2 sum_s ks (|e| - L0) n - h sum_s kd (dx_i - dx_j),
+
+the residual of S dx_new = M dy + h^2 (J d - L x) - h D 0 at the current dx (the gradient of
+the PD objective; solving for delta from 0 is PCG warm-started at the previous dx). Pinned
+particles have identity rows and zero columns (their dx is 0). The solve is Jacobi-preconditioned
+CG with a fixed number of iterations: scalars (r.z, p.Ap) live in device arrays, one per
+iteration, so a step never reads back to the host. Dot products are reduced in a fixed order
+(per-particle terms, sums over fixed chunks, then the chunks' sum by one thread), not with
+atomics, so results are bit-identical run to run and between launches and graph replay on CUDA
+too.
+"""
+
+import warp as wp
+
+# forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.func
+def spring_projection_force(e: wp.vec3, rest: float, ks: float):
+    # ks (e - d), d = L0 e / |e| (the spring projected to its rest length) = ks (|e| - L0) n
+    length = wp.length(e)
+    if length == 0.0:
+        return wp.vec3(0.0)
+    return ks * (length - rest) / length * e
+
+
+@wp.kernel
+def assemble_global_matrix(
+    adjacency_offsets: wp.array(dtype=int),
+    adjacency_spring: wp.array(dtype=int),
+    adjacency_other: wp.array(dtype=int),
+    spring_stiffness: wp.array(dtype=float),
+    spring_damping: wp.array(dtype=float),
+    particle_mass: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    h: float,
+    values: wp.array(dtype=float),
+    inv_diag: wp.array(dtype=float),
+):
+    # row i of S = M + h D + h^2 L (CSR: diagonal first, then one entry per adjacent spring):
+    # S_ii = m_i + sum_s w_s, S_ij = -w_s, w_s = h^2 ks + h kd;  pinned: identity row, zero column
+    i = wp.tid()
+    row = i + adjacency_offsets[i]
+    if particle_inv_mass[i] == 0.0:
+        values[row] = 1.0
+        for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
+            values[row + 1 + a - adjacency_offsets[i]] = 0.0
+        inv_diag[i] = 1.0
+        return
+    diag = particle_mass[i]
+    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
+        s = adjacency_spring[a]
+        w = h * h * spring_stiffness[s] + h * spring_damping[s]
+        diag = diag + w
+        off = -w
+        if particle_inv_mass[adjacency_other[a]] == 0.0:
+            off = 0.0
+        values[row + 1 + a - adjacency_offsets[i]] = off
+    values[row] = diag
+    inv_diag[i] = 1.0 / diag
+
+
+@wp.kernel
+def predict_increment(
+    v: wp.array(dtype=wp.vec3),
+    f_ext: wp.array(dtype=wp.vec3),
+    particle_inv_mass: wp.array(dtype=float),
+    h: float,
+    dy: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+):
+    # dy = h v + h^2 f_ext / m (y - x);  dx = h v (initial guess x + h v);  pinned: 0
+    i = wp.tid()
+    w = particle_inv_mass[i]
+    if w == 0.0:
+        dy[i] = wp.vec3(0.0)
+        dx[i] = wp.vec3(0.0)
+        return
+    dy[i] = h * v[i] + (h * h * w) * f_ext[i]
+    dx[i] = h * v[i]
+
+
+@wp.kernel
+def eval_local_residual(
+    x: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    dy: wp.array(dtype=wp.vec3),
+    particle_mass: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    adjacency_offsets: wp.array(dtype=int),
+    adjacency_spring: wp.array(dtype=int),
+    adjacency_other: wp.array(dtype=int),
+    spring_rest_length: wp.array(dtype=float),
+    spring_stiffness: wp.array(dtype=float),
+    spring_damping: wp.array(dtype=float),
+    inv_diag: wp.array(dtype=float),
+    h: float,
+    r: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
+    p: wp.array(dtype=wp.vec3),
+    dot_terms: wp.array(dtype=float),
+):
+    # local step + residual (module docstring); CG start: z = P^-1 r, p = z, dot_terms = r.z
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        r[i] = wp.vec3(0.0)
+        z[i] = wp.vec3(0.0)
+        p[i] = wp.vec3(0.0)
+        dot_terms[i] = 0.0
+        return
+    xi = x[i]
+    dxi = dx[i]
+    res = particle_mass[i] * (dy[i] - dxi)
+    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
+        s = adjacency_spring[a]
+        j = adjacency_other[a]
+        ddx = dx[j] - dxi
+        res = res + (h * h) * spring_projection_force((x[j] - xi) + ddx, spring_rest_length[s], spring_stiffness[s])
+        res = res + (h * spring_damping[s]) * ddx
+    zi = inv_diag[i] * res
+    r[i] = res
+    z[i] = zi
+    p[i] = zi
+    dot_terms[i] = wp.dot(res, zi)
+
+
+@wp.kernel
+def csr_matvec_dot(
+    row_offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    values: wp.array(dtype=float),
+    p: wp.array(dtype=wp.vec3),
+    Ap: wp.array(dtype=wp.vec3),
+    dot_terms: wp.array(dtype=float),
+):
+    # Ap = S p (scalar CSR on vec3: the same matrix for x, y and z);  dot_terms = p.Ap
+    i = wp.tid()
+    acc = wp.vec3(0.0)
+    for e in range(row_offsets[i], row_offsets[i + 1]):
+        acc = acc + values[e] * p[columns[e]]
+    Ap[i] = acc
+    dot_terms[i] = wp.dot(p[i], acc)
+
+
+@wp.kernel
+def cg_update_solution(
+    p: wp.array(dtype=wp.vec3),
+    Ap: wp.array(dtype=wp.vec3),
+    inv_diag: wp.array(dtype=float),
+    rz: wp.array(dtype=float),
+    pAp: wp.array(dtype=float),
+    k: int,
+    dx: wp.array(dtype=wp.vec3),
+    r: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
+    dot_terms: wp.array(dtype=float),
+):
+    # alpha = r.z / p.Ap ;  dx += alpha p ;  r -= alpha Ap ;  z = P^-1 r ;  dot_terms = r.z (new)
+    i = wp.tid()
+    alpha = float(0.0)
+    if pAp[k] > 0.0:
+        alpha = rz[k] / pAp[k]
+    dx[i] = dx[i] + alpha * p[i]
+    ri = r[i] - alpha * Ap[i]
+    zi = inv_diag[i] * ri
+    r[i] = ri
+    z[i] = zi
+    dot_terms[i] = wp.dot(ri, zi)
+
+
+@wp.kernel
+def cg_update_direction(z: wp.array(dtype=wp.vec3), rz: wp.array(dtype=float), k: int, p: wp.array(dtype=wp.vec3)):
+    # beta = r.z (new) / r.z (old) ;  p = z + beta p
+    i = wp.tid()
+    beta = float(0.0)
+    if rz[k] > 0.0:
+        beta = rz[k + 1] / rz[k]
+    p[i] = z[i] + beta * p[i]
+
+
+@wp.kernel
+def sum_chunks(terms: wp.array(dtype=float), chunk: int, count: int, partial: wp.array(dtype=float)):
+    # partial[c] = sum of terms[c chunk : (c + 1) chunk], in index order
+    c = wp.tid()
+    acc = float(0.0)
+    for i in range(c * chunk, wp.min((c + 1) * chunk, count)):
+        acc = acc + terms[i]
+    partial[c] = acc
+
+
+@wp.kernel
+def sum_partials(partial: wp.array(dtype=float), k: int, out: wp.array(dtype=float)):
+    # out[k] = sum of the chunk sums, in order (one thread)
+    acc = float(0.0)
+    for c in range(partial.shape[0]):
+        acc = acc + partial[c]
+    out[k] = acc

@@ -1,0 +1,141 @@
+"""Vertex Block Descent (Chen, Liu, Yang & Yuksel, SIGGRAPH 2024) on the mass-spring energy.
+
+A time step minimises the incremental potential over the displacement dx = x_new - x
+
+    G(dx) = sum_i m_i / (2 h^2) |dx_i - dy_i|^2 + sum_s E_s(x + dx),   dy = h v + h^2 f_ext / m,
+
+E_s = ks (L - L0)^2 / 2 per spring. Vertex i's local Newton step (its neighbours fixed) is
+
+    dx_i <- dx_i - H_i^-1 g_i,
+    g_i = m_i / h^2 (dx_i - dy_i) - sum_s [ ks (L - L0) n + kd / h n n^T (dx_j - dx_i) ],
+    H_i = m_i / h^2 I + sum_s [ K_s + kd / h n n^T ],
+
+with n = (x_j + dx_j - x_i - dx_i) / L, K_s the spring Hessian with the compression clamp of
+:func:`warpcloth.kernels.implicit.spring_stiffness_block` (positive semi-definite, so H_i is SPD),
+and the spring's damping force kd ((v_j - v_i) . n) n taken implicitly with v = dx / h (the
+paper's damping term kd / h H in the gradient and Hessian, here along the spring as in the
+force-based integrators). Vertices of one colour share no spring: one launch per colour is a
+Gauss-Seidel sweep. Positions are carried as the increment dx: the kernels form
+x_j - x_i and dx_j - dx_i apart, never x + dx.
+"""
+
+import warp as wp
+
+from .implicit import spring_stiffness_block
+
+# forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.func
+def spring_gradient_hessian(xij: wp.vec3, dxij: wp.vec3, rest: float, ks: float, kd: float, h: float):
+    # force on i from spring (i, j): f = ks (L - L0) n + kd / h (n.(dx_j - dx_i)) n ;
+    # its Hessian block w.r.t. x_i: K (clamped) + kd / h n n^T   (d = x_j - x_i + dx_j - dx_i)
+    d = xij + dxij
+    length = wp.length(d)
+    if length == 0.0:
+        return wp.vec3(0.0), wp.mat33(0.0)
+    n = d / length
+    nnt = wp.outer(n, n)
+    force = ks * (length - rest) * n + (kd / h) * wp.dot(n, dxij) * n
+    hessian = spring_stiffness_block(wp.vec3(0.0), d, rest, ks) + (kd / h) * nnt
+    return force, hessian
+
+
+@wp.func
+def newton_increment(g: wp.vec3, H: wp.mat33):
+    # -H^-1 g, or 0 where H is singular
+    det = wp.determinant(H)
+    if wp.abs(det) < 1.0e-30:
+        return wp.vec3(0.0)
+    return -(wp.inverse(H) * g)
+
+
+@wp.kernel
+def predict_inertia(
+    v: wp.array(dtype=wp.vec3),
+    f_ext: wp.array(dtype=wp.vec3),
+    particle_inv_mass: wp.array(dtype=float),
+    h: float,
+    dy: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+):
+    # dy = h v + h^2 f_ext / m (inertial target y - x);  dx = h v (initial guess x + h v);  pinned: 0
+    i = wp.tid()
+    w = particle_inv_mass[i]
+    if w == 0.0:
+        dy[i] = wp.vec3(0.0)
+        dx[i] = wp.vec3(0.0)
+        return
+    dy[i] = h * v[i] + (h * h * w) * f_ext[i]
+    dx[i] = h * v[i]
+
+
+@wp.kernel
+def solve_vertices_vbd(
+    order: wp.array(dtype=int),
+    start: int,
+    x: wp.array(dtype=wp.vec3),
+    dy: wp.array(dtype=wp.vec3),
+    particle_mass: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    adjacency_offsets: wp.array(dtype=int),
+    adjacency_spring: wp.array(dtype=int),
+    adjacency_other: wp.array(dtype=int),
+    spring_rest_length: wp.array(dtype=float),
+    spring_stiffness: wp.array(dtype=float),
+    spring_damping: wp.array(dtype=float),
+    h: float,
+    dx: wp.array(dtype=wp.vec3),
+):
+    # one colour: dx_i <- dx_i - H_i^-1 g_i  (module docstring); pinned particles stay
+    i = order[start + wp.tid()]
+    if particle_inv_mass[i] == 0.0:
+        return
+    xi = x[i]
+    dxi = dx[i]
+    inertia = particle_mass[i] / (h * h)
+    g = inertia * (dxi - dy[i])
+    H = inertia * wp.identity(n=3, dtype=float)
+    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
+        s = adjacency_spring[a]
+        j = adjacency_other[a]
+        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, spring_rest_length[s], spring_stiffness[s], spring_damping[s], h)
+        g = g - f
+        H = H + K
+    dx[i] = dxi + newton_increment(g, H)
+
+
+@wp.kernel
+def copy_increment(dx: wp.array(dtype=wp.vec3), prev1: wp.array(dtype=wp.vec3), prev2: wp.array(dtype=wp.vec3)):
+    # prev1 = prev2 = dx (the Chebyshev history starts at the initial guess)
+    i = wp.tid()
+    prev1[i] = dx[i]
+    prev2[i] = dx[i]
+
+
+@wp.kernel
+def apply_chebyshev(omega: float, dx: wp.array(dtype=wp.vec3), prev1: wp.array(dtype=wp.vec3), prev2: wp.array(dtype=wp.vec3)):
+    # x^(n) = omega_n (xbar^(n) - x^(n-2)) + x^(n-2)   (Chen et al. 2024, eq. 17; Wang 2015)
+    i = wp.tid()
+    accelerated = omega * (dx[i] - prev2[i]) + prev2[i]
+    prev2[i] = prev1[i]
+    prev1[i] = accelerated
+    dx[i] = accelerated
+
+
+@wp.kernel
+def update_from_increment(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    particle_inv_mass: wp.array(dtype=float),
+    h: float,
+):
+    # v = dx / h ;  x += dx   (pinned particles untouched)
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        return
+    d = dx[i]
+    v[i] = d / h
+    x[i] = x[i] + d

@@ -1,0 +1,150 @@
+"""Projective dynamics for mass-spring systems, Liu, Bargteil, O'Brien & Kavan 2013.
+
+    dy = h v + h^2 f_ext / m ;  dx = h v
+    repeat pd_iterations times:
+        local:  d_s = L0 e_s / |e_s|                       (each spring projected to its rest length)
+        global: (M + h D + h^2 L) dx = M dy + h^2 (J d - L x)   (pd_cg_iterations of Jacobi PCG,
+                                                             warm-started at the previous dx)
+    v = dx / h ;  x += dx
+
+L = sum_s ks A_s^T A_s is the (scalar) Laplacian of the spring graph weighted by ks, the same for
+x, y and z and constant for a fixed dt and topology, so S = M + h D + h^2 L is assembled once per
+dt (a scalar CSR matrix, :mod:`warpcloth.kernels.projective`), not every step. Converged, a step
+is backward Euler of the spring energy (Liu et al.'s claim; tests/test_projective.py).
+
+Damping: the spring's kd enters as D = sum_s kd A_s^T A_s, implicit (with v = dx / h) and
+isotropic: it damps every relative motion of a spring's two ends, not only along the spring as
+in the force-based integrators (kd ((v_j - v_i) . n) n); the axial form would make the matrix
+change every step. Gravity, air drag and wind are external forces, explicit. The initial guess
+x + h v makes a rest state of the stepping the exact static equilibrium whatever the iteration
+counts (at rest the residual is the net force times h^2). Pinned particles have identity rows
+and zero columns: their dx is 0.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+import warp as wp
+
+from warpcloth.kernels import projective as pk
+from warpcloth.kernels.vbd import update_from_increment
+
+from ..coloring import particle_adjacency
+from ..forces import eval_external_forces
+from ..pins import apply_pins, has_pin_tracks
+from .base import Integrator, Option, scratch_like
+
+
+def _at_least_one(value) -> str | None:
+    return None if value >= 1 else "must be an integer >= 1"
+
+
+class Projective(Integrator):
+    """Projective dynamics (Liu et al. 2013): local spring projection, global constant-matrix solve."""
+
+    name: ClassVar[str] = "projective"
+    force_evals_per_step: ClassVar[int] = 1
+    options = (
+        Option("pd_iterations", int, 10, "local/global iterations per time step (>= 1)", check=_at_least_one),
+        Option("pd_cg_iterations", int, 10, "Jacobi-preconditioned CG iterations per global solve, fixed (>= 1)", check=_at_least_one),
+    )
+
+    def default_dt(self, model, drag_rate: float = 0.0) -> float:
+        """One 60 Hz frame: the step is implicit."""
+        return self.default_dt_cap
+
+    def _allocate(self, model) -> None:
+        n = model.particle_count
+        offsets, spring, other = particle_adjacency(model.host["pairs"], n)
+        self.adjacency_offsets = wp.array(offsets, dtype=int)
+        self.adjacency_spring = wp.array(spring, dtype=int)
+        self.adjacency_other = wp.array(other, dtype=int)
+        # CSR of S: row i = [diagonal, one entry per adjacent spring (neighbour order)]
+        row_offsets = offsets + np.arange(n + 1, dtype=np.int32)
+        columns = np.empty(int(row_offsets[-1]), dtype=np.int32)
+        columns[row_offsets[:-1]] = np.arange(n, dtype=np.int32)
+        off_diagonal = np.ones(columns.size, dtype=bool)
+        off_diagonal[row_offsets[:-1]] = False
+        columns[off_diagonal] = other
+        self.row_offsets = wp.array(row_offsets.astype(np.int32), dtype=int)
+        self.columns = wp.array(columns, dtype=int)
+        self.values = wp.zeros(columns.size, dtype=float)
+        self.inv_diag = wp.zeros(n, dtype=float)
+        self.dx, self.dy, self.r, self.z, self.p, self.Ap = scratch_like(model, 6)
+        self.rz = wp.zeros(self.pd_cg_iterations + 1, dtype=float)
+        self.pAp = wp.zeros(self.pd_cg_iterations, dtype=float)
+        # dot products in a fixed order: per-particle terms, chunk sums, their sum
+        self.dot_terms = wp.zeros(n, dtype=float)
+        self.dot_chunk = max(1, -(-n // 128))
+        self.dot_partial = wp.zeros(-(-n // self.dot_chunk), dtype=float)
+        self._assembled_for = None
+
+    def begin(self, state, control, dt):
+        self._assembled_for = None
+
+    def step(self, state, control, dt):
+        m, h = self.model, float(dt)
+        x, v, f = state.particle_q, state.particle_qd, state.particle_f
+        self.assemble(h)
+        eval_external_forces(m, x, v, control, f)
+        wp.launch(pk.predict_increment, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
+        if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x: known, enters the residual
+            control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
+        for _ in range(self.pd_iterations):
+            self.local_step(x, h)
+            self.global_step()
+        wp.launch(update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
+        apply_pins(control, x, v, h)  # kinematic pins: x = track(t + h), v = track'(t + h)
+
+    def assemble(self, h: float) -> None:
+        """Fill S = M + h D + h^2 L and its inverse diagonal, when h or the model changed."""
+        m = self.model
+        if self._assembled_for == h:
+            return
+        wp.launch(
+            pk.assemble_global_matrix, dim=m.particle_count,
+            inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, m.spring_stiffness, m.spring_damping, m.particle_mass, m.particle_inv_mass, h],
+            outputs=[self.values, self.inv_diag], device=m.device,
+        )
+        self._assembled_for = h
+
+    def local_step(self, x, h: float) -> None:
+        """Project every spring to its rest length and form the global residual r (and CG's start)."""
+        m = self.model
+        wp.launch(
+            pk.eval_local_residual, dim=m.particle_count,
+            inputs=[x, self.dx, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
+                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, self.inv_diag, h],
+            outputs=[self.r, self.z, self.p, self.dot_terms], device=m.device,
+        )
+        self._reduce(self.rz, 0)
+
+    def global_step(self) -> None:
+        """dx += S^-1 r by pd_cg_iterations of Jacobi-preconditioned CG from 0."""
+        m, n = self.model, self.model.particle_count
+        for k in range(self.pd_cg_iterations):
+            wp.launch(pk.csr_matvec_dot, dim=n, inputs=[self.row_offsets, self.columns, self.values, self.p], outputs=[self.Ap, self.dot_terms], device=m.device)
+            self._reduce(self.pAp, k)
+            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k], outputs=[self.dx, self.r, self.z, self.dot_terms], device=m.device)
+            self._reduce(self.rz, k + 1)
+            if k + 1 < self.pd_cg_iterations:
+                wp.launch(pk.cg_update_direction, dim=n, inputs=[self.z, self.rz, k], outputs=[self.p], device=m.device)
+
+    def _reduce(self, out, k: int) -> None:
+        """out[k] = sum of dot_terms, in a fixed order (deterministic on every device)."""
+        d = self.model.device
+        wp.launch(pk.sum_chunks, dim=self.dot_partial.shape[0], inputs=[self.dot_terms, self.dot_chunk, self.model.particle_count], outputs=[self.dot_partial], device=d)
+        wp.launch(pk.sum_partials, dim=1, inputs=[self.dot_partial, k], outputs=[out], device=d)
+
+    def global_matrix(self):
+        """S as a SciPy CSR matrix (host copy; for tests and diagnostics, not for stepping)."""
+        import scipy.sparse as sp
+
+        n = self.model.particle_count
+        return sp.csr_matrix((self.values.numpy().astype(np.float64), self.columns.numpy(), self.row_offsets.numpy()), shape=(n, n))
+
+    def stats(self) -> dict:
+        return {"pd_iterations": self.pd_iterations, "pd_cg_iterations": self.pd_cg_iterations}
+
