@@ -46,6 +46,7 @@ class ScenarioConfig:
     strain_limit: float | None = None
     instability_strain: float = DEFAULT_INSTABILITY_STRAIN
     colliders: tuple = ()
+    use_graph: bool | None = None  # graph capture: True, False, or None (wherever supported)
     mesh: str | None = None
     prim: str | None = None
     pin_group: tuple | None = None
@@ -120,7 +121,7 @@ class Scenario:
         if self.tracks is not None:
             control.pin_tracks = tuple(self.tracks(cfg, model))
         return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name, strain_limit=cfg.strain_limit,
-                         instability_strain=cfg.instability_strain)
+                         instability_strain=cfg.instability_strain, use_graph=cfg.use_graph)
 
     def run(self, config: ScenarioConfig | None = None, usd_path: str | None = None, wall_cap: float | None = None,
             writers=(), **overrides) -> RunResult:

@@ -186,3 +186,28 @@ def test_usd_time_codes_are_simulated_time_when_a_step_is_longer_than_a_frame(tm
     samples = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth")).GetPointsAttr().GetTimeSamples()
     assert samples[0] == 0.0 and samples[1] == 2.0 and samples[-1] == 60.0
     assert stage.GetEndTimeCode() == 60.0
+
+
+def test_graph_flag_off_is_bit_identical_to_on_and_capture_is_apart(capsys, tmp_path):
+    import json
+
+    from warpcloth.cli import main
+
+    outs = {}
+    for mode in ("on", "off"):
+        usd = tmp_path / f"{mode}.usda"
+        assert main(["run", "flag", "--rows", "5", "--cols", "6", "--duration", "0.3", "--graph", mode, "--json", "--usd", str(usd)]) == 0
+        d = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        assert d["graph"] is (mode == "on")
+        assert (d["capture_time"] > 0) is (mode == "on")  # capture reported apart, never in ms/step
+        outs[mode] = usd.read_text()
+    assert outs["on"].split("timeSamples", 1)[1] == outs["off"].split("timeSamples", 1)[1]  # the same frames, bit for bit
+    from warpcloth.testlist import parse_test_list
+
+    xml = tmp_path / "t.xml"
+    xml.write_text('<test_list size="4" scenarios="sheet" duration="0.1" timestep="1e-3"><test integrator="rk4" graph="off on"/></test_list>')
+    runs = parse_test_list(str(xml)).runs
+    assert [r.graph for r in runs] == ["off", "on"] and [r.config().use_graph for r in runs] == [False, True]
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "sheet", "--graph", "maybe"])
+    assert exit_.value.code == 2 and "invalid choice: 'maybe'" in capsys.readouterr().err

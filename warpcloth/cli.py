@@ -75,6 +75,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     length.add_argument("--duration", type=float, default=None, help="simulated time [s] (default 10)")
     length.add_argument("--num-frames", type=int, default=None, help="run this many frames instead of --duration")
     p.add_argument("--fps", type=float, default=None, help="frame rate of sampling and USD export [1/s] (default 60)")
+    p.add_argument("--graph", choices=["on", "off", "auto"], default="auto",
+                   help="capture a frame's steps as a graph and replay it: on, off, or auto (where supported; default). "
+                        "Results are bit-identical; capture time is reported apart")
     out = p.add_argument_group("outputs")
     out.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH",
                      help="write the animation to this USD file (.usd/.usda/.usdc, or .usdz: a package)")
@@ -131,6 +134,7 @@ def config_from_args(scenario, args):
         duration=args.duration, fps=args.fps, stiffness=args.stiffness, damping=args.damping, mass=args.mass,
         drag=args.drag, bend=args.bend, device=args.device, strain_limit=args.strain_limit,
         instability_strain=args.instability_strain,
+        use_graph={"on": True, "off": False, "auto": None}[getattr(args, "graph", "auto") or "auto"],
         colliders=tuple(parse_collider(c) for c in (getattr(args, "collider", None) or ())) or None,
         integrator_options=integrator_options_from_args(integrator, args),
         mesh=getattr(args, "mesh", None), prim=getattr(args, "prim", None), pin_where=getattr(args, "pin_where", None),

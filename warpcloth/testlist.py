@@ -227,6 +227,7 @@ ATTRIBUTES: dict[str, Attribute] = {
         Attribute("drag", _non_negative, "linear air drag rate [1/s]"),
         Attribute("strain_limit", _positive, "Provot deformation constraint tau (force-based integrators)"),
         Attribute("instability_strain", _positive, "a spring strained past this makes the run unstable (default 0.5)"),
+        Attribute("graph", _choice(lambda: ["on", "off", "auto"], "graph mode"), "graph capture: on, off or auto (default; results bit-identical)"),
         Attribute("bend", _choice(lambda: ["provot", "choi_ko", "none"], "bend model"), "bend springs"),
         Attribute("device", _device, "Warp device: cpu, cuda, cuda:N"),
         Attribute("cap", _cap, "wall-clock cap of one run [s], or 'none'"),
@@ -270,6 +271,7 @@ class RunSpec:
     maxdt_duration: float = DEFAULT_MAXDT_DURATION
     strain_limit: float | None = None
     instability_strain: float = DEFAULT_INSTABILITY_STRAIN
+    graph: str = "auto"
 
     @property
     def key(self) -> str:
@@ -287,6 +289,8 @@ class RunSpec:
             parts.append(f"strain_limit={self.strain_limit!r}")
         if self.instability_strain != DEFAULT_INSTABILITY_STRAIN:
             parts.append(f"instability_strain={self.instability_strain!r}")
+        if self.graph != "auto":
+            parts.append(f"graph={self.graph}")
         if self.timestep.uses_max:
             parts.append(f"maxdt={self.maxdt_precision!r}/{self.maxdt_duration!r}")
         parts.append("options=" + ",".join(f"{k}={_canon(v)}" for k, v in self.options))
@@ -309,6 +313,7 @@ class RunSpec:
             duration=self.duration if duration is None else duration, fps=self.frame_rate,
             stiffness=self.stiffness, damping=self.damping, drag=self.drag, bend=self.bend, device=self.device,
             strain_limit=self.strain_limit, instability_strain=self.instability_strain,
+            use_graph={"on": True, "off": False}.get(self.graph),
         )
 
     def describe(self) -> str:
@@ -542,6 +547,7 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         "drag": one("drag"),
         "strain_limit": one("strain_limit"),
         "instability_strain": one("instability_strain", DEFAULT_INSTABILITY_STRAIN),
+        "graph": one("graph", "auto"),
         "bend": one("bend", "provot"),
         "device": one("device", "cpu"),
         "cap": one("cap", DEFAULT_CAP),
@@ -590,7 +596,7 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
             drag=c["drag"], bend=c["bend"], timestep=c["timestep"], frame_rate=c["frame_rate"],
             duration=c["duration"] if c["duration"] is not None else DEFAULT_DURATION.get(c["scenario"], d.duration),
             cap=c["cap"], options=options, maxdt_precision=c["maxdt_precision"], maxdt_duration=c["maxdt_duration"],
-            strain_limit=c["strain_limit"], instability_strain=c["instability_strain"],
+            strain_limit=c["strain_limit"], instability_strain=c["instability_strain"], graph=c["graph"],
         ))
     return runs
 
