@@ -70,26 +70,6 @@ def assemble_global_matrix(
 
 
 @wp.kernel
-def predict_increment(
-    v: wp.array(dtype=wp.vec3),
-    f_ext: wp.array(dtype=wp.vec3),
-    particle_inv_mass: wp.array(dtype=float),
-    h: float,
-    dy: wp.array(dtype=wp.vec3),
-    dx: wp.array(dtype=wp.vec3),
-):
-    # dy = h v + h^2 f_ext / m (y - x);  dx = h v (initial guess x + h v);  pinned: 0
-    i = wp.tid()
-    w = particle_inv_mass[i]
-    if w == 0.0:
-        dy[i] = wp.vec3(0.0)
-        dx[i] = wp.vec3(0.0)
-        return
-    dy[i] = h * v[i] + (h * h * w) * f_ext[i]
-    dx[i] = h * v[i]
-
-
-@wp.kernel
 def eval_local_residual(
     x: wp.array(dtype=wp.vec3),
     dx: wp.array(dtype=wp.vec3),

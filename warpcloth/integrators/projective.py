@@ -28,6 +28,7 @@ from typing import ClassVar
 import numpy as np
 import warp as wp
 
+from warpcloth.kernels import integrate as ik
 from warpcloth.kernels import projective as pk
 from warpcloth.kernels.vbd import update_from_increment
 
@@ -89,7 +90,7 @@ class Projective(Integrator):
         x, v, f = state.particle_q, state.particle_qd, state.particle_f
         self.assemble(h)
         eval_external_forces(m, x, v, control, f)
-        wp.launch(pk.predict_increment, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
+        wp.launch(ik.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
         if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x: known, enters the residual
             control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
         for _ in range(self.pd_iterations):

@@ -29,6 +29,7 @@ from typing import ClassVar
 
 import warp as wp
 
+from warpcloth.kernels import integrate as ik
 from warpcloth.kernels import vbd as vk
 
 from ..coloring import VertexColoring, color_vertices, particle_adjacency
@@ -97,7 +98,7 @@ class VBD(Integrator):
         m, h = self.model, float(dt)
         x, v, f = state.particle_q, state.particle_qd, state.particle_f
         eval_external_forces(m, x, v, control, f)
-        wp.launch(vk.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
+        wp.launch(ik.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
         if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x, held through the sweeps
             control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
         sweep = self.color_sweep(x, h)
