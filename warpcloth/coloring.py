@@ -23,15 +23,15 @@ from .errors import WarpclothError
 
 
 @dataclass(frozen=True)
-class SpringColoring:
-    """Springs sorted by colour.
+class Coloring:
+    """Items (springs or particles) sorted by colour.
 
     Attributes:
-        colors: colour of each spring, shape (spring_count,).
-        order: spring ids sorted by colour, shape (spring_count,), int32; colour k is
+        colors: colour of each item, shape (item_count,).
+        order: item ids sorted by colour, shape (item_count,), int32; colour k is
             ``order[starts[k] : starts[k] + counts[k]]``.
-        starts: first position of each colour in :attr:`order`.
-        counts: number of springs of each colour.
+        starts: first position of each (non-empty) colour in :attr:`order`.
+        counts: number of items of each (non-empty) colour.
     """
 
     colors: np.ndarray
@@ -39,9 +39,26 @@ class SpringColoring:
     starts: tuple[int, ...]
     counts: tuple[int, ...]
 
+    @classmethod
+    def from_colors(cls, colors) -> "Coloring":
+        """Sort items by their colours (stable: within a colour, items keep their order)."""
+        colors = np.asarray(colors, dtype=np.int32)
+        order = np.argsort(colors, kind="stable").astype(np.int32)
+        counts = np.bincount(colors) if colors.size else np.zeros(0, dtype=np.int64)
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if counts.size else counts
+        keep = counts > 0
+        return cls(colors=colors, order=order, starts=tuple(int(v) for v in starts[keep]), counts=tuple(int(v) for v in counts[keep]))
+
     @property
     def color_count(self) -> int:
         return len(self.counts)
+
+
+#: Springs sorted by colour (no two springs of one colour share a particle).
+SpringColoring = Coloring
+#: Particles sorted by colour: no two particles of one colour share a spring, so their local
+#: solves are independent (Chen et al. 2024, section 4).
+VertexColoring = Coloring
 
 
 def grid_spring_colors(pairs: np.ndarray, cols: int) -> np.ndarray:
@@ -101,37 +118,10 @@ def color_springs(pairs: np.ndarray, particle_count: int, cols: int | None = Non
         colors = greedy_spring_colors(pairs, particle_count)
     if not is_valid_coloring(pairs, colors, particle_count):  # pragma: no cover - greedy is always valid
         raise RuntimeError("spring colouring is invalid")
-    order = np.argsort(colors, kind="stable").astype(np.int32)
-    counts = np.bincount(colors) if colors.size else np.zeros(0, dtype=np.int64)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if counts.size else counts
-    keep = counts > 0
-    return SpringColoring(colors=colors, order=order, starts=tuple(int(v) for v in starts[keep]), counts=tuple(int(v) for v in counts[keep]))
+    return Coloring.from_colors(colors)
 
 
 # -- vertex colouring (Vertex Block Descent) ------------------------------------------------------
-@dataclass(frozen=True)
-class VertexColoring:
-    """Particles sorted by colour: no two particles of one colour share a spring, so their
-    local solves are independent (Chen et al. 2024, section 4).
-
-    Attributes:
-        colors: colour of each particle, shape (particle_count,).
-        order: particle ids sorted by colour, int32; colour k is
-            ``order[starts[k] : starts[k] + counts[k]]``.
-        starts: first position of each colour in :attr:`order`.
-        counts: number of particles of each colour.
-    """
-
-    colors: np.ndarray
-    order: np.ndarray
-    starts: tuple[int, ...]
-    counts: tuple[int, ...]
-
-    @property
-    def color_count(self) -> int:
-        return len(self.counts)
-
-
 def grid_vertex_colors(particle_count: int, cols: int) -> np.ndarray:
     """Colour (r mod 3, c mod 3) of particle [r, c] of a grid with ``cols`` particles per row: a
     Provot or Choi-Ko spring steps by at most 2 along each axis and never by (0, 0) mod 3, so its
@@ -180,11 +170,7 @@ def color_vertices(pairs: np.ndarray, particle_count: int, cols: int | None = No
         colors = greedy_vertex_colors(pairs, particle_count)
     if not is_valid_vertex_coloring(pairs, colors):  # pragma: no cover - greedy is always valid
         raise RuntimeError("vertex colouring is invalid")
-    order = np.argsort(colors, kind="stable").astype(np.int32)
-    counts = np.bincount(colors) if colors.size else np.zeros(0, dtype=np.int64)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if counts.size else counts
-    keep = counts > 0
-    return VertexColoring(colors=colors, order=order, starts=tuple(int(v) for v in starts[keep]), counts=tuple(int(v) for v in counts[keep]))
+    return Coloring.from_colors(colors)
 
 
 def particle_adjacency(pairs: np.ndarray, particle_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

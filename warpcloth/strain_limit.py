@@ -24,7 +24,7 @@ import warp as wp
 
 from warpcloth.kernels import strain_limit as sk
 
-from .coloring import greedy_spring_colors
+from .coloring import Coloring, greedy_spring_colors
 from .errors import require_int, require_positive
 from .model import SpringType
 
@@ -85,11 +85,10 @@ class StrainLimiter:
         pinned_end = np.isin(pairs, model.pinned).any(axis=1)
         if pinned_end.any():
             colors[pinned_end] = colors.max() + 1 + greedy_spring_colors(pairs[pinned_end], model.particle_count)
-        order = np.argsort(colors, kind="stable")
-        counts = np.bincount(colors, minlength=1) if len(colors) else np.zeros(0, dtype=np.int64)
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if len(counts) else np.zeros(0, dtype=np.int64)
+        coloring = Coloring.from_colors(colors)
+        order = coloring.order
         #: (offset, count) of each colour in the sorted spring arrays.
-        self.colors = [(int(a), int(n)) for a, n in zip(starts, counts) if n > 0]
+        self.colors = list(zip(coloring.starts, coloring.counts))
         max_length = (1.0 + self.tau) * h["rest"][limited].astype(np.float64)
         pin, path = nearest_pin_paths(pairs, h["rest"][limited].astype(np.float64), model.particle_count, model.pinned)
         path[pin < 0] = 0.0
