@@ -2,12 +2,12 @@
 
     python bench/devices.py --sizes 32,64,128,256 --roofline --out bench.csv --plot bench.png
 
-Same as ``warpcloth bench``; see ``warpcloth.bench`` for what is measured.
+Same as ``warpcloth bench``; see ``warpcloth.lab.bench`` for what is measured.
 """
 
 import sys
 
-from warpcloth.bench import main
+from warpcloth.lab.bench import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from warpcloth.bench import COLUMNS, main
+from warpcloth.lab.bench import COLUMNS, main
 
 
 def test_bench_tiny_end_to_end(tmp_path, capsys):

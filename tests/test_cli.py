@@ -176,5 +176,5 @@ def test_verbose_shows_warp_start_up_messages():
 
 # -- 10.10: bench and cli do not import each other --------------------------------------------------
 def test_bench_does_not_import_cli():
-    code = "import sys, warpcloth.bench; assert 'warpcloth.cli' not in sys.modules, 'bench imported cli'"
+    code = "import sys, warpcloth.lab.bench; assert 'warpcloth.cli' not in sys.modules, 'bench imported cli'"
     subprocess.run([sys.executable, "-c", code], check=True)

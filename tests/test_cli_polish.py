@@ -90,7 +90,7 @@ def test_examples_ship_with_the_package(capsys):
     for name, path in listed.items():
         assert os.path.isfile(path) and path == example_path(name)
         assert Path(path).read_bytes() == (REPO / "examples" / f"{name}.xml").read_bytes()
-    from warpcloth.testlist import parse_test_list
+    from warpcloth.lab.testlist import parse_test_list
 
     assert parse_test_list(example_path("quick")).runs  # a valid test list
     code, out, err = _run(capsys, "sweep", "--example", "nope", "--out", "-")

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-import warpcloth.sweep as sweep
+import warpcloth.lab.sweep as sweep
 from warpcloth import fileio
 from warpcloth.cli import main
 
@@ -76,7 +76,7 @@ def test_resume_keeps_a_copy_of_the_dropped_partial_line(tmp_path, capsys):
 # -- 2. one writer per results file -----------------------------------------------------------
 HOLD = textwrap.dedent("""
     import os, sys, time
-    import warpcloth.sweep as s
+    import warpcloth.lab.sweep as s
     real, go = s.execute_run, sys.argv.pop(1)
     def run(spec, cache):
         while not os.path.exists(go):
@@ -202,7 +202,7 @@ def test_sweep_on_a_full_disk_is_one_line_and_resume_recovers(tmp_path, small_di
 
 
 def test_bench_csv_on_a_full_disk_is_one_line(tmp_path, small_disk, monkeypatch, capsys):
-    from warpcloth import bench
+    from warpcloth.lab import bench
 
     folder = small_disk or tmp_path
     target = folder / "b.csv"
@@ -278,7 +278,7 @@ BAD_TARGETS = {
 
 @pytest.mark.parametrize("case", list(BAD_TARGETS) + ["immutable"])
 def test_bench_out_is_refused_before_the_benchmark(tmp_path, monkeypatch, capsys, immutable_file, case):
-    from warpcloth import bench
+    from warpcloth.lab import bench
 
     if case == "immutable":
         target, message = str(immutable_file(".csv")), "cannot be replaced: Operation not permitted"

@@ -11,11 +11,11 @@ import time
 
 import pytest
 
-import warpcloth.sweep as sweep
+import warpcloth.lab.sweep as sweep
 from warpcloth.cli import main
 from warpcloth.errors import WarpclothError
 from warpcloth.lab.parallel import Job, LocalPool, units_of
-from warpcloth.testlist import parse_test_list
+from warpcloth.lab.testlist import parse_test_list
 
 from parallel_toy import toy  # noqa: E402 - a job function the spawned workers import without Warp
 

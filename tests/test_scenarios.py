@@ -202,7 +202,7 @@ def test_graph_flag_off_is_bit_identical_to_on_and_capture_is_apart(capsys, tmp_
         assert (d["capture_time"] > 0) is (mode == "on")  # capture reported apart, never in ms/step
         outs[mode] = usd.read_text()
     assert outs["on"].split("timeSamples", 1)[1] == outs["off"].split("timeSamples", 1)[1]  # the same frames, bit for bit
-    from warpcloth.testlist import parse_test_list
+    from warpcloth.lab.testlist import parse_test_list
 
     xml = tmp_path / "t.xml"
     xml.write_text('<test_list size="4" scenarios="sheet" duration="0.1" timestep="1e-3"><test integrator="rk4" graph="off on"/></test_list>')

@@ -12,16 +12,16 @@ from pathlib import Path
 
 import pytest
 
-import warpcloth.sweep as sweep
+import warpcloth.lab.sweep as sweep
 from warpcloth import integrators
 from warpcloth.cli import main
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators import Option, explicit_euler_dt_bound
 from warpcloth.integrators.explicit_euler import ExplicitEuler
-from warpcloth.maxdt import find_max_dt
+from warpcloth.lab.maxdt import find_max_dt
 from warpcloth.model import default_damping, expected_spring_counts
 from warpcloth.scenarios import get_scenario
-from warpcloth.testlist import ATTRIBUTES, parse_test_list
+from warpcloth.lab.testlist import ATTRIBUTES, parse_test_list
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -342,7 +342,7 @@ def test_killed_sweep_resumes_every_row_exactly_once(tmp_path, capsys):
     out = tmp_path / "r.csv"
     hang_on_third = textwrap.dedent("""
         import sys, time
-        import warpcloth.sweep as s
+        import warpcloth.lab.sweep as s
         real, calls = s.execute_run, []
         def run(spec, cache):
             calls.append(spec)
@@ -413,7 +413,7 @@ def test_progress_goes_to_stderr_and_csv_to_stdout(tmp_path, capsys):
 
 
 def test_timestep_max_searches_once_per_model(tmp_path, monkeypatch):
-    import warpcloth.maxdt as maxdt
+    import warpcloth.lab.maxdt as maxdt
 
     searches = []
     real = maxdt.find_max_dt

@@ -356,7 +356,7 @@ def _list(args) -> int:
 
 
 def _sweep(args) -> int:
-    from .sweep import run_sweep
+    from .lab.sweep import run_sweep
 
     if (args.tests is None) == (args.example is None):
         raise WarpclothError("give a test list (TESTS.xml) or --example NAME, not " + ("both" if args.tests else "neither"))
@@ -376,7 +376,7 @@ def _sweep(args) -> int:
 
 def _add_max_dt_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of ``warpcloth max-dt``: the model and integrator of a run, and the search."""
-    from .maxdt import DEFAULT_DURATION, DEFAULT_PRECISION
+    from .lab.maxdt import DEFAULT_DURATION, DEFAULT_PRECISION
 
     p.add_argument("scenario", help="scenario name (see 'warpcloth list')")
     add_model_arguments(p)
@@ -393,7 +393,7 @@ def _add_max_dt_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _max_dt(args) -> int:
-    from .maxdt import DEFAULT_DT_MAX, DEFAULT_DT_MIN, find_max_dt, format_result
+    from .lab.maxdt import DEFAULT_DT_MAX, DEFAULT_DT_MIN, find_max_dt, format_result
     from .scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)
@@ -451,7 +451,7 @@ def _add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
-    from .testlist import DEFAULT_MAX_RUNS
+    from .lab.testlist import DEFAULT_MAX_RUNS
 
     parser = Parser(prog="warpcloth", description="Mass-spring cloth simulator and integrator laboratory on NVIDIA Warp.")
     parser.add_argument("--version", action="version", version=f"warpcloth {__version__}")
@@ -464,7 +464,7 @@ def build_parser() -> argparse.ArgumentParser:
     listing.add_argument("--examples", action="store_true", help="list the example test lists shipped with warpcloth and their paths")
     _add_verbose(listing)
     bench = sub.add_parser("bench", help="benchmark integrators x sizes x devices on the sheet (bench/devices.py)")
-    from . import bench as bench_module
+    from .lab import bench as bench_module
 
     bench_module.add_arguments(bench)
     _add_verbose(bench)
@@ -504,7 +504,7 @@ def _dispatch(args) -> int:
     if args.command == "list":
         return _list(args)
     if args.command == "bench":
-        from . import bench as bench_module
+        from .lab import bench as bench_module
 
         return bench_module.run(args)
     if args.command == "sweep":

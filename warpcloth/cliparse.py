@@ -1,7 +1,7 @@
 """The argument parser every warpcloth command line uses (``warpcloth``, ``bench/devices.py``,
 ``python -m warpcloth.scenarios.X``): errors are one line, ``warpcloth: error: ...``, exit 2.
 
-A module of its own so that :mod:`warpcloth.cli` and :mod:`warpcloth.bench` both import it
+A module of its own so that :mod:`warpcloth.cli` and :mod:`warpcloth.lab.bench` both import it
 without importing each other.
 """
 

@@ -1,27 +1,31 @@
-"""The accuracy laboratory: float64 references that warpcloth's float32 runs are measured against.
+"""The laboratory: experiments above the physics.
 
-:mod:`warpcloth.lab.reference` integrates the same model (springs, masses, pins, gravity, wind
-schedule, drag) in float64 with NumPy forces and SciPy's ``solve_ivp``, and solves the static
-equilibrium under gravity by Newton's method. See ``docs/reference.md``.
+* :mod:`warpcloth.lab.testlist` and :mod:`warpcloth.lab.sweep`: XML test lists run to CSV (seed 4.3);
+* :mod:`warpcloth.lab.maxdt`: the max-stable-dt search;
+* :mod:`warpcloth.lab.bench`: the CPU vs CUDA benchmark;
+* :mod:`warpcloth.lab.study` (with ``accuracy``, ``frontier``, ``report``): the accuracy-aware study;
+* :mod:`warpcloth.lab.reference`: float64 references that warpcloth's float32 runs are measured
+  against (NumPy forces, SciPy ``solve_ivp``, a Newton solve of the static equilibrium; docs/reference.md);
+* :mod:`warpcloth.lab.parallel`: local worker processes and Ray tasks for sweeps and studies.
+
+Nothing in :mod:`warpcloth`'s physics imports this package. The reference's names are
+importable from here (``from warpcloth.lab import static_equilibrium``); they load SciPy on
+first use only, so a sweep does not pay for it.
 """
 
-from .reference import (
-    Convergence,
-    Equilibrium,
-    Float64Model,
-    cloth_size,
-    convergence_check,
-    reference_forces,
-    reference_trajectory,
-    simulate_frames,
-    static_equilibrium,
-    swing_from_horizontal,
-    trajectory_error,
-    wind_switch_times,
-)
-
-__all__ = [
+_REFERENCE = (
     "Convergence", "Equilibrium", "Float64Model", "cloth_size", "convergence_check", "reference_forces",
     "reference_trajectory", "simulate_frames", "static_equilibrium", "swing_from_horizontal", "trajectory_error",
     "wind_switch_times",
-]
+)
+
+
+def __getattr__(name):
+    if name in _REFERENCE:
+        from . import reference
+
+        return getattr(reference, name)
+    raise AttributeError(f"module 'warpcloth.lab' has no attribute {name!r}")
+
+
+__all__ = list(_REFERENCE)

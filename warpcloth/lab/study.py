@@ -397,7 +397,7 @@ class Study:
         key = f"max_stable_dt|{scenario}|{integrator}|{device}|{n}|dur={p.maxdt_duration}|prec={p.maxdt_precision}|cap={p.maxdt_wall_cap}"
 
         def run():
-            from ..maxdt import find_max_dt
+            from .maxdt import find_max_dt
             from ..scenarios import get_scenario
 
             sc = get_scenario(scenario)

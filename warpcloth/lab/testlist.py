@@ -27,8 +27,8 @@ from typing import Callable
 
 import xml.parsers.expat as expat
 
-from .errors import FLOAT32_MAX, WarpclothError
-from .metrics import DEFAULT_INSTABILITY_STRAIN
+from ..errors import FLOAT32_MAX, WarpclothError
+from ..metrics import DEFAULT_INSTABILITY_STRAIN
 
 ROOT_TAG = "test_list"
 TEST_TAG = "test"
@@ -164,20 +164,20 @@ def _choice(choices_fn: Callable[[], list[str]], what: str, keyword_all: bool = 
 
 
 def _integrators() -> list[str]:
-    from .integrators import integrator_names
+    from ..integrators import integrator_names
 
     return integrator_names()
 
 
 def _scenarios() -> list[str]:
-    from .scenarios import scenario_names
+    from ..scenarios import scenario_names
 
     return scenario_names()
 
 
 def _scenario(text: str) -> str:
     """A scenario name, or a scenario file (.toml, relative to the working folder) that loads."""
-    from .scenarios import get_scenario
+    from ..scenarios import get_scenario
 
     if text.lower().endswith(".toml"):
         try:
@@ -189,7 +189,7 @@ def _scenario(text: str) -> str:
 
 
 def _device(text: str) -> str:
-    from .device import device_name as resolve_device
+    from ..device import device_name as resolve_device
 
     try:
         return resolve_device(text)
@@ -305,7 +305,7 @@ class RunSpec:
 
     def config(self, dt: float | None = None, duration: float | None = None):
         """The :class:`~warpcloth.scenarios.ScenarioConfig` of this run."""
-        from .scenarios import get_scenario
+        from ..scenarios import get_scenario
 
         return get_scenario(self.scenario).config(
             rows=self.rows, cols=self.cols, width=self.width, height=self.height, mass=self.mass,
@@ -445,7 +445,7 @@ def parse_test_list(path: str, max_runs: int = DEFAULT_MAX_RUNS) -> TestList:
 
 def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
     """Every attribute of ``el`` as a list of parsed values; integrator options stay text."""
-    from .integrators import all_options
+    from ..integrators import all_options
 
     options = all_options()
     out: dict[str, list] = {}
@@ -480,9 +480,9 @@ def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
 def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: dict, own: dict,
             room: int = DEFAULT_MAX_RUNS, max_runs: int = DEFAULT_MAX_RUNS) -> list[RunSpec]:
     """The runs of one ``test``: the product of its value lists, for each scenario."""
-    from .integrators import all_options, integrator_class, integrator_names
-    from .model import default_spring_params
-    from .scenarios import get_scenario
+    from ..integrators import all_options, integrator_class, integrator_names
+    from ..model import default_spring_params
+    from ..scenarios import get_scenario
 
     what = f"test {test_id!r}"
     values = {**defaults, **own}

@@ -19,7 +19,7 @@ import math
 import time
 from dataclasses import dataclass, field
 
-from .errors import require, require_positive
+from ..errors import require, require_positive
 
 DEFAULT_PRECISION = 0.02
 DEFAULT_DURATION = 2.0  # s of simulated time a trial must survive
@@ -129,7 +129,7 @@ def find_max_dt(
             unstable counts as stable (reported in :attr:`MaxDtResult.inconclusive_trials`).
         on_trial: called with each :class:`Trial` as it finishes.
     """
-    from .integrators import explicit_euler_dt_bound
+    from ..integrators import explicit_euler_dt_bound
 
     precision = require_positive("precision", precision)
     require(precision < 1.0, f"precision must be < 1 (relative, e.g. 0.02), got {precision!r}")

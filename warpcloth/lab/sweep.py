@@ -4,9 +4,9 @@
   comes first; a flag run ends at its duration or its cap.
 * Durability: the header is written atomically when the file is created; each row is written,
   flushed and fsync'd as its run finishes. ``resume=True`` skips the runs whose key
-  (:attr:`~warpcloth.testlist.RunSpec.key`, built from the run's parameters) is already in the
+  (:attr:`~warpcloth.lab.testlist.RunSpec.key`, built from the run's parameters) is already in the
   file. A run that raises records ``outcome=error`` and its message, and the sweep goes on.
-* ``timestep="max"`` / ``"max*F"`` uses :func:`~warpcloth.maxdt.find_max_dt`, searched once per
+* ``timestep="max"`` / ``"max*F"`` uses :func:`~warpcloth.lab.maxdt.find_max_dt`, searched once per
   integrator, scenario, mesh and parameters within a sweep, up to one frame (1/frame_rate): a
   real-time run takes at least one step per frame, so a larger dt is never useful here.
 * Progress goes to stderr, never to stdout.
@@ -29,8 +29,8 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from .errors import WarpclothError
-from .fileio import (OutputError, WriterLock, check_output_path, describe_write_error,
+from ..errors import WarpclothError
+from ..fileio import (OutputError, WriterLock, check_output_path, describe_write_error,
                      sweep_stale_temporaries, write_atomic)
 from .testlist import RunSpec, TestList, parse_test_list
 
@@ -58,8 +58,8 @@ def parameter_row(spec: RunSpec) -> dict:
     """The columns known before a run starts."""
     import warp as wp
 
-    from . import __version__
-    from .model import expected_spring_counts
+    from .. import __version__
+    from ..model import expected_spring_counts
 
     ks, kd = spec.stiffness, spec.damping
     return {
@@ -119,7 +119,7 @@ class MaxDtCache:
 
     def get(self, spec: RunSpec):
         from .maxdt import find_max_dt
-        from .scenarios import get_scenario
+        from ..scenarios import get_scenario
 
         key = spec.search_key
         if key not in self._results:
@@ -139,7 +139,7 @@ class MaxDtCache:
 
 def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
     """Run ``spec`` and return its CSV row; never raises on a failing run (outcome ``error``)."""
-    from .scenarios import get_scenario
+    from ..scenarios import get_scenario
 
     row = parameter_row(spec)
     try:
@@ -420,13 +420,13 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
     """Run every run of a test list and write one CSV row each.
 
     Args:
-        tests: path of the XML test list, or a parsed :class:`~warpcloth.testlist.TestList`.
+        tests: path of the XML test list, or a parsed :class:`~warpcloth.lab.testlist.TestList`.
         out: CSV path, or ``-`` for stdout.
         resume: skip runs already in ``out`` (matched on :attr:`RunSpec.key`).
         overwrite: replace an existing ``out``.
         progress: stream for the progress bar (e.g. ``sys.stderr``), or None.
         max_runs: refuse a test list that expands to more runs (default
-            :data:`~warpcloth.testlist.DEFAULT_MAX_RUNS`).
+            :data:`~warpcloth.lab.testlist.DEFAULT_MAX_RUNS`).
         report: stream for notes about the file that ``--quiet`` must not hide (stale
             temporaries removed, an incomplete last line dropped, a worker replaced, the
             timings warning); default ``progress``.
@@ -491,7 +491,7 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
                 row.update(host=host, worker="main", concurrent_runs=1)
                 record(row)
         elif todo:
-            from .lab.parallel import Job
+            from ..lab.parallel import Job
 
             jobs = [Job(spec.key, spec, spec.device, spec.search_key if spec.timestep.uses_max else None) for spec in todo]
             for done in pool.run(jobs):
@@ -540,7 +540,7 @@ class ParallelPlan:
         WarpclothError says why it could not be."""
         if not self.parallel:
             return None
-        from .lab.parallel import LocalPool, RayPool
+        from ..lab.parallel import LocalPool, RayPool
 
         def on_event(text: str) -> None:
             if report is not None:
@@ -566,7 +566,7 @@ class ParallelPlan:
             if not str(ray).strip():
                 raise WarpclothError("--ray: give 'auto', 'local' or a cluster address HOST:PORT")
             try:
-                from .lab.parallel import import_ray
+                from ..lab.parallel import import_ray
 
                 import_ray()
             except ImportError as exc:
@@ -576,7 +576,7 @@ class ParallelPlan:
             raise WarpclothError(f"--workers must be a whole number >= 1, got {workers!r}")
         names = None
         if devices is not None:
-            from .device import device_name
+            from ..device import device_name
 
             names = []
             for d in devices:
@@ -615,7 +615,7 @@ _WORKER_CACHE: MaxDtCache | None = None
 
 def parallel_init(place) -> None:
     """Run once in each worker process: Warp initialised quietly."""
-    from .cliparse import init_warp
+    from ..cliparse import init_warp
 
     init_warp(False)
 

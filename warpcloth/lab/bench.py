@@ -24,10 +24,10 @@ import time
 import numpy as np
 import warp as wp
 
-from .cliparse import Parser, guarded
-from .errors import WarpclothError, require
-from .progress import format_seconds
-from .fileio import AtomicFile, OutputError, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
+from ..cliparse import Parser, guarded
+from ..errors import WarpclothError, require
+from ..progress import format_seconds
+from ..fileio import AtomicFile, OutputError, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
 
 COLUMNS = [
     "scenario", "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt", "steps", "ms_per_step",
@@ -68,7 +68,7 @@ def roofline_ms(model, repeats: int = 50) -> float:
         wp.launch(rk.roofline_stream, dim=model.particle_count, inputs=args)
         wp.synchronize_device(d)
         # capture a batch of launches so launch overhead does not count (where capture works)
-        from .simulator import graph_capture_supported
+        from ..simulator import graph_capture_supported
 
         batch = 20
         if graph_capture_supported(d):
@@ -95,7 +95,7 @@ def roofline_ms(model, repeats: int = 50) -> float:
 
 def _build(scenario: str, size: int | None, device: str, **kwargs):
     """A Simulator of ``scenario``: a size x size grid, or the scenario's own mesh (``size`` None)."""
-    from .scenarios import get_scenario
+    from ..scenarios import get_scenario
 
     grid = {} if size is None else {"rows": size, "cols": size}
     return get_scenario(scenario).build(device=device, **grid, **kwargs)
@@ -232,9 +232,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from .integrators import integrator_class, integrator_names, make_integrator
-    from .device import device_name as resolve_device
-    from .simulator import graph_capture_supported
+    from ..integrators import integrator_class, integrator_names, make_integrator
+    from ..device import device_name as resolve_device
+    from ..simulator import graph_capture_supported
 
     if args.integrators is None:
         names = integrator_names()
@@ -243,7 +243,7 @@ def run(args) -> int:
         require(bool(names), f"--integrators {args.integrators!r} names no integrator; give comma-separated names from {', '.join(integrator_names())}")
     for n in names:
         integrator_class(n)
-    from .scenarios import get_scenario
+    from ..scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)  # unknown name or bad file: one line
     if scenario.model is not None:  # a mesh: its own particles, no grid sizes
@@ -276,13 +276,13 @@ def run(args) -> int:
     require(not (args.out and args.plot and os.path.abspath(args.out) == os.path.abspath(args.plot)),
             f"--out and --plot are the same file {args.out!r}")
     if args.plot:
-        from .preview import require_matplotlib
+        from ..preview import require_matplotlib
 
         require_matplotlib("--plot")  # before the benchmark, not after it
     for path in {os.path.dirname(os.path.abspath(p)) for p in (args.out, args.plot) if p and p != "-"}:
         sweep_stale_temporaries(path, sys.stderr)
 
-    from .progress import Progress
+    from ..progress import Progress
 
     quiet = getattr(args, "quiet", False)
     modes = {"both": [False, True], "on": [True], "off": [False]}[args.graph]
