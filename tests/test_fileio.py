@@ -22,8 +22,8 @@ WARPCLOTH = [sys.executable, "-m", "warpcloth.cli"]
 
 # 3 integrators x 4 sizes x 2 scenarios = 24 short runs
 K_XML = """
-<test_list timestep="1e-3" duration="0.05" cap="30">
-  <test integrator="explicit_euler verlet rk4" size="4 5 6 7" scenarios="sheet flag"/>
+<test_list dt="1e-3" duration="0.05" wall_cap="30">
+  <test integrator="explicit_euler verlet rk4" size="4 5 6 7" scenario="sheet flag"/>
 </test_list>
 """
 
@@ -58,7 +58,7 @@ def test_refused_resume_leaves_the_file_byte_identical(tmp_path, monkeypatch, ca
 
 
 def test_resume_keeps_a_copy_of_the_dropped_partial_line(tmp_path, capsys):
-    path = write(tmp_path, '<test_list><test integrator="verlet" size="4" timestep="1e-3" duration="0.05"/></test_list>')
+    path = write(tmp_path, '<test_list><test integrator="verlet" size="4" dt="1e-3" duration="0.05"/></test_list>')
     out = tmp_path / "r.csv"
     assert main(["sweep", path, "-o", str(out), "-q"]) == 0
     full = out.read_bytes()

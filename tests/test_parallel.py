@@ -21,14 +21,14 @@ from parallel_toy import toy  # noqa: E402 - a job function the spawned workers 
 
 # 2 integrators x 2 time steps x 2 scenarios = 8 runs in 4 max-dt search groups
 TINY = """
-<test_list size="6" duration="1" cap="30">
-  <test id="t" integrator="explicit_euler verlet" timestep="max max*0.5" maxdt_duration="0.5"/>
+<test_list size="6" duration="1" wall_cap="30">
+  <test id="t" integrator="explicit_euler verlet" dt="max max*0.5" maxdt_duration="0.5"/>
 </test_list>
 """
 # 8 independent runs of about a second each (a fixed dt: no groups)
 SLOW = """
-<test_list size="8" duration="2" timestep="2e-4" cap="60">
-  <test id="s" integrator="explicit_euler verlet" scenarios="sheet flag" mass="0.2 0.25"/>
+<test_list size="8" duration="2" dt="2e-4" wall_cap="60">
+  <test id="s" integrator="explicit_euler verlet" scenario="sheet flag" mass="0.2 0.25"/>
 </test_list>
 """
 #: Columns that depend on the machine, the clock or the placement, not on the run.

@@ -205,7 +205,7 @@ def test_graph_flag_off_is_bit_identical_to_on_and_capture_is_apart(capsys, tmp_
     from warpcloth.lab.testlist import parse_test_list
 
     xml = tmp_path / "t.xml"
-    xml.write_text('<test_list size="4" scenarios="sheet" duration="0.1" timestep="1e-3"><test integrator="rk4" graph="off on"/></test_list>')
+    xml.write_text('<test_list size="4" scenario="sheet" duration="0.1" dt="1e-3"><test integrator="rk4" graph="off on"/></test_list>')
     runs = parse_test_list(str(xml)).runs
     assert [r.graph for r in runs] == ["off", "on"] and [r.config().use_graph for r in runs] == [False, True]
     with pytest.raises(SystemExit) as exit_:

@@ -76,8 +76,8 @@ def test_defaults_of_a_minimal_test(tmp_path):
 def test_lists_expand_to_their_product(tmp_path):
     tl = parse_test_list(write(tmp_path, """
         <test_list>
-          <test id="p" integrator="explicit_euler rk4" size="6 8x10" timestep="1e-3 max*0.5" mass="0.1 0.4"/>
-          <test id="q" integrator="verlet" rows="5 7" cols="6 9" scenarios="flag"/>
+          <test id="p" integrator="explicit_euler rk4" size="6 8x10" dt="1e-3 max*0.5" mass="0.1 0.4"/>
+          <test id="q" integrator="verlet" rows="5 7" cols="6 9" scenario="flag"/>
         </test_list>
     """))
     p = {(r.integrator, (r.rows, r.cols), str(r.timestep), r.mass, r.scenario) for r in tl.runs if r.test_id == "p"}
@@ -91,9 +91,9 @@ def test_lists_expand_to_their_product(tmp_path):
 
 def test_root_defaults_per_type_springs_and_all(tmp_path):
     tl = parse_test_list(write(tmp_path, """
-        <test_list cap="5" stiffness="500" scenarios="sheet">
+        <test_list wall_cap="5" stiffness="500" scenario="sheet">
           <test integrator="all" size="4" stiffness_bend="50" damping="0.2" damping_shear="0.3"/>
-          <test integrator="rk4" size="4" cap="none" stiffness="800"/>
+          <test integrator="rk4" size="4" wall_cap="none" stiffness="800"/>
         </test_list>
     """))
     first = [r for r in tl.runs if r.test_id == "1"]
@@ -108,7 +108,7 @@ def test_root_defaults_per_type_springs_and_all(tmp_path):
 def test_integrator_options_come_from_the_registry(tmp_path, extra_integrators):
     tl = parse_test_list(write(tmp_path, """
         <test_list>
-          <test integrator="explicit_euler counting" size="4" scenarios="sheet" iterations="2 3"/>
+          <test integrator="explicit_euler counting" size="4" scenario="sheet" iterations="2 3"/>
         </test_list>
     """))
     runs = [(r.integrator, r.options) for r in tl.runs]
@@ -121,13 +121,13 @@ def test_integrator_options_come_from_the_registry(tmp_path, extra_integrators):
 
 def test_the_key_ignores_test_ids_and_order(tmp_path):
     a = parse_test_list(write(tmp_path, """
-        <test_list><test id="x" integrator="rk4 verlet" size="5"/><test id="y" integrator="midpoint" timestep="0.001"/></test_list>
+        <test_list><test id="x" integrator="rk4 verlet" size="5"/><test id="y" integrator="midpoint" dt="0.001"/></test_list>
     """, "a.xml"))
     b = parse_test_list(write(tmp_path, """
-        <test_list><test integrator="midpoint" timestep="1e-3"/><test integrator="verlet rk4" size="5x5"/></test_list>
+        <test_list><test integrator="midpoint" dt="1e-3"/><test integrator="verlet rk4" size="5x5"/></test_list>
     """, "b.xml"))
     assert {r.key for r in a.runs} == {r.key for r in b.runs}
-    c = parse_test_list(write(tmp_path, '<test_list><test integrator="midpoint" timestep="2e-3"/></test_list>', "c.xml"))
+    c = parse_test_list(write(tmp_path, '<test_list><test integrator="midpoint" dt="2e-3"/></test_list>', "c.xml"))
     assert not {r.key for r in c.runs} & {r.key for r in a.runs}
 
 
@@ -141,18 +141,18 @@ BAD = [
     ("text", '<test_list>\n<test integrator="rk4">\n oops</test></test_list>', 3, "unexpected text 'oops'"),
     ("empty list", '<test_list>\n  <!-- nothing -->\n</test_list>', 1, "empty test list"),
     ("attribute", '<test_list>\n<test integrator="rk4"\n  stifness="10"/></test_list>', 3, "unknown attribute 'stifness' (did you mean 'stiffness'?)"),
-    ("timestep", '<test_list>\n<test integrator="rk4"\n      rows="5" cols="5"\n      timestep="1e-3 fast"/></test_list>', 4, "'fast' is not a time step"),
-    ("max factor", '<test_list><test integrator="rk4" timestep="max*x"/></test_list>', 1, "factor in max*F"),
+    ("timestep", '<test_list>\n<test integrator="rk4"\n      rows="5" cols="5"\n      dt="1e-3 fast"/></test_list>', 4, "'fast' is not a time step"),
+    ("max factor", '<test_list><test integrator="rk4" dt="max*x"/></test_list>', 1, "factor in max*F"),
     ("rows", '<test_list>\n\n<test integrator="rk4" rows="2.5" cols="5"/></test_list>', 3, "rows: '2.5' is not an integer"),
     ("small mesh", '<test_list>\n<test integrator="rk4" size="2"/></test_list>', 2, "must be an integer >= 3"),
     ("mass", '<test_list>\n<test integrator="rk4" mass="-1"/></test_list>', 2, "mass: '-1' must be > 0"),
     ("stiffness", '<test_list>\n<test integrator="rk4" stiffness="stiff"/></test_list>', 2, "'stiff' is not a number"),
-    ("cap", '<test_list cap="0">\n<test integrator="rk4"/></test_list>', 1, "cap: '0'"),
+    ("cap", '<test_list wall_cap="0">\n<test integrator="rk4"/></test_list>', 1, "cap: '0'"),
     ("empty value", '<test_list>\n<test integrator="rk4" size=" "/></test_list>', 2, "attribute 'size' is empty"),
     ("repeated value", '<test_list>\n<test integrator="rk4 rk4"/></test_list>', 2, "repeats a value"),
     ("integrator", '<test_list>\n<test integrator="rk5"/></test_list>', 2, "unknown integrator 'rk5'"),
     ("no integrator", '<test_list>\n<test size="5"/></test_list>', 2, "attribute 'integrator' is required"),
-    ("scenario", '<test_list>\n<test integrator="rk4" scenarios="sheet sail"/></test_list>', 2, "unknown scenario 'sail'"),
+    ("scenario", '<test_list>\n<test integrator="rk4" scenario="sheet sail"/></test_list>', 2, "unknown scenario 'sail'"),
     ("device", '<test_list>\n<test integrator="rk4" device="tpu"/></test_list>', 2, "device 'tpu' is not available"),
     ("rows alone", '<test_list>\n<test integrator="rk4" rows="5"/></test_list>', 2, "'cols' is missing"),
     ("size and rows", '<test_list>\n<test integrator="rk4" size="5"\n rows="5" cols="5"/></test_list>', 3, "either 'size' or 'rows'"),
@@ -236,9 +236,9 @@ def test_existing_output_needs_resume_or_overwrite(tmp_path, monkeypatch, capsys
 
 # -- sweeps --------------------------------------------------------------------------------
 SMALL = """
-<test_list timestep="1e-3" frame_rate="30">
-  <test id="sheet" integrator="explicit_euler rk4" size="5 6" scenarios="sheet" duration="4"/>
-  <test id="flag" integrator="explicit_euler rk4" size="5 6" scenarios="flag" duration="0.4"/>
+<test_list dt="1e-3" frame_rate="30">
+  <test id="sheet" integrator="explicit_euler rk4" size="5 6" scenario="sheet" duration="4"/>
+  <test id="flag" integrator="explicit_euler rk4" size="5 6" scenario="flag" duration="0.4"/>
 </test_list>
 """
 
@@ -268,7 +268,7 @@ def test_small_sweep_rows_are_consistent(small_sweep):
         assert float(r["frames_per_wall_second"]) == pytest.approx(float(r["realtime_factor"]) * 30.0)
         assert r["realtime"] == ("true" if float(r["realtime_factor"]) >= 1.0 else "false")
         assert float(r["realtime_factor"]) == pytest.approx(sim_time / float(r["wall_time"]))
-        assert float(r["ks"]) == 1000.0 and float(r["ks_bend"]) == 200.0
+        assert float(r["stiffness_structural"]) == 1000.0 and float(r["stiffness_bend"]) == 200.0
         assert r["warpcloth_version"] and r["warp_version"]
         assert 0.0 < float(r["max_strain"]) < 0.5
         if r["scenario"] == "flag":
@@ -289,8 +289,8 @@ def _keys(path):
 
 
 QUICK = """
-<test_list timestep="1e-3" duration="0.1" cap="30">
-  <test integrator="explicit_euler verlet" size="4 5" scenarios="sheet flag"/>
+<test_list dt="1e-3" duration="0.1" wall_cap="30">
+  <test integrator="explicit_euler verlet" size="4 5" scenario="sheet flag"/>
 </test_list>
 """
 
@@ -330,7 +330,7 @@ def test_interrupted_sweep_resumes_every_row_exactly_once(tmp_path, monkeypatch)
 
     # resuming with the tests reordered and renamed finds every run done
     path2 = write(tmp_path, """
-        <test_list><test id="renamed" integrator="verlet explicit_euler" size="5 4" timestep="0.001" duration="0.1" cap="30"/></test_list>
+        <test_list><test id="renamed" integrator="verlet explicit_euler" size="5 4" dt="0.001" duration="0.1" wall_cap="30"/></test_list>
     """, "reordered.xml")
     monkeypatch.setattr(sweep, "execute_run", lambda *a: pytest.fail("a finished run was repeated"))
     assert sweep.run_sweep(path2, str(out), resume=True).written == 0
@@ -376,11 +376,11 @@ def test_killed_sweep_resumes_every_row_exactly_once(tmp_path, capsys):
 
 def test_failing_runs_are_recorded_and_the_sweep_goes_on(tmp_path, extra_integrators, capsys):
     path = write(tmp_path, """
-        <test_list size="6" scenarios="sheet" duration="0.3">
-          <test id="ok" integrator="explicit_euler counting" timestep="1e-3" iterations="7"/>
-          <test id="bad" integrator="exploding" timestep="1e-3"/>
-          <test id="unstable" integrator="explicit_euler" timestep="5e-3"/>
-          <test id="after" integrator="verlet" timestep="1e-3"/>
+        <test_list size="6" scenario="sheet" duration="0.3">
+          <test id="ok" integrator="explicit_euler counting" dt="1e-3" iterations="7"/>
+          <test id="bad" integrator="exploding" dt="1e-3"/>
+          <test id="unstable" integrator="explicit_euler" dt="5e-3"/>
+          <test id="after" integrator="verlet" dt="1e-3"/>
         </test_list>
     """)
     out = tmp_path / "r.csv"
@@ -403,7 +403,7 @@ def test_failing_runs_are_recorded_and_the_sweep_goes_on(tmp_path, extra_integra
 
 
 def test_progress_goes_to_stderr_and_csv_to_stdout(tmp_path, capsys):
-    path = write(tmp_path, '<test_list><test integrator="verlet" size="4" timestep="1e-3" duration="0.05"/></test_list>')
+    path = write(tmp_path, '<test_list><test integrator="verlet" size="4" dt="1e-3" duration="0.05"/></test_list>')
     assert main(["sweep", path, "--out", "-"]) == 0
     captured = capsys.readouterr()
     lines = captured.out.splitlines()
@@ -424,7 +424,7 @@ def test_timestep_max_searches_once_per_model(tmp_path, monkeypatch):
 
     monkeypatch.setattr(maxdt, "find_max_dt", counted)
     path = write(tmp_path, """
-        <test_list><test integrator="explicit_euler" size="5" scenarios="sheet" timestep="max max*0.5" duration="0.2"
+        <test_list><test integrator="explicit_euler" size="5" scenario="sheet" dt="max max*0.5" duration="0.2"
             maxdt_precision="0.05" maxdt_duration="1"/></test_list>
     """)
     sweep.run_sweep(path, str(tmp_path / "r.csv"))
@@ -500,7 +500,7 @@ def test_seed_plan_parses_once_its_integrators_exist():
     assert {r.integrator for r in tl.runs} == set(integrators.integrator_names())
     assert {(r.rows, r.cols) for r in tl.runs} == {(25, 25), (50, 50), (100, 100)}
     assert {r.scenario for r in tl.runs} == {"sheet", "flag"}
-    assert 'timestep="max max*0.5 max*0.25"' in text
+    assert 'dt="max max*0.5 max*0.25"' in text
 
 
 def test_docs_describe_every_attribute_and_column():
@@ -512,7 +512,7 @@ def test_docs_describe_every_attribute_and_column():
 
 
 def test_strain_limit_attribute(tmp_path):
-    path = write(tmp_path, '<test_list>\n<test integrator="verlet" size="5" strain_limit="0.1 0.2" scenarios="sheet"/>\n</test_list>')
+    path = write(tmp_path, '<test_list>\n<test integrator="verlet" size="5" strain_limit="0.1 0.2" scenario="sheet"/>\n</test_list>')
     runs = parse_test_list(path).runs
     assert sorted(r.strain_limit for r in runs) == [0.1, 0.2]
     assert len({r.key for r in runs}) == 2 and all("strain_limit=" in r.key for r in runs)
@@ -544,7 +544,7 @@ def test_a_huge_product_is_refused_without_expanding(tmp_path):
 
 def test_max_runs_flag_raises_and_lowers_the_limit(tmp_path, monkeypatch, capsys):
     path = write(tmp_path, """
-        <test_list timestep="1e-3" duration="0.05" scenarios="sheet">
+        <test_list dt="1e-3" duration="0.05" scenario="sheet">
           <test integrator="rk4 verlet" size="4 5"/>
           <test integrator="midpoint" size="4 5 6"/>
         </test_list>
@@ -573,9 +573,9 @@ def test_solver_converged_column(tmp_path, capsys):
     """implicit_euler with a 2-iteration CG cap misses its tolerance in every step: the row says
     so; with a generous cap it converges; an integrator without a solver leaves the cell empty."""
     path = write(tmp_path, """
-        <test_list size="5" scenarios="sheet" duration="0.1" frame_rate="60">
-          <test id="implicit" integrator="implicit_euler" timestep="0.0166666667" cg_tol="1e-5" cg_max_iter="2 1000"/>
-          <test id="explicit" integrator="explicit_euler" timestep="1e-3"/>
+        <test_list size="5" scenario="sheet" duration="0.1" frame_rate="60">
+          <test id="implicit" integrator="implicit_euler" dt="0.0166666667" cg_tol="1e-5" cg_max_iter="2 1000"/>
+          <test id="explicit" integrator="explicit_euler" dt="1e-3"/>
         </test_list>
     """)
     out = tmp_path / "r.csv"
@@ -593,7 +593,7 @@ def test_solver_converged_column(tmp_path, capsys):
 
 def test_instability_strain_attribute(tmp_path):
     path = write(tmp_path, """
-        <test_list size="4" scenarios="sheet" duration="0.1" timestep="1e-3">
+        <test_list size="4" scenario="sheet" duration="0.1" dt="1e-3">
           <test id="strict" integrator="explicit_euler" instability_strain="0.0001"/>
           <test id="default" integrator="explicit_euler"/>
         </test_list>

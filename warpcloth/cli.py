@@ -20,64 +20,20 @@ import os
 import sys
 
 from .cliparse import EXIT_USAGE, Parser, guarded  # noqa: F401  (EXIT_USAGE: kept importable from cli)
-from .colliders import parse_collider
 from .errors import WarpclothError, require_positive
+from .params import BY_NAME, add_flags, check_applies, cli_value, config_values, params_for
 
-def _number_list(text: str):
-    """'1000' -> 1000.0 ; '1000,500,100' -> (1000.0, 500.0, 100.0) (structural, shear, bend)."""
-    parts = text.split(",")
-    if len(parts) > 1 and any(not p.strip() for p in parts):
-        raise argparse.ArgumentTypeError(f"{text!r} has an empty item: give one number, or three separated by single commas (structural,shear,bend)")
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers, got {text!r}") from None
-    if len(values) == 1:
-        return values[0]
-    if len(values) == 3:
-        return tuple(values)
-    raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers (structural,shear,bend), got {text!r}")
-
-
-def add_model_arguments(p: argparse.ArgumentParser) -> None:
-    """Flags that choose the cloth, the integrator and the device (``run`` and ``max-dt``)."""
-    from .integrators import integrator_names
-
-    p.add_argument("--integrator", "-i", default=None, metavar="NAME", help=f"one of: {', '.join(integrator_names())} (default: explicit_euler)")
-    p.add_argument("--rows", type=int, default=None, help="particles per column (scenario default)")
-    p.add_argument("--cols", type=int, default=None, help="particles per row (scenario default)")
-    p.add_argument("--width", type=float, default=None, help="cloth width [m]")
-    p.add_argument("--height", type=float, default=None, help="cloth height [m]")
-    p.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda, cuda:N")
-    p.add_argument("--stiffness", type=_number_list, default=None, metavar="KS", help="spring stiffness [N/m]: one value, or structural,shear,bend")
-    p.add_argument("--damping", type=_number_list, default=None, metavar="KD", help="spring damping [N s/m]: one value, or structural,shear,bend (default scales with particle mass)")
-    p.add_argument("--mass", type=float, default=None, help="total cloth mass [kg]")
-    p.add_argument("--drag", type=float, default=None, help="linear air drag rate [1/s]")
-    p.add_argument("--bend", default=None, choices=["provot", "choi_ko", "none"], help="bend springs (default provot)")
-    p.add_argument("--strain-limit", type=float, default=None, metavar="TAU", help="Provot deformation constraint: cap structural/shear strain at TAU (e.g. 0.1), force-based integrators (default off)")
-    p.add_argument("--collider", action="append", default=None, metavar="KIND:K=V,...",
-                   help="add a collider (repeatable): plane|sphere|capsule|box with settings, vectors as x/y/z, e.g. "
-                        "sphere:center=0/1/0,radius=0.3,thickness=0.005,friction=0.4 (docs/colliders.md)")
-    p.add_argument("--instability-strain", type=float, default=None, metavar="STRAIN", help="a spring strained past this (e.g. 0.5 = 50 %%) makes the run unstable (default 0.5)")
-    mesh = p.add_argument_group("mesh scenarios (mesh, scenario files)")
-    mesh.add_argument("--mesh", default=None, metavar="FILE", help="the cloth's triangle mesh: .obj or .usd/.usda/.usdc/.usdz")
-    mesh.add_argument("--prim", default=None, metavar="PATH", help="the UsdGeom.Mesh prim in a USD --mesh (default: the first mesh)")
-    mesh.add_argument("--pin-group", action="append", default=None, metavar="NAME", help="pin a vertex group of the mesh (repeatable)")
-    mesh.add_argument("--pin", dest="pin_where", default=None, metavar="EXPR", help="pin the vertices where EXPR holds, e.g. 'y > 0.95 * y.max()' (x, y, z [m])")
+def add_model_arguments(p: argparse.ArgumentParser, command: str = "max-dt", exclusive: dict | None = None) -> None:
+    """The flags of ``command``'s run parameters (:mod:`warpcloth.params`) and the integrators'
+    options (:class:`~warpcloth.integrators.Option`)."""
+    add_flags(p, command, skip=("scenario",), exclusive=exclusive)
     _add_integrator_options(p)
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of a scenario run (shared by ``warpcloth run`` and ``python -m warpcloth.scenarios.X``)."""
-    add_model_arguments(p)
-    p.add_argument("--dt", type=float, default=None, help="time step [s] (default: the integrator's own, stable on the scenario)")
-    length = p.add_mutually_exclusive_group()
-    length.add_argument("--duration", type=float, default=None, help="simulated time [s] (default 10)")
-    length.add_argument("--num-frames", type=int, default=None, help="run this many frames instead of --duration")
-    p.add_argument("--fps", type=float, default=None, help="frame rate of sampling and USD export [1/s] (default 60)")
-    p.add_argument("--graph", choices=["on", "off", "auto"], default="auto",
-                   help="capture a frame's steps as a graph and replay it: on, off, or auto (where supported; default). "
-                        "Results are bit-identical; capture time is reported apart")
+    num_frames = (("--num-frames",), dict(type=int, default=None, help="run this many frames instead of --duration"))
+    add_model_arguments(p, "run", exclusive={"duration": [num_frames]})
     out = p.add_argument_group("outputs")
     out.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH",
                      help="write the animation to this USD file (.usd/.usda/.usdc, or .usdz: a package)")
@@ -86,7 +42,6 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     out.add_argument("--html", default=None, metavar="PATH", help="write a self-contained HTML player of the animation (WebGL, no network)")
     out.add_argument("--preview", default=None, metavar="PATH",
                      help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs warpcloth[plot]")
-    p.add_argument("--wall-cap", type=float, default=None, help="stop after this many wall-clock seconds")
     p.add_argument("--fail-unstable", action="store_true", help="exit with status 3 when the run goes unstable")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
 
@@ -118,45 +73,38 @@ def integrator_options_from_args(integrator: str, args) -> dict:
     return out
 
 
-def config_from_args(scenario, args):
+def param_values(args, command: str) -> dict:
+    """The run parameters given on the command line, by name (unset: None)."""
+    return {p.name: cli_value(p, args) for p in params_for(command) if not p.positional}
+
+
+def config_from_args(scenario, args, command: str = "run"):
     """A ScenarioConfig from parsed flags (unset flags keep the scenario defaults)."""
-    from .integrators import integrator_class
+    from .integrators import integrator_class, integrator_names
 
-    if args.integrator is not None and not args.integrator.strip():
-        from .integrators import integrator_names
-
+    values = param_values(args, command)
+    if values.get("integrator") is not None and not values["integrator"].strip():
         raise WarpclothError(f"--integrator is empty; choose one of {', '.join(integrator_names())}")
-    integrator = args.integrator or scenario.defaults.integrator
+    if values.get("integrator") == "all":
+        raise WarpclothError(f"--integrator all is for test lists (warpcloth sweep); choose one of {', '.join(integrator_names())}")
+    integrator = values.get("integrator") or scenario.defaults.integrator
     integrator_class(integrator)  # unknown name -> clear error
-    _check_cloth_flags(scenario, args)
-    cfg = scenario.config(
-        rows=args.rows, cols=args.cols, width=args.width, height=args.height, integrator=integrator, dt=args.dt,
-        duration=args.duration, fps=args.fps, stiffness=args.stiffness, damping=args.damping, mass=args.mass,
-        drag=args.drag, bend=args.bend, device=args.device, strain_limit=args.strain_limit,
-        instability_strain=args.instability_strain,
-        use_graph={"on": True, "off": False, "auto": None}[getattr(args, "graph", "auto") or "auto"],
-        colliders=tuple(parse_collider(c) for c in (getattr(args, "collider", None) or ())) or None,
-        integrator_options=integrator_options_from_args(integrator, args),
-        mesh=getattr(args, "mesh", None), prim=getattr(args, "prim", None), pin_where=getattr(args, "pin_where", None),
-        pin_group=tuple(args.pin_group) if getattr(args, "pin_group", None) else None,
-    )
-    if args.num_frames is not None:
+    if values.get("size") is not None and (values.get("rows") is not None or values.get("cols") is not None):
+        raise WarpclothError("give either --size or --rows and --cols, not both")
+    check_applies(values, scenario.model is not None, scenario.name)
+    if values.get("device") is None:
+        values["device"] = BY_NAME["device"].default  # the CLI's default device
+    kwargs = config_values(values)
+    kwargs.update(integrator=integrator, integrator_options=integrator_options_from_args(integrator, args),
+                  dt=values.get("dt"))
+    cfg = scenario.config(**kwargs)
+    num_frames = getattr(args, "num_frames", None)
+    if num_frames is not None:
         require_positive("fps", cfg.fps, "1/s")
-        if args.num_frames < 1:
-            raise WarpclothError(f"--num-frames must be >= 1, got {args.num_frames}")
-        cfg.duration = args.num_frames / cfg.fps
+        if num_frames < 1:
+            raise WarpclothError(f"--num-frames must be >= 1, got {num_frames}")
+        cfg.duration = num_frames / cfg.fps
     return cfg
-
-
-def _check_cloth_flags(scenario, args) -> None:
-    """Grid flags on a mesh scenario, or mesh flags on a grid scenario, are refused (not ignored)."""
-    is_mesh = scenario.model is not None
-    flags = (("--mesh", "mesh"), ("--prim", "prim"), ("--pin-group", "pin_group"), ("--pin", "pin_where")) if not is_mesh else \
-        (("--rows", "rows"), ("--cols", "cols"), ("--width", "width"), ("--height", "height"))
-    for flag, attr in flags:
-        if getattr(args, attr, None) is not None:
-            kind = "a mesh: its size comes from the mesh file" if is_mesh else "a grid; --mesh, --prim, --pin-group and --pin apply to the mesh scenario and scenario files"
-            raise WarpclothError(f"{flag} does not apply to scenario {scenario.name!r}: its cloth is {kind}")
 
 
 def summary(result) -> str:
@@ -376,20 +324,10 @@ def _sweep(args) -> int:
 
 def _add_max_dt_arguments(p: argparse.ArgumentParser) -> None:
     """Flags of ``warpcloth max-dt``: the model and integrator of a run, and the search."""
-    from .lab.maxdt import DEFAULT_DURATION, DEFAULT_PRECISION
-
-    p.add_argument("scenario", help="scenario name (see 'warpcloth list')")
-    add_model_arguments(p)
-    p.add_argument("--fps", type=float, default=None, help="frame rate at which stability is checked [1/s] (default 60)")
-    search = p.add_argument_group("search")
-    search.add_argument("--precision", type=float, default=DEFAULT_PRECISION, help=f"relative width of the final bracket (default {DEFAULT_PRECISION})")
-    search.add_argument("--duration", type=float, default=DEFAULT_DURATION, help=f"simulated time [s] a trial must run without going unstable (default {DEFAULT_DURATION:g})")
-    search.add_argument("--dt-min", type=float, default=None, help="smallest dt tried [s] (default 1e-7)")
-    search.add_argument("--dt-max", type=float, default=None, help="largest dt tried [s] (default 0.1)")
-    search.add_argument("--start", type=float, default=None, help="first dt tried [s] (default: the integrator's default dt)")
-    search.add_argument("--wall-cap", type=float, default=None, help="wall-clock cap of one trial [s] (a capped trial counts as stable)")
+    p.add_argument("scenario", help="scenario name (see 'warpcloth list') or a scenario file (.toml)")
+    add_model_arguments(p, "max-dt")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
-    p.set_defaults(dt=None, num_frames=None)
+    p.set_defaults(dt=None, num_frames=None, duration=None)
 
 
 def _max_dt(args) -> int:
@@ -397,8 +335,10 @@ def _max_dt(args) -> int:
     from .scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)
-    cfg = config_from_args(scenario, args)
+    cfg = config_from_args(scenario, args, "max-dt")
     _check_spacing(scenario, cfg)
+    precision = args.maxdt_precision if args.maxdt_precision is not None else BY_NAME["maxdt_precision"].default
+    duration = args.maxdt_duration if args.maxdt_duration is not None else BY_NAME["maxdt_duration"].default
     from .progress import Progress
 
     progress = Progress(f"max-dt {args.scenario} {cfg.integrator}", enabled=not args.quiet)
@@ -411,7 +351,7 @@ def _max_dt(args) -> int:
         total = None
         if stable and unstable and min(unstable) > max(stable):  # bisection: the trials left are known
             ratio = math.log(min(unstable) / max(stable))
-            left = max(0, math.ceil(math.log2(max(ratio / math.log1p(args.precision), 1.0))))
+            left = max(0, math.ceil(math.log2(max(ratio / math.log1p(precision), 1.0))))
             total = len(trials) + left
         note = f"trial {len(trials)}: dt={trial.dt:.4g} s {'stable' if trial.stable else 'unstable'}"
         progress.update(len(trials), total, note=note, unit=" trials")
@@ -419,10 +359,10 @@ def _max_dt(args) -> int:
     with _DefaultDtExplained(args):
         try:
             result = find_max_dt(
-                scenario, cfg, precision=args.precision, duration=args.duration,
+                scenario, cfg, precision=precision, duration=duration,
                 dt_min=DEFAULT_DT_MIN if args.dt_min is None else args.dt_min,
                 dt_max=DEFAULT_DT_MAX if args.dt_max is None else args.dt_max,
-                start=args.start, wall_cap=args.wall_cap, on_trial=on_trial,
+                start=args.dt_start, wall_cap=args.wall_cap, on_trial=on_trial,
             )
         finally:
             progress.close()

@@ -6,7 +6,7 @@
   flushed and fsync'd as its run finishes. ``resume=True`` skips the runs whose key
   (:attr:`~warpcloth.lab.testlist.RunSpec.key`, built from the run's parameters) is already in the
   file. A run that raises records ``outcome=error`` and its message, and the sweep goes on.
-* ``timestep="max"`` / ``"max*F"`` uses :func:`~warpcloth.lab.maxdt.find_max_dt`, searched once per
+* ``dt="max"`` / ``"max*F"`` uses :func:`~warpcloth.lab.maxdt.find_max_dt`, searched once per
   integrator, scenario, mesh and parameters within a sweep, up to one frame (1/frame_rate): a
   real-time run takes at least one step per frame, so a larger dt is never useful here.
 * Progress goes to stderr, never to stdout.
@@ -32,14 +32,14 @@ from dataclasses import dataclass, field
 from ..errors import WarpclothError
 from ..fileio import (OutputError, WriterLock, check_output_path, describe_write_error,
                      sweep_stale_temporaries, write_atomic)
-from .testlist import RunSpec, TestList, parse_test_list
+from ..params import TimeStep, csv_columns
+from .testlist import RunSpec, TestList, parse_test_list, resolved_params
 
-#: Columns of the CSV, in order (docs/sweep.md describes each).
+#: Columns of the CSV, in order (docs/sweep.md describes each): the test id, the run parameters
+#: (their columns come from the declarations, :func:`warpcloth.params.csv_columns`), then what
+#: the run measured.
 COLUMNS = [
-    "test_id", "scenario", "integrator", "device", "rows", "cols", "particles", "springs",
-    "timestep", "dt", "max_dt", "unstable_dt",
-    "ks", "ks_shear", "ks_bend", "kd", "kd_shear", "kd_bend", "mass", "drag", "strain_limit", "instability_strain", "bend", "options",
-    "frame_rate", "duration", "cap",
+    "test_id", *csv_columns(), "options", "particles", "springs", "dt", "max_dt", "unstable_dt",
     "outcome", "steps", "sim_time", "wall_time", "compile_time", "ms_per_step", "steps_per_sec",
     "frames_per_wall_second", "realtime_factor", "realtime", "integration_ms_mean", "other_ms_mean",
     "stable", "unstable_reason", "equilibrium_reached", "time_to_equilibrium_sim", "time_to_equilibrium_wall",
@@ -55,24 +55,32 @@ OUTCOMES = ("equilibrium", "completed", "wall_cap", "unstable", "error")
 
 # -- one run ---------------------------------------------------------------------------------
 def parameter_row(spec: RunSpec) -> dict:
-    """The columns known before a run starts."""
+    """The columns known before a run starts (the parameter columns from the declarations)."""
     import warp as wp
 
     from .. import __version__
     from ..model import expected_spring_counts
 
-    ks, kd = spec.stiffness, spec.damping
-    return {
-        "test_id": spec.test_id, "scenario": spec.scenario, "integrator": spec.integrator, "device": spec.device,
-        "rows": spec.rows, "cols": spec.cols, "particles": spec.rows * spec.cols,
-        "springs": sum(expected_spring_counts(spec.rows, spec.cols, spec.bend).values()),
-        "timestep": str(spec.timestep), "ks": ks[0], "ks_shear": ks[1], "ks_bend": ks[2],
-        "kd": kd[0], "kd_shear": kd[1], "kd_bend": kd[2], "mass": spec.mass, "drag": spec.drag, "strain_limit": spec.strain_limit,
-        "instability_strain": spec.instability_strain, "bend": spec.bend,
-        "options": " ".join(f"{k}={v}" for k, v in spec.options), "frame_rate": spec.frame_rate,
-        "duration": spec.duration, "cap": spec.cap, "warpcloth_version": __version__, "warp_version": wp.config.version,
-        "key": spec.key,
-    }
+    row = {"test_id": spec.test_id, "options": " ".join(f"{k}={v}" for k, v in spec.options),
+           "warpcloth_version": __version__, "warp_version": wp.config.version, "key": spec.key}
+    for p in resolved_params():
+        value = spec.get(p.name)
+        columns = p.csv_columns
+        if len(columns) > 1:
+            row.update(zip(columns, value))
+        elif columns:
+            row[columns[0]] = str(value) if isinstance(value, TimeStep) else value
+    if get_scenario_kind(spec.scenario) == "grid":
+        row["particles"] = spec.rows * spec.cols
+        row["springs"] = sum(expected_spring_counts(spec.rows, spec.cols, spec.bend).values())
+    return row
+
+
+def get_scenario_kind(name: str) -> str:
+    """``grid`` or ``mesh``: what kind of cloth scenario ``name`` builds."""
+    from ..scenarios import get_scenario
+
+    return "grid" if get_scenario(name).model is None else "mesh"
 
 
 def result_columns(result, stop_at_equilibrium: bool = True) -> dict:
@@ -126,7 +134,7 @@ class MaxDtCache:
             try:
                 self._results[key] = find_max_dt(
                     get_scenario(spec.scenario), spec.config(), precision=spec.maxdt_precision,
-                    duration=spec.maxdt_duration, dt_max=1.0 / spec.frame_rate, wall_cap=spec.cap,
+                    duration=spec.maxdt_duration, dt_max=1.0 / spec.frame_rate, wall_cap=spec.wall_cap,
                     on_trial=self.on_trial,
                 )
             except Exception as exc:  # recorded in every run that needs it
@@ -144,18 +152,18 @@ def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
     row = parameter_row(spec)
     try:
         dt = None
-        if spec.timestep.kind == "value":
-            dt = spec.timestep.value
-        elif spec.timestep.uses_max:
+        if spec.dt.kind == "value":
+            dt = spec.dt.value
+        elif spec.dt.uses_max:
             found = cache.get(spec)
             row["max_dt"], row["unstable_dt"] = found.dt, found.unstable_dt
             if found.dt is None:
                 raise WarpclothError(f"no stable dt found down to {found.dt_min:g} s")
-            dt = found.dt * spec.timestep.value
+            dt = found.dt * spec.dt.value
         scenario = get_scenario(spec.scenario)
         sim = scenario.build(spec.config(dt=dt))
         row["dt"] = sim.dt
-        result = sim.run(spec.duration, fps=spec.frame_rate, stop_at_equilibrium=scenario.stop_at_equilibrium, wall_cap=spec.cap)
+        result = sim.run(spec.duration, fps=spec.frame_rate, stop_at_equilibrium=scenario.stop_at_equilibrium, wall_cap=spec.wall_cap)
         row.update(result_columns(result, scenario.stop_at_equilibrium))
     except Exception as exc:
         row["outcome"] = "error"
@@ -493,7 +501,7 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
         elif todo:
             from ..lab.parallel import Job
 
-            jobs = [Job(spec.key, spec, spec.device, spec.search_key if spec.timestep.uses_max else None) for spec in todo]
+            jobs = [Job(spec.key, spec, spec.device, spec.search_key if spec.dt.uses_max else None) for spec in todo]
             for done in pool.run(jobs):
                 spec = done.job.payload
                 row = done.row

@@ -1,0 +1,134 @@
+"""One declaration per run parameter (warpcloth.params): the CLI flags, the XML attributes,
+the CSV columns, the run key and the docs table all come from it."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+
+import warpcloth.lab.sweep as sweep
+import warpcloth.params as params
+from warpcloth.cli import build_parser, main
+from warpcloth.errors import WarpclothError
+from warpcloth.lab.testlist import ATTRIBUTES, RunSpec, parse_test_list
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def write(tmp_path, text, name="t.xml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def test_docs_table_is_the_generated_one():
+    doc = (REPO / "docs" / "sweep.md").read_text()
+    begin = doc.index("<!-- params:begin")
+    table = doc[doc.index("\n", begin) + 1:doc.index("<!-- params:end -->")].strip()
+    assert table == params.markdown_table(), "docs/sweep.md is stale: paste `python -m warpcloth.params` between the markers"
+
+
+def test_every_spelling_comes_from_the_declaration():
+    run_flags = {a.dest for a in _actions("run")}
+    maxdt_flags = {a.dest for a in _actions("max-dt")}
+    for p in params.PARAMS:
+        if "sweep" in p.commands:
+            assert p.name in ATTRIBUTES, p.name
+            for column in p.csv_columns:
+                assert column in sweep.COLUMNS, column
+        if "run" in p.commands:
+            assert p.name in run_flags, p.name
+        if "max-dt" in p.commands:
+            assert p.name in maxdt_flags, p.name
+    # one spelling: the CLI flag is the attribute with dashes
+    strings = {s for a in _actions("run") for s in a.option_strings}
+    assert {"--wall-cap", "--frame-rate", "--dt", "--instability-strain", "--stiffness-shear", "--size"} <= strings
+
+
+def _actions(command):
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    return sub.choices[command]._actions
+
+
+def test_old_xml_spellings_are_accepted_with_a_note(tmp_path, capsys):
+    old = write(tmp_path, '<test_list cap="5" timestep="1e-3" scenarios="sheet">\n<test integrator="rk4" size="4"/>\n'
+                          '<test integrator="verlet" size="4" cap="none"/></test_list>', "old.xml")
+    new = write(tmp_path, '<test_list wall_cap="5" dt="1e-3" scenario="sheet">\n<test integrator="rk4" size="4"/>\n'
+                          '<test integrator="verlet" size="4" wall_cap="none"/></test_list>', "new.xml")
+    a = parse_test_list(old)
+    err = capsys.readouterr().err
+    for word, now in (("cap", "wall_cap"), ("timestep", "dt"), ("scenarios", "scenario")):
+        assert err.count(f"attribute '{word}' is now spelled '{now}'") == 1  # once per file
+    b = parse_test_list(new)
+    assert capsys.readouterr().err == ""
+    assert [r.key for r in a.runs] == [r.key for r in b.runs]
+    assert a.runs[0].wall_cap == a.runs[0].cap == 5.0 and a.runs[1].wall_cap is None
+    assert str(a.runs[0].dt) == str(a.runs[0].timestep) == "0.001"
+    both = write(tmp_path, '<test_list>\n<test integrator="rk4" cap="5" wall_cap="6"/></test_list>', "both.xml")
+    with pytest.raises(WarpclothError, match=r"both.xml:2: .*'wall_cap' and 'cap' name the same parameter|'cap' and 'wall_cap' name the same"):
+        parse_test_list(both)
+
+
+def test_new_flags_from_declarations_work_on_the_cli(tmp_path, capsys):
+    # --size and the per-type stiffness flags exist because the declarations have them
+    code = main(["run", "sheet", "--size", "5x6", "--stiffness", "800", "--stiffness-bend", "50", "--duration", "0.05",
+                 "--wall-cap", "30", "--json", "-q"])
+    assert code == 0
+    import json
+
+    out = json.loads(capsys.readouterr().out)
+    assert (out["rows"], out["cols"]) == (5, 6)
+    assert main(["run", "sheet", "--size", "5", "--rows", "6", "--cols", "6"]) == 2
+    assert "give either --size or --rows and --cols" in capsys.readouterr().err
+
+
+def test_per_type_cli_flags_reach_the_model():
+    from warpcloth.cli import config_from_args
+    from warpcloth.model import SpringType
+    from warpcloth.scenarios import get_scenario
+
+    parser = build_parser()
+    args = parser.parse_args(["run", "sheet", "--rows", "4", "--cols", "4", "--stiffness", "800", "--stiffness-bend", "50",
+                              "--damping-shear", "0.3"])
+    cfg = config_from_args(get_scenario("sheet"), args)
+    sim = get_scenario("sheet").build(cfg)
+    p = sim.model.spring_params
+    assert (p[SpringType.STRUCTURAL].stiffness, p[SpringType.SHEAR].stiffness, p[SpringType.BEND].stiffness) == (800, 800, 50)
+    assert p[SpringType.SHEAR].damping == pytest.approx(0.3)
+
+
+def test_adding_a_parameter_is_one_declaration(tmp_path, monkeypatch):
+    """A new parameter declared once appears as an XML attribute (checked, with file:line), a
+    CSV column, a run-key field and a CLI flag, with no other change but its use."""
+    extra = params.Param("gravity_scale", params.positive, "", "multiplies gravity", "> 0", "forces", default=1.0,
+                         key="set", config=None)
+    monkeypatch.setattr(params, "PARAMS", params.PARAMS + (extra,))
+    monkeypatch.setitem(params.BY_NAME, "gravity_scale", extra)
+    import warpcloth.lab.testlist as testlist
+
+    if True:
+        path = write(tmp_path, '<test_list scenario="sheet">\n<test integrator="rk4" size="4" gravity_scale="0.5 1.0"/></test_list>')
+        runs = testlist.parse_test_list(path).runs
+        assert sorted(r.gravity_scale for r in runs) == [0.5, 1.0]
+        assert sum("gravity_scale=0.5" in r.key for r in runs) == 1 and sum("gravity_scale" in r.key for r in runs) == 1
+        assert "gravity_scale" in params.csv_columns()
+        bad = write(tmp_path, '<test_list>\n<test integrator="rk4"\n gravity_scale="-1"/></test_list>', "bad.xml")
+        with pytest.raises(WarpclothError, match=r"bad.xml:3: test '1': gravity_scale: '-1' must be > 0"):
+            testlist.parse_test_list(bad)
+        import argparse
+
+        parser = argparse.ArgumentParser()
+        params.add_flags(parser, "run")
+        assert parser.parse_args(["--gravity-scale", "2", "sheet"]).gravity_scale == 2.0
+
+
+def test_runspec_pickles_for_worker_processes(tmp_path):
+    import pickle
+
+    spec = parse_test_list(write(tmp_path, '<test_list><test integrator="rk4" size="4" scenario="sheet"/></test_list>')).runs[0]
+    again = pickle.loads(pickle.dumps(spec))
+    assert again == spec and again.key == spec.key and isinstance(again, RunSpec)
+    assert dataclasses.asdict(again)["test_id"] == "1"

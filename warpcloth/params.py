@@ -1,0 +1,598 @@
+"""Run parameters, each declared once.
+
+A :class:`Param` holds everything about one parameter of a run: its one spelling (the XML
+attribute, the CSV column, the run-key field, the :class:`~warpcloth.scenarios.ScenarioConfig`
+field; the CLI flag is the same name with dashes), its type (a parser from text), unit, default,
+check and help. From :data:`PARAMS` come:
+
+* the CLI flags of ``warpcloth run`` and ``warpcloth max-dt`` (:func:`add_flags`) and the
+  :class:`~warpcloth.scenarios.ScenarioConfig` they make (:func:`config_values`);
+* the attributes of an XML test list and their checks (:mod:`warpcloth.lab.testlist`);
+* the parameter columns of the sweep's CSV and the run key that ``--resume`` matches
+  (:mod:`warpcloth.lab.sweep`, :class:`~warpcloth.lab.testlist.RunSpec`);
+* the attribute table of ``docs/sweep.md`` (:func:`markdown_table`; a test keeps it in step).
+
+Adding a parameter is one :class:`Param` here plus its use (a ScenarioConfig field, a Simulator
+argument). Integrator options are declared by the integrators themselves
+(:class:`~warpcloth.integrators.Option`) and reach the CLI, XML and CSV the same way.
+
+Old spellings stay accepted one release, with a note on stderr: XML ``timestep`` (now ``dt``),
+``cap`` (``wall_cap``), ``scenarios`` (``scenario``); the CSV's ``timestep`` is now ``dt_request``,
+``cap`` ``wall_cap``, ``ks``/``ks_shear``/``ks_bend`` ``stiffness_structural``/``_shear``/``_bend``
+(``kd``: ``damping_...``). CLI ``--fps`` stays an alias of ``--frame-rate``; ``max-dt``'s
+``--precision``, ``--duration`` and ``--start`` of ``--maxdt-precision``, ``--maxdt-duration``,
+``--dt-start``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from .errors import FLOAT32_MAX, WarpclothError
+from .metrics import DEFAULT_INSTABILITY_STRAIN
+
+SPRING_TYPES = ("structural", "shear", "bend")
+
+#: The defaults of a sweep where they differ from a single run's (the seed's test plan, 4.3):
+#: a wall-clock cap of one minute per run, sampling at the seed's real-time threshold of 30 FPS.
+SWEEP_WALL_CAP = 60.0
+SWEEP_FRAME_RATE = 30.0
+#: A sweep's simulated duration [s]: an upper bound for the sheet (it ends at equilibrium), the
+#: length of a flag run; other scenarios use their own default.
+SWEEP_DURATION = {"sheet": 60.0, "flag": 10.0}
+DEFAULT_MAXDT_PRECISION = 0.02
+DEFAULT_MAXDT_DURATION = 2.0
+
+
+# -- values: parsers from text (each raises ValueError naming what is allowed) ----------------
+@dataclass(frozen=True)
+class TimeStep:
+    """A requested time step: a value [s], the integrator's default, or a fraction of the
+    largest stable dt (``max`` / ``max*F``)."""
+
+    kind: str  # "value", "default" or "max"
+    value: float | None = None  # dt [s] for "value", the factor F for "max"
+
+    def __str__(self) -> str:
+        if self.kind == "value":
+            return repr(self.value)
+        if self.kind == "max":
+            return "max" if self.value == 1.0 else f"max*{self.value!r}"
+        return "default"
+
+    @property
+    def uses_max(self) -> bool:
+        return self.kind == "max"
+
+
+def number(text: str) -> float:
+    try:
+        v = float(text)
+    except (TypeError, ValueError):
+        raise ValueError(f"{text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{text!r} is not a finite number")
+    if abs(v) > FLOAT32_MAX:
+        raise ValueError(f"{text!r} does not fit in float32 (|value| <= {FLOAT32_MAX:.4g})")
+    return v
+
+
+def positive(text: str) -> float:
+    v = number(text)
+    if not v > 0.0:
+        raise ValueError(f"{text!r} must be > 0")
+    return v
+
+
+def non_negative(text: str) -> float:
+    v = number(text)
+    if not v >= 0.0:
+        raise ValueError(f"{text!r} must be >= 0")
+    return v
+
+
+def grid_dim(text: str) -> int:
+    try:
+        v = int(text)
+    except (TypeError, ValueError):
+        raise ValueError(f"{text!r} is not an integer") from None
+    if v < 3:
+        raise ValueError(f"{text!r} must be an integer >= 3")
+    return v
+
+
+def size(text: str) -> tuple[int, int]:
+    parts = text.lower().split("x")
+    if len(parts) == 1:
+        n = grid_dim(parts[0])
+        return n, n
+    if len(parts) == 2:
+        return grid_dim(parts[0]), grid_dim(parts[1])
+    raise ValueError(f"{text!r} is not N or ROWSxCOLS")
+
+
+def number_list(text: str):
+    """The CLI's ``--stiffness``: ``'1000'`` -> 1000.0, ``'1000,500,100'`` -> a triple (checked
+    where the model is built)."""
+    parts = text.split(",")
+    if len(parts) > 1 and any(not p.strip() for p in parts):
+        raise argparse.ArgumentTypeError(f"{text!r} has an empty item: give one number, or three separated by single commas (structural,shear,bend)")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers, got {text!r}") from None
+    if len(values) == 1:
+        return values[0]
+    if len(values) == 3:
+        return tuple(values)
+    raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers (structural,shear,bend), got {text!r}")
+
+
+def per_type(text: str):
+    """``'1000'`` -> 1000.0; ``'1000,500,100'`` -> (1000.0, 500.0, 100.0) (structural, shear, bend)."""
+    parts = text.split(",")
+    if len(parts) not in (1, 3) or any(not p.strip() for p in parts):
+        raise ValueError(f"{text!r}: give one number, or three separated by single commas (structural,shear,bend)")
+    values = tuple(non_negative(p) for p in parts)
+    return values[0] if len(values) == 1 else values
+
+
+def timestep(text: str) -> TimeStep:
+    t = text.lower()
+    if t == "default":
+        return TimeStep("default")
+    if t == "max":
+        return TimeStep("max", 1.0)
+    if t.startswith("max*"):
+        try:
+            return TimeStep("max", positive(t[4:]))
+        except ValueError:
+            raise ValueError(f"{text!r}: the factor in max*F must be a number > 0") from None
+    try:
+        return TimeStep("value", positive(text))
+    except ValueError:
+        raise ValueError(f"{text!r} is not a time step > 0 [s], 'max', 'max*F' or 'default'") from None
+
+
+def wall_cap(text: str) -> float | None:
+    if text.lower() == "none":
+        return None
+    try:
+        return positive(text)
+    except ValueError:
+        raise ValueError(f"{text!r} is not a number of seconds > 0 or 'none'") from None
+
+
+def fraction(text: str) -> float:
+    v = number(text)
+    if not 0.0 < v < 1.0:
+        raise ValueError(f"{text!r} must be between 0 and 1 (relative, e.g. 0.02)")
+    return v
+
+
+def choice(*choices: str, what: str):
+    def parse(text: str) -> str:
+        if text not in choices:
+            raise ValueError(f"unknown {what} {text!r}; choose from {', '.join(choices)}")
+        return text
+
+    return parse
+
+
+def integrator(text: str) -> str:
+    from .integrators import integrator_names
+
+    names = integrator_names()
+    if text != "all" and text not in names:
+        raise ValueError(f"unknown integrator {text!r}; choose from {', '.join(names)} (or 'all' in a test list)")
+    return text
+
+
+def scenario(text: str) -> str:
+    """A scenario name, or a scenario file (.toml, relative to the working folder) that loads."""
+    from .scenarios import get_scenario, scenario_names
+
+    if text.lower().endswith(".toml"):
+        try:
+            get_scenario(text)
+        except WarpclothError as exc:
+            raise ValueError(str(exc)) from None
+        return text
+    if text not in scenario_names():
+        raise ValueError(f"unknown scenario {text!r}; choose from {', '.join(scenario_names())}, or a scenario file (.toml)")
+    return text
+
+
+def device(text: str) -> str:
+    from .device import device_name
+
+    try:
+        return device_name(text)
+    except WarpclothError as exc:
+        raise ValueError(str(exc)) from None
+
+
+def colliders(text: str) -> str:
+    """One or more colliders joined by ``+`` (``sphere:center=0/1/0,radius=0.3+plane``); checked
+    here, kept as text (the run key and the CSV show it as written)."""
+    from .colliders import parse_collider
+
+    specs = [s for s in text.split("+")]
+    if any(not s.strip() for s in specs):
+        raise ValueError(f"{text!r} has an empty collider; join colliders with single '+'")
+    for s in specs:
+        try:
+            parse_collider(s)
+        except WarpclothError as exc:
+            raise ValueError(str(exc)) from None
+    return "+".join(s.strip() for s in specs)
+
+
+def names(text: str) -> str:
+    """Comma-separated names (vertex groups)."""
+    items = [s.strip() for s in text.split(",")]
+    if any(not s for s in items):
+        raise ValueError(f"{text!r} has an empty name; separate names with single commas")
+    return ",".join(items)
+
+
+def text_value(text: str) -> str:
+    if not text.strip():
+        raise ValueError("is empty")
+    return text
+
+
+# -- the declaration ----------------------------------------------------------------------
+_SAME = object()
+
+
+@dataclass(frozen=True)
+class Param:
+    """One run parameter.
+
+    Attributes:
+        name: the one spelling: XML attribute, CSV column, run-key field and (unless
+            ``config`` says otherwise) :class:`~warpcloth.scenarios.ScenarioConfig` field; the
+            CLI flag is ``--name-with-dashes``.
+        parse: text -> value; raises ``ValueError`` naming the value and what is allowed.
+        unit: SI unit ("" when dimensionless).
+        help: one line.
+        values: what a value may be (docs table).
+        group: ``cloth``, ``forces``, ``integrator``, ``run``, ``mesh`` or ``search``.
+        default: the value when not given (None: the scenario's or integrator's own).
+        default_doc: the default as the docs say it, where ``default`` is computed.
+        sweep_default: a test list's default where it differs from a single run's.
+        commands: where it is accepted: ``run``, ``max-dt`` (CLI commands), ``sweep`` (XML).
+        positional: on the CLI a positional argument, not a flag.
+        flag_aliases / xml_aliases: other accepted spellings (old ones print a note).
+        columns: CSV columns (default ``(name,)``; ``()``: none).
+        key: in the run key ``always``, when ``set`` (not the default), ``with_max`` (when dt
+            is searched), or ``never``.
+        search: part of what a max-stable-dt search depends on.
+        config: the ScenarioConfig field it feeds (None: none; the default: ``name``).
+        to_config: value -> the ScenarioConfig value.
+        multi: an XML attribute may hold several values separated by spaces (a product).
+        repeat: the CLI flag may be given several times (values joined by ``join``).
+        applies: ``grid`` or ``mesh``: refused on a scenario whose cloth is the other kind.
+        folds_into: a per-type or size parameter resolved into another one (no column/key).
+        cli_type: the CLI's converter where it is more lenient than ``parse`` (the value is then
+            checked where it is used, by the Python API, with the API's message); None: ``parse``.
+        choices: the allowed values of a choice (argparse shows them).
+        from_scenario: a test list fills it from the scenario's default when not given (so the
+            CSV and the run key show the value used).
+    """
+
+    name: str
+    parse: Callable[[str], Any]
+    unit: str
+    help: str
+    values: str
+    group: str
+    default: Any = None
+    default_doc: str | None = None
+    sweep_default: Any = _SAME
+    commands: tuple = ("run", "max-dt", "sweep")
+    positional: bool = False
+    flag_aliases: tuple = ()
+    xml_aliases: tuple = ()
+    columns: tuple | None = None
+    key: str = "always"
+    search: bool = True
+    config: Any = _SAME
+    to_config: Callable | None = None
+    multi: bool = True
+    repeat: bool = False
+    join: str = "+"
+    applies: str | None = None
+    folds_into: str | None = None
+    from_scenario: bool = False
+    metavar: str | None = None
+    cli_type: Callable | None = None
+    choices: tuple = ()
+
+    @property
+    def flag(self) -> str:
+        return "--" + self.name.replace("_", "-")
+
+    @property
+    def csv_columns(self) -> tuple:
+        if self.columns is not None:
+            return self.columns
+        return () if self.folds_into else (self.name,)
+
+    @property
+    def config_field(self) -> str | None:
+        if self.folds_into:
+            return None
+        return self.name if self.config is _SAME else self.config
+
+    def default_for(self, sweep: bool, scenario_name: str | None = None):
+        if sweep and self.sweep_default is not _SAME:
+            d = self.sweep_default
+            return d(scenario_name) if callable(d) else d
+        return self.default
+
+    def check(self, text: str):
+        """``text`` parsed; raises :class:`WarpclothError` naming the parameter."""
+        try:
+            return self.parse(text)
+        except ValueError as exc:
+            raise WarpclothError(f"{self.name}: {exc}") from None
+
+
+def _graph_config(value):
+    return {"on": True, "off": False, "auto": None}[value]
+
+
+def _colliders_config(value):
+    from .colliders import parse_collider
+
+    return tuple(parse_collider(s) for s in value.split("+")) if value else None
+
+
+def _group_config(value):
+    return tuple(value.split(",")) if value else None
+
+
+def _spring_params(kind: str, unit: str, default_doc: str) -> list[Param]:
+    base = Param(kind, per_type, unit, f"{'ks' if kind == 'stiffness' else 'kd'} of every spring type, or structural,shear,bend",
+                 "one number >= 0, or three separated by commas", "cloth", default_doc=default_doc,
+                 columns=tuple(f"{kind}_{t}" for t in SPRING_TYPES), metavar="K", cli_type=number_list)
+    return [base] + [
+        Param(f"{kind}_{t}", non_negative, unit, f"{'ks' if kind == 'stiffness' else 'kd'} of {t} springs (overrides {kind})",
+              ">= 0", "cloth", default_doc=f"`{kind}`", folds_into=kind, metavar="K")
+        for t in SPRING_TYPES
+    ]
+
+
+#: Every run parameter, in the order of the CSV columns and the run key.
+PARAMS: tuple[Param, ...] = (
+    Param("scenario", scenario, "", "scenario: a name ('warpcloth list') or a scenario file (.toml)",
+          "`sheet`, `flag`, `curtain`, `mesh`, `drape`, `tablecloth`, or a file `NAME.toml` (docs/meshes.md)", "run",
+          default_doc="`sheet flag` in a test list", sweep_default=("sheet", "flag"), positional=True, xml_aliases=("scenarios",),
+          config=None),
+    Param("integrator", integrator, "", "integrator name ('warpcloth list'); in a test list also 'all'",
+          "integrator names, or `all`", "integrator", default_doc="the scenario's (explicit_euler); required in a test list",
+          flag_aliases=("-i",), metavar="NAME", cli_type=str),
+    Param("device", device, "", "Warp device: cpu, cuda, cuda:N (a device that is not present is an error before any run)",
+          "`cpu`, `cuda`, `cuda:N`", "run", default="cpu", cli_type=str),
+    Param("size", size, "", "mesh size: N (N x N) or ROWSxCOLS; excludes rows/cols", "`N` or `ROWSxCOLS`, at least 3 x 3",
+          "cloth", default_doc="the scenario's (sheet 32x32, flag 20x30)", folds_into="rows", applies="grid", metavar="N"),
+    Param("rows", grid_dim, "", "particles per column (with cols)", "integer >= 3", "cloth", default_doc="the scenario's",
+          applies="grid", metavar="N", from_scenario=True, cli_type=int),
+    Param("cols", grid_dim, "", "particles per row (with rows)", "integer >= 3", "cloth", default_doc="the scenario's",
+          applies="grid", metavar="N", from_scenario=True, cli_type=int),
+    Param("width", positive, "m", "cloth width", "> 0", "cloth", default_doc="the scenario's", applies="grid", from_scenario=True, cli_type=float),
+    Param("height", positive, "m", "cloth height", "> 0", "cloth", default_doc="the scenario's", applies="grid", from_scenario=True, cli_type=float),
+    Param("mass", positive, "kg", "total cloth mass, split evenly over the particles (seed 4.2.4)", "> 0", "cloth",
+          default_doc="the scenario's (sheet 0.2, flag 0.3)", from_scenario=True, cli_type=float),
+    *_spring_params("stiffness", "N/m", "1000 structural and shear, 200 bend"),
+    *_spring_params("damping", "N s/m", "2 * 0.05 * sqrt(ks m), m the particle mass"),
+    Param("bend", choice("provot", "choi_ko", "none", what="bend model"), "", "bend springs", "`provot`, `choi_ko`, `none`",
+          "cloth", default="provot", choices=("provot", "choi_ko", "none")),
+    Param("drag", non_negative, "1/s", "linear air drag rate", ">= 0", "forces", default_doc="the scenario's (sheet 1, flag 0)", cli_type=float),
+    Param("collider", colliders, "", "add colliders: KIND:K=V,... (vectors as x/y/z), several joined by '+' or the flag "
+          "repeated, e.g. sphere:center=0/1/0,radius=0.3,thickness=0.005,friction=0.4 (docs/colliders.md)",
+          "`plane`, `sphere`, `capsule`, `box` with settings", "forces", default_doc="none (the scenario's own)", key="set",
+          config="colliders", to_config=_colliders_config, repeat=True, metavar="KIND:K=V,...", cli_type=str),
+    Param("strain_limit", positive, "", "Provot's deformation constraint tau: after each step no structural or shear spring "
+          "stays beyond (1 + tau) L0 (force-based integrators only)", "> 0 (e.g. 0.1)", "integrator", default_doc="off",
+          key="set", metavar="TAU", cli_type=float),
+    Param("mesh", text_value, "", "the cloth's triangle mesh: .obj or .usd/.usda/.usdc/.usdz", "a file path", "mesh",
+          default_doc="the scenario's", key="set", applies="mesh", metavar="FILE", multi=True, cli_type=str),
+    Param("prim", text_value, "", "the UsdGeom.Mesh prim of a USD mesh", "a prim path", "mesh",
+          default_doc="the first mesh", key="set", applies="mesh", metavar="PATH", cli_type=str),
+    Param("pin_group", names, "", "pin the vertex groups of the mesh (comma-separated; the flag may repeat)",
+          "group names", "mesh", default_doc="the scenario's", key="set", applies="mesh", to_config=_group_config,
+          repeat=True, join=",", metavar="NAME", cli_type=str),
+    Param("pin", text_value, "", "pin the vertices where a predicate holds, e.g. 'y > 0.95 * y.max()' (x, y, z in m)",
+          "a predicate (one per attribute: it holds spaces)", "mesh", default_doc="the scenario's", key="set", applies="mesh",
+          config="pin_where", multi=False, metavar="EXPR", cli_type=str),
+    Param("dt", timestep, "s", "time step: a value, the integrator's own stable default, or in a test list max / max*F "
+          "(a fraction of the largest stable dt)", "dt in s, `default`, `max`, `max*F`", "run", default=TimeStep("default"),
+          default_doc="`default` (the integrator's own)", xml_aliases=("timestep",), columns=("dt_request",), search=False, config=None,
+          commands=("run", "sweep"), metavar="S", cli_type=float),
+    Param("duration", positive, "s", "simulated time: the flag's length, the sheet's upper bound (it ends at equilibrium)",
+          "> 0", "run", default_doc="the scenario's (10); in a test list sheet 60, flag 10",
+          sweep_default=lambda name: SWEEP_DURATION.get(name), search=False, commands=("run", "sweep"), from_scenario=True, cli_type=float),
+    Param("frame_rate", positive, "1/s", "frames per simulated second: metrics are sampled (equilibrium and stability "
+          "checked) once a frame, USD frames written", "> 0", "run", default_doc="60; 30 in a test list (the seed's real-time "
+          "threshold)", sweep_default=SWEEP_FRAME_RATE, flag_aliases=("--fps",), config="fps", cli_type=float),
+    Param("wall_cap", wall_cap, "s", "wall-clock cap of one run and of each max-dt trial ('none': no cap)", "> 0 or `none`",
+          "run", default_doc="none; 60 in a test list (the seed's one minute)", sweep_default=SWEEP_WALL_CAP,
+          xml_aliases=("cap",), search=False, config=None, cli_type=float),
+    Param("graph", choice("on", "off", "auto", what="graph mode"), "", "capture a frame's steps as a graph and replay it: "
+          "on, off, or auto (where supported); results are bit-identical, capture time is reported apart",
+          "`on`, `off`, `auto`", "run", default="auto", key="set",  search=False, config="use_graph", to_config=_graph_config, choices=("on", "off", "auto")),
+    Param("instability_strain", positive, "", "a spring strained past this makes the run unstable (docs/stability.md)",
+          "> 0", "run", default=DEFAULT_INSTABILITY_STRAIN, key="set", metavar="STRAIN", cli_type=float),
+    Param("maxdt_precision", fraction, "", "relative precision of the max-stable-dt search", "0 < p < 1", "search",
+          default=DEFAULT_MAXDT_PRECISION, commands=("max-dt", "sweep"), flag_aliases=("--precision",), key="with_max",
+          config=None, cli_type=float),
+    Param("maxdt_duration", positive, "s", "simulated time a max-dt trial must survive", "> 0", "search",
+          default=DEFAULT_MAXDT_DURATION, commands=("max-dt", "sweep"), flag_aliases=("--duration",), key="with_max",
+          config=None, cli_type=float),
+    Param("dt_min", positive, "s", "smallest dt the max-dt search tries", "> 0", "search", default_doc="1e-7",
+          commands=("max-dt",), columns=(), key="never", config=None, cli_type=float),
+    Param("dt_max", positive, "s", "largest dt the max-dt search tries", "> 0", "search", default_doc="0.1; one frame in a test list",
+          commands=("max-dt",), columns=(), key="never", config=None, cli_type=float),
+    Param("dt_start", positive, "s", "first dt the max-dt search tries", "> 0", "search", default_doc="the integrator's default dt",
+          commands=("max-dt",), columns=(), key="never", config=None, flag_aliases=("--start",), cli_type=float),
+)
+
+BY_NAME: dict[str, Param] = {p.name: p for p in PARAMS}
+
+#: Old spellings -> the parameter (XML attributes and RunSpec attributes of earlier releases).
+OLD_NAMES: dict[str, str] = {alias: p.name for p in PARAMS for alias in p.xml_aliases}
+
+GROUP_TITLES = {
+    "integrator": "integrator", "cloth": "cloth", "mesh": "mesh scenarios (mesh, scenario files)",
+    "forces": "forces and colliders", "run": "run", "search": "max-dt search",
+}
+
+
+def params_for(command: str) -> list[Param]:
+    """The parameters ``command`` (``run``, ``max-dt``, ``sweep``) accepts, in declaration order."""
+    return [p for p in PARAMS if command in p.commands]
+
+
+# -- CLI ------------------------------------------------------------------------------------
+def _argparse_type(param: Param):
+    def convert(text: str):
+        try:
+            return param.parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    convert.__name__ = param.name  # argparse names the type in "invalid <name> value"
+    return convert
+
+
+def add_flags(parser: argparse.ArgumentParser, command: str, skip: tuple = (), exclusive: dict | None = None) -> None:
+    """Add the flags of ``command``'s parameters to ``parser``, grouped; every dest is the
+    parameter's name and every default None (unset). ``exclusive`` maps a parameter name to
+    ``[(flags, kwargs), ...]``: command-only flags that exclude it (``--num-frames``)."""
+    chosen = [p for p in params_for(command) if p.name not in skip]
+    groups: dict[str, Any] = {g: parser.add_argument_group(title) for g, title in GROUP_TITLES.items()
+                              if any(p.group == g and not p.positional for p in chosen)}
+    for p in chosen:
+        if p.positional:
+            parser.add_argument(p.name, type=_argparse_type(p), help=p.help)
+            continue
+        group = groups[p.group]
+        if exclusive and p.name in exclusive:
+            group = group.add_mutually_exclusive_group()
+            for flags, kw in exclusive[p.name]:
+                group.add_argument(*flags, **kw)
+        unit = f" [{p.unit}]" if p.unit else ""
+        if p.default is not None and not isinstance(p.default, TimeStep):
+            default = f" (default {p.default})"
+        elif p.default_doc:
+            default = f" (default {p.default_doc.replace('`', '')})"
+        else:
+            default = ""
+        aliases = list(p.flag_aliases)
+        kwargs = {"choices": list(p.choices)} if p.choices else {"type": p.cli_type or _argparse_type(p)}
+        group.add_argument(p.flag, *aliases, dest=p.name, default=None, **kwargs,
+                           action="append" if p.repeat else "store", metavar=p.metavar or p.name.upper(),
+                           help=(p.help + unit + default).replace("%", "%%"))
+
+
+def cli_value(param: Param, args):
+    """The value of ``param`` given on the command line (repeated flags joined), or None."""
+    value = getattr(args, param.name, None)
+    if param.repeat and isinstance(value, list):
+        return param.join.join(value) if value else None
+    return value
+
+
+def resolve_per_type(values: dict, kind: str):
+    """``stiffness``/``damping`` and their per-type overrides as one ScenarioConfig value:
+    a number, a (structural, shear, bend) tuple, a partial {type: value} dict (the others
+    default), or None."""
+    base = values.get(kind)
+    given = {t: values[f"{kind}_{t}"] for t in SPRING_TYPES if values.get(f"{kind}_{t}") is not None}
+    if not given:
+        return base
+    if base is None:
+        return given
+    full = base if isinstance(base, tuple) else (base,) * 3
+    return tuple(given.get(t, full[i]) for i, t in enumerate(SPRING_TYPES))
+
+
+def check_applies(values: dict, is_mesh: bool, scenario_name: str, spell=lambda p: p.flag) -> None:
+    """Grid parameters on a mesh scenario, or mesh parameters on a grid scenario, are refused."""
+    for p in PARAMS:
+        if p.applies is None or values.get(p.name) is None:
+            continue
+        if (p.applies == "grid") == is_mesh:
+            mesh_names = ", ".join(spell(q) for q in PARAMS if q.applies == "mesh")
+            kind = "a mesh: its size comes from the mesh file" if is_mesh else \
+                f"a grid; {mesh_names} apply to the mesh scenario and scenario files"
+            raise WarpclothError(f"{spell(p)} does not apply to scenario {scenario_name!r}: its cloth is {kind}")
+
+
+def config_values(values: dict) -> dict:
+    """ScenarioConfig keyword arguments from parameter values (None: unset)."""
+    out = {}
+    for kind in ("stiffness", "damping"):
+        out[kind] = resolve_per_type(values, kind)
+    if values.get("size") is not None and values.get("rows") is None:
+        out["rows"], out["cols"] = values["size"]
+    for p in PARAMS:
+        field_name = p.config_field
+        if field_name is None or p.name in ("stiffness", "damping") or field_name in out and out[field_name] is not None:
+            continue
+        value = values.get(p.name)
+        if value is None:
+            continue
+        out[field_name] = p.to_config(value) if p.to_config else value
+    return out
+
+
+# -- CSV and run key --------------------------------------------------------------------------
+def csv_columns() -> list[str]:
+    """The parameter columns of a sweep's CSV, in declaration order."""
+    return [c for p in PARAMS if "sweep" in p.commands for c in p.csv_columns]
+
+
+def canonical(value) -> str:
+    """A value as the run key and the CSV write it (floats as Python's shortest repr)."""
+    if value is None:
+        return "none"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, tuple):
+        return "/".join(canonical(v) for v in value)
+    return str(value)
+
+
+# -- docs ------------------------------------------------------------------------------------
+def markdown_table() -> str:
+    """The attribute table of docs/sweep.md (between its ``params`` markers)."""
+    rows = ["| attribute | CLI flag | values | unit | default | meaning |", "|---|---|---|---|---|---|"]
+    for p in params_for("sweep"):
+        if p.default_doc is not None:
+            default = p.default_doc
+        elif isinstance(p.default, str):
+            default = f"`{p.default}`"
+        else:
+            default = "" if p.default is None else f"{p.default:g}" if isinstance(p.default, float) else str(p.default)
+        flag = "(positional)" if p.positional else f"`{p.flag}`" + ("" if "run" in p.commands else " (max-dt)")
+        names = f"`{p.name}`" + "".join(f" (old: `{a}`)" for a in p.xml_aliases)
+        meaning = p.help
+        if not p.multi:
+            meaning += "; one value per attribute"
+        rows.append(f"| {names} | {flag} | {p.values} | {p.unit} | {default} | {meaning} |")
+    return "\n".join(rows)
+
+
+__all__ = ["BY_NAME", "OLD_NAMES", "PARAMS", "Param", "TimeStep", "add_flags", "canonical", "config_values", "csv_columns",
+           "markdown_table", "params_for"]
+
+
+if __name__ == "__main__":  # python -m warpcloth.params: the docs table
+    print(markdown_table())
