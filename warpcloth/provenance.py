@@ -60,3 +60,28 @@ def _jsonable(value):
     if hasattr(value, "item"):
         return value.item()
     return str(value)
+
+
+def machine(device=None) -> dict:
+    """Where a measurement ran: ``host`` (host name), ``cpu`` (model and logical cores) and
+    ``gpu`` (the CUDA device's name when ``device`` is one, else empty)."""
+    import os
+    import platform
+    import socket
+
+    import warp as wp
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            cpu = next((line.split(":", 1)[1].strip() for line in fh if line.startswith("model name")), cpu)
+    except OSError:
+        pass
+    gpu = ""
+    if device is not None:
+        try:
+            d = wp.get_device(device)
+            gpu = d.name if d.is_cuda else ""
+        except Exception:  # noqa: BLE001 - a device that is not there: no name
+            gpu = ""
+    return {"host": socket.gethostname(), "cpu": f"{cpu} ({os.cpu_count()} logical cores)", "gpu": gpu}

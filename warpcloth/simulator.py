@@ -1,45 +1,33 @@
-"""The fixed-step simulation loop, decoupled from the frame rate (seed 3.2.2).
+"""The stepping core: a cloth, its state, an integrator, the external forces and a time step.
 
-Forces are computed every time step ``dt``; frames are sampled every ``1/fps`` seconds of
-simulated time. A frame's steps are pure kernel launches; metrics are reduced on the device
-and read once per frame. A run returns a :class:`RunResult` that serialises to JSON.
+:class:`Simulator` advances the state (``step``, ``simulate``), switches integrators and time
+steps between steps, and captures a frame's steps as a graph (``wp.ScopedCapture``) to replay
+them. Running for a duration with frames, metrics, verdicts, timing and outputs is the run
+harness's job (:mod:`warpcloth.harness`); ``Simulator.run`` hands over to it.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import os
 import time
-from dataclasses import asdict, dataclass, field
 
 import warp as wp
 
-from . import __version__
-from .errors import WarpclothError, require, require_count, require_positive, warn
+from .errors import WarpclothError, require, require_count, require_positive
 from .forces import Control
-from .integrators import Integrator, make_integrator
-from .model import ClothModel
-from .metrics import (
-    DEFAULT_INSTABILITY_STRAIN,
-    EnergyCriteria,
-    EnergyMonitor,
-    EquilibriumCriteria,
-    EquilibriumDetector,
-    FrameMetrics,
-    MetricsProbe,
-    wind_power_bound,
+from .harness import (  # noqa: F401  (RunResult and the run-length check: importable from here as before)
+    CHUNK_SECONDS,
+    MAX_FRAMES_PER_STEP,
+    MAX_RUN_STEPS,
+    RunHarness,
+    RunResult,
+    check_run_length,
 )
+from .integrators import Integrator, make_integrator
+from .metrics import DEFAULT_INSTABILITY_STRAIN, EnergyCriteria, EquilibriumCriteria
+from .model import ClothModel
 from .pins import apply_pins
 from .strain_limit import StrainLimiter
-
-#: Most steps one run may take (a larger count is a typo in dt or duration, not an experiment).
-MAX_RUN_STEPS = 10**12
-#: A frame may be at most this many times shorter than a step (frames shorter than a step are
-#: sampled once per step anyway).
-MAX_FRAMES_PER_STEP = 1000.0
-#: The wall cap is checked after chunks of steps of about this many wall seconds.
-CHUNK_SECONDS = 0.2
 
 
 def graph_capture_supported(device) -> bool:
@@ -49,78 +37,6 @@ def graph_capture_supported(device) -> bool:
         return bool(wp.is_mempool_enabled(d))
     major, minor = (int(p) for p in wp.config.version.split(".")[:2])
     return (major, minor) >= (1, 19)
-
-
-@dataclass
-class RunResult:
-    """Outcome and measurements of one run (SI units; times in seconds unless named ``_ms``)."""
-
-    scenario: str
-    integrator: str
-    device: str
-    rows: int
-    cols: int
-    particles: int
-    springs: int
-    dt: float
-    fps: float
-    steps: int = 0
-    frames: int = 0
-    sim_time: float = 0.0
-    wall_time: float = 0.0
-    compile_time: float = 0.0
-    capture_time: float = 0.0
-    integration_time: float = 0.0
-    other_time: float = 0.0
-    export_time: float = 0.0
-    ms_per_step: float = 0.0
-    steps_per_sec: float = 0.0
-    realtime_factor: float = 0.0
-    stable: bool = True
-    unstable_reason: str = ""
-    unstable_time: float | None = None
-    equilibrium_reached: bool = False
-    time_to_equilibrium: float | None = None
-    time_to_equilibrium_wall: float | None = None
-    equilibrium_criterion: str = "speed+force"
-    force_floor: float = 0.0
-    max_strain: float = 0.0
-    instability_strain: float = DEFAULT_INSTABILITY_STRAIN
-    final_max_speed: float = 0.0
-    wall_cap_reached: bool = False
-    graph: bool = False
-    solver: dict = field(default_factory=dict)
-    #: False when the integrator's iterative solver missed its own tolerance in at least one
-    #: step; None where not applicable (no iterative solver with a tolerance).
-    solver_converged: bool | None = None
-    solver_capped_steps: int = 0
-    warpcloth_version: str = __version__
-    warp_version: str = wp.config.version
-
-    @property
-    def integration_ms_mean(self) -> float:
-        """Mean integration time per frame [ms]."""
-        return 1000.0 * self.integration_time / self.frames if self.frames else 0.0
-
-    @property
-    def other_ms_mean(self) -> float:
-        """Mean time per frame outside integration (metrics, export, bookkeeping) [ms]."""
-        return 1000.0 * self.other_time / self.frames if self.frames else 0.0
-
-    @property
-    def frames_per_sec(self) -> float:
-        """Frames of 1/fps simulated seconds produced per wall second."""
-        return self.realtime_factor * self.fps
-
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        d["integration_ms_mean"] = self.integration_ms_mean
-        d["other_ms_mean"] = self.other_ms_mean
-        d["frames_per_sec"] = self.frames_per_sec
-        return d
-
-    def to_json(self, **kwargs) -> str:
-        return json.dumps(self.to_dict(), **kwargs)
 
 
 class Simulator:
@@ -173,14 +89,16 @@ class Simulator:
         self.equilibrium = equilibrium or EquilibriumCriteria()
         self.energy_criteria = energy or EnergyCriteria()
         self.scenario = scenario
-        self.probe = MetricsProbe(model, self.control)
+        self._harness = None
         self.strain_limiter = StrainLimiter(model, strain_limit) if strain_limit is not None else None
         self.integrator: Integrator | None = None
         self._dt: float | None = None
         self._use_graph = use_graph
         self._graphs: dict[tuple, object] = {}
         self._warmed = False
-        self._step_seconds: float | None = None  # wall time of one step, once measured
+        #: Counts changes to what a step does (integrator, dt, graph mode, model, pins): timings
+        #: of one step are valid for one version.
+        self.step_version = 0
         #: Wall seconds spent capturing frame graphs (excluded from step timings).
         self.capture_time = 0.0
         #: Simulated time [s]: t_base + n dt after n steps of the current dt (as Control.time).
@@ -193,6 +111,11 @@ class Simulator:
     @property
     def dt(self) -> float:
         return self._dt
+
+    @property
+    def warmed(self) -> bool:
+        """Whether every kernel of the current step is compiled and loaded (:meth:`warm_up`)."""
+        return self._warmed
 
     def set_integrator(self, integrator: Integrator | str, dt: float | None = None) -> None:
         """Switch integrators between steps (the model is not rebuilt); ``dt`` None keeps the
@@ -222,7 +145,7 @@ class Simulator:
         self._needs_begin = True
         self._graphs.clear()
         self._warmed = False
-        self._step_seconds = None
+        self.step_version += 1
 
     def set_model(self, model) -> None:
         """Continue the current state on ``model`` (the same particles, e.g. from
@@ -237,7 +160,7 @@ class Simulator:
             )
         self.model = model
         self._bind_pin_tracks(self.control.pin_tracks)  # kinematic pins: checked and bound to the new model
-        self.probe = MetricsProbe(model, self.control)
+        self._harness = None  # its metrics probe belongs to the old model
         if self.strain_limiter is not None:
             self.strain_limiter = StrainLimiter(model, self.strain_limiter.tau)
         self.integrator.bind(model)
@@ -251,6 +174,7 @@ class Simulator:
         self._bind_pin_tracks(tracks)
         self._needs_begin = True
         self._graphs.clear()
+        self.step_version += 1
 
     def _bind_pin_tracks(self, tracks) -> None:
         from .pins import KinematicPins, PinTrack
@@ -262,7 +186,7 @@ class Simulator:
         self.control.kinematic_pins = KinematicPins(self.model, tracks) if tracks else None
         self._pins_version += 1
 
-    def _pins_moving_until(self) -> float:
+    def pins_moving_until(self) -> float:
         """Simulated time [s] after which no kinematic pin moves (0 without tracks; inf for a
         rigid motion that never stops)."""
         end = 0.0
@@ -279,6 +203,7 @@ class Simulator:
         self._dt = dt
         self._needs_begin = True
         self._graphs.clear()
+        self.step_version += 1
 
     @property
     def use_graph(self) -> bool | None:
@@ -292,7 +217,7 @@ class Simulator:
             raise WarpclothError(f"use_graph must be True, False or None (auto), got {value!r}")
         self._use_graph = value
         self._graphs.clear()
-        self._step_seconds = None
+        self.step_version += 1
 
     @property
     def graph_enabled(self) -> bool:
@@ -388,15 +313,29 @@ class Simulator:
         wp.capture_launch(graph)
         self._count_steps(steps)
 
-    def measure(self) -> FrameMetrics:
-        """Metrics of the current state (one small read from the device)."""
-        # with colliders the net force of a resting particle is balanced by a contact the metric
-        # does not see: equilibrium is then judged by speed alone (as for position-based schemes)
-        return self.probe.measure(self.state, with_force=self.integrator.force_based and self.control.collision is None)
+    # -- the run harness (warpcloth.harness) -------------------------------------------
+    @property
+    def harness(self):
+        """The :class:`~warpcloth.harness.RunHarness` of this simulator (rebuilt after
+        :meth:`set_model`)."""
+        if self._harness is None or self._harness.probe.model is not self.model:
+            self._harness = RunHarness(self)
+        return self._harness
+
+    def measure(self):
+        """Metrics of the current state (:meth:`RunHarness.measure <warpcloth.harness.RunHarness.measure>`)."""
+        return self.harness.measure()
 
     def energy(self) -> float:
         """Total mechanical energy of the current state [J]."""
-        return self.probe.energy(self.state)
+        return self.harness.energy()
+
+    def run(self, duration: float, fps: float = 60.0, stop_at_equilibrium: bool = False, wall_cap: float | None = None,
+            usd=None, warm_up: bool = True, **unknown) -> RunResult:
+        """Run for ``duration`` seconds of simulated time, sampling a frame every 1/fps s: see
+        :meth:`RunHarness.run <warpcloth.harness.RunHarness.run>` (a run that goes unstable
+        stops there and is recorded as unstable; it never raises)."""
+        return self.harness.run(duration, fps, stop_at_equilibrium, wall_cap, usd, warm_up, **unknown)
 
     def warm_up(self) -> float:
         """Compile and load every kernel a step uses, on a scratch copy of the state; returns
@@ -417,208 +356,3 @@ class Simulator:
         self._needs_begin = True
         self._warmed = True
         return time.perf_counter() - t0
-
-    def run(
-        self,
-        duration: float,
-        fps: float = 60.0,
-        stop_at_equilibrium: bool = False,
-        wall_cap: float | None = None,
-        usd=None,
-        warm_up: bool = True,
-        **unknown,
-    ) -> RunResult:
-        """Run for ``duration`` seconds of simulated time, sampling a frame every 1/fps s.
-
-        Args:
-            duration: simulated time [s].
-            fps: frame rate of sampling (metrics, USD frames) [1/s].
-            stop_at_equilibrium: end the run when equilibrium is confirmed.
-            wall_cap: stop after this many wall-clock seconds (None: no cap). It is checked
-                between chunks of about 0.2 s of steps, so it bounds the run's wall time
-                whatever the number of steps per frame.
-            usd: a :class:`~warpcloth.usd.UsdWriter` that receives every frame, a path
-                (.usd/.usda/.usdc: a writer is made, checked before the run and closed after),
-                or None.
-            warm_up: compile kernels before timing (see :meth:`warm_up`).
-
-        A run that goes unstable stops there and is recorded as unstable; it never raises.
-        Graph capture time is reported apart (``capture_time``) and excluded from ms/step.
-        """
-        if unknown:
-            raise WarpclothError(
-                f"Simulator.run got an unknown keyword {sorted(unknown)[0]!r}; its keywords are duration, fps, "
-                "stop_at_equilibrium, wall_cap, usd, warm_up"
-            )
-        duration = require_positive("duration", duration, "s")
-        fps = require_positive("fps", fps, "1/s")
-        if wall_cap is not None:
-            wall_cap = require_positive("wall cap", wall_cap, "s")
-        m, dt = self.model, self._dt
-        check_run_length(duration, fps, dt)
-        if isinstance(usd, (str, os.PathLike)):
-            from .usd import UsdWriter
-
-            writer = UsdWriter(os.fspath(usd), m, fps)
-            try:
-                result = self.run(duration, fps, stop_at_equilibrium, wall_cap, writer, warm_up)
-            except BaseException:
-                writer.abort()
-                raise
-            writer.close()
-            return result
-        if usd is not None and not callable(getattr(usd, "write_frame", None)):
-            raise WarpclothError(f"usd must be a UsdWriter, a .usd/.usda/.usdc path or None, got {usd!r:.80}")
-        result = RunResult(
-            scenario=self.scenario, integrator=self.integrator.name, device=str(m.device), rows=m.rows, cols=m.cols,
-            particles=m.particle_count, springs=m.spring_count, dt=dt, fps=fps,
-            equilibrium_criterion="speed+force" if self.integrator.force_based and self.control.collision is None else "speed",
-            graph=self.graph_enabled, instability_strain=self.instability_strain,
-        )
-        if warm_up and not self._warmed:  # once: a warm-up restarts the integrator's history
-            result.compile_time = self.warm_up()
-        detector = EquilibriumDetector(self.equilibrium, self.probe.force_floor)
-        result.force_floor = self.probe.force_floor
-        start_steps, start_time = self.steps, self.sim_time
-        start_capture = self.capture_time
-        total_steps = max(1, math.ceil(duration / dt - 1e-9))
-        frame_dt = 1.0 / fps
-        steps_per_frame = frame_dt / dt
-        e0, _ = self.probe.energies(self.state)
-
-        def energy_monitor(e_start: float) -> EnergyMonitor:
-            return EnergyMonitor(
-                e_start, wind_power_bound(m, self.control, self.instability_strain),
-                window_frames=max(math.ceil(self.energy_criteria.window_time * fps - 1e-9),
-                                  math.ceil(self.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9)),
-                scale=m.total_mass * self.control.gravity_magnitude * max(m.width, m.height, 1e-3),
-                criteria=self.energy_criteria,
-            )
-
-        energy, energy_start = energy_monitor(e0), start_time
-        # moving kinematic pins do work no a-priori bound knows: the energy criterion waits until
-        # they stop and starts from the energy then (non-finite state and strain still apply)
-        pins_move_until = self._pins_moving_until()
-        if usd is not None:
-            t0 = time.perf_counter()
-            usd.write_frame(self.state.particle_q.numpy(), self.sim_time)
-            result.export_time += time.perf_counter() - t0
-
-        loop_start = time.perf_counter()
-        frame = 0
-        done = 0
-        while done < total_steps:
-            # the next frame that needs a step (frames shorter than a step are skipped at once)
-            frame = max(frame + 1, math.floor((done + 1e-9) / steps_per_frame) + 1)
-            target = min(total_steps, math.ceil(frame * steps_per_frame - 1e-9))
-            n = target - done
-            if n <= 0:
-                continue
-            t0 = time.perf_counter()
-            capped = self._advance(n, loop_start, wall_cap)
-            t1 = time.perf_counter()
-            result.integration_time += t1 - t0
-            done = self.steps - start_steps
-
-            metrics = self.measure()
-            e, kinetic = self.probe.energies(self.state)
-            result.frames += 1
-            if metrics.finite:
-                result.max_strain = max(result.max_strain, metrics.max_strain)
-            result.final_max_speed = metrics.max_speed
-            if not metrics.finite or not math.isfinite(e):
-                result.stable, result.unstable_reason = False, "non-finite state"
-            elif metrics.max_strain > self.instability_strain:
-                result.stable = False
-                result.unstable_reason = f"spring strain {metrics.max_strain:.3g} beyond the limit {self.instability_strain:g}"
-            elif self.sim_time < pins_move_until:
-                energy, energy_start = None, None
-            elif energy is None:
-                energy, energy_start = energy_monitor(e), self.sim_time
-            elif energy.update(self.sim_time - energy_start, e, kinetic):
-                result.stable = False
-                result.unstable_reason = (
-                    f"energy growing without bound: {energy.excess:.3g} J above what gravity and the external forces "
-                    f"can supply, growing in {energy.streak} consecutive windows"
-                )
-            if usd is not None and result.stable:
-                te = time.perf_counter()
-                usd.write_frame(self.state.particle_q.numpy(), self.sim_time)
-                result.export_time += time.perf_counter() - te
-            t2 = time.perf_counter()
-            result.other_time += t2 - t1
-            if not result.stable:
-                result.unstable_time = self.sim_time
-                break
-            if detector.update(self.sim_time - start_time, t2 - loop_start, metrics):
-                if not result.equilibrium_reached:
-                    result.equilibrium_reached = True
-                    result.time_to_equilibrium = detector.rest_since
-                    result.time_to_equilibrium_wall = detector.rest_since_wall
-                if stop_at_equilibrium:
-                    break
-            if capped or (wall_cap is not None and t2 - loop_start >= wall_cap):
-                result.wall_cap_reached = True
-                break
-
-        result.wall_time = time.perf_counter() - loop_start
-        result.capture_time = self.capture_time - start_capture
-        result.integration_time = max(0.0, result.integration_time - result.capture_time)
-        result.steps = self.steps - start_steps
-        result.sim_time = self.sim_time - start_time
-        if result.steps and result.integration_time > 0:
-            result.ms_per_step = 1000.0 * result.integration_time / result.steps
-            result.steps_per_sec = result.steps / result.integration_time
-        if result.wall_time > 0:
-            result.realtime_factor = result.sim_time / result.wall_time
-        result.solver = self.integrator.stats()
-        self.integrator.reset_stats()  # the next run's statistics (and capped-step count) start here
-        result.solver_converged, result.solver_capped_steps, warning = self.integrator.convergence(result.solver)
-        if warning:
-            warn(warning)  # once per run
-        return result
-
-    def _advance(self, n: int, loop_start: float, wall_cap: float | None) -> bool:
-        """Advance ``n`` steps in chunks of about :data:`CHUNK_SECONDS` of wall time, checking
-        the wall cap between chunks; True when the cap stopped it early."""
-        device = self.model.device
-        done = 0
-        if self._step_seconds is None:  # size the chunks from a step timed after a first one
-            self.simulate(1)  # may compile or capture
-            wp.synchronize_device(device)
-            done = 1
-            if n < 2:
-                return False
-            t0 = time.perf_counter()
-            self.simulate(1)
-            wp.synchronize_device(device)
-            self._step_seconds = max(time.perf_counter() - t0, 1e-7)
-            done = 2
-        chunk = max(1, int(CHUNK_SECONDS / self._step_seconds))
-        while done < n:
-            if wall_cap is not None and done and time.perf_counter() - loop_start >= wall_cap:
-                return True
-            k = min(chunk, n - done)
-            self.simulate(k)
-            wp.synchronize_device(device)
-            done += k
-        return False
-
-
-def check_run_length(duration: float, fps: float, dt: float) -> None:
-    """Refuse, in one line, runs that cannot be meaningful: a step longer than the run, a frame
-    more than :data:`MAX_FRAMES_PER_STEP` times shorter than a step, or more than
-    :data:`MAX_RUN_STEPS` steps."""
-    if dt > duration:
-        raise WarpclothError(f"dt ({dt:.4g} s) is longer than the duration ({duration:.4g} s): choose dt <= duration")
-    if dt * fps > MAX_FRAMES_PER_STEP:
-        raise WarpclothError(
-            f"fps ({fps:.4g} 1/s) asks for a frame every {1.0 / fps:.3g} s, {dt * fps:.3g} frames per step of {dt:.3g} s "
-            f"(at most {MAX_FRAMES_PER_STEP:g}): choose fps <= {MAX_FRAMES_PER_STEP / dt:.4g}"
-        )
-    steps = duration / dt
-    if steps > MAX_RUN_STEPS:
-        raise WarpclothError(
-            f"duration {duration:.4g} s at dt {dt:.3g} s is {steps:.3g} steps (at most {MAX_RUN_STEPS:.0e}): "
-            f"a larger dt or a shorter duration"
-        )

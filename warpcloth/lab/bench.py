@@ -16,7 +16,6 @@ import argparse
 import csv
 import io
 import json
-import math
 import os
 import sys
 import time
@@ -29,11 +28,17 @@ from ..errors import WarpclothError, require
 from ..progress import format_seconds
 from ..fileio import AtomicFile, OutputError, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
 
+#: Columns of the benchmark CSV: the study's naming (units in the names, booleans true/false).
 COLUMNS = [
-    "scenario", "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt", "steps", "ms_per_step",
-    "steps_per_sec", "springs_per_sec", "realtime_factor", "compile_s", "speedup_vs_cpu", "force_evals_per_step",
-    "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean", "solver_converged", "solver_capped_steps",
+    "scenario", "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt_s", "timed_windows",
+    "steps_per_window", "ms_per_step_median", "ms_per_step_min", "ms_per_step_max", "steps_per_s", "springs_per_s",
+    "wall_s_per_sim_s", "realtime_factor", "realtime_30fps", "realtime_60fps", "compile_s", "speedup_vs_cpu",
+    "force_evals_per_step", "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean", "solver_converged",
+    "solver_capped_steps", "host", "cpu", "gpu", "warp_version", "warpcloth_version",
 ]
+
+#: Timed windows per combination (median and spread).
+DEFAULT_WINDOWS = 5
 
 
 def parse_sizes(text: str) -> list[int]:
@@ -101,51 +106,55 @@ def _build(scenario: str, size: int | None, device: str, **kwargs):
     return get_scenario(scenario).build(device=device, **grid, **kwargs)
 
 
-def bench_one(integrator: str, size: int | None, device: str, graph: bool, steps: int | None, seconds: float, scenario: str = "sheet") -> dict:
+def bench_one(integrator: str, size: int | None, device: str, graph: bool, steps: int | None, seconds: float,
+              scenario: str = "sheet", windows: int = DEFAULT_WINDOWS) -> dict:
     """Time one integrator on a size x size grid of ``scenario`` (the sheet by default), or on a
-    mesh scenario's own mesh (``size`` None); returns a CSV row (without cross-row columns)."""
+    mesh scenario's own mesh (``size`` None), with :func:`warpcloth.harness.time_steps`:
+    ``windows`` timed windows of about ``seconds / windows`` each (or ``steps`` steps in all),
+    warm-up and first replay excluded. Returns a CSV row (without cross-row columns)."""
+    from .. import __version__
+    from ..harness import time_steps
+    from ..provenance import machine
+
     sim = _build(scenario, size, device, integrator=integrator)
     sim.use_graph = graph
     if graph and not sim.graph_enabled:
         raise WarpclothError(f"graph capture unavailable for {integrator} on {device}")
-    t0 = time.perf_counter()
-    sim.warm_up()
-    compile_s = time.perf_counter() - t0
+    if steps is not None:
+        windows = min(windows, steps)  # at least one step a window
+    timing = time_steps(sim, windows=windows, window_seconds=seconds / windows, steps=steps)
     m = sim.model
-    frame = max(1, round(1.0 / 60.0 / sim.dt))  # one 60 Hz frame of steps per replay
-    sim.simulate(frame)  # first capture / first launches
-    wp.synchronize_device(device)
-    sim.integrator.reset_stats()
-    done, elapsed = 0, 0.0
-    target_steps = steps if steps is not None else math.inf
-    while done < target_steps and (steps is not None or elapsed < seconds):
-        n = frame if steps is None else min(frame, steps - done)
-        t = time.perf_counter()
-        sim.simulate(n)
-        wp.synchronize_device(device)
-        elapsed += time.perf_counter() - t
-        done += n
     finite = bool(np.all(np.isfinite(sim.state.particle_q.numpy())))
-    ms = 1000.0 * elapsed / done
+    ms = timing.median_ms
     stats = sim.integrator.stats()
     iters = next((v for k, v in stats.items() if "iterations" in k and "mean" in k), stats.get("iterations", ""))
     converged, capped, _ = sim.integrator.convergence(stats)
+    where = machine(device)
     return {
-        "scenario": scenario, "integrator": integrator, "device": device, "graph": int(graph), "rows": m.rows, "cols": m.cols,
-        "particles": m.particle_count, "springs": m.spring_count, "dt": sim.dt, "steps": done,
-        "ms_per_step": ms, "steps_per_sec": 1000.0 / ms, "springs_per_sec": m.spring_count * 1000.0 / ms,
-        "realtime_factor": sim.dt * 1000.0 / ms, "compile_s": compile_s, "speedup_vs_cpu": "",
-        "force_evals_per_step": sim.integrator.force_evals_per_step, "roofline_ms": "", "floor_multiple": "",
-        "stable": int(finite), "solver_iterations_mean": iters,
-        "solver_converged": "" if converged is None else int(converged), "solver_capped_steps": capped,
+        "scenario": scenario, "integrator": integrator, "device": device, "graph": graph, "rows": m.rows, "cols": m.cols,
+        "particles": m.particle_count, "springs": m.spring_count, "dt_s": sim.dt, "timed_windows": len(timing.ms_per_step),
+        "steps_per_window": timing.steps_per_window, "ms_per_step_median": ms, "ms_per_step_min": timing.min_ms,
+        "ms_per_step_max": timing.max_ms, "steps_per_s": 1000.0 / ms, "springs_per_s": m.spring_count * 1000.0 / ms,
+        "wall_s_per_sim_s": timing.wall_s_per_sim_s, "realtime_factor": timing.realtime_factor,
+        "realtime_30fps": timing.realtime(30.0), "realtime_60fps": timing.realtime(60.0), "compile_s": timing.compile_s,
+        "speedup_vs_cpu": "", "force_evals_per_step": sim.integrator.force_evals_per_step, "roofline_ms": "", "floor_multiple": "",
+        "stable": finite, "solver_iterations_mean": iters, "solver_converged": "" if converged is None else converged,
+        "solver_capped_steps": capped, "host": where["host"], "cpu": where["cpu"], "gpu": where["gpu"],
+        "warp_version": wp.config.version, "warpcloth_version": __version__,
     }
+
+
+def _cell(value):
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return value
 
 
 def csv_text(rows: list[dict]) -> str:
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     w.writeheader()
-    w.writerows(rows)
+    w.writerows({k: _cell(v) for k, v in r.items()} for r in rows)
     return buf.getvalue()
 
 
@@ -170,14 +179,16 @@ def plot(path: str, rows: list[dict]) -> bool:
     colors = {name: plt.get_cmap("tab10")(i % 10) for i, name in enumerate(integrators)}  # one colour per integrator
     for integ, dev, graph in keys:
         sel = sorted((r for r in rows if (r["integrator"], r["device"], r["graph"]) == (integ, dev, graph)), key=lambda r: r["particles"])
-        ax.plot([r["particles"] for r in sel], [r["ms_per_step"] for r in sel], color=colors[integ],
+        ax.plot([r["particles"] for r in sel], [r["wall_s_per_sim_s"] for r in sel], color=colors[integ],
                 marker="o" if dev == "cpu" else "s", linestyle="-" if graph else "--",
                 label=f"{integ} {dev}{' graph' if graph else ''}")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("particles")
-    ax.set_ylabel("ms / step")
-    ax.set_title("warpcloth sheet: ms per step vs particle count")
+    ax.axhline(1.0, color="k", linewidth=0.8)
+    ax.text(ax.get_xlim()[0], 1.0, " real time", va="bottom", fontsize=8)
+    ax.set_ylabel("wall seconds per simulated second (at each integrator's default dt)")
+    ax.set_title("warpcloth: cost per simulated second vs particle count")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
@@ -195,14 +206,16 @@ def plot(path: str, rows: list[dict]) -> bool:
 
 
 def format_table(rows: list[dict]) -> str:
-    head = f"{'integrator':15s} {'device':7s} {'graph':5s} {'size':>9s} {'particles':>9s} {'ms/step':>10s} {'steps/s':>10s} {'RT factor':>9s} {'x floor':>8s} {'CUDA x':>7s}"
+    head = (f"{'integrator':15s} {'device':7s} {'graph':5s} {'size':>9s} {'particles':>9s} {'ms/step':>10s} {'[min-max]':>19s} "
+            f"{'wall s/sim s':>12s} {'RT factor':>9s} {'x floor':>8s} {'CUDA x':>7s}")
     lines = [head, "-" * len(head)]
     for r in rows:
         def fmt(v, spec):
             return format(v, spec) if isinstance(v, (int, float)) else format(str(v), ">" + spec.split(".")[0].lstrip(">"))
         lines.append(
             f"{r['integrator']:15s} {r['device']:7s} {('yes' if r['graph'] else 'no'):5s} {str(r['rows']) + 'x' + str(r['cols']):>9s} "
-            f"{r['particles']:>9d} {r['ms_per_step']:>10.4f} {r['steps_per_sec']:>10.0f} {r['realtime_factor']:>9.3f} "
+            f"{r['particles']:>9d} {r['ms_per_step_median']:>10.4f} {'[' + format(r['ms_per_step_min'], '.4g') + '-' + format(r['ms_per_step_max'], '.4g') + ']':>19s} "
+            f"{r['wall_s_per_sim_s']:>12.4g} {r['realtime_factor']:>9.3f} "
             f"{fmt(r['floor_multiple'], '>8.2f')} {fmt(r['speedup_vs_cpu'], '>7.1f')}"
         )
     return "\n".join(lines)
@@ -223,7 +236,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--devices", default=None, help="comma-separated Warp devices (default: cpu and every CUDA device present)")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--steps", type=int, default=None, help="steps to time per combination")
-    group.add_argument("--seconds", type=float, default=1.0, help="wall seconds to time per combination (default 1)")
+    group.add_argument("--seconds", type=float, default=1.0, help="wall seconds to time per combination, over all windows (default 1)")
+    p.add_argument("--windows", type=int, default=DEFAULT_WINDOWS, help=f"timed windows per combination: the median and the [min-max] spread come from them (default {DEFAULT_WINDOWS})")
     p.add_argument("--graph", choices=["both", "on", "off"], default="both", help="time with graph capture, without, or both (default both)")
     p.add_argument("--roofline", action="store_true", help="time the speed-of-light force pass and report multiples of it")
     p.add_argument("--out", "-o", default=None, help="write the results to this CSV ('-' for stdout; the table then goes to stderr)")
@@ -253,6 +267,7 @@ def run(args) -> int:
         sizes = parse_sizes("32,64,128" if args.sizes is None else args.sizes)
     require(args.steps is None or args.steps >= 1, f"--steps must be >= 1, got {args.steps}")
     require(args.seconds is None or args.seconds > 0, f"--seconds must be > 0, got {args.seconds}")
+    require(args.windows >= 1, f"--windows must be >= 1, got {args.windows}")
     wanted = default_devices() if args.devices is None else [s.strip() for s in args.devices.split(",") if s.strip()]
     require(bool(wanted), f"--devices {args.devices!r} names no device; give comma-separated Warp devices, e.g. cpu,cuda:0")
     devices, skipped = [], []
@@ -300,17 +315,17 @@ def run(args) -> int:
             eta = progress.eta(k, len(combos))
             more = f" ({k + 1}/{len(combos)}" + (f", ETA {format_seconds(eta)})" if eta is not None else ")")
             print(f"bench: {what} ...{more}", file=sys.stderr, flush=True)
-        row = bench_one(name, size, device, graph, args.steps, args.seconds, scenario=args.scenario)
+        row = bench_one(name, size, device, graph, args.steps, args.seconds, scenario=args.scenario, windows=args.windows)
         if args.roofline:
             floor = floors[(device, size)]
             row["roofline_ms"] = floor
-            row["floor_multiple"] = row["ms_per_step"] / (row["force_evals_per_step"] * floor)
+            row["floor_multiple"] = row["ms_per_step_median"] / (row["force_evals_per_step"] * floor)
         rows.append(row)
     progress.close()
-    cpu = {(r["integrator"], r["rows"], r["graph"]): r["ms_per_step"] for r in rows if r["device"] == "cpu"}
+    cpu = {(r["integrator"], r["rows"], r["graph"]): r["ms_per_step_median"] for r in rows if r["device"] == "cpu"}
     for r in rows:
         if r["device"] != "cpu" and (r["integrator"], r["rows"], r["graph"]) in cpu:
-            r["speedup_vs_cpu"] = cpu[(r["integrator"], r["rows"], r["graph"])] / r["ms_per_step"]
+            r["speedup_vs_cpu"] = cpu[(r["integrator"], r["rows"], r["graph"])] / r["ms_per_step_median"]
     to_stdout = args.out == "-"
     # the table goes to stdout unless stdout carries the CSV or the JSON; --quiet drops it
     report = None if quiet else (sys.stderr if (to_stdout or getattr(args, "json", False)) else sys.stdout)

@@ -20,6 +20,7 @@ import time
 from dataclasses import dataclass, field
 
 from ..errors import require, require_positive
+from ..harness import Stopwatch
 
 DEFAULT_PRECISION = 0.02
 DEFAULT_DURATION = 2.0  # s of simulated time a trial must survive
@@ -99,10 +100,10 @@ def trial_stable(sim, dt: float, duration: float, fps: float = 60.0, wall_cap: f
     """Run ``sim`` from rest for ``duration`` seconds at ``dt``; is it stable?"""
     sim.reset()
     sim.set_dt(dt)
-    t0 = time.perf_counter()
-    r = sim.run(duration, fps=fps, stop_at_equilibrium=False, wall_cap=wall_cap, warm_up=False)
+    with Stopwatch(sim.model.device) as watch:
+        r = sim.run(duration, fps=fps, stop_at_equilibrium=False, wall_cap=wall_cap, warm_up=False)
     return Trial(dt=dt, stable=r.stable, reason=r.unstable_reason, capped=r.wall_cap_reached and r.stable,
-                 wall_time=time.perf_counter() - t0, max_strain=r.max_strain)
+                 wall_time=watch.seconds, max_strain=r.max_strain)
 
 
 def find_max_dt(

@@ -513,42 +513,25 @@ class Study:
         return self.once(key, self.base("max_static_accurate_dt", "sheet", integrator, device, n), run)
 
     def timing(self, scenario: str, integrator: str, device: str, n: int, dt: float, label: str, options: dict | None = None) -> dict:
-        import warp as wp
-
         p = self.plan
         opt = _options_text(options or {})
         key = f"timing|{scenario}|{integrator}|{opt}|{device}|{n}|{label}|dt={dt!r}|w={p.windows}"
 
         def run():
+            from ..harness import time_steps
+
             sim = self.sim(scenario, n, device, integrator, options)
             sim.set_dt(dt)
-            sim.warm_up()  # compile: excluded
             steps_frame = max(1, math.ceil(FRAME_DT / dt - 1e-9))
-            sim.simulate(steps_frame)  # first launches / graph capture: excluded
-            wp.synchronize_device(device)
-            t0 = time.perf_counter()
-            sim.simulate(steps_frame)
-            wp.synchronize_device(device)
-            per_step = max((time.perf_counter() - t0) / steps_frame, 1e-7)
-            replays = max(1, int(math.ceil(p.window_seconds / (per_step * steps_frame))))
-            m = replays * steps_frame  # a window replays the frame's captured steps (no new capture)
-            ms = []
-            for _ in range(p.windows):
-                t0 = time.perf_counter()
-                for _ in range(replays):
-                    sim.simulate(steps_frame)
-                wp.synchronize_device(device)
-                ms.append(1000.0 * (time.perf_counter() - t0) / m)
-            med = statistics.median(ms)
-            cost = med / 1000.0 / dt
-
-            def realtime(fps):
-                steps = math.ceil((1.0 / fps) / dt - 1e-9)
-                return steps * med / 1000.0 <= 1.0 / fps
+            # compile and the first replay (graph capture) excluded; windows replay the frame's steps
+            t = time_steps(sim, windows=p.windows, window_seconds=p.window_seconds, batch=steps_frame)
+            ms, m = t.ms_per_step, t.steps_per_window
+            med = t.median_ms
+            cost = t.wall_s_per_sim_s
 
             return {"dt_s": dt, "ms_per_step_median": med, "ms_per_step_min": min(ms), "ms_per_step_max": max(ms),
                     "timed_windows": len(ms), "steps_per_window": m, "wall_s_per_sim_s": cost, "realtime_factor": 1.0 / cost,
-                    "realtime_30fps": realtime(30.0), "realtime_60fps": realtime(60.0), "note": f"at the {label} dt",
+                    "realtime_30fps": t.realtime(30.0), "realtime_60fps": t.realtime(60.0), "note": f"at the {label} dt",
                     **({"iterations": options.get("iterations"), "substeps": options.get("substeps")} if options else {})}
 
         return self.once(key, self.base("timing", scenario, integrator, device, n, options), run)

@@ -28,7 +28,7 @@ import xml.parsers.expat as expat
 
 from ..errors import WarpclothError, warn
 from .. import params
-from ..params import SPRING_TYPES, Param, TimeStep, canonical, resolve_per_type  # noqa: F401  (SPRING_TYPES: importable from here)
+from ..params import SPRING_TYPES, Param, TimeStep, canonical, resolve_per_type  # noqa: F401  (SPRING_TYPES, TimeStep: importable from here)
 
 ROOT_TAG = "test_list"
 TEST_TAG = "test"
