@@ -477,10 +477,11 @@ def build_mesh_cloth(
     pinned = resolve_pins(v, pins, pin_groups, pin_where, groups)
     pairs, types = mesh_springs(v, t, quads=quads, bend=bend)
     model = build_model(v, pairs, types, masses, spring_params, pinned, t, device)
-    if uv is not None:
-        model.host["uv"] = corner_uvs(uv, t, v.shape[0])
-    model.host["groups"] = {k: np.asarray(g, dtype=np.int64) for k, g in (groups or {}).items()}
-    return model
+    from dataclasses import replace
+
+    host = replace(model.host, uv=corner_uvs(uv, t, v.shape[0]) if uv is not None else None,
+                   groups={k: np.asarray(g, dtype=np.int64) for k, g in (groups or {}).items()})
+    return replace(model, host=host)
 
 
 def corner_uvs(uv, triangles: np.ndarray, vertex_count: int) -> np.ndarray:

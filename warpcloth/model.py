@@ -58,9 +58,49 @@ def expected_spring_counts(rows: int, cols: int, bend: str | BendModel = BendMod
     return counts
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
+class HostArrays:
+    """The host (NumPy) arrays a :class:`ClothModel` was built from (read-only by convention;
+    ``model.host["q"]`` and ``model.host.get("uv")`` read them as before).
+
+    Attributes:
+        q: rest positions [m], (N, 3) float32.
+        pairs: spring particle pairs, (S, 2) int32.
+        rest: spring rest lengths [m], (S,) float32.
+        mass: particle masses [kg], (N,) float32.
+        inv_mass: inverse masses [1/kg], 0 where pinned, (N,) float32.
+        tris: triangles, (T, 3) int32.
+        uv: texture coordinates per triangle corner, (3T, 2), or None.
+        groups: named vertex groups of a mesh (name -> indices).
+    """
+
+    q: np.ndarray
+    pairs: np.ndarray
+    rest: np.ndarray
+    mass: np.ndarray
+    inv_mass: np.ndarray
+    tris: np.ndarray
+    uv: np.ndarray | None = None
+    groups: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str):
+        value = getattr(self, name, None) if name in self.__dataclass_fields__ else None
+        if value is None:
+            raise KeyError(name)
+        return value
+
+    def get(self, name: str, default=None):
+        value = getattr(self, name, None) if name in self.__dataclass_fields__ else None
+        return default if value is None else value
+
+    def __contains__(self, name: str) -> bool:
+        return self.get(name) is not None
+
+
+@dataclass(frozen=True, eq=False)  # identity equality and hash (its arrays have no value equality)
 class ClothModel:
-    """Immutable cloth topology and parameters, with device copies of every array.
+    """Immutable cloth topology and parameters, with device copies of every array (a frozen
+    dataclass: a model with other spring parameters is a new model, :meth:`with_spring_params`).
 
     Attributes (device arrays are ``wp.array`` on :attr:`device`):
         rows, cols: grid size (particles per column and per row).
@@ -96,7 +136,7 @@ class ClothModel:
     tri_indices: wp.array
     spring_params: dict[SpringType, SpringParams]
     bend: BendModel = BendModel.PROVOT
-    host: dict = field(default_factory=dict, repr=False)
+    host: HostArrays | None = field(default=None, repr=False)
 
     @property
     def particle_count(self) -> int:
@@ -282,10 +322,11 @@ def build_grid_cloth(
     q = grid_positions(rows, cols, width, height, origin, plane)
     pairs, types = grid_springs(rows, cols, bend)
     model = build_model(q, pairs, types, np.full(rows * cols, total_mass / (rows * cols)), spring_params, pins, grid_triangles(rows, cols), device)
-    model.rows, model.cols, model.width, model.height, model.bend = rows, cols, width, height, bend
-    model.total_mass = total_mass
-    model.host["uv"] = grid_uvs(rows, cols)[model.host["tris"]].reshape(-1, 2)
-    return model
+    from dataclasses import replace
+
+    uv = grid_uvs(rows, cols)[model.host.tris].reshape(-1, 2)
+    return replace(model, rows=rows, cols=cols, width=width, height=height, bend=bend, total_mass=total_mass,
+                   host=replace(model.host, uv=uv))
 
 
 def grid_uvs(rows: int, cols: int) -> np.ndarray:
@@ -353,7 +394,7 @@ def build_model(positions, spring_pairs, spring_types, masses, spring_params, pi
             tri_indices=wp.array(tris, dtype=wp.vec3i),
             spring_params=dict(spring_params),
             bend=BendModel.NONE,
-            host={"q": q, "pairs": pairs, "rest": rest, "mass": mass, "inv_mass": inv_mass, "tris": tris},
+            host=HostArrays(q=q, pairs=pairs, rest=rest, mass=mass, inv_mass=inv_mass, tris=tris),
         )
 
 
