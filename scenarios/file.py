@@ -56,7 +56,7 @@ is optional but ``cloth.mesh``; unknown keys are refused, naming the file and th
     integrator_options = { iterations = 20 }
     dt = 0.004
     duration = 5.0
-    fps = 60
+    frame_rate = 60                      # 1/s (old spelling: fps)
     device = "cpu"
     strain_limit = 0.1
 
@@ -68,6 +68,7 @@ from __future__ import annotations
 
 import functools
 import os
+from dataclasses import replace
 
 import numpy as np
 
@@ -76,6 +77,7 @@ from ..forces import GRAVITY, Control, WindSchedule
 from ..mesh import build_mesh_cloth, lumped_masses, resolve_pins
 from ..meshio import load_mesh
 from ..pins import PinTrack
+from ..params import BY_NAME, config_values, params_for
 from .common import Scenario, ScenarioConfig
 
 TOP_KEYS = {"name", "description", "stop_at_equilibrium", "cloth", "pins", "tracks", "colliders", "forces", "run"}
@@ -85,7 +87,10 @@ TRACK_KEYS = PIN_KEYS | {"name", "kind", "times", "offsets", "positions", "inter
                          "angular_velocity", "swing_amplitude", "swing_frequency", "swing_phase", "velocity"}
 FORCE_KEYS = {"gravity", "drag", "wind", "gusts", "wind_coefficient"}
 GUST_KEYS = {"wind", "on", "off", "base"}
-RUN_KEYS = {"integrator", "integrator_options", "dt", "duration", "fps", "device", "strain_limit", "instability_strain"}
+#: [run] takes the run parameters of warpcloth.params that set up a run (``fps`` is the old
+#: spelling of ``frame_rate``) and the integrator's options as a table.
+RUN_PARAMS = tuple(p.name for p in params_for("run") if p.group in ("run", "integrator") and (p.config_field or p.name == "dt"))
+RUN_KEYS = {"integrator_options", "fps", *RUN_PARAMS}
 
 
 def _toml():
@@ -196,16 +201,29 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
 
     options = run.get("integrator_options", {})
     require(isinstance(options, dict), f"{where}: run.integrator_options must be a table, got {options!r}")
+    require(not ("fps" in run and "frame_rate" in run), f"{where}: give run.frame_rate (or its old spelling run.fps), not both")
+    given = {}
+    for key, value in run.items():  # checked as the declarations say, like the CLI and the XML
+        if key == "integrator_options":
+            continue
+        name = "frame_rate" if key == "fps" else key
+        if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+            raise WarpclothError(f"{where}: run.{key} must be a number or a string, got {value!r}")
+        try:
+            given[name] = BY_NAME[name].parse(value if isinstance(value, str) else repr(value))
+        except ValueError as exc:
+            raise WarpclothError(f"{where}: run.{key}: {exc}") from None
+    dt = given.pop("dt", None)
+    require(dt is None or dt.kind != "max", f"{where}: run.dt must be a time step in s or 'default' (max is for test lists)")
+    require(given.get("integrator") != "all", f"{where}: run.integrator must name one integrator, not 'all'")
     defaults = ScenarioConfig(
         rows=1, cols=int(mesh.vertices.shape[0]), mass=0.2 if mass is None else mass,
-        integrator=run.get("integrator", "explicit_euler"), integrator_options=dict(options),
-        dt=run.get("dt"), duration=run.get("duration", 10.0), fps=run.get("fps", 60.0),
+        integrator="explicit_euler", integrator_options=dict(options), duration=10.0, fps=60.0,
         stiffness=_per_type(cloth.get("stiffness")), damping=_per_type(cloth.get("damping")), drag=None,
-        bend="provot" if cloth.get("bend", True) else "none", device=run.get("device"),
-        strain_limit=run.get("strain_limit"), mesh=mesh_path, prim=prim,
+        bend="provot" if cloth.get("bend", True) else "none", mesh=mesh_path, prim=prim,
         pin_group=tuple(pins.get("groups", ())) or None, pin_where=pins.get("where"), quads=bool(cloth.get("quads", False)),
-        **({"instability_strain": run["instability_strain"]} if "instability_strain" in run else {}),
     )
+    defaults = replace(defaults, dt=dt.value if dt is not None and dt.kind == "value" else None, **config_values(given))
     scenario = Scenario(
         name=str(data.get("name", os.path.splitext(where)[0])),
         description=str(data.get("description", f"scenario file {where}")),
