@@ -32,8 +32,8 @@ SLOW = """
 </test_list>
 """
 #: Columns that depend on the machine, the clock or the placement, not on the run.
-TIMING = {"wall_time", "compile_time", "ms_per_step", "steps_per_sec", "frames_per_wall_second", "realtime_factor",
-          "realtime", "integration_ms_mean", "other_ms_mean", "time_to_equilibrium_wall", "host", "worker",
+TIMING = {"wall_time_s", "compile_s", "ms_per_step", "steps_per_s", "frames_per_wall_second", "realtime_factor",
+          "realtime", "integration_ms_mean", "other_ms_mean", "time_to_equilibrium_wall_s", "host", "worker",
           "concurrent_runs", "solver"}
 
 

@@ -39,11 +39,11 @@ from .testlist import RunSpec, TestList, parse_test_list, resolved_params
 #: (their columns come from the declarations, :func:`warpcloth.params.csv_columns`), then what
 #: the run measured.
 COLUMNS = [
-    "test_id", *csv_columns(), "options", "particles", "springs", "dt", "max_dt", "unstable_dt",
-    "outcome", "steps", "sim_time", "wall_time", "compile_time", "ms_per_step", "steps_per_sec",
+    "test_id", *csv_columns(), "options", "particles", "springs", "dt_s", "max_dt_s", "unstable_dt_s",
+    "outcome", "steps", "sim_time_s", "wall_time_s", "compile_s", "ms_per_step", "steps_per_s",
     "frames_per_wall_second", "realtime_factor", "realtime", "integration_ms_mean", "other_ms_mean",
-    "stable", "unstable_reason", "equilibrium_reached", "time_to_equilibrium_sim", "time_to_equilibrium_wall",
-    "max_strain", "wall_cap_reached", "solver_iterations", "solver_converged", "solver_capped_steps", "solver", "error",
+    "stable", "unstable_reason", "equilibrium_reached", "time_to_equilibrium_sim_s", "time_to_equilibrium_wall_s",
+    "max_strain_rel", "wall_cap_reached", "solver_iterations", "solver_converged", "solver_capped_steps", "solver", "error",
     "host", "worker", "concurrent_runs", "warpcloth_version", "warp_version", "key",
 ]
 
@@ -95,15 +95,15 @@ def result_columns(result, stop_at_equilibrium: bool = True) -> dict:
     else:
         outcome = "completed"
     return {
-        "dt": result.dt, "particles": result.particles, "springs": result.springs, "outcome": outcome,
-        "steps": result.steps, "sim_time": result.sim_time, "wall_time": result.wall_time,
-        "compile_time": result.compile_time, "ms_per_step": result.ms_per_step, "steps_per_sec": result.steps_per_sec,
+        "dt_s": result.dt, "particles": result.particles, "springs": result.springs, "outcome": outcome,
+        "steps": result.steps, "sim_time_s": result.sim_time, "wall_time_s": result.wall_time,
+        "compile_s": result.compile_time, "ms_per_step": result.ms_per_step, "steps_per_s": result.steps_per_sec,
         "frames_per_wall_second": result.frames_per_sec, "realtime_factor": result.realtime_factor,
         "realtime": result.realtime_factor >= 1.0,
         "integration_ms_mean": result.integration_ms_mean, "other_ms_mean": result.other_ms_mean,
         "stable": result.stable, "unstable_reason": result.unstable_reason,
-        "equilibrium_reached": result.equilibrium_reached, "time_to_equilibrium_sim": result.time_to_equilibrium,
-        "time_to_equilibrium_wall": result.time_to_equilibrium_wall, "max_strain": result.max_strain,
+        "equilibrium_reached": result.equilibrium_reached, "time_to_equilibrium_sim_s": result.time_to_equilibrium,
+        "time_to_equilibrium_wall_s": result.time_to_equilibrium_wall, "max_strain_rel": result.max_strain,
         "wall_cap_reached": result.wall_cap_reached, "solver_iterations": solver_iterations(result.solver),
         "solver_converged": result.solver_converged, "solver_capped_steps": result.solver_capped_steps,
         "solver": result.solver or None,
@@ -156,13 +156,13 @@ def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
             dt = spec.dt.value
         elif spec.dt.uses_max:
             found = cache.get(spec)
-            row["max_dt"], row["unstable_dt"] = found.dt, found.unstable_dt
+            row["max_dt_s"], row["unstable_dt_s"] = found.dt, found.unstable_dt
             if found.dt is None:
                 raise WarpclothError(f"no stable dt found down to {found.dt_min:g} s")
             dt = found.dt * spec.dt.value
         scenario = get_scenario(spec.scenario)
         sim = scenario.build(spec.config(dt=dt))
-        row["dt"] = sim.dt
+        row["dt_s"] = sim.dt
         result = sim.run(spec.duration, fps=spec.frame_rate, stop_at_equilibrium=scenario.stop_at_equilibrium, wall_cap=spec.wall_cap)
         row.update(result_columns(result, scenario.stop_at_equilibrium))
     except Exception as exc:
