@@ -256,10 +256,11 @@ def collide_velocity(
 def collide_displacement(
     friction: int, x: wp.array(dtype=wp.vec3), dp: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
     normal_correction: wp.array(dtype=float), colliders: wp.array(dtype=Collider), bounds: wp.array(dtype=wp.vec4),
-    box: wp.array(dtype=wp.vec3), plane_count: int, motion_time: float,
+    box: wp.array(dtype=wp.vec3), plane_count: int, step_dt: wp.array(dtype=wp.float64), substep: wp.array(dtype=int),
 ):
     # position-based solvers: p = x + dp out of every collider (friction = 0), or the friction pass
-    # after the iterations (friction = 1; the collider moves v_c motion_time meanwhile)
+    # after the iterations (friction = 1; the collider moves v_c h over the substep h = dt / S)
+    motion_time = float(step_dt[0] / wp.float64(substep[1]))
     i = wp.tid()
     nc = normal_correction[i]
     if friction != 0 and nc == 0.0:
@@ -301,16 +302,34 @@ def rotation_matrix(axis: wp.vec3d, theta: wp.float64):
 
 
 @wp.kernel
+def begin_collider_step(substep: wp.array(dtype=int)):
+    # substep = (k, S): S = the substeps the last step counted (kept if it counted none), k = 0
+    if substep[0] > 0:
+        substep[1] = substep[0]
+    substep[1] = wp.max(substep[1], 1)
+    substep[0] = 0
+
+
+@wp.kernel
+def next_collider_substep(substep: wp.array(dtype=int)):
+    # k += 1 after a position-based substep's friction pass
+    substep[0] = substep[0] + 1
+
+
+@wp.kernel
 def eval_collider_pose(
-    time: wp.array(dtype=wp.float64), lead: wp.array(dtype=wp.float64), offset: wp.float64, index: int, rest: wp.array(dtype=Collider),
+    time: wp.array(dtype=wp.float64), offset: wp.float64, step_dt: wp.array(dtype=wp.float64), substep: wp.array(dtype=int), use_substep: int,
+    index: int, rest: wp.array(dtype=Collider),
     rigid: int, center: wp.vec3d, axis: wp.vec3d, velocity: wp.vec3d, motion: wp.vec4d,
     times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d), tangents: wp.array(dtype=wp.vec3d), cubic: int,
     colliders: wp.array(dtype=Collider),
 ):
-    # collider `index` at t = time + lead + offset: rigid y -> c + u t + R(axis, theta(t))(y - c),
-    # theta = omega t + A sin(2 pi f t + phi), motion = (omega, A, f, phi); or keyframed
-    # translation y -> y + d(t); v_c(y) = d' + theta' axis x (y - c - d)
-    t = time[0] + lead[0] + offset
+    # collider `index` at t = time + offset (+ dt min(k + 1, S) / S, the end of substep k of S, with
+    # use_substep): rigid y -> c + u t + R(axis, theta(t))(y - c), theta = omega t + A sin(2 pi f t + phi),
+    # motion = (omega, A, f, phi); or keyframed translation y -> y + d(t); v_c(y) = d' + theta' axis x (y - c - d)
+    t = time[0] + offset
+    if use_substep != 0:
+        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
     zero = wp.float64(0.0)
     d = wp.vec3d(zero, zero, zero)
     dd = wp.vec3d(zero, zero, zero)
@@ -347,5 +366,5 @@ def eval_collider_pose(
 
 @wp.kernel
 def store_step(value: wp.float64, out: wp.array(dtype=wp.float64)):
-    # out = dt of the step just taken (the lead at which the next step's colliders are posed)
+    # out = dt of the step just taken (the next step poses the moving colliders with it)
     out[0] = value

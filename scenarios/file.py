@@ -43,6 +43,8 @@ is optional but ``cloth.mesh``; unknown keys are refused, naming the file and th
     radius = 0.25
     thickness = 0.005                    # m
     friction = 0.4                       # Coulomb mu
+    track = { kind = "keyframes", times = [0, 2], offsets = [[0, 0, 0], [0.5, 0, 0]] }   # optional; or
+    # track = { kind = "rigid", velocity = [0.2, 0, 0], center = [0, 1, 0.3], axis = [0, 1, 0], angular_velocity = 1.0 }
 
     [forces]
     gravity = [0, -9.81, 0]
@@ -224,8 +226,9 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
 
 def _colliders(tables, where: str) -> tuple:
     """The [[colliders]] tables: ``kind = "plane" | "sphere" | "capsule" | "box"`` and that
-    collider's settings (warpcloth.colliders), e.g. ``center = [0, 1, 0]``, ``radius = 0.3``."""
-    from ..colliders import COLLIDER_TYPES
+    collider's settings (warpcloth.colliders), e.g. ``center = [0, 1, 0]``, ``radius = 0.3``, and
+    optionally a pose ``track = { kind = "rigid" | "keyframes", ... }`` (ColliderTrack)."""
+    from ..colliders import COLLIDER_TYPES, ColliderTrack
 
     require(isinstance(tables, list), f"{where}: colliders must be an array of tables ([[colliders]]), got {tables!r}")
     out = []
@@ -238,7 +241,8 @@ def _colliders(tables, where: str) -> tuple:
         settings = {key: value for key, value in t.items() if key != "kind"}
         _check_keys(settings, set(cls.__dataclass_fields__), what)
         try:
-            out.append(cls(**{key: tuple(v) if isinstance(v, list) else v for key, v in settings.items()}))
+            track = ColliderTrack.from_table(settings.pop("track")) if "track" in settings else None
+            out.append(cls(track=track, **{key: tuple(v) if isinstance(v, list) else v for key, v in settings.items()}))
         except WarpclothError as exc:
             raise WarpclothError(f"{what}: {exc}") from None
     return tuple(out)

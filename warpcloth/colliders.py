@@ -96,6 +96,30 @@ class ColliderTrack:
         return cls(kind="rigid", center=pin.center, axis=pin.axis, velocity=pin.velocity, angular_velocity=pin.angular_velocity,
                    swing_amplitude=pin.swing_amplitude, swing_frequency=pin.swing_frequency, swing_phase=pin.swing_phase)
 
+    @classmethod
+    def from_table(cls, table) -> "ColliderTrack":
+        """A track from a scenario file's ``track = { kind = "rigid", velocity = [0.5, 0, 0] }`` or
+        ``{ kind = "keyframes", times = [...], offsets = [[...], ...], interpolation = "linear" }``."""
+        if not isinstance(table, dict):
+            raise WarpclothError(f"collider track must be a table {{ kind = \"keyframes\" | \"rigid\", ... }}, got {table!r:.80}")
+        keys = {"keyframes": ("times", "offsets", "interpolation", "tangents"),
+                "rigid": ("center", "axis", "angular_velocity", "swing_amplitude", "swing_frequency", "swing_phase", "velocity")}
+        kind = table.get("kind")
+        if kind not in keys:
+            raise WarpclothError(f"collider track kind must be 'keyframes' or 'rigid', got {kind!r}")
+        unknown = sorted(set(table) - {"kind", *keys[kind]})
+        if unknown:
+            raise WarpclothError(f"collider track ({kind}): unknown key {unknown[0]!r} (allowed: {', '.join(keys[kind])})")
+        args = {k: v for k, v in table.items() if k != "kind"}
+        if kind == "keyframes":
+            for need in ("times", "offsets"):
+                require(need in args, f"collider track (keyframes) needs {need}")
+            try:
+                return cls.keyframes(**args)
+            except (TypeError, ValueError) as exc:
+                raise WarpclothError(f"collider track (keyframes): {exc}") from None
+        return cls.rigid(**args)
+
     def transform(self, t: float):
         """(rotation matrix R (3, 3), centre c, offset d) at time t [s]: y -> c + d + R (y - c)."""
         if self.kind == "rigid":
@@ -274,7 +298,7 @@ class ColliderSet:
     response (one tiny launch per moving collider), so a captured frame replays their motion.
     """
 
-    def __init__(self, colliders, device, time=None, lead=None):
+    def __init__(self, colliders, device, time=None, step_dt=None):
         from warpcloth.kernels import collide as ck
 
         for c in colliders:
@@ -291,8 +315,8 @@ class ColliderSet:
             self.bounds = wp.zeros(2 * len(records) - self.plane_count, dtype=wp.vec4)  # broad phase, see kernels.collide.eval_collider_bounds
             self.box = wp.zeros(2, dtype=wp.vec3)
             self.time = time if time is not None else wp.zeros(1, dtype=wp.float64)
-            self.lead = lead if lead is not None else wp.zeros(1, dtype=wp.float64)
-            self._no_lead = wp.zeros(1, dtype=wp.float64)
+            self.step_dt = step_dt if step_dt is not None else wp.zeros(1, dtype=wp.float64)
+            self.substep = wp.array([0, 1], dtype=int)  # (k, S): the position-based substep k of S
             self._moving = [(k, c.track.launch_args()) for k, c in enumerate(order) if c.track is not None]
         self._bound()
 
@@ -300,16 +324,26 @@ class ColliderSet:
     def moving(self) -> bool:
         return bool(self._moving)
 
-    def pose(self, offset: float = 0.0, lead: bool = False) -> None:
-        """Move every tracked collider to its pose at t = time + offset (+ the control's step
-        dt with ``lead``): device launches only."""
+    def pose(self, offset: float = 0.0, substep: bool = False) -> None:
+        """Move every tracked collider to its pose at t = time + offset, or with ``substep`` at
+        the end of the current position-based substep, t + dt min(k + 1, S) / S (device
+        launches only)."""
         from warpcloth.kernels import collide as ck
 
         for k, args in self._moving:
-            wp.launch(ck.eval_collider_pose, dim=1, inputs=[self.time, self.lead if lead else self._no_lead, wp.float64(offset), k, self.rest, *args],
+            wp.launch(ck.eval_collider_pose, dim=1, inputs=[self.time, wp.float64(offset), self.step_dt, self.substep, int(substep), k, self.rest, *args],
                       outputs=[self.params], device=self.device)
         if self._moving:
             self._bound()
+
+    def begin_step(self) -> None:
+        """At a step's start (Control.update): count its substeps from 0 (S = the last step's count)
+        and pose the moving colliders at the first substep's end."""
+        from warpcloth.kernels import collide as ck
+
+        if self._moving:
+            wp.launch(ck.begin_collider_step, dim=1, inputs=[self.substep], device=self.device)
+            self.pose(substep=True)
 
     def _bound(self) -> None:
         from warpcloth.kernels import collide as ck
@@ -331,21 +365,22 @@ class ColliderSet:
                   inputs=[state.particle_q, state.particle_qd, model.particle_inv_mass, float(dt), float(position_weight), d,
                           int(displacement is not None), *self._broad_phase()], device=model.device)
 
-    def project_displacement(self, model, x, dp, normal_correction, friction: bool, h: float | None = None, end: float | None = None) -> None:
+    def project_displacement(self, model, x, dp, normal_correction, friction: bool) -> None:
         """Inside a position-based solver: p = x + dp out of every collider (accumulating the
         normal corrections), or the friction pass after the iterations, relative to the
-        colliders' motion over the substep ``h``.
+        colliders' motion over the substep.
 
-        ``end``: the substep's end from the step's start [s]; moving colliders are posed there.
-        Without it they keep the pose of :meth:`Control.update <warpcloth.forces.Control.update>`
-        (the step's end, t + dt), and without ``h`` friction takes them as still."""
+        Moving colliders are posed at each substep's end: the friction pass, made once per
+        substep, counts the substeps on the device (k of S, S counted in the step before; see
+        :meth:`begin_step`), so no integrator needs to pass its substep times."""
         from warpcloth.kernels import collide as ck
 
-        if end is not None and not friction:
-            self.pose(float(end))
         wp.launch(ck.collide_displacement, dim=model.particle_count,
-                  inputs=[int(friction), x, dp, model.particle_inv_mass, normal_correction, *self._broad_phase(), float(h or 0.0)],
+                  inputs=[int(friction), x, dp, model.particle_inv_mass, normal_correction, *self._broad_phase(), self.step_dt, self.substep],
                   device=model.device)
+        if friction and self._moving:  # the substep ends: the next one's pose
+            wp.launch(ck.next_collider_substep, dim=1, inputs=[self.substep], device=self.device)
+            self.pose(substep=True)
 
     def poses_at(self, t: float) -> tuple:
         """The colliders where they are at time t [s] (host evaluation; static ones as given)."""

@@ -111,7 +111,7 @@ class Control:
     def _collider_set(self, colliders):
         from .colliders import ColliderSet
 
-        return ColliderSet(colliders, self.device, time=self.time, lead=self._step_dt) if colliders else None
+        return ColliderSet(colliders, self.device, time=self.time, step_dt=self._step_dt) if colliders else None
 
     def _fill_schedule(self) -> None:
         """Copy :attr:`wind_schedule` to the device (float64 start times) and re-evaluate W(t)."""
@@ -152,11 +152,12 @@ class Control:
         wp.launch(fk.rebase_time, dim=1, inputs=[self.time, self._time_base, self._clock], device=self.device)
 
     def update(self) -> None:
-        """Evaluate W(time) into :attr:`wind` on the device, and pose moving colliders at the
-        step's end, time + dt (dt of the last :meth:`advance`; force-based steps re-pose them at
-        exactly t + dt after the step, position-based ones use this pose)."""
-        if self.collision is not None and self.collision.moving:
-            self.collision.pose(lead=True)
+        """Evaluate W(time) into :attr:`wind` on the device, and start a step of the moving
+        colliders (:meth:`ColliderSet.begin_step <warpcloth.colliders.ColliderSet.begin_step>`:
+        posed at the end of the first position-based substep, with the dt of the last
+        :meth:`advance`; force-based steps re-pose them at exactly t + dt after the step)."""
+        if self.collision is not None:
+            self.collision.begin_step()
         if self.has_wind:
             wp.launch(fk.eval_wind_schedule, dim=1, inputs=[self.time, self._schedule_start, self._schedule_wind, wp.float64(self.wind_schedule.period)], outputs=[self.wind], device=self.device)
 
