@@ -49,14 +49,21 @@ def ms_per_step(sim, steps, device):
 
 
 def mesh_sphere(triangles: int, radius: float = 0.3):
-    """A UV sphere of about ``triangles`` triangles: (vertices, triangles)."""
-    n = max(3, int(round((triangles / 2) ** 0.5)))
-    th, ph = np.meshgrid(np.linspace(0, np.pi, n + 1), np.linspace(0, 2 * np.pi, n + 1), indexing="ij")
-    v = radius * np.stack([np.sin(th) * np.cos(ph), np.cos(th), np.sin(th) * np.sin(ph)], -1).reshape(-1, 3)
-    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    a, b, c, d = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
-    tris = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
-    return v, tris
+    """A UV sphere of about ``triangles`` triangles wound outward: (vertices, triangles)."""
+    rings = max(2, int(round((triangles / 4) ** 0.5)))  # latitude bands; 2 rings x segments triangles
+    seg = 2 * rings
+    theta = np.linspace(0, np.pi, rings + 1)[1:-1]
+    phi = np.linspace(0, 2 * np.pi, seg, endpoint=False)
+    th, ph = np.meshgrid(theta, phi, indexing="ij")
+    ring = np.stack([np.sin(th) * np.cos(ph), np.cos(th), np.sin(th) * np.sin(ph)], -1).reshape(-1, 3)
+    v = radius * np.concatenate([[[0, 1, 0]], ring, [[0, -1, 0]]])
+    idx = 1 + np.arange(len(ring)).reshape(rings - 1, seg)
+    nxt = np.roll(idx, -1, axis=1)
+    top = np.stack([np.zeros(seg, int), nxt[0], idx[0]], -1)
+    bottom = np.stack([np.full(seg, len(v) - 1), idx[-1], nxt[-1]], -1)
+    a, b, c, d = idx[:-1], nxt[:-1], nxt[1:], idx[1:]
+    quads = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    return v, np.concatenate([top, quads, bottom])
 
 
 def main(argv=None):
@@ -74,10 +81,10 @@ def main(argv=None):
         "contact plane+sphere+capsule+box": simulator("contact", CONTACT, a.size, a.device),
     }
     if a.mesh_triangles:
-        from warpcloth.colliders import TriangleMesh
+        from warpcloth.colliders import MeshCollider
 
         v, t = mesh_sphere(a.mesh_triangles)
-        mesh = TriangleMesh(vertices=v - np.array([0.0, 0.3, 0.0]), triangles=t, thickness=THICKNESS, friction=0.3)
+        mesh = MeshCollider(vertices=v - np.array([0.0, 0.3, 0.0]), triangles=t, thickness=THICKNESS, friction=0.3)
         cases[f"contact mesh ({len(t)} triangles)"] = simulator("contact", (mesh,), a.size, a.device)
     for sim in cases.values():
         sim.warm_up()

@@ -34,14 +34,16 @@ PLANE = wp.constant(0)
 SPHERE = wp.constant(1)
 CAPSULE = wp.constant(2)
 BOX = wp.constant(3)
+MESH = wp.constant(4)
 
 
 @wp.struct
 class Collider:
-    kind: int  # PLANE, SPHERE, CAPSULE, BOX
-    a: wp.vec3  # plane point / sphere centre / capsule end a / box centre [m]
-    b: wp.vec3  # plane normal / - / capsule end b / box half extents [m]
-    radius: float  # sphere, capsule radius [m]
+    kind: int  # PLANE, SPHERE, CAPSULE, BOX, MESH
+    a: wp.vec3  # plane point / sphere centre / capsule end a / box centre / mesh box centre [m]
+    b: wp.vec3  # plane normal / - / capsule end b / box half extents / mesh box half size (+ thickness) [m]
+    radius: float  # sphere, capsule radius; a mesh's reach (deepest inside still pushed out) [m]
+    mesh: wp.uint64  # a MESH's wp.Mesh id
     rotation: wp.mat33  # box: world from box frame
     thickness: float  # the cloth's offset from the surface [m]
     mu: float  # Coulomb friction coefficient
@@ -98,6 +100,24 @@ def box_contact(x: wp.vec3, center: wp.vec3, rotation: wp.mat33, half: wp.vec3):
 
 
 @wp.func
+def mesh_contact(x: wp.vec3, mesh: wp.uint64, thickness: float, reach: float):
+    # nearest surface point q within thickness + reach, sign s by its face normal (< 0 inside);
+    # q inside a face: n = the face normal, phi = (x - q).n (exact even when x - q is a rounding
+    # error away from q); on an edge or vertex: n = s (x - q)/|x - q|, phi = s |x - q|; none: phi = inf
+    query = wp.mesh_query_point_sign_normal(mesh, x, thickness + reach)
+    if not query.result:
+        return 1.0e30, wp.vec3(0.0, 1.0, 0.0)
+    q = wp.mesh_eval_position(mesh, query.face, query.u, query.v)
+    d = x - q
+    w = 1.0 - query.u - query.v
+    length = wp.length(d)
+    if (query.u > 1.0e-5 and query.v > 1.0e-5 and w > 1.0e-5) or length < 1.0e-9:
+        n = wp.mesh_eval_face_normal(mesh, query.face)
+        return wp.dot(d, n), n
+    return query.sign * length, (query.sign / length) * d
+
+
+@wp.func
 def collider_contact(c: Collider, x: wp.vec3):
     # (phi, n) of one collider of any kind
     if c.kind == PLANE:
@@ -106,6 +126,8 @@ def collider_contact(c: Collider, x: wp.vec3):
         return sphere_contact(x, c.a, c.radius)
     if c.kind == CAPSULE:
         return capsule_contact(x, c.a, c.b, c.radius)
+    if c.kind == MESH:
+        return mesh_contact(x, c.mesh, c.thickness, c.radius)
     return box_contact(x, c.a, c.rotation, c.b)
 
 
@@ -145,6 +167,8 @@ def half_size(c: Collider):
     if c.kind == CAPSULE:
         d = 0.5 * (c.b - c.a)
         return wp.vec3(wp.abs(d[0]), wp.abs(d[1]), wp.abs(d[2])) + wp.vec3(c.radius + c.thickness)
+    if c.kind == MESH:
+        return c.b
     r = c.rotation
     h = c.b
     return wp.vec3(

@@ -36,7 +36,7 @@ def apply(m, local):
 
 def check_prim(stage, k, c, code):
     """The prim's geometry, moved by its world transform, lies on the collider ``c``."""
-    prim = stage.GetPrimAtPath(f"/World/Colliders/{type(c).__name__}_{k}")
+    prim = stage.GetPrimAtPath(f"/World/Colliders/{c.kind.capitalize()}_{k}")
     m = world(prim, code)
     if c.kind == "sphere":
         assert UsdGeom.Sphere(prim).GetRadiusAttr().Get() == pytest.approx(c.radius)
@@ -73,7 +73,7 @@ def test_colliders_are_prims_that_follow_their_tracks(tmp_path, clip_frames):
     stage = Usd.Stage.Open(path)
     codes = [float(c) for c in range(11)]
     for k, c in enumerate(COLLIDERS):
-        prim = stage.GetPrimAtPath(f"/World/Colliders/{type(c).__name__}_{k}")
+        prim = stage.GetPrimAtPath(f"/World/Colliders/{c.kind.capitalize()}_{k}")
         assert prim.IsValid()
         translate = prim.GetAttribute("xformOp:translate")
         if c.track is None:

@@ -31,7 +31,7 @@ import warp as wp
 from .errors import WarpclothError, require, require_non_negative, require_positive, require_vector
 
 #: Collider kinds in the order of their kernel launches (the kernels' ``kind`` argument).
-KINDS = ("plane", "sphere", "capsule", "box")
+KINDS = ("plane", "sphere", "capsule", "box", "mesh")
 
 
 def _material(thickness, friction):
@@ -264,29 +264,85 @@ class Box(_Posed):
                    thickness=self.thickness, friction=self.friction)
 
 
-COLLIDER_TYPES = {"plane": Plane, "sphere": Sphere, "capsule": Capsule, "box": Box}
+@dataclass(frozen=True, eq=False)
+class MeshCollider(_Posed):
+    """A static triangle mesh (``wp.Mesh``, queried with ``wp.mesh_query_point_sign_normal``):
+    ``vertices`` (N, 3) [m], ``triangles`` (T, 3) vertex indices. Inside and outside come from the
+    nearest face's normal, so a closed mesh should have its triangles wound outward (counter-
+    clockwise seen from outside); an open one pushes particles to its front side. A particle more
+    than ``reach`` [m] inside is not found (it went through; keep reach above a step's motion)."""
+
+    vertices: np.ndarray = None
+    triangles: np.ndarray = None
+    thickness: float = 0.0
+    friction: float = 0.0
+    reach: float = 0.05
+    track: None = None
+    source: str = ""
+
+    def __post_init__(self):
+        from .mesh import check_mesh
+
+        what = f"mesh collider {self.source!r}" if self.source else "mesh collider"
+        if self.vertices is None or self.triangles is None or np.size(self.triangles) == 0 or np.size(self.vertices) == 0:
+            raise WarpclothError(f"{what} is empty (no {'vertices' if self.vertices is None or np.size(self.vertices) == 0 else 'triangles'}): give at least one triangle")
+        v, t = check_mesh(self.vertices, self.triangles, what=what)
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "triangles", t)
+        _material(self.thickness, self.friction)
+        require_positive("mesh collider reach", self.reach, "m")
+        if self.track is not None:
+            raise WarpclothError(f"{what}: mesh colliders are static; a track applies to plane, sphere, capsule and box, got {self.track!r:.80}")
+
+    @classmethod
+    def from_file(cls, path: str, prim: str | None = None, **settings) -> "MeshCollider":
+        """The mesh of an OBJ or USD file (:func:`warpcloth.meshio.load_mesh`) as a collider."""
+        from .meshio import load_mesh
+
+        mesh = load_mesh(path, prim)
+        return cls(vertices=mesh.vertices, triangles=mesh.triangles, source=str(path), **settings)
+
+    def __repr__(self):
+        return (f"MeshCollider({self.source or 'in memory'}: {len(self.vertices)} vertices, {len(self.triangles)} triangles, "
+                f"thickness={self.thickness}, friction={self.friction}, reach={self.reach})")
+
+    @property
+    def kind(self) -> str:
+        return "mesh"
+
+
+COLLIDER_TYPES = {"plane": Plane, "sphere": Sphere, "capsule": Capsule, "box": Box, "mesh": MeshCollider}
 
 
 def parse_collider(text: str):
     """A collider from the CLI form ``kind:key=value,...`` (vectors as ``x/y/z``), e.g.
-    ``sphere:center=0/1/0,radius=0.3,friction=0.4`` or ``plane:normal=0/1/0,thickness=0.005``."""
+    ``sphere:center=0/1/0,radius=0.3,friction=0.4``, ``plane:normal=0/1/0,thickness=0.005`` or
+    ``mesh:path=table.obj,thickness=0.005`` (``prim=/World/Table`` for a USD file)."""
     kind, _, rest = text.partition(":")
     cls = COLLIDER_TYPES.get(kind.strip())
     if cls is None:
         raise WarpclothError(f"unknown collider kind {kind.strip()!r} in {text!r}; choose from {', '.join(COLLIDER_TYPES)}")
-    fields = {f for f in cls.__dataclass_fields__ if f != "track"}
+    text_fields = {"path", "prim"} if cls is MeshCollider else set()
+    fields = {f for f in cls.__dataclass_fields__ if f not in ("track", "vertices", "triangles", "source")} | text_fields
     kwargs = {}
     for item in filter(None, (p.strip() for p in rest.split(","))):
         key, eq, value = item.partition("=")
         key = key.strip()
         if not eq or key not in fields:
             raise WarpclothError(f"collider {kind}: unknown or empty setting {item!r}; its settings are {', '.join(sorted(fields))}")
+        if key in text_fields:
+            kwargs[key] = value.strip()
+            continue
         parts = value.split("/")
         try:
             numbers = [float(p) for p in parts]
         except ValueError:
             raise WarpclothError(f"collider {kind}: {key} must be numbers (x/y/z for vectors), got {value!r}") from None
         kwargs[key] = tuple(numbers) if len(numbers) > 1 else numbers[0]
+    if cls is MeshCollider:
+        if "path" not in kwargs:
+            raise WarpclothError(f"collider mesh needs path=FILE (.obj or .usd), got {text!r}")
+        return MeshCollider.from_file(kwargs.pop("path"), kwargs.pop("prim", None), **kwargs)
     return cls(**kwargs)
 
 
@@ -303,13 +359,15 @@ class ColliderSet:
 
         for c in colliders:
             if not isinstance(c, tuple(COLLIDER_TYPES.values())):
-                raise WarpclothError(f"colliders must be Plane, Sphere, Capsule or Box objects, got {c!r:.80}")
+                raise WarpclothError(f"colliders must be Plane, Sphere, Capsule, Box or MeshCollider objects, got {c!r:.80}")
         self.colliders = tuple(colliders)
         self.device = device
         order = sorted(self.colliders, key=lambda c: c.kind != "plane")  # planes first: the kernels' half-space tests
         self.plane_count = sum(c.kind == "plane" for c in order)
         with wp.ScopedDevice(device):
-            records = [_record(c) for c in order]
+            self.meshes = [wp.Mesh(points=wp.array(c.vertices, dtype=wp.vec3), indices=wp.array(c.triangles.reshape(-1).astype(np.int32), dtype=int))
+                           if c.kind == "mesh" else None for c in order]  # kept alive: the records hold their ids
+            records = [_record(c, m) for c, m in zip(order, self.meshes)]
             self.rest = wp.array(records, dtype=ck.Collider)
             self.params = wp.array(records, dtype=ck.Collider)
             self.bounds = wp.zeros(2 * len(records) - self.plane_count, dtype=wp.vec4)  # broad phase, see kernels.collide.eval_collider_bounds
@@ -387,8 +445,9 @@ class ColliderSet:
         return tuple(c.at(t) for c in self.colliders)
 
 
-def _record(c):
-    """The rest :class:`~warpcloth.kernels.collide.Collider` record of a collider."""
+def _record(c, mesh=None):
+    """The rest :class:`~warpcloth.kernels.collide.Collider` record of a collider (``mesh``: the
+    wp.Mesh of a MeshCollider)."""
     from warpcloth.kernels import collide as ck
 
     r = ck.Collider()
@@ -408,6 +467,14 @@ def _record(c):
         r.a, r.b = wp.vec3(*a), wp.vec3(*b)
         r.bound_center = wp.vec3(*(0.5 * (a + b)))
         r.bound_radius = 0.5 * float(np.linalg.norm(b - a)) + c.radius + c.thickness
+    elif c.kind == "mesh":
+        lo, hi = c.vertices.min(axis=0), c.vertices.max(axis=0)
+        half = 0.5 * (hi - lo) + c.thickness
+        r.a = r.bound_center = wp.vec3(*(0.5 * (lo + hi)))
+        r.b = wp.vec3(*half)
+        r.radius = float(c.reach)
+        r.mesh = mesh.id
+        r.bound_radius = float(np.linalg.norm(half))
     else:
         r.a = r.bound_center = wp.vec3(*c.center)
         r.b = wp.vec3(*c.half_extents)
@@ -448,4 +515,4 @@ def _matrix_quat(m: np.ndarray) -> tuple:
     return tuple(float(c) for c in q / np.linalg.norm(q))
 
 
-__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderSet", "ColliderTrack", "KINDS", "Plane", "Sphere", "parse_collider"]
+__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderSet", "ColliderTrack", "KINDS", "MeshCollider", "Plane", "Sphere", "parse_collider"]

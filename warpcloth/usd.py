@@ -102,6 +102,7 @@ class ColliderPrims:
     * sphere: ``UsdGeom.Sphere`` (radius);
     * capsule: ``UsdGeom.Capsule`` along its local Z (radius, height = |b - a|), oriented a -> b;
     * box: ``UsdGeom.Cube`` of size 2 scaled by the half extents, oriented by its rotation;
+    * mesh: ``UsdGeom.Mesh`` of its triangles, in world coordinates (identity transform);
     * plane: ``UsdGeom.Mesh``, a square quad ``plane_size`` across in its local XZ plane (normal +Y
       turned onto the plane's normal), centred on its point.
 
@@ -121,7 +122,7 @@ class ColliderPrims:
             return
         UsdGeom.Scope.Define(stage, root)
         for k, c in enumerate(colliders):
-            path = f"{root}/{type(c).__name__}_{k}"
+            path = f"{root}/{c.kind.capitalize()}_{k}"
             if c.kind == "sphere":
                 prim = UsdGeom.Sphere.Define(stage, path)
                 prim.CreateRadiusAttr(float(c.radius))
@@ -135,6 +136,14 @@ class ColliderPrims:
                 prim.CreateHeightAttr(height)
                 r, h = float(c.radius), 0.5 * height + float(c.radius)
                 prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-r, -r, -h), Gf.Vec3f(r, r, h)]))
+            elif c.kind == "mesh":
+                prim = UsdGeom.Mesh.Define(stage, path)
+                v = np.ascontiguousarray(c.vertices, dtype=np.float32)
+                prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(v))
+                prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(c.triangles)))
+                prim.CreateFaceVertexIndicesAttr(Vt.IntArray(c.triangles.reshape(-1).tolist()))
+                prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+                prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, v.min(axis=0))), Gf.Vec3f(*map(float, v.max(axis=0)))]))
             elif c.kind == "box":
                 prim = UsdGeom.Cube.Define(stage, path)
                 prim.CreateSizeAttr(2.0)
@@ -174,6 +183,8 @@ class ColliderPrims:
         if c.kind == "box":
             x, y, z, w = c.rotation
             return c.center, (w, x, y, z)
+        if c.kind == "mesh":
+            return (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)
         return c.point, _quat_between((0.0, 1.0, 0.0), c.normal)
 
     def _set(self, c, ops, code) -> None:
