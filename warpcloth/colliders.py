@@ -1,23 +1,27 @@
-"""Colliders: an infinite plane, a sphere, a capsule and an oriented box, each with a thickness
-(the cloth's offset from the surface) [m] and a Coulomb friction coefficient mu, given to
-:class:`~warpcloth.forces.Control` as ``colliders=(...)``.
+"""Colliders: an infinite plane, a sphere, a capsule, an oriented box and a static triangle mesh
+(:class:`MeshCollider`), each with a thickness (the cloth's offset from the surface) [m] and a
+Coulomb friction coefficient mu, given to :class:`~warpcloth.forces.Control` as ``colliders=(...)``.
+Plane, sphere, capsule and box may move rigidly on a :class:`ColliderTrack` (keyframed offsets
+or a rigid motion, as pin tracks), posed on the device inside the step.
 
-How each integrator handles contact (kernels in :mod:`warpcloth.kernels.collide`):
+How each integrator handles contact (kernels in :mod:`warpcloth.kernels.collide`; all colliders
+in one launch per response, with a broad phase):
 
 * force-based (explicit_euler, midpoint, rk4, verlet) and implicit_euler: a projection after
   the step with a velocity correction, in the Simulator's step after the integrator: no
-  particle ends a step inside a collider; the approaching normal velocity is removed and the
-  tangential velocity reduced by mu times that change (Coulomb), the tangential change applied
-  to the position as well. RK stages may pass through a collider within a step (only the step's
-  end is projected); Verlet's displacement d = x - x_prev is reset to v dt for a contact, so its
-  history does not carry the particle back in. Chosen because it is the same, exact-to-the-surface
-  rule for every force-based scheme and costs one launch per collider kind per step.
+  particle ends a step inside a collider (posed at the step's end t + dt); the approaching
+  normal velocity relative to the collider is removed and the relative tangential velocity
+  reduced by mu times that change (Coulomb), the tangential change applied to the position as
+  well. RK stages may pass through a collider within a step (only the step's end is projected);
+  Verlet's displacement d = x - x_prev is reset to v dt for a contact, so its history does not
+  carry the particle back in. Chosen because it is the same, exact-to-the-surface rule for every
+  force-based scheme and costs one launch per step.
 * pbd / xpbd: collision constraints projected inside the solver loop (Müller et al. 2007,
   Alg. 1 line 13) on the predicted displacement, and friction after the iterations from the
-  accumulated normal correction.
+  accumulated normal correction, relative to the collider's motion over the substep; moving
+  colliders are posed at each substep's end (see :meth:`ColliderSet.project_displacement`).
 
-Pins win over contacts: pinned particles are never moved by a collider. Colliders are static in
-this version (no pose tracks yet).
+Pins win over contacts: pinned particles are never moved by a collider.
 """
 
 from __future__ import annotations
