@@ -69,8 +69,8 @@ class Control:
         pin_tracks: kinematic pins (:class:`~warpcloth.pins.PinTrack`), bound to the model by the
             :class:`~warpcloth.simulator.Simulator` (see :mod:`warpcloth.pins`).
         colliders: :class:`~warpcloth.colliders.Plane`, ``Sphere``, ``Capsule`` or ``Box``
-            objects, static or moving on a :class:`~warpcloth.colliders.ColliderTrack`
-            (see :mod:`warpcloth.colliders`).
+            objects, static or moving on a :class:`~warpcloth.colliders.ColliderTrack`, and static
+            :class:`~warpcloth.colliders.MeshCollider` objects (see :mod:`warpcloth.colliders`).
         time: simulated time [s], device array of shape (1,), float64: t_base + n dt after n
             steps of dt since the last change of dt, so switch times land exactly on steps.
         wind: current wind velocity [m/s], device array of shape (1,), vec3.
@@ -94,7 +94,7 @@ class Control:
             self._time_base = wp.zeros(1, dtype=wp.float64)
             self._clock = wp.zeros(1, dtype=wp.int64)
             self.wind = wp.zeros(1, dtype=wp.vec3)
-            self._step_dt = wp.zeros(1, dtype=wp.float64)  # the last step's dt: moving colliders are posed at t + it
+            self._step_dt = wp.zeros(1, dtype=wp.float64)  # the last step's dt: position-based steps pose moving colliders with it
         self.colliders = tuple(self.colliders)
         self.collision = self._collider_set(self.colliders)
         self._fill_schedule()
