@@ -444,10 +444,6 @@ class ColliderSet:
             wp.launch(ck.next_collider_substep, dim=1, inputs=[self.substep], device=self.device)
             self.pose(substep=True)
 
-    def poses_at(self, t: float) -> tuple:
-        """The colliders where they are at time t [s] (host evaluation; static ones as given)."""
-        return tuple(c.at(t) for c in self.colliders)
-
 
 def _record(c, mesh=None):
     """The rest :class:`~warpcloth.kernels.collide.Collider` record of a collider (``mesh``: the
