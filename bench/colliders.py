@@ -1,27 +1,46 @@
-"""Cost of collision handling: ms/step of explicit_euler on an N x N sheet with no collider, and
-with a plane, a sphere, a capsule and a box (one launch per kind per step), medians of repeats.
+"""Cost of collision handling: ms/step of explicit_euler on an N x N cloth without colliders and
+with a plane, a sphere, a capsule and a box (one fused launch per step), medians of repeats
+alternated within one process, in two configurations:
 
-    python bench/colliders.py [--size 128] [--steps 200] [--repeats 5] [--device cpu]
+* ``apart``: the hanging sheet with the colliders below it (no particle near one: the broad phase);
+* ``contact``: a 1 m horizontal cloth resting on the ground plane (every particle in contact every
+  step) with the sphere, capsule and box just under it, so a third of the particles also run the
+  exact tests of at least one of them (the narrow phase).
+
+    python bench/colliders.py [--size 128] [--steps 200] [--repeats 7] [--device cpu] [--mesh-triangles 10000]
+
+``--mesh-triangles T`` adds a static triangle mesh (a sphere of about T triangles) under the
+horizontal cloth, alone: its cost against the same cloth with no collider.
 """
 
 import argparse
 import statistics
 import time
 
+import numpy as np
 import warp as wp
 
-from warpcloth import Box, Capsule, Plane, Sphere
+from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, build_grid_cloth
 from warpcloth.scenarios import sheet
 
-COLLIDERS = (Plane(point=(0, -5, 0)), Sphere(center=(0, -3, 0), radius=0.5), Capsule(a=(-1, -4, 0), b=(1, -4, 0), radius=0.2),
-             Box(center=(0, -6, 0), half_extents=(0.5, 0.5, 0.5)))
+APART = (Plane(point=(0, -5, 0)), Sphere(center=(0, -3, 0), radius=0.5), Capsule(a=(-1, -4, 0), b=(1, -4, 0), radius=0.2),
+         Box(center=(0, -6, 0), half_extents=(0.5, 0.5, 0.5)))
+THICKNESS = 0.002
+CONTACT = (Plane(thickness=THICKNESS, friction=0.3), Sphere(center=(0.0, -0.25, 0.0), radius=0.25, thickness=THICKNESS, friction=0.3),
+           Capsule(a=(-0.4, -0.1, 0.3), b=(0.4, -0.1, 0.3), radius=0.1, thickness=THICKNESS, friction=0.3),
+           Box(center=(0.3, -0.2, -0.3), half_extents=(0.2, 0.2, 0.2), thickness=THICKNESS, friction=0.3))
 
 
-def ms_per_step(colliders, size, steps, device):
-    sim = sheet.build(rows=size, cols=size, device=device)
-    sim.control.colliders = colliders
-    sim.warm_up()
-    sim.simulate(steps)  # capture
+def simulator(config, colliders, size, device):
+    if config == "apart":
+        sim = sheet.build(rows=size, cols=size, device=device)
+        sim.control.colliders = colliders
+        return sim
+    model = build_grid_cloth(size, size, 1.0, 1.0, 0.2, plane="horizontal", origin=(-0.5, THICKNESS, -0.5), device=device)
+    return Simulator(model, "explicit_euler", Control(colliders=colliders, device=device))
+
+
+def ms_per_step(sim, steps, device):
     wp.synchronize_device(device)
     t = time.perf_counter()
     sim.simulate(steps)
@@ -29,21 +48,58 @@ def ms_per_step(colliders, size, steps, device):
     return 1000.0 * (time.perf_counter() - t) / steps
 
 
+def mesh_sphere(triangles: int, radius: float = 0.3):
+    """A UV sphere of about ``triangles`` triangles wound outward: (vertices, triangles)."""
+    rings = max(2, int(round((triangles / 4) ** 0.5)))  # latitude bands; 2 rings x segments triangles
+    seg = 2 * rings
+    theta = np.linspace(0, np.pi, rings + 1)[1:-1]
+    phi = np.linspace(0, 2 * np.pi, seg, endpoint=False)
+    th, ph = np.meshgrid(theta, phi, indexing="ij")
+    ring = np.stack([np.sin(th) * np.cos(ph), np.cos(th), np.sin(th) * np.sin(ph)], -1).reshape(-1, 3)
+    v = radius * np.concatenate([[[0, 1, 0]], ring, [[0, -1, 0]]])
+    idx = 1 + np.arange(len(ring)).reshape(rings - 1, seg)
+    nxt = np.roll(idx, -1, axis=1)
+    top = np.stack([np.zeros(seg, int), nxt[0], idx[0]], -1)
+    bottom = np.stack([np.full(seg, len(v) - 1), idx[-1], nxt[-1]], -1)
+    a, b, c, d = idx[:-1], nxt[:-1], nxt[1:], idx[1:]
+    quads = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    return v, np.concatenate([top, quads, bottom])
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--size", type=int, default=128)
     p.add_argument("--steps", type=int, default=200)
-    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--repeats", type=int, default=7)
     p.add_argument("--device", default="cpu")
+    p.add_argument("--mesh-triangles", type=int, default=0)
     a = p.parse_args(argv)
-    runs = {"none": [], "plane+sphere+capsule+box": []}
-    for _ in range(a.repeats):  # alternate, so machine noise falls on both
-        runs["none"].append(ms_per_step((), a.size, a.steps, a.device))
-        runs["plane+sphere+capsule+box"].append(ms_per_step(COLLIDERS, a.size, a.steps, a.device))
-    base = statistics.median(runs["none"])
+    cases = {
+        "apart none": simulator("apart", (), a.size, a.device),
+        "apart plane+sphere+capsule+box": simulator("apart", APART, a.size, a.device),
+        "contact none": simulator("contact", (), a.size, a.device),
+        "contact plane+sphere+capsule+box": simulator("contact", CONTACT, a.size, a.device),
+    }
+    if a.mesh_triangles:
+        from warpcloth.colliders import MeshCollider
+
+        v, t = mesh_sphere(a.mesh_triangles)
+        mesh = MeshCollider(vertices=v - np.array([0.0, 0.3, 0.0]), triangles=t, thickness=THICKNESS, friction=0.3)
+        cases[f"contact mesh ({len(t)} triangles)"] = simulator("contact", (mesh,), a.size, a.device)
+    for sim in cases.values():
+        sim.warm_up()
+        sim.simulate(a.steps)  # capture
+    runs = {name: [] for name in cases}
+    for _ in range(a.repeats):  # alternate, so machine noise falls on every case
+        for name, sim in cases.items():
+            runs[name].append(ms_per_step(sim, a.steps, a.device))
+    print(f"# ms/step: median [min-max] of {a.repeats} windows of {a.steps} steps; cost: median [min-max] over the windows of "
+          f"(this case / the same window's no-collider case - 1) (paired, so machine noise cancels)")
     for name, r in runs.items():
-        m = statistics.median(r)
-        print(f"{a.size}x{a.size} {a.device} colliders={name:26s} {m:8.4f} ms/step [{min(r):.4f}-{max(r):.4f}]  {100 * (m / base - 1):+.1f} %")
+        base = runs[name.split()[0] + " none"]
+        ratio = [100 * (x / b - 1) for x, b in zip(r, base)]
+        print(f"{a.size}x{a.size} {a.device} {name:36s} {statistics.median(r):8.4f} ms/step [{min(r):.4f}-{max(r):.4f}]  "
+              f"{statistics.median(ratio):+6.1f} % [{min(ratio):+.1f} to {max(ratio):+.1f}]")
 
 
 if __name__ == "__main__":

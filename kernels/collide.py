@@ -1,25 +1,57 @@
-"""Collision kernels: particles against planes, spheres, capsules and oriented boxes, each with a
-thickness (cloth offset) and a Coulomb friction coefficient mu. Pinned particles (inverse mass
-0) are left alone: pins win over contacts.
+"""Collision kernels: particles against planes, spheres, capsules, oriented boxes and static
+triangle meshes, each with a thickness (cloth offset) and a Coulomb friction coefficient mu.
+Pinned particles (inverse mass 0) are left alone: pins win over contacts.
 
-Each collider kind has a signed distance phi(x) and an outward unit normal n (pure ``@wp.func``
-below). Two responses share them:
+Every analytic collider is one :class:`Collider` record in one array, and one launch per particle
+loops over all of them (a cheap bounding-sphere test first), so the cost does not grow with the
+number of kinds. Each kind has a signed distance phi(x) and an outward unit normal n (pure
+``@wp.func`` below). A collider moves rigidly with a velocity field v_c(y) = u + w x (y - o)
+(zero when static); the responses use the particle's velocity relative to it:
 
 * after a force-based step (velocity level): a particle with phi < thickness is moved out along
-  n by the depth, its approaching normal velocity is removed (dv_n = max(0, -v.n)), and its
-  tangential velocity is reduced by mu dv_n, at most to zero (Coulomb); the tangential change
-  is applied to the position too, as the step would have (x += dt dv_t where x += dt v_new;
-  dt/2 dv_t for the Runge-Kutta schemes, whose x feels a step's acceleration with weight 1/2),
-  so a sticking particle does not creep. Verlet's displacement d is set to v dt for such particles.
+  n by the depth, its approaching relative normal velocity is removed (dv_n = max(0, -(v - v_c).n)),
+  and its relative tangential velocity is reduced by mu dv_n, at most to zero (Coulomb); the
+  tangential change is applied to the position too, as the step would have (x += dt dv_t where
+  x += dt v_new; dt/2 dv_t for the Runge-Kutta schemes, whose x feels a step's acceleration with
+  weight 1/2), so a sticking particle does not creep. Verlet's displacement d is set to v dt.
 * inside the position-based solver loop: the predicted displacement dp is moved out along n
   (normal corrections accumulated per substep), and after the iterations the tangential part of
-  dp is cancelled up to mu times the accumulated normal correction (static/kinetic friction of
-  Macklin et al. 2014).
+  dp relative to the collider's motion v_c h is cancelled up to mu times the accumulated normal
+  correction (static/kinetic friction of Macklin et al. 2014).
+
+Poses: :func:`eval_collider_pose` moves a collider's rest record along its track (keyframed
+translation offsets, or a rigid motion c + u t + R(axis, theta(t))(y - c)), in float64 from the
+float64 simulated time, rounding to float32 once.
 """
 
 import warp as wp
 
+from warpcloth.kernels.pins import rotate_axis_angle, track_keyframes
+
 wp.set_module_options({"enable_backward": False})
+
+PLANE = wp.constant(0)
+SPHERE = wp.constant(1)
+CAPSULE = wp.constant(2)
+BOX = wp.constant(3)
+MESH = wp.constant(4)
+
+
+@wp.struct
+class Collider:
+    kind: int  # PLANE, SPHERE, CAPSULE, BOX, MESH
+    a: wp.vec3  # plane point / sphere centre / capsule end a / box centre / mesh box centre [m]
+    b: wp.vec3  # plane normal / - / capsule end b / box half extents / mesh box half size (+ thickness) [m]
+    radius: float  # sphere, capsule radius; a mesh's reach (deepest inside still pushed out) [m]
+    mesh: wp.uint64  # a MESH's wp.Mesh id
+    rotation: wp.mat33  # box: world from box frame
+    thickness: float  # the cloth's offset from the surface [m]
+    mu: float  # Coulomb friction coefficient
+    bound_center: wp.vec3  # bounding sphere of the collider grown by its thickness [m]
+    bound_radius: float  # < 0: unbounded (plane)
+    velocity: wp.vec3  # u: velocity of the point `origin` [m/s]
+    omega: wp.vec3  # w: angular velocity [rad/s]
+    origin: wp.vec3  # o [m]
 
 
 @wp.func
@@ -47,16 +79,16 @@ def capsule_contact(x: wp.vec3, a: wp.vec3, b: wp.vec3, radius: float):
 
 
 @wp.func
-def box_contact(x: wp.vec3, center: wp.vec3, rotation: wp.quat, half: wp.vec3):
-    # signed distance of an oriented box; n the gradient (the nearest face's normal inside)
-    p = wp.quat_rotate_inv(rotation, x - center)
+def box_contact(x: wp.vec3, center: wp.vec3, rotation: wp.mat33, half: wp.vec3):
+    # signed distance of an oriented box (p = R^T (x - c)); n the gradient (the nearest face's normal inside)
+    p = wp.transpose(rotation) * (x - center)
     q = wp.vec3(wp.abs(p[0]) - half[0], wp.abs(p[1]) - half[1], wp.abs(p[2]) - half[2])
     s = wp.vec3(wp.sign(p[0]), wp.sign(p[1]), wp.sign(p[2]))
     outside = wp.vec3(wp.max(q[0], 0.0), wp.max(q[1], 0.0), wp.max(q[2], 0.0))
     lo = wp.length(outside)
     if lo > 0.0:
         n_local = wp.cw_mul(outside / lo, s)
-        return lo, wp.quat_rotate(rotation, n_local)
+        return lo, rotation * n_local
     k = int(0)
     if q[1] > q[k]:
         k = 1
@@ -64,30 +96,138 @@ def box_contact(x: wp.vec3, center: wp.vec3, rotation: wp.quat, half: wp.vec3):
         k = 2
     n_local = wp.vec3(0.0)
     n_local[k] = s[k]
-    return q[k], wp.quat_rotate(rotation, n_local)
+    return q[k], rotation * n_local
 
 
 @wp.func
-def respond_velocity(x: wp.vec3, v: wp.vec3, phi: float, n: wp.vec3, thickness: float, mu: float, dt: float):
-    # x += depth n ; v_n >= 0 ; |v_t| -= mu dv_n (>= 0) ; x += dt dv_t
+def mesh_contact(x: wp.vec3, mesh: wp.uint64, thickness: float, reach: float):
+    # nearest surface point q within thickness + reach, sign s by its face normal (< 0 inside);
+    # q inside a face: n = the face normal, phi = (x - q).n (exact even when x - q is a rounding
+    # error away from q); on an edge or vertex: n = s (x - q)/|x - q|, phi = s |x - q|; none: phi = inf
+    query = wp.mesh_query_point_sign_normal(mesh, x, thickness + reach)
+    if not query.result:
+        return 1.0e30, wp.vec3(0.0, 1.0, 0.0)
+    q = wp.mesh_eval_position(mesh, query.face, query.u, query.v)
+    d = x - q
+    w = 1.0 - query.u - query.v
+    length = wp.length(d)
+    if (query.u > 1.0e-5 and query.v > 1.0e-5 and w > 1.0e-5) or length < 1.0e-9:
+        n = wp.mesh_eval_face_normal(mesh, query.face)
+        return wp.dot(d, n), n
+    return query.sign * length, (query.sign / length) * d
+
+
+@wp.func
+def collider_contact(c: Collider, x: wp.vec3):
+    # (phi, n) of one collider of any kind
+    if c.kind == PLANE:
+        return plane_contact(x, c.a, c.b)
+    if c.kind == SPHERE:
+        return sphere_contact(x, c.a, c.radius)
+    if c.kind == CAPSULE:
+        return capsule_contact(x, c.a, c.b, c.radius)
+    if c.kind == MESH:
+        return mesh_contact(x, c.mesh, c.thickness, c.radius)
+    return box_contact(x, c.a, c.rotation, c.b)
+
+
+@wp.func
+def near_any(x: wp.vec3, bounds: wp.array(dtype=wp.vec4), box: wp.array(dtype=wp.vec3), plane_count: int):
+    # broad phase: below a plane's n.x < n.p + thickness (+ margin), or inside the box around
+    # every other collider's bounding box
+    for k in range(plane_count):
+        b = bounds[k]
+        if b[0] * x[0] + b[1] * x[1] + b[2] * x[2] < b[3]:
+            return True
+    lo = box[0]
+    hi = box[1]
+    return x[0] >= lo[0] and x[1] >= lo[1] and x[2] >= lo[2] and x[0] <= hi[0] and x[1] <= hi[1] and x[2] <= hi[2]
+
+
+@wp.func
+def may_touch(k: int, x: wp.vec3, bounds: wp.array(dtype=wp.vec4), plane_count: int):
+    # collider k's half-space (a plane), or its bounding box and bounding sphere, hold x
+    if k < plane_count:
+        b = bounds[k]
+        return b[0] * x[0] + b[1] * x[1] + b[2] * x[2] < b[3]
+    j = 2 * k - plane_count
+    s = bounds[j]
+    e = bounds[j + 1]
+    d = x - wp.vec3(s[0], s[1], s[2])
+    if wp.abs(d[0]) > e[0] or wp.abs(d[1]) > e[1] or wp.abs(d[2]) > e[2]:
+        return False
+    return wp.dot(d, d) <= s[3] * s[3]
+
+
+@wp.func
+def half_size(c: Collider):
+    # half extents of the collider's axis-aligned bounding box, grown by its thickness
+    if c.kind == SPHERE:
+        return wp.vec3(c.radius + c.thickness)
+    if c.kind == CAPSULE:
+        d = 0.5 * (c.b - c.a)
+        return wp.vec3(wp.abs(d[0]), wp.abs(d[1]), wp.abs(d[2])) + wp.vec3(c.radius + c.thickness)
+    if c.kind == MESH:
+        return c.b
+    r = c.rotation
+    h = c.b
+    return wp.vec3(
+        wp.abs(r[0, 0]) * h[0] + wp.abs(r[0, 1]) * h[1] + wp.abs(r[0, 2]) * h[2],
+        wp.abs(r[1, 0]) * h[0] + wp.abs(r[1, 1]) * h[1] + wp.abs(r[1, 2]) * h[2],
+        wp.abs(r[2, 0]) * h[0] + wp.abs(r[2, 1]) * h[1] + wp.abs(r[2, 2]) * h[2],
+    ) + wp.vec3(c.thickness)
+
+
+@wp.kernel
+def eval_collider_bounds(colliders: wp.array(dtype=Collider), plane_count: int, bounds: wp.array(dtype=wp.vec4), box: wp.array(dtype=wp.vec3)):
+    # a plane: bounds_k = (n, n.p + thickness + margin); any other collider k: bounds_j = (centre,
+    # bounding radius), bounds_j+1 = (box half size, 0), j = 2k - plane_count (margins: float32
+    # rounding never rejects a contact); box = [min, max] around all of them (empty: min > max)
+    lo = wp.vec3(1.0e30)
+    hi = wp.vec3(-1.0e30)
+    for k in range(colliders.shape[0]):
+        c = colliders[k]
+        if k < plane_count:
+            w = wp.dot(c.a, c.b) + c.thickness
+            bounds[k] = wp.vec4(c.b[0], c.b[1], c.b[2], w + 1.0e-4 + 1.0e-5 * wp.abs(w))
+        else:
+            j = 2 * k - plane_count
+            e = half_size(c) * (1.0 + 1.0e-5) + wp.vec3(1.0e-6 + 1.0e-6 * wp.length(c.bound_center))
+            bounds[j] = wp.vec4(c.bound_center[0], c.bound_center[1], c.bound_center[2], c.bound_radius + 1.0e-6 * wp.length(c.bound_center))
+            bounds[j + 1] = wp.vec4(e[0], e[1], e[2], 0.0)
+            lo = wp.min(lo, c.bound_center - e)
+            hi = wp.max(hi, c.bound_center + e)
+    box[0] = lo
+    box[1] = hi
+
+
+@wp.func
+def collider_velocity(c: Collider, y: wp.vec3):
+    # v_c(y) = u + w x (y - o)
+    return c.velocity + wp.cross(c.omega, y - c.origin)
+
+
+@wp.func
+def respond_velocity(x: wp.vec3, v: wp.vec3, vc: wp.vec3, phi: float, n: wp.vec3, thickness: float, mu: float, dt: float):
+    # x += depth n ; (v - v_c).n >= 0 ; |v_t - v_c,t| -= mu dv_n (>= 0) ; x += dt dv_t
     depth = thickness - phi
     if depth <= 0.0:
         return x, v, 0
     x = x + depth * n
-    vn = wp.dot(v, n)
-    dvn = wp.max(0.0, -vn)
-    v = v + dvn * n
-    vt = v - wp.dot(v, n) * n
+    vr = v - vc
+    dvn = wp.max(0.0, -wp.dot(vr, n))
+    vr = vr + dvn * n
+    vt = vr - wp.dot(vr, n) * n
     lt = wp.length(vt)
+    dvt = wp.vec3(0.0)
     if lt > 0.0:
         dvt = -(wp.min(mu * dvn, lt) / lt) * vt
-        v = v + dvt
         x = x + dt * dvt
-    return x, v, 1
+    return x, vr + vc + dvt, 1
 
 
 @wp.func
-def respond_displacement(x: wp.vec3, dp: wp.vec3, phi: float, n: wp.vec3, thickness: float):
+def respond_displacement(dp: wp.vec3, phi: float, n: wp.vec3, thickness: float):
     # dp += depth n (p = x + dp out of the collider); returns the normal correction
     depth = thickness - phi
     if depth <= 0.0:
@@ -96,47 +236,39 @@ def respond_displacement(x: wp.vec3, dp: wp.vec3, phi: float, n: wp.vec3, thickn
 
 
 @wp.func
-def friction_displacement(dp: wp.vec3, n: wp.vec3, normal_correction: float, mu: float):
-    # cancel the tangential dp up to mu times the normal correction (static if smaller)
-    dpt = dp - wp.dot(dp, n) * n
+def friction_displacement(dp: wp.vec3, motion: wp.vec3, n: wp.vec3, normal_correction: float, mu: float):
+    # cancel the tangential dp - motion (the collider's) up to mu times the normal correction
+    r = dp - motion
+    dpt = r - wp.dot(r, n) * n
     lt = wp.length(dpt)
     if lt == 0.0:
         return dp
     return dp - (wp.min(mu * normal_correction, lt) / lt) * dpt
 
 
-@wp.func
-def contact_of(kind: int, p: wp.vec3, c: int, a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3),
-               radius: wp.array(dtype=float), rotation: wp.array(dtype=wp.quat)):
-    # one signature for every kind: a = point/center/a/center, b = normal/-/b/half extents
-    if kind == 0:
-        return plane_contact(p, a[c], b[c])
-    if kind == 1:
-        return sphere_contact(p, a[c], radius[c])
-    if kind == 2:
-        return capsule_contact(p, a[c], b[c], radius[c])
-    return box_contact(p, a[c], rotation[c], b[c])
-
-
 @wp.kernel
 def collide_velocity(
-    kind: int, x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), dt: float,
+    x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), dt: float,
     position_weight: float, displacement: wp.array(dtype=wp.vec3), has_displacement: int,
-    a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), rotation: wp.array(dtype=wp.quat),
-    material: wp.array(dtype=wp.vec2),
+    colliders: wp.array(dtype=Collider), bounds: wp.array(dtype=wp.vec4), box: wp.array(dtype=wp.vec3), plane_count: int,
 ):
-    # after a force-based step: every collider of one kind, respond_velocity (the tangential
-    # change moves x by position_weight dt dv_t: 1 where x += dt v_new, 1/2 for RK); Verlet's d = v dt
+    # after a force-based step: every collider, respond_velocity (the tangential change moves x by
+    # position_weight dt dv_t: 1 where x += dt v_new, 1/2 for RK); Verlet's d = v dt
     i = wp.tid()
+    xi = x[i]
+    if not near_any(xi, bounds, box, plane_count):
+        return
     if inv_mass[i] == 0.0:
         return
-    xi = x[i]
     vi = v[i]
     hit = int(0)
-    for c in range(material.shape[0]):
-        phi, n = contact_of(kind, xi, c, a, b, radius, rotation)
-        xi, vi, h = respond_velocity(xi, vi, phi, n, material[c][0], material[c][1], position_weight * dt)
-        hit = hit + h
+    for k in range(colliders.shape[0]):
+        if may_touch(k, xi, bounds, plane_count):
+            c = colliders[k]
+            phi, n = collider_contact(c, xi)
+            if phi < c.thickness:
+                xi, vi, h = respond_velocity(xi, vi, collider_velocity(c, xi), phi, n, c.thickness, c.mu, position_weight * dt)
+                hit = hit + h
     if hit != 0:
         x[i] = xi
         v[i] = vi
@@ -146,23 +278,117 @@ def collide_velocity(
 
 @wp.kernel
 def collide_displacement(
-    kind: int, friction: int, x: wp.array(dtype=wp.vec3), dp: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
-    normal_correction: wp.array(dtype=float),
-    a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), radius: wp.array(dtype=float), rotation: wp.array(dtype=wp.quat),
-    material: wp.array(dtype=wp.vec2),
+    friction: int, x: wp.array(dtype=wp.vec3), dp: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+    normal_correction: wp.array(dtype=float), colliders: wp.array(dtype=Collider), bounds: wp.array(dtype=wp.vec4),
+    box: wp.array(dtype=wp.vec3), plane_count: int, step_dt: wp.array(dtype=wp.float64), substep: wp.array(dtype=int),
 ):
-    # position-based solvers: p = x + dp out of the colliders of one kind (friction = 0), or the
-    # friction pass after the iterations (friction = 1), with the normal corrections accumulated
+    # position-based solvers: p = x + dp out of every collider (friction = 0), or the friction pass
+    # after the iterations (friction = 1; the collider moves v_c h over the substep h = dt / S)
+    motion_time = float(step_dt[0] / wp.float64(substep[1]))
     i = wp.tid()
-    if inv_mass[i] == 0.0:
+    nc = normal_correction[i]
+    if friction != 0 and nc == 0.0:
         return
     xi = x[i]
     d = dp[i]
-    for c in range(material.shape[0]):
-        phi, n = contact_of(kind, xi + d, c, a, b, radius, rotation)
-        if friction == 0:
-            d, dn = respond_displacement(xi, d, phi, n, material[c][0])
-            normal_correction[i] = normal_correction[i] + dn
-        elif normal_correction[i] > 0.0 and phi <= material[c][0] + 1.0e-6:
-            d = friction_displacement(d, n, normal_correction[i], material[c][1])
+    if not near_any(xi + d, bounds, box, plane_count):
+        return
+    if inv_mass[i] == 0.0:
+        return
+    for k in range(colliders.shape[0]):
+        p = xi + d
+        if may_touch(k, p, bounds, plane_count):
+            c = colliders[k]
+            phi, n = collider_contact(c, p)
+            if friction == 0:
+                d, dn = respond_displacement(d, phi, n, c.thickness)
+                nc = nc + dn
+            elif phi <= c.thickness + 1.0e-6:
+                d = friction_displacement(d, motion_time * collider_velocity(c, p), n, nc, c.mu)
     dp[i] = d
+    normal_correction[i] = nc
+
+
+@wp.func
+def move_point(y: wp.vec3, center: wp.vec3d, offset: wp.vec3d, axis: wp.vec3d, theta: wp.float64):
+    # c + d + R(axis, theta)(y - c), in float64, rounded once
+    return wp.vec3(center + offset + rotate_axis_angle(axis, theta, wp.vec3d(y) - center))
+
+
+@wp.func
+def rotation_matrix(axis: wp.vec3d, theta: wp.float64):
+    # R = cos I + sin [a]x + (1 - cos) a a^T
+    c = wp.cos(theta)
+    s = wp.sin(theta)
+    one = wp.float64(1.0)
+    a = wp.vec3(axis)
+    return wp.mat33(float(c) * wp.identity(n=3, dtype=float) + float(s) * wp.skew(a) + float(one - c) * wp.outer(a, a))
+
+
+@wp.kernel
+def begin_collider_step(substep: wp.array(dtype=int)):
+    # substep = (k, S): S = the substeps the last step counted (kept if it counted none), k = 0
+    if substep[0] > 0:
+        substep[1] = substep[0]
+    substep[1] = wp.max(substep[1], 1)
+    substep[0] = 0
+
+
+@wp.kernel
+def next_collider_substep(substep: wp.array(dtype=int)):
+    # k += 1 after a position-based substep's friction pass
+    substep[0] = substep[0] + 1
+
+
+@wp.kernel
+def eval_collider_pose(
+    time: wp.array(dtype=wp.float64), offset: wp.float64, step_dt: wp.array(dtype=wp.float64), substep: wp.array(dtype=int), use_substep: int,
+    index: int, rest: wp.array(dtype=Collider),
+    rigid: int, center: wp.vec3d, axis: wp.vec3d, velocity: wp.vec3d, motion: wp.vec4d,
+    times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d), tangents: wp.array(dtype=wp.vec3d), cubic: int,
+    colliders: wp.array(dtype=Collider),
+):
+    # collider `index` at t = time + offset (+ dt min(k + 1, S) / S, the end of substep k of S, with
+    # use_substep): rigid y -> c + u t + R(axis, theta(t))(y - c), theta = omega t + A sin(2 pi f t + phi),
+    # motion = (omega, A, f, phi); or keyframed translation y -> y + d(t); v_c(y) = d' + theta' axis x (y - c - d)
+    t = time[0] + offset
+    if use_substep != 0:
+        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
+    zero = wp.float64(0.0)
+    d = wp.vec3d(zero, zero, zero)
+    dd = wp.vec3d(zero, zero, zero)
+    c = wp.vec3d(zero, zero, zero)
+    theta = zero
+    theta_dot = zero
+    if rigid != 0:
+        two_pi = wp.float64(6.283185307179586)
+        phase = two_pi * motion[2] * t + motion[3]
+        theta = motion[0] * t + motion[1] * wp.sin(phase)
+        theta_dot = motion[0] + motion[1] * two_pi * motion[2] * wp.cos(phase)
+        c = center
+        d = velocity * t
+        dd = velocity
+    else:
+        d, dd = track_keyframes(t, times, values, tangents, cubic, 0, 1)
+    r = rest[index]
+    m = r
+    rot = rotation_matrix(axis, theta)
+    if r.kind == PLANE:
+        m.a = move_point(r.a, c, d, axis, theta)
+        m.b = rot * r.b
+    else:
+        m.a = move_point(r.a, c, d, axis, theta)
+        if r.kind == CAPSULE:
+            m.b = move_point(r.b, c, d, axis, theta)
+    m.rotation = rot * r.rotation
+    m.bound_center = move_point(r.bound_center, c, d, axis, theta)
+    m.origin = wp.vec3(c + d)
+    m.velocity = wp.vec3(dd)
+    m.omega = float(theta_dot) * wp.vec3(axis)
+    colliders[index] = m
+
+
+@wp.kernel
+def store_step(value: wp.float64, out: wp.array(dtype=wp.float64)):
+    # out = dt of the step just taken (the next step poses the moving colliders with it)
+    out[0] = value

@@ -43,6 +43,13 @@ is optional but ``cloth.mesh``; unknown keys are refused, naming the file and th
     radius = 0.25
     thickness = 0.005                    # m
     friction = 0.4                       # Coulomb mu
+    track = { kind = "keyframes", times = [0, 2], offsets = [[0, 0, 0], [0.5, 0, 0]] }   # optional; or
+    # track = { kind = "rigid", velocity = [0.2, 0, 0], center = [0, 1, 0.3], axis = [0, 1, 0], angular_velocity = 1.0 }
+
+    [[colliders]]                        # a static triangle mesh (OBJ or USD, relative to this file)
+    kind = "mesh"
+    path = "table.obj"
+    thickness = 0.005
 
     [forces]
     gravity = [0, -9.81, 0]
@@ -140,7 +147,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     cloth = table(data, "cloth", CLOTH_KEYS, "cloth")
     pins = table(data, "pins", PIN_KEYS, "pins")
     forces = table(data, "forces", FORCE_KEYS, "forces")
-    colliders = _colliders(data.get("colliders", []), where)
+    colliders = _colliders(data.get("colliders", []), where, path)
     run = table(data, "run", RUN_KEYS, "run")
     tracks = data.get("tracks", [])
     require(isinstance(tracks, list), f"{where}: tracks must be an array of tables ([[tracks]]), got {tracks!r}")
@@ -240,10 +247,13 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     return scenario
 
 
-def _colliders(tables, where: str) -> tuple:
+def _colliders(tables, where: str, path: str = "") -> tuple:
     """The [[colliders]] tables: ``kind = "plane" | "sphere" | "capsule" | "box"`` and that
-    collider's settings (warpcloth.colliders), e.g. ``center = [0, 1, 0]``, ``radius = 0.3``."""
-    from ..colliders import COLLIDER_TYPES
+    collider's settings (warpcloth.colliders), e.g. ``center = [0, 1, 0]``, ``radius = 0.3``, and
+    optionally a pose ``track = { kind = "rigid" | "keyframes", ... }`` (ColliderTrack); or
+    ``kind = "mesh"`` with ``path`` (relative to the scenario file ``path``), ``prim``, ``thickness``,
+    ``friction``, ``reach`` (a static MeshCollider)."""
+    from ..colliders import COLLIDER_TYPES, ColliderTrack, MeshCollider
 
     require(isinstance(tables, list), f"{where}: colliders must be an array of tables ([[colliders]]), got {tables!r}")
     out = []
@@ -254,9 +264,18 @@ def _colliders(tables, where: str) -> tuple:
         if cls is None:
             raise WarpclothError(f"{what}: kind must be one of {', '.join(COLLIDER_TYPES)}, got {t.get('kind')!r}")
         settings = {key: value for key, value in t.items() if key != "kind"}
-        _check_keys(settings, set(cls.__dataclass_fields__), what)
+        if cls is MeshCollider:
+            _check_keys(settings, {"path", "prim", "thickness", "friction", "reach"}, what)
+        else:
+            _check_keys(settings, set(cls.__dataclass_fields__), what)
         try:
-            out.append(cls(**{key: tuple(v) if isinstance(v, list) else v for key, v in settings.items()}))
+            if cls is MeshCollider:
+                mesh = settings.pop("path", None)
+                require(isinstance(mesh, str) and mesh, f"path must be a mesh file name (.obj, .usd), got {mesh!r}")
+                out.append(MeshCollider.from_file(os.path.join(os.path.dirname(path), os.path.expanduser(mesh)), settings.pop("prim", None), **settings))
+                continue
+            track = ColliderTrack.from_table(settings.pop("track")) if "track" in settings else None
+            out.append(cls(track=track, **{key: tuple(v) if isinstance(v, list) else v for key, v in settings.items()}))
         except WarpclothError as exc:
             raise WarpclothError(f"{what}: {exc}") from None
     return tuple(out)

@@ -110,7 +110,7 @@ def test_colliders_can_be_replaced_and_captured_runs_follow():
     (lambda: Capsule(radius=float("nan")), "capsule radius must be a finite number"),
     (lambda: parse_collider("torus:radius=1"), "unknown collider kind 'torus'"),
     (lambda: parse_collider("sphere:radius=1,colour=2"), "unknown or empty setting 'colour=2'"),
-    (lambda: Control(colliders=("sphere",)), "colliders must be Plane, Sphere, Capsule or Box"),
+    (lambda: Control(colliders=("sphere",)), "colliders must be Plane, Sphere, Capsule, Box or MeshCollider objects, got .sphere."),
 ])
 def test_bad_colliders_name_the_value(make, match):
     with pytest.raises(WarpclothError, match=match):

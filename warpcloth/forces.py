@@ -69,7 +69,8 @@ class Control:
         pin_tracks: kinematic pins (:class:`~warpcloth.pins.PinTrack`), bound to the model by the
             :class:`~warpcloth.simulator.Simulator` (see :mod:`warpcloth.pins`).
         colliders: :class:`~warpcloth.colliders.Plane`, ``Sphere``, ``Capsule`` or ``Box``
-            objects (see :mod:`warpcloth.colliders`).
+            objects, static or moving on a :class:`~warpcloth.colliders.ColliderTrack`, and static
+            :class:`~warpcloth.colliders.MeshCollider` objects (see :mod:`warpcloth.colliders`).
         time: simulated time [s], device array of shape (1,), float64: t_base + n dt after n
             steps of dt since the last change of dt, so switch times land exactly on steps.
         wind: current wind velocity [m/s], device array of shape (1,), vec3.
@@ -88,15 +89,14 @@ class Control:
         require_non_negative("wind coefficient", self.wind_coefficient, "kg/(m^2 s)")
         self.gravity = require_vector("gravity", self.gravity, 3, "m/s^2")
         self.device = resolve_device(self.device)
-        from .colliders import ColliderSet
-
-        self.colliders = tuple(self.colliders)
-        self.collision = ColliderSet(self.colliders, self.device) if self.colliders else None
         with wp.ScopedDevice(self.device):
             self.time = wp.zeros(1, dtype=wp.float64)
             self._time_base = wp.zeros(1, dtype=wp.float64)
             self._clock = wp.zeros(1, dtype=wp.int64)
             self.wind = wp.zeros(1, dtype=wp.vec3)
+            self._step_dt = wp.zeros(1, dtype=wp.float64)  # the last step's dt: position-based steps pose moving colliders with it
+        self.colliders = tuple(self.colliders)
+        self.collision = self._collider_set(self.colliders)
         self._fill_schedule()
 
     def __setattr__(self, name, value):
@@ -104,11 +104,14 @@ class Control:
         if name == "wind_schedule" and "_schedule_start" in self.__dict__:
             self._fill_schedule()  # the device copy follows the host schedule
         if name == "colliders" and "collision" in self.__dict__:
-            from .colliders import ColliderSet
-
             value = tuple(value)
             super().__setattr__("colliders", value)
-            super().__setattr__("collision", ColliderSet(value, self.device) if value else None)
+            super().__setattr__("collision", self._collider_set(value))
+
+    def _collider_set(self, colliders):
+        from .colliders import ColliderSet
+
+        return ColliderSet(colliders, self.device, time=self.time, step_dt=self._step_dt) if colliders else None
 
     def _fill_schedule(self) -> None:
         """Copy :attr:`wind_schedule` to the device (float64 start times) and re-evaluate W(t)."""
@@ -149,13 +152,22 @@ class Control:
         wp.launch(fk.rebase_time, dim=1, inputs=[self.time, self._time_base, self._clock], device=self.device)
 
     def update(self) -> None:
-        """Evaluate W(time) into :attr:`wind` on the device."""
+        """Evaluate W(time) into :attr:`wind` on the device, and start a step of the moving
+        colliders (:meth:`ColliderSet.begin_step <warpcloth.colliders.ColliderSet.begin_step>`:
+        posed at the end of the first position-based substep, with the dt of the last
+        :meth:`advance`; force-based steps re-pose them at exactly t + dt after the step)."""
+        if self.collision is not None:
+            self.collision.begin_step()
         if self.has_wind:
             wp.launch(fk.eval_wind_schedule, dim=1, inputs=[self.time, self._schedule_start, self._schedule_wind, wp.float64(self.wind_schedule.period)], outputs=[self.wind], device=self.device)
 
     def advance(self, dt: float) -> None:
         """t = t_base + n dt after the n-th step since :meth:`rebase`, on the device."""
         wp.launch(fk.advance_time, dim=1, inputs=[self.time, self._time_base, self._clock, wp.float64(dt)], device=self.device)
+        if self.collision is not None and self.collision.moving:
+            from warpcloth.kernels import collide as ck
+
+            wp.launch(ck.store_step, dim=1, inputs=[wp.float64(dt)], outputs=[self._step_dt], device=self.device)
 
 
 def eval_forces(model, x: wp.array, v: wp.array, control: Control, f: wp.array) -> None:

@@ -1,4 +1,4 @@
-"""USD export of an animated cloth mesh.
+"""USD export of an animated cloth mesh (and the colliders it meets, :class:`ColliderPrims`).
 
 One ``UsdGeomMesh`` (topology written once; points and extent time-sampled per frame), pinned
 particles marked by a ``pinned`` vertex primvar and a ``UsdGeomPoints`` prim, the stage's
@@ -83,6 +83,126 @@ def _usd_dict(value):
     return str(value)
 
 
+def _quat_between(u, v):
+    """The unit quaternion (w, x, y, z) turning unit vector u onto unit vector v."""
+    u, v = np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64)
+    c = float(np.dot(u, v))
+    if c < -1.0 + 1e-12:  # opposite: half a turn about any axis perpendicular to u
+        axis = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
+        axis /= np.linalg.norm(axis)
+        return (0.0, *axis)
+    q = np.array([1.0 + c, *np.cross(u, v)])
+    return tuple(q / np.linalg.norm(q))
+
+
+class ColliderPrims:
+    """Colliders as USD prims under ``root``, one per collider (``Sphere_0``, ``Box_1``, ...), each
+    with ``xformOp:translate`` and ``xformOp:orient`` (and ``xformOp:scale`` for a box):
+
+    * sphere: ``UsdGeom.Sphere`` (radius);
+    * capsule: ``UsdGeom.Capsule`` along its local Z (radius, height = |b - a|), oriented a -> b;
+    * box: ``UsdGeom.Cube`` of size 2 scaled by the half extents, oriented by its rotation;
+    * mesh: ``UsdGeom.Mesh`` of its triangles, in world coordinates (identity transform);
+    * plane: ``UsdGeom.Mesh``, a square quad ``plane_size`` across in its local XZ plane (normal +Y
+      turned onto the plane's normal), centred on its point.
+
+    Static colliders hold default values (no time samples); a collider on a track gets a time
+    sample of its transform at every frame written. Thickness and friction go to the prim's
+    ``customData`` (``warpcloth:thickness``, ``warpcloth:friction``); the prim is the surface itself,
+    so a resting cloth floats ``thickness`` above it.
+    """
+
+    def __init__(self, stage, root: str, colliders, plane_size: float = 10.0):
+        from pxr import Gf, UsdGeom, Vt
+
+        self._Gf = Gf
+        self.items = []
+        colliders = tuple(colliders or ())
+        if not colliders:
+            return
+        UsdGeom.Scope.Define(stage, root)
+        for k, c in enumerate(colliders):
+            path = f"{root}/{c.kind.capitalize()}_{k}"
+            if c.kind == "sphere":
+                prim = UsdGeom.Sphere.Define(stage, path)
+                prim.CreateRadiusAttr(float(c.radius))
+                r = float(c.radius)
+                prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-r), Gf.Vec3f(r)]))
+            elif c.kind == "capsule":
+                prim = UsdGeom.Capsule.Define(stage, path)
+                prim.CreateAxisAttr(UsdGeom.Tokens.z)
+                prim.CreateRadiusAttr(float(c.radius))
+                height = float(np.linalg.norm(np.subtract(c.b, c.a)))
+                prim.CreateHeightAttr(height)
+                r, h = float(c.radius), 0.5 * height + float(c.radius)
+                prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-r, -r, -h), Gf.Vec3f(r, r, h)]))
+            elif c.kind == "mesh":
+                prim = UsdGeom.Mesh.Define(stage, path)
+                v = np.ascontiguousarray(c.vertices, dtype=np.float32)
+                prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(v))
+                prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(c.triangles)))
+                prim.CreateFaceVertexIndicesAttr(Vt.IntArray(c.triangles.reshape(-1).tolist()))
+                prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+                prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, v.min(axis=0))), Gf.Vec3f(*map(float, v.max(axis=0)))]))
+            elif c.kind == "box":
+                prim = UsdGeom.Cube.Define(stage, path)
+                prim.CreateSizeAttr(2.0)
+                prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-1.0), Gf.Vec3f(1.0)]))
+            else:
+                prim = UsdGeom.Mesh.Define(stage, path)
+                h = 0.5 * float(plane_size)
+                prim.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(-h, 0, -h), Gf.Vec3f(-h, 0, h), Gf.Vec3f(h, 0, h), Gf.Vec3f(h, 0, -h)]))
+                prim.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
+                prim.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))  # counter-clockwise seen from +Y
+                prim.CreateNormalsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 1, 0)] * 4))
+                prim.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+                prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+                prim.CreateDoubleSidedAttr(True)
+                prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-h, 0, -h), Gf.Vec3f(h, 0, h)]))
+            p = prim.GetPrim()
+            p.SetCustomDataByKey("warpcloth:thickness", float(c.thickness))
+            p.SetCustomDataByKey("warpcloth:friction", float(c.friction))
+            xf = UsdGeom.Xformable(prim)
+            ops = [xf.AddTranslateOp(), xf.AddOrientOp()]
+            if c.kind == "box":
+                ops.append(xf.AddScaleOp())
+                ops[2].Set(Gf.Vec3f(*map(float, c.half_extents)))
+            self.items.append((c, ops))
+            if c.track is None:
+                self._set(c, ops, None)
+
+    def _pose(self, c):
+        """(translate, orient (w, x, y, z)) of a static collider."""
+        if c.kind == "sphere":
+            return c.center, (1.0, 0.0, 0.0, 0.0)
+        if c.kind == "capsule":
+            a, b = np.asarray(c.a), np.asarray(c.b)
+            d = b - a
+            length = np.linalg.norm(d)
+            return 0.5 * (a + b), _quat_between((0.0, 0.0, 1.0), d / length) if length > 0 else (1.0, 0.0, 0.0, 0.0)
+        if c.kind == "box":
+            x, y, z, w = c.rotation
+            return c.center, (w, x, y, z)
+        if c.kind == "mesh":
+            return (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)
+        return c.point, _quat_between((0.0, 1.0, 0.0), c.normal)
+
+    def _set(self, c, ops, code) -> None:
+        from pxr import Usd
+
+        Gf = self._Gf
+        t, q = self._pose(c)
+        time = Usd.TimeCode.Default() if code is None else code
+        ops[0].Set(Gf.Vec3d(*map(float, t)), time)
+        ops[1].Set(Gf.Quatf(float(q[0]), Gf.Vec3f(*map(float, q[1:]))), time)
+
+    def write(self, sim_time: float, code: float) -> None:
+        """A time sample of every moving collider's transform, posed at ``sim_time`` [s]."""
+        for c, ops in self.items:
+            if c.track is not None:
+                self._set(c.at(sim_time), ops, code)
+
+
 class UsdWriter:
     """Writes a cloth model's frames to a USD stage.
 
@@ -95,10 +215,12 @@ class UsdWriter:
         strain_scale: the strain at the red end of the colour ramp.
         clip_frames: frames kept in memory before they move to a value clip (see the module
             doc); default: as many as fit in :data:`CLIP_BYTES` (a .usdz: all, one package).
+        colliders: the run's colliders (``Control.colliders``), written as prims under
+            ``/World/Colliders`` (see :class:`ColliderPrims`); moving ones get a time sample per frame.
     """
 
     def __init__(self, path: str, model, fps: float = 60.0, provenance: dict | None = None, color: str | None = None,
-                 strain_scale: float = DEFAULT_STRAIN_SCALE, clip_frames: int | None = None):
+                 strain_scale: float = DEFAULT_STRAIN_SCALE, clip_frames: int | None = None, colliders=()):
         from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
         self._Gf, self._Vt = Gf, Vt
@@ -162,6 +284,9 @@ class UsdWriter:
             pv = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
             self.color_attr = pv.GetAttr()
             self.mesh.GetPrim().SetCustomDataByKey("warpcloth:displayColor", f"spring strain, blue 0 to red {self.strain_scale:g}")
+        rest = model.host["q"]
+        size = float(np.max(rest.max(axis=0) - rest.min(axis=0))) if len(rest) else 1.0
+        self.colliders = ColliderPrims(self.stage, "/World/Colliders", colliders, plane_size=max(4.0, 10.0 * size))
         self.frames = 0
         self.last_code = -1.0
         if self.usdz:  # one package: no clip files beside it
@@ -188,6 +313,7 @@ class UsdWriter:
         self.extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), code)
         if self._pin_idx.size:
             self._write_pins(np.ascontiguousarray(p[self._pin_idx]), code)
+        self.colliders.write(code / self.fps if sim_time is None else float(sim_time), code)
         if self.color_attr is not None:
             from .frames import strain_colors, vertex_strain
 

@@ -1,0 +1,145 @@
+"""The static triangle-mesh collider (wp.Mesh) against exact answers: a particle dropped on a mesh
+sphere's pole vertex rests at the thickness above it; a cube mesh behaves as the analytic Box (a
+cloth dropped on it never goes inside, and ends where the Box's cloth ends); Coulomb friction on a
+tilted quad slides at g (sin - mu cos) within 2 % and sticks when mu > tan; OBJ, TOML, CLI and USD;
+bad input names the value."""
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from warpcloth import Box, Control, Simulator, WarpclothError, build_grid_cloth
+from warpcloth.colliders import MeshCollider, parse_collider
+from warpcloth.model import SpringParams, SpringType, build_model
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from bench.colliders import mesh_sphere  # noqa: E402
+
+G = 9.81
+FREE = {t: SpringParams(0.0, 0.0) for t in SpringType}
+CUBE_V = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+# 12 triangles wound outward (counter-clockwise seen from outside); vertex index = 4 (x>0) + 2 (y>0) + (z>0)
+CUBE_T = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                   [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+
+
+def particles(positions):
+    return build_model(positions, np.zeros((0, 2)), np.zeros(0), [0.1] * len(positions), FREE, device="cpu")
+
+
+def cube(center, half, **settings):
+    return MeshCollider(vertices=np.asarray(center) + CUBE_V * np.asarray(half), triangles=CUBE_T, **settings)
+
+
+def test_the_cube_is_wound_outward():
+    tri = CUBE_V[CUBE_T]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    assert np.all(np.sum(n * tri.mean(axis=1), axis=1) > 0)
+
+
+@pytest.mark.parametrize("integrator", ["explicit_euler", "rk4", "verlet", "implicit_euler", "pbd", "xpbd"])
+def test_a_particle_rests_on_the_pole_of_a_mesh_sphere(integrator):
+    v, t = mesh_sphere(2000, radius=0.3)
+    sim = Simulator(particles([[0.0, 0.6, 0.0]]), integrator, Control(colliders=(MeshCollider(vertices=v, triangles=t, thickness=0.01),), device="cpu"), dt=1e-3)
+    sim.simulate(600)  # lands at 0.25 s
+    x = sim.state.particle_q.numpy()[0]
+    assert x[1] == pytest.approx(0.31, abs=1e-6) and abs(x[0]) + abs(x[2]) == 0.0
+
+
+@pytest.mark.parametrize("integrator", ["explicit_euler", "implicit_euler", "pbd"])
+def test_a_cube_mesh_holds_a_cloth_as_the_box_does(integrator):
+    def run(collider):
+        model = build_grid_cloth(10, 10, 0.8, 0.8, 0.1, plane="horizontal", origin=(-0.4, 0.45, -0.4), device="cpu")
+        sim = Simulator(model, integrator, Control(drag_rate=0.5, colliders=(collider,), device="cpu"),
+                        dt=1.0 / 60.0 if integrator in ("implicit_euler", "pbd") else None)
+        deepest, lowest_centre = -1.0, np.inf
+        for _ in range(30):
+            sim.simulate(max(1, round(1.0 / 60.0 / sim.dt)))
+            x = sim.state.particle_q.numpy().astype(np.float64)
+            inside = np.all(np.abs(x - (0.0, 0.2, 0.0)) < (0.25, 0.2 + 0.005, 0.25), axis=1)  # within the box grown by its thickness
+            depth = np.min(np.abs(np.abs(x - (0.0, 0.2, 0.0)) - (0.25, 0.2 + 0.005, 0.25)), axis=1)
+            deepest = max(deepest, depth[inside].max() if inside.any() else -1.0)
+            lowest_centre = min(lowest_centre, x[np.argsort(np.linalg.norm(x[:, [0, 2]], axis=1))[:4], 1].min())
+        return x, deepest, lowest_centre
+
+    x_mesh, deep_mesh, centre_mesh = run(cube((0.0, 0.2, 0.0), (0.25, 0.2, 0.25), thickness=0.005, friction=0.3))
+    x_box, deep_box, _ = run(Box(center=(0.0, 0.2, 0.0), half_extents=(0.25, 0.2, 0.25), thickness=0.005, friction=0.3))
+    assert deep_mesh < 1e-5 and deep_box < 1e-5  # never inside (by more than float32 rounding)
+    assert centre_mesh == pytest.approx(0.405, abs=1e-5)  # it lands on the top face at the thickness (then the flaps bounce it)
+    np.testing.assert_allclose(x_mesh, x_box, atol=2e-3)  # the same drape as the analytic box
+
+
+def slide(theta, mu, duration=0.5, dt=1e-3):
+    n = np.array([-math.sin(theta), math.cos(theta), 0.0])
+    down = np.array([-math.cos(theta), -math.sin(theta), 0.0])
+    side = np.array([0.0, 0.0, 1.0])
+    quad = np.array([-5 * down - 5 * side, -5 * down + 5 * side, 5 * down + 5 * side, 5 * down - 5 * side])
+    tris = np.array([[0, 1, 2], [0, 2, 3]])
+    if np.dot(np.cross(quad[1] - quad[0], quad[2] - quad[0]), n) < 0:
+        tris = tris[:, ::-1]
+    sim = Simulator(particles([[0.0, 0.0, 0.0]]), "explicit_euler", Control(colliders=(MeshCollider(vertices=quad, triangles=tris, friction=mu),), device="cpu"), dt=dt)
+    sim.simulate(int(round(duration / dt)))
+    x = sim.state.particle_q.numpy()[0].astype(np.float64)
+    return float(np.dot(x, down)), float(np.dot(x, n))
+
+
+def test_coulomb_friction_on_a_tilted_mesh():
+    theta = math.radians(30.0)
+    s, off = slide(theta, 0.3)
+    assert s == pytest.approx(0.5 * G * (math.sin(theta) - 0.3 * math.cos(theta)) * 0.25, rel=0.02)
+    assert abs(off) < 1e-5
+    s_stick, _ = slide(theta, 0.7)
+    assert abs(s_stick) < 1e-5
+
+
+def test_mesh_from_obj_toml_cli_and_usd(tmp_path, capsys):
+    from pxr import Usd, UsdGeom
+
+    from warpcloth.cli import main
+    from warpcloth.meshio import write_obj
+    from warpcloth.scenarios import get_scenario
+    from warpcloth.usd import UsdWriter
+
+    write_obj(str(tmp_path / "table.obj"), CUBE_V * 0.3 + (0.5, -0.3, 0.5), CUBE_T)
+    from_file = MeshCollider.from_file(str(tmp_path / "table.obj"), thickness=0.01)
+    assert from_file.triangles.shape == (12, 3) and from_file.thickness == 0.01
+    (tmp_path / "grid.obj").write_text("v 0 1 0\nv 1 1 0\nv 0 1 1\nv 1 1 1\nf 1 3 4 2\n")
+    (tmp_path / "s.toml").write_text('[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "mesh"\npath = "table.obj"\nfriction = 0.3\n')
+    (mesh,) = get_scenario(str(tmp_path / "s.toml")).build().control.colliders
+    assert isinstance(mesh, MeshCollider) and mesh.friction == 0.3 and len(mesh.vertices) == 8
+    assert parse_collider(f"mesh:path={tmp_path / 'table.obj'},thickness=0.002,reach=0.1").reach == 0.1
+    argv = ["run", "sheet", "--rows", "6", "--cols", "6", "--duration", "0.2", "--collider", f"mesh:path={tmp_path / 'table.obj'}"]
+    assert main(argv) == 0, capsys.readouterr().err
+    model = build_grid_cloth(4, 4, 0.5, 0.5, 0.1, plane="horizontal", device="cpu")
+    with UsdWriter(str(tmp_path / "m.usda"), model, 30.0, colliders=(from_file,)) as w:
+        w.write_frame(model.host["q"], 0.0)
+    stage = Usd.Stage.Open(str(tmp_path / "m.usda"))  # held: a prim does not keep its stage alive
+    prim = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Colliders/Mesh_0"))
+    np.testing.assert_allclose(np.array(prim.GetPointsAttr().Get()), from_file.vertices, atol=1e-6)
+    assert list(prim.GetFaceVertexIndicesAttr().Get()) == CUBE_T.reshape(-1).tolist()
+
+
+@pytest.mark.parametrize("make,match", [
+    (lambda: MeshCollider(vertices=np.zeros((0, 3)), triangles=np.zeros((0, 3), int)), "mesh collider is empty"),
+    (lambda: MeshCollider(vertices=CUBE_V, triangles=np.zeros((0, 3), int)), r"mesh collider is empty \(no triangles\)"),
+    (lambda: MeshCollider(vertices=CUBE_V, triangles=CUBE_T + 1), "vertex index .* out of range: vertices are 0..7"),
+    (lambda: cube((0, 0, 0), (1, 1, 1), reach=0.0), "mesh collider reach must be > 0"),
+    (lambda: cube((0, 0, 0), (1, 1, 1), thickness=-1.0), "collider thickness must be >= 0"),
+    (lambda: parse_collider("mesh:thickness=0.1"), "collider mesh needs path=FILE"),
+    (lambda: parse_collider("mesh:path=nothing.obj"), "mesh file 'nothing.obj' does not exist"),
+])
+def test_bad_mesh_colliders_name_the_value(make, match):
+    with pytest.raises(WarpclothError, match=match):
+        make()
+
+
+def test_an_empty_mesh_file_is_one_line_and_exit_2(tmp_path, capsys):
+    from warpcloth.cli import main
+
+    (tmp_path / "empty.obj").write_text("# nothing\n")
+    assert main(["run", "sheet", "--collider", f"mesh:path={tmp_path / 'empty.obj'}"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "is empty" in err and len(err.splitlines()) == 1
