@@ -147,7 +147,7 @@ class Scenario:
             if usd_path is not None:
                 from ..usd import UsdWriter
 
-                sinks.writers.append(UsdWriter(usd_path, sim.model, cfg.fps))
+                sinks.writers.append(UsdWriter(usd_path, sim.model, cfg.fps, colliders=sim.control.colliders))
             for make in writers:
                 sinks.writers.append(make(sim, cfg))
             result = sim.run(cfg.duration, fps=cfg.fps, stop_at_equilibrium=self.stop_at_equilibrium, wall_cap=wall_cap,

@@ -95,3 +95,23 @@ def test_stage_with_colliders_validates(tmp_path):
         w.write_frame(model.host["q"], 0.0)
         w.write_frame(model.host["q"], 1 / FPS)
     assert validation_errors(Usd.Stage.Open(path)) == []
+
+
+def test_cli_and_run_export_the_scenarios_colliders(tmp_path):
+    """`warpcloth run drape --usd` and `Simulator.run(usd=path)` write the scenario's colliders
+    (the drape's sphere and ground) beside the cloth."""
+    from pxr import Usd
+
+    from warpcloth.cli import main
+    from warpcloth.scenarios import get_scenario
+
+    out = tmp_path / "drape.usda"
+    assert main(["run", "drape", "--rows", "5", "--cols", "5", "--duration", "0.05", "--usd", str(out), "-q"]) == 0
+    stage = Usd.Stage.Open(str(out))
+    kinds = sorted(p.GetName().split("_")[0] for p in stage.GetPrimAtPath("/World/Colliders").GetChildren())
+    assert kinds == sorted(c.kind.capitalize() for c in get_scenario("drape").build(rows=5, cols=5).control.colliders)
+    sim = get_scenario("drape").build(rows=5, cols=5)
+    direct = tmp_path / "direct.usda"
+    sim.run(0.05, usd=str(direct))
+    stage = Usd.Stage.Open(str(direct))
+    assert len(stage.GetPrimAtPath("/World/Colliders").GetChildren()) == len(kinds) > 0

@@ -21,7 +21,7 @@ if not os.environ.get("WARPCLOTH_WARP_VERBOSE"):
         wp.config.log_level = wp.LOG_WARNING
     wp.config.quiet = True
 
-from .colliders import Box, Capsule, Plane, Sphere  # noqa: E402
+from .colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere  # noqa: E402
 from .errors import WarpclothError  # noqa: E402
 from .forces import Control, WindSchedule  # noqa: E402
 from .integrators import Integrator, integrator_names, make_integrator  # noqa: E402
@@ -33,7 +33,7 @@ from .simulator import RunResult, Simulator  # noqa: E402
 from .state import State  # noqa: E402
 
 __all__ = [
-    "BendModel", "Box", "Capsule", "ClothModel", "Control", "Integrator", "PinTrack", "Plane", "RunResult", "Simulator", "Sphere", "SpringParams", "SpringType",
+    "BendModel", "Box", "Capsule", "ClothModel", "ColliderTrack", "Control", "MeshCollider", "Integrator", "PinTrack", "Plane", "RunResult", "Simulator", "Sphere", "SpringParams", "SpringType",
     "State", "TriangleMesh", "WarpclothError", "WindSchedule", "build_grid_cloth", "build_mesh_cloth", "load_mesh", "expected_spring_counts", "integrator_names",
     "make_integrator", "__version__",
 ]

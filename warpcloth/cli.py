@@ -214,7 +214,8 @@ def _output_writers(scenario_name: str, args) -> list:
         check_usd_path(args.usd)  # before any work: a path that cannot be written fails now
         paths.append(args.usd)
         color = getattr(args, "usd_color", "none")
-        writers.append(lambda sim, cfg: UsdWriter(args.usd, sim.model, cfg.fps, provenance=info(sim, cfg), color=color))
+        writers.append(lambda sim, cfg: UsdWriter(args.usd, sim.model, cfg.fps, provenance=info(sim, cfg), color=color,
+                                                   colliders=sim.control.colliders))
     if getattr(args, "html", None):
         from .player import HtmlWriter, check_html_path
 

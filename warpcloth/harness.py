@@ -291,7 +291,7 @@ class RunHarness:
         if isinstance(usd, (str, os.PathLike)):
             from .usd import UsdWriter
 
-            writer = UsdWriter(os.fspath(usd), m, fps)
+            writer = UsdWriter(os.fspath(usd), m, fps, colliders=sim.control.colliders)
             try:
                 result = self.run(duration, fps, stop_at_equilibrium, wall_cap, writer, warm_up)
             except BaseException:

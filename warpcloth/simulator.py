@@ -187,14 +187,18 @@ class Simulator:
         self._pins_version += 1
 
     def pins_moving_until(self) -> float:
-        """Simulated time [s] after which no kinematic pin moves (0 without tracks; inf for a
-        rigid motion that never stops)."""
+        """Simulated time [s] after which no kinematic pin and no collider on a pose track moves
+        (0 without tracks; inf for a rigid motion that never stops)."""
         end = 0.0
         for track in self.control.pin_tracks:
             if track.kind == "keyframes":
                 end = max(end, float(track.times[-1]))
             elif any(track.velocity) or track.angular_velocity or (track.swing_amplitude and track.swing_frequency):
                 end = math.inf
+        for collider in self.control.colliders or ():
+            track = getattr(collider, "track", None)
+            if track is not None:
+                end = max(end, float(track.moving_until()))
         return end
 
     def set_dt(self, dt: float) -> None:
