@@ -75,11 +75,12 @@ from __future__ import annotations
 
 import functools
 import os
+import re
 from dataclasses import replace
 
 import numpy as np
 
-from ..errors import WarpclothError, require
+from ..errors import WarpclothError, require, warn
 from ..forces import GRAVITY, Control, WindSchedule
 from ..mesh import build_mesh_cloth, lumped_masses, resolve_pins
 from ..meshio import load_mesh
@@ -98,6 +99,7 @@ GUST_KEYS = {"wind", "on", "off", "base"}
 #: spelling of ``frame_rate``) and the integrator's options as a table.
 RUN_PARAMS = tuple(p.name for p in params_for("run") if p.group in ("run", "integrator") and (p.config_field or p.name == "dt"))
 RUN_KEYS = {"integrator_options", "fps", *RUN_PARAMS}
+_NOTED: set = set()  # old spellings already noted in this process
 
 
 def _toml():
@@ -216,6 +218,14 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         name = "frame_rate" if key == "fps" else key
         if isinstance(value, bool) or not isinstance(value, (str, int, float)):
             raise WarpclothError(f"{where}: run.{key} must be a number or a string, got {value!r}")
+        if key == "fps" and "fps" not in _NOTED:
+            _NOTED.add("fps")
+            warn(f"{where}: run.fps is now spelled run.frame_rate (the old name is accepted for now)")
+        if name == "device":  # a file names a device a machine may lack: its presence is checked where it runs
+            require(isinstance(value, str) and re.fullmatch(r"cpu|cuda(:\d+)?", value) is not None,
+                    f"{where}: run.device must be cpu, cuda or cuda:N, got {value!r}")
+            given[name] = value
+            continue
         try:
             given[name] = BY_NAME[name].parse(value if isinstance(value, str) else repr(value))
         except ValueError as exc:

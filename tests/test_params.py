@@ -132,3 +132,54 @@ def test_runspec_pickles_for_worker_processes(tmp_path):
     again = pickle.loads(pickle.dumps(spec))
     assert again == spec and again.key == spec.key and isinstance(again, RunSpec)
     assert dataclasses.asdict(again)["test_id"] == "1"
+
+
+def test_time_steps_times_exactly_the_steps_asked():
+    from warpcloth.harness import time_steps
+    from warpcloth.scenarios import get_scenario
+
+    sim = get_scenario("sheet").build(rows=4, cols=4, device="cpu", use_graph=False)
+    for steps, windows in ((13, 5), (100, 5), (7, 7)):
+        before = sim.steps
+        t = time_steps(sim, windows=windows, steps=steps)
+        assert t.steps == steps and len(t.ms_per_step) == windows
+        assert sim.steps - before == steps + sum({steps // windows, steps // windows + (steps % windows > 0)})  # + one untimed replay of each count
+    with pytest.raises(WarpclothError, match=r"steps \(3\) must be at least windows \(5\)"):
+        time_steps(sim, windows=5, steps=3)
+
+
+def test_grid_or_mesh_attributes_no_scenario_of_the_test_takes_are_refused(tmp_path):
+    path = write(tmp_path, '<test_list>\n<test integrator="rk4" scenario="mesh"\n size="5 7"/></test_list>')
+    with pytest.raises(WarpclothError, match=r":3: test '1': 'size' applies to grid scenarios and none of the test's scenarios \(mesh\)"):
+        parse_test_list(path)
+    path = write(tmp_path, '<test_list>\n<test integrator="rk4" scenario="sheet" mesh="x.obj"/></test_list>', "m.xml")
+    with pytest.raises(WarpclothError, match=r":2: test '1': 'mesh' applies to mesh scenarios"):
+        parse_test_list(path)
+    # a test naming both kinds: each run takes its own kind's attributes
+    ok = write(tmp_path, '<test_list>\n<test integrator="rk4" scenario="sheet mesh" size="5"/></test_list>', "ok.xml")
+    runs = parse_test_list(ok).runs
+    assert {(r.scenario, r.rows) for r in runs} == {("sheet", 5), ("mesh", 1)}
+
+
+def test_a_mesh_in_a_test_list_gets_the_damping_of_its_own_particles(tmp_path):
+    import csv
+
+    from warpcloth.lab.sweep import run_sweep
+
+    obj = tmp_path / "small.obj"
+    obj.write_text("".join(f"v {x} {y} 0\n" for y in range(3) for x in range(3)) +
+                   "f 1 2 5\nf 1 5 4\nf 2 3 6\nf 2 6 5\nf 4 5 8\nf 4 8 7\nf 5 6 9\nf 5 9 8\n")
+    path = write(tmp_path, f'<test_list><test integrator="explicit_euler" scenario="mesh" mesh="{obj}" pin="y &gt; 1.9" '
+                           'dt="0.001" duration="0.02"/></test_list>')
+    (spec,) = parse_test_list(path).runs
+    assert spec.rows is None and spec.damping is None  # known once the mesh is built
+    from warpcloth.scenarios import get_scenario
+
+    sim = get_scenario("mesh").build(spec.config(dt=1e-3))
+    cli = get_scenario("mesh").build(mesh=str(obj), pin_where="y > 1.9", dt=1e-3)
+    assert sim.model.particle_count == 9
+    assert sim.model.spring_damping.numpy().tolist() == cli.model.spring_damping.numpy().tolist()
+    out = tmp_path / "r.csv"
+    run_sweep(path, str(out))
+    (row,) = list(csv.DictReader(out.open()))
+    assert row["particles"] == "9" and row["outcome"] == "completed"

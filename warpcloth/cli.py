@@ -155,7 +155,8 @@ class _DefaultDtExplained:
     """Turns "dt must be > 0 s, got 0.0" from a *computed* default dt (the user gave none) into
     a message naming the flags the default came from (``--mass 1e30`` underflows it)."""
 
-    FLAGS = (("mass", "--mass"), ("stiffness", "--stiffness"), ("damping", "--damping"), ("drag", "--drag"))
+    FLAGS = tuple((p.name, p.flag) for p in params_for("run")
+                  if p.name in ("mass", "drag") or p.name.startswith(("stiffness", "damping")))
 
     def __init__(self, args):
         self.args = args

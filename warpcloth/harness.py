@@ -76,6 +76,7 @@ class StepTiming:
     steps_per_window: int
     ms_per_step: list  # one entry per timed window
     compile_s: float = 0.0
+    steps_timed: int | None = None  # every timed step (None: steps_per_window x windows)
 
     @property
     def median_ms(self) -> float:
@@ -91,7 +92,7 @@ class StepTiming:
 
     @property
     def steps(self) -> int:
-        return self.steps_per_window * len(self.ms_per_step)
+        return self.steps_timed if self.steps_timed is not None else self.steps_per_window * len(self.ms_per_step)
 
     @property
     def wall_s_per_sim_s(self) -> float:
@@ -110,16 +111,17 @@ class StepTiming:
 
 def time_steps(sim, windows: int = 5, window_seconds: float = 0.1, batch: int | None = None,
                steps: int | None = None, warm_up: bool = True) -> StepTiming:
-    """Time ``sim``'s steps: a warm-up (compile; its seconds in ``compile_s``), one untimed batch
-    (first launches, graph capture), then ``windows`` timed windows.
+    """Time ``sim``'s steps: a warm-up (compile; its seconds in ``compile_s``), one untimed
+    replay of each step count timed (first launches, graph capture), then ``windows`` timed
+    windows.
 
     Args:
         windows: timed windows (>= 1); the median and the spread come from them.
         window_seconds: each window replays whole batches until it lasts about this long.
         batch: steps per replay (default one 60 Hz frame of steps, at least 1), so a captured
             graph is replayed as it is in a run.
-        steps: instead of ``window_seconds``, time exactly this many steps in all (split over
-            the windows, at least one batch of 1 step each).
+        steps: instead of ``window_seconds``: time exactly this many steps in all, split evenly
+            over the windows (each window one replay of its share; at most ``steps`` windows).
         warm_up: compile first (skip when the caller already did).
     """
     windows = require_count("windows", windows)
@@ -127,20 +129,27 @@ def time_steps(sim, windows: int = 5, window_seconds: float = 0.1, batch: int | 
         raise WarpclothError(f"windows must be >= 1, got {windows}")
     device = sim.model.device
     compile_s = sim.warm_up() if warm_up else 0.0
-    if batch is None:
-        batch = max(1, math.ceil((1.0 / 60.0) / sim.dt - 1e-9))
     if steps is not None:
         steps = require_count("steps", steps)
-        per_window = max(1, steps // windows)
-        batch = min(batch, per_window)
+        if steps < windows:
+            raise WarpclothError(f"steps ({steps}) must be at least windows ({windows}): one step a window")
+        shares = [steps // windows + (1 if k < steps % windows else 0) for k in range(windows)]
+        for n in sorted(set(shares)):
+            sim.simulate(n)  # first launches / graph capture of each count: excluded
+        sim.integrator.reset_stats()
+        ms = []
+        for n in shares:
+            with Stopwatch(device) as watch:
+                sim.simulate(n)
+            ms.append(1000.0 * watch.seconds / n)
+        return StepTiming(dt=sim.dt, steps_per_window=steps // windows, ms_per_step=ms, compile_s=compile_s, steps_timed=steps)
+    if batch is None:
+        batch = max(1, math.ceil((1.0 / 60.0) / sim.dt - 1e-9))
     sim.simulate(batch)  # first launches / graph capture: excluded
     with Stopwatch(device) as watch:
         sim.simulate(batch)
     per_step = max(watch.seconds / batch, 1e-9)
-    if steps is not None:
-        replays = max(1, per_window // batch)
-    else:
-        replays = max(1, math.ceil(window_seconds / (per_step * batch)))
+    replays = max(1, math.ceil(window_seconds / (per_step * batch)))
     sim.integrator.reset_stats()
     ms = []
     for _ in range(windows):

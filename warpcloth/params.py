@@ -166,6 +166,16 @@ def wall_cap(text: str) -> float | None:
         raise ValueError(f"{text!r} is not a number of seconds > 0 or 'none'") from None
 
 
+def cli_wall_cap(text: str) -> float | None:
+    """The CLI's ``--wall-cap``: seconds (checked where the run starts) or ``none``."""
+    if text.lower() == "none":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid float value: {text!r} (seconds, or 'none')") from None
+
+
 def fraction(text: str) -> float:
     v = number(text)
     if not 0.0 < v < 1.0:
@@ -281,6 +291,7 @@ class Param:
         cli_type: the CLI's converter where it is more lenient than ``parse`` (the value is then
             checked where it is used, by the Python API, with the API's message); None: ``parse``.
         choices: the allowed values of a choice (argparse shows them).
+        cli_help: the CLI's help where it differs from ``help`` (a test list accepts more).
         from_scenario: a test list fills it from the scenario's default when not given (so the
             CSV and the run key show the value used).
     """
@@ -312,6 +323,7 @@ class Param:
     metavar: str | None = None
     cli_type: Callable | None = None
     choices: tuple = ()
+    cli_help: str | None = None
 
     @property
     def flag(self) -> str:
@@ -379,7 +391,7 @@ PARAMS: tuple[Param, ...] = (
           flag_aliases=("-i",), metavar="NAME", cli_type=str),
     Param("device", device, "", "Warp device: cpu, cuda, cuda:N (a device that is not present is an error before any run)",
           "`cpu`, `cuda`, `cuda:N`", "run", default="cpu", cli_type=str),
-    Param("size", size, "", "mesh size: N (N x N) or ROWSxCOLS; excludes rows/cols", "`N` or `ROWSxCOLS`, at least 3 x 3",
+    Param("size", size, "", "grid size: N (N x N) or ROWSxCOLS; excludes rows/cols", "`N` or `ROWSxCOLS`, at least 3 x 3",
           "cloth", default_doc="the scenario's (sheet 32x32, flag 20x30)", folds_into="rows", applies="grid", metavar="N"),
     Param("rows", grid_dim, "", "particles per column (with cols)", "integer >= 3", "cloth", default_doc="the scenario's",
           applies="grid", metavar="N", from_scenario=True, cli_type=int),
@@ -397,23 +409,24 @@ PARAMS: tuple[Param, ...] = (
     Param("collider", colliders, "", "add colliders: KIND:K=V,... (vectors as x/y/z), several joined by '+' or the flag "
           "repeated, e.g. sphere:center=0/1/0,radius=0.3,thickness=0.005,friction=0.4 or mesh:path=table.obj "
           "(docs/colliders.md)", "`plane`, `sphere`, `capsule`, `box`, `mesh` with settings", "forces", default_doc="none (the scenario's own)", key="set",
-          config="colliders", to_config=_colliders_config, repeat=True, metavar="KIND:K=V,...", cli_type=str),
+          config="colliders", to_config=_colliders_config, repeat=True, metavar="KIND:K=V,..."),
     Param("strain_limit", positive, "", "Provot's deformation constraint tau: after each step no structural or shear spring "
           "stays beyond (1 + tau) L0 (force-based integrators only)", "> 0 (e.g. 0.1)", "integrator", default_doc="off",
           key="set", metavar="TAU", cli_type=float),
     Param("mesh", text_value, "", "the cloth's triangle mesh: .obj or .usd/.usda/.usdc/.usdz", "a file path", "mesh",
-          default_doc="the scenario's", key="set", applies="mesh", metavar="FILE", multi=True, cli_type=str),
+          default_doc="the scenario's", key="set", applies="mesh", metavar="FILE", multi=True),
     Param("prim", text_value, "", "the UsdGeom.Mesh prim of a USD mesh", "a prim path", "mesh",
-          default_doc="the first mesh", key="set", applies="mesh", metavar="PATH", cli_type=str),
+          default_doc="the first mesh", key="set", applies="mesh", metavar="PATH"),
     Param("pin_group", names, "", "pin the vertex groups of the mesh (comma-separated; the flag may repeat)",
           "group names", "mesh", default_doc="the scenario's", key="set", applies="mesh", to_config=_group_config,
-          repeat=True, join=",", metavar="NAME", cli_type=str),
+          repeat=True, join=",", metavar="NAME"),
     Param("pin", text_value, "", "pin the vertices where a predicate holds, e.g. 'y > 0.95 * y.max()' (x, y, z in m)",
           "a predicate (one per attribute: it holds spaces)", "mesh", default_doc="the scenario's", key="set", applies="mesh",
-          config="pin_where", multi=False, metavar="EXPR", cli_type=str),
+          config="pin_where", multi=False, metavar="EXPR"),
     Param("dt", timestep, "s", "time step: a value, the integrator's own stable default, or in a test list max / max*F "
           "(a fraction of the largest stable dt)", "dt in s, `default`, `max`, `max*F`", "run", default=TimeStep("default"),
-          default_doc="`default` (the integrator's own)", xml_aliases=("timestep",), columns=("dt_request",), search=False, config=None,
+          default_doc="`default` (the integrator's own)", cli_help="time step (default: the integrator's own, stable on the scenario; "
+          "find the largest stable one with warpcloth max-dt)", xml_aliases=("timestep",), columns=("dt_request",), search=False, config=None,
           commands=("run", "sweep"), metavar="S", cli_type=float),
     Param("duration", positive, "s", "simulated time: the flag's length, the sheet's upper bound (it ends at equilibrium)",
           "> 0", "run", default_doc="the scenario's (10); in a test list sheet 60, flag 10",
@@ -423,7 +436,7 @@ PARAMS: tuple[Param, ...] = (
           "threshold)", sweep_default=SWEEP_FRAME_RATE, flag_aliases=("--fps",), config="fps", cli_type=float),
     Param("wall_cap", wall_cap, "s", "wall-clock cap of one run and of each max-dt trial ('none': no cap)", "> 0 or `none`",
           "run", default_doc="none; 60 in a test list (the seed's one minute)", sweep_default=SWEEP_WALL_CAP,
-          xml_aliases=("cap",), search=False, config=None, cli_type=float),
+          xml_aliases=("cap",), search=False, config=None, cli_type=cli_wall_cap),
     Param("graph", choice("on", "off", "auto", what="graph mode"), "", "capture a frame's steps as a graph and replay it: "
           "on, off, or auto (where supported); results are bit-identical, capture time is reported apart",
           "`on`, `off`, `auto`", "run", default="auto", key="set",  search=False, config="use_graph", to_config=_graph_config, choices=("on", "off", "auto")),
@@ -488,17 +501,19 @@ def add_flags(parser: argparse.ArgumentParser, command: str, skip: tuple = (), e
             for flags, kw in exclusive[p.name]:
                 group.add_argument(*flags, **kw)
         unit = f" [{p.unit}]" if p.unit else ""
-        if p.default is not None and not isinstance(p.default, TimeStep):
+        if p.cli_help:
+            default = ""
+        elif p.default is not None and not isinstance(p.default, TimeStep):
             default = f" (default {p.default})"
         elif p.default_doc:
             default = f" (default {p.default_doc.replace('`', '')})"
         else:
             default = ""
         aliases = list(p.flag_aliases)
-        kwargs = {"choices": list(p.choices)} if p.choices else {"type": p.cli_type or _argparse_type(p)}
+        kwargs = {"choices": list(p.choices)} if p.choices else {"type": p.cli_type or _argparse_type(p),
+                                                                 "metavar": p.metavar or p.name.upper()}
         group.add_argument(p.flag, *aliases, dest=p.name, default=None, **kwargs,
-                           action="append" if p.repeat else "store", metavar=p.metavar or p.name.upper(),
-                           help=(p.help + unit + default).replace("%", "%%"))
+                           action="append" if p.repeat else "store", help=((p.cli_help or p.help) + unit + default).replace("%", "%%"))
 
 
 def cli_value(param: Param, args):

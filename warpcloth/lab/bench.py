@@ -31,7 +31,7 @@ from ..fileio import AtomicFile, OutputError, check_output_path, describe_write_
 #: Columns of the benchmark CSV: the study's naming (units in the names, booleans true/false).
 COLUMNS = [
     "scenario", "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt_s", "timed_windows",
-    "steps_per_window", "ms_per_step_median", "ms_per_step_min", "ms_per_step_max", "steps_per_s", "springs_per_s",
+    "steps_timed", "steps_per_window", "ms_per_step_median", "ms_per_step_min", "ms_per_step_max", "steps_per_s", "springs_per_s",
     "wall_s_per_sim_s", "realtime_factor", "realtime_30fps", "realtime_60fps", "compile_s", "speedup_vs_cpu",
     "force_evals_per_step", "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean", "solver_converged",
     "solver_capped_steps", "host", "cpu", "gpu", "warp_version", "warpcloth_version",
@@ -133,7 +133,7 @@ def bench_one(integrator: str, size: int | None, device: str, graph: bool, steps
     return {
         "scenario": scenario, "integrator": integrator, "device": device, "graph": graph, "rows": m.rows, "cols": m.cols,
         "particles": m.particle_count, "springs": m.spring_count, "dt_s": sim.dt, "timed_windows": len(timing.ms_per_step),
-        "steps_per_window": timing.steps_per_window, "ms_per_step_median": ms, "ms_per_step_min": timing.min_ms,
+        "steps_timed": timing.steps, "steps_per_window": timing.steps_per_window, "ms_per_step_median": ms, "ms_per_step_min": timing.min_ms,
         "ms_per_step_max": timing.max_ms, "steps_per_s": 1000.0 / ms, "springs_per_s": m.spring_count * 1000.0 / ms,
         "wall_s_per_sim_s": timing.wall_s_per_sim_s, "realtime_factor": timing.realtime_factor,
         "realtime_30fps": timing.realtime(30.0), "realtime_60fps": timing.realtime(60.0), "compile_s": timing.compile_s,

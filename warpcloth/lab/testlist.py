@@ -121,7 +121,12 @@ class RunSpec:
         from ..params import config_values
         from ..scenarios import get_scenario
 
-        kwargs = config_values(dict(self.values))
+        values = dict(self.values)
+        for kind in ("stiffness", "damping"):  # a partial per-type value: the builder fills the rest
+            v = values.get(kind)
+            if isinstance(v, tuple) and None in v:
+                values[kind] = {t: x for t, x in zip(SPRING_TYPES, v) if x is not None}
+        kwargs = config_values(values)
         kwargs.update(integrator_options=dict(self.options), dt=dt, duration=self.duration if duration is None else duration)
         return get_scenario(self.scenario).config(**kwargs)
 
@@ -354,6 +359,12 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
             dims[p.name] = values.get(p.name, [_UNSET])
     dims.update({f"option:{k}": v for k, v in option_lists.items()})
     dims["scenario"] = values.get("scenario", list(params.BY_NAME["scenario"].sweep_default))
+    kinds = {"mesh" if get_scenario(n).model is not None else "grid" for n in dims["scenario"]}
+    for kind in ("grid", "mesh"):
+        given = [p.name for p in params_of_kind(kind) if p.name in own]
+        if given and kind not in kinds:
+            raise src.error(line_of(given[0]), f"{what}: {given[0]!r} applies to {kind} scenarios and none of the test's "
+                                               f"scenarios ({', '.join(dims['scenario'])}) is one")
     names = list(dims)
     count = math.prod(len(v) for v in dims.values())  # without expanding
     if count > room:
@@ -377,24 +388,40 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         # a test may name grid and mesh scenarios together: each takes the parameters of its kind
         for p in params_of_kind("mesh" if not is_mesh else "grid"):
             c[p.name], explicit[p.name] = None, _UNSET
-        rows, cols = c["grid_size"] if c["grid_size"] is not None and not is_mesh else (d.rows, d.cols)
+        if is_mesh and c["mesh"] is not None:  # another mesh than the scenario's: its size is known once built
+            rows = cols = None
+        else:
+            rows, cols = c["grid_size"] if c["grid_size"] is not None and not is_mesh else (d.rows, d.cols)
         c["rows"], c["cols"] = explicit["rows"], explicit["cols"] = rows, cols
         resolved = {}
         for p in resolved_params():
             v = explicit.get(p.name, _UNSET)
             if v is _UNSET:
                 v = p.default_for(True, c["scenario"])
-            if v is None and p.from_scenario:
+            if v is None and p.from_scenario and p.name not in ("rows", "cols"):
                 v = getattr(d, p.config_field)
             resolved[p.name] = v
         mass = resolved["mass"]
-        springs = default_spring_params(mass / (rows * cols), resolve_per_type(c, "stiffness"), resolve_per_type(c, "damping"))
+        # the effective per-type values; the default damping scales with the particle mass, which a
+        # mesh scenario knows only once its mesh is built: there it stays as given (or None)
+        particles = rows * cols if rows is not None and not is_mesh else None
+        springs = default_spring_params(mass / (particles or 1), resolve_per_type(c, "stiffness"), resolve_per_type(c, "damping"))
         eff = [springs[k] for k in sorted(springs)]
         resolved["stiffness"] = tuple(p.stiffness for p in eff)
-        resolved["damping"] = tuple(p.damping for p in eff)
+        resolved["damping"] = tuple(p.damping for p in eff) if particles else _triple(resolve_per_type(c, "damping"))
         resolved["integrator"] = integrator
         runs.append(RunSpec(test_id=test_id, line=el.line, values=tuple(resolved.items()), options=options))
     return runs
+
+
+def _triple(value):
+    """A per-type value as (structural, shear, bend), None where the builder's default applies
+    (hashable, unlike a partial dict); None stays None."""
+    if value is None or isinstance(value, tuple):
+        return value
+    if isinstance(value, dict):
+        return tuple(value.get(t) for t in SPRING_TYPES)
+    return (value,) * 3
 
 
 #: The parameters that apply to one kind of cloth only (``grid`` or ``mesh``).
