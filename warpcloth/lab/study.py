@@ -419,9 +419,10 @@ class Study:
         key = f"floor|{scenario}|rk4|{device}|{n}|T={tr.duration}"
 
         def run():
+            problem = self.problem(scenario, n, device)  # first: building it rebinds the cached sim's integrator
             sim = self.sim(scenario, n, device, "rk4")
             k = 4 * steps_per_frame_at_most(make_integrator("rk4").default_dt(sim.model, sim.control.drag_rate))
-            e = self.problem(scenario, n, device).error(sim, k)
+            e = problem.error(sim, k)
             return {"dt_s": FRAME_DT / k, "steps_per_frame": k, "error_rel": e, "floor_error_rel": e, "transient_s": tr.duration,
                     "note": "rk4 at a quarter of its default dt: the float32 noise floor of this transient"}
 
@@ -433,8 +434,9 @@ class Study:
         key = f"error|{scenario}|{integrator}|{opt}|{device}|{n}|T={tr.duration}|k={k}"
 
         def run():
+            problem = self.problem(scenario, n, device)  # first: building it rebinds the cached sim's integrator
             sim = self.sim(scenario, n, device, integrator, options)
-            e = self.problem(scenario, n, device).error(sim, k)
+            e = problem.error(sim, k)
             return {"dt_s": FRAME_DT / k, "steps_per_frame": k, "error_rel": e, "transient_s": tr.duration, "stable": math.isfinite(e),
                     **({"iterations": options.get("iterations"), "substeps": options.get("substeps")} if options else {})}
 
@@ -472,8 +474,8 @@ class Study:
         key = f"static|sheet|{integrator}|{opt}|{device}|{n}|k={k}|dur={p.equilibrium_duration}|cap={p.equilibrium_wall_cap}"
 
         def run():
+            prob = self.static_problem(n, device)  # first: building it rebinds the cached sim's integrator
             sim = self.sim("sheet", n, device, integrator, options)
-            prob = self.static_problem(n, device)
             dt = FRAME_DT / k
             if prob is None:
                 sim.set_dt(dt)
