@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import socket
 
 import numpy as np
 import pytest
@@ -264,3 +265,65 @@ def test_unwritable_out_is_refused_before_any_work(tmp_path, capsys):
         locked.mkdir(mode=0o500)
         assert main(["study", "--quiet", "--out", str(locked)]) == 2
         assert "not writable" in capsys.readouterr().err
+
+
+# -- in parallel (issue 17) --------------------------------------------------------------------
+#: the columns that must not depend on where or alongside what a measurement ran (not timings)
+SAME = ["measurement", "scenario", "integrator", "options", "device", "particles", "dt_s", "steps_per_frame", "bound_dt_s",
+        "search_bounded", "tolerance_rel", "error_rel", "floor_error_rel", "max_strain_rel", "stable", "equilibrium_reached",
+        "time_to_equilibrium_sim_s", "static_error_rel", "sag_error_rel", "iterations", "substeps", "trials"]
+
+
+def same_rows(a: list, b: list) -> None:
+    by_key = {r["key"]: r for r in b}
+    assert sorted(r["key"] for r in a) == sorted(by_key)
+    for r in a:
+        assert {c: r[c] for c in SAME} == {c: by_key[r["key"]][c] for c in SAME}, r["key"]
+
+
+def test_workers_2_gives_the_serial_rows(tiny_study, tmp_path):
+    """The tiny study (explicit_euler and pbd, --match-accuracy) in 2 worker processes: the same
+    keys and stability/accuracy values as the serial run; the searches ran in both workers, the
+    timings one at a time, and the driver wrote every row once."""
+    _, serial_out, _ = tiny_study
+    out = tmp_path / "par"
+    assert main(TINY + ["--devices", "cpu", "--match-accuracy", "--workers", "2", "--out", str(out)]) == 0
+    serial, par = read_rows(serial_out / "results.csv"), read_rows(out / "results.csv")
+    same_rows(serial, par)
+    assert {r["worker"] for r in serial} == {"main"} and {r["concurrent_runs"] for r in serial} == {1}
+    searches = [r for r in par if r["measurement"] not in ("timing", "match_result")]
+    assert {r["worker"] for r in searches} == {"local:1", "local:2"}  # one group per worker
+    timed = [r for r in par if r["measurement"] == "timing"]
+    assert timed and all(r["concurrent_runs"] == 1 for r in timed)
+    assert all(r["host"] == socket.gethostname() for r in par)
+    assert "at most 1 timed run(s) at once, at most 2 search run(s) at once" in (out / "report.md").read_text()
+
+
+def test_parallel_settings_warn_above_the_cores_and_devices(monkeypatch):
+    from warpcloth.lab.study import ParallelSettings
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    assert ParallelSettings.check(["cpu"], workers=2).warnings == []
+    assert not ParallelSettings.check(["cpu"]).parallel
+    (w,) = ParallelSettings.check(["cpu"], workers=3).warnings
+    assert "--workers 3 is more than the 2 CPU cores" in w and "timings still run alone" in w
+    (w,) = ParallelSettings.check(["cpu"], timing_workers=2).warnings
+    assert "--timing-workers 2 is more than the 1 device(s) (cpu)" in w
+    assert ParallelSettings.check(["cuda:0", "cuda:1"], workers=8, timing_workers=2).warnings == []
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(WarpclothError, match="--workers must be a whole number >= 1"):
+            ParallelSettings.check(["cpu"], workers=bad)
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--workers", "0"], "argument --workers: must be a whole number >= 1, got '0'"),
+    (["--workers", "two"], "argument --workers: must be a whole number >= 1, got 'two'"),
+    (["--timing-workers", "-1"], "argument --timing-workers: must be a whole number >= 1, got '-1'"),
+    (["--ray", "auto", "--workers", "2"], "--ray runs the searches on the cluster's CPUs and GPUs: it takes no --workers"),
+    (["--ray", " "], "--ray: give auto, local, HOST:PORT or ray://HOST:PORT"),
+])
+def test_bad_parallel_flags_are_one_line_and_status_2(argv, message, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli(["study", "--quiet", "--out", str(out)] + argv) == 2
+    assert capsys.readouterr().err == f"warpcloth: error: {message}\n"
+    assert not (out / "results.csv").exists()

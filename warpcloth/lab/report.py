@@ -403,6 +403,25 @@ def plots(out_dir: str, data: Data, tolerance) -> list[str] | None:
 
 
 # -- the report ------------------------------------------------------------------------------
+def sharing_lines(rows: list) -> list:
+    """Where the measurements ran and how many ran at once (the host, worker and
+    concurrent_runs columns): one line per host and device."""
+    out = []
+    for host in sorted({str(r.get("host") or "?") for r in rows}):
+        for d in sorted({r["device"] for r in rows if str(r.get("host") or "?") == host}):
+            mine = [r for r in rows if str(r.get("host") or "?") == host and r["device"] == d]
+            workers = sorted({str(r.get("worker") or "?") for r in mine})
+            timed = [int(r.get("concurrent_runs") or 1) for r in mine if r["measurement"] == "timing"]
+            other = [int(r.get("concurrent_runs") or 1) for r in mine if r["measurement"] != "timing"]
+            how = "serially" if workers == ["main"] else f"by {len(workers)} worker(s) ({', '.join(workers[:4])}{', ...' if len(workers) > 4 else ''})"
+            line = f"- host {host}, {d}: measured {how}; at most {max(timed, default=0)} timed run(s) at once"
+            line += f", at most {max(other, default=0)} search run(s) at once"
+            if max(timed, default=1) > 1:
+                line += " (timings shared the machine: their ms/step are not those of a machine to itself)"
+            out.append(line)
+    return out
+
+
 def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", stream=None) -> list[str]:
     """Write report.md and the plots into ``out_dir``; returns the file names written."""
     data = Data(rows)
@@ -415,6 +434,7 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
               f"- GPU: {', '.join(m['gpus']) if m['gpus'] else 'none found'}" + (f" (CUDA driver {m['driver']})" if m["driver"] else ""),
               f"- Warp {m['warp']}; report written {m['date']}",
               f"- devices measured: {', '.join(data.devices)}",
+              *sharing_lines(rows),
               f"- command: `{command or ' '.join(sys.argv)}`", ""]
     if plan is not None:
         lines += ["## Method", ""]

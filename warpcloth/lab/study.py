@@ -28,6 +28,7 @@ import io
 import json
 import math
 import os
+import socket
 import statistics
 import sys
 import time
@@ -46,7 +47,7 @@ COLUMNS = [
     "wall_s_per_sim_s", "realtime_factor", "realtime_30fps", "realtime_60fps",
     "equilibrium_reached", "time_to_equilibrium_sim_s", "time_to_equilibrium_wall_s", "static_error_rel",
     "sag_error_rel", "iterations", "substeps", "trials", "measure_wall_s", "note",
-    "warpcloth_version", "warp_version", "key",
+    "host", "worker", "concurrent_runs", "warpcloth_version", "warp_version", "key",
 ]
 
 #: Descriptions of the columns (docs/study.md is generated from the same text).
@@ -72,6 +73,8 @@ COLUMN_DOCS = {
     "sag_error_rel": "relative error of the sag (largest displacement from rest)",
     "iterations": "pbd/xpbd iterations", "substeps": "pbd/xpbd substeps", "trials": "runs the search made",
     "measure_wall_s": "wall seconds the measurement took", "note": "why a value is missing or bounded",
+    "host": "machine the measurement ran on", "worker": "main (serial), local:N (a --workers process) or ray:PID (a Ray task)",
+    "concurrent_runs": "most measurement jobs running at once on that host while it ran (1: alone; timings are alone by default)",
     "warpcloth_version": "", "warp_version": "", "key": "identity of the measurement (resume)",
 }
 
@@ -318,6 +321,10 @@ class Progress:
 
 
 # -- the runner ------------------------------------------------------------------------------
+class _Deferred(Exception):
+    """A measurement that needs a timing, in the search phase of a parallel study."""
+
+
 def _options_text(options: dict) -> str:
     return " ".join(f"{k}={v}" for k, v in sorted(options.items()))
 
@@ -335,6 +342,9 @@ class Study:
         self.progress = progress
         self.on_row = on_row  # called with each new row (tests: interrupt after N)
         self.versions = {"warpcloth_version": __version__, "warp_version": wp.config.version}
+        self.place = {"host": socket.gethostname(), "worker": "main", "concurrent_runs": 1}
+        self.defer_timing = False  # the search phase of a parallel study: timings come later, alone
+        self.device_map: dict = {}  # plan device -> the device this process runs it on (a Ray GPU task: cuda:0)
         self._sims: dict = {}
         self._problems: dict = {}
         self._static: dict = {}
@@ -351,6 +361,7 @@ class Study:
         row.update(fn())
         row.setdefault("measure_wall_s", time.perf_counter() - t0)
         row.update(self.versions)
+        row.update(self.place)
         row["key"] = key
         self.out.write(row)
         self.measured += 1
@@ -365,7 +376,8 @@ class Study:
         key = (scenario, n, device)
         sim = self._sims.get(key)
         if sim is None:
-            sim = self._sims[key] = get_scenario(scenario).build(rows=n, cols=n, device=device, integrator=integrator, dt=FRAME_DT)
+            sim = self._sims[key] = get_scenario(scenario).build(rows=n, cols=n, device=self.device_map.get(device, device),
+                                                                 integrator=integrator, dt=FRAME_DT)
         sim.set_integrator(make_integrator(integrator, **(options or {})), dt=FRAME_DT)
         sim.reset()
         return sim
@@ -401,7 +413,8 @@ class Study:
             from ..scenarios import get_scenario
 
             sc = get_scenario(scenario)
-            r = find_max_dt(sc, sc.config(rows=n, cols=n, integrator=integrator, device=device), precision=p.maxdt_precision,
+            r = find_max_dt(sc, sc.config(rows=n, cols=n, integrator=integrator, device=self.device_map.get(device, device)),
+                            precision=p.maxdt_precision,
                             duration=p.maxdt_duration, dt_max=FRAME_DT, wall_cap=p.maxdt_wall_cap)
             note = r.no_stable_reason or ("stable up to the search limit (one 60 FPS frame)" if r.limit_reached and r.dt else "")
             if r.inconclusive_trials:
@@ -519,6 +532,9 @@ class Study:
         opt = _options_text(options or {})
         key = f"timing|{scenario}|{integrator}|{opt}|{device}|{n}|{label}|dt={dt!r}|w={p.windows}"
 
+        if self.defer_timing and key not in self.out.done:
+            return {}
+
         def run():
             from ..harness import time_steps
 
@@ -556,6 +572,8 @@ class Study:
                     if not errs[-1] <= p.tolerance:
                         break
                 if len(errs) == len(SCENARIOS) and all(e <= p.tolerance for e in errs):
+                    if self.defer_timing:
+                        raise _Deferred
                     t = self.timing("sheet", integrator, device, n, FRAME_DT, "matched", opts)
                     return {"dt_s": FRAME_DT, "steps_per_frame": 1, "iterations": it, "substeps": sub, "error_rel": max(errs),
                             "tolerance_rel": p.tolerance, "trials": tried, "ms_per_step_median": t["ms_per_step_median"],
@@ -564,7 +582,10 @@ class Study:
             return {"dt_s": FRAME_DT, "tolerance_rel": p.tolerance, "trials": tried,
                     "note": f"no pair up to {MATCH_ITERATIONS[-1]} iterations x {MATCH_SUBSTEPS[-1]} substeps reaches the tolerance"}
 
-        return self.once(key, self.base("match_result", "sheet+flag", integrator, device, n), run)
+        try:
+            return self.once(key, self.base("match_result", "sheet+flag", integrator, device, n), run)
+        except _Deferred:  # found in the search phase; timed (and written) in the timing phase
+            return {}
 
     # the plan -----------------------------------------------------------------------------------
     def group(self, device: str, integrator: str, n: int) -> None:
@@ -609,6 +630,184 @@ class Study:
         bar.close()
 
 
+# -- in parallel: worker processes or Ray tasks (warpcloth.lab.parallel) -----------------------
+@dataclass
+class ParallelSettings:
+    """How a study runs its measurements: serially (the default), in ``workers`` local worker
+    processes, or as Ray tasks (``ray``). In parallel, each device x integrator x size group
+    runs in two phases: the *searches* (max stable dt, accuracy, equilibrium) with ``workers``
+    (or the cluster's) concurrency, then the *timings*, ``timing_workers`` at a time (default
+    one: a timed run has its machine to itself, as in a serial study)."""
+
+    workers: int = 1
+    ray: str | None = None
+    timing_workers: int = 1
+    warnings: list = field(default_factory=list)
+
+    @property
+    def parallel(self) -> bool:
+        return self.ray is not None or self.workers > 1 or self.timing_workers > 1
+
+    def describe(self) -> str:
+        if self.ray is not None:
+            return f"as Ray tasks ({self.ray}), timings {self.timing_workers} at a time"
+        return f"in {self.workers} worker processes, timings {self.timing_workers} at a time"
+
+    @classmethod
+    def check(cls, devices: list, workers=None, ray=None, timing_workers=None) -> "ParallelSettings":
+        """Validated settings for a study on ``devices``; WarpclothError names the bad value."""
+        for flag, value in (("--workers", workers), ("--timing-workers", timing_workers)):
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+                raise WarpclothError(f"{flag} must be a whole number >= 1, got {value!r}")
+        if ray is not None:
+            if workers is not None:
+                raise WarpclothError("--ray runs the searches on the cluster's CPUs and GPUs: it takes no --workers")
+            ray = str(ray).strip()
+            if not ray:
+                raise WarpclothError("--ray: give auto, local, HOST:PORT or ray://HOST:PORT")
+            try:
+                from .parallel import import_ray
+
+                import_ray()
+            except ImportError as exc:
+                raise WarpclothError(f"--ray needs Ray: {str(exc).split(': ', 1)[1]}") from None
+        out = cls(workers=workers or 1, ray=ray, timing_workers=timing_workers or 1)
+        cores = os.cpu_count() or 1
+        if out.workers > 1 and any(not d.startswith("cuda") for d in devices) and out.workers > cores:
+            out.warnings.append(f"--workers {out.workers} is more than the {cores} CPU cores: the searches share cores (their "
+                                "results do not depend on it, but a trial that reaches a wall cap stops sooner: see the note "
+                                "column); the timings still run alone")
+        if out.timing_workers > len(devices):
+            out.warnings.append(f"--timing-workers {out.timing_workers} is more than the {len(devices)} device(s) "
+                                f"({', '.join(devices)}): timed runs share a device and their ms/step are affected "
+                                "(see the concurrent_runs column)")
+        return out
+
+
+class _Collector:
+    """A worker's stand-in for :class:`StudyCsv`: the rows it measured, kept to be handed back
+    to the driver (the only writer of results.csv)."""
+
+    def __init__(self):
+        self.done: dict[str, dict] = {}
+        self.new: list[dict] = []
+
+    def write(self, row: dict) -> None:
+        row = {k: parse_cell(_cell(row.get(k))) for k in COLUMNS}
+        self.done[row["key"]] = row
+        self.new.append(row)
+
+
+_WORKER_STUDIES: dict = {}  # plan (JSON) -> Study, one per worker process: sims and references reused
+
+
+def study_init(place) -> None:
+    """Run once in each worker process: Warp initialised quietly."""
+    from ..cliparse import init_warp
+
+    init_warp(False)
+
+
+def study_job(payload, place) -> dict:
+    """One device x integrator x size group in a worker (``phase`` ``search``: everything but
+    the timings; ``timing``: the timings, the searches' rows given). ``known`` holds the rows
+    already in the driver's file (resume, the search phase's). Returns ``{"rows": [...]}``."""
+    from .parallel import is_cuda
+
+    plan_dict, device, integrator, n, phase, known = payload
+    tag = json.dumps(plan_dict, sort_keys=True, default=list)
+    study = _WORKER_STUDIES.get(tag)
+    if study is None:
+        plan = StudyPlan(**plan_dict)
+        study = _WORKER_STUDIES[tag] = Study(plan, _Collector())
+    study.out.done.update(known)
+    study.out.new = []
+    study.defer_timing = phase == "search"
+    if place.device and is_cuda(device) and place.device != device:
+        study.device_map[device] = place.device  # a Ray GPU task sees its GPU as cuda:0; keys keep the plan's device
+    study.place = {"host": place.host, "worker": place.worker, "concurrent_runs": 1}
+    study.group(device, integrator, n)
+    return {"rows": study.out.new}
+
+
+def _group_weight(plan: StudyPlan, n: int) -> float:
+    return n * n * (4 if n in plan.accuracy_sizes else 1)
+
+
+def connect_ray(settings: ParallelSettings, report=None):
+    """The connected :class:`~warpcloth.lab.parallel.RayPool` of ``settings`` (None without
+    ``--ray``); a WarpclothError in one line when the cluster does not answer."""
+    if settings.ray is None:
+        return None
+    from .parallel import RayPool
+
+    def note(text: str) -> None:
+        if report is not None:
+            print(f"warpcloth: study: {text}", file=report, flush=True)
+
+    pool = RayPool(study_job, settings.ray, init=study_init, max_retries=2, on_event=note)
+    try:
+        pool.connect()
+    except ConnectionError as exc:
+        raise WarpclothError(f"--ray {settings.ray}: {exc}") from None
+    return pool
+
+
+def run_parallel(study: "Study", settings: ParallelSettings, report=None, ray_pool=None) -> int:
+    """Run ``study``'s plan through worker processes or Ray (see :class:`ParallelSettings`;
+    ``ray_pool`` from :func:`connect_ray`); the driver (this process) writes every row.
+    Returns the number of groups that failed."""
+    from .parallel import Job, LocalPool
+
+    p = study.plan
+    groups = [(d, i, n) for d in p.devices for n in p.all_sizes for i in p.integrators]
+    bar = Progress(2 * sum(_group_weight(p, n) for _, _, n in groups), study.progress)
+    plan_dict = asdict(p)
+    failed = 0
+
+    def note(text: str) -> None:
+        if report is not None:
+            print(f"warpcloth: study: {text}", file=report, flush=True)
+
+    def results(phase: str, workers: int):
+        known = dict(study.out.done)
+        jobs = [Job(f"{phase}|{d}|{i}|{n}", (plan_dict, d, i, n, phase, known), device=d) for d, i, n in groups]
+        if ray_pool is not None:
+            if phase == "search":
+                yield from ray_pool.run(jobs)
+            else:  # at most timing_workers timed groups in flight
+                for at in range(0, len(jobs), workers):
+                    yield from ray_pool.run(jobs[at:at + workers])
+            return
+        pool = LocalPool(study_job, workers, init=study_init, max_retries=2, on_event=note)
+        try:
+            yield from pool.run(jobs)
+        finally:
+            pool.close()
+
+    for phase, workers in (("search", settings.workers), ("timing", settings.timing_workers)):
+        for done in results(phase, workers):
+            _, d, i, n = done.job.key.split("|")
+            if done.row is None:
+                failed += 1
+                note(f"{phase} of {i} {n}x{n} on {d} failed after {done.attempts} attempt(s): {done.error}")
+            else:
+                for row in done.row["rows"]:
+                    if row["key"] in study.out.done:  # a shared measurement (the floor) another worker wrote first
+                        continue
+                    row = dict(row)
+                    if done.place is not None:
+                        row.update(host=done.place.host, worker=done.place.worker)
+                    row["concurrent_runs"] = done.concurrent
+                    study.out.write(row)
+                    study.measured += 1
+                    if study.on_row is not None:
+                        study.on_row(row)
+            bar.update(f"{phase} {i} {n}x{n} {d} done", _group_weight(p, int(n)))
+    bar.close()
+    return failed
+
+
 def available_devices(devices: list, stream=None) -> list:
     """The devices of ``devices`` that are present; each missing one is skipped with one line."""
     from ..device import device_name as resolve_device
@@ -644,27 +843,48 @@ def prepare_out(out_dir: str) -> str:
 
 
 def run_study(plan: StudyPlan, out_dir: str, resume: bool = False, overwrite: bool = False, progress=None,
-              command: str = "", on_row=None) -> dict:
-    """Run ``plan`` into ``out_dir`` (results.csv, report.md, PNG plots). Returns a summary."""
+              command: str = "", on_row=None, workers=None, ray=None, timing_workers=None) -> dict:
+    """Run ``plan`` into ``out_dir`` (results.csv, report.md, PNG plots). Returns a summary.
+    ``workers`` / ``ray`` / ``timing_workers``: see :class:`ParallelSettings` (default serial)."""
+    report = progress if progress is not None else sys.stderr
+    devices = available_devices(plan.devices, report)
+    require(bool(devices), f"none of the devices {', '.join(plan.devices)} is available")
+    settings = ParallelSettings.check(devices, workers=workers, ray=ray, timing_workers=timing_workers)
+    prepare_out(out_dir)  # checked before connecting to a cluster; nothing written yet
+    ray_pool = connect_ray(settings, report)
+    try:
+        return _run_study(plan, devices, settings, ray_pool, out_dir, resume, overwrite, progress, report, command, on_row)
+    finally:
+        if ray_pool is not None:
+            ray_pool.close()
+
+
+def _run_study(plan, devices, settings, ray_pool, out_dir, resume, overwrite, progress, report, command, on_row) -> dict:
     from .report import write_report
 
-    devices = available_devices(plan.devices, progress if progress is not None else sys.stderr)
-    require(bool(devices), f"none of the devices {', '.join(plan.devices)} is available")
     csv_path = prepare_out(out_dir)
     plan = replace(plan, devices=devices)
     out = StudyCsv(csv_path, resume=resume, overwrite=overwrite, report=progress)
     t0 = time.perf_counter()
+    failed = 0
     try:
         if out.note and progress is not None:
             print(out.note, file=progress)
         study = Study(plan, out, progress, on_row)
-        study.run()
+        if settings.parallel:
+            for w in settings.warnings:
+                print(f"warpcloth: warning: {w}", file=report, flush=True)
+            if progress is not None:
+                print(f"warpcloth: study: running {settings.describe()}", file=progress, flush=True)
+            failed = run_parallel(study, settings, report, ray_pool)
+        else:
+            study.run()
     finally:
         out.close()
     files = write_report(out_dir, read_rows(csv_path), plan, command=command, stream=progress)
     return {"measured": study.measured, "reused": study.reused, "wall_s": time.perf_counter() - t0, "files": files,
-            "plan": asdict(plan)}
+            "plan": asdict(plan), "failed": failed}
 
 
-__all__ = ["COLUMNS", "COLUMN_DOCS", "PROFILES", "Study", "StudyCsv", "StudyPlan", "available_devices", "make_plan",
-           "prepare_out", "read_rows", "run_study"]
+__all__ = ["COLUMNS", "COLUMN_DOCS", "PROFILES", "ParallelSettings", "Study", "StudyCsv", "StudyPlan", "available_devices",
+           "make_plan", "prepare_out", "read_rows", "run_parallel", "run_study", "study_init", "study_job"]

@@ -32,6 +32,19 @@ def _sizes(text: str) -> list:
     return sizes
 
 
+def _count():
+    def parse(text: str) -> int:
+        try:
+            n = int(text)
+        except ValueError:
+            n = None
+        if n is None or n < 1:
+            raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {text!r}")
+        return n
+
+    return parse
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from .study import PROFILES
 
@@ -47,6 +60,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--match-accuracy", action="store_true",
                    help="for pbd/xpbd, search the cheapest iterations x substeps reaching the tolerance at dt = 1/60 s")
     p.add_argument("--out", "-o", required=True, metavar="DIR", help="output folder: results.csv, report.md, PNG plots")
+    p.add_argument("--workers", type=_count(), default=None, metavar="N",
+                   help="run the searches (stability, accuracy, equilibrium) in N worker processes; the timings follow, "
+                        "--timing-workers at a time (docs/study.md)")
+    p.add_argument("--timing-workers", type=_count(), default=None, metavar="M",
+                   help="timed runs at once in a parallel study (default 1: each timing has the machine to itself; "
+                        "more than the devices is warned about)")
+    p.add_argument("--ray", default=None, metavar="auto|ADDRESS",
+                   help="run the searches as Ray tasks: auto (the cluster of 'ray start'), HOST:PORT, ray://HOST:PORT, or "
+                        "local (start one in this process); needs pip install 'warpcloth[cluster]'")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--resume", action="store_true", help="continue DIR/results.csv: finished measurements are not redone")
     mode.add_argument("--overwrite", action="store_true", help="replace DIR/results.csv if it exists")
@@ -61,12 +83,13 @@ def run(args) -> int:
     command = "warpcloth " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv and sys.argv[0].endswith("warpcloth") else \
         "warpcloth study " + " ".join(shlex.quote(a) for a in _argv(args))
     summary = run_study(plan, args.out, resume=args.resume, overwrite=args.overwrite,
-                        progress=None if getattr(args, "quiet", False) else sys.stderr, command=command)
-    if getattr(args, "quiet", False):
-        return 0
-    print(f"{args.out}: {summary['measured']} measurements made, {summary['reused']} reused from the file, "
-          f"{summary['wall_s']:.0f} s; wrote {', '.join(summary['files'])}")
-    return 0
+                        progress=None if getattr(args, "quiet", False) else sys.stderr, command=command,
+                        workers=args.workers, ray=args.ray, timing_workers=args.timing_workers)
+    failed = f", {summary['failed']} group(s) failed (see above; --resume retries them)" if summary["failed"] else ""
+    if not getattr(args, "quiet", False) or failed:
+        print(f"{args.out}: {summary['measured']} measurements made, {summary['reused']} reused from the file, "
+              f"{summary['wall_s']:.0f} s{failed}; wrote {', '.join(summary['files'])}")
+    return 1 if failed else 0
 
 
 def _argv(args) -> list:
@@ -80,6 +103,9 @@ def _argv(args) -> list:
             out += [flag, ",".join(map(str, value))]
     if args.tolerance != DEFAULT_TOLERANCE:
         out += ["--tolerance", repr(args.tolerance)]
+    for flag, value in (("--workers", args.workers), ("--timing-workers", args.timing_workers), ("--ray", args.ray)):
+        if value is not None:
+            out += [flag, str(value)]
     for flag, on in (("--match-accuracy", args.match_accuracy), ("--resume", args.resume), ("--overwrite", args.overwrite)):
         if on:
             out.append(flag)
