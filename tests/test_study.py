@@ -327,3 +327,67 @@ def test_bad_parallel_flags_are_one_line_and_status_2(argv, message, tmp_path, c
     assert cli(["study", "--quiet", "--out", str(out)] + argv) == 2
     assert capsys.readouterr().err == f"warpcloth: error: {message}\n"
     assert not (out / "results.csv").exists()
+
+
+# -- a scenario file through the study (issue 13) ----------------------------------------------
+def write_scenario(tmp_path) -> str:
+    """A 4 x 4 quad grid hung by its top row, as an OBJ and a scenario file next to it."""
+    n, h = 4, 0.5 / 3
+    verts = [f"v {c * h:.6f} {1.0 - r * h:.6f} 0" for r in range(n) for c in range(n)]
+    faces = [f"f {r * n + c + 1} {r * n + c + 2} {(r + 1) * n + c + 2} {(r + 1) * n + c + 1}" for r in range(n - 1) for c in range(n - 1)]
+    (tmp_path / "patch.obj").write_text("\n".join(verts + faces) + "\n")
+    (tmp_path / "patch.toml").write_text('name = "patch"\n[cloth]\nmesh = "patch.obj"\nquads = true\nmass = 0.1\n'
+                                         '[pins]\nwhere = "y > 0.99 * y.max()"\n[forces]\ndrag = 1.0\n')
+    return str(tmp_path / "patch.toml")
+
+
+def test_a_scenario_file_runs_through_the_quick_profile(tmp_path):
+    """sheet, flag and a custom scenario file: the file's rows (stability, equilibrium, timing,
+    at its own 16 particles and Provot-equal springs), no accuracy rows for it and the report
+    saying why; the grid study as usual."""
+    from warpcloth.model import expected_spring_counts
+
+    path = write_scenario(tmp_path)
+    out = tmp_path / "out"
+    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler,xpbd", "--sizes", "4", "--accuracy-sizes", "4",
+                 "--scenarios", f"sheet,flag,{path}", "--quiet", "--out", str(out)]) == 0
+    rows = read_rows(out / "results.csv")
+    mine = [r for r in rows if r["scenario"] == path]
+    assert {(r["measurement"], r["integrator"]) for r in mine} == {(m, i) for m in ("max_stable_dt", "static", "timing")
+                                                                   for i in ("explicit_euler", "xpbd")}
+    springs = sum(expected_spring_counts(4, 4, "provot").values())
+    assert all(r["particles"] == 16 and r["springs"] == springs and r["rows"] is None for r in mine)
+    stable = {r["integrator"]: r for r in mine if r["measurement"] == "max_stable_dt"}
+    assert 1e-4 < stable["explicit_euler"]["dt_s"] < FRAME_DT and stable["xpbd"]["dt_s"] == pytest.approx(FRAME_DT)
+    for r in mine:
+        if r["measurement"] == "timing":
+            assert r["dt_s"] <= stable[r["integrator"]]["dt_s"] and r["ms_per_step_median"] > 0
+        if r["measurement"] == "static":
+            assert "no float64 reference" in r["note"] and r["static_error_rel"] is None
+    assert {r["measurement"] for r in rows if r["scenario"] == "sheet"} >= {"max_accurate_dt", "error", "timing"}
+    report = (out / "report.md").read_text()
+    assert "## Scenarios" in report and f"`{path}`" in report and "accuracy not measured" in report and "## Verdict" in report
+
+
+def test_a_scenario_file_study_in_workers_gives_the_serial_rows(tmp_path):
+    path = write_scenario(tmp_path)
+    plan = make_plan("quick", integrators=["explicit_euler", "verlet"], scenarios=[path])
+    assert not plan.grid and plan.scenario_files == [path]
+    run_study(plan, tmp_path / "serial")
+    run_study(plan, tmp_path / "par", workers=2)
+    same_rows(read_rows(tmp_path / "serial" / "results.csv"), read_rows(tmp_path / "par" / "results.csv"))
+    assert "## Verdict" not in (tmp_path / "serial" / "report.md").read_text()
+
+
+@pytest.mark.parametrize("scenarios,message", [
+    ("sheet", "--scenarios: sheet without flag: the study's sheet and flag go together"),
+    ("flag,missing.toml", "--scenarios: flag without sheet"),
+    ("sheet,flag,missing.toml", "missing.toml"),
+    ("sheet,flag,nosuch", "unknown scenario 'nosuch'"),
+])
+def test_bad_scenarios_are_one_line_and_status_2(scenarios, message, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli(["study", "--quiet", "--out", str(out), "--scenarios", scenarios]) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warpcloth: error: ") and message in lines[0]
+    assert not out.exists()
