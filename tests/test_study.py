@@ -391,3 +391,76 @@ def test_bad_scenarios_are_one_line_and_status_2(scenarios, message, tmp_path, c
     lines = capsys.readouterr().err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("warpcloth: error: ") and message in lines[0]
     assert not out.exists()
+
+
+# -- the standard profile and its estimate (issue 12) ---------------------------------------------
+def test_standard_profile_is_every_integrator_at_16_to_128():
+    from warpcloth.integrators import integrator_names
+
+    plan = make_plan("standard")
+    assert plan.integrators == list(integrator_names()) and {"vbd", "projective"} <= set(plan.integrators)
+    assert plan.sizes == [16, 32, 64, 128] and plan.devices == ["cpu"]
+    assert [plan.maxdt_duration_at(n) for n in (8, 16, 32, 64, 128, 256)] == [1.0, 1.0, 1.0, 0.5, 0.25, 0.25]
+
+
+def test_estimate_adds_up_the_modelled_steps():
+    """One integrator at one size, costs given: each phase is the documented step count x the
+    per-step cost, capped by the wall caps; doubling the per-step cost doubles the uncapped phases."""
+    from dataclasses import replace
+
+    from warpcloth.lab.study import estimate_plan
+
+    plan = replace(make_plan("quick", integrators=["explicit_euler"], sizes=[10], accuracy_sizes=[]), maxdt_wall_cap=None,
+                   equilibrium_wall_cap=None)
+    k0, ms = 10, 0.5  # dt0 = (1/60 s) / 10
+    phases = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, {("explicit_euler", 10): (k0, ms, None)})}
+    steps_trial = plan.maxdt_duration / (FRAME_DT / k0)
+    assert phases["stability"].seconds == pytest.approx(2 * 7 * steps_trial * ms / 1000)
+    assert phases["equilibrium"].seconds == pytest.approx(plan.equilibrium_duration / (FRAME_DT / k0) * ms / 1000)
+    assert phases["accuracy"].seconds == 0 and phases["accuracy"].measurements == 0
+    frame = k0 * ms / 1000
+    assert phases["timing"].seconds == pytest.approx((3 + plan.windows * math.ceil(plan.window_seconds / frame)) * frame)
+    double = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, {("explicit_euler", 10): (k0, 2 * ms, None)})}
+    assert double["stability"].seconds == pytest.approx(2 * phases["stability"].seconds)
+    capped = {p.phase.split(" ")[0]: p for p in estimate_plan(replace(plan, maxdt_wall_cap=0.01),
+                                                               {("explicit_euler", 10): (k0, ms, None)})}
+    assert capped["stability"].seconds == pytest.approx(2 * 7 * 0.01)  # every trial stopped at the wall cap
+
+
+def test_estimate_flag_prints_the_phases_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler,xpbd", "--sizes", "4", "--accuracy-sizes", "4",
+                 "--estimate", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    for phase in ("stability (max stable dt)", "equilibrium and static accuracy", "accuracy (references, floors, searches)", "timing"):
+        assert phase in out
+    assert "estimate of profile quick" in out and "total about" in out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_out_is_required_but_with_estimate(capsys):
+    assert cli(["study", "--quiet"]) == 2
+    assert capsys.readouterr().err == ("warpcloth: error: --out DIR is required (where results.csv, report.md and the plots go), "
+                                       "except with --estimate\n")
+
+
+def test_an_interrupted_study_resumes_in_workers(tmp_path):
+    """Rows of an interrupted serial study are reused (not remeasured, not duplicated) when it
+    resumes with --workers 2; the file ends with the keys of a whole study."""
+    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4], accuracy_sizes=[4])
+    seen = []
+
+    def interrupt_after_six(row):
+        seen.append(row["key"])
+        if len(seen) == 6:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_study(plan, tmp_path / "a", on_row=interrupt_after_six)
+    again = []
+    summary = run_study(plan, tmp_path / "a", resume=True, workers=2, on_row=lambda r: again.append(r["key"]))
+    assert not set(again) & set(seen) and summary["measured"] == len(again) > 0
+    keys = [r["key"] for r in read_rows(tmp_path / "a" / "results.csv")]
+    assert len(keys) == len(set(keys)) == 6 + len(again)
+    run_study(plan, tmp_path / "b")
+    assert sorted(keys) == sorted(r["key"] for r in read_rows(tmp_path / "b" / "results.csv"))
