@@ -414,8 +414,8 @@ def test_estimate_adds_up_the_modelled_steps():
                    equilibrium_wall_cap=None)
     k0, ms = 10, 0.5  # dt0 = (1/60 s) / 10
     phases = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, {("explicit_euler", 10): (k0, ms, None)})}
-    steps_trial = plan.maxdt_duration / (FRAME_DT / k0)
-    assert phases["stability"].seconds == pytest.approx(2 * 7 * steps_trial * ms / 1000)
+    steps_trial = plan.maxdt_duration / (1.5 * FRAME_DT / k0)  # 6 trials at 1.5x the default dt, per scenario
+    assert phases["stability"].seconds == pytest.approx(2 * 6 * steps_trial * ms / 1000)
     assert phases["equilibrium"].seconds == pytest.approx(plan.equilibrium_duration / (FRAME_DT / k0) * ms / 1000)
     assert phases["accuracy"].seconds == 0 and phases["accuracy"].measurements == 0
     frame = k0 * ms / 1000
@@ -424,7 +424,7 @@ def test_estimate_adds_up_the_modelled_steps():
     assert double["stability"].seconds == pytest.approx(2 * phases["stability"].seconds)
     capped = {p.phase.split(" ")[0]: p for p in estimate_plan(replace(plan, maxdt_wall_cap=0.01),
                                                                {("explicit_euler", 10): (k0, ms, None)})}
-    assert capped["stability"].seconds == pytest.approx(2 * 7 * 0.01)  # every trial stopped at the wall cap
+    assert capped["stability"].seconds == pytest.approx(2 * 6 * 0.01)  # every trial stopped at the wall cap
 
 
 def test_estimate_flag_prints_the_phases_and_writes_nothing(tmp_path, capsys, monkeypatch):
