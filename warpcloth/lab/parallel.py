@@ -390,9 +390,9 @@ class RayPool:
 
     def connect(self) -> None:
         ray = self.ray
+        check_address(self.address)  # also when Ray is up already: a wrong address is still a mistake
         if ray.is_initialized():
             return
-        check_address(self.address)
         kwargs = dict(log_to_driver=False, include_dashboard=False) if self.address == "local" else dict(log_to_driver=False)
         try:
             if self.address == "local":
