@@ -390,3 +390,6 @@ def test_study_via_ray_gives_the_serial_rows(ray_cluster, tmp_path):
         assert {c: r[c] for c in same} == {c: by_key[r["key"]][c] for c in same}, r["key"]
     assert all(r["worker"].startswith("ray:") and r["host"] == socket.gethostname() for r in par)
     assert all(r["concurrent_runs"] == 1 for r in par if r["measurement"] == "timing")
+    # the cluster's workers outlive a study: a second study of the same plan still gets every row
+    run_study(plan, tmp_path / "ray2", ray="auto")
+    assert sorted(r["key"] for r in read_rows(tmp_path / "ray2" / "results.csv")) == sorted(by_key)

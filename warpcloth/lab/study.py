@@ -812,12 +812,15 @@ def study_job(payload, place) -> dict:
     already in the driver's file (resume, the search phase's). Returns ``{"rows": [...]}``."""
     from .parallel import is_cuda
 
-    plan_dict, device, integrator, n, phase, known = payload
+    plan_dict, device, integrator, n, phase, known, run_id = payload
     tag = json.dumps(plan_dict, sort_keys=True, default=list)
     study = _WORKER_STUDIES.get(tag)
     if study is None:
         plan = StudyPlan(**plan_dict)
         study = _WORKER_STUDIES[tag] = Study(plan, _Collector())
+        study.run_id = run_id
+    if study.run_id != run_id:  # a Ray worker outlives a study: the rows of an earlier one are not this one's
+        study.out, study.run_id = _Collector(), run_id
     study.out.done.update(known)
     study.out.new = []
     study.defer_timing = phase == "search"
@@ -863,6 +866,7 @@ def run_parallel(study: "Study", settings: ParallelSettings, report=None, ray_po
     groups = plan_groups(p)
     bar = Progress(2 * sum(_group_weight(p, n) for _, _, n in groups), study.progress)
     plan_dict = asdict(p)
+    run_id = f"{socket.gethostname()}:{os.getpid()}:{time.time_ns()}"  # this study run (worker caches are per run)
     failed = 0
 
     def note(text: str) -> None:
@@ -871,7 +875,7 @@ def run_parallel(study: "Study", settings: ParallelSettings, report=None, ray_po
 
     def results(phase: str, workers: int):
         known = dict(study.out.done)
-        jobs = [Job(f"{phase}|{d}|{i}|{n}", (plan_dict, d, i, n, phase, known), device=d) for d, i, n in groups]
+        jobs = [Job(f"{phase}|{d}|{i}|{n}", (plan_dict, d, i, n, phase, known, run_id), device=d) for d, i, n in groups]
         if ray_pool is not None:
             if phase == "search":
                 yield from ray_pool.run(jobs)
@@ -887,7 +891,7 @@ def run_parallel(study: "Study", settings: ParallelSettings, report=None, ray_po
 
     for phase, workers in (("search", settings.workers), ("timing", settings.timing_workers)):
         for done in results(phase, workers):
-            _, d, i, n, _, _ = done.job.payload
+            _, d, i, n, _, _, _ = done.job.payload
             if done.row is None:
                 failed += 1
                 note(f"{phase} of {i} {_label(n)} on {d} failed after {done.attempts} attempt(s): {done.error}")
