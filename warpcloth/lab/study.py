@@ -934,8 +934,6 @@ def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
     the integrator's default dt (one frame at most), and at (1/60 s)/64 at the accuracy sizes:
     ``{(integrator, n): (k0, ms at default dt, ms at frame/64 or None)}``. A few steps each
     after a warm-up; seconds in all (the implicit integrators' steps at 128x128 take ~1 s)."""
-    import warp as wp
-
     from ..integrators import make_integrator
     from ..scenarios import get_scenario
 
@@ -943,20 +941,14 @@ def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
     sheet = get_scenario("sheet")
 
     def ms_per_step(sim, dt):
-        """The least of 3 timed runs of about 30 ms each (other jobs on the machine only add)."""
+        """The fastest of 3 windows of about 30 ms (other jobs on the machine only add), with the
+        shared timing helper (compile and the first replay excluded)."""
+        from ..harness import time_steps
+
         sim.reset()
         sim.set_dt(dt)
-        sim.warm_up()
         frame = max(1, math.ceil(FRAME_DT / dt - 1e-9))
-        steps, best = 1, math.inf
-        for _ in range(3):
-            wp.synchronize_device(device)
-            t0 = time.perf_counter()
-            sim.simulate(steps)
-            wp.synchronize_device(device)
-            best = min(best, (time.perf_counter() - t0) / steps)
-            steps = max(1, min(frame, int(0.03 / max(best, 1e-7))))
-        return 1000.0 * best
+        return min(time_steps(sim, windows=3, window_seconds=0.03, batch=min(frame, 20)).ms_per_step)
 
     for n in plan.all_sizes if plan.grid else []:
         sim = sheet.build(rows=n, cols=n, device=device, integrator="explicit_euler", dt=FRAME_DT)
