@@ -332,3 +332,64 @@ def test_a_worker_device_moves_cuda_runs_only_and_keeps_the_key(tmp_path, monkey
     assert seen == ["cuda:1"] and row["device"] == "cuda:1" and row["key"] == cuda.key
     row = sweep.parallel_run(spec, Place("h", "local:2", "cuda:1"))  # a CPU run stays on the CPU
     assert seen[-1] == "cpu" and row["key"] == spec.key
+
+
+# -- a Ray address that does not answer fails fast (issue 17) -----------------------------------
+def _closed_port() -> int:
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def test_check_address_refuses_malformed_and_silent_addresses():
+    from warpcloth.lab.parallel import check_address
+
+    for bad in ("nonsense", "host:", ":6379", "host:99999", "ray://host:port", "host:-1"):
+        with pytest.raises(ConnectionError, match="is not a Ray address: give auto, local, HOST:PORT or ray://HOST:PORT"):
+            check_address(bad)
+    port = _closed_port()
+    for address in (f"127.0.0.1:{port}", f"ray://127.0.0.1:{port}"):
+        with pytest.raises(ConnectionError, match=f"nothing answers at 127.0.0.1:{port} within 5 s"):
+            check_address(address)
+    with socket.socket() as listening:  # something answers: passes
+        listening.bind(("127.0.0.1", 0))
+        listening.listen(1)
+        check_address(f"127.0.0.1:{listening.getsockname()[1]}")
+    check_address("auto")
+    check_address("local")
+
+
+def test_study_with_an_unreachable_ray_address_is_one_line_and_writes_nothing(tmp_path, capsys):
+    pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[cluster]')")
+    port = _closed_port()
+    out = tmp_path / "out"
+    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler", "--sizes", "4", "--quiet",
+                 "--out", str(out), "--ray", f"127.0.0.1:{port}"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"warpcloth: error: --ray 127.0.0.1:{port}: nothing answers at 127.0.0.1:{port} within 5 s")
+    assert err.count("\n") == 1
+    assert not (out / "results.csv").exists()
+
+
+def test_study_via_ray_gives_the_serial_rows(ray_cluster, tmp_path):
+    """The study of explicit_euler at 4x4 (stability, accuracy, equilibrium, timing) as Ray tasks:
+    the serial run's keys and values (not timings); the driver wrote every row once."""
+    from warpcloth.lab.study import make_plan, read_rows, run_study
+
+    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4], accuracy_sizes=[4])
+    run_study(plan, tmp_path / "serial")
+    run_study(plan, tmp_path / "ray", ray="auto")
+    serial, par = read_rows(tmp_path / "serial" / "results.csv"), read_rows(tmp_path / "ray" / "results.csv")
+    same = ["measurement", "scenario", "integrator", "dt_s", "steps_per_frame", "bound_dt_s", "error_rel", "floor_error_rel",
+            "max_strain_rel", "stable", "equilibrium_reached", "time_to_equilibrium_sim_s", "static_error_rel", "trials"]
+    assert sorted(r["key"] for r in serial) == sorted(r["key"] for r in par)
+    by_key = {r["key"]: r for r in par}
+    for r in serial:
+        assert {c: r[c] for c in same} == {c: by_key[r["key"]][c] for c in same}, r["key"]
+    assert all(r["worker"].startswith("ray:") and r["host"] == socket.gethostname() for r in par)
+    assert all(r["concurrent_runs"] == 1 for r in par if r["measurement"] == "timing")
+    # the cluster's workers outlive a study: a second study of the same plan still gets every row
+    run_study(plan, tmp_path / "ray2", ray="auto")
+    assert sorted(r["key"] for r in read_rows(tmp_path / "ray2" / "results.csv")) == sorted(by_key)

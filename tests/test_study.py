@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import socket
 
 import numpy as np
 import pytest
@@ -264,3 +265,202 @@ def test_unwritable_out_is_refused_before_any_work(tmp_path, capsys):
         locked.mkdir(mode=0o500)
         assert main(["study", "--quiet", "--out", str(locked)]) == 2
         assert "not writable" in capsys.readouterr().err
+
+
+# -- in parallel (issue 17) --------------------------------------------------------------------
+#: the columns that must not depend on where or alongside what a measurement ran (not timings)
+SAME = ["measurement", "scenario", "integrator", "options", "device", "particles", "dt_s", "steps_per_frame", "bound_dt_s",
+        "search_bounded", "tolerance_rel", "error_rel", "floor_error_rel", "max_strain_rel", "stable", "equilibrium_reached",
+        "time_to_equilibrium_sim_s", "static_error_rel", "sag_error_rel", "iterations", "substeps", "trials"]
+
+
+def same_rows(a: list, b: list) -> None:
+    by_key = {r["key"]: r for r in b}
+    assert sorted(r["key"] for r in a) == sorted(by_key)
+    for r in a:
+        assert {c: r[c] for c in SAME} == {c: by_key[r["key"]][c] for c in SAME}, r["key"]
+
+
+def test_workers_2_gives_the_serial_rows(tiny_study, tmp_path):
+    """The tiny study (explicit_euler and pbd, --match-accuracy) in 2 worker processes: the same
+    keys and stability/accuracy values as the serial run; the searches ran in both workers, the
+    timings one at a time, and the driver wrote every row once."""
+    _, serial_out, _ = tiny_study
+    out = tmp_path / "par"
+    assert main(TINY + ["--devices", "cpu", "--match-accuracy", "--workers", "2", "--out", str(out)]) == 0
+    serial, par = read_rows(serial_out / "results.csv"), read_rows(out / "results.csv")
+    same_rows(serial, par)
+    assert {r["worker"] for r in serial} == {"main"} and {r["concurrent_runs"] for r in serial} == {1}
+    searches = [r for r in par if r["measurement"] not in ("timing", "match_result")]
+    assert {r["worker"] for r in searches} == {"local:1", "local:2"}  # one group per worker
+    timed = [r for r in par if r["measurement"] == "timing"]
+    assert timed and all(r["concurrent_runs"] == 1 for r in timed)
+    assert all(r["host"] == socket.gethostname() for r in par)
+    assert "at most 1 timed run(s) at once, at most 2 search run(s) at once" in (out / "report.md").read_text()
+
+
+def test_parallel_settings_warn_above_the_cores_and_devices(monkeypatch):
+    from warpcloth.lab.study import ParallelSettings
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    assert ParallelSettings.check(["cpu"], workers=2).warnings == []
+    assert not ParallelSettings.check(["cpu"]).parallel
+    (w,) = ParallelSettings.check(["cpu"], workers=3).warnings
+    assert "--workers 3 is more than the 2 CPU cores" in w and "timings still run alone" in w
+    (w,) = ParallelSettings.check(["cpu"], timing_workers=2).warnings
+    assert "--timing-workers 2 is more than the 1 device(s) (cpu)" in w
+    assert ParallelSettings.check(["cuda:0", "cuda:1"], workers=8, timing_workers=2).warnings == []
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(WarpclothError, match="--workers must be a whole number >= 1"):
+            ParallelSettings.check(["cpu"], workers=bad)
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--workers", "0"], "argument --workers: must be a whole number >= 1, got '0'"),
+    (["--workers", "two"], "argument --workers: must be a whole number >= 1, got 'two'"),
+    (["--timing-workers", "-1"], "argument --timing-workers: must be a whole number >= 1, got '-1'"),
+    (["--ray", "auto", "--workers", "2"], "--ray runs the searches on the cluster's CPUs and GPUs: it takes no --workers"),
+    (["--ray", " "], "--ray: give auto, local, HOST:PORT or ray://HOST:PORT"),
+])
+def test_bad_parallel_flags_are_one_line_and_status_2(argv, message, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli(["study", "--quiet", "--out", str(out)] + argv) == 2
+    assert capsys.readouterr().err == f"warpcloth: error: {message}\n"
+    assert not (out / "results.csv").exists()
+
+
+# -- a scenario file through the study (issue 13) ----------------------------------------------
+def write_scenario(tmp_path) -> str:
+    """A 4 x 4 quad grid hung by its top row, as an OBJ and a scenario file next to it."""
+    n, h = 4, 0.5 / 3
+    verts = [f"v {c * h:.6f} {1.0 - r * h:.6f} 0" for r in range(n) for c in range(n)]
+    faces = [f"f {r * n + c + 1} {r * n + c + 2} {(r + 1) * n + c + 2} {(r + 1) * n + c + 1}" for r in range(n - 1) for c in range(n - 1)]
+    (tmp_path / "patch.obj").write_text("\n".join(verts + faces) + "\n")
+    (tmp_path / "patch.toml").write_text('name = "patch"\n[cloth]\nmesh = "patch.obj"\nquads = true\nmass = 0.1\n'
+                                         '[pins]\nwhere = "y > 0.99 * y.max()"\n[forces]\ndrag = 1.0\n')
+    return str(tmp_path / "patch.toml")
+
+
+def test_a_scenario_file_runs_through_the_quick_profile(tmp_path):
+    """sheet, flag and a custom scenario file: the file's rows (stability, equilibrium, timing,
+    at its own 16 particles and Provot-equal springs), no accuracy rows for it and the report
+    saying why; the grid study as usual."""
+    from warpcloth.model import expected_spring_counts
+
+    path = write_scenario(tmp_path)
+    out = tmp_path / "out"
+    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler,xpbd", "--sizes", "4", "--accuracy-sizes", "4",
+                 "--scenarios", f"sheet,flag,{path}", "--quiet", "--out", str(out)]) == 0
+    rows = read_rows(out / "results.csv")
+    mine = [r for r in rows if r["scenario"] == path]
+    assert {(r["measurement"], r["integrator"]) for r in mine} == {(m, i) for m in ("max_stable_dt", "static", "timing")
+                                                                   for i in ("explicit_euler", "xpbd")}
+    springs = sum(expected_spring_counts(4, 4, "provot").values())
+    assert all(r["particles"] == 16 and r["springs"] == springs and r["rows"] is None for r in mine)
+    stable = {r["integrator"]: r for r in mine if r["measurement"] == "max_stable_dt"}
+    assert 1e-4 < stable["explicit_euler"]["dt_s"] < FRAME_DT and stable["xpbd"]["dt_s"] == pytest.approx(FRAME_DT)
+    for r in mine:
+        if r["measurement"] == "timing":
+            assert r["dt_s"] <= stable[r["integrator"]]["dt_s"] and r["ms_per_step_median"] > 0
+        if r["measurement"] == "static":
+            assert "no float64 reference" in r["note"] and r["static_error_rel"] is None
+    assert {r["measurement"] for r in rows if r["scenario"] == "sheet"} >= {"max_accurate_dt", "error", "timing"}
+    report = (out / "report.md").read_text()
+    assert "## Scenarios" in report and f"`{path}`" in report and "accuracy not measured" in report and "## Verdict" in report
+
+
+def test_a_scenario_file_study_in_workers_gives_the_serial_rows(tmp_path):
+    path = write_scenario(tmp_path)
+    plan = make_plan("quick", integrators=["explicit_euler", "verlet"], scenarios=[path])
+    assert not plan.grid and plan.scenario_files == [path]
+    run_study(plan, tmp_path / "serial")
+    run_study(plan, tmp_path / "par", workers=2)
+    same_rows(read_rows(tmp_path / "serial" / "results.csv"), read_rows(tmp_path / "par" / "results.csv"))
+    assert "## Verdict" not in (tmp_path / "serial" / "report.md").read_text()
+
+
+@pytest.mark.parametrize("scenarios,message", [
+    ("sheet", "--scenarios: sheet without flag: the study's sheet and flag go together"),
+    ("flag,missing.toml", "--scenarios: flag without sheet"),
+    ("sheet,flag,missing.toml", "missing.toml"),
+    ("sheet,flag,nosuch", "unknown scenario 'nosuch'"),
+])
+def test_bad_scenarios_are_one_line_and_status_2(scenarios, message, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli(["study", "--quiet", "--out", str(out), "--scenarios", scenarios]) == 2
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warpcloth: error: ") and message in lines[0]
+    assert not out.exists()
+
+
+# -- the standard profile and its estimate (issue 12) ---------------------------------------------
+def test_standard_profile_is_every_integrator_at_16_to_128():
+    from warpcloth.integrators import integrator_names
+
+    plan = make_plan("standard")
+    assert plan.integrators == list(integrator_names()) and {"vbd", "projective"} <= set(plan.integrators)
+    assert plan.sizes == [16, 32, 64, 128] and plan.devices == ["cpu"]
+    assert [plan.maxdt_duration_at(n) for n in (8, 16, 32, 64, 128, 256)] == [1.0, 1.0, 1.0, 0.5, 0.25, 0.25]
+
+
+def test_estimate_adds_up_the_modelled_steps():
+    """One integrator at one size, costs given: each phase is the documented step count x the
+    per-step cost, capped by the wall caps; doubling the per-step cost doubles the uncapped phases."""
+    from dataclasses import replace
+
+    from warpcloth.lab.study import estimate_plan
+
+    plan = replace(make_plan("quick", integrators=["explicit_euler"], sizes=[10], accuracy_sizes=[]), maxdt_wall_cap=None,
+                   equilibrium_wall_cap=None)
+    k0, ms = 10, 0.5  # dt0 = (1/60 s) / 10
+    phases = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, {("explicit_euler", 10): (k0, ms, None)})}
+    steps_trial = plan.maxdt_duration / (1.5 * FRAME_DT / k0)  # 6 trials at 1.5x the default dt, per scenario
+    assert phases["stability"].seconds == pytest.approx(2 * 6 * steps_trial * ms / 1000)
+    assert phases["equilibrium"].seconds == pytest.approx(plan.equilibrium_duration / (FRAME_DT / k0) * ms / 1000)
+    assert phases["accuracy"].seconds == 0 and phases["accuracy"].measurements == 0
+    frame = k0 * ms / 1000
+    assert phases["timing"].seconds == pytest.approx((3 + plan.windows * math.ceil(plan.window_seconds / frame)) * frame)
+    double = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, {("explicit_euler", 10): (k0, 2 * ms, None)})}
+    assert double["stability"].seconds == pytest.approx(2 * phases["stability"].seconds)
+    capped = {p.phase.split(" ")[0]: p for p in estimate_plan(replace(plan, maxdt_wall_cap=0.01),
+                                                               {("explicit_euler", 10): (k0, ms, None)})}
+    assert capped["stability"].seconds == pytest.approx(2 * 6 * 0.01)  # every trial stopped at the wall cap
+
+
+def test_estimate_flag_prints_the_phases_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler,xpbd", "--sizes", "4", "--accuracy-sizes", "4",
+                 "--estimate", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    for phase in ("stability (max stable dt)", "equilibrium and static accuracy", "accuracy (references, floors, searches)", "timing"):
+        assert phase in out
+    assert "estimate of profile quick" in out and "total about" in out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_out_is_required_but_with_estimate(capsys):
+    assert cli(["study", "--quiet"]) == 2
+    assert capsys.readouterr().err == ("warpcloth: error: --out DIR is required (where results.csv, report.md and the plots go), "
+                                       "except with --estimate\n")
+
+
+def test_an_interrupted_study_resumes_in_workers(tmp_path):
+    """Rows of an interrupted serial study are reused (not remeasured, not duplicated) when it
+    resumes with --workers 2; the file ends with the keys of a whole study."""
+    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4], accuracy_sizes=[4])
+    seen = []
+
+    def interrupt_after_six(row):
+        seen.append(row["key"])
+        if len(seen) == 6:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_study(plan, tmp_path / "a", on_row=interrupt_after_six)
+    again = []
+    summary = run_study(plan, tmp_path / "a", resume=True, workers=2, on_row=lambda r: again.append(r["key"]))
+    assert not set(again) & set(seen) and summary["measured"] == len(again) > 0
+    keys = [r["key"] for r in read_rows(tmp_path / "a" / "results.csv")]
+    assert len(keys) == len(set(keys)) == 6 + len(again)
+    run_study(plan, tmp_path / "b")
+    assert sorted(keys) == sorted(r["key"] for r in read_rows(tmp_path / "b" / "results.csv"))

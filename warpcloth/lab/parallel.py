@@ -343,6 +343,34 @@ def _ray_unit(fn, init, items, device):
     return out, place, ctx.get_node_id()
 
 
+#: seconds :func:`check_address` waits for a cluster's port to answer.
+CONNECT_TIMEOUT = 5.0
+
+
+def check_address(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """Fail fast when a Ray address ``HOST:PORT`` or ``ray://HOST:PORT`` does not answer: a TCP
+    connect with ``timeout`` seconds before ``ray.init`` (which otherwise waits its own, much
+    longer, timeout). ``auto`` and ``local`` are not network addresses and pass.
+
+    Raises:
+        ConnectionError: one line naming the address and what was wrong.
+    """
+    if address in ("auto", "local"):
+        return
+    hostport = address[len("ray://"):] if address.startswith("ray://") else address
+    host, sep, port = hostport.rpartition(":")
+    host = host.strip("[]")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ConnectionError(f"{address!r} is not a Ray address: give auto, local, HOST:PORT or ray://HOST:PORT")
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        why = "no answer" if isinstance(exc, socket.timeout) else (exc.strerror or type(exc).__name__)
+        raise ConnectionError(f"nothing answers at {host}:{port} within {timeout:g} s ({why}); "
+                              "is the cluster's head node started (ray start --head) and reachable?") from None
+
+
 class RayPool:
     """Units of jobs as Ray tasks on the cluster ``ray.init(address=address)`` connects to (an
     already initialised Ray is used as it is; ``address="local"`` starts a local instance).
@@ -362,6 +390,7 @@ class RayPool:
 
     def connect(self) -> None:
         ray = self.ray
+        check_address(self.address)  # also when Ray is up already: a wrong address is still a mistake
         if ray.is_initialized():
             return
         kwargs = dict(log_to_driver=False, include_dashboard=False) if self.address == "local" else dict(log_to_driver=False)
@@ -456,4 +485,5 @@ def run_jobs(fn: Callable, jobs: Iterable[Job], workers: int = 1, devices: list[
         pool.close()
 
 
-__all__ = ["Done", "Job", "LocalPool", "Place", "RAY_INSTALL_HINT", "RayPool", "import_ray", "is_cuda", "run_jobs", "units_of"]
+__all__ = ["CONNECT_TIMEOUT", "Done", "Job", "LocalPool", "Place", "RAY_INSTALL_HINT", "RayPool", "check_address", "import_ray",
+           "is_cuda", "run_jobs", "units_of"]

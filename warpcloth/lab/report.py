@@ -56,6 +56,8 @@ class Data:
     """The rows of a study, indexed."""
 
     def __init__(self, rows):
+        self.mesh_rows = [r for r in rows if r["rows"] is None]  # fixed-mesh scenarios (--scenarios FILE.toml)
+        rows = [r for r in rows if r["rows"] is not None]
         self.rows = rows
         self.devices = list(dict.fromkeys(r["device"] for r in rows))
         self.integrators = list(dict.fromkeys(r["integrator"] for r in rows if r["measurement"] == "max_stable_dt"))
@@ -200,6 +202,33 @@ def _table(header, rows) -> list[str]:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
     return lines
+
+
+def scenario_tables(rows: list) -> list[str]:
+    """The fixed-mesh scenarios' table: max stable dt, ms/step and real time there, time to
+    equilibrium; and why there is no accuracy."""
+    from .study import MESH_NOTE
+
+    body = []
+    for sc in dict.fromkeys(r["scenario"] for r in rows):
+        for d in dict.fromkeys(r["device"] for r in rows if r["scenario"] == sc):
+            for i in dict.fromkeys(r["integrator"] for r in rows if r["scenario"] == sc and r["device"] == d):
+                st = _one(rows, "max_stable_dt", scenario=sc, device=d, integrator=i)
+                t = _one(rows, "timing", scenario=sc, device=d, integrator=i)
+                eq = _one(rows, "static", scenario=sc, device=d, integrator=i)
+                if st is None:
+                    continue
+                dt = st["dt_s"]
+                body.append([f"`{sc}`", i, d, st["particles"], st["springs"],
+                             _g(dt, " s") + (" (one frame: the search's limit)" if st["search_bounded"] else ""),
+                             _g(t["ms_per_step_median"]) if t else "–", _g(t["wall_s_per_sim_s"]) if t else "–",
+                             _yn(t["realtime_30fps"]) if t else "–", _yn(t["realtime_60fps"]) if t else "–",
+                             (_g(eq["time_to_equilibrium_sim_s"], " s") if eq and eq["equilibrium_reached"] else "not at rest") if eq else "–"])
+    out = [f"Measured at each scenario's own mesh: the max stable dt, ms/step at it (rounded down to (1/60 s)/k) and "
+           f"time to equilibrium there. {MESH_NOTE[0].upper()}{MESH_NOTE[1:]}.", ""]
+    out += _table(["scenario", "integrator", "device", "particles", "springs", "max stable dt", "ms/step", "wall s / sim s",
+                   "30 FPS", "60 FPS", "to equilibrium (sim)"], body)
+    return out + [""]
 
 
 def tables(data: Data) -> list[str]:
@@ -403,31 +432,54 @@ def plots(out_dir: str, data: Data, tolerance) -> list[str] | None:
 
 
 # -- the report ------------------------------------------------------------------------------
+def sharing_lines(rows: list) -> list:
+    """Where the measurements ran and how many ran at once (the host, worker and
+    concurrent_runs columns): one line per host and device."""
+    out = []
+    for host in sorted({str(r.get("host") or "?") for r in rows}):
+        for d in sorted({r["device"] for r in rows if str(r.get("host") or "?") == host}):
+            mine = [r for r in rows if str(r.get("host") or "?") == host and r["device"] == d]
+            workers = sorted({str(r.get("worker") or "?") for r in mine})
+            timed = [int(r.get("concurrent_runs") or 1) for r in mine if r["measurement"] == "timing"]
+            other = [int(r.get("concurrent_runs") or 1) for r in mine if r["measurement"] != "timing"]
+            how = "serially" if workers == ["main"] else f"by {len(workers)} worker(s) ({', '.join(workers[:4])}{', ...' if len(workers) > 4 else ''})"
+            line = f"- host {host}, {d}: measured {how}; at most {max(timed, default=0)} timed run(s) at once"
+            line += f", at most {max(other, default=0)} search run(s) at once"
+            if max(timed, default=1) > 1:
+                line += " (timings shared the machine: their ms/step are not those of a machine to itself)"
+            out.append(line)
+    return out
+
+
 def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", stream=None) -> list[str]:
     """Write report.md and the plots into ``out_dir``; returns the file names written."""
     data = Data(rows)
     tolerance = plan.tolerance if plan is not None else next((r["tolerance_rel"] for r in rows if r["tolerance_rel"]), 0.01)
     m = machine()
-    written = plots(out_dir, data, tolerance)
+    written = plots(out_dir, data, tolerance) if data.rows else []  # the plots are of the sheet/flag grid
     lines = ["# warpcloth study", ""]
     lines += ["## Machine and command", ""]
     lines += [f"- CPU: {m['cpu']}, {m['cores']} logical cores visible; OS {m['os']}, Python {m['python']}",
               f"- GPU: {', '.join(m['gpus']) if m['gpus'] else 'none found'}" + (f" (CUDA driver {m['driver']})" if m["driver"] else ""),
               f"- Warp {m['warp']}; report written {m['date']}",
               f"- devices measured: {', '.join(data.devices)}",
+              *sharing_lines(rows),
               f"- command: `{command or ' '.join(sys.argv)}`", ""]
     if plan is not None:
         lines += ["## Method", ""]
         lines += [
-            f"- Profile `{plan.profile}`: integrators {', '.join(plan.integrators)}; n x n sheets and flags, timing and stability "
-            f"at n = {', '.join(map(str, plan.all_sizes))}; accuracy (float64 references) at n = {', '.join(map(str, plan.accuracy_sizes))}.",
+            (f"- Profile `{plan.profile}`: integrators {', '.join(plan.integrators)}; n x n sheets and flags, timing and stability "
+             f"at n = {', '.join(map(str, plan.all_sizes))}; accuracy (float64 references) at n = {', '.join(map(str, plan.accuracy_sizes))}."
+             if plan.grid else f"- Profile `{plan.profile}`: integrators {', '.join(plan.integrators)}; no sheet/flag grid "
+             "(--scenarios without sheet,flag): the grid's settings below apply to the scenarios' trials."),
             f"- Accuracy: e(dt) = max over frames (1/60 s apart) and particles of |x − x_ref| / cloth size against the float64 "
             f"reference (SciPy DOP853, rtol 1e-10), on the sheet released from horizontal ({plan.sheet_transient:g} s) and the flag "
             f"from rest in its wind ({plan.flag_transient:g} s). Tolerance {_pct(plan.tolerance)}. Trial dts are (1/60 s)/k.",
             f"- Max accurate dt: bracket by doubling k from the max stable dt, then bisection on k to a relative width "
             f"≤ {plan.accurate_precision:g}; the search assumes e grows monotonically with dt. The float32 floor is e of rk4 at a "
             f"quarter of its default dt.",
-            f"- Max stable dt: `warpcloth.maxdt.find_max_dt`, {plan.maxdt_duration:g} s simulated per trial, precision "
+            f"- Max stable dt: `warpcloth.maxdt.find_max_dt`, {plan.maxdt_duration:g} s simulated per trial"
+            + "".join(f", {d:g} s from {m}x{m}" for m, d in sorted(plan.maxdt_durations)) + ", precision "
             f"{plan.maxdt_precision:g}, searched up to one 60 FPS frame (1/60 s), wall cap {plan.maxdt_wall_cap} s per trial.",
             f"- Static accuracy: the sheet run from rest to equilibrium (at most {plan.equilibrium_duration:g} s simulated, "
             f"{plan.equilibrium_wall_cap} s wall) against the float64 Newton equilibrium (up to {plan.static_max_size}x{plan.static_max_size}); "
@@ -438,7 +490,11 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
             "- Frontier: power law wall s per simulated s = a N^p fitted in log-log over the measured sizes at that dt.",
             "",
         ]
-    if plan is not None:
+        if plan.scenario_files:
+            lines.insert(-1, f"- Scenarios at their own mesh: {', '.join(f'`{s}`' for s in plan.scenario_files)}: max stable dt "
+                             f"(trials as above at the size of the same particle count), time to equilibrium and ms/step at it; "
+                             f"no accuracy (no float64 reference for them).")
+    if plan is not None and plan.grid:
         missing = [f"{i} {n}x{n} on {d}" for d in plan.devices for n in plan.all_sizes for i in plan.integrators
                    if not any(r["measurement"] == "timing" and r["device"] == d and r["integrator"] == i and r["rows"] == n for r in rows)]
         if missing:
@@ -446,8 +502,11 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
                       f"The plan has {len(missing)} device x integrator x size groups without a timing row in results.csv "
                       f"(the study was interrupted, or no stable dt was found; `--resume` continues an interrupted one): "
                       f"{', '.join(missing)}.", ""]
-    lines += ["## Verdict", ""] + [f"- {s}" for s in verdict(data, tolerance)] + [""]
-    lines += ["## Tables", ""] + tables(data)
+    if data.rows:
+        lines += ["## Verdict", ""] + [f"- {s}" for s in verdict(data, tolerance)] + [""]
+        lines += ["## Tables", ""] + tables(data)
+    if data.mesh_rows:
+        lines += ["## Scenarios", ""] + scenario_tables(data.mesh_rows)
     lines += ["## Plots", ""]
     if written is None:
         lines += ["The plots need matplotlib: `pip install 'warpcloth[plot]'`; results.csv and this report are complete without them.", ""]

@@ -32,6 +32,19 @@ def _sizes(text: str) -> list:
     return sizes
 
 
+def _count():
+    def parse(text: str) -> int:
+        try:
+            n = int(text)
+        except ValueError:
+            n = None
+        if n is None or n < 1:
+            raise argparse.ArgumentTypeError(f"must be a whole number >= 1, got {text!r}")
+        return n
+
+    return parse
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     from .study import PROFILES
 
@@ -41,12 +54,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sizes", type=_sizes, default=None, metavar="N,M", help="n x n mesh sizes of the timing ladder (default: the profile's)")
     p.add_argument("--accuracy-sizes", type=_sizes, default=None, metavar="N,M",
                    help="sizes with a float64 reference (default: the profile's; with --sizes, those up to the profile's largest)")
+    p.add_argument("--scenarios", type=_list("scenarios"), default=None, metavar="sheet,flag,FILE.toml",
+                   help="sheet,flag (the grid study: default) and/or scenario files (.toml) or other registered scenarios, "
+                        "measured at their own mesh: max stable dt, time to equilibrium, ms/step (no float64 reference: no accuracy)")
     p.add_argument("--devices", type=_list("devices"), default=None, metavar="cpu,cuda",
                    help="Warp devices (default cpu; seed: cpu,cuda); a missing one is skipped with one line")
     p.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE, help="accuracy tolerance as a fraction of the cloth size (default 0.01)")
     p.add_argument("--match-accuracy", action="store_true",
                    help="for pbd/xpbd, search the cheapest iterations x substeps reaching the tolerance at dt = 1/60 s")
-    p.add_argument("--out", "-o", required=True, metavar="DIR", help="output folder: results.csv, report.md, PNG plots")
+    p.add_argument("--out", "-o", default=None, metavar="DIR", help="output folder: results.csv, report.md, PNG plots (required but with --estimate)")
+    p.add_argument("--estimate", action="store_true",
+                   help="measure per-step costs (seconds to a minute) and print the plan's estimated time per phase; measures nothing else, writes nothing")
+    p.add_argument("--workers", type=_count(), default=None, metavar="N",
+                   help="run the searches (stability, accuracy, equilibrium) in N worker processes; the timings follow, "
+                        "--timing-workers at a time (docs/study.md)")
+    p.add_argument("--timing-workers", type=_count(), default=None, metavar="M",
+                   help="timed runs at once in a parallel study (default 1: each timing has the machine to itself; "
+                        "more than the devices is warned about)")
+    p.add_argument("--ray", default=None, metavar="auto|ADDRESS",
+                   help="run the searches as Ray tasks: auto (the cluster of 'ray start'), HOST:PORT, ray://HOST:PORT, or "
+                        "local (start one in this process); needs pip install 'warpcloth[cluster]'")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--resume", action="store_true", help="continue DIR/results.csv: finished measurements are not redone")
     mode.add_argument("--overwrite", action="store_true", help="replace DIR/results.csv if it exists")
@@ -54,25 +81,37 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from .study import make_plan, run_study
+    from .study import available_devices, calibrate, estimate_plan, format_estimate, make_plan, run_study
 
     plan = make_plan(args.profile, integrators=args.integrators, sizes=args.sizes, devices=args.devices,
-                     tolerance=args.tolerance, match_accuracy=args.match_accuracy, accuracy_sizes=args.accuracy_sizes)
+                     tolerance=args.tolerance, match_accuracy=args.match_accuracy, accuracy_sizes=args.accuracy_sizes,
+                     scenarios=args.scenarios)
+    if args.estimate:
+        devices = available_devices(plan.devices, sys.stderr)
+        if not devices:
+            raise WarpclothError(f"none of the devices {', '.join(plan.devices)} is available")
+        quiet = getattr(args, "quiet", False)
+        by_device = {d: estimate_plan(plan, calibrate(plan, d, None if quiet else sys.stderr)) for d in devices}
+        print(format_estimate(plan, by_device, args.workers or 1))
+        return 0
+    if not args.out:
+        raise WarpclothError("--out DIR is required (where results.csv, report.md and the plots go), except with --estimate")
     command = "warpcloth " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv and sys.argv[0].endswith("warpcloth") else \
         "warpcloth study " + " ".join(shlex.quote(a) for a in _argv(args))
     summary = run_study(plan, args.out, resume=args.resume, overwrite=args.overwrite,
-                        progress=None if getattr(args, "quiet", False) else sys.stderr, command=command)
-    if getattr(args, "quiet", False):
-        return 0
-    print(f"{args.out}: {summary['measured']} measurements made, {summary['reused']} reused from the file, "
-          f"{summary['wall_s']:.0f} s; wrote {', '.join(summary['files'])}")
-    return 0
+                        progress=None if getattr(args, "quiet", False) else sys.stderr, command=command,
+                        workers=args.workers, ray=args.ray, timing_workers=args.timing_workers)
+    failed = f", {summary['failed']} group(s) failed (see above; --resume retries them)" if summary["failed"] else ""
+    if not getattr(args, "quiet", False) or failed:
+        print(f"{args.out}: {summary['measured']} measurements made, {summary['reused']} reused from the file, "
+              f"{summary['wall_s']:.0f} s{failed}; wrote {', '.join(summary['files'])}")
+    return 1 if failed else 0
 
 
 def _argv(args) -> list:
     """The flags of ``args`` again (for the report's command line when not run as ``warpcloth``)."""
     out = ["--profile", args.profile]
-    for flag, value in (("--integrators", args.integrators), ("--devices", args.devices)):
+    for flag, value in (("--integrators", args.integrators), ("--scenarios", args.scenarios), ("--devices", args.devices)):
         if value:
             out += [flag, ",".join(value)]
     for flag, value in (("--sizes", args.sizes), ("--accuracy-sizes", args.accuracy_sizes)):
@@ -80,10 +119,13 @@ def _argv(args) -> list:
             out += [flag, ",".join(map(str, value))]
     if args.tolerance != DEFAULT_TOLERANCE:
         out += ["--tolerance", repr(args.tolerance)]
+    for flag, value in (("--workers", args.workers), ("--timing-workers", args.timing_workers), ("--ray", args.ray)):
+        if value is not None:
+            out += [flag, str(value)]
     for flag, on in (("--match-accuracy", args.match_accuracy), ("--resume", args.resume), ("--overwrite", args.overwrite)):
         if on:
             out.append(flag)
-    return out + ["--out", args.out]
+    return out + (["--out", args.out] if args.out else [])
 
 
 __all__ = ["add_arguments", "run"]
