@@ -478,7 +478,7 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
             f"- Max accurate dt: bracket by doubling k from the max stable dt, then bisection on k to a relative width "
             f"≤ {plan.accurate_precision:g}; the search assumes e grows monotonically with dt. The float32 floor is e of rk4 at a "
             f"quarter of its default dt.",
-            f"- Max stable dt: `warpcloth.maxdt.find_max_dt`, {plan.maxdt_duration:g} s simulated per trial"
+            f"- Max stable dt: `warpcloth.lab.maxdt.find_max_dt`, {plan.maxdt_duration:g} s simulated per trial"
             + "".join(f", {d:g} s from {m}x{m}" for m, d in sorted(plan.maxdt_durations)) + ", precision "
             f"{plan.maxdt_precision:g}, searched up to one 60 FPS frame (1/60 s), wall cap {plan.maxdt_wall_cap} s per trial.",
             f"- Static accuracy: the sheet run from rest to equilibrium (at most {plan.equilibrium_duration:g} s simulated, "

@@ -3,7 +3,7 @@
 For each device x integrator x mesh size (n x n particles) it measures, one CSV row per
 measurement (:data:`COLUMNS`):
 
-* ``max_stable_dt`` (sheet and flag): :func:`warpcloth.maxdt.find_max_dt` up to one 60 FPS frame,
+* ``max_stable_dt`` (sheet and flag): :func:`warpcloth.lab.maxdt.find_max_dt` up to one 60 FPS frame,
   with the max strain at that dt;
 * at the *accuracy sizes* (where a float64 reference is computed): ``floor`` (rk4 at a quarter of
   its default dt: the float32 noise floor of the transient), ``error`` (e at dt = frame/k, every
