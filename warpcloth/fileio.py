@@ -363,3 +363,31 @@ class WriterLock:
 
 __all__ = ["AtomicFile", "EXIT_IO", "OutputError", "TEMP_PREFIX", "WriterLock", "check_output_path", "describe_write_error",
            "fsync_dir", "remove_temporary", "sweep_stale_temporaries", "temp_path", "write_atomic"]
+
+
+# -- CSV cells: one way for every results file (sweep, study, bench) --------------------------
+def csv_cell(value) -> str:
+    """A value as a CSV cell: None empty, booleans ``true``/``false``, floats at full precision
+    (Python's shortest repr; ``inf``, ``nan``), dicts, lists and tuples as JSON."""
+    import json
+    import math
+
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else str(value)
+    if isinstance(value, (dict, list, tuple)):
+        return json.dumps(value, sort_keys=True)
+    return str(value)
+
+
+def csv_line(row: dict, columns) -> str:
+    """One CSV line (with its newline) of ``row`` in ``columns`` order; missing columns are empty."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([csv_cell(row.get(c)) for c in columns])
+    return buf.getvalue()

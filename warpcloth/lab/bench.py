@@ -26,7 +26,7 @@ import warp as wp
 from ..cliparse import Parser, guarded
 from ..errors import WarpclothError, require
 from ..progress import format_seconds
-from ..fileio import AtomicFile, OutputError, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
+from ..fileio import AtomicFile, csv_cell, OutputError, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
 
 #: Columns of the benchmark CSV: the study's naming (units in the names, booleans true/false).
 COLUMNS = [
@@ -144,17 +144,11 @@ def bench_one(integrator: str, size: int | None, device: str, graph: bool, steps
     }
 
 
-def _cell(value):
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return value
-
-
 def csv_text(rows: list[dict]) -> str:
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     w.writeheader()
-    w.writerows({k: _cell(v) for k, v in r.items()} for r in rows)
+    w.writerows({k: csv_cell(v) for k, v in r.items()} for r in rows)
     return buf.getvalue()
 
 

@@ -35,7 +35,7 @@ import time
 from dataclasses import asdict, dataclass, field, replace
 
 from ..errors import WarpclothError, require
-from ..fileio import OutputError, WriterLock, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
+from ..fileio import OutputError, csv_cell, csv_line, WriterLock, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
 from .accuracy import (DEFAULT_TOLERANCE, FRAME_DT, AccuracyProblem, StaticProblem, Transient, check_tolerance,
                        search_steps_per_frame, steps_per_frame_at_most)
 
@@ -204,22 +204,9 @@ def check_scenarios(scenarios) -> tuple[bool, list]:
 
 
 # -- the results file ------------------------------------------------------------------------
-def _cell(value) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else str(value)
-    if isinstance(value, (dict, list, tuple)):
-        return json.dumps(value, sort_keys=True)
-    return str(value)
-
-
 def format_row(row: dict) -> str:
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow([_cell(row.get(c)) for c in COLUMNS])
-    return buf.getvalue()
+    """One CSV line (with its newline) for ``row``; missing columns are empty."""
+    return csv_line(row, COLUMNS)
 
 
 def parse_cell(text: str):
@@ -309,7 +296,7 @@ class StudyCsv:
         except OSError as exc:
             raise OutputError(describe_write_error(exc, self.path, "results CSV", needed=len(text.encode()))
                               .replace(f"; {self.path} is unchanged", "; the rows before it are kept")) from None
-        self.done[row["key"]] = {k: parse_cell(_cell(row.get(k))) for k in COLUMNS}
+        self.done[row["key"]] = {k: parse_cell(csv_cell(row.get(k))) for k in COLUMNS}
 
     def close(self) -> None:
         try:
@@ -791,7 +778,7 @@ class _Collector:
         self.new: list[dict] = []
 
     def write(self, row: dict) -> None:
-        row = {k: parse_cell(_cell(row.get(k))) for k in COLUMNS}
+        row = {k: parse_cell(csv_cell(row.get(k))) for k in COLUMNS}
         self.done[row["key"]] = row
         self.new.append(row)
 

@@ -19,10 +19,8 @@
 from __future__ import annotations
 
 import csv
-import io
-import json
 import dataclasses
-import math
+import io
 import os
 import socket
 import sys
@@ -30,7 +28,7 @@ import time
 from dataclasses import dataclass, field
 
 from ..errors import WarpclothError
-from ..fileio import (OutputError, WriterLock, check_output_path, describe_write_error,
+from ..fileio import (OutputError, WriterLock, csv_line, check_output_path, describe_write_error,
                      sweep_stale_temporaries, write_atomic)
 from ..params import TimeStep, csv_columns
 from .testlist import RunSpec, TestList, parse_test_list, resolved_params
@@ -186,23 +184,9 @@ def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
 
 
 # -- output ----------------------------------------------------------------------------------
-def _cell(value) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else str(value)
-    if isinstance(value, dict):
-        return json.dumps(value, sort_keys=True)
-    return str(value)
-
-
 def format_row(row: dict) -> str:
     """One CSV line (with its newline) for ``row``; missing columns are empty."""
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow([_cell(row.get(c)) for c in COLUMNS])
-    return buf.getvalue()
+    return csv_line(row, COLUMNS)
 
 
 class CsvOutput:
