@@ -347,3 +347,76 @@ def record_cg_stats(
     stats[4] = wp.max(stats[4], res)
     if not (residual_sq[0] <= tolerance_sq[0]):
         stats[5] = stats[5] + wp.float64(1.0)
+
+
+@wp.kernel
+def block_gemv(
+    offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    values: wp.array(dtype=wp.mat33),
+    x: wp.array(dtype=wp.vec3),
+    y: wp.array(dtype=wp.vec3),
+    alpha: float,
+    beta: float,
+    z: wp.array(dtype=wp.vec3),
+):
+    # z = alpha A x + beta y, A in CSR of 3 x 3 blocks (row i: blocks offsets[i]:offsets[i + 1]); y may alias z
+    i = wp.tid()
+    acc = wp.vec3(0.0)
+    for e in range(offsets[i], offsets[i + 1]):
+        acc = acc + values[e] * x[columns[e]]
+    out = alpha * acc
+    if beta != 0.0:
+        out = out + beta * y[i]
+    z[i] = out
+
+
+@wp.kernel
+def weight_gemv(
+    offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    weights: wp.array(dtype=float),
+    x: wp.array(dtype=wp.vec3),
+    beta: float,
+    z: wp.array(dtype=wp.vec3),
+):
+    # z = W x + beta z, W in CSR of scalars (blocks w I: the grid transfers P and P^T)
+    i = wp.tid()
+    acc = wp.vec3(0.0)
+    for e in range(offsets[i], offsets[i + 1]):
+        acc = acc + weights[e] * x[columns[e]]
+    if beta != 0.0:
+        acc = acc + beta * z[i]
+    z[i] = acc
+
+
+@wp.kernel
+def smooth_jacobi_block(
+    offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    values: wp.array(dtype=wp.mat33),
+    inv_block: wp.array(dtype=wp.mat33),
+    b: wp.array(dtype=wp.vec3),
+    x: wp.array(dtype=wp.vec3),
+    omega: float,
+    alpha: float,
+    beta: float,
+    y: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
+):
+    # one damped block-Jacobi sweep, fused with its residual: z = alpha (x + omega D^-1 (b - A x)) + beta y  (z must not alias x)
+    i = wp.tid()
+    res = b[i]
+    for e in range(offsets[i], offsets[i + 1]):
+        res = res - values[e] * x[columns[e]]
+    out = alpha * (x[i] + omega * (inv_block[i] * res))
+    if beta != 0.0:
+        out = out + beta * y[i]
+    z[i] = out
+
+
+@wp.kernel
+def invert_diagonal_blocks(values: wp.array(dtype=wp.mat33), diag_index: wp.array(dtype=int), inverse: wp.array(dtype=wp.mat33)):
+    # inverse_i = A_ii^-1 (I where singular), A_ii = values[diag_index[i]]: the smoother of a multigrid level
+    i = wp.tid()
+    inverse[i] = inverse_block(values[diag_index[i]])

@@ -151,8 +151,7 @@ class ImplicitEuler(Integrator):
         # Jacobi preconditioner: the same operator as preconditioner(A, "diag"), but its inverse
         # diagonal is refilled by the assembly kernel instead of being reallocated each step
         if self.preconditioner_used == "multigrid":
-            free_residual = (lambda x, b, r: self._matvec(x, b, r, -1.0, 1.0)) if self.matrix == "free" else None
-            self.multigrid = GridMultigrid(self.A, model.rows, model.cols, model.pinned, device, fine_residual=free_residual)
+            self.multigrid = GridMultigrid(self.A, model.rows, model.cols, model.pinned, device)
             self.M = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self.multigrid.apply)
         elif self.preconditioner_used == "block_jacobi":
             self.inv_block = wp.zeros(n, dtype=wp.mat33)
