@@ -420,3 +420,84 @@ def invert_diagonal_blocks(values: wp.array(dtype=wp.mat33), diag_index: wp.arra
     # inverse_i = A_ii^-1 (I where singular), A_ii = values[diag_index[i]]: the smoother of a multigrid level
     i = wp.tid()
     inverse[i] = inverse_block(values[diag_index[i]])
+
+
+# -- preconditioned CG with its scalars on the device (implicit_euler's CPU solver) -----------
+# scalars: [r.z, r.z (new), p.Ap, r.r, b.b, tolerance^2 = tol^2 b.b, iterations, done]
+CG_RZ = wp.constant(0)
+CG_RZ_NEW = wp.constant(1)
+CG_PAP = wp.constant(2)
+CG_RR = wp.constant(3)
+CG_BB = wp.constant(4)
+CG_TOL2 = wp.constant(5)
+CG_ITER = wp.constant(6)
+CG_DONE = wp.constant(7)
+
+
+@wp.kernel
+def dot_terms(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), terms: wp.array(dtype=float)):
+    # terms_i = a_i . b_i  (summed in a fixed order by sum_chunks / sum_partials)
+    i = wp.tid()
+    terms[i] = wp.dot(a[i], b[i])
+
+
+@wp.kernel
+def cg_start(tol: float, scalars: wp.array(dtype=float), p: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3)):
+    # p = z ;  tolerance^2 = tol^2 b.b ;  iterations = 0 ;  done when r.r <= tolerance^2 already
+    i = wp.tid()
+    p[i] = z[i]
+    if i == 0:
+        tol2 = tol * tol * scalars[CG_BB]
+        scalars[CG_TOL2] = tol2
+        scalars[CG_ITER] = 0.0
+        scalars[CG_DONE] = 0.0
+        if scalars[CG_RR] <= tol2:
+            scalars[CG_DONE] = 1.0
+
+
+@wp.kernel
+def cg_update_solution(
+    scalars: wp.array(dtype=float),
+    p: wp.array(dtype=wp.vec3),
+    Ap: wp.array(dtype=wp.vec3),
+    x: wp.array(dtype=wp.vec3),
+    r: wp.array(dtype=wp.vec3),
+    terms: wp.array(dtype=float),
+):
+    # alpha = r.z / p.Ap ;  x += alpha p ;  r -= alpha Ap ;  terms = r.r   (nothing once done)
+    i = wp.tid()
+    ri = r[i]
+    if scalars[CG_DONE] == 0.0 and scalars[CG_PAP] > 0.0:
+        alpha = scalars[CG_RZ] / scalars[CG_PAP]
+        x[i] = x[i] + alpha * p[i]
+        ri = ri - alpha * Ap[i]
+        r[i] = ri
+    terms[i] = wp.dot(ri, ri)
+
+
+@wp.kernel
+def cg_count(max_iter: int, scalars: wp.array(dtype=float)):
+    # one iteration more; done when r.r <= tolerance^2 (warp's cg test) or at the cap
+    if scalars[CG_DONE] == 0.0:
+        it = scalars[CG_ITER] + 1.0
+        scalars[CG_ITER] = it
+        if scalars[CG_RR] <= scalars[CG_TOL2] or it >= float(max_iter):
+            scalars[CG_DONE] = 1.0
+
+
+@wp.kernel
+def cg_update_direction(scalars: wp.array(dtype=float), z: wp.array(dtype=wp.vec3), p: wp.array(dtype=wp.vec3)):
+    # beta = r.z (new) / r.z ;  p = z + beta p   (nothing once done)
+    i = wp.tid()
+    if scalars[CG_DONE] == 0.0:
+        beta = float(0.0)
+        if scalars[CG_RZ] > 0.0:
+            beta = scalars[CG_RZ_NEW] / scalars[CG_RZ]
+        p[i] = z[i] + beta * p[i]
+
+
+@wp.kernel
+def cg_shift(scalars: wp.array(dtype=float)):
+    # r.z <- r.z (new), for the next iteration
+    if scalars[CG_DONE] == 0.0:
+        scalars[CG_RZ] = scalars[CG_RZ_NEW]
