@@ -347,7 +347,7 @@ def test_approx_matrix_is_assembled_once_and_not_refilled():
 
 def test_options_defaults_and_errors():
     integ = make_integrator("implicit_euler")
-    assert (integ.cg_tol, integ.cg_max_iter, integ.jacobian, integ.matrix) == (1e-3, 1000, "full", "free")
+    assert (integ.cg_tol, integ.cg_max_iter, integ.jacobian, integ.matrix) == (1e-3, 1000, "full", "bsr")
     model = sheet.build(rows=4, cols=4, integrator="explicit_euler").model
     assert ImplicitEuler().default_dt(model) == pytest.approx(1.0 / 60.0)
     assert sheet.build(rows=4, cols=4, integrator="implicit_euler").dt == pytest.approx(1.0 / 60.0)

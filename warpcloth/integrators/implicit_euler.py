@@ -183,7 +183,11 @@ class ImplicitEuler(Integrator):
             "CPU: CG iterations run (as one captured chunk) between host convergence checks; iterations past convergence "
             "within a chunk change nothing (CUDA checks on the device)", _check_max_iter,
         ),
-        Option("matrix", str, "free", "system matrix: free (matrix-free LinearOperator; faster on the CPU, see bench/implicit.py) or bsr (assembled warp.sparse BSR)", choices=MATRICES),
+        Option(
+            "matrix", str, "bsr",
+            "system matrix CG applies: bsr (assembled 3 x 3 blocks, refilled each step; the faster on the CPU, see bench/implicit.py) "
+            "or free (matrix-free, gathering over each particle's springs)", choices=MATRICES,
+        ),
     )
 
     #: On the CPU, give cg a single-batch operator (plain-loop dot products); False keeps Warp's
@@ -237,6 +241,7 @@ class ImplicitEuler(Integrator):
         if self._bsr:  # where each adjacency entry and each diagonal block sits in A.values
             self.adjacency_block = wp.array(block_of(ends[order], others[order]), dtype=int)
             self.row_offsets = wp.array(offsets.astype(np.int32), dtype=int)
+            self.block_columns = wp.array(columns.astype(np.int32), dtype=int)
             self.diag_block = wp.array(block_of(np.arange(n), np.arange(n)), dtype=int)
 
         # Jacobi preconditioner: the same operator as preconditioner(A, "diag"), but its inverse
@@ -258,7 +263,7 @@ class ImplicitEuler(Integrator):
         # (32^2) and 62x (64^2) as long (medians, bench/results/cpu-dot.txt: python bench/cpu_dot.py).
         single_batch = None if is_cuda or not self.cpu_single_batch_dot else wp.array([0, 3 * n], dtype=int)
         if self.matrix == "bsr":
-            self.A_op = aslinearoperator(self.A, batch_offsets=single_batch)
+            self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._bsr_matvec, batch_offsets=single_batch)
         else:
             self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._matvec, batch_offsets=single_batch)
         # CUDA: warp's cg, convergence checked on the device (conditional graph), no host sync
@@ -329,6 +334,13 @@ class ImplicitEuler(Integrator):
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.inv_block], device=m.device,
             )
+
+    def _bsr_matvec(self, x, y, z, alpha, beta) -> None:
+        """z = alpha A x + beta y with the assembled A (its BSR blocks, row by row): one 3 x 3
+        product per stored block, read in storage order; warp.sparse.bsr_mv computes the same
+        row by row of scalars."""
+        m = self.model
+        wp.launch(ik.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.A.values, x, y, float(alpha), float(beta)], outputs=[z], device=m.device)
 
     def _matvec(self, x, y, z, alpha, beta) -> None:
         """z = alpha A x + beta y without assembling A (the LinearOperator's matvec)."""
