@@ -501,3 +501,22 @@ def cg_shift(scalars: wp.array(dtype=float)):
     # r.z <- r.z (new), for the next iteration
     if scalars[CG_DONE] == 0.0:
         scalars[CG_RZ] = scalars[CG_RZ_NEW]
+
+
+@wp.kernel
+def invert_l1_diagonal_blocks(
+    offsets: wp.array(dtype=int),
+    values: wp.array(dtype=wp.mat33),
+    diag_index: wp.array(dtype=int),
+    inverse: wp.array(dtype=wp.mat33),
+):
+    # l1 block Jacobi: inverse_i = (A_ii + sum_(j != i) |A_ij|_F I)^-1 (I where singular). For SPD A the
+    # sweep x += D_l1^-1 (b - A x) converges whatever the coupling (A <= D_l1 block-wise), where plain
+    # damped Jacobi needs omega < 2 / lambda_max(D^-1 A), which Galerkin coarse operators can break.
+    i = wp.tid()
+    d = diag_index[i]
+    extra = float(0.0)
+    for e in range(offsets[i], offsets[i + 1]):
+        if e != d:
+            extra = extra + wp.sqrt(wp.ddot(values[e], values[e]))
+    inverse[i] = inverse_block(values[d] + extra * wp.identity(n=3, dtype=float))
