@@ -18,6 +18,8 @@ particle -> (spring, neighbour, block) adjacency built once at bind: no atomics.
 
 import warp as wp
 
+from .collide import contact_of
+
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
 
@@ -442,11 +444,17 @@ def dot_terms(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), terms: wp.
 
 
 @wp.kernel
-def cg_start(tol: float, scalars: wp.array(dtype=float), p: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3)):
-    # p = z ;  tolerance^2 = tol^2 b.b ;  iterations = 0 ;  done when r.r <= tolerance^2 already
+def cg_start(tol: float, scalars: wp.array(dtype=float), p: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3), x: wp.array(dtype=wp.vec3)):
+    # p = z ;  tolerance^2 = tol^2 b.b ;  iterations = 0 ;  done when r.r <= tolerance^2 already;
+    # b = 0 exactly: x = 0 is the solution (a relative tolerance cannot be met from a warm start)
     i = wp.tid()
     p[i] = z[i]
+    bb = scalars[CG_BB]
+    if bb == 0.0:
+        x[i] = wp.vec3(0.0)
     if i == 0:
+        if bb == 0.0:
+            scalars[CG_RR] = 0.0
         tol2 = tol * tol * scalars[CG_BB]
         scalars[CG_TOL2] = tol2
         scalars[CG_ITER] = 0.0
@@ -520,3 +528,101 @@ def invert_l1_diagonal_blocks(
         if e != d:
             extra = extra + wp.sqrt(wp.ddot(values[e], values[e]))
     inverse[i] = inverse_block(values[d] + extra * wp.identity(n=3, dtype=float))
+
+
+# -- contacts seen by the solve (Baraff & Witkin's filter) -------------------------------------
+@wp.kernel
+def eval_contact_normals(
+    kind: int,
+    x: wp.array(dtype=wp.vec3),
+    f: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    a: wp.array(dtype=wp.vec3),
+    b: wp.array(dtype=wp.vec3),
+    radius: wp.array(dtype=float),
+    rotation: wp.array(dtype=wp.quat),
+    material: wp.array(dtype=wp.vec2),
+    normal: wp.array(dtype=wp.vec3),
+    friction: wp.array(dtype=float),
+):
+    # normal_i, friction_i = n, mu of a collider (of one kind) that particle i touches (phi < 1.1 thickness:
+    # the projection leaves a resting particle at phi = thickness, to rounding) and that the force at the
+    # step's start pushes it into (f . n < 0); pinned particles: none
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    for c in range(material.shape[0]):
+        phi, n = contact_of(kind, x[i], c, a, b, radius, rotation)
+        if phi < 1.1 * material[c][0] and wp.dot(f[i], n) < 0.0:
+            normal[i] = n
+            friction[i] = material[c][1]
+
+
+@wp.kernel
+def eval_contact_dv(normal: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3)):
+    # prescribed normal dv of a contact particle: z = -min(0, v . n) n (it stops approaching the collider); 0 elsewhere
+    i = wp.tid()
+    n = normal[i]
+    z[i] = -wp.min(0.0, wp.dot(v[i], n)) * n
+
+
+@wp.kernel
+def apply_contact_friction(
+    normal: wp.array(dtype=wp.vec3),
+    friction: wp.array(dtype=float),
+    residual: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    particle_mass: wp.array(dtype=float),
+    dv: wp.array(dtype=wp.vec3),
+):
+    # Coulomb friction of the constraint impulse J = -n . (b - A dv)_i >= 0 (unfiltered A, b): the
+    # tangential velocity v_t of v + dv is reduced by min(mu J / m, |v_t|)
+    i = wp.tid()
+    n = normal[i]
+    if wp.dot(n, n) == 0.0:
+        return
+    J = wp.max(0.0, -wp.dot(n, residual[i]))
+    vn = v[i] + dv[i]
+    vt = vn - wp.dot(vn, n) * n
+    lt = wp.length(vt)
+    if lt > 0.0:
+        dv[i] = dv[i] - (wp.min(friction[i] * J / particle_mass[i], lt) / lt) * vt
+
+
+@wp.func
+def contact_filter(n: wp.vec3):
+    # S = I - n n^T (I without a contact: n = 0)
+    return wp.identity(n=3, dtype=float) - wp.outer(n, n)
+
+
+@wp.kernel
+def filter_system_rows(
+    row_offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    diag_block: wp.array(dtype=int),
+    normal: wp.array(dtype=wp.vec3),
+    values: wp.array(dtype=wp.mat33),
+    inv_diag: wp.array(dtype=wp.vec3),
+):
+    # A <- S A S + (n^T A_ii n) n n^T: contact normals leave the solve (their dv is prescribed);
+    # inv_diag = 1 / diag(A_ii) of the filtered A (Jacobi)
+    i = wp.tid()
+    ni = normal[i]
+    Si = contact_filter(ni)
+    d = diag_block[i]
+    for e in range(row_offsets[i], row_offsets[i + 1]):
+        if e == d:
+            block = values[e]
+            values[e] = Si * block * Si + wp.dot(ni, block * ni) * wp.outer(ni, ni)
+        else:
+            values[e] = Si * values[e] * contact_filter(normal[columns[e]])
+    inv_diag[i] = inverse_diagonal(values[d])
+
+
+@wp.kernel
+def filter_rhs(normal: wp.array(dtype=wp.vec3), Az: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), dv: wp.array(dtype=wp.vec3)):
+    # b <- S (b - A z) (the prescribed normal dv moved to the right side);  dv <- S dv (the warm start)
+    i = wp.tid()
+    S = contact_filter(normal[i])
+    b[i] = S * (b[i] - Az[i])
+    dv[i] = S * dv[i]
