@@ -10,35 +10,47 @@ approximated Hessian (eq. 2.23: H_ij = k_ij I, H_ii = -sum_j k_ij I, and likewis
 df/dv), which is constant, so the matrix is assembled once per time step size, not every step.
 
 With B_s = h^2 K_s + h D_s per spring (refilled by one kernel each step), A is applied either
-matrix-free (``matrix="free"``, the default: a ``warp.optim.linear.LinearOperator`` gathering
-over each particle's springs) or assembled (``matrix="bsr"``: a ``warp.sparse`` BSR matrix of
-3x3 blocks whose pattern, one diagonal block per particle and one block per spring and direction,
-is built once at bind and whose values a kernel refills). Both give the same A; on the CPU
-matrix-free is the faster, by a margin that grows with the sheet: BSR took 1.45x, 1.67x and 2.0x
-its time per step at 32^2, 64^2 and 128^2 (medians of 5 alternating repeats on a loaded 2-core
-CPU, ranges and an earlier run in bench/results/: ``python bench/implicit.py --sizes 32 64 128
---steps 10 --repeats 5``). The system is solved by ``warp.optim.linear.cg`` with the Jacobi preconditioner (the operator
-``preconditioner(A, "diag")`` builds, refilled in place), warm-started from the previous dv.
-Pinned particles have identity rows and zero columns (dv = 0).
+assembled (``matrix="bsr"``, the default: a ``warp.sparse`` BSR matrix of 3x3 blocks whose
+pattern, one diagonal block per particle and one block per spring and direction, is built once
+at bind and whose values a kernel refills; CG multiplies by it with
+:func:`~warpcloth.kernels.implicit.block_gemv`, one 3 x 3 product per stored block in storage
+order) or matrix-free (``matrix="free"``: a gather over each particle's springs). Both give the
+same A. On the CPU the assembled product is the faster: 0.66 against 1.62 ms per product at
+128^2 in one profiling run (``warp.sparse.bsr_mv``, which works on scalar rows, was slower than
+both), and per step bsr / free was 0.98, 0.83 and 0.80 at 32^2, 64^2 and 128^2 (medians of 3,
+``python bench/implicit.py --sizes 32 64 128 --steps 10 --repeats 3``,
+bench/results/implicit-cpu.txt). Pinned particles have identity rows and zero columns (dv = 0).
+
+The solve: on CUDA, ``warp.optim.linear.cg`` with its convergence checked on the device
+(``check_every=0``, a conditional graph node), so a frame can be captured. On the CPU,
+:class:`DevicePCG`: the same preconditioned CG with its scalars in a device array and the
+iterations run in chunks of ``cg_check_every`` (default 4), each chunk captured once and
+replayed (Warp >= 1.19), with one host read of a "done" flag between chunks; iterations past
+convergence within a chunk change nothing. Warp's cg on the CPU paid Python launches and a host
+check every iteration (Jacobi at 32^2, tolerance 1e-5: 48 ms/step before, 18.5 after, one
+loaded run). Both are warm-started from the previous dv.
 
 Preconditioners (``preconditioner``): ``jacobi`` (1 / diag A, the default), ``block_jacobi``
 (A's inverse 3 x 3 diagonal blocks; on the sheet, whose blocks are nearly diagonal, it takes as
 many iterations as Jacobi, and fewer where the blocks couple the axes: tests/test_preconditioner.py)
 and ``multigrid`` (a geometric V-cycle for grid models, :mod:`warpcloth.integrators.multigrid`:
-CG iterations nearly independent of the sheet size, 13-14 at 128^2 where Jacobi takes ~300;
+CG iterations nearly independent of the sheet size, 14.4 at 128^2 where Jacobi takes ~300;
 docs/solvers.md). Multigrid assembles A as BSR for its Galerkin products; a model that is not a
-grid falls back to block_jacobi with a note on stderr. The default stays ``jacobi``: multigrid
-took 1/2.8 [1/3.3-1/2.8] of Jacobi's time per step at 128^2 on the CPU, but at 32^2 it is no
-faster (jacobi / multigrid 0.96 [0.80-1.00]; bench/results/solvers-cpu.txt and
-solvers-cpu-32.txt; docs/solvers.md).
+grid falls back to block_jacobi with a note on stderr. Multigrid is now the faster at every size
+measured (docs/solvers.md, bench/results/solvers-cpu*.txt); the default stays ``jacobi`` because
+it is the seed's method and works on every model without a note.
 
-Statistics: on CUDA, cg checks convergence on the device (``check_every=0``, a conditional graph
-node) and a kernel accumulates iterations, residuals and the count of steps that ended at the
-iteration cap above the tolerance, so a step never syncs with the host; :meth:`ImplicitEuler.stats`
-reads them once, at the end of a run. On the CPU, cg reads its residual every iteration
-(``check_every=1``); for a CPU array that is a plain memory read, and the statistics are
-accumulated in Python. A run with a capped step reports ``solver_converged = False`` and warns
-once (:meth:`ImplicitEuler.convergence`).
+Contacts (``matrix="bsr"``, colliders present): the solve sees them (Baraff & Witkin 1998,
+sec. 5.3): a particle pushed into a collider gets the filter S = I - n n^T, a prescribed normal
+dv (it stops approaching), and Coulomb friction from the constraint's impulse after the solve
+(:meth:`ImplicitEuler._filter_contacts`); the collider projection after the step still corrects
+positions. With ``matrix="free"`` only that projection acts.
+
+Statistics: on CUDA a kernel accumulates iterations, residuals and the count of steps that ended
+at the iteration cap above the tolerance, so a step never syncs with the host;
+:meth:`ImplicitEuler.stats` reads them once, at the end of a run. On the CPU they are accumulated
+in Python from the chunk reads. A run with a capped step reports ``solver_converged = False`` and
+warns once (:meth:`ImplicitEuler.convergence`).
 """
 
 from __future__ import annotations
@@ -365,6 +377,12 @@ class ImplicitEuler(Integrator):
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.mass_term, self.inv_diag], device=m.device,
             )
+
+    def assemble_system(self, x, h: float, drag: float) -> None:
+        """A = M (1 + h c) - h df/dv - h^2 df/dx at ``x`` and its preconditioner (no contact
+        filter): what vbd's multigrid correction uses as h^2 times its Hessian."""
+        self._assemble(x, h, drag)
+        self._update_preconditioner(h, drag, False)
 
     def _update_preconditioner(self, h: float, drag: float, filtered: bool) -> None:
         """The preconditioner of this step's A (after the contact filter where ``filtered``;
