@@ -207,13 +207,6 @@ def apply_block_diagonal(
 
 
 @wp.kernel
-def invert_blocks(blocks: wp.array(dtype=wp.mat33), inverse: wp.array(dtype=wp.mat33)):
-    # inverse_i = blocks_i^-1 (I where singular): the block-Jacobi smoother of a multigrid level
-    i = wp.tid()
-    inverse[i] = inverse_block(blocks[i])
-
-
-@wp.kernel
 def smooth_jacobi(
     residual: wp.array(dtype=wp.vec3),
     inv_block: wp.array(dtype=wp.mat33),

@@ -203,7 +203,9 @@ class ImplicitEuler(Integrator):
     )
 
     #: On the CPU, give cg a single-batch operator (plain-loop dot products); False keeps Warp's
-    #: tiled reduction (for bench/cpu_dot.py). Read at bind.
+    #: tiled reduction (for bench/cpu_dot.py). Read at bind. Since the CPU solve is
+    #: :class:`DevicePCG` (fixed-order dot kernels), Warp's cg runs only on CUDA and this no
+    #: longer changes a CPU step: bench/cpu_dot.py's comparison is obsolete.
     cpu_single_batch_dot: bool = True
 
     # -- binding -----------------------------------------------------------------------
