@@ -39,12 +39,19 @@ from warpcloth.scenarios import sheet
 
 DT = 1.0 / 60.0
 CG_TOL = 1e-3
-CASES = {
-    "implicit_euler/jacobi": ("implicit_euler", {"preconditioner": "jacobi", "cg_tol": CG_TOL}),
-    "implicit_euler/multigrid": ("implicit_euler", {"preconditioner": "multigrid", "cg_tol": CG_TOL}),
-    "vbd": ("vbd", {}),
-    "projective": ("projective", {}),
-}
+
+
+def cases(cg_tol: float) -> dict:
+    """The timed warpcloth cases: name -> (integrator, options)."""
+    return {
+        "implicit_euler/jacobi": ("implicit_euler", {"preconditioner": "jacobi", "cg_tol": cg_tol}),
+        "implicit_euler/multigrid": ("implicit_euler", {"preconditioner": "multigrid", "cg_tol": cg_tol}),
+        "vbd": ("vbd", {}),
+        "projective": ("projective", {}),
+    }
+
+
+CASES = cases(CG_TOL)
 PEER = "numpy-peer/implicit"
 DEFAULT_PEER = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "peers", "numpy", "bench_cloth.py")
 
@@ -80,9 +87,9 @@ def time_case(sim, steps: int) -> dict:
     return {"ms": 1e3 * wall / steps, "cpu_ms": 1e3 * cpu / steps, "stats": sim.integrator.stats(), "finite": finite}
 
 
-def time_peer(peer: str, python: str, size: int, steps: int) -> dict:
+def time_peer(peer: str, python: str, size: int, steps: int, cg_tol: float = CG_TOL) -> dict:
     cmd = [python, peer, "--rows", str(size), "--cols", str(size), "--integrator", "implicit", "--dt", repr(DT),
-           "--cg-rtol", repr(CG_TOL), "--steps", str(steps), "--warmup", "1"]
+           "--cg-rtol", repr(cg_tol), "--steps", str(steps), "--warmup", "1"]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
     r = json.loads(out)
     return {"ms": r["ms_per_step"], "cpu_ms": float("nan"), "stats": {"cg_iterations_mean": r["cg_iters_mean"]}, "finite": r["finite"]}
@@ -96,6 +103,8 @@ def main(argv=None) -> None:
     p.add_argument("--settle-size", type=int, default=64, help="sheet side for the static sag check (0 skips it)")
     p.add_argument("--settle-time", type=float, default=10.0, help="simulated seconds of the settling run [s]")
     p.add_argument("--settle-implicit", action="store_true", help="also settle implicit_euler (multigrid) for the sag check")
+    p.add_argument("--cg-tol", type=float, default=CG_TOL, help="CG relative tolerance of implicit_euler and the peer")
+    p.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES), help="warpcloth cases timed (ratios need theirs)")
     p.add_argument("--peer", default=DEFAULT_PEER, help="the numpy/scipy peer script ('' skips it)")
     p.add_argument("--peer-python", default=sys.executable, help="the Python that runs the peer (needs numpy and scipy)")
     args = p.parse_args(argv)
@@ -103,14 +112,15 @@ def main(argv=None) -> None:
     wp.init()
     print(f"# bench/solvers.py {' '.join(argv if argv is not None else sys.argv[1:])}")
     print(f"# {time.strftime('%Y-%m-%d %H:%M:%S %Z')}, {platform.machine()} {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, warp {wp.config.version}")
-    print(f"# speed: peer workload, {args.size}x{args.size}, dt = 1/60 s, CG tol {CG_TOL}, {args.steps} steps from rest per case")
-    names = list(CASES) + ([PEER] if args.peer else [])
-    sims = {name: peer_workload(args.size, *CASES[name]) for name in CASES}
+    print(f"# speed: peer workload, {args.size}x{args.size}, dt = 1/60 s, CG tol {args.cg_tol:g}, {args.steps} steps from rest per case")
+    timed = cases(args.cg_tol)
+    names = list(args.cases) + ([PEER] if args.peer else [])
+    sims = {name: peer_workload(args.size, *timed[name]) for name in args.cases}
     results = {name: [] for name in names}
     for rep in range(args.repeats):
         order = names[rep % len(names):] + names[: rep % len(names)]
         for name in order:
-            r = time_peer(args.peer, args.peer_python, args.size, args.steps) if name == PEER else time_case(sims[name], args.steps)
+            r = time_peer(args.peer, args.peer_python, args.size, args.steps, args.cg_tol) if name == PEER else time_case(sims[name], args.steps)
             results[name].append(r)
             it = r["stats"].get("cg_iterations_mean")
             extra = f", CG iterations mean {it:.1f}" if it is not None else ""
@@ -123,16 +133,16 @@ def main(argv=None) -> None:
         extra = f", CG iterations {spread(its)}" if its[0] is not None else ""
         print(f"{name:26s} {spread(ms)} ms/step{extra}")
 
-    def ratio(a: str, b: str) -> str:
-        return spread([ra["ms"] / rb["ms"] for ra, rb in zip(results[a], results[b])])
+    def ratio(a: str, b: str, label: str, note: str = "") -> None:
+        if a in results and b in results:
+            print(f"{label:42s} {spread([ra['ms'] / rb['ms'] for ra, rb in zip(results[a], results[b])])}{note}")
 
     print("\n# ratios of ms/step, per repeat, median [min-max]")
-    if args.peer:
-        print(f"peer implicit / implicit_euler multigrid: {ratio(PEER, 'implicit_euler/multigrid')}  (target >= 5)")
-        print(f"peer implicit / implicit_euler jacobi:    {ratio(PEER, 'implicit_euler/jacobi')}")
-    print(f"implicit_euler jacobi / multigrid:        {ratio('implicit_euler/jacobi', 'implicit_euler/multigrid')}")
-    print(f"implicit_euler jacobi / vbd:              {ratio('implicit_euler/jacobi', 'vbd')}  (target >= 5)")
-    print(f"implicit_euler jacobi / projective:       {ratio('implicit_euler/jacobi', 'projective')}  (target >= 5)")
+    ratio(PEER, "implicit_euler/multigrid", "peer implicit / implicit_euler multigrid:", "  (target >= 5 at tol 1e-3, >= 2 at 1e-5)")
+    ratio(PEER, "implicit_euler/jacobi", "peer implicit / implicit_euler jacobi:")
+    ratio("implicit_euler/jacobi", "implicit_euler/multigrid", "implicit_euler jacobi / multigrid:")
+    ratio("implicit_euler/jacobi", "vbd", "implicit_euler jacobi / vbd:", "  (target >= 5)")
+    ratio("implicit_euler/jacobi", "projective", "implicit_euler jacobi / projective:", "  (target >= 5)")
 
     if args.settle_size:
         n = args.settle_size

@@ -18,6 +18,8 @@ particle -> (spring, neighbour, block) adjacency built once at bind: no atomics.
 
 import warp as wp
 
+from .collide import contact_of
+
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
 
@@ -205,13 +207,6 @@ def apply_block_diagonal(
 
 
 @wp.kernel
-def invert_blocks(blocks: wp.array(dtype=wp.mat33), inverse: wp.array(dtype=wp.mat33)):
-    # inverse_i = blocks_i^-1 (I where singular): the block-Jacobi smoother of a multigrid level
-    i = wp.tid()
-    inverse[i] = inverse_block(blocks[i])
-
-
-@wp.kernel
 def smooth_jacobi(
     residual: wp.array(dtype=wp.vec3),
     inv_block: wp.array(dtype=wp.mat33),
@@ -347,3 +342,280 @@ def record_cg_stats(
     stats[4] = wp.max(stats[4], res)
     if not (residual_sq[0] <= tolerance_sq[0]):
         stats[5] = stats[5] + wp.float64(1.0)
+
+
+@wp.kernel
+def block_gemv(
+    offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    values: wp.array(dtype=wp.mat33),
+    x: wp.array(dtype=wp.vec3),
+    y: wp.array(dtype=wp.vec3),
+    alpha: float,
+    beta: float,
+    z: wp.array(dtype=wp.vec3),
+):
+    # z = alpha A x + beta y, A in CSR of 3 x 3 blocks (row i: blocks offsets[i]:offsets[i + 1]); y may alias z
+    i = wp.tid()
+    acc = wp.vec3(0.0)
+    for e in range(offsets[i], offsets[i + 1]):
+        acc = acc + values[e] * x[columns[e]]
+    out = alpha * acc
+    if beta != 0.0:
+        out = out + beta * y[i]
+    z[i] = out
+
+
+@wp.kernel
+def weight_gemv(
+    offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    weights: wp.array(dtype=float),
+    x: wp.array(dtype=wp.vec3),
+    beta: float,
+    z: wp.array(dtype=wp.vec3),
+):
+    # z = W x + beta z, W in CSR of scalars (blocks w I: the grid transfers P and P^T)
+    i = wp.tid()
+    acc = wp.vec3(0.0)
+    for e in range(offsets[i], offsets[i + 1]):
+        acc = acc + weights[e] * x[columns[e]]
+    if beta != 0.0:
+        acc = acc + beta * z[i]
+    z[i] = acc
+
+
+@wp.kernel
+def smooth_jacobi_block(
+    offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    values: wp.array(dtype=wp.mat33),
+    inv_block: wp.array(dtype=wp.mat33),
+    b: wp.array(dtype=wp.vec3),
+    x: wp.array(dtype=wp.vec3),
+    omega: float,
+    alpha: float,
+    beta: float,
+    y: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
+):
+    # one damped block-Jacobi sweep, fused with its residual: z = alpha (x + omega D^-1 (b - A x)) + beta y  (z must not alias x)
+    i = wp.tid()
+    res = b[i]
+    for e in range(offsets[i], offsets[i + 1]):
+        res = res - values[e] * x[columns[e]]
+    out = alpha * (x[i] + omega * (inv_block[i] * res))
+    if beta != 0.0:
+        out = out + beta * y[i]
+    z[i] = out
+
+
+@wp.kernel
+def invert_diagonal_blocks(values: wp.array(dtype=wp.mat33), diag_index: wp.array(dtype=int), inverse: wp.array(dtype=wp.mat33)):
+    # inverse_i = A_ii^-1 (I where singular), A_ii = values[diag_index[i]]: the smoother of a multigrid level
+    i = wp.tid()
+    inverse[i] = inverse_block(values[diag_index[i]])
+
+
+# -- preconditioned CG with its scalars on the device (implicit_euler's CPU solver) -----------
+# scalars: [r.z, r.z (new), p.Ap, r.r, b.b, tolerance^2 = tol^2 b.b, iterations, done]
+CG_RZ = wp.constant(0)
+CG_RZ_NEW = wp.constant(1)
+CG_PAP = wp.constant(2)
+CG_RR = wp.constant(3)
+CG_BB = wp.constant(4)
+CG_TOL2 = wp.constant(5)
+CG_ITER = wp.constant(6)
+CG_DONE = wp.constant(7)
+
+
+@wp.kernel
+def dot_terms(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), terms: wp.array(dtype=float)):
+    # terms_i = a_i . b_i  (summed in a fixed order by sum_chunks / sum_partials)
+    i = wp.tid()
+    terms[i] = wp.dot(a[i], b[i])
+
+
+@wp.kernel
+def cg_start(tol: float, scalars: wp.array(dtype=float), p: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3), x: wp.array(dtype=wp.vec3)):
+    # p = z ;  tolerance^2 = tol^2 b.b ;  iterations = 0 ;  done when r.r <= tolerance^2 already;
+    # b = 0 exactly: x = 0 is the solution (a relative tolerance cannot be met from a warm start)
+    i = wp.tid()
+    p[i] = z[i]
+    bb = scalars[CG_BB]
+    if bb == 0.0:
+        x[i] = wp.vec3(0.0)
+    if i == 0:
+        if bb == 0.0:
+            scalars[CG_RR] = 0.0
+        tol2 = tol * tol * scalars[CG_BB]
+        scalars[CG_TOL2] = tol2
+        scalars[CG_ITER] = 0.0
+        scalars[CG_DONE] = 0.0
+        if scalars[CG_RR] <= tol2:
+            scalars[CG_DONE] = 1.0
+
+
+@wp.kernel
+def cg_update_solution(
+    scalars: wp.array(dtype=float),
+    p: wp.array(dtype=wp.vec3),
+    Ap: wp.array(dtype=wp.vec3),
+    x: wp.array(dtype=wp.vec3),
+    r: wp.array(dtype=wp.vec3),
+    terms: wp.array(dtype=float),
+):
+    # alpha = r.z / p.Ap ;  x += alpha p ;  r -= alpha Ap ;  terms = r.r   (nothing once done)
+    i = wp.tid()
+    ri = r[i]
+    if scalars[CG_DONE] == 0.0 and scalars[CG_PAP] > 0.0:
+        alpha = scalars[CG_RZ] / scalars[CG_PAP]
+        x[i] = x[i] + alpha * p[i]
+        ri = ri - alpha * Ap[i]
+        r[i] = ri
+    terms[i] = wp.dot(ri, ri)
+
+
+@wp.kernel
+def cg_count(max_iter: int, scalars: wp.array(dtype=float)):
+    # one iteration more; done when r.r <= tolerance^2 (warp's cg test) or at the cap
+    if scalars[CG_DONE] == 0.0:
+        it = scalars[CG_ITER] + 1.0
+        scalars[CG_ITER] = it
+        if scalars[CG_RR] <= scalars[CG_TOL2] or it >= float(max_iter):
+            scalars[CG_DONE] = 1.0
+
+
+@wp.kernel
+def cg_update_direction(scalars: wp.array(dtype=float), z: wp.array(dtype=wp.vec3), p: wp.array(dtype=wp.vec3)):
+    # beta = r.z (new) / r.z ;  p = z + beta p   (nothing once done)
+    i = wp.tid()
+    if scalars[CG_DONE] == 0.0:
+        beta = float(0.0)
+        if scalars[CG_RZ] > 0.0:
+            beta = scalars[CG_RZ_NEW] / scalars[CG_RZ]
+        p[i] = z[i] + beta * p[i]
+
+
+@wp.kernel
+def cg_shift(scalars: wp.array(dtype=float)):
+    # r.z <- r.z (new), for the next iteration
+    if scalars[CG_DONE] == 0.0:
+        scalars[CG_RZ] = scalars[CG_RZ_NEW]
+
+
+@wp.kernel
+def invert_l1_diagonal_blocks(
+    offsets: wp.array(dtype=int),
+    values: wp.array(dtype=wp.mat33),
+    diag_index: wp.array(dtype=int),
+    inverse: wp.array(dtype=wp.mat33),
+):
+    # l1 block Jacobi: inverse_i = (A_ii + sum_(j != i) |A_ij|_F I)^-1 (I where singular). For SPD A the
+    # sweep x += D_l1^-1 (b - A x) converges whatever the coupling (A <= D_l1 block-wise), where plain
+    # damped Jacobi needs omega < 2 / lambda_max(D^-1 A), which Galerkin coarse operators can break.
+    i = wp.tid()
+    d = diag_index[i]
+    extra = float(0.0)
+    for e in range(offsets[i], offsets[i + 1]):
+        if e != d:
+            extra = extra + wp.sqrt(wp.ddot(values[e], values[e]))
+    inverse[i] = inverse_block(values[d] + extra * wp.identity(n=3, dtype=float))
+
+
+# -- contacts seen by the solve (Baraff & Witkin's filter) -------------------------------------
+@wp.kernel
+def eval_contact_normals(
+    kind: int,
+    x: wp.array(dtype=wp.vec3),
+    f: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    a: wp.array(dtype=wp.vec3),
+    b: wp.array(dtype=wp.vec3),
+    radius: wp.array(dtype=float),
+    rotation: wp.array(dtype=wp.quat),
+    material: wp.array(dtype=wp.vec2),
+    normal: wp.array(dtype=wp.vec3),
+    friction: wp.array(dtype=float),
+):
+    # normal_i, friction_i = n, mu of a collider (of one kind) that particle i touches (phi < 1.1 thickness:
+    # the projection leaves a resting particle at phi = thickness, to rounding) and that the force at the
+    # step's start pushes it into (f . n < 0); pinned particles: none
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    for c in range(material.shape[0]):
+        phi, n = contact_of(kind, x[i], c, a, b, radius, rotation)
+        if phi < 1.1 * material[c][0] and wp.dot(f[i], n) < 0.0:
+            normal[i] = n
+            friction[i] = material[c][1]
+
+
+@wp.kernel
+def eval_contact_dv(normal: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3)):
+    # prescribed normal dv of a contact particle: z = -min(0, v . n) n (it stops approaching the collider); 0 elsewhere
+    i = wp.tid()
+    n = normal[i]
+    z[i] = -wp.min(0.0, wp.dot(v[i], n)) * n
+
+
+@wp.kernel
+def apply_contact_friction(
+    normal: wp.array(dtype=wp.vec3),
+    friction: wp.array(dtype=float),
+    residual: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    particle_mass: wp.array(dtype=float),
+    dv: wp.array(dtype=wp.vec3),
+):
+    # Coulomb friction of the constraint impulse J = -n . (b - A dv)_i >= 0 (unfiltered A, b): the
+    # tangential velocity v_t of v + dv is reduced by min(mu J / m, |v_t|)
+    i = wp.tid()
+    n = normal[i]
+    if wp.dot(n, n) == 0.0:
+        return
+    J = wp.max(0.0, -wp.dot(n, residual[i]))
+    vn = v[i] + dv[i]
+    vt = vn - wp.dot(vn, n) * n
+    lt = wp.length(vt)
+    if lt > 0.0:
+        dv[i] = dv[i] - (wp.min(friction[i] * J / particle_mass[i], lt) / lt) * vt
+
+
+@wp.func
+def contact_filter(n: wp.vec3):
+    # S = I - n n^T (I without a contact: n = 0)
+    return wp.identity(n=3, dtype=float) - wp.outer(n, n)
+
+
+@wp.kernel
+def filter_system_rows(
+    row_offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    diag_block: wp.array(dtype=int),
+    normal: wp.array(dtype=wp.vec3),
+    values: wp.array(dtype=wp.mat33),
+    inv_diag: wp.array(dtype=wp.vec3),
+):
+    # A <- S A S + (n^T A_ii n) n n^T: contact normals leave the solve (their dv is prescribed);
+    # inv_diag = 1 / diag(A_ii) of the filtered A (Jacobi)
+    i = wp.tid()
+    ni = normal[i]
+    Si = contact_filter(ni)
+    d = diag_block[i]
+    for e in range(row_offsets[i], row_offsets[i + 1]):
+        if e == d:
+            block = values[e]
+            values[e] = Si * block * Si + wp.dot(ni, block * ni) * wp.outer(ni, ni)
+        else:
+            values[e] = Si * values[e] * contact_filter(normal[columns[e]])
+    inv_diag[i] = inverse_diagonal(values[d])
+
+
+@wp.kernel
+def filter_rhs(normal: wp.array(dtype=wp.vec3), Az: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), dv: wp.array(dtype=wp.vec3)):
+    # b <- S (b - A z) (the prescribed normal dv moved to the right side);  dv <- S dv (the warm start)
+    i = wp.tid()
+    S = contact_filter(normal[i])
+    b[i] = S * (b[i] - Az[i])
+    dv[i] = S * dv[i]

@@ -119,3 +119,42 @@ def update_from_increment(
     d = dx[i]
     v[i] = d / h
     x[i] = x[i] + d
+
+
+@wp.kernel
+def eval_increment_residual(
+    x: wp.array(dtype=wp.vec3),
+    dy: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    particle_mass: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    adjacency_offsets: wp.array(dtype=int),
+    adjacency_spring: wp.array(dtype=int),
+    adjacency_other: wp.array(dtype=int),
+    spring_rest_length: wp.array(dtype=float),
+    spring_stiffness: wp.array(dtype=float),
+    spring_damping: wp.array(dtype=float),
+    h: float,
+    r: wp.array(dtype=wp.vec3),
+):
+    # r_i = -h^2 g_i = m_i (dy_i - dx_i) + h^2 sum_s f_s  (the whole potential's negative gradient, times h^2);  pinned: 0
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        r[i] = wp.vec3(0.0)
+        return
+    xi = x[i]
+    dxi = dx[i]
+    force = wp.vec3(0.0)
+    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
+        s = adjacency_spring[a]
+        j = adjacency_other[a]
+        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, spring_rest_length[s], spring_stiffness[s], spring_damping[s], h)
+        force = force + f
+    r[i] = particle_mass[i] * (dy[i] - dxi) + (h * h) * force
+
+
+@wp.kernel
+def add_increment(delta: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3)):
+    # dx += delta  (the multigrid correction; zero on pinned particles)
+    i = wp.tid()
+    dx[i] = dx[i] + delta[i]

@@ -10,35 +10,47 @@ approximated Hessian (eq. 2.23: H_ij = k_ij I, H_ii = -sum_j k_ij I, and likewis
 df/dv), which is constant, so the matrix is assembled once per time step size, not every step.
 
 With B_s = h^2 K_s + h D_s per spring (refilled by one kernel each step), A is applied either
-matrix-free (``matrix="free"``, the default: a ``warp.optim.linear.LinearOperator`` gathering
-over each particle's springs) or assembled (``matrix="bsr"``: a ``warp.sparse`` BSR matrix of
-3x3 blocks whose pattern, one diagonal block per particle and one block per spring and direction,
-is built once at bind and whose values a kernel refills). Both give the same A; on the CPU
-matrix-free is the faster, by a margin that grows with the sheet: BSR took 1.45x, 1.67x and 2.0x
-its time per step at 32^2, 64^2 and 128^2 (medians of 5 alternating repeats on a loaded 2-core
-CPU, ranges and an earlier run in bench/results/: ``python bench/implicit.py --sizes 32 64 128
---steps 10 --repeats 5``). The system is solved by ``warp.optim.linear.cg`` with the Jacobi preconditioner (the operator
-``preconditioner(A, "diag")`` builds, refilled in place), warm-started from the previous dv.
-Pinned particles have identity rows and zero columns (dv = 0).
+assembled (``matrix="bsr"``, the default: a ``warp.sparse`` BSR matrix of 3x3 blocks whose
+pattern, one diagonal block per particle and one block per spring and direction, is built once
+at bind and whose values a kernel refills; CG multiplies by it with
+:func:`~warpcloth.kernels.implicit.block_gemv`, one 3 x 3 product per stored block in storage
+order) or matrix-free (``matrix="free"``: a gather over each particle's springs). Both give the
+same A. On the CPU the assembled product is the faster: 0.66 against 1.62 ms per product at
+128^2 in one profiling run (``warp.sparse.bsr_mv``, which works on scalar rows, was slower than
+both), and per step bsr / free was 0.98, 0.83 and 0.80 at 32^2, 64^2 and 128^2 (medians of 3,
+``python bench/implicit.py --sizes 32 64 128 --steps 10 --repeats 3``,
+bench/results/implicit-cpu.txt). Pinned particles have identity rows and zero columns (dv = 0).
+
+The solve: on CUDA, ``warp.optim.linear.cg`` with its convergence checked on the device
+(``check_every=0``, a conditional graph node), so a frame can be captured. On the CPU,
+:class:`DevicePCG`: the same preconditioned CG with its scalars in a device array and the
+iterations run in chunks of ``cg_check_every`` (default 4), each chunk captured once and
+replayed (Warp >= 1.19), with one host read of a "done" flag between chunks; iterations past
+convergence within a chunk change nothing. Warp's cg on the CPU paid Python launches and a host
+check every iteration (Jacobi at 32^2, tolerance 1e-5: 48 ms/step before, 18.5 after, one
+loaded run). Both are warm-started from the previous dv.
 
 Preconditioners (``preconditioner``): ``jacobi`` (1 / diag A, the default), ``block_jacobi``
 (A's inverse 3 x 3 diagonal blocks; on the sheet, whose blocks are nearly diagonal, it takes as
 many iterations as Jacobi, and fewer where the blocks couple the axes: tests/test_preconditioner.py)
 and ``multigrid`` (a geometric V-cycle for grid models, :mod:`warpcloth.integrators.multigrid`:
-CG iterations nearly independent of the sheet size, 13-14 at 128^2 where Jacobi takes ~300;
+CG iterations nearly independent of the sheet size, 14.4 at 128^2 where Jacobi takes ~300;
 docs/solvers.md). Multigrid assembles A as BSR for its Galerkin products; a model that is not a
-grid falls back to block_jacobi with a note on stderr. The default stays ``jacobi``: multigrid
-took 1/2.8 [1/3.3-1/2.8] of Jacobi's time per step at 128^2 on the CPU, but at 32^2 it is no
-faster (jacobi / multigrid 0.96 [0.80-1.00]; bench/results/solvers-cpu.txt and
-solvers-cpu-32.txt; docs/solvers.md).
+grid falls back to block_jacobi with a note on stderr. Multigrid is now the faster at every size
+measured (docs/solvers.md, bench/results/solvers-cpu*.txt); the default stays ``jacobi`` because
+it is the seed's method and works on every model without a note.
 
-Statistics: on CUDA, cg checks convergence on the device (``check_every=0``, a conditional graph
-node) and a kernel accumulates iterations, residuals and the count of steps that ended at the
-iteration cap above the tolerance, so a step never syncs with the host; :meth:`ImplicitEuler.stats`
-reads them once, at the end of a run. On the CPU, cg reads its residual every iteration
-(``check_every=1``); for a CPU array that is a plain memory read, and the statistics are
-accumulated in Python. A run with a capped step reports ``solver_converged = False`` and warns
-once (:meth:`ImplicitEuler.convergence`).
+Contacts (``matrix="bsr"``, colliders present): the solve sees them (Baraff & Witkin 1998,
+sec. 5.3): a particle pushed into a collider gets the filter S = I - n n^T, a prescribed normal
+dv (it stops approaching), and Coulomb friction from the constraint's impulse after the solve
+(:meth:`ImplicitEuler._filter_contacts`); the collider projection after the step still corrects
+positions. With ``matrix="free"`` only that projection acts.
+
+Statistics: on CUDA a kernel accumulates iterations, residuals and the count of steps that ended
+at the iteration cap above the tolerance, so a step never syncs with the host;
+:meth:`ImplicitEuler.stats` reads them once, at the end of a run. On the CPU they are accumulated
+in Python from the chunk reads. A run with a capped step reports ``solver_converged = False`` and
+warns once (:meth:`ImplicitEuler.convergence`).
 """
 
 from __future__ import annotations
@@ -51,6 +63,7 @@ import warp.sparse as wps
 from warp.optim.linear import LinearOperator, aslinearoperator, cg
 
 from warpcloth.kernels import implicit as ik
+from warpcloth.kernels import projective as pjk
 
 from ..forces import eval_forces
 from ..pins import has_pin_tracks
@@ -77,6 +90,91 @@ def _sci(x: float) -> str:
     return f"{mantissa}e{int(exponent)}" if exponent else mantissa
 
 
+class DevicePCG:
+    """Preconditioned CG whose scalars live in a device array, run in chunks of ``check_every``
+    iterations between host convergence checks (implicit_euler's solver on the CPU).
+
+    A solve is a start (r = b - A x, z = M r, p = z, the tolerance from |b|) and chunks of
+    iterations; each iteration is A p, p.Ap, the fused update of x and r with r.r, the convergence
+    count, z = M r, r.z and the new direction. Once converged (r.r <= tol^2 b.b, warp's ``cg``
+    test) or at ``max_iter`` a device flag turns the updates of x, r and p into no-ops, so the
+    rest of a chunk changes nothing. Dot products are summed in a fixed order (chunks, then their
+    sum), so results do not depend on scheduling. Where the device can capture (the CPU from Warp
+    1.19), the start and a chunk are each captured once and replayed: a chunk of iterations costs
+    one call instead of ~40 Python launches per iteration with a multigrid V-cycle.
+
+    ``apply_A`` and ``apply_M`` are LinearOperator matvecs ``(x, y, z, alpha, beta)``. All arrays
+    are allocated here.
+    """
+
+    def __init__(self, apply_A, apply_M, b, x, tol: float, max_iter: int, check_every: int, device):
+        self.apply_A, self.apply_M, self.b, self.x = apply_A, apply_M, b, x
+        self.tol, self.max_iter, self.check_every = float(tol), int(max_iter), int(check_every)
+        self.device = wp.get_device(device)
+        n = b.shape[0]
+        self.r, self.z, self.p, self.q = (wp.zeros(n, dtype=wp.vec3, device=device) for _ in range(4))
+        self.terms = wp.zeros(n, dtype=float, device=device)
+        self.chunk = max(1, -(-n // 128))
+        self.partial = wp.zeros(-(-n // self.chunk), dtype=float, device=device)
+        self.scalars = wp.zeros(8, dtype=float, device=device)
+        major, minor = (int(v) for v in wp.config.version.split(".")[:2])
+        self._capture = self.device.is_cpu and (major, minor) >= (1, 19)
+        self._graphs: dict = {}
+
+    def _dot(self, a, b, slot: int) -> None:
+        """scalars[slot] = a . b, summed in a fixed order."""
+        d, n = self.device, self.terms.shape[0]
+        if a is not None:
+            wp.launch(ik.dot_terms, dim=n, inputs=[a, b], outputs=[self.terms], device=d)
+        wp.launch(pjk.sum_chunks, dim=self.partial.shape[0], inputs=[self.terms, self.chunk, n], outputs=[self.partial], device=d)
+        wp.launch(pjk.sum_partials, dim=1, inputs=[self.partial, slot], outputs=[self.scalars], device=d)
+
+    def _start(self) -> None:
+        n, d = self.b.shape[0], self.device
+        self.apply_A(self.x, self.b, self.r, -1.0, 1.0)
+        self._dot(self.b, self.b, 4)
+        self._dot(self.r, self.r, 3)
+        self.apply_M(self.r, self.z, self.z, 1.0, 0.0)
+        self._dot(self.r, self.z, 0)
+        wp.launch(ik.cg_start, dim=n, inputs=[self.tol, self.scalars, self.p, self.z], outputs=[self.x], device=d)
+
+    def _iterations(self, count: int) -> None:
+        n, d, s = self.b.shape[0], self.device, self.scalars
+        for _ in range(count):
+            self.apply_A(self.p, self.q, self.q, 1.0, 0.0)
+            self._dot(self.p, self.q, 2)
+            wp.launch(ik.cg_update_solution, dim=n, inputs=[s, self.p, self.q], outputs=[self.x, self.r, self.terms], device=d)
+            self._dot(None, None, 3)
+            wp.launch(ik.cg_count, dim=1, inputs=[self.max_iter, s], device=d)
+            self.apply_M(self.r, self.z, self.z, 1.0, 0.0)
+            self._dot(self.r, self.z, 1)
+            wp.launch(ik.cg_update_direction, dim=n, inputs=[s, self.z], outputs=[self.p], device=d)
+            wp.launch(ik.cg_shift, dim=1, inputs=[s], device=d)
+
+    def _run(self, key, record) -> None:
+        if not self._capture or self.device.is_capturing:
+            record()
+            return
+        graph = self._graphs.get(key)
+        if graph is None:
+            with wp.ScopedCapture(device=self.device) as capture:
+                record()
+            graph = self._graphs[key] = capture.graph
+        wp.capture_launch(graph)
+
+    def solve(self) -> tuple[int, float]:
+        """x = A^-1 b from the current x; returns (iterations, final relative residual |r| / |b|),
+        reading the scalars on the host once per chunk."""
+        self._run("start", self._start)
+        while True:
+            s = self.scalars.numpy()
+            if s[7] != 0.0:
+                break
+            self._run("chunk", lambda: self._iterations(self.check_every))
+        rr, bb = float(s[3]), float(s[4])
+        return int(s[6]), (float(np.sqrt(rr / bb)) if bb > 0.0 else 0.0), bool(s[3] <= s[5])
+
+
 class ImplicitEuler(Integrator):
     """Baraff-Witkin implicit Euler with Jacobi-preconditioned CG (seed eq. 2.19-2.23)."""
 
@@ -92,11 +190,22 @@ class ImplicitEuler(Integrator):
             "(geometric V-cycle on grid models; assembles A as BSR; other models fall back to block_jacobi with a note on stderr)",
             choices=PRECONDITIONERS,
         ),
-        Option("matrix", str, "free", "system matrix: free (matrix-free LinearOperator; faster on the CPU, see bench/implicit.py) or bsr (assembled warp.sparse BSR)", choices=MATRICES),
+        Option(
+            "cg_check_every", int, 4,
+            "CPU: CG iterations run (as one captured chunk) between host convergence checks; iterations past convergence "
+            "within a chunk change nothing (CUDA checks on the device)", _check_max_iter,
+        ),
+        Option(
+            "matrix", str, "bsr",
+            "system matrix CG applies: bsr (assembled 3 x 3 blocks, refilled each step; the faster on the CPU, see bench/implicit.py) "
+            "or free (matrix-free, gathering over each particle's springs)", choices=MATRICES,
+        ),
     )
 
     #: On the CPU, give cg a single-batch operator (plain-loop dot products); False keeps Warp's
-    #: tiled reduction (for bench/cpu_dot.py). Read at bind.
+    #: tiled reduction (for bench/cpu_dot.py). Read at bind. Since the CPU solve is
+    #: :class:`DevicePCG` (fixed-order dot kernels), Warp's cg runs only on CUDA and this no
+    #: longer changes a CPU step: bench/cpu_dot.py's comparison is obsolete.
     cpu_single_batch_dot: bool = True
 
     # -- binding -----------------------------------------------------------------------
@@ -108,6 +217,9 @@ class ImplicitEuler(Integrator):
         self.spring_B = wp.zeros(model.spring_count, dtype=wp.mat33)
         self.mass_term = wp.zeros(n, dtype=float)
         self.pin_dv = wp.zeros(n, dtype=wp.vec3)  # prescribed dv of kinematic pins (0 elsewhere)
+        # contacts seen by the solve (matrix="bsr"): normal per particle (0: none), prescribed dv, A z
+        self.contact_normal, self.contact_dv, self.contact_Az, self.contact_b = scratch_like(model, 4)
+        self.contact_friction = wp.zeros(n, dtype=float)
         self.preconditioner_used = self.preconditioner
         if self.preconditioner == "multigrid":
             reason = grid_structure_reason(model)
@@ -146,13 +258,14 @@ class ImplicitEuler(Integrator):
         if self._bsr:  # where each adjacency entry and each diagonal block sits in A.values
             self.adjacency_block = wp.array(block_of(ends[order], others[order]), dtype=int)
             self.row_offsets = wp.array(offsets.astype(np.int32), dtype=int)
+            self.block_columns = wp.array(columns.astype(np.int32), dtype=int)
+            self.contact_values = wp.zeros_like(self.A.values)  # A before the contact filter (friction impulses)
             self.diag_block = wp.array(block_of(np.arange(n), np.arange(n)), dtype=int)
 
         # Jacobi preconditioner: the same operator as preconditioner(A, "diag"), but its inverse
         # diagonal is refilled by the assembly kernel instead of being reallocated each step
         if self.preconditioner_used == "multigrid":
-            free_residual = (lambda x, b, r: self._matvec(x, b, r, -1.0, 1.0)) if self.matrix == "free" else None
-            self.multigrid = GridMultigrid(self.A, model.rows, model.cols, model.pinned, device, fine_residual=free_residual)
+            self.multigrid = GridMultigrid(self.A, model.rows, model.cols, model.pinned, device)
             self.M = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self.multigrid.apply)
         elif self.preconditioner_used == "block_jacobi":
             self.inv_block = wp.zeros(n, dtype=wp.mat33)
@@ -168,15 +281,16 @@ class ImplicitEuler(Integrator):
         # (32^2) and 62x (64^2) as long (medians, bench/results/cpu-dot.txt: python bench/cpu_dot.py).
         single_batch = None if is_cuda or not self.cpu_single_batch_dot else wp.array([0, 3 * n], dtype=int)
         if self.matrix == "bsr":
-            self.A_op = aslinearoperator(self.A, batch_offsets=single_batch)
+            self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._bsr_matvec, batch_offsets=single_batch)
         else:
             self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._matvec, batch_offsets=single_batch)
+        # CUDA: warp's cg, convergence checked on the device (conditional graph), no host sync
         self.solver = cg(
             self.A_op, self.b, self.dv, tol=self.cg_tol, atol=0.0, maxiter=self.cg_max_iter, M=self.M,
-            # CUDA: convergence checked on the device (conditional graph), no host sync.
-            # CPU: the residual is read every iteration; on the CPU that is a plain memory read.
-            check_every=0 if self._device_side else 1, use_cuda_graph=True, run=False,
-        )
+            check_every=0, use_cuda_graph=True, run=False,
+        ) if self._device_side else None
+        # CPU: our own PCG, its scalars on the device, checked on the host every cg_check_every iterations
+        self.pcg = None if self._device_side else DevicePCG(self.A_op.matvec, self.M.matvec, self.b, self.dv, self.cg_tol, self.cg_max_iter, self.cg_check_every, device)
         self._stats = wp.zeros(6, dtype=wp.float64)
         self.reset_stats()
 
@@ -204,8 +318,43 @@ class ImplicitEuler(Integrator):
         if has_pin_tracks(control):  # pinned dv = (track(t + h) - x)/h - v, moved to the free rows' right side
             control.kinematic_pins.delta(control, x, v, h, 1.0 / h, 1.0, self.pin_dv)
             wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, m.particle_inv_mass, self.pin_dv], outputs=[self.b], device=m.device)
+        contacts = self.matrix == "bsr" and control.collision is not None and bool(control.collision.groups)
+        if contacts:
+            self._filter_contacts(control, x, v, f)
+        self._update_preconditioner(h, float(control.drag_rate), contacts)
         self._solve()
+        if contacts:
+            self._contact_friction(v)
         wp.launch(ik.integrate_implicit_euler, dim=m.particle_count, inputs=[x, v, self.dv, m.particle_inv_mass, h], device=m.device)
+
+    def _filter_contacts(self, control, x, v, f) -> None:
+        """Contacts seen by the solve (Baraff & Witkin 1998, sec. 5.3, the filter S): a particle
+        that touches a collider the force at the step's start pushes it into gets S = I - n n^T;
+        its normal dv is prescribed, z = -min(0, v . n) n (it stops approaching), and CG solves
+        S A S y = S (b - A z) for the rest, dv = S y + z. :meth:`_contact_friction` then applies
+        Coulomb friction with the constraint's impulse. Without the filter the solve lets contact
+        particles fall into the collider and the projection after the step pushes them back: CG's
+        relative tolerance is then measured against a |b| that keeps their unbalanced weight at
+        rest, and a 1e-3 solve left the 16 x 16 drape moving at 0.11 m/s after 20 s."""
+        m = self.model
+        self.contact_normal.zero_()
+        for kind, a, b, radius, rotation, material in control.collision.groups:
+            wp.launch(ik.eval_contact_normals, dim=m.particle_count, inputs=[kind, x, f, m.particle_inv_mass, a, b, radius, rotation, material], outputs=[self.contact_normal, self.contact_friction], device=m.device)
+        wp.launch(ik.eval_contact_dv, dim=m.particle_count, inputs=[self.contact_normal, v], outputs=[self.contact_dv], device=m.device)
+        wp.copy(self.contact_values, self.A.values)
+        wp.copy(self.contact_b, self.b)
+        self._bsr_matvec(self.contact_dv, self.contact_Az, self.contact_Az, 1.0, 0.0)
+        wp.launch(ik.filter_system_rows, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.diag_block, self.contact_normal], outputs=[self.A.values, self.inv_diag], device=m.device)
+        wp.launch(ik.filter_rhs, dim=m.particle_count, inputs=[self.contact_normal, self.contact_Az], outputs=[self.b, self.dv], device=m.device)
+        self._assembled_for = None  # A.values now hold this step's filter: reassemble next step
+
+    def _contact_friction(self, v) -> None:
+        """dv = S y + z, then Coulomb friction from the impulse J = -n . (b - A dv) of the
+        unfiltered system on each contact particle."""
+        m = self.model
+        wp.launch(ik.scale_add, dim=m.particle_count, inputs=[self.contact_dv, self.dv, 1.0, 1.0], outputs=[self.dv], device=m.device)
+        wp.launch(ik.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.contact_values, self.dv, self.contact_b, -1.0, 1.0], outputs=[self.contact_Az], device=m.device)
+        wp.launch(ik.apply_contact_friction, dim=m.particle_count, inputs=[self.contact_normal, self.contact_friction, self.contact_Az, v, m.particle_mass], outputs=[self.dv], device=m.device)
 
     def _assemble(self, x, h: float, drag: float) -> None:
         """Refill K_s, B_s = h^2 K_s + h D_s and the values of A (and the Jacobi diagonal):
@@ -230,14 +379,34 @@ class ImplicitEuler(Integrator):
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.mass_term, self.inv_diag], device=m.device,
             )
+
+    def assemble_system(self, x, h: float, drag: float) -> None:
+        """A = M (1 + h c) - h df/dv - h^2 df/dx at ``x`` and its preconditioner (no contact
+        filter): what vbd's multigrid correction uses as h^2 times its Hessian."""
+        self._assemble(x, h, drag)
+        self._update_preconditioner(h, drag, False)
+
+    def _update_preconditioner(self, h: float, drag: float, filtered: bool) -> None:
+        """The preconditioner of this step's A (after the contact filter where ``filtered``;
+        Jacobi's diagonal is refilled by the assembly and the filter)."""
+        m = self.model
         if self.preconditioner_used == "multigrid":
             self.multigrid.update()
+        elif self.preconditioner_used == "block_jacobi" and filtered:
+            wp.launch(ik.invert_diagonal_blocks, dim=m.particle_count, inputs=[self.A.values, self.diag_block], outputs=[self.inv_block], device=m.device)
         elif self.preconditioner_used == "block_jacobi":
             wp.launch(
                 ik.eval_inverse_diagonal_blocks, dim=m.particle_count,
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.inv_block], device=m.device,
             )
+
+    def _bsr_matvec(self, x, y, z, alpha, beta) -> None:
+        """z = alpha A x + beta y with the assembled A (its BSR blocks, row by row): one 3 x 3
+        product per stored block, read in storage order; warp.sparse.bsr_mv computes the same
+        row by row of scalars."""
+        m = self.model
+        wp.launch(ik.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.A.values, x, y, float(alpha), float(beta)], outputs=[z], device=m.device)
 
     def _matvec(self, x, y, z, alpha, beta) -> None:
         """z = alpha A x + beta y without assembling A (the LinearOperator's matvec)."""
@@ -256,20 +425,18 @@ class ImplicitEuler(Integrator):
     def _solve(self) -> None:
         """dv = A^-1 b by Jacobi-preconditioned CG from the previous dv; records iterations and
         the final relative residual |r| / |b|."""
-        result = self.solver()
         if self._device_side:
-            iterations, residual_sq, tolerance_sq = result
+            iterations, residual_sq, tolerance_sq = self.solver()
             wp.launch(ik.record_cg_stats, dim=1, inputs=[iterations, residual_sq, tolerance_sq, float(self.cg_tol)], outputs=[self._stats], device=self.model.device)
         else:
-            iterations, residual, tolerance = result
-            relative = self.cg_tol * residual / tolerance if tolerance > 0.0 else 0.0
+            iterations, relative, converged = self.pcg.solve()
             s = self._host_stats
             s[0] += 1
             s[1] += iterations
             s[2] = max(s[2], iterations)
             s[3] += relative
             s[4] = max(s[4], relative)
-            s[5] += not (residual <= tolerance)  # ended above its tolerance: at the cap (or NaN)
+            s[5] += not converged  # ended above its tolerance: at the cap (or NaN)
 
     # -- statistics ----------------------------------------------------------------------
     def stats(self) -> dict:
