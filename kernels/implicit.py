@@ -18,7 +18,7 @@ particle -> (spring, neighbour, block) adjacency built once at bind: no atomics.
 
 import warp as wp
 
-from .collide import contact_of
+from .collide import Collider, collider_contact
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
@@ -526,29 +526,25 @@ def invert_l1_diagonal_blocks(
 # -- contacts seen by the solve (Baraff & Witkin's filter) -------------------------------------
 @wp.kernel
 def eval_contact_normals(
-    kind: int,
     x: wp.array(dtype=wp.vec3),
     f: wp.array(dtype=wp.vec3),
     inv_mass: wp.array(dtype=float),
-    a: wp.array(dtype=wp.vec3),
-    b: wp.array(dtype=wp.vec3),
-    radius: wp.array(dtype=float),
-    rotation: wp.array(dtype=wp.quat),
-    material: wp.array(dtype=wp.vec2),
+    colliders: wp.array(dtype=Collider),
     normal: wp.array(dtype=wp.vec3),
     friction: wp.array(dtype=float),
 ):
-    # normal_i, friction_i = n, mu of a collider (of one kind) that particle i touches (phi < 1.1 thickness:
-    # the projection leaves a resting particle at phi = thickness, to rounding) and that the force at the
-    # step's start pushes it into (f . n < 0); pinned particles: none
+    # normal_i, friction_i = n, mu of a collider that particle i touches (phi < 1.1 thickness: the
+    # projection leaves a resting particle at phi = thickness, to rounding) and that the force at the
+    # step's start pushes it into (f . n < 0); the last such collider wins; pinned particles: none
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
-    for c in range(material.shape[0]):
-        phi, n = contact_of(kind, x[i], c, a, b, radius, rotation)
-        if phi < 1.1 * material[c][0] and wp.dot(f[i], n) < 0.0:
+    for k in range(colliders.shape[0]):
+        c = colliders[k]
+        phi, n = collider_contact(c, x[i])
+        if phi < 1.1 * c.thickness and wp.dot(f[i], n) < 0.0:
             normal[i] = n
-            friction[i] = material[c][1]
+            friction[i] = c.mu
 
 
 @wp.kernel

@@ -409,7 +409,7 @@ PARAMS: tuple[Param, ...] = (
     Param("collider", colliders, "", "add colliders: KIND:K=V,... (vectors as x/y/z), several joined by '+' or the flag "
           "repeated, e.g. sphere:center=0/1/0,radius=0.3,thickness=0.005,friction=0.4 or mesh:path=table.obj "
           "(docs/colliders.md)", "`plane`, `sphere`, `capsule`, `box`, `mesh` with settings", "forces", default_doc="none (the scenario's own)", key="set",
-          config="colliders", to_config=_colliders_config, repeat=True, metavar="KIND:K=V,..."),
+          config="colliders", to_config=_colliders_config, repeat=True, metavar="KIND:K=V,...", cli_type=str),
     Param("strain_limit", positive, "", "Provot's deformation constraint tau: after each step no structural or shear spring "
           "stays beyond (1 + tau) L0 (force-based integrators only)", "> 0 (e.g. 0.1)", "integrator", default_doc="off",
           key="set", metavar="TAU", cli_type=float),

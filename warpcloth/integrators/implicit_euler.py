@@ -318,7 +318,7 @@ class ImplicitEuler(Integrator):
         if has_pin_tracks(control):  # pinned dv = (track(t + h) - x)/h - v, moved to the free rows' right side
             control.kinematic_pins.delta(control, x, v, h, 1.0 / h, 1.0, self.pin_dv)
             wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, m.particle_inv_mass, self.pin_dv], outputs=[self.b], device=m.device)
-        contacts = self.matrix == "bsr" and control.collision is not None and bool(control.collision.groups)
+        contacts = self.matrix == "bsr" and control.collision is not None and len(control.collision.colliders) > 0
         if contacts:
             self._filter_contacts(control, x, v, f)
         self._update_preconditioner(h, float(control.drag_rate), contacts)
@@ -338,8 +338,8 @@ class ImplicitEuler(Integrator):
         rest, and a 1e-3 solve left the 16 x 16 drape moving at 0.11 m/s after 20 s."""
         m = self.model
         self.contact_normal.zero_()
-        for kind, a, b, radius, rotation, material in control.collision.groups:
-            wp.launch(ik.eval_contact_normals, dim=m.particle_count, inputs=[kind, x, f, m.particle_inv_mass, a, b, radius, rotation, material], outputs=[self.contact_normal, self.contact_friction], device=m.device)
+        wp.launch(ik.eval_contact_normals, dim=m.particle_count, inputs=[x, f, m.particle_inv_mass, control.collision.params],
+                  outputs=[self.contact_normal, self.contact_friction], device=m.device)
         wp.launch(ik.eval_contact_dv, dim=m.particle_count, inputs=[self.contact_normal, v], outputs=[self.contact_dv], device=m.device)
         wp.copy(self.contact_values, self.A.values)
         wp.copy(self.contact_b, self.b)
