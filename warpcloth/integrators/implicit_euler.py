@@ -202,11 +202,6 @@ class ImplicitEuler(Integrator):
         ),
     )
 
-    #: On the CPU, give cg a single-batch operator (plain-loop dot products); False keeps Warp's
-    #: tiled reduction (for bench/cpu_dot.py). Read at bind. Since the CPU solve is
-    #: :class:`DevicePCG` (fixed-order dot kernels), Warp's cg runs only on CUDA and this no
-    #: longer changes a CPU step: bench/cpu_dot.py's comparison is obsolete.
-    cpu_single_batch_dot: bool = True
 
     # -- binding -----------------------------------------------------------------------
     def _allocate(self, model):
@@ -276,14 +271,8 @@ class ImplicitEuler(Integrator):
         # device-side convergence needs conditional graph nodes (CUDA driver and toolkit 12.4+)
         is_cuda = wp.get_device(device).is_cuda
         self._device_side = is_cuda and wp.is_conditional_graph_supported()
-        # On the CPU, a single-batch operator makes cg's dot products plain loops instead of
-        # Warp's tiled reduction, which is made for GPUs: with the tiled one a step took 24x
-        # (32^2) and 62x (64^2) as long (medians, bench/results/cpu-dot.txt: python bench/cpu_dot.py).
-        single_batch = None if is_cuda or not self.cpu_single_batch_dot else wp.array([0, 3 * n], dtype=int)
-        if self.matrix == "bsr":
-            self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._bsr_matvec, batch_offsets=single_batch)
-        else:
-            self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._matvec, batch_offsets=single_batch)
+        matvec = self._bsr_matvec if self.matrix == "bsr" else self._matvec
+        self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), matvec)
         # CUDA: warp's cg, convergence checked on the device (conditional graph), no host sync
         self.solver = cg(
             self.A_op, self.b, self.dv, tol=self.cg_tol, atol=0.0, maxiter=self.cg_max_iter, M=self.M,
