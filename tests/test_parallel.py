@@ -193,8 +193,11 @@ def test_an_interrupted_parallel_sweep_resumes(tmp_path, capsys):
     path = write(tmp_path, SLOW)
     expected = sorted(r.key for r in parse_test_list(path).runs)
     out = tmp_path / "r.csv"
+    # SIGINT at its default in the child: a shell's background job (`pytest &`) ignores it, and an
+    # ignored SIGINT is inherited, so the sweep could not be interrupted there
     proc = subprocess.Popen([sys.executable, "-m", "warpcloth", "sweep", path, "--out", str(out), "--workers", "2"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         _wait_rows(out, proc, 2)
         workers = _children(proc.pid)
