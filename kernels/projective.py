@@ -6,10 +6,12 @@ e = x_j - x_i + dx_j - dx_i. Global step: with S = M + h D + h^2 L (L = sum_s ks
 D = sum_s kd A_s^T A_s, scalar graph Laplacians, constant for fixed h and topology; the same for
 x, y and z), one local-global iteration solves S delta = r and sets dx += delta, with
 
-    r_i = m_i (dy_i - dx_i) + h^2 sum_s ks (|e| - L0) n - h sum_s kd (dx_i - dx_j),
+    r_i = m_i (dy_i - dx_i) + h^2 sum_s ks (|e| - L0) n + h sum_s kd ((dx_j - dx_i) . n) n,
 
-the residual of S dx_new = M dy + h^2 (J d - L x) - h D 0 at the current dx (the gradient of
-the PD objective; solving for delta from 0 is PCG warm-started at the previous dx). Pinned
+the residual of the backward-Euler step at the current dx (the projection term is the gradient
+of the PD objective; the damping is along each spring, as in the force-based integrators, with
+S's isotropic h D as its approximate Jacobian, so the iteration converges to axial damping and a
+rigid rotation is not damped; solving for delta from 0 is PCG warm-started at the previous dx). Pinned
 particles have identity rows and zero columns (their dx is 0). The solve is Jacobi-preconditioned
 CG with a fixed number of iterations: scalars (r.z, p.Ap) live in device arrays, one per
 iteration, so a step never reads back to the host. Dot products are reduced in a fixed order
@@ -104,8 +106,14 @@ def eval_local_residual(
         s = adjacency_spring[a]
         j = adjacency_other[a]
         ddx = dx[j] - dxi
-        res = res + (h * h) * spring_projection_force((x[j] - xi) + ddx, spring_rest_length[s], spring_stiffness[s])
-        res = res + (h * spring_damping[s]) * ddx
+        e = (x[j] - xi) + ddx
+        res = res + (h * h) * spring_projection_force(e, spring_rest_length[s], spring_stiffness[s])
+        # damping along the spring, kd ((dx_j - dx_i) . n) n / h (as the force-based integrators'):
+        # S's isotropic h D only approximates its Jacobian, so a rigid rotation is not damped
+        length = wp.length(e)
+        if length > 0.0:
+            n = e / length
+            res = res + (h * spring_damping[s] * wp.dot(ddx, n)) * n
     zi = inv_diag[i] * res
     r[i] = res
     z[i] = zi

@@ -12,10 +12,12 @@ x, y and z and constant for a fixed dt and topology, so S = M + h D + h^2 L is a
 dt (a scalar CSR matrix, :mod:`warpcloth.kernels.projective`), not every step. Converged, a step
 is backward Euler of the spring energy (Liu et al.'s claim; tests/test_projective.py).
 
-Damping: the spring's kd enters as D = sum_s kd A_s^T A_s, implicit (with v = dx / h) and
-isotropic: it damps every relative motion of a spring's two ends, not only along the spring as
-in the force-based integrators (kd ((v_j - v_i) . n) n); the axial form would make the matrix
-change every step. Gravity, air drag and wind are external forces, explicit. The initial guess
+Damping: the spring's kd acts along the spring, kd ((v_j - v_i) . n) n with v = dx / h and n
+the current direction, implicit, as in the force-based integrators; the matrix carries the
+isotropic D = sum_s kd A_s^T A_s (constant) as its approximation, and the residual the axial
+form, so the iterations converge to axial damping (an earlier version solved with the isotropic D
+itself: it also damped rigid rotation, 15.5 % error on the sheet's swing against 0.28 % now,
+bench/results/projective-damping.txt). Gravity, air drag and wind are external forces, explicit. The initial guess
 x + h v makes a rest state of the stepping the exact static equilibrium whatever the iteration
 counts (at rest the residual is the net force times h^2). Pinned particles have identity rows
 and zero columns: their dx is 0.
