@@ -27,12 +27,15 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.func
-def spring_projection_force(e: wp.vec3, rest: float, ks: float):
-    # ks (e - d), d = L0 e / |e| (the spring projected to its rest length) = ks (|e| - L0) n
+def spring_increment_residual(e: wp.vec3, ddx: wp.vec3, rest: float, ks: float, kd: float, h: float):
+    # h^2 ks (e - d), d = L0 e / |e| (the spring projected to its rest length) = h^2 ks (|e| - L0) n, and
+    # the damping along the spring, h kd ((dx_j - dx_i) . n) n (as the force-based integrators'): S's
+    # isotropic h D only approximates its Jacobian, so a rigid rotation is not damped
     length = wp.length(e)
     if length == 0.0:
         return wp.vec3(0.0)
-    return ks * (length - rest) / length * e
+    n = e / length
+    return (h * h) * (ks * (length - rest) / length * e) + (h * kd * wp.dot(ddx, n)) * n
 
 
 @wp.kernel
@@ -106,14 +109,8 @@ def eval_local_residual(
         s = adjacency_spring[a]
         j = adjacency_other[a]
         ddx = dx[j] - dxi
-        e = (x[j] - xi) + ddx
-        res = res + (h * h) * spring_projection_force(e, spring_rest_length[s], spring_stiffness[s])
-        # damping along the spring, kd ((dx_j - dx_i) . n) n / h (as the force-based integrators'):
-        # S's isotropic h D only approximates its Jacobian, so a rigid rotation is not damped
-        length = wp.length(e)
-        if length > 0.0:
-            n = e / length
-            res = res + (h * spring_damping[s] * wp.dot(ddx, n)) * n
+        res = res + spring_increment_residual((x[j] - xi) + ddx, ddx, spring_rest_length[s], spring_stiffness[s],
+                                              spring_damping[s], h)
     zi = inv_diag[i] * res
     r[i] = res
     z[i] = zi
