@@ -538,6 +538,17 @@ def resolve_per_type(values: dict, kind: str):
     return tuple(given.get(t, full[i]) for i, t in enumerate(SPRING_TYPES))
 
 
+def per_type_triple(value):
+    """A per-type value (a number, a (structural, shear, bend) tuple, a partial {type: value}
+    dict) as (structural, shear, bend), None where the builder's default applies (hashable,
+    unlike a partial dict); None stays None."""
+    if value is None or isinstance(value, tuple):
+        return value
+    if isinstance(value, dict):
+        return tuple(value.get(t) for t in SPRING_TYPES)
+    return (value,) * 3
+
+
 def check_applies(values: dict, is_mesh: bool, scenario_name: str, spell=lambda p: p.flag) -> None:
     """Grid parameters on a mesh scenario, or mesh parameters on a grid scenario, are refused."""
     for p in PARAMS:

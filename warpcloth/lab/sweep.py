@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from ..errors import WarpclothError
 from ..fileio import (OutputError, WriterLock, csv_line, check_output_path, describe_write_error,
                      sweep_stale_temporaries, write_atomic)
-from ..params import TimeStep, csv_columns
+from ..params import TimeStep, csv_columns, per_type_triple
 from .testlist import RunSpec, TestList, parse_test_list, resolved_params
 
 #: Columns of the CSV, in order (docs/sweep.md describes each): the test id, the run parameters
@@ -65,27 +65,13 @@ def parameter_row(spec: RunSpec) -> dict:
         value = spec.get(p.name)
         columns = p.csv_columns
         if len(columns) > 1:
-            row.update(zip(columns, per_type_cells(value)))
+            row.update(zip(columns, per_type_triple(value) or (None,) * len(columns)))
         elif columns:
             row[columns[0]] = str(value) if isinstance(value, TimeStep) else value
     if get_scenario_kind(spec.scenario) == "grid" and spec.rows is not None:
         row["particles"] = spec.rows * spec.cols
         row["springs"] = sum(expected_spring_counts(spec.rows, spec.cols, spec.bend).values())
     return row
-
-
-def per_type_cells(value) -> tuple:
-    """A per-type value (a number, a (structural, shear, bend) tuple, a partial {type: value}
-    dict or None: the builder's default) as three cells."""
-    from ..params import SPRING_TYPES
-
-    if value is None:
-        return (None, None, None)
-    if isinstance(value, dict):
-        return tuple(value.get(t) for t in SPRING_TYPES)
-    if isinstance(value, tuple):
-        return value
-    return (value, value, value)
 
 
 def get_scenario_kind(name: str) -> str:

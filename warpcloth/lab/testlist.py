@@ -28,7 +28,7 @@ import xml.parsers.expat as expat
 
 from ..errors import WarpclothError, warn
 from .. import params
-from ..params import SPRING_TYPES, Param, TimeStep, canonical, resolve_per_type  # noqa: F401  (SPRING_TYPES, TimeStep: importable from here)
+from ..params import SPRING_TYPES, Param, TimeStep, canonical, per_type_triple, resolve_per_type  # noqa: F401  (SPRING_TYPES, TimeStep: importable from here)
 
 ROOT_TAG = "test_list"
 TEST_TAG = "test"
@@ -408,20 +408,10 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         springs = default_spring_params(mass / (particles or 1), resolve_per_type(c, "stiffness"), resolve_per_type(c, "damping"))
         eff = [springs[k] for k in sorted(springs)]
         resolved["stiffness"] = tuple(p.stiffness for p in eff)
-        resolved["damping"] = tuple(p.damping for p in eff) if particles else _triple(resolve_per_type(c, "damping"))
+        resolved["damping"] = tuple(p.damping for p in eff) if particles else per_type_triple(resolve_per_type(c, "damping"))
         resolved["integrator"] = integrator
         runs.append(RunSpec(test_id=test_id, line=el.line, values=tuple(resolved.items()), options=options))
     return runs
-
-
-def _triple(value):
-    """A per-type value as (structural, shear, bend), None where the builder's default applies
-    (hashable, unlike a partial dict); None stays None."""
-    if value is None or isinstance(value, tuple):
-        return value
-    if isinstance(value, dict):
-        return tuple(value.get(t) for t in SPRING_TYPES)
-    return (value,) * 3
 
 
 #: The parameters that apply to one kind of cloth only (``grid`` or ``mesh``).
