@@ -2,9 +2,12 @@
 triangle meshes, each with a thickness (cloth offset) and a Coulomb friction coefficient mu.
 Pinned particles (inverse mass 0) are left alone: pins win over contacts.
 
-Every analytic collider is one :class:`Collider` record in one array, and one launch per particle
-loops over all of them (a cheap bounding-sphere test first), so the cost does not grow with the
-number of kinds. Each kind has a signed distance phi(x) and an outward unit normal n (pure
+Every collider is one :class:`Collider` record in one array, planes first, and one launch per
+response loops over all of them per particle: each plane's exact half-space test, then, when the
+particle is in the box around the other colliders, each one's cheap exact rejection (squared
+distances, a box's slabs, a mesh's bounding box) before its signed distance. The hot helpers are
+forced inline (``@wp.func(inline=True)``: out of line, Warp's CPU code passes each array
+argument by value at every call) and read only the record fields their kind needs. Each kind has a signed distance phi(x) and an outward unit normal n (pure
 ``@wp.func`` below). A collider moves rigidly with a velocity field v_c(y) = u + w x (y - o)
 (zero when static); the responses use the particle's velocity relative to it:
 
@@ -47,20 +50,20 @@ class Collider:
     rotation: wp.mat33  # box: world from box frame
     thickness: float  # the cloth's offset from the surface [m]
     mu: float  # Coulomb friction coefficient
-    bound_center: wp.vec3  # bounding sphere of the collider grown by its thickness [m]
-    bound_radius: float  # < 0: unbounded (plane)
+    bound_center: wp.vec3  # centre of the collider's axis-aligned bounding box (half_size) [m]
     velocity: wp.vec3  # u: velocity of the point `origin` [m/s]
     omega: wp.vec3  # w: angular velocity [rad/s]
     origin: wp.vec3  # o [m]
+    moving: int  # 1: on a track (velocity, omega, origin set by eval_collider_pose); 0: static, v_c = 0
 
 
-@wp.func
+@wp.func(inline=True)
 def plane_contact(x: wp.vec3, point: wp.vec3, normal: wp.vec3):
     # phi = (x - p).n, outward normal n
     return wp.dot(x - point, normal), normal
 
 
-@wp.func
+@wp.func(inline=True)
 def sphere_contact(x: wp.vec3, center: wp.vec3, radius: float):
     # phi = |x - c| - r, n = (x - c)/|x - c|
     d = x - center
@@ -70,7 +73,7 @@ def sphere_contact(x: wp.vec3, center: wp.vec3, radius: float):
     return length - radius, d / length
 
 
-@wp.func
+@wp.func(inline=True)
 def capsule_contact(x: wp.vec3, a: wp.vec3, b: wp.vec3, radius: float):
     # phi = |x - q| - r, q the closest point of the segment ab
     ab = b - a
@@ -78,7 +81,7 @@ def capsule_contact(x: wp.vec3, a: wp.vec3, b: wp.vec3, radius: float):
     return sphere_contact(x, a + t * ab, radius)
 
 
-@wp.func
+@wp.func(inline=True)
 def box_contact(x: wp.vec3, center: wp.vec3, rotation: wp.mat33, half: wp.vec3):
     # signed distance of an oriented box (p = R^T (x - c)); n the gradient (the nearest face's normal inside)
     p = wp.transpose(rotation) * (x - center)
@@ -132,34 +135,6 @@ def collider_contact(c: Collider, x: wp.vec3):
 
 
 @wp.func
-def near_any(x: wp.vec3, bounds: wp.array(dtype=wp.vec4), box: wp.array(dtype=wp.vec3), plane_count: int):
-    # broad phase: below a plane's n.x < n.p + thickness (+ margin), or inside the box around
-    # every other collider's bounding box
-    for k in range(plane_count):
-        b = bounds[k]
-        if b[0] * x[0] + b[1] * x[1] + b[2] * x[2] < b[3]:
-            return True
-    lo = box[0]
-    hi = box[1]
-    return x[0] >= lo[0] and x[1] >= lo[1] and x[2] >= lo[2] and x[0] <= hi[0] and x[1] <= hi[1] and x[2] <= hi[2]
-
-
-@wp.func
-def may_touch(k: int, x: wp.vec3, bounds: wp.array(dtype=wp.vec4), plane_count: int):
-    # collider k's half-space (a plane), or its bounding box and bounding sphere, hold x
-    if k < plane_count:
-        b = bounds[k]
-        return b[0] * x[0] + b[1] * x[1] + b[2] * x[2] < b[3]
-    j = 2 * k - plane_count
-    s = bounds[j]
-    e = bounds[j + 1]
-    d = x - wp.vec3(s[0], s[1], s[2])
-    if wp.abs(d[0]) > e[0] or wp.abs(d[1]) > e[1] or wp.abs(d[2]) > e[2]:
-        return False
-    return wp.dot(d, d) <= s[3] * s[3]
-
-
-@wp.func
 def half_size(c: Collider):
     # half extents of the collider's axis-aligned bounding box, grown by its thickness
     if c.kind == SPHERE:
@@ -179,24 +154,16 @@ def half_size(c: Collider):
 
 
 @wp.kernel
-def eval_collider_bounds(colliders: wp.array(dtype=Collider), plane_count: int, bounds: wp.array(dtype=wp.vec4), box: wp.array(dtype=wp.vec3)):
-    # a plane: bounds_k = (n, n.p + thickness + margin); any other collider k: bounds_j = (centre,
-    # bounding radius), bounds_j+1 = (box half size, 0), j = 2k - plane_count (margins: float32
-    # rounding never rejects a contact); box = [min, max] around all of them (empty: min > max)
+def eval_collider_bounds(colliders: wp.array(dtype=Collider), plane_count: int, box: wp.array(dtype=wp.vec3)):
+    # box = [min, max] around every non-plane collider grown by its thickness (empty: min > max),
+    # with a margin so that float32 rounding never rejects a contact
     lo = wp.vec3(1.0e30)
     hi = wp.vec3(-1.0e30)
-    for k in range(colliders.shape[0]):
+    for k in range(plane_count, colliders.shape[0]):
         c = colliders[k]
-        if k < plane_count:
-            w = wp.dot(c.a, c.b) + c.thickness
-            bounds[k] = wp.vec4(c.b[0], c.b[1], c.b[2], w + 1.0e-4 + 1.0e-5 * wp.abs(w))
-        else:
-            j = 2 * k - plane_count
-            e = half_size(c) * (1.0 + 1.0e-5) + wp.vec3(1.0e-6 + 1.0e-6 * wp.length(c.bound_center))
-            bounds[j] = wp.vec4(c.bound_center[0], c.bound_center[1], c.bound_center[2], c.bound_radius + 1.0e-6 * wp.length(c.bound_center))
-            bounds[j + 1] = wp.vec4(e[0], e[1], e[2], 0.0)
-            lo = wp.min(lo, c.bound_center - e)
-            hi = wp.max(hi, c.bound_center + e)
+        e = half_size(c) * (1.0 + 1.0e-5) + wp.vec3(1.0e-6 + 1.0e-6 * wp.length(c.bound_center))
+        lo = wp.min(lo, c.bound_center - e)
+        hi = wp.max(hi, c.bound_center + e)
     box[0] = lo
     box[1] = hi
 
@@ -207,26 +174,121 @@ def collider_velocity(c: Collider, y: wp.vec3):
     return c.velocity + wp.cross(c.omega, y - c.origin)
 
 
-@wp.func
-def respond_velocity(x: wp.vec3, v: wp.vec3, vc: wp.vec3, phi: float, n: wp.vec3, thickness: float, mu: float, dt: float):
+@wp.func(inline=True)
+def respond_velocity(x: wp.vec3, v: wp.vec3, vc: wp.vec3, depth: float, n: wp.vec3, mu: float, dt: float):
     # x += depth n ; (v - v_c).n >= 0 ; |v_t - v_c,t| -= mu dv_n (>= 0) ; x += dt dv_t
-    depth = thickness - phi
-    if depth <= 0.0:
-        return x, v, 0
-    x = x + depth * n
     vr = v - vc
-    dvn = wp.max(0.0, -wp.dot(vr, n))
-    vr = vr + dvn * n
-    vt = vr - wp.dot(vr, n) * n
-    lt = wp.length(vt)
-    dvt = wp.vec3(0.0)
-    if lt > 0.0:
-        dvt = -(wp.min(mu * dvn, lt) / lt) * vt
-        x = x + dt * dvt
-    return x, vr + vc + dvt, 1
+    vn = wp.dot(vr, n)
+    dvn = wp.max(0.0, -vn)
+    vt = vr - vn * n
+    lt2 = wp.dot(vt, vt)
+    s = float(0.0)
+    if mu * dvn * mu * dvn >= lt2:  # sticks: dv_t = -v_t (exactly)
+        s = 1.0
+    else:  # slides: |dv_t| = mu dv_n
+        s = mu * dvn / wp.sqrt(lt2)
+    dvt = -s * vt
+    return x + depth * n + dt * dvt, vc + (vn + dvn) * n + vt + dvt
 
 
-@wp.func
+@wp.func(inline=True)
+def in_box(x: wp.vec3, box: wp.array(dtype=wp.vec3)):
+    # x inside the box around every non-plane collider (empty box: min > max)
+    lo = box[0]
+    hi = box[1]
+    return x[0] >= lo[0] and x[1] >= lo[1] and x[2] >= lo[2] and x[0] <= hi[0] and x[1] <= hi[1] and x[2] <= hi[2]
+
+
+NOT_NEAR = wp.constant(1.0e30)
+
+
+@wp.func(inline=True)
+def shape_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3):
+    # (phi, n) of non-plane collider k, reading only the fields its kind needs (no record copy);
+    # phi = NOT_NEAR where a cheap test shows phi > thickness + 1e-5 m (squared distances, the box's
+    # slabs; the slack keeps a particle resting at the thickness, to rounding, for the friction pass)
+    kind = colliders[k].kind
+    reach = colliders[k].thickness + 1.0e-5
+    if kind == SPHERE:
+        r = colliders[k].radius
+        d = x - colliders[k].a
+        if wp.dot(d, d) >= (r + reach) * (r + reach):
+            return NOT_NEAR, wp.vec3(0.0)
+        return sphere_contact(x, colliders[k].a, r)
+    if kind == CAPSULE:
+        r = colliders[k].radius
+        a = colliders[k].a
+        ab = colliders[k].b - a
+        t = wp.clamp(wp.dot(x - a, ab) / wp.max(wp.dot(ab, ab), 1.0e-20), 0.0, 1.0)
+        d = x - (a + t * ab)
+        if wp.dot(d, d) >= (r + reach) * (r + reach):
+            return NOT_NEAR, wp.vec3(0.0)
+        return sphere_contact(x, a + t * ab, r)
+    c = colliders[k].a
+    h = colliders[k].b
+    if kind == MESH:  # its bounding box (b: half size grown by the thickness), then the BVH
+        d = x - c
+        if wp.abs(d[0]) > h[0] or wp.abs(d[1]) > h[1] or wp.abs(d[2]) > h[2]:
+            return NOT_NEAR, wp.vec3(0.0)
+        return mesh_contact(x, colliders[k].mesh, colliders[k].thickness, colliders[k].radius)
+    rotation = colliders[k].rotation
+    p = wp.transpose(rotation) * (x - c)
+    if wp.abs(p[0]) >= h[0] + reach or wp.abs(p[1]) >= h[1] + reach or wp.abs(p[2]) >= h[2] + reach:
+        return NOT_NEAR, wp.vec3(0.0)
+    return box_contact(x, c, rotation, h)
+
+
+@wp.func(inline=True)
+def surface_velocity(colliders: wp.array(dtype=Collider), k: int, y: wp.vec3):
+    # v_c(y) = u + w x (y - o) of collider k (0 for a static one)
+    if colliders[k].moving == 0:
+        return wp.vec3(0.0)
+    return colliders[k].velocity + wp.cross(colliders[k].omega, y - colliders[k].origin)
+
+
+@wp.func(inline=True)
+def velocity_response(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, v: wp.vec3, phi: float, n: wp.vec3, dt: float):
+    # respond_velocity against collider k where it is penetrated (phi < thickness); hit = 1 then
+    depth = colliders[k].thickness - phi
+    if depth > 0.0:
+        x, v = respond_velocity(x, v, surface_velocity(colliders, k, x), depth, n, colliders[k].mu, dt)
+        return x, v, 1
+    return x, v, 0
+
+
+@wp.kernel
+def collide_velocity(
+    x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), dt: float,
+    position_weight: float, displacement: wp.array(dtype=wp.vec3), has_displacement: int,
+    colliders: wp.array(dtype=Collider), box: wp.array(dtype=wp.vec3), plane_count: int,
+):
+    # after a force-based step: every collider, respond_velocity (the tangential change moves x by
+    # position_weight dt dv_t: 1 where x += dt v_new, 1/2 for RK); Verlet's d = v dt. Planes first
+    # (one half-space test each), the other colliders when x is in the box around them; x, v
+    # written only on contact, and never for a pinned particle (pins win)
+    i = wp.tid()
+    xi = x[i]
+    vi = v[i]
+    h = position_weight * dt
+    hit = int(0)
+    for k in range(plane_count):
+        phi, n = plane_contact(xi, colliders[k].a, colliders[k].b)
+        xi, vi, got = velocity_response(colliders, k, xi, vi, phi, n, h)
+        hit = hit + got
+    if in_box(xi, box):
+        for k in range(plane_count, colliders.shape[0]):
+            phi, n = shape_contact(colliders, k, xi)
+            xi, vi, got = velocity_response(colliders, k, xi, vi, phi, n, h)
+            hit = hit + got
+    if hit != 0:
+        if inv_mass[i] != 0.0:
+            x[i] = xi
+            v[i] = vi
+            if has_displacement != 0:
+                displacement[i] = dt * vi
+
+
+@wp.func(inline=True)
 def respond_displacement(dp: wp.vec3, phi: float, n: wp.vec3, thickness: float):
     # dp += depth n (p = x + dp out of the collider); returns the normal correction
     depth = thickness - phi
@@ -235,7 +297,7 @@ def respond_displacement(dp: wp.vec3, phi: float, n: wp.vec3, thickness: float):
     return dp + depth * n, depth
 
 
-@wp.func
+@wp.func(inline=True)
 def friction_displacement(dp: wp.vec3, motion: wp.vec3, n: wp.vec3, normal_correction: float, mu: float):
     # cancel the tangential dp - motion (the collider's) up to mu times the normal correction
     r = dp - motion
@@ -246,67 +308,49 @@ def friction_displacement(dp: wp.vec3, motion: wp.vec3, n: wp.vec3, normal_corre
     return dp - (wp.min(mu * normal_correction, lt) / lt) * dpt
 
 
-@wp.kernel
-def collide_velocity(
-    x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), dt: float,
-    position_weight: float, displacement: wp.array(dtype=wp.vec3), has_displacement: int,
-    colliders: wp.array(dtype=Collider), bounds: wp.array(dtype=wp.vec4), box: wp.array(dtype=wp.vec3), plane_count: int,
-):
-    # after a force-based step: every collider, respond_velocity (the tangential change moves x by
-    # position_weight dt dv_t: 1 where x += dt v_new, 1/2 for RK); Verlet's d = v dt
-    i = wp.tid()
-    xi = x[i]
-    if not near_any(xi, bounds, box, plane_count):
-        return
-    if inv_mass[i] == 0.0:
-        return
-    vi = v[i]
-    hit = int(0)
-    for k in range(colliders.shape[0]):
-        if may_touch(k, xi, bounds, plane_count):
-            c = colliders[k]
-            phi, n = collider_contact(c, xi)
-            if phi < c.thickness:
-                xi, vi, h = respond_velocity(xi, vi, collider_velocity(c, xi), phi, n, c.thickness, c.mu, position_weight * dt)
-                hit = hit + h
-    if hit != 0:
-        x[i] = xi
-        v[i] = vi
-        if has_displacement != 0:
-            displacement[i] = dt * vi
+@wp.func(inline=True)
+def displacement_response(colliders: wp.array(dtype=Collider), k: int, p: wp.vec3, d: wp.vec3, nc: float, phi: float, n: wp.vec3,
+                          friction: int, motion_time: float):
+    # the solver pass (friction = 0): d out of collider k, nc += the normal correction; the
+    # friction pass: d's tangential motion relative to the collider's over the substep reduced
+    if friction == 0:
+        d, dn = respond_displacement(d, phi, n, colliders[k].thickness)
+        return d, nc + dn
+    if phi <= colliders[k].thickness + 1.0e-6:
+        d = friction_displacement(d, motion_time * surface_velocity(colliders, k, p), n, nc, colliders[k].mu)
+    return d, nc
 
 
 @wp.kernel
 def collide_displacement(
     friction: int, x: wp.array(dtype=wp.vec3), dp: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
-    normal_correction: wp.array(dtype=float), colliders: wp.array(dtype=Collider), bounds: wp.array(dtype=wp.vec4),
+    normal_correction: wp.array(dtype=float), colliders: wp.array(dtype=Collider),
     box: wp.array(dtype=wp.vec3), plane_count: int, step_dt: wp.array(dtype=wp.float64), substep: wp.array(dtype=int),
 ):
     # position-based solvers: p = x + dp out of every collider (friction = 0), or the friction pass
     # after the iterations (friction = 1; the collider moves v_c h over the substep h = dt / S)
-    motion_time = float(step_dt[0] / wp.float64(substep[1]))
     i = wp.tid()
     nc = normal_correction[i]
     if friction != 0 and nc == 0.0:
         return
-    xi = x[i]
-    d = dp[i]
-    if not near_any(xi + d, bounds, box, plane_count):
-        return
     if inv_mass[i] == 0.0:
         return
-    for k in range(colliders.shape[0]):
+    motion_time = float(step_dt[0] / wp.float64(substep[1]))
+    xi = x[i]
+    d = dp[i]
+    nc0 = nc
+    for k in range(plane_count):
         p = xi + d
-        if may_touch(k, p, bounds, plane_count):
-            c = colliders[k]
-            phi, n = collider_contact(c, p)
-            if friction == 0:
-                d, dn = respond_displacement(d, phi, n, c.thickness)
-                nc = nc + dn
-            elif phi <= c.thickness + 1.0e-6:
-                d = friction_displacement(d, motion_time * collider_velocity(c, p), n, nc, c.mu)
-    dp[i] = d
-    normal_correction[i] = nc
+        phi, n = plane_contact(p, colliders[k].a, colliders[k].b)
+        d, nc = displacement_response(colliders, k, p, d, nc, phi, n, friction, motion_time)
+    if in_box(xi + d, box):
+        for k in range(plane_count, colliders.shape[0]):
+            p = xi + d
+            phi, n = shape_contact(colliders, k, p)
+            d, nc = displacement_response(colliders, k, p, d, nc, phi, n, friction, motion_time)
+    if friction != 0 or nc != nc0:  # moved: a friction pass, or a solver pass that found a contact
+        dp[i] = d
+        normal_correction[i] = nc
 
 
 @wp.func
@@ -385,6 +429,7 @@ def eval_collider_pose(
     m.origin = wp.vec3(c + d)
     m.velocity = wp.vec3(dd)
     m.omega = float(theta_dot) * wp.vec3(axis)
+    m.moving = 1
     colliders[index] = m
 
 

@@ -374,8 +374,7 @@ class ColliderSet:
             records = [_record(c, m) for c, m in zip(order, self.meshes)]
             self.rest = wp.array(records, dtype=ck.Collider)
             self.params = wp.array(records, dtype=ck.Collider)
-            self.bounds = wp.zeros(2 * len(records) - self.plane_count, dtype=wp.vec4)  # broad phase, see kernels.collide.eval_collider_bounds
-            self.box = wp.zeros(2, dtype=wp.vec3)
+            self.box = wp.zeros(2, dtype=wp.vec3)  # broad phase: the box around the non-plane colliders (kernels.collide.eval_collider_bounds)
             self.time = time if time is not None else wp.zeros(1, dtype=wp.float64)
             self.step_dt = step_dt if step_dt is not None else wp.zeros(1, dtype=wp.float64)
             self.substep = wp.array([0, 1], dtype=int)  # (k, S): the position-based substep k of S
@@ -410,10 +409,10 @@ class ColliderSet:
     def _bound(self) -> None:
         from warpcloth.kernels import collide as ck
 
-        wp.launch(ck.eval_collider_bounds, dim=1, inputs=[self.params, self.plane_count], outputs=[self.bounds, self.box], device=self.device)
+        wp.launch(ck.eval_collider_bounds, dim=1, inputs=[self.params, self.plane_count], outputs=[self.box], device=self.device)
 
     def _broad_phase(self) -> list:
-        return [self.params, self.bounds, self.box, self.plane_count]
+        return [self.params, self.box, self.plane_count]
 
     def project_velocity(self, model, state, dt: float, displacement=None, position_weight: float = 1.0) -> None:
         """After a force-based step (the control's time still at the step's start t): colliders
@@ -455,34 +454,28 @@ def _record(c, mesh=None):
     r.radius = float(getattr(c, "radius", 0.0))
     r.rotation = wp.mat33(np.eye(3, dtype=np.float32))
     r.thickness, r.mu = float(c.thickness), float(c.friction)
-    r.bound_radius = -1.0
     if c.kind == "plane":
         r.a, r.b = wp.vec3(*c.point), wp.vec3(*c.normal)
         r.bound_center = wp.vec3(*c.point)
     elif c.kind == "sphere":
         r.a = r.bound_center = wp.vec3(*c.center)
-        r.bound_radius = c.radius + c.thickness
     elif c.kind == "capsule":
         a, b = np.asarray(c.a), np.asarray(c.b)
         r.a, r.b = wp.vec3(*a), wp.vec3(*b)
         r.bound_center = wp.vec3(*(0.5 * (a + b)))
-        r.bound_radius = 0.5 * float(np.linalg.norm(b - a)) + c.radius + c.thickness
     elif c.kind == "mesh":
         lo, hi = c.vertices.min(axis=0), c.vertices.max(axis=0)
         half = 0.5 * (hi - lo) + c.thickness
         r.a = r.bound_center = wp.vec3(*(0.5 * (lo + hi)))
-        r.b = wp.vec3(*half)
+        r.b = wp.vec3(*(half * (1.0 + 1e-5) + 1e-6))  # float32 rounding never rejects a contact
         r.radius = float(c.reach)
         r.mesh = mesh.id
-        r.bound_radius = float(np.linalg.norm(half))
     else:
         r.a = r.bound_center = wp.vec3(*c.center)
         r.b = wp.vec3(*c.half_extents)
         r.rotation = wp.mat33(_quat_matrix(c.rotation).astype(np.float32))
-        r.bound_radius = float(np.linalg.norm(c.half_extents)) + c.thickness
-    if r.bound_radius > 0.0:
-        r.bound_radius = r.bound_radius * (1.0 + 1e-5) + 1e-6  # float32 rounding never rejects a contact
     r.velocity = r.omega = r.origin = wp.vec3(0.0, 0.0, 0.0)
+    r.moving = 0
     return r
 
 
