@@ -7,8 +7,8 @@ stored compactly: every position quantised to uint16 within the animation's boun
 the frames' simulated times, the triangles, the springs and their rest lengths (the player
 computes normals and, on request, spring strain per frame), the pinned particles and the run's
 colliders (:func:`collider_records`), drawn shaded in a neutral grey: a plane as a square patch
-around the cloth (:data:`PLANE_PATCH` x the animation's bounding-box diagonal across, centred on
-the cloth's projection and ruled with a grid fixed to the plane), spheres, capsules, oriented
+around the cloth (:data:`PLANE_PATCH` x the animation's bounding-box diagonal across, centred where
+the box's centre projects onto the plane, ruled with a grid fixed to the plane), spheres, capsules, oriented
 boxes and triangle meshes (vertices uint16 in the mesh's own box, like the frames). A collider
 on a track gets its rigid pose at every frame's simulated time (:class:`ColliderPoses`): the
 translation uint16 within the range it covers and, only if it turns, the rotation quaternion as
@@ -16,7 +16,8 @@ int16 (14 bytes a frame, 6 if it only translates); a static collider has no per-
 
 Open ``out.html#t=0.5`` to seek to t = 0.5 s and pause; ``#t=0.5&strain=1`` also colours the
 cloth by strain (the legend runs from 0 to the 99th percentile of the vertices' strain in the
-frame where that is largest, rounded up; the run's largest strain is printed under it).
+frame where that is largest, rounded up; the run's largest strain is printed under it);
+``&colliders=0`` hides the colliders.
 """
 
 from __future__ import annotations
