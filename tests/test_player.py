@@ -1,6 +1,9 @@
-"""The HTML player (``run --html``): one self-contained file holding every frame, and, where a
-Chromium is installed, a canvas that a real browser draws and that changes over time."""
+"""The HTML player (``run --html``): one self-contained file holding every frame and the run's
+colliders (moving ones posed at every frame), and, where a Chromium is installed, a canvas that
+a real browser draws and that changes over time, with the colliders drawn."""
 
+import base64
+import json
 import os
 import re
 import shutil
@@ -12,8 +15,9 @@ import numpy as np
 import pytest
 
 from warpcloth.cli import main
+from warpcloth.colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere, _quat_matrix
 from warpcloth.frames import FrameSinks, nice_scale, strain_colors, vertex_strain
-from warpcloth.player import HtmlWriter, quantise, read_player_data
+from warpcloth.player import PLANE_PATCH, HtmlWriter, quantise, read_player_data
 
 
 def _run(capsys, *argv):
@@ -118,7 +122,7 @@ def test_cli_html_with_usd_and_checks_paths_first(capsys, tmp_path):
     assert code == 0, err
     assert f"wrote {html}" in out and f"wrote {usd}" in out
     data = read_player_data(str(html))
-    assert data["frameCount"] == 7 and data["vertexCount"] == 25
+    assert data["frameCount"] == 7 and data["vertexCount"] == 25 and data["colliders"] == []  # a run without colliders
     assert data["info"]["scenario"] == "sheet" and data["info"]["command_line"].startswith("warpcloth run sheet")
     # a bad path is refused before the run, in one line, and nothing is written
     code, out, err = _run(capsys, "run", "sheet", "--num-frames", "2", "--html", str(tmp_path / "no" / "x.html"))
@@ -128,6 +132,116 @@ def test_cli_html_with_usd_and_checks_paths_first(capsys, tmp_path):
     code, out, err = _run(capsys, "run", "sheet", "--num-frames", "2", "--html", str(html), "--usd", str(html))
     assert code == 2
     assert sorted(os.listdir(tmp_path)) == ["s.html", "s.usda"]  # no temporaries left
+
+
+# -- colliders ---------------------------------------------------------------------------------
+
+#: A closed tetrahedron, wound outward.
+TETRA_V = np.array([[-0.3, 0.0, -0.8], [0.3, 0.0, -0.8], [0.0, 0.5, -0.8], [0.0, 0.0, -1.1]])
+TETRA_T = np.array([[0, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]])
+#: 45 degrees about y, (x, y, z, w).
+QUAT_Y45 = (0.0, np.sin(np.pi / 8), 0.0, np.cos(np.pi / 8))
+
+
+def static_colliders():
+    return (Sphere(center=(0.1, 0.2, -0.3), radius=0.25, thickness=0.005, friction=0.4),
+            Capsule(a=(-0.6, 0.1, 0.4), b=(0.2, 0.1, 0.6), radius=0.08),
+            Box(center=(0.6, 0.2, 0.3), half_extents=(0.2, 0.1, 0.15), rotation=QUAT_Y45, friction=0.5),
+            Plane(point=(0.0, -0.5, 0.0), normal=(0.0, 2.0, 0.5), thickness=0.01),
+            MeshCollider(vertices=TETRA_V, triangles=TETRA_T, thickness=0.002))
+
+
+def moving_colliders():
+    """Every kind that may move, on keyframes and on rigid motions that turn and slide."""
+    return (Sphere(center=(0.0, 0.2, 0.0), radius=0.2,
+                   track=ColliderTrack.keyframes([0.0, 0.3], [[0, 0, 0], [0.4, 0.1, -0.2]], interpolation="catmull_rom")),
+            Box(center=(0.6, 0.2, 0.3), half_extents=(0.2, 0.1, 0.15), rotation=QUAT_Y45,
+                track=ColliderTrack.rigid(center=(0.5, 0.2, 0.1), axis=(0, 1, 0), angular_velocity=3.0, velocity=(0, 0, -0.2))),
+            Capsule(a=(-0.6, 0.1, 0.4), b=(0.2, 0.1, 0.6), radius=0.08,
+                    track=ColliderTrack.rigid(center=(0, 0.1, 0.5), axis=(1, 1, 0), swing_amplitude=0.6, swing_frequency=2.0)),
+            Plane(track=ColliderTrack.rigid(center=(0, 0, 0), axis=(0, 0, 1), swing_amplitude=0.3, swing_frequency=1.0,
+                                            velocity=(0.3, 0, 0))))
+
+
+def _write(path, model, frames, times, colliders):
+    writer = HtmlWriter(str(path), model, 60.0, colliders=colliders)
+    for p, t in zip(frames, times):
+        writer.write_frame(p, sim_time=t)
+    writer.close()
+    return read_player_data(str(path))
+
+
+def test_static_colliders_in_the_page(flag_page, tmp_path):
+    _, _, frames, model = flag_page
+    colliders = static_colliders()
+    data = _write(tmp_path / "static.html", model, frames[:5], [k / 60 for k in range(5)], colliders)
+    recs = data["colliders"]
+    assert [c["kind"] for c in recs] == ["sphere", "capsule", "box", "plane", "mesh"]
+    assert all("motion" not in c for c in recs)  # nothing per frame for a static collider
+    sphere, capsule, box, plane, mesh = recs
+    assert sphere["center"] == [0.1, 0.2, -0.3] and sphere["radius"] == 0.25 and sphere["thickness"] == 0.005 and sphere["friction"] == 0.4
+    assert capsule["a"] == [-0.6, 0.1, 0.4] and capsule["b"] == [0.2, 0.1, 0.6] and capsule["radius"] == 0.08
+    assert box["center"] == [0.6, 0.2, 0.3] and box["halfExtents"] == [0.2, 0.1, 0.15] and box["friction"] == 0.5
+    assert np.allclose(box["rotation"], QUAT_Y45, atol=1e-12)
+    assert np.allclose(plane["normal"], np.array([0.0, 2.0, 0.5]) / np.hypot(2.0, 0.5)) and plane["point"] == [0.0, -0.5, 0.0]
+    diagonal = np.linalg.norm(np.array(data["bboxMax"]) - np.array(data["bboxMin"]))
+    assert np.isclose(plane["halfSize"], 0.5 * PLANE_PATCH * diagonal)  # a patch around the cloth
+    assert mesh["vertexCount"] == 4 and mesh["triangleCount"] == 4 and mesh["thickness"] == 0.002
+    assert np.array_equal(mesh["triangleIndices"], TETRA_T)
+    step = (np.array(mesh["verticesMax"]) - np.array(mesh["verticesMin"])) / 65535
+    assert np.all(np.abs(mesh["vertexPositions"] - TETRA_V) <= step / 2 + 1e-9)  # uint16, as the frames
+
+
+def _rotate(q, v):
+    return _quat_matrix(q) @ np.asarray(v, dtype=np.float64)
+
+
+def test_moving_colliders_posed_at_every_frame(flag_page, tmp_path):
+    _, _, frames, model = flag_page
+    colliders = moving_colliders() + (Sphere(center=(0, 2, 0), radius=0.1),)
+    times = [0.0, 0.01, 0.05, 0.12, 0.2, 0.31, 0.5, 0.9]  # uneven, past the keyframes' end
+    bad = np.full_like(frames[0], np.nan)  # an unstable frame is not shown, nor are its poses
+    data = _write(tmp_path / "moving.html", model, [frames[0], frames[1], bad, *frames[2:8]], [0.0, 0.01, 0.03, *times[2:]], colliders)
+    assert data["times"] == times and data["frameCount"] == 8
+    recs = data["colliders"]
+    assert "motion" not in recs[4]  # the static sphere among moving ones
+    for c, rec in zip(colliders[:4], recs[:4]):
+        m = rec["motion"]
+        assert m["translations"].shape == (8, 3) and m["rotations"].shape == (8, 4)
+        assert len(base64.b64decode(m["translation"])) == 8 * 3 * 2  # uint16 x y z a frame
+        for k, t in enumerate(times):
+            want = c.at(t)
+            q, tr = m["rotations"][k], m["translations"][k]
+
+            def pose(y):  # the stored pose applied to the collider as given
+                return _rotate(q, y) + tr
+
+            if c.kind == "sphere":
+                assert np.allclose(pose(rec["center"]), want.center, atol=1e-4), (k, t)
+            elif c.kind == "capsule":
+                assert np.allclose(pose(rec["a"]), want.a, atol=1e-4) and np.allclose(pose(rec["b"]), want.b, atol=1e-4), (k, t)
+            elif c.kind == "box":
+                assert np.allclose(pose(rec["center"]), want.center, atol=1e-4), (k, t)
+                rot = _quat_matrix(q) @ _quat_matrix(rec["rotation"])
+                assert np.allclose(rot, _quat_matrix(want.rotation), atol=1e-4), (k, t)
+            else:
+                assert np.allclose(pose(rec["point"]), want.point, atol=1e-4), (k, t)
+                assert np.allclose(_rotate(q, rec["normal"]), want.normal, atol=1e-4), (k, t)
+    # the keyframed sphere only translates: no rotation stored (6 bytes a frame); the others turn
+    assert "rotation" not in recs[0]["motion"] and all("rotation" in r["motion"] for r in recs[1:4])
+    assert np.allclose(recs[0]["motion"]["translations"][-1], [0.4, 0.1, -0.2], atol=1e-6)  # held after the last key
+
+
+def test_cli_run_shows_the_scenarios_and_the_command_lines_colliders(capsys, tmp_path):
+    html = tmp_path / "t.html"
+    code, out, err = _run(capsys, "run", "tablecloth", "--rows", "5", "--cols", "5", "--num-frames", "3", "--html", str(html),
+                          "--collider", "sphere:center=0/1/0,radius=0.3")
+    assert code == 0, err
+    recs = read_player_data(str(html))["colliders"]
+    assert [c["kind"] for c in recs] == ["box", "plane", "sphere"]
+    assert recs[0]["center"] == [0.0, 0.375, 0.0] and recs[0]["halfExtents"] == [0.4, 0.375, 0.4] and recs[0]["rotation"] == [0, 0, 0, 1]
+    assert recs[1]["normal"] == [0.0, 1.0, 0.0] and recs[2]["center"] == [0.0, 1.0, 0.0] and recs[2]["radius"] == 0.3
+    assert all("motion" not in c for c in recs)
 
 
 # -- in a real browser ------------------------------------------------------------------------
@@ -246,6 +360,37 @@ def test_chromium_draws_the_canvas_and_it_moves(flag_page, tmp_path):
     v = view(strain)
     blue = (v[:, :, 2] - v[:, :, 0]) > 60  # the ramp's blue end (low strain) where the cloth was beige
     assert (blue & cloth(last)).sum() > 0.5 * cloth(last).sum(), "strain colours not shown"
+
+
+@pytest.mark.skipif(_chromium() is None, reason="no Chromium installed (apt-get install chromium)")
+def test_chromium_draws_the_colliders_where_their_poses_put_them(flag_page, tmp_path):
+    """Every kind, moving and static, drawn without a script error; the page poses each collider
+    at the frame shown as collider.at(t) does, and hiding them (#colliders=0) takes grey away."""
+    _, _, frames, model = flag_page
+    colliders = moving_colliders() + (MeshCollider(vertices=TETRA_V, triangles=TETRA_T), Sphere(center=(-0.4, 0.3, 0.0), radius=0.15))
+    times = [k / 60 for k in range(20)]
+    _write(tmp_path / "c.html", model, frames[:20], times, colliders)
+    browser = _chromium()
+    url = (tmp_path / "c.html").resolve().as_uri()
+    for k in (0, 19):
+        dom, err = _dom(browser, url + f"#t={times[k]}", tmp_path)
+        assert f'data-frame="{k}"' in dom and "data-error" not in dom and 'data-colliders="6"' in dom, (dom[-600:], err)
+        points = json.loads(re.search(r'data-collider-points="([^"]*)"', dom).group(1).replace("&quot;", '"'))
+        for c, got in zip(colliders, points):
+            want = c.at(times[k])
+            expect = {"sphere": lambda: [want.center], "capsule": lambda: [want.a, want.b],
+                      "box": lambda: [want.center, np.asarray(want.center) + _rotate(want.rotation, want.half_extents)],
+                      "plane": lambda: [want.point, np.add(want.point, want.normal)], "mesh": lambda: [TETRA_V[0]]}[c.kind]()
+            assert np.allclose(got, expect, atol=2e-4), (c.kind, k, got, expect)
+
+    def grey(img):  # the colliders' neutral grey (and the plane's grid), not the background or the cloth
+        v = img[60:img.shape[0] - 60].astype(int)
+        r, g, b = v[:, :, 0], v[:, :, 1], v[:, :, 2]
+        return (r > 55) & (b >= r - 2) & (b - r < 30) & (np.abs(g - r) < 14)
+
+    shown = _screenshot(browser, url + "#t=0.3", tmp_path / "c1.png", tmp_path, lambda img: grey(img).mean() > 0.05)
+    hidden = _screenshot(browser, url + "#t=0.3&colliders=0", tmp_path / "c0.png", tmp_path, lambda img: grey(img).mean() < 0.05)
+    assert grey(shown).mean() > 0.05 and grey(shown).mean() > grey(hidden).mean() + 0.05, (grey(shown).mean(), grey(hidden).mean())
 
 
 def test_too_many_frames_refused_before_the_run(capsys, tmp_path):

@@ -224,7 +224,7 @@ def _output_writers(scenario_name: str, args) -> list:
         paths.append(args.html)
         writers.append(lambda sim, cfg: HtmlWriter(args.html, sim.model, cfg.fps, title=f"warpcloth {scenario_name}: {sim.integrator.name}, "
                                                    f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s", info=info(sim, cfg),
-                                                   expected_frames=frames(cfg)))
+                                                   expected_frames=frames(cfg), colliders=sim.control.colliders))
     if getattr(args, "preview", None):
         from .preview import PreviewWriter
 

@@ -5,12 +5,19 @@ small WebGL 1 program written for warpcloth) and the animation as JSON inside it
 stored compactly: every position quantised to uint16 within the animation's bounding box
 (3 x 2 bytes a vertex, base64: 8 bytes a vertex a frame; the step is the box's size / 65535),
 the frames' simulated times, the triangles, the springs and their rest lengths (the player
-computes normals and, on request, spring strain per frame), the pinned particles and a list of
-colliders (empty: warpcloth has none yet; the player's ``drawColliders`` is the hook).
+computes normals and, on request, spring strain per frame), the pinned particles and the run's
+colliders (:func:`collider_records`), drawn shaded in a neutral grey: a plane as a square patch
+around the cloth (:data:`PLANE_PATCH` x the animation's bounding-box diagonal across, centred where
+the box's centre projects onto the plane, ruled with a grid fixed to the plane), spheres, capsules, oriented
+boxes and triangle meshes (vertices uint16 in the mesh's own box, like the frames). A collider
+on a track gets its rigid pose at every frame's simulated time (:class:`ColliderPoses`): the
+translation uint16 within the range it covers and, only if it turns, the rotation quaternion as
+int16 (14 bytes a frame, 6 if it only translates); a static collider has no per-frame data.
 
 Open ``out.html#t=0.5`` to seek to t = 0.5 s and pause; ``#t=0.5&strain=1`` also colours the
 cloth by strain (the legend runs from 0 to the 99th percentile of the vertices' strain in the
-frame where that is largest, rounded up; the run's largest strain is printed under it).
+frame where that is largest, rounded up; the run's largest strain is printed under it);
+``&colliders=0`` hides the colliders.
 """
 
 from __future__ import annotations
@@ -32,6 +39,10 @@ TEMPLATE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "player.html
 #: The legend's end is this percentile of the vertices' strain in the frame where it is largest
 #: (rounded up to 1, 2, 2.5 or 5 x 10^k); strain above it is red.
 STRAIN_PERCENTILE = 99.0
+#: A plane's patch in the player is this many times the animation's bounding-box diagonal across
+#: (at least :data:`PLANE_PATCH_MIN` m).
+PLANE_PATCH = 3.0
+PLANE_PATCH_MIN = 0.3
 #: Bytes of float32 positions held in memory before the run is refused (about 2 GB).
 MAX_BUFFER_BYTES = 2 * 1024**3
 
@@ -66,6 +77,80 @@ def quantise(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return q, lo, hi
 
 
+def _floats(values) -> list:
+    return [float(v) for v in np.asarray(values, dtype=np.float64).reshape(-1)]
+
+
+class ColliderPoses:
+    """The rigid pose of a collider on a track at each frame written: y -> R y + T, so that
+    ``collider.at(t)`` is the collider as given moved by it (R, c, d from ``track.transform(t)``:
+    T = c + d - R c). Stored as :meth:`record` says."""
+
+    def __init__(self, collider):
+        self.collider = collider
+        self.translations: list[np.ndarray] = []
+        self.rotations: list[tuple] = []
+
+    def add(self, t: float) -> None:
+        from .colliders import _matrix_quat
+
+        r, c, d = self.collider.track.transform(float(t))
+        self.translations.append(np.asarray(c, dtype=np.float64) + d - r @ np.asarray(c, dtype=np.float64))
+        self.rotations.append(_matrix_quat(r))
+
+    def record(self) -> dict:
+        """``translation``: uint16 x y z a frame within [``translationMin``, ``translationMax``]
+        (base64, as the frames); ``rotation`` (only if some frame turns): the quaternion x y z w,
+        w >= 0, as int16 / 32767 a frame (base64)."""
+        q, lo, hi = quantise(np.asarray(self.translations, dtype=np.float64)[:, None, :])
+        out = {"translation": _b64(q), "translationMin": _floats(lo), "translationMax": _floats(hi)}
+        rot = np.asarray(self.rotations, dtype=np.float64).reshape(-1, 4)
+        if rot.size and np.abs(rot[:, :3]).max() > 1e-12:
+            rot = rot * np.where(rot[:, 3:] < 0.0, -1.0, 1.0)
+            out["rotation"] = _b64(np.rint(rot * 32767.0).clip(-32767, 32767).astype("<i2"))
+        return out
+
+
+def collider_records(colliders, lo, hi, poses: dict | None = None) -> list[dict]:
+    """The player's JSON record of each collider (as given, i.e. at its track's time-0 offset):
+    ``kind`` (plane, sphere, capsule, box, mesh), ``thickness``, ``friction`` and
+
+    * plane: ``point``, ``normal``, ``halfSize`` (the patch drawn: :data:`PLANE_PATCH` x the
+      diagonal of the animation's box ``lo``..``hi`` across);
+    * sphere: ``center``, ``radius``; capsule: ``a``, ``b``, ``radius``;
+    * box: ``center``, ``halfExtents``, ``rotation`` (quaternion x y z w);
+    * mesh: ``vertexCount``, ``triangleCount``, ``vertices`` (uint16 x y z within
+      [``verticesMin``, ``verticesMax``], base64) and ``triangles`` (uint32, base64);
+
+    and, for a collider with an entry in ``poses`` (index -> :class:`ColliderPoses`), ``motion``:
+    its pose at every frame (:meth:`ColliderPoses.record`)."""
+    poses = poses or {}
+    diagonal = float(np.linalg.norm(np.asarray(hi, dtype=np.float64) - np.asarray(lo, dtype=np.float64)))
+    records = []
+    for k, c in enumerate(colliders):
+        rec = {"kind": c.kind}
+        if c.kind == "plane":
+            rec.update(point=_floats(c.point), normal=_floats(c.normal), halfSize=0.5 * max(PLANE_PATCH * diagonal, PLANE_PATCH_MIN))
+        elif c.kind == "sphere":
+            rec.update(center=_floats(c.center), radius=float(c.radius))
+        elif c.kind == "capsule":
+            rec.update(a=_floats(c.a), b=_floats(c.b), radius=float(c.radius))
+        elif c.kind == "box":
+            rec.update(center=_floats(c.center), halfExtents=_floats(c.half_extents), rotation=_floats(c.rotation))
+        elif c.kind == "mesh":
+            q, vlo, vhi = quantise(np.asarray(c.vertices, dtype=np.float64)[None])
+            tris = np.asarray(c.triangles).reshape(-1, 3)
+            rec.update(vertexCount=int(q.shape[1]), triangleCount=int(len(tris)), vertices=_b64(q), verticesMin=_floats(vlo),
+                       verticesMax=_floats(vhi), triangles=_b64(tris.astype("<u4")))
+        else:
+            raise WarpclothError(f"the HTML player cannot draw a collider of kind {c.kind!r}")
+        rec.update(thickness=float(c.thickness), friction=float(c.friction))
+        if k in poses:
+            rec["motion"] = poses[k].record()
+        records.append(rec)
+    return records
+
+
 class HtmlWriter:
     """Collects a run's frames and writes the player page on :meth:`close` (atomically).
 
@@ -75,10 +160,12 @@ class HtmlWriter:
         fps: the frame rate of the run (the page plays at the frames' simulated times).
         title: a line shown in the page's corner and its title.
         info: extra JSON-able facts stored in the page (provenance).
+        colliders: the run's colliders (``Control.colliders``), drawn with the cloth; a moving
+            one's pose is stored at every frame's simulated time (see :func:`collider_records`).
     """
 
     def __init__(self, path: str, model, fps: float = 60.0, title: str = "warpcloth", info: dict | None = None,
-                 expected_frames: int | None = None):
+                 expected_frames: int | None = None, colliders=()):
         self.path = check_html_path(path)
         check_frame_memory(model, expected_frames, "the HTML player")
         self.fps = float(fps)
@@ -92,6 +179,11 @@ class HtmlWriter:
         self.times: list[float] = []
         self.max_strain = 0.0
         self.strain_p99 = 0.0
+        self.colliders = tuple(colliders or ())
+        for c in self.colliders:
+            if getattr(c, "kind", None) not in ("plane", "sphere", "capsule", "box", "mesh"):
+                raise WarpclothError(f"the HTML player's colliders must be warpcloth.colliders objects, got {c!r:.80}")
+        self.poses = {k: ColliderPoses(c) for k, c in enumerate(self.colliders) if getattr(c, "track", None) is not None}
         self._closed = False
 
     def write_frame(self, points: np.ndarray, sim_time: float | None = None) -> None:
@@ -104,6 +196,8 @@ class HtmlWriter:
             return  # an unstable frame has nothing to show
         self.frames.append(p)
         self.times.append(t)
+        for poses in self.poses.values():
+            poses.add(t)
         strain = vertex_strain(p, self.pairs, self.rest)
         self.max_strain = max(self.max_strain, float(strain.max(initial=0.0)))
         if strain.size:  # the legend's scale: most of the cloth, not the few vertices at a pin
@@ -129,7 +223,7 @@ class HtmlWriter:
             "springs": _b64(self.pairs.astype("<u4")),
             "rest": _b64(self.rest.astype("<f4")),
             "pins": self.pins,
-            "colliders": [],
+            "colliders": collider_records(self.colliders, lo, hi, self.poses),
             "strainScale": nice_scale(self.strain_p99),
             "maxStrain": self.max_strain,
             "info": self.info,
@@ -154,7 +248,10 @@ class HtmlWriter:
 
 def read_player_data(path: str) -> dict:
     """The JSON data of a player page written by :class:`HtmlWriter`, with the frames decoded
-    to float32 (F, N, 3) under ``"positions"`` (for tests and tools)."""
+    to float32 (F, N, 3) under ``"positions"`` (for tests and tools); a mesh collider's record
+    gains ``"vertexPositions"`` (V, 3) and ``"triangleIndices"`` (T, 3), a moving collider's
+    ``"motion"`` gains ``"translations"`` (F, 3) and ``"rotations"`` (F, 4; x y z w, normalised;
+    the identity when it only translates), decoded."""
     with open(path, encoding="utf-8") as fh:
         page = fh.read()
     start_tag = '<script id="warpcloth-data" type="application/json">'
@@ -166,4 +263,20 @@ def read_player_data(path: str) -> dict:
     q = np.frombuffer(base64.b64decode(data["frames"]), dtype="<u2").reshape(data["frameCount"], data["vertexCount"], 3)
     lo, hi = np.array(data["bboxMin"]), np.array(data["bboxMax"])
     data["positions"] = (lo + q * ((hi - lo) / 65535.0)).astype(np.float32)
+    for c in data["colliders"]:
+        if c["kind"] == "mesh":
+            v = np.frombuffer(base64.b64decode(c["vertices"]), dtype="<u2").reshape(c["vertexCount"], 3)
+            vlo, vhi = np.array(c["verticesMin"]), np.array(c["verticesMax"])
+            c["vertexPositions"] = vlo + v * ((vhi - vlo) / 65535.0)
+            c["triangleIndices"] = np.frombuffer(base64.b64decode(c["triangles"]), dtype="<u4").reshape(c["triangleCount"], 3)
+        m = c.get("motion")
+        if m:
+            t = np.frombuffer(base64.b64decode(m["translation"]), dtype="<u2").reshape(-1, 3)
+            tlo, thi = np.array(m["translationMin"]), np.array(m["translationMax"])
+            m["translations"] = tlo + t * ((thi - tlo) / 65535.0)
+            if "rotation" in m:
+                r = np.frombuffer(base64.b64decode(m["rotation"]), dtype="<i2").reshape(-1, 4) / 32767.0
+                m["rotations"] = r / np.linalg.norm(r, axis=1, keepdims=True)
+            else:
+                m["rotations"] = np.tile([0.0, 0.0, 0.0, 1.0], (len(t), 1))
     return data
