@@ -38,22 +38,25 @@ SPHERE = wp.constant(1)
 CAPSULE = wp.constant(2)
 BOX = wp.constant(3)
 MESH = wp.constant(4)
+#: phi of a collider a cheap test shows the particle is not near (no contact)
+NOT_NEAR = wp.constant(1.0e30)
 
 
 @wp.struct
 class Collider:
     kind: int  # PLANE, SPHERE, CAPSULE, BOX, MESH
-    a: wp.vec3  # plane point / sphere centre / capsule end a / box centre / mesh box centre [m]
+    a: wp.vec3  # plane point / sphere centre / capsule end a / box centre / mesh box centre (posed) [m]
     b: wp.vec3  # plane normal / - / capsule end b / box half extents / mesh box half size (+ thickness) [m]
     radius: float  # sphere, capsule radius; a mesh's reach (deepest inside still pushed out) [m]
     mesh: wp.uint64  # a MESH's wp.Mesh id
-    rotation: wp.mat33  # box: world from box frame
+    rotation: wp.mat33  # box, mesh: world from the collider's own frame
     thickness: float  # the cloth's offset from the surface [m]
     mu: float  # Coulomb friction coefficient
     bound_center: wp.vec3  # centre of the collider's axis-aligned bounding box (half_size) [m]
     velocity: wp.vec3  # u: velocity of the point `origin` [m/s]
     omega: wp.vec3  # w: angular velocity [rad/s]
     origin: wp.vec3  # o [m]
+    rest_center: wp.vec3  # a MESH's box centre in the mesh's own frame (its BVH's), where a = its posed centre [m]
     moving: int  # 1: on a track (velocity, omega, origin set by eval_collider_pose); 0: static, v_c = 0
 
 
@@ -120,6 +123,24 @@ def mesh_contact(x: wp.vec3, mesh: wp.uint64, thickness: float, reach: float):
     return query.sign * length, (query.sign / length) * d
 
 
+@wp.func(inline=True)
+def posed_mesh_contact(x: wp.vec3, center: wp.vec3, rotation: wp.mat33, half: wp.vec3, rest_center: wp.vec3, mesh: wp.uint64,
+                       thickness: float, reach: float, moving: int):
+    # a mesh moved rigidly (y = center + R (y0 - rest_center)): x taken into the mesh's own frame,
+    # rejected outside its box (half: half size grown by the thickness), queried there, n turned
+    # back; a static mesh is queried at x itself (no rounding of x through the frame change)
+    if moving == 0:
+        d = x - center
+        if wp.abs(d[0]) > half[0] or wp.abs(d[1]) > half[1] or wp.abs(d[2]) > half[2]:
+            return NOT_NEAR, wp.vec3(0.0)
+        return mesh_contact(x, mesh, thickness, reach)
+    p = wp.transpose(rotation) * (x - center)
+    if wp.abs(p[0]) > half[0] or wp.abs(p[1]) > half[1] or wp.abs(p[2]) > half[2]:
+        return NOT_NEAR, wp.vec3(0.0)
+    phi, n = mesh_contact(rest_center + p, mesh, thickness, reach)
+    return phi, rotation * n
+
+
 @wp.func
 def collider_contact(c: Collider, x: wp.vec3):
     # (phi, n) of one collider of any kind
@@ -130,7 +151,7 @@ def collider_contact(c: Collider, x: wp.vec3):
     if c.kind == CAPSULE:
         return capsule_contact(x, c.a, c.b, c.radius)
     if c.kind == MESH:
-        return mesh_contact(x, c.mesh, c.thickness, c.radius)
+        return posed_mesh_contact(x, c.a, c.rotation, c.b, c.rest_center, c.mesh, c.thickness, c.radius, c.moving)
     return box_contact(x, c.a, c.rotation, c.b)
 
 
@@ -142,9 +163,7 @@ def half_size(c: Collider):
     if c.kind == CAPSULE:
         d = 0.5 * (c.b - c.a)
         return wp.vec3(wp.abs(d[0]), wp.abs(d[1]), wp.abs(d[2])) + wp.vec3(c.radius + c.thickness)
-    if c.kind == MESH:
-        return c.b
-    r = c.rotation
+    r = c.rotation  # a box's or a mesh's (b: a mesh's half size, already grown by its thickness)
     h = c.b
     return wp.vec3(
         wp.abs(r[0, 0]) * h[0] + wp.abs(r[0, 1]) * h[1] + wp.abs(r[0, 2]) * h[2],
@@ -199,9 +218,6 @@ def in_box(x: wp.vec3, box: wp.array(dtype=wp.vec3)):
     return x[0] >= lo[0] and x[1] >= lo[1] and x[2] >= lo[2] and x[0] <= hi[0] and x[1] <= hi[1] and x[2] <= hi[2]
 
 
-NOT_NEAR = wp.constant(1.0e30)
-
-
 @wp.func(inline=True)
 def shape_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3):
     # (phi, n) of non-plane collider k, reading only the fields its kind needs (no record copy);
@@ -226,12 +242,10 @@ def shape_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3):
         return sphere_contact(x, a + t * ab, r)
     c = colliders[k].a
     h = colliders[k].b
-    if kind == MESH:  # its bounding box (b: half size grown by the thickness), then the BVH
-        d = x - c
-        if wp.abs(d[0]) > h[0] or wp.abs(d[1]) > h[1] or wp.abs(d[2]) > h[2]:
-            return NOT_NEAR, wp.vec3(0.0)
-        return mesh_contact(x, colliders[k].mesh, colliders[k].thickness, colliders[k].radius)
     rotation = colliders[k].rotation
+    if kind == MESH:  # its box (b: half size grown by the thickness), then the BVH
+        return posed_mesh_contact(x, c, rotation, h, colliders[k].rest_center, colliders[k].mesh, colliders[k].thickness, colliders[k].radius,
+                                  colliders[k].moving)
     p = wp.transpose(rotation) * (x - c)
     if wp.abs(p[0]) >= h[0] + reach or wp.abs(p[1]) >= h[1] + reach or wp.abs(p[2]) >= h[2] + reach:
         return NOT_NEAR, wp.vec3(0.0)

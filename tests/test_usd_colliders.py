@@ -10,7 +10,7 @@ import pytest
 from pxr import Usd, UsdGeom
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, build_grid_cloth
-from warpcloth.colliders import ColliderTrack, _quat_matrix
+from warpcloth.colliders import ColliderTrack, MeshCollider, _quat_matrix
 from warpcloth.usd import UsdWriter
 
 FPS = 30.0
@@ -21,6 +21,8 @@ COLLIDERS = (
     Sphere(center=(0.5, -0.5, 0.2), radius=0.25, track=SLIDE),
     Capsule(a=(-0.3, -0.6, 0.1), b=(0.4, -0.4, -0.2), radius=0.1, friction=0.2),
     Box(center=(0.3, -0.8, 0.0), half_extents=(0.3, 0.1, 0.2), rotation=(0.0, 0.0, math.sin(0.3), math.cos(0.3)), track=SPIN),
+    MeshCollider(vertices=[[-0.5, -1.2, 0.0], [0.0, -1.2, 0.3], [0.2, -0.9, -0.1], [0.1, -1.0, 0.4]], triangles=[[0, 1, 2], [0, 2, 3]],
+                 thickness=0.02, friction=0.3, track=SPIN),
 )
 
 
@@ -51,6 +53,9 @@ def check_prim(stage, k, c, code):
         corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
         expected = c.center + (corners * c.half_extents) @ _quat_matrix(c.rotation).T
         np.testing.assert_allclose(apply(m, corners), expected, atol=1e-6)
+    elif c.kind == "mesh":  # its points as given, moved by the prim's transform onto the collider's
+        points = np.array(UsdGeom.Mesh(prim).GetPointsAttr().Get(), dtype=np.float64)
+        np.testing.assert_allclose(apply(m, points), c.vertices, atol=1e-6)
     else:
         points = np.array(UsdGeom.Mesh(prim).GetPointsAttr().Get(), dtype=np.float64)
         w = apply(m, points)
@@ -83,7 +88,8 @@ def test_colliders_are_prims_that_follow_their_tracks(tmp_path, clip_frames):
             assert translate.GetTimeSamples() == codes
         for code in codes:
             check_prim(stage, k, c.at(code / FPS), code)
-    assert not np.allclose(world(stage.GetPrimAtPath("/World/Colliders/Box_3"), 9.0), world(stage.GetPrimAtPath("/World/Colliders/Box_3"), 0.0))
+    for moving in ("Box_3", "Mesh_4"):
+        assert not np.allclose(world(stage.GetPrimAtPath(f"/World/Colliders/{moving}"), 9.0), world(stage.GetPrimAtPath(f"/World/Colliders/{moving}"), 0.0))
 
 
 def test_stage_with_colliders_validates(tmp_path):

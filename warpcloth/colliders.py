@@ -1,7 +1,7 @@
-"""Colliders: an infinite plane, a sphere, a capsule, an oriented box and a static triangle mesh
+"""Colliders: an infinite plane, a sphere, a capsule, an oriented box and a triangle mesh
 (:class:`MeshCollider`), each with a thickness (the cloth's offset from the surface) [m] and a
 Coulomb friction coefficient mu, given to :class:`~warpcloth.forces.Control` as ``colliders=(...)``.
-Plane, sphere, capsule and box may move rigidly on a :class:`ColliderTrack` (keyframed offsets
+Any of them may move rigidly on a :class:`ColliderTrack` (keyframed offsets
 or a rigid motion, as pin tracks), posed on the device inside the step.
 
 How each integrator handles contact (kernels in :mod:`warpcloth.kernels.collide`; all colliders
@@ -270,8 +270,9 @@ class Box(_Posed):
 
 @dataclass(frozen=True, eq=False)
 class MeshCollider(_Posed):
-    """A static triangle mesh (``wp.Mesh``, queried with ``wp.mesh_query_point_sign_normal``):
-    ``vertices`` (N, 3) [m], ``triangles`` (T, 3) vertex indices. Inside and outside come from the
+    """A triangle mesh (``wp.Mesh``, queried with ``wp.mesh_query_point_sign_normal``):
+    ``vertices`` (N, 3) [m], ``triangles`` (T, 3) vertex indices; it may move rigidly on a
+    ``track`` (the BVH stays in the mesh's own frame and each particle is taken into it). Inside and outside come from the
     nearest face's normal, so a closed mesh should have its triangles wound outward (counter-
     clockwise seen from outside); an open one pushes particles to its front side. A particle more
     than ``reach`` [m] inside is not found (it went through; keep reach above a step's motion)."""
@@ -281,7 +282,7 @@ class MeshCollider(_Posed):
     thickness: float = 0.0
     friction: float = 0.0
     reach: float = 0.05
-    track: None = None
+    track: ColliderTrack | None = None
     source: str = ""
 
     def __post_init__(self):
@@ -295,8 +296,12 @@ class MeshCollider(_Posed):
         object.__setattr__(self, "triangles", t)
         _material(self.thickness, self.friction)
         require_positive("mesh collider reach", self.reach, "m")
-        if self.track is not None:
-            raise WarpclothError(f"{what}: mesh colliders are static; a track applies to plane, sphere, capsule and box, got {self.track!r:.80}")
+        _track(self)
+
+    def _moved(self, move, r):
+        origin = np.asarray(move((0.0, 0.0, 0.0)))
+        return MeshCollider(vertices=origin + self.vertices @ r.T, triangles=self.triangles, thickness=self.thickness, friction=self.friction,
+                            reach=self.reach, source=self.source)
 
     @classmethod
     def from_file(cls, path: str, prim: str | None = None, **settings) -> "MeshCollider":
@@ -465,8 +470,8 @@ def _record(c, mesh=None):
         r.bound_center = wp.vec3(*(0.5 * (a + b)))
     elif c.kind == "mesh":
         lo, hi = c.vertices.min(axis=0), c.vertices.max(axis=0)
-        half = 0.5 * (hi - lo) + c.thickness
-        r.a = r.bound_center = wp.vec3(*(0.5 * (lo + hi)))
+        half = 0.5 * (hi - lo) + c.thickness + c.reach  # a particle up to reach inside is still found (a flat mesh has no height)
+        r.a = r.bound_center = r.rest_center = wp.vec3(*(0.5 * (lo + hi)))
         r.b = wp.vec3(*(half * (1.0 + 1e-5) + 1e-6))  # float32 rounding never rejects a contact
         r.radius = float(c.reach)
         r.mesh = mesh.id

@@ -102,7 +102,8 @@ class ColliderPrims:
     * sphere: ``UsdGeom.Sphere`` (radius);
     * capsule: ``UsdGeom.Capsule`` along its local Z (radius, height = |b - a|), oriented a -> b;
     * box: ``UsdGeom.Cube`` of size 2 scaled by the half extents, oriented by its rotation;
-    * mesh: ``UsdGeom.Mesh`` of its triangles, in world coordinates (identity transform);
+    * mesh: ``UsdGeom.Mesh`` of its triangles as given, in world coordinates (identity transform,
+      or its track's rigid transform when it moves);
     * plane: ``UsdGeom.Mesh``, a square quad ``plane_size`` across in its local XZ plane (normal +Y
       turned onto the plane's normal), centred on its point.
 
@@ -187,11 +188,21 @@ class ColliderPrims:
             return (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)
         return c.point, _quat_between((0.0, 1.0, 0.0), c.normal)
 
-    def _set(self, c, ops, code) -> None:
+    @staticmethod
+    def _mesh_pose(c, sim_time: float):
+        """(translate, orient (w, x, y, z)) of a mesh on a track at ``sim_time``: its points stay as
+        given and the transform y -> R y + (c + d - R c) of the track moves them."""
+        from .colliders import _matrix_quat
+
+        r, centre, d = c.track.transform(float(sim_time))
+        x, y, z, w = _matrix_quat(r)
+        return centre + d - r @ centre, (w, x, y, z)
+
+    def _set(self, c, ops, code, pose=None) -> None:
         from pxr import Usd
 
         Gf = self._Gf
-        t, q = self._pose(c)
+        t, q = self._pose(c) if pose is None else pose
         time = Usd.TimeCode.Default() if code is None else code
         ops[0].Set(Gf.Vec3d(*map(float, t)), time)
         ops[1].Set(Gf.Quatf(float(q[0]), Gf.Vec3f(*map(float, q[1:]))), time)
@@ -200,7 +211,10 @@ class ColliderPrims:
         """A time sample of every moving collider's transform, posed at ``sim_time`` [s]."""
         for c, ops in self.items:
             if c.track is not None:
-                self._set(c.at(sim_time), ops, code)
+                if c.kind == "mesh":
+                    self._set(c, ops, code, self._mesh_pose(c, sim_time))
+                else:
+                    self._set(c.at(sim_time), ops, code)
 
 
 class UsdWriter:
