@@ -215,6 +215,11 @@ class ImplicitEuler(Integrator):
         # contacts seen by the solve (matrix="bsr"): normal per particle (0: none), prescribed dv, A z
         self.contact_normal, self.contact_dv, self.contact_Az, self.contact_b = scratch_like(model, 4)
         self.contact_friction = wp.zeros(n, dtype=float)
+        # collider velocity at the contact; per particle: mode (0 none, 1 slide, 2 stick), the solve's
+        # constraint impulse and "ended inside a collider", each kept for the next step's modes
+        self.contact_collider_v, self.contact_impulse = scratch_like(model, 2)
+        self.contact_mode = wp.zeros(n, dtype=int)
+        self.contact_entered = wp.zeros(n, dtype=int)
         self.preconditioner_used = self.preconditioner
         if self.preconditioner == "multigrid":
             reason = grid_structure_reason(model)
@@ -292,6 +297,9 @@ class ImplicitEuler(Integrator):
 
     def begin(self, state, control, dt):
         self.dv.zero_()
+        self.contact_mode.zero_()  # no contact history across an outside change of the state
+        self.contact_impulse.zero_()
+        self.contact_entered.zero_()
         self._assembled_for = None
 
     def default_dt(self, model, drag_rate: float = 0.0) -> float:
@@ -315,35 +323,46 @@ class ImplicitEuler(Integrator):
         if contacts:
             self._contact_friction(v)
         wp.launch(ik.integrate_implicit_euler, dim=m.particle_count, inputs=[x, v, self.dv, m.particle_inv_mass, h], device=m.device)
+        if contacts:
+            wp.launch(ik.mark_entered, dim=m.particle_count, inputs=[x, m.particle_inv_mass, control.collision.params, self.contact_mode], outputs=[self.contact_entered], device=m.device)
 
     def _filter_contacts(self, control, x, v, f) -> None:
-        """Contacts seen by the solve (Baraff & Witkin 1998, sec. 5.3, the filter S): a particle
-        that touches a collider the force at the step's start pushes it into gets S = I - n n^T;
-        its normal dv is prescribed, z = -min(0, v . n) n (it stops approaching), and CG solves
-        S A S y = S (b - A z) for the rest, dv = S y + z. :meth:`_contact_friction` then applies
-        Coulomb friction with the constraint's impulse. Without the filter the solve lets contact
-        particles fall into the collider and the projection after the step pushes them back: CG's
-        relative tolerance is then measured against a |b| that keeps their unbalanced weight at
-        rest, and a 1e-3 solve left the 16 x 16 drape moving at 0.11 m/s after 20 s."""
+        """Contacts seen by the solve (Baraff & Witkin 1998, sec. 5.3, the filter S), chosen per
+        particle by :func:`~warpcloth.kernels.implicit.eval_contact_modes`: a sliding contact gets
+        S = I - n n^T and the prescribed normal dv z = -min(0, v_r . n) n (it stops approaching;
+        v_r = v - v_c relative to the collider), a sticking one S = 0 and z = -v_r (it moves with
+        the collider). CG solves S A S y = S (b - A z) for the rest, dv = S y + z, and
+        :meth:`_contact_friction` applies Coulomb friction with the constraint's impulse.
+
+        Why the modes keep history: a contact chosen by the force at the step's start alone
+        (f . n < 0) flipped every other step in the 16 x 16 drape, where the implicit coupling
+        pushes a particle at the cloth's line of contact in although its explicit force points out
+        (f . n = +0.003..0.03 N): unconstrained it fell 1.3 mm (26 % of the thickness) into the
+        sphere at 0.08 m/s, the projection pushed it back, and its neighbour rang at ~0.02 m/s
+        for good. Now a contact stays while the solve's impulse pushes (J . n > 0), and a particle
+        the solve moved inside becomes one. Friction applied after the solve is not seen by the
+        neighbours, so a contact that friction can hold sticks, in the solve."""
         m = self.model
-        self.contact_normal.zero_()
-        wp.launch(ik.eval_contact_normals, dim=m.particle_count, inputs=[x, f, m.particle_inv_mass, control.collision.params],
-                  outputs=[self.contact_normal, self.contact_friction], device=m.device)
-        wp.launch(ik.eval_contact_dv, dim=m.particle_count, inputs=[self.contact_normal, v], outputs=[self.contact_dv], device=m.device)
+        wp.launch(ik.eval_contact_modes, dim=m.particle_count,
+                  inputs=[x, v, f, m.particle_mass, m.particle_inv_mass, control.collision.params, self.A.values, self.diag_block, self.contact_entered, self.contact_impulse],
+                  outputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v], device=m.device)
+        wp.launch(ik.eval_contact_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_collider_v, v], outputs=[self.contact_dv], device=m.device)
         wp.copy(self.contact_values, self.A.values)
         wp.copy(self.contact_b, self.b)
         self._bsr_matvec(self.contact_dv, self.contact_Az, self.contact_Az, 1.0, 0.0)
-        wp.launch(ik.filter_system_rows, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.diag_block, self.contact_normal], outputs=[self.A.values, self.inv_diag], device=m.device)
-        wp.launch(ik.filter_rhs, dim=m.particle_count, inputs=[self.contact_normal, self.contact_Az], outputs=[self.b, self.dv], device=m.device)
+        wp.launch(ik.filter_system_rows, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.diag_block, self.contact_mode, self.contact_normal], outputs=[self.A.values, self.inv_diag], device=m.device)
+        wp.launch(ik.filter_rhs, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_Az], outputs=[self.b, self.dv], device=m.device)
         self._assembled_for = None  # A.values now hold this step's filter: reassemble next step
 
     def _contact_friction(self, v) -> None:
-        """dv = S y + z, then Coulomb friction from the impulse J = -n . (b - A dv) of the
-        unfiltered system on each contact particle."""
+        """dv = S y + z, the constraint impulse J = A dv - b of the unfiltered system on each
+        contact particle (kept for the next step's modes), then Coulomb friction with it."""
         m = self.model
-        wp.launch(ik.scale_add, dim=m.particle_count, inputs=[self.contact_dv, self.dv, 1.0, 1.0], outputs=[self.dv], device=m.device)
+        wp.launch(ik.unfilter_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_dv], outputs=[self.dv], device=m.device)
         wp.launch(ik.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.contact_values, self.dv, self.contact_b, -1.0, 1.0], outputs=[self.contact_Az], device=m.device)
-        wp.launch(ik.apply_contact_friction, dim=m.particle_count, inputs=[self.contact_normal, self.contact_friction, self.contact_Az, v, m.particle_mass], outputs=[self.dv], device=m.device)
+        wp.launch(ik.apply_contact_friction, dim=m.particle_count,
+                  inputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v, self.contact_Az, v, m.particle_mass, self.contact_values, self.diag_block],
+                  outputs=[self.dv, self.contact_impulse], device=m.device)
 
     def _assemble(self, x, h: float, drag: float) -> None:
         """Refill K_s, B_s = h^2 K_s + h D_s and the values of A (and the Jacobi diagonal):
