@@ -531,6 +531,7 @@ def invert_l1_diagonal_blocks(
 # while |J_t| <= mu J_n) or, for the others, from the velocity; see eval_contact_modes.
 SLIDE = wp.constant(1)
 STICK = wp.constant(2)
+STOPPED = wp.constant(3)  # after the solve: a SLIDE contact that friction stopped (it sticks next step)
 
 
 @wp.func
@@ -573,15 +574,16 @@ def eval_contact_modes(
     # last step and the constraint pushed (J_n = J . n > 0: the release waits for the solve to
     # pull, Baraff & Witkin's test; the explicit f . n misses the implicit coupling and made the
     # set flip every other step), or last step's solve moved it inside (entered). It STICKs if it
-    # stuck last step and the friction cone held the solve's impulse (|J_t| <= mu J_n), or, if it
-    # did not stick, when friction can cancel its tangential velocity, m |v_r,t| <= mu J_n with J_n
-    # the largest of last step's, m max(0, -v_r . n) and -h f . n (a landing particle, whose
-    # approach the projection already stopped, has v_r,t = 0 to rounding and sticks; the explicit
-    # tangential force is no guide: in the stiff drape it is ~1000 times the weight, balanced by
-    # the implicit response); the next solve tells whether the cone held. Else it SLIDEs, with the
-    # kinetic friction impulse F = mu J_n against v_r,t (or, just released from sticking, along the
-    # J_t that held it: against the slip to come) added to the solve's right side, so the
-    # neighbours feel it. Reads and writes only particle i's entries (impulse, mode: last step's
+    # stuck last step and the friction cone held the solve's impulse (|J_t| <= mu J_n), if friction
+    # stopped it last step (STOPPED), or, as a new contact, if friction can cancel the tangential
+    # momentum it would have, |p| = |m v_r,t + h f_t| < mu J_n with J_n the larger of
+    # m max(0, -v_r . n) and -h f . n (a landing particle, whose approach the projection already
+    # stopped, has v_r,t = 0 to rounding); the next solve tells whether the cone held. A sliding
+    # contact slides on until friction stops it (the explicit f_t is no guide there: in the stiff
+    # drape it is ~1000 times the weight, balanced by the implicit response). Else it SLIDEs, with
+    # the kinetic friction impulse F = mu J_n against p (new), v_r,t (sliding) or, just released
+    # from sticking, along the J_t that held it (against the slip to come), added to the solve's
+    # right side, so the neighbours feel it. Reads and writes only particle i's entries (impulse, mode: last step's
     # on entry).
     i = wp.tid()
     previous = mode[i]
@@ -611,13 +613,18 @@ def eval_contact_modes(
             if lt > 0.0:
                 t = vt / lt
             jn = wp.max(wp.max(jn_prev, m * wp.max(0.0, -vrn)), -h * wp.dot(f[i], n))
-            cancellable = previous != STICK and lt * m <= c.mu * jn
+            # tangential momentum a new contact would have after the step without friction
+            p = m * vt + h * (f[i] - wp.dot(f[i], n) * n)
+            lp = wp.length(p)
+            cancellable = previous == STOPPED or (previous == 0 and lp < c.mu * jn)
             if held or cancellable:
                 mode[i] = STICK
             else:
                 mode[i] = SLIDE
                 jt = J - jn_prev * n
-                if lt > 0.0:
+                if previous == 0 and lp > 0.0:
+                    friction_impulse[i] = -(c.mu * jn / lp) * p
+                elif lt > 0.0:
                     friction_impulse[i] = -(c.mu * jn) * t
                 elif previous == STICK and wp.length(jt) > 0.0:
                     friction_impulse[i] = (c.mu * jn / wp.length(jt)) * jt
@@ -664,7 +671,7 @@ def apply_contact_friction(
     # the constraint impulse J = -(b - A dv)_i (unfiltered A, b) of each particle, kept for the
     # next step's modes. SLIDE: where the solve's friction F reversed the tangential velocity
     # (v_r,t . F > 0 after it: F is against the sliding), friction stops the particle instead
-    # (Coulomb's cap). STICK past the cone (|J_t| > mu J_n, J_n = max(0, J . n)): the tangential
+    # (Coulomb's cap; mode STOPPED: it sticks next step). STICK past the cone (|J_t| > mu J_n, J_n = max(0, J . n)): the tangential
     # impulse friction cannot give is taken back, dv_t -= (|J_t| - mu J_n) / m_t along J_t (it
     # slips; next step it slides), m_t the effective_mass along J_t.
     i = wp.tid()
@@ -681,6 +688,7 @@ def apply_contact_friction(
         vt = vr - wp.dot(vr, n) * n
         if wp.dot(vt, F) > 0.0:
             dv[i] = dv[i] - vt
+            mode[i] = STOPPED
     elif mode[i] == STICK:
         jt = J - wp.dot(J, n) * n
         lt = wp.length(jt)
