@@ -596,14 +596,18 @@ def eval_contact_modes(
     m = particle_mass[i]
     for k in range(colliders.shape[0]):
         c = colliders[k]
-        phi, n = collider_contact(c, x[i])
+        # a moving collider is posed at the step's end (Control.update): the contact is that of x
+        # carried along with it over the step, x + h v_c (x itself for a still one); with x, a
+        # particle resting on a moving sphere's trailing side looked u h away from it and dropped
+        # out of the solve every step
+        vc = collider_velocity(c, x[i])
+        phi, n = collider_contact(c, x[i] + h * vc)
         if not contact_proximity(phi, c.thickness):
             continue
         jn_prev = float(0.0)
         if previous != 0:
             jn_prev = wp.dot(J, n)
         if wp.dot(f[i], n) < 0.0 or jn_prev > 0.0 or entered[i] != 0:
-            vc = collider_velocity(c, x[i])
             vr = v[i] - vc
             vrn = wp.dot(vr, n)
             held = previous == STICK and jn_prev > 0.0 and wp.length(J - jn_prev * n) <= c.mu * jn_prev
@@ -702,7 +706,8 @@ def mark_entered(
     x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), colliders: wp.array(dtype=Collider), mode: wp.array(dtype=int),
     entered: wp.array(dtype=int),
 ):
-    # after the step's integration: 1 where a particle the solve left unconstrained ended inside a
+    # after the step's integration (moving colliders posed at its end): 1 where a particle the
+    # solve left unconstrained ended inside a
     # collider's thickness (the projection will push it out; next step it is a contact whatever its
     # force). A constrained one ends at its start's distance, to rounding: its own J decides.
     i = wp.tid()
