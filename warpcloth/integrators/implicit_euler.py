@@ -216,7 +216,8 @@ class ImplicitEuler(Integrator):
         # contacts seen by the solve (matrix="bsr"): normal per particle (0: none), prescribed dv, A z
         self.contact_normal, self.contact_dv, self.contact_Az, self.contact_b = scratch_like(model, 4)
         self.contact_friction = wp.zeros(n, dtype=float)
-        # collider velocity at the contact; per particle: mode (0 none, 1 slide, 2 stick), the solve's
+        # collider velocity at the contact, friction impulse; per particle: mode (0 none, 1 slide, 2 stick,
+        # 3 slid and stopped), the solve's
         # constraint impulse and "ended inside a collider", each kept for the next step's modes
         self.contact_collider_v, self.contact_impulse, self.contact_friction_impulse = scratch_like(model, 3)
         self.contact_mode = wp.zeros(n, dtype=int)
