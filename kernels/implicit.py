@@ -18,7 +18,7 @@ particle -> (spring, neighbour, block) adjacency built once at bind: no atomics.
 
 import warp as wp
 
-from .collide import Collider, collider_contact
+from .collide import Collider, collider_contact, collider_velocity
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
@@ -523,64 +523,209 @@ def invert_l1_diagonal_blocks(
     inverse[i] = inverse_block(values[d] + extra * wp.identity(n=3, dtype=float))
 
 
-# -- contacts seen by the solve (Baraff & Witkin's filter) -------------------------------------
+# -- contacts seen by the solve (Baraff & Witkin's filter, with sticking) ----------------------
+# Per particle and step: mode 0 (no contact: S = I), SLIDE (S = I - n n^T, the normal dv prescribed,
+# kinetic friction as a known impulse in the solve) or STICK (S = 0, the tangential dv too: it moves
+# with the collider). The mode is chosen at the step's start from the previous step's constraint
+# impulse J = A dv - b (hysteresis: a contact stays while J pushes, J . n > 0; a stuck one stays
+# while |J_t| <= mu J_n) or, for the others, from the velocity; see eval_contact_modes.
+SLIDE = wp.constant(1)
+STICK = wp.constant(2)
+STOPPED = wp.constant(3)  # after the solve: a SLIDE contact that friction stopped (it sticks next step)
+
+
+@wp.func
+def contact_proximity(phi: float, thickness: float):
+    # touching: the projection leaves a resting particle at phi = thickness, to rounding (the
+    # absolute 1e-6 m lets a zero thickness count too)
+    return phi < 1.1 * thickness + 1.0e-6
+
+
+@wp.func
+def effective_mass(a: wp.mat33, t: wp.vec3, m: float):
+    # t^T A_ii t of a unit direction t (m where t = 0): the inertia a tangential impulse meets with
+    # the particle's springs' implicit stiffness (the neighbours held), the local Gauss-Seidel
+    # estimate (m alone overstates an impulse's effect in a stiff cloth, where A_ii >> m: 1.1 kg
+    # against 3.5e-4 kg in the 24 x 24 drape)
+    if wp.dot(t, t) == 0.0:
+        return m
+    return wp.dot(t, a * t)
+
+
 @wp.kernel
-def eval_contact_normals(
+def eval_contact_modes(
     x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
     f: wp.array(dtype=wp.vec3),
+    particle_mass: wp.array(dtype=float),
     inv_mass: wp.array(dtype=float),
     colliders: wp.array(dtype=Collider),
+    h: float,
+    entered: wp.array(dtype=int),
+    impulse: wp.array(dtype=wp.vec3),
+    mode: wp.array(dtype=int),
     normal: wp.array(dtype=wp.vec3),
     friction: wp.array(dtype=float),
+    collider_v: wp.array(dtype=wp.vec3),
+    friction_impulse: wp.array(dtype=wp.vec3),
 ):
-    # normal_i, friction_i = n, mu of a collider that particle i touches (phi < 1.1 thickness: the
-    # projection leaves a resting particle at phi = thickness, to rounding) and that the force at the
-    # step's start pushes it into (f . n < 0); the last such collider wins; pinned particles: none
+    # For particle i touching collider k (the last such wins), with v_r = v - v_c relative to it:
+    # in contact if the force at the step's start pushes it in (f . n < 0), or it was in contact
+    # last step and the constraint pushed (J_n = J . n > 0: the release waits for the solve to
+    # pull, Baraff & Witkin's test; the explicit f . n misses the implicit coupling and made the
+    # set flip every other step), or last step's solve moved it inside (entered). It STICKs if it
+    # stuck last step and the friction cone held the solve's impulse (|J_t| <= mu J_n), if friction
+    # stopped it last step (STOPPED), or, as a new contact, if friction can cancel the tangential
+    # momentum it would have, |p| = |m v_r,t + h f_t| < mu J_n with J_n the larger of
+    # m max(0, -v_r . n) and -h f . n (a landing particle, whose approach the projection already
+    # stopped, has v_r,t = 0 to rounding); the next solve tells whether the cone held. A sliding
+    # contact slides on until friction stops it (the explicit f_t is no guide there: in the stiff
+    # drape it is ~1000 times the weight, balanced by the implicit response). Else it SLIDEs, with
+    # the kinetic friction impulse F = mu J_n against p (new), v_r,t (sliding) or, just released
+    # from sticking, along the J_t that held it (against the slip to come), added to the solve's
+    # right side, so the neighbours feel it. Reads and writes only particle i's entries (impulse, mode: last step's
+    # on entry).
     i = wp.tid()
+    previous = mode[i]
+    mode[i] = 0
+    normal[i] = wp.vec3(0.0)
+    friction_impulse[i] = wp.vec3(0.0)
     if inv_mass[i] == 0.0:
         return
+    J = impulse[i]
+    m = particle_mass[i]
     for k in range(colliders.shape[0]):
         c = colliders[k]
-        phi, n = collider_contact(c, x[i])
-        if phi < 1.1 * c.thickness and wp.dot(f[i], n) < 0.0:
+        # a moving collider is posed at the step's end (Control.update): the contact is that of x
+        # carried along with it over the step, x + h v_c (x itself for a still one); with x, a
+        # particle resting on a moving sphere's trailing side looked u h away from it and dropped
+        # out of the solve every step
+        vc = collider_velocity(c, x[i])
+        phi, n = collider_contact(c, x[i] + h * vc)
+        if not contact_proximity(phi, c.thickness):
+            continue
+        jn_prev = float(0.0)
+        if previous != 0:
+            jn_prev = wp.dot(J, n)
+        if wp.dot(f[i], n) < 0.0 or jn_prev > 0.0 or entered[i] != 0:
+            vr = v[i] - vc
+            vrn = wp.dot(vr, n)
+            held = previous == STICK and jn_prev > 0.0 and wp.length(J - jn_prev * n) <= c.mu * jn_prev
+            vt = vr - vrn * n
+            lt = wp.length(vt)
+            t = wp.vec3(0.0)
+            if lt > 0.0:
+                t = vt / lt
+            jn = wp.max(wp.max(jn_prev, m * wp.max(0.0, -vrn)), -h * wp.dot(f[i], n))
+            # tangential momentum a new contact would have after the step without friction
+            p = m * vt + h * (f[i] - wp.dot(f[i], n) * n)
+            lp = wp.length(p)
+            cancellable = previous == STOPPED or (previous == 0 and lp < c.mu * jn)
+            if held or cancellable:
+                mode[i] = STICK
+            else:
+                mode[i] = SLIDE
+                jt = J - jn_prev * n
+                if previous == 0 and lp > 0.0:
+                    friction_impulse[i] = -(c.mu * jn / lp) * p
+                elif lt > 0.0:
+                    friction_impulse[i] = -(c.mu * jn) * t
+                elif previous == STICK and wp.length(jt) > 0.0:
+                    friction_impulse[i] = (c.mu * jn / wp.length(jt)) * jt
             normal[i] = n
             friction[i] = c.mu
+            collider_v[i] = vc
 
 
 @wp.kernel
-def eval_contact_dv(normal: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3)):
-    # prescribed normal dv of a contact particle: z = -min(0, v . n) n (it stops approaching the collider); 0 elsewhere
+def eval_contact_dv(
+    mode: wp.array(dtype=int), normal: wp.array(dtype=wp.vec3), collider_v: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3),
+):
+    # prescribed dv of a contact particle, v_r = v - v_c: the normal z_n = -min(0, v_r . n) n (it
+    # stops approaching the collider) and, for STICK, the tangential -v_r,t too (it moves with the
+    # collider); 0 elsewhere
     i = wp.tid()
+    z[i] = wp.vec3(0.0)
+    if mode[i] == 0:
+        return
     n = normal[i]
-    z[i] = -wp.min(0.0, wp.dot(v[i], n)) * n
+    vr = v[i] - collider_v[i]
+    vrn = wp.dot(vr, n)
+    z[i] = -wp.min(0.0, vrn) * n
+    if mode[i] == STICK:
+        z[i] = z[i] - (vr - vrn * n)
 
 
 @wp.kernel
 def apply_contact_friction(
+    mode: wp.array(dtype=int),
     normal: wp.array(dtype=wp.vec3),
     friction: wp.array(dtype=float),
+    collider_v: wp.array(dtype=wp.vec3),
     residual: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
     particle_mass: wp.array(dtype=float),
+    values: wp.array(dtype=wp.mat33),
+    diag_block: wp.array(dtype=int),
+    friction_impulse: wp.array(dtype=wp.vec3),
     dv: wp.array(dtype=wp.vec3),
+    impulse: wp.array(dtype=wp.vec3),
 ):
-    # Coulomb friction of the constraint impulse J = -n . (b - A dv)_i >= 0 (unfiltered A, b): the
-    # tangential velocity v_t of v + dv is reduced by min(mu J / m, |v_t|)
+    # the constraint impulse J = -(b - A dv)_i (unfiltered A, b) of each particle, kept for the
+    # next step's modes. SLIDE: where the solve's friction F reversed the tangential velocity
+    # (v_r,t . F > 0 after it: F is against the sliding), friction stops the particle instead
+    # (Coulomb's cap; mode STOPPED: it sticks next step). STICK past the cone (|J_t| > mu J_n, J_n = max(0, J . n)): the tangential
+    # impulse friction cannot give is taken back, dv_t -= (|J_t| - mu J_n) / m_t along J_t (it
+    # slips; next step it slides), m_t the effective_mass along J_t.
     i = wp.tid()
+    J = -residual[i]
+    impulse[i] = J
     n = normal[i]
-    if wp.dot(n, n) == 0.0:
+    jn = wp.max(0.0, wp.dot(J, n))
+    mu = friction[i]
+    m = particle_mass[i]
+    a = values[diag_block[i]]
+    if mode[i] == SLIDE:
+        F = friction_impulse[i]
+        vr = v[i] + dv[i] - collider_v[i]
+        vt = vr - wp.dot(vr, n) * n
+        if wp.dot(vt, F) > 0.0:
+            dv[i] = dv[i] - vt
+            mode[i] = STOPPED
+    elif mode[i] == STICK:
+        jt = J - wp.dot(J, n) * n
+        lt = wp.length(jt)
+        if lt > mu * jn:
+            t = jt / lt
+            dv[i] = dv[i] - ((lt - mu * jn) / effective_mass(a, t, m)) * t
+
+
+@wp.kernel
+def mark_entered(
+    x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), colliders: wp.array(dtype=Collider), mode: wp.array(dtype=int),
+    entered: wp.array(dtype=int),
+):
+    # after the step's integration (moving colliders posed at its end): 1 where a particle the
+    # solve left unconstrained ended inside a
+    # collider's thickness (the projection will push it out; next step it is a contact whatever its
+    # force). A constrained one ends at its start's distance, to rounding: its own J decides.
+    i = wp.tid()
+    entered[i] = 0
+    if inv_mass[i] == 0.0 or mode[i] != 0:
         return
-    J = wp.max(0.0, -wp.dot(n, residual[i]))
-    vn = v[i] + dv[i]
-    vt = vn - wp.dot(vn, n) * n
-    lt = wp.length(vt)
-    if lt > 0.0:
-        dv[i] = dv[i] - (wp.min(friction[i] * J / particle_mass[i], lt) / lt) * vt
+    for k in range(colliders.shape[0]):
+        c = colliders[k]
+        phi, n = collider_contact(c, x[i])
+        if phi < c.thickness:
+            entered[i] = 1
 
 
 @wp.func
-def contact_filter(n: wp.vec3):
-    # S = I - n n^T (I without a contact: n = 0)
+def contact_filter(mode: int, n: wp.vec3):
+    # S = I - n n^T (SLIDE; I without a contact, n = 0), 0 (STICK)
+    if mode == STICK:
+        return wp.mat33(0.0)
     return wp.identity(n=3, dtype=float) - wp.outer(n, n)
 
 
@@ -589,29 +734,44 @@ def filter_system_rows(
     row_offsets: wp.array(dtype=int),
     columns: wp.array(dtype=int),
     diag_block: wp.array(dtype=int),
+    mode: wp.array(dtype=int),
     normal: wp.array(dtype=wp.vec3),
     values: wp.array(dtype=wp.mat33),
     inv_diag: wp.array(dtype=wp.vec3),
 ):
-    # A <- S A S + (n^T A_ii n) n n^T: contact normals leave the solve (their dv is prescribed);
-    # inv_diag = 1 / diag(A_ii) of the filtered A (Jacobi)
+    # A <- S A S + P A_ii P (P = I - S) on the diagonal, S_i A_ij S_j off it: the prescribed
+    # directions leave the solve (P A_ii P keeps them nonsingular and uncoupled; for SLIDE it is
+    # (n^T A_ii n) n n^T); inv_diag = 1 / diag(A_ii) of the filtered A (Jacobi)
     i = wp.tid()
-    ni = normal[i]
-    Si = contact_filter(ni)
+    Si = contact_filter(mode[i], normal[i])
+    Pi = wp.identity(n=3, dtype=float) - Si
     d = diag_block[i]
     for e in range(row_offsets[i], row_offsets[i + 1]):
         if e == d:
             block = values[e]
-            values[e] = Si * block * Si + wp.dot(ni, block * ni) * wp.outer(ni, ni)
+            values[e] = Si * block * Si + Pi * block * Pi
         else:
-            values[e] = Si * values[e] * contact_filter(normal[columns[e]])
+            j = columns[e]
+            values[e] = Si * values[e] * contact_filter(mode[j], normal[j])
     inv_diag[i] = inverse_diagonal(values[d])
 
 
 @wp.kernel
-def filter_rhs(normal: wp.array(dtype=wp.vec3), Az: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), dv: wp.array(dtype=wp.vec3)):
-    # b <- S (b - A z) (the prescribed normal dv moved to the right side);  dv <- S dv (the warm start)
+def filter_rhs(
+    mode: wp.array(dtype=int), normal: wp.array(dtype=wp.vec3), Az: wp.array(dtype=wp.vec3), friction_impulse: wp.array(dtype=wp.vec3),
+    b: wp.array(dtype=wp.vec3), dv: wp.array(dtype=wp.vec3),
+):
+    # b <- S (b + F - A z) (a sliding contact's friction impulse F added, the prescribed dv moved
+    # to the right side);  dv <- S dv (the warm start)
     i = wp.tid()
-    S = contact_filter(normal[i])
-    b[i] = S * (b[i] - Az[i])
+    S = contact_filter(mode[i], normal[i])
+    b[i] = S * (b[i] + friction_impulse[i] - Az[i])
     dv[i] = S * dv[i]
+
+
+@wp.kernel
+def unfilter_dv(mode: wp.array(dtype=int), normal: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3), dv: wp.array(dtype=wp.vec3)):
+    # dv = S y + z (S y: CG's solution without what rounding and the preconditioner left in the
+    # prescribed directions)
+    i = wp.tid()
+    dv[i] = contact_filter(mode[i], normal[i]) * dv[i] + z[i]

@@ -41,9 +41,10 @@ measured (docs/solvers.md, bench/results/solvers-cpu*.txt); the default stays ``
 it is the seed's method and works on every model without a note.
 
 Contacts (``matrix="bsr"``, colliders present): the solve sees them (Baraff & Witkin 1998,
-sec. 5.3): a particle pushed into a collider gets the filter S = I - n n^T, a prescribed normal
-dv (it stops approaching), and Coulomb friction from the constraint's impulse after the solve
-(:meth:`ImplicitEuler._filter_contacts`); the collider projection after the step still corrects
+sec. 5.3): a sliding contact gets the filter S = I - n n^T, a prescribed normal dv (it stops
+approaching) and kinetic friction as a known impulse; a sticking one (static friction holds it)
+S = 0 and moves with the collider; the mode keeps history through the constraint's impulse
+(:meth:`ImplicitEuler._filter_contacts`). The collider projection after the step still corrects
 positions. With ``matrix="free"`` only that projection acts.
 
 Statistics: on CUDA a kernel accumulates iterations, residuals and the count of steps that ended
@@ -215,6 +216,12 @@ class ImplicitEuler(Integrator):
         # contacts seen by the solve (matrix="bsr"): normal per particle (0: none), prescribed dv, A z
         self.contact_normal, self.contact_dv, self.contact_Az, self.contact_b = scratch_like(model, 4)
         self.contact_friction = wp.zeros(n, dtype=float)
+        # collider velocity at the contact, friction impulse; per particle: mode (0 none, 1 slide, 2 stick,
+        # 3 slid and stopped), the solve's
+        # constraint impulse and "ended inside a collider", each kept for the next step's modes
+        self.contact_collider_v, self.contact_impulse, self.contact_friction_impulse = scratch_like(model, 3)
+        self.contact_mode = wp.zeros(n, dtype=int)
+        self.contact_entered = wp.zeros(n, dtype=int)
         self.preconditioner_used = self.preconditioner
         if self.preconditioner == "multigrid":
             reason = grid_structure_reason(model)
@@ -292,6 +299,9 @@ class ImplicitEuler(Integrator):
 
     def begin(self, state, control, dt):
         self.dv.zero_()
+        self.contact_mode.zero_()  # no contact history across an outside change of the state
+        self.contact_impulse.zero_()
+        self.contact_entered.zero_()
         self._assembled_for = None
 
     def default_dt(self, model, drag_rate: float = 0.0) -> float:
@@ -309,41 +319,56 @@ class ImplicitEuler(Integrator):
             wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, m.particle_inv_mass, self.pin_dv], outputs=[self.b], device=m.device)
         contacts = self.matrix == "bsr" and control.collision is not None and len(control.collision.colliders) > 0
         if contacts:
-            self._filter_contacts(control, x, v, f)
+            self._filter_contacts(control, x, v, f, h)
         self._update_preconditioner(h, float(control.drag_rate), contacts)
         self._solve()
         if contacts:
             self._contact_friction(v)
         wp.launch(ik.integrate_implicit_euler, dim=m.particle_count, inputs=[x, v, self.dv, m.particle_inv_mass, h], device=m.device)
+        if contacts:
+            wp.launch(ik.mark_entered, dim=m.particle_count, inputs=[x, m.particle_inv_mass, control.collision.params, self.contact_mode], outputs=[self.contact_entered], device=m.device)
 
-    def _filter_contacts(self, control, x, v, f) -> None:
-        """Contacts seen by the solve (Baraff & Witkin 1998, sec. 5.3, the filter S): a particle
-        that touches a collider the force at the step's start pushes it into gets S = I - n n^T;
-        its normal dv is prescribed, z = -min(0, v . n) n (it stops approaching), and CG solves
-        S A S y = S (b - A z) for the rest, dv = S y + z. :meth:`_contact_friction` then applies
-        Coulomb friction with the constraint's impulse. Without the filter the solve lets contact
-        particles fall into the collider and the projection after the step pushes them back: CG's
-        relative tolerance is then measured against a |b| that keeps their unbalanced weight at
-        rest, and a 1e-3 solve left the 16 x 16 drape moving at 0.11 m/s after 20 s."""
+    def _filter_contacts(self, control, x, v, f, h: float) -> None:
+        """Contacts seen by the solve (Baraff & Witkin 1998, sec. 5.3, the filter S), chosen per
+        particle by :func:`~warpcloth.kernels.implicit.eval_contact_modes`: a sliding contact gets
+        S = I - n n^T, the prescribed normal dv z = -min(0, v_r . n) n (it stops approaching;
+        v_r = v - v_c relative to the collider) and a kinetic friction impulse F on the right
+        side; a sticking one S = 0 and also z_t = -v_r,t (it moves with the collider). CG solves
+        S A S y = S (b + F - A z) for the rest, dv = S y + z; :meth:`_contact_friction` then keeps
+        each contact's impulse for the next step's modes and caps friction (Coulomb).
+
+        Why the modes keep history: a contact chosen by the force at the step's start alone
+        (f . n < 0) flipped every other step in the 16 x 16 drape, where the implicit coupling
+        pushes a particle at the cloth's line of contact in although its explicit force points out
+        (f . n = +0.003..0.03 N): unconstrained it fell 1.3 mm (26 % of the thickness) into the
+        sphere at 0.08 m/s, the projection pushed it back, and its neighbour rang at ~0.02 m/s
+        for good. Now a contact stays while the solve's impulse pushes (J . n > 0), and a particle
+        the solve moved inside becomes one. Friction applied after the solve is not seen by the
+        neighbours (with it, the drape's stick-slip contacts kept their neighbours moving at up to
+        0.05 m/s), so a contact that friction can hold sticks in the solve (released when the
+        solve's |J_t| > mu J_n) and a sliding one's friction is in the solve."""
         m = self.model
-        self.contact_normal.zero_()
-        wp.launch(ik.eval_contact_normals, dim=m.particle_count, inputs=[x, f, m.particle_inv_mass, control.collision.params],
-                  outputs=[self.contact_normal, self.contact_friction], device=m.device)
-        wp.launch(ik.eval_contact_dv, dim=m.particle_count, inputs=[self.contact_normal, v], outputs=[self.contact_dv], device=m.device)
+        wp.launch(ik.eval_contact_modes, dim=m.particle_count,
+                  inputs=[x, v, f, m.particle_mass, m.particle_inv_mass, control.collision.params, h, self.contact_entered, self.contact_impulse],
+                  outputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v, self.contact_friction_impulse], device=m.device)
+        wp.launch(ik.eval_contact_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_collider_v, v], outputs=[self.contact_dv], device=m.device)
         wp.copy(self.contact_values, self.A.values)
         wp.copy(self.contact_b, self.b)
         self._bsr_matvec(self.contact_dv, self.contact_Az, self.contact_Az, 1.0, 0.0)
-        wp.launch(ik.filter_system_rows, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.diag_block, self.contact_normal], outputs=[self.A.values, self.inv_diag], device=m.device)
-        wp.launch(ik.filter_rhs, dim=m.particle_count, inputs=[self.contact_normal, self.contact_Az], outputs=[self.b, self.dv], device=m.device)
+        wp.launch(ik.filter_system_rows, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.diag_block, self.contact_mode, self.contact_normal], outputs=[self.A.values, self.inv_diag], device=m.device)
+        wp.launch(ik.filter_rhs, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_Az, self.contact_friction_impulse], outputs=[self.b, self.dv], device=m.device)
         self._assembled_for = None  # A.values now hold this step's filter: reassemble next step
 
     def _contact_friction(self, v) -> None:
-        """dv = S y + z, then Coulomb friction from the impulse J = -n . (b - A dv) of the
-        unfiltered system on each contact particle."""
+        """dv = S y + z, the constraint impulse J = A dv - b of the unfiltered system on each
+        particle (kept for the next step's modes), then Coulomb's caps: a sliding contact that
+        friction reversed stops; a stuck one past the cone slips by the excess."""
         m = self.model
-        wp.launch(ik.scale_add, dim=m.particle_count, inputs=[self.contact_dv, self.dv, 1.0, 1.0], outputs=[self.dv], device=m.device)
+        wp.launch(ik.unfilter_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_dv], outputs=[self.dv], device=m.device)
         wp.launch(ik.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.contact_values, self.dv, self.contact_b, -1.0, 1.0], outputs=[self.contact_Az], device=m.device)
-        wp.launch(ik.apply_contact_friction, dim=m.particle_count, inputs=[self.contact_normal, self.contact_friction, self.contact_Az, v, m.particle_mass], outputs=[self.dv], device=m.device)
+        wp.launch(ik.apply_contact_friction, dim=m.particle_count,
+                  inputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v, self.contact_Az, v, m.particle_mass, self.contact_values, self.diag_block, self.contact_friction_impulse],
+                  outputs=[self.dv, self.contact_impulse], device=m.device)
 
     def _assemble(self, x, h: float, drag: float) -> None:
         """Refill K_s, B_s = h^2 K_s + h D_s and the values of A (and the Jacobi diagonal):
