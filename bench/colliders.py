@@ -4,13 +4,18 @@ alternated within one process, in two configurations:
 
 * ``apart``: the hanging sheet with the colliders below it (no particle near one: the broad phase);
 * ``contact``: a 1 m horizontal cloth resting on the ground plane (every particle in contact every
-  step) with the sphere, capsule and box just under it, so a third of the particles also run the
-  exact tests of at least one of them (the narrow phase).
+  step), alone (``contact plane``: a floor) and with the sphere, capsule and box just under it,
+  so a third of the particles also run the exact tests of at least one of them (the narrow phase).
 
     python bench/colliders.py [--size 128] [--steps 200] [--repeats 7] [--device cpu] [--mesh-triangles 10000]
 
 ``--mesh-triangles T`` adds a static triangle mesh (a sphere of about T triangles) under the
 horizontal cloth, alone: its cost against the same cloth with no collider.
+
+``--kernel`` also times the contact launch alone on the resting cloth's state (restored before
+each launch), for the ground alone and for all four, against a minimal kernel that does only
+what any contact response must (one plane held in a vec4, Coulomb friction with a constant mu, no
+loop, no record): the floor of the ground's cost on this backend.
 """
 
 import argparse
@@ -38,6 +43,72 @@ def simulator(config, colliders, size, device):
         return sim
     model = build_grid_cloth(size, size, 1.0, 1.0, 0.2, plane="horizontal", origin=(-0.5, THICKNESS, -0.5), device=device)
     return Simulator(model, "explicit_euler", Control(colliders=colliders, device=device))
+
+
+@wp.kernel(enable_backward=False)
+def minimal_plane(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), plane: wp.vec4, mu: float, dt: float):
+    # x onto the plane n.x >= w, approaching v removed, tangential v reduced by mu dv_n (Coulomb)
+    i = wp.tid()
+    xi = x[i]
+    n = wp.vec3(plane[0], plane[1], plane[2])
+    phi = wp.dot(xi, n) - plane[3]
+    if phi < 0.0 and inv_mass[i] != 0.0:
+        vr = v[i]
+        vn = wp.dot(vr, n)
+        dvn = wp.max(0.0, -vn)
+        vt = vr - vn * n
+        lt2 = wp.dot(vt, vt)
+        s = float(1.0)
+        if mu * dvn * mu * dvn < lt2:
+            s = mu * dvn / wp.sqrt(lt2)
+        x[i] = xi - phi * n - (dt * s) * vt
+        v[i] = (vn + dvn) * n + (1.0 - s) * vt
+
+
+def kernel_alone(size, repeats, device):
+    """ms of the contact launch alone on the resting cloth's state after a step's gravity, before
+    its projection (x, v restored before each launch)."""
+    from warpcloth.colliders import ColliderSet
+    from warpcloth.kernels import collide as ck
+
+    sim = simulator("contact", CONTACT, size, device)
+    sim.warm_up()
+    sim.simulate(100)
+    m, dt = sim.model, sim.dt
+    g = 9.81
+    xs, vs = sim.state.particle_q.numpy(), sim.state.particle_qd.numpy()
+    xs[:, 1] -= g * dt * dt  # as a step leaves the resting cloth before its projection: every particle in contact
+    vs[:, 1] -= g * dt
+    x0, v0 = wp.array(xs, dtype=wp.vec3, device=device), wp.array(vs, dtype=wp.vec3, device=device)
+    x, v = wp.clone(x0), wp.clone(v0)
+    n = m.particle_count
+    sets = {k: ColliderSet(c, m.device) for k, c in (("ground", CONTACT[:1]), ("all four", CONTACT))}
+    cases = {
+        "restore x, v only": lambda: None,
+        "minimal plane kernel": lambda: wp.launch(minimal_plane, n, inputs=[x, v, m.particle_inv_mass, wp.vec4(0.0, 1.0, 0.0, THICKNESS), 0.3, dt], device=device),
+    }
+    for name, cs in sets.items():
+        cases[f"collide_velocity, {name}"] = (lambda cs: lambda: cs.project_velocity(m, sim.state, dt))(cs)
+    state_x, state_v = sim.state.particle_q, sim.state.particle_qd
+    sim.state.particle_q, sim.state.particle_qd = x, v  # project_velocity acts on the restored copies
+    times = {k: [] for k in cases}
+    for _ in range(repeats):
+        for name, f in cases.items():
+            wp.synchronize_device(device)
+            t = time.perf_counter()
+            for _ in range(100):
+                wp.copy(x, x0)
+                wp.copy(v, v0)
+                f()
+            wp.synchronize_device(device)
+            times[name].append(10.0 * (time.perf_counter() - t))
+    sim.state.particle_q, sim.state.particle_qd = state_x, state_v
+    base = statistics.median(times.pop("restore x, v only"))
+    step = ms_per_step(simulator("contact", (), size, device), 200, device)
+    print(f"# the contact launch alone (median of {repeats} x 100, restore subtracted), against a no-collider step of {step:.3f} ms")
+    for name, r in times.items():
+        ms = statistics.median(r) - base
+        print(f"{size}x{size} {device} {name:36s} {ms:8.4f} ms  {100 * ms / step:5.1f} % of a step")
 
 
 def ms_per_step(sim, steps, device):
@@ -73,11 +144,13 @@ def main(argv=None):
     p.add_argument("--repeats", type=int, default=7)
     p.add_argument("--device", default="cpu")
     p.add_argument("--mesh-triangles", type=int, default=0)
+    p.add_argument("--kernel", action="store_true", help="also time the contact launch alone against a minimal plane kernel")
     a = p.parse_args(argv)
     cases = {
         "apart none": simulator("apart", (), a.size, a.device),
         "apart plane+sphere+capsule+box": simulator("apart", APART, a.size, a.device),
         "contact none": simulator("contact", (), a.size, a.device),
+        "contact plane": simulator("contact", CONTACT[:1], a.size, a.device),
         "contact plane+sphere+capsule+box": simulator("contact", CONTACT, a.size, a.device),
     }
     if a.mesh_triangles:
@@ -100,6 +173,8 @@ def main(argv=None):
         ratio = [100 * (x / b - 1) for x, b in zip(r, base)]
         print(f"{a.size}x{a.size} {a.device} {name:36s} {statistics.median(r):8.4f} ms/step [{min(r):.4f}-{max(r):.4f}]  "
               f"{statistics.median(ratio):+6.1f} % [{min(ratio):+.1f} to {max(ratio):+.1f}]")
+    if a.kernel:
+        kernel_alone(a.size, a.repeats, a.device)
 
 
 if __name__ == "__main__":
