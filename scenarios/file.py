@@ -275,16 +275,17 @@ def _colliders(tables, where: str, path: str = "") -> tuple:
             raise WarpclothError(f"{what}: kind must be one of {', '.join(COLLIDER_TYPES)}, got {t.get('kind')!r}")
         settings = {key: value for key, value in t.items() if key != "kind"}
         if cls is MeshCollider:
-            _check_keys(settings, {"path", "prim", "thickness", "friction", "reach"}, what)
+            _check_keys(settings, {"path", "prim", "thickness", "friction", "reach", "track"}, what)
         else:
             _check_keys(settings, set(cls.__dataclass_fields__), what)
         try:
+            track = ColliderTrack.from_table(settings.pop("track")) if "track" in settings else None
             if cls is MeshCollider:
                 mesh = settings.pop("path", None)
                 require(isinstance(mesh, str) and mesh, f"path must be a mesh file name (.obj, .usd), got {mesh!r}")
-                out.append(MeshCollider.from_file(os.path.join(os.path.dirname(path), os.path.expanduser(mesh)), settings.pop("prim", None), **settings))
+                out.append(MeshCollider.from_file(os.path.join(os.path.dirname(path), os.path.expanduser(mesh)), settings.pop("prim", None),
+                                                  track=track, **settings))
                 continue
-            track = ColliderTrack.from_table(settings.pop("track")) if "track" in settings else None
             out.append(cls(track=track, **{key: tuple(v) if isinstance(v, list) else v for key, v in settings.items()}))
         except WarpclothError as exc:
             raise WarpclothError(f"{what}: {exc}") from None

@@ -113,10 +113,12 @@ def test_tracks_from_a_scenario_file(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text('[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\ncenter = [0.5, 0.5, 0.5]\nradius = 0.3\n'
                     'track = { kind = "keyframes", times = [0, 1], offsets = [[0, 0, 0], [0, 0.2, 0]] }\n'
-                    '[[colliders]]\nkind = "plane"\ntrack = { kind = "rigid", velocity = [0.5, 0, 0] }\n')
-    sphere, plane = get_scenario(str(path)).build().control.colliders
+                    '[[colliders]]\nkind = "plane"\ntrack = { kind = "rigid", velocity = [0.5, 0, 0] }\n'
+                    '[[colliders]]\nkind = "mesh"\npath = "grid.obj"\ntrack = { kind = "rigid", velocity = [0, -0.1, 0] }\n')
+    sphere, plane, mesh = get_scenario(str(path)).build().control.colliders
     assert sphere.at(0.5).center == pytest.approx((0.5, 0.6, 0.5))
     assert plane.at(2.0).point == pytest.approx((1.0, 0.0, 0.0))
+    assert mesh.at(2.0).vertices[:, 1] == pytest.approx([0.8] * 4)  # a mesh moves too
     path.write_text('[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\nradius = 0.3\ntrack = { kind = "rigid", speed = 1 }\n')
     with pytest.raises(WarpclothError, match=r"\[\[colliders\]\] #1: collider track \(rigid\): unknown key 'speed'"):
         get_scenario(str(path))
