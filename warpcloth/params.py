@@ -436,7 +436,7 @@ PARAMS: tuple[Param, ...] = (
           "threshold)", sweep_default=SWEEP_FRAME_RATE, flag_aliases=("--fps",), config="fps", cli_type=float),
     Param("wall_cap", wall_cap, "s", "wall-clock cap of one run and of each max-dt trial ('none': no cap)", "> 0 or `none`",
           "run", default_doc="none; 60 in a test list (the seed's one minute)", sweep_default=SWEEP_WALL_CAP,
-          xml_aliases=("cap",), search=False, config=None, cli_type=cli_wall_cap),
+          xml_aliases=("cap",), config=None, cli_type=cli_wall_cap),  # search: a trial that reaches the cap counts as capped
     Param("graph", choice("on", "off", "auto", what="graph mode"), "", "capture a frame's steps as a graph and replay it: "
           "on, off, or auto (where supported); results are bit-identical, capture time is reported apart",
           "`on`, `off`, `auto`", "run", default="auto", key="set",  search=False, config="use_graph", to_config=_graph_config, choices=("on", "off", "auto")),
