@@ -142,20 +142,6 @@ def posed_mesh_contact(x: wp.vec3, center: wp.vec3, rotation: wp.mat33, half: wp
 
 
 @wp.func
-def collider_contact(c: Collider, x: wp.vec3):
-    # (phi, n) of one collider of any kind
-    if c.kind == PLANE:
-        return plane_contact(x, c.a, c.b)
-    if c.kind == SPHERE:
-        return sphere_contact(x, c.a, c.radius)
-    if c.kind == CAPSULE:
-        return capsule_contact(x, c.a, c.b, c.radius)
-    if c.kind == MESH:
-        return posed_mesh_contact(x, c.a, c.rotation, c.b, c.rest_center, c.mesh, c.thickness, c.radius, c.moving)
-    return box_contact(x, c.a, c.rotation, c.b)
-
-
-@wp.func
 def half_size(c: Collider):
     # half extents of the collider's axis-aligned bounding box, grown by its thickness
     if c.kind == SPHERE:
@@ -163,13 +149,16 @@ def half_size(c: Collider):
     if c.kind == CAPSULE:
         d = 0.5 * (c.b - c.a)
         return wp.vec3(wp.abs(d[0]), wp.abs(d[1]), wp.abs(d[2])) + wp.vec3(c.radius + c.thickness)
-    r = c.rotation  # a box's or a mesh's (b: a mesh's half size, already grown by its thickness)
+    r = c.rotation  # a box's or a mesh's
     h = c.b
+    grow = c.thickness
+    if c.kind == MESH:  # b: a mesh's half size, already grown by its thickness and reach
+        grow = 0.0
     return wp.vec3(
         wp.abs(r[0, 0]) * h[0] + wp.abs(r[0, 1]) * h[1] + wp.abs(r[0, 2]) * h[2],
         wp.abs(r[1, 0]) * h[0] + wp.abs(r[1, 1]) * h[1] + wp.abs(r[1, 2]) * h[2],
         wp.abs(r[2, 0]) * h[0] + wp.abs(r[2, 1]) * h[1] + wp.abs(r[2, 2]) * h[2],
-    ) + wp.vec3(c.thickness)
+    ) + wp.vec3(grow)
 
 
 @wp.kernel
@@ -185,12 +174,6 @@ def eval_collider_bounds(colliders: wp.array(dtype=Collider), plane_count: int, 
         hi = wp.max(hi, c.bound_center + e)
     box[0] = lo
     box[1] = hi
-
-
-@wp.func
-def collider_velocity(c: Collider, y: wp.vec3):
-    # v_c(y) = u + w x (y - o)
-    return c.velocity + wp.cross(c.omega, y - c.origin)
 
 
 @wp.func(inline=True)
@@ -219,12 +202,11 @@ def in_box(x: wp.vec3, box: wp.array(dtype=wp.vec3)):
 
 
 @wp.func(inline=True)
-def shape_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3):
+def shape_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, band: float):
     # (phi, n) of non-plane collider k, reading only the fields its kind needs (no record copy);
-    # phi = NOT_NEAR where a cheap test shows phi > thickness + 1e-5 m (squared distances, the box's
-    # slabs; the slack keeps a particle resting at the thickness, to rounding, for the friction pass)
+    # phi = NOT_NEAR where a cheap test shows phi > band (squared distances, the box's slabs)
     kind = colliders[k].kind
-    reach = colliders[k].thickness + 1.0e-5
+    reach = band
     if kind == SPHERE:
         r = colliders[k].radius
         d = x - colliders[k].a
@@ -250,6 +232,21 @@ def shape_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3):
     if wp.abs(p[0]) >= h[0] + reach or wp.abs(p[1]) >= h[1] + reach or wp.abs(p[2]) >= h[2] + reach:
         return NOT_NEAR, wp.vec3(0.0)
     return box_contact(x, c, rotation, h)
+
+
+@wp.func(inline=True)
+def contact_band(colliders: wp.array(dtype=Collider), k: int):
+    # the largest phi the responses need exactly: the thickness, and 1e-5 m more so that a particle
+    # resting at the thickness, to rounding, is still found (the position-based friction pass)
+    return colliders[k].thickness + 1.0e-5
+
+
+@wp.func
+def collider_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, band: float):
+    # (phi, n) of collider k of any kind; NOT_NEAR where phi > band is sure (see shape_contact)
+    if colliders[k].kind == PLANE:
+        return plane_contact(x, colliders[k].a, colliders[k].b)
+    return shape_contact(colliders, k, x, band)
 
 
 @wp.func(inline=True)
@@ -291,7 +288,7 @@ def collide_velocity(
         hit = hit + got
     if in_box(xi, box):
         for k in range(plane_count, colliders.shape[0]):
-            phi, n = shape_contact(colliders, k, xi)
+            phi, n = shape_contact(colliders, k, xi, contact_band(colliders, k))
             xi, vi, got = velocity_response(colliders, k, xi, vi, phi, n, h)
             hit = hit + got
     if hit != 0:
@@ -326,13 +323,15 @@ def friction_displacement(dp: wp.vec3, motion: wp.vec3, n: wp.vec3, normal_corre
 def displacement_response(colliders: wp.array(dtype=Collider), k: int, p: wp.vec3, d: wp.vec3, nc: float, phi: float, n: wp.vec3,
                           friction: int, motion_time: float):
     # the solver pass (friction = 0): d out of collider k, nc += the normal correction; the
-    # friction pass: d's tangential motion relative to the collider's over the substep reduced
+    # friction pass: d's tangential motion relative to the collider's over the substep reduced;
+    # hit = 1 where d changed
     if friction == 0:
         d, dn = respond_displacement(d, phi, n, colliders[k].thickness)
-        return d, nc + dn
+        return d, nc + dn, int(dn > 0.0)
     if phi <= colliders[k].thickness + 1.0e-6:
         d = friction_displacement(d, motion_time * surface_velocity(colliders, k, p), n, nc, colliders[k].mu)
-    return d, nc
+        return d, nc, 1
+    return d, nc, 0
 
 
 @wp.kernel
@@ -352,17 +351,19 @@ def collide_displacement(
     motion_time = float(step_dt[0] / wp.float64(substep[1]))
     xi = x[i]
     d = dp[i]
-    nc0 = nc
+    hit = int(0)
     for k in range(plane_count):
         p = xi + d
         phi, n = plane_contact(p, colliders[k].a, colliders[k].b)
-        d, nc = displacement_response(colliders, k, p, d, nc, phi, n, friction, motion_time)
+        d, nc, got = displacement_response(colliders, k, p, d, nc, phi, n, friction, motion_time)
+        hit = hit + got
     if in_box(xi + d, box):
         for k in range(plane_count, colliders.shape[0]):
             p = xi + d
-            phi, n = shape_contact(colliders, k, p)
-            d, nc = displacement_response(colliders, k, p, d, nc, phi, n, friction, motion_time)
-    if friction != 0 or nc != nc0:  # moved: a friction pass, or a solver pass that found a contact
+            phi, n = shape_contact(colliders, k, p, contact_band(colliders, k))
+            d, nc, got = displacement_response(colliders, k, p, d, nc, phi, n, friction, motion_time)
+            hit = hit + got
+    if hit != 0:  # written only where a collider moved d (a small correction on a large nc counts too)
         dp[i] = d
         normal_correction[i] = nc
 

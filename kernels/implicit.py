@@ -18,7 +18,7 @@ particle -> (spring, neighbour, block) adjacency built once at bind: no atomics.
 
 import warp as wp
 
-from .collide import Collider, collider_contact, collider_velocity
+from .collide import Collider, collider_contact, surface_velocity
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
@@ -600,14 +600,15 @@ def eval_contact_modes(
         # carried along with it over the step, x + h v_c (x itself for a still one); with x, a
         # particle resting on a moving sphere's trailing side looked u h away from it and dropped
         # out of the solve every step
-        vc = collider_velocity(c, x[i])
-        phi, n = collider_contact(c, x[i] + h * vc)
+        vc = surface_velocity(colliders, k, x[i])
+        phi, n = collider_contact(colliders, k, x[i] + h * vc, 1.1 * c.thickness + 1.0e-5)
         if not contact_proximity(phi, c.thickness):
             continue
         jn_prev = float(0.0)
         if previous != 0:
             jn_prev = wp.dot(J, n)
         if wp.dot(f[i], n) < 0.0 or jn_prev > 0.0 or entered[i] != 0:
+            friction_impulse[i] = wp.vec3(0.0)  # a later collider's contact replaces an earlier one's, impulse included
             vr = v[i] - vc
             vrn = wp.dot(vr, n)
             held = previous == STICK and jn_prev > 0.0 and wp.length(J - jn_prev * n) <= c.mu * jn_prev
@@ -715,9 +716,8 @@ def mark_entered(
     if inv_mass[i] == 0.0 or mode[i] != 0:
         return
     for k in range(colliders.shape[0]):
-        c = colliders[k]
-        phi, n = collider_contact(c, x[i])
-        if phi < c.thickness:
+        phi, n = collider_contact(colliders, k, x[i], colliders[k].thickness)
+        if phi < colliders[k].thickness:
             entered[i] = 1
 
 

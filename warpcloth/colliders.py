@@ -136,6 +136,12 @@ class ColliderTrack:
         d, _ = self._pin().evaluate(t, np.zeros((1, 3)))
         return np.eye(3), np.zeros(3), d[0]
 
+    def pose(self, t: float):
+        """(R (3, 3), T (3,)) at time t [s]: the track moves a point y to R y + T (T = c + d - R c)."""
+        r, c, d = self.transform(t)
+        c = np.asarray(c, dtype=np.float64)
+        return r, c + d - r @ c
+
     def moving_until(self) -> float:
         """Time [s] after which the track holds still (inf for a rigid motion that moves)."""
         if self.kind == "keyframes":
@@ -172,8 +178,8 @@ class _Posed:
         """This collider where its track puts it at time t [s], as a static collider."""
         if self.track is None:
             return self
-        r, c, d = self.track.transform(float(t))
-        move = lambda y: tuple(c + d + r @ (np.asarray(y, dtype=np.float64) - c))  # noqa: E731
+        r, shift = self.track.pose(float(t))
+        move = lambda y: tuple(shift + r @ np.asarray(y, dtype=np.float64))  # noqa: E731
         return self._moved(move, r)
 
 
@@ -299,8 +305,8 @@ class MeshCollider(_Posed):
         _track(self)
 
     def _moved(self, move, r):
-        origin = np.asarray(move((0.0, 0.0, 0.0)))
-        return MeshCollider(vertices=origin + self.vertices @ r.T, triangles=self.triangles, thickness=self.thickness, friction=self.friction,
+        shift = np.asarray(move((0.0, 0.0, 0.0)))  # T of y -> R y + T
+        return MeshCollider(vertices=shift + self.vertices @ r.T, triangles=self.triangles, thickness=self.thickness, friction=self.friction,
                             reach=self.reach, source=self.source)
 
     @classmethod

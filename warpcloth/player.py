@@ -83,8 +83,8 @@ def _floats(values) -> list:
 
 class ColliderPoses:
     """The rigid pose of a collider on a track at each frame written: y -> R y + T, so that
-    ``collider.at(t)`` is the collider as given moved by it (R, c, d from ``track.transform(t)``:
-    T = c + d - R c). Stored as :meth:`record` says."""
+    ``collider.at(t)`` is the collider as given moved by it (``track.pose(t)``). Stored as
+    :meth:`record` says."""
 
     def __init__(self, collider):
         self.collider = collider
@@ -94,8 +94,8 @@ class ColliderPoses:
     def add(self, t: float) -> None:
         from .colliders import _matrix_quat
 
-        r, c, d = self.collider.track.transform(float(t))
-        self.translations.append(np.asarray(c, dtype=np.float64) + d - r @ np.asarray(c, dtype=np.float64))
+        r, shift = self.collider.track.pose(float(t))
+        self.translations.append(shift)
         self.rotations.append(_matrix_quat(r))
 
     def record(self) -> dict:

@@ -191,12 +191,12 @@ class ColliderPrims:
     @staticmethod
     def _mesh_pose(c, sim_time: float):
         """(translate, orient (w, x, y, z)) of a mesh on a track at ``sim_time``: its points stay as
-        given and the transform y -> R y + (c + d - R c) of the track moves them."""
+        given and the track's transform y -> R y + T moves them."""
         from .colliders import _matrix_quat
 
-        r, centre, d = c.track.transform(float(sim_time))
+        r, shift = c.track.pose(float(sim_time))
         x, y, z, w = _matrix_quat(r)
-        return centre + d - r @ centre, (w, x, y, z)
+        return shift, (w, x, y, z)
 
     def _set(self, c, ops, code, pose=None) -> None:
         from pxr import Usd
