@@ -22,6 +22,9 @@ too.
 
 import warp as wp
 
+from .collide import Collider
+from .vbd import newton_increment, project_increment, spring_gradient_hessian
+
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
 
@@ -89,14 +92,16 @@ def eval_local_residual(
     spring_damping: wp.array(dtype=float),
     inv_diag: wp.array(dtype=float),
     h: float,
+    held: wp.array(dtype=wp.vec3),
     r: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
     p: wp.array(dtype=wp.vec3),
     dot_terms: wp.array(dtype=float),
 ):
-    # local step + residual (module docstring); CG start: z = P^-1 r, p = z, dot_terms = r.z
+    # local step + residual (module docstring); CG start: z = P^-1 r, p = z, dot_terms = r.z; a
+    # particle held on a collider (held[i] != 0, its contact normal) is fixed in the solve, as a pin
     i = wp.tid()
-    if particle_inv_mass[i] == 0.0:
+    if particle_inv_mass[i] == 0.0 or wp.dot(held[i], held[i]) > 0.0:
         r[i] = wp.vec3(0.0)
         z[i] = wp.vec3(0.0)
         p[i] = wp.vec3(0.0)
@@ -116,6 +121,63 @@ def eval_local_residual(
     z[i] = zi
     p[i] = zi
     dot_terms[i] = wp.dot(res, zi)
+
+
+@wp.kernel
+def solve_contacts(
+    x: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    dy: wp.array(dtype=wp.vec3),
+    particle_mass: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    adjacency_offsets: wp.array(dtype=int),
+    adjacency_spring: wp.array(dtype=int),
+    adjacency_other: wp.array(dtype=int),
+    spring_rest_length: wp.array(dtype=float),
+    spring_stiffness: wp.array(dtype=float),
+    spring_damping: wp.array(dtype=float),
+    h: float,
+    colliders: wp.array(dtype=Collider),
+    box: wp.array(dtype=wp.vec3),
+    plane_count: int,
+    held: wp.array(dtype=wp.vec3),
+    out: wp.array(dtype=wp.vec3),
+    contact_normal: wp.array(dtype=wp.vec3),
+    contact_velocity: wp.array(dtype=wp.vec3),
+):
+    # after a global step: a particle held on a collider (fixed in the solve) takes VBD's local
+    # Newton step on the same potential (its 3 x 3 Hessian, neighbours fixed; Jacobi: reads dx, writes
+    # out), constrained by the colliders with Coulomb friction (kernels.vbd.project_increment); a free
+    # one that the global step took into a collider is projected out (isotropic: its H is not formed).
+    # The contact's normal (0: released) and collider velocity are kept: held in the next global step
+    i = wp.tid()
+    d = dx[i]
+    if particle_inv_mass[i] == 0.0:
+        out[i] = d
+        return
+    xi = x[i]
+    eye = wp.identity(n=3, dtype=float)
+    H = eye
+    Hinv = eye
+    if wp.dot(held[i], held[i]) > 0.0:
+        inertia = particle_mass[i] / (h * h)
+        g = inertia * (d - dy[i])
+        H = inertia * eye
+        for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
+            s = adjacency_spring[a]
+            j = adjacency_other[a]
+            f, K = spring_gradient_hessian(x[j] - xi, dx[j] - d, spring_rest_length[s], spring_stiffness[s], spring_damping[s], h)
+            g = g - f
+            H = H + K
+        d = d + newton_increment(g, H)
+        if wp.abs(wp.determinant(H)) >= 1.0e-30:
+            Hinv = wp.inverse(H)
+        else:
+            H = eye
+    d, n, vc = project_increment(xi, d, colliders, box, plane_count, h, H, Hinv)
+    out[i] = d
+    contact_normal[i] = n
+    contact_velocity[i] = vc
 
 
 @wp.kernel
@@ -144,12 +206,14 @@ def cg_update_solution(
     rz: wp.array(dtype=float),
     pAp: wp.array(dtype=float),
     k: int,
+    held: wp.array(dtype=wp.vec3),
     dx: wp.array(dtype=wp.vec3),
     r: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
     dot_terms: wp.array(dtype=float),
 ):
-    # alpha = r.z / p.Ap ;  dx += alpha p ;  r -= alpha Ap ;  z = P^-1 r ;  dot_terms = r.z (new)
+    # alpha = r.z / p.Ap ;  dx += alpha p ;  r -= alpha Ap ;  z = P^-1 r ;  dot_terms = r.z (new);
+    # a held particle's z stays 0 (CG on the free particles only: its p stays 0)
     i = wp.tid()
     alpha = float(0.0)
     if pAp[k] > 0.0:
@@ -157,6 +221,9 @@ def cg_update_solution(
     dx[i] = dx[i] + alpha * p[i]
     ri = r[i] - alpha * Ap[i]
     zi = inv_diag[i] * ri
+    if wp.dot(held[i], held[i]) > 0.0:
+        ri = wp.vec3(0.0)
+        zi = wp.vec3(0.0)
     r[i] = ri
     z[i] = zi
     dot_terms[i] = wp.dot(ri, zi)
