@@ -92,16 +92,18 @@ def eval_local_residual(
     spring_damping: wp.array(dtype=float),
     inv_diag: wp.array(dtype=float),
     h: float,
-    held: wp.array(dtype=wp.vec3),
+    contact_state: wp.array(dtype=int),
+    contact_force: wp.array(dtype=wp.vec3),
     r: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
     p: wp.array(dtype=wp.vec3),
     dot_terms: wp.array(dtype=float),
 ):
     # local step + residual (module docstring); CG start: z = P^-1 r, p = z, dot_terms = r.z; a
-    # particle held on a collider (held[i] != 0, its contact normal) is fixed in the solve, as a pin
+    # particle stuck on a collider (contact_state 2, from the last contact pass) is fixed in the solve,
+    # as a pin; a sliding one's collider force (normal and kinetic friction) enters its residual
     i = wp.tid()
-    if particle_inv_mass[i] == 0.0 or wp.dot(held[i], held[i]) > 0.0:
+    if particle_inv_mass[i] == 0.0 or contact_state[i] == 2:
         r[i] = wp.vec3(0.0)
         z[i] = wp.vec3(0.0)
         p[i] = wp.vec3(0.0)
@@ -116,6 +118,8 @@ def eval_local_residual(
         ddx = dx[j] - dxi
         res = res + spring_increment_residual((x[j] - xi) + ddx, ddx, spring_rest_length[s], spring_stiffness[s],
                                               spring_damping[s], h)
+    if contact_state[i] == 1:
+        res = res + (h * h) * contact_force[i]
     zi = inv_diag[i] * res
     r[i] = res
     z[i] = zi
@@ -140,16 +144,18 @@ def solve_contacts(
     colliders: wp.array(dtype=Collider),
     box: wp.array(dtype=wp.vec3),
     plane_count: int,
-    held: wp.array(dtype=wp.vec3),
     out: wp.array(dtype=wp.vec3),
     contact_normal: wp.array(dtype=wp.vec3),
     contact_velocity: wp.array(dtype=wp.vec3),
+    contact_force: wp.array(dtype=wp.vec3),
+    contact_state: wp.array(dtype=int),
 ):
-    # after a global step: a particle held on a collider (fixed in the solve) takes VBD's local
-    # Newton step on the same potential (its 3 x 3 Hessian, neighbours fixed; Jacobi: reads dx, writes
-    # out), constrained by the colliders with Coulomb friction (kernels.vbd.project_increment); a free
-    # one that the global step took into a collider is projected out (isotropic: its H is not formed).
-    # The contact's normal (0: released) and collider velocity are kept: held in the next global step
+    # after a global step: a particle in contact (the last pass's) takes VBD's local Newton step on
+    # the same potential (its 3 x 3 Hessian, neighbours fixed; Jacobi: reads dx, writes out),
+    # constrained by the colliders with Coulomb friction (kernels.vbd.project_increment); a free one
+    # that the global step took into a collider is projected out (isotropic: its H is not formed).
+    # The contact's normal (0: released), collider velocity, force and state are kept for the next
+    # global step (stuck: fixed in it; sliding: its force in the residual)
     i = wp.tid()
     d = dx[i]
     if particle_inv_mass[i] == 0.0:
@@ -159,7 +165,7 @@ def solve_contacts(
     eye = wp.identity(n=3, dtype=float)
     H = eye
     Hinv = eye
-    if wp.dot(held[i], held[i]) > 0.0:
+    if contact_state[i] != 0:
         inertia = particle_mass[i] / (h * h)
         g = inertia * (d - dy[i])
         H = inertia * eye
@@ -174,10 +180,12 @@ def solve_contacts(
             Hinv = wp.inverse(H)
         else:
             H = eye
-    d, n, vc = project_increment(xi, d, colliders, box, plane_count, h, H, Hinv)
+    d, n, vc, c, state = project_increment(xi, d, colliders, box, plane_count, h, H, Hinv)
     out[i] = d
     contact_normal[i] = n
     contact_velocity[i] = vc
+    contact_force[i] = c
+    contact_state[i] = state
 
 
 @wp.kernel
@@ -206,14 +214,14 @@ def cg_update_solution(
     rz: wp.array(dtype=float),
     pAp: wp.array(dtype=float),
     k: int,
-    held: wp.array(dtype=wp.vec3),
+    contact_state: wp.array(dtype=int),
     dx: wp.array(dtype=wp.vec3),
     r: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
     dot_terms: wp.array(dtype=float),
 ):
     # alpha = r.z / p.Ap ;  dx += alpha p ;  r -= alpha Ap ;  z = P^-1 r ;  dot_terms = r.z (new);
-    # a held particle's z stays 0 (CG on the free particles only: its p stays 0)
+    # a stuck particle's z stays 0 (CG on the others only: its p stays 0)
     i = wp.tid()
     alpha = float(0.0)
     if pAp[k] > 0.0:
@@ -221,7 +229,7 @@ def cg_update_solution(
     dx[i] = dx[i] + alpha * p[i]
     ri = r[i] - alpha * Ap[i]
     zi = inv_diag[i] * ri
-    if wp.dot(held[i], held[i]) > 0.0:
+    if contact_state[i] == 2:
         ri = wp.vec3(0.0)
         zi = wp.vec3(0.0)
     r[i] = ri

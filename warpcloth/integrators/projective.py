@@ -80,7 +80,9 @@ class Projective(Integrator):
         self.values = wp.zeros(columns.size, dtype=float)
         self.inv_diag = wp.zeros(n, dtype=float)
         self.dx, self.dy, self.r, self.z, self.p, self.Ap = scratch_like(model, 6)
-        self.contact_normal, self.contact_velocity = scratch_like(model, 2)
+        # per particle, from the last contact pass: normal (0: none), collider velocity and force, state (0 free, 1 slide, 2 stick)
+        self.contact_normal, self.contact_velocity, self.contact_force = scratch_like(model, 3)
+        self.contact_state = wp.zeros(n, dtype=int)
         self.rz = wp.zeros(self.pd_cg_iterations + 1, dtype=float)
         self.pAp = wp.zeros(self.pd_cg_iterations, dtype=float)
         # dot products in a fixed order: per-particle terms, chunk sums, their sum
@@ -102,7 +104,7 @@ class Projective(Integrator):
             control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
         contacts = contact_arguments(control, h)
         if contacts is None:
-            self.contact_normal.zero_()  # none held
+            self.contact_state.zero_()  # none held
         for _ in range(self.pd_iterations):
             self.local_step(x, h)
             self.global_step()
@@ -123,8 +125,8 @@ class Projective(Integrator):
         wp.launch(
             pk.solve_contacts, dim=m.particle_count,
             inputs=[x, self.dx, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, h, *contacts, self.contact_normal],
-            outputs=[self.Ap, self.contact_normal, self.contact_velocity], device=m.device,
+                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, h, *contacts],
+            outputs=[self.Ap, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device,
         )
         wp.copy(self.dx, self.Ap)
 
@@ -146,7 +148,7 @@ class Projective(Integrator):
         wp.launch(
             pk.eval_local_residual, dim=m.particle_count,
             inputs=[x, self.dx, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, self.inv_diag, h, self.contact_normal],
+                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, self.inv_diag, h, self.contact_state, self.contact_force],
             outputs=[self.r, self.z, self.p, self.dot_terms], device=m.device,
         )
         self._reduce(self.rz, 0)
@@ -157,7 +159,7 @@ class Projective(Integrator):
         for k in range(self.pd_cg_iterations):
             wp.launch(pk.csr_matvec_dot, dim=n, inputs=[self.row_offsets, self.columns, self.values, self.p], outputs=[self.Ap, self.dot_terms], device=m.device)
             self._reduce(self.pAp, k)
-            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k, self.contact_normal], outputs=[self.dx, self.r, self.z, self.dot_terms], device=m.device)
+            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k, self.contact_state], outputs=[self.dx, self.r, self.z, self.dot_terms], device=m.device)
             self._reduce(self.rz, k + 1)
             if k + 1 < self.pd_cg_iterations:
                 wp.launch(pk.cg_update_direction, dim=n, inputs=[self.z, self.rz, k], outputs=[self.p], device=m.device)

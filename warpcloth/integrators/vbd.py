@@ -133,7 +133,9 @@ class VBD(Integrator):
         self.adjacency_other = wp.array(other, dtype=int)
         self.dx, self.dy, self.dx_prev1, self.dx_prev2 = scratch_like(model, 4)
         self._sweep_key, self._sweep = None, []
-        self.contact_normal, self.contact_velocity = scratch_like(model, 2)  # per particle, from the last sweep (0: none)
+        # per particle, from the last sweep: the contact's normal (0: none), collider velocity and force, state (0 free, 1 slide, 2 stick)
+        self.contact_normal, self.contact_velocity, self.contact_force = scratch_like(model, 3)
+        self.contact_state = wp.zeros(model.particle_count, dtype=int)
         self.no_colliders = wp.zeros(0, dtype=ck.Collider)
         self.no_box = wp.zeros(2, dtype=wp.vec3)
         self.hessian = None
@@ -168,7 +170,7 @@ class VBD(Integrator):
                 wp.launch(vk.apply_chebyshev, dim=m.particle_count, inputs=[omega], outputs=[self.dx, self.dx_prev1, self.dx_prev2], device=m.device)
                 if contacts is not None:  # the extrapolation may reach into a collider
                     wp.launch(vk.project_increments, dim=m.particle_count, inputs=[x, m.particle_inv_mass, *contacts, h],
-                              outputs=[self.dx, self.contact_normal, self.contact_velocity], device=m.device)
+                              outputs=[self.dx, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device)
         if contacts is not None:
             wp.launch(vk.update_from_increment_contact, dim=m.particle_count,
                       inputs=[x, v, self.dx, m.particle_inv_mass, h, self.contact_normal, self.contact_velocity], device=m.device)
@@ -186,7 +188,7 @@ class VBD(Integrator):
             outputs=[self.residual], device=m.device,
         )
         if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
-            wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact_normal], outputs=[self.residual], device=m.device)
+            wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact_state, self.contact_force, h], outputs=[self.residual], device=m.device)
         self.hessian.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
         if contacts is not None:
             wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact_normal], outputs=[self.delta], device=m.device)
@@ -206,7 +208,7 @@ class VBD(Integrator):
             ]
             self._sweep = [
                 wp.launch(vk.solve_vertices_vbd, dim=count, inputs=[self.vertex_order, start, *params],
-                          outputs=[self.dx, self.contact_normal, self.contact_velocity], device=m.device, record_cmd=True)
+                          outputs=[self.dx, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device, record_cmd=True)
                 for start, count in zip(self.coloring.starts, self.coloring.counts)
             ]
             self._sweep_key = key
