@@ -131,3 +131,30 @@ def test_the_tablecloth_reaches_equilibrium(integrator, cap):
     outside = (np.abs(x[:, 0]) > t.HALF + 0.05) | (np.abs(x[:, 2]) > t.HALF + 0.05)
     assert outside.any() and x[outside, 1].max() < t.HEIGHT  # the overhang hangs down
     assert x[:, 1].min() > t.THICKNESS - DEPTH_TOL
+
+
+@pytest.mark.parametrize("integrator", SOLVERS)
+@pytest.mark.parametrize("use_graph", [False, True])
+def test_a_step_with_contacts_allocates_nothing(monkeypatch, integrator, use_graph):
+    # the contact arrays are made at bind; a step with a moving and a still collider only launches
+    from warp._src.context import CpuDefaultAllocator
+
+    from warpcloth import Sphere
+    from warpcloth.colliders import ColliderTrack
+
+    sphere = Sphere(center=(0.5, 0.0, 0.5), radius=0.3, thickness=THICKNESS, friction=0.5, track=ColliderTrack.rigid(velocity=(0.1, 0.0, 0.0)))
+    model = build_grid_cloth(8, 8, 1.0, 1.0, 0.1, plane="horizontal", origin=(0.0, 0.31, 0.0), device="cpu")
+    sim = Simulator(model, integrator, Control(colliders=(sphere, Plane(thickness=THICKNESS, friction=0.5)), device="cpu"), use_graph=use_graph)
+    sim.simulate(3)
+    created = []
+    original = CpuDefaultAllocator.allocate
+
+    def counting_allocate(self, size_in_bytes):
+        created.append(size_in_bytes)
+        return original(self, size_in_bytes)
+
+    monkeypatch.setattr(CpuDefaultAllocator, "allocate", counting_allocate)
+    sim.simulate(5)
+    monkeypatch.setattr(CpuDefaultAllocator, "allocate", original)
+    assert created == []
+    assert sim.integrator.contact_state.numpy().any()  # it did touch
