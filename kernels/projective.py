@@ -22,6 +22,9 @@ too.
 
 import warp as wp
 
+from .collide import Collider
+from .vbd import newton_increment, project_increment, spring_gradient_hessian
+
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
 
@@ -89,14 +92,18 @@ def eval_local_residual(
     spring_damping: wp.array(dtype=float),
     inv_diag: wp.array(dtype=float),
     h: float,
+    contact_state: wp.array(dtype=int),
+    contact_force: wp.array(dtype=wp.vec3),
     r: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
     p: wp.array(dtype=wp.vec3),
     dot_terms: wp.array(dtype=float),
 ):
-    # local step + residual (module docstring); CG start: z = P^-1 r, p = z, dot_terms = r.z
+    # local step + residual (module docstring); CG start: z = P^-1 r, p = z, dot_terms = r.z; a
+    # particle stuck on a collider (contact_state 2, from the last contact pass) is fixed in the solve,
+    # as a pin; a sliding one's collider force (normal and kinetic friction) enters its residual
     i = wp.tid()
-    if particle_inv_mass[i] == 0.0:
+    if particle_inv_mass[i] == 0.0 or contact_state[i] == 2:
         r[i] = wp.vec3(0.0)
         z[i] = wp.vec3(0.0)
         p[i] = wp.vec3(0.0)
@@ -111,11 +118,74 @@ def eval_local_residual(
         ddx = dx[j] - dxi
         res = res + spring_increment_residual((x[j] - xi) + ddx, ddx, spring_rest_length[s], spring_stiffness[s],
                                               spring_damping[s], h)
+    if contact_state[i] == 1:
+        res = res + (h * h) * contact_force[i]
     zi = inv_diag[i] * res
     r[i] = res
     z[i] = zi
     p[i] = zi
     dot_terms[i] = wp.dot(res, zi)
+
+
+@wp.kernel
+def solve_contacts(
+    x: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    dy: wp.array(dtype=wp.vec3),
+    particle_mass: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    adjacency_offsets: wp.array(dtype=int),
+    adjacency_spring: wp.array(dtype=int),
+    adjacency_other: wp.array(dtype=int),
+    spring_rest_length: wp.array(dtype=float),
+    spring_stiffness: wp.array(dtype=float),
+    spring_damping: wp.array(dtype=float),
+    h: float,
+    colliders: wp.array(dtype=Collider),
+    box: wp.array(dtype=wp.vec3),
+    plane_count: int,
+    out: wp.array(dtype=wp.vec3),
+    contact_normal: wp.array(dtype=wp.vec3),
+    contact_velocity: wp.array(dtype=wp.vec3),
+    contact_force: wp.array(dtype=wp.vec3),
+    contact_state: wp.array(dtype=int),
+):
+    # after a global step: a particle in contact (the last pass's) takes VBD's local Newton step on
+    # the same potential (its 3 x 3 Hessian, neighbours fixed; Jacobi: reads dx, writes out),
+    # constrained by the colliders with Coulomb friction (kernels.vbd.project_increment); a free one
+    # that the global step took into a collider is projected out (isotropic: its H is not formed).
+    # The contact's normal (0: released), collider velocity, force and state are kept for the next
+    # global step (stuck: fixed in it; sliding: its force in the residual)
+    i = wp.tid()
+    d = dx[i]
+    if particle_inv_mass[i] == 0.0:
+        out[i] = d
+        return
+    xi = x[i]
+    eye = wp.identity(n=3, dtype=float)
+    H = eye
+    Hinv = eye
+    if contact_state[i] != 0:
+        inertia = particle_mass[i] / (h * h)
+        g = inertia * (d - dy[i])
+        H = inertia * eye
+        for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
+            s = adjacency_spring[a]
+            j = adjacency_other[a]
+            f, K = spring_gradient_hessian(x[j] - xi, dx[j] - d, spring_rest_length[s], spring_stiffness[s], spring_damping[s], h)
+            g = g - f
+            H = H + K
+        d = d + newton_increment(g, H)
+        if wp.abs(wp.determinant(H)) >= 1.0e-30:
+            Hinv = wp.inverse(H)
+        else:
+            H = eye
+    d, n, vc, c, state = project_increment(xi, d, colliders, box, plane_count, h, H, Hinv)
+    out[i] = d
+    contact_normal[i] = n
+    contact_velocity[i] = vc
+    contact_force[i] = c
+    contact_state[i] = state
 
 
 @wp.kernel
@@ -144,12 +214,14 @@ def cg_update_solution(
     rz: wp.array(dtype=float),
     pAp: wp.array(dtype=float),
     k: int,
+    contact_state: wp.array(dtype=int),
     dx: wp.array(dtype=wp.vec3),
     r: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
     dot_terms: wp.array(dtype=float),
 ):
-    # alpha = r.z / p.Ap ;  dx += alpha p ;  r -= alpha Ap ;  z = P^-1 r ;  dot_terms = r.z (new)
+    # alpha = r.z / p.Ap ;  dx += alpha p ;  r -= alpha Ap ;  z = P^-1 r ;  dot_terms = r.z (new);
+    # a stuck particle's z stays 0 (CG on the others only: its p stays 0)
     i = wp.tid()
     alpha = float(0.0)
     if pAp[k] > 0.0:
@@ -157,6 +229,9 @@ def cg_update_solution(
     dx[i] = dx[i] + alpha * p[i]
     ri = r[i] - alpha * Ap[i]
     zi = inv_diag[i] * ri
+    if contact_state[i] == 2:
+        ri = wp.vec3(0.0)
+        zi = wp.vec3(0.0)
     r[i] = ri
     z[i] = zi
     dot_terms[i] = wp.dot(ri, zi)

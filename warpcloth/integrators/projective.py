@@ -32,12 +32,14 @@ import warp as wp
 
 from warpcloth.kernels import integrate as ik
 from warpcloth.kernels import projective as pk
+from warpcloth.kernels import vbd as vk
 from warpcloth.kernels.vbd import update_from_increment
 
 from ..coloring import particle_adjacency
 from ..forces import eval_external_forces
 from ..pins import apply_pins, has_pin_tracks
 from .base import Integrator, Option, scratch_like
+from .vbd import contact_arguments
 
 
 def _at_least_one(value) -> str | None:
@@ -49,6 +51,8 @@ class Projective(Integrator):
 
     name: ClassVar[str] = "projective"
     force_evals_per_step: ClassVar[int] = 1
+    #: contacts inside the iterations (after each global step), no projection after the step
+    collides_in_solver: ClassVar[bool] = True
     options = (
         Option("pd_iterations", int, 10, "local/global iterations per time step (>= 1)", check=_at_least_one),
         Option("pd_cg_iterations", int, 10, "Jacobi-preconditioned CG iterations per global solve, fixed (>= 1)", check=_at_least_one),
@@ -76,6 +80,9 @@ class Projective(Integrator):
         self.values = wp.zeros(columns.size, dtype=float)
         self.inv_diag = wp.zeros(n, dtype=float)
         self.dx, self.dy, self.r, self.z, self.p, self.Ap = scratch_like(model, 6)
+        # per particle, from the last contact pass: normal (0: none), collider velocity and force, state (0 free, 1 slide, 2 stick)
+        self.contact_normal, self.contact_velocity, self.contact_force = scratch_like(model, 3)
+        self.contact_state = wp.zeros(n, dtype=int)
         self.rz = wp.zeros(self.pd_cg_iterations + 1, dtype=float)
         self.pAp = wp.zeros(self.pd_cg_iterations, dtype=float)
         # dot products in a fixed order: per-particle terms, chunk sums, their sum
@@ -95,11 +102,33 @@ class Projective(Integrator):
         wp.launch(ik.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
         if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x: known, enters the residual
             control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
+        contacts = contact_arguments(control, h)
+        if contacts is None:
+            self.contact_state.zero_()  # none held
         for _ in range(self.pd_iterations):
             self.local_step(x, h)
             self.global_step()
-        wp.launch(update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
+            if contacts is not None:
+                self.solve_contacts(x, h, contacts)
+        if contacts is not None:
+            wp.launch(vk.update_from_increment_contact, dim=m.particle_count,
+                      inputs=[x, v, self.dx, m.particle_inv_mass, h, self.contact_normal, self.contact_velocity], device=m.device)
+        else:
+            wp.launch(update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
         apply_pins(control, x, v, h)  # kinematic pins: x = track(t + h), v = track'(t + h)
+
+    def solve_contacts(self, x, h: float, contacts) -> None:
+        """Contacts after a global step (:func:`warpcloth.kernels.projective.solve_contacts`): the
+        held particles' constrained local Newton step, the others out of the colliders; the new
+        contact set is held in the next global step."""
+        m = self.model
+        wp.launch(
+            pk.solve_contacts, dim=m.particle_count,
+            inputs=[x, self.dx, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
+                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, h, *contacts],
+            outputs=[self.Ap, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device,
+        )
+        wp.copy(self.dx, self.Ap)
 
     def assemble(self, h: float) -> None:
         """Fill S = M + h D + h^2 L and its inverse diagonal, when h or the model changed."""
@@ -119,7 +148,7 @@ class Projective(Integrator):
         wp.launch(
             pk.eval_local_residual, dim=m.particle_count,
             inputs=[x, self.dx, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, self.inv_diag, h],
+                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, self.inv_diag, h, self.contact_state, self.contact_force],
             outputs=[self.r, self.z, self.p, self.dot_terms], device=m.device,
         )
         self._reduce(self.rz, 0)
@@ -130,7 +159,7 @@ class Projective(Integrator):
         for k in range(self.pd_cg_iterations):
             wp.launch(pk.csr_matvec_dot, dim=n, inputs=[self.row_offsets, self.columns, self.values, self.p], outputs=[self.Ap, self.dot_terms], device=m.device)
             self._reduce(self.pAp, k)
-            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k], outputs=[self.dx, self.r, self.z, self.dot_terms], device=m.device)
+            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k, self.contact_state], outputs=[self.dx, self.r, self.z, self.dot_terms], device=m.device)
             self._reduce(self.rz, k + 1)
             if k + 1 < self.pd_cg_iterations:
                 wp.launch(pk.cg_update_direction, dim=n, inputs=[self.z, self.rz, k], outputs=[self.p], device=m.device)

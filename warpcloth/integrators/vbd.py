@@ -44,6 +44,7 @@ from typing import ClassVar
 
 import warp as wp
 
+from warpcloth.kernels import collide as ck
 from warpcloth.kernels import integrate as ik
 from warpcloth.kernels import vbd as vk
 
@@ -78,11 +79,26 @@ def chebyshev_weights(iterations: int, rho: float) -> list[float]:
     return weights
 
 
+def contact_arguments(control, h: float):
+    """The colliders' kernel arguments (records, broad-phase box, plane count) for a solve that
+    holds contacts itself, moving ones posed at the step's end t + h (device launches only), or
+    None without colliders."""
+    contacts = control.collision
+    if contacts is None or len(contacts.colliders) == 0:
+        return None
+    if contacts.moving:
+        contacts.pose(h)  # positions relative to the pose at t + h, friction relative to v_c there
+    return [contacts.params, contacts.box, contacts.plane_count]
+
+
 class VBD(Integrator):
     """Vertex Block Descent (Chen et al. 2024): per-vertex 3 x 3 Newton, Gauss-Seidel by colour."""
 
     name: ClassVar[str] = "vbd"
     force_evals_per_step: ClassVar[int] = 1
+    #: contacts inside the sweeps (each vertex's Newton step projected out of the colliders with
+    #: Coulomb friction, :func:`warpcloth.kernels.vbd.project_increment`), no projection after the step
+    collides_in_solver: ClassVar[bool] = True
     options = (
         # 4 with a multigrid correction before each sweep (grid models): the 128 x 128 sheet's sag
         # within 0.5 % of the float64 equilibrium after 0.5 s and the 128 x 128 flag stable for 3 s
@@ -117,6 +133,11 @@ class VBD(Integrator):
         self.adjacency_other = wp.array(other, dtype=int)
         self.dx, self.dy, self.dx_prev1, self.dx_prev2 = scratch_like(model, 4)
         self._sweep_key, self._sweep = None, []
+        # per particle, from the last sweep: the contact's normal (0: none), collider velocity and force, state (0 free, 1 slide, 2 stick)
+        self.contact_normal, self.contact_velocity, self.contact_force = scratch_like(model, 3)
+        self.contact_state = wp.zeros(model.particle_count, dtype=int)
+        self.no_colliders = wp.zeros(0, dtype=ck.Collider)
+        self.no_box = wp.zeros(2, dtype=wp.vec3)
         self.hessian = None
         if self.vbd_multigrid_every > 0 and grid_structure_reason(model) is None:
             # h^2 times the potential's Hessian is implicit Euler's A = M + h D + h^2 K (drag aside)
@@ -133,7 +154,8 @@ class VBD(Integrator):
         wp.launch(ik.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
         if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x, held through the sweeps
             control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
-        sweep = self.color_sweep(x, h)
+        contacts = contact_arguments(control, h)
+        sweep = self.color_sweep(x, h, contacts)
         accelerate = self.vbd_chebyshev_rho > 0.0
         if accelerate:
             wp.launch(vk.copy_increment, dim=m.particle_count, inputs=[self.dx], outputs=[self.dx_prev1, self.dx_prev2], device=m.device)
@@ -141,15 +163,22 @@ class VBD(Integrator):
             self.hessian.assemble_system(x, h, 0.0)
         for it, omega in enumerate(chebyshev_weights(self.vbd_iterations, self.vbd_chebyshev_rho)):
             if self.hessian is not None and it % self.vbd_multigrid_every == 0:
-                self.coarse_correction(x, h)
+                self.coarse_correction(x, h, contacts)
             for color in sweep:
                 color.launch()
             if accelerate:
                 wp.launch(vk.apply_chebyshev, dim=m.particle_count, inputs=[omega], outputs=[self.dx, self.dx_prev1, self.dx_prev2], device=m.device)
-        wp.launch(vk.update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
+                if contacts is not None:  # the extrapolation may reach into a collider
+                    wp.launch(vk.project_increments, dim=m.particle_count, inputs=[x, m.particle_inv_mass, *contacts, h],
+                              outputs=[self.dx, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device)
+        if contacts is not None:
+            wp.launch(vk.update_from_increment_contact, dim=m.particle_count,
+                      inputs=[x, v, self.dx, m.particle_inv_mass, h, self.contact_normal, self.contact_velocity], device=m.device)
+        else:
+            wp.launch(vk.update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
         apply_pins(control, x, v, h)  # kinematic pins: x = track(t + h), v = track'(t + h)
 
-    def coarse_correction(self, x, h: float) -> None:
+    def coarse_correction(self, x, h: float, contacts=None) -> None:
         """dx += V(r): r = -h^2 grad G at dx, V one multigrid V-cycle of A = h^2 Hessian."""
         m = self.model
         wp.launch(
@@ -158,22 +187,28 @@ class VBD(Integrator):
                     m.spring_rest_length, m.spring_stiffness, m.spring_damping, h],
             outputs=[self.residual], device=m.device,
         )
+        if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
+            wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact_state, self.contact_force, h], outputs=[self.residual], device=m.device)
         self.hessian.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
+        if contacts is not None:
+            wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact_normal], outputs=[self.delta], device=m.device)
         wp.launch(vk.add_increment, dim=m.particle_count, inputs=[self.delta], outputs=[self.dx], device=m.device)
 
-    def color_sweep(self, x, h: float) -> list:
+    def color_sweep(self, x, h: float, contacts=None) -> list:
         """One Gauss-Seidel sweep: a recorded launch of the local Newton kernel per colour,
-        rebuilt only when the positions array or h change (cuts the Python cost of
-        colours x iterations launches)."""
-        key = (x.ptr, h)
+        rebuilt only when the positions array, h or the colliders change (cuts the Python cost
+        of colours x iterations launches)."""
+        contacts = contacts if contacts is not None else [self.no_colliders, self.no_box, 0]
+        key = (x.ptr, h, contacts[0].ptr, contacts[1].ptr, contacts[2])
         if key != self._sweep_key:
             m = self.model
             params = [
                 x, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                m.spring_rest_length, m.spring_stiffness, m.spring_damping, h,
+                m.spring_rest_length, m.spring_stiffness, m.spring_damping, h, *contacts,
             ]
             self._sweep = [
-                wp.launch(vk.solve_vertices_vbd, dim=count, inputs=[self.vertex_order, start, *params], outputs=[self.dx], device=m.device, record_cmd=True)
+                wp.launch(vk.solve_vertices_vbd, dim=count, inputs=[self.vertex_order, start, *params],
+                          outputs=[self.dx, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device, record_cmd=True)
                 for start, count in zip(self.coloring.starts, self.coloring.counts)
             ]
             self._sweep_key = key
