@@ -21,7 +21,7 @@ x_j - x_i and dx_j - dx_i apart, never x + dx.
 
 import warp as wp
 
-from .collide import Collider, in_box, plane_contact, shape_contact, surface_velocity
+from .collide import Collider, contact_band, in_box, plane_contact, shape_contact, surface_velocity
 from .implicit import spring_stiffness_block
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -108,7 +108,7 @@ def project_increment(xi: wp.vec3, d: wp.vec3, colliders: wp.array(dtype=Collide
     if in_box(xi + d, box):
         for k in range(plane_count, colliders.shape[0]):
             p = xi + d
-            phi, n = shape_contact(colliders, k, p)
+            phi, n = shape_contact(colliders, k, p, contact_band(colliders, k))
             d, hit, vc, c = contact_response(colliders, k, p, d, phi, n, h, H, Hinv)
             if hit != 0:
                 normal = n
