@@ -23,7 +23,7 @@ too.
 import warp as wp
 
 from .collide import Collider
-from .vbd import newton_increment, project_increment, spring_gradient_hessian
+from .vbd import newton_increment, project_increment, vertex_gradient_hessian
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
@@ -166,15 +166,8 @@ def solve_contacts(
     H = eye
     Hinv = eye
     if contact_state[i] != 0:
-        inertia = particle_mass[i] / (h * h)
-        g = inertia * (d - dy[i])
-        H = inertia * eye
-        for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-            s = adjacency_spring[a]
-            j = adjacency_other[a]
-            f, K = spring_gradient_hessian(x[j] - xi, dx[j] - d, spring_rest_length[s], spring_stiffness[s], spring_damping[s], h)
-            g = g - f
-            H = H + K
+        g, H = vertex_gradient_hessian(i, x, dx, dy, particle_mass, adjacency_offsets, adjacency_spring, adjacency_other,
+                                       spring_rest_length, spring_stiffness, spring_damping, h)
         d = d + newton_increment(g, H)
         if wp.abs(wp.determinant(H)) >= 1.0e-30:
             Hinv = wp.inverse(H)

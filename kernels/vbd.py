@@ -44,6 +44,28 @@ def spring_gradient_hessian(xij: wp.vec3, dxij: wp.vec3, rest: float, ks: float,
 
 
 @wp.func
+def vertex_gradient_hessian(
+    i: int, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), dy: wp.array(dtype=wp.vec3), particle_mass: wp.array(dtype=float),
+    adjacency_offsets: wp.array(dtype=int), adjacency_spring: wp.array(dtype=int), adjacency_other: wp.array(dtype=int),
+    spring_rest_length: wp.array(dtype=float), spring_stiffness: wp.array(dtype=float), spring_damping: wp.array(dtype=float), h: float,
+):
+    # vertex i's local problem with its neighbours fixed: the gradient g = m / h^2 (dx_i - dy_i) -
+    # sum f and Hessian H = m / h^2 I + sum K of the step's potential at its increment dx_i
+    xi = x[i]
+    dxi = dx[i]
+    inertia = particle_mass[i] / (h * h)
+    g = inertia * (dxi - dy[i])
+    H = inertia * wp.identity(n=3, dtype=float)
+    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
+        s = adjacency_spring[a]
+        j = adjacency_other[a]
+        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, spring_rest_length[s], spring_stiffness[s], spring_damping[s], h)
+        g = g - f
+        H = H + K
+    return g, H
+
+
+@wp.func
 def newton_increment(g: wp.vec3, H: wp.mat33):
     # -H^-1 g, or 0 where H is singular
     det = wp.determinant(H)
@@ -150,15 +172,8 @@ def solve_vertices_vbd(
         return
     xi = x[i]
     dxi = dx[i]
-    inertia = particle_mass[i] / (h * h)
-    g = inertia * (dxi - dy[i])
-    H = inertia * wp.identity(n=3, dtype=float)
-    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-        s = adjacency_spring[a]
-        j = adjacency_other[a]
-        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, spring_rest_length[s], spring_stiffness[s], spring_damping[s], h)
-        g = g - f
-        H = H + K
+    g, H = vertex_gradient_hessian(i, x, dx, dy, particle_mass, adjacency_offsets, adjacency_spring, adjacency_other,
+                                   spring_rest_length, spring_stiffness, spring_damping, h)
     d = dxi + newton_increment(g, H)
     if colliders.shape[0] > 0:
         Hinv = wp.mat33(0.0)
