@@ -112,3 +112,29 @@ def backward_euler_step(model, x, v, h, gravity=(0.0, -9.81, 0.0), damping="axia
     dx = np.zeros_like(x)
     dx[free] = sol.reshape(-1, 3)
     return x + dx
+
+
+def free_particles(positions, mass: float = 0.1, device="cpu"):
+    """Particles of ``mass`` [kg] each and no springs: a colliders' test body."""
+    free = {t: SpringParams(0.0, 0.0) for t in SpringType}
+    return build_model(positions, np.zeros((0, 2)), np.zeros(0), [mass] * len(positions), free, device=device)
+
+
+def drape_sphere_depth(x):
+    """How far each particle is inside the drape scenario's sphere grown by its thickness [m] (< 0: outside)."""
+    from warpcloth.scenarios import drape
+
+    return drape.THICKNESS + drape.RADIUS - np.linalg.norm(np.asarray(x, dtype=np.float64) - np.array([0.0, drape.RADIUS, 0.0]), axis=1)
+
+
+def deepest_in_drape(sim, steps: int):
+    """Step the drape ``steps`` times; the deepest any particle went into its sphere or ground at a
+    step's end [m] and the last positions."""
+    from warpcloth.scenarios import drape
+
+    deepest, x = -1.0, None
+    for _ in range(steps):
+        sim.simulate(1)
+        x = sim.state.particle_q.numpy().astype(np.float64)
+        deepest = max(deepest, drape_sphere_depth(x).max(), drape.THICKNESS - x[:, 1].min())
+    return deepest, x

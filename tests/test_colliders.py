@@ -8,21 +8,15 @@ import pytest
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, WarpclothError, build_grid_cloth, integrator_names
 from warpcloth.colliders import parse_collider
-from warpcloth.model import SpringParams, SpringType, build_model
+from helpers import free_particles
 
 G = 9.81
-FREE = {t: SpringParams(0.0, 0.0) for t in SpringType}
 INTEGRATORS = ["explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd", "vbd", "projective"]
-
-
-def particles(positions):
-    n = len(positions)
-    return build_model(positions, np.zeros((0, 2)), np.zeros(0), [0.1] * n, FREE, device="cpu")
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 def test_a_dropped_particle_rests_at_the_thickness(integrator):
-    sim = Simulator(particles([[0.0, 0.5, 0.0]]), integrator, Control(colliders=(Plane(thickness=0.01),), device="cpu"), dt=1e-3)
+    sim = Simulator(free_particles([[0.0, 0.5, 0.0]]), integrator, Control(colliders=(Plane(thickness=0.01),), device="cpu"), dt=1e-3)
     sim.simulate(800)  # it lands after 0.32 s
     assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(0.01, abs=1e-6)
     assert abs(float(sim.state.particle_qd.numpy()[0, 1])) < 1e-4
@@ -32,7 +26,7 @@ def slide(integrator, theta, mu, duration=0.5, dt=1e-3):
     """A particle released at rest on a plane inclined by theta: its displacement along the slope."""
     n = (-math.sin(theta), math.cos(theta), 0.0)
     down = np.array([-math.cos(theta), -math.sin(theta), 0.0])
-    sim = Simulator(particles([[0.0, 0.0, 0.0]]), integrator, Control(colliders=(Plane(normal=n, friction=mu),), device="cpu"), dt=dt)
+    sim = Simulator(free_particles([[0.0, 0.0, 0.0]]), integrator, Control(colliders=(Plane(normal=n, friction=mu),), device="cpu"), dt=dt)
     x0 = sim.state.particle_q.numpy()[0].astype(np.float64)
     sim.simulate(int(round(duration / dt)))
     x = sim.state.particle_q.numpy()[0].astype(np.float64)
@@ -79,7 +73,7 @@ def test_a_cloth_dropped_on_a_sphere_never_goes_inside(integrator):
     (Sphere(center=(0.0, -0.2, 0.0), radius=0.2), 0.0),
 ])
 def test_shapes_hold_a_particle_on_top(collider, top):
-    sim = Simulator(particles([[0.0, 0.3, 0.0]]), "explicit_euler", Control(colliders=(collider,), device="cpu"), dt=1e-3)
+    sim = Simulator(free_particles([[0.0, 0.3, 0.0]]), "explicit_euler", Control(colliders=(collider,), device="cpu"), dt=1e-3)
     sim.simulate(600)
     assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(top, abs=1e-6)
 
@@ -93,7 +87,7 @@ def test_pins_win_over_contacts():
 
 def test_colliders_can_be_replaced_and_captured_runs_follow():
     control = Control(colliders=(Plane(),), device="cpu")
-    sim = Simulator(particles([[0.0, 0.2, 0.0]]), "explicit_euler", control, dt=1e-3)
+    sim = Simulator(free_particles([[0.0, 0.2, 0.0]]), "explicit_euler", control, dt=1e-3)
     sim.simulate(300)
     assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(0.0, abs=1e-6)
     control.colliders = (Plane(point=(0.0, -0.5, 0.0)),)

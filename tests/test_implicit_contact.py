@@ -12,6 +12,7 @@ import pytest
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
 from warpcloth.colliders import ColliderTrack
+from helpers import deepest_in_drape, drape_sphere_depth
 
 G = 9.81
 H = 1.0 / 60.0
@@ -68,19 +69,11 @@ def test_a_sliding_ground_drags_a_cloth_to_its_speed():
     assert np.abs(dx[:, 1]).max() < 1e-6
 
 
-def sphere_depth(drape, x):
-    return drape.THICKNESS + drape.RADIUS - np.linalg.norm(x - np.array([0.0, drape.RADIUS, 0.0]), axis=1)
-
-
 def test_the_16x16_drape_never_goes_inside_and_rests_on_top():
     from warpcloth.scenarios import drape
 
     sim = drape.build(rows=16, cols=16, integrator="implicit_euler")
-    deepest = -1.0
-    for _ in range(240):  # 4 s: it lands at 0.17 s and drapes
-        sim.simulate(1)
-        x = sim.state.particle_q.numpy().astype(np.float64)
-        deepest = max(deepest, sphere_depth(drape, x).max(), drape.THICKNESS - x[:, 1].min())
+    deepest, x = deepest_in_drape(sim, 240)  # 4 s: it lands at 0.17 s and drapes
     assert -1e-3 < deepest < DEPTH_TOL  # touching, never inside
     rho = np.linalg.norm(x[:, [0, 2]], axis=1)
     centre = np.argmin(rho)
@@ -102,8 +95,8 @@ def test_the_16x16_drape_reaches_equilibrium(preconditioner):
     assert r.stable and r.equilibrium_reached, (r.unstable_reason, r.final_max_speed)
     assert r.time_to_equilibrium < 6.0
     x = sim.state.particle_q.numpy().astype(np.float64)
-    assert sphere_depth(drape, x).max() < DEPTH_TOL
-    assert np.abs(sphere_depth(drape, x)).min() < 5e-5  # still on the sphere (multigrid: 12.7 µm above the 5 mm shell, after the contact kernel's rewrite)
+    assert drape_sphere_depth(x).max() < DEPTH_TOL
+    assert np.abs(drape_sphere_depth(x)).min() < 5e-5  # still on the sphere (multigrid: 12.7 µm above the 5 mm shell, after the contact kernel's rewrite)
     assert np.linalg.norm(x.mean(axis=0)[[0, 2]]) < 0.01  # centred: it did not slide off
 
 
@@ -116,7 +109,7 @@ def test_the_default_drape_and_the_tablecloth_reach_equilibrium():
     r = sim.run(8.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached and r.time_to_equilibrium < 6.0, (r.final_max_speed, r.time_to_equilibrium)
     x = sim.state.particle_q.numpy().astype(np.float64)
-    assert sphere_depth(drape, x).max() < DEPTH_TOL and x[:, 1].min() > drape.THICKNESS - DEPTH_TOL
+    assert drape_sphere_depth(x).max() < DEPTH_TOL and x[:, 1].min() > drape.THICKNESS - DEPTH_TOL
 
     sim = t.build(integrator="implicit_euler")
     r = sim.run(8.0, stop_at_equilibrium=True)

@@ -13,21 +13,16 @@ import pytest
 
 from warpcloth import Box, Control, Simulator, WarpclothError, build_grid_cloth
 from warpcloth.colliders import MeshCollider, parse_collider
-from warpcloth.model import SpringParams, SpringType, build_model
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench.colliders import mesh_sphere  # noqa: E402
+from helpers import free_particles  # noqa: E402
 
 G = 9.81
-FREE = {t: SpringParams(0.0, 0.0) for t in SpringType}
 CUBE_V = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
 # 12 triangles wound outward (counter-clockwise seen from outside); vertex index = 4 (x>0) + 2 (y>0) + (z>0)
 CUBE_T = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
                    [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
-
-
-def particles(positions):
-    return build_model(positions, np.zeros((0, 2)), np.zeros(0), [0.1] * len(positions), FREE, device="cpu")
 
 
 def cube(center, half, **settings):
@@ -43,7 +38,7 @@ def test_the_cube_is_wound_outward():
 @pytest.mark.parametrize("integrator", ["explicit_euler", "rk4", "verlet", "implicit_euler", "pbd", "xpbd"])
 def test_a_particle_rests_on_the_pole_of_a_mesh_sphere(integrator):
     v, t = mesh_sphere(2000, radius=0.3)
-    sim = Simulator(particles([[0.0, 0.6, 0.0]]), integrator, Control(colliders=(MeshCollider(vertices=v, triangles=t, thickness=0.01),), device="cpu"), dt=1e-3)
+    sim = Simulator(free_particles([[0.0, 0.6, 0.0]]), integrator, Control(colliders=(MeshCollider(vertices=v, triangles=t, thickness=0.01),), device="cpu"), dt=1e-3)
     sim.simulate(600)  # lands at 0.25 s
     x = sim.state.particle_q.numpy()[0]
     assert x[1] == pytest.approx(0.31, abs=1e-6) and abs(x[0]) + abs(x[2]) == 0.0
@@ -80,7 +75,7 @@ def slide(theta, mu, duration=0.5, dt=1e-3):
     tris = np.array([[0, 1, 2], [0, 2, 3]])
     if np.dot(np.cross(quad[1] - quad[0], quad[2] - quad[0]), n) < 0:
         tris = tris[:, ::-1]
-    sim = Simulator(particles([[0.0, 0.0, 0.0]]), "explicit_euler", Control(colliders=(MeshCollider(vertices=quad, triangles=tris, friction=mu),), device="cpu"), dt=dt)
+    sim = Simulator(free_particles([[0.0, 0.0, 0.0]]), "explicit_euler", Control(colliders=(MeshCollider(vertices=quad, triangles=tris, friction=mu),), device="cpu"), dt=dt)
     sim.simulate(int(round(duration / dt)))
     x = sim.state.particle_q.numpy()[0].astype(np.float64)
     return float(np.dot(x, down)), float(np.dot(x, n))
@@ -156,7 +151,7 @@ def test_a_sliding_mesh_ground_drags_a_particle_by_friction(integrator):
     quad = np.array([[-5.0, 0.0, -5.0], [-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0]])  # counter-clockwise seen from +y
     ground = MeshCollider(vertices=quad, triangles=[[0, 1, 2], [0, 2, 3]], friction=mu, track=ColliderTrack.rigid(velocity=(u, 0.0, 0.0)))
     dt = 1.0 / 600.0 if integrator == "pbd" else 1e-3
-    sim = Simulator(particles([[0.0, 0.0, 0.0]]), integrator, Control(colliders=(ground,), device="cpu"), dt=dt)
+    sim = Simulator(free_particles([[0.0, 0.0, 0.0]]), integrator, Control(colliders=(ground,), device="cpu"), dt=dt)
     sim.simulate(int(round(duration / dt)))
     x, v = sim.state.particle_q.numpy()[0], sim.state.particle_qd.numpy()[0]
     assert x[0] == pytest.approx(u * duration - u * u / (2 * mu * G), rel=0.02)  # 0.2245 m; a still mesh gives 0
@@ -199,6 +194,6 @@ def test_a_particle_rests_on_a_flat_mesh_floor(thickness):
     # went up to reach below it (it used to let it fall through when thickness = 0)
     quad = np.array([[-1.0, 0.0, -1.0], [-1.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]])
     floor = MeshCollider(vertices=quad, triangles=[[0, 1, 2], [0, 2, 3]], thickness=thickness)
-    sim = Simulator(particles([[0.1, 0.2, 0.0]]), "explicit_euler", Control(colliders=(floor,), device="cpu"), dt=1e-3)
+    sim = Simulator(free_particles([[0.1, 0.2, 0.0]]), "explicit_euler", Control(colliders=(floor,), device="cpu"), dt=1e-3)
     sim.simulate(400)  # lands at 0.2 s
     assert sim.state.particle_q.numpy()[0, 1] == pytest.approx(thickness, abs=1e-6)

@@ -10,16 +10,11 @@ import pytest
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, WarpclothError, build_grid_cloth
 from warpcloth.colliders import ColliderTrack, _quat_matrix
-from warpcloth.model import SpringParams, SpringType, build_model
+from helpers import free_particles
 
 G = 9.81
-FREE = {t: SpringParams(0.0, 0.0) for t in SpringType}
 INTEGRATORS = ["explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd", "vbd", "projective"]
 POSITION_BASED = ("pbd", "xpbd")
-
-
-def particles(positions):
-    return build_model(positions, np.zeros((0, 2)), np.zeros(0), [0.1] * len(positions), FREE, device="cpu")
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
@@ -28,7 +23,7 @@ def test_a_moving_sphere_carries_a_particle_on_its_surface(integrator):
     # particle at x = 0.5 at t = 0.29 s and pushes it: x = c(t) + r + thickness, v = 1 m/s exactly
     sphere = Sphere(radius=0.2, thickness=0.01, track=ColliderTrack.rigid(velocity=(1.0, 0.0, 0.0)))
     dt = 1.0 / 60.0 if integrator in POSITION_BASED else 1e-3
-    sim = Simulator(particles([[0.5, 0.0, 0.0]]), integrator, Control(gravity=(0, 0, 0), colliders=(sphere,), device="cpu"), dt=dt)
+    sim = Simulator(free_particles([[0.5, 0.0, 0.0]]), integrator, Control(gravity=(0, 0, 0), colliders=(sphere,), device="cpu"), dt=dt)
     sim.simulate(int(round(0.6 / dt)))
     x, v = sim.state.particle_q.numpy()[0], sim.state.particle_qd.numpy()[0]
     assert sim.sim_time == pytest.approx(0.6)
@@ -44,7 +39,7 @@ def test_a_sliding_ground_drags_a_particle_by_friction(integrator):
     mu, u, duration = 0.5, 0.5, 0.5
     ground = Plane(friction=mu, track=ColliderTrack.rigid(velocity=(u, 0.0, 0.0)))
     dt = 1.0 / 600.0 if integrator in POSITION_BASED else 1e-3
-    sim = Simulator(particles([[0.0, 0.0, 0.0]]), integrator, Control(colliders=(ground,), device="cpu"), dt=dt)
+    sim = Simulator(free_particles([[0.0, 0.0, 0.0]]), integrator, Control(colliders=(ground,), device="cpu"), dt=dt)
     sim.simulate(int(round(duration / dt)))
     x, v = sim.state.particle_q.numpy()[0], sim.state.particle_qd.numpy()[0]
     assert x[0] == pytest.approx(u * duration - u * u / (2 * mu * G), rel=0.02)  # 0.2245 m; a still ground gives 0
@@ -78,7 +73,7 @@ def test_the_pose_equals_the_track_at_every_step_time(integrator):
     colliders = (Capsule(a=(-0.2, -2.0, 0.0), b=(0.2, -2.0, 0.0), radius=0.1, track=keys),
                  Box(center=(0.5, -2.0, 0.0), half_extents=(0.1, 0.2, 0.3), rotation=(0.0, 0.0, math.sin(0.2), math.cos(0.2)), track=spin))
     dt = 1.0 / 60.0 if integrator == "pbd" else 1.0 / 240.0
-    sim = Simulator(particles([[0.0, 1.0, 0.0]]), integrator, Control(colliders=colliders, device="cpu"), dt=dt)
+    sim = Simulator(free_particles([[0.0, 1.0, 0.0]]), integrator, Control(colliders=colliders, device="cpu"), dt=dt)
     for _ in range(30):
         sim.simulate(3)
         a, b, rot = _posed(sim)

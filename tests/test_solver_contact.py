@@ -12,19 +12,13 @@ import numpy as np
 import pytest
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
-from warpcloth.model import SpringParams, SpringType, build_model
+from helpers import deepest_in_drape, drape_sphere_depth, free_particles
 
 G = 9.81
 H = 1.0 / 60.0
 THICKNESS = 0.005
 DEPTH_TOL = 1e-5  # as tests/test_colliders.py: never inside by more than float32 rounding
 SOLVERS = ["vbd", "projective"]
-FREE = {t: SpringParams(0.0, 0.0) for t in SpringType}
-
-
-def particles(positions):
-    n = len(positions)
-    return build_model(positions, np.zeros((0, 2)), np.zeros(0), [0.1] * n, FREE, device="cpu")
 
 
 def on_a_slope(model, integrator, mu, steps=30):
@@ -47,7 +41,7 @@ def test_particles_on_a_slope_follow_coulomb(integrator, mu):
     # a slope of 30 degrees (tan = 0.577): each particle's local problem is backward Euler of constant
     # forces, exact in v: after N steps v = N h g (sin - mu cos) where mu < tan (also in the first
     # step, from rest); mu = 0.7 > tan holds them where they lay
-    model = particles([[0.0, THICKNESS, 0.0], [0.5, THICKNESS, 0.2], [-0.3, THICKNESS, 0.7]])
+    model = free_particles([[0.0, THICKNESS, 0.0], [0.5, THICKNESS, 0.2], [-0.3, THICKNESS, 0.7]])
     v, dx, a = on_a_slope(model, integrator, mu)
     assert np.abs(dx[:, 1]).max() < 1e-6 and np.abs(v[:, :, 1]).max() < 1e-6  # on the surface
     assert np.abs(dx[:, 2]).max() < 1e-6  # straight down the slope
@@ -87,10 +81,6 @@ def test_pins_win_over_contacts(integrator):
     assert x[1:, 1].min() > -1e-6  # the free ones are out
 
 
-def sphere_depth(drape, x):
-    return drape.THICKNESS + drape.RADIUS - np.linalg.norm(x - np.array([0.0, drape.RADIUS, 0.0]), axis=1)
-
-
 # measured (16 x 16, default options, 60 Hz): vbd at 6.9 s, projective at 32.2 s (its free skirt's
 # swing decays slowly: a 16 x 16 cloth pinned on a disc, no collider, is still at 0.007 m/s after 20 s)
 @pytest.mark.parametrize("integrator,cap", [("vbd", 12.0), ("projective", 45.0)])
@@ -98,21 +88,17 @@ def test_the_16x16_drape_reaches_equilibrium_on_the_sphere(integrator, cap):
     from warpcloth.scenarios import drape
 
     sim = drape.build(rows=16, cols=16, integrator=integrator)
-    deepest = -1.0
-    for _ in range(90):  # 1.5 s: it lands at 0.17 s and drapes
-        sim.simulate(1)
-        x = sim.state.particle_q.numpy().astype(np.float64)
-        deepest = max(deepest, sphere_depth(drape, x).max(), drape.THICKNESS - x[:, 1].min())
+    deepest, x = deepest_in_drape(sim, 90)  # 1.5 s: it lands at 0.17 s and drapes
     assert -1e-3 < deepest < DEPTH_TOL  # touching, never inside
     r = sim.run(cap - 1.5, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached, (r.unstable_reason, r.final_max_speed)
     x = sim.state.particle_q.numpy().astype(np.float64)
-    assert sphere_depth(drape, x).max() < DEPTH_TOL and x[:, 1].min() > drape.THICKNESS - DEPTH_TOL
+    assert drape_sphere_depth(x).max() < DEPTH_TOL and x[:, 1].min() > drape.THICKNESS - DEPTH_TOL
     rho = np.linalg.norm(x[:, [0, 2]], axis=1)
     centre = np.argmin(rho)
     expected = drape.RADIUS + math.sqrt((drape.RADIUS + drape.THICKNESS) ** 2 - rho[centre] ** 2)
     assert expected - DEPTH_TOL < x[centre, 1] < expected + 3e-3  # on the top
-    assert np.abs(sphere_depth(drape, x)).min() < 5e-5  # resting on the sphere
+    assert np.abs(drape_sphere_depth(x)).min() < 5e-5  # resting on the sphere
     assert x[:, 1].min() < drape.RADIUS  # and hanging down its sides
     assert np.linalg.norm(x.mean(axis=0)[[0, 2]]) < 0.01  # centred: it did not slide off
 
