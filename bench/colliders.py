@@ -68,7 +68,7 @@ def minimal_plane(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_ma
 def kernel_alone(size, repeats, device):
     """ms of the contact launch alone on the resting cloth's state after a step's gravity, before
     its projection (x, v restored before each launch)."""
-    from warpcloth.colliders import ColliderSet
+    from warpcloth.sim.colliders import ColliderSet
     from warpcloth.kernels import collide as ck
 
     sim = simulator("contact", CONTACT, size, device)
@@ -154,7 +154,7 @@ def main(argv=None):
         "contact plane+sphere+capsule+box": simulator("contact", CONTACT, a.size, a.device),
     }
     if a.mesh_triangles:
-        from warpcloth.colliders import MeshCollider
+        from warpcloth.sim.colliders import MeshCollider
 
         v, t = mesh_sphere(a.mesh_triangles)
         mesh = MeshCollider(vertices=v - np.array([0.0, 0.3, 0.0]), triangles=t, thickness=THICKNESS, friction=0.3)

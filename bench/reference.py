@@ -18,15 +18,7 @@ import numpy as np
 import warp as wp
 
 from warpcloth import Control, Simulator
-from warpcloth.lab import (
-    cloth_size,
-    convergence_check,
-    reference_trajectory,
-    simulate_frames,
-    static_equilibrium,
-    swing_from_horizontal,
-    trajectory_error,
-)
+from warpcloth.lab import cloth_size, convergence_check, reference_trajectory, simulate_frames, static_equilibrium, swing_from_horizontal, trajectory_error
 from warpcloth.scenarios import flag, sheet
 
 

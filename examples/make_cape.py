@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 
-from warpcloth.meshio import write_obj
+from warpcloth.io.meshio import write_obj
 from warpcloth.scenarios.mesh import make_cape
 
 

@@ -18,7 +18,7 @@ particle -> (spring, neighbour, block) adjacency built once at bind: no atomics.
 
 import warp as wp
 
-from .collide import Collider, collider_contact, surface_velocity
+from warpcloth.kernels.collide import Collider, collider_contact, surface_velocity
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})

@@ -22,8 +22,8 @@ too.
 
 import warp as wp
 
-from .collide import Collider
-from .vbd import newton_increment, project_increment, vertex_gradient_hessian
+from warpcloth.kernels.collide import Collider
+from warpcloth.kernels.vbd import newton_increment, project_increment, vertex_gradient_hessian
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})

@@ -21,8 +21,8 @@ x_j - x_i and dx_j - dx_i apart, never x + dx.
 
 import warp as wp
 
-from .collide import Collider, contact_band, in_box, plane_contact, shape_contact, surface_velocity
-from .implicit import spring_stiffness_block
+from warpcloth.kernels.collide import Collider, contact_band, in_box, plane_contact, shape_contact, surface_velocity
+from warpcloth.kernels.implicit import spring_stiffness_block
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})

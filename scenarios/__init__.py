@@ -9,8 +9,8 @@ or a :class:`Scenario` object given to :func:`register` from Python.
 
 from __future__ import annotations
 
-from ..errors import WarpclothError
-from .common import Scenario, ScenarioConfig
+from warpcloth.errors import WarpclothError
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 _BUILT_IN = ("sheet", "flag", "curtain", "mesh", "drape", "tablecloth")
 _REGISTERED: dict[str, Scenario] = {}
@@ -34,7 +34,7 @@ def register(scenario: Scenario) -> Scenario:
 
 def get_scenario(name: str) -> Scenario:
     """The scenario called ``name``, or the one described by the TOML file at ``name``."""
-    from .file import is_scenario_file, load_scenario
+    from warpcloth.scenarios.file import is_scenario_file, load_scenario
 
     if is_scenario_file(name):
         return load_scenario(name)

@@ -7,13 +7,13 @@ from typing import Callable
 
 import warp as wp
 
-from ..device import resolve_device
-from ..errors import WarpclothError, require_int, require_positive
-from ..forces import Control
-from ..integrators import make_integrator
-from ..model import BendModel, build_grid_cloth, default_spring_params
-from ..metrics import DEFAULT_INSTABILITY_STRAIN
-from ..simulator import RunResult, Simulator
+from warpcloth.sim.device import resolve_device
+from warpcloth.errors import WarpclothError, require_int, require_positive
+from warpcloth.sim.control import Control
+from warpcloth.integrators import make_integrator
+from warpcloth.sim.model import BendModel, build_grid_cloth, default_spring_params
+from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
+from warpcloth.simulator import RunResult, Simulator
 
 
 @dataclass
@@ -132,20 +132,20 @@ class Scenario:
         ``abort()`` (:class:`~warpcloth.frames.FrameSinks`). Every writer is closed after the
         run, or aborted (its target left as it was) when the run fails.
         """
-        from ..frames import FrameSinks
+        from warpcloth.io.frames import FrameSinks
 
         cfg = replace(config, **overrides) if config is not None else self.config(**overrides)
         require_positive("duration", cfg.duration, "s")
         require_positive("fps", cfg.fps, "1/s")
         if usd_path is not None:
-            from ..usd import check_usd_path
+            from warpcloth.io.usd import check_usd_path
 
             check_usd_path(usd_path)
         sim = self.build(cfg)
         sinks = FrameSinks()
         try:
             if usd_path is not None:
-                from ..usd import UsdWriter
+                from warpcloth.io.usd import UsdWriter
 
                 sinks.writers.append(UsdWriter(usd_path, sim.model, cfg.fps, colliders=sim.control.colliders))
             for make in writers:

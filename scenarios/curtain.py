@@ -7,9 +7,9 @@ A run ends at equilibrium. Run it with ``python -m warpcloth.scenarios.curtain``
 ``warpcloth run curtain``.
 """
 
-from ..forces import Control
-from ..pins import PinTrack
-from .common import Scenario, ScenarioConfig
+from warpcloth.sim.control import Control
+from warpcloth.sim.pins import PinTrack
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 #: How far the rod slides [m] along +x, and in how long [s].
 SLIDE = 0.5
@@ -52,6 +52,6 @@ def build(**overrides):
 
 
 if __name__ == "__main__":
-    from ..cli import scenario_main
+    from warpcloth.cli import scenario_main
 
     scenario_main("curtain")

@@ -3,9 +3,9 @@
 ``python -m warpcloth.scenarios.drape`` or ``warpcloth run drape``.
 """
 
-from ..colliders import Plane, Sphere
-from ..forces import Control
-from .common import Scenario, ScenarioConfig
+from warpcloth.sim.colliders import Plane, Sphere
+from warpcloth.sim.control import Control
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 #: The sphere [m] (resting on the ground y = 0), the cloth's offset from surfaces [m] and mu.
 RADIUS = 0.3
@@ -47,6 +47,6 @@ def build(**overrides):
 
 
 if __name__ == "__main__":
-    from ..cli import scenario_main
+    from warpcloth.cli import scenario_main
 
     scenario_main("drape")

@@ -80,13 +80,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..errors import WarpclothError, require, warn
-from ..forces import GRAVITY, Control, WindSchedule
-from ..mesh import build_mesh_cloth, lumped_masses, resolve_pins
-from ..meshio import load_mesh
-from ..pins import PinTrack
-from ..params import BY_NAME, config_values, params_for
-from .common import Scenario, ScenarioConfig
+from warpcloth.errors import WarpclothError, require, warn
+from warpcloth.sim.control import GRAVITY, Control, WindSchedule
+from warpcloth.sim.mesh import build_mesh_cloth, lumped_masses, resolve_pins
+from warpcloth.io.meshio import load_mesh
+from warpcloth.sim.pins import PinTrack
+from warpcloth.run.params import BY_NAME, config_values, params_for
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 TOP_KEYS = {"name", "description", "stop_at_equilibrium", "cloth", "pins", "tracks", "colliders", "forces", "run"}
 CLOTH_KEYS = {"mesh", "prim", "quads", "bend", "mass", "density", "mass_mode", "stiffness", "damping"}
@@ -248,7 +248,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         stop_at_equilibrium=bool(data.get("stop_at_equilibrium", True)), model=model, tracks=pin_tracks,
     )
     try:  # the integrator, its options and the pins, checked now
-        from ..integrators import make_integrator
+        from warpcloth.integrators import make_integrator
 
         make_integrator(defaults.integrator, **defaults.integrator_options)
         resolve_pins(mesh.vertices, pin_indices, defaults.pin_group or (), defaults.pin_where, mesh.groups)
@@ -263,7 +263,7 @@ def _colliders(tables, where: str, path: str = "") -> tuple:
     optionally a pose ``track = { kind = "rigid" | "keyframes", ... }`` (ColliderTrack); or
     ``kind = "mesh"`` with ``path`` (relative to the scenario file ``path``), ``prim``, ``thickness``,
     ``friction``, ``reach`` (a static MeshCollider)."""
-    from ..colliders import COLLIDER_TYPES, ColliderTrack, MeshCollider
+    from warpcloth.sim.colliders import COLLIDER_TYPES, ColliderTrack, MeshCollider
 
     require(isinstance(tables, list), f"{where}: colliders must be an array of tables ([[colliders]]), got {tables!r}")
     out = []

@@ -4,8 +4,8 @@ switched on and off at pre-determined times. It never reaches equilibrium.
 Run it with ``python -m warpcloth.scenarios.flag [--integrator verlet ...]``.
 """
 
-from ..forces import Control, WindSchedule
-from .common import Scenario, ScenarioConfig
+from warpcloth.sim.control import Control, WindSchedule
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 #: Gust wind velocity [m/s], and the calmer wind between gusts.
 GUST = (8.0, 0.0, 3.0)
@@ -49,6 +49,6 @@ def build(**overrides):
 
 
 if __name__ == "__main__":
-    from ..cli import scenario_main
+    from warpcloth.cli import scenario_main
 
     scenario_main("flag")

@@ -12,11 +12,11 @@ import math
 
 import numpy as np
 
-from ..forces import Control
-from ..mesh import TriangleMesh, build_mesh_cloth
-from ..meshio import load_mesh
-from ..model import grid_triangles
-from .common import Scenario, ScenarioConfig
+from warpcloth.sim.control import Control
+from warpcloth.sim.mesh import TriangleMesh, build_mesh_cloth
+from warpcloth.io.meshio import load_mesh
+from warpcloth.sim.model import grid_triangles
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 CAPE_ROWS, CAPE_COLS = 20, 16
 
@@ -69,6 +69,6 @@ def build(**overrides):
 
 
 if __name__ == "__main__":
-    from ..cli import scenario_main
+    from warpcloth.cli import scenario_main
 
     scenario_main("mesh")

@@ -4,8 +4,8 @@ The sheet hangs in the vertical x-y plane and sags under its weight; a run ends 
 or at its duration. Run it with ``python -m warpcloth.scenarios.sheet [--integrator rk4 ...]``.
 """
 
-from ..forces import Control
-from .common import Scenario, ScenarioConfig
+from warpcloth.sim.control import Control
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 
 def _pins(rows: int, cols: int) -> list:
@@ -38,6 +38,6 @@ def build(**overrides):
 
 
 if __name__ == "__main__":
-    from ..cli import scenario_main
+    from warpcloth.cli import scenario_main
 
     scenario_main("sheet")

@@ -2,9 +2,9 @@
 hangs over its edges; a run ends at equilibrium. Run it with ``warpcloth run tablecloth``.
 """
 
-from ..colliders import Box, Plane
-from ..forces import Control
-from .common import Scenario, ScenarioConfig
+from warpcloth.sim.colliders import Box, Plane
+from warpcloth.sim.control import Control
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 #: The table top: 0.8 m square, 0.75 m high (its top face), the cloth's offset [m] and mu.
 HALF = 0.4
@@ -45,6 +45,6 @@ def build(**overrides):
 
 
 if __name__ == "__main__":
-    from ..cli import scenario_main
+    from warpcloth.cli import scenario_main
 
     scenario_main("tablecloth")

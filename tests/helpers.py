@@ -3,7 +3,7 @@
 import numpy as np
 
 from warpcloth import Control, Simulator, SpringParams, SpringType, build_grid_cloth
-from warpcloth.model import build_model
+from warpcloth.sim.model import build_model
 
 
 def spring_params(ks: float, kd: float = 0.0) -> dict:

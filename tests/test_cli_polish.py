@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from warpcloth import progress as progress_module
+from warpcloth.io import progress as progress_module
 from warpcloth.cli import example_path, main
-from warpcloth.progress import Progress
+from warpcloth.io.progress import Progress
 
 REPO = Path(__file__).resolve().parents[1]
 BENCH = ["bench", "--integrators", "explicit_euler", "--sizes", "4", "--steps", "3", "--graph", "off", "--devices", "cpu"]

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, WarpclothError, build_grid_cloth, integrator_names
-from warpcloth.colliders import parse_collider
+from warpcloth.sim.colliders import parse_collider
 from helpers import free_particles
 
 G = 9.81

@@ -6,8 +6,8 @@ import pytest
 import warp as wp
 
 from warpcloth import Control, Simulator, WarpclothError, WindSchedule, build_grid_cloth
-from warpcloth.device import resolve_device
-from warpcloth.model import build_model
+from warpcloth.sim.device import resolve_device
+from warpcloth.sim.model import build_model
 from warpcloth.scenarios import flag, sheet
 
 from helpers import spring_params

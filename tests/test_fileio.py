@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 import warpcloth.lab.sweep as sweep
-from warpcloth import fileio
+from warpcloth.io import files as fileio
 from warpcloth.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
@@ -154,7 +154,7 @@ def test_usd_on_a_full_disk_is_one_line_and_leaves_the_target(tmp_path, small_di
     target = folder / "a.usda"
     target.write_text("old")
     if small_disk is None:
-        import warpcloth.usd as usd
+        import warpcloth.io.usd as usd
 
         monkeypatch.setattr(usd.os, "replace", _enospc)
     code = main(["run", "sheet", "--duration", "1", "--usd", str(target)])

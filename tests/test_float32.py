@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from warpcloth import Control, Simulator, SpringParams, SpringType, make_integrator
-from warpcloth.model import build_model
+from warpcloth.sim.model import build_model
 from warpcloth.scenarios import sheet
 
 G = 9.81

@@ -478,8 +478,8 @@ def test_contact_on_a_slope_follows_coulomb(mu, slides):
     gives the same answer here: this checks that the filter keeps Coulomb's law."""
     from helpers import spring_params
     from warpcloth import Control, Simulator
-    from warpcloth.colliders import Plane
-    from warpcloth.model import SpringType, build_model
+    from warpcloth.sim.colliders import Plane
+    from warpcloth.sim.model import SpringType, build_model
 
     theta, h, g, thickness = np.radians(30.0), 1.0 / 60.0, 9.81, 0.005
     n = np.array([-np.sin(theta), np.cos(theta), 0.0])

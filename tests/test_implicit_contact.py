@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
-from warpcloth.colliders import ColliderTrack
+from warpcloth.sim.colliders import ColliderTrack
 from helpers import deepest_in_drape, drape_sphere_depth
 
 G = 9.81

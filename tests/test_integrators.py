@@ -103,7 +103,7 @@ def test_free_fall_is_exact_per_scheme(integrator):
     explicit Euler's positions lead by g t dt / 2. Velocities: exact, except Verlet's
     (x_new - x) / dt, which is the half-step velocity g (t - dt/2). The scheme-specific terms
     (0.05 m, 0.05 m/s here) are 10x the float32 tolerance (Verlet's roundoff grows as n^2)."""
-    from warpcloth.model import build_model
+    from warpcloth.sim.model import build_model
     from helpers import spring_params
 
     g, dt, n = 10.0, 0.01, 100

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from warpcloth import SpringType, WarpclothError, build_grid_cloth, build_mesh_cloth, load_mesh
-from warpcloth.mesh import lumped_masses, parse_predicate, select_vertices
-from warpcloth.meshio import write_obj
-from warpcloth.model import grid_positions, grid_triangles
+from warpcloth.sim.mesh import lumped_masses, parse_predicate, select_vertices
+from warpcloth.io.meshio import write_obj
+from warpcloth.sim.model import grid_positions, grid_triangles
 
 
 def spring_set(model):
@@ -245,7 +245,7 @@ def test_usd_mesh_in_world_space_with_subsets_and_st(tmp_path):
 def test_uvs_go_to_the_exported_usd(tmp_path):
     from pxr import Usd, UsdGeom
 
-    from warpcloth.usd import UsdWriter
+    from warpcloth.io.usd import UsdWriter
 
     model = build_grid_cloth(3, 4)
     with UsdWriter(str(tmp_path / "g.usda"), model) as w:
@@ -333,7 +333,7 @@ def test_mass_options_are_checked():
 def test_uvs_read_from_an_obj_go_to_the_exported_usd(tmp_path):
     from pxr import Usd, UsdGeom
 
-    from warpcloth.usd import UsdWriter
+    from warpcloth.io.usd import UsdWriter
 
     (tmp_path / "strip.obj").write_text(OBJ_TEXT)
     mesh = load_mesh(str(tmp_path / "strip.obj"))

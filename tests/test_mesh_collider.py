@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from warpcloth import Box, Control, Simulator, WarpclothError, build_grid_cloth
-from warpcloth.colliders import MeshCollider, parse_collider
+from warpcloth.sim.colliders import MeshCollider, parse_collider
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench.colliders import mesh_sphere  # noqa: E402
@@ -94,9 +94,9 @@ def test_mesh_from_obj_toml_cli_and_usd(tmp_path, capsys):
     from pxr import Usd, UsdGeom
 
     from warpcloth.cli import main
-    from warpcloth.meshio import write_obj
+    from warpcloth.io.meshio import write_obj
     from warpcloth.scenarios import get_scenario
-    from warpcloth.usd import UsdWriter
+    from warpcloth.io.usd import UsdWriter
 
     write_obj(str(tmp_path / "table.obj"), CUBE_V * 0.3 + (0.5, -0.3, 0.5), CUBE_T)
     from_file = MeshCollider.from_file(str(tmp_path / "table.obj"), thickness=0.01)
@@ -145,7 +145,7 @@ def test_an_empty_mesh_file_is_one_line_and_exit_2(tmp_path, capsys):
 def test_a_sliding_mesh_ground_drags_a_particle_by_friction(integrator):
     # as the sliding Plane (tests/test_moving_colliders.py): friction accelerates the particle at
     # mu g until it moves with the ground at u: x(t) = u t - u^2 / (2 mu g)
-    from warpcloth.colliders import ColliderTrack
+    from warpcloth.sim.colliders import ColliderTrack
 
     mu, u, duration = 0.5, 0.5, 0.5
     quad = np.array([[-5.0, 0.0, -5.0], [-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0]])  # counter-clockwise seen from +y
@@ -163,7 +163,7 @@ def test_a_sliding_mesh_ground_drags_a_particle_by_friction(integrator):
 def test_a_moving_turning_cube_mesh_pushes_a_cloth_as_the_box_does(integrator):
     # a cube mesh and the analytic Box on one rigid track (sliding along +z while turning about y)
     # sweep through a cloth with no gravity: no particle ever inside the moving box, the same cloth
-    from warpcloth.colliders import ColliderTrack
+    from warpcloth.sim.colliders import ColliderTrack
 
     track = ColliderTrack.rigid(center=(0.5, 0.0, -0.3), axis=(0.0, 1.0, 0.0), angular_velocity=2.0, velocity=(0.0, 0.0, 1.0))
     centre, half = np.array([0.5, 0.0, -0.3]), np.array([0.2, 0.2, 0.1])

@@ -5,8 +5,9 @@ import pytest
 import warp as wp
 
 from warpcloth import SpringType, WarpclothError, build_grid_cloth, expected_spring_counts
-from warpcloth.forces import Control, eval_forces
-from warpcloth.model import grid_springs
+from warpcloth.sim.control import Control
+from warpcloth.integrators.forces import eval_forces
+from warpcloth.sim.model import grid_springs
 
 from helpers import reference_forces, spring_params
 
@@ -104,7 +105,7 @@ def test_force_kernel_matches_numpy_reference():
 
 def test_wind_force_on_a_flat_triangle_pair():
     """f = c_w A (n . W) n summed over the cloth: a 1 m x 1 m sheet facing +z in wind (0, 0, 3)."""
-    from warpcloth.forces import WindSchedule
+    from warpcloth.sim.control import WindSchedule
 
     model = build_grid_cloth(3, 3, 1.0, 1.0, 0.9, spring_params=spring_params(0.0), plane="vertical")
     control = Control(gravity=(0.0, 0.0, 0.0), wind_coefficient=0.5, wind_schedule=WindSchedule.constant((0.0, 0.0, 3.0)))
@@ -117,7 +118,7 @@ def test_wind_force_on_a_flat_triangle_pair():
 
 
 def test_wind_schedule_gusts_switch_on_and_off():
-    from warpcloth.forces import WindSchedule
+    from warpcloth.sim.control import WindSchedule
 
     s = WindSchedule.gusts((5.0, 0.0, 1.0), on=1.0, off=0.5, base=(1.0, 0.0, 0.0))
     assert np.allclose(s(0.2), [5, 0, 1]) and np.allclose(s(1.2), [1, 0, 0]) and np.allclose(s(1.6), [5, 0, 1])

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, WarpclothError, build_grid_cloth
-from warpcloth.colliders import ColliderTrack, _quat_matrix
+from warpcloth.sim.colliders import ColliderTrack, _quat_matrix
 from helpers import free_particles
 
 G = 9.81

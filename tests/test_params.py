@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import warpcloth.lab.sweep as sweep
-import warpcloth.params as params
+import warpcloth.run.params as params
 from warpcloth.cli import build_parser, main
 from warpcloth.errors import WarpclothError
 from warpcloth.lab.testlist import ATTRIBUTES, RunSpec, parse_test_list
@@ -87,7 +87,7 @@ def test_new_flags_from_declarations_work_on_the_cli(tmp_path, capsys):
 
 def test_per_type_cli_flags_reach_the_model():
     from warpcloth.cli import config_from_args
-    from warpcloth.model import SpringType
+    from warpcloth.sim.model import SpringType
     from warpcloth.scenarios import get_scenario
 
     parser = build_parser()
@@ -144,7 +144,7 @@ def test_the_max_dt_search_key_holds_the_wall_cap_not_the_duration(tmp_path):
 
 
 def test_time_steps_times_exactly_the_steps_asked():
-    from warpcloth.harness import time_steps
+    from warpcloth.run.harness import time_steps
     from warpcloth.scenarios import get_scenario
 
     sim = get_scenario("sheet").build(rows=4, cols=4, device="cpu", use_graph=False)

@@ -12,10 +12,10 @@ import warp as wp
 
 from warpcloth import BendModel, ClothModel, Control, Simulator, SpringParams, SpringType, WarpclothError, build_grid_cloth, make_integrator
 from warpcloth.cli import main as cli_main
-from warpcloth.coloring import color_springs, greedy_spring_colors, grid_spring_colors, is_valid_coloring
+from warpcloth.sim.coloring import color_springs, greedy_spring_colors, grid_spring_colors, is_valid_coloring
 from warpcloth.integrators.pbd import iteration_stiffness
 from warpcloth.kernels import constraints as ck
-from warpcloth.model import grid_springs
+from warpcloth.sim.model import grid_springs
 from warpcloth.scenarios import flag, sheet
 
 G = 9.81

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from warpcloth import Control, Simulator, WarpclothError, build_grid_cloth, integrator_names
-from warpcloth.pins import PinTrack
+from warpcloth.sim.pins import PinTrack
 
 from helpers import single_spring
 

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from warpcloth.cli import main
-from warpcloth.colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere, _quat_matrix
-from warpcloth.frames import FrameSinks, nice_scale, strain_colors, vertex_strain
-from warpcloth.player import PLANE_PATCH, HtmlWriter, quantise, read_player_data
+from warpcloth.sim.colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere, _quat_matrix
+from warpcloth.io.frames import FrameSinks, nice_scale, strain_colors, vertex_strain
+from warpcloth.io.player import PLANE_PATCH, HtmlWriter, quantise, read_player_data
 
 
 def _run(capsys, *argv):

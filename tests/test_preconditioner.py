@@ -9,7 +9,7 @@ import scipy.sparse as sp
 import warp as wp
 
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
-from warpcloth.model import SpringType, build_model
+from warpcloth.sim.model import SpringType, build_model
 
 from helpers import spring_params
 

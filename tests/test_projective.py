@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
-from warpcloth.model import SpringType, build_model
+from warpcloth.sim.model import SpringType, build_model
 
 from helpers import backward_euler_step, small_grid, spring_params
 

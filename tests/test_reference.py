@@ -11,20 +11,9 @@ import pytest
 import warp as wp
 
 from warpcloth import Control, Simulator, SpringType, WarpclothError, WindSchedule, build_grid_cloth
-from warpcloth.forces import eval_forces
-from warpcloth.lab import (
-    Float64Model,
-    cloth_size,
-    convergence_check,
-    reference_forces,
-    reference_trajectory,
-    simulate_frames,
-    static_equilibrium,
-    swing_from_horizontal,
-    trajectory_error,
-    wind_switch_times,
-)
-from warpcloth.model import SpringParams, build_model
+from warpcloth.integrators.forces import eval_forces
+from warpcloth.lab import Float64Model, cloth_size, convergence_check, reference_forces, reference_trajectory, simulate_frames, static_equilibrium, swing_from_horizontal, trajectory_error, wind_switch_times
+from warpcloth.sim.model import SpringParams, build_model
 from warpcloth.scenarios import flag, sheet
 
 from helpers import single_spring, spring_params

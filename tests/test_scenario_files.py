@@ -12,7 +12,7 @@ import pytest
 
 from warpcloth import WarpclothError
 from warpcloth.cli import main
-from warpcloth.meshio import load_mesh
+from warpcloth.io.meshio import load_mesh
 from warpcloth.scenarios import Scenario, curtain, get_scenario, register, scenario_names
 from warpcloth.scenarios import mesh as mesh_scenario
 

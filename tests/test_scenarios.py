@@ -9,7 +9,7 @@ import pytest
 
 from warpcloth import WarpclothError
 from warpcloth.scenarios import flag, get_scenario, sheet
-from warpcloth.usd import UsdWriter
+from warpcloth.io.usd import UsdWriter
 
 
 def test_sheet_reaches_equilibrium_and_sags_a_little():

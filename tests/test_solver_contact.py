@@ -126,7 +126,7 @@ def test_a_step_with_contacts_allocates_nothing(monkeypatch, integrator, use_gra
     from warp._src.context import CpuDefaultAllocator
 
     from warpcloth import Sphere
-    from warpcloth.colliders import ColliderTrack
+    from warpcloth.sim.colliders import ColliderTrack
 
     sphere = Sphere(center=(0.5, 0.0, 0.5), radius=0.3, thickness=THICKNESS, friction=0.5, track=ColliderTrack.rigid(velocity=(0.1, 0.0, 0.0)))
     model = build_grid_cloth(8, 8, 1.0, 1.0, 0.1, plane="horizontal", origin=(0.0, 0.31, 0.0), device="cpu")

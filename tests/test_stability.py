@@ -11,7 +11,7 @@ from warpcloth.cli import main
 from warpcloth.integrators.base import runge_kutta_stable_dt
 from warpcloth.integrators.midpoint import rk2_amplification
 from warpcloth.lab.maxdt import find_max_dt, format_result
-from warpcloth.metrics import DEFAULT_INSTABILITY_STRAIN
+from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 from warpcloth.scenarios import get_scenario, sheet
 
 from helpers import displace, single_spring

@@ -6,11 +6,11 @@ import warp as wp
 
 from warpcloth.cli import main as cli_main
 from warpcloth.errors import WarpclothError
-from warpcloth.model import SpringType, build_grid_cloth
+from warpcloth.sim.model import SpringType, build_grid_cloth
 from warpcloth.scenarios import sheet
 from warpcloth.simulator import Simulator
-from warpcloth.coloring import greedy_spring_colors as color_springs
-from warpcloth.strain_limit import StrainLimiter
+from warpcloth.sim.coloring import greedy_spring_colors as color_springs
+from warpcloth.integrators.strain_limit import StrainLimiter
 
 TAU = 0.1
 TOL = 1.0e-4  # the limiter's stopping tolerance on strain (DEFAULT_TOLERANCE)
@@ -49,7 +49,7 @@ def _one_spring(inv_mass, stretch):
     to ``stretch`` m along x with some velocity."""
     from types import SimpleNamespace
 
-    from warpcloth.state import State
+    from warpcloth.sim.state import State
 
     q = np.array([[0.0, 2.0, 0.0], [stretch, 2.0, 0.0]], dtype=np.float32)
     model = SimpleNamespace(

@@ -10,8 +10,8 @@ import pytest
 from pxr import Usd, UsdGeom
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, build_grid_cloth
-from warpcloth.colliders import ColliderTrack, MeshCollider, _quat_matrix
-from warpcloth.usd import UsdWriter
+from warpcloth.sim.colliders import ColliderTrack, MeshCollider, _quat_matrix
+from warpcloth.io.usd import UsdWriter
 
 FPS = 30.0
 SPIN = ColliderTrack.rigid(center=(0.3, 0.2, 0.0), axis=(0.0, 1.0, 0.0), angular_velocity=1.5, velocity=(0.1, 0.0, 0.0))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from warpcloth.scenarios import flag
-from warpcloth.usd import UsdWriter
+from warpcloth.io.usd import UsdWriter
 
 
 def frames(model, n):
@@ -67,7 +67,7 @@ def test_an_aborted_long_run_leaves_nothing(tmp_path):
 
 
 def test_default_chunk_bounds_memory_per_point():
-    from warpcloth.usd import CLIP_BYTES
+    from warpcloth.io.usd import CLIP_BYTES
 
     big = flag.build(rows=64, cols=64).model
     frames_64 = UsdWriter.__init__.__defaults__  # noqa: F841  (documented default below)

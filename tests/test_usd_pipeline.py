@@ -63,7 +63,7 @@ def test_pins_written_once_with_extent(capsys, tmp_path):
 
 def test_pins_time_sampled_when_they_move(tmp_path):
     from warpcloth.scenarios import sheet
-    from warpcloth.usd import UsdWriter
+    from warpcloth.io.usd import UsdWriter
 
     sim = sheet.build(rows=4, cols=4)
     w = UsdWriter(str(tmp_path / "m.usda"), sim.model, 10.0)
@@ -142,7 +142,7 @@ def test_preview_png_and_gif(capsys, tmp_path):
     assert code == 0, err
     from PIL import Image
 
-    from warpcloth.preview import MAX_GIF_FRAMES, gif_stride
+    from warpcloth.io.preview import MAX_GIF_FRAMES, gif_stride
 
     im = Image.open(gif)
     assert im.format == "GIF" and im.n_frames <= MAX_GIF_FRAMES + 1 and im.n_frames >= 60

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
-from warpcloth.coloring import color_vertices, greedy_vertex_colors, is_valid_vertex_coloring
+from warpcloth.sim.coloring import color_vertices, greedy_vertex_colors, is_valid_vertex_coloring
 from warpcloth.integrators.vbd import chebyshev_weights
-from warpcloth.model import build_model, grid_springs, SpringType
+from warpcloth.sim.model import build_model, grid_springs, SpringType
 
 from helpers import backward_euler_step, small_grid, spring_params
 

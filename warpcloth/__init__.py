@@ -13,7 +13,7 @@ import os
 
 import warp as wp
 
-__version__ = "0.1.0"
+from warpcloth.version import __version__  # noqa: E402
 
 # Warp prints a banner and per-module load lines on stdout; warpcloth keeps stdout for results.
 if not os.environ.get("WARPCLOTH_WARP_VERBOSE"):
@@ -21,16 +21,16 @@ if not os.environ.get("WARPCLOTH_WARP_VERBOSE"):
         wp.config.log_level = wp.LOG_WARNING
     wp.config.quiet = True
 
-from .colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere  # noqa: E402
-from .errors import WarpclothError  # noqa: E402
-from .forces import Control, WindSchedule  # noqa: E402
-from .integrators import Integrator, integrator_names, make_integrator  # noqa: E402
-from .model import BendModel, ClothModel, SpringParams, SpringType, build_grid_cloth, expected_spring_counts  # noqa: E402
-from .mesh import TriangleMesh, build_mesh_cloth  # noqa: E402
-from .meshio import load_mesh  # noqa: E402
-from .pins import PinTrack  # noqa: E402
-from .simulator import RunResult, Simulator  # noqa: E402
-from .state import State  # noqa: E402
+from warpcloth.sim.colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere  # noqa: E402
+from warpcloth.errors import WarpclothError  # noqa: E402
+from warpcloth.sim.control import Control, WindSchedule  # noqa: E402
+from warpcloth.integrators import Integrator, integrator_names, make_integrator  # noqa: E402
+from warpcloth.sim.model import BendModel, ClothModel, SpringParams, SpringType, build_grid_cloth, expected_spring_counts  # noqa: E402
+from warpcloth.sim.mesh import TriangleMesh, build_mesh_cloth  # noqa: E402
+from warpcloth.io.meshio import load_mesh  # noqa: E402
+from warpcloth.sim.pins import PinTrack  # noqa: E402
+from warpcloth.simulator import RunResult, Simulator  # noqa: E402
+from warpcloth.sim.state import State  # noqa: E402
 
 __all__ = [
     "BendModel", "Box", "Capsule", "ClothModel", "ColliderTrack", "Control", "MeshCollider", "Integrator", "PinTrack", "Plane", "RunResult", "Simulator", "Sphere", "SpringParams", "SpringType",

@@ -13,21 +13,14 @@ import time
 
 import warp as wp
 
-from .errors import WarpclothError, require, require_count, require_positive
-from .forces import Control
-from .harness import (  # noqa: F401  (RunResult and the run-length check: importable from here as before)
-    CHUNK_SECONDS,
-    MAX_FRAMES_PER_STEP,
-    MAX_RUN_STEPS,
-    RunHarness,
-    RunResult,
-    check_run_length,
-)
-from .integrators import Integrator, make_integrator
-from .metrics import DEFAULT_INSTABILITY_STRAIN, EnergyCriteria, EquilibriumCriteria
-from .model import ClothModel
-from .pins import apply_pins
-from .strain_limit import StrainLimiter
+from warpcloth.errors import WarpclothError, require, require_count, require_positive
+from warpcloth.sim.control import Control
+from warpcloth.run.harness import CHUNK_SECONDS, MAX_FRAMES_PER_STEP, MAX_RUN_STEPS, RunHarness, RunResult, check_run_length  # noqa: F401  (RunResult and the run-length check: importable from here as before)
+from warpcloth.integrators import Integrator, make_integrator
+from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN, EnergyCriteria, EquilibriumCriteria
+from warpcloth.sim.model import ClothModel
+from warpcloth.sim.pins import apply_pins
+from warpcloth.integrators.strain_limit import StrainLimiter
 
 #: Most steps in one captured graph: :meth:`Simulator.simulate` replays a graph of this many steps
 #: as often as it fits and one of the rest (capturing a long call whole, 800 steps of projective's
@@ -183,7 +176,7 @@ class Simulator:
         self.step_version += 1
 
     def _bind_pin_tracks(self, tracks) -> None:
-        from .pins import KinematicPins, PinTrack
+        from warpcloth.sim.pins import KinematicPins, PinTrack
 
         if isinstance(tracks, PinTrack):
             tracks = (tracks,)

@@ -6,17 +6,17 @@ register themselves with :func:`register`.
 
 from __future__ import annotations
 
-from .base import Integrator, Option, explicit_euler_dt_bound, stable_dt_estimate
-from .explicit_euler import ExplicitEuler
-from .implicit_euler import ImplicitEuler
-from .midpoint import Midpoint
-from .pbd import PBD
-from .projective import Projective
-from .rk4 import RK4
-from .verlet import Verlet
-from .vbd import VBD
-from .xpbd import XPBD
-from ..errors import WarpclothError
+from warpcloth.integrators.base import Integrator, Option, explicit_euler_dt_bound, stable_dt_estimate
+from warpcloth.integrators.explicit_euler import ExplicitEuler
+from warpcloth.integrators.implicit_euler import ImplicitEuler
+from warpcloth.integrators.midpoint import Midpoint
+from warpcloth.integrators.pbd import PBD
+from warpcloth.integrators.projective import Projective
+from warpcloth.integrators.rk4 import RK4
+from warpcloth.integrators.verlet import Verlet
+from warpcloth.integrators.vbd import VBD
+from warpcloth.integrators.xpbd import XPBD
+from warpcloth.errors import WarpclothError
 
 _REGISTRY: dict[str, type[Integrator]] = {}
 

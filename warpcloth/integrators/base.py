@@ -16,7 +16,7 @@ import numpy as np
 
 import warp as wp
 
-from ..errors import WarpclothError
+from warpcloth.errors import WarpclothError
 
 
 @dataclass(frozen=True)

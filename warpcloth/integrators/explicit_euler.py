@@ -7,8 +7,8 @@ import warp as wp
 
 from warpcloth.kernels import integrate as ik
 
-from ..forces import eval_forces
-from .base import Integrator
+from warpcloth.integrators.forces import eval_forces
+from warpcloth.integrators.base import Integrator
 
 
 class ExplicitEuler(Integrator):

@@ -66,11 +66,11 @@ from warp.optim.linear import LinearOperator, aslinearoperator, cg
 from warpcloth.kernels import implicit as ik
 from warpcloth.kernels import projective as pjk
 
-from ..forces import eval_forces
-from ..pins import has_pin_tracks
+from warpcloth.integrators.forces import eval_forces
+from warpcloth.sim.pins import has_pin_tracks
 from warpcloth.kernels import pins as pk
-from .base import Integrator, Option, scratch_like
-from .multigrid import GridMultigrid, grid_structure_reason
+from warpcloth.integrators.base import Integrator, Option, scratch_like
+from warpcloth.integrators.multigrid import GridMultigrid, grid_structure_reason
 
 JACOBIANS = ("full", "approx")
 MATRICES = ("free", "bsr")

@@ -13,9 +13,9 @@ import warp as wp
 
 from warpcloth.kernels import integrate as ik
 
-from ..forces import eval_forces
-from ..pins import apply_pins
-from .base import Integrator, model_spectrum, runge_kutta_stable_dt, scratch_like
+from warpcloth.integrators.forces import eval_forces
+from warpcloth.sim.pins import apply_pins
+from warpcloth.integrators.base import Integrator, model_spectrum, runge_kutta_stable_dt, scratch_like
 
 
 def rk2_amplification(z):

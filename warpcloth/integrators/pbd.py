@@ -25,9 +25,9 @@ import warp as wp
 
 from warpcloth.kernels import constraints as ck
 
-from ..model import SpringType
-from .base import Option
-from .position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator, _unit_interval
+from warpcloth.sim.model import SpringType
+from warpcloth.integrators.base import Option
+from warpcloth.integrators.position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator, _unit_interval
 
 
 def iteration_stiffness(stiffness: float, iterations: int) -> float:

@@ -14,10 +14,10 @@ import warp as wp
 
 from warpcloth.kernels import constraints as ck
 
-from ..coloring import SpringColoring, color_springs
-from ..forces import eval_external_forces
-from ..pins import has_pin_tracks
-from .base import Integrator, Option, scratch_like
+from warpcloth.sim.coloring import SpringColoring, color_springs
+from warpcloth.integrators.forces import eval_external_forces
+from warpcloth.sim.pins import has_pin_tracks
+from warpcloth.integrators.base import Integrator, Option, scratch_like
 
 
 #: Most iterations or substeps per step: beyond, one step takes minutes (and a captured frame

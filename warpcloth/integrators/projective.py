@@ -35,11 +35,11 @@ from warpcloth.kernels import projective as pk
 from warpcloth.kernels import vbd as vk
 from warpcloth.kernels.vbd import update_from_increment
 
-from ..coloring import particle_adjacency
-from ..forces import eval_external_forces
-from ..pins import apply_pins, has_pin_tracks
-from .base import Integrator, Option, scratch_like
-from .vbd import contact_arguments
+from warpcloth.sim.coloring import particle_adjacency
+from warpcloth.integrators.forces import eval_external_forces
+from warpcloth.sim.pins import apply_pins, has_pin_tracks
+from warpcloth.integrators.base import Integrator, Option, scratch_like
+from warpcloth.integrators.vbd import contact_arguments
 
 
 def _at_least_one(value) -> str | None:

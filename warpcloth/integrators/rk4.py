@@ -8,9 +8,9 @@ import warp as wp
 
 from warpcloth.kernels import integrate as ik
 
-from ..forces import eval_forces
-from ..pins import apply_pins
-from .base import Integrator, scratch_like
+from warpcloth.integrators.forces import eval_forces
+from warpcloth.sim.pins import apply_pins
+from warpcloth.integrators.base import Integrator, scratch_like
 
 
 class RK4(Integrator):

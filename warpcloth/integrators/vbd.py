@@ -48,12 +48,12 @@ from warpcloth.kernels import collide as ck
 from warpcloth.kernels import integrate as ik
 from warpcloth.kernels import vbd as vk
 
-from ..coloring import VertexColoring, color_vertices, particle_adjacency
-from ..forces import eval_external_forces
-from ..pins import apply_pins, has_pin_tracks
-from .base import Integrator, Option, scratch_like
-from .implicit_euler import ImplicitEuler
-from .multigrid import grid_structure_reason
+from warpcloth.sim.coloring import VertexColoring, color_vertices, particle_adjacency
+from warpcloth.integrators.forces import eval_external_forces
+from warpcloth.sim.pins import apply_pins, has_pin_tracks
+from warpcloth.integrators.base import Integrator, Option, scratch_like
+from warpcloth.integrators.implicit_euler import ImplicitEuler
+from warpcloth.integrators.multigrid import grid_structure_reason
 
 
 def _at_least_one(value) -> str | None:

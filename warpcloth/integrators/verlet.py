@@ -15,8 +15,8 @@ import warp as wp
 
 from warpcloth.kernels import integrate as ik
 
-from ..forces import eval_forces
-from .base import Integrator, scratch_like
+from warpcloth.integrators.forces import eval_forces
+from warpcloth.integrators.base import Integrator, scratch_like
 
 
 class Verlet(Integrator):

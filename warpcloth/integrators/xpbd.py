@@ -27,7 +27,7 @@ import warp as wp
 
 from warpcloth.kernels import constraints as ck
 
-from .position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator
+from warpcloth.integrators.position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator
 
 
 class XPBD(PositionBasedIntegrator):

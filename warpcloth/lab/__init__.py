@@ -22,7 +22,7 @@ _REFERENCE = (
 
 def __getattr__(name):
     if name in _REFERENCE:
-        from . import reference
+        from warpcloth.lab import reference
 
         return getattr(reference, name)
     raise AttributeError(f"module 'warpcloth.lab' has no attribute {name!r}")

@@ -26,9 +26,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import WarpclothError, require
-from .reference import (cloth_size, reference_trajectory, simulate_frames, static_equilibrium, swing_from_horizontal,
-                        trajectory_error)
+from warpcloth.errors import WarpclothError, require
+from warpcloth.lab.reference import cloth_size, reference_trajectory, simulate_frames, static_equilibrium, swing_from_horizontal, trajectory_error
 
 #: The frame of every accuracy run [s]: trial dts are FRAME_DT / k.
 FRAME_DT = 1.0 / 60.0

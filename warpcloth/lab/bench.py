@@ -23,10 +23,10 @@ import time
 import numpy as np
 import warp as wp
 
-from ..cliparse import Parser, guarded
-from ..errors import WarpclothError, require
-from ..progress import format_seconds
-from ..fileio import AtomicFile, csv_cell, OutputError, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
+from warpcloth.cli.parse import Parser, guarded
+from warpcloth.errors import WarpclothError, require
+from warpcloth.io.progress import format_seconds
+from warpcloth.io.files import AtomicFile, csv_cell, OutputError, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
 
 #: Columns of the benchmark CSV: the study's naming (units in the names, booleans true/false).
 COLUMNS = [
@@ -73,7 +73,7 @@ def roofline_ms(model, repeats: int = 50) -> float:
         wp.launch(rk.roofline_stream, dim=model.particle_count, inputs=args)
         wp.synchronize_device(d)
         # capture a batch of launches so launch overhead does not count (where capture works)
-        from ..simulator import graph_capture_supported
+        from warpcloth.simulator import graph_capture_supported
 
         batch = 20
         if graph_capture_supported(d):
@@ -100,7 +100,7 @@ def roofline_ms(model, repeats: int = 50) -> float:
 
 def _build(scenario: str, size: int | None, device: str, **kwargs):
     """A Simulator of ``scenario``: a size x size grid, or the scenario's own mesh (``size`` None)."""
-    from ..scenarios import get_scenario
+    from warpcloth.scenarios import get_scenario
 
     grid = {} if size is None else {"rows": size, "cols": size}
     return get_scenario(scenario).build(device=device, **grid, **kwargs)
@@ -112,9 +112,9 @@ def bench_one(integrator: str, size: int | None, device: str, graph: bool, steps
     mesh scenario's own mesh (``size`` None), with :func:`warpcloth.harness.time_steps`:
     ``windows`` timed windows of about ``seconds / windows`` each (or ``steps`` steps in all),
     warm-up and first replay excluded. Returns a CSV row (without cross-row columns)."""
-    from .. import __version__
-    from ..harness import time_steps
-    from ..provenance import machine
+    from warpcloth.version import __version__
+    from warpcloth.run.harness import time_steps
+    from warpcloth.io.provenance import machine
 
     sim = _build(scenario, size, device, integrator=integrator)
     sim.use_graph = graph
@@ -240,9 +240,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from ..integrators import integrator_class, integrator_names, make_integrator
-    from ..device import device_name as resolve_device
-    from ..simulator import graph_capture_supported
+    from warpcloth.integrators import integrator_class, integrator_names, make_integrator
+    from warpcloth.sim.device import device_name as resolve_device
+    from warpcloth.simulator import graph_capture_supported
 
     if args.integrators is None:
         names = integrator_names()
@@ -251,7 +251,7 @@ def run(args) -> int:
         require(bool(names), f"--integrators {args.integrators!r} names no integrator; give comma-separated names from {', '.join(integrator_names())}")
     for n in names:
         integrator_class(n)
-    from ..scenarios import get_scenario
+    from warpcloth.scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)  # unknown name or bad file: one line
     if scenario.model is not None:  # a mesh: its own particles, no grid sizes
@@ -285,13 +285,13 @@ def run(args) -> int:
     require(not (args.out and args.plot and os.path.abspath(args.out) == os.path.abspath(args.plot)),
             f"--out and --plot are the same file {args.out!r}")
     if args.plot:
-        from ..preview import require_matplotlib
+        from warpcloth.io.preview import require_matplotlib
 
         require_matplotlib("--plot")  # before the benchmark, not after it
     for path in {os.path.dirname(os.path.abspath(p)) for p in (args.out, args.plot) if p and p != "-"}:
         sweep_stale_temporaries(path, sys.stderr)
 
-    from ..progress import Progress
+    from warpcloth.io.progress import Progress
 
     quiet = getattr(args, "quiet", False)
     modes = {"both": [False, True], "on": [True], "off": [False]}[args.graph]

@@ -19,8 +19,8 @@ import math
 import time
 from dataclasses import dataclass, field
 
-from ..errors import require, require_positive
-from ..harness import Stopwatch
+from warpcloth.errors import require, require_positive
+from warpcloth.run.harness import Stopwatch
 
 DEFAULT_PRECISION = 0.02
 DEFAULT_DURATION = 2.0  # s of simulated time a trial must survive
@@ -130,7 +130,7 @@ def find_max_dt(
             unstable counts as stable (reported in :attr:`MaxDtResult.inconclusive_trials`).
         on_trial: called with each :class:`Trial` as it finishes.
     """
-    from ..integrators import explicit_euler_dt_bound
+    from warpcloth.integrators import explicit_euler_dt_bound
 
     precision = require_positive("precision", precision)
     require(precision < 1.0, f"precision must be < 1 (relative, e.g. 0.02), got {precision!r}")

@@ -35,8 +35,8 @@ import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 from scipy.sparse.linalg import MatrixRankWarning, spsolve
 
-from ..errors import WarpclothError, require, require_positive
-from ..forces import Control, WindSchedule
+from warpcloth.errors import WarpclothError, require, require_positive
+from warpcloth.sim.control import Control, WindSchedule
 
 
 # -- the model in float64 ---------------------------------------------------------------------

@@ -14,8 +14,8 @@ import platform
 import sys
 from collections import defaultdict
 
-from ..fileio import AtomicFile, write_atomic
-from .frontier import frontier
+from warpcloth.io.files import AtomicFile, write_atomic
+from warpcloth.lab.frontier import frontier
 
 PLOTS = {
     "wall_per_sim_second.png": "Wall seconds per simulated second vs particles (log-log) at each integrator's max accurate dt",
@@ -207,7 +207,7 @@ def _table(header, rows) -> list[str]:
 def scenario_tables(rows: list) -> list[str]:
     """The fixed-mesh scenarios' table: max stable dt, ms/step and real time there, time to
     equilibrium; and why there is no accuracy."""
-    from .study import MESH_NOTE
+    from warpcloth.lab.study import MESH_NOTE
 
     body = []
     for sc in dict.fromkeys(r["scenario"] for r in rows):
@@ -514,7 +514,7 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
         for name in written:
             lines += [f"![{PLOTS[name]}]({name})", "", f"*{PLOTS[name]}.*", ""]
     lines += ["## Columns of results.csv", ""]
-    from .study import COLUMN_DOCS, COLUMNS
+    from warpcloth.lab.study import COLUMN_DOCS, COLUMNS
 
     lines += _table(["column", "meaning"], [[c, COLUMN_DOCS.get(c, "")] for c in COLUMNS]) + [""]
     write_atomic(os.path.join(out_dir, "report.md"), "\n".join(lines), "study report")

@@ -34,10 +34,9 @@ import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
 
-from ..errors import WarpclothError, require
-from ..fileio import OutputError, csv_cell, csv_line, WriterLock, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
-from .accuracy import (DEFAULT_TOLERANCE, FRAME_DT, AccuracyProblem, StaticProblem, Transient, check_tolerance,
-                       search_steps_per_frame, steps_per_frame_at_most)
+from warpcloth.errors import WarpclothError, require
+from warpcloth.io.files import OutputError, csv_cell, csv_line, WriterLock, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
+from warpcloth.lab.accuracy import DEFAULT_TOLERANCE, FRAME_DT, AccuracyProblem, StaticProblem, Transient, check_tolerance, search_steps_per_frame, steps_per_frame_at_most
 
 COLUMNS = [
     "measurement", "scenario", "integrator", "options", "device", "rows", "cols", "particles", "springs",
@@ -150,7 +149,7 @@ PROFILES = {
 def make_plan(profile: str = "quick", integrators=None, sizes=None, devices=None, tolerance=DEFAULT_TOLERANCE,
               match_accuracy: bool = False, accuracy_sizes=None, scenarios=None) -> StudyPlan:
     """A :class:`StudyPlan` from a profile and explicit overrides (checked; one-line errors)."""
-    from ..integrators import integrator_names
+    from warpcloth.integrators import integrator_names
 
     if profile not in PROFILES:
         raise WarpclothError(f"unknown profile {profile!r}; choose one of {', '.join(PROFILES)}")
@@ -189,7 +188,7 @@ def check_scenarios(scenarios) -> tuple[bool, list]:
     refused before any work."""
     if scenarios is None:
         return True, []
-    from ..scenarios import get_scenario
+    from warpcloth.scenarios import get_scenario
 
     items = list(dict.fromkeys(scenarios))
     require(bool(items), "the scenario list is empty: give e.g. --scenarios sheet,flag,examples/cape.toml")
@@ -359,7 +358,7 @@ class Study:
     def __init__(self, plan: StudyPlan, out: StudyCsv, progress=None, on_row=None):
         import warp as wp
 
-        from .. import __version__
+        from warpcloth.version import __version__
 
         self.plan = plan
         self.out = out
@@ -395,8 +394,8 @@ class Study:
         return self.out.done[key]
 
     def sim(self, scenario: str, n: int, device: str, integrator: str, options: dict | None = None):
-        from ..integrators import make_integrator
-        from ..scenarios import get_scenario
+        from warpcloth.integrators import make_integrator
+        from warpcloth.scenarios import get_scenario
 
         key = (scenario, n, device)
         sim = self._sims.get(key)
@@ -424,7 +423,7 @@ class Study:
         return self._static[key]
 
     def base(self, measurement: str, scenario: str, integrator: str, device: str, n: int, options: dict | None = None) -> dict:
-        from ..model import expected_spring_counts
+        from warpcloth.sim.model import expected_spring_counts
 
         if n is None:  # a fixed-mesh scenario: its own counts
             if (scenario, None, device) not in self._counts:
@@ -444,8 +443,8 @@ class Study:
         key = f"max_stable_dt|{scenario}|{integrator}|{device}|{_size(n)}|dur={duration}|prec={p.maxdt_precision}|cap={p.maxdt_wall_cap}"
 
         def run():
-            from .maxdt import find_max_dt
-            from ..scenarios import get_scenario
+            from warpcloth.lab.maxdt import find_max_dt
+            from warpcloth.scenarios import get_scenario
 
             sc = get_scenario(scenario)
             size = {} if n is None else {"rows": n, "cols": n}
@@ -461,7 +460,7 @@ class Study:
         return self.once(key, base, run)
 
     def floor(self, scenario: str, device: str, n: int) -> dict:
-        from ..integrators import make_integrator
+        from warpcloth.integrators import make_integrator
 
         p = self.plan
         tr = p.transient(scenario)
@@ -573,7 +572,7 @@ class Study:
             return {}
 
         def run():
-            from ..harness import time_steps
+            from warpcloth.run.harness import time_steps
 
             sim = self.sim(scenario, n, device, integrator, options)
             sim.set_dt(dt)
@@ -751,7 +750,7 @@ class ParallelSettings:
             if not ray:
                 raise WarpclothError("--ray: give auto, local, HOST:PORT or ray://HOST:PORT")
             try:
-                from .parallel import import_ray
+                from warpcloth.lab.parallel import import_ray
 
                 import_ray()
             except ImportError as exc:
@@ -788,7 +787,7 @@ _WORKER_STUDIES: dict = {}  # plan (JSON) -> Study, one per worker process: sims
 
 def study_init(place) -> None:
     """Run once in each worker process: Warp initialised quietly."""
-    from ..cliparse import init_warp
+    from warpcloth.cli.parse import init_warp
 
     init_warp(False)
 
@@ -797,7 +796,7 @@ def study_job(payload, place) -> dict:
     """One device x integrator x size group in a worker (``phase`` ``search``: everything but
     the timings; ``timing``: the timings, the searches' rows given). ``known`` holds the rows
     already in the driver's file (resume, the search phase's). Returns ``{"rows": [...]}``."""
-    from .parallel import is_cuda
+    from warpcloth.lab.parallel import is_cuda
 
     plan_dict, device, integrator, n, phase, known, run_id = payload
     tag = json.dumps(plan_dict, sort_keys=True, default=list)
@@ -829,7 +828,7 @@ def connect_ray(settings: ParallelSettings, report=None):
     ``--ray``); a WarpclothError in one line when the cluster does not answer."""
     if settings.ray is None:
         return None
-    from .parallel import RayPool
+    from warpcloth.lab.parallel import RayPool
 
     def note(text: str) -> None:
         if report is not None:
@@ -847,7 +846,7 @@ def run_parallel(study: "Study", settings: ParallelSettings, report=None, ray_po
     """Run ``study``'s plan through worker processes or Ray (see :class:`ParallelSettings`;
     ``ray_pool`` from :func:`connect_ray`); the driver (this process) writes every row.
     Returns the number of groups that failed."""
-    from .parallel import Job, LocalPool
+    from warpcloth.lab.parallel import Job, LocalPool
 
     p = study.plan
     groups = plan_groups(p)
@@ -921,8 +920,8 @@ def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
     the integrator's default dt (one frame at most), and at (1/60 s)/64 at the accuracy sizes:
     ``{(integrator, n): (k0, ms at default dt, ms at frame/64 or None)}``. A few steps each
     after a warm-up; seconds in all (the implicit integrators' steps at 128x128 take ~1 s)."""
-    from ..integrators import make_integrator
-    from ..scenarios import get_scenario
+    from warpcloth.integrators import make_integrator
+    from warpcloth.scenarios import get_scenario
 
     out = {}
     sheet = get_scenario("sheet")
@@ -930,7 +929,7 @@ def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
     def ms_per_step(sim, dt):
         """The fastest of 3 windows of about 30 ms (other jobs on the machine only add), with the
         shared timing helper (compile and the first replay excluded)."""
-        from ..harness import time_steps
+        from warpcloth.run.harness import time_steps
 
         sim.reset()
         sim.set_dt(dt)
@@ -1027,7 +1026,7 @@ def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1) -> str:
 
 def available_devices(devices: list, stream=None) -> list:
     """The devices of ``devices`` that are present; each missing one is skipped with one line."""
-    from ..device import device_name as resolve_device
+    from warpcloth.sim.device import device_name as resolve_device
 
     out = []
     for d in devices:
@@ -1077,7 +1076,7 @@ def run_study(plan: StudyPlan, out_dir: str, resume: bool = False, overwrite: bo
 
 
 def _run_study(plan, devices, settings, ray_pool, out_dir, resume, overwrite, progress, report, command, on_row) -> dict:
-    from .report import write_report
+    from warpcloth.lab.report import write_report
 
     csv_path = prepare_out(out_dir)
     plan = replace(plan, devices=devices)

@@ -27,11 +27,10 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from ..errors import WarpclothError
-from ..fileio import (OutputError, WriterLock, csv_line, check_output_path, describe_write_error,
-                     sweep_stale_temporaries, write_atomic)
-from ..params import TimeStep, csv_columns, per_type_triple
-from .testlist import RunSpec, TestList, parse_test_list, resolved_params
+from warpcloth.errors import WarpclothError
+from warpcloth.io.files import OutputError, WriterLock, csv_line, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
+from warpcloth.run.params import TimeStep, csv_columns, per_type_triple
+from warpcloth.lab.testlist import RunSpec, TestList, parse_test_list, resolved_params
 
 #: Columns of the CSV, in order (docs/sweep.md describes each): the test id, the run parameters
 #: (their columns come from the declarations, :func:`warpcloth.params.csv_columns`), then what
@@ -56,8 +55,8 @@ def parameter_row(spec: RunSpec) -> dict:
     """The columns known before a run starts (the parameter columns from the declarations)."""
     import warp as wp
 
-    from .. import __version__
-    from ..model import expected_spring_counts
+    from warpcloth.version import __version__
+    from warpcloth.sim.model import expected_spring_counts
 
     row = {"test_id": spec.test_id, "options": " ".join(f"{k}={v}" for k, v in spec.options),
            "warpcloth_version": __version__, "warp_version": wp.config.version, "key": spec.key}
@@ -76,7 +75,7 @@ def parameter_row(spec: RunSpec) -> dict:
 
 def get_scenario_kind(name: str) -> str:
     """``grid`` or ``mesh``: what kind of cloth scenario ``name`` builds."""
-    from ..scenarios import get_scenario
+    from warpcloth.scenarios import get_scenario
 
     return "grid" if get_scenario(name).model is None else "mesh"
 
@@ -124,8 +123,8 @@ class MaxDtCache:
         self.on_trial = on_trial
 
     def get(self, spec: RunSpec):
-        from .maxdt import find_max_dt
-        from ..scenarios import get_scenario
+        from warpcloth.lab.maxdt import find_max_dt
+        from warpcloth.scenarios import get_scenario
 
         key = spec.search_key
         if key not in self._results:
@@ -145,7 +144,7 @@ class MaxDtCache:
 
 def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
     """Run ``spec`` and return its CSV row; never raises on a failing run (outcome ``error``)."""
-    from ..scenarios import get_scenario
+    from warpcloth.scenarios import get_scenario
 
     row = parameter_row(spec)
     try:
@@ -483,7 +482,7 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
                 row.update(host=host, worker="main", concurrent_runs=1)
                 record(row)
         elif todo:
-            from ..lab.parallel import Job
+            from warpcloth.lab.parallel import Job
 
             jobs = [Job(spec.key, spec, spec.device, spec.search_key if spec.dt.uses_max else None) for spec in todo]
             for done in pool.run(jobs):
@@ -532,7 +531,7 @@ class ParallelPlan:
         WarpclothError says why it could not be."""
         if not self.parallel:
             return None
-        from ..lab.parallel import LocalPool, RayPool
+        from warpcloth.lab.parallel import LocalPool, RayPool
 
         def on_event(text: str) -> None:
             if report is not None:
@@ -558,7 +557,7 @@ class ParallelPlan:
             if not str(ray).strip():
                 raise WarpclothError("--ray: give 'auto', 'local' or a cluster address HOST:PORT")
             try:
-                from ..lab.parallel import import_ray
+                from warpcloth.lab.parallel import import_ray
 
                 import_ray()
             except ImportError as exc:
@@ -568,7 +567,7 @@ class ParallelPlan:
             raise WarpclothError(f"--workers must be a whole number >= 1, got {workers!r}")
         names = None
         if devices is not None:
-            from ..device import device_name
+            from warpcloth.sim.device import device_name
 
             names = []
             for d in devices:
@@ -607,7 +606,7 @@ _WORKER_CACHE: MaxDtCache | None = None
 
 def parallel_init(place) -> None:
     """Run once in each worker process: Warp initialised quietly."""
-    from ..cliparse import init_warp
+    from warpcloth.cli.parse import init_warp
 
     init_warp(False)
 

@@ -26,9 +26,9 @@ from dataclasses import dataclass, field
 
 import xml.parsers.expat as expat
 
-from ..errors import WarpclothError, warn
-from .. import params
-from ..params import SPRING_TYPES, Param, TimeStep, canonical, per_type_triple, resolve_per_type  # noqa: F401  (SPRING_TYPES, TimeStep: importable from here)
+from warpcloth.errors import WarpclothError, warn
+from warpcloth.run import params
+from warpcloth.run.params import SPRING_TYPES, Param, TimeStep, canonical, per_type_triple, resolve_per_type  # noqa: F401  (SPRING_TYPES, TimeStep: importable from here)
 
 ROOT_TAG = "test_list"
 TEST_TAG = "test"
@@ -118,8 +118,8 @@ class RunSpec:
 
     def config(self, dt: float | None = None, duration: float | None = None):
         """The :class:`~warpcloth.scenarios.ScenarioConfig` of this run."""
-        from ..params import config_values
-        from ..scenarios import get_scenario
+        from warpcloth.run.params import config_values
+        from warpcloth.scenarios import get_scenario
 
         values = dict(self.values)
         for kind in ("stiffness", "damping"):  # a partial per-type value: the builder fills the rest
@@ -257,7 +257,7 @@ def parse_test_list(path: str, max_runs: int = DEFAULT_MAX_RUNS) -> TestList:
 def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
     """Every attribute of ``el`` as a list of parsed values (old spellings mapped to their
     parameter, with a note); integrator options stay text."""
-    from ..integrators import all_options
+    from warpcloth.integrators import all_options
 
     options = all_options()
     declared = attributes()
@@ -301,9 +301,9 @@ def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
 def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: dict, own: dict,
             room: int = DEFAULT_MAX_RUNS, max_runs: int = DEFAULT_MAX_RUNS) -> list[RunSpec]:
     """The runs of one ``test``: the product of its value lists, for each scenario."""
-    from ..integrators import all_options, integrator_class, integrator_names
-    from ..model import default_spring_params
-    from ..scenarios import get_scenario
+    from warpcloth.integrators import all_options, integrator_class, integrator_names
+    from warpcloth.sim.model import default_spring_params
+    from warpcloth.scenarios import get_scenario
 
     what = f"test {test_id!r}"
     values = {**defaults, **own}

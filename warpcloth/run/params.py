@@ -31,8 +31,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from .errors import FLOAT32_MAX, WarpclothError
-from .metrics import DEFAULT_INSTABILITY_STRAIN
+from warpcloth.errors import FLOAT32_MAX, WarpclothError
+from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 
 SPRING_TYPES = ("structural", "shear", "bend")
 
@@ -193,7 +193,7 @@ def choice(*choices: str, what: str):
 
 
 def integrator(text: str) -> str:
-    from .integrators import integrator_names
+    from warpcloth.integrators import integrator_names
 
     names = integrator_names()
     if text != "all" and text not in names:
@@ -203,7 +203,7 @@ def integrator(text: str) -> str:
 
 def scenario(text: str) -> str:
     """A scenario name, or a scenario file (.toml, relative to the working folder) that loads."""
-    from .scenarios import get_scenario, scenario_names
+    from warpcloth.scenarios import get_scenario, scenario_names
 
     if text.lower().endswith(".toml"):
         try:
@@ -217,7 +217,7 @@ def scenario(text: str) -> str:
 
 
 def device(text: str) -> str:
-    from .device import device_name
+    from warpcloth.sim.device import device_name
 
     try:
         return device_name(text)
@@ -228,7 +228,7 @@ def device(text: str) -> str:
 def colliders(text: str) -> str:
     """One or more colliders joined by ``+`` (``sphere:center=0/1/0,radius=0.3+plane``); checked
     here, kept as text (the run key and the CSV show it as written)."""
-    from .colliders import parse_collider
+    from warpcloth.sim.colliders import parse_collider
 
     specs = [s for s in text.split("+")]
     if any(not s.strip() for s in specs):
@@ -360,7 +360,7 @@ def _graph_config(value):
 
 
 def _colliders_config(value):
-    from .colliders import parse_collider
+    from warpcloth.sim.colliders import parse_collider
 
     return tuple(parse_collider(s) for s in value.split("+")) if value else None
 

@@ -24,9 +24,9 @@ import warp as wp
 
 from warpcloth.kernels import strain_limit as sk
 
-from .coloring import Coloring, greedy_spring_colors
-from .errors import require_int, require_positive
-from .model import SpringType
+from warpcloth.sim.coloring import Coloring, greedy_spring_colors
+from warpcloth.errors import require_int, require_positive
+from warpcloth.sim.model import SpringType
 
 #: Most passes over all colours per step.
 DEFAULT_MAX_PASSES = 200

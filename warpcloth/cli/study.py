@@ -7,8 +7,8 @@ import argparse
 import shlex
 import sys
 
-from ..errors import WarpclothError
-from .accuracy import DEFAULT_TOLERANCE
+from warpcloth.errors import WarpclothError
+from warpcloth.lab.accuracy import DEFAULT_TOLERANCE
 
 
 def _list(kind: str):
@@ -46,7 +46,7 @@ def _count():
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from .study import PROFILES
+    from warpcloth.lab.study import PROFILES
 
     p.add_argument("--profile", default="quick", choices=list(PROFILES),
                    help="quick (tiny sizes, a few minutes on 2 CPU cores), standard (sizes 16-128 on the CPU), seed (the seed's plan, for a GPU)")
@@ -81,7 +81,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from .study import available_devices, calibrate, estimate_plan, format_estimate, make_plan, run_study
+    from warpcloth.lab.study import available_devices, calibrate, estimate_plan, format_estimate, make_plan, run_study
 
     plan = make_plan(args.profile, integrators=args.integrators, sizes=args.sizes, devices=args.devices,
                      tolerance=args.tolerance, match_accuracy=args.match_accuracy, accuracy_sizes=args.accuracy_sizes,

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from .errors import WarpclothError, require
+from warpcloth.errors import WarpclothError, require
 from warpcloth.kernels import pins as pk
 
 INTERPOLATIONS = ("linear", "catmull_rom", "hermite")

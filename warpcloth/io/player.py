@@ -29,9 +29,9 @@ import os
 
 import numpy as np
 
-from .errors import WarpclothError
-from .fileio import check_output_path, write_atomic
-from .frames import nice_scale, spring_arrays, vertex_strain
+from warpcloth.errors import WarpclothError
+from warpcloth.io.files import check_output_path, write_atomic
+from warpcloth.io.frames import nice_scale, spring_arrays, vertex_strain
 
 HTML_EXTENSIONS = (".html", ".htm")
 #: Where the page template lives (package data).
@@ -92,7 +92,7 @@ class ColliderPoses:
         self.rotations: list[tuple] = []
 
     def add(self, t: float) -> None:
-        from .colliders import _matrix_quat
+        from warpcloth.sim.colliders import _matrix_quat
 
         r, shift = self.collider.track.pose(float(t))
         self.translations.append(shift)

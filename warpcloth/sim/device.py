@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from .errors import WarpclothError
+from warpcloth.errors import WarpclothError
 
 
 def resolve_device(device=None) -> wp.Device:

@@ -37,8 +37,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import WarpclothError, require, require_positive
-from .model import ClothModel, SpringParams, SpringType, build_model, default_spring_params
+from warpcloth.errors import WarpclothError, require, require_positive
+from warpcloth.sim.model import ClothModel, SpringParams, SpringType, build_model, default_spring_params
 
 #: A bend spring of the quad rule spans at least this angle u-v-w [degrees] at rest.
 STRAIGHT_ANGLE_DEG = 150.0

@@ -19,9 +19,9 @@ import math
 import os
 import sys
 
-from .cliparse import EXIT_USAGE, Parser, guarded  # noqa: F401  (EXIT_USAGE: kept importable from cli)
-from .errors import WarpclothError, require_positive
-from .params import BY_NAME, add_flags, check_applies, cli_value, config_values, params_for
+from warpcloth.cli.parse import EXIT_USAGE, Parser, guarded  # noqa: F401  (EXIT_USAGE: kept importable from cli)
+from warpcloth.errors import WarpclothError, require_positive
+from warpcloth.run.params import BY_NAME, add_flags, check_applies, cli_value, config_values, params_for
 
 def add_model_arguments(p: argparse.ArgumentParser, command: str = "max-dt", exclusive: dict | None = None) -> None:
     """The flags of ``command``'s run parameters (:mod:`warpcloth.params`) and the integrators'
@@ -48,7 +48,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
 
 def _add_integrator_options(p: argparse.ArgumentParser) -> None:
     """One flag per integrator option, declared by the integrators themselves."""
-    from .integrators import all_options
+    from warpcloth.integrators import all_options
 
     group = p.add_argument_group("integrator options")
     for name, (opt, owners) in all_options().items():
@@ -59,7 +59,7 @@ def _add_integrator_options(p: argparse.ArgumentParser) -> None:
 
 def integrator_options_from_args(integrator: str, args) -> dict:
     """Options given on the command line for ``integrator``; an option it does not take is an error."""
-    from .integrators import all_options, integrator_class
+    from warpcloth.integrators import all_options, integrator_class
 
     taken = {o.name for o in integrator_class(integrator).options}
     out = {}
@@ -80,7 +80,7 @@ def param_values(args, command: str) -> dict:
 
 def config_from_args(scenario, args, command: str = "run"):
     """A ScenarioConfig from parsed flags (unset flags keep the scenario defaults)."""
-    from .integrators import integrator_class, integrator_names
+    from warpcloth.integrators import integrator_class, integrator_names
 
     values = param_values(args, command)
     if values.get("integrator") is not None and not values["integrator"].strip():
@@ -190,8 +190,8 @@ EXIT_UNSTABLE = 3
 def _output_writers(scenario_name: str, args) -> list:
     """Check every output path of a run (before any work) and return the writer factories
     ``(sim, cfg) -> writer`` that :meth:`Scenario.run` calls once the model is built."""
-    from .fileio import sweep_stale_temporaries
-    from .provenance import provenance
+    from warpcloth.io.files import sweep_stale_temporaries
+    from warpcloth.io.provenance import provenance
 
     argv = getattr(args, "argv", None)
     paths, writers = [], []
@@ -205,12 +205,12 @@ def _output_writers(scenario_name: str, args) -> list:
         return provenance(sim, scenario_name, cfg.fps, argv, prefix=prefix)
 
     if getattr(args, "preview", None):
-        from .preview import check_preview_path
+        from warpcloth.io.preview import check_preview_path
 
         check_preview_path(args.preview)  # also: matplotlib installed
         paths.append(args.preview)
     if args.usd:
-        from .usd import UsdWriter, check_usd_path
+        from warpcloth.io.usd import UsdWriter, check_usd_path
 
         check_usd_path(args.usd)  # before any work: a path that cannot be written fails now
         paths.append(args.usd)
@@ -218,7 +218,7 @@ def _output_writers(scenario_name: str, args) -> list:
         writers.append(lambda sim, cfg: UsdWriter(args.usd, sim.model, cfg.fps, provenance=info(sim, cfg), color=color,
                                                    colliders=sim.control.colliders))
     if getattr(args, "html", None):
-        from .player import HtmlWriter, check_html_path
+        from warpcloth.io.player import HtmlWriter, check_html_path
 
         check_html_path(args.html)
         paths.append(args.html)
@@ -226,7 +226,7 @@ def _output_writers(scenario_name: str, args) -> list:
                                                    f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s", info=info(sim, cfg),
                                                    expected_frames=frames(cfg), colliders=sim.control.colliders))
     if getattr(args, "preview", None):
-        from .preview import PreviewWriter
+        from warpcloth.io.preview import PreviewWriter
 
         writers.append(lambda sim, cfg: PreviewWriter(args.preview, sim.model, cfg.fps, title=f"{scenario_name}, {sim.integrator.name}",
                                                       expected_frames=frames(cfg)))
@@ -238,14 +238,14 @@ def _output_writers(scenario_name: str, args) -> list:
 
 
 def _run(scenario_name: str, args) -> int:
-    from .scenarios import get_scenario
+    from warpcloth.scenarios import get_scenario
 
     scenario = get_scenario(scenario_name)
     cfg = config_from_args(scenario, args)
     _check_spacing(scenario, cfg)
     writers = _output_writers(scenario_name, args)
     if not getattr(args, "quiet", False):
-        from .progress import RunProgress
+        from warpcloth.io.progress import RunProgress
 
         writers.insert(0, lambda sim, cfg: RunProgress(cfg.duration, label=f"run {scenario_name}"))
     with _DefaultDtExplained(args):
@@ -268,7 +268,7 @@ def _run(scenario_name: str, args) -> int:
 
 def examples_dir() -> str:
     """The folder of the XML test lists shipped in the package (``warpcloth.examples``)."""
-    from . import examples
+    from warpcloth import examples
 
     return os.path.dirname(os.path.abspath(examples.__file__))
 
@@ -285,8 +285,8 @@ def example_path(name: str) -> str:
 
 
 def _list(args) -> int:
-    from .integrators import integrator_class, integrator_names
-    from .scenarios import get_scenario, scenario_names
+    from warpcloth.integrators import integrator_class, integrator_names
+    from warpcloth.scenarios import get_scenario, scenario_names
 
     if getattr(args, "examples", False):
         if not args.quiet:
@@ -306,7 +306,7 @@ def _list(args) -> int:
 
 
 def _sweep(args) -> int:
-    from .lab.sweep import run_sweep
+    from warpcloth.lab.sweep import run_sweep
 
     if (args.tests is None) == (args.example is None):
         raise WarpclothError("give a test list (TESTS.xml) or --example NAME, not " + ("both" if args.tests else "neither"))
@@ -333,15 +333,15 @@ def _add_max_dt_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _max_dt(args) -> int:
-    from .lab.maxdt import DEFAULT_DT_MAX, DEFAULT_DT_MIN, find_max_dt, format_result
-    from .scenarios import get_scenario
+    from warpcloth.lab.maxdt import DEFAULT_DT_MAX, DEFAULT_DT_MIN, find_max_dt, format_result
+    from warpcloth.scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)
     cfg = config_from_args(scenario, args, "max-dt")
     _check_spacing(scenario, cfg)
     precision = args.maxdt_precision if args.maxdt_precision is not None else BY_NAME["maxdt_precision"].default
     duration = args.maxdt_duration if args.maxdt_duration is not None else BY_NAME["maxdt_duration"].default
-    from .progress import Progress
+    from warpcloth.io.progress import Progress
 
     progress = Progress(f"max-dt {args.scenario} {cfg.integrator}", enabled=not args.quiet)
     trials = []
@@ -392,8 +392,8 @@ def _add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
-    from .lab.testlist import DEFAULT_MAX_RUNS
+    from warpcloth.version import __version__
+    from warpcloth.lab.testlist import DEFAULT_MAX_RUNS
 
     parser = Parser(prog="warpcloth", description="Mass-spring cloth simulator and integrator laboratory on NVIDIA Warp.")
     parser.add_argument("--version", action="version", version=f"warpcloth {__version__}")
@@ -406,7 +406,7 @@ def build_parser() -> argparse.ArgumentParser:
     listing.add_argument("--examples", action="store_true", help="list the example test lists shipped with warpcloth and their paths")
     _add_verbose(listing)
     bench = sub.add_parser("bench", help="benchmark integrators x sizes x devices on the sheet (bench/devices.py)")
-    from .lab import bench as bench_module
+    from warpcloth.lab import bench as bench_module
 
     bench_module.add_arguments(bench)
     _add_verbose(bench)
@@ -432,7 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
     max_dt = sub.add_parser("max-dt", help="find the largest stable time step of an integrator on a scenario")
     _add_max_dt_arguments(max_dt)
     _add_verbose(max_dt)
-    from .lab import studycli
+    from warpcloth.cli import study as studycli
 
     study = sub.add_parser("study", help="the accuracy-aware study: stable/accurate dt, cost, real-time frontier, report (docs/study.md)")
     studycli.add_arguments(study)
@@ -446,7 +446,7 @@ def _dispatch(args) -> int:
     if args.command == "list":
         return _list(args)
     if args.command == "bench":
-        from .lab import bench as bench_module
+        from warpcloth.lab import bench as bench_module
 
         return bench_module.run(args)
     if args.command == "sweep":
@@ -454,7 +454,7 @@ def _dispatch(args) -> int:
     if args.command == "max-dt":
         return _max_dt(args)
     if args.command == "study":
-        from .lab import studycli
+        from warpcloth.cli import study as studycli
 
         return studycli.run(args)
     raise WarpclothError(f"unknown command {args.command!r}")

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import WarpclothError
+from warpcloth.errors import WarpclothError
 
 
 @dataclass(frozen=True)

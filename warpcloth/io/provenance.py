@@ -20,7 +20,7 @@ def provenance(sim, scenario: str, fps: float, argv=None, extra: dict | None = N
     """A JSON-able dict about the run of ``sim`` (a :class:`~warpcloth.simulator.Simulator`)."""
     import warp as wp
 
-    from . import __version__
+    from warpcloth.version import __version__
 
     m = sim.model
     info = {

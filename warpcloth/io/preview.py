@@ -13,8 +13,8 @@ import os
 
 import numpy as np
 
-from .errors import WarpclothError
-from .fileio import AtomicFile, OutputError, check_output_path, describe_write_error
+from warpcloth.errors import WarpclothError
+from warpcloth.io.files import AtomicFile, OutputError, check_output_path, describe_write_error
 
 PREVIEW_EXTENSIONS = (".png", ".gif")
 #: Most frames in a GIF preview (a 640 x 480 frame is 30-80 kB: a few MB in all).
@@ -51,7 +51,7 @@ class PreviewWriter:
         self.path = check_preview_path(path)
         self.gif = os.path.splitext(self.path)[1].lower() == ".gif"
         if self.gif:
-            from .player import check_frame_memory
+            from warpcloth.io.player import check_frame_memory
 
             check_frame_memory(model, expected_frames, "the GIF preview")
         self.fps = float(fps)

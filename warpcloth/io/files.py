@@ -24,7 +24,7 @@ import re
 import secrets
 import shutil
 
-from .errors import WarpclothError
+from warpcloth.errors import WarpclothError
 
 #: Prefix of every temporary file warpcloth creates beside a target.
 TEMP_PREFIX = ".warpcloth-"

@@ -25,8 +25,8 @@ import warp as wp
 
 from warpcloth.kernels import metrics as mk
 
-from .errors import require_positive
-from .forces import eval_forces
+from warpcloth.errors import require_positive
+from warpcloth.integrators.forces import eval_forces
 
 #: Default instability strain: a spring stretched past (1 + this) x its rest length is unstable.
 #: Measured (``python bench/instability_strain.py``, 4 s of sheet, 5 s of flag): rk4 at a half and

@@ -13,8 +13,8 @@ import re
 import signal
 import sys
 
-from .errors import WarpclothError
-from .fileio import EXIT_IO, OutputError
+from warpcloth.errors import WarpclothError
+from warpcloth.io.files import EXIT_IO, OutputError
 
 #: Exit status of bad input.
 EXIT_USAGE = 2

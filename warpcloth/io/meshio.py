@@ -1,0 +1,220 @@
+"""Reading triangle meshes: Wavefront OBJ (a small reader here) and USD (``UsdGeom.Mesh``).
+
+OBJ is a 100-line format, so warpcloth reads it itself rather than adding a dependency: ``v``,
+``vt``, ``f`` (polygons fan-triangulated; ``v``, ``v/vt``, ``v//vn``, ``v/vt/vn`` corners;
+negative indices count back from the last vertex read), ``g`` and ``o`` (the vertices of the
+faces that follow belong to that vertex group). Other statements (``vn``, ``s``, ``usemtl``,
+``mtllib``, ``l``, ...) are ignored. USD: a ``UsdGeom.Mesh`` by prim path (default: the first
+mesh on the stage), its points in world space (the prim's local-to-world transform applied),
+``faceVertexCounts`` fan-triangulated, ``primvars:st`` kept (vertex or faceVarying), and each
+``UsdGeom.Subset`` of faces or points a vertex group named after the subset prim.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from warpcloth.errors import WarpclothError, require
+from warpcloth.sim.mesh import TriangleMesh, check_mesh
+
+MESH_FORMATS = {".obj": "OBJ", ".usd": "USD", ".usda": "USD", ".usdc": "USD", ".usdz": "USD"}
+
+
+def load_mesh(path: str, prim: str | None = None) -> TriangleMesh:
+    """Read a triangle mesh from an OBJ or USD file (checked with :func:`~warpcloth.mesh.check_mesh`)."""
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in MESH_FORMATS:
+        raise WarpclothError(f"mesh file {path!r} has an unsupported format {ext or '(no extension)'!r}: use {', '.join(MESH_FORMATS)}")
+    if not os.path.isfile(path):
+        raise WarpclothError(f"mesh file {path!r} does not exist" if not os.path.exists(path) else f"mesh file {path!r} is not a file")
+    if prim is not None and MESH_FORMATS[ext] != "USD":
+        raise WarpclothError(f"a prim path ({prim!r}) applies to USD files only, not {path!r}")
+    mesh = read_obj(path) if ext == ".obj" else read_usd(path, prim)
+    check_mesh(mesh.vertices, mesh.triangles, what=f"mesh {path}")
+    return mesh
+
+
+def _fan(count: int) -> np.ndarray:
+    """Corner indices (k, 3) of a fan over a polygon of ``count`` corners: (0, i, i + 1)."""
+    i = np.arange(1, count - 1)
+    return np.stack([np.zeros_like(i), i, i + 1], axis=1)
+
+
+def read_obj(path: str) -> TriangleMesh:
+    """Read an OBJ file (see the module docstring)."""
+    verts, tex, tris, tri_uv = [], [], [], []
+    groups: dict[str, set] = {}
+    current: list[str] = []
+    has_uv = True
+    try:
+        with open(path, "r", encoding="utf-8", errors="replace") as f:
+            lines = f.readlines()
+    except OSError as exc:
+        raise WarpclothError(f"cannot read mesh file {path!r}: {exc.strerror or exc}") from None
+    for lineno, raw in enumerate(lines, 1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = line.split()
+        tag, args = parts[0], parts[1:]
+        where = f"{path}:{lineno}"
+        if tag == "v":
+            try:
+                verts.append([float(a) for a in args[:3]])
+            except ValueError:
+                raise WarpclothError(f"{where}: vertex coordinates must be numbers, got {' '.join(args)!r}") from None
+            require(len(args) >= 3, f"{where}: a vertex needs x y z, got {' '.join(args)!r}")
+        elif tag == "vt":
+            try:
+                uv = [float(a) for a in args[:2]]
+            except ValueError:
+                raise WarpclothError(f"{where}: texture coordinates must be numbers, got {' '.join(args)!r}") from None
+            tex.append(uv + [0.0] * (2 - len(uv)))
+        elif tag in ("g", "o"):
+            current = args or ["default"]
+        elif tag == "f":
+            require(len(args) >= 3, f"{where}: a face needs at least 3 corners, got {len(args)}")
+            vi, ti = [], []
+            for corner in args:
+                fields = corner.split("/")
+                vi.append(_obj_index(fields[0], len(verts), where, "vertex"))
+                if len(fields) > 1 and fields[1]:
+                    ti.append(_obj_index(fields[1], len(tex), where, "texture coordinate"))
+            if len(ti) != len(vi):
+                has_uv = False
+            fan = _fan(len(vi))
+            vi = np.asarray(vi)
+            tris.append(vi[fan])
+            if has_uv:
+                tri_uv.append(np.asarray(ti)[fan])
+            for name in current:
+                groups.setdefault(name, set()).update(vi.tolist())
+    require(len(verts) > 0, f"mesh file {path!r} is empty: no vertices ('v' lines)")
+    require(len(tris) > 0, f"mesh file {path!r} is empty: no faces ('f' lines)")
+    triangles = np.concatenate(tris).astype(np.int64)
+    uv = None
+    if has_uv and tri_uv and tex:
+        uv = np.asarray(tex, dtype=np.float32)[np.concatenate(tri_uv)]
+    return TriangleMesh(
+        vertices=np.asarray(verts, dtype=np.float64),
+        triangles=triangles,
+        uv=uv,
+        groups={k: np.asarray(sorted(g), dtype=np.int64) for k, g in groups.items()},
+        source=path,
+    )
+
+
+def _obj_index(text: str, count: int, where: str, what: str) -> int:
+    """A 0-based index from an OBJ 1-based index (negative: relative to the last one read)."""
+    try:
+        k = int(text)
+    except ValueError:
+        raise WarpclothError(f"{where}: {what} index must be an integer, got {text!r}") from None
+    if k > 0 and k <= count:
+        return k - 1
+    if k < 0 and -k <= count:
+        return count + k
+    raise WarpclothError(f"{where}: {what} index {k} is out of range: {count} read so far (1..{count}, or -1..-{count})")
+
+
+def read_usd(path: str, prim: str | None = None) -> TriangleMesh:
+    """Read a ``UsdGeom.Mesh`` (see the module docstring)."""
+    try:
+        from pxr import Usd, UsdGeom
+    except ImportError:  # pragma: no cover - usd-core is a dependency
+        raise WarpclothError("reading USD meshes needs usd-core (pip install usd-core)") from None
+    try:
+        stage = Usd.Stage.Open(path)
+    except Exception as exc:
+        first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)
+        raise WarpclothError(f"cannot open USD file {path!r}: {first[:200]}") from None
+    if prim is None:
+        meshes = [p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+        require(len(meshes) > 0, f"USD file {path!r} has no UsdGeom.Mesh")
+        p = meshes[0]
+    else:
+        p = stage.GetPrimAtPath(prim) if prim.startswith("/") else None
+        if p is None or not p.IsValid():
+            have = ", ".join(str(m.GetPath()) for m in stage.Traverse() if m.IsA(UsdGeom.Mesh)) or "none"
+            raise WarpclothError(f"USD file {path!r} has no prim {prim!r} (its meshes: {have})")
+        require(p.IsA(UsdGeom.Mesh), f"prim {prim!r} in {path!r} is a {p.GetTypeName() or 'typeless prim'}, not a UsdGeom.Mesh")
+    mesh = UsdGeom.Mesh(p)
+    time = Usd.TimeCode.Default()
+    points = mesh.GetPointsAttr().Get(time)
+    require(points is not None and len(points) > 0, f"USD mesh {p.GetPath()} in {path!r} is empty: no points")
+    local = np.asarray(points, dtype=np.float64)
+    xf = np.asarray(UsdGeom.Xformable(p).ComputeLocalToWorldTransform(time), dtype=np.float64)  # row vectors: p' = [p 1] M
+    world = local @ xf[:3, :3] + xf[3, :3]
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(time) or [], dtype=np.int64)
+    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(time) or [], dtype=np.int64)
+    require(counts.size > 0, f"USD mesh {p.GetPath()} in {path!r} is empty: no faces")
+    require(int(counts.sum()) == indices.size, f"USD mesh {p.GetPath()}: faceVertexCounts sum to {int(counts.sum())} but there are {indices.size} faceVertexIndices")
+    if np.any(counts < 3):
+        raise WarpclothError(f"USD mesh {p.GetPath()}: face {int(np.flatnonzero(counts < 3)[0])} has fewer than 3 vertices")
+    face_start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    corner_of_tri, face_of_tri = [], []
+    for c in np.unique(counts):  # one vectorised fan per polygon size
+        faces = np.flatnonzero(counts == c)
+        fan = _fan(int(c))
+        corner_of_tri.append((face_start[faces][:, None, None] + fan[None, :, :]).reshape(-1, 3))
+        face_of_tri.append(np.repeat(faces, fan.shape[0]))
+    face_of_tri = np.concatenate(face_of_tri)
+    order = np.argsort(face_of_tri, kind="stable")  # triangles in face order
+    corners, face_of_tri = np.concatenate(corner_of_tri)[order], face_of_tri[order]
+    triangles = indices[corners]
+    uv = None
+    st = UsdGeom.PrimvarsAPI(p).GetPrimvar("st")
+    if st and st.HasValue():
+        values = st.ComputeFlattened(time)
+        if values is not None and len(values):
+            values = np.asarray(values, dtype=np.float32).reshape(-1, 2)
+            interp = st.GetInterpolation()
+            if interp == UsdGeom.Tokens.faceVarying and values.shape[0] == indices.size:
+                uv = values[corners]
+            elif interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying) and values.shape[0] == local.shape[0]:
+                uv = values[triangles]
+    groups = {}
+    for subset in UsdGeom.Subset.GetAllGeomSubsets(UsdGeom.Imageable(p)):
+        idx = np.asarray(subset.GetIndicesAttr().Get(time) or [], dtype=np.int64)
+        kind = subset.GetElementTypeAttr().Get()
+        name = subset.GetPrim().GetName()
+        if kind == UsdGeom.Tokens.face:
+            bad = idx[(idx < 0) | (idx >= counts.size)]
+            if bad.size:
+                raise WarpclothError(f"USD subset {subset.GetPath()}: face index {int(bad[0])} out of range 0..{counts.size - 1}")
+            groups[name] = np.unique(triangles[np.isin(face_of_tri, idx)].ravel())
+        else:
+            groups[name] = np.unique(idx)
+    return TriangleMesh(vertices=world, triangles=triangles, uv=uv, groups=groups, source=path)
+
+
+def write_obj(path: str, vertices, triangles, uv=None, groups: dict | None = None) -> None:
+    """Write a triangle mesh as OBJ (per-vertex ``vt`` when ``uv`` is (N, 2)); each group gets a
+    ``g`` block with the faces whose three vertices are all in it (for example meshes)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    lines = ["# written by warpcloth"]
+    lines += [f"v {a:.9g} {b:.9g} {c:.9g}" for a, b, c in v]
+    if uv is not None:
+        lines += [f"vt {a:.9g} {b:.9g}" for a, b in np.asarray(uv, dtype=np.float64)]
+    taken = np.zeros(t.shape[0], dtype=bool)
+
+    def face(row):
+        return "f " + " ".join(f"{k + 1}/{k + 1}" if uv is not None else f"{k + 1}" for k in row)
+
+    for name, members in (groups or {}).items():
+        inside = np.isin(t, np.asarray(members)).all(axis=1) & ~taken
+        taken |= inside
+        lines.append(f"g {name}")
+        lines += [face(row) for row in t[inside]]
+    if not taken.all():
+        lines.append("g cloth")
+        lines += [face(row) for row in t[~taken]]
+    with open(path, "w", encoding="utf-8") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+__all__ = ["MESH_FORMATS", "load_mesh", "read_obj", "read_usd", "write_obj"]

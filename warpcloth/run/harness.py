@@ -1,0 +1,459 @@
+"""The run harness: frames, timing, metrics, verdicts and outputs above the stepping core.
+
+A :class:`~warpcloth.simulator.Simulator` steps (``step``, ``simulate``); :class:`RunHarness`
+runs it for a simulated duration (seed 3.2.2): forces are computed every time step ``dt``,
+frames are sampled every ``1/fps`` seconds of simulated time, metrics are reduced on the device
+and read once per frame, and the verdicts (stable, equilibrium) are made here. A run returns a
+:class:`RunResult` that serialises to JSON. ``Simulator.run`` is this harness.
+
+The timing helpers (:class:`Stopwatch`, :func:`time_steps`) are the one way warpcloth times
+steps: the run loop, the benchmark, the max-dt search and the study use them, so "ms/step"
+means the same everywhere (kernel time after warm-up; compile and graph capture apart).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import statistics
+import time
+from dataclasses import asdict, dataclass, field
+
+import warp as wp
+
+from warpcloth.version import __version__
+from warpcloth.errors import WarpclothError, require_count, require_positive, warn
+from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN, EnergyMonitor, EquilibriumDetector, FrameMetrics, MetricsProbe, wind_power_bound
+
+#: Most steps one run may take (a larger count is a typo in dt or duration, not an experiment).
+MAX_RUN_STEPS = 10**12
+#: A frame may be at most this many times shorter than a step (frames shorter than a step are
+#: sampled once per step anyway).
+MAX_FRAMES_PER_STEP = 1000.0
+#: The wall cap is checked after chunks of steps of about this many wall seconds.
+CHUNK_SECONDS = 0.2
+
+
+# -- timing ----------------------------------------------------------------------------------
+class Stopwatch:
+    """Wall time of a block of launches on ``device``, synchronised at both ends::
+
+        with Stopwatch(device) as watch:
+            sim.simulate(n)
+        watch.seconds
+    """
+
+    def __init__(self, device=None):
+        self.device = device
+        self.seconds = 0.0
+
+    def __enter__(self):
+        if self.device is not None:
+            wp.synchronize_device(self.device)
+        self._t0 = time.perf_counter()
+        return self
+
+    def __exit__(self, *exc):
+        if self.device is not None:
+            wp.synchronize_device(self.device)
+        self.seconds = time.perf_counter() - self._t0
+        return False
+
+
+@dataclass
+class StepTiming:
+    """ms/step of a simulator over timed windows (warm-up and first replay excluded)."""
+
+    dt: float
+    steps_per_window: int
+    ms_per_step: list  # one entry per timed window
+    compile_s: float = 0.0
+    steps_timed: int | None = None  # every timed step (None: steps_per_window x windows)
+
+    @property
+    def median_ms(self) -> float:
+        return statistics.median(self.ms_per_step)
+
+    @property
+    def min_ms(self) -> float:
+        return min(self.ms_per_step)
+
+    @property
+    def max_ms(self) -> float:
+        return max(self.ms_per_step)
+
+    @property
+    def steps(self) -> int:
+        return self.steps_timed if self.steps_timed is not None else self.steps_per_window * len(self.ms_per_step)
+
+    @property
+    def wall_s_per_sim_s(self) -> float:
+        """Cost per simulated second: wall seconds per step / dt (from the median)."""
+        return self.median_ms / 1000.0 / self.dt
+
+    @property
+    def realtime_factor(self) -> float:
+        return 1.0 / self.wall_s_per_sim_s
+
+    def realtime(self, fps: float) -> bool:
+        """Whether the steps of one 1/fps s frame take at most 1/fps s of wall time."""
+        steps = math.ceil((1.0 / fps) / self.dt - 1e-9)
+        return steps * self.median_ms / 1000.0 <= 1.0 / fps
+
+
+def time_steps(sim, windows: int = 5, window_seconds: float = 0.1, batch: int | None = None,
+               steps: int | None = None, warm_up: bool = True) -> StepTiming:
+    """Time ``sim``'s steps: a warm-up (compile; its seconds in ``compile_s``), one untimed
+    replay of each step count timed (first launches, graph capture), then ``windows`` timed
+    windows.
+
+    Args:
+        windows: timed windows (>= 1); the median and the spread come from them.
+        window_seconds: each window replays whole batches until it lasts about this long.
+        batch: steps per replay (default one 60 Hz frame of steps, at least 1), so a captured
+            graph is replayed as it is in a run.
+        steps: instead of ``window_seconds``: time exactly this many steps in all, split evenly
+            over the windows (each window one replay of its share; at most ``steps`` windows).
+        warm_up: compile first (skip when the caller already did).
+    """
+    windows = require_count("windows", windows)
+    if windows < 1:
+        raise WarpclothError(f"windows must be >= 1, got {windows}")
+    device = sim.model.device
+    compile_s = sim.warm_up() if warm_up else 0.0
+    if steps is not None:
+        steps = require_count("steps", steps)
+        if steps < windows:
+            raise WarpclothError(f"steps ({steps}) must be at least windows ({windows}): one step a window")
+        shares = [steps // windows + (1 if k < steps % windows else 0) for k in range(windows)]
+        for n in sorted(set(shares)):
+            sim.simulate(n)  # first launches / graph capture of each count: excluded
+        sim.integrator.reset_stats()
+        ms = []
+        for n in shares:
+            with Stopwatch(device) as watch:
+                sim.simulate(n)
+            ms.append(1000.0 * watch.seconds / n)
+        return StepTiming(dt=sim.dt, steps_per_window=steps // windows, ms_per_step=ms, compile_s=compile_s, steps_timed=steps)
+    if batch is None:
+        batch = max(1, math.ceil((1.0 / 60.0) / sim.dt - 1e-9))
+    sim.simulate(batch)  # first launches / graph capture: excluded
+    with Stopwatch(device) as watch:
+        sim.simulate(batch)
+    per_step = max(watch.seconds / batch, 1e-9)
+    replays = max(1, math.ceil(window_seconds / (per_step * batch)))
+    sim.integrator.reset_stats()
+    ms = []
+    for _ in range(windows):
+        with Stopwatch(device) as watch:
+            for _ in range(replays):
+                sim.simulate(batch)
+        ms.append(1000.0 * watch.seconds / (replays * batch))
+    return StepTiming(dt=sim.dt, steps_per_window=replays * batch, ms_per_step=ms, compile_s=compile_s)
+
+
+# -- results ---------------------------------------------------------------------------------
+@dataclass
+class RunResult:
+    """Outcome and measurements of one run (SI units; times in seconds unless named ``_ms``)."""
+
+    scenario: str
+    integrator: str
+    device: str
+    rows: int
+    cols: int
+    particles: int
+    springs: int
+    dt: float
+    fps: float
+    steps: int = 0
+    frames: int = 0
+    sim_time: float = 0.0
+    wall_time: float = 0.0
+    compile_time: float = 0.0
+    capture_time: float = 0.0
+    integration_time: float = 0.0
+    other_time: float = 0.0
+    export_time: float = 0.0
+    ms_per_step: float = 0.0
+    steps_per_sec: float = 0.0
+    realtime_factor: float = 0.0
+    stable: bool = True
+    unstable_reason: str = ""
+    unstable_time: float | None = None
+    equilibrium_reached: bool = False
+    time_to_equilibrium: float | None = None
+    time_to_equilibrium_wall: float | None = None
+    equilibrium_criterion: str = "speed+force"
+    force_floor: float = 0.0
+    max_strain: float = 0.0
+    instability_strain: float = DEFAULT_INSTABILITY_STRAIN
+    final_max_speed: float = 0.0
+    wall_cap_reached: bool = False
+    graph: bool = False
+    solver: dict = field(default_factory=dict)
+    #: False when the integrator's iterative solver missed its own tolerance in at least one
+    #: step; None where not applicable (no iterative solver with a tolerance).
+    solver_converged: bool | None = None
+    solver_capped_steps: int = 0
+    warpcloth_version: str = __version__
+    warp_version: str = wp.config.version
+
+    @property
+    def integration_ms_mean(self) -> float:
+        """Mean integration time per frame [ms]."""
+        return 1000.0 * self.integration_time / self.frames if self.frames else 0.0
+
+    @property
+    def other_ms_mean(self) -> float:
+        """Mean time per frame outside integration (metrics, export, bookkeeping) [ms]."""
+        return 1000.0 * self.other_time / self.frames if self.frames else 0.0
+
+    @property
+    def frames_per_sec(self) -> float:
+        """Frames of 1/fps simulated seconds produced per wall second."""
+        return self.realtime_factor * self.fps
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["integration_ms_mean"] = self.integration_ms_mean
+        d["other_ms_mean"] = self.other_ms_mean
+        d["frames_per_sec"] = self.frames_per_sec
+        return d
+
+    def to_json(self, **kwargs) -> str:
+        return json.dumps(self.to_dict(), **kwargs)
+
+
+class RunHarness:
+    """Runs a :class:`~warpcloth.simulator.Simulator` for a simulated duration: frames, metrics,
+    verdicts (unstable, equilibrium), timing and frame outputs (USD, HTML, ...).
+
+    The verdict settings are the simulator's (``instability_strain``, ``equilibrium``,
+    ``energy_criteria``): what "stable" means belongs to the experiment, and one simulator keeps
+    one meaning across its runs.
+    """
+
+    def __init__(self, sim):
+        self.sim = sim
+        self.probe = MetricsProbe(sim.model, sim.control)
+        self._step_seconds: dict = {}  # wall seconds of one step, by the simulator's step_version
+
+    def measure(self) -> FrameMetrics:
+        """Metrics of the current state (one small read from the device)."""
+        sim = self.sim
+        # with colliders the net force of a resting particle is balanced by a contact the metric
+        # does not see: equilibrium is then judged by speed alone (as for position-based schemes)
+        return self.probe.measure(sim.state, with_force=sim.integrator.force_based and sim.control.collision is None)
+
+    def energy(self) -> float:
+        """Total mechanical energy of the current state [J]."""
+        return self.probe.energy(self.sim.state)
+
+    def run(
+        self,
+        duration: float,
+        fps: float = 60.0,
+        stop_at_equilibrium: bool = False,
+        wall_cap: float | None = None,
+        usd=None,
+        warm_up: bool = True,
+        **unknown,
+    ) -> RunResult:
+        """Run for ``duration`` seconds of simulated time, sampling a frame every 1/fps s.
+
+        Args:
+            duration: simulated time [s].
+            fps: frame rate of sampling (metrics, USD frames) [1/s].
+            stop_at_equilibrium: end the run when equilibrium is confirmed.
+            wall_cap: stop after this many wall-clock seconds (None: no cap). It is checked
+                between chunks of about 0.2 s of steps, so it bounds the run's wall time
+                whatever the number of steps per frame.
+            usd: a :class:`~warpcloth.usd.UsdWriter` that receives every frame, a path
+                (.usd/.usda/.usdc: a writer is made, checked before the run and closed after),
+                or None.
+            warm_up: compile kernels before timing (see :meth:`warm_up`).
+
+        A run that goes unstable stops there and is recorded as unstable; it never raises.
+        Graph capture time is reported apart (``capture_time``) and excluded from ms/step.
+        """
+        if unknown:
+            raise WarpclothError(
+                f"Simulator.run got an unknown keyword {sorted(unknown)[0]!r}; its keywords are duration, fps, "
+                "stop_at_equilibrium, wall_cap, usd, warm_up"
+            )
+        duration = require_positive("duration", duration, "s")
+        fps = require_positive("fps", fps, "1/s")
+        if wall_cap is not None:
+            wall_cap = require_positive("wall cap", wall_cap, "s")
+        sim = self.sim
+        m, dt = sim.model, sim.dt
+        check_run_length(duration, fps, dt)
+        if isinstance(usd, (str, os.PathLike)):
+            from warpcloth.io.usd import UsdWriter
+
+            writer = UsdWriter(os.fspath(usd), m, fps, colliders=sim.control.colliders)
+            try:
+                result = self.run(duration, fps, stop_at_equilibrium, wall_cap, writer, warm_up)
+            except BaseException:
+                writer.abort()
+                raise
+            writer.close()
+            return result
+        if usd is not None and not callable(getattr(usd, "write_frame", None)):
+            raise WarpclothError(f"usd must be a UsdWriter, a .usd/.usda/.usdc path or None, got {usd!r:.80}")
+        result = RunResult(
+            scenario=sim.scenario, integrator=sim.integrator.name, device=str(m.device), rows=m.rows, cols=m.cols,
+            particles=m.particle_count, springs=m.spring_count, dt=dt, fps=fps,
+            equilibrium_criterion="speed+force" if sim.integrator.force_based and sim.control.collision is None else "speed",
+            graph=sim.graph_enabled, instability_strain=sim.instability_strain,
+        )
+        if warm_up and not sim.warmed:  # once: a warm-up restarts the integrator's history
+            result.compile_time = sim.warm_up()
+        detector = EquilibriumDetector(sim.equilibrium, self.probe.force_floor)
+        result.force_floor = self.probe.force_floor
+        start_steps, start_time = sim.steps, sim.sim_time
+        start_capture = sim.capture_time
+        total_steps = max(1, math.ceil(duration / dt - 1e-9))
+        frame_dt = 1.0 / fps
+        steps_per_frame = frame_dt / dt
+        e0, _ = self.probe.energies(sim.state)
+
+        def energy_monitor(e_start: float) -> EnergyMonitor:
+            return EnergyMonitor(
+                e_start, wind_power_bound(m, sim.control, sim.instability_strain),
+                window_frames=max(math.ceil(sim.energy_criteria.window_time * fps - 1e-9),
+                                  math.ceil(sim.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9)),
+                scale=m.total_mass * sim.control.gravity_magnitude * max(m.width, m.height, 1e-3),
+                criteria=sim.energy_criteria,
+            )
+
+        energy, energy_start = energy_monitor(e0), start_time
+        # moving kinematic pins do work no a-priori bound knows: the energy criterion waits until
+        # they stop and starts from the energy then (non-finite state and strain still apply)
+        pins_move_until = sim.pins_moving_until()
+        if usd is not None:
+            t0 = time.perf_counter()
+            usd.write_frame(sim.state.particle_q.numpy(), sim.sim_time)
+            result.export_time += time.perf_counter() - t0
+
+        loop_start = time.perf_counter()
+        frame = 0
+        done = 0
+        while done < total_steps:
+            # the next frame that needs a step (frames shorter than a step are skipped at once)
+            frame = max(frame + 1, math.floor((done + 1e-9) / steps_per_frame) + 1)
+            target = min(total_steps, math.ceil(frame * steps_per_frame - 1e-9))
+            n = target - done
+            if n <= 0:
+                continue
+            t0 = time.perf_counter()
+            capped = self._advance(n, loop_start, wall_cap)
+            t1 = time.perf_counter()
+            result.integration_time += t1 - t0
+            done = sim.steps - start_steps
+
+            metrics = self.measure()
+            e, kinetic = self.probe.energies(sim.state)
+            result.frames += 1
+            if metrics.finite:
+                result.max_strain = max(result.max_strain, metrics.max_strain)
+            result.final_max_speed = metrics.max_speed
+            if not metrics.finite or not math.isfinite(e):
+                result.stable, result.unstable_reason = False, "non-finite state"
+            elif metrics.max_strain > sim.instability_strain:
+                result.stable = False
+                result.unstable_reason = f"spring strain {metrics.max_strain:.3g} beyond the limit {sim.instability_strain:g}"
+            elif sim.sim_time < pins_move_until:
+                energy, energy_start = None, None
+            elif energy is None:
+                energy, energy_start = energy_monitor(e), sim.sim_time
+            elif energy.update(sim.sim_time - energy_start, e, kinetic):
+                result.stable = False
+                result.unstable_reason = (
+                    f"energy growing without bound: {energy.excess:.3g} J above what gravity and the external forces "
+                    f"can supply, growing in {energy.streak} consecutive windows"
+                )
+            if usd is not None and result.stable:
+                te = time.perf_counter()
+                usd.write_frame(sim.state.particle_q.numpy(), sim.sim_time)
+                result.export_time += time.perf_counter() - te
+            t2 = time.perf_counter()
+            result.other_time += t2 - t1
+            if not result.stable:
+                result.unstable_time = sim.sim_time
+                break
+            if detector.update(sim.sim_time - start_time, t2 - loop_start, metrics):
+                if not result.equilibrium_reached:
+                    result.equilibrium_reached = True
+                    result.time_to_equilibrium = detector.rest_since
+                    result.time_to_equilibrium_wall = detector.rest_since_wall
+                if stop_at_equilibrium:
+                    break
+            if capped or (wall_cap is not None and t2 - loop_start >= wall_cap):
+                result.wall_cap_reached = True
+                break
+
+        result.wall_time = time.perf_counter() - loop_start
+        result.capture_time = sim.capture_time - start_capture
+        result.integration_time = max(0.0, result.integration_time - result.capture_time)
+        result.steps = sim.steps - start_steps
+        result.sim_time = sim.sim_time - start_time
+        if result.steps and result.integration_time > 0:
+            result.ms_per_step = 1000.0 * result.integration_time / result.steps
+            result.steps_per_sec = result.steps / result.integration_time
+        if result.wall_time > 0:
+            result.realtime_factor = result.sim_time / result.wall_time
+        result.solver = sim.integrator.stats()
+        sim.integrator.reset_stats()  # the next run's statistics (and capped-step count) start here
+        result.solver_converged, result.solver_capped_steps, warning = sim.integrator.convergence(result.solver)
+        if warning:
+            warn(warning)  # once per run
+        return result
+
+    def _advance(self, n: int, loop_start: float, wall_cap: float | None) -> bool:
+        """Advance ``n`` steps in chunks of about :data:`CHUNK_SECONDS` of wall time, checking
+        the wall cap between chunks; True when the cap stopped it early."""
+        sim = self.sim
+        device = sim.model.device
+        done = 0
+        step_seconds = self._step_seconds.get(sim.step_version)
+        if step_seconds is None:  # size the chunks from a step timed after a first one
+            sim.simulate(1)  # may compile or capture
+            wp.synchronize_device(device)
+            done = 1
+            if n < 2:
+                return False
+            with Stopwatch(device) as watch:
+                sim.simulate(1)
+            step_seconds = self._step_seconds[sim.step_version] = max(watch.seconds, 1e-7)
+            done = 2
+        chunk = max(1, int(CHUNK_SECONDS / step_seconds))
+        while done < n:
+            if wall_cap is not None and done and time.perf_counter() - loop_start >= wall_cap:
+                return True
+            k = min(chunk, n - done)
+            sim.simulate(k)
+            wp.synchronize_device(device)
+            done += k
+        return False
+
+
+def check_run_length(duration: float, fps: float, dt: float) -> None:
+    """Refuse, in one line, runs that cannot be meaningful: a step longer than the run, a frame
+    more than :data:`MAX_FRAMES_PER_STEP` times shorter than a step, or more than
+    :data:`MAX_RUN_STEPS` steps."""
+    if dt > duration:
+        raise WarpclothError(f"dt ({dt:.4g} s) is longer than the duration ({duration:.4g} s): choose dt <= duration")
+    if dt * fps > MAX_FRAMES_PER_STEP:
+        raise WarpclothError(
+            f"fps ({fps:.4g} 1/s) asks for a frame every {1.0 / fps:.3g} s, {dt * fps:.3g} frames per step of {dt:.3g} s "
+            f"(at most {MAX_FRAMES_PER_STEP:g}): choose fps <= {MAX_FRAMES_PER_STEP / dt:.4g}"
+        )
+    steps = duration / dt
+    if steps > MAX_RUN_STEPS:
+        raise WarpclothError(
+            f"duration {duration:.4g} s at dt {dt:.3g} s is {steps:.3g} steps (at most {MAX_RUN_STEPS:.0e}): "
+            f"a larger dt or a shorter duration"
+        )

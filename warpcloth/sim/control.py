@@ -1,0 +1,170 @@
+"""The time-varying external input of a simulation: gravity, drag, wind, pin tracks, colliders.
+
+:class:`Control` holds the time-varying input (Newton's "Control"): gravity, linear air drag and
+a wind schedule W(t). Its simulated time and current wind live in device arrays, so a captured
+frame replays with the right wind.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from warpcloth.sim.device import resolve_device
+from warpcloth.errors import WarpclothError, require, require_non_negative, require_vector
+from warpcloth.kernels import forces as fk
+
+GRAVITY = (0.0, -9.81, 0.0)
+
+
+@dataclass(frozen=True)
+class WindSchedule:
+    """Piecewise-constant wind velocity W(t) [m/s].
+
+    ``W(t) = winds[k]`` for the last ``k`` with ``starts[k] <= t`` (zero before the first start);
+    with ``period > 0`` the schedule repeats: t is taken modulo the period.
+    """
+
+    starts: tuple[float, ...] = ()
+    winds: tuple[tuple[float, float, float], ...] = ()
+    period: float = 0.0
+
+    def __post_init__(self):
+        require(len(self.starts) == len(self.winds), "wind schedule needs one wind vector per start time")
+        require(all(b >= a for a, b in zip(self.starts, self.starts[1:])), f"wind schedule start times must be increasing, got {list(self.starts)}")
+        require_non_negative("wind schedule period", self.period, "s")
+
+    @classmethod
+    def constant(cls, wind) -> "WindSchedule":
+        return cls(starts=(0.0,), winds=(tuple(float(c) for c in wind),))
+
+    @classmethod
+    def gusts(cls, wind, on: float, off: float, base=(0.0, 0.0, 0.0)) -> "WindSchedule":
+        """Gusts of ``wind`` for ``on`` seconds, then ``base`` for ``off`` seconds, repeating."""
+        require(on > 0 and off > 0, f"gust on/off durations must be > 0 s, got on={on!r}, off={off!r}")
+        return cls(starts=(0.0, float(on)), winds=(tuple(map(float, wind)), tuple(map(float, base))), period=float(on + off))
+
+    def __call__(self, t: float) -> np.ndarray:
+        """W(t) evaluated on the host (for tests and reports)."""
+        if self.period > 0:
+            t = t % self.period
+        w = np.zeros(3)
+        for s, wk in zip(self.starts, self.winds):
+            if s <= t:
+                w = np.asarray(wk, dtype=float)
+        return w
+
+
+@dataclass
+class Control:
+    """Time-varying external input of a simulation.
+
+    Attributes:
+        gravity: gravitational acceleration [m/s^2].
+        drag_rate: linear air drag rate c [1/s]; the force on a particle is -m c v.
+        wind_coefficient: c_w [kg/(m^2 s)] in f = c_w A (n . u) n on each triangle; 0 disables wind.
+        wind_schedule: the wind velocity W(t).
+        pin_tracks: kinematic pins (:class:`~warpcloth.pins.PinTrack`), bound to the model by the
+            :class:`~warpcloth.simulator.Simulator` (see :mod:`warpcloth.pins`).
+        colliders: :class:`~warpcloth.colliders.Plane`, ``Sphere``, ``Capsule`` or ``Box``
+            objects, static or moving on a :class:`~warpcloth.colliders.ColliderTrack`, and static
+            :class:`~warpcloth.colliders.MeshCollider` objects (see :mod:`warpcloth.colliders`).
+        time: simulated time [s], device array of shape (1,), float64: t_base + n dt after n
+            steps of dt since the last change of dt, so switch times land exactly on steps.
+        wind: current wind velocity [m/s], device array of shape (1,), vec3.
+    """
+
+    gravity: tuple[float, float, float] = GRAVITY
+    drag_rate: float = 0.0
+    wind_coefficient: float = 0.0
+    wind_schedule: WindSchedule = field(default_factory=WindSchedule)
+    device: str | None = None
+    pin_tracks: tuple = ()
+    colliders: tuple = ()
+
+    def __post_init__(self):
+        require_non_negative("drag", self.drag_rate, "1/s")
+        require_non_negative("wind coefficient", self.wind_coefficient, "kg/(m^2 s)")
+        self.gravity = require_vector("gravity", self.gravity, 3, "m/s^2")
+        self.device = resolve_device(self.device)
+        with wp.ScopedDevice(self.device):
+            self.time = wp.zeros(1, dtype=wp.float64)
+            self._time_base = wp.zeros(1, dtype=wp.float64)
+            self._clock = wp.zeros(1, dtype=wp.int64)
+            self.wind = wp.zeros(1, dtype=wp.vec3)
+            self._step_dt = wp.zeros(1, dtype=wp.float64)  # the last step's dt: position-based steps pose moving colliders with it
+        self.colliders = tuple(self.colliders)
+        self.collision = self._collider_set(self.colliders)
+        self._fill_schedule()
+
+    def __setattr__(self, name, value):
+        super().__setattr__(name, value)
+        if name == "wind_schedule" and "_schedule_start" in self.__dict__:
+            self._fill_schedule()  # the device copy follows the host schedule
+        if name == "colliders" and "collision" in self.__dict__:
+            value = tuple(value)
+            super().__setattr__("colliders", value)
+            super().__setattr__("collision", self._collider_set(value))
+
+    def _collider_set(self, colliders):
+        from warpcloth.sim.colliders import ColliderSet
+
+        return ColliderSet(colliders, self.device, time=self.time, step_dt=self._step_dt) if colliders else None
+
+    def _fill_schedule(self) -> None:
+        """Copy :attr:`wind_schedule` to the device (float64 start times) and re-evaluate W(t)."""
+        if not isinstance(self.wind_schedule, WindSchedule):
+            raise WarpclothError(f"wind_schedule must be a WindSchedule, got {self.wind_schedule!r}")
+        n = max(1, len(self.wind_schedule.starts))
+        starts = np.full(n, np.inf, dtype=np.float64)
+        winds = np.zeros((n, 3), dtype=np.float32)
+        if self.wind_schedule.starts:
+            starts[:] = self.wind_schedule.starts
+            winds[:] = self.wind_schedule.winds
+        current = self.__dict__.get("_schedule_start")
+        if current is not None and current.shape[0] == n:  # in place: captured graphs keep their arrays
+            current.assign(starts)
+            self._schedule_wind.assign(winds)
+        else:
+            with wp.ScopedDevice(self.device):
+                self._schedule_start = wp.array(starts, dtype=wp.float64)
+                self._schedule_wind = wp.array(winds, dtype=wp.vec3)
+        self.update()
+
+    @property
+    def has_wind(self) -> bool:
+        return self.wind_coefficient > 0.0 and len(self.wind_schedule.starts) > 0
+
+    @property
+    def gravity_magnitude(self) -> float:
+        return float(np.linalg.norm(self.gravity))
+
+    def set_time(self, t: float) -> None:
+        """Set the simulated time [s] (host write; not for use inside a captured frame)."""
+        self.time.fill_(float(t))
+        self.rebase()
+        self.update()
+
+    def rebase(self) -> None:
+        """Count steps from the current time: after n steps of dt, t = t_now + n dt (on the device)."""
+        wp.launch(fk.rebase_time, dim=1, inputs=[self.time, self._time_base, self._clock], device=self.device)
+
+    def update(self) -> None:
+        """Evaluate W(time) into :attr:`wind` on the device, and start a step of the moving
+        colliders (:meth:`ColliderSet.begin_step <warpcloth.colliders.ColliderSet.begin_step>`:
+        posed at the end of the first position-based substep, with the dt of the last
+        :meth:`advance`; force-based steps re-pose them at exactly t + dt after the step)."""
+        if self.collision is not None:
+            self.collision.begin_step()
+        if self.has_wind:
+            wp.launch(fk.eval_wind_schedule, dim=1, inputs=[self.time, self._schedule_start, self._schedule_wind, wp.float64(self.wind_schedule.period)], outputs=[self.wind], device=self.device)
+
+    def advance(self, dt: float) -> None:
+        """t = t_base + n dt after the n-th step since :meth:`rebase`, on the device."""
+        wp.launch(fk.advance_time, dim=1, inputs=[self.time, self._time_base, self._clock, wp.float64(dt)], device=self.device)
+        if self.collision is not None and self.collision.moving:
+            from warpcloth.kernels import collide as ck
+
+            wp.launch(ck.store_step, dim=1, inputs=[wp.float64(dt)], outputs=[self._step_dt], device=self.device)

@@ -1,0 +1,442 @@
+"""The cloth model: immutable topology and parameters of a Provot mass-spring grid.
+
+A :class:`ClothModel` holds particle masses, pins, springs (structural, shear, bend) with their
+rest lengths and per-type stiffness/damping, and the two triangles of each grid cell. It is
+built once per run by :func:`build_grid_cloth`; :meth:`ClothModel.state` makes a fresh
+:class:`~warpcloth.state.State`.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+import warp as wp
+
+from warpcloth.sim.device import require_memory, resolve_device
+from warpcloth.errors import WarpclothError, require, require_indices, require_int, require_non_negative, require_positive, require_vector
+
+
+class SpringType(enum.IntEnum):
+    """Kinds of spring in the Provot grid (seed 2.1.2)."""
+
+    STRUCTURAL = 0
+    SHEAR = 1
+    BEND = 2
+
+
+class BendModel(str, enum.Enum):
+    """Which bend (flexion) springs a grid gets."""
+
+    PROVOT = "provot"  # [i,j]-[i+2,j], [i,j]-[i,j+2]
+    CHOI_KO = "choi_ko"  # Provot's plus the diagonals [i,j]-[i+2,j+2], [i+2,j]-[i,j+2]
+    NONE = "none"
+
+
+@dataclass(frozen=True)
+class SpringParams:
+    """Stiffness ks [N/m] and damping kd [N s/m] of one spring type."""
+
+    stiffness: float
+    damping: float
+
+
+def expected_spring_counts(rows: int, cols: int, bend: str | BendModel = BendModel.PROVOT) -> dict[str, int]:
+    """Spring counts of a rows x cols Provot grid, from seed eq. 2.2 (Choi-Ko adds 2(m-2)(n-2))."""
+    m, n = rows, cols
+    bend = BendModel(bend)
+    counts = {
+        "structural": 2 * (m - 1) * (n - 1) + (m - 1) + (n - 1),
+        "shear": 2 * (m - 1) * (n - 1),
+        "bend": 0,
+    }
+    if bend != BendModel.NONE:
+        counts["bend"] = 2 * (m - 2) * (n - 2) + 2 * ((m - 2) + (n - 2))
+    if bend == BendModel.CHOI_KO:
+        counts["bend"] += 2 * (m - 2) * (n - 2)
+    return counts
+
+
+@dataclass(frozen=True, eq=False)
+class HostArrays:
+    """The host (NumPy) arrays a :class:`ClothModel` was built from (read-only by convention;
+    ``model.host["q"]`` and ``model.host.get("uv")`` read them as before).
+
+    Attributes:
+        q: rest positions [m], (N, 3) float32.
+        pairs: spring particle pairs, (S, 2) int32.
+        rest: spring rest lengths [m], (S,) float32.
+        mass: particle masses [kg], (N,) float32.
+        inv_mass: inverse masses [1/kg], 0 where pinned, (N,) float32.
+        tris: triangles, (T, 3) int32.
+        uv: texture coordinates per triangle corner, (3T, 2), or None.
+        groups: named vertex groups of a mesh (name -> indices).
+    """
+
+    q: np.ndarray
+    pairs: np.ndarray
+    rest: np.ndarray
+    mass: np.ndarray
+    inv_mass: np.ndarray
+    tris: np.ndarray
+    uv: np.ndarray | None = None
+    groups: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str):
+        value = getattr(self, name, None) if name in self.__dataclass_fields__ else None
+        if value is None:
+            raise KeyError(name)
+        return value
+
+    def get(self, name: str, default=None):
+        value = getattr(self, name, None) if name in self.__dataclass_fields__ else None
+        return default if value is None else value
+
+    def __contains__(self, name: str) -> bool:
+        return self.get(name) is not None
+
+
+@dataclass(frozen=True, eq=False)  # identity equality and hash (its arrays have no value equality)
+class ClothModel:
+    """Immutable cloth topology and parameters, with device copies of every array (a frozen
+    dataclass: a model with other spring parameters is a new model, :meth:`with_spring_params`).
+
+    Attributes (device arrays are ``wp.array`` on :attr:`device`):
+        rows, cols: grid size (particles per column and per row).
+        particle_count: rows * cols.
+        particle_q: initial particle positions [m], shape (particle_count,), vec3.
+        particle_mass: particle masses [kg], shape (particle_count,).
+        particle_inv_mass: inverse masses [1/kg]; 0 for pinned particles.
+        pinned: indices of pinned particles (NumPy, int).
+        spring_indices: particle pairs (i, j), shape (spring_count,), vec2i.
+        spring_type: :class:`SpringType` of each spring (NumPy).
+        spring_rest_length: rest lengths L0 [m], shape (spring_count,).
+        spring_stiffness: ks [N/m] per spring, filled from the per-type parameters.
+        spring_damping: kd [N s/m] per spring, filled from the per-type parameters.
+        tri_indices: triangles (a, b, c), two per grid cell, shape (tri_count,), vec3i.
+        spring_params: per-type :class:`SpringParams`.
+    """
+
+    rows: int
+    cols: int
+    width: float
+    height: float
+    total_mass: float
+    device: wp.Device
+    particle_q: wp.array
+    particle_mass: wp.array
+    particle_inv_mass: wp.array
+    pinned: np.ndarray
+    spring_indices: wp.array
+    spring_type: np.ndarray
+    spring_rest_length: wp.array
+    spring_stiffness: wp.array
+    spring_damping: wp.array
+    tri_indices: wp.array
+    spring_params: dict[SpringType, SpringParams]
+    bend: BendModel = BendModel.PROVOT
+    host: HostArrays | None = field(default=None, repr=False)
+
+    @property
+    def particle_count(self) -> int:
+        return int(self.host["q"].shape[0])
+
+    @property
+    def spring_count(self) -> int:
+        return int(self.spring_type.shape[0])
+
+    @property
+    def tri_count(self) -> int:
+        return int(self.tri_indices.shape[0])
+
+    @property
+    def particle_mass_value(self) -> float:
+        """Mass of one particle [kg] (the total split evenly, seed 4.2.4; the smallest mass for
+        a non-uniform model)."""
+        return float(self.host["mass"].min())
+
+    def spring_counts(self) -> dict[str, int]:
+        """Number of springs of each type."""
+        return {t.name.lower(): int(np.count_nonzero(self.spring_type == t)) for t in SpringType}
+
+    def max_stiffness(self) -> float:
+        """Largest spring stiffness K [N/m] in the model."""
+        return max(p.stiffness for t, p in self.spring_params.items() if np.any(self.spring_type == t))
+
+    def particle_spring_sums(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per particle, the sums of ks [N/m] and kd [N s/m] of its springs (float64, host)."""
+        pairs = self.host["pairs"]
+        ks_sum = np.zeros(self.particle_count)
+        kd_sum = np.zeros(self.particle_count)
+        ks = self.spring_stiffness.numpy().astype(np.float64)
+        kd = self.spring_damping.numpy().astype(np.float64)
+        for end in (0, 1):
+            np.add.at(ks_sum, pairs[:, end], ks)
+            np.add.at(kd_sum, pairs[:, end], kd)
+        return ks_sum, kd_sum
+
+    def state(self):
+        """A new :class:`~warpcloth.state.State` at the rest configuration with zero velocity."""
+        from warpcloth.sim.state import State
+
+        return State.from_model(self)
+
+    def with_spring_params(self, params: dict[SpringType, SpringParams]) -> "ClothModel":
+        """A new model with per-spring stiffness and damping from per-type ``params`` (the same
+        topology, masses and pins, shared); this model is left unchanged. A
+        :class:`~warpcloth.simulator.Simulator` switches with :meth:`~warpcloth.simulator.Simulator.set_model`."""
+        from dataclasses import replace
+
+        _validate_spring_params(params)
+        ks = np.array([params[SpringType(t)].stiffness for t in self.spring_type], dtype=np.float32)
+        kd = np.array([params[SpringType(t)].damping for t in self.spring_type], dtype=np.float32)
+        with wp.ScopedDevice(self.device):
+            return replace(self, spring_stiffness=wp.array(ks, dtype=float), spring_damping=wp.array(kd, dtype=float), spring_params=dict(params))
+
+
+def _validate_spring_params(params: dict[SpringType, SpringParams]) -> None:
+    if not isinstance(params, dict) or not all(isinstance(p, SpringParams) for p in params.values()):
+        raise WarpclothError(
+            f"spring_params must map each SpringType to SpringParams(stiffness, damping) (see default_spring_params), got {params!r:.80}"
+        )
+    for t in SpringType:
+        require(t in params, f"spring parameters for {t.name.lower()} springs are missing")
+        require_non_negative(f"{t.name.lower()} stiffness", params[t].stiffness, "N/m")
+        require_non_negative(f"{t.name.lower()} damping", params[t].damping, "N s/m")
+
+
+#: Bytes per particle and per spring a run needs at most: device arrays (model, state, the largest
+#: integrator's scratch, metrics) and the host copies and temporaries made while building.
+BYTES_PER_PARTICLE = 400
+BYTES_PER_SPRING = 160
+
+
+def grid_memory_estimate(rows: int, cols: int) -> int:
+    """An upper estimate [bytes] of the memory a rows x cols Provot cloth and its run need
+    (about 8 springs per particle with Choi-Ko bend springs)."""
+    n = int(rows) * int(cols)
+    return n * (BYTES_PER_PARTICLE + 8 * BYTES_PER_SPRING)
+
+
+def grid_springs(rows: int, cols: int, bend: BendModel = BendModel.PROVOT) -> tuple[np.ndarray, np.ndarray]:
+    """Provot springs of a rows x cols grid as (pairs (S, 2) int32, types (S,) int32).
+
+    Particle [r, c] has index r * cols + c. Structural: [r,c]-[r+1,c], [r,c]-[r,c+1]; shear:
+    [r,c]-[r+1,c+1], [r+1,c]-[r,c+1]; bend: [r,c]-[r+2,c], [r,c]-[r,c+2] (Choi-Ko adds
+    [r,c]-[r+2,c+2], [r+2,c]-[r,c+2]).
+    """
+    idx = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
+    pairs, types = [], []
+
+    def add(a, b, t):
+        pairs.append(np.stack([a.ravel(), b.ravel()], axis=1))
+        types.append(np.full(a.size, int(t), dtype=np.int32))
+
+    add(idx[:-1, :], idx[1:, :], SpringType.STRUCTURAL)
+    add(idx[:, :-1], idx[:, 1:], SpringType.STRUCTURAL)
+    add(idx[:-1, :-1], idx[1:, 1:], SpringType.SHEAR)
+    add(idx[1:, :-1], idx[:-1, 1:], SpringType.SHEAR)
+    if bend != BendModel.NONE:
+        add(idx[:-2, :], idx[2:, :], SpringType.BEND)
+        add(idx[:, :-2], idx[:, 2:], SpringType.BEND)
+    if bend == BendModel.CHOI_KO:
+        add(idx[:-2, :-2], idx[2:, 2:], SpringType.BEND)
+        add(idx[2:, :-2], idx[:-2, 2:], SpringType.BEND)
+    return np.concatenate(pairs).astype(np.int32), np.concatenate(types)
+
+
+def grid_triangles(rows: int, cols: int) -> np.ndarray:
+    """Two counter-clockwise triangles per grid cell, shape (2 (rows-1)(cols-1), 3)."""
+    idx = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    c, d = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    t1 = np.stack([a, c, b], axis=1)
+    t2 = np.stack([b, c, d], axis=1)
+    return np.concatenate([t1, t2]).astype(np.int32)
+
+
+def grid_positions(rows: int, cols: int, width: float, height: float, origin=(0.0, 0.0, 0.0), plane: str = "vertical") -> np.ndarray:
+    """Particle positions of the grid [m]: row 0 at the origin, columns along +x.
+
+    ``plane="vertical"``: rows go down (-y), the cloth lies in the x-y plane (y up).
+    ``plane="horizontal"``: rows go along +z, the cloth lies flat in the x-z plane.
+    """
+    r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    u = c.ravel() * (width / (cols - 1))
+    w = r.ravel() * (height / (rows - 1))
+    q = np.zeros((rows * cols, 3), dtype=np.float64)
+    q[:, 0] = u
+    if plane == "vertical":
+        q[:, 1] = -w
+    elif plane == "horizontal":
+        q[:, 2] = w
+    else:
+        raise WarpclothError(f"plane must be 'vertical' or 'horizontal', got {plane!r}")
+    return (q + np.asarray(origin, dtype=np.float64)).astype(np.float32)
+
+
+def build_grid_cloth(
+    rows: int,
+    cols: int,
+    width: float = 1.0,
+    height: float = 1.0,
+    total_mass: float = 0.2,
+    spring_params: dict[SpringType, SpringParams] | None = None,
+    pins=(),
+    origin=(0.0, 0.0, 0.0),
+    plane: str = "vertical",
+    bend: str | BendModel = BendModel.PROVOT,
+    device: str | None = None,
+) -> ClothModel:
+    """Build a Provot mass-spring grid cloth.
+
+    Args:
+        rows, cols: particles per column and per row (>= 2; >= 3 with bend springs).
+        width, height: physical size of the cloth [m].
+        total_mass: cloth mass [kg], split evenly over the particles (seed 4.2.4).
+        spring_params: per-type :class:`SpringParams`; default :func:`default_spring_params`.
+        pins: indices of pinned particles (inverse mass 0).
+        origin: position of particle [0, 0] [m].
+        plane: ``"vertical"`` (hanging, x-y plane) or ``"horizontal"`` (x-z plane).
+        bend: ``"provot"``, ``"choi_ko"`` or ``"none"``.
+        device: Warp device (default: Warp's current device, see :mod:`warpcloth.device`).
+    """
+    try:
+        bend = BendModel(bend)
+    except ValueError:
+        raise WarpclothError(f"bend must be one of {[b.value for b in BendModel]}, got {bend!r}") from None
+    min_dim = 2 if bend == BendModel.NONE else 3
+    rows = require_int("rows", rows, min_dim)
+    cols = require_int("cols", cols, min_dim)
+    width = require_positive("width", width, "m")
+    height = require_positive("height", height, "m")
+    total_mass = require_positive("mass", total_mass, "kg")
+    origin = require_vector("origin", origin, 3, "m")
+    if spring_params is None:
+        spring_params = default_spring_params(total_mass / (rows * cols))
+    _validate_spring_params(spring_params)
+    device = resolve_device(device)
+    require_memory(f"a {rows} x {cols} cloth", grid_memory_estimate(rows, cols), device)
+
+    q = grid_positions(rows, cols, width, height, origin, plane)
+    pairs, types = grid_springs(rows, cols, bend)
+    model = build_model(q, pairs, types, np.full(rows * cols, total_mass / (rows * cols)), spring_params, pins, grid_triangles(rows, cols), device)
+    from dataclasses import replace
+
+    uv = grid_uvs(rows, cols)[model.host.tris].reshape(-1, 2)
+    return replace(model, rows=rows, cols=cols, width=width, height=height, bend=bend, total_mass=total_mass,
+                   host=replace(model.host, uv=uv))
+
+
+def grid_uvs(rows: int, cols: int) -> np.ndarray:
+    """Texture coordinates per particle, u = col / (cols - 1), v = 1 - row / (rows - 1), (N, 2)."""
+    r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    return np.stack([c.ravel() / (cols - 1), 1.0 - r.ravel() / (rows - 1)], axis=1).astype(np.float32)
+
+
+def build_model(positions, spring_pairs, spring_types, masses, spring_params, pins=(), triangles=None, device=None) -> ClothModel:
+    """Build a mass-spring model from arrays (any topology; the grid builder uses this too).
+
+    Args:
+        positions: (N, 3) rest positions [m].
+        spring_pairs: (S, 2) particle indices.
+        spring_types: (S,) :class:`SpringType` values.
+        masses: (N,) particle masses [kg] (> 0).
+        spring_params: per-type :class:`SpringParams`.
+        pins: indices of pinned particles.
+        triangles: (T, 3) particle indices for wind and rendering (default none).
+        device: Warp device.
+    """
+    q = np.asarray(positions, dtype=np.float32).reshape(-1, 3)
+    n = q.shape[0]
+    require(n >= 1, "a model needs at least one particle")
+    mass = np.asarray(masses, dtype=np.float32).reshape(-1)
+    require(mass.shape[0] == n, f"masses must have one value per particle ({n}), got {mass.shape[0]}")
+    if not np.all(mass > 0):
+        raise WarpclothError(f"particle masses must be > 0 kg, got {float(mass[mass <= 0][0])!r}")
+    _validate_spring_params(spring_params)
+    pairs = np.asarray(spring_pairs, dtype=np.int32).reshape(-1, 2)
+    types = np.asarray(spring_types, dtype=np.int32).reshape(-1)
+    require(types.shape[0] == pairs.shape[0], "spring_types must have one value per spring")
+    if pairs.size and (pairs.min() < 0 or pairs.max() >= n):
+        raise WarpclothError(f"spring particle indices must be in 0..{n - 1}")
+    pins = require_indices("pins", pins, n)
+    inv_mass = (1.0 / mass).astype(np.float32)
+    inv_mass[pins] = 0.0
+    rest = np.linalg.norm(q[pairs[:, 1]].astype(np.float64) - q[pairs[:, 0]], axis=1).astype(np.float32)
+    if rest.size and not np.all(rest > 0):
+        raise WarpclothError("every spring must have a rest length > 0 m (two particles at the same place)")
+    if types.size and (types.min() < 0 or types.max() > max(SpringType)):
+        raise WarpclothError(f"spring types must be in 0..{int(max(SpringType))} (SpringType)")
+    # per-type lookup by indexing (a Python loop over 300k springs took 0.5 s)
+    ks = np.array([spring_params[t].stiffness for t in SpringType], dtype=np.float32)[types]
+    kd = np.array([spring_params[t].damping for t in SpringType], dtype=np.float32)[types]
+    tris = np.zeros((0, 3), dtype=np.int32) if triangles is None else np.asarray(triangles, dtype=np.int32).reshape(-1, 3)
+    device = resolve_device(device)
+    with wp.ScopedDevice(device):
+        return ClothModel(
+            rows=1,
+            cols=n,
+            width=float(np.ptp(q[:, 0])) if n > 1 else 0.0,
+            height=float(np.ptp(q[:, 1])) if n > 1 else 0.0,
+            total_mass=float(mass.astype(np.float64).sum()),
+            device=device,
+            particle_q=wp.array(q, dtype=wp.vec3),
+            particle_mass=wp.array(mass, dtype=float),
+            particle_inv_mass=wp.array(inv_mass, dtype=float),
+            pinned=pins,
+            spring_indices=wp.array(pairs, dtype=wp.vec2i),
+            spring_type=types,
+            spring_rest_length=wp.array(rest, dtype=float),
+            spring_stiffness=wp.array(ks, dtype=float),
+            spring_damping=wp.array(kd, dtype=float),
+            tri_indices=wp.array(tris, dtype=wp.vec3i),
+            spring_params=dict(spring_params),
+            bend=BendModel.NONE,
+            host=HostArrays(q=q, pairs=pairs, rest=rest, mass=mass, inv_mass=inv_mass, tris=tris),
+        )
+
+
+# Defaults: per-spring constants, as in the seed (one k per spring type).
+DEFAULT_STIFFNESS = {SpringType.STRUCTURAL: 1000.0, SpringType.SHEAR: 1000.0, SpringType.BEND: 200.0}
+DEFAULT_DAMPING_RATIO = 0.05
+
+
+def default_damping(stiffness: float, particle_mass: float, ratio: float = DEFAULT_DAMPING_RATIO) -> float:
+    """Spring damping kd = 2 ratio sqrt(ks m) [N s/m]: scales with particle mass, so refining
+    the mesh keeps the same damping ratio and does not make explicit steps unstable."""
+    return 2.0 * ratio * float(np.sqrt(stiffness * particle_mass))
+
+
+def default_spring_params(particle_mass: float, stiffness=None, damping=None) -> dict[SpringType, SpringParams]:
+    """Per-type spring parameters: given ks/kd (a number for all types or a per-type mapping),
+    or the defaults, with kd scaled to the particle mass where not given."""
+
+    def spring_type(key, what):
+        try:
+            return SpringType[key.upper()] if isinstance(key, str) else SpringType(key)
+        except (KeyError, ValueError):
+            names = ", ".join(t.name.lower() for t in SpringType)
+            raise WarpclothError(f"{what}: unknown spring type {key!r}; the types are {names}") from None
+
+    def per_type(value, fallback, what, unit):
+        if value is None:
+            return dict(fallback)
+        if isinstance(value, dict):
+            return {spring_type(k, what): require_non_negative(f"{what} of {k}", v, unit) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            require(len(value) == 3, f"{what} per type must be 3 values (structural, shear, bend), got {list(value)!r}")
+            return {t: require_non_negative(f"{what} of {t.name.lower()} springs", value[t], unit) for t in SpringType}
+        v = require_non_negative(what, value, unit)
+        return {t: v for t in SpringType}
+
+    ks = per_type(stiffness, DEFAULT_STIFFNESS, "stiffness", "N/m")
+    for t in SpringType:
+        ks.setdefault(t, DEFAULT_STIFFNESS[t])
+        require_non_negative(f"{t.name.lower()} stiffness", ks[t], "N/m")
+    kd_default = {t: default_damping(ks[t], particle_mass) for t in SpringType}
+    kd = per_type(damping, kd_default, "damping", "N s/m")
+    for t in SpringType:
+        kd.setdefault(t, kd_default[t])
+    return {t: SpringParams(ks[t], kd[t]) for t in SpringType}
