@@ -7,7 +7,7 @@ Same as ``warpcloth bench``; see ``warpcloth.lab.bench`` for what is measured.
 
 import sys
 
-from warpcloth.lab.bench import main
+from warpcloth.cli.bench import main
 
 if __name__ == "__main__":
     sys.exit(main())

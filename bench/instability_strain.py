@@ -1,6 +1,6 @@
 """The largest spring strain each integrator reaches on the built-in scenarios at its default dt,
 and rk4 at a half and a quarter of its default (converged): the measurement behind the default
-instability strain (warpcloth.metrics.DEFAULT_INSTABILITY_STRAIN).
+instability strain (warpcloth.run.metrics.DEFAULT_INSTABILITY_STRAIN).
 
     python bench/instability_strain.py [--duration-sheet 4] [--duration-flag 5]
 """
@@ -19,9 +19,10 @@ def main(argv=None):
     print("scenario  integrator      dt [s]     max strain")
     for scenario, duration in ((sheet, args.duration_sheet), (flag, args.duration_flag)):
         for integrator, fraction in runs:
-            sim = scenario.build(integrator=integrator, instability_strain=10.0)
+            harness = scenario.SCENARIO.harness(integrator=integrator, instability_strain=10.0)
+            sim = harness.sim
             sim.set_dt(sim.dt * fraction)
-            r = sim.run(duration, stop_at_equilibrium=False)
+            r = harness.run(duration, stop_at_equilibrium=False)
             print(f"{scenario.SCENARIO.name:9s} {integrator:15s} {sim.dt:9.3g}  {100 * r.max_strain:6.2f} %", flush=True)
 
 

@@ -5,7 +5,7 @@ too). The constraint math lives in pure ``@wp.func`` helpers that return correct
 kernels only index, predict and scatter.
 
 **Parallel projection: graph colouring, Gauss-Seidel colour by colour.** The springs are split
-at bind time (:mod:`warpcloth.coloring`) into colours in which no two springs share a
+at bind time (:mod:`warpcloth.sim.coloring`) into colours in which no two springs share a
 particle; on the Provot grid each spring direction and parity is one such independent set
 (12 colours, 16 with Choi-Ko bend springs). One launch projects one colour: its springs touch
 disjoint particles, so they are projected in parallel without atomics and the result equals a

@@ -32,6 +32,15 @@ def register(scenario: Scenario) -> Scenario:
     return scenario
 
 
+def check_scenario(text: str) -> str:
+    """``text`` if it names a scenario or a scenario file (.toml) that loads; else one line."""
+    if text.lower().endswith(".toml"):
+        get_scenario(text)
+    elif text not in scenario_names():
+        raise WarpclothError(f"unknown scenario {text!r}; choose from {', '.join(scenario_names())}, or a scenario file (.toml)")
+    return text
+
+
 def get_scenario(name: str) -> Scenario:
     """The scenario called ``name``, or the one described by the TOML file at ``name``."""
     from warpcloth.scenarios.file import is_scenario_file, load_scenario
@@ -47,4 +56,4 @@ def get_scenario(name: str) -> Scenario:
     return importlib.import_module(f"{__name__}.{name}").SCENARIO
 
 
-__all__ = ["Scenario", "ScenarioConfig", "get_scenario", "register", "scenario_names"]
+__all__ = ["Scenario", "ScenarioConfig", "check_scenario", "get_scenario", "register", "scenario_names"]

@@ -13,7 +13,12 @@ from warpcloth.sim.control import Control
 from warpcloth.integrators import make_integrator
 from warpcloth.sim.model import BendModel, build_grid_cloth, default_spring_params
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
-from warpcloth.simulator import RunResult, Simulator
+from warpcloth.io.frames import FrameSinks
+from warpcloth.io.meshio import load_mesh_collider
+from warpcloth.io.usd import usd_frames
+from warpcloth.run.parse import ColliderSpec
+from warpcloth.run.harness import RunHarness, RunResult
+from warpcloth.simulator import Simulator
 
 
 @dataclass
@@ -63,12 +68,12 @@ class Scenario:
         description: one line.
         defaults: the :class:`ScenarioConfig` of a plain run.
         pins: function (rows, cols) -> pinned particle indices.
-        control: function (config, device) -> :class:`~warpcloth.forces.Control`.
+        control: function (config, device) -> :class:`~warpcloth.sim.control.Control`.
         origin: function (config) -> position of particle [0, 0].
         stop_at_equilibrium: whether a run ends once the cloth is at rest.
-        model: function (config, device) -> :class:`~warpcloth.model.ClothModel` for a scenario
+        model: function (config, device) -> :class:`~warpcloth.sim.model.ClothModel` for a scenario
             that is not a Provot grid (a mesh); None: the grid of ``pins``, ``origin``, ``plane``.
-        tracks: function (config, model) -> kinematic pin tracks (:class:`~warpcloth.pins.PinTrack`).
+        tracks: function (config, model) -> kinematic pin tracks (:class:`~warpcloth.sim.pins.PinTrack`).
     """
 
     name: str
@@ -116,12 +121,18 @@ class Scenario:
 
     def _simulator(self, cfg: ScenarioConfig, model, integrator, device: str) -> Simulator:
         control = self.control(cfg, device)
-        if cfg.colliders:  # added to the scenario's own (--collider)
-            control.colliders = tuple(control.colliders) + tuple(cfg.colliders)
+        if cfg.colliders:  # added to the scenario's own (--collider); a mesh's file is read here, once
+            control.colliders = tuple(control.colliders) + tuple(
+                c.collider(load_mesh_collider) if isinstance(c, ColliderSpec) else c for c in cfg.colliders)
         if self.tracks is not None:
             control.pin_tracks = tuple(self.tracks(cfg, model))
-        return Simulator(model, integrator, control, dt=cfg.dt, scenario=self.name, strain_limit=cfg.strain_limit,
-                         instability_strain=cfg.instability_strain, use_graph=cfg.use_graph)
+        return Simulator(model, integrator, control, dt=cfg.dt, strain_limit=cfg.strain_limit, use_graph=cfg.use_graph)
+
+    def harness(self, config: ScenarioConfig | None = None, **overrides) -> RunHarness:
+        """A :class:`~warpcloth.run.harness.RunHarness` of a newly built simulator (``.sim``) with
+        this scenario's name and the configuration's verdict settings (instability strain)."""
+        cfg = replace(config, **overrides) if config is not None else self.config(**overrides)
+        return RunHarness(self.build(cfg), scenario=self.name, instability_strain=cfg.instability_strain)
 
     def run(self, config: ScenarioConfig | None = None, usd_path: str | None = None, wall_cap: float | None = None,
             writers=(), **overrides) -> RunResult:
@@ -129,29 +140,22 @@ class Scenario:
 
         ``writers``: more frame writers, each a function ``(sim, config) -> writer`` called
         once the :class:`~warpcloth.simulator.Simulator` is built; a writer has ``write_frame(points, sim_time)``, ``close()`` and
-        ``abort()`` (:class:`~warpcloth.frames.FrameSinks`). Every writer is closed after the
+        ``abort()`` (:class:`~warpcloth.io.frames.FrameSinks`). Every writer is closed after the
         run, or aborted (its target left as it was) when the run fails.
         """
-        from warpcloth.io.frames import FrameSinks
-
         cfg = replace(config, **overrides) if config is not None else self.config(**overrides)
         require_positive("duration", cfg.duration, "s")
         require_positive("fps", cfg.fps, "1/s")
         if usd_path is not None:
-            from warpcloth.io.usd import check_usd_path
-
-            check_usd_path(usd_path)
-        sim = self.build(cfg)
+            writers = (usd_frames(usd_path), *writers)  # checks the path now, before any work
+        harness = self.harness(cfg)
+        sim = harness.sim
         sinks = FrameSinks()
         try:
-            if usd_path is not None:
-                from warpcloth.io.usd import UsdWriter
-
-                sinks.writers.append(UsdWriter(usd_path, sim.model, cfg.fps, colliders=sim.control.colliders))
             for make in writers:
                 sinks.writers.append(make(sim, cfg))
-            result = sim.run(cfg.duration, fps=cfg.fps, stop_at_equilibrium=self.stop_at_equilibrium, wall_cap=wall_cap,
-                             usd=sinks if sinks else None)
+            result = harness.run(cfg.duration, fps=cfg.fps, stop_at_equilibrium=self.stop_at_equilibrium,
+                                 wall_cap=wall_cap, frames=sinks if sinks else None)
         except BaseException:
             sinks.abort()
             raise

@@ -1,5 +1,5 @@
 """Curtain on a sliding rod: the top edge hangs from a rod that slides sideways and stops
-(kinematic pins, :class:`~warpcloth.pins.PinTrack`); the curtain swings and settles.
+(kinematic pins, :class:`~warpcloth.sim.pins.PinTrack`); the curtain swings and settles.
 
 The top row is pinned and follows the rod: a Catmull-Rom track of two keys, so the rod starts
 and stops at rest (position x0 + SLIDE s(t), s the smoothstep 3u^2 - 2u^3 of u = t / SLIDE_TIME).

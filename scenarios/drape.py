@@ -1,5 +1,5 @@
 """Drape: a square cloth, held flat, falls onto a sphere resting on the ground and drapes over it
-(colliders, :mod:`warpcloth.colliders`); a run ends at equilibrium. Run it with
+(colliders, :mod:`warpcloth.sim.colliders`); a run ends at equilibrium. Run it with
 ``python -m warpcloth.scenarios.drape`` or ``warpcloth run drape``.
 """
 

@@ -20,7 +20,7 @@ is optional but ``cloth.mesh``; unknown keys are refused, naming the file and th
 
     [pins]                               # pinned vertices: the union of
     groups = ["shoulders"]
-    where = "y > 0.95 * y.max()"         # a predicate (see warpcloth.mesh.parse_predicate)
+    where = "y > 0.95 * y.max()"         # a predicate (see warpcloth.sim.mesh.parse_predicate)
     indices = [0, 1]
 
     [[tracks]]                           # kinematic pins (pinned automatically)
@@ -37,7 +37,7 @@ is optional but ``cloth.mesh``; unknown keys are refused, naming the file and th
     axis = [1, 0, 0]
     swing_amplitude = 0.5                # rad; also angular_velocity, swing_frequency, swing_phase, velocity
 
-    [[colliders]]                        # warpcloth.colliders: plane, sphere, capsule, box
+    [[colliders]]                        # warpcloth.sim.colliders: plane, sphere, capsule, box
     kind = "sphere"
     center = [0, 1.0, 0.3]
     radius = 0.25
@@ -83,7 +83,7 @@ import numpy as np
 from warpcloth.errors import WarpclothError, require, warn
 from warpcloth.sim.control import GRAVITY, Control, WindSchedule
 from warpcloth.sim.mesh import build_mesh_cloth, lumped_masses, resolve_pins
-from warpcloth.io.meshio import load_mesh
+from warpcloth.io.meshio import load_mesh, load_mesh_collider
 from warpcloth.sim.pins import PinTrack
 from warpcloth.run.params import BY_NAME, config_values, params_for
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
@@ -95,7 +95,7 @@ TRACK_KEYS = PIN_KEYS | {"name", "kind", "times", "offsets", "positions", "inter
                          "angular_velocity", "swing_amplitude", "swing_frequency", "swing_phase", "velocity"}
 FORCE_KEYS = {"gravity", "drag", "wind", "gusts", "wind_coefficient"}
 GUST_KEYS = {"wind", "on", "off", "base"}
-#: [run] takes the run parameters of warpcloth.params that set up a run (``fps`` is the old
+#: [run] takes the run parameters of warpcloth.run.params that set up a run (``fps`` is the old
 #: spelling of ``frame_rate``) and the integrator's options as a table.
 RUN_PARAMS = tuple(p.name for p in params_for("run") if p.group in ("run", "integrator") and (p.config_field or p.name == "dt"))
 RUN_KEYS = {"integrator_options", "fps", *RUN_PARAMS}
@@ -259,7 +259,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
 
 def _colliders(tables, where: str, path: str = "") -> tuple:
     """The [[colliders]] tables: ``kind = "plane" | "sphere" | "capsule" | "box"`` and that
-    collider's settings (warpcloth.colliders), e.g. ``center = [0, 1, 0]``, ``radius = 0.3``, and
+    collider's settings (warpcloth.sim.colliders), e.g. ``center = [0, 1, 0]``, ``radius = 0.3``, and
     optionally a pose ``track = { kind = "rigid" | "keyframes", ... }`` (ColliderTrack); or
     ``kind = "mesh"`` with ``path`` (relative to the scenario file ``path``), ``prim``, ``thickness``,
     ``friction``, ``reach`` (a static MeshCollider)."""
@@ -283,8 +283,8 @@ def _colliders(tables, where: str, path: str = "") -> tuple:
             if cls is MeshCollider:
                 mesh = settings.pop("path", None)
                 require(isinstance(mesh, str) and mesh, f"path must be a mesh file name (.obj, .usd), got {mesh!r}")
-                out.append(MeshCollider.from_file(os.path.join(os.path.dirname(path), os.path.expanduser(mesh)), settings.pop("prim", None),
-                                                  track=track, **settings))
+                out.append(load_mesh_collider(os.path.join(os.path.dirname(path), os.path.expanduser(mesh)), settings.pop("prim", None),
+                                              track=track, **settings))
                 continue
             out.append(cls(track=track, **{key: tuple(v) if isinstance(v, list) else v for key, v in settings.items()}))
         except WarpclothError as exc:

@@ -138,3 +138,11 @@ def deepest_in_drape(sim, steps: int):
         x = sim.state.particle_q.numpy().astype(np.float64)
         deepest = max(deepest, drape_sphere_depth(x).max(), drape.THICKNESS - x[:, 1].min())
     return deepest, x
+
+
+def parse_collider(text: str):
+    """The collider a command line's ``--collider TEXT`` makes (its mesh file read, as a run reads it)."""
+    from warpcloth.io.meshio import load_mesh_collider
+    from warpcloth.run.parse import parse_collider_spec
+
+    return parse_collider_spec(text).collider(load_mesh_collider)

@@ -7,6 +7,8 @@ import pytest
 
 from warpcloth import Control, Simulator, WarpclothError, build_grid_cloth, make_integrator
 from warpcloth.scenarios import sheet
+from warpcloth.run.harness import RunHarness
+from warpcloth.io.usd import UsdWriter
 
 INF, NAN = math.inf, math.nan
 
@@ -67,14 +69,28 @@ def test_simulate_needs_an_integer_count(sim, steps):
 
 def test_run_keywords(sim, tmp_path):
     with pytest.raises(WarpclothError, match="unknown keyword 'usd_path'; its keywords are duration, fps"):
-        sim.run(0.1, usd_path="x.usda")
-    with pytest.raises(WarpclothError, match="usd must be a UsdWriter"):
-        sim.run(0.1, usd=3)
+        RunHarness(sim).run(0.1, usd_path="x.usda")
+    with pytest.raises(WarpclothError, match="frames must be a frame sink with write_frame"):
+        RunHarness(sim).run(0.1, frames=3)
     with pytest.raises(WarpclothError, match="fps .* frames per step"):
-        sim.run(0.05, fps=1e12, wall_cap=2)
+        RunHarness(sim).run(0.05, fps=1e12, wall_cap=2)
     out = tmp_path / "x.usda"
-    r = sim.run(0.05, usd=str(out), warm_up=False)  # a path makes, fills and closes a writer
+    writer = UsdWriter(str(out), sim.model, 60.0)
+    r = RunHarness(sim).run(0.05, frames=writer, warm_up=False)  # a writer receives every frame
+    writer.close()
     assert r.frames >= 3 and out.exists() and "timeSamples" in out.read_text()
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"instability_strain": -1.0}, "instability strain must be > 0"),
+    ({"equilibrium": 3}, "equilibrium must be an EquilibriumCriteria"),
+    ({"energy": "x"}, "energy must be an EnergyCriteria"),
+])
+def test_harness_bad_settings(sim, kwargs, match):
+    with pytest.raises(WarpclothError, match=match):
+        RunHarness(sim, **kwargs)
+    with pytest.raises(WarpclothError, match="RunHarness needs a warpcloth.Simulator"):
+        RunHarness("sim")
 
 
 @pytest.mark.parametrize("kwargs,match", [

@@ -5,7 +5,8 @@ import math
 
 import pytest
 
-from warpcloth.lab.bench import COLUMNS, main
+from warpcloth.cli.bench import main
+from warpcloth.lab.bench import COLUMNS
 
 
 def test_bench_tiny_end_to_end(tmp_path, capsys):

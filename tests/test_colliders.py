@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, WarpclothError, build_grid_cloth, integrator_names
-from warpcloth.sim.colliders import parse_collider
-from helpers import free_particles
+
+from warpcloth.run.harness import RunHarness
+from helpers import free_particles, parse_collider
 
 G = 9.81
 INTEGRATORS = ["explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd", "vbd", "projective"]
@@ -125,7 +126,7 @@ def test_the_drape_settles_on_the_sphere(integrator):
     # the skirt's swing decays with the drag's 1/s: measured 10.9 s (explicit_euler), 10.6 (verlet),
     # 6.6 (pbd), 7.9 (xpbd); explicit Euler's moved between 10.5 and 12.5 s with the contact
     # kernel's rounding, so the cap leaves it room
-    r = sim.run(16.0, stop_at_equilibrium=True)
+    r = RunHarness(sim).run(16.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached, (r.unstable_reason, r.final_max_speed)
     x = sim.state.particle_q.numpy().astype(np.float64)
     rho = np.linalg.norm(x[:, [0, 2]], axis=1)
@@ -139,7 +140,7 @@ def test_the_tablecloth_hangs_over_the_edges():
     from warpcloth.scenarios import tablecloth as t
 
     sim = t.build(rows=14, cols=14)
-    r = sim.run(10.0, stop_at_equilibrium=True)
+    r = RunHarness(sim).run(10.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached
     x = sim.state.particle_q.numpy().astype(np.float64)
     on_top = (np.abs(x[:, 0]) < t.HALF - 0.05) & (np.abs(x[:, 2]) < t.HALF - 0.05)

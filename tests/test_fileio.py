@@ -202,6 +202,7 @@ def test_sweep_on_a_full_disk_is_one_line_and_resume_recovers(tmp_path, small_di
 
 
 def test_bench_csv_on_a_full_disk_is_one_line(tmp_path, small_disk, monkeypatch, capsys):
+    from warpcloth.cli.bench import main as bench_main
     from warpcloth.lab import bench
 
     folder = small_disk or tmp_path
@@ -216,7 +217,7 @@ def test_bench_csv_on_a_full_disk_is_one_line(tmp_path, small_disk, monkeypatch,
                                         "solver_iterations_mean": "x" * 4000})
     if small_disk is None:
         monkeypatch.setattr(fileio.os, "fsync", _enospc)
-    code = bench.main(["--sizes", "4,5,6", "--steps", "1", "--devices", "cpu", "--graph", "off", "--out", str(target)])
+    code = bench_main(["--sizes", "4,5,6", "--steps", "1", "--devices", "cpu", "--graph", "off", "--out", str(target)])
     err = capsys.readouterr().err
     assert code == fileio.EXIT_IO
     lines = [l for l in err_lines(err) if not l.startswith("bench:")]
@@ -278,6 +279,7 @@ BAD_TARGETS = {
 
 @pytest.mark.parametrize("case", list(BAD_TARGETS) + ["immutable"])
 def test_bench_out_is_refused_before_the_benchmark(tmp_path, monkeypatch, capsys, immutable_file, case):
+    from warpcloth.cli.bench import main as bench_main
     from warpcloth.lab import bench
 
     if case == "immutable":
@@ -286,7 +288,7 @@ def test_bench_out_is_refused_before_the_benchmark(tmp_path, monkeypatch, capsys
         make, message = BAD_TARGETS[case]
         target = make(tmp_path, ".csv")
     monkeypatch.setattr(bench, "bench_one", lambda *a, **k: pytest.fail("the benchmark started"))
-    assert bench.main(["--sizes", "4", "--steps", "1", "--devices", "cpu", "--out", target]) == 2
+    assert bench_main(["--sizes", "4", "--steps", "1", "--devices", "cpu", "--out", target]) == 2
     lines = [l for l in err_lines(capsys.readouterr().err) if not l.startswith("bench:")]
     assert len(lines) == 1 and lines[0].startswith("warpcloth: error: --out path") and message in lines[0]
     assert no_temporaries(tmp_path) == []

@@ -7,6 +7,7 @@ import pytest
 from warpcloth import Control, Simulator, SpringParams, SpringType, make_integrator
 from warpcloth.sim.model import build_model
 from warpcloth.scenarios import sheet
+from warpcloth.run.harness import RunHarness
 
 G = 9.81
 Y0 = 1.5
@@ -91,7 +92,7 @@ def test_verlet_hanging_chain_settles_at_a_quarter_of_the_default_dt():
     integ = make_integrator("verlet")
     dt = 0.25 * integ.default_dt(model, 1.0)
     sim = Simulator(model, integ, Control(drag_rate=1.0, device="cpu"), dt=dt)
-    result = sim.run(15.0, stop_at_equilibrium=True, warm_up=False)  # explicit Euler: at rest after 9 s
+    result = RunHarness(sim).run(15.0, stop_at_equilibrium=True, warm_up=False)  # explicit Euler: at rest after 9 s
     assert result.stable and result.equilibrium_reached
     # at rest: spring k (from the top) carries the weight of the n - k particles below it
     q = sim.state.particle_q.numpy().astype(np.float64)

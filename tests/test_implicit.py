@@ -12,6 +12,7 @@ from warpcloth.integrators import make_integrator
 from warpcloth.integrators.implicit_euler import ImplicitEuler
 from warpcloth.kernels import implicit as ik
 from warpcloth.scenarios import sheet
+from warpcloth.run.harness import RunHarness
 
 GRAVITY = np.array([0.0, -9.81, 0.0])
 
@@ -261,10 +262,10 @@ def test_jacobi_preconditioner_takes_no_more_iterations_than_none_on_stiff_cloth
 
 def test_stable_at_dt_1_30_where_explicit_euler_is_not():
     common = dict(rows=8, cols=8, dt=1.0 / 30.0, stiffness=1000.0)
-    explicit = sheet.build(integrator="explicit_euler", **common).run(1.0, warm_up=False)
+    explicit = RunHarness(sheet.build(integrator="explicit_euler", **common)).run(1.0, warm_up=False)
     assert not explicit.stable
     sim = sheet.build(integrator="implicit_euler", **common)
-    result = sim.run(1.0, warm_up=False)
+    result = RunHarness(sim).run(1.0, warm_up=False)
     assert result.stable and result.steps == 30
     assert result.max_strain < 0.05
     q = sim.state.particle_q.numpy()
@@ -304,10 +305,10 @@ def test_energy_never_grows_without_damping():
     v = np.random.default_rng(4).normal(scale=0.5, size=(sim.model.particle_count, 3))
     v[sim.model.pinned] = 0.0
     sim.state.particle_qd.assign(v.astype(np.float32))  # a shaken cloth: about 25 mJ of kinetic energy
-    energies = [sim.energy()]
+    energies = [RunHarness(sim).energy()]
     for _ in range(60):
         sim.step()
-        energies.append(sim.energy())
+        energies.append(RunHarness(sim).energy())
     e = np.array(energies)  # [J], includes -m g.x (about 3 J)
     assert np.all(np.diff(e) <= 1e-6 * np.abs(e).max())
     assert e[0] - e[-1] > 0.01  # numerical damping took most of it
@@ -316,7 +317,7 @@ def test_energy_never_grows_without_damping():
 def test_equilibrium_sag_matches_rk4_within_one_percent():
     def sag(integrator, dt):
         sim = sheet.build(rows=8, cols=8, integrator=integrator, dt=dt, stiffness=50.0)
-        result = sim.run(10.0, stop_at_equilibrium=True, warm_up=False)
+        result = RunHarness(sim).run(10.0, stop_at_equilibrium=True, warm_up=False)
         assert result.equilibrium_reached
         q = sim.state.particle_q.numpy().astype(np.float64)
         return np.mean(sim.model.host["q"][:, 1] - q[:, 1]), q
@@ -394,7 +395,7 @@ def capped_sheet(cg_max_iter, cg_tol=1e-5, rows=6):
 
 def test_tiny_iteration_cap_is_reported_not_converged_with_one_warning(capsys):
     sim = capped_sheet(cg_max_iter=2)
-    result = sim.run(0.2)
+    result = RunHarness(sim).run(0.2)
     assert result.steps == 12
     assert result.solver["cg_iterations_max"] == 2 and result.solver["cg_residual_max"] > 1e-5
     assert result.solver_converged is False
@@ -409,13 +410,13 @@ def test_tiny_iteration_cap_is_reported_not_converged_with_one_warning(capsys):
 def test_each_run_counts_its_own_capped_steps(capsys):
     sim = capped_sheet(cg_max_iter=2, rows=5)
     for _ in range(2):  # the second run continues the trajectory; its counts are its own
-        result = sim.run(0.1)
+        result = RunHarness(sim).run(0.1)
         assert result.steps == result.solver["cg_solves"] == result.solver_capped_steps == 6
         assert capsys.readouterr().err.count("cap in 6 of 6 steps") == 1
 
 
 def test_generous_iteration_cap_converges_with_no_warning(capsys):
-    result = capped_sheet(cg_max_iter=1000, cg_tol=1e-3).run(0.2)
+    result = RunHarness(capped_sheet(cg_max_iter=1000, cg_tol=1e-3)).run(0.2)
     assert result.solver_converged is True and result.solver_capped_steps == 0
     assert result.solver["cg_capped_steps"] == 0 and result.solver["cg_residual_max"] <= 1e-3
     assert "warning" not in capsys.readouterr().err
@@ -445,7 +446,7 @@ def test_capped_steps_are_exactly_the_steps_that_end_at_the_cap_above_tolerance(
 
 
 def test_integrators_without_an_iterative_solver_report_not_applicable(capsys):
-    result = sheet.build(rows=5, cols=5, integrator="explicit_euler").run(0.05)
+    result = RunHarness(sheet.build(rows=5, cols=5, integrator="explicit_euler")).run(0.05)
     assert result.solver_converged is None and result.solver_capped_steps == 0
     assert "warning" not in capsys.readouterr().err
 

@@ -12,6 +12,7 @@ import pytest
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
 from warpcloth.sim.colliders import ColliderTrack
+from warpcloth.run.harness import RunHarness
 from helpers import deepest_in_drape, drape_sphere_depth
 
 G = 9.81
@@ -91,7 +92,7 @@ def test_the_16x16_drape_reaches_equilibrium(preconditioner):
     from warpcloth.scenarios import drape
 
     sim = drape.build(rows=16, cols=16, integrator="implicit_euler", integrator_options={"preconditioner": preconditioner})
-    r = sim.run(8.0, stop_at_equilibrium=True)
+    r = RunHarness(sim).run(8.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached, (r.unstable_reason, r.final_max_speed)
     assert r.time_to_equilibrium < 6.0
     x = sim.state.particle_q.numpy().astype(np.float64)
@@ -106,13 +107,13 @@ def test_the_default_drape_and_the_tablecloth_reach_equilibrium():
     from warpcloth.scenarios import tablecloth as t
 
     sim = drape.build(integrator="implicit_euler")
-    r = sim.run(8.0, stop_at_equilibrium=True)
+    r = RunHarness(sim).run(8.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached and r.time_to_equilibrium < 6.0, (r.final_max_speed, r.time_to_equilibrium)
     x = sim.state.particle_q.numpy().astype(np.float64)
     assert drape_sphere_depth(x).max() < DEPTH_TOL and x[:, 1].min() > drape.THICKNESS - DEPTH_TOL
 
     sim = t.build(integrator="implicit_euler")
-    r = sim.run(8.0, stop_at_equilibrium=True)
+    r = RunHarness(sim).run(8.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached and r.time_to_equilibrium < 4.0, (r.final_max_speed, r.time_to_equilibrium)
     x = sim.state.particle_q.numpy().astype(np.float64)
     on_top = (np.abs(x[:, 0]) < t.HALF - 0.05) & (np.abs(x[:, 2]) < t.HALF - 0.05)

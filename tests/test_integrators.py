@@ -8,6 +8,7 @@ import warp as wp
 
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
 from warpcloth.integrators import explicit_euler_dt_bound, stable_dt_estimate
+from warpcloth.run.harness import RunHarness
 
 from helpers import displace, reference_rk4, simulate, single_spring, small_grid
 
@@ -65,11 +66,11 @@ def energy_history(integrator, dt, periods=30):
     T = 2 * math.pi * math.sqrt(0.1 / 40.0)
     sim = Simulator(model, integrator, Control(gravity=NO_GRAVITY), dt=dt)
     displace(sim, 1, (0.0, -0.05, 0.0))
-    energies = [sim.energy()]
+    energies = [RunHarness(sim).energy()]
     steps = max(1, int(T / dt / 4))
     for _ in range(4 * periods):
         sim.simulate(steps)
-        energies.append(sim.energy())
+        energies.append(RunHarness(sim).energy())
     return np.array(energies)
 
 

@@ -1,5 +1,7 @@
-"""The package's layers: the physics does not import the harness's outputs, the CLI or the
-lab; the lab sits above everything; no module imports itself round a circle."""
+"""The package's layers (docs/architecture.md): one ordered list, every import of a warpcloth module
+counted, at module level and inside functions (only ``if __name__ == "__main__":`` blocks are
+exempt). An import goes to its own layer or a lower one; ``run`` and ``io`` (one rank) do not
+import each other; nothing inside the package imports the package face; there is no circle."""
 
 from __future__ import annotations
 
@@ -8,47 +10,82 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[1]
-ROOTS = {"warpcloth": REPO / "warpcloth", "warpcloth.kernels": REPO / "kernels", "warpcloth.scenarios": REPO / "scenarios"}
+ROOTS = {
+    "warpcloth": REPO / "warpcloth",
+    "warpcloth.kernels": REPO / "kernels",
+    "warpcloth.scenarios": REPO / "scenarios",
+    "warpcloth.examples": REPO / "examples",
+}
 
-#: The physics: what a Simulator needs to step. It may import nothing above it.
-PHYSICS = ["warpcloth.model", "warpcloth.state", "warpcloth.forces", "warpcloth.colliders", "warpcloth.metrics",
-           "warpcloth.strain_limit", "warpcloth.coloring", "warpcloth.mesh", "warpcloth.meshio", "warpcloth.pins",
-           "warpcloth.device", "warpcloth.errors", "warpcloth.integrators", "warpcloth.kernels"]
-ABOVE_PHYSICS = ("warpcloth.lab", "warpcloth.cli", "warpcloth.cliparse", "warpcloth.params", "warpcloth.usd",
-                 "warpcloth.player", "warpcloth.preview", "warpcloth.frames", "warpcloth.scenarios", "warpcloth.progress")
+#: Lowest first: (rank, layer, module prefixes). A layer imports its own rank or lower ranks;
+#: two layers of one rank do not import each other.
+LAYERS = [
+    (0, "base", ("warpcloth.errors", "warpcloth.version")),
+    (1, "kernels", ("warpcloth.kernels",)),
+    (2, "sim", ("warpcloth.sim",)),
+    (3, "integrators", ("warpcloth.integrators",)),
+    (4, "simulator", ("warpcloth.simulator",)),
+    (5, "run", ("warpcloth.run",)),
+    (5, "io", ("warpcloth.io",)),
+    (6, "scenarios", ("warpcloth.scenarios", "warpcloth.examples")),
+    (7, "lab", ("warpcloth.lab",)),
+    (8, "cli", ("warpcloth.cli", "warpcloth.__main__")),
+]
+#: The package face: ``warpcloth`` itself and the forwarding modules kept for one release. Users
+#: import it; nothing inside the package does.
+FACE = ("warpcloth", "warpcloth.harness", "warpcloth.model", "warpcloth.colliders", "warpcloth.usd",
+        "warpcloth.meshio", "warpcloth.forces")
+
+#: The optional extras (``warpcloth[plot]``, ``warpcloth[cluster]``): imported inside the
+#: functions that use them, so that everything else works without them.
+OPTIONAL = ("matplotlib", "ray")
 
 
-def modules():
+def modules() -> dict[str, Path]:
     out = {}
     for package, folder in ROOTS.items():
         for path in folder.rglob("*.py"):
             rel = path.relative_to(folder).with_suffix("")
             parts = [p for p in rel.parts if p != "__init__"]
-            name = ".".join([package, *parts])
-            if package == "warpcloth" and parts and parts[0] in ("kernels", "scenarios"):
+            if package == "warpcloth" and parts and parts[0] in ("kernels", "scenarios", "examples"):
                 continue
-            out[name] = path
+            out[".".join([package, *parts])] = path
     return out
 
 
-def imports(name: str, path: Path, top_level_only: bool) -> set[str]:
-    tree = ast.parse(path.read_text())
-    is_pkg = path.name == "__init__.py"
-    base = name.split(".") if is_pkg else name.split(".")[:-1]
-    nodes = tree.body if top_level_only else list(ast.walk(tree))
-    found = set()
+def _is_main_block(node) -> bool:
+    t = node.test if isinstance(node, ast.If) else None
+    return (isinstance(t, ast.Compare) and isinstance(t.left, ast.Name) and t.left.id == "__name__"
+            and any(isinstance(c, ast.Constant) and c.value == "__main__" for c in t.comparators))
+
+
+def _walk(nodes, top: bool):
+    """(node, at_module_level) for every node, skipping ``if __name__ == "__main__":`` blocks."""
     for node in nodes:
+        if _is_main_block(node):
+            continue
+        yield node, top
+        inner_top = top and isinstance(node, (ast.If, ast.Try, ast.With))  # still runs at import
+        yield from _walk(ast.iter_child_nodes(node), inner_top)
+
+
+def imports(name: str, path: Path, known) -> list[tuple[str, bool, int]]:
+    """(imported warpcloth module, at module level, line) for every import in ``path``."""
+    tree = ast.parse(path.read_text())
+    base = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    found = []
+    for node, top in _walk(tree.body, True):
         if isinstance(node, ast.Import):
-            found |= {a.name for a in node.names if a.name.startswith("warpcloth")}
+            found += [(a.name, top, node.lineno) for a in node.names if a.name.startswith("warpcloth")]
         elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                mod = ".".join(base[: len(base) - node.level + 1] + ([node.module] if node.module else []))
-            else:
-                mod = node.module or ""
-            if mod.startswith("warpcloth"):
-                found.add(mod)
-                found |= {f"{mod}.{a.name}" for a in node.names}
+            mod = ".".join(base[: len(base) - node.level + 1] + [node.module or ""]).strip(".") if node.level else node.module
+            if not (mod or "").startswith("warpcloth"):
+                continue
+            for a in node.names:  # a submodule imported by name is that module; a symbol is its module's
+                found.append((f"{mod}.{a.name}" if f"{mod}.{a.name}" in known else mod, top, node.lineno))
     return found
 
 
@@ -58,32 +95,49 @@ def resolve(target: str, known) -> str | None:
     return target or None
 
 
-def graph(top_level_only: bool):
+def layer_of(module: str):
+    if module in FACE:
+        return None
+    for rank, layer, prefixes in LAYERS:
+        if any(module == p or module.startswith(p + ".") for p in prefixes):
+            return rank, layer
+    raise AssertionError(f"{module} is in no layer: put it in the folder of its layer (docs/architecture.md)")
+
+
+def edges():
     mods = modules()
-    return {m: {t for t in (resolve(i, mods) for i in imports(m, p, top_level_only)) if t and t != m} for m, p in mods.items()}
+    out = []
+    for m, path in mods.items():
+        for target, top, line in imports(m, path, mods):
+            t = resolve(target, mods)
+            if t and t != m and not m.startswith(t + "."):  # a package's own __init__ runs first: not an edge
+                out.append((m, t, top, line))
+    return out
 
 
-def test_the_physics_imports_nothing_above_it():
-    g = graph(top_level_only=False)  # function-level imports count too
-    for m, targets in g.items():
-        if any(m == p or m.startswith(p + ".") for p in PHYSICS):
-            bad = {t for t in targets if t.startswith(ABOVE_PHYSICS)}
-            assert not bad, f"{m} imports {sorted(bad)}"
+def test_every_module_is_in_a_layer():
+    for m in modules():
+        layer_of(m)
 
 
-def test_only_the_cli_imports_the_lab():
-    g = graph(top_level_only=False)
-    for m, targets in g.items():
-        if m.startswith("warpcloth.lab") or m == "warpcloth.cli":
+def test_imports_go_down_or_sideways_within_a_layer():
+    bad = []
+    for m, t, _, line in edges():
+        if m in FACE:
             continue
-        bad = {t for t in targets if t.startswith("warpcloth.lab")}
-        assert not bad, f"{m} imports {sorted(bad)}"
-        if m.startswith("warpcloth.lab"):
-            assert "warpcloth.cli" not in targets
+        if t in FACE:
+            bad.append(f"{m}:{line} imports the package face {t}")
+            continue
+        (rank_m, layer_m), (rank_t, layer_t) = layer_of(m), layer_of(t)
+        if rank_t > rank_m or (rank_t == rank_m and layer_t != layer_m):
+            bad.append(f"{m}:{line} ({layer_m}) imports {t} ({layer_t})")
+    assert not bad, "\n".join(bad)
 
 
-def test_no_import_circles_at_module_level():
-    g = graph(top_level_only=True)
+def test_no_import_circles():
+    graph = {}
+    for m, t, _, _ in edges():
+        graph.setdefault(m, set()).add(t)
     seen, stack, cycles = set(), [], []
 
     def visit(m):
@@ -94,19 +148,38 @@ def test_no_import_circles_at_module_level():
             return
         seen.add(m)
         stack.append(m)
-        for t in sorted(g.get(m, ())):
-            # importing a package's submodule runs the package first: not a circle of its own
-            if not m.startswith(t + "."):
-                visit(t)
+        for t in sorted(graph.get(m, ())):
+            visit(t)
         stack.pop()
 
-    for m in sorted(g):
+    for m in sorted(graph):
         visit(m)
     assert not cycles, cycles[:3]
 
 
-def test_stepping_loads_no_lab_cli_or_scipy():
-    code = ("import sys, warpcloth, warpcloth.simulator, warpcloth.harness;"
-            "bad = [m for m in sys.modules if m.startswith(('warpcloth.lab', 'warpcloth.cli', 'scipy', 'matplotlib', 'pxr'))];"
+def test_optional_libraries_are_imported_lazily():
+    bad = []
+    for m, path in modules().items():
+        for node, top in _walk(ast.parse(path.read_text()).body, True):
+            if top and isinstance(node, (ast.Import, ast.ImportFrom)):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+                bad += [f"{m}:{node.lineno} imports {n} at module level" for n in names if n.split(".")[0] in OPTIONAL]
+    assert not bad, "\n".join(bad)
+
+
+def test_the_checker_sees_a_function_level_import_upward(tmp_path):
+    """Negative control: an import inside a function that goes up a layer is found."""
+    bad = tmp_path / "model.py"
+    bad.write_text("def f():\n    from warpcloth.lab import study\n\nif __name__ == '__main__':\n    from warpcloth import cli\n")
+    found = imports("warpcloth.sim.model", bad, modules())
+    assert [(t, top) for t, top, _ in found] == [("warpcloth.lab.study", False)]
+
+
+@pytest.mark.parametrize("entry", ["warpcloth.simulator", "warpcloth.run.harness"])
+def test_stepping_loads_no_lab_cli_or_optional_library(entry):
+    """Stepping and running load none of the lab, the CLI, SciPy, matplotlib, USD or Ray."""
+    code = (f"import sys, warpcloth, {entry};"
+            "bad = [m for m in sys.modules if m.startswith(('warpcloth.lab', 'warpcloth.cli', 'scipy', 'matplotlib', "
+            "'pxr', 'ray'))];"
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 
 from warpcloth import Box, Control, Simulator, WarpclothError, build_grid_cloth
-from warpcloth.sim.colliders import MeshCollider, parse_collider
+from warpcloth.io.meshio import load_mesh_collider
+from warpcloth.sim.colliders import MeshCollider
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench.colliders import mesh_sphere  # noqa: E402
-from helpers import free_particles  # noqa: E402
+from helpers import free_particles, parse_collider  # noqa: E402
 
 G = 9.81
 CUBE_V = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
@@ -99,7 +100,7 @@ def test_mesh_from_obj_toml_cli_and_usd(tmp_path, capsys):
     from warpcloth.io.usd import UsdWriter
 
     write_obj(str(tmp_path / "table.obj"), CUBE_V * 0.3 + (0.5, -0.3, 0.5), CUBE_T)
-    from_file = MeshCollider.from_file(str(tmp_path / "table.obj"), thickness=0.01)
+    from_file = load_mesh_collider(str(tmp_path / "table.obj"), thickness=0.01)
     assert from_file.triangles.shape == (12, 3) and from_file.thickness == 0.01
     (tmp_path / "grid.obj").write_text("v 0 1 0\nv 1 1 0\nv 0 1 1\nv 1 1 1\nf 1 3 4 2\n")
     (tmp_path / "s.toml").write_text('[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "mesh"\npath = "table.obj"\nfriction = 0.3\n')

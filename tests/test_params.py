@@ -1,4 +1,4 @@
-"""One declaration per run parameter (warpcloth.params): the CLI flags, the XML attributes,
+"""One declaration per run parameter (warpcloth.run.params): the CLI flags, the XML attributes,
 the CSV columns, the run key and the docs table all come from it."""
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ def test_docs_table_is_the_generated_one():
     doc = (REPO / "docs" / "sweep.md").read_text()
     begin = doc.index("<!-- params:begin")
     table = doc[doc.index("\n", begin) + 1:doc.index("<!-- params:end -->")].strip()
-    assert table == params.markdown_table(), "docs/sweep.md is stale: paste `python -m warpcloth.params` between the markers"
+    assert table == params.markdown_table(), "docs/sweep.md is stale: paste `python -m warpcloth.run.params` between the markers"
 
 
 def test_every_spelling_comes_from_the_declaration():

@@ -17,6 +17,7 @@ from warpcloth.integrators.pbd import iteration_stiffness
 from warpcloth.kernels import constraints as ck
 from warpcloth.sim.model import grid_springs
 from warpcloth.scenarios import flag, sheet
+from warpcloth.run.harness import RunHarness
 
 G = 9.81
 DT = 1.0 / 60.0
@@ -143,10 +144,11 @@ def test_pbd_hanging_mass_without_correction_depends_on_iterations():
 def pbd_sheet_sag(iterations, correction=True):
     # a deliberately soft material (k = 0.5, one substep) stretches 55 %: above the default
     # instability strain (0.5), which is meant for the scenarios' own materials
-    sim = sheet.build(integrator="pbd", rows=10, cols=10, instability_strain=1.0,
-                      integrator_options={"iterations": iterations, "substeps": 1, "pbd_stiffness": 0.5, "pbd_bend_stiffness": 0.5})
+    harness = sheet.SCENARIO.harness(integrator="pbd", rows=10, cols=10, instability_strain=1.0,
+                                     integrator_options={"iterations": iterations, "substeps": 1, "pbd_stiffness": 0.5, "pbd_bend_stiffness": 0.5})
+    sim = harness.sim
     sim.integrator.iteration_correction = correction
-    result = sim.run(8.0, stop_at_equilibrium=True, warm_up=False)
+    result = harness.run(8.0, stop_at_equilibrium=True, warm_up=False)
     assert result.stable and result.equilibrium_reached
     drop = sim.model.host["q"][:, 1] - sim.state.particle_q.numpy()[:, 1]
     return float(drop.max())
@@ -202,7 +204,7 @@ def test_xpbd_hanging_mass_rests_at_m_g_over_ks():
 def sheet_drop(integrator, duration, **options):
     # drag 5 1/s settles rk4 within 3 s; drag does not move the equilibrium
     sim = sheet.build(integrator=integrator, rows=8, cols=8, drag=5.0, integrator_options=options)
-    result = sim.run(duration, warm_up=False)
+    result = RunHarness(sim).run(duration, warm_up=False)
     assert result.stable
     return sim.model.host["q"][:, 1] - sim.state.particle_q.numpy()[:, 1]
 
@@ -264,7 +266,7 @@ def test_stable_at_one_frame_step_with_defaults(name, scenario):
     # measured max strain 17-38 % over 10 s (with 1 substep instead of 4 the sheet passes 100 %)
     sim = scenario.build(integrator=name)
     assert sim.dt == DT
-    result = sim.run(3.0, warm_up=False)
+    result = RunHarness(sim).run(3.0, warm_up=False)
     assert result.stable, result.unstable_reason
     assert result.equilibrium_criterion == "speed"
     assert result.max_strain < 0.5

@@ -8,6 +8,7 @@ import pytest
 
 from warpcloth import Control, Simulator, WarpclothError, build_grid_cloth, integrator_names
 from warpcloth.sim.pins import PinTrack
+from warpcloth.run.harness import RunHarness
 
 from helpers import single_spring
 
@@ -84,7 +85,7 @@ def test_swinging_rod_follows_the_analytic_path_with_bounded_strain(integrator):
     dt = {"explicit_euler": 2e-4, "implicit_euler": 2e-3, "xpbd": 1 / 120}[integrator]
     sim = Simulator(model, integrator, Control(drag_rate=0.5), dt=dt)
     sim.set_pin_track(track)
-    result = sim.run(1.0, fps=30)
+    result = RunHarness(sim).run(1.0, fps=30)
     t = float(sim.control.time.numpy()[0])
     theta = amplitude * math.sin(2 * math.pi * frequency * t)
     # analytic: a pin 0.1 m below the rod at x0 is at (x0, 1.5 - 0.1 cos theta, -0.1 sin theta)... rotating +theta about +x

@@ -18,6 +18,7 @@ from warpcloth.cli import main
 from warpcloth.sim.colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere, _quat_matrix
 from warpcloth.io.frames import FrameSinks, nice_scale, strain_colors, vertex_strain
 from warpcloth.io.player import PLANE_PATCH, HtmlWriter, quantise, read_player_data
+from warpcloth.run.harness import RunHarness
 
 
 def _run(capsys, *argv):
@@ -47,7 +48,7 @@ def flag_page(tmp_path_factory):
             pass
 
     sinks = FrameSinks([writer, Keep()])
-    result = sim.run(0.5, fps=60.0, usd=sinks)
+    result = RunHarness(sim).run(0.5, fps=60.0, frames=sinks)
     sinks.close()
     return path, result, np.stack(frames), sim.model
 

@@ -15,6 +15,7 @@ from warpcloth.cli import main
 from warpcloth.io.meshio import load_mesh
 from warpcloth.scenarios import Scenario, curtain, get_scenario, register, scenario_names
 from warpcloth.scenarios import mesh as mesh_scenario
+from warpcloth.run.harness import RunHarness
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -38,7 +39,7 @@ def one_line_exit_2(capsys, *argv):
 
 def test_curtain_rod_slides_stops_and_the_curtain_settles():
     sim = curtain.build(rows=8, cols=10)
-    result = sim.run(10.0, stop_at_equilibrium=True)
+    result = RunHarness(sim).run(10.0, stop_at_equilibrium=True)
     assert result.stable, result.unstable_reason
     assert result.equilibrium_reached and result.time_to_equilibrium > curtain.SLIDE_TIME
     q0, x = sim.model.host["q"], sim.state.particle_q.numpy()

@@ -10,17 +10,19 @@ import pytest
 from warpcloth import WarpclothError
 from warpcloth.scenarios import flag, get_scenario, sheet
 from warpcloth.io.usd import UsdWriter
+from warpcloth.run.harness import RunHarness
 
 
 def test_sheet_reaches_equilibrium_and_sags_a_little():
     sim = sheet.build(rows=10, cols=10)
-    result = sim.run(duration=10.0, stop_at_equilibrium=True)
+    harness = RunHarness(sim)
+    result = harness.run(duration=10.0, stop_at_equilibrium=True)
     assert result.stable and result.equilibrium_reached
     assert 0.0 < result.time_to_equilibrium < result.sim_time <= 10.0
     assert result.time_to_equilibrium_wall is not None and result.time_to_equilibrium_wall <= result.wall_time
     # it stopped at equilibrium: the window after rest was confirmed, no longer
-    assert result.sim_time - result.time_to_equilibrium < sim.equilibrium.window + 2.0 / result.fps
-    assert result.final_max_speed < sim.equilibrium.speed_tol
+    assert result.sim_time - result.time_to_equilibrium < harness.equilibrium.window + 2.0 / result.fps
+    assert result.final_max_speed < harness.equilibrium.speed_tol
     q = sim.state.particle_q.numpy()
     q0 = sim.model.particle_q.numpy()
     sag = (q0[:, 1] - q[:, 1]).max()
@@ -30,7 +32,7 @@ def test_sheet_reaches_equilibrium_and_sags_a_little():
 
 def test_flag_never_reaches_equilibrium():
     sim = flag.build(rows=8, cols=12)
-    result = sim.run(duration=4.0, stop_at_equilibrium=True)
+    result = RunHarness(sim).run(duration=4.0, stop_at_equilibrium=True)
     assert result.stable and not result.equilibrium_reached and result.time_to_equilibrium is None
     assert math.isclose(result.sim_time, 4.0, rel_tol=0, abs_tol=sim.dt)
     # the wind moved it out of its plane
@@ -39,7 +41,7 @@ def test_flag_never_reaches_equilibrium():
 
 def test_run_measurements_are_consistent():
     sim = sheet.build(rows=6, cols=6, dt=5e-4)
-    result = sim.run(duration=0.5, fps=30.0)
+    result = RunHarness(sim).run(duration=0.5, fps=30.0)
     assert result.steps == 1000 and math.isclose(result.sim_time, result.steps * result.dt)
     assert result.frames == 15
     assert result.ms_per_step > 0 and math.isclose(result.steps_per_sec * result.ms_per_step, 1000.0, rel_tol=1e-9)
@@ -54,14 +56,14 @@ def test_run_measurements_are_consistent():
 def test_frames_are_sampled_by_simulated_time_not_steps():
     """Frames every 1/fps of simulated time, whatever dt is (seed 3.2.2)."""
     for dt in (1e-3, 7e-4):
-        result = sheet.build(rows=5, cols=5, dt=dt).run(duration=1.0, fps=20.0)
+        result = RunHarness(sheet.build(rows=5, cols=5, dt=dt)).run(duration=1.0, fps=20.0)
         assert result.frames == 20
 
 
 def test_unstable_run_is_recorded_not_raised():
     sim = sheet.build(rows=10, cols=10)
     sim.set_dt(sim.dt * 20)
-    result = sim.run(duration=1.0)
+    result = RunHarness(sim).run(duration=1.0)
     assert not result.stable
     assert result.unstable_reason
     assert result.unstable_time is not None and result.sim_time < 1.0
@@ -73,7 +75,7 @@ def test_unstable_with_nan_is_recorded():
     q = sim.state.particle_q.numpy()
     q[7] = np.nan
     sim.state.particle_q.assign(q)
-    result = sim.run(duration=0.2, warm_up=False)
+    result = RunHarness(sim).run(duration=0.2, warm_up=False)
     assert not result.stable and "non-finite" in result.unstable_reason
 
 
@@ -83,7 +85,7 @@ def test_default_runs_are_stable_for_every_integrator():
     for name in integrator_names():
         for scenario in (sheet, flag):
             sim = scenario.build(integrator=name, rows=8, cols=8)
-            result = sim.run(duration=0.5)
+            result = RunHarness(sim).run(duration=0.5)
             assert result.stable, (scenario.SCENARIO.name, name, result.unstable_reason)
 
 
@@ -170,9 +172,9 @@ def test_captured_frames_follow_control_changes():
 
 def test_two_runs_equal_one_long_run():
     a, b = sheet.build(rows=5, cols=5, integrator="verlet"), sheet.build(rows=5, cols=5, integrator="verlet")
-    a.run(duration=0.2)
-    a.run(duration=0.2)
-    b.run(duration=0.4)
+    RunHarness(a).run(duration=0.2)
+    RunHarness(a).run(duration=0.2)
+    RunHarness(b).run(duration=0.4)
     assert a.steps == b.steps
     assert np.array_equal(a.state.particle_q.numpy(), b.state.particle_q.numpy())
 

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
+from warpcloth.run.harness import RunHarness
 from helpers import deepest_in_drape, drape_sphere_depth, free_particles
 
 G = 9.81
@@ -90,7 +91,7 @@ def test_the_16x16_drape_reaches_equilibrium_on_the_sphere(integrator, cap):
     sim = drape.build(rows=16, cols=16, integrator=integrator)
     deepest, x = deepest_in_drape(sim, 90)  # 1.5 s: it lands at 0.17 s and drapes
     assert -1e-3 < deepest < DEPTH_TOL  # touching, never inside
-    r = sim.run(cap - 1.5, stop_at_equilibrium=True)
+    r = RunHarness(sim).run(cap - 1.5, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached, (r.unstable_reason, r.final_max_speed)
     x = sim.state.particle_q.numpy().astype(np.float64)
     assert drape_sphere_depth(x).max() < DEPTH_TOL and x[:, 1].min() > drape.THICKNESS - DEPTH_TOL
@@ -109,7 +110,7 @@ def test_the_tablecloth_reaches_equilibrium(integrator, cap):
     from warpcloth.scenarios import tablecloth as t
 
     sim = t.build(integrator=integrator)
-    r = sim.run(cap, stop_at_equilibrium=True)
+    r = RunHarness(sim).run(cap, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached, (r.final_max_speed, r.time_to_equilibrium)
     x = sim.state.particle_q.numpy().astype(np.float64)
     on_top = (np.abs(x[:, 0]) < t.HALF - 0.05) & (np.abs(x[:, 2]) < t.HALF - 0.05)

@@ -13,6 +13,7 @@ from warpcloth.integrators.midpoint import rk2_amplification
 from warpcloth.lab.maxdt import find_max_dt, format_result
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 from warpcloth.scenarios import get_scenario, sheet
+from warpcloth.run.harness import RunHarness
 
 from helpers import displace, single_spring
 
@@ -24,7 +25,7 @@ OMEGA = math.sqrt(KS / MASS)  # 20 rad/s: the single spring's angular frequency
 def spring_run(integrator, h_omega, duration, kd=0.0):
     sim = Simulator(single_spring(ks=KS, mass=MASS, kd=kd), integrator, Control(gravity=NO_GRAVITY, device="cpu"), dt=h_omega / OMEGA)
     displace(sim, 1, (0.0, -0.05, 0.0))
-    return sim, sim.run(duration, warm_up=False)
+    return sim, RunHarness(sim).run(duration, warm_up=False)
 
 
 def test_undamped_midpoint_is_flagged_within_two_seconds():
@@ -65,7 +66,7 @@ def test_rk2_stability_region_and_default_dt():
 def test_midpoint_default_is_stable_without_spring_damping():
     # the old default (0.5 x the symplectic-Euler estimate) went unstable at 0.13 s here
     sim = sheet.build(integrator="midpoint", damping=0.0, rows=16, cols=16)
-    r = sim.run(0.4)
+    r = RunHarness(sim).run(0.4)
     assert r.stable, r.unstable_reason
 
 
@@ -86,7 +87,7 @@ def test_max_dt_of_undamped_midpoint_reports_no_stable_dt():
 def test_instability_strain_default_option_and_max_dt_strain(capsys):
     assert DEFAULT_INSTABILITY_STRAIN == 0.5
     cfg = get_scenario("sheet").config(rows=6, cols=6, instability_strain=0.001)
-    r = get_scenario("sheet").build(cfg).run(0.2)
+    r = get_scenario("sheet").harness(cfg).run(0.2)
     assert not r.stable and "beyond the limit 0.001" in r.unstable_reason and r.instability_strain == 0.001
     assert main(["run", "sheet", "--rows", "6", "--cols", "6", "--duration", "0.2", "--instability-strain", "0.001", "--json"]) == 0
     assert '"stable": false' in capsys.readouterr().out

@@ -22,6 +22,7 @@ from warpcloth.lab.maxdt import find_max_dt
 from warpcloth.sim.model import default_damping, expected_spring_counts
 from warpcloth.scenarios import get_scenario
 from warpcloth.lab.testlist import ATTRIBUTES, parse_test_list
+from warpcloth.run.harness import RunHarness
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -443,7 +444,7 @@ STIFF = dict(rows=6, cols=6, integrator="explicit_euler", stiffness=(1.0e4, 1.0e
 
 def _stable(scenario, cfg, dt, duration=2.0):
     sim = scenario.build(cfg, dt=dt)
-    return sim.run(duration, stop_at_equilibrium=False).stable
+    return RunHarness(sim).run(duration, stop_at_equilibrium=False).stable
 
 
 def test_max_dt_of_explicit_euler_on_a_stiff_sheet():

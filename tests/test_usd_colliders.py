@@ -11,6 +11,7 @@ from pxr import Usd, UsdGeom
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, build_grid_cloth
 from warpcloth.sim.colliders import ColliderTrack, MeshCollider, _quat_matrix
+from warpcloth.run.harness import RunHarness
 from warpcloth.io.usd import UsdWriter
 
 FPS = 30.0
@@ -73,7 +74,7 @@ def test_colliders_are_prims_that_follow_their_tracks(tmp_path, clip_frames):
     sim = Simulator(model, "explicit_euler", Control(colliders=COLLIDERS, device="cpu"), dt=1.0 / (64 * FPS))  # frames on steps
     path = str(tmp_path / "c.usda")
     writer = UsdWriter(path, model, FPS, colliders=sim.control.colliders, clip_frames=clip_frames)
-    sim.run(10 / FPS, FPS, usd=writer)
+    RunHarness(sim).run(10 / FPS, FPS, frames=writer)
     writer.close()
     stage = Usd.Stage.Open(path)
     codes = [float(c) for c in range(11)]
@@ -104,7 +105,7 @@ def test_stage_with_colliders_validates(tmp_path):
 
 
 def test_cli_and_run_export_the_scenarios_colliders(tmp_path):
-    """`warpcloth run drape --usd` and `Simulator.run(usd=path)` write the scenario's colliders
+    """`warpcloth run drape --usd` and `Scenario.run(usd_path=path)` write the scenario's colliders
     (the drape's sphere and ground) beside the cloth."""
     from pxr import Usd
 
@@ -116,8 +117,7 @@ def test_cli_and_run_export_the_scenarios_colliders(tmp_path):
     stage = Usd.Stage.Open(str(out))
     kinds = sorted(p.GetName().split("_")[0] for p in stage.GetPrimAtPath("/World/Colliders").GetChildren())
     assert kinds == sorted(c.kind.capitalize() for c in get_scenario("drape").build(rows=5, cols=5).control.colliders)
-    sim = get_scenario("drape").build(rows=5, cols=5)
     direct = tmp_path / "direct.usda"
-    sim.run(0.05, usd=str(direct))
+    get_scenario("drape").run(usd_path=str(direct), rows=5, cols=5, duration=0.05)
     stage = Usd.Stage.Open(str(direct))
     assert len(stage.GetPrimAtPath("/World/Colliders").GetChildren()) == len(kinds) > 0

@@ -2,8 +2,9 @@
 
 :class:`Simulator` advances the state (``step``, ``simulate``), switches integrators and time
 steps between steps, and captures a frame's steps as graphs (``wp.ScopedCapture``, at most
-:data:`GRAPH_CHUNK` steps each) to replay them. Running for a duration with frames, metrics, verdicts, timing and outputs is the run
-harness's job (:mod:`warpcloth.harness`); ``Simulator.run`` hands over to it.
+:data:`GRAPH_CHUNK` steps each) to replay them. Running for a duration with frames, metrics,
+verdicts, timing and outputs is the run harness's job, a layer above
+(:class:`warpcloth.run.harness.RunHarness`): this module knows nothing of it.
 """
 
 from __future__ import annotations
@@ -15,9 +16,7 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_count, require_positive
 from warpcloth.sim.control import Control
-from warpcloth.run.harness import CHUNK_SECONDS, MAX_FRAMES_PER_STEP, MAX_RUN_STEPS, RunHarness, RunResult, check_run_length  # noqa: F401  (RunResult and the run-length check: importable from here as before)
 from warpcloth.integrators import Integrator, make_integrator
-from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN, EnergyCriteria, EquilibriumCriteria
 from warpcloth.sim.model import ClothModel
 from warpcloth.sim.pins import apply_pins
 from warpcloth.integrators.strain_limit import StrainLimiter
@@ -42,20 +41,15 @@ class Simulator:
     """Advances one cloth with a chosen integrator at a fixed time step.
 
     Args:
-        model: the :class:`~warpcloth.model.ClothModel`.
+        model: the :class:`~warpcloth.sim.model.ClothModel`.
         integrator: an :class:`~warpcloth.integrators.Integrator` or its name.
-        control: external forces (:class:`~warpcloth.forces.Control`); default gravity only.
+        control: external forces (:class:`~warpcloth.sim.control.Control`); default gravity only.
         dt: time step [s]; default the integrator's :meth:`~Integrator.default_dt`.
-        instability_strain: a spring stretched past (1 + this) x its rest length is unstable
-            (default :data:`~warpcloth.metrics.DEFAULT_INSTABILITY_STRAIN`).
-        equilibrium: tolerances of the equilibrium test.
-        energy: when growing energy counts as unstable (:class:`~warpcloth.metrics.EnergyCriteria`).
-        scenario: a name carried into results.
         use_graph: capture a frame's steps once with ``wp.ScopedCapture`` and replay it (CUDA
             graphs; Warp's API capture on the CPU). None: wherever the device and the
             integrator support it. Results are bit-identical either way.
         strain_limit: Provot's deformation constraint tau (> 0, e.g. 0.1 for 10 %) applied after
-            every step of a force-based integrator (:mod:`warpcloth.strain_limit`); None: off.
+            every step of a force-based integrator (:mod:`warpcloth.integrators.strain_limit`); None: off.
     """
 
     def __init__(
@@ -64,10 +58,6 @@ class Simulator:
         integrator: Integrator | str = "explicit_euler",
         control: Control | None = None,
         dt: float | None = None,
-        instability_strain: float = DEFAULT_INSTABILITY_STRAIN,
-        equilibrium: EquilibriumCriteria | None = None,
-        energy: EnergyCriteria | None = None,
-        scenario: str = "custom",
         use_graph: bool | None = None,
         strain_limit: float | None = None,
     ):
@@ -84,11 +74,6 @@ class Simulator:
         self.state = model.state()
         self._pins_version = 0
         self._bind_pin_tracks(self.control.pin_tracks)
-        self.instability_strain = require_positive("instability strain", instability_strain)
-        self.equilibrium = equilibrium or EquilibriumCriteria()
-        self.energy_criteria = energy or EnergyCriteria()
-        self.scenario = scenario
-        self._harness = None
         self.strain_limiter = StrainLimiter(model, strain_limit) if strain_limit is not None else None
         self.integrator: Integrator | None = None
         self._dt: float | None = None
@@ -98,6 +83,8 @@ class Simulator:
         #: Counts changes to what a step does (integrator, dt, graph mode, model, pins): timings
         #: of one step are valid for one version.
         self.step_version = 0
+        #: Counts :meth:`set_model` calls: whatever holds arrays of the model rebinds when it changes.
+        self.model_version = 0
         #: Wall seconds spent capturing frame graphs (excluded from step timings).
         self.capture_time = 0.0
         #: Simulated time [s]: t_base + n dt after n steps of the current dt (as Control.time).
@@ -148,7 +135,7 @@ class Simulator:
 
     def set_model(self, model) -> None:
         """Continue the current state on ``model`` (the same particles, e.g. from
-        :meth:`~warpcloth.model.ClothModel.with_spring_params`): the integrator, metrics and
+        :meth:`~warpcloth.sim.model.ClothModel.with_spring_params`): the integrator, metrics and
         strain limiter rebind to it (scratch is reallocated; this is not a step)."""
         if not isinstance(model, ClothModel):
             raise WarpclothError(f"model must be a ClothModel, got {model!r:.80}")
@@ -159,7 +146,7 @@ class Simulator:
             )
         self.model = model
         self._bind_pin_tracks(self.control.pin_tracks)  # kinematic pins: checked and bound to the new model
-        self._harness = None  # its metrics probe belongs to the old model
+        self.model_version += 1  # what measures the old model (a run harness's probe) rebinds
         if self.strain_limiter is not None:
             self.strain_limiter = StrainLimiter(model, self.strain_limiter.tau)
         self.integrator.bind(model)
@@ -168,7 +155,7 @@ class Simulator:
         self._warmed = False
 
     def set_pin_track(self, *tracks) -> None:
-        """Move pinned particles along :class:`~warpcloth.pins.PinTrack` s from the next step
+        """Move pinned particles along :class:`~warpcloth.sim.pins.PinTrack` s from the next step
         (replacing the tracks set before; no argument: every pin stays where it is)."""
         self._bind_pin_tracks(tracks)
         self._needs_begin = True
@@ -328,30 +315,6 @@ class Simulator:
             self.capture_time += time.perf_counter() - t0
         return graph
 
-    # -- the run harness (warpcloth.harness) -------------------------------------------
-    @property
-    def harness(self):
-        """The :class:`~warpcloth.harness.RunHarness` of this simulator (rebuilt after
-        :meth:`set_model`)."""
-        if self._harness is None or self._harness.probe.model is not self.model:
-            self._harness = RunHarness(self)
-        return self._harness
-
-    def measure(self):
-        """Metrics of the current state (:meth:`RunHarness.measure <warpcloth.harness.RunHarness.measure>`)."""
-        return self.harness.measure()
-
-    def energy(self) -> float:
-        """Total mechanical energy of the current state [J]."""
-        return self.harness.energy()
-
-    def run(self, duration: float, fps: float = 60.0, stop_at_equilibrium: bool = False, wall_cap: float | None = None,
-            usd=None, warm_up: bool = True, **unknown) -> RunResult:
-        """Run for ``duration`` seconds of simulated time, sampling a frame every 1/fps s: see
-        :meth:`RunHarness.run <warpcloth.harness.RunHarness.run>` (a run that goes unstable
-        stops there and is recorded as unstable; it never raises)."""
-        return self.harness.run(duration, fps, stop_at_equilibrium, wall_cap, usd, warm_up, **unknown)
-
     def warm_up(self) -> float:
         """Compile and load every kernel a step uses, on a scratch copy of the state; returns
         the seconds it took (reported as compile time, excluded from step timings)."""
@@ -360,7 +323,6 @@ class Simulator:
         saved_time = wp.clone(self.control.time)
         self._begin()
         self._launch_step()
-        self.measure()
         wp.copy(self.state.particle_q, saved[0])
         wp.copy(self.state.particle_qd, saved[1])
         wp.copy(self.control.time, saved_time)

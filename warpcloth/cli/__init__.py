@@ -8,7 +8,7 @@
 
 Bad input prints one line, ``warpcloth: error: ...``, and exits with status 2; an output that
 cannot be written during the work exits 74, SIGTERM 143, Ctrl-C 130, a closed stdout 141
-(:func:`warpcloth.cliparse.guarded`). Every subcommand takes ``--verbose`` (Warp's messages).
+(:func:`warpcloth.cli.parse.guarded`). Every subcommand takes ``--verbose`` (Warp's messages).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from warpcloth.errors import WarpclothError, require_positive
 from warpcloth.run.params import BY_NAME, add_flags, check_applies, cli_value, config_values, params_for
 
 def add_model_arguments(p: argparse.ArgumentParser, command: str = "max-dt", exclusive: dict | None = None) -> None:
-    """The flags of ``command``'s run parameters (:mod:`warpcloth.params`) and the integrators'
+    """The flags of ``command``'s run parameters (:mod:`warpcloth.run.params`) and the integrators'
     options (:class:`~warpcloth.integrators.Option`)."""
     add_flags(p, command, skip=("scenario",), exclusive=exclusive)
     _add_integrator_options(p)
@@ -210,13 +210,10 @@ def _output_writers(scenario_name: str, args) -> list:
         check_preview_path(args.preview)  # also: matplotlib installed
         paths.append(args.preview)
     if args.usd:
-        from warpcloth.io.usd import UsdWriter, check_usd_path
+        from warpcloth.io.usd import usd_frames
 
-        check_usd_path(args.usd)  # before any work: a path that cannot be written fails now
+        writers.append(usd_frames(args.usd, getattr(args, "usd_color", "none"), info))  # the path is checked now
         paths.append(args.usd)
-        color = getattr(args, "usd_color", "none")
-        writers.append(lambda sim, cfg: UsdWriter(args.usd, sim.model, cfg.fps, provenance=info(sim, cfg), color=color,
-                                                   colliders=sim.control.colliders))
     if getattr(args, "html", None):
         from warpcloth.io.player import HtmlWriter, check_html_path
 
@@ -406,7 +403,7 @@ def build_parser() -> argparse.ArgumentParser:
     listing.add_argument("--examples", action="store_true", help="list the example test lists shipped with warpcloth and their paths")
     _add_verbose(listing)
     bench = sub.add_parser("bench", help="benchmark integrators x sizes x devices on the sheet (bench/devices.py)")
-    from warpcloth.lab import bench as bench_module
+    from warpcloth.cli import bench as bench_module
 
     bench_module.add_arguments(bench)
     _add_verbose(bench)
@@ -446,7 +443,7 @@ def _dispatch(args) -> int:
     if args.command == "list":
         return _list(args)
     if args.command == "bench":
-        from warpcloth.lab import bench as bench_module
+        from warpcloth.cli import bench as bench_module
 
         return bench_module.run(args)
     if args.command == "sweep":

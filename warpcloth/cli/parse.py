@@ -14,6 +14,7 @@ import signal
 import sys
 
 from warpcloth.errors import WarpclothError
+from warpcloth.sim.device import init_warp
 from warpcloth.io.files import EXIT_IO, OutputError
 
 #: Exit status of bad input.
@@ -64,47 +65,6 @@ class Terminated(KeyboardInterrupt):
 
 def _on_sigterm(signum, frame):
     raise Terminated()
-
-
-def init_warp(verbose: bool = False) -> None:
-    """``wp.init()`` without Warp's start-up lines on stderr (e.g. "CUDA driver not found",
-    printed by its native library) unless ``verbose``; they are shown if init fails."""
-    import tempfile
-
-    import warp as wp
-
-    if verbose:
-        wp.config.quiet = False
-        if hasattr(wp, "LOG_INFO"):
-            wp.config.log_level = wp.LOG_INFO
-        wp.init()
-        return
-    wp.config.quiet = True
-    try:
-        from warp import context as _ctx
-
-        if getattr(_ctx, "runtime", None) is not None:
-            return
-    except ImportError:  # pragma: no cover - Warp layout changed
-        pass
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError, AttributeError):
-        wp.init()
-        return
-    with tempfile.TemporaryFile() as captured:
-        os.dup2(captured.fileno(), 2)
-        try:
-            wp.init()
-        except BaseException:
-            os.dup2(saved, 2)
-            captured.seek(0)
-            sys.stderr.write(captured.read().decode("utf-8", "replace"))
-            raise
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
 
 
 def _silence_stdout() -> None:

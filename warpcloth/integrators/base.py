@@ -1,7 +1,7 @@
 """The interface every integrator shares.
 
 An integrator is made with its options, bound to a model once (:meth:`Integrator.bind`
-allocates every scratch array), then advances a :class:`~warpcloth.state.State` in place:
+allocates every scratch array), then advances a :class:`~warpcloth.sim.state.State` in place:
 ``step(state, control, dt)``. A step launches kernels only: it allocates nothing and never
 reads back to the host, so a frame of steps can be captured and replayed.
 """
@@ -79,7 +79,7 @@ class Integrator:
     #: True for integrators that evaluate spring forces (Provot deformation constraints apply).
     force_based: ClassVar[bool] = True
     #: True when the integrator projects collision constraints inside its own solver loop; else
-    #: the Simulator projects contacts after each step (:mod:`warpcloth.colliders`).
+    #: the Simulator projects contacts after each step (:mod:`warpcloth.sim.colliders`).
     collides_in_solver: ClassVar[bool] = False
     #: How a velocity change during a step moves x by the step's end, per unit dt (1 where
     #: x += dt v_new; 1/2 for Runge-Kutta schemes): friction corrects x with it.

@@ -2,7 +2,7 @@
 
 Position-based integrators treat every spring as a distance constraint and integrate only the
 external forces f_ext (gravity, drag, wind). They have no net spring force, so equilibrium is
-judged by particle speeds alone (``force_based = False``; see :mod:`warpcloth.metrics`).
+judged by particle speeds alone (``force_based = False``; see :mod:`warpcloth.run.metrics`).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ VELOCITY_DAMPING = Option(
 class PositionBasedIntegrator(Integrator):
     """Base of :class:`~warpcloth.integrators.pbd.PBD` and :class:`~warpcloth.integrators.xpbd.XPBD`.
 
-    Binding colours the springs (:func:`warpcloth.coloring.color_springs`) and allocates the
+    Binding colours the springs (:func:`warpcloth.sim.coloring.color_springs`) and allocates the
     predicted displacements dp = p - x; a step allocates nothing.
     """
 
@@ -117,7 +117,7 @@ class PositionBasedIntegrator(Integrator):
     def solve(self, state, control, sweep) -> None:
         """``iterations`` Gauss-Seidel sweeps over the springs, each followed by the collision
         constraints (Müller 2007, Alg. 1 line 13), then friction from the accumulated normal
-        corrections (:mod:`warpcloth.colliders`)."""
+        corrections (:mod:`warpcloth.sim.colliders`)."""
         contacts = control.collision
         if contacts is not None:
             self.contact_normal.zero_()

@@ -65,7 +65,7 @@ class StrainLimiter:
     """Provot's strain limit on the structural and shear springs of a model.
 
     Args:
-        model: the :class:`~warpcloth.model.ClothModel`.
+        model: the :class:`~warpcloth.sim.model.ClothModel`.
         tau: largest allowed strain (L - L0) / L0, > 0 (Provot's tau_c; 0.1 is 10 %).
         max_passes: most passes over all spring colours per step (>= 1).
         tolerance: passes stop once every strain is <= tau + tolerance.

@@ -94,7 +94,7 @@ def sweep_stale_temporaries(folder: str, report=None) -> list[str]:
         try:
             if os.path.islink(path):
                 continue
-            if os.path.isdir(path):  # a USD writer's folder of value clips (warpcloth.usd)
+            if os.path.isdir(path):  # a USD writer's folder of value clips (warpcloth.io.usd)
                 size = sum(e.stat().st_size for e in os.scandir(path) if e.is_file())
                 shutil.rmtree(path)
             elif os.path.isfile(path):

@@ -17,13 +17,14 @@ import os
 import numpy as np
 
 from warpcloth.errors import WarpclothError, require
+from warpcloth.sim.colliders import MeshCollider
 from warpcloth.sim.mesh import TriangleMesh, check_mesh
 
 MESH_FORMATS = {".obj": "OBJ", ".usd": "USD", ".usda": "USD", ".usdc": "USD", ".usdz": "USD"}
 
 
 def load_mesh(path: str, prim: str | None = None) -> TriangleMesh:
-    """Read a triangle mesh from an OBJ or USD file (checked with :func:`~warpcloth.mesh.check_mesh`)."""
+    """Read a triangle mesh from an OBJ or USD file (checked with :func:`~warpcloth.sim.mesh.check_mesh`)."""
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if ext not in MESH_FORMATS:
@@ -35,6 +36,13 @@ def load_mesh(path: str, prim: str | None = None) -> TriangleMesh:
     mesh = read_obj(path) if ext == ".obj" else read_usd(path, prim)
     check_mesh(mesh.vertices, mesh.triangles, what=f"mesh {path}")
     return mesh
+
+
+def load_mesh_collider(path: str, prim: str | None = None, **settings) -> MeshCollider:
+    """The mesh of an OBJ or USD file (:func:`load_mesh`) as a :class:`~warpcloth.sim.colliders.MeshCollider`
+    with ``settings`` (thickness, friction, reach, track)."""
+    mesh = load_mesh(os.path.expanduser(os.fspath(path)), prim)
+    return MeshCollider(vertices=mesh.vertices, triangles=mesh.triangles, source=str(path), **settings)
 
 
 def _fan(count: int) -> np.ndarray:
@@ -217,4 +225,4 @@ def write_obj(path: str, vertices, triangles, uv=None, groups: dict | None = Non
         f.write("\n".join(lines) + "\n")
 
 
-__all__ = ["MESH_FORMATS", "load_mesh", "read_obj", "read_usd", "write_obj"]
+__all__ = ["load_mesh_collider", "MESH_FORMATS", "load_mesh", "read_obj", "read_usd", "write_obj"]

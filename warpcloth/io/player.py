@@ -58,7 +58,7 @@ def check_frame_memory(model, frames: int | None, what: str) -> None:
 
 
 def check_html_path(path: str) -> str:
-    """Validate an HTML output path before a run (see :func:`~warpcloth.fileio.check_output_path`)."""
+    """Validate an HTML output path before a run (see :func:`~warpcloth.io.files.check_output_path`)."""
     return check_output_path(path, "HTML", extensions=HTML_EXTENSIONS)
 
 
@@ -156,7 +156,7 @@ class HtmlWriter:
 
     Args:
         path: output file (.html or .htm), checked here.
-        model: the :class:`~warpcloth.model.ClothModel` (triangles, springs, pins).
+        model: the :class:`~warpcloth.sim.model.ClothModel` (triangles, springs, pins).
         fps: the frame rate of the run (the page plays at the frames' simulated times).
         title: a line shown in the page's corner and its title.
         info: extra JSON-able facts stored in the page (provenance).
@@ -182,7 +182,7 @@ class HtmlWriter:
         self.colliders = tuple(colliders or ())
         for c in self.colliders:
             if getattr(c, "kind", None) not in ("plane", "sphere", "capsule", "box", "mesh"):
-                raise WarpclothError(f"the HTML player's colliders must be warpcloth.colliders objects, got {c!r:.80}")
+                raise WarpclothError(f"the HTML player's colliders must be warpcloth.sim.colliders objects, got {c!r:.80}")
         self.poses = {k: ColliderPoses(c) for k, c in enumerate(self.colliders) if getattr(c, "track", None) is not None}
         self._closed = False
 

@@ -103,7 +103,7 @@ class Progress:
 
 
 class RunProgress:
-    """A frame writer (see :class:`~warpcloth.frames.FrameSinks`) that reports simulated time
+    """A frame writer (see :class:`~warpcloth.io.frames.FrameSinks`) that reports simulated time
     against the run's duration (a sheet may stop earlier, at equilibrium)."""
 
     def __init__(self, duration: float, label: str = "run", stream=None, tty: bool | None = None):

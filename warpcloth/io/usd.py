@@ -3,7 +3,7 @@
 One ``UsdGeomMesh`` (topology written once; points and extent time-sampled per frame), pinned
 particles marked by a ``pinned`` vertex primvar and a ``UsdGeomPoints`` prim, the stage's
 ``timeCodesPerSecond`` equal to the frame rate, Y up, metres. The file is written to a temporary
-file beside the target (``.warpcloth-<pid>-<token>.usda``, see :mod:`warpcloth.fileio`) and
+file beside the target (``.warpcloth-<pid>-<token>.usda``, see :mod:`warpcloth.io.files`) and
 renamed over it when closed, so a reader never sees half a file; on any failure (disk full, an
 interrupt) the temporary is removed and the target is left as it was.
 
@@ -16,7 +16,7 @@ so any USD reader sees one animated stage. A run shorter than one chunk stays a 
 clip folder is written under a temporary name and moved into place with the target.
 
 Pipeline extras: the layer's ``customLayerData`` holds the run's provenance under ``warpcloth``
-(:mod:`warpcloth.provenance`); ``/World/Pins`` carries an extent and is written once (no time
+(:mod:`warpcloth.io.provenance`); ``/World/Pins`` carries an extent and is written once (no time
 samples) while the pins do not move; ``color="strain"`` writes a vertex ``primvars:displayColor``
 per frame, spring strain from blue (0) to red (``strain_scale``, default 10 %); a ``.usdz``
 target is a ``.usdc`` stage packaged with ``UsdUtils.CreateNewUsdzPackage`` (one package:
@@ -47,7 +47,7 @@ _BYTES_PER_POINT_FRAME = 32
 def check_usd_path(path: str) -> str:
     """Validate an output path before a run starts: a USD extension, a name the file system
     takes, a folder where a file can be created, not an immutable file
-    (:func:`~warpcloth.fileio.check_output_path`)."""
+    (:func:`~warpcloth.io.files.check_output_path`)."""
     return check_output_path(path, "USD", extensions=USD_EXTENSIONS)
 
 
@@ -217,12 +217,21 @@ class ColliderPrims:
                     self._set(c.at(sim_time), ops, code)
 
 
+def usd_frames(path: str, color: str = "none", provenance=None):
+    """The one way a run's USD writer is made: checks ``path`` now (before any work) and returns
+    the factory ``(sim, config) -> UsdWriter`` that a scenario run calls once its simulator is
+    built. ``provenance``: None, or a function ``(sim, config) -> dict`` (the layer's record)."""
+    check_usd_path(path)
+    return lambda sim, cfg: UsdWriter(path, sim.model, cfg.fps, provenance=provenance(sim, cfg) if provenance else None,
+                                      color=color, colliders=sim.control.colliders)
+
+
 class UsdWriter:
     """Writes a cloth model's frames to a USD stage.
 
     Args:
         path: output file (.usd, .usda, .usdc or .usdz).
-        model: the :class:`~warpcloth.model.ClothModel` (topology, pins).
+        model: the :class:`~warpcloth.sim.model.ClothModel` (topology, pins).
         fps: frames per second; frame k is written at time code k.
         provenance: stored in the layer's ``customLayerData["warpcloth"]`` (None values as "none").
         color: ``"strain"`` for a per-frame vertex ``primvars:displayColor`` of spring strain.

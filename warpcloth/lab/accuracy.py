@@ -27,6 +27,7 @@ from typing import Callable
 import numpy as np
 
 from warpcloth.errors import WarpclothError, require
+from warpcloth.run.harness import RunHarness
 from warpcloth.lab.reference import cloth_size, reference_trajectory, simulate_frames, static_equilibrium, swing_from_horizontal, trajectory_error
 
 #: The frame of every accuracy run [s]: trial dts are FRAME_DT / k.
@@ -217,7 +218,7 @@ class StaticProblem:
         """Run ``sim`` from rest at ``dt`` to equilibrium (or ``duration`` / ``wall_cap``)."""
         sim.reset()
         sim.set_dt(dt)
-        r = sim.run(duration, fps=60.0, stop_at_equilibrium=True, wall_cap=wall_cap)
+        r = RunHarness(sim).run(duration, fps=60.0, stop_at_equilibrium=True, wall_cap=wall_cap)
         x = sim.state.particle_q.numpy().astype(np.float64)
         finite = bool(np.all(np.isfinite(x)))
         err = float(np.max(np.linalg.norm(x - self.x_eq, axis=1)) / self.size) if finite else math.inf

@@ -96,12 +96,14 @@ class MaxDtResult:
         }
 
 
-def trial_stable(sim, dt: float, duration: float, fps: float = 60.0, wall_cap: float | None = None) -> Trial:
-    """Run ``sim`` from rest for ``duration`` seconds at ``dt``; is it stable?"""
+def trial_stable(harness, dt: float, duration: float, fps: float = 60.0, wall_cap: float | None = None) -> Trial:
+    """Run the simulator of ``harness`` (a :class:`~warpcloth.run.harness.RunHarness`) from rest
+    for ``duration`` seconds at ``dt``; is it stable?"""
+    sim = harness.sim
     sim.reset()
     sim.set_dt(dt)
     with Stopwatch(sim.model.device) as watch:
-        r = sim.run(duration, fps=fps, stop_at_equilibrium=False, wall_cap=wall_cap, warm_up=False)
+        r = harness.run(duration, fps=fps, stop_at_equilibrium=False, wall_cap=wall_cap, warm_up=False)
     return Trial(dt=dt, stable=r.stable, reason=r.unstable_reason, capped=r.wall_cap_reached and r.stable,
                  wall_time=watch.seconds, max_strain=r.max_strain)
 
@@ -143,7 +145,8 @@ def find_max_dt(
                 f"start must be a finite dt within [dt_min, dt_max] = [{dt_min:g}, {dt_max:g}] s, got {start!r}")
 
     t_start = time.perf_counter()
-    sim = scenario.build(config, dt=dt_max)  # an explicit dt: the default may not exist
+    harness = scenario.harness(config, dt=dt_max)  # an explicit dt: the default may not exist
+    sim = harness.sim
     model = sim.model
     result = MaxDtResult(
         scenario=scenario.name, integrator=sim.integrator.name, device=str(model.device), rows=model.rows,
@@ -160,7 +163,7 @@ def find_max_dt(
     sim.warm_up()
 
     def test(dt: float) -> bool:
-        trial = trial_stable(sim, dt, duration, fps=config.fps, wall_cap=wall_cap)
+        trial = trial_stable(harness, dt, duration, fps=config.fps, wall_cap=wall_cap)
         result.trials.append(trial)
         if on_trial is not None:
             on_trial(trial)

@@ -8,7 +8,7 @@ The same model as the Warp kernels (``kernels/forces.py``), written again in Num
 - wind on every triangle (a, b, c): ``f = c_w A (n . (W(t) - v_mean)) n``, shared equally (1/3)
   by its three vertices, ``n`` the unit normal of ``cross(x_b - x_a, x_c - x_a)``, ``A`` the
   area, ``v_mean`` the mean velocity of the three vertices, ``W(t)`` the control's piecewise
-  constant :class:`~warpcloth.forces.WindSchedule`;
+  constant :class:`~warpcloth.sim.control.WindSchedule`;
 - pinned particles (inverse mass 0) keep their position and their velocity (zero by default),
   as in the integrator kernels.
 
@@ -188,7 +188,7 @@ def _scatter_add(f: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
 
 def reference_forces(model, control: Control | None, x, v, t: float = 0.0) -> np.ndarray:
     """The float64 net force [N], (N, 3), on every particle of ``model`` at positions ``x``,
-    velocities ``v`` and time ``t`` (for W(t)): what ``warpcloth.forces.eval_forces`` computes
+    velocities ``v`` and time ``t`` (for W(t)): what ``warpcloth.integrators.forces.eval_forces`` computes
     in float32. ``control`` None: gravity only."""
     m64 = Float64Model.from_model(model, control)
     return m64.forces(x, v, m64.wind(t))

@@ -16,6 +16,7 @@ from collections import defaultdict
 
 from warpcloth.io.files import AtomicFile, write_atomic
 from warpcloth.lab.frontier import frontier
+from warpcloth.lab.results import COLUMN_DOCS, COLUMNS, MESH_NOTE
 
 PLOTS = {
     "wall_per_sim_second.png": "Wall seconds per simulated second vs particles (log-log) at each integrator's max accurate dt",
@@ -207,8 +208,6 @@ def _table(header, rows) -> list[str]:
 def scenario_tables(rows: list) -> list[str]:
     """The fixed-mesh scenarios' table: max stable dt, ms/step and real time there, time to
     equilibrium; and why there is no accuracy."""
-    from warpcloth.lab.study import MESH_NOTE
-
     body = []
     for sc in dict.fromkeys(r["scenario"] for r in rows):
         for d in dict.fromkeys(r["device"] for r in rows if r["scenario"] == sc):
@@ -514,8 +513,6 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
         for name in written:
             lines += [f"![{PLOTS[name]}]({name})", "", f"*{PLOTS[name]}.*", ""]
     lines += ["## Columns of results.csv", ""]
-    from warpcloth.lab.study import COLUMN_DOCS, COLUMNS
-
     lines += _table(["column", "meaning"], [[c, COLUMN_DOCS.get(c, "")] for c in COLUMNS]) + [""]
     write_atomic(os.path.join(out_dir, "report.md"), "\n".join(lines), "study report")
     if written is None and stream is not None:

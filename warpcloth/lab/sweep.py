@@ -33,7 +33,7 @@ from warpcloth.run.params import TimeStep, csv_columns, per_type_triple
 from warpcloth.lab.testlist import RunSpec, TestList, parse_test_list, resolved_params
 
 #: Columns of the CSV, in order (docs/sweep.md describes each): the test id, the run parameters
-#: (their columns come from the declarations, :func:`warpcloth.params.csv_columns`), then what
+#: (their columns come from the declarations, :func:`warpcloth.run.params.csv_columns`), then what
 #: the run measured.
 COLUMNS = [
     "test_id", *csv_columns(), "options", "particles", "springs", "dt_s", "max_dt_s", "unstable_dt_s",
@@ -158,9 +158,9 @@ def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
                 raise WarpclothError(f"no stable dt found down to {found.dt_min:g} s")
             dt = found.dt * spec.dt.value
         scenario = get_scenario(spec.scenario)
-        sim = scenario.build(spec.config(dt=dt))
-        row["dt_s"] = sim.dt
-        result = sim.run(spec.duration, fps=spec.frame_rate, stop_at_equilibrium=scenario.stop_at_equilibrium, wall_cap=spec.wall_cap)
+        harness = scenario.harness(spec.config(dt=dt))
+        row["dt_s"] = harness.sim.dt
+        result = harness.run(spec.duration, fps=spec.frame_rate, stop_at_equilibrium=scenario.stop_at_equilibrium, wall_cap=spec.wall_cap)
         row.update(result_columns(result, scenario.stop_at_equilibrium))
     except Exception as exc:
         row["outcome"] = "error"
@@ -177,7 +177,7 @@ def format_row(row: dict) -> str:
 class CsvOutput:
     """The results file: created with its header atomically, appended one fsync'd row at a time.
 
-    The file is locked (:class:`~warpcloth.fileio.WriterLock`) from before it is read or
+    The file is locked (:class:`~warpcloth.io.files.WriterLock`) from before it is read or
     created until :meth:`close`: a second writer is refused, naming the holder's pid.
 
     Args:
@@ -606,7 +606,7 @@ _WORKER_CACHE: MaxDtCache | None = None
 
 def parallel_init(place) -> None:
     """Run once in each worker process: Warp initialised quietly."""
-    from warpcloth.cli.parse import init_warp
+    from warpcloth.sim.device import init_warp
 
     init_warp(False)
 

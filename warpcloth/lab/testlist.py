@@ -28,6 +28,7 @@ import xml.parsers.expat as expat
 
 from warpcloth.errors import WarpclothError, warn
 from warpcloth.run import params
+from warpcloth.scenarios import check_scenario
 from warpcloth.run.params import SPRING_TYPES, Param, TimeStep, canonical, per_type_triple, resolve_per_type  # noqa: F401  (SPRING_TYPES, TimeStep: importable from here)
 
 ROOT_TAG = "test_list"
@@ -42,7 +43,7 @@ TEST_ID = Param("id", str, "", "name of the test, carried into the CSV as test_i
                 "one name", "run", commands=("sweep",), columns=(), key="never")
 
 def attributes() -> dict[str, Param]:
-    """Every attribute of ``test`` by name: the test id and the run parameters (:data:`warpcloth.params.PARAMS`)."""
+    """Every attribute of ``test`` by name: the test id and the run parameters (:data:`warpcloth.run.params.PARAMS`)."""
     return {"id": TEST_ID, **{p.name: p for p in params.params_for("sweep")}}
 
 
@@ -290,7 +291,9 @@ def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
         for tok in tokens:
             try:
                 parsed.append(attr.parse(tok))
-            except ValueError as exc:
+                if attr.name == "scenario":
+                    check_scenario(parsed[-1])
+            except (ValueError, WarpclothError) as exc:
                 raise src.error(line, f"{what}: {raw_name}: {exc}") from None
         if len(set(map(repr, parsed))) != len(parsed):
             raise src.error(line, f"{what}: attribute {raw_name!r} repeats a value in {raw!r}")

@@ -3,8 +3,10 @@
 A :class:`~warpcloth.simulator.Simulator` steps (``step``, ``simulate``); :class:`RunHarness`
 runs it for a simulated duration (seed 3.2.2): forces are computed every time step ``dt``,
 frames are sampled every ``1/fps`` seconds of simulated time, metrics are reduced on the device
-and read once per frame, and the verdicts (stable, equilibrium) are made here. A run returns a
-:class:`RunResult` that serialises to JSON. ``Simulator.run`` is this harness.
+and read once per frame, and the verdicts (stable, equilibrium) are made here, by the settings
+the harness holds (what "stable" means belongs to the experiment, not to the stepping core). A
+run returns a :class:`RunResult` that serialises to JSON. Frame outputs (USD, HTML, previews)
+are sinks the caller hands in: this layer writes no file.
 
 The timing helpers (:class:`Stopwatch`, :func:`time_steps`) are the one way warpcloth times
 steps: the run loop, the benchmark, the max-dt search and the study use them, so "ms/step"
@@ -15,16 +17,15 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import statistics
 import time
 from dataclasses import asdict, dataclass, field
 
 import warp as wp
 
-from warpcloth.version import __version__
 from warpcloth.errors import WarpclothError, require_count, require_positive, warn
-from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN, EnergyMonitor, EquilibriumDetector, FrameMetrics, MetricsProbe, wind_power_bound
+from warpcloth.version import __version__
+from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN, EnergyCriteria, EnergyMonitor, EquilibriumCriteria, EquilibriumDetector, FrameMetrics, MetricsProbe, wind_power_bound
 
 #: Most steps one run may take (a larger count is a typo in dt or duration, not an experiment).
 MAX_RUN_STEPS = 10**12
@@ -228,17 +229,43 @@ class RunResult:
 
 class RunHarness:
     """Runs a :class:`~warpcloth.simulator.Simulator` for a simulated duration: frames, metrics,
-    verdicts (unstable, equilibrium), timing and frame outputs (USD, HTML, ...).
+    verdicts (unstable, equilibrium), timing and frame sinks (USD, HTML, ...)::
 
-    The verdict settings are the simulator's (``instability_strain``, ``equilibrium``,
-    ``energy_criteria``): what "stable" means belongs to the experiment, and one simulator keeps
-    one meaning across its runs.
+        harness = RunHarness(sim, instability_strain=0.5)
+        result = harness.run(duration=5.0, stop_at_equilibrium=True)
+
+    Args:
+        sim: the :class:`~warpcloth.simulator.Simulator` to run (it may be stepped between runs).
+        scenario: a name carried into results.
+        instability_strain: a spring stretched past (1 + this) x its rest length is unstable
+            (default :data:`~warpcloth.run.metrics.DEFAULT_INSTABILITY_STRAIN`).
+        equilibrium: tolerances of the equilibrium test (:class:`~warpcloth.run.metrics.EquilibriumCriteria`).
+        energy: when growing energy counts as unstable (:class:`~warpcloth.run.metrics.EnergyCriteria`).
     """
 
-    def __init__(self, sim):
+    def __init__(self, sim, scenario: str = "custom", instability_strain: float = DEFAULT_INSTABILITY_STRAIN,
+                 equilibrium: EquilibriumCriteria | None = None, energy: EnergyCriteria | None = None):
+        if not callable(getattr(sim, "simulate", None)) or not hasattr(sim, "model"):
+            raise WarpclothError(f"RunHarness needs a warpcloth.Simulator, got {sim!r:.80}")
+        if equilibrium is not None and not isinstance(equilibrium, EquilibriumCriteria):
+            raise WarpclothError(f"equilibrium must be an EquilibriumCriteria or None, got {equilibrium!r:.80}")
+        if energy is not None and not isinstance(energy, EnergyCriteria):
+            raise WarpclothError(f"energy must be an EnergyCriteria or None, got {energy!r:.80}")
         self.sim = sim
-        self.probe = MetricsProbe(sim.model, sim.control)
+        self.scenario = str(scenario)
+        self.instability_strain = require_positive("instability strain", instability_strain)
+        self.equilibrium = equilibrium or EquilibriumCriteria()
+        self.energy_criteria = energy or EnergyCriteria()
+        self._probe, self._probe_version = None, None
+        self._metrics_warmed = False
         self._step_seconds: dict = {}  # wall seconds of one step, by the simulator's step_version
+
+    @property
+    def probe(self) -> MetricsProbe:
+        """The metrics of the simulator's current model (rebuilt after ``sim.set_model``)."""
+        if self._probe is None or self._probe_version != self.sim.model_version:
+            self._probe, self._probe_version = MetricsProbe(self.sim.model, self.sim.control), self.sim.model_version
+        return self._probe
 
     def measure(self) -> FrameMetrics:
         """Metrics of the current state (one small read from the device)."""
@@ -257,7 +284,7 @@ class RunHarness:
         fps: float = 60.0,
         stop_at_equilibrium: bool = False,
         wall_cap: float | None = None,
-        usd=None,
+        frames=None,
         warm_up: bool = True,
         **unknown,
     ) -> RunResult:
@@ -270,18 +297,19 @@ class RunHarness:
             wall_cap: stop after this many wall-clock seconds (None: no cap). It is checked
                 between chunks of about 0.2 s of steps, so it bounds the run's wall time
                 whatever the number of steps per frame.
-            usd: a :class:`~warpcloth.usd.UsdWriter` that receives every frame, a path
-                (.usd/.usda/.usdc: a writer is made, checked before the run and closed after),
-                or None.
-            warm_up: compile kernels before timing (see :meth:`warm_up`).
+            frames: a frame sink that receives every frame, ``write_frame(points, sim_time)``
+                (a :class:`~warpcloth.io.usd.UsdWriter`, :class:`~warpcloth.io.frames.FrameSinks`, ...;
+                the caller closes it), or None.
+            warm_up: compile kernels before timing (:meth:`Simulator.warm_up
+                <warpcloth.simulator.Simulator.warm_up>` and the metrics' kernels).
 
         A run that goes unstable stops there and is recorded as unstable; it never raises.
         Graph capture time is reported apart (``capture_time``) and excluded from ms/step.
         """
         if unknown:
             raise WarpclothError(
-                f"Simulator.run got an unknown keyword {sorted(unknown)[0]!r}; its keywords are duration, fps, "
-                "stop_at_equilibrium, wall_cap, usd, warm_up"
+                f"RunHarness.run got an unknown keyword {sorted(unknown)[0]!r}; its keywords are duration, fps, "
+                "stop_at_equilibrium, wall_cap, frames, warm_up"
             )
         duration = require_positive("duration", duration, "s")
         fps = require_positive("fps", fps, "1/s")
@@ -290,28 +318,23 @@ class RunHarness:
         sim = self.sim
         m, dt = sim.model, sim.dt
         check_run_length(duration, fps, dt)
-        if isinstance(usd, (str, os.PathLike)):
-            from warpcloth.io.usd import UsdWriter
-
-            writer = UsdWriter(os.fspath(usd), m, fps, colliders=sim.control.colliders)
-            try:
-                result = self.run(duration, fps, stop_at_equilibrium, wall_cap, writer, warm_up)
-            except BaseException:
-                writer.abort()
-                raise
-            writer.close()
-            return result
-        if usd is not None and not callable(getattr(usd, "write_frame", None)):
-            raise WarpclothError(f"usd must be a UsdWriter, a .usd/.usda/.usdc path or None, got {usd!r:.80}")
+        if frames is not None and not callable(getattr(frames, "write_frame", None)):
+            raise WarpclothError(f"frames must be a frame sink with write_frame(points, sim_time) or None, got {frames!r:.80}")
         result = RunResult(
-            scenario=sim.scenario, integrator=sim.integrator.name, device=str(m.device), rows=m.rows, cols=m.cols,
+            scenario=self.scenario, integrator=sim.integrator.name, device=str(m.device), rows=m.rows, cols=m.cols,
             particles=m.particle_count, springs=m.spring_count, dt=dt, fps=fps,
             equilibrium_criterion="speed+force" if sim.integrator.force_based and sim.control.collision is None else "speed",
-            graph=sim.graph_enabled, instability_strain=sim.instability_strain,
+            graph=sim.graph_enabled, instability_strain=self.instability_strain,
         )
         if warm_up and not sim.warmed:  # once: a warm-up restarts the integrator's history
             result.compile_time = sim.warm_up()
-        detector = EquilibriumDetector(sim.equilibrium, self.probe.force_floor)
+        if warm_up and not self._metrics_warmed:  # the metrics' kernels compile outside the timing too
+            t0 = time.perf_counter()
+            self.measure()
+            self.probe.energies(sim.state)
+            self._metrics_warmed = True
+            result.compile_time += time.perf_counter() - t0
+        detector = EquilibriumDetector(self.equilibrium, self.probe.force_floor)
         result.force_floor = self.probe.force_floor
         start_steps, start_time = sim.steps, sim.sim_time
         start_capture = sim.capture_time
@@ -322,20 +345,20 @@ class RunHarness:
 
         def energy_monitor(e_start: float) -> EnergyMonitor:
             return EnergyMonitor(
-                e_start, wind_power_bound(m, sim.control, sim.instability_strain),
-                window_frames=max(math.ceil(sim.energy_criteria.window_time * fps - 1e-9),
-                                  math.ceil(sim.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9)),
+                e_start, wind_power_bound(m, sim.control, self.instability_strain),
+                window_frames=max(math.ceil(self.energy_criteria.window_time * fps - 1e-9),
+                                  math.ceil(self.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9)),
                 scale=m.total_mass * sim.control.gravity_magnitude * max(m.width, m.height, 1e-3),
-                criteria=sim.energy_criteria,
+                criteria=self.energy_criteria,
             )
 
         energy, energy_start = energy_monitor(e0), start_time
         # moving kinematic pins do work no a-priori bound knows: the energy criterion waits until
         # they stop and starts from the energy then (non-finite state and strain still apply)
         pins_move_until = sim.pins_moving_until()
-        if usd is not None:
+        if frames is not None:
             t0 = time.perf_counter()
-            usd.write_frame(sim.state.particle_q.numpy(), sim.sim_time)
+            frames.write_frame(sim.state.particle_q.numpy(), sim.sim_time)
             result.export_time += time.perf_counter() - t0
 
         loop_start = time.perf_counter()
@@ -362,9 +385,9 @@ class RunHarness:
             result.final_max_speed = metrics.max_speed
             if not metrics.finite or not math.isfinite(e):
                 result.stable, result.unstable_reason = False, "non-finite state"
-            elif metrics.max_strain > sim.instability_strain:
+            elif metrics.max_strain > self.instability_strain:
                 result.stable = False
-                result.unstable_reason = f"spring strain {metrics.max_strain:.3g} beyond the limit {sim.instability_strain:g}"
+                result.unstable_reason = f"spring strain {metrics.max_strain:.3g} beyond the limit {self.instability_strain:g}"
             elif sim.sim_time < pins_move_until:
                 energy, energy_start = None, None
             elif energy is None:
@@ -375,9 +398,9 @@ class RunHarness:
                     f"energy growing without bound: {energy.excess:.3g} J above what gravity and the external forces "
                     f"can supply, growing in {energy.streak} consecutive windows"
                 )
-            if usd is not None and result.stable:
+            if frames is not None and result.stable:
                 te = time.perf_counter()
-                usd.write_frame(sim.state.particle_q.numpy(), sim.sim_time)
+                frames.write_frame(sim.state.particle_q.numpy(), sim.sim_time)
                 result.export_time += time.perf_counter() - te
             t2 = time.perf_counter()
             result.other_time += t2 - t1

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from warpcloth.errors import FLOAT32_MAX, WarpclothError
+from warpcloth.run.parse import collider_specs
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 
 SPRING_TYPES = ("structural", "shear", "bend")
@@ -202,18 +203,9 @@ def integrator(text: str) -> str:
 
 
 def scenario(text: str) -> str:
-    """A scenario name, or a scenario file (.toml, relative to the working folder) that loads."""
-    from warpcloth.scenarios import get_scenario, scenario_names
-
-    if text.lower().endswith(".toml"):
-        try:
-            get_scenario(text)
-        except WarpclothError as exc:
-            raise ValueError(str(exc)) from None
-        return text
-    if text not in scenario_names():
-        raise ValueError(f"unknown scenario {text!r}; choose from {', '.join(scenario_names())}, or a scenario file (.toml)")
-    return text
+    """A scenario name or a scenario file (.toml); whether it exists is checked where scenarios
+    are known (a layer above this table: :func:`warpcloth.scenarios.check_scenario`)."""
+    return text_value(text).strip()
 
 
 def device(text: str) -> str:
@@ -227,18 +219,13 @@ def device(text: str) -> str:
 
 def colliders(text: str) -> str:
     """One or more colliders joined by ``+`` (``sphere:center=0/1/0,radius=0.3+plane``); checked
-    here, kept as text (the run key and the CSV show it as written)."""
-    from warpcloth.sim.colliders import parse_collider
-
-    specs = [s for s in text.split("+")]
-    if any(not s.strip() for s in specs):
-        raise ValueError(f"{text!r} has an empty collider; join colliders with single '+'")
-    for s in specs:
-        try:
-            parse_collider(s)
-        except WarpclothError as exc:
-            raise ValueError(str(exc)) from None
-    return "+".join(s.strip() for s in specs)
+    here (:func:`warpcloth.run.parse.collider_specs`: no file is read), kept as text (the run
+    key and the CSV show it as written)."""
+    try:
+        specs = collider_specs(text)
+    except WarpclothError as exc:
+        raise ValueError(str(exc)) from None
+    return "+".join(spec.text for spec in specs)
 
 
 def names(text: str) -> str:
@@ -360,9 +347,7 @@ def _graph_config(value):
 
 
 def _colliders_config(value):
-    from warpcloth.sim.colliders import parse_collider
-
-    return tuple(parse_collider(s) for s in value.split("+")) if value else None
+    return collider_specs(value) if value else None
 
 
 def _group_config(value):
@@ -620,5 +605,5 @@ __all__ = ["BY_NAME", "OLD_NAMES", "PARAMS", "Param", "TimeStep", "add_flags", "
            "markdown_table", "params_for"]
 
 
-if __name__ == "__main__":  # python -m warpcloth.params: the docs table
+if __name__ == "__main__":  # python -m warpcloth.run.params: the docs table
     print(markdown_table())

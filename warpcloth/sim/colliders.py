@@ -1,6 +1,6 @@
 """Colliders: an infinite plane, a sphere, a capsule, an oriented box and a triangle mesh
 (:class:`MeshCollider`), each with a thickness (the cloth's offset from the surface) [m] and a
-Coulomb friction coefficient mu, given to :class:`~warpcloth.forces.Control` as ``colliders=(...)``.
+Coulomb friction coefficient mu, given to :class:`~warpcloth.sim.control.Control` as ``colliders=(...)``.
 Any of them may move rigidly on a :class:`ColliderTrack` (keyframed offsets
 or a rigid motion, as pin tracks), posed on the device inside the step.
 
@@ -51,7 +51,7 @@ def _track(c):
 class ColliderTrack:
     """A rigid pose track for a collider: keyframed translation offsets, or a rigid motion
     y -> c + u t + R(axis, theta(t)) (y - c) with theta(t) = omega t + A sin(2 pi f t + phi),
-    as for :class:`~warpcloth.pins.PinTrack`. The collider as given is its pose at offset 0 /
+    as for :class:`~warpcloth.sim.pins.PinTrack`. The collider as given is its pose at offset 0 /
     time 0. Evaluated on the device inside the step; its velocity field v_c(y) = d'(t) +
     theta'(t) axis x (y - c - d(t)) is what friction is relative to."""
 
@@ -72,7 +72,7 @@ class ColliderTrack:
     def keyframes(cls, times, offsets, interpolation: str = "linear", tangents=None) -> "ColliderTrack":
         """Translation offsets [m] (K, 3) at K increasing times [s], added to the collider as
         given; ``interpolation`` ``"linear"``, ``"catmull_rom"`` or ``"hermite"`` (with
-        ``tangents`` [m/s], (K, 3)), as :meth:`PinTrack.keyframes <warpcloth.pins.PinTrack.keyframes>`;
+        ``tangents`` [m/s], (K, 3)), as :meth:`PinTrack.keyframes <warpcloth.sim.pins.PinTrack.keyframes>`;
         it holds still before the first key and after the last."""
         from warpcloth.sim.pins import PinTrack
 
@@ -309,13 +309,11 @@ class MeshCollider(_Posed):
         return MeshCollider(vertices=shift + self.vertices @ r.T, triangles=self.triangles, thickness=self.thickness, friction=self.friction,
                             reach=self.reach, source=self.source)
 
-    @classmethod
-    def from_file(cls, path: str, prim: str | None = None, **settings) -> "MeshCollider":
-        """The mesh of an OBJ or USD file (:func:`warpcloth.meshio.load_mesh`) as a collider."""
-        from warpcloth.io.meshio import load_mesh
-
-        mesh = load_mesh(path, prim)
-        return cls(vertices=mesh.vertices, triangles=mesh.triangles, source=str(path), **settings)
+    @staticmethod
+    def check_settings(thickness: float = 0.0, friction: float = 0.0, reach: float = 0.05) -> None:
+        """Check a mesh collider's settings before its mesh is read (a text description's)."""
+        _material(thickness, friction)
+        require_positive("mesh collider reach", reach, "m")
 
     def __repr__(self):
         return (f"MeshCollider({self.source or 'in memory'}: {len(self.vertices)} vertices, {len(self.triangles)} triangles, "
@@ -329,40 +327,8 @@ class MeshCollider(_Posed):
 COLLIDER_TYPES = {"plane": Plane, "sphere": Sphere, "capsule": Capsule, "box": Box, "mesh": MeshCollider}
 
 
-def parse_collider(text: str):
-    """A collider from the CLI form ``kind:key=value,...`` (vectors as ``x/y/z``), e.g.
-    ``sphere:center=0/1/0,radius=0.3,friction=0.4``, ``plane:normal=0/1/0,thickness=0.005`` or
-    ``mesh:path=table.obj,thickness=0.005`` (``prim=/World/Table`` for a USD file)."""
-    kind, _, rest = text.partition(":")
-    cls = COLLIDER_TYPES.get(kind.strip())
-    if cls is None:
-        raise WarpclothError(f"unknown collider kind {kind.strip()!r} in {text!r}; choose from {', '.join(COLLIDER_TYPES)}")
-    text_fields = {"path", "prim"} if cls is MeshCollider else set()
-    fields = {f for f in cls.__dataclass_fields__ if f not in ("track", "vertices", "triangles", "source")} | text_fields
-    kwargs = {}
-    for item in filter(None, (p.strip() for p in rest.split(","))):
-        key, eq, value = item.partition("=")
-        key = key.strip()
-        if not eq or key not in fields:
-            raise WarpclothError(f"collider {kind}: unknown or empty setting {item!r}; its settings are {', '.join(sorted(fields))}")
-        if key in text_fields:
-            kwargs[key] = value.strip()
-            continue
-        parts = value.split("/")
-        try:
-            numbers = [float(p) for p in parts]
-        except ValueError:
-            raise WarpclothError(f"collider {kind}: {key} must be numbers (x/y/z for vectors), got {value!r}") from None
-        kwargs[key] = tuple(numbers) if len(numbers) > 1 else numbers[0]
-    if cls is MeshCollider:
-        if "path" not in kwargs:
-            raise WarpclothError(f"collider mesh needs path=FILE (.obj or .usd), got {text!r}")
-        return MeshCollider.from_file(kwargs.pop("path"), kwargs.pop("prim", None), **kwargs)
-    return cls(**kwargs)
-
-
 class ColliderSet:
-    """The colliders of a :class:`~warpcloth.forces.Control` as one device array of
+    """The colliders of a :class:`~warpcloth.sim.control.Control` as one device array of
     :class:`~warpcloth.kernels.collide.Collider` records, handled by one launch per response.
 
     Moving colliders are re-posed on the device from the control's simulated time before each
@@ -519,4 +485,4 @@ def _matrix_quat(m: np.ndarray) -> tuple:
     return tuple(float(c) for c in q / np.linalg.norm(q))
 
 
-__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderSet", "ColliderTrack", "KINDS", "MeshCollider", "Plane", "Sphere", "parse_collider"]
+__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderSet", "ColliderTrack", "KINDS", "MeshCollider", "Plane", "Sphere"]

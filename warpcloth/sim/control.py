@@ -66,11 +66,11 @@ class Control:
         drag_rate: linear air drag rate c [1/s]; the force on a particle is -m c v.
         wind_coefficient: c_w [kg/(m^2 s)] in f = c_w A (n . u) n on each triangle; 0 disables wind.
         wind_schedule: the wind velocity W(t).
-        pin_tracks: kinematic pins (:class:`~warpcloth.pins.PinTrack`), bound to the model by the
-            :class:`~warpcloth.simulator.Simulator` (see :mod:`warpcloth.pins`).
-        colliders: :class:`~warpcloth.colliders.Plane`, ``Sphere``, ``Capsule`` or ``Box``
-            objects, static or moving on a :class:`~warpcloth.colliders.ColliderTrack`, and static
-            :class:`~warpcloth.colliders.MeshCollider` objects (see :mod:`warpcloth.colliders`).
+        pin_tracks: kinematic pins (:class:`~warpcloth.sim.pins.PinTrack`), bound to the model by the
+            :class:`~warpcloth.simulator.Simulator` (see :mod:`warpcloth.sim.pins`).
+        colliders: :class:`~warpcloth.sim.colliders.Plane`, ``Sphere``, ``Capsule`` or ``Box``
+            objects, static or moving on a :class:`~warpcloth.sim.colliders.ColliderTrack`, and static
+            :class:`~warpcloth.sim.colliders.MeshCollider` objects (see :mod:`warpcloth.sim.colliders`).
         time: simulated time [s], device array of shape (1,), float64: t_base + n dt after n
             steps of dt since the last change of dt, so switch times land exactly on steps.
         wind: current wind velocity [m/s], device array of shape (1,), vec3.
@@ -153,7 +153,7 @@ class Control:
 
     def update(self) -> None:
         """Evaluate W(time) into :attr:`wind` on the device, and start a step of the moving
-        colliders (:meth:`ColliderSet.begin_step <warpcloth.colliders.ColliderSet.begin_step>`:
+        colliders (:meth:`ColliderSet.begin_step <warpcloth.sim.colliders.ColliderSet.begin_step>`:
         posed at the end of the first position-based substep, with the dt of the last
         :meth:`advance`; force-based steps re-pose them at exactly t + dt after the step)."""
         if self.collision is not None:

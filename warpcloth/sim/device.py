@@ -1,13 +1,16 @@
 """One device rule for the whole library.
 
-Every public builder (:func:`~warpcloth.model.build_grid_cloth`, :func:`~warpcloth.model.build_model`,
-:class:`~warpcloth.forces.Control`, the scenarios) resolves its ``device`` argument here, once, to a
+Every public builder (:func:`~warpcloth.sim.model.build_grid_cloth`, :func:`~warpcloth.sim.model.build_model`,
+:class:`~warpcloth.sim.control.Control`, the scenarios) resolves its ``device`` argument here, once, to a
 ``wp.Device`` that the model then carries: ``None`` means Warp's current device (``wp.get_device()``,
 the CPU unless a script chose otherwise); ``"cuda"`` the first GPU. Only the command line picks a
 default of its own (``cpu``).
 """
 
 from __future__ import annotations
+
+import os
+import sys
 
 import warp as wp
 
@@ -71,3 +74,42 @@ def device_name(device=None) -> str:
 
 
 __all__ = ["available_memory", "device_name", "require_memory", "resolve_device"]
+
+
+def init_warp(verbose: bool = False) -> None:
+    """``wp.init()`` without Warp's start-up lines on stderr (e.g. "CUDA driver not found",
+    printed by its native library) unless ``verbose``; they are shown if init fails."""
+    import tempfile
+
+    if verbose:
+        wp.config.quiet = False
+        if hasattr(wp, "LOG_INFO"):
+            wp.config.log_level = wp.LOG_INFO
+        wp.init()
+        return
+    wp.config.quiet = True
+    try:
+        from warp import context as _ctx
+
+        if getattr(_ctx, "runtime", None) is not None:
+            return
+    except ImportError:  # pragma: no cover - Warp layout changed
+        pass
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        wp.init()
+        return
+    with tempfile.TemporaryFile() as captured:
+        os.dup2(captured.fileno(), 2)
+        try:
+            wp.init()
+        except BaseException:
+            os.dup2(saved, 2)
+            captured.seek(0)
+            sys.stderr.write(captured.read().decode("utf-8", "replace"))
+            raise
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)

@@ -1,7 +1,7 @@
 """Cloth from any triangle mesh: springs, lumped masses and pins derived from the mesh.
 
 :func:`build_mesh_cloth` turns vertices and triangles into a
-:class:`~warpcloth.model.ClothModel` (through :func:`~warpcloth.model.build_model`):
+:class:`~warpcloth.sim.model.ClothModel` (through :func:`~warpcloth.sim.model.build_model`):
 
 - **structural** springs on the unique edges;
 - **bend** springs across each interior edge, between the two vertices opposite it (the usual
@@ -10,7 +10,7 @@
 - with ``quads=True``, triangle pairs that form a quad are found and treated as quads
   (rule below): the shared diagonal and the other diagonal become **shear** springs, and the
   bend springs are the 2-ring straight lines. A triangulated Provot grid then gives exactly
-  the springs of :func:`~warpcloth.model.build_grid_cloth`.
+  the springs of :func:`~warpcloth.sim.model.build_grid_cloth`.
 
 Quad rule (``quads=True``): an interior edge that is the strictly longest edge of both of its
 triangles (longer than each other edge by a factor 1 + 1e-6) is the diagonal of a quad. Each
@@ -444,7 +444,7 @@ def build_mesh_cloth(
     bend: bool = True,
     device: str | None = None,
 ) -> ClothModel:
-    """Build a mass-spring cloth from a triangle mesh (rules in :mod:`warpcloth.mesh`).
+    """Build a mass-spring cloth from a triangle mesh (rules in :mod:`warpcloth.sim.mesh`).
 
     Args:
         vertices: (N, 3) rest positions [m]; or a :class:`TriangleMesh` (then ``triangles`` is

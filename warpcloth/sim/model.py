@@ -3,7 +3,7 @@
 A :class:`ClothModel` holds particle masses, pins, springs (structural, shear, bend) with their
 rest lengths and per-type stiffness/damping, and the two triangles of each grid cell. It is
 built once per run by :func:`build_grid_cloth`; :meth:`ClothModel.state` makes a fresh
-:class:`~warpcloth.state.State`.
+:class:`~warpcloth.sim.state.State`.
 """
 
 from __future__ import annotations
@@ -177,7 +177,7 @@ class ClothModel:
         return ks_sum, kd_sum
 
     def state(self):
-        """A new :class:`~warpcloth.state.State` at the rest configuration with zero velocity."""
+        """A new :class:`~warpcloth.sim.state.State` at the rest configuration with zero velocity."""
         from warpcloth.sim.state import State
 
         return State.from_model(self)
@@ -300,7 +300,7 @@ def build_grid_cloth(
         origin: position of particle [0, 0] [m].
         plane: ``"vertical"`` (hanging, x-y plane) or ``"horizontal"`` (x-z plane).
         bend: ``"provot"``, ``"choi_ko"`` or ``"none"``.
-        device: Warp device (default: Warp's current device, see :mod:`warpcloth.device`).
+        device: Warp device (default: Warp's current device, see :mod:`warpcloth.sim.device`).
     """
     try:
         bend = BendModel(bend)

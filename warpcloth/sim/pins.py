@@ -2,7 +2,7 @@
 
 A :class:`PinTrack` moves some pinned particles along keyframes (linear, Catmull-Rom or Hermite
 interpolation) or a rigid motion (translation and rotation about an axis: a rod swinging, a
-shoulder moving). Tracks go in :attr:`Control.pin_tracks <warpcloth.forces.Control>` or
+shoulder moving). Tracks go in :attr:`Control.pin_tracks <warpcloth.sim.control.Control>` or
 :meth:`Simulator.set_pin_track <warpcloth.simulator.Simulator.set_pin_track>`.
 
 Evaluation is on the device, from the simulated time in ``Control.time`` (float64, plus a
