@@ -33,6 +33,7 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive, require_vector
+from warpcloth.sim.tracks import Track, check_keyframes, check_rigid
 
 #: Collider kinds in the order of their kernel launches (the kernels' ``kind`` argument).
 KINDS = ("plane", "sphere", "capsule", "box", "mesh")
@@ -48,25 +49,19 @@ def _track(c):
 
 
 @dataclass(frozen=True, eq=False)
-class ColliderTrack:
-    """A rigid pose track for a collider: keyframed translation offsets, or a rigid motion
-    y -> c + u t + R(axis, theta(t)) (y - c) with theta(t) = omega t + A sin(2 pi f t + phi),
-    as for :class:`~warpcloth.sim.pins.PinTrack`. The collider as given is its pose at offset 0 /
-    time 0. Evaluated on the device inside the step; its velocity field v_c(y) = d'(t) +
-    theta'(t) axis x (y - c - d(t)) is what friction is relative to."""
+class ColliderTrack(Track):
+    """A rigid pose track for a collider: keyframed translation ``offsets`` (K, 3) [m], or a rigid
+    motion y -> c + u t + R(axis, theta(t)) (y - c) with theta(t) = omega t + A sin(2 pi f t + phi),
+    as for :class:`~warpcloth.sim.pins.PinTrack` (both are :class:`~warpcloth.sim.tracks.Track` s).
+    The collider as given is its pose at offset 0 / time 0. Evaluated on the device inside the
+    step; its velocity field v_c(y) = d'(t) + theta'(t) axis x (y - c - d(t)) is what friction is
+    relative to."""
 
-    kind: str  # "keyframes" or "rigid"
-    times: np.ndarray | None = None
     offsets: np.ndarray | None = None  # (K, 3) [m]
-    tangents: np.ndarray | None = None  # (K, 3) [m/s]
-    interpolation: str = "linear"
-    center: tuple = (0.0, 0.0, 0.0)
-    axis: tuple = (0.0, 0.0, 1.0)
-    velocity: tuple = (0.0, 0.0, 0.0)
-    angular_velocity: float = 0.0
-    swing_amplitude: float = 0.0
-    swing_frequency: float = 0.0
-    swing_phase: float = 0.0
+
+    @property
+    def keys(self) -> np.ndarray | None:
+        return self.offsets
 
     @classmethod
     def keyframes(cls, times, offsets, interpolation: str = "linear", tangents=None) -> "ColliderTrack":
@@ -74,31 +69,20 @@ class ColliderTrack:
         given; ``interpolation`` ``"linear"``, ``"catmull_rom"`` or ``"hermite"`` (with
         ``tangents`` [m/s], (K, 3)), as :meth:`PinTrack.keyframes <warpcloth.sim.pins.PinTrack.keyframes>`;
         it holds still before the first key and after the last."""
-        from warpcloth.sim.pins import PinTrack
-
         offsets = np.asarray(offsets, dtype=np.float64) if not isinstance(offsets, (str, bytes)) else offsets
-        try:
-            pin = PinTrack.keyframes([0], times, offsets, interpolation=interpolation, tangents=tangents)
-        except WarpclothError as e:
-            raise WarpclothError(str(e).replace("pin track", "collider track")) from None
-        if pin.values.ndim != 2:
+        t, v, tan = check_keyframes("collider track", times, offsets, interpolation, tangents, 1)
+        if v.ndim != 2:
             raise WarpclothError(f"collider track offsets must have shape (K, 3), got {np.shape(offsets)}")
-        return cls(kind="keyframes", times=pin.times, offsets=pin.values, tangents=pin.tangents, interpolation=interpolation)
+        return cls(kind="keyframes", times=t, offsets=v, tangents=tan, interpolation=interpolation)
 
     @classmethod
     def rigid(cls, center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), angular_velocity: float = 0.0, swing_amplitude: float = 0.0,
               swing_frequency: float = 0.0, swing_phase: float = 0.0, velocity=(0.0, 0.0, 0.0)) -> "ColliderTrack":
         """A rigid motion: ``center`` c [m] on the rotation ``axis`` at t = 0, ``angular_velocity``
         omega [rad/s], a swing A [rad] at f [Hz] with phase phi [rad], translation ``velocity`` u [m/s]."""
-        from warpcloth.sim.pins import PinTrack
-
-        try:
-            pin = PinTrack.rigid([0], center=center, axis=axis, angular_velocity=angular_velocity, swing_amplitude=swing_amplitude,
-                                 swing_frequency=swing_frequency, swing_phase=swing_phase, velocity=velocity)
-        except WarpclothError as e:
-            raise WarpclothError(str(e).replace("pin track", "collider track")) from None
-        return cls(kind="rigid", center=pin.center, axis=pin.axis, velocity=pin.velocity, angular_velocity=pin.angular_velocity,
-                   swing_amplitude=pin.swing_amplitude, swing_frequency=pin.swing_frequency, swing_phase=pin.swing_phase)
+        motion = check_rigid("collider track", center, axis, angular_velocity, swing_amplitude, swing_frequency,
+                             swing_phase, velocity)
+        return cls(**motion)
 
     @classmethod
     def from_table(cls, table) -> "ColliderTrack":
@@ -127,13 +111,12 @@ class ColliderTrack:
     def transform(self, t: float):
         """(rotation matrix R (3, 3), centre c, offset d) at time t [s]: y -> c + d + R (y - c)."""
         if self.kind == "rigid":
-            phase = 2 * math.pi * self.swing_frequency * t + self.swing_phase
-            theta = self.angular_velocity * t + self.swing_amplitude * math.sin(phase)
+            theta, _ = self._angle(t)
             a = np.asarray(self.axis)
             k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
             r = math.cos(theta) * np.eye(3) + math.sin(theta) * k + (1 - math.cos(theta)) * np.outer(a, a)
             return r, np.asarray(self.center, dtype=np.float64), np.asarray(self.velocity) * t
-        d, _ = self._pin().evaluate(t, np.zeros((1, 3)))
+        d, _ = self._evaluate(t, np.zeros((1, 3)))
         return np.eye(3), np.zeros(3), d[0]
 
     def pose(self, t: float):
@@ -142,29 +125,15 @@ class ColliderTrack:
         c = np.asarray(c, dtype=np.float64)
         return r, c + d - r @ c
 
-    def moving_until(self) -> float:
-        """Time [s] after which the track holds still (inf for a rigid motion that moves)."""
-        if self.kind == "keyframes":
-            return float(self.times[-1])
-        moving = any(self.velocity) or self.angular_velocity or (self.swing_amplitude and self.swing_frequency)
-        return math.inf if moving else 0.0
-
-    def _pin(self):
-        from warpcloth.sim.pins import PinTrack
-
-        return PinTrack(particles=(0,), kind="keyframes", times=self.times, values=self.offsets, tangents=self.tangents, interpolation=self.interpolation)
-
     def launch_args(self) -> list:
-        """The pose kernel's track arguments (device arrays made once)."""
+        """The pose kernel's track arguments (device arrays made once, on the current device)."""
         if self.kind == "rigid":
             dummy = wp.zeros(1, dtype=wp.float64), wp.zeros(1, dtype=wp.vec3d)
-            return [1, wp.vec3d(*self.center), wp.vec3d(*self.axis), wp.vec3d(*self.velocity),
-                    wp.vec4d(self.angular_velocity, self.swing_amplitude, self.swing_frequency, self.swing_phase),
-                    dummy[0], dummy[1], dummy[1], 0]
-        tangents = self._pin().key_tangents(np.zeros((1, 3))).reshape(-1, 3)
+            return [1, *self._rigid_args(), dummy[0], dummy[1], dummy[1], 0]
         zero = wp.vec3d(0.0, 0.0, 0.0)
-        return [0, zero, wp.vec3d(0.0, 0.0, 1.0), zero, wp.vec4d(0.0, 0.0, 0.0, 0.0), wp.array(self.times, dtype=wp.float64),
-                wp.array(self.offsets, dtype=wp.vec3d), wp.array(tangents, dtype=wp.vec3d), int(self.interpolation != "linear")]
+        tangents = self._key_tangents(np.zeros((1, 3))).reshape(-1, 3)
+        return [0, zero, wp.vec3d(0.0, 0.0, 1.0), zero, wp.vec4d(0.0, 0.0, 0.0, 0.0),
+                *self._keyframe_args(self.offsets, tangents)]
 
 
 class _Posed:
