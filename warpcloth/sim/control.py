@@ -109,7 +109,7 @@ class Control:
             super().__setattr__("collision", self._collider_set(value))
 
     def _collider_set(self, colliders):
-        from warpcloth.sim.colliders import ColliderSet
+        from warpcloth.sim.contacts import ColliderSet
 
         return ColliderSet(colliders, self.device, time=self.time, step_dt=self._step_dt) if colliders else None
 
@@ -153,7 +153,7 @@ class Control:
 
     def update(self) -> None:
         """Evaluate W(time) into :attr:`wind` on the device, and start a step of the moving
-        colliders (:meth:`ColliderSet.begin_step <warpcloth.sim.colliders.ColliderSet.begin_step>`:
+        colliders (:meth:`ColliderSet.begin_step <warpcloth.sim.contacts.ColliderSet.begin_step>`:
         posed at the end of the first position-based substep, with the dt of the last
         :meth:`advance`; force-based steps re-pose them at exactly t + dt after the step)."""
         if self.collision is not None:
