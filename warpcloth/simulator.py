@@ -162,13 +162,7 @@ class Simulator:
         self.step_version += 1
 
     def _bind_pin_tracks(self, tracks) -> None:
-        from warpcloth.sim.pins import KinematicPins, PinTrack
-
-        if isinstance(tracks, PinTrack):
-            tracks = (tracks,)
-        tracks = tuple(tracks or ())
-        self.control.pin_tracks = tracks
-        self.control.kinematic_pins = KinematicPins(self.model, tracks) if tracks else None
+        self.control.bind_pin_tracks(self.model, tracks)
         self._pins_version += 1
 
     def pins_moving_until(self) -> float:
