@@ -10,7 +10,7 @@
 - with ``quads=True``, triangle pairs that form a quad are found and treated as quads
   (rule below): the shared diagonal and the other diagonal become **shear** springs, and the
   bend springs are the 2-ring straight lines. A triangulated Provot grid then gives exactly
-  the springs of :func:`~warpcloth.sim.model.build_grid_cloth`.
+  the springs of :func:`~warpcloth.sim.grid.build_grid_cloth`.
 
 Quad rule (``quads=True``): an interior edge that is the strictly longest edge of both of its
 triangles (longer than each other edge by a factor 1 + 1e-6) is the diagonal of a quad. Each
