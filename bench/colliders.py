@@ -68,7 +68,7 @@ def minimal_plane(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_ma
 def kernel_alone(size, repeats, device):
     """ms of the contact launch alone on the resting cloth's state after a step's gravity, before
     its projection (x, v restored before each launch)."""
-    from warpcloth.sim.colliders import ColliderSet
+    from warpcloth.sim.contacts import ColliderSet
     from warpcloth.kernels import collide as ck
 
     sim = simulator("contact", CONTACT, size, device)

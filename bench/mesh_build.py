@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 import warpcloth
-from warpcloth.sim.model import grid_positions, grid_triangles
+from warpcloth.sim.grid import grid_positions, grid_triangles
 
 
 def wavy_grid(triangles: int):

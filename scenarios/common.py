@@ -11,7 +11,8 @@ from warpcloth.sim.device import resolve_device
 from warpcloth.errors import WarpclothError, require_int, require_positive
 from warpcloth.sim.control import Control
 from warpcloth.integrators import make_integrator
-from warpcloth.sim.model import BendModel, build_grid_cloth, default_spring_params
+from warpcloth.sim.grid import build_grid_cloth
+from warpcloth.sim.model import BendModel, default_spring_params
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 from warpcloth.io.frames import FrameSinks
 from warpcloth.io.meshio import load_mesh_collider

@@ -20,7 +20,7 @@ is optional but ``cloth.mesh``; unknown keys are refused, naming the file and th
 
     [pins]                               # pinned vertices: the union of
     groups = ["shoulders"]
-    where = "y > 0.95 * y.max()"         # a predicate (see warpcloth.sim.mesh.parse_predicate)
+    where = "y > 0.95 * y.max()"         # a predicate (see warpcloth.sim.selection.parse_predicate)
     indices = [0, 1]
 
     [[tracks]]                           # kinematic pins (pinned automatically)
@@ -82,9 +82,10 @@ import numpy as np
 
 from warpcloth.errors import WarpclothError, require, warn
 from warpcloth.sim.control import GRAVITY, Control, WindSchedule
-from warpcloth.sim.mesh import build_mesh_cloth, lumped_masses, resolve_pins
+from warpcloth.sim.mesh import build_mesh_cloth, lumped_masses
 from warpcloth.io.meshio import load_mesh, load_mesh_collider
 from warpcloth.sim.pins import PinTrack
+from warpcloth.sim.selection import resolve_pins
 from warpcloth.run.params import BY_NAME, config_values, params_for
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
 

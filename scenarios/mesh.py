@@ -15,7 +15,7 @@ import numpy as np
 from warpcloth.sim.control import Control
 from warpcloth.sim.mesh import TriangleMesh, build_mesh_cloth
 from warpcloth.io.meshio import load_mesh
-from warpcloth.sim.model import grid_triangles
+from warpcloth.sim.grid import grid_triangles
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 CAPE_ROWS, CAPE_COLS = 20, 16

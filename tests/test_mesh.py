@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from warpcloth import SpringType, WarpclothError, build_grid_cloth, build_mesh_cloth, load_mesh
-from warpcloth.sim.mesh import lumped_masses, parse_predicate, select_vertices
+from warpcloth.sim.mesh import lumped_masses
 from warpcloth.io.meshio import write_obj
-from warpcloth.sim.model import grid_positions, grid_triangles
+from warpcloth.sim.grid import grid_positions, grid_triangles
+from warpcloth.sim.selection import parse_predicate, select_vertices
 
 
 def spring_set(model):

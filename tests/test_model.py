@@ -7,7 +7,7 @@ import warp as wp
 from warpcloth import SpringType, WarpclothError, build_grid_cloth, expected_spring_counts
 from warpcloth.sim.control import Control
 from warpcloth.integrators.forces import eval_forces
-from warpcloth.sim.model import grid_springs
+from warpcloth.sim.grid import grid_springs
 
 from helpers import reference_forces, spring_params
 

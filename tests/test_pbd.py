@@ -15,7 +15,7 @@ from warpcloth.cli import main as cli_main
 from warpcloth.sim.coloring import color_springs, greedy_spring_colors, grid_spring_colors, is_valid_coloring
 from warpcloth.integrators.pbd import iteration_stiffness
 from warpcloth.kernels import constraints as ck
-from warpcloth.sim.model import grid_springs
+from warpcloth.sim.grid import grid_springs
 from warpcloth.scenarios import flag, sheet
 from warpcloth.run.harness import RunHarness
 

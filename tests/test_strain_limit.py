@@ -6,7 +6,8 @@ import warp as wp
 
 from warpcloth.cli import main as cli_main
 from warpcloth.errors import WarpclothError
-from warpcloth.sim.model import SpringType, build_grid_cloth
+from warpcloth.sim.grid import build_grid_cloth
+from warpcloth.sim.model import SpringType
 from warpcloth.scenarios import sheet
 from warpcloth.simulator import Simulator
 from warpcloth.sim.coloring import greedy_spring_colors as color_springs

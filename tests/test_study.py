@@ -344,7 +344,7 @@ def test_a_scenario_file_runs_through_the_quick_profile(tmp_path):
     """sheet, flag and a custom scenario file: the file's rows (stability, equilibrium, timing,
     at its own 16 particles and Provot-equal springs), no accuracy rows for it and the report
     saying why; the grid study as usual."""
-    from warpcloth.sim.model import expected_spring_counts
+    from warpcloth.sim.grid import expected_spring_counts
 
     path = write_scenario(tmp_path)
     out = tmp_path / "out"

@@ -19,7 +19,8 @@ from warpcloth.errors import WarpclothError
 from warpcloth.integrators import Option, explicit_euler_dt_bound
 from warpcloth.integrators.explicit_euler import ExplicitEuler
 from warpcloth.lab.maxdt import find_max_dt
-from warpcloth.sim.model import default_damping, expected_spring_counts
+from warpcloth.sim.grid import expected_spring_counts
+from warpcloth.sim.model import default_damping
 from warpcloth.scenarios import get_scenario
 from warpcloth.lab.testlist import ATTRIBUTES, parse_test_list
 from warpcloth.run.harness import RunHarness

@@ -7,7 +7,8 @@ import pytest
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
 from warpcloth.sim.coloring import color_vertices, greedy_vertex_colors, is_valid_vertex_coloring
 from warpcloth.integrators.vbd import chebyshev_weights
-from warpcloth.sim.model import build_model, grid_springs, SpringType
+from warpcloth.sim.grid import grid_springs
+from warpcloth.sim.model import build_model, SpringType
 
 from helpers import backward_euler_step, small_grid, spring_params
 

@@ -25,7 +25,8 @@ from warpcloth.sim.colliders import Box, Capsule, ColliderTrack, MeshCollider, P
 from warpcloth.errors import WarpclothError  # noqa: E402
 from warpcloth.sim.control import Control, WindSchedule  # noqa: E402
 from warpcloth.integrators import Integrator, integrator_names, make_integrator  # noqa: E402
-from warpcloth.sim.model import BendModel, ClothModel, SpringParams, SpringType, build_grid_cloth, expected_spring_counts  # noqa: E402
+from warpcloth.sim.grid import build_grid_cloth, expected_spring_counts  # noqa: E402
+from warpcloth.sim.model import BendModel, ClothModel, SpringParams, SpringType  # noqa: E402
 from warpcloth.sim.mesh import TriangleMesh, build_mesh_cloth  # noqa: E402
 from warpcloth.io.meshio import load_mesh, load_mesh_collider  # noqa: E402
 from warpcloth.sim.pins import PinTrack  # noqa: E402

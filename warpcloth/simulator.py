@@ -9,7 +9,6 @@ verdicts, timing and outputs is the run harness's job, a layer above
 
 from __future__ import annotations
 
-import math
 import time
 
 import warp as wp
@@ -163,29 +162,16 @@ class Simulator:
         self.step_version += 1
 
     def _bind_pin_tracks(self, tracks) -> None:
-        from warpcloth.sim.pins import KinematicPins, PinTrack
-
-        if isinstance(tracks, PinTrack):
-            tracks = (tracks,)
-        tracks = tuple(tracks or ())
-        self.control.pin_tracks = tracks
-        self.control.kinematic_pins = KinematicPins(self.model, tracks) if tracks else None
+        self.control.bind_pin_tracks(self.model, tracks)
         self._pins_version += 1
 
     def pins_moving_until(self) -> float:
         """Simulated time [s] after which no kinematic pin and no collider on a pose track moves
-        (0 without tracks; inf for a rigid motion that never stops)."""
-        end = 0.0
-        for track in self.control.pin_tracks:
-            if track.kind == "keyframes":
-                end = max(end, float(track.times[-1]))
-            elif any(track.velocity) or track.angular_velocity or (track.swing_amplitude and track.swing_frequency):
-                end = math.inf
-        for collider in self.control.colliders or ():
-            track = getattr(collider, "track", None)
-            if track is not None:
-                end = max(end, float(track.moving_until()))
-        return end
+        (0 without tracks; inf for a rigid motion that never stops): the latest
+        :meth:`~warpcloth.sim.tracks.Track.moving_until` of the tracks."""
+        tracks = list(self.control.pin_tracks)
+        tracks += [c.track for c in self.control.colliders or () if getattr(c, "track", None) is not None]
+        return max([0.0, *(float(track.moving_until()) for track in tracks)])
 
     def set_dt(self, dt: float) -> None:
         dt = require_positive("dt", dt, "s")

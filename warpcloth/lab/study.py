@@ -386,7 +386,7 @@ class Study:
         return self._static[key]
 
     def base(self, measurement: str, scenario: str, integrator: str, device: str, n: int, options: dict | None = None) -> dict:
-        from warpcloth.sim.model import expected_spring_counts
+        from warpcloth.sim.grid import expected_spring_counts
 
         if n is None:  # a fixed-mesh scenario: its own counts
             if (scenario, None, device) not in self._counts:

@@ -56,7 +56,7 @@ def parameter_row(spec: RunSpec) -> dict:
     import warp as wp
 
     from warpcloth.version import __version__
-    from warpcloth.sim.model import expected_spring_counts
+    from warpcloth.sim.grid import expected_spring_counts
 
     row = {"test_id": spec.test_id, "options": " ".join(f"{k}={v}" for k, v in spec.options),
            "warpcloth_version": __version__, "warp_version": wp.config.version, "key": spec.key}

@@ -4,24 +4,9 @@ Coulomb friction coefficient mu, given to :class:`~warpcloth.sim.control.Control
 Any of them may move rigidly on a :class:`ColliderTrack` (keyframed offsets
 or a rigid motion, as pin tracks), posed on the device inside the step.
 
-How each integrator handles contact (kernels in :mod:`warpcloth.kernels.collide`; all colliders
-in one launch per response, with a broad phase):
-
-* force-based (explicit_euler, midpoint, rk4, verlet) and implicit_euler: a projection after
-  the step with a velocity correction, in the Simulator's step after the integrator: no
-  particle ends a step inside a collider (posed at the step's end t + dt); the approaching
-  normal velocity relative to the collider is removed and the relative tangential velocity
-  reduced by mu times that change (Coulomb), the tangential change applied to the position as
-  well. RK stages may pass through a collider within a step (only the step's end is projected);
-  Verlet's displacement d = x - x_prev is reset to v dt for a contact, so its history does not
-  carry the particle back in. Chosen because it is the same, exact-to-the-surface rule for every
-  force-based scheme and costs one launch per step.
-* pbd / xpbd: collision constraints projected inside the solver loop (Müller et al. 2007,
-  Alg. 1 line 13) on the predicted displacement, and friction after the iterations from the
-  accumulated normal correction, relative to the collider's motion over the substep; moving
-  colliders are posed at each substep's end (see :meth:`ColliderSet.project_displacement`).
-
-Pins win over contacts: pinned particles are never moved by a collider.
+The quaternion helpers convert a box's rotation (x, y, z, w) to and from a matrix. On the device
+the colliders are a :class:`~warpcloth.sim.contacts.ColliderSet` (:mod:`warpcloth.sim.contacts`:
+records, broad phase, and how each integrator handles contact).
 """
 
 from __future__ import annotations
@@ -33,6 +18,7 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive, require_vector
+from warpcloth.sim.tracks import Track, check_keyframes, check_rigid
 
 #: Collider kinds in the order of their kernel launches (the kernels' ``kind`` argument).
 KINDS = ("plane", "sphere", "capsule", "box", "mesh")
@@ -48,25 +34,19 @@ def _track(c):
 
 
 @dataclass(frozen=True, eq=False)
-class ColliderTrack:
-    """A rigid pose track for a collider: keyframed translation offsets, or a rigid motion
-    y -> c + u t + R(axis, theta(t)) (y - c) with theta(t) = omega t + A sin(2 pi f t + phi),
-    as for :class:`~warpcloth.sim.pins.PinTrack`. The collider as given is its pose at offset 0 /
-    time 0. Evaluated on the device inside the step; its velocity field v_c(y) = d'(t) +
-    theta'(t) axis x (y - c - d(t)) is what friction is relative to."""
+class ColliderTrack(Track):
+    """A rigid pose track for a collider: keyframed translation ``offsets`` (K, 3) [m], or a rigid
+    motion y -> c + u t + R(axis, theta(t)) (y - c) with theta(t) = omega t + A sin(2 pi f t + phi),
+    as for :class:`~warpcloth.sim.pins.PinTrack` (both are :class:`~warpcloth.sim.tracks.Track` s).
+    The collider as given is its pose at offset 0 / time 0. Evaluated on the device inside the
+    step; its velocity field v_c(y) = d'(t) + theta'(t) axis x (y - c - d(t)) is what friction is
+    relative to."""
 
-    kind: str  # "keyframes" or "rigid"
-    times: np.ndarray | None = None
     offsets: np.ndarray | None = None  # (K, 3) [m]
-    tangents: np.ndarray | None = None  # (K, 3) [m/s]
-    interpolation: str = "linear"
-    center: tuple = (0.0, 0.0, 0.0)
-    axis: tuple = (0.0, 0.0, 1.0)
-    velocity: tuple = (0.0, 0.0, 0.0)
-    angular_velocity: float = 0.0
-    swing_amplitude: float = 0.0
-    swing_frequency: float = 0.0
-    swing_phase: float = 0.0
+
+    @property
+    def keys(self) -> np.ndarray | None:
+        return self.offsets
 
     @classmethod
     def keyframes(cls, times, offsets, interpolation: str = "linear", tangents=None) -> "ColliderTrack":
@@ -74,31 +54,20 @@ class ColliderTrack:
         given; ``interpolation`` ``"linear"``, ``"catmull_rom"`` or ``"hermite"`` (with
         ``tangents`` [m/s], (K, 3)), as :meth:`PinTrack.keyframes <warpcloth.sim.pins.PinTrack.keyframes>`;
         it holds still before the first key and after the last."""
-        from warpcloth.sim.pins import PinTrack
-
         offsets = np.asarray(offsets, dtype=np.float64) if not isinstance(offsets, (str, bytes)) else offsets
-        try:
-            pin = PinTrack.keyframes([0], times, offsets, interpolation=interpolation, tangents=tangents)
-        except WarpclothError as e:
-            raise WarpclothError(str(e).replace("pin track", "collider track")) from None
-        if pin.values.ndim != 2:
+        t, v, tan = check_keyframes("collider track", times, offsets, interpolation, tangents, 1)
+        if v.ndim != 2:
             raise WarpclothError(f"collider track offsets must have shape (K, 3), got {np.shape(offsets)}")
-        return cls(kind="keyframes", times=pin.times, offsets=pin.values, tangents=pin.tangents, interpolation=interpolation)
+        return cls(kind="keyframes", times=t, offsets=v, tangents=tan, interpolation=interpolation)
 
     @classmethod
     def rigid(cls, center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), angular_velocity: float = 0.0, swing_amplitude: float = 0.0,
               swing_frequency: float = 0.0, swing_phase: float = 0.0, velocity=(0.0, 0.0, 0.0)) -> "ColliderTrack":
         """A rigid motion: ``center`` c [m] on the rotation ``axis`` at t = 0, ``angular_velocity``
         omega [rad/s], a swing A [rad] at f [Hz] with phase phi [rad], translation ``velocity`` u [m/s]."""
-        from warpcloth.sim.pins import PinTrack
-
-        try:
-            pin = PinTrack.rigid([0], center=center, axis=axis, angular_velocity=angular_velocity, swing_amplitude=swing_amplitude,
-                                 swing_frequency=swing_frequency, swing_phase=swing_phase, velocity=velocity)
-        except WarpclothError as e:
-            raise WarpclothError(str(e).replace("pin track", "collider track")) from None
-        return cls(kind="rigid", center=pin.center, axis=pin.axis, velocity=pin.velocity, angular_velocity=pin.angular_velocity,
-                   swing_amplitude=pin.swing_amplitude, swing_frequency=pin.swing_frequency, swing_phase=pin.swing_phase)
+        motion = check_rigid("collider track", center, axis, angular_velocity, swing_amplitude, swing_frequency,
+                             swing_phase, velocity)
+        return cls(**motion)
 
     @classmethod
     def from_table(cls, table) -> "ColliderTrack":
@@ -127,13 +96,12 @@ class ColliderTrack:
     def transform(self, t: float):
         """(rotation matrix R (3, 3), centre c, offset d) at time t [s]: y -> c + d + R (y - c)."""
         if self.kind == "rigid":
-            phase = 2 * math.pi * self.swing_frequency * t + self.swing_phase
-            theta = self.angular_velocity * t + self.swing_amplitude * math.sin(phase)
+            theta, _ = self._angle(t)
             a = np.asarray(self.axis)
             k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
             r = math.cos(theta) * np.eye(3) + math.sin(theta) * k + (1 - math.cos(theta)) * np.outer(a, a)
             return r, np.asarray(self.center, dtype=np.float64), np.asarray(self.velocity) * t
-        d, _ = self._pin().evaluate(t, np.zeros((1, 3)))
+        d, _ = self._evaluate(t, np.zeros((1, 3)))
         return np.eye(3), np.zeros(3), d[0]
 
     def pose(self, t: float):
@@ -142,29 +110,15 @@ class ColliderTrack:
         c = np.asarray(c, dtype=np.float64)
         return r, c + d - r @ c
 
-    def moving_until(self) -> float:
-        """Time [s] after which the track holds still (inf for a rigid motion that moves)."""
-        if self.kind == "keyframes":
-            return float(self.times[-1])
-        moving = any(self.velocity) or self.angular_velocity or (self.swing_amplitude and self.swing_frequency)
-        return math.inf if moving else 0.0
-
-    def _pin(self):
-        from warpcloth.sim.pins import PinTrack
-
-        return PinTrack(particles=(0,), kind="keyframes", times=self.times, values=self.offsets, tangents=self.tangents, interpolation=self.interpolation)
-
     def launch_args(self) -> list:
-        """The pose kernel's track arguments (device arrays made once)."""
+        """The pose kernel's track arguments (device arrays made once, on the current device)."""
         if self.kind == "rigid":
             dummy = wp.zeros(1, dtype=wp.float64), wp.zeros(1, dtype=wp.vec3d)
-            return [1, wp.vec3d(*self.center), wp.vec3d(*self.axis), wp.vec3d(*self.velocity),
-                    wp.vec4d(self.angular_velocity, self.swing_amplitude, self.swing_frequency, self.swing_phase),
-                    dummy[0], dummy[1], dummy[1], 0]
-        tangents = self._pin().key_tangents(np.zeros((1, 3))).reshape(-1, 3)
+            return [1, *self._rigid_args(), dummy[0], dummy[1], dummy[1], 0]
         zero = wp.vec3d(0.0, 0.0, 0.0)
-        return [0, zero, wp.vec3d(0.0, 0.0, 1.0), zero, wp.vec4d(0.0, 0.0, 0.0, 0.0), wp.array(self.times, dtype=wp.float64),
-                wp.array(self.offsets, dtype=wp.vec3d), wp.array(tangents, dtype=wp.vec3d), int(self.interpolation != "linear")]
+        tangents = self._key_tangents(np.zeros((1, 3))).reshape(-1, 3)
+        return [0, zero, wp.vec3d(0.0, 0.0, 1.0), zero, wp.vec4d(0.0, 0.0, 0.0, 0.0),
+                *self._keyframe_args(self.offsets, tangents)]
 
 
 class _Posed:
@@ -327,135 +281,6 @@ class MeshCollider(_Posed):
 COLLIDER_TYPES = {"plane": Plane, "sphere": Sphere, "capsule": Capsule, "box": Box, "mesh": MeshCollider}
 
 
-class ColliderSet:
-    """The colliders of a :class:`~warpcloth.sim.control.Control` as one device array of
-    :class:`~warpcloth.kernels.collide.Collider` records, handled by one launch per response.
-
-    Moving colliders are re-posed on the device from the control's simulated time before each
-    response (one tiny launch per moving collider), so a captured frame replays their motion.
-    """
-
-    def __init__(self, colliders, device, time=None, step_dt=None):
-        from warpcloth.kernels import collide as ck
-
-        for c in colliders:
-            if not isinstance(c, tuple(COLLIDER_TYPES.values())):
-                raise WarpclothError(f"colliders must be Plane, Sphere, Capsule, Box or MeshCollider objects, got {c!r:.80}")
-        self.colliders = tuple(colliders)
-        self.device = device
-        order = sorted(self.colliders, key=lambda c: c.kind != "plane")  # planes first: the kernels' half-space tests
-        self.plane_count = sum(c.kind == "plane" for c in order)
-        with wp.ScopedDevice(device):
-            self.meshes = [wp.Mesh(points=wp.array(c.vertices, dtype=wp.vec3), indices=wp.array(c.triangles.reshape(-1).astype(np.int32), dtype=int))
-                           if c.kind == "mesh" else None for c in order]  # kept alive: the records hold their ids
-            records = [_record(c, m) for c, m in zip(order, self.meshes)]
-            self.rest = wp.array(records, dtype=ck.Collider)
-            self.params = wp.array(records, dtype=ck.Collider)
-            self.box = wp.zeros(2, dtype=wp.vec3)  # broad phase: the box around the non-plane colliders (kernels.collide.eval_collider_bounds)
-            self.time = time if time is not None else wp.zeros(1, dtype=wp.float64)
-            self.step_dt = step_dt if step_dt is not None else wp.zeros(1, dtype=wp.float64)
-            self.substep = wp.array([0, 1], dtype=int)  # (k, S): the position-based substep k of S
-            self._moving = [(k, c.track.launch_args()) for k, c in enumerate(order) if c.track is not None]
-        self._bound()
-
-    @property
-    def moving(self) -> bool:
-        return bool(self._moving)
-
-    def pose(self, offset: float = 0.0, substep: bool = False) -> None:
-        """Move every tracked collider to its pose at t = time + offset, or with ``substep`` at
-        the end of the current position-based substep, t + dt min(k + 1, S) / S (device
-        launches only)."""
-        from warpcloth.kernels import collide as ck
-
-        for k, args in self._moving:
-            wp.launch(ck.eval_collider_pose, dim=1, inputs=[self.time, wp.float64(offset), self.step_dt, self.substep, int(substep), k, self.rest, *args],
-                      outputs=[self.params], device=self.device)
-        if self._moving:
-            self._bound()
-
-    def begin_step(self) -> None:
-        """At a step's start (Control.update): count its substeps from 0 (S = the last step's count)
-        and pose the moving colliders at the first substep's end."""
-        from warpcloth.kernels import collide as ck
-
-        if self._moving:
-            wp.launch(ck.begin_collider_step, dim=1, inputs=[self.substep], device=self.device)
-            self.pose(substep=True)
-
-    def _bound(self) -> None:
-        from warpcloth.kernels import collide as ck
-
-        wp.launch(ck.eval_collider_bounds, dim=1, inputs=[self.params, self.plane_count], outputs=[self.box], device=self.device)
-
-    def _broad_phase(self) -> list:
-        return [self.params, self.box, self.plane_count]
-
-    def project_velocity(self, model, state, dt: float, displacement=None, position_weight: float = 1.0) -> None:
-        """After a force-based step (the control's time still at the step's start t): colliders
-        posed at t + dt, then out of every collider, relative normal velocity removed, friction
-        (``position_weight``: how a velocity change within the step moves x, see the kernels)."""
-        from warpcloth.kernels import collide as ck
-
-        self.pose(float(dt))
-        d = displacement if displacement is not None else state.particle_qd
-        wp.launch(ck.collide_velocity, dim=model.particle_count,
-                  inputs=[state.particle_q, state.particle_qd, model.particle_inv_mass, float(dt), float(position_weight), d,
-                          int(displacement is not None), *self._broad_phase()], device=model.device)
-
-    def project_displacement(self, model, x, dp, normal_correction, friction: bool) -> None:
-        """Inside a position-based solver: p = x + dp out of every collider (accumulating the
-        normal corrections), or the friction pass after the iterations, relative to the
-        colliders' motion over the substep.
-
-        Moving colliders are posed at each substep's end: the friction pass, made once per
-        substep, counts the substeps on the device (k of S, S counted in the step before; see
-        :meth:`begin_step`), so no integrator needs to pass its substep times."""
-        from warpcloth.kernels import collide as ck
-
-        wp.launch(ck.collide_displacement, dim=model.particle_count,
-                  inputs=[int(friction), x, dp, model.particle_inv_mass, normal_correction, *self._broad_phase(), self.step_dt, self.substep],
-                  device=model.device)
-        if friction and self._moving:  # the substep ends: the next one's pose
-            wp.launch(ck.next_collider_substep, dim=1, inputs=[self.substep], device=self.device)
-            self.pose(substep=True)
-
-
-def _record(c, mesh=None):
-    """The rest :class:`~warpcloth.kernels.collide.Collider` record of a collider (``mesh``: the
-    wp.Mesh of a MeshCollider)."""
-    from warpcloth.kernels import collide as ck
-
-    r = ck.Collider()
-    r.kind = KINDS.index(c.kind)
-    r.radius = float(getattr(c, "radius", 0.0))
-    r.rotation = wp.mat33(np.eye(3, dtype=np.float32))
-    r.thickness, r.mu = float(c.thickness), float(c.friction)
-    if c.kind == "plane":
-        r.a, r.b = wp.vec3(*c.point), wp.vec3(*c.normal)
-        r.bound_center = wp.vec3(*c.point)
-    elif c.kind == "sphere":
-        r.a = r.bound_center = wp.vec3(*c.center)
-    elif c.kind == "capsule":
-        a, b = np.asarray(c.a), np.asarray(c.b)
-        r.a, r.b = wp.vec3(*a), wp.vec3(*b)
-        r.bound_center = wp.vec3(*(0.5 * (a + b)))
-    elif c.kind == "mesh":
-        lo, hi = c.vertices.min(axis=0), c.vertices.max(axis=0)
-        half = 0.5 * (hi - lo) + c.thickness + c.reach  # a particle up to reach inside is still found (a flat mesh has no height)
-        r.a = r.bound_center = r.rest_center = wp.vec3(*(0.5 * (lo + hi)))
-        r.b = wp.vec3(*(half * (1.0 + 1e-5) + 1e-6))  # float32 rounding never rejects a contact
-        r.radius = float(c.reach)
-        r.mesh = mesh.id
-    else:
-        r.a = r.bound_center = wp.vec3(*c.center)
-        r.b = wp.vec3(*c.half_extents)
-        r.rotation = wp.mat33(_quat_matrix(c.rotation).astype(np.float32))
-    r.velocity = r.omega = r.origin = wp.vec3(0.0, 0.0, 0.0)
-    r.moving = 0
-    return r
-
-
 def _quat_matrix(q) -> np.ndarray:
     """The rotation matrix of a unit quaternion (x, y, z, w)."""
     x, y, z, w = q
@@ -485,4 +310,4 @@ def _matrix_quat(m: np.ndarray) -> tuple:
     return tuple(float(c) for c in q / np.linalg.norm(q))
 
 
-__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderSet", "ColliderTrack", "KINDS", "MeshCollider", "Plane", "Sphere"]
+__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderTrack", "KINDS", "MeshCollider", "Plane", "Sphere"]

@@ -7,14 +7,17 @@ frame replays with the right wind.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
 
-from warpcloth.sim.device import resolve_device
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_vector
+from warpcloth.kernels import collide as ck
 from warpcloth.kernels import forces as fk
+from warpcloth.sim.contacts import ColliderSet
+from warpcloth.sim.device import resolve_device
+from warpcloth.sim.pins import KinematicPins, PinTrack
 
 GRAVITY = (0.0, -9.81, 0.0)
 
@@ -57,73 +60,118 @@ class WindSchedule:
         return w
 
 
-@dataclass
+#: No wind: the default schedule (a WindSchedule is frozen, so one instance serves every Control).
+NO_WIND = WindSchedule()
+
+
 class Control:
     """Time-varying external input of a simulation.
 
-    Attributes:
+    Args:
         gravity: gravitational acceleration [m/s^2].
         drag_rate: linear air drag rate c [1/s]; the force on a particle is -m c v.
         wind_coefficient: c_w [kg/(m^2 s)] in f = c_w A (n . u) n on each triangle; 0 disables wind.
-        wind_schedule: the wind velocity W(t).
-        pin_tracks: kinematic pins (:class:`~warpcloth.sim.pins.PinTrack`), bound to the model by the
-            :class:`~warpcloth.simulator.Simulator` (see :mod:`warpcloth.sim.pins`).
-        colliders: :class:`~warpcloth.sim.colliders.Plane`, ``Sphere``, ``Capsule`` or ``Box``
-            objects, static or moving on a :class:`~warpcloth.sim.colliders.ColliderTrack`, and static
-            :class:`~warpcloth.sim.colliders.MeshCollider` objects (see :mod:`warpcloth.sim.colliders`).
-        time: simulated time [s], device array of shape (1,), float64: t_base + n dt after n
-            steps of dt since the last change of dt, so switch times land exactly on steps.
-        wind: current wind velocity [m/s], device array of shape (1,), vec3.
+        wind_schedule: the wind velocity W(t) (:attr:`wind_schedule`).
+        device: Warp device of the device arrays (default: Warp's current device).
+        pin_tracks: kinematic pins (:attr:`pin_tracks`).
+        colliders: the colliders (:attr:`colliders`).
+
+    Setting :attr:`colliders` rebuilds :attr:`collision` and setting :attr:`wind_schedule`
+    refills its device copy (both properties); every other attribute is a plain one.
     """
 
-    gravity: tuple[float, float, float] = GRAVITY
-    drag_rate: float = 0.0
-    wind_coefficient: float = 0.0
-    wind_schedule: WindSchedule = field(default_factory=WindSchedule)
-    device: str | None = None
-    pin_tracks: tuple = ()
-    colliders: tuple = ()
-
-    def __post_init__(self):
-        require_non_negative("drag", self.drag_rate, "1/s")
-        require_non_negative("wind coefficient", self.wind_coefficient, "kg/(m^2 s)")
-        self.gravity = require_vector("gravity", self.gravity, 3, "m/s^2")
-        self.device = resolve_device(self.device)
+    def __init__(self, gravity=GRAVITY, drag_rate: float = 0.0, wind_coefficient: float = 0.0,
+                 wind_schedule: WindSchedule = NO_WIND, device: str | None = None, pin_tracks: tuple = (),
+                 colliders: tuple = ()):
+        require_non_negative("drag", drag_rate, "1/s")
+        require_non_negative("wind coefficient", wind_coefficient, "kg/(m^2 s)")
+        self.gravity: tuple[float, float, float] = require_vector("gravity", gravity, 3, "m/s^2")
+        """Gravitational acceleration [m/s^2], a 3-tuple."""
+        self.drag_rate = drag_rate
+        """Linear air drag rate c [1/s]: the force on a particle is -m c v."""
+        self.wind_coefficient = wind_coefficient
+        """c_w [kg/(m^2 s)] in f = c_w A (n . u) n on each triangle; 0 disables wind."""
+        self.device = resolve_device(device)
+        """The Warp device of :attr:`time`, :attr:`wind` and the collider records."""
+        self.pin_tracks = pin_tracks
+        """Kinematic pins (:class:`~warpcloth.sim.pins.PinTrack`), bound to a model by
+        :meth:`bind_pin_tracks` (the :class:`~warpcloth.simulator.Simulator` calls it; see
+        :mod:`warpcloth.sim.pins`)."""
+        self.kinematic_pins: KinematicPins | None = None
+        """The :attr:`pin_tracks` bound to the model (:meth:`bind_pin_tracks`), which the
+        integrators launch; None without tracks."""
         with wp.ScopedDevice(self.device):
             self.time = wp.zeros(1, dtype=wp.float64)
+            """Simulated time [s], device array of shape (1,), float64: t_base + n dt after n
+            steps of dt since the last change of dt, so switch times land exactly on steps."""
             self._time_base = wp.zeros(1, dtype=wp.float64)
             self._clock = wp.zeros(1, dtype=wp.int64)
             self.wind = wp.zeros(1, dtype=wp.vec3)
+            """Current wind velocity W(time) [m/s], device array of shape (1,), vec3 (:meth:`update`)."""
             self._step_dt = wp.zeros(1, dtype=wp.float64)  # the last step's dt: position-based steps pose moving colliders with it
-        self.colliders = tuple(self.colliders)
-        self.collision = self._collider_set(self.colliders)
+        self._schedule_start = self._schedule_wind = None  # the device copy of the wind schedule (_fill_schedule)
+        self.colliders = colliders
+        self.wind_schedule = wind_schedule
+
+    def __repr__(self) -> str:
+        return (f"Control(gravity={self.gravity!r}, drag_rate={self.drag_rate!r}, wind_coefficient={self.wind_coefficient!r}, "
+                f"wind_schedule={self.wind_schedule!r}, device={self.device!r}, pin_tracks={self.pin_tracks!r}, "
+                f"colliders={self.colliders!r})")
+
+    @property
+    def colliders(self) -> tuple:
+        """:class:`~warpcloth.sim.colliders.Plane`, ``Sphere``, ``Capsule``, ``Box`` or
+        :class:`~warpcloth.sim.colliders.MeshCollider` objects, static or moving on a
+        :class:`~warpcloth.sim.colliders.ColliderTrack` (see :mod:`warpcloth.sim.colliders`).
+        Setting them rebuilds :attr:`collision` (on the device; a Simulator's next frame captures
+        anew, its capture key has the colliders)."""
+        return self._colliders
+
+    @colliders.setter
+    def colliders(self, value) -> None:
+        value = tuple(value)
+        collision = ColliderSet(value, self.device, time=self.time, step_dt=self._step_dt) if value else None
+        self._colliders, self._collision = value, collision
+
+    @property
+    def collision(self) -> ColliderSet | None:
+        """The :attr:`colliders` on the device (:class:`~warpcloth.sim.contacts.ColliderSet`),
+        None without colliders; rebuilt when :attr:`colliders` is set."""
+        return self._collision
+
+    @property
+    def wind_schedule(self) -> WindSchedule:
+        """The wind velocity W(t). Setting it copies it to the device (in place where the number
+        of entries is the same, so a captured frame keeps its arrays) and re-evaluates
+        :attr:`wind` at the current time."""
+        return self._wind_schedule
+
+    @wind_schedule.setter
+    def wind_schedule(self, value: WindSchedule) -> None:
+        if not isinstance(value, WindSchedule):
+            raise WarpclothError(f"wind_schedule must be a WindSchedule, got {value!r}")
+        self._wind_schedule = value
         self._fill_schedule()
 
-    def __setattr__(self, name, value):
-        super().__setattr__(name, value)
-        if name == "wind_schedule" and "_schedule_start" in self.__dict__:
-            self._fill_schedule()  # the device copy follows the host schedule
-        if name == "colliders" and "collision" in self.__dict__:
-            value = tuple(value)
-            super().__setattr__("colliders", value)
-            super().__setattr__("collision", self._collider_set(value))
-
-    def _collider_set(self, colliders):
-        from warpcloth.sim.colliders import ColliderSet
-
-        return ColliderSet(colliders, self.device, time=self.time, step_dt=self._step_dt) if colliders else None
+    def bind_pin_tracks(self, model, tracks) -> None:
+        """Set :attr:`pin_tracks` to ``tracks`` (a :class:`~warpcloth.sim.pins.PinTrack` or
+        several) and bind them to ``model`` as :attr:`kinematic_pins` (checked: their particles
+        are pinned in the model, in no two tracks)."""
+        if isinstance(tracks, PinTrack):
+            tracks = (tracks,)
+        tracks = tuple(tracks or ())
+        self.pin_tracks = tracks
+        self.kinematic_pins = KinematicPins(model, tracks) if tracks else None
 
     def _fill_schedule(self) -> None:
         """Copy :attr:`wind_schedule` to the device (float64 start times) and re-evaluate W(t)."""
-        if not isinstance(self.wind_schedule, WindSchedule):
-            raise WarpclothError(f"wind_schedule must be a WindSchedule, got {self.wind_schedule!r}")
         n = max(1, len(self.wind_schedule.starts))
         starts = np.full(n, np.inf, dtype=np.float64)
         winds = np.zeros((n, 3), dtype=np.float32)
         if self.wind_schedule.starts:
             starts[:] = self.wind_schedule.starts
             winds[:] = self.wind_schedule.winds
-        current = self.__dict__.get("_schedule_start")
+        current = self._schedule_start
         if current is not None and current.shape[0] == n:  # in place: captured graphs keep their arrays
             current.assign(starts)
             self._schedule_wind.assign(winds)
@@ -153,7 +201,7 @@ class Control:
 
     def update(self) -> None:
         """Evaluate W(time) into :attr:`wind` on the device, and start a step of the moving
-        colliders (:meth:`ColliderSet.begin_step <warpcloth.sim.colliders.ColliderSet.begin_step>`:
+        colliders (:meth:`ColliderSet.begin_step <warpcloth.sim.contacts.ColliderSet.begin_step>`:
         posed at the end of the first position-based substep, with the dt of the last
         :meth:`advance`; force-based steps re-pose them at exactly t + dt after the step)."""
         if self.collision is not None:
@@ -165,6 +213,4 @@ class Control:
         """t = t_base + n dt after the n-th step since :meth:`rebase`, on the device."""
         wp.launch(fk.advance_time, dim=1, inputs=[self.time, self._time_base, self._clock, wp.float64(dt)], device=self.device)
         if self.collision is not None and self.collision.moving:
-            from warpcloth.kernels import collide as ck
-
             wp.launch(ck.store_step, dim=1, inputs=[wp.float64(dt)], outputs=[self._step_dt], device=self.device)

@@ -1,6 +1,6 @@
 """One device rule for the whole library.
 
-Every public builder (:func:`~warpcloth.sim.model.build_grid_cloth`, :func:`~warpcloth.sim.model.build_model`,
+Every public builder (:func:`~warpcloth.sim.grid.build_grid_cloth`, :func:`~warpcloth.sim.model.build_model`,
 :class:`~warpcloth.sim.control.Control`, the scenarios) resolves its ``device`` argument here, once, to a
 ``wp.Device`` that the model then carries: ``None`` means Warp's current device (``wp.get_device()``,
 the CPU unless a script chose otherwise); ``"cuda"`` the first GPU. Only the command line picks a

@@ -1,9 +1,11 @@
-"""The cloth model: immutable topology and parameters of a Provot mass-spring grid.
+"""The cloth model: immutable topology and parameters of a mass-spring cloth.
 
 A :class:`ClothModel` holds particle masses, pins, springs (structural, shear, bend) with their
-rest lengths and per-type stiffness/damping, and the two triangles of each grid cell. It is
-built once per run by :func:`build_grid_cloth`; :meth:`ClothModel.state` makes a fresh
-:class:`~warpcloth.sim.state.State`.
+rest lengths and per-type stiffness/damping, and the triangles (for wind and rendering). It is
+built once per run by :func:`build_model` from arrays, which the Provot grid
+(:func:`~warpcloth.sim.grid.build_grid_cloth`) and the triangle-mesh cloth
+(:func:`~warpcloth.sim.mesh.build_mesh_cloth`) builders fill; :meth:`ClothModel.state` makes a
+fresh :class:`~warpcloth.sim.state.State`. The default spring parameters are here too.
 """
 
 from __future__ import annotations
@@ -14,8 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from warpcloth.sim.device import require_memory, resolve_device
-from warpcloth.errors import WarpclothError, require, require_indices, require_int, require_non_negative, require_positive, require_vector
+from warpcloth.errors import WarpclothError, require, require_indices, require_non_negative
+from warpcloth.sim.device import resolve_device
 
 
 class SpringType(enum.IntEnum):
@@ -40,22 +42,6 @@ class SpringParams:
 
     stiffness: float
     damping: float
-
-
-def expected_spring_counts(rows: int, cols: int, bend: str | BendModel = BendModel.PROVOT) -> dict[str, int]:
-    """Spring counts of a rows x cols Provot grid, from seed eq. 2.2 (Choi-Ko adds 2(m-2)(n-2))."""
-    m, n = rows, cols
-    bend = BendModel(bend)
-    counts = {
-        "structural": 2 * (m - 1) * (n - 1) + (m - 1) + (n - 1),
-        "shear": 2 * (m - 1) * (n - 1),
-        "bend": 0,
-    }
-    if bend != BendModel.NONE:
-        counts["bend"] = 2 * (m - 2) * (n - 2) + 2 * ((m - 2) + (n - 2))
-    if bend == BendModel.CHOI_KO:
-        counts["bend"] += 2 * (m - 2) * (n - 2)
-    return counts
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,14 +174,16 @@ class ClothModel:
         :class:`~warpcloth.simulator.Simulator` switches with :meth:`~warpcloth.simulator.Simulator.set_model`."""
         from dataclasses import replace
 
-        _validate_spring_params(params)
+        check_spring_params(params)
         ks = np.array([params[SpringType(t)].stiffness for t in self.spring_type], dtype=np.float32)
         kd = np.array([params[SpringType(t)].damping for t in self.spring_type], dtype=np.float32)
         with wp.ScopedDevice(self.device):
             return replace(self, spring_stiffness=wp.array(ks, dtype=float), spring_damping=wp.array(kd, dtype=float), spring_params=dict(params))
 
 
-def _validate_spring_params(params: dict[SpringType, SpringParams]) -> None:
+def check_spring_params(params: dict[SpringType, SpringParams]) -> None:
+    """Raise a :class:`WarpclothError` unless ``params`` maps every :class:`SpringType` to
+    :class:`SpringParams` with ks, kd >= 0."""
     if not isinstance(params, dict) or not all(isinstance(p, SpringParams) for p in params.values()):
         raise WarpclothError(
             f"spring_params must map each SpringType to SpringParams(stiffness, damping) (see default_spring_params), got {params!r:.80}"
@@ -206,137 +194,8 @@ def _validate_spring_params(params: dict[SpringType, SpringParams]) -> None:
         require_non_negative(f"{t.name.lower()} damping", params[t].damping, "N s/m")
 
 
-#: Bytes per particle and per spring a run needs at most: device arrays (model, state, the largest
-#: integrator's scratch, metrics) and the host copies and temporaries made while building.
-BYTES_PER_PARTICLE = 400
-BYTES_PER_SPRING = 160
-
-
-def grid_memory_estimate(rows: int, cols: int) -> int:
-    """An upper estimate [bytes] of the memory a rows x cols Provot cloth and its run need
-    (about 8 springs per particle with Choi-Ko bend springs)."""
-    n = int(rows) * int(cols)
-    return n * (BYTES_PER_PARTICLE + 8 * BYTES_PER_SPRING)
-
-
-def grid_springs(rows: int, cols: int, bend: BendModel = BendModel.PROVOT) -> tuple[np.ndarray, np.ndarray]:
-    """Provot springs of a rows x cols grid as (pairs (S, 2) int32, types (S,) int32).
-
-    Particle [r, c] has index r * cols + c. Structural: [r,c]-[r+1,c], [r,c]-[r,c+1]; shear:
-    [r,c]-[r+1,c+1], [r+1,c]-[r,c+1]; bend: [r,c]-[r+2,c], [r,c]-[r,c+2] (Choi-Ko adds
-    [r,c]-[r+2,c+2], [r+2,c]-[r,c+2]).
-    """
-    idx = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
-    pairs, types = [], []
-
-    def add(a, b, t):
-        pairs.append(np.stack([a.ravel(), b.ravel()], axis=1))
-        types.append(np.full(a.size, int(t), dtype=np.int32))
-
-    add(idx[:-1, :], idx[1:, :], SpringType.STRUCTURAL)
-    add(idx[:, :-1], idx[:, 1:], SpringType.STRUCTURAL)
-    add(idx[:-1, :-1], idx[1:, 1:], SpringType.SHEAR)
-    add(idx[1:, :-1], idx[:-1, 1:], SpringType.SHEAR)
-    if bend != BendModel.NONE:
-        add(idx[:-2, :], idx[2:, :], SpringType.BEND)
-        add(idx[:, :-2], idx[:, 2:], SpringType.BEND)
-    if bend == BendModel.CHOI_KO:
-        add(idx[:-2, :-2], idx[2:, 2:], SpringType.BEND)
-        add(idx[2:, :-2], idx[:-2, 2:], SpringType.BEND)
-    return np.concatenate(pairs).astype(np.int32), np.concatenate(types)
-
-
-def grid_triangles(rows: int, cols: int) -> np.ndarray:
-    """Two counter-clockwise triangles per grid cell, shape (2 (rows-1)(cols-1), 3)."""
-    idx = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
-    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
-    c, d = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
-    t1 = np.stack([a, c, b], axis=1)
-    t2 = np.stack([b, c, d], axis=1)
-    return np.concatenate([t1, t2]).astype(np.int32)
-
-
-def grid_positions(rows: int, cols: int, width: float, height: float, origin=(0.0, 0.0, 0.0), plane: str = "vertical") -> np.ndarray:
-    """Particle positions of the grid [m]: row 0 at the origin, columns along +x.
-
-    ``plane="vertical"``: rows go down (-y), the cloth lies in the x-y plane (y up).
-    ``plane="horizontal"``: rows go along +z, the cloth lies flat in the x-z plane.
-    """
-    r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
-    u = c.ravel() * (width / (cols - 1))
-    w = r.ravel() * (height / (rows - 1))
-    q = np.zeros((rows * cols, 3), dtype=np.float64)
-    q[:, 0] = u
-    if plane == "vertical":
-        q[:, 1] = -w
-    elif plane == "horizontal":
-        q[:, 2] = w
-    else:
-        raise WarpclothError(f"plane must be 'vertical' or 'horizontal', got {plane!r}")
-    return (q + np.asarray(origin, dtype=np.float64)).astype(np.float32)
-
-
-def build_grid_cloth(
-    rows: int,
-    cols: int,
-    width: float = 1.0,
-    height: float = 1.0,
-    total_mass: float = 0.2,
-    spring_params: dict[SpringType, SpringParams] | None = None,
-    pins=(),
-    origin=(0.0, 0.0, 0.0),
-    plane: str = "vertical",
-    bend: str | BendModel = BendModel.PROVOT,
-    device: str | None = None,
-) -> ClothModel:
-    """Build a Provot mass-spring grid cloth.
-
-    Args:
-        rows, cols: particles per column and per row (>= 2; >= 3 with bend springs).
-        width, height: physical size of the cloth [m].
-        total_mass: cloth mass [kg], split evenly over the particles (seed 4.2.4).
-        spring_params: per-type :class:`SpringParams`; default :func:`default_spring_params`.
-        pins: indices of pinned particles (inverse mass 0).
-        origin: position of particle [0, 0] [m].
-        plane: ``"vertical"`` (hanging, x-y plane) or ``"horizontal"`` (x-z plane).
-        bend: ``"provot"``, ``"choi_ko"`` or ``"none"``.
-        device: Warp device (default: Warp's current device, see :mod:`warpcloth.sim.device`).
-    """
-    try:
-        bend = BendModel(bend)
-    except ValueError:
-        raise WarpclothError(f"bend must be one of {[b.value for b in BendModel]}, got {bend!r}") from None
-    min_dim = 2 if bend == BendModel.NONE else 3
-    rows = require_int("rows", rows, min_dim)
-    cols = require_int("cols", cols, min_dim)
-    width = require_positive("width", width, "m")
-    height = require_positive("height", height, "m")
-    total_mass = require_positive("mass", total_mass, "kg")
-    origin = require_vector("origin", origin, 3, "m")
-    if spring_params is None:
-        spring_params = default_spring_params(total_mass / (rows * cols))
-    _validate_spring_params(spring_params)
-    device = resolve_device(device)
-    require_memory(f"a {rows} x {cols} cloth", grid_memory_estimate(rows, cols), device)
-
-    q = grid_positions(rows, cols, width, height, origin, plane)
-    pairs, types = grid_springs(rows, cols, bend)
-    model = build_model(q, pairs, types, np.full(rows * cols, total_mass / (rows * cols)), spring_params, pins, grid_triangles(rows, cols), device)
-    from dataclasses import replace
-
-    uv = grid_uvs(rows, cols)[model.host.tris].reshape(-1, 2)
-    return replace(model, rows=rows, cols=cols, width=width, height=height, bend=bend, total_mass=total_mass,
-                   host=replace(model.host, uv=uv))
-
-
-def grid_uvs(rows: int, cols: int) -> np.ndarray:
-    """Texture coordinates per particle, u = col / (cols - 1), v = 1 - row / (rows - 1), (N, 2)."""
-    r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
-    return np.stack([c.ravel() / (cols - 1), 1.0 - r.ravel() / (rows - 1)], axis=1).astype(np.float32)
-
-
 def build_model(positions, spring_pairs, spring_types, masses, spring_params, pins=(), triangles=None, device=None) -> ClothModel:
-    """Build a mass-spring model from arrays (any topology; the grid builder uses this too).
+    """Build a mass-spring model from arrays (any topology; the grid and mesh builders use this).
 
     Args:
         positions: (N, 3) rest positions [m].
@@ -355,7 +214,7 @@ def build_model(positions, spring_pairs, spring_types, masses, spring_params, pi
     require(mass.shape[0] == n, f"masses must have one value per particle ({n}), got {mass.shape[0]}")
     if not np.all(mass > 0):
         raise WarpclothError(f"particle masses must be > 0 kg, got {float(mass[mass <= 0][0])!r}")
-    _validate_spring_params(spring_params)
+    check_spring_params(spring_params)
     pairs = np.asarray(spring_pairs, dtype=np.int32).reshape(-1, 2)
     types = np.asarray(spring_types, dtype=np.int32).reshape(-1)
     require(types.shape[0] == pairs.shape[0], "spring_types must have one value per spring")

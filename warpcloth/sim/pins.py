@@ -21,7 +21,6 @@ and wind see the moving pin), and the pin positions equal the track at every ste
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,40 +28,29 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError, require
 from warpcloth.kernels import pins as pk
-
-INTERPOLATIONS = ("linear", "catmull_rom", "hermite")
-
-
-def _finite(name: str, a: np.ndarray) -> np.ndarray:
-    if not np.all(np.isfinite(a)):
-        raise WarpclothError(f"pin track {name} must be finite numbers, got {float(a[~np.isfinite(a)][0])!r}")
-    return a
+from warpcloth.sim.tracks import INTERPOLATIONS, Track, check_keyframes, check_rigid
 
 
 @dataclass(frozen=True, eq=False)
-class PinTrack:
-    """Where some pinned particles are at time t.
+class PinTrack(Track):
+    """Where some pinned particles are at time t: a :class:`~warpcloth.sim.tracks.Track` of
+    ``particles`` (its ``kind``, ``times``, ``tangents``, ``interpolation`` and rigid-motion
+    attributes are the track's).
 
     Make one with :meth:`keyframes` or :meth:`rigid`. ``particles`` must be pinned in the model.
     """
 
     particles: tuple
-    kind: str  # "keyframes" or "rigid"
-    times: np.ndarray | None = None
     values: np.ndarray | None = None  # (K, P, 3) absolute, or (K, 3) offsets from the rest positions
-    tangents: np.ndarray | None = None
-    interpolation: str = "linear"
-    center: tuple = (0.0, 0.0, 0.0)
-    axis: tuple = (0.0, 0.0, 1.0)
-    velocity: tuple = (0.0, 0.0, 0.0)
-    angular_velocity: float = 0.0
-    swing_amplitude: float = 0.0
-    swing_frequency: float = 0.0
-    swing_phase: float = 0.0
     name: str = "track"
 
+    @property
+    def keys(self) -> np.ndarray | None:
+        return self.values
+
     @classmethod
-    def keyframes(cls, particles, times, positions, interpolation: str = "linear", tangents=None, name: str = "track") -> "PinTrack":
+    def keyframes(cls, particles, times, positions, interpolation: str = "linear", tangents=None,
+                  name: str = "track") -> "PinTrack":
         """Keyframed pins.
 
         Args:
@@ -77,24 +65,9 @@ class PinTrack:
                 still.
         """
         idx = _particles(particles)
-        require(interpolation in INTERPOLATIONS, f"pin track interpolation must be one of {', '.join(INTERPOLATIONS)}, got {interpolation!r}")
-        t = _finite("times", np.asarray(times, dtype=np.float64).reshape(-1))
-        require(t.size >= 1, "pin track needs at least one keyframe")
-        bad = np.flatnonzero(np.diff(t) <= 0)
-        if bad.size:
-            k = int(bad[0])
-            raise WarpclothError(f"pin track keyframes out of order: time {float(t[k + 1])!r} s (key {k + 1}) is not after {float(t[k])!r} s (key {k}); key times must increase")
-        v = _finite("positions", np.asarray(positions, dtype=np.float64))
-        shapes = [(t.size, 3), (t.size, idx.size, 3)]
-        require(v.shape in shapes, f"pin track positions must have shape (K, 3) offsets or (K, P, 3) = {shapes[1]}, got {v.shape}")
-        tan = None
-        if interpolation == "hermite":
-            require(tangents is not None, "pin track interpolation 'hermite' needs tangents (shaped like positions) [m/s]")
-            tan = _finite("tangents", np.asarray(tangents, dtype=np.float64))
-            require(tan.shape == v.shape, f"pin track tangents must have the shape of positions {v.shape}, got {tan.shape}")
-        elif tangents is not None:
-            raise WarpclothError(f"pin track tangents apply to interpolation 'hermite' only, not {interpolation!r}")
-        return cls(particles=tuple(idx.tolist()), kind="keyframes", times=t, values=v, tangents=tan, interpolation=interpolation, name=name)
+        t, v, tan = check_keyframes("pin track", times, positions, interpolation, tangents, idx.size)
+        return cls(particles=tuple(idx.tolist()), kind="keyframes", times=t, values=v, tangents=tan,
+                   interpolation=interpolation, name=name)
 
     @classmethod
     def rigid(cls, particles, center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), angular_velocity: float = 0.0,
@@ -109,59 +82,35 @@ class PinTrack:
             swing_phase: phi [rad]; velocity: the translation velocity u [m/s].
         """
         idx = _particles(particles)
-        a = _finite("axis", np.asarray(axis, dtype=np.float64).reshape(-1))
-        require(a.size == 3 and np.linalg.norm(a) > 0, f"pin track axis must be a non-zero 3-vector, got {list(axis)!r}")
-        c = _finite("center", np.asarray(center, dtype=np.float64).reshape(-1))
-        u = _finite("velocity", np.asarray(velocity, dtype=np.float64).reshape(-1))
-        require(c.size == 3 and u.size == 3, "pin track center and velocity must be 3-vectors")
-        nums = _finite("motion", np.array([angular_velocity, swing_amplitude, swing_frequency, swing_phase], dtype=np.float64))
-        require(nums[2] >= 0, f"pin track swing frequency must be >= 0 Hz, got {swing_frequency!r}")
-        return cls(particles=tuple(idx.tolist()), kind="rigid", center=tuple(c), axis=tuple(a / np.linalg.norm(a)), velocity=tuple(u),
-                   angular_velocity=float(nums[0]), swing_amplitude=float(nums[1]), swing_frequency=float(nums[2]), swing_phase=float(nums[3]), name=name)
+        motion = check_rigid("pin track", center, axis, angular_velocity, swing_amplitude, swing_frequency, swing_phase,
+                             velocity)
+        return cls(particles=tuple(idx.tolist()), name=name, **motion)
 
     # -- host evaluation (tests, reports) --------------------------------------------------------
+    def _rest(self, rest: np.ndarray) -> np.ndarray:
+        return np.asarray(rest, dtype=np.float64)[list(self.particles)]
+
     def key_positions(self, rest: np.ndarray) -> np.ndarray:
         """(K, P, 3) keyframe positions [m] for the model's rest positions ``rest`` (N, 3)."""
-        p0 = np.asarray(rest, dtype=np.float64)[list(self.particles)]
-        return self.values[:, None, :] + p0[None] if self.values.ndim == 2 else self.values
+        return self._key_points(self._rest(rest))
 
     def key_tangents(self, rest: np.ndarray) -> np.ndarray:
         """(K, P, 3) tangents [m/s] (Catmull-Rom: central differences, zero at the ends)."""
-        pos = self.key_positions(rest)
-        if self.interpolation == "hermite":
-            return np.broadcast_to(self.tangents[:, None, :], pos.shape).copy() if self.tangents.ndim == 2 else self.tangents
-        tan = np.zeros_like(pos)
-        if self.interpolation == "catmull_rom" and pos.shape[0] > 2:
-            t = self.times
-            tan[1:-1] = (pos[2:] - pos[:-2]) / (t[2:] - t[:-2])[:, None, None]
-        return tan
+        return self._key_tangents(self._rest(rest))
 
     def evaluate(self, t: float, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(positions (P, 3) [m], velocities (P, 3) [m/s]) at time t, in float64 on the host."""
+        return self._evaluate(t, self._rest(rest))
+
+    def launch_args(self, rest: np.ndarray) -> list:
+        """The pin kernels' track arguments (after the time and offset) for the model's rest
+        positions ``rest`` (N, 3) float64: device arrays made once, on the current device."""
+        idx = np.asarray(self.particles, dtype=np.int64)
+        particle = wp.array(idx.astype(np.int32), dtype=int)
         if self.kind == "rigid":
-            c, a, u = (np.asarray(x) for x in (self.center, self.axis, self.velocity))
-            phase = 2 * math.pi * self.swing_frequency * t + self.swing_phase
-            theta = self.angular_velocity * t + self.swing_amplitude * math.sin(phase)
-            theta_dot = self.angular_velocity + self.swing_amplitude * 2 * math.pi * self.swing_frequency * math.cos(phase)
-            r = np.asarray(rest, dtype=np.float64)[list(self.particles)] - c
-            rr = r * math.cos(theta) + np.cross(a, r) * math.sin(theta) + np.outer(r @ a, a) * (1 - math.cos(theta))
-            return c + u * t + rr, u + theta_dot * np.cross(a, rr)
-        pos, times = self.key_positions(rest), self.times
-        if t <= times[0]:
-            return pos[0].copy(), np.zeros_like(pos[0])
-        if t >= times[-1]:
-            return pos[-1].copy(), np.zeros_like(pos[-1])
-        k = int(np.searchsorted(times, t, side="right") - 1)
-        h = times[k + 1] - times[k]
-        s = (t - times[k]) / h
-        a, b = pos[k], pos[k + 1]
-        if self.interpolation == "linear":
-            return a + s * (b - a), (b - a) / h
-        tan = self.key_tangents(rest)
-        ma, mb = tan[k] * h, tan[k + 1] * h
-        p = (2 * s**3 - 3 * s**2 + 1) * a + (s**3 - 2 * s**2 + s) * ma + (3 * s**2 - 2 * s**3) * b + (s**3 - s**2) * mb
-        dp = (6 * s**2 - 6 * s) * (a - b) + (3 * s**2 - 4 * s + 1) * ma + (3 * s**2 - 2 * s) * mb
-        return p, dp / h
+            return [particle, wp.array(rest[idx], dtype=wp.vec3d), *self._rigid_args()]
+        keys, tangents = self.key_positions(rest).reshape(-1, 3), self.key_tangents(rest).reshape(-1, 3)
+        return [particle, *self._keyframe_args(keys, tangents)]
 
 
 def _particles(particles) -> np.ndarray:
@@ -202,16 +151,9 @@ class KinematicPins:
                     if i in owner:
                         raise WarpclothError(f"particle {i} is in two pin tracks ({owner[i]!r} and {track.name!r})")
                     owner[i] = track.name
-                particle = wp.array(idx.astype(np.int32), dtype=int)
-                if track.kind == "rigid":
-                    args = [particle, wp.array(rest[idx], dtype=wp.vec3d), wp.vec3d(*track.center), wp.vec3d(*track.axis), wp.vec3d(*track.velocity),
-                            wp.vec4d(track.angular_velocity, track.swing_amplitude, track.swing_frequency, track.swing_phase)]
-                    self._bound.append((pk.apply_pin_rigid, pk.eval_pin_rigid_delta, idx.size, args))
-                else:
-                    args = [particle, wp.array(track.times, dtype=wp.float64),
-                            wp.array(track.key_positions(rest).reshape(-1, 3), dtype=wp.vec3d),
-                            wp.array(track.key_tangents(rest).reshape(-1, 3), dtype=wp.vec3d), int(track.interpolation != "linear")]
-                    self._bound.append((pk.apply_pin_keyframes, pk.eval_pin_keyframes_delta, idx.size, args))
+                kernels = (pk.apply_pin_rigid, pk.eval_pin_rigid_delta) if track.kind == "rigid" else \
+                    (pk.apply_pin_keyframes, pk.eval_pin_keyframes_delta)
+                self._bound.append((*kernels, idx.size, track.launch_args(rest)))
 
     def apply(self, control, x, v, offset: float = 0.0) -> None:
         """x_i = track(t + offset), v_i = track'(t + offset) for every tracked pin (t = control.time)."""
