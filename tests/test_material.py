@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from warpcloth.errors import WarpclothError
-from warpcloth.sim.material import PRESETS, Material, bend_spring_stiffness, grid_spring_params, material, mesh_spring_params
+from warpcloth.sim.material import (PRESETS, Material, bend_spring_stiffness, grid_spring_params, material,
+                                    mesh_spring_params)
 from warpcloth.sim.mesh import mesh_springs
 from warpcloth.sim.model import SpringParams, SpringType, build_model, grid_springs, grid_triangles
 
@@ -140,8 +141,8 @@ def test_quad_mesh_of_a_grid_equals_grid_spring_params():
     mesh = mesh_spring_params("denim", q, t, pairs, types)
     grid = grid_spring_params("denim", rows, cols, w, h, bend="provot")
     bends = by_pair(grid.pairs[grid.types == SpringType.BEND], grid.stiffness[grid.types == SpringType.BEND])
-    assert by_pair(mesh.pairs[mesh.types == SpringType.BEND], mesh.stiffness[mesh.types == SpringType.BEND]) == pytest.approx(
-        bends, rel=1e-10)
+    mesh_bends = by_pair(mesh.pairs[mesh.types == SpringType.BEND], mesh.stiffness[mesh.types == SpringType.BEND])
+    assert mesh_bends == pytest.approx(bends, rel=1e-10)
     assert len(set(np.round(list(bends.values()), 9))) == 2  # two values: along x (warp) and along y (weft)
 
 
@@ -208,7 +209,8 @@ def test_equilateral_mesh_is_exact_for_an_isotropic_cauchy_material():
     assert r.membrane_error < 1e-9
     area = float(np.sum(np.linalg.norm(np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]]), axis=1) / 2))
     for eps in random_strains(6, seed=4):
-        assert lattice_energy(v, pairs, r.stiffness, eps) == pytest.approx(float(iso.membrane_energy_density(eps)) * area, rel=1e-9)
+        membrane = float(iso.membrane_energy_density(eps)) * area
+        assert lattice_energy(v, pairs, r.stiffness, eps) == pytest.approx(membrane, rel=1e-9)
 
 
 @pytest.mark.parametrize("name", ["cotton", "denim"])
@@ -315,7 +317,8 @@ def test_same_membrane_response_at_16_and_64():
     # on a square grid ks does not scale with the spacing: interior structural S - G - 4 k_b, shear G
     for r, n in ((r16, 16), (r64, 64)):
         kb = float(bend_spring_stiffness(cotton.bend_warp, 1 / (n - 1), cotton.weight()))
-        interior_x = (r.types == SpringType.STRUCTURAL) & (r.pairs[:, 0] // n == n // 2) & (r.pairs[:, 1] - r.pairs[:, 0] == 1)
+        structural = r.types == SpringType.STRUCTURAL
+        interior_x = structural & (r.pairs[:, 0] // n == n // 2) & (r.pairs[:, 1] - r.pairs[:, 0] == 1)
         assert r.stiffness[interior_x][n // 2] == pytest.approx(cotton.stretch_warp - cotton.shear - 4 * kb, rel=1e-12)
         np.testing.assert_allclose(r.stiffness[r.types == SpringType.SHEAR], cotton.shear, rtol=1e-12)
 

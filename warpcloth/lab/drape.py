@@ -184,7 +184,8 @@ def polar_profile(sh: Shadow, center=(0.0, 0.0), bin_deg: float = 0.5, sigma_deg
     return angles, radius
 
 
-def node_count(radius: np.ndarray, bin_deg: float = 0.5, min_prominence: float = 2e-3, min_separation_deg: float = 15.0) -> int:
+def node_count(radius: np.ndarray, bin_deg: float = 0.5, min_prominence: float = 2e-3,
+               min_separation_deg: float = 15.0) -> int:
     """Peaks of a periodic outline R(phi) (one value per ``bin_deg`` bin): prominence >= max(
     ``min_prominence`` [m], 0.1 (R_max - R_min)), at least ``min_separation_deg`` apart, counted
     once per period (found on the profile repeated three times, kept in the middle period, so that
@@ -199,7 +200,8 @@ def node_count(radius: np.ndarray, bin_deg: float = 0.5, min_prominence: float =
     return int(np.count_nonzero((peaks >= n) & (peaks < 2 * n)))
 
 
-def drape_coefficient(projected: float, specimen_radius: float = SPECIMEN_RADIUS, pedestal_radius: float = PEDESTAL_RADIUS) -> float:
+def drape_coefficient(projected: float, specimen_radius: float = SPECIMEN_RADIUS,
+                      pedestal_radius: float = PEDESTAL_RADIUS) -> float:
     """DC = (A_proj - pi R_p^2) / (pi R_s^2 - pi R_p^2) for a shadow area ``projected`` [m^2]."""
     rs = require_positive("specimen radius", specimen_radius, "m")
     rp = require_positive("pedestal radius", pedestal_radius, "m")

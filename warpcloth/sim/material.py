@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive, warn
+from warpcloth.errors import WarpclothError, require, require_int, require_non_negative, require_positive, warn
 from warpcloth.sim.mesh import check_mesh, lumped_masses, mesh_topology, triangle_areas
 from warpcloth.sim.model import BendModel, SpringType, grid_springs
 
@@ -92,7 +92,8 @@ class Material:
     note: str = ""
 
     def __post_init__(self):
-        require(isinstance(self.name, str) and self.name.strip() != "", f"material name must be a non-empty string, got {self.name!r}")
+        require(isinstance(self.name, str) and self.name.strip() != "",
+                f"material name must be a non-empty string, got {self.name!r}")
         what = f"material {self.name!r}:"
         checks = {
             "density": (require_positive, "kg/m^2"),
@@ -114,12 +115,14 @@ class Material:
         require(abs(angle) <= math.pi, f"{what} warp_angle must be in [-pi, pi] rad, got {self.warp_angle!r}")
         object.__setattr__(self, "warp_angle", angle)
         g, c11, c22 = self.shear, self.stretch_warp, self.stretch_weft
-        require(g * g < c11 * c22, f"{what} shear must be < sqrt(stretch_warp * stretch_weft) = {math.sqrt(c11 * c22):.6g} N/m "
+        require(g * g < c11 * c22,
+                f"{what} shear must be < sqrt(stretch_warp * stretch_weft) = {math.sqrt(c11 * c22):.6g} N/m "
                 f"(with C12 = shear the membrane must be positive definite), got {g!r}")
         require(isinstance(self.source, str), f"{what} source must be a string, got {self.source!r}")
         require(isinstance(self.note, str), f"{what} note must be a string, got {self.note!r}")
         est = (self.estimated,) if isinstance(self.estimated, str) else tuple(self.estimated)
-        allowed = PHYSICAL_FIELDS + ("compression", "stretch_damping_ratio", "bend_damping_ratio", "bend_damping_frequency")
+        allowed = PHYSICAL_FIELDS + ("compression", "stretch_damping_ratio", "bend_damping_ratio",
+                                     "bend_damping_frequency")
         for e in est:
             require(e in allowed, f"{what} estimated names unknown field {e!r}; fields: {', '.join(allowed)}")
         object.__setattr__(self, "estimated", est)
@@ -212,7 +215,8 @@ PRESETS: dict[str, Material] = {
         Material("cotton", 0.220, 4070.0, 4033.0, 52.4, 31.4e-6, 31.4e-6, source="W11:royal-target", note=_CEILING),
         Material("denim", 0.324, 2028.0, 411.0, 26.7, 16.0e-6, 24.2e-6, source="W11:11oz-black-denim",
                  note="warp := the file's v axis (assumed; the stiff, non-spandex direction)"),
-        Material("polyester", 0.128, 4055.0, 4004.0, 9.6, 12.9e-6, 7.8e-6, source="W11:white-dots-on-blk", note=_CEILING),
+        Material("polyester", 0.128, 4055.0, 4004.0, 9.6, 12.9e-6, 7.8e-6, source="W11:white-dots-on-blk",
+                 note=_CEILING),
         Material("polyester_light", 0.113, 343.0, 86.0, 7.2, 3.6e-6, 5.1e-6, source="W11:tango-red-jet-set",
                  note="measured C12 = 109 N/m cannot be represented (Cauchy: C12 = shear)"),
         Material("wool", 0.168, 2132.0, 1671.0, 26.2, 5.56e-6, 5.02e-6, source="F14",
@@ -403,8 +407,6 @@ def grid_spring_params(
         bend = BendModel(bend)
     except ValueError:
         raise WarpclothError(f"bend must be one of {[b.value for b in BendModel]}, got {bend!r}") from None
-    from warpcloth.errors import require_int
-
     minimum = 2 if bend == BendModel.NONE else 3
     rows, cols = require_int("rows", rows, minimum), require_int("cols", cols, minimum)
     width, height = require_positive("width", width, "m"), require_positive("height", height, "m")
@@ -450,7 +452,8 @@ def grid_spring_params(
     mass = _grid_masses(mat.density, rows, cols, hx, hy)
     area = width * height
     lattice = np.einsum("s,sk->k", ks * length**2, _quartic(unit)) / area
-    error = float(_relative_energy_error(lattice - np.array([c11, c22, g, c1112, c1222]), np.array([c11, c22, g, c1112, c1222])))
+    target = np.array([c11, c22, g, c1112, c1222])
+    error = float(_relative_energy_error(lattice - target, target))
     kd = _damping(mat, ks, types, pairs, mass, stretch_damping)
     return MaterialSprings(pairs, types, ks, kd, _compression(mat, types), mass, error, clamped)
 
@@ -514,7 +517,8 @@ def mesh_spring_params(
     n = v.shape[0]
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     types = np.asarray(types, dtype=np.int32).reshape(-1)
-    require(types.shape[0] == pairs.shape[0], f"types must have one value per spring ({pairs.shape[0]}), got {types.shape[0]}")
+    require(types.shape[0] == pairs.shape[0],
+            f"types must have one value per spring ({pairs.shape[0]}), got {types.shape[0]}")
     if pairs.size:
         require(pairs.min() >= 0 and pairs.max() < n, f"spring particle indices must be in 0..{n - 1}")
     topo = mesh_topology(t, n)
@@ -523,8 +527,8 @@ def mesh_spring_params(
     missing = np.flatnonzero((edge_spring < 0) | (types[np.maximum(edge_spring, 0)] == int(SpringType.BEND)))
     if missing.size:
         e = topo.edges[missing[0]]
-        raise WarpclothError(f"mesh edge ({int(e[0])}, {int(e[1])}) has no structural or shear spring: the pairs must come "
-                             "from mesh_springs(vertices, triangles)")
+        raise WarpclothError(f"mesh edge ({int(e[0])}, {int(e[1])}) has no structural or shear spring: the pairs "
+                             "must come from mesh_springs(vertices, triangles)")
 
     faces, face_tris = _faces(topo, types, edge_spring, find, t)
     normal, frame_u, frame_v = _face_frames(v, t, face_tris, uv, mat.warp_angle)
@@ -557,7 +561,8 @@ def mesh_spring_params(
         springs = np.array([faces[f] for f in group], dtype=np.int64)  # (F, size)
         fu, fv = frame_u[group][:, None, :], frame_v[group][:, None, :]
         d = rest[springs]
-        nk = _in_frame(d.reshape(-1, 3), np.repeat(fu[:, 0], size, 0), np.repeat(fv[:, 0], size, 0)).reshape(len(group), size, 2)
+        nk = _in_frame(d.reshape(-1, 3), np.repeat(fu[:, 0], size, 0), np.repeat(fv[:, 0], size, 0))
+        nk = nk.reshape(len(group), size, 2)
         m = np.swapaxes(_quartic(nk), 1, 2) * _FROB[None, :, None]  # (F, 5, size)
         rhs = target[group] / face_area[group][:, None] * _FROB[None, :]  # (F, 5)
         coef = _fit(m, rhs)
@@ -578,11 +583,13 @@ def _faces(topo, types, edge_spring, find, t):
     for e in np.flatnonzero(shear_edge):
         t0, t1 = (int(x) for x in topo.edge_tris[e])
         if in_quad[t0] or in_quad[t1]:
-            raise WarpclothError(f"mesh triangle {t0 if in_quad[t0] else t1} has two shear edges: a triangle can be in one quad only")
+            raise WarpclothError(f"mesh triangle {t0 if in_quad[t0] else t1} has two shear edges: a triangle can be "
+                                 "in one quad only")
         other = int(find(topo.opposite[e, 0], topo.opposite[e, 1]))
         if other < 0 or types[other] != int(SpringType.SHEAR):
             a, b = (int(x) for x in topo.opposite[e])
-            raise WarpclothError(f"quad of triangles {t0} and {t1}: its second diagonal ({a}, {b}) is not a shear spring")
+            raise WarpclothError(f"quad of triangles {t0} and {t1}: its second diagonal ({a}, {b}) is not a shear "
+                                 "spring")
         sides = {int(edge_spring[h]) for h in np.concatenate([topo.half_edge[t0], topo.half_edge[t1]]) if h != e}
         faces.append(sorted(sides) + [int(edge_spring[e]), other])
         face_tris.append((t0, t1))
@@ -603,14 +610,16 @@ def _face_frames(v, t, face_tris, uv, warp_angle):
         uvc = np.asarray(uv, dtype=np.float64)
         if uvc.shape == (v.shape[0], 2):
             uvc = uvc[t]
-        require(uvc.shape == (t.shape[0], 3, 2), f"uv must have shape (T, 3, 2) per corner or (N, 2) per vertex, got {uvc.shape}")
+        require(uvc.shape == (t.shape[0], 3, 2),
+                f"uv must have shape (T, 3, 2) per corner or (N, 2) per vertex, got {uvc.shape}")
         require(bool(np.all(np.isfinite(uvc))), "uv must be finite numbers")
         du1, dv1 = (uvc[:, 1] - uvc[:, 0]).T
         du2, dv2 = (uvc[:, 2] - uvc[:, 0]).T
         det = du1 * dv2 - du2 * dv1
         bad = np.flatnonzero(np.abs(det) < 1e-14)
         if bad.size:
-            raise WarpclothError(f"uv of triangle {int(bad[0])} is degenerate (zero area): the warp direction is undefined there")
+            raise WarpclothError(f"uv of triangle {int(bad[0])} is degenerate (zero area): the warp direction is "
+                                 "undefined there")
         tri_u = (e1 * dv2[:, None] - e2 * dv1[:, None]) / det[:, None]  # dX/du
         tri_v = (e2 * du1[:, None] - e1 * du2[:, None]) / det[:, None]  # dX/dv
     else:

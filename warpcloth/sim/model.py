@@ -431,7 +431,8 @@ def _per_spring(name: str, values, count: int, unit: str) -> np.ndarray:
         a = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError):
         raise WarpclothError(f"{name} must be numbers, one per spring ({count})") from None
-    require(a.ndim == 1 and a.shape[0] == count, f"{name} must have one value per spring ({count}), got shape {a.shape}")
+    require(a.ndim == 1 and a.shape[0] == count,
+            f"{name} must have one value per spring ({count}), got shape {a.shape}")
     bad = np.flatnonzero(~(np.isfinite(a) & (a >= 0.0)))
     if bad.size:
         k = int(bad[0])
