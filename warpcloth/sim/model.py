@@ -436,7 +436,7 @@ def _per_spring(name: str, values, count: int, unit: str) -> np.ndarray:
     bad = np.flatnonzero(~(np.isfinite(a) & (a >= 0.0)))
     if bad.size:
         k = int(bad[0])
-        raise WarpclothError(f"{name} of spring {k} must be a finite number >= 0 {unit}, got {a[k]!r}")
+        raise WarpclothError(f"{name} of spring {k} must be a finite number >= 0 {unit}, got {float(a[k])!r}")
     require(bool(np.all(a <= np.finfo(np.float32).max)), f"{name} must fit in float32")
     return a.astype(np.float32)
 
