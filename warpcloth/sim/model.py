@@ -98,8 +98,10 @@ class ClothModel:
         spring_indices: particle pairs (i, j), shape (spring_count,), vec2i.
         spring_type: :class:`SpringType` of each spring (NumPy).
         spring_rest_length: rest lengths L0 [m], shape (spring_count,).
-        spring_stiffness: ks [N/m] per spring, filled from the per-type parameters.
-        spring_damping: kd [N s/m] per spring, filled from the per-type parameters.
+        spring_stiffness: ks [N/m] per spring, filled from the per-type parameters (or given
+            per spring to :func:`build_model`).
+        spring_damping: kd [N s/m] per spring, filled from the per-type parameters (or given
+            per spring).
         tri_indices: triangles (a, b, c), two per grid cell, shape (tri_count,), vec3i.
         spring_params: per-type :class:`SpringParams`.
     """
@@ -194,7 +196,8 @@ def check_spring_params(params: dict[SpringType, SpringParams]) -> None:
         require_non_negative(f"{t.name.lower()} damping", params[t].damping, "N s/m")
 
 
-def build_model(positions, spring_pairs, spring_types, masses, spring_params, pins=(), triangles=None, device=None) -> ClothModel:
+def build_model(positions, spring_pairs, spring_types, masses, spring_params=None, pins=(), triangles=None, device=None,
+                *, spring_stiffness=None, spring_damping=None) -> ClothModel:
     """Build a mass-spring model from arrays (any topology; the grid and mesh builders use this).
 
     Args:
@@ -202,10 +205,18 @@ def build_model(positions, spring_pairs, spring_types, masses, spring_params, pi
         spring_pairs: (S, 2) particle indices.
         spring_types: (S,) :class:`SpringType` values.
         masses: (N,) particle masses [kg] (> 0).
-        spring_params: per-type :class:`SpringParams`.
+        spring_params: per-type :class:`SpringParams` (may be None when both per-spring arrays
+            are given).
         pins: indices of pinned particles.
         triangles: (T, 3) particle indices for wind and rendering (default none).
         device: Warp device.
+        spring_stiffness: optional (S,) ks [N/m] per spring (e.g. from a material,
+            :mod:`warpcloth.sim.material`), used instead of the per-type stiffness.
+        spring_damping: optional (S,) kd [N s/m] per spring, used instead of the per-type damping.
+
+    With per-spring arrays the model's ``spring_params`` records, per type, the largest ks and
+    kd of that type's springs (0 for a type without springs), so that
+    :meth:`ClothModel.max_stiffness` stays the largest ks in the model.
     """
     q = np.asarray(positions, dtype=np.float32).reshape(-1, 3)
     n = q.shape[0]
@@ -214,7 +225,14 @@ def build_model(positions, spring_pairs, spring_types, masses, spring_params, pi
     require(mass.shape[0] == n, f"masses must have one value per particle ({n}), got {mass.shape[0]}")
     if not np.all(mass > 0):
         raise WarpclothError(f"particle masses must be > 0 kg, got {float(mass[mass <= 0][0])!r}")
-    check_spring_params(spring_params)
+    per_spring = spring_stiffness is not None or spring_damping is not None
+    if spring_params is None:
+        require(spring_stiffness is not None and spring_damping is not None,
+                "build_model needs spring_params, or both spring_stiffness and spring_damping per spring")
+    elif spring_stiffness is not None and spring_damping is not None:
+        raise WarpclothError("give per-type spring_params or per-spring spring_stiffness and spring_damping, not both")
+    else:
+        check_spring_params(spring_params)
     pairs = np.asarray(spring_pairs, dtype=np.int32).reshape(-1, 2)
     types = np.asarray(spring_types, dtype=np.int32).reshape(-1)
     require(types.shape[0] == pairs.shape[0], "spring_types must have one value per spring")
@@ -229,8 +247,17 @@ def build_model(positions, spring_pairs, spring_types, masses, spring_params, pi
     if types.size and (types.min() < 0 or types.max() > max(SpringType)):
         raise WarpclothError(f"spring types must be in 0..{int(max(SpringType))} (SpringType)")
     # per-type lookup by indexing (a Python loop over 300k springs took 0.5 s)
-    ks = np.array([spring_params[t].stiffness for t in SpringType], dtype=np.float32)[types]
-    kd = np.array([spring_params[t].damping for t in SpringType], dtype=np.float32)[types]
+    if spring_stiffness is None:
+        ks = np.array([spring_params[t].stiffness for t in SpringType], dtype=np.float32)[types]
+    else:
+        ks = _per_spring("spring_stiffness", spring_stiffness, types.shape[0], "N/m")
+    if spring_damping is None:
+        kd = np.array([spring_params[t].damping for t in SpringType], dtype=np.float32)[types]
+    else:
+        kd = _per_spring("spring_damping", spring_damping, types.shape[0], "N s/m")
+    if per_spring:  # per type, the largest value of that type's springs
+        spring_params = {t: SpringParams(float(ks[types == t].max(initial=0.0)), float(kd[types == t].max(initial=0.0)))
+                         for t in SpringType}
     tris = np.zeros((0, 3), dtype=np.int32) if triangles is None else np.asarray(triangles, dtype=np.int32).reshape(-1, 3)
     device = resolve_device(device)
     with wp.ScopedDevice(device):
@@ -255,6 +282,22 @@ def build_model(positions, spring_pairs, spring_types, masses, spring_params, pi
             bend=BendModel.NONE,
             host=HostArrays(q=q, pairs=pairs, rest=rest, mass=mass, inv_mass=inv_mass, tris=tris),
         )
+
+
+def _per_spring(name: str, values, count: int, unit: str) -> np.ndarray:
+    """A (count,) float32 array of finite values >= 0, else raise naming the first bad one."""
+    try:
+        a = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise WarpclothError(f"{name} must be numbers, one per spring ({count})") from None
+    require(a.ndim == 1 and a.shape[0] == count,
+            f"{name} must have one value per spring ({count}), got shape {a.shape}")
+    bad = np.flatnonzero(~(np.isfinite(a) & (a >= 0.0)))
+    if bad.size:
+        k = int(bad[0])
+        raise WarpclothError(f"{name} of spring {k} must be a finite number >= 0 {unit}, got {float(a[k])!r}")
+    require(bool(np.all(a <= np.finfo(np.float32).max)), f"{name} must fit in float32")
+    return a.astype(np.float32)
 
 
 # Defaults: per-spring constants, as in the seed (one k per spring type).
