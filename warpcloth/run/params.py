@@ -218,7 +218,8 @@ def device(text: str) -> str:
 
 
 def colliders(text: str) -> str:
-    """One or more colliders joined by ``+`` (``sphere:center=0/1/0,radius=0.3+plane``); checked
+    """One or more colliders joined by ``+`` (``sphere:center=0/1/0,radius=0.3+plane``; a ``+``
+    joins where a collider kind follows it, so ``radius=1e+3`` and ``path=a+b.obj`` stay whole); checked
     here (:func:`warpcloth.run.parse.collider_specs`: no file is read), kept as text (the run
     key and the CSV show it as written)."""
     try:
@@ -347,7 +348,7 @@ def _graph_config(value):
 
 
 def _colliders_config(value):
-    return collider_specs(value) if value else None
+    return None if value is None else collider_specs(value)  # "" is an error (collider_specs), not "no collider"
 
 
 def _group_config(value):
@@ -547,10 +548,13 @@ def check_applies(values: dict, is_mesh: bool, scenario_name: str, spell=lambda 
 
 
 def config_values(values: dict) -> dict:
-    """ScenarioConfig keyword arguments from parameter values (None: unset)."""
+    """ScenarioConfig keyword arguments from parameter values (None: unset, and left out, so a
+    scenario's own value, e.g. a scenario file's, stays)."""
     out = {}
     for kind in ("stiffness", "damping"):
-        out[kind] = resolve_per_type(values, kind)
+        value = resolve_per_type(values, kind)
+        if value is not None:
+            out[kind] = value
     if values.get("size") is not None and values.get("rows") is None:
         out["rows"], out["cols"] = values["size"]
     for p in PARAMS:
