@@ -342,6 +342,38 @@ class Param:
         except ValueError as exc:
             raise WarpclothError(f"{self.name}: {exc}") from None
 
+    def from_typed(self, value):
+        """A value from a typed file (a scenario file's TOML: numbers, strings, arrays) parsed as
+        its text would be, so a file's key has the CLI flag's type, range and unit; a value of
+        another type raises ``ValueError`` (``must be a number, got 'abc'``), as ``parse`` does."""
+        takes = _TYPED.get(self.parse, "text")
+        if isinstance(value, bool) or not isinstance(value, (str, int, float, list)):
+            raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
+        if isinstance(value, list):
+            if takes != "per_type" or len(value) != 3 or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
+                raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
+            return self.parse(",".join(repr(float(v)) for v in value))
+        if isinstance(value, str):
+            if takes in ("number", "per_type"):
+                raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
+            return self.parse(value)
+        if takes == "text":
+            raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
+        return self.parse(repr(value) if isinstance(value, float) else str(value))
+
+
+#: What a typed file's value of a parameter may be, by its parser (the rest take text).
+_TYPED = {number: "number", positive: "number", non_negative: "number", fraction: "number", grid_dim: "number",
+          per_type: "per_type", timestep: "number_or_text", wall_cap: "number_or_text"}
+_TYPED_WORDS = {"number": "a number", "per_type": "a number or 3 numbers [structural, shear, bend]",
+                "number_or_text": "a number or a string", "text": "a string"}
+
+
+def _shown(value) -> str:
+    """A value as a message shows it: its repr, cut to 60 characters."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
 
 def _graph_config(value):
     return {"on": True, "off": False, "auto": None}[value]
