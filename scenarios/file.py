@@ -153,9 +153,8 @@ def read_toml(path: str, where: str) -> dict:
         raise WarpclothError(f"{where}: not valid TOML: {_cut(str(exc))}") from None
     except (RecursionError, MemoryError):
         raise WarpclothError(f"{where}: too deeply nested or too large to read as TOML") from None
-    depth = _table_depth(table)
-    if depth > MAX_DEPTH:
-        raise WarpclothError(f"{where}: tables and arrays nested {depth} deep; a scenario file nests at most {MAX_DEPTH}")
+    if _table_depth(table) > MAX_DEPTH:  # dotted keys nest tables without brackets
+        raise WarpclothError(f"{where}: tables and arrays nested more than {MAX_DEPTH} deep; a scenario file nests at most {MAX_DEPTH}")
     return table
 
 
