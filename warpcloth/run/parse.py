@@ -120,6 +120,8 @@ def _starts_collider(text: str, k: int) -> bool:
     if text[k] != "+":
         return False
     head = text[k + 1:].lstrip()
+    if not head or head[0] == "+":  # an empty collider: refused by the caller
+        return True
     for kind in COLLIDER_TYPES:
         if head.startswith(kind):
             after = head[len(kind):].lstrip()
