@@ -50,7 +50,7 @@ def _split_outside_quotes(text: str, at) -> list[str]:
             parts.append(text[start:k])
             start = k + 1
     if quote:
-        raise WarpclothError(f"collider {text!r} has an unclosed {quote} quote")
+        raise WarpclothError(f"collider {_short(text)} has an unclosed {quote} quote")
     parts.append(text[start:])
     return parts
 
