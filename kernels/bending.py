@@ -85,7 +85,8 @@ def hinge_energy(x0: wp.vec3, x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, rest: float
 
 
 @wp.func
-def hinge_force_scale(theta: float, rest: float, k: float, kd: float, g0: wp.vec3, g1: wp.vec3, g2: wp.vec3, g3: wp.vec3,
+def hinge_force_scale(theta: float, rest: float, k: float, kd: float,
+                      g0: wp.vec3, g1: wp.vec3, g2: wp.vec3, g3: wp.vec3,
                       v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, v3: wp.vec3):
     # s with f_a = s g_a:  s = -k wrap(theta - theta0) - kd (sum_b g_b . v_b)
     rate = wp.dot(g0, v0) + wp.dot(g1, v1) + wp.dot(g2, v2) + wp.dot(g3, v3)
@@ -225,10 +226,12 @@ def add_hinge_matrix_product(
     particle_inv_mass: wp.array(dtype=float),
     alpha: float,
     beta: float,
+    zero_pinned_columns: int,
     y: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
 ):
-    # z_i += sum_e (alpha k + beta kd) g_slot (sum_b g_b . y_b), y_b = 0 on pins, pinned rows untouched (matrix-free)
+    # z_i += sum_e (alpha k + beta kd) g_slot (sum_b g_b . y_b), matrix-free; pinned rows untouched; y_b = 0 on pins
+    # when zero_pinned_columns != 0 (the CG operator), pins' y kept otherwise (the rhs term -h^2 K v of moving pins)
     i = wp.tid()
     if particle_inv_mass[i] == 0.0:
         return
@@ -238,7 +241,7 @@ def add_hinge_matrix_product(
         q = hinge_indices[e]
         gy = float(0.0)
         for b in range(4):
-            if particle_inv_mass[q[b]] != 0.0:
+            if zero_pinned_columns == 0 or particle_inv_mass[q[b]] != 0.0:
                 gy = gy + wp.dot(hinge_gradient[e, b], y[q[b]])
         acc = acc + ((alpha * hinge_stiffness[e] + beta * hinge_damping[e]) * gy) * hinge_gradient[e, adjacency_slot[a]]
     z[i] = z[i] + acc
@@ -369,7 +372,7 @@ def solve_hinges_pbd(
     x: wp.array(dtype=wp.vec3),
     dp: wp.array(dtype=wp.vec3),
 ):
-    # one colour, C = wrap(theta - theta0):  dp_b += -k_pbd w_b C g_b / sum_c w_c |g_c|^2   (Müller et al. 2007, eq. 8-9)
+    # one colour, C = wrap(theta - theta0): dp_b += -k_pbd w_b C g_b / sum_c w_c |g_c|^2  (Müller et al. 2007, eq. 8-9)
     e = hinge_order[start + wp.tid()]
     q = hinge_indices[e]
     d0 = dp[q[0]]

@@ -22,6 +22,15 @@ def vec3(a):
     return wp.array(np.asarray(a, dtype=np.float32).reshape(-1, 3), dtype=wp.vec3, device=DEVICE)
 
 
+def launch(kernel, dim, *inputs):
+    wp.launch(kernel, dim, list(inputs), device=DEVICE)
+
+
+def hinge_inputs(d):
+    """The four hinge arrays in the kernels' order (indices, rest angle, stiffness, damping)."""
+    return d.hinge_indices, d.hinge_rest_angle, d.hinge_stiffness, d.hinge_damping
+
+
 def one_hinge(x, rest=0.0, k=1.0, kd=0.0) -> H.Hinges:
     """A Hinges of the single hinge (0, 1, 2, 3) with given rest angle, k and kd (rest geometry from x)."""
     h = H.build_hinges(x, [[0, 1, 2, 3]], 1.0)
@@ -35,15 +44,14 @@ def kernel_forces(x, hinges: H.Hinges, v=None) -> np.ndarray:
     f = wp.zeros(n, dtype=wp.vec3, device=DEVICE)
     vv = vec3(np.zeros((n, 3)) if v is None else v)
     wp.launch(K.eval_hinge_forces, hinges.hinge_count,
-              [vec3(x), vv, d.hinge_indices, d.hinge_rest_angle, d.hinge_stiffness, d.hinge_damping, f], device=DEVICE)
+              [vec3(x), vv, *hinge_inputs(d), f], device=DEVICE)
     return f.numpy().astype(np.float64)
 
 
 def kernel_energies(x, hinges: H.Hinges) -> np.ndarray:
     d = hinges.to_device(DEVICE)
     out = wp.zeros(hinges.hinge_count, dtype=float, device=DEVICE)
-    wp.launch(K.eval_hinge_energies, hinges.hinge_count, [vec3(x), d.hinge_indices, d.hinge_rest_angle, d.hinge_stiffness, out],
-              device=DEVICE)
+    launch(K.eval_hinge_energies, hinges.hinge_count, vec3(x), *hinge_inputs(d)[:3], out)
     return out.numpy().astype(np.float64)
 
 
@@ -194,8 +202,8 @@ def test_angle_is_exact_and_signed_near_the_fold():
         assert abs(H.hinge_angles(x, idx)[0] - phi) < 1e-12
         out = wp.zeros(1, dtype=float, device=DEVICE)
         grad = wp.zeros((1, 4), dtype=wp.vec3, device=DEVICE)
-        wp.launch(K.eval_hinge_gradients, 1, [vec3(x), wp.array(np.array(idx, np.int32), dtype=wp.vec4i, device=DEVICE), out, grad],
-                  device=DEVICE)
+        indices = wp.array(np.array(idx, np.int32), dtype=wp.vec4i, device=DEVICE)
+        launch(K.eval_hinge_gradients, 1, vec3(x), indices, out, grad)
         assert abs(out.numpy()[0] - phi) < 2e-6
         assert np.all(np.isfinite(grad.numpy()))
     # crossing pi: rest at pi - 0.01, now at -pi + 0.01: the wrapped difference is 0.02, not 2 pi - 0.02
@@ -402,8 +410,7 @@ def test_vbd_vertex_term_equals_forces_and_diagonal_blocks():
     dx = rng.normal(scale=0.003, size=x.shape)
     force = wp.zeros(n, dtype=wp.vec3, device=DEVICE)
     hess = wp.zeros(n, dtype=wp.mat33, device=DEVICE)
-    wp.launch(K.eval_hinge_vertex_terms, n, [vec3(x), vec3(dx), *adj, d.hinge_indices, d.hinge_rest_angle, d.hinge_stiffness,
-                                             d.hinge_damping, h, force, hess], device=DEVICE)
+    launch(K.eval_hinge_vertex_terms, n, vec3(x), vec3(dx), *adj, *hinge_inputs(d), h, force, hess)
     # = the force kernel at x + dx with v = dx / h; H_i = sum (k + kd/h) g_i g_i^T
     expected = kernel_forces(x + dx, hinges, dx / h)
     assert np.abs(force.numpy() - expected).max() < 1e-4 * np.abs(expected).max()
@@ -422,20 +429,22 @@ def test_implicit_row_gather_and_matrix_free_product_match_the_blocks():
     springs, _ = grid_springs(rows, cols)
     pairs = np.concatenate([springs, H.hinge_pairs(hinges.indices)])
     pairs = np.unique(np.sort(pairs, axis=1), axis=0)
-    entries = np.unique(np.concatenate([pairs, pairs[:, ::-1], np.c_[np.arange(n), np.arange(n)]]), axis=0)  # sorted CSR
+    diagonal = np.c_[np.arange(n), np.arange(n)]
+    entries = np.unique(np.concatenate([pairs, pairs[:, ::-1], diagonal]), axis=0)  # sorted CSR
     row_offsets = np.r_[0, np.cumsum(np.bincount(entries[:, 0], minlength=n))]
     offsets, hinge, slot = H.hinge_adjacency(hinges.indices, n)
     block = H.hinge_block_index(hinges.indices, offsets, hinge, row_offsets, entries[:, 1])
     d = hinges.to_device(DEVICE)
     theta = wp.zeros(hinges.hinge_count, dtype=float, device=DEVICE)
     grad = wp.zeros((hinges.hinge_count, 4), dtype=wp.vec3, device=DEVICE)
-    wp.launch(K.eval_hinge_gradients, hinges.hinge_count, [vec3(x), d.hinge_indices, theta, grad], device=DEVICE)
+    launch(K.eval_hinge_gradients, hinges.hinge_count, vec3(x), d.hinge_indices, theta, grad)
     values = wp.zeros(len(entries), dtype=wp.mat33, device=DEVICE)
     adj = [wp.array(a, dtype=int, device=DEVICE) for a in (offsets, hinge, slot)]
     w = wp.array(inv_mass, dtype=float, device=DEVICE)
     h = 0.01
-    wp.launch(K.add_hinge_system_rows, n, [*adj, wp.array(block, dtype=int, device=DEVICE), d.hinge_indices, grad,
-                                           d.hinge_stiffness, d.hinge_damping, w, h * h, h, values], device=DEVICE)
+    block = wp.array(block, dtype=int, device=DEVICE)
+    gathered = (d.hinge_indices, grad, d.hinge_stiffness, d.hinge_damping, w)
+    launch(K.add_hinge_system_rows, n, *adj, block, *gathered, h * h, h, values)
     got = np.zeros((3 * n, 3 * n))
     for (i, j), m in zip(entries, values.numpy()):
         got[3 * i:3 * i + 3, 3 * j:3 * j + 3] = m
@@ -451,9 +460,22 @@ def test_implicit_row_gather_and_matrix_free_product_match_the_blocks():
     # matrix-free: z += A_hinge y
     y = rng.normal(size=(n, 3))
     z = vec3(np.full((n, 3), 1e-3))
-    wp.launch(K.add_hinge_matrix_product, n, [*adj, d.hinge_indices, grad, d.hinge_stiffness, d.hinge_damping, w, h * h, h,
-                                              vec3(y), z], device=DEVICE)
-    assert np.abs(z.numpy() - 1e-3 - (expected @ y.ravel()).reshape(n, 3)).max() < 1e-5 * np.abs(expected @ y.ravel()).max()
+    launch(K.add_hinge_matrix_product, n, *adj, *gathered, h * h, h, 1, vec3(y), z)
+    ay = (expected @ y.ravel()).reshape(n, 3)
+    assert np.abs(z.numpy() - 1e-3 - ay).max() < 1e-5 * np.abs(ay).max()
+    # rhs form: pinned columns kept (moving pins), pinned rows still untouched; -h^2 K v
+    full = np.zeros((3 * n, 3 * n))
+    stiff_blocks = kernel_blocks(x, hinges, 1.0, 0.0)
+    for e, q in enumerate(hinges.indices):
+        for a in range(4):
+            for b in range(4):
+                if inv_mass[q[a]]:
+                    full[3 * q[a]:3 * q[a] + 3, 3 * q[b]:3 * q[b] + 3] += stiff_blocks[e, a, b]
+    z = vec3(np.zeros((n, 3)))
+    launch(K.add_hinge_matrix_product, n, *adj, *gathered, -h * h, 0.0, 0, vec3(y), z)
+    rhs = -h * h * (full @ y.ravel()).reshape(n, 3)
+    assert np.abs(z.numpy() - rhs).max() < 1e-5 * np.abs(rhs).max()
+    assert np.abs(rhs[[0, 3]]).max() == 0.0 and np.abs(full[:, :3]).max() > 0.0  # pinned row 0 empty, its column not
 
 
 # -- position-based projections --------------------------------------------------------------------
@@ -464,10 +486,9 @@ def solve_one(x, hinge, inv_mass, h, xpbd=True, dp0=None, lam0=0.0, stiffness=1.
     order = wp.array(np.array([0], np.int32), dtype=wp.int32, device=DEVICE)
     w = wp.array(np.asarray(inv_mass, np.float32), dtype=float, device=DEVICE)
     if xpbd:
-        wp.launch(K.solve_hinges_xpbd, 1, [order, 0, d.hinge_indices, d.hinge_rest_angle, d.hinge_stiffness, d.hinge_damping,
-                                           w, vec3(x), h, lam, dp], device=DEVICE)
+        launch(K.solve_hinges_xpbd, 1, order, 0, *hinge_inputs(d), w, vec3(x), h, lam, dp)
     else:
-        wp.launch(K.solve_hinges_pbd, 1, [order, 0, d.hinge_indices, d.hinge_rest_angle, stiffness, w, vec3(x), dp], device=DEVICE)
+        launch(K.solve_hinges_pbd, 1, order, 0, d.hinge_indices, d.hinge_rest_angle, stiffness, w, vec3(x), dp)
     return dp.numpy().astype(np.float64), float(lam.numpy()[0])
 
 
@@ -535,8 +556,8 @@ def test_strip_cantilever_with_springs_and_hinges_sags_like_the_linear_predictio
     mass = rho * width * length
     pins = [0, 1, cols, cols + 1]
     params = {t: SpringParams(ks, 0.0) for t in SpringType}
-    model = build_grid_cloth(rows, cols, width, length, mass, spring_params=params, pins=pins, plane="horizontal", bend="none",
-                             device=DEVICE)
+    model = build_grid_cloth(rows, cols, width, length, mass, spring_params=params, pins=pins, plane="horizontal",
+                             bend="none", device=DEVICE)
     x0 = model.host["q"].astype(np.float64)
     hinges = H.grid_hinges(x0, rows, cols, bend)
     d = hinges.to_device(DEVICE)
@@ -548,17 +569,13 @@ def test_strip_cantilever_with_springs_and_hinges_sags_like_the_linear_predictio
     def run(with_hinges, n_steps, drag):
         state = model.state()
         for _ in range(n_steps):
-            wp.launch(eval_particle_forces, model.particle_count, [state.particle_qd, model.particle_mass, gravity, drag,
-                                                                   state.particle_f], device=DEVICE)
-            wp.launch(eval_springs, model.spring_count, [state.particle_q, state.particle_qd, model.spring_indices,
-                                                         model.spring_rest_length, model.spring_stiffness, model.spring_damping,
-                                                         state.particle_f], device=DEVICE)
+            x, v, f = state.particle_q, state.particle_qd, state.particle_f
+            launch(eval_particle_forces, model.particle_count, v, model.particle_mass, gravity, drag, f)
+            launch(eval_springs, model.spring_count, x, v, model.spring_indices, model.spring_rest_length,
+                   model.spring_stiffness, model.spring_damping, f)
             if with_hinges:
-                wp.launch(K.eval_hinge_forces, hinges.hinge_count, [state.particle_q, state.particle_qd, d.hinge_indices,
-                                                                    d.hinge_rest_angle, d.hinge_stiffness, d.hinge_damping,
-                                                                    state.particle_f], device=DEVICE)
-            wp.launch(integrate_explicit_euler, model.particle_count, [state.particle_q, state.particle_qd, state.particle_f,
-                                                                       model.particle_inv_mass, dt], device=DEVICE)
+                launch(K.eval_hinge_forces, hinges.hinge_count, x, v, *hinge_inputs(d), f)
+            launch(integrate_explicit_euler, model.particle_count, x, v, f, model.particle_inv_mass, dt)
         return state.particle_q.numpy().astype(np.float64), state.particle_qd.numpy()
 
     q, qd = run(True, steps, drag)

@@ -125,7 +125,8 @@ def triangle_hinges(triangles) -> np.ndarray:
     key_s = key[order]
     counts = np.bincount(np.unique(key_s, return_inverse=True)[1])
     if counts.size and counts.max() > 2:
-        raise WarpclothError(f"{int(np.sum(counts > 2))} edge(s) are shared by more than two triangles; hinges need a manifold mesh")
+        raise WarpclothError(f"{int(np.sum(counts > 2))} edge(s) are shared by more than two triangles; "
+                             "hinges need a manifold mesh")
     pair = np.flatnonzero(key_s[1:] == key_s[:-1])  # positions p with order[p], order[p + 1] one edge
     first, second = order[pair], order[pair + 1]
     return np.stack([a[first], b[first], o[first], o[second]], axis=1).astype(np.int32)
