@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import warp as wp
 
 from warpcloth.errors import WarpclothError
 from warpcloth.sim.coloring import Coloring
@@ -71,8 +72,6 @@ class Hinges:
 
     def to_device(self, device=None) -> "HingeArrays":
         """The arrays the kernels read, float32 on ``device``."""
-        import warp as wp
-
         return HingeArrays(
             hinge_indices=wp.array(self.indices.astype(np.int32), dtype=wp.vec4i, device=device),
             hinge_rest_angle=wp.array(self.rest_angle.astype(np.float32), dtype=float, device=device),
@@ -92,10 +91,10 @@ class HingeArrays:
         hinge_damping: kd_e [N m s / rad^2], shape (hinge_count,).
     """
 
-    hinge_indices: object
-    hinge_rest_angle: object
-    hinge_stiffness: object
-    hinge_damping: object
+    hinge_indices: wp.array
+    hinge_rest_angle: wp.array
+    hinge_stiffness: wp.array
+    hinge_damping: wp.array
 
     @property
     def hinge_count(self) -> int:
