@@ -20,7 +20,7 @@ import warp as wp
 from warpcloth.kernels import bending
 from warpcloth.kernels.forces import eval_springs
 from warpcloth.sim import hinges as hinge_lib
-from warpcloth.sim.model import grid_positions, grid_springs
+from warpcloth.sim.grid import grid_positions, grid_springs
 
 
 def timed(launch, repeats: int, device) -> float:

@@ -12,7 +12,8 @@ from warpcloth.kernels import bending as K
 from warpcloth.kernels.forces import eval_particle_forces, eval_springs
 from warpcloth.kernels.integrate import integrate_explicit_euler
 from warpcloth.sim import hinges as H
-from warpcloth.sim.model import SpringParams, SpringType, build_grid_cloth, grid_springs, grid_triangles
+from warpcloth.sim.grid import build_grid_cloth, grid_springs, grid_triangles
+from warpcloth.sim.model import SpringParams, SpringType
 
 DEVICE = "cpu"
 
