@@ -46,7 +46,7 @@ def _count():
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from warpcloth.lab.study import PROFILES
+    from warpcloth.lab.plan import PROFILES
 
     p.add_argument("--profile", default="quick", choices=list(PROFILES),
                    help="quick (tiny sizes, a few minutes on 2 CPU cores), standard (sizes 16-128 on the CPU), seed (the seed's plan, for a GPU)")
@@ -81,7 +81,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from warpcloth.lab.study import available_devices, calibrate, estimate_plan, format_estimate, make_plan, run_study
+    from warpcloth.lab.estimate import calibrate, estimate_plan, format_estimate
+    from warpcloth.lab.plan import make_plan
+    from warpcloth.lab.study import available_devices, run_study
 
     plan = make_plan(args.profile, integrators=args.integrators, sizes=args.sizes, devices=args.devices,
                      tolerance=args.tolerance, match_accuracy=args.match_accuracy, accuracy_sizes=args.accuracy_sizes,
