@@ -1,5 +1,5 @@
-"""The ``warpcloth study`` subcommand's flags and entry point (kept here so that cli.py only
-registers it)."""
+"""``warpcloth study``: the flags and the entry point of the accuracy-aware study
+(:mod:`warpcloth.lab.study`)."""
 
 from __future__ import annotations
 
@@ -77,7 +77,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--resume", action="store_true", help="continue DIR/results.csv: finished measurements are not redone")
     mode.add_argument("--overwrite", action="store_true", help="replace DIR/results.csv if it exists")
-    # --quiet (no progress, no summary) and --verbose come with every subcommand (cli._add_verbose)
+    # --quiet (no progress, no summary) and --verbose come with every subcommand (cli.parse.add_verbose)
 
 
 def run(args) -> int:
@@ -130,4 +130,9 @@ def _argv(args) -> list:
     return out + (["--out", args.out] if args.out else [])
 
 
-__all__ = ["add_arguments", "run"]
+def interrupted_hint(args) -> str:
+    """What the line after Ctrl-C or SIGTERM adds: where the finished measurements are."""
+    return f"; finished measurements are in {args.out}/results.csv, continue with --resume"
+
+
+__all__ = ["add_arguments", "interrupted_hint", "run"]
