@@ -24,7 +24,7 @@ from __future__ import annotations
 import importlib
 import sys
 
-from warpcloth.cli.parse import EXIT_USAGE, Parser, add_verbose, guarded  # noqa: F401  (EXIT_USAGE: kept importable from cli)
+from warpcloth.cli.parse import EXIT_USAGE, Parser, add_verbose, guarded  # noqa: F401  (EXIT_USAGE: importable from cli)
 
 #: The subcommands, in the order ``--help`` lists them: name -> (module, help line, whether the
 #: common ``--quiet`` is added: ``sweep`` has its own).
@@ -34,18 +34,17 @@ COMMANDS = {
     "bench": ("warpcloth.cli.bench", "benchmark integrators x sizes x devices on the sheet (bench/devices.py)", True),
     "sweep": ("warpcloth.cli.sweep", "run an XML test list, one CSV row per run (docs/sweep.md)", False),
     "max-dt": ("warpcloth.cli.maxdt", "find the largest stable time step of an integrator on a scenario", True),
-    "study": ("warpcloth.cli.study", "the accuracy-aware study: stable/accurate dt, cost, real-time frontier, report (docs/study.md)",
-              True),
+    "study": ("warpcloth.cli.study",
+              "the accuracy-aware study: stable/accurate dt, cost, real-time frontier, report (docs/study.md)", True),
 }
 
 #: Names kept importable from ``warpcloth.cli`` (``from warpcloth.cli import scenario_main``: the
 #: scenarios' ``__main__`` blocks), each loaded from its module on first use.
 _FORWARDED = {
-    "scenario_main": "warpcloth.cli.run", "add_run_arguments": "warpcloth.cli.run", "summary": "warpcloth.cli.run",
-    "EXIT_UNSTABLE": "warpcloth.cli.run", "config_from_args": "warpcloth.cli.model",
-    "add_model_arguments": "warpcloth.cli.model", "integrator_options_from_args": "warpcloth.cli.model",
-    "param_values": "warpcloth.cli.model", "example_path": "warpcloth.cli.listing", "example_names": "warpcloth.cli.listing",
-    "examples_dir": "warpcloth.cli.listing",
+    **dict.fromkeys(("scenario_main", "add_run_arguments", "summary", "EXIT_UNSTABLE"), "warpcloth.cli.run"),
+    **dict.fromkeys(("config_from_args", "add_model_arguments", "integrator_options_from_args", "param_values"),
+                    "warpcloth.cli.model"),
+    **dict.fromkeys(("example_path", "example_names", "examples_dir"), "warpcloth.cli.listing"),
 }
 
 

@@ -132,5 +132,5 @@ class DefaultDtExplained:
             "(the stability estimate under- or overflows at these values); use values nearer the defaults, or give --dt") from None
 
 
-__all__ = ["DefaultDtExplained", "add_model_arguments", "check_spacing", "config_from_args", "integrator_options_from_args",
-           "param_values"]
+__all__ = ["DefaultDtExplained", "add_model_arguments", "check_spacing", "config_from_args",
+           "integrator_options_from_args", "param_values"]

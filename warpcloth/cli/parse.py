@@ -50,7 +50,8 @@ def add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
     """``--verbose`` (Warp's messages) and, unless the subcommand has its own, ``--quiet``."""
     p.add_argument("--verbose", action="store_true", help="show Warp's start-up and module-load messages on stderr")
     if quiet:
-        p.add_argument("--quiet", "-q", action="store_true", help="print nothing on success (no summary, no progress); errors still print")
+        p.add_argument("--quiet", "-q", action="store_true",
+                       help="print nothing on success (no summary, no progress); errors still print")
 
 
 def print_error(message: str, stream=None) -> None:
@@ -142,5 +143,5 @@ def guarded(args, body, interrupted_hint: str = "") -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
-__all__ = ["ERROR_PREFIX", "EXIT_IO", "EXIT_PIPE", "EXIT_SIGINT", "EXIT_SIGTERM", "EXIT_USAGE", "Parser", "Terminated", "add_verbose",
-           "guarded", "print_error"]
+__all__ = ["ERROR_PREFIX", "EXIT_IO", "EXIT_PIPE", "EXIT_SIGINT", "EXIT_SIGTERM", "EXIT_USAGE", "Parser", "Terminated",
+           "add_verbose", "guarded", "print_error"]

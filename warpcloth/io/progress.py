@@ -62,8 +62,8 @@ class Progress:
         keep: on a terminal, end the last line with a newline at :meth:`close` instead of clearing it.
     """
 
-    def __init__(self, label: str = "", stream=None, enabled: bool = True, tty: bool | None = None, clock=time.monotonic,
-                 layout=None, keep: bool = False):
+    def __init__(self, label: str = "", stream=None, enabled: bool = True, tty: bool | None = None,
+                 clock=time.monotonic, layout=None, keep: bool = False):
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
         self.enabled = enabled
@@ -74,7 +74,6 @@ class Progress:
         self.start = clock()
         self.last = self.start
         self.width = 0
-        self.lines = 0
 
     def elapsed(self) -> float:
         """Wall seconds since the start."""
@@ -128,7 +127,6 @@ class Progress:
             if not force and (now - self.last < PLAIN_INTERVAL):
                 return
             self.stream.write(self.text(done, total, note, unit) + "\n")
-            self.lines += 1
         self.last = now
         try:
             self.stream.flush()

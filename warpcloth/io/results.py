@@ -147,7 +147,8 @@ class ResultsFile:
             if exists and resume:
                 self._read_existing()
             elif exists and not overwrite:
-                raise WarpclothError(f"{self.path} already exists: use --resume to continue it or --overwrite to replace it")
+                raise WarpclothError(f"{self.path} already exists: use --resume to continue it "
+                                     "or --overwrite to replace it")
             else:
                 self._create()
             try:
@@ -216,8 +217,8 @@ class ResultsFile:
         if not self.truncated:
             return ""
         where = f"a copy is in {self.dropped_path}" if self.dropped_path else f"it was {self.dropped[:120]!r}"
-        return (f"{self.path}: dropped an incomplete last line ({len(self.dropped)} bytes, a {self.format.unit} cut short; "
-                f"{where}); it runs again")
+        return (f"{self.path}: dropped an incomplete last line ({len(self.dropped)} bytes, "
+                f"a {self.format.unit} cut short; {where}); it runs again")
 
     def _write(self, text: str) -> None:
         try:
@@ -234,7 +235,8 @@ class ResultsFile:
                 raise err from None
             line = describe_write_error(exc, self.path, "results CSV", needed=len(text.encode("utf-8")))
             line = line.replace(f"; {self.path} is unchanged", "")
-            raise OutputError(f"{line}; the {self.rows} rows before it are kept (a cut last row is dropped on --resume)") from None
+            raise OutputError(f"{line}; the {self.rows} rows before it are kept "
+                              "(a cut last row is dropped on --resume)") from None
 
     def write(self, row: dict) -> None:
         """Append ``row`` and force it to disk."""

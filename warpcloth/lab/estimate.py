@@ -135,4 +135,5 @@ def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["ACCURATE_K_AT_8", "PhaseEstimate", "REFERENCE_S_PER_PARTICLE_S", "calibrate", "estimate_plan", "format_estimate"]
+__all__ = ["ACCURATE_K_AT_8", "PhaseEstimate", "REFERENCE_S_PER_PARTICLE_S", "calibrate", "estimate_plan",
+           "format_estimate"]

@@ -27,7 +27,8 @@ import socket
 import time
 
 from warpcloth.run.harness import RunHarness
-from warpcloth.lab.accuracy import FRAME_DT, AccuracyProblem, StaticProblem, search_steps_per_frame, steps_per_frame_at_most
+from warpcloth.lab.accuracy import (FRAME_DT, AccuracyProblem, StaticProblem, search_steps_per_frame,
+                                    steps_per_frame_at_most)
 from warpcloth.lab.plan import SCENARIOS, StudyPlan
 from warpcloth.lab.results import MESH_NOTE
 
@@ -73,6 +74,8 @@ class Measurements:
 
     # one measurement, done once ---------------------------------------------------------------
     def once(self, key: str, base: dict, fn) -> dict:
+        """The row of ``key``: reused from ``out``, or measured now (``base`` updated with ``fn()``)
+        and written."""
         if key in self.out.done:
             self.reused += 1
             return self.out.done[key]
@@ -83,11 +86,15 @@ class Measurements:
         row.update(self.versions)
         row.update(self.place)
         row["key"] = key
+        self.write(row)
+        return self.out.done[key]
+
+    def write(self, row: dict) -> None:
+        """Write a new row to ``out`` (counted, and shown to ``on_row``)."""
         self.out.write(row)
         self.measured += 1
         if self.on_row is not None:
             self.on_row(row)
-        return self.out.done[key]
 
     def sim(self, scenario: str, n: int, device: str, integrator: str, options: dict | None = None):
         from warpcloth.integrators import make_integrator

@@ -184,10 +184,7 @@ def run_parallel(study: Measurements, settings: ParallelSettings, progress=None,
                     if done.place is not None:
                         row.update(host=done.place.host, worker=done.place.worker)
                     row["concurrent_runs"] = done.concurrent
-                    study.out.write(row)
-                    study.measured += 1
-                    if study.on_row is not None:
-                        study.on_row(row)
+                    study.write(row)
             progressed += _group_weight(p, n)
             bar.update(progressed, total, f"{phase} {i} {group_label(n)} {d} done", force=True)
     bar.close()
