@@ -23,7 +23,7 @@ too.
 import warp as wp
 
 from warpcloth.kernels.collide import Collider
-from warpcloth.kernels.vbd import newton_increment, project_increment, vertex_gradient_hessian
+from warpcloth.kernels.increment import newton_increment, project_increment, vertex_gradient_hessian
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
@@ -152,7 +152,7 @@ def solve_contacts(
 ):
     # after a global step: a particle in contact (the last pass's) takes VBD's local Newton step on
     # the same potential (its 3 x 3 Hessian, neighbours fixed; Jacobi: reads dx, writes out),
-    # constrained by the colliders with Coulomb friction (kernels.vbd.project_increment); a free one
+    # constrained by the colliders with Coulomb friction (kernels.increment.project_increment); a free one
     # that the global step took into a collider is projected out (isotropic: its H is not formed).
     # The contact's normal (0: released), collider velocity, force and state are kept for the next
     # global step (stuck: fixed in it; sliding: its force in the residual)
@@ -238,22 +238,3 @@ def cg_update_direction(z: wp.array(dtype=wp.vec3), rz: wp.array(dtype=float), k
     if rz[k] > 0.0:
         beta = rz[k + 1] / rz[k]
     p[i] = z[i] + beta * p[i]
-
-
-@wp.kernel
-def sum_chunks(terms: wp.array(dtype=float), chunk: int, count: int, partial: wp.array(dtype=float)):
-    # partial[c] = sum of terms[c chunk : (c + 1) chunk], in index order
-    c = wp.tid()
-    acc = float(0.0)
-    for i in range(c * chunk, wp.min((c + 1) * chunk, count)):
-        acc = acc + terms[i]
-    partial[c] = acc
-
-
-@wp.kernel
-def sum_partials(partial: wp.array(dtype=float), k: int, out: wp.array(dtype=float)):
-    # out[k] = sum of the chunk sums, in order (one thread)
-    acc = float(0.0)
-    for c in range(partial.shape[0]):
-        acc = acc + partial[c]
-    out[k] = acc

@@ -11,6 +11,7 @@ from warpcloth.errors import WarpclothError
 from warpcloth.integrators import make_integrator
 from warpcloth.integrators.implicit_euler import ImplicitEuler
 from warpcloth.kernels import implicit as ik
+from warpcloth.kernels import system as sk
 from warpcloth.scenarios import sheet
 from warpcloth.run.harness import RunHarness
 
@@ -96,7 +97,7 @@ def _kernel_blocks(xi, xj, rest, ks, kd, h=1.0):
     x = wp.array(np.stack([xi, xj]).astype(np.float32), dtype=wp.vec3)
     K = wp.zeros(1, dtype=wp.mat33)
     B = wp.zeros(1, dtype=wp.mat33)
-    wp.launch(ik.eval_spring_jacobians, dim=1, inputs=[x, wp.array([[0, 1]], dtype=wp.vec2i), wp.array([rest], dtype=float), wp.array([ks], dtype=float), wp.array([kd], dtype=float), h], outputs=[K, B])
+    wp.launch(sk.eval_spring_jacobians, dim=1, inputs=[x, wp.array([[0, 1]], dtype=wp.vec2i), wp.array([rest], dtype=float), wp.array([ks], dtype=float), wp.array([kd], dtype=float), h], outputs=[K, B])
     K = K.numpy()[0].astype(np.float64)
     return K, (B.numpy()[0].astype(np.float64) - h * h * K) / h  # K, D
 
@@ -151,7 +152,7 @@ def test_approx_blocks_are_eq_2_23_constants():
     K = wp.zeros(2, dtype=wp.mat33)
     B = wp.zeros(2, dtype=wp.mat33)
     h = 0.01
-    wp.launch(ik.eval_spring_jacobians_approx, dim=2, inputs=[ks, kd, h], outputs=[K, B])
+    wp.launch(sk.eval_spring_jacobians_approx, dim=2, inputs=[ks, kd, h], outputs=[K, B])
     np.testing.assert_allclose(K.numpy(), [100.0 * np.eye(3), 250.0 * np.eye(3)], rtol=1e-6)
     np.testing.assert_allclose(B.numpy(), [(h * h * 100 + h * 1) * np.eye(3), (h * h * 250 + h * 2) * np.eye(3)], rtol=1e-6)
 

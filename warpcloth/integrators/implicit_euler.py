@@ -64,7 +64,8 @@ import warp.sparse as wps
 from warp.optim.linear import LinearOperator, aslinearoperator, cg
 
 from warpcloth.kernels import implicit as ik
-from warpcloth.kernels import projective as pjk
+from warpcloth.kernels import linalg as lk
+from warpcloth.kernels import system as sk
 
 from warpcloth.integrators.forces import eval_forces
 from warpcloth.sim.pins import has_pin_tracks
@@ -126,9 +127,9 @@ class DevicePCG:
         """scalars[slot] = a . b, summed in a fixed order."""
         d, n = self.device, self.terms.shape[0]
         if a is not None:
-            wp.launch(ik.dot_terms, dim=n, inputs=[a, b], outputs=[self.terms], device=d)
-        wp.launch(pjk.sum_chunks, dim=self.partial.shape[0], inputs=[self.terms, self.chunk, n], outputs=[self.partial], device=d)
-        wp.launch(pjk.sum_partials, dim=1, inputs=[self.partial, slot], outputs=[self.scalars], device=d)
+            wp.launch(lk.dot_terms, dim=n, inputs=[a, b], outputs=[self.terms], device=d)
+        wp.launch(lk.sum_chunks, dim=self.partial.shape[0], inputs=[self.terms, self.chunk, n], outputs=[self.partial], device=d)
+        wp.launch(lk.sum_partials, dim=1, inputs=[self.partial, slot], outputs=[self.scalars], device=d)
 
     def _start(self) -> None:
         n, d = self.b.shape[0], self.device
@@ -137,20 +138,20 @@ class DevicePCG:
         self._dot(self.r, self.r, 3)
         self.apply_M(self.r, self.z, self.z, 1.0, 0.0)
         self._dot(self.r, self.z, 0)
-        wp.launch(ik.cg_start, dim=n, inputs=[self.tol, self.scalars, self.p, self.z], outputs=[self.x], device=d)
+        wp.launch(lk.cg_start, dim=n, inputs=[self.tol, self.scalars, self.p, self.z], outputs=[self.x], device=d)
 
     def _iterations(self, count: int) -> None:
         n, d, s = self.b.shape[0], self.device, self.scalars
         for _ in range(count):
             self.apply_A(self.p, self.q, self.q, 1.0, 0.0)
             self._dot(self.p, self.q, 2)
-            wp.launch(ik.cg_update_solution, dim=n, inputs=[s, self.p, self.q], outputs=[self.x, self.r, self.terms], device=d)
+            wp.launch(lk.cg_update_solution, dim=n, inputs=[s, self.p, self.q], outputs=[self.x, self.r, self.terms], device=d)
             self._dot(None, None, 3)
-            wp.launch(ik.cg_count, dim=1, inputs=[self.max_iter, s], device=d)
+            wp.launch(lk.cg_count, dim=1, inputs=[self.max_iter, s], device=d)
             self.apply_M(self.r, self.z, self.z, 1.0, 0.0)
             self._dot(self.r, self.z, 1)
-            wp.launch(ik.cg_update_direction, dim=n, inputs=[s, self.z], outputs=[self.p], device=d)
-            wp.launch(ik.cg_shift, dim=1, inputs=[s], device=d)
+            wp.launch(lk.cg_update_direction, dim=n, inputs=[s, self.z], outputs=[self.p], device=d)
+            wp.launch(lk.cg_shift, dim=1, inputs=[s], device=d)
 
     def _run(self, key, record) -> None:
         if not self._capture or self.device.is_capturing:
@@ -365,7 +366,7 @@ class ImplicitEuler(Integrator):
         friction reversed stops; a stuck one past the cone slips by the excess."""
         m = self.model
         wp.launch(ik.unfilter_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_dv], outputs=[self.dv], device=m.device)
-        wp.launch(ik.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.contact_values, self.dv, self.contact_b, -1.0, 1.0], outputs=[self.contact_Az], device=m.device)
+        wp.launch(lk.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.contact_values, self.dv, self.contact_b, -1.0, 1.0], outputs=[self.contact_Az], device=m.device)
         wp.launch(ik.apply_contact_friction, dim=m.particle_count,
                   inputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v, self.contact_Az, v, m.particle_mass, self.contact_values, self.diag_block, self.contact_friction_impulse],
                   outputs=[self.dv, self.contact_impulse], device=m.device)
@@ -375,21 +376,21 @@ class ImplicitEuler(Integrator):
         every step with the full Jacobian, only when h or the drag change with the approximation."""
         m = self.model
         if self.jacobian == "full":
-            wp.launch(ik.eval_spring_jacobians, dim=m.spring_count, inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
+            wp.launch(sk.eval_spring_jacobians, dim=m.spring_count, inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
         elif self._assembled_for == (h, drag):
             return
         else:
-            wp.launch(ik.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
+            wp.launch(sk.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
             self._assembled_for = (h, drag)
         if self._bsr:
             wp.launch(
-                ik.assemble_system_rows, dim=m.particle_count,
+                sk.assemble_system_rows, dim=m.particle_count,
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.adjacency_block, self.row_offsets, self.diag_block, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.A.values, self.inv_diag], device=m.device,
             )
         if self.matrix == "free":
             wp.launch(
-                ik.eval_system_diagonal, dim=m.particle_count,
+                sk.eval_system_diagonal, dim=m.particle_count,
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.mass_term, self.inv_diag], device=m.device,
             )
@@ -407,10 +408,10 @@ class ImplicitEuler(Integrator):
         if self.preconditioner_used == "multigrid":
             self.multigrid.update()
         elif self.preconditioner_used == "block_jacobi" and filtered:
-            wp.launch(ik.invert_diagonal_blocks, dim=m.particle_count, inputs=[self.A.values, self.diag_block], outputs=[self.inv_block], device=m.device)
+            wp.launch(lk.invert_diagonal_blocks, dim=m.particle_count, inputs=[self.A.values, self.diag_block], outputs=[self.inv_block], device=m.device)
         elif self.preconditioner_used == "block_jacobi":
             wp.launch(
-                ik.eval_inverse_diagonal_blocks, dim=m.particle_count,
+                sk.eval_inverse_diagonal_blocks, dim=m.particle_count,
                 inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.inv_block], device=m.device,
             )
@@ -420,13 +421,13 @@ class ImplicitEuler(Integrator):
         product per stored block, read in storage order; warp.sparse.bsr_mv computes the same
         row by row of scalars."""
         m = self.model
-        wp.launch(ik.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.A.values, x, y, float(alpha), float(beta)], outputs=[z], device=m.device)
+        wp.launch(lk.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.A.values, x, y, float(alpha), float(beta)], outputs=[z], device=m.device)
 
     def _matvec(self, x, y, z, alpha, beta) -> None:
         """z = alpha A x + beta y without assembling A (the LinearOperator's matvec)."""
         m = self.model
         wp.launch(
-            ik.apply_system_matrix, dim=m.particle_count,
+            sk.apply_system_matrix, dim=m.particle_count,
             inputs=[x, y, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, self.mass_term, m.particle_inv_mass, float(alpha), float(beta)],
             outputs=[z], device=m.device,
         )
@@ -434,7 +435,7 @@ class ImplicitEuler(Integrator):
     def _apply_block_jacobi(self, x, y, z, alpha, beta) -> None:
         """z = alpha P x + beta y with P = blockdiag(A_ii^-1) (the block-Jacobi LinearOperator)."""
         m = self.model
-        wp.launch(ik.apply_block_diagonal, dim=m.particle_count, inputs=[x, y, self.inv_block, float(alpha), float(beta)], outputs=[z], device=m.device)
+        wp.launch(lk.apply_block_diagonal, dim=m.particle_count, inputs=[x, y, self.inv_block, float(alpha), float(beta)], outputs=[z], device=m.device)
 
     def _solve(self) -> None:
         """dv = A^-1 b by Jacobi-preconditioned CG from the previous dv; records iterations and

@@ -30,10 +30,9 @@ from typing import ClassVar
 import numpy as np
 import warp as wp
 
-from warpcloth.kernels import integrate as ik
+from warpcloth.kernels import increment as nk
+from warpcloth.kernels import linalg as lk
 from warpcloth.kernels import projective as pk
-from warpcloth.kernels import vbd as vk
-from warpcloth.kernels.vbd import update_from_increment
 
 from warpcloth.sim.coloring import particle_adjacency
 from warpcloth.integrators.forces import eval_external_forces
@@ -99,7 +98,7 @@ class Projective(Integrator):
         x, v, f = state.particle_q, state.particle_qd, state.particle_f
         self.assemble(h)
         eval_external_forces(m, x, v, control, f)
-        wp.launch(ik.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
+        wp.launch(nk.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
         if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x: known, enters the residual
             control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
         contacts = contact_arguments(control, h)
@@ -111,10 +110,10 @@ class Projective(Integrator):
             if contacts is not None:
                 self.solve_contacts(x, h, contacts)
         if contacts is not None:
-            wp.launch(vk.update_from_increment_contact, dim=m.particle_count,
+            wp.launch(nk.update_from_increment_contact, dim=m.particle_count,
                       inputs=[x, v, self.dx, m.particle_inv_mass, h, self.contact_normal, self.contact_velocity], device=m.device)
         else:
-            wp.launch(update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
+            wp.launch(nk.update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
         apply_pins(control, x, v, h)  # kinematic pins: x = track(t + h), v = track'(t + h)
 
     def solve_contacts(self, x, h: float, contacts) -> None:
@@ -167,8 +166,8 @@ class Projective(Integrator):
     def _reduce(self, out, k: int) -> None:
         """out[k] = sum of dot_terms, in a fixed order (deterministic on every device)."""
         d = self.model.device
-        wp.launch(pk.sum_chunks, dim=self.dot_partial.shape[0], inputs=[self.dot_terms, self.dot_chunk, self.model.particle_count], outputs=[self.dot_partial], device=d)
-        wp.launch(pk.sum_partials, dim=1, inputs=[self.dot_partial, k], outputs=[out], device=d)
+        wp.launch(lk.sum_chunks, dim=self.dot_partial.shape[0], inputs=[self.dot_terms, self.dot_chunk, self.model.particle_count], outputs=[self.dot_partial], device=d)
+        wp.launch(lk.sum_partials, dim=1, inputs=[self.dot_partial, k], outputs=[out], device=d)
 
     def global_matrix(self):
         """S as a SciPy CSR matrix (host copy; for tests and diagnostics, not for stepping)."""

@@ -45,7 +45,7 @@ from typing import ClassVar
 import warp as wp
 
 from warpcloth.kernels import collide as ck
-from warpcloth.kernels import integrate as ik
+from warpcloth.kernels import increment as nk
 from warpcloth.kernels import vbd as vk
 
 from warpcloth.sim.coloring import VertexColoring, color_vertices, particle_adjacency
@@ -151,7 +151,7 @@ class VBD(Integrator):
         m, h = self.model, float(dt)
         x, v, f = state.particle_q, state.particle_qd, state.particle_f
         eval_external_forces(m, x, v, control, f)
-        wp.launch(ik.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
+        wp.launch(nk.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
         if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x, held through the sweeps
             control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
         contacts = contact_arguments(control, h)
@@ -169,13 +169,13 @@ class VBD(Integrator):
             if accelerate:
                 wp.launch(vk.apply_chebyshev, dim=m.particle_count, inputs=[omega], outputs=[self.dx, self.dx_prev1, self.dx_prev2], device=m.device)
                 if contacts is not None:  # the extrapolation may reach into a collider
-                    wp.launch(vk.project_increments, dim=m.particle_count, inputs=[x, m.particle_inv_mass, *contacts, h],
+                    wp.launch(nk.project_increments, dim=m.particle_count, inputs=[x, m.particle_inv_mass, *contacts, h],
                               outputs=[self.dx, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device)
         if contacts is not None:
-            wp.launch(vk.update_from_increment_contact, dim=m.particle_count,
+            wp.launch(nk.update_from_increment_contact, dim=m.particle_count,
                       inputs=[x, v, self.dx, m.particle_inv_mass, h, self.contact_normal, self.contact_velocity], device=m.device)
         else:
-            wp.launch(vk.update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
+            wp.launch(nk.update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
         apply_pins(control, x, v, h)  # kinematic pins: x = track(t + h), v = track'(t + h)
 
     def coarse_correction(self, x, h: float, contacts=None) -> None:
