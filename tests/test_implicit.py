@@ -164,7 +164,7 @@ def test_assembled_bsr_matrix_times_vector_equals_dense_numpy_product(jacobian):
     integ, m = sim.integrator, sim.model
     h, drag = 1.0 / 60.0, float(sim.control.drag_rate)
     assert drag > 0.0  # the drag Jacobian is part of what is checked
-    integ._assemble(sim.state.particle_q, h, drag)
+    integ.system.assemble(sim.state.particle_q, h, drag)
     A_ref, _ = dense_system(m, x, v, h, drag, jacobian)
     y = np.random.default_rng(1).normal(size=(m.particle_count, 3))
     Ay = wps.bsr_mv(integ.A, wp.array(y.astype(np.float32), dtype=wp.vec3)).numpy().ravel()
@@ -180,7 +180,7 @@ def test_matrix_free_operator_equals_dense_numpy_product(jacobian):
     sim, x, v = perturbed_sheet(integrator_options={"matrix": "free", "jacobian": jacobian})
     integ, m = sim.integrator, sim.model
     h, drag = 1.0 / 30.0, float(sim.control.drag_rate)
-    integ._assemble(sim.state.particle_q, h, drag)
+    integ.system.assemble(sim.state.particle_q, h, drag)
     A_ref, _ = dense_system(m, x, v, h, drag, jacobian)
     rng = np.random.default_rng(2)
     y, w = rng.normal(size=(2, m.particle_count, 3))
@@ -193,7 +193,7 @@ def test_matrix_free_operator_equals_dense_numpy_product(jacobian):
 def test_jacobi_diagonal_is_the_inverse_diagonal_of_A():
     sim, x, v = perturbed_sheet(integrator_options={"matrix": "bsr"})
     integ = sim.integrator
-    integ._assemble(sim.state.particle_q, 1.0 / 60.0, float(sim.control.drag_rate))
+    integ.system.assemble(sim.state.particle_q, 1.0 / 60.0, float(sim.control.drag_rate))
     np.testing.assert_allclose(integ.inv_diag.numpy().ravel(), 1.0 / np.diag(bsr_to_dense(integ.A)), rtol=1e-6)
     # the same operator as Warp's preconditioner(A, "diag")
     y = wp.array(np.random.default_rng(3).normal(size=(sim.model.particle_count, 3)).astype(np.float32), dtype=wp.vec3)

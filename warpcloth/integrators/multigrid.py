@@ -16,7 +16,7 @@ definite linear operator, so it is a valid preconditioner for CG.
 
 Cost on the CPU: a V-cycle at 128^2 is ~35 small launches. With ``warp.sparse.bsr_mv`` (scalar
 rows) and Python launches it took 128 ms of bsr_mv kernels and ~880 launches per implicit step
-(one profiling run); with :func:`~warpcloth.kernels.implicit.block_gemv` and the V-cycle captured
+(one profiling run); with :func:`~warpcloth.kernels.linalg.block_gemv` and the V-cycle captured
 once and replayed (``wp.capture_launch``, Warp >= 1.19 on the CPU) the whole step took 89 ms
 instead of 423 ms in the same profiling script.
 """
@@ -142,7 +142,7 @@ class GridMultigrid:
     Call :meth:`update` after A's values change (each step), then :meth:`apply` (the
     LinearOperator's matvec) as often as CG needs. All arrays are allocated here.
 
-    Every level applies its operator with :func:`~warpcloth.kernels.implicit.block_gemv` (a CSR
+    Every level applies its operator with :func:`~warpcloth.kernels.linalg.block_gemv` (a CSR
     of 3 x 3 blocks read from the BSR values in their storage order) and the grid transfers with
     scalar weights (P's blocks are w I); a smoothing sweep computes its residual in the same
     kernel. On the CPU (Warp >= 1.19) the launches of a V-cycle and of :meth:`update` are captured
