@@ -60,6 +60,16 @@ class Collider:
     moving: int  # 1: on a track (velocity, omega, origin set by eval_collider_pose); 0: static, v_c = 0
 
 
+@wp.struct
+class Colliders:
+    """A control's colliders as one kernel argument (the solvers that hold contacts themselves): no
+    colliders is an empty ``records``."""
+
+    records: wp.array(dtype=Collider)  # every collider's record, planes first
+    box: wp.array(dtype=wp.vec3)  # [min, max] around the non-plane colliders (eval_collider_bounds)
+    plane_count: int  # planes at the front of records
+
+
 @wp.func(inline=True)
 def plane_contact(x: wp.vec3, point: wp.vec3, normal: wp.vec3):
     # phi = (x - p).n, outward normal n

@@ -14,6 +14,7 @@ import warp as wp
 
 from warpcloth.kernels.collide import Collider, collider_contact, surface_velocity
 from warpcloth.kernels.linalg import inverse_diagonal
+from warpcloth.kernels.springs import SpringAdjacency
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
@@ -23,9 +24,7 @@ wp.set_module_options({"enable_backward": False})
 def eval_rhs(
     f: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
-    adjacency_other: wp.array(dtype=int),
+    springs: SpringAdjacency,
     spring_K: wp.array(dtype=wp.mat33),
     particle_inv_mass: wp.array(dtype=float),
     h: float,
@@ -38,8 +37,8 @@ def eval_rhs(
         return
     vi = v[i]
     kv = wp.vec3(0.0)
-    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-        kv = kv + spring_K[adjacency_spring[a]] * (v[adjacency_other[a]] - vi)
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        kv = kv + spring_K[springs.spring[a]] * (v[springs.other[a]] - vi)
     b[i] = h * (f[i] + h * kv)
 
 

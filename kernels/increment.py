@@ -11,11 +11,31 @@ x_j - x_i and dx_j - dx_i apart, never x + dx.
 
 import warp as wp
 
-from warpcloth.kernels.collide import Collider, contact_band, in_box, plane_contact, shape_contact, surface_velocity
-from warpcloth.kernels.springs import spring_gradient_hessian
+from warpcloth.kernels.collide import (Collider, Colliders, contact_band, in_box, plane_contact, shape_contact,
+                                      surface_velocity)
+from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
+
+
+@wp.struct
+class Inertia:
+    """The inertial term m / (2 h^2) |dx - dy|^2 of a step's potential: filled once at bind."""
+
+    dy: wp.array(dtype=wp.vec3)  # the inertial target y - x = h v + h^2 f_ext / m [m], shape (particle_count,)
+    mass: wp.array(dtype=float)  # particle mass [kg]
+    inv_mass: wp.array(dtype=float)  # 1 / mass [1/kg]; 0: pinned (its dx is prescribed)
+
+
+@wp.struct
+class ContactState:
+    """Per particle, what the last contact pass of an increment solve found: filled once at bind."""
+
+    normal: wp.array(dtype=wp.vec3)  # the contact's normal (0: none)
+    velocity: wp.array(dtype=wp.vec3)  # the collider's velocity there [m/s]
+    force: wp.array(dtype=wp.vec3)  # the colliders' force on the vertex in its local problem [N]
+    state: wp.array(dtype=int)  # 0 free, 1 sliding, 2 sticking
 
 
 @wp.kernel
@@ -40,22 +60,20 @@ def predict_inertia(
 
 
 @wp.func
-def vertex_gradient_hessian(
-    i: int, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), dy: wp.array(dtype=wp.vec3), particle_mass: wp.array(dtype=float),
-    adjacency_offsets: wp.array(dtype=int), adjacency_spring: wp.array(dtype=int), adjacency_other: wp.array(dtype=int),
-    spring_rest_length: wp.array(dtype=float), spring_stiffness: wp.array(dtype=float), spring_damping: wp.array(dtype=float), h: float,
-):
+def vertex_gradient_hessian(i: int, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), inertia: Inertia,
+                            springs: SpringAdjacency, h: float):
     # vertex i's local problem with its neighbours fixed: the gradient g = m / h^2 (dx_i - dy_i) -
     # sum f and Hessian H = m / h^2 I + sum K of the step's potential at its increment dx_i
     xi = x[i]
     dxi = dx[i]
-    inertia = particle_mass[i] / (h * h)
-    g = inertia * (dxi - dy[i])
-    H = inertia * wp.identity(n=3, dtype=float)
-    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-        s = adjacency_spring[a]
-        j = adjacency_other[a]
-        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, spring_rest_length[s], spring_stiffness[s], spring_damping[s], h)
+    mh2 = inertia.mass[i] / (h * h)
+    g = mh2 * (dxi - inertia.dy[i])
+    H = mh2 * wp.identity(n=3, dtype=float)
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        s = springs.spring[a]
+        j = springs.other[a]
+        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s],
+                                       springs.damping[s], h)
         g = g - f
         H = H + K
     return g, H
@@ -104,8 +122,7 @@ def contact_response(colliders: wp.array(dtype=Collider), k: int, p: wp.vec3, d:
 
 
 @wp.func
-def project_increment(xi: wp.vec3, d: wp.vec3, colliders: wp.array(dtype=Collider), box: wp.array(dtype=wp.vec3), plane_count: int, h: float,
-                      H: wp.mat33, Hinv: wp.mat33):
+def project_increment(xi: wp.vec3, d: wp.vec3, colliders: Colliders, h: float, H: wp.mat33, Hinv: wp.mat33):
     # x_i + d out of every collider with friction (contact_response, the vertex's local Hessian H):
     # planes first, the others when x_i + d is in the box around them (as kernels.collide's
     # responses); returns d, the last contact's normal (0: none), its collider velocity, the
@@ -114,20 +131,21 @@ def project_increment(xi: wp.vec3, d: wp.vec3, colliders: wp.array(dtype=Collide
     velocity = wp.vec3(0.0)
     force = wp.vec3(0.0)
     state = int(0)
-    for k in range(plane_count):
+    records = colliders.records
+    for k in range(colliders.plane_count):
         p = xi + d
-        phi, n = plane_contact(p, colliders[k].a, colliders[k].b)
-        d, hit, vc, c = contact_response(colliders, k, p, d, phi, n, h, H, Hinv)
+        phi, n = plane_contact(p, records[k].a, records[k].b)
+        d, hit, vc, c = contact_response(records, k, p, d, phi, n, h, H, Hinv)
         if hit != 0:
             normal = n
             velocity = vc
             force = force + c
             state = hit
-    if in_box(xi + d, box):
-        for k in range(plane_count, colliders.shape[0]):
+    if in_box(xi + d, colliders.box):
+        for k in range(colliders.plane_count, records.shape[0]):
             p = xi + d
-            phi, n = shape_contact(colliders, k, p, contact_band(colliders, k))
-            d, hit, vc, c = contact_response(colliders, k, p, d, phi, n, h, H, Hinv)
+            phi, n = shape_contact(records, k, p, contact_band(records, k))
+            d, hit, vc, c = contact_response(records, k, p, d, phi, n, h, H, Hinv)
             if hit != 0:
                 normal = n
                 velocity = vc
@@ -140,15 +158,10 @@ def project_increment(xi: wp.vec3, d: wp.vec3, colliders: wp.array(dtype=Collide
 def project_increments(
     x: wp.array(dtype=wp.vec3),
     particle_inv_mass: wp.array(dtype=float),
-    colliders: wp.array(dtype=Collider),
-    box: wp.array(dtype=wp.vec3),
-    plane_count: int,
+    colliders: Colliders,
     h: float,
     dx: wp.array(dtype=wp.vec3),
-    contact_normal: wp.array(dtype=wp.vec3),
-    contact_velocity: wp.array(dtype=wp.vec3),
-    contact_force: wp.array(dtype=wp.vec3),
-    contact_state: wp.array(dtype=int),
+    contact: ContactState,
 ):
     # every free particle's x + dx out of the colliders with friction (after a Chebyshev extrapolation,
     # or projective dynamics' global step), its contact's normal (0: none) and collider velocity
@@ -157,12 +170,12 @@ def project_increments(
     if particle_inv_mass[i] == 0.0:
         return
     eye = wp.identity(n=3, dtype=float)
-    d, n, vc, c, state = project_increment(x[i], dx[i], colliders, box, plane_count, h, eye, eye)
+    d, n, vc, c, state = project_increment(x[i], dx[i], colliders, h, eye, eye)
     dx[i] = d
-    contact_normal[i] = n
-    contact_velocity[i] = vc
-    contact_force[i] = c
-    contact_state[i] = state
+    contact.normal[i] = n
+    contact.velocity[i] = vc
+    contact.force[i] = c
+    contact.state[i] = state
 
 
 @wp.kernel
@@ -189,8 +202,7 @@ def update_from_increment_contact(
     dx: wp.array(dtype=wp.vec3),
     particle_inv_mass: wp.array(dtype=float),
     h: float,
-    contact_normal: wp.array(dtype=wp.vec3),
-    contact_velocity: wp.array(dtype=wp.vec3),
+    contact: ContactState,
 ):
     # v = dx / h ;  x += dx, and a particle the last solve held on a collider leaves with no normal
     # velocity relative to it ((v - v_c).n = 0: dx / h rounds it by ~ulp(x) / h, which at small h
@@ -200,8 +212,8 @@ def update_from_increment_contact(
         return
     d = dx[i]
     vi = d / h
-    n = contact_normal[i]
+    n = contact.normal[i]
     if wp.dot(n, n) > 0.0:
-        vi = vi - wp.dot(vi - contact_velocity[i], n) * n
+        vi = vi - wp.dot(vi - contact.velocity[i], n) * n
     v[i] = vi
     x[i] = x[i] + d

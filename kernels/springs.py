@@ -9,6 +9,20 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 
+@wp.struct
+class SpringAdjacency:
+    """Each particle's springs, grouped by particle (CSR), with the springs' parameters: filled once
+    at bind. Particle i's entries are offsets[i]:offsets[i + 1]; entry a is spring spring[a], whose
+    other particle is other[a]."""
+
+    offsets: wp.array(dtype=int)  # shape (particle_count + 1,)
+    spring: wp.array(dtype=int)  # the spring of each entry, shape (2 spring_count,)
+    other: wp.array(dtype=int)  # the spring's other particle, shape (2 spring_count,)
+    rest_length: wp.array(dtype=float)  # L0 per spring [m], shape (spring_count,)
+    stiffness: wp.array(dtype=float)  # ks per spring [N/m]
+    damping: wp.array(dtype=float)  # kd per spring [N s/m]
+
+
 @wp.func
 def spring_force(xi: wp.vec3, xj: wp.vec3, vi: wp.vec3, vj: wp.vec3, rest: float, ks: float, kd: float):
     # f_i = ks (L - L0) n + kd ((v_j - v_i) . n) n,  n = (x_j - x_i) / L   (seed eq. 2.7-2.8)

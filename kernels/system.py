@@ -17,7 +17,7 @@ particle -> (spring, neighbour, block) adjacency built once at bind: no atomics.
 import warp as wp
 
 from warpcloth.kernels.linalg import inverse_block, inverse_diagonal
-from warpcloth.kernels.springs import spring_damping_block, spring_stiffness_block
+from warpcloth.kernels.springs import SpringAdjacency, spring_damping_block, spring_stiffness_block
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
@@ -61,9 +61,7 @@ def eval_spring_jacobians_approx(
 
 @wp.kernel
 def assemble_system_rows(
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
-    adjacency_other: wp.array(dtype=int),
+    springs: SpringAdjacency,
     adjacency_block: wp.array(dtype=int),
     row_offsets: wp.array(dtype=int),
     diag_block: wp.array(dtype=int),
@@ -85,10 +83,10 @@ def assemble_system_rows(
         inv_diag[i] = wp.vec3(1.0)
         return
     diag = (particle_mass[i] * (1.0 + h * drag_rate)) * wp.identity(n=3, dtype=float)
-    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-        block = spring_B[adjacency_spring[a]]
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        block = spring_B[springs.spring[a]]
         diag = diag + block
-        if particle_inv_mass[adjacency_other[a]] != 0.0:
+        if particle_inv_mass[springs.other[a]] != 0.0:
             b = adjacency_block[a]
             values[b] = values[b] - block
     values[diag_block[i]] = diag
@@ -97,8 +95,7 @@ def assemble_system_rows(
 
 @wp.kernel
 def eval_system_diagonal(
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
+    springs: SpringAdjacency,
     spring_B: wp.array(dtype=wp.mat33),
     particle_mass: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
@@ -115,16 +112,15 @@ def eval_system_diagonal(
         return
     md = particle_mass[i] * (1.0 + h * drag_rate)
     diag = md * wp.identity(n=3, dtype=float)
-    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-        diag = diag + spring_B[adjacency_spring[a]]
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        diag = diag + spring_B[springs.spring[a]]
     mass_term[i] = md
     inv_diag[i] = inverse_diagonal(diag)
 
 
 @wp.kernel
 def eval_inverse_diagonal_blocks(
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
+    springs: SpringAdjacency,
     spring_B: wp.array(dtype=wp.mat33),
     particle_mass: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
@@ -138,8 +134,8 @@ def eval_inverse_diagonal_blocks(
         inv_block[i] = wp.identity(n=3, dtype=float)
         return
     diag = (particle_mass[i] * (1.0 + h * drag_rate)) * wp.identity(n=3, dtype=float)
-    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-        diag = diag + spring_B[adjacency_spring[a]]
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        diag = diag + spring_B[springs.spring[a]]
     inv_block[i] = inverse_block(diag)
 
 
@@ -147,9 +143,7 @@ def eval_inverse_diagonal_blocks(
 def apply_system_matrix(
     x: wp.array(dtype=wp.vec3),
     y: wp.array(dtype=wp.vec3),
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
-    adjacency_other: wp.array(dtype=int),
+    springs: SpringAdjacency,
     spring_B: wp.array(dtype=wp.mat33),
     mass_term: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
@@ -162,12 +156,12 @@ def apply_system_matrix(
     xi = x[i]
     ax = mass_term[i] * xi
     if particle_inv_mass[i] != 0.0:
-        for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-            j = adjacency_other[a]
+        for a in range(springs.offsets[i], springs.offsets[i + 1]):
+            j = springs.other[a]
             xj = wp.vec3(0.0)
             if particle_inv_mass[j] != 0.0:
                 xj = x[j]
-            ax = ax + spring_B[adjacency_spring[a]] * (xi - xj)
+            ax = ax + spring_B[springs.spring[a]] * (xi - xj)
     out = alpha * ax
     if beta != 0.0:
         out = out + beta * y[i]

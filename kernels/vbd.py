@@ -21,9 +21,10 @@ contact projection, the update from dx) are in :mod:`warpcloth.kernels.increment
 
 import warp as wp
 
-from warpcloth.kernels.collide import Collider
-from warpcloth.kernels.increment import newton_increment, project_increment, vertex_gradient_hessian
-from warpcloth.kernels.springs import spring_gradient_hessian
+from warpcloth.kernels.collide import Colliders
+from warpcloth.kernels.increment import (ContactState, Inertia, newton_increment, project_increment,
+                                        vertex_gradient_hessian)
+from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
@@ -34,66 +35,53 @@ def solve_vertices_vbd(
     order: wp.array(dtype=int),
     start: int,
     x: wp.array(dtype=wp.vec3),
-    dy: wp.array(dtype=wp.vec3),
-    particle_mass: wp.array(dtype=float),
-    particle_inv_mass: wp.array(dtype=float),
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
-    adjacency_other: wp.array(dtype=int),
-    spring_rest_length: wp.array(dtype=float),
-    spring_stiffness: wp.array(dtype=float),
-    spring_damping: wp.array(dtype=float),
+    inertia: Inertia,
+    springs: SpringAdjacency,
     h: float,
-    colliders: wp.array(dtype=Collider),
-    box: wp.array(dtype=wp.vec3),
-    plane_count: int,
+    colliders: Colliders,
     dx: wp.array(dtype=wp.vec3),
-    contact_normal: wp.array(dtype=wp.vec3),
-    contact_velocity: wp.array(dtype=wp.vec3),
-    contact_force: wp.array(dtype=wp.vec3),
-    contact_state: wp.array(dtype=int),
+    contact: ContactState,
 ):
     # one colour: dx_i <- dx_i - H_i^-1 g_i  (module docstring), then out of the colliders with
-    # friction (project_increment; no colliders: an empty array), the contact's normal (0: none)
+    # friction (project_increment; no colliders: empty records), the contact's normal (0: none)
     # and collider velocity kept; pinned particles stay
     i = order[start + wp.tid()]
-    if particle_inv_mass[i] == 0.0:
+    if inertia.inv_mass[i] == 0.0:
         return
     xi = x[i]
     dxi = dx[i]
-    g, H = vertex_gradient_hessian(i, x, dx, dy, particle_mass, adjacency_offsets, adjacency_spring, adjacency_other,
-                                   spring_rest_length, spring_stiffness, spring_damping, h)
+    g, H = vertex_gradient_hessian(i, x, dx, inertia, springs, h)
     d = dxi + newton_increment(g, H)
-    if colliders.shape[0] > 0:
+    if colliders.records.shape[0] > 0:
         Hinv = wp.mat33(0.0)
         if wp.abs(wp.determinant(H)) >= 1.0e-30:
             Hinv = wp.inverse(H)
-        d, n, vc, c, state = project_increment(xi, d, colliders, box, plane_count, h, H, Hinv)
-        contact_normal[i] = n
-        contact_velocity[i] = vc
-        contact_force[i] = c
-        contact_state[i] = state
+        d, n, vc, c, state = project_increment(xi, d, colliders, h, H, Hinv)
+        contact.normal[i] = n
+        contact.velocity[i] = vc
+        contact.force[i] = c
+        contact.state[i] = state
     dx[i] = d
 
 
 @wp.kernel
-def add_contact_forces(contact_state: wp.array(dtype=int), contact_force: wp.array(dtype=wp.vec3), h: float, r: wp.array(dtype=wp.vec3)):
+def add_contact_forces(contact: ContactState, h: float, r: wp.array(dtype=wp.vec3)):
     # the multigrid residual where the last sweep held a contact: r = 0 (the collider holds it: a
     # correction must neither pull it in nor slide it along). Measured on the 16 x 16 drape: with
     # only r's inward normal part removed it slid off the sphere (the correction moved the contacts by
     # the tangential force friction holds); adding a sliding contact's collider force (h^2 c, normal
     # and kinetic friction) instead of zeroing it, it settled 1.8 cm off centre; with r = 0 at 7.0 s,
-    # 5 mm off. (contact_force and h: kept for that variant's signature)
+    # 5 mm off. (h: kept for that variant, with contact.force)
     i = wp.tid()
-    if contact_state[i] != 0:
+    if contact.state[i] != 0:
         r[i] = wp.vec3(0.0)
 
 
 @wp.kernel
-def mask_contact_normal(contact_normal: wp.array(dtype=wp.vec3), r: wp.array(dtype=wp.vec3)):
+def mask_contact_normal(contact: ContactState, r: wp.array(dtype=wp.vec3)):
     # r's component into a collider removed where the last sweep held a contact
     i = wp.tid()
-    n = contact_normal[i]
+    n = contact.normal[i]
     rn = wp.dot(r[i], n)
     if rn < 0.0:
         r[i] = r[i] - rn * n
@@ -120,33 +108,27 @@ def apply_chebyshev(omega: float, dx: wp.array(dtype=wp.vec3), prev1: wp.array(d
 @wp.kernel
 def eval_increment_residual(
     x: wp.array(dtype=wp.vec3),
-    dy: wp.array(dtype=wp.vec3),
     dx: wp.array(dtype=wp.vec3),
-    particle_mass: wp.array(dtype=float),
-    particle_inv_mass: wp.array(dtype=float),
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
-    adjacency_other: wp.array(dtype=int),
-    spring_rest_length: wp.array(dtype=float),
-    spring_stiffness: wp.array(dtype=float),
-    spring_damping: wp.array(dtype=float),
+    inertia: Inertia,
+    springs: SpringAdjacency,
     h: float,
     r: wp.array(dtype=wp.vec3),
 ):
     # r_i = -h^2 g_i = m_i (dy_i - dx_i) + h^2 sum_s f_s  (the whole potential's negative gradient, times h^2);  pinned: 0
     i = wp.tid()
-    if particle_inv_mass[i] == 0.0:
+    if inertia.inv_mass[i] == 0.0:
         r[i] = wp.vec3(0.0)
         return
     xi = x[i]
     dxi = dx[i]
     force = wp.vec3(0.0)
-    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-        s = adjacency_spring[a]
-        j = adjacency_other[a]
-        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, spring_rest_length[s], spring_stiffness[s], spring_damping[s], h)
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        s = springs.spring[a]
+        j = springs.other[a]
+        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s],
+                                       springs.damping[s], h)
         force = force + f
-    r[i] = particle_mass[i] * (dy[i] - dxi) + (h * h) * force
+    r[i] = inertia.mass[i] * (inertia.dy[i] - dxi) + (h * h) * force
 
 
 @wp.kernel

@@ -194,7 +194,8 @@ KERNEL_SCHEMES = ("implicit", "vbd", "projective", "constraints", "integrate", "
 def cross_scheme_imports(edge_list, package: str, schemes) -> list[str]:
     """``package.<scheme>`` modules that import another ``package.<scheme>`` module."""
     names = {f"{package}.{s}" for s in schemes}
-    return list(dict.fromkeys(f"{m}:{line} imports {t}" for m, t, _, line in edge_list if m in names and t in names and t != m))
+    found = (f"{m}:{line} imports {t}" for m, t, _, line in edge_list if m in names and t in names and t != m)
+    return list(dict.fromkeys(found))
 
 
 def test_kernel_scheme_files_import_only_shared_kernel_files():
@@ -205,10 +206,13 @@ def test_kernel_scheme_files_import_only_shared_kernel_files():
 def test_the_scheme_check_sees_a_kernel_scheme_importing_another(tmp_path):
     """Negative control: vbd borrowing implicit's function is found; a shared file is not."""
     bad = tmp_path / "vbd.py"
-    bad.write_text("from warpcloth.kernels.implicit import eval_rhs\nfrom warpcloth.kernels.springs import spring_force\n")
+    bad.write_text("from warpcloth.kernels.implicit import eval_rhs\n"
+                   "from warpcloth.kernels.springs import spring_force\n")
     mods = modules()
-    found = [("warpcloth.kernels.vbd", resolve(t, mods), top, line) for t, top, line in imports("warpcloth.kernels.vbd", bad, mods)]
-    assert cross_scheme_imports(found, "warpcloth.kernels", KERNEL_SCHEMES) == ["warpcloth.kernels.vbd:1 imports warpcloth.kernels.implicit"]
+    found = [("warpcloth.kernels.vbd", resolve(t, mods), top, line)
+             for t, top, line in imports("warpcloth.kernels.vbd", bad, mods)]
+    assert cross_scheme_imports(found, "warpcloth.kernels", KERNEL_SCHEMES) == [
+        "warpcloth.kernels.vbd:1 imports warpcloth.kernels.implicit"]
 
 
 #: Integrator modules of one scheme each, with the kernel scheme files each may use; the other

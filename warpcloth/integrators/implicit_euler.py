@@ -181,10 +181,12 @@ class ImplicitEuler(Integrator):
         eval_forces(m, x, v, control, f)
         s = self.system
         s.assemble(x, h, float(control.drag_rate))
-        wp.launch(ik.eval_rhs, dim=m.particle_count, inputs=[f, v, s.adjacency_offsets, s.adjacency_spring, s.adjacency_other, s.spring_K, m.particle_inv_mass, h], outputs=[self.b], device=m.device)
+        wp.launch(ik.eval_rhs, dim=m.particle_count, inputs=[f, v, s.springs, s.spring_K, m.particle_inv_mass, h], outputs=[self.b],
+                  device=m.device)
         if has_pin_tracks(control):  # pinned dv = (track(t + h) - x)/h - v, moved to the free rows' right side
             control.kinematic_pins.delta(control, x, v, h, 1.0 / h, 1.0, self.pin_dv)
-            wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[s.adjacency_offsets, s.adjacency_spring, s.adjacency_other, s.spring_B, m.particle_inv_mass, self.pin_dv], outputs=[self.b], device=m.device)
+            wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[s.springs, s.spring_B, m.particle_inv_mass, self.pin_dv],
+                      outputs=[self.b], device=m.device)
         contacts = self.matrix == "bsr" and control.collision is not None and len(control.collision.colliders) > 0
         if contacts:
             self._filter_contacts(control, x, v, f, h)

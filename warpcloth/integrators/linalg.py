@@ -30,7 +30,8 @@ class OrderedSum:
     def sum_into(self, out, k: int) -> None:
         """out[k] = sum of :attr:`terms` (device launches only)."""
         d = self.device
-        wp.launch(lk.sum_chunks, dim=self.partial.shape[0], inputs=[self.terms, self.chunk, self.count], outputs=[self.partial], device=d)
+        wp.launch(lk.sum_chunks, dim=self.partial.shape[0], inputs=[self.terms, self.chunk, self.count], outputs=[self.partial],
+                  device=d)
         wp.launch(lk.sum_partials, dim=1, inputs=[self.partial, k], outputs=[out], device=d)
 
 
@@ -83,7 +84,8 @@ class DevicePCG:
         for _ in range(count):
             self.apply_A(self.p, self.q, self.q, 1.0, 0.0)
             self._dot(self.p, self.q, 2)
-            wp.launch(lk.cg_update_solution, dim=n, inputs=[s, self.p, self.q], outputs=[self.x, self.r, self.sums.terms], device=d)
+            wp.launch(lk.cg_update_solution, dim=n, inputs=[s, self.p, self.q], outputs=[self.x, self.r, self.sums.terms],
+                      device=d)
             self._dot(None, None, 3)
             wp.launch(lk.cg_count, dim=1, inputs=[self.max_iter, s], device=d)
             self.apply_M(self.r, self.z, self.z, 1.0, 0.0)

@@ -52,7 +52,7 @@ class Projective(IncrementSolver):
 
     def _allocate_solver(self, model) -> None:
         n = model.particle_count
-        offsets, other = self.adjacency_offsets.numpy(), self.adjacency_other.numpy()
+        offsets, other = self.springs.offsets.numpy(), self.springs.other.numpy()
         # CSR of S: row i = [diagonal, one entry per adjacent spring (neighbour order)]
         row_offsets = offsets + np.arange(n + 1, dtype=np.int32)
         columns = np.empty(int(row_offsets[-1]), dtype=np.int32)
@@ -92,12 +92,8 @@ class Projective(IncrementSolver):
         held particles' constrained local Newton step, the others out of the colliders; the new
         contact set is held in the next global step."""
         m = self.model
-        wp.launch(
-            pk.solve_contacts, dim=m.particle_count,
-            inputs=[x, self.dx, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, h, *contacts],
-            outputs=[self.Ap, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device,
-        )
+        wp.launch(pk.solve_contacts, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, h, contacts],
+                  outputs=[self.Ap, self.contact], device=m.device)
         wp.copy(self.dx, self.Ap)
 
     def assemble(self, h: float) -> None:
@@ -107,7 +103,7 @@ class Projective(IncrementSolver):
             return
         wp.launch(
             pk.assemble_global_matrix, dim=m.particle_count,
-            inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, m.spring_stiffness, m.spring_damping, m.particle_mass, m.particle_inv_mass, h],
+            inputs=[self.springs, m.particle_mass, m.particle_inv_mass, h],
             outputs=[self.values, self.inv_diag], device=m.device,
         )
         self._assembled_for = h
@@ -117,8 +113,7 @@ class Projective(IncrementSolver):
         m = self.model
         wp.launch(
             pk.eval_local_residual, dim=m.particle_count,
-            inputs=[x, self.dx, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, self.inv_diag, h, self.contact_state, self.contact_force],
+            inputs=[x, self.dx, self.inertia, self.springs, self.inv_diag, h, self.contact],
             outputs=[self.r, self.z, self.p, self.dot.terms], device=m.device,
         )
         self._reduce(self.rz, 0)
@@ -127,9 +122,11 @@ class Projective(IncrementSolver):
         """dx += S^-1 r by pd_cg_iterations of Jacobi-preconditioned CG from 0."""
         m, n = self.model, self.model.particle_count
         for k in range(self.pd_cg_iterations):
-            wp.launch(pk.csr_matvec_dot, dim=n, inputs=[self.row_offsets, self.columns, self.values, self.p], outputs=[self.Ap, self.dot.terms], device=m.device)
+            wp.launch(pk.csr_matvec_dot, dim=n, inputs=[self.row_offsets, self.columns, self.values, self.p],
+                      outputs=[self.Ap, self.dot.terms], device=m.device)
             self._reduce(self.pAp, k)
-            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k, self.contact_state], outputs=[self.dx, self.r, self.z, self.dot.terms], device=m.device)
+            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k, self.contact_state],
+                      outputs=[self.dx, self.r, self.z, self.dot.terms], device=m.device)
             self._reduce(self.rz, k + 1)
             if k + 1 < self.pd_cg_iterations:
                 wp.launch(pk.cg_update_direction, dim=n, inputs=[self.z, self.rz, k], outputs=[self.p], device=m.device)

@@ -27,7 +27,7 @@ from warp.optim.linear import LinearOperator, aslinearoperator
 from warpcloth.kernels import linalg as lk
 from warpcloth.kernels import system as sk
 
-from warpcloth.sim.coloring import particle_adjacency
+from warpcloth.integrators.base import spring_adjacency
 from warpcloth.integrators.multigrid import GridMultigrid
 
 JACOBIANS = ("full", "approx")
@@ -83,14 +83,11 @@ class ImplicitSystem:
         else:
             self.A = None
 
-        # particle -> (spring, neighbour, block (particle, neighbour)) adjacency, grouped by particle
-        adjacency_offsets, adjacency_spring, adjacency_other = particle_adjacency(pairs, n)
-        self.adjacency_offsets = wp.array(adjacency_offsets, dtype=int)
-        self.adjacency_spring = wp.array(adjacency_spring, dtype=int)
-        self.adjacency_other = wp.array(adjacency_other, dtype=int)
-        if self.bsr:  # where each adjacency entry and each diagonal block sits in A.values
-            ends = np.repeat(np.arange(n), np.diff(adjacency_offsets))
-            self.adjacency_block = wp.array(block_of(ends, adjacency_other), dtype=int)
+        #: Each particle's springs (the row kernels' gather; :class:`~warpcloth.kernels.springs.SpringAdjacency`).
+        self.springs = spring_adjacency(model)
+        if self.bsr:  # where each adjacency entry (particle, neighbour) and each diagonal block sits in A.values
+            ends = np.repeat(np.arange(n), np.diff(self.springs.offsets.numpy()))
+            self.adjacency_block = wp.array(block_of(ends, self.springs.other.numpy()), dtype=int)
             self.row_offsets = wp.array(offsets.astype(np.int32), dtype=int)
             self.block_columns = wp.array(columns.astype(np.int32), dtype=int)
             self.diag_block = wp.array(block_of(np.arange(n), np.arange(n)), dtype=int)
@@ -130,13 +127,13 @@ class ImplicitSystem:
         if self.bsr:
             wp.launch(
                 sk.assemble_system_rows, dim=m.particle_count,
-                inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.adjacency_block, self.row_offsets, self.diag_block, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
+                inputs=[self.springs, self.adjacency_block, self.row_offsets, self.diag_block, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.A.values, self.inv_diag], device=m.device,
             )
         if self.matrix == "free":
             wp.launch(
                 sk.eval_system_diagonal, dim=m.particle_count,
-                inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
+                inputs=[self.springs, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.mass_term, self.inv_diag], device=m.device,
             )
 
@@ -151,7 +148,7 @@ class ImplicitSystem:
         elif self.preconditioner == "block_jacobi":
             wp.launch(
                 sk.eval_inverse_diagonal_blocks, dim=m.particle_count,
-                inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
+                inputs=[self.springs, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
                 outputs=[self.inv_block], device=m.device,
             )
 
@@ -168,7 +165,7 @@ class ImplicitSystem:
         m = self.model
         wp.launch(
             sk.apply_system_matrix, dim=m.particle_count,
-            inputs=[x, y, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, self.mass_term, m.particle_inv_mass, float(alpha), float(beta)],
+            inputs=[x, y, self.springs, self.spring_B, self.mass_term, m.particle_inv_mass, float(alpha), float(beta)],
             outputs=[z], device=m.device,
         )
 

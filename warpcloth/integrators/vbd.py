@@ -43,7 +43,6 @@ from typing import ClassVar
 
 import warp as wp
 
-from warpcloth.kernels import collide as ck
 from warpcloth.kernels import increment as nk
 from warpcloth.kernels import vbd as vk
 
@@ -106,8 +105,6 @@ class VBD(IncrementSolver):
         self.vertex_order = wp.array(self.coloring.order, dtype=int)
         self.dx_prev1, self.dx_prev2 = scratch_like(model, 2)  # the Chebyshev history
         self._sweep_key, self._sweep = None, []
-        self.no_colliders = wp.zeros(0, dtype=ck.Collider)
-        self.no_box = wp.zeros(2, dtype=wp.vec3)
         self.hessian = None
         if self.vbd_multigrid_every > 0 and grid_structure_reason(model) is None:
             # h^2 times the potential's Hessian is implicit Euler's A = M + h D + h^2 K (drag aside)
@@ -136,41 +133,37 @@ class VBD(IncrementSolver):
             if accelerate:
                 wp.launch(vk.apply_chebyshev, dim=m.particle_count, inputs=[omega], outputs=[self.dx, self.dx_prev1, self.dx_prev2], device=m.device)
                 if contacts is not None:  # the extrapolation may reach into a collider
-                    wp.launch(nk.project_increments, dim=m.particle_count, inputs=[x, m.particle_inv_mass, *contacts, h],
-                              outputs=[self.dx, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device)
+                    wp.launch(nk.project_increments, dim=m.particle_count, inputs=[x, m.particle_inv_mass, contacts, h],
+                              outputs=[self.dx, self.contact], device=m.device)
         self.finish(state, control, h, contacts)
 
     def coarse_correction(self, x, h: float, contacts=None) -> None:
         """dx += V(r): r = -h^2 grad G at dx, V one multigrid V-cycle of A = h^2 Hessian."""
         m = self.model
-        wp.launch(
-            vk.eval_increment_residual, dim=m.particle_count,
-            inputs=[x, self.dy, self.dx, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, h],
-            outputs=[self.residual], device=m.device,
-        )
+        wp.launch(vk.eval_increment_residual, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, h],
+                  outputs=[self.residual], device=m.device)
         if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
-            wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact_state, self.contact_force, h], outputs=[self.residual], device=m.device)
+            wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact, h], outputs=[self.residual],
+                      device=m.device)
         self.hessian.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
         if contacts is not None:
-            wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact_normal], outputs=[self.delta], device=m.device)
+            wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact], outputs=[self.delta],
+                      device=m.device)
         wp.launch(vk.add_increment, dim=m.particle_count, inputs=[self.delta], outputs=[self.dx], device=m.device)
 
     def color_sweep(self, x, h: float, contacts=None) -> list:
-        """One Gauss-Seidel sweep: a recorded launch of the local Newton kernel per colour,
-        rebuilt only when the positions array, h or the colliders change (cuts the Python cost
-        of colours x iterations launches)."""
-        contacts = contacts if contacts is not None else [self.no_colliders, self.no_box, 0]
-        key = (x.ptr, h, contacts[0].ptr, contacts[1].ptr, contacts[2])
+        """One Gauss-Seidel sweep: a recorded launch of the local Newton kernel per colour
+        (``contacts``: the colliders' struct, or None), rebuilt only when the positions array, h or
+        the colliders change (cuts the Python cost of colours x iterations launches; a recorded
+        launch keeps the struct arguments' values of its recording)."""
+        colliders = contacts if contacts is not None else self.no_colliders
+        key = (x.ptr, h, colliders.records.ptr, colliders.box.ptr, colliders.plane_count)
         if key != self._sweep_key:
             m = self.model
-            params = [
-                x, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                m.spring_rest_length, m.spring_stiffness, m.spring_damping, h, *contacts,
-            ]
             self._sweep = [
-                wp.launch(vk.solve_vertices_vbd, dim=count, inputs=[self.vertex_order, start, *params],
-                          outputs=[self.dx, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device, record_cmd=True)
+                wp.launch(vk.solve_vertices_vbd, dim=count,
+                          inputs=[self.vertex_order, start, x, self.inertia, self.springs, h, colliders],
+                          outputs=[self.dx, self.contact], device=m.device, record_cmd=True)
                 for start, count in zip(self.coloring.starts, self.coloring.counts)
             ]
             self._sweep_key = key
