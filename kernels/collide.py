@@ -87,14 +87,6 @@ def sphere_contact(x: wp.vec3, center: wp.vec3, radius: float):
 
 
 @wp.func(inline=True)
-def capsule_contact(x: wp.vec3, a: wp.vec3, b: wp.vec3, radius: float):
-    # phi = |x - q| - r, q the closest point of the segment ab
-    ab = b - a
-    t = wp.clamp(wp.dot(x - a, ab) / wp.max(wp.dot(ab, ab), 1.0e-20), 0.0, 1.0)
-    return sphere_contact(x, a + t * ab, radius)
-
-
-@wp.func(inline=True)
 def box_contact(x: wp.vec3, center: wp.vec3, rotation: wp.mat33, half: wp.vec3):
     # signed distance of an oriented box (p = R^T (x - c)); n the gradient (the nearest face's normal inside)
     p = wp.transpose(rotation) * (x - center)

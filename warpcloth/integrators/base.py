@@ -75,9 +75,6 @@ class Integrator:
 
     name: ClassVar[str] = ""
     force_evals_per_step: ClassVar[int] = 1
-    #: True when a step is pure kernel launches with no host synchronisation, so a frame of
-    #: steps can be captured with ``wp.ScopedCapture`` and replayed.
-    graph_capturable: ClassVar[bool] = True
     #: True for integrators that evaluate spring forces (Provot deformation constraints apply).
     force_based: ClassVar[bool] = True
     #: True when the integrator projects collision constraints inside its own solver loop; else
@@ -118,8 +115,9 @@ class Integrator:
         return self
 
     def capturable_on(self, device) -> bool:
-        """Whether a step on ``device`` can be captured (default :attr:`graph_capturable`)."""
-        return self.graph_capturable
+        """Whether a step on ``device`` can be captured with ``wp.ScopedCapture`` and replayed: True
+        where a step is kernel launches only, with no host synchronisation (override where not)."""
+        return True
 
     def _allocate(self, model) -> None:
         """Allocate scratch arrays (override)."""
