@@ -24,6 +24,11 @@ from warpcloth.sim.pins import apply_pins, has_pin_tracks
 from warpcloth.integrators.base import Integrator, scratch_like, spring_adjacency
 
 
+def at_least_one(value) -> str | None:
+    """The check of an iteration-count option (:class:`~warpcloth.integrators.base.Option`)."""
+    return None if value >= 1 else "must be an integer >= 1"
+
+
 class IncrementSolver(Integrator):
     """Base of :class:`~warpcloth.integrators.vbd.VBD` and
     :class:`~warpcloth.integrators.projective.Projective`.
@@ -112,4 +117,4 @@ class IncrementSolver(Integrator):
         apply_pins(control, x, v, h)
 
 
-__all__ = ["IncrementSolver"]
+__all__ = ["IncrementSolver", "at_least_one"]

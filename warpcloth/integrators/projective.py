@@ -33,12 +33,8 @@ import warp as wp
 from warpcloth.kernels import projective as pk
 
 from warpcloth.integrators.base import Option, scratch_like
-from warpcloth.integrators.increment import IncrementSolver
+from warpcloth.integrators.increment import IncrementSolver, at_least_one
 from warpcloth.integrators.linalg import OrderedSum
-
-
-def _at_least_one(value) -> str | None:
-    return None if value >= 1 else "must be an integer >= 1"
 
 
 class Projective(IncrementSolver):
@@ -46,8 +42,8 @@ class Projective(IncrementSolver):
 
     name: ClassVar[str] = "projective"
     options = (
-        Option("pd_iterations", int, 10, "local/global iterations per time step (>= 1)", check=_at_least_one),
-        Option("pd_cg_iterations", int, 10, "Jacobi-preconditioned CG iterations per global solve, fixed (>= 1)", check=_at_least_one),
+        Option("pd_iterations", int, 10, "local/global iterations per time step (>= 1)", check=at_least_one),
+        Option("pd_cg_iterations", int, 10, "Jacobi-preconditioned CG iterations per global solve, fixed (>= 1)", check=at_least_one),
     )
 
     def _allocate_solver(self, model) -> None:

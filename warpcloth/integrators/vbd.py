@@ -48,13 +48,9 @@ from warpcloth.kernels import vbd as vk
 
 from warpcloth.sim.coloring import VertexColoring, color_vertices
 from warpcloth.integrators.base import Option, scratch_like
-from warpcloth.integrators.increment import IncrementSolver
+from warpcloth.integrators.increment import IncrementSolver, at_least_one
 from warpcloth.integrators.multigrid import grid_structure_reason
 from warpcloth.integrators.system import ImplicitSystem
-
-
-def _at_least_one(value) -> str | None:
-    return None if value >= 1 else "must be an integer >= 1"
 
 
 def _spectral_radius(value) -> str | None:
@@ -85,7 +81,7 @@ class VBD(IncrementSolver):
         # within 0.5 % of the float64 equilibrium after 0.5 s and the 128 x 128 flag stable for 3 s
         # with 3 or 5 (docs/solvers.md). Sweeps alone (vbd_multigrid_every 0) need 20 on the 64 x 64
         # flag and still leave the 128 x 128 sheet's sag -68 % off after 10 s.
-        Option("vbd_iterations", int, 4, "VBD iterations (sweeps over every vertex colour) per time step (>= 1)", check=_at_least_one),
+        Option("vbd_iterations", int, 4, "VBD iterations (sweeps over every vertex colour) per time step (>= 1)", check=at_least_one),
         Option(
             "vbd_multigrid_every", int, 1,
             "grid models: a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; other models: never)",
