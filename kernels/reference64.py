@@ -14,16 +14,19 @@ wp.set_module_options({"enable_backward": False})
 @wp.struct
 class Cloth64:
     # per particle: mass [kg], 1 where the particle does not move (pinned), and the CSR slices
-    # of its springs (spring_offsets[i] .. spring_offsets[i+1]) and of its triangles
+    # of its springs (spring_offsets[i] .. spring_offsets[i+1]: spring_slot = s where i is the
+    # spring's first particle, -1 - s where it is the second) and of its triangles; per spring:
+    # its particles, L0 [m], ks [N/m], kd [N s/m]
     mass: wp.array(dtype=wp.float64)
     pinned: wp.array(dtype=wp.int32)
     spring_offsets: wp.array(dtype=wp.int32)
-    spring_other: wp.array(dtype=wp.int32)
+    spring_slot: wp.array(dtype=wp.int32)
+    tri_offsets: wp.array(dtype=wp.int32)
+    tri_slot: wp.array(dtype=wp.int32)
+    springs: wp.array(dtype=wp.vec2i)
     spring_rest: wp.array(dtype=wp.float64)
     spring_ks: wp.array(dtype=wp.float64)
     spring_kd: wp.array(dtype=wp.float64)
-    tri_offsets: wp.array(dtype=wp.int32)
-    tri_slot: wp.array(dtype=wp.int32)
     tris: wp.array(dtype=wp.vec3i)
     gravity: wp.vec3d
     drag_rate: wp.float64
@@ -53,20 +56,37 @@ def wind_force64(xa: wp.vec3d, xb: wp.vec3d, xc: wp.vec3d, v_mean: wp.vec3d, win
     return coefficient * wp.float64(0.5) * twice_area * wp.dot(n, wind - v_mean) * n
 
 
+@wp.kernel
+def spring_forces64(cloth: Cloth64, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d)):
+    # f_spring[s] = the force on spring s's first particle (its second gets -f_spring[s])
+    s = wp.tid()
+    ij = cloth.springs[s]
+    f_spring[s] = spring_force64(x[ij[0]], x[ij[1]], v[ij[0]], v[ij[1]], cloth.spring_rest[s], cloth.spring_ks[s], cloth.spring_kd[s])
+
+
+@wp.kernel
+def wind_forces64(cloth: Cloth64, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d), wind: wp.vec3d, f_tri: wp.array(dtype=wp.vec3d)):
+    # f_tri[t] = a third of triangle t's wind force: what each of its vertices gets
+    t = wp.tid()
+    abc = cloth.tris[t]
+    v_mean = (v[abc[0]] + v[abc[1]] + v[abc[2]]) / wp.float64(3.0)
+    f_tri[t] = wind_force64(x[abc[0]], x[abc[1]], x[abc[2]], v_mean, wind, cloth.wind_coefficient) / wp.float64(3.0)
+
+
 @wp.func
-def acceleration64(cloth: Cloth64, i: int, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d), wind: wp.vec3d):
-    # a_i = (m g - m c v_i + sum of its springs + a third of each of its triangles' wind) / m
-    xi = x[i]
-    vi = v[i]
+def acceleration64(cloth: Cloth64, i: int, v: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d), f_tri: wp.array(dtype=wp.vec3d)):
+    # a_i = (m g - m c v_i + its springs' forces + its triangles' thirds) / m, summed in a fixed
+    # order (no atomics: the same bits on every device and every run)
     m = cloth.mass[i]
-    f = m * (cloth.gravity - cloth.drag_rate * vi)
+    f = m * (cloth.gravity - cloth.drag_rate * v[i])
     for a in range(cloth.spring_offsets[i], cloth.spring_offsets[i + 1]):
-        j = cloth.spring_other[a]
-        f = f + spring_force64(xi, x[j], vi, v[j], cloth.spring_rest[a], cloth.spring_ks[a], cloth.spring_kd[a])
+        e = cloth.spring_slot[a]
+        if e >= 0:
+            f = f + f_spring[e]
+        else:
+            f = f - f_spring[-1 - e]
     for a in range(cloth.tri_offsets[i], cloth.tri_offsets[i + 1]):
-        abc = cloth.tris[cloth.tri_slot[a]]
-        v_mean = (v[abc[0]] + v[abc[1]] + v[abc[2]]) / wp.float64(3.0)
-        f = f + wind_force64(x[abc[0]], x[abc[1]], x[abc[2]], v_mean, wind, cloth.wind_coefficient) / wp.float64(3.0)
+        f = f + f_tri[cloth.tri_slot[a]]
     return f / m
 
 
@@ -74,13 +94,13 @@ def acceleration64(cloth: Cloth64, i: int, x: wp.array(dtype=wp.vec3d), v: wp.ar
 def rk4_stage64(
     cloth: Cloth64,
     x0: wp.array(dtype=wp.vec3d), v0: wp.array(dtype=wp.vec3d),
-    xs: wp.array(dtype=wp.vec3d), vs: wp.array(dtype=wp.vec3d),
-    wind: wp.vec3d, h: wp.float64, weight: wp.float64, first: int,
+    vs: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d), f_tri: wp.array(dtype=wp.vec3d),
+    h: wp.float64, weight: wp.float64, first: int,
     pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
     acc_x: wp.array(dtype=wp.vec3d), acc_v: wp.array(dtype=wp.vec3d),
     x_out: wp.array(dtype=wp.vec3d), v_out: wp.array(dtype=wp.vec3d),
 ):
-    # k = (v_s, a(x_s, v_s)); acc (+)= weight k; (x, v)_out = (x0, v0) + h k; a pinned
+    # k = (v_s, a(x_s, v_s)) (f_spring, f_tri evaluated at (x_s, v_s)); acc (+)= weight k; (x, v)_out = (x0, v0) + h k; a pinned
     # particle takes its position and velocity at the next stage's time (pin_x, pin_v)
     i = wp.tid()
     if cloth.pinned[i] != 0:
@@ -88,7 +108,7 @@ def rk4_stage64(
         v_out[i] = pin_v[i]
         return
     kx = vs[i]
-    kv = acceleration64(cloth, i, xs, vs, wind)
+    kv = acceleration64(cloth, i, vs, f_spring, f_tri)
     if first != 0:
         acc_x[i] = weight * kx
         acc_v[i] = weight * kv
@@ -102,8 +122,7 @@ def rk4_stage64(
 @wp.kernel
 def rk4_final64(
     cloth: Cloth64,
-    xs: wp.array(dtype=wp.vec3d), vs: wp.array(dtype=wp.vec3d),
-    wind: wp.vec3d, h: wp.float64,
+    vs: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d), f_tri: wp.array(dtype=wp.vec3d), h: wp.float64,
     pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
     acc_x: wp.array(dtype=wp.vec3d), acc_v: wp.array(dtype=wp.vec3d),
     x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d),
@@ -115,7 +134,7 @@ def rk4_final64(
         x[i] = pin_x[i]
         v[i] = pin_v[i]
         return
-    kv = acceleration64(cloth, i, xs, vs, wind)
+    kv = acceleration64(cloth, i, vs, f_spring, f_tri)
     sixth = h / wp.float64(6.0)
     x[i] = x[i] + sixth * (acc_x[i] + vs[i])
     v[i] = v[i] + sixth * (acc_v[i] + kv)

@@ -24,9 +24,11 @@ keyframed pin track, so no RK4 step crosses a discontinuity of W(t) or of a trac
 no frame is stepped past; a piece of length l takes n = ceil(l / h_max) equal steps, the halving
 run 2n. ``h_max = safety x h_limit``, the linear stability limit of RK4 (:func:`stability_limit`).
 
-Forces are a gather per particle (each particle sums its own springs and triangles in a fixed
-order, no atomics), fused with the RK4 stage update: one kernel launch per stage, no host
-synchronisation inside the loop (frames are device-to-device copies), bit-reproducible.
+Per RK4 stage, one kernel evaluates every spring once (one more every triangle's wind, with
+wind), and one per particle gathers its springs' and triangles' forces in a fixed order (no
+atomics: bit-reproducible on every device) fused with the stage update. No host
+synchronisation inside the loop (frames are device-to-device copies; launches are recorded
+once and replayed).
 """
 
 from __future__ import annotations
@@ -182,24 +184,27 @@ class _Run:
             cloth = k.Cloth64()
             cloth.mass = wp.array(m64.mass, dtype=wp.float64)
             cloth.pinned = wp.array(pinned.astype(np.int32), dtype=wp.int32)
-            offsets, other, slot = _adjacency(np.concatenate([m64.pairs[:, 0], m64.pairs[:, 1]]), n,
-                                              np.concatenate([m64.pairs[:, 1], m64.pairs[:, 0]]))
-            spring = np.concatenate([np.arange(m64.pairs.shape[0])] * 2)[slot]
+            n_springs = m64.pairs.shape[0]
+            # particle i's slots: s where i is spring s's first particle, -1 - s where it is the second
+            offsets, slot = _adjacency(np.concatenate([m64.pairs[:, 0], m64.pairs[:, 1]]), n,
+                                       np.concatenate([np.arange(n_springs), -1 - np.arange(n_springs)]))
             cloth.spring_offsets = wp.array(offsets, dtype=wp.int32)
-            cloth.spring_other = wp.array(other, dtype=wp.int32)
-            cloth.spring_rest = wp.array(m64.rest[spring], dtype=wp.float64)
-            cloth.spring_ks = wp.array(m64.ks[spring], dtype=wp.float64)
-            cloth.spring_kd = wp.array(m64.kd[spring], dtype=wp.float64)
-            has_wind = m64.wind_on and m64.tris.shape[0] > 0
-            tris = m64.tris if has_wind else np.zeros((0, 3), dtype=np.int64)
-            t_idx = np.repeat(np.arange(tris.shape[0]), 3)
-            t_offsets, t_slot, _ = _adjacency(tris.reshape(-1), n, t_idx)
+            cloth.spring_slot = wp.array(slot, dtype=wp.int32)
+            cloth.springs = wp.array(m64.pairs.astype(np.int32), dtype=wp.vec2i)
+            cloth.spring_rest = wp.array(m64.rest, dtype=wp.float64)
+            cloth.spring_ks = wp.array(m64.ks, dtype=wp.float64)
+            cloth.spring_kd = wp.array(m64.kd, dtype=wp.float64)
+            self.has_wind = m64.wind_on and m64.tris.shape[0] > 0 and m64.wind_coefficient > 0
+            tris = m64.tris if self.has_wind else np.zeros((0, 3), dtype=np.int64)
+            t_offsets, t_slot = _adjacency(tris.reshape(-1), n, np.repeat(np.arange(tris.shape[0]), 3))
             cloth.tri_offsets = wp.array(t_offsets, dtype=wp.int32)
             cloth.tri_slot = wp.array(t_slot, dtype=wp.int32)
-            cloth.tris = wp.array(m64.tris.astype(np.int32).reshape(-1, 3), dtype=wp.vec3i)
+            cloth.tris = wp.array(tris.astype(np.int32).reshape(-1, 3), dtype=wp.vec3i)
+            self.f_spring = wp.zeros(n_springs, dtype=wp.vec3d)
+            self.f_tri = wp.zeros(tris.shape[0], dtype=wp.vec3d)
             cloth.gravity = wp.vec3d(*m64.gravity)
             cloth.drag_rate = wp.float64(m64.drag_rate)
-            cloth.wind_coefficient = wp.float64(m64.wind_coefficient if has_wind else 0.0)
+            cloth.wind_coefficient = wp.float64(m64.wind_coefficient if self.has_wind else 0.0)
             self.cloth = cloth
             self.x0 = wp.array(x0, dtype=wp.vec3d)
             self.v0 = wp.array(v0, dtype=wp.vec3d)
@@ -230,22 +235,27 @@ class _Run:
         return cmds
 
     def _record(self):
-        k, c = self.k, self.cloth
-        zero, one = wp.float64(0.0), wp.float64(1.0)
-        w = wp.vec3d(0.0, 0.0, 0.0)
+        """Per stage: the springs' forces, the triangles' wind (with wind), the particle update."""
+        k, c, dev = self.k, self.cloth, self.device
+        zero, w = wp.float64(0.0), wp.vec3d(0.0, 0.0, 0.0)
+
+        def forces(xs, vs):
+            cmds = [wp.launch(k.spring_forces64, dim=c.springs.shape[0], inputs=[c, xs, vs], outputs=[self.f_spring], device=dev, record_cmd=True)]
+            if self.has_wind:
+                cmds.append(wp.launch(k.wind_forces64, dim=c.tris.shape[0], inputs=[c, xs, vs, w], outputs=[self.f_tri], device=dev, record_cmd=True))
+            return cmds
 
         def stage(xs, vs, weight, first, pins, x_out, v_out):
-            return wp.launch(k.rk4_stage64, dim=self.n, inputs=[c, self.x, self.v, xs, vs, w, zero, wp.float64(weight), first, *pins],
-                             outputs=[self.acc_x, self.acc_v, x_out, v_out], device=self.device, record_cmd=True)
+            return forces(xs, vs) + [wp.launch(k.rk4_stage64, dim=self.n, inputs=[c, self.x, self.v, vs, self.f_spring, self.f_tri, zero, wp.float64(weight), first, *pins],
+                                               outputs=[self.acc_x, self.acc_v, x_out, v_out], device=dev, record_cmd=True)]
 
-        cmds = [
+        return [
             stage(self.x, self.v, 1.0, 1, self.pin_half, self.xa, self.va),   # k1 -> s + h/2 k1
             stage(self.xa, self.va, 2.0, 0, self.pin_half, self.xb, self.vb),  # k2 -> s + h/2 k2
             stage(self.xb, self.vb, 2.0, 0, self.pin_full, self.xa, self.va),  # k3 -> s + h k3
-            wp.launch(k.rk4_final64, dim=self.n, inputs=[c, self.xa, self.va, w, one, *self.pin_full, self.acc_x, self.acc_v],
-                      outputs=[self.x, self.v], device=self.device, record_cmd=True),
+            forces(self.xa, self.va) + [wp.launch(k.rk4_final64, dim=self.n, inputs=[c, self.va, self.f_spring, self.f_tri, zero, *self.pin_full, self.acc_x, self.acc_v],
+                                                  outputs=[self.x, self.v], device=dev, record_cmd=True)],
         ]
-        return cmds
 
     def _pins_at(self, t_half: float, t_full: float) -> None:
         for half, full in self.tracks:
@@ -262,34 +272,32 @@ class _Run:
             self._pins_at(0.0, 0.0)
             wp.launch(self.k.take_pins64, dim=self.n, inputs=[self.cloth.pinned, *self.pin_full], outputs=[self.x, self.v], device=self.device)
         wp.copy(self.frames, self.x, dest_offset=0, count=self.n)
-        stage1, stage2, stage3, final = self.cmds
+        stages = self.cmds
         for piece, n in zip(pieces, counts):
             h = (piece.end - piece.start) / n
             wind = wp.vec3d(*piece.wind)
-            for cmd, hh in ((stage1, 0.5 * h), (stage2, 0.5 * h), (stage3, h)):
-                cmd.set_param_by_name("wind", wind)
-                cmd.set_param_by_name("h", wp.float64(hh))
-            final.set_param_by_name("wind", wind)
-            final.set_param_by_name("h", wp.float64(h))
+            for cmds, hh in zip(stages, (0.5 * h, 0.5 * h, h, h)):
+                cmds[-1].set_param_by_name("h", wp.float64(hh))
+                if self.has_wind:
+                    cmds[1].set_param_by_name("wind", wind)
+            launches = [cmd.launch for cmds in stages for cmd in cmds]
             for step in range(n):
                 if self.tracks:
                     t = piece.start + step * h
                     self._pins_at(t + 0.5 * h, piece.end if step == n - 1 else piece.start + (step + 1) * h)
-                stage1.launch()
-                stage2.launch()
-                stage3.launch()
-                final.launch()
+                for launch in launches:
+                    launch()
             if piece.frame >= 0:
                 wp.copy(self.frames, self.x, dest_offset=piece.frame * self.n, count=self.n)
         return self.frames.numpy().reshape(-1, self.n, 3).copy()  # a copy: on the CPU numpy() is a view of the buffer
 
 
 def _adjacency(owner: np.ndarray, n: int, payload: np.ndarray):
-    """CSR by owner: (offsets (n + 1,), payload sorted by owner (stable), the sorting order)."""
+    """CSR by owner: (offsets (n + 1,), payload sorted by owner, stably: in payload order)."""
     order = np.argsort(owner, kind="stable")
     offsets = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(owner, minlength=n), out=offsets[1:])
-    return offsets.astype(np.int32), payload[order].astype(np.int32), order
+    return offsets.astype(np.int32), payload[order].astype(np.int32)
 
 
 # -- the reference -----------------------------------------------------------------------------
