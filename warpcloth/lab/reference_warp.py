@@ -184,16 +184,22 @@ class _Run:
             cloth = k.Cloth64()
             cloth.mass = wp.array(m64.mass, dtype=wp.float64)
             cloth.pinned = wp.array(pinned.astype(np.int32), dtype=wp.int32)
-            n_springs = m64.pairs.shape[0]
-            # particle i's slots: s where i is spring s's first particle, -1 - s where it is the second
-            offsets, slot = _adjacency(np.concatenate([m64.pairs[:, 0], m64.pairs[:, 1]]), n,
+            # springs oriented first < second and sorted by (first, second), so that a particle's
+            # springs sit close together in f_spring (seen from its other end a spring's force is
+            # exactly the negative: reorienting changes no bit); particle i's slots: s where i is
+            # spring s's first particle, -1 - s where it is the second
+            lo, hi = m64.pairs.min(axis=1), m64.pairs.max(axis=1)
+            order = np.lexsort((hi, lo))
+            pairs = np.stack([lo, hi], axis=1)[order]
+            n_springs = pairs.shape[0]
+            offsets, slot = _adjacency(np.concatenate([pairs[:, 0], pairs[:, 1]]), n,
                                        np.concatenate([np.arange(n_springs), -1 - np.arange(n_springs)]))
             cloth.spring_offsets = wp.array(offsets, dtype=wp.int32)
             cloth.spring_slot = wp.array(slot, dtype=wp.int32)
-            cloth.springs = wp.array(m64.pairs.astype(np.int32), dtype=wp.vec2i)
-            cloth.spring_rest = wp.array(m64.rest, dtype=wp.float64)
-            cloth.spring_ks = wp.array(m64.ks, dtype=wp.float64)
-            cloth.spring_kd = wp.array(m64.kd, dtype=wp.float64)
+            cloth.springs = wp.array(pairs.astype(np.int32), dtype=wp.vec2i)
+            cloth.spring_rest = wp.array(m64.rest[order], dtype=wp.float64)
+            cloth.spring_ks = wp.array(m64.ks[order], dtype=wp.float64)
+            cloth.spring_kd = wp.array(m64.kd[order], dtype=wp.float64)
             self.has_wind = m64.wind_on and m64.tris.shape[0] > 0 and m64.wind_coefficient > 0
             tris = m64.tris if self.has_wind else np.zeros((0, 3), dtype=np.int64)
             t_offsets, t_slot = _adjacency(tris.reshape(-1), n, np.repeat(np.arange(tris.shape[0]), 3))
