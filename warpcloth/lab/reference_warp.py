@@ -347,7 +347,8 @@ def warp_reference(model, control=None, duration: float = 1.0, frame_dt: float =
     """The float64 RK4 reference trajectory of ``model`` under ``control`` (None: gravity only)
     from (``x0``, ``v0``) at t = 0 (default: the rest shape, at rest), sampled at t_k = k frame_dt.
 
-    RK4 at ``h = safety x`` :func:`stability_limit` (or at most ``dt`` when given), and at h/2; the
+    RK4 at ``h = safety x`` :func:`stability_limit` (or at ``dt`` when given, which replaces the
+    estimate: a step beyond the limit goes unstable and is halved), and at h/2; the
     halving estimate is max |x_h - x_{h/2}| over the frames and particles. Accepted when it is <=
     ``tolerance`` x cloth size; otherwise h is halved again (one more run each time), at most
     ``max_halvings`` times. ``parallel``: the first two runs in two threads (Warp's CPU kernels run
@@ -369,7 +370,7 @@ def warp_reference(model, control=None, duration: float = 1.0, frame_dt: float =
     size = cloth_size(model)
     t_start = time.perf_counter()
     limit = stability_limit(m64, x)
-    h_max = min(safety * limit.dt, dt if dt is not None else math.inf)
+    h_max = safety * limit.dt if dt is None else dt
     pieces = _pieces(m64, tracks, duration, frames, frame_dt)
     base = [max(1, math.ceil((p.end - p.start) / h_max * (1.0 - 1e-12))) for p in pieces]
 
