@@ -29,7 +29,8 @@ def top_row_swing(n: int, device: str):
 
     scenario = replace(sheet.SCENARIO, pins=lambda rows, cols: list(range(cols)))
     sim = scenario.build(rows=n, cols=n, device=device)
-    x0 = np.asarray(swing_from_horizontal(sim.model), dtype=np.float32).astype(np.float64)  # as AccuracyProblem: float32-exact
+    # float32-exact, as AccuracyProblem starts it
+    x0 = np.asarray(swing_from_horizontal(sim.model), dtype=np.float32).astype(np.float64)
     return sim, x0
 
 
@@ -65,10 +66,13 @@ def main() -> None:
             for level in levels:
                 t0 = time.perf_counter()
                 out[level] = run.run(pieces, [b << level for b in base])
-                print(f"{n}x{n} level {level}: {sum(base) << level} steps, {time.perf_counter() - t0:.1f} s", flush=True)
+                wall = time.perf_counter() - t0
+                print(f"{n}x{n} level {level}: {sum(base) << level} steps, {wall:.1f} s", flush=True)
             for lo, hi in zip(levels[:-1], levels[1:]):
                 per = np.linalg.norm(out[lo] - out[hi], axis=-1).max(axis=1) / size
-                print(f"  |x_{lo} - x_{hi}| / size every 6 frames: " + " ".join(f"{v:.2g}" for v in per[::6]) + f"; max {per.max():.3g} at frame {per.argmax()}")
+                every = " ".join(f"{v:.2g}" for v in per[::6])
+                print(f"  |x_{lo} - x_{hi}| / size every 6 frames: {every}; "
+                      f"max {per.max():.3g} at frame {per.argmax()}")
             continue
         options = {}
         if a.safety is not None:
@@ -76,12 +80,12 @@ def main() -> None:
         if a.max_halvings is not None:
             options["max_halvings"] = a.max_halvings
         t0 = time.perf_counter()
-        r = rw.warp_reference(sim.model, sim.control, a.duration, a.frame_dt, x0=x0, device=a.device, parallel=a.parallel,
-                              require_accepted=False, **options)
+        r = rw.warp_reference(sim.model, sim.control, a.duration, a.frame_dt, x0=x0, device=a.device,
+                              parallel=a.parallel, require_accepted=False, **options)
         wall = time.perf_counter() - t0
         s = r.stability
-        print(f"{n}x{n} swing {a.duration:g} s: omega {s.omega:.4g} rad/s (Gershgorin {s.omega_gershgorin:.4g}), gamma {s.gamma:.4g} 1/s, "
-              f"limit {s.dt:.3g} s; finest dt {r.dt:.3g} s, {r.steps} steps; estimates/size "
+        print(f"{n}x{n} swing {a.duration:g} s: omega {s.omega:.4g} rad/s (Gershgorin {s.omega_gershgorin:.4g}), "
+              f"gamma {s.gamma:.4g} 1/s, limit {s.dt:.3g} s; finest dt {r.dt:.3g} s, {r.steps} steps; estimates/size "
               + ", ".join(f"{e:.3g}" for e in r.estimates) + f"; accepted {r.accepted}; wall {wall:.1f} s", flush=True)
 
 

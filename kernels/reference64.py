@@ -34,7 +34,8 @@ class Cloth64:
 
 
 @wp.func
-def spring_force64(xi: wp.vec3d, xj: wp.vec3d, vi: wp.vec3d, vj: wp.vec3d, rest: wp.float64, ks: wp.float64, kd: wp.float64):
+def spring_force64(xi: wp.vec3d, xj: wp.vec3d, vi: wp.vec3d, vj: wp.vec3d,
+                   rest: wp.float64, ks: wp.float64, kd: wp.float64):
     # f_i = ks (L - L0) n + kd ((v_j - v_i) . n) n,  n = (x_j - x_i) / L; seen from j the same
     # expression gives exactly -f_i (d, n and the dot product change sign exactly)
     d = xj - xi
@@ -46,7 +47,8 @@ def spring_force64(xi: wp.vec3d, xj: wp.vec3d, vi: wp.vec3d, vj: wp.vec3d, rest:
 
 
 @wp.func
-def wind_force64(xa: wp.vec3d, xb: wp.vec3d, xc: wp.vec3d, v_mean: wp.vec3d, wind: wp.vec3d, coefficient: wp.float64):
+def wind_force64(xa: wp.vec3d, xb: wp.vec3d, xc: wp.vec3d, v_mean: wp.vec3d, wind: wp.vec3d,
+                 coefficient: wp.float64):
     # f = c_w A (n . u) n,  u = W - v_mean, on the whole triangle
     c = wp.cross(xb - xa, xc - xa)
     twice_area = wp.length(c)
@@ -57,24 +59,29 @@ def wind_force64(xa: wp.vec3d, xb: wp.vec3d, xc: wp.vec3d, v_mean: wp.vec3d, win
 
 
 @wp.kernel
-def spring_forces64(cloth: Cloth64, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d)):
+def eval_springs64(cloth: Cloth64, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d),
+                   f_spring: wp.array(dtype=wp.vec3d)):
     # f_spring[s] = the force on spring s's first particle (its second gets -f_spring[s])
     s = wp.tid()
     ij = cloth.springs[s]
-    f_spring[s] = spring_force64(x[ij[0]], x[ij[1]], v[ij[0]], v[ij[1]], cloth.spring_rest[s], cloth.spring_ks[s], cloth.spring_kd[s])
+    f_spring[s] = spring_force64(x[ij[0]], x[ij[1]], v[ij[0]], v[ij[1]],
+                                 cloth.spring_rest[s], cloth.spring_ks[s], cloth.spring_kd[s])
 
 
 @wp.kernel
-def wind_forces64(cloth: Cloth64, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d), wind: wp.vec3d, f_tri: wp.array(dtype=wp.vec3d)):
+def eval_wind64(cloth: Cloth64, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d), wind: wp.vec3d,
+                f_tri: wp.array(dtype=wp.vec3d)):
     # f_tri[t] = a third of triangle t's wind force: what each of its vertices gets
     t = wp.tid()
     abc = cloth.tris[t]
     v_mean = (v[abc[0]] + v[abc[1]] + v[abc[2]]) / wp.float64(3.0)
-    f_tri[t] = wind_force64(x[abc[0]], x[abc[1]], x[abc[2]], v_mean, wind, cloth.wind_coefficient) / wp.float64(3.0)
+    f = wind_force64(x[abc[0]], x[abc[1]], x[abc[2]], v_mean, wind, cloth.wind_coefficient)
+    f_tri[t] = f / wp.float64(3.0)
 
 
 @wp.func
-def acceleration64(cloth: Cloth64, i: int, v: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d), f_tri: wp.array(dtype=wp.vec3d)):
+def acceleration64(cloth: Cloth64, i: int, v: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d),
+                   f_tri: wp.array(dtype=wp.vec3d)):
     # a_i = (m g - m c v_i + its springs' forces + its triangles' thirds) / m, summed in a fixed
     # order (no atomics: the same bits on every device and every run)
     m = cloth.mass[i]
@@ -91,7 +98,7 @@ def acceleration64(cloth: Cloth64, i: int, v: wp.array(dtype=wp.vec3d), f_spring
 
 
 @wp.kernel
-def rk4_stage64(
+def integrate_rk4_stage64(
     cloth: Cloth64,
     x0: wp.array(dtype=wp.vec3d), v0: wp.array(dtype=wp.vec3d),
     vs: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d), f_tri: wp.array(dtype=wp.vec3d),
@@ -100,8 +107,9 @@ def rk4_stage64(
     acc_x: wp.array(dtype=wp.vec3d), acc_v: wp.array(dtype=wp.vec3d),
     x_out: wp.array(dtype=wp.vec3d), v_out: wp.array(dtype=wp.vec3d),
 ):
-    # k = (v_s, a(x_s, v_s)) (f_spring, f_tri evaluated at (x_s, v_s)); acc (+)= weight k; (x, v)_out = (x0, v0) + h k; a pinned
-    # particle takes its position and velocity at the next stage's time (pin_x, pin_v)
+    # k = (v_s, a(x_s, v_s)) (f_spring, f_tri evaluated at (x_s, v_s)); acc (+)= weight k;
+    # (x, v)_out = (x0, v0) + h k; a pinned particle takes its position and velocity at the
+    # next stage's time (pin_x, pin_v)
     i = wp.tid()
     if cloth.pinned[i] != 0:
         x_out[i] = pin_x[i]
@@ -120,9 +128,10 @@ def rk4_stage64(
 
 
 @wp.kernel
-def rk4_final64(
+def integrate_rk4_final64(
     cloth: Cloth64,
-    vs: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d), f_tri: wp.array(dtype=wp.vec3d), h: wp.float64,
+    vs: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d), f_tri: wp.array(dtype=wp.vec3d),
+    h: wp.float64,
     pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
     acc_x: wp.array(dtype=wp.vec3d), acc_v: wp.array(dtype=wp.vec3d),
     x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d),
@@ -141,7 +150,7 @@ def rk4_final64(
 
 
 @wp.kernel
-def pin_keyframes64(
+def eval_pin_keyframes64(
     t: wp.float64, particle: wp.array(dtype=int), times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d),
     tangents: wp.array(dtype=wp.vec3d), cubic: int, pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
 ):
@@ -153,7 +162,7 @@ def pin_keyframes64(
 
 
 @wp.kernel
-def pin_rigid64(
+def eval_pin_rigid64(
     t: wp.float64, particle: wp.array(dtype=int), rest: wp.array(dtype=wp.vec3d), center: wp.vec3d, axis: wp.vec3d,
     velocity: wp.vec3d, motion: wp.vec4d, pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
 ):
@@ -164,7 +173,7 @@ def pin_rigid64(
 
 
 @wp.kernel
-def take_pins64(pinned: wp.array(dtype=wp.int32), pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
+def apply_pins64(pinned: wp.array(dtype=wp.int32), pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
                 x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d)):
     # (x, v)_i = (pin_x, pin_v)_i for every pinned particle (a run starts with its tracks at t = 0)
     i = wp.tid()

@@ -31,7 +31,8 @@ def swing():
 
 def gusty_control():
     # switches at 0.105 s (between frames) and 0.2 s (a frame), then a period of 0.2 s; drag 0.5/s
-    return Control(drag_rate=0.5, wind_coefficient=0.6, wind_schedule=WindSchedule(starts=(0.0, 0.105), winds=(GUST, LULL), period=0.2))
+    schedule = WindSchedule(starts=(0.0, 0.105), winds=(GUST, LULL), period=0.2)
+    return Control(drag_rate=0.5, wind_coefficient=0.6, wind_schedule=schedule)
 
 
 # -- (a) agreement with DOP853 ---------------------------------------------------------------------
@@ -167,7 +168,8 @@ def test_bad_input_raises(swing, bad, match):
 
 def test_an_unconverged_reference_can_be_returned_flagged(swing):
     model, control, x0, _ = swing
-    r = rw.warp_reference(model, control, 0.05, SWING_FRAME, x0=x0, tolerance=1e-30, max_halvings=0, require_accepted=False)
+    r = rw.warp_reference(model, control, 0.05, SWING_FRAME, x0=x0, tolerance=1e-30, max_halvings=0,
+                          require_accepted=False)
     assert not r.accepted and len(r.estimates) == 1 and np.all(np.isfinite(r.frames))
 
 
@@ -190,7 +192,8 @@ def test_every_device_gives_the_cpu_trajectory(device):
     model = sim.model
     pins = list(model.pinned)
     control = gusty_control()
-    control.pin_tracks = (PinTrack.rigid(pins, center=(0.0, 2.0, 0.0), axis=(0.0, 0.0, 1.0), swing_amplitude=0.2, swing_frequency=2.0),)
+    track = PinTrack.rigid(pins, center=(0.0, 2.0, 0.0), axis=(0.0, 0.0, 1.0), swing_amplitude=0.2, swing_frequency=2.0)
+    control.pin_tracks = (track,)
     cpu = rw.warp_reference(model, control, 0.2, 1.0 / 60.0, device="cpu")
     other = rw.warp_reference(model, control, 0.2, 1.0 / 60.0, device=device)
     assert trajectory_error(other.frames, cpu.frames, cloth_size(model)) < 1e-12

@@ -94,11 +94,12 @@ def stability_limit(m64: Float64Model, x: np.ndarray) -> StabilityLimit:
     an overdamped one is real in [-c, 0], |lambda| <= gamma. So |lambda| <= rho = max(omega, gamma)
     in the left half-plane; k < 0 (a compressed spring's geometric term) gives a small positive
     real lambda, a physical instability that RK4 follows, not a step limit. RK4 is stable where
-    |h lambda| <= 2.61 in the left half-plane, hence ``dt = 2.61 / rho``. omega^2 and the spring part of gamma are the extreme eigenvalues of
-    M^-1/2 K M^-1/2 and M^-1/2 C M^-1/2 on the free degrees of freedom (SciPy ``eigsh``, Lanczos,
-    rtol 1e-4; a Rayleigh quotient from below, hence the safety factor and the halving run).
-    K changes along the trajectory (stretch adds ks (1 - L0/L) across each spring): the halving
-    check catches a step that turns unstable later (an unstable run is rejected and halved).
+    |h lambda| <= 2.61 in the left half-plane, hence ``dt = 2.61 / rho``. omega^2 and the spring
+    part of gamma are the extreme eigenvalues of M^-1/2 K M^-1/2 and M^-1/2 C M^-1/2 on the free
+    degrees of freedom (SciPy ``eigsh``, Lanczos, rtol 1e-4). K changes along the trajectory
+    (stretch adds ks (1 - L0/L) across each spring); on the top-row swing omega stays within 0.1 %
+    of its start value for 1 s (32x32, 64x64), and an unstable run is rejected by the halving check
+    anyway (a non-finite run's estimate is inf: h is halved).
     """
     from scipy.sparse.linalg import eigsh
 
@@ -131,7 +132,8 @@ def stability_limit(m64: Float64Model, x: np.ndarray) -> StabilityLimit:
         lengths = np.linalg.norm(x[j] - x[i], axis=1)
         if np.any(m64.kd > 0):  # kd n n^T: the stiffness matrix of springs ks = kd at their rest length
             gamma_springs = top(replace(m64, ks=m64.kd, rest=lengths).stiffness_matrix(x))
-        ks_sum = np.bincount(i, weights=m64.ks, minlength=m64.particle_count) + np.bincount(j, weights=m64.ks, minlength=m64.particle_count)
+        n = m64.particle_count
+        ks_sum = np.bincount(i, weights=m64.ks, minlength=n) + np.bincount(j, weights=m64.ks, minlength=n)
         omega_g = float(np.sqrt(np.max(2.0 * ks_sum[free] / m64.mass[free])))
     gamma = gamma_springs + drag + wind_gamma
     rho = max(omega, gamma)
@@ -229,14 +231,18 @@ class _Run:
         idx = np.asarray(track.particles, dtype=np.int64)
         particle = wp.array(idx.astype(np.int32), dtype=int)
         if track.kind == "rigid":
-            args = [particle, wp.array(rest[idx], dtype=wp.vec3d), wp.vec3d(*track.center), wp.vec3d(*track.axis), wp.vec3d(*track.velocity),
-                    wp.vec4d(track.angular_velocity, track.swing_amplitude, track.swing_frequency, track.swing_phase)]
-            kernel = self.k.pin_rigid64
+            motion = (track.angular_velocity, track.swing_amplitude, track.swing_frequency, track.swing_phase)
+            args = [particle, wp.array(rest[idx], dtype=wp.vec3d), wp.vec3d(*track.center), wp.vec3d(*track.axis),
+                    wp.vec3d(*track.velocity), wp.vec4d(*motion)]
+            kernel = self.k.eval_pin_rigid64
         else:
-            args = [particle, wp.array(track.times, dtype=wp.float64), wp.array(track.key_positions(rest).reshape(-1, 3), dtype=wp.vec3d),
-                    wp.array(track.key_tangents(rest).reshape(-1, 3), dtype=wp.vec3d), int(track.interpolation != "linear")]
-            kernel = self.k.pin_keyframes64
-        cmds = [wp.launch(kernel, dim=idx.size, inputs=[wp.float64(0.0), *args], outputs=[*pins], device=self.device, record_cmd=True)
+            args = [particle, wp.array(track.times, dtype=wp.float64),
+                    wp.array(track.key_positions(rest).reshape(-1, 3), dtype=wp.vec3d),
+                    wp.array(track.key_tangents(rest).reshape(-1, 3), dtype=wp.vec3d),
+                    int(track.interpolation != "linear")]
+            kernel = self.k.eval_pin_keyframes64
+        cmds = [wp.launch(kernel, dim=idx.size, inputs=[wp.float64(0.0), *args], outputs=[*pins], device=self.device,
+                          record_cmd=True)
                 for pins in (self.pin_half, self.pin_full)]
         return cmds
 
@@ -246,20 +252,26 @@ class _Run:
         zero, w = wp.float64(0.0), wp.vec3d(0.0, 0.0, 0.0)
 
         def forces(xs, vs):
-            cmds = [wp.launch(k.spring_forces64, dim=c.springs.shape[0], inputs=[c, xs, vs], outputs=[self.f_spring], device=dev, record_cmd=True)]
+            cmds = [wp.launch(k.eval_springs64, dim=c.springs.shape[0], inputs=[c, xs, vs], outputs=[self.f_spring],
+                              device=dev, record_cmd=True)]
             if self.has_wind:
-                cmds.append(wp.launch(k.wind_forces64, dim=c.tris.shape[0], inputs=[c, xs, vs, w], outputs=[self.f_tri], device=dev, record_cmd=True))
+                cmds.append(wp.launch(k.eval_wind64, dim=c.tris.shape[0], inputs=[c, xs, vs, w], outputs=[self.f_tri],
+                                      device=dev, record_cmd=True))
             return cmds
 
         def stage(xs, vs, weight, first, pins, x_out, v_out):
-            return forces(xs, vs) + [wp.launch(k.rk4_stage64, dim=self.n, inputs=[c, self.x, self.v, vs, self.f_spring, self.f_tri, zero, wp.float64(weight), first, *pins],
-                                               outputs=[self.acc_x, self.acc_v, x_out, v_out], device=dev, record_cmd=True)]
+            inputs = [c, self.x, self.v, vs, self.f_spring, self.f_tri, zero, wp.float64(weight), first, *pins]
+            outputs = [self.acc_x, self.acc_v, x_out, v_out]
+            return forces(xs, vs) + [wp.launch(k.integrate_rk4_stage64, dim=self.n, inputs=inputs, outputs=outputs,
+                                               device=dev, record_cmd=True)]
 
+        final = [c, self.va, self.f_spring, self.f_tri, zero, *self.pin_full, self.acc_x, self.acc_v]
         return [
             stage(self.x, self.v, 1.0, 1, self.pin_half, self.xa, self.va),   # k1 -> s + h/2 k1
             stage(self.xa, self.va, 2.0, 0, self.pin_half, self.xb, self.vb),  # k2 -> s + h/2 k2
             stage(self.xb, self.vb, 2.0, 0, self.pin_full, self.xa, self.va),  # k3 -> s + h k3
-            forces(self.xa, self.va) + [wp.launch(k.rk4_final64, dim=self.n, inputs=[c, self.va, self.f_spring, self.f_tri, zero, *self.pin_full, self.acc_x, self.acc_v],
+            # k4 -> s + h/6 (k1 + 2 k2 + 2 k3 + k4)
+            forces(self.xa, self.va) + [wp.launch(k.integrate_rk4_final64, dim=self.n, inputs=final,
                                                   outputs=[self.x, self.v], device=dev, record_cmd=True)],
         ]
 
@@ -276,7 +288,8 @@ class _Run:
         wp.copy(self.v, self.v0)
         if self.tracks:  # tracked pins start on their track
             self._pins_at(0.0, 0.0)
-            wp.launch(self.k.take_pins64, dim=self.n, inputs=[self.cloth.pinned, *self.pin_full], outputs=[self.x, self.v], device=self.device)
+            wp.launch(self.k.apply_pins64, dim=self.n, inputs=[self.cloth.pinned, *self.pin_full],
+                      outputs=[self.x, self.v], device=self.device)
         wp.copy(self.frames, self.x, dest_offset=0, count=self.n)
         stages = self.cmds
         for piece, n in zip(pieces, counts):
@@ -342,8 +355,9 @@ def _pin_tracks(model, control) -> tuple:
 
 
 def warp_reference(model, control=None, duration: float = 1.0, frame_dt: float = 1.0 / 60.0, x0=None, v0=None, *,
-                   tolerance: float = DEFAULT_TOLERANCE, safety: float = DEFAULT_SAFETY, max_halvings: int = DEFAULT_MAX_HALVINGS,
-                   dt: float | None = None, device=None, parallel: bool = False, require_accepted: bool = True) -> WarpReference:
+                   tolerance: float = DEFAULT_TOLERANCE, safety: float = DEFAULT_SAFETY,
+                   max_halvings: int = DEFAULT_MAX_HALVINGS, dt: float | None = None, device=None,
+                   parallel: bool = False, require_accepted: bool = True) -> WarpReference:
     """The float64 RK4 reference trajectory of ``model`` under ``control`` (None: gravity only)
     from (``x0``, ``v0``) at t = 0 (default: the rest shape, at rest), sampled at t_k = k frame_dt.
 
@@ -359,7 +373,8 @@ def warp_reference(model, control=None, duration: float = 1.0, frame_dt: float =
     duration, frame_dt = float(duration), float(frame_dt)
     tolerance = require_positive("reference tolerance", tolerance)
     safety = require_positive("reference safety factor", safety)
-    require(safety <= 1.0, f"reference safety factor must be <= 1 (a fraction of RK4's stability limit), got {safety!r}")
+    require(safety <= 1.0, f"reference safety factor must be <= 1 (a fraction of RK4's stability limit), "
+                           f"got {safety!r}")
     max_halvings = require_int("max halvings", max_halvings, 0)
     if dt is not None:
         dt = require_positive("reference dt", dt, "s")
@@ -409,13 +424,15 @@ def warp_reference(model, control=None, duration: float = 1.0, frame_dt: float =
         coarse, fine = fine, runners[0].run(pieces, counts(level))
     accepted = e <= tolerance * size
     if not accepted and require_accepted:
-        raise WarpclothError(f"the Warp reference did not converge: halving estimate {e / size:.3g} x size after {level} halvings "
+        raise WarpclothError(f"the Warp reference did not converge: halving estimate {e / size:.3g} x size "
+                             f"after {level} halvings "
                              f"(tolerance {tolerance:g}; estimates {', '.join(f'{s:.3g}' for s in estimates)}); "
                              f"lower the safety factor or raise max_halvings")
     fine_counts = counts(level)
     dt_fine = max((p.end - p.start) / n for p, n in zip(pieces, fine_counts))
     return WarpReference(frames=fine, halving_estimate=e, relative_estimate=e / size, accepted=accepted, dt=dt_fine,
-                         steps=int(sum(fine_counts)), stability=limit, estimates=estimates, seconds=time.perf_counter() - t_start)
+                         steps=int(sum(fine_counts)), stability=limit, estimates=estimates,
+                         seconds=time.perf_counter() - t_start)
 
 
 def reference_trajectory(model, control, duration: float, frame_dt: float, x0=None, v0=None, **options) -> np.ndarray:
