@@ -12,7 +12,7 @@ from helpers import single_spring
 from warpcloth import Control, WarpclothError, WindSchedule
 from warpcloth.lab.reference import cloth_size, reference_trajectory, swing_from_horizontal, trajectory_error
 from warpcloth.lab import reference_warp as rw
-from warpcloth.pins import PinTrack
+from warpcloth.sim.pins import PinTrack
 from warpcloth.scenarios import flag, sheet
 
 SWING_DURATION, SWING_FRAME = 0.3, 0.01

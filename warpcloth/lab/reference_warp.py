@@ -41,9 +41,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 import warp as wp
 
-from ..errors import WarpclothError, require, require_int, require_positive
-from ..pins import KinematicPins, PinTrack
-from .reference import Float64Model, _frame_count, _initial_state, cloth_size, wind_switch_times
+from warpcloth.errors import WarpclothError, require, require_int, require_positive
+from warpcloth.sim.pins import KinematicPins, PinTrack
+from warpcloth.lab.reference import Float64Model, _frame_count, _initial_state, cloth_size, wind_switch_times
 
 #: RK4's stability region contains the half-disc |z| <= 2.61, Re z <= 0 (its boundary comes
 #: closest to 0 in the left half-plane at about 125 degrees, |z| = 2.6197; 2.8284 = 2 sqrt 2 on
