@@ -231,3 +231,52 @@ def test_a_predicate_that_divides_by_zero_at_a_vertex_prints_no_numpy_warning(ca
     code, out, err = run_cli(capsys, "run", "mesh", "--pin", "y / (x - x) > 0", "--duration", "0.01", "--json")
     assert code == 0, err
     assert "RuntimeWarning" not in err and json.loads(out)["scenario"] == "mesh"
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["run", "sheet", "--html", ""], "HTML path is empty"),
+    (["run", "sheet", "--usd", ""], "USD path is empty"),
+    (["run", "sheet", "--preview", ""], "preview path is empty"),
+    (["bench", "--seconds", "1e40"], "argument --seconds: '1e40' does not fit in float32"),
+    (["bench", "--seconds", "inf"], "argument --seconds: 'inf' is not a finite number"),
+    (["bench", "--seconds", "1e5"], "100000 s is more than 86400 s (a day) per combination"),
+    (["bench", "--steps", "10000000000000"], "--steps must be between 1 and 1e+12"),
+    (["study", "--sizes", "4,99999", "--out", "never-made"], "the study's 99999 x 99999 cloth (--sizes) needs about"),
+    (["run", "sheet", "--rows", "1" * 100_000], "invalid int value: '" + "1" * 60 + "...' (100,000 characters)"),
+])
+def test_more_inputs_are_refused_in_one_line(capsys, tmp_path, monkeypatch, argv, message):
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("warpcloth: error: ") and message in lines[0], err
+    assert len(lines[0]) < 250
+    assert not (tmp_path / "never-made").exists()
+
+
+def test_the_study_checks_memory_before_its_first_run(capsys, tmp_path, monkeypatch):
+    import warpcloth.lab.study as study
+
+    ran = []
+    monkeypatch.setattr(study, "Measurements", lambda *a, **k: ran.append(a) or (_ for _ in ()).throw(AssertionError("ran")))
+    code = main(["study", "--sizes", "4,6,99999", "--integrators", "rk4", "--out", str(tmp_path / "s")])
+    assert code == 2 and ran == [] and "99999 x 99999" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["list"], ["list", "--examples"], ["run", "sheet", "--rows", "4", "--cols", "4", "--duration", "0.01"]])
+def test_a_closed_stdout_is_one_line_exit_74(argv):
+    p = subprocess.run([sys.executable, "-m", "warpcloth.cli", *argv], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                       text=True, preexec_fn=lambda: __import__("os").close(1))
+    assert p.returncode == 74, p.stderr
+    assert p.stderr.splitlines() == ["warpcloth: error: cannot write to stdout: it is closed"]
+    q = subprocess.run([sys.executable, "-m", "warpcloth.cli", "list", "--quiet"], stderr=subprocess.PIPE, text=True,
+                       preexec_fn=lambda: __import__("os").close(1))
+    assert q.returncode == 0 and q.stderr == ""
+
+
+def test_numpy_warnings_never_reach_stderr(capsys):
+    code, out, err = run_cli(capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--width", "3e38", "--duration", "0.01", "--json")
+    assert "RuntimeWarning" not in err and "encountered" not in err, err
