@@ -55,19 +55,21 @@ def add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
                        help="print nothing on success (no summary, no progress); errors still print")
 
 
-#: A quoted value in a message longer than this is cut (a 100,000-digit number is not echoed whole).
+#: A quoted value in argparse's messages longer than this is cut (a 100,000-digit number is not
+#: echoed whole); in warpcloth's own messages (which quote file paths) one longer than MAX_QUOTED_ANY.
 MAX_QUOTED = 60
-_QUOTED = re.compile(r"'([^']{%d})[^']+'" % MAX_QUOTED)
+MAX_QUOTED_ANY = 1000
 
 
-def _shorten(message: str) -> str:
-    """``message`` with every quoted value over :data:`MAX_QUOTED` characters cut."""
-    return _QUOTED.sub(lambda m: f"'{m.group(1)}...' ({len(m.group(0)) - 2:,} characters)", str(message))
+def _shorten(message: str, limit: int = MAX_QUOTED) -> str:
+    """``message`` with every quoted value over ``limit`` characters cut to ``limit``."""
+    quoted = re.compile(r"'([^']{%d})[^']+'" % limit)
+    return quoted.sub(lambda m: f"'{m.group(1)}...' ({len(m.group(0)) - 2:,} characters)", str(message))
 
 
 def print_error(message: str, stream=None) -> None:
     """Print ``warpcloth: error: message`` as one line."""
-    text = _shorten(" ".join(str(message).split()))
+    text = _shorten(" ".join(str(message).split()), MAX_QUOTED_ANY)
     print(f"{ERROR_PREFIX}{text}", file=stream or sys.stderr)
 
 
