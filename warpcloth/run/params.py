@@ -8,6 +8,8 @@ check and help. From :data:`PARAMS` come:
 * the CLI flags of ``warpcloth run`` and ``warpcloth max-dt`` (:func:`add_flags`) and the
   :class:`~warpcloth.scenarios.ScenarioConfig` they make (:func:`config_values`);
 * the attributes of an XML test list and their checks (:mod:`warpcloth.lab.testlist`);
+* the keys of a scenario file (TOML values, typed: :meth:`Param.from_typed`,
+  :mod:`warpcloth.scenarios.file`);
 * the parameter columns of the sweep's CSV and the run key that ``--resume`` matches
   (:mod:`warpcloth.lab.sweep`, :class:`~warpcloth.lab.testlist.RunSpec`);
 * the attribute table of ``docs/sweep.md`` (:func:`markdown_table`; a test keeps it in step).
