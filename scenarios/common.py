@@ -61,6 +61,14 @@ class ScenarioConfig:
     quads: bool | None = None
 
 
+def mesh_bend(config: ScenarioConfig) -> bool:
+    """Whether a mesh cloth gets bend springs: ``bend`` ``provot`` (the mesh's bend springs) or
+    ``none``; ``choi_ko`` (a grid's extra diagonals) is refused, not silently read as ``provot``."""
+    if config.bend == "choi_ko":
+        raise WarpclothError("bend 'choi_ko' applies to grids; a mesh cloth has bend springs ('provot') or none ('none')")
+    return config.bend != "none"
+
+
 @dataclass(frozen=True)
 class Scenario:
     """A named scenario: defaults, a builder of the model and control, and how a run ends.
