@@ -247,6 +247,8 @@ def _indices(pins) -> np.ndarray:
     boolean, text or a non-finite number is refused (``1.5`` does not pin vertex 1)."""
     if isinstance(pins, (str, bytes)) or not hasattr(pins, "__iter__"):
         raise WarpclothError(f"pins must be a sequence of vertex indices (integers), got {pins!r:.80}")
+    if isinstance(pins, np.ndarray) and np.issubdtype(pins.dtype, np.integer):
+        return pins.astype(np.int64).reshape(-1)
     a = np.asarray(list(pins), dtype=object).reshape(-1)
     for v in a:
         ok = not isinstance(v, (bool, np.bool_)) and (
