@@ -82,7 +82,8 @@ def run(args) -> int:
         sizes = parse_sizes("32,64,128" if args.sizes is None else args.sizes)
     from warpcloth.run.harness import MAX_RUN_STEPS
 
-    require(args.steps is None or 1 <= args.steps <= MAX_RUN_STEPS, f"--steps must be between 1 and {MAX_RUN_STEPS:.0e}, got {args.steps}")
+    require(args.steps is None or args.steps >= 1, f"--steps must be >= 1, got {args.steps}")
+    require(args.steps is None or args.steps <= MAX_RUN_STEPS, f"--steps must be at most {MAX_RUN_STEPS:.0e}, got {args.steps}")
     require(args.seconds is None or args.seconds > 0, f"--seconds must be > 0, got {args.seconds}")
     require(args.windows >= 1, f"--windows must be >= 1, got {args.windows}")
     wanted = default_devices() if args.devices is None else [s.strip() for s in args.devices.split(",") if s.strip()]
