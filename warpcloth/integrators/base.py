@@ -178,11 +178,13 @@ def stable_dt_estimate(model, drag_rate: float = 0.0) -> float:
     m_i + drag. Symplectic Euler on x'' = -omega^2 x - c x' is stable while
     h^2 omega^2 + 2 h c < 4, i.e. h < (sqrt(c^2 + 4 omega^2) - c) / omega^2. Unlike the seed's
     single-spring estimate 0.4 pi sqrt(m/K), this accounts for every spring at a particle.
+    Dihedral hinges add their block-Gershgorin row sums (:meth:`ClothModel.particle_hinge_sums`,
+    sum_e k_e |g_i| sum_b |g_b|), which grow as 1/h^2 (bending limits dt as h^2).
     """
-    ks_sum, kd_sum = model.particle_spring_sums()
+    ks_sum, kd_sum = _stiffness_rows(model)
     mass = model.host["mass"].astype(np.float64)
-    omega2 = float(np.max(2.0 * ks_sum / mass))
-    c = float(np.max(2.0 * kd_sum / mass)) + float(drag_rate)
+    omega2 = float(np.max(ks_sum / mass))
+    c = float(np.max(kd_sum / mass)) + float(drag_rate)
     if omega2 <= 0.0:
         return math.inf if c <= 0.0 else 2.0 / c
     return (math.sqrt(c * c + 4.0 * omega2) - c) / omega2
@@ -193,15 +195,30 @@ def model_spectrum(model, drag_rate: float = 0.0) -> tuple[float, float, float]:
     the stiffness eigenvalues by Gershgorin (max_i 2 sum_j ks_ij / m_i), and a mode of angular
     frequency omega is damped at the rate at least c(omega) = alpha + beta omega^2, alpha the air
     drag and beta the smallest kd / ks of the springs (damping proportional to stiffness, as the
-    default kd = 2 zeta sqrt(ks m) gives per spring type)."""
-    ks_sum, _ = model.particle_spring_sums()
+    default kd = 2 zeta sqrt(ks m) gives per spring type). Dihedral hinges count in both: their
+    Gershgorin rows in omega_max, their kd_e / k_e in beta."""
+    ks_sum, _ = _stiffness_rows(model)
     mass = model.host["mass"].astype(np.float64)
-    omega_max = math.sqrt(float(np.max(2.0 * ks_sum / mass))) if ks_sum.size else 0.0
+    omega_max = math.sqrt(float(np.max(ks_sum / mass))) if ks_sum.size else 0.0
     ks = model.spring_stiffness.numpy().astype(np.float64)
     kd = model.spring_damping.numpy().astype(np.float64)
+    if model.hinge_count:
+        ks = np.concatenate([ks, model.host.hinges.stiffness])
+        kd = np.concatenate([kd, model.host.hinges.damping])
     stiff = ks > 0
     beta = float(np.min(kd[stiff] / ks[stiff])) if np.any(stiff) else 0.0
     return omega_max, float(drag_rate), beta
+
+
+def _stiffness_rows(model) -> tuple[np.ndarray, np.ndarray]:
+    """Per particle, Gershgorin row sums of the stiffness and damping matrices [N/m], [N s/m]:
+    2 sum_j ks_ij (2 sum_j kd_ij) plus the hinges' rows."""
+    ks_sum, kd_sum = model.particle_spring_sums()
+    ks_rows, kd_rows = 2.0 * ks_sum, 2.0 * kd_sum
+    if model.hinge_count:
+        hs, hd = model.particle_hinge_sums()
+        ks_rows, kd_rows = ks_rows + hs, kd_rows + hd
+    return ks_rows, kd_rows
 
 
 def runge_kutta_stable_dt(amplification: Callable, model, drag_rate: float = 0.0) -> float:
