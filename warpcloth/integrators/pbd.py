@@ -23,6 +23,7 @@ from typing import ClassVar
 
 import warp as wp
 
+from warpcloth.kernels import bending as bk
 from warpcloth.kernels import constraints as ck
 
 from warpcloth.sim.model import SpringType
@@ -44,7 +45,8 @@ class PBD(PositionBasedIntegrator):
         ITERATIONS,
         SUBSTEPS,
         Option("pbd_stiffness", float, 1.0, "PBD stiffness k of structural and shear constraints, in [0, 1]", check=_unit_interval),
-        Option("pbd_bend_stiffness", float, 1.0, "PBD stiffness k of bend constraints, in [0, 1]", check=_unit_interval),
+        Option("pbd_bend_stiffness", float, 1.0, "PBD stiffness k of bend constraints (bend springs, or the dihedral "
+               "hinges' C = theta - theta0), in [0, 1]", check=_unit_interval),
         VELOCITY_DAMPING,
     )
 
@@ -65,6 +67,10 @@ class PBD(PositionBasedIntegrator):
         keep = self.velocity_keep()
         params = [m.spring_indices, m.spring_rest_length, self.spring_type, self.type_stiffness(), m.particle_inv_mass, state.particle_q]
         sweep = self.color_sweep(ck.solve_springs_pbd, params, [self.particle_dp])
+        if m.hinge_count:  # dihedral hinges: C = theta - theta0 at the bend stiffness (no unit, like the springs')
+            k = float(self.type_stiffness()[int(SpringType.BEND)])
+            hinge = [m.hinge_indices, m.hinge_rest_angle, k, m.particle_inv_mass, state.particle_q]
+            sweep = sweep + self.hinge_sweep(bk.solve_hinges_pbd, hinge, [self.particle_dp])
         for k in range(self.substeps):
             self.predict(state, control, h, keep, (k + 1) * h)
             self.solve(state, control, sweep)
