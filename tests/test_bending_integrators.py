@@ -10,13 +10,15 @@ import pytest
 from warpcloth import Control, Simulator
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators import integrator_names, make_integrator
-from warpcloth.scenarios import sheet
+from warpcloth.scenarios import flag, sheet
+from warpcloth.simulator import graph_capture_supported
 from warpcloth.sim.grid import build_grid_cloth, expected_spring_counts
 from warpcloth.sim.hinges import DEFAULT_BEND_RIGIDITY, grid_hinge_indices, hinge_angle_gradients
 from warpcloth.sim.material import PRESETS
 from warpcloth.sim.mesh import build_mesh_cloth
 from warpcloth.sim.model import BendModel
 
+from test_contract import count_allocations  # noqa: F401  (the fixture)
 from test_implicit import dense_system
 
 NAMES = integrator_names()
@@ -245,3 +247,116 @@ def test_cantilever_strip_rests_at_the_elastica(name):
     drop, want = tip_drop(sim), elastica_drop()
     assert abs(drop / want - 1.0) < 0.02, f"{name}: tip drop {drop * 1e3:.3f} mm, elastica {want * 1e3:.3f} mm"
     assert np.abs(sim.state.particle_qd.numpy()).max() < 2e-3  # at rest (the tip fell ~33 mm)
+
+
+def test_xpbd_converges_to_the_elastica_as_its_substep_shrinks():
+    """The same strip at 10 substeps of dt = 1/600 s rests far softer than at 60 (the cantilever test):
+    xpbd's static answer depends on its substep, and the error shrinks about as h^2."""
+    sim = cantilever("xpbd", {"substeps": 10, "iterations": 1}, 1.0 / 600.0)
+    sim.simulate(int(round(0.3 / sim.dt)))
+    assert 0.1 < tip_drop(sim) / elastica_drop() - 1.0 < 0.4
+
+
+# -- pbd: a dimensionless stiffness ---------------------------------------------------------------
+def test_pbd_rest_shape_ignores_the_rigidity_and_stiffens_with_iterations():
+    """pbd projects C = theta - theta0 with its dimensionless pbd_bend_stiffness: the strip's motion is
+    bit-identical at 10x the rigidity, and more iterations make it stiffer (an unconverged Gauss-Seidel
+    sweep along a 30-hinge chain is soft: +88 % off the elastica's drop at 5 iterations, +52 % at 20)."""
+    def strip(options, rigidity=RIGIDITY):
+        sim = cantilever("pbd", options, rigidity=rigidity)
+        sim.control.drag_rate = 34.0  # the same drag for both rigidities
+        return sim
+
+    a, b = strip({}), strip({}, rigidity=10 * RIGIDITY)
+    a.simulate(3)
+    b.simulate(3)
+    np.testing.assert_array_equal(a.state.particle_q.numpy(), b.state.particle_q.numpy())
+    drops = []
+    for iterations in (5, 20):
+        sim = strip({"iterations": iterations})
+        sim.simulate(12)
+        drops.append(tip_drop(sim) / elastica_drop())
+    assert drops[1] < drops[0] - 0.2, drops
+
+
+def test_pbd_hinges_flatten_a_bent_strip():
+    """Without a load, a short bent strip (2 x 6, clamped, 0.1 rad per hinge) is flattened: the hinge
+    constraints are satisfied at rest."""
+    cols = 6
+    pins = [r * cols + c for r in range(2) for c in (0, 1)]
+    model = build_grid_cloth(2, cols, 0.5, 0.1, 0.12, plane="horizontal", pins=pins, bend="dihedral", device="cpu")
+    sim = Simulator(model, make_integrator("pbd"), Control(gravity=(0.0, 0.0, 0.0), device="cpu"))
+    q = model.host["q"].astype(np.float64)
+    s = q[:, 0] - q[1, 0]
+    bent = s > 0
+    q[bent, 0] = q[1, 0] + np.sin(s[bent])  # an arc of curvature 1 / m: 0.1 rad per 0.1 m cell
+    q[bent, 1] = q[1, 1] - (1.0 - np.cos(s[bent]))
+    sim.state.particle_q.assign(q.astype(np.float32))
+    before = np.abs(hinge_angle_gradients(q, model.host.hinges.indices)[0]).max()
+    sim.simulate(15)
+    after = np.abs(hinge_angle_gradients(sim.state.particle_q.numpy(), model.host.hinges.indices)[0]).max()
+    assert before > 0.09 and after < 1e-5, (before, after)
+
+
+# -- the integrator contract with hinges (tests/test_contract.py's, on the dihedral flag) ------------------
+def dihedral_flag(name, **overrides):
+    """The 6 x 8 flag with stiff hinges (B = 1e-3 N m: they shape its motion) instead of bend springs."""
+    return flag.build(rows=6, cols=8, integrator=name, bend="dihedral", bend_rigidity=1e-3, device="cpu", **overrides)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_pins_do_not_move_by_one_bit_with_hinges(name):
+    sim = dihedral_flag(name)
+    pins = sim.model.pinned
+    before = sim.state.particle_q.numpy()[pins].copy()
+    sim.simulate(20)
+    after = sim.state.particle_q.numpy()
+    assert np.all(np.isfinite(after))
+    assert np.array_equal(after[pins], before)
+    assert np.array_equal(sim.state.particle_qd.numpy()[pins], np.zeros((len(pins), 3), np.float32))
+    assert np.abs(np.delete(after, pins, axis=0) - np.delete(sim.model.particle_q.numpy(), pins, axis=0)).max() > 1e-3
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_rest_stays_at_rest_with_hinges(name):
+    sim = dihedral_flag(name)
+    sim.control.gravity = (0.0, 0.0, 0.0)
+    sim.control.wind_coefficient = 0.0
+    x0 = sim.state.particle_q.numpy().copy()
+    sim.simulate(30)
+    assert np.abs(sim.state.particle_q.numpy() - x0).max() < 1e-5
+    assert np.abs(sim.state.particle_qd.numpy()).max() < 1e-4
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_graph_replay_is_bit_identical_with_hinges(name):
+    if not graph_capture_supported("cpu"):
+        pytest.skip("no CPU capture")
+    a, b = dihedral_flag(name), dihedral_flag(name)
+    if not b.integrator.capturable_on("cpu"):
+        pytest.skip(f"{name} is not capturable on the CPU")
+    a.use_graph, b.use_graph = False, True
+    for n in (7, 3, 7):
+        a.simulate(n)
+        b.simulate(n)
+    assert np.array_equal(a.state.particle_q.numpy(), b.state.particle_q.numpy())
+    assert np.array_equal(a.state.particle_qd.numpy(), b.state.particle_qd.numpy())
+    assert np.abs(a.state.particle_q.numpy() - a.model.particle_q.numpy()).max() > 1e-4
+
+
+@pytest.mark.parametrize("graph", [False, True], ids=["plain", "captured"])
+@pytest.mark.parametrize("name", NAMES)
+def test_step_with_hinges_allocates_no_memory(name, graph, count_allocations):
+    start, stop = count_allocations
+    sim = flag.build(rows=5, cols=6, integrator=name, bend="dihedral", device="cpu")
+    if graph and not (graph_capture_supported("cpu") and sim.integrator.capturable_on("cpu")):
+        pytest.skip("no CPU capture")
+    sim.use_graph = graph
+    sim.simulate(2)
+    sim.simulate(5)
+    sim.simulate(3)
+    created = start()
+    sim.simulate(5)
+    sim.simulate(3)
+    stop()
+    assert created == [], f"{name} allocated {len(created)} buffers in 8 steps"
