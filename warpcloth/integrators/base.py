@@ -17,8 +17,10 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError
+from warpcloth.kernels.bending import HingeAdjacency
 from warpcloth.kernels.springs import SpringAdjacency
 from warpcloth.sim.coloring import particle_adjacency
+from warpcloth.sim.hinges import hinge_adjacency
 
 
 @dataclass(frozen=True)
@@ -277,5 +279,25 @@ def spring_adjacency(model) -> SpringAdjacency:
     return springs
 
 
-__all__ = ["Integrator", "Option", "explicit_euler_dt_bound", "model_spectrum", "runge_kutta_stable_dt", "scratch_like",
-           "spring_adjacency", "stable_dt_estimate"]
+def hinge_adjacency_of(model) -> HingeAdjacency:
+    """Each particle's dihedral hinges (:func:`warpcloth.sim.hinges.hinge_adjacency`) with the model's
+    hinge arrays, as one kernel argument (:class:`~warpcloth.kernels.bending.HingeAdjacency`; empty
+    arrays, zero offsets, without hinges); made once at bind."""
+    n, device = model.particle_count, model.device
+    adj = HingeAdjacency()
+    if model.hinge_count:
+        offsets, hinge, slot = hinge_adjacency(model.host.hinges.indices, n)
+        adj.offsets = wp.array(offsets, dtype=int, device=device)
+        adj.hinge = wp.array(hinge, dtype=int, device=device)
+        adj.slot = wp.array(slot, dtype=int, device=device)
+        adj.indices, adj.rest_angle, adj.stiffness, adj.damping = model.hinge_arrays()
+    else:
+        adj.offsets = wp.zeros(n + 1, dtype=int, device=device)
+        adj.hinge, adj.slot = wp.zeros(0, dtype=int, device=device), wp.zeros(0, dtype=int, device=device)
+        adj.indices = wp.zeros(0, dtype=wp.vec4i, device=device)
+        adj.rest_angle, adj.stiffness, adj.damping = (wp.zeros(0, dtype=float, device=device) for _ in range(3))
+    return adj
+
+
+__all__ = ["Integrator", "Option", "explicit_euler_dt_bound", "hinge_adjacency_of", "model_spectrum", "runge_kutta_stable_dt",
+           "scratch_like", "spring_adjacency", "stable_dt_estimate"]

@@ -41,12 +41,14 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import numpy as np
 import warp as wp
 
 from warpcloth.kernels import increment as nk
 from warpcloth.kernels import vbd as vk
 
 from warpcloth.sim.coloring import VertexColoring, color_vertices
+from warpcloth.sim.hinges import hinge_pairs
 from warpcloth.integrators.base import Option, scratch_like
 from warpcloth.integrators.increment import IncrementSolver, at_least_one
 from warpcloth.integrators.multigrid import grid_structure_reason
@@ -97,7 +99,10 @@ class VBD(IncrementSolver):
     coloring: VertexColoring
 
     def _allocate_solver(self, model) -> None:
-        self.coloring = color_vertices(model.host["pairs"], model.particle_count, model.cols)
+        pairs = model.host["pairs"]
+        if model.hinge_count:  # no two vertices of a colour share a hinge either
+            pairs = np.concatenate([pairs, hinge_pairs(model.host.hinges.indices)])
+        self.coloring = color_vertices(pairs, model.particle_count, model.cols)
         self.vertex_order = wp.array(self.coloring.order, dtype=int)
         self.dx_prev1, self.dx_prev2 = scratch_like(model, 2)  # the Chebyshev history
         self._sweep_key, self._sweep = None, []
@@ -136,7 +141,7 @@ class VBD(IncrementSolver):
     def coarse_correction(self, x, h: float, contacts=None) -> None:
         """dx += V(r): r = -h^2 grad G at dx, V one multigrid V-cycle of A = h^2 Hessian."""
         m = self.model
-        wp.launch(vk.eval_increment_residual, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, h],
+        wp.launch(vk.eval_increment_residual, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h],
                   outputs=[self.residual], device=m.device)
         if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
             wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact, h], outputs=[self.residual],
@@ -158,7 +163,7 @@ class VBD(IncrementSolver):
             m = self.model
             self._sweep = [
                 wp.launch(vk.solve_vertices_vbd, dim=count,
-                          inputs=[self.vertex_order, start, x, self.inertia, self.springs, h, colliders],
+                          inputs=[self.vertex_order, start, x, self.inertia, self.springs, self.hinges, h, colliders],
                           outputs=[self.dx, self.contact], device=m.device, record_cmd=True)
                 for start, count in zip(self.coloring.starts, self.coloring.counts)
             ]
