@@ -215,6 +215,10 @@ CANTILEVER = {
     # vbd's vertex Newton steps stall where a hinge's stiffness k |g|^2 dwarfs m / h^2 (at dt = 1/60 the strip is
     # still 84 % short of its drop after 1.5 s): a step with h omega_e ~ 2 (omega_e a hinge's own frequency)
     "vbd": ({"vbd_iterations": 4}, 1.0 / 4800.0, 0.5),
+    # projective's constant matrix carries the membrane springs' isotropic h^2 L across the strip too, where the flat
+    # strip has no membrane stiffness: an iteration moves the soft bending mode by a tiny fraction (dt 1/60, 10 x 10:
+    # -22 % after 1.2 s); at dt 1/2400 the inertia dominates and 2 x 10 iterations converge
+    "projective": ({"pd_iterations": 2, "pd_cg_iterations": 10}, 1.0 / 2400.0, 0.7),
     # xpbd's rest shape depends on its substep h (an unconverged solve is softer: +21, +8.8, +2.8, +1.4 %
     # at 10, 20, 40, 60 substeps of dt = 1/600, ~ (h omega_e)^2, omega_e a hinge's own frequency): "enough"
     # substeps converge to the elastica
