@@ -15,6 +15,10 @@ a lone constraint keeps the fraction (1 - k) of its error whatever n is. ``subst
 paper's algorithm; more substeps (Macklin et al. 2019) make an unconverged solve stiffer. The
 stiffness k in [0, 1] is per substep and not a material constant: it does not map to ks (use
 ``xpbd`` for that).
+
+Dihedral hinges (``bend="dihedral"``) are constraints C = theta - theta0 with ``pbd_bend_stiffness``
+(dp_b = -k' w_b C g_b / sum w |g|^2, :func:`warpcloth.kernels.bending.solve_hinges_pbd`), swept by their
+own colouring after the springs: the rigidity B plays no role (docs/materials.md).
 """
 
 from __future__ import annotations

@@ -21,6 +21,12 @@ bench/results/projective-damping.txt). Gravity, air drag and wind are external f
 x + h v makes a rest state of the stepping the exact static equilibrium whatever the iteration
 counts (at rest the residual is the net force times h^2). Pinned particles have identity rows
 and zero columns: their dx is 0.
+
+Dihedral hinges (``bend="dihedral"``): S gains the constant h^2 sum_e k_e c c^T + h sum_e kd_e c c^T (c the
+rest coefficients, g_a = c_a n at a flat rest; new CSR entries for the pairs only hinges couple) and the
+residual the hinges' true forces (their damping at the dx / h rate, as the springs'). With stiff membrane
+springs S's isotropic h^2 L also stiffens the out-of-plane direction, so bending converges slowly at large
+dt (docs/materials.md, the cantilever).
 """
 
 from __future__ import annotations

@@ -17,6 +17,11 @@ alpha~ = alpha / h^2 and damping gamma = alpha kd / h: the spring's own ks [N/m]
 kd [N s/m], so the material is the same as in the force-based integrators. A spring with
 ks = 0 exerts nothing, as it would as a force. The kernels use the equivalent form multiplied
 through by ks h^2, so no division by ks occurs.
+
+Dihedral hinges (``bend="dihedral"``) are constraints C = theta - theta0, gradC = g, with compliance
+1 / k_e and damping kd_e (:func:`warpcloth.kernels.bending.solve_hinges_xpbd`), swept by their own
+colouring after the springs, lambda per hinge. The rest shape depends on the substep: an unconverged
+solve is softer by ~ (h omega_e)^2 (the cantilever strip, docs/materials.md).
 """
 
 from __future__ import annotations
