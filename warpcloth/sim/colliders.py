@@ -19,7 +19,7 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive, require_vector
-from warpcloth.sim.tracks import FrameDrive, Track, check_keyframes, check_rigid
+from warpcloth.sim.tracks import FrameDrive, HostWrite, Track, check_keyframes, check_rigid
 
 #: Collider kinds in the order of their kernel launches (the kernels' ``kind`` argument).
 KINDS = ("plane", "sphere", "capsule", "box", "mesh")
@@ -170,8 +170,8 @@ class ColliderDrive(FrameDrive):
     def bind_turn(self, device, center) -> wp.array:
         """The device array of the turn (holding the current rotation), for a collider centred at ``center``."""
         self.center = np.asarray(center, dtype=np.float64)
-        with wp.ScopedDevice(device):
-            self.turn = wp.array(np.array([self.rotation, [0.0, 0.0, 1.0, 0.0]]), dtype=wp.vec4d)
+        self._turn_write = HostWrite(np.array([self.rotation, [0.0, 0.0, 1.0, 0.0]]), wp.vec4d, device)
+        self.turn = self._turn_write.array
         self._turn_keys = (self.rotation.copy(), np.array([0.0, 0.0, 1.0]), 0.0)
         return self.turn
 
@@ -188,7 +188,7 @@ class ColliderDrive(FrameDrive):
                 axis, angle = rel[:3] / s, 2.0 * math.atan2(s, float(rel[3]))
         if not super().upload(t0, t1):
             return False
-        self.turn.assign(np.array([q0, [*axis, angle]]))
+        self._turn_write.write(np.array([q0, [*axis, angle]]))
         self._turn_keys, self._turn_frame = (q0.copy(), axis, angle), (t0, t1)
         if target is not None:
             self.rotation = target.copy()

@@ -114,6 +114,7 @@ class Control:
             """The key times (t0 - 1, t0, t1, t1 + 1) [s] of the frame being driven from the host
             (:meth:`upload_drives`), device array of shape (4,), float64: read by driven pin
             tracks and colliders (:class:`~warpcloth.sim.tracks.FrameDrive`)."""
+        self._frame_launch = None  # ((dt, steps), the recorded eval_frame_times launch)
         self._schedule_start = self._schedule_wind = None  # the device copy of the wind schedule (_fill_schedule)
         self.colliders = colliders
         self.wind_schedule = wind_schedule
@@ -180,16 +181,22 @@ class Control:
         track's keys for it (its new target, or a hold after a moving frame). Returns whether
         a driven pin track was written (its pins then take the frame's start, see
         :meth:`KinematicPins.apply_driven <warpcloth.sim.pins.KinematicPins.apply_driven>`)."""
-        drives = self.drives
-        if not drives:
-            return False
-        if any(d.pending for d in drives):
-            wp.launch(pk.eval_frame_times, dim=1, inputs=[self.time, self._time_base, self._clock, wp.float64(dt), int(steps)],
-                      outputs=[self.frame_times], device=self.device)
-        t1 = t0 + steps * dt
         pins = [d for d, _ in self.kinematic_pins.drives] if self.kinematic_pins is not None else []
-        written = [d.upload(t0, t1) for d in drives]
-        return any(w for d, w in zip(drives, written) if any(d is p for p in pins))
+        others = self.collision.drives if self.collision is not None else []
+        if not pins and not others:
+            return False
+        if any(d.pending for d in pins) or any(d.pending for d in others):
+            key = (float(dt), int(steps))
+            if self._frame_launch is None or self._frame_launch[0] != key:  # recorded once per frame length
+                cmd = wp.launch(pk.eval_frame_times, dim=1, inputs=[self.time, self._time_base, self._clock, wp.float64(dt), int(steps)],
+                                outputs=[self.frame_times], device=self.device, record_cmd=True)
+                self._frame_launch = (key, cmd)
+            self._frame_launch[1].launch()
+        t1 = t0 + steps * dt
+        moved = [d.upload(t0, t1) for d in pins]
+        for d in others:
+            d.upload(t0, t1)
+        return any(moved)
 
     def _fill_schedule(self) -> None:
         """Copy :attr:`wind_schedule` to the device (float64 start times) and re-evaluate W(t)."""

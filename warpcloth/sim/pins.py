@@ -169,6 +169,7 @@ class KinematicPins:
         owner = {}
         self._bound = []
         self.drives = []  # (FrameDrive, its entry in _bound) of the driven tracks
+        self._driven_launches = None  # ((x, v, time) pointers, recorded apply launches of the driven tracks)
         with wp.ScopedDevice(self.device):
             for track in self.tracks:
                 require(isinstance(track, PinTrack), f"pin tracks must be PinTrack objects, got {track!r}")
@@ -202,8 +203,12 @@ class KinematicPins:
     def apply_driven(self, control, x, v) -> None:
         """x_i = track(t), v_i = track'(t) for the driven tracks only (a new frame's keys start
         at t: the pins take its velocity, as a keyframes track's pins would at a key)."""
-        for _, (kernel, _, count, args) in self.drives:
-            wp.launch(kernel, dim=count, inputs=[control.time, wp.float64(0.0), *args], outputs=[x, v], device=self.device)
+        if self._driven_launches is None or self._driven_launches[0] != (x.ptr, v.ptr, control.time.ptr):
+            cmds = [wp.launch(kernel, dim=count, inputs=[control.time, wp.float64(0.0), *args], outputs=[x, v], device=self.device,
+                              record_cmd=True) for _, (kernel, _, count, args) in self.drives]
+            self._driven_launches = ((x.ptr, v.ptr, control.time.ptr), cmds)
+        for cmd in self._driven_launches[1]:
+            cmd.launch()
 
     def delta(self, control, x, v, offset: float, scale: float, velocity_weight: float, out) -> None:
         """out_i = scale (track(t + offset) - x_i) - velocity_weight v_i for every tracked pin."""

@@ -199,6 +199,23 @@ def interpolate(times: np.ndarray, pos: np.ndarray, tangents: np.ndarray | None,
     return p, dp / h
 
 
+class HostWrite:
+    """A device array that the host rewrites each frame, in place: on the CPU through a NumPy view
+    of the array itself, on a GPU through a pinned host copy and one asynchronous ``wp.copy``
+    (no allocation per frame, so the captured frame keeps reading the same array)."""
+
+    def __init__(self, values: np.ndarray, dtype, device):
+        device = wp.get_device(device)
+        self.array = wp.array(values, dtype=dtype, device=device)
+        self._staging = None if device.is_cpu else wp.array(values, dtype=dtype, device="cpu", pinned=True)
+        self._view = (self.array if device.is_cpu else self._staging).numpy()
+
+    def write(self, values: np.ndarray) -> None:
+        self._view[...] = values.reshape(self._view.shape)
+        if self._staging is not None:
+            wp.copy(self.array, self._staging)
+
+
 class FrameDrive:
     """The host side of a ``"driven"`` track: P points (pinned particles, or a collider's offset)
     that the host moves each frame with :meth:`set`, and the device arrays that the step reads.
@@ -257,9 +274,9 @@ class FrameDrive:
         """Allocate the device arrays (holding the points where they are); returns the keyframe
         kernels' arguments after the key times: values, tangents, whether cubic."""
         hold = np.broadcast_to(self.position[None], (4, self.points, 3)).reshape(-1, 3)
-        with wp.ScopedDevice(device):
-            self.values = wp.array(hold, dtype=wp.vec3d)
-            self.tangents = wp.zeros(4 * self.points, dtype=wp.vec3d)
+        self._values = HostWrite(hold, wp.vec3d, device)
+        self._tangents = HostWrite(np.zeros_like(hold), wp.vec3d, device)
+        self.values, self.tangents = self._values.array, self._tangents.array
         self._moving = False
         return [self.values, self.tangents, int(self.interpolation != "linear")]
 
@@ -287,9 +304,9 @@ class FrameDrive:
         return True
 
     def _write(self, keys, tangents, t0, t1, moving: bool) -> None:
-        self.values.assign(np.ascontiguousarray(keys.reshape(-1, 3)))
+        self._values.write(keys)
         if self.interpolation == "hermite":
-            self.tangents.assign(np.ascontiguousarray(tangents.reshape(-1, 3)))
+            self._tangents.write(tangents)
         self._keys = (np.array([t0 - 1.0, t0, t1, t1 + 1.0]), np.array(keys), np.array(tangents))
         self._moving = moving
 
@@ -303,4 +320,4 @@ class FrameDrive:
         return interpolate(times, keys, tangents if self.interpolation == "hermite" else None, float(t))
 
 
-__all__ = ["INTERPOLATIONS", "FrameDrive", "Track", "check_keyframes", "check_rigid", "interpolate"]
+__all__ = ["INTERPOLATIONS", "FrameDrive", "HostWrite", "Track", "check_keyframes", "check_rigid", "interpolate"]
