@@ -61,6 +61,16 @@ class Collider:
     moving: int  # 1: on a track (velocity, omega, origin set by eval_collider_pose); 0: static, v_c = 0
 
 
+@wp.struct
+class Colliders:
+    """A control's colliders as one kernel argument (the solvers that hold contacts themselves): no
+    colliders is an empty ``records``."""
+
+    records: wp.array(dtype=Collider)  # every collider's record, planes first
+    box: wp.array(dtype=wp.vec3)  # [min, max] around the non-plane colliders (eval_collider_bounds)
+    plane_count: int  # planes at the front of records
+
+
 @wp.func(inline=True)
 def plane_contact(x: wp.vec3, point: wp.vec3, normal: wp.vec3):
     # phi = (x - p).n, outward normal n
@@ -75,14 +85,6 @@ def sphere_contact(x: wp.vec3, center: wp.vec3, radius: float):
     if length == 0.0:
         return -radius, wp.vec3(0.0, 1.0, 0.0)
     return length - radius, d / length
-
-
-@wp.func(inline=True)
-def capsule_contact(x: wp.vec3, a: wp.vec3, b: wp.vec3, radius: float):
-    # phi = |x - q| - r, q the closest point of the segment ab
-    ab = b - a
-    t = wp.clamp(wp.dot(x - a, ab) / wp.max(wp.dot(ab, ab), 1.0e-20), 0.0, 1.0)
-    return sphere_contact(x, a + t * ab, radius)
 
 
 @wp.func(inline=True)

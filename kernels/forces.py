@@ -2,19 +2,10 @@
 
 import warp as wp
 
+from warpcloth.kernels.springs import spring_force
+
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
-
-
-@wp.func
-def spring_force(xi: wp.vec3, xj: wp.vec3, vi: wp.vec3, vj: wp.vec3, rest: float, ks: float, kd: float):
-    # f_i = ks (L - L0) n + kd ((v_j - v_i) . n) n,  n = (x_j - x_i) / L   (seed eq. 2.7-2.8)
-    d = xj - xi
-    length = wp.length(d)
-    if length == 0.0:
-        return wp.vec3(0.0)
-    n = d / length
-    return (ks * (length - rest) + kd * wp.dot(vj - vi, n)) * n
 
 
 @wp.kernel

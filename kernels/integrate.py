@@ -132,24 +132,3 @@ def verlet_prime(
     # d = x - x_prev = dt v - dt^2/2 a   (second-order start from the current x, v)
     i = wp.tid()
     displacement[i] = dt * v[i] - (0.5 * dt * dt * particle_inv_mass[i]) * f[i]
-
-
-@wp.kernel
-def predict_inertia(
-    v: wp.array(dtype=wp.vec3),
-    f_ext: wp.array(dtype=wp.vec3),
-    particle_inv_mass: wp.array(dtype=float),
-    h: float,
-    dy: wp.array(dtype=wp.vec3),
-    dx: wp.array(dtype=wp.vec3),
-):
-    # dy = h v + h^2 f_ext / m (inertial target y - x);  dx = h v (initial guess x + h v);  pinned: 0
-    # (the increments that vbd and projective solve for)
-    i = wp.tid()
-    w = particle_inv_mass[i]
-    if w == 0.0:
-        dy[i] = wp.vec3(0.0)
-        dx[i] = wp.vec3(0.0)
-        return
-    dy[i] = h * v[i] + (h * h * w) * f_ext[i]
-    dx[i] = h * v[i]

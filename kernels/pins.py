@@ -3,6 +3,8 @@ one rounding to float32 at the end)."""
 
 import warp as wp
 
+from warpcloth.kernels.springs import SpringAdjacency
+
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
 
@@ -130,9 +132,7 @@ def eval_frame_times(
 
 @wp.kernel
 def add_pinned_coupling(
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
-    adjacency_other: wp.array(dtype=int),
+    springs: SpringAdjacency,
     spring_B: wp.array(dtype=wp.mat33),
     particle_inv_mass: wp.array(dtype=float),
     pin_dv: wp.array(dtype=wp.vec3),
@@ -143,8 +143,8 @@ def add_pinned_coupling(
     if particle_inv_mass[i] == 0.0:
         return
     acc = wp.vec3(0.0)
-    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-        j = adjacency_other[a]
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        j = springs.other[a]
         if particle_inv_mass[j] == 0.0:
-            acc = acc + spring_B[adjacency_spring[a]] * pin_dv[j]
+            acc = acc + spring_B[springs.spring[a]] * pin_dv[j]
     b[i] = b[i] + acc

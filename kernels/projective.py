@@ -22,8 +22,10 @@ too.
 
 import warp as wp
 
-from warpcloth.kernels.collide import Collider
-from warpcloth.kernels.vbd import newton_increment, project_increment, vertex_gradient_hessian
+from warpcloth.kernels.collide import Colliders
+from warpcloth.kernels.increment import (ContactState, Inertia, newton_increment, project_increment,
+                                        vertex_gradient_hessian)
+from warpcloth.kernels.springs import SpringAdjacency
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
@@ -43,11 +45,7 @@ def spring_increment_residual(e: wp.vec3, ddx: wp.vec3, rest: float, ks: float, 
 
 @wp.kernel
 def assemble_global_matrix(
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
-    adjacency_other: wp.array(dtype=int),
-    spring_stiffness: wp.array(dtype=float),
-    spring_damping: wp.array(dtype=float),
+    springs: SpringAdjacency,
     particle_mass: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
     h: float,
@@ -57,22 +55,22 @@ def assemble_global_matrix(
     # row i of S = M + h D + h^2 L (CSR: diagonal first, then one entry per adjacent spring):
     # S_ii = m_i + sum_s w_s, S_ij = -w_s, w_s = h^2 ks + h kd;  pinned: identity row, zero column
     i = wp.tid()
-    row = i + adjacency_offsets[i]
+    row = i + springs.offsets[i]
     if particle_inv_mass[i] == 0.0:
         values[row] = 1.0
-        for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-            values[row + 1 + a - adjacency_offsets[i]] = 0.0
+        for a in range(springs.offsets[i], springs.offsets[i + 1]):
+            values[row + 1 + a - springs.offsets[i]] = 0.0
         inv_diag[i] = 1.0
         return
     diag = particle_mass[i]
-    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-        s = adjacency_spring[a]
-        w = h * h * spring_stiffness[s] + h * spring_damping[s]
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        s = springs.spring[a]
+        w = h * h * springs.stiffness[s] + h * springs.damping[s]
         diag = diag + w
         off = -w
-        if particle_inv_mass[adjacency_other[a]] == 0.0:
+        if particle_inv_mass[springs.other[a]] == 0.0:
             off = 0.0
-        values[row + 1 + a - adjacency_offsets[i]] = off
+        values[row + 1 + a - springs.offsets[i]] = off
     values[row] = diag
     inv_diag[i] = 1.0 / diag
 
@@ -81,29 +79,21 @@ def assemble_global_matrix(
 def eval_local_residual(
     x: wp.array(dtype=wp.vec3),
     dx: wp.array(dtype=wp.vec3),
-    dy: wp.array(dtype=wp.vec3),
-    particle_mass: wp.array(dtype=float),
-    particle_inv_mass: wp.array(dtype=float),
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
-    adjacency_other: wp.array(dtype=int),
-    spring_rest_length: wp.array(dtype=float),
-    spring_stiffness: wp.array(dtype=float),
-    spring_damping: wp.array(dtype=float),
+    inertia: Inertia,
+    springs: SpringAdjacency,
     inv_diag: wp.array(dtype=float),
     h: float,
-    contact_state: wp.array(dtype=int),
-    contact_force: wp.array(dtype=wp.vec3),
+    contact: ContactState,
     r: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
     p: wp.array(dtype=wp.vec3),
     dot_terms: wp.array(dtype=float),
 ):
     # local step + residual (module docstring); CG start: z = P^-1 r, p = z, dot_terms = r.z; a
-    # particle stuck on a collider (contact_state 2, from the last contact pass) is fixed in the solve,
+    # particle stuck on a collider (contact state 2, from the last contact pass) is fixed in the solve,
     # as a pin; a sliding one's collider force (normal and kinetic friction) enters its residual
     i = wp.tid()
-    if particle_inv_mass[i] == 0.0 or contact_state[i] == 2:
+    if inertia.inv_mass[i] == 0.0 or contact.state[i] == 2:
         r[i] = wp.vec3(0.0)
         z[i] = wp.vec3(0.0)
         p[i] = wp.vec3(0.0)
@@ -111,15 +101,15 @@ def eval_local_residual(
         return
     xi = x[i]
     dxi = dx[i]
-    res = particle_mass[i] * (dy[i] - dxi)
-    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
-        s = adjacency_spring[a]
-        j = adjacency_other[a]
+    res = inertia.mass[i] * (inertia.dy[i] - dxi)
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        s = springs.spring[a]
+        j = springs.other[a]
         ddx = dx[j] - dxi
-        res = res + spring_increment_residual((x[j] - xi) + ddx, ddx, spring_rest_length[s], spring_stiffness[s],
-                                              spring_damping[s], h)
-    if contact_state[i] == 1:
-        res = res + (h * h) * contact_force[i]
+        res = res + spring_increment_residual((x[j] - xi) + ddx, ddx, springs.rest_length[s], springs.stiffness[s],
+                                              springs.damping[s], h)
+    if contact.state[i] == 1:
+        res = res + (h * h) * contact.force[i]
     zi = inv_diag[i] * res
     r[i] = res
     z[i] = zi
@@ -131,54 +121,41 @@ def eval_local_residual(
 def solve_contacts(
     x: wp.array(dtype=wp.vec3),
     dx: wp.array(dtype=wp.vec3),
-    dy: wp.array(dtype=wp.vec3),
-    particle_mass: wp.array(dtype=float),
-    particle_inv_mass: wp.array(dtype=float),
-    adjacency_offsets: wp.array(dtype=int),
-    adjacency_spring: wp.array(dtype=int),
-    adjacency_other: wp.array(dtype=int),
-    spring_rest_length: wp.array(dtype=float),
-    spring_stiffness: wp.array(dtype=float),
-    spring_damping: wp.array(dtype=float),
+    inertia: Inertia,
+    springs: SpringAdjacency,
     h: float,
-    colliders: wp.array(dtype=Collider),
-    box: wp.array(dtype=wp.vec3),
-    plane_count: int,
+    colliders: Colliders,
     out: wp.array(dtype=wp.vec3),
-    contact_normal: wp.array(dtype=wp.vec3),
-    contact_velocity: wp.array(dtype=wp.vec3),
-    contact_force: wp.array(dtype=wp.vec3),
-    contact_state: wp.array(dtype=int),
+    contact: ContactState,
 ):
     # after a global step: a particle in contact (the last pass's) takes VBD's local Newton step on
     # the same potential (its 3 x 3 Hessian, neighbours fixed; Jacobi: reads dx, writes out),
-    # constrained by the colliders with Coulomb friction (kernels.vbd.project_increment); a free one
+    # constrained by the colliders with Coulomb friction (kernels.increment.project_increment); a free one
     # that the global step took into a collider is projected out (isotropic: its H is not formed).
     # The contact's normal (0: released), collider velocity, force and state are kept for the next
     # global step (stuck: fixed in it; sliding: its force in the residual)
     i = wp.tid()
     d = dx[i]
-    if particle_inv_mass[i] == 0.0:
+    if inertia.inv_mass[i] == 0.0:
         out[i] = d
         return
     xi = x[i]
     eye = wp.identity(n=3, dtype=float)
     H = eye
     Hinv = eye
-    if contact_state[i] != 0:
-        g, H = vertex_gradient_hessian(i, x, dx, dy, particle_mass, adjacency_offsets, adjacency_spring, adjacency_other,
-                                       spring_rest_length, spring_stiffness, spring_damping, h)
+    if contact.state[i] != 0:
+        g, H = vertex_gradient_hessian(i, x, dx, inertia, springs, h)
         d = d + newton_increment(g, H)
         if wp.abs(wp.determinant(H)) >= 1.0e-30:
             Hinv = wp.inverse(H)
         else:
             H = eye
-    d, n, vc, c, state = project_increment(xi, d, colliders, box, plane_count, h, H, Hinv)
+    d, n, vc, c, state = project_increment(xi, d, colliders, h, H, Hinv)
     out[i] = d
-    contact_normal[i] = n
-    contact_velocity[i] = vc
-    contact_force[i] = c
-    contact_state[i] = state
+    contact.normal[i] = n
+    contact.velocity[i] = vc
+    contact.force[i] = c
+    contact.state[i] = state
 
 
 @wp.kernel
@@ -238,22 +215,3 @@ def cg_update_direction(z: wp.array(dtype=wp.vec3), rz: wp.array(dtype=float), k
     if rz[k] > 0.0:
         beta = rz[k + 1] / rz[k]
     p[i] = z[i] + beta * p[i]
-
-
-@wp.kernel
-def sum_chunks(terms: wp.array(dtype=float), chunk: int, count: int, partial: wp.array(dtype=float)):
-    # partial[c] = sum of terms[c chunk : (c + 1) chunk], in index order
-    c = wp.tid()
-    acc = float(0.0)
-    for i in range(c * chunk, wp.min((c + 1) * chunk, count)):
-        acc = acc + terms[i]
-    partial[c] = acc
-
-
-@wp.kernel
-def sum_partials(partial: wp.array(dtype=float), k: int, out: wp.array(dtype=float)):
-    # out[k] = sum of the chunk sums, in order (one thread)
-    acc = float(0.0)
-    for c in range(partial.shape[0]):
-        acc = acc + partial[c]
-    out[k] = acc

@@ -11,6 +11,7 @@ from warpcloth.errors import WarpclothError
 from warpcloth.integrators import make_integrator
 from warpcloth.integrators.implicit_euler import ImplicitEuler
 from warpcloth.kernels import implicit as ik
+from warpcloth.kernels import system as sk
 from warpcloth.scenarios import sheet
 from warpcloth.run.harness import RunHarness
 
@@ -96,7 +97,7 @@ def _kernel_blocks(xi, xj, rest, ks, kd, h=1.0):
     x = wp.array(np.stack([xi, xj]).astype(np.float32), dtype=wp.vec3)
     K = wp.zeros(1, dtype=wp.mat33)
     B = wp.zeros(1, dtype=wp.mat33)
-    wp.launch(ik.eval_spring_jacobians, dim=1, inputs=[x, wp.array([[0, 1]], dtype=wp.vec2i), wp.array([rest], dtype=float), wp.array([ks], dtype=float), wp.array([kd], dtype=float), h], outputs=[K, B])
+    wp.launch(sk.eval_spring_jacobians, dim=1, inputs=[x, wp.array([[0, 1]], dtype=wp.vec2i), wp.array([rest], dtype=float), wp.array([ks], dtype=float), wp.array([kd], dtype=float), h], outputs=[K, B])
     K = K.numpy()[0].astype(np.float64)
     return K, (B.numpy()[0].astype(np.float64) - h * h * K) / h  # K, D
 
@@ -151,7 +152,7 @@ def test_approx_blocks_are_eq_2_23_constants():
     K = wp.zeros(2, dtype=wp.mat33)
     B = wp.zeros(2, dtype=wp.mat33)
     h = 0.01
-    wp.launch(ik.eval_spring_jacobians_approx, dim=2, inputs=[ks, kd, h], outputs=[K, B])
+    wp.launch(sk.eval_spring_jacobians_approx, dim=2, inputs=[ks, kd, h], outputs=[K, B])
     np.testing.assert_allclose(K.numpy(), [100.0 * np.eye(3), 250.0 * np.eye(3)], rtol=1e-6)
     np.testing.assert_allclose(B.numpy(), [(h * h * 100 + h * 1) * np.eye(3), (h * h * 250 + h * 2) * np.eye(3)], rtol=1e-6)
 
@@ -163,7 +164,7 @@ def test_assembled_bsr_matrix_times_vector_equals_dense_numpy_product(jacobian):
     integ, m = sim.integrator, sim.model
     h, drag = 1.0 / 60.0, float(sim.control.drag_rate)
     assert drag > 0.0  # the drag Jacobian is part of what is checked
-    integ._assemble(sim.state.particle_q, h, drag)
+    integ.system.assemble(sim.state.particle_q, h, drag)
     A_ref, _ = dense_system(m, x, v, h, drag, jacobian)
     y = np.random.default_rng(1).normal(size=(m.particle_count, 3))
     Ay = wps.bsr_mv(integ.A, wp.array(y.astype(np.float32), dtype=wp.vec3)).numpy().ravel()
@@ -179,7 +180,7 @@ def test_matrix_free_operator_equals_dense_numpy_product(jacobian):
     sim, x, v = perturbed_sheet(integrator_options={"matrix": "free", "jacobian": jacobian})
     integ, m = sim.integrator, sim.model
     h, drag = 1.0 / 30.0, float(sim.control.drag_rate)
-    integ._assemble(sim.state.particle_q, h, drag)
+    integ.system.assemble(sim.state.particle_q, h, drag)
     A_ref, _ = dense_system(m, x, v, h, drag, jacobian)
     rng = np.random.default_rng(2)
     y, w = rng.normal(size=(2, m.particle_count, 3))
@@ -192,7 +193,7 @@ def test_matrix_free_operator_equals_dense_numpy_product(jacobian):
 def test_jacobi_diagonal_is_the_inverse_diagonal_of_A():
     sim, x, v = perturbed_sheet(integrator_options={"matrix": "bsr"})
     integ = sim.integrator
-    integ._assemble(sim.state.particle_q, 1.0 / 60.0, float(sim.control.drag_rate))
+    integ.system.assemble(sim.state.particle_q, 1.0 / 60.0, float(sim.control.drag_rate))
     np.testing.assert_allclose(integ.inv_diag.numpy().ravel(), 1.0 / np.diag(bsr_to_dense(integ.A)), rtol=1e-6)
     # the same operator as Warp's preconditioner(A, "diag")
     y = wp.array(np.random.default_rng(3).normal(size=(sim.model.particle_count, 3)).astype(np.float32), dtype=wp.vec3)

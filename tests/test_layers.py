@@ -183,3 +183,53 @@ def test_stepping_loads_no_lab_cli_or_optional_library(entry):
             "'pxr', 'ray'))];"
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
+
+
+#: Kernel files of one scheme each; the other files of kernels/ hold what schemes share (springs,
+#: linear algebra, multigrid, the implicit system, the increment solvers' vertex step, contacts,
+#: pins, forces, metrics).
+KERNEL_SCHEMES = ("implicit", "vbd", "projective", "constraints", "integrate", "strain_limit")
+
+
+def cross_scheme_imports(edge_list, package: str, schemes) -> list[str]:
+    """``package.<scheme>`` modules that import another ``package.<scheme>`` module."""
+    names = {f"{package}.{s}" for s in schemes}
+    found = (f"{m}:{line} imports {t}" for m, t, _, line in edge_list if m in names and t in names and t != m)
+    return list(dict.fromkeys(found))
+
+
+def test_kernel_scheme_files_import_only_shared_kernel_files():
+    bad = cross_scheme_imports(edges(), "warpcloth.kernels", KERNEL_SCHEMES)
+    assert not bad, "move what schemes share into a shared kernel file:\n" + "\n".join(bad)
+
+
+def test_the_scheme_check_sees_a_kernel_scheme_importing_another(tmp_path):
+    """Negative control: vbd borrowing implicit's function is found; a shared file is not."""
+    bad = tmp_path / "vbd.py"
+    bad.write_text("from warpcloth.kernels.implicit import eval_rhs\n"
+                   "from warpcloth.kernels.springs import spring_force\n")
+    mods = modules()
+    found = [("warpcloth.kernels.vbd", resolve(t, mods), top, line)
+             for t, top, line in imports("warpcloth.kernels.vbd", bad, mods)]
+    assert cross_scheme_imports(found, "warpcloth.kernels", KERNEL_SCHEMES) == [
+        "warpcloth.kernels.vbd:1 imports warpcloth.kernels.implicit"]
+
+
+#: Integrator modules of one scheme each, with the kernel scheme files each may use; the other
+#: modules of warpcloth/integrators/ hold what schemes share (base, forces, position_based,
+#: increment, system, linalg, multigrid).
+INTEGRATOR_SCHEMES = {
+    "explicit_euler": "integrate", "midpoint": "integrate", "rk4": "integrate", "verlet": "integrate",
+    "implicit_euler": "implicit", "pbd": "constraints", "xpbd": "constraints", "vbd": "vbd",
+    "projective": "projective", "strain_limit": "strain_limit",
+}
+
+
+def test_integrator_schemes_import_only_shared_modules_and_their_own_kernels():
+    bad = cross_scheme_imports(edges(), "warpcloth.integrators", INTEGRATOR_SCHEMES)
+    for m, t, _, line in edges():
+        scheme = m.removeprefix("warpcloth.integrators.")
+        if scheme in INTEGRATOR_SCHEMES and t.removeprefix("warpcloth.kernels.") in KERNEL_SCHEMES:
+            if t != f"warpcloth.kernels.{INTEGRATOR_SCHEMES[scheme]}":
+                bad.append(f"{m}:{line} imports another scheme's kernels {t}")
+    assert not bad, "move what schemes share into a shared module:\n" + "\n".join(bad)

@@ -379,7 +379,9 @@ def test_study_with_an_unreachable_ray_address_is_one_line_and_writes_nothing(tm
 def test_study_via_ray_gives_the_serial_rows(ray_cluster, tmp_path):
     """The study of explicit_euler at 4x4 (stability, accuracy, equilibrium, timing) as Ray tasks:
     the serial run's keys and values (not timings); the driver wrote every row once."""
-    from warpcloth.lab.study import make_plan, read_rows, run_study
+    from warpcloth.lab.plan import make_plan
+    from warpcloth.lab.results import read_rows
+    from warpcloth.lab.study import run_study
 
     plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4], accuracy_sizes=[4])
     run_study(plan, tmp_path / "serial")

@@ -136,7 +136,9 @@ def test_frontier_inside_and_beyond_the_measured_range():
 # -- the study end to end --------------------------------------------------------------------
 from warpcloth.cli import main  # noqa: E402
 from warpcloth.lab.report import PLOTS  # noqa: E402
-from warpcloth.lab.study import COLUMNS, make_plan, read_rows, run_study  # noqa: E402
+from warpcloth.lab.plan import make_plan  # noqa: E402
+from warpcloth.lab.results import COLUMNS, read_rows  # noqa: E402
+from warpcloth.lab.study import run_study  # noqa: E402
 
 def cli(argv) -> int:
     """``warpcloth ARGV``'s exit status (argparse's errors exit through SystemExit)."""
@@ -407,7 +409,7 @@ def test_estimate_adds_up_the_modelled_steps():
     per-step cost, capped by the wall caps; doubling the per-step cost doubles the uncapped phases."""
     from dataclasses import replace
 
-    from warpcloth.lab.study import estimate_plan
+    from warpcloth.lab.estimate import estimate_plan
 
     plan = replace(make_plan("quick", integrators=["explicit_euler"], sizes=[10], accuracy_sizes=[]), maxdt_wall_cap=None,
                    equilibrium_wall_cap=None)

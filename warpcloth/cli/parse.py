@@ -1,8 +1,10 @@
 """The argument parser every warpcloth command line uses (``warpcloth``, ``bench/devices.py``,
-``python -m warpcloth.scenarios.X``): errors are one line, ``warpcloth: error: ...``, exit 2.
+``python -m warpcloth.scenarios.X``): errors are one line, ``warpcloth: error: ...``, exit 2;
+:func:`guarded` runs a command with the exit codes of every other failure; :func:`add_verbose`
+the flags every subcommand takes.
 
-A module of its own so that :mod:`warpcloth.cli` and :mod:`warpcloth.lab.bench` both import it
-without importing each other.
+Imports nothing heavy (Warp is initialised inside :func:`guarded`), so that the command line's
+top level is cheap to build.
 """
 
 from __future__ import annotations
@@ -14,7 +16,6 @@ import signal
 import sys
 
 from warpcloth.errors import WarpclothError
-from warpcloth.sim.device import init_warp
 from warpcloth.io.files import EXIT_IO, OutputError
 
 #: Exit status of bad input.
@@ -43,6 +44,14 @@ class Parser(argparse.ArgumentParser):
 
     def error(self, message):
         self.exit(EXIT_USAGE, f"{ERROR_PREFIX}{message}\n")
+
+
+def add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
+    """``--verbose`` (Warp's messages) and, unless the subcommand has its own, ``--quiet``."""
+    p.add_argument("--verbose", action="store_true", help="show Warp's start-up and module-load messages on stderr")
+    if quiet:
+        p.add_argument("--quiet", "-q", action="store_true",
+                       help="print nothing on success (no summary, no progress); errors still print")
 
 
 def print_error(message: str, stream=None) -> None:
@@ -88,6 +97,8 @@ def guarded(args, body, interrupted_hint: str = "") -> int:
     handled like Ctrl-C (143 and 130; temporary files are removed on the way out)."""
     import threading
 
+    from warpcloth.sim.device import init_warp
+
     init_warp(getattr(args, "verbose", False))
     previous = None
     if threading.current_thread() is threading.main_thread():
@@ -132,4 +143,5 @@ def guarded(args, body, interrupted_hint: str = "") -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
-__all__ = ["ERROR_PREFIX", "EXIT_IO", "EXIT_PIPE", "EXIT_SIGINT", "EXIT_SIGTERM", "EXIT_USAGE", "Parser", "Terminated", "guarded", "init_warp", "print_error"]
+__all__ = ["ERROR_PREFIX", "EXIT_IO", "EXIT_PIPE", "EXIT_SIGINT", "EXIT_SIGTERM", "EXIT_USAGE", "Parser", "Terminated",
+           "add_verbose", "guarded", "print_error"]

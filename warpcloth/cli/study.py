@@ -1,5 +1,5 @@
-"""The ``warpcloth study`` subcommand's flags and entry point (kept here so that cli.py only
-registers it)."""
+"""``warpcloth study``: the flags and the entry point of the accuracy-aware study
+(:mod:`warpcloth.lab.study`)."""
 
 from __future__ import annotations
 
@@ -46,7 +46,7 @@ def _count():
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from warpcloth.lab.study import PROFILES
+    from warpcloth.lab.plan import PROFILES
 
     p.add_argument("--profile", default="quick", choices=list(PROFILES),
                    help="quick (tiny sizes, a few minutes on 2 CPU cores), standard (sizes 16-128 on the CPU), seed (the seed's plan, for a GPU)")
@@ -77,11 +77,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--resume", action="store_true", help="continue DIR/results.csv: finished measurements are not redone")
     mode.add_argument("--overwrite", action="store_true", help="replace DIR/results.csv if it exists")
-    # --quiet (no progress, no summary) and --verbose come with every subcommand (cli._add_verbose)
+    # --quiet (no progress, no summary) and --verbose come with every subcommand (cli.parse.add_verbose)
 
 
 def run(args) -> int:
-    from warpcloth.lab.study import available_devices, calibrate, estimate_plan, format_estimate, make_plan, run_study
+    from warpcloth.lab.estimate import calibrate, estimate_plan, format_estimate
+    from warpcloth.lab.plan import make_plan
+    from warpcloth.lab.study import available_devices, run_study
 
     plan = make_plan(args.profile, integrators=args.integrators, sizes=args.sizes, devices=args.devices,
                      tolerance=args.tolerance, match_accuracy=args.match_accuracy, accuracy_sizes=args.accuracy_sizes,
@@ -128,4 +130,9 @@ def _argv(args) -> list:
     return out + (["--out", args.out] if args.out else [])
 
 
-__all__ = ["add_arguments", "run"]
+def interrupted_hint(args) -> str:
+    """What the line after Ctrl-C or SIGTERM adds: where the finished measurements are."""
+    return f"; finished measurements are in {args.out}/results.csv, continue with --resume"
+
+
+__all__ = ["add_arguments", "interrupted_hint", "run"]

@@ -17,6 +17,8 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError
+from warpcloth.kernels.springs import SpringAdjacency
+from warpcloth.sim.coloring import particle_adjacency
 
 
 @dataclass(frozen=True)
@@ -73,9 +75,6 @@ class Integrator:
 
     name: ClassVar[str] = ""
     force_evals_per_step: ClassVar[int] = 1
-    #: True when a step is pure kernel launches with no host synchronisation, so a frame of
-    #: steps can be captured with ``wp.ScopedCapture`` and replayed.
-    graph_capturable: ClassVar[bool] = True
     #: True for integrators that evaluate spring forces (Provot deformation constraints apply).
     force_based: ClassVar[bool] = True
     #: True when the integrator projects collision constraints inside its own solver loop; else
@@ -116,8 +115,9 @@ class Integrator:
         return self
 
     def capturable_on(self, device) -> bool:
-        """Whether a step on ``device`` can be captured (default :attr:`graph_capturable`)."""
-        return self.graph_capturable
+        """Whether a step on ``device`` can be captured with ``wp.ScopedCapture`` and replayed: True
+        where a step is kernel launches only, with no host synchronisation (override where not)."""
+        return True
 
     def _allocate(self, model) -> None:
         """Allocate scratch arrays (override)."""
@@ -245,4 +245,20 @@ def scratch_like(model, count: int = 1):
     return arrays if count > 1 else arrays[0]
 
 
-__all__ = ["Integrator", "Option", "explicit_euler_dt_bound", "model_spectrum", "runge_kutta_stable_dt", "scratch_like", "stable_dt_estimate"]
+def spring_adjacency(model) -> SpringAdjacency:
+    """Each particle's springs (:func:`warpcloth.sim.coloring.particle_adjacency`) with the model's
+    spring parameters, as one kernel argument (:class:`~warpcloth.kernels.springs.SpringAdjacency`);
+    made once at bind."""
+    offsets, spring, other = particle_adjacency(model.host["pairs"], model.particle_count)
+    springs = SpringAdjacency()
+    springs.offsets = wp.array(offsets, dtype=int, device=model.device)
+    springs.spring = wp.array(spring, dtype=int, device=model.device)
+    springs.other = wp.array(other, dtype=int, device=model.device)
+    springs.rest_length = model.spring_rest_length
+    springs.stiffness = model.spring_stiffness
+    springs.damping = model.spring_damping
+    return springs
+
+
+__all__ = ["Integrator", "Option", "explicit_euler_dt_bound", "model_spectrum", "runge_kutta_stable_dt", "scratch_like",
+           "spring_adjacency", "stable_dt_estimate"]

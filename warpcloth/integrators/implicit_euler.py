@@ -4,7 +4,7 @@
 
 One Newton step of backward Euler per time step. df/dx is the full spring Jacobian with the
 compression clamp of design.md (it keeps the matrix symmetric positive definite, see
-:func:`warpcloth.kernels.implicit.spring_stiffness_block`), df/dv the spring damping and air
+:func:`warpcloth.kernels.springs.spring_stiffness_block`), df/dv the spring damping and air
 drag Jacobian; wind is treated explicitly. With ``jacobian="approx"`` df/dx is the seed's
 approximated Hessian (eq. 2.23: H_ij = k_ij I, H_ii = -sum_j k_ij I, and likewise k -> kd for
 df/dv), which is constant, so the matrix is assembled once per time step size, not every step.
@@ -13,7 +13,7 @@ With B_s = h^2 K_s + h D_s per spring (refilled by one kernel each step), A is a
 assembled (``matrix="bsr"``, the default: a ``warp.sparse`` BSR matrix of 3x3 blocks whose
 pattern, one diagonal block per particle and one block per spring and direction, is built once
 at bind and whose values a kernel refills; CG multiplies by it with
-:func:`~warpcloth.kernels.implicit.block_gemv`, one 3 x 3 product per stored block in storage
+:func:`~warpcloth.kernels.linalg.block_gemv`, one 3 x 3 product per stored block in storage
 order) or matrix-free (``matrix="free"``: a gather over each particle's springs). Both give the
 same A. On the CPU the assembled product is the faster: 0.66 against 1.62 ms per product at
 128^2 in one profiling run (``warp.sparse.bsr_mv``, which works on scalar rows, was slower than
@@ -23,7 +23,7 @@ bench/results/implicit-cpu.txt). Pinned particles have identity rows and zero co
 
 The solve: on CUDA, ``warp.optim.linear.cg`` with its convergence checked on the device
 (``check_every=0``, a conditional graph node), so a frame can be captured. On the CPU,
-:class:`DevicePCG`: the same preconditioned CG with its scalars in a device array and the
+:class:`~warpcloth.integrators.linalg.DevicePCG`: the same preconditioned CG with its scalars in a device array and the
 iterations run in chunks of ``cg_check_every`` (default 4), each chunk captured once and
 replayed (Warp >= 1.19), with one host read of a "done" flag between chunks; iterations past
 convergence within a chunk change nothing. Warp's cg on the CPU paid Python launches and a host
@@ -58,23 +58,18 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
 import warp as wp
-import warp.sparse as wps
-from warp.optim.linear import LinearOperator, aslinearoperator, cg
+from warp.optim.linear import cg
 
 from warpcloth.kernels import implicit as ik
-from warpcloth.kernels import projective as pjk
+from warpcloth.kernels import pins as pk
 
 from warpcloth.integrators.forces import eval_forces
 from warpcloth.sim.pins import has_pin_tracks
-from warpcloth.kernels import pins as pk
 from warpcloth.integrators.base import Integrator, Option, scratch_like
-from warpcloth.integrators.multigrid import GridMultigrid, grid_structure_reason
-
-JACOBIANS = ("full", "approx")
-MATRICES = ("free", "bsr")
-PRECONDITIONERS = ("jacobi", "block_jacobi", "multigrid")
+from warpcloth.integrators.linalg import DevicePCG
+from warpcloth.integrators.multigrid import grid_structure_reason
+from warpcloth.integrators.system import JACOBIANS, MATRICES, PRECONDITIONERS, ImplicitSystem
 
 
 def _check_tol(value: float):
@@ -91,89 +86,6 @@ def _sci(x: float) -> str:
     return f"{mantissa}e{int(exponent)}" if exponent else mantissa
 
 
-class DevicePCG:
-    """Preconditioned CG whose scalars live in a device array, run in chunks of ``check_every``
-    iterations between host convergence checks (implicit_euler's solver on the CPU).
-
-    A solve is a start (r = b - A x, z = M r, p = z, the tolerance from |b|) and chunks of
-    iterations; each iteration is A p, p.Ap, the fused update of x and r with r.r, the convergence
-    count, z = M r, r.z and the new direction. Once converged (r.r <= tol^2 b.b, warp's ``cg``
-    test) or at ``max_iter`` a device flag turns the updates of x, r and p into no-ops, so the
-    rest of a chunk changes nothing. Dot products are summed in a fixed order (chunks, then their
-    sum), so results do not depend on scheduling. Where the device can capture (the CPU from Warp
-    1.19), the start and a chunk are each captured once and replayed: a chunk of iterations costs
-    one call instead of ~40 Python launches per iteration with a multigrid V-cycle.
-
-    ``apply_A`` and ``apply_M`` are LinearOperator matvecs ``(x, y, z, alpha, beta)``. All arrays
-    are allocated here.
-    """
-
-    def __init__(self, apply_A, apply_M, b, x, tol: float, max_iter: int, check_every: int, device):
-        self.apply_A, self.apply_M, self.b, self.x = apply_A, apply_M, b, x
-        self.tol, self.max_iter, self.check_every = float(tol), int(max_iter), int(check_every)
-        self.device = wp.get_device(device)
-        n = b.shape[0]
-        self.r, self.z, self.p, self.q = (wp.zeros(n, dtype=wp.vec3, device=device) for _ in range(4))
-        self.terms = wp.zeros(n, dtype=float, device=device)
-        self.chunk = max(1, -(-n // 128))
-        self.partial = wp.zeros(-(-n // self.chunk), dtype=float, device=device)
-        self.scalars = wp.zeros(8, dtype=float, device=device)
-        major, minor = (int(v) for v in wp.config.version.split(".")[:2])
-        self._capture = self.device.is_cpu and (major, minor) >= (1, 19)
-        self._graphs: dict = {}
-
-    def _dot(self, a, b, slot: int) -> None:
-        """scalars[slot] = a . b, summed in a fixed order."""
-        d, n = self.device, self.terms.shape[0]
-        if a is not None:
-            wp.launch(ik.dot_terms, dim=n, inputs=[a, b], outputs=[self.terms], device=d)
-        wp.launch(pjk.sum_chunks, dim=self.partial.shape[0], inputs=[self.terms, self.chunk, n], outputs=[self.partial], device=d)
-        wp.launch(pjk.sum_partials, dim=1, inputs=[self.partial, slot], outputs=[self.scalars], device=d)
-
-    def _start(self) -> None:
-        n, d = self.b.shape[0], self.device
-        self.apply_A(self.x, self.b, self.r, -1.0, 1.0)
-        self._dot(self.b, self.b, 4)
-        self._dot(self.r, self.r, 3)
-        self.apply_M(self.r, self.z, self.z, 1.0, 0.0)
-        self._dot(self.r, self.z, 0)
-        wp.launch(ik.cg_start, dim=n, inputs=[self.tol, self.scalars, self.p, self.z], outputs=[self.x], device=d)
-
-    def _iterations(self, count: int) -> None:
-        n, d, s = self.b.shape[0], self.device, self.scalars
-        for _ in range(count):
-            self.apply_A(self.p, self.q, self.q, 1.0, 0.0)
-            self._dot(self.p, self.q, 2)
-            wp.launch(ik.cg_update_solution, dim=n, inputs=[s, self.p, self.q], outputs=[self.x, self.r, self.terms], device=d)
-            self._dot(None, None, 3)
-            wp.launch(ik.cg_count, dim=1, inputs=[self.max_iter, s], device=d)
-            self.apply_M(self.r, self.z, self.z, 1.0, 0.0)
-            self._dot(self.r, self.z, 1)
-            wp.launch(ik.cg_update_direction, dim=n, inputs=[s, self.z], outputs=[self.p], device=d)
-            wp.launch(ik.cg_shift, dim=1, inputs=[s], device=d)
-
-    def _run(self, key, record) -> None:
-        if not self._capture or self.device.is_capturing:
-            record()
-            return
-        graph = self._graphs.get(key)
-        if graph is None:
-            with wp.ScopedCapture(device=self.device) as capture:
-                record()
-            graph = self._graphs[key] = capture.graph
-        wp.capture_launch(graph)
-
-    def solve(self) -> tuple[int, float]:
-        """x = A^-1 b from the current x; returns (iterations, final relative residual |r| / |b|),
-        reading the scalars on the host once per chunk."""
-        self._run("start", self._start)
-        while True:
-            s = self.scalars.numpy()
-            if s[7] != 0.0:
-                break
-            self._run("chunk", lambda: self._iterations(self.check_every))
-        rr, bb = float(s[3]), float(s[4])
-        return int(s[6]), (float(np.sqrt(rr / bb)) if bb > 0.0 else 0.0), bool(s[3] <= s[5])
 
 
 class ImplicitEuler(Integrator):
@@ -207,11 +119,7 @@ class ImplicitEuler(Integrator):
     # -- binding -----------------------------------------------------------------------
     def _allocate(self, model):
         n, device = model.particle_count, model.device
-        pairs = model.host["pairs"].astype(np.int64).reshape(-1, 2)
-        self.b, self.dv, self.inv_diag = scratch_like(model, 3)
-        self.spring_K = wp.zeros(model.spring_count, dtype=wp.mat33)
-        self.spring_B = wp.zeros(model.spring_count, dtype=wp.mat33)
-        self.mass_term = wp.zeros(n, dtype=float)
+        self.b, self.dv = scratch_like(model, 2)
         self.pin_dv = wp.zeros(n, dtype=wp.vec3)  # prescribed dv of kinematic pins (0 elsewhere)
         # contacts seen by the solve (matrix="bsr"): normal per particle (0: none), prescribed dv, A z
         self.contact_normal, self.contact_dv, self.contact_Az, self.contact_b = scratch_like(model, 4)
@@ -228,58 +136,17 @@ class ImplicitEuler(Integrator):
             if reason:
                 print(f"note: implicit_euler: multigrid needs a grid model ({reason}); using block_jacobi", file=sys.stderr)
                 self.preconditioner_used = "block_jacobi"
-        # the multigrid's Galerkin products need A assembled (BSR); CG still applies A as ``matrix`` says
-        self._bsr = self.matrix == "bsr" or self.preconditioner_used == "multigrid"
-
-        if self._bsr:
-            # pattern: diagonal blocks + (i, j) and (j, i) per spring, built once
-            rows = np.concatenate([np.arange(n), pairs[:, 0], pairs[:, 1]]).astype(np.int32)
-            cols = np.concatenate([np.arange(n), pairs[:, 1], pairs[:, 0]]).astype(np.int32)
-            ones = np.tile(np.eye(3, dtype=np.float32), (rows.size, 1, 1))
-            self.A = wps.bsr_from_triplets(n, n, wp.array(rows, dtype=int), wp.array(cols, dtype=int), wp.array(ones, dtype=wp.mat33), prune_numerical_zeros=False)
-            self.A.nnz_sync()
-            offsets = self.A.offsets.numpy()[: n + 1].astype(np.int64)
-            columns = self.A.columns.numpy()[: offsets[-1]].astype(np.int64)
-            keys = np.repeat(np.arange(n), np.diff(offsets)) * n + columns  # sorted: row-major, columns ascending
-
-            def block_of(r, c):
-                return np.searchsorted(keys, np.asarray(r) * n + np.asarray(c)).astype(np.int32)
-        else:
-            self.A = None
-
-        # particle -> (spring, neighbour, block (particle, neighbour)) adjacency, grouped by particle
-        ends = np.concatenate([pairs[:, 0], pairs[:, 1]])
-        others = np.concatenate([pairs[:, 1], pairs[:, 0]])
-        springs = np.concatenate([np.arange(len(pairs)), np.arange(len(pairs))])
-        order = np.argsort(ends, kind="stable")
-        adjacency_offsets = np.zeros(n + 1, dtype=np.int32)
-        adjacency_offsets[1:] = np.cumsum(np.bincount(ends, minlength=n))
-        self.adjacency_offsets = wp.array(adjacency_offsets, dtype=int)
-        self.adjacency_spring = wp.array(springs[order].astype(np.int32), dtype=int)
-        self.adjacency_other = wp.array(others[order].astype(np.int32), dtype=int)
-        if self._bsr:  # where each adjacency entry and each diagonal block sits in A.values
-            self.adjacency_block = wp.array(block_of(ends[order], others[order]), dtype=int)
-            self.row_offsets = wp.array(offsets.astype(np.int32), dtype=int)
-            self.block_columns = wp.array(columns.astype(np.int32), dtype=int)
+        #: The system A dv = b's matrix, operator and preconditioner (:mod:`warpcloth.integrators.system`).
+        self.system = ImplicitSystem(model, self.jacobian, self.matrix, self.preconditioner_used)
+        # its pieces, also under the names tests and diagnostics read: the BSR matrix (None with
+        # matrix="free" and no multigrid), the preconditioner and the operator CG apply, Jacobi's 1 / diag A
+        self.A, self.M, self.A_op, self.inv_diag = self.system.A, self.system.M, self.system.A_op, self.system.inv_diag
+        self.multigrid = self.system.multigrid
+        if self.system.bsr:
             self.contact_values = wp.zeros_like(self.A.values)  # A before the contact filter (friction impulses)
-            self.diag_block = wp.array(block_of(np.arange(n), np.arange(n)), dtype=int)
-
-        # Jacobi preconditioner: the same operator as preconditioner(A, "diag"), but its inverse
-        # diagonal is refilled by the assembly kernel instead of being reallocated each step
-        if self.preconditioner_used == "multigrid":
-            self.multigrid = GridMultigrid(self.A, model.rows, model.cols, model.pinned, device)
-            self.M = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self.multigrid.apply)
-        elif self.preconditioner_used == "block_jacobi":
-            self.inv_block = wp.zeros(n, dtype=wp.mat33)
-            self.M = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self._apply_block_jacobi)
-        else:
-            self.M = aslinearoperator(self.inv_diag)
-        self._assembled_for = None
         # device-side convergence needs conditional graph nodes (CUDA driver and toolkit 12.4+)
         is_cuda = wp.get_device(device).is_cuda
         self._device_side = is_cuda and wp.is_conditional_graph_supported()
-        matvec = self._bsr_matvec if self.matrix == "bsr" else self._matvec
-        self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), matvec)
         # CUDA: warp's cg, convergence checked on the device (conditional graph), no host sync
         self.solver = cg(
             self.A_op, self.b, self.dv, tol=self.cg_tol, atol=0.0, maxiter=self.cg_max_iter, M=self.M,
@@ -302,7 +169,7 @@ class ImplicitEuler(Integrator):
         self.contact_mode.zero_()  # no contact history across an outside change of the state
         self.contact_impulse.zero_()
         self.contact_entered.zero_()
-        self._assembled_for = None
+        self.system.invalidate()
 
     def default_dt(self, model, drag_rate: float = 0.0) -> float:
         """One 60 Hz frame, :attr:`default_dt_cap`: the scheme is stable at any dt."""
@@ -312,15 +179,18 @@ class ImplicitEuler(Integrator):
         m, h = self.model, float(dt)
         x, v, f = state.particle_q, state.particle_qd, state.particle_f
         eval_forces(m, x, v, control, f)
-        self._assemble(x, h, float(control.drag_rate))
-        wp.launch(ik.eval_rhs, dim=m.particle_count, inputs=[f, v, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_K, m.particle_inv_mass, h], outputs=[self.b], device=m.device)
+        s = self.system
+        s.assemble(x, h, float(control.drag_rate))
+        wp.launch(ik.eval_rhs, dim=m.particle_count, inputs=[f, v, s.springs, s.spring_K, m.particle_inv_mass, h], outputs=[self.b],
+                  device=m.device)
         if has_pin_tracks(control):  # pinned dv = (track(t + h) - x)/h - v, moved to the free rows' right side
             control.kinematic_pins.delta(control, x, v, h, 1.0 / h, 1.0, self.pin_dv)
-            wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, m.particle_inv_mass, self.pin_dv], outputs=[self.b], device=m.device)
+            wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[s.springs, s.spring_B, m.particle_inv_mass, self.pin_dv],
+                      outputs=[self.b], device=m.device)
         contacts = self.matrix == "bsr" and control.collision is not None and len(control.collision.colliders) > 0
         if contacts:
             self._filter_contacts(control, x, v, f, h)
-        self._update_preconditioner(h, float(control.drag_rate), contacts)
+        s.update_preconditioner(h, float(control.drag_rate), contacts)
         self._solve()
         if contacts:
             self._contact_friction(v)
@@ -347,17 +217,17 @@ class ImplicitEuler(Integrator):
         neighbours (with it, the drape's stick-slip contacts kept their neighbours moving at up to
         0.05 m/s), so a contact that friction can hold sticks in the solve (released when the
         solve's |J_t| > mu J_n) and a sliding one's friction is in the solve."""
-        m = self.model
+        m, s = self.model, self.system
         wp.launch(ik.eval_contact_modes, dim=m.particle_count,
                   inputs=[x, v, f, m.particle_mass, m.particle_inv_mass, control.collision.params, h, self.contact_entered, self.contact_impulse],
                   outputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v, self.contact_friction_impulse], device=m.device)
         wp.launch(ik.eval_contact_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_collider_v, v], outputs=[self.contact_dv], device=m.device)
         wp.copy(self.contact_values, self.A.values)
         wp.copy(self.contact_b, self.b)
-        self._bsr_matvec(self.contact_dv, self.contact_Az, self.contact_Az, 1.0, 0.0)
-        wp.launch(ik.filter_system_rows, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.diag_block, self.contact_mode, self.contact_normal], outputs=[self.A.values, self.inv_diag], device=m.device)
+        s.bsr_matvec(self.contact_dv, self.contact_Az, self.contact_Az, 1.0, 0.0)
+        wp.launch(ik.filter_system_rows, dim=m.particle_count, inputs=[s.row_offsets, s.block_columns, s.diag_block, self.contact_mode, self.contact_normal], outputs=[self.A.values, self.inv_diag], device=m.device)
         wp.launch(ik.filter_rhs, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_Az, self.contact_friction_impulse], outputs=[self.b, self.dv], device=m.device)
-        self._assembled_for = None  # A.values now hold this step's filter: reassemble next step
+        s.invalidate()  # A.values now hold this step's filter: reassemble next step
 
     def _contact_friction(self, v) -> None:
         """dv = S y + z, the constraint impulse J = A dv - b of the unfiltered system on each
@@ -365,76 +235,10 @@ class ImplicitEuler(Integrator):
         friction reversed stops; a stuck one past the cone slips by the excess."""
         m = self.model
         wp.launch(ik.unfilter_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_dv], outputs=[self.dv], device=m.device)
-        wp.launch(ik.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.contact_values, self.dv, self.contact_b, -1.0, 1.0], outputs=[self.contact_Az], device=m.device)
+        self.system.bsr_matvec(self.dv, self.contact_b, self.contact_Az, -1.0, 1.0, values=self.contact_values)
         wp.launch(ik.apply_contact_friction, dim=m.particle_count,
-                  inputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v, self.contact_Az, v, m.particle_mass, self.contact_values, self.diag_block, self.contact_friction_impulse],
+                  inputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v, self.contact_Az, v, m.particle_mass, self.contact_values, self.system.diag_block, self.contact_friction_impulse],
                   outputs=[self.dv, self.contact_impulse], device=m.device)
-
-    def _assemble(self, x, h: float, drag: float) -> None:
-        """Refill K_s, B_s = h^2 K_s + h D_s and the values of A (and the Jacobi diagonal):
-        every step with the full Jacobian, only when h or the drag change with the approximation."""
-        m = self.model
-        if self.jacobian == "full":
-            wp.launch(ik.eval_spring_jacobians, dim=m.spring_count, inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
-        elif self._assembled_for == (h, drag):
-            return
-        else:
-            wp.launch(ik.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
-            self._assembled_for = (h, drag)
-        if self._bsr:
-            wp.launch(
-                ik.assemble_system_rows, dim=m.particle_count,
-                inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.adjacency_block, self.row_offsets, self.diag_block, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
-                outputs=[self.A.values, self.inv_diag], device=m.device,
-            )
-        if self.matrix == "free":
-            wp.launch(
-                ik.eval_system_diagonal, dim=m.particle_count,
-                inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
-                outputs=[self.mass_term, self.inv_diag], device=m.device,
-            )
-
-    def assemble_system(self, x, h: float, drag: float) -> None:
-        """A = M (1 + h c) - h df/dv - h^2 df/dx at ``x`` and its preconditioner (no contact
-        filter): what vbd's multigrid correction uses as h^2 times its Hessian."""
-        self._assemble(x, h, drag)
-        self._update_preconditioner(h, drag, False)
-
-    def _update_preconditioner(self, h: float, drag: float, filtered: bool) -> None:
-        """The preconditioner of this step's A (after the contact filter where ``filtered``;
-        Jacobi's diagonal is refilled by the assembly and the filter)."""
-        m = self.model
-        if self.preconditioner_used == "multigrid":
-            self.multigrid.update()
-        elif self.preconditioner_used == "block_jacobi" and filtered:
-            wp.launch(ik.invert_diagonal_blocks, dim=m.particle_count, inputs=[self.A.values, self.diag_block], outputs=[self.inv_block], device=m.device)
-        elif self.preconditioner_used == "block_jacobi":
-            wp.launch(
-                ik.eval_inverse_diagonal_blocks, dim=m.particle_count,
-                inputs=[self.adjacency_offsets, self.adjacency_spring, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
-                outputs=[self.inv_block], device=m.device,
-            )
-
-    def _bsr_matvec(self, x, y, z, alpha, beta) -> None:
-        """z = alpha A x + beta y with the assembled A (its BSR blocks, row by row): one 3 x 3
-        product per stored block, read in storage order; warp.sparse.bsr_mv computes the same
-        row by row of scalars."""
-        m = self.model
-        wp.launch(ik.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, self.A.values, x, y, float(alpha), float(beta)], outputs=[z], device=m.device)
-
-    def _matvec(self, x, y, z, alpha, beta) -> None:
-        """z = alpha A x + beta y without assembling A (the LinearOperator's matvec)."""
-        m = self.model
-        wp.launch(
-            ik.apply_system_matrix, dim=m.particle_count,
-            inputs=[x, y, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, self.spring_B, self.mass_term, m.particle_inv_mass, float(alpha), float(beta)],
-            outputs=[z], device=m.device,
-        )
-
-    def _apply_block_jacobi(self, x, y, z, alpha, beta) -> None:
-        """z = alpha P x + beta y with P = blockdiag(A_ii^-1) (the block-Jacobi LinearOperator)."""
-        m = self.model
-        wp.launch(ik.apply_block_diagonal, dim=m.particle_count, inputs=[x, y, self.inv_block, float(alpha), float(beta)], outputs=[z], device=m.device)
 
     def _solve(self) -> None:
         """dv = A^-1 b by Jacobi-preconditioned CG from the previous dv; records iterations and

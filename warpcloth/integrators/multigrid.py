@@ -16,7 +16,7 @@ definite linear operator, so it is a valid preconditioner for CG.
 
 Cost on the CPU: a V-cycle at 128^2 is ~35 small launches. With ``warp.sparse.bsr_mv`` (scalar
 rows) and Python launches it took 128 ms of bsr_mv kernels and ~880 launches per implicit step
-(one profiling run); with :func:`~warpcloth.kernels.implicit.block_gemv` and the V-cycle captured
+(one profiling run); with :func:`~warpcloth.kernels.linalg.block_gemv` and the V-cycle captured
 once and replayed (``wp.capture_launch``, Warp >= 1.19 on the CPU) the whole step took 89 ms
 instead of 423 ms in the same profiling script.
 """
@@ -27,7 +27,8 @@ import numpy as np
 import warp as wp
 import warp.sparse as wps
 
-from warpcloth.kernels import implicit as ik
+from warpcloth.kernels import linalg as lk
+from warpcloth.kernels import multigrid as mk
 
 #: Coarsen while the coarse grid keeps at least this many rows and columns.
 MIN_COARSE_SIDE = 4
@@ -141,7 +142,7 @@ class GridMultigrid:
     Call :meth:`update` after A's values change (each step), then :meth:`apply` (the
     LinearOperator's matvec) as often as CG needs. All arrays are allocated here.
 
-    Every level applies its operator with :func:`~warpcloth.kernels.implicit.block_gemv` (a CSR
+    Every level applies its operator with :func:`~warpcloth.kernels.linalg.block_gemv` (a CSR
     of 3 x 3 blocks read from the BSR values in their storage order) and the grid transfers with
     scalar weights (P's blocks are w I); a smoothing sweep computes its residual in the same
     kernel. On the CPU (Warp >= 1.19) the launches of a V-cycle and of :meth:`update` are captured
@@ -226,12 +227,12 @@ class GridMultigrid:
         for level in range(self.levels):
             if level > 0:
                 offsets, sources, weights = self.terms[level - 1]
-                wp.launch(ik.galerkin_product, dim=offsets.shape[0] - 1, inputs=[offsets, sources, weights, self.A[level - 1].values], outputs=[self.A[level].values], device=self.device)
+                wp.launch(mk.galerkin_product, dim=offsets.shape[0] - 1, inputs=[offsets, sources, weights, self.A[level - 1].values], outputs=[self.A[level].values], device=self.device)
             n = self.inv_block[level].shape[0]
             if not self.l1_smoother:
-                wp.launch(ik.invert_diagonal_blocks, dim=n, inputs=[self.A[level].values, self.csr[level][2]], outputs=[self.inv_block[level]], device=self.device)
+                wp.launch(lk.invert_diagonal_blocks, dim=n, inputs=[self.A[level].values, self.csr[level][2]], outputs=[self.inv_block[level]], device=self.device)
             else:
-                wp.launch(ik.invert_l1_diagonal_blocks, dim=n, inputs=[self.csr[level][0], self.A[level].values, self.csr[level][2]], outputs=[self.inv_block[level]], device=self.device)
+                wp.launch(mk.invert_l1_diagonal_blocks, dim=n, inputs=[self.csr[level][0], self.A[level].values, self.csr[level][2]], outputs=[self.inv_block[level]], device=self.device)
 
     def _omega(self, level: int) -> float:
         """The sweeps' damping: ``omega``, or 1 for the l1 smoother."""
@@ -241,7 +242,7 @@ class GridMultigrid:
         """out = alpha (x + omega D^-1 (b - A_l x)) + beta y: one damped block-Jacobi sweep."""
         offsets, columns, _ = self.csr[level]
         wp.launch(
-            ik.smooth_jacobi_block, dim=b.shape[0],
+            mk.smooth_jacobi_block, dim=b.shape[0],
             inputs=[offsets, columns, self.A[level].values, self.inv_block[level], b, x, self._omega(level), float(alpha), float(beta), out if y is None else y],
             outputs=[out], device=self.device,
         )
@@ -249,7 +250,7 @@ class GridMultigrid:
     def _smooth_from_zero(self, level: int, b, sweeps: int) -> int:
         """``sweeps`` sweeps on A_l x = b from x = 0; returns the buffer index holding x."""
         first = self.x[level][0]
-        wp.launch(ik.smooth_jacobi, dim=b.shape[0], inputs=[b, self.inv_block[level], self._omega(level), 1], outputs=[first], device=self.device)
+        wp.launch(mk.smooth_jacobi, dim=b.shape[0], inputs=[b, self.inv_block[level], self._omega(level), 1], outputs=[first], device=self.device)
         cur = 0
         for _ in range(sweeps - 1):
             self._sweep(level, b, self.x[level][cur], self.x[level][1 - cur])
@@ -264,18 +265,18 @@ class GridMultigrid:
             cur = self._smooth_from_zero(level, b, self.coarse_steps)
             x = self.x[level][cur]
             if z is not None:
-                wp.launch(ik.scale_add, dim=b.shape[0], inputs=[x, y, float(alpha), float(beta)], outputs=[z], device=self.device)
+                wp.launch(lk.scale_add, dim=b.shape[0], inputs=[x, y, float(alpha), float(beta)], outputs=[z], device=self.device)
                 return z
             return x
         cur = self._smooth_from_zero(level, b, self.smoothing_steps)
         x, r = self.x[level][cur], self.r[level]
         offsets, columns, _ = self.csr[level]
-        wp.launch(ik.block_gemv, dim=b.shape[0], inputs=[offsets, columns, self.A[level].values, x, b, -1.0, 1.0], outputs=[r], device=self.device)
+        wp.launch(lk.block_gemv, dim=b.shape[0], inputs=[offsets, columns, self.A[level].values, x, b, -1.0, 1.0], outputs=[r], device=self.device)
         offsets_t, columns_t, weights_t = self.Pt[level]
-        wp.launch(ik.weight_gemv, dim=self.b[level + 1].shape[0], inputs=[offsets_t, columns_t, weights_t, r, 0.0], outputs=[self.b[level + 1]], device=self.device)
+        wp.launch(mk.weight_gemv, dim=self.b[level + 1].shape[0], inputs=[offsets_t, columns_t, weights_t, r, 0.0], outputs=[self.b[level + 1]], device=self.device)
         coarse = self._vcycle(level + 1, self.b[level + 1])
         offsets_p, columns_p, weights_p = self.P[level]
-        wp.launch(ik.weight_gemv, dim=b.shape[0], inputs=[offsets_p, columns_p, weights_p, coarse, 1.0], outputs=[x], device=self.device)
+        wp.launch(mk.weight_gemv, dim=b.shape[0], inputs=[offsets_p, columns_p, weights_p, coarse, 1.0], outputs=[x], device=self.device)
         sweeps = self.smoothing_steps if self.post_smoothing else 0
         for k in range(sweeps):
             last = k == sweeps - 1 and z is not None
@@ -286,7 +287,7 @@ class GridMultigrid:
             cur = 1 - cur
         x = self.x[level][cur]
         if z is not None:
-            wp.launch(ik.scale_add, dim=b.shape[0], inputs=[x, y, float(alpha), float(beta)], outputs=[z], device=self.device)
+            wp.launch(lk.scale_add, dim=b.shape[0], inputs=[x, y, float(alpha), float(beta)], outputs=[z], device=self.device)
             return z
         return x
 

@@ -30,44 +30,25 @@ from typing import ClassVar
 import numpy as np
 import warp as wp
 
-from warpcloth.kernels import integrate as ik
 from warpcloth.kernels import projective as pk
-from warpcloth.kernels import vbd as vk
-from warpcloth.kernels.vbd import update_from_increment
 
-from warpcloth.sim.coloring import particle_adjacency
-from warpcloth.integrators.forces import eval_external_forces
-from warpcloth.sim.pins import apply_pins, has_pin_tracks
-from warpcloth.integrators.base import Integrator, Option, scratch_like
-from warpcloth.integrators.vbd import contact_arguments
+from warpcloth.integrators.base import Option, scratch_like
+from warpcloth.integrators.increment import IncrementSolver, at_least_one
+from warpcloth.integrators.linalg import OrderedSum
 
 
-def _at_least_one(value) -> str | None:
-    return None if value >= 1 else "must be an integer >= 1"
-
-
-class Projective(Integrator):
+class Projective(IncrementSolver):
     """Projective dynamics (Liu et al. 2013): local spring projection, global constant-matrix solve."""
 
     name: ClassVar[str] = "projective"
-    force_evals_per_step: ClassVar[int] = 1
-    #: contacts inside the iterations (after each global step), no projection after the step
-    collides_in_solver: ClassVar[bool] = True
     options = (
-        Option("pd_iterations", int, 10, "local/global iterations per time step (>= 1)", check=_at_least_one),
-        Option("pd_cg_iterations", int, 10, "Jacobi-preconditioned CG iterations per global solve, fixed (>= 1)", check=_at_least_one),
+        Option("pd_iterations", int, 10, "local/global iterations per time step (>= 1)", check=at_least_one),
+        Option("pd_cg_iterations", int, 10, "Jacobi-preconditioned CG iterations per global solve, fixed (>= 1)", check=at_least_one),
     )
 
-    def default_dt(self, model, drag_rate: float = 0.0) -> float:
-        """One 60 Hz frame: the step is implicit."""
-        return self.default_dt_cap
-
-    def _allocate(self, model) -> None:
+    def _allocate_solver(self, model) -> None:
         n = model.particle_count
-        offsets, spring, other = particle_adjacency(model.host["pairs"], n)
-        self.adjacency_offsets = wp.array(offsets, dtype=int)
-        self.adjacency_spring = wp.array(spring, dtype=int)
-        self.adjacency_other = wp.array(other, dtype=int)
+        offsets, other = self.springs.offsets.numpy(), self.springs.other.numpy()
         # CSR of S: row i = [diagonal, one entry per adjacent spring (neighbour order)]
         row_offsets = offsets + np.arange(n + 1, dtype=np.int32)
         columns = np.empty(int(row_offsets[-1]), dtype=np.int32)
@@ -79,30 +60,20 @@ class Projective(Integrator):
         self.columns = wp.array(columns, dtype=int)
         self.values = wp.zeros(columns.size, dtype=float)
         self.inv_diag = wp.zeros(n, dtype=float)
-        self.dx, self.dy, self.r, self.z, self.p, self.Ap = scratch_like(model, 6)
-        # per particle, from the last contact pass: normal (0: none), collider velocity and force, state (0 free, 1 slide, 2 stick)
-        self.contact_normal, self.contact_velocity, self.contact_force = scratch_like(model, 3)
-        self.contact_state = wp.zeros(n, dtype=int)
+        self.r, self.z, self.p, self.Ap = scratch_like(model, 4)
         self.rz = wp.zeros(self.pd_cg_iterations + 1, dtype=float)
         self.pAp = wp.zeros(self.pd_cg_iterations, dtype=float)
-        # dot products in a fixed order: per-particle terms, chunk sums, their sum
-        self.dot_terms = wp.zeros(n, dtype=float)
-        self.dot_chunk = max(1, -(-n // 128))
-        self.dot_partial = wp.zeros(-(-n // self.dot_chunk), dtype=float)
+        self.dot = OrderedSum(n, model.device)  # dot products in a fixed order
         self._assembled_for = None
 
     def begin(self, state, control, dt):
         self._assembled_for = None
 
     def step(self, state, control, dt):
-        m, h = self.model, float(dt)
-        x, v, f = state.particle_q, state.particle_qd, state.particle_f
+        h = float(dt)
+        x = state.particle_q
         self.assemble(h)
-        eval_external_forces(m, x, v, control, f)
-        wp.launch(ik.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
-        if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x: known, enters the residual
-            control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
-        contacts = contact_arguments(control, h)
+        contacts = self.predict(state, control, h)  # a kinematic pin's dx: known, enters the residual
         if contacts is None:
             self.contact_state.zero_()  # none held
         for _ in range(self.pd_iterations):
@@ -110,24 +81,15 @@ class Projective(Integrator):
             self.global_step()
             if contacts is not None:
                 self.solve_contacts(x, h, contacts)
-        if contacts is not None:
-            wp.launch(vk.update_from_increment_contact, dim=m.particle_count,
-                      inputs=[x, v, self.dx, m.particle_inv_mass, h, self.contact_normal, self.contact_velocity], device=m.device)
-        else:
-            wp.launch(update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
-        apply_pins(control, x, v, h)  # kinematic pins: x = track(t + h), v = track'(t + h)
+        self.finish(state, control, h, contacts)
 
     def solve_contacts(self, x, h: float, contacts) -> None:
         """Contacts after a global step (:func:`warpcloth.kernels.projective.solve_contacts`): the
         held particles' constrained local Newton step, the others out of the colliders; the new
         contact set is held in the next global step."""
         m = self.model
-        wp.launch(
-            pk.solve_contacts, dim=m.particle_count,
-            inputs=[x, self.dx, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, h, *contacts],
-            outputs=[self.Ap, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device,
-        )
+        wp.launch(pk.solve_contacts, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, h, contacts],
+                  outputs=[self.Ap, self.contact], device=m.device)
         wp.copy(self.dx, self.Ap)
 
     def assemble(self, h: float) -> None:
@@ -137,7 +99,7 @@ class Projective(Integrator):
             return
         wp.launch(
             pk.assemble_global_matrix, dim=m.particle_count,
-            inputs=[self.adjacency_offsets, self.adjacency_spring, self.adjacency_other, m.spring_stiffness, m.spring_damping, m.particle_mass, m.particle_inv_mass, h],
+            inputs=[self.springs, m.particle_mass, m.particle_inv_mass, h],
             outputs=[self.values, self.inv_diag], device=m.device,
         )
         self._assembled_for = h
@@ -147,9 +109,8 @@ class Projective(Integrator):
         m = self.model
         wp.launch(
             pk.eval_local_residual, dim=m.particle_count,
-            inputs=[x, self.dx, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, self.inv_diag, h, self.contact_state, self.contact_force],
-            outputs=[self.r, self.z, self.p, self.dot_terms], device=m.device,
+            inputs=[x, self.dx, self.inertia, self.springs, self.inv_diag, h, self.contact],
+            outputs=[self.r, self.z, self.p, self.dot.terms], device=m.device,
         )
         self._reduce(self.rz, 0)
 
@@ -157,18 +118,18 @@ class Projective(Integrator):
         """dx += S^-1 r by pd_cg_iterations of Jacobi-preconditioned CG from 0."""
         m, n = self.model, self.model.particle_count
         for k in range(self.pd_cg_iterations):
-            wp.launch(pk.csr_matvec_dot, dim=n, inputs=[self.row_offsets, self.columns, self.values, self.p], outputs=[self.Ap, self.dot_terms], device=m.device)
+            wp.launch(pk.csr_matvec_dot, dim=n, inputs=[self.row_offsets, self.columns, self.values, self.p],
+                      outputs=[self.Ap, self.dot.terms], device=m.device)
             self._reduce(self.pAp, k)
-            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k, self.contact_state], outputs=[self.dx, self.r, self.z, self.dot_terms], device=m.device)
+            wp.launch(pk.cg_update_solution, dim=n, inputs=[self.p, self.Ap, self.inv_diag, self.rz, self.pAp, k, self.contact_state],
+                      outputs=[self.dx, self.r, self.z, self.dot.terms], device=m.device)
             self._reduce(self.rz, k + 1)
             if k + 1 < self.pd_cg_iterations:
                 wp.launch(pk.cg_update_direction, dim=n, inputs=[self.z, self.rz, k], outputs=[self.p], device=m.device)
 
     def _reduce(self, out, k: int) -> None:
-        """out[k] = sum of dot_terms, in a fixed order (deterministic on every device)."""
-        d = self.model.device
-        wp.launch(pk.sum_chunks, dim=self.dot_partial.shape[0], inputs=[self.dot_terms, self.dot_chunk, self.model.particle_count], outputs=[self.dot_partial], device=d)
-        wp.launch(pk.sum_partials, dim=1, inputs=[self.dot_partial, k], outputs=[out], device=d)
+        """out[k] = sum of the dot product terms, in a fixed order (deterministic on every device)."""
+        self.dot.sum_into(out, k)
 
     def global_matrix(self):
         """S as a SciPy CSR matrix (host copy; for tests and diagnostics, not for stepping)."""

@@ -39,25 +39,18 @@ radius near the sweeps' (rho 0.99 and above) blew up within the first second at 
 
 from __future__ import annotations
 
-import sys
 from typing import ClassVar
 
 import warp as wp
 
-from warpcloth.kernels import collide as ck
-from warpcloth.kernels import integrate as ik
+from warpcloth.kernels import increment as nk
 from warpcloth.kernels import vbd as vk
 
-from warpcloth.sim.coloring import VertexColoring, color_vertices, particle_adjacency
-from warpcloth.integrators.forces import eval_external_forces
-from warpcloth.sim.pins import apply_pins, has_pin_tracks
-from warpcloth.integrators.base import Integrator, Option, scratch_like
-from warpcloth.integrators.implicit_euler import ImplicitEuler
+from warpcloth.sim.coloring import VertexColoring, color_vertices
+from warpcloth.integrators.base import Option, scratch_like
+from warpcloth.integrators.increment import IncrementSolver, at_least_one
 from warpcloth.integrators.multigrid import grid_structure_reason
-
-
-def _at_least_one(value) -> str | None:
-    return None if value >= 1 else "must be an integer >= 1"
+from warpcloth.integrators.system import ImplicitSystem
 
 
 def _spectral_radius(value) -> str | None:
@@ -79,32 +72,16 @@ def chebyshev_weights(iterations: int, rho: float) -> list[float]:
     return weights
 
 
-def contact_arguments(control, h: float):
-    """The colliders' kernel arguments (records, broad-phase box, plane count) for a solve that
-    holds contacts itself, moving ones posed at the step's end t + h (device launches only), or
-    None without colliders."""
-    contacts = control.collision
-    if contacts is None or len(contacts.colliders) == 0:
-        return None
-    if contacts.moving:
-        contacts.pose(h)  # positions relative to the pose at t + h, friction relative to v_c there
-    return [contacts.params, contacts.box, contacts.plane_count]
-
-
-class VBD(Integrator):
+class VBD(IncrementSolver):
     """Vertex Block Descent (Chen et al. 2024): per-vertex 3 x 3 Newton, Gauss-Seidel by colour."""
 
     name: ClassVar[str] = "vbd"
-    force_evals_per_step: ClassVar[int] = 1
-    #: contacts inside the sweeps (each vertex's Newton step projected out of the colliders with
-    #: Coulomb friction, :func:`warpcloth.kernels.vbd.project_increment`), no projection after the step
-    collides_in_solver: ClassVar[bool] = True
     options = (
         # 4 with a multigrid correction before each sweep (grid models): the 128 x 128 sheet's sag
         # within 0.5 % of the float64 equilibrium after 0.5 s and the 128 x 128 flag stable for 3 s
         # with 3 or 5 (docs/solvers.md). Sweeps alone (vbd_multigrid_every 0) need 20 on the 64 x 64
         # flag and still leave the 128 x 128 sheet's sag -68 % off after 10 s.
-        Option("vbd_iterations", int, 4, "VBD iterations (sweeps over every vertex colour) per time step (>= 1)", check=_at_least_one),
+        Option("vbd_iterations", int, 4, "VBD iterations (sweeps over every vertex colour) per time step (>= 1)", check=at_least_one),
         Option(
             "vbd_multigrid_every", int, 1,
             "grid models: a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; other models: never)",
@@ -119,29 +96,15 @@ class VBD(Integrator):
 
     coloring: VertexColoring
 
-    def default_dt(self, model, drag_rate: float = 0.0) -> float:
-        """One 60 Hz frame: the step is implicit (a descent on backward Euler's potential)."""
-        return self.default_dt_cap
-
-    def _allocate(self, model) -> None:
-        pairs = model.host["pairs"]
-        self.coloring = color_vertices(pairs, model.particle_count, model.cols)
+    def _allocate_solver(self, model) -> None:
+        self.coloring = color_vertices(model.host["pairs"], model.particle_count, model.cols)
         self.vertex_order = wp.array(self.coloring.order, dtype=int)
-        offsets, spring, other = particle_adjacency(pairs, model.particle_count)
-        self.adjacency_offsets = wp.array(offsets, dtype=int)
-        self.adjacency_spring = wp.array(spring, dtype=int)
-        self.adjacency_other = wp.array(other, dtype=int)
-        self.dx, self.dy, self.dx_prev1, self.dx_prev2 = scratch_like(model, 4)
+        self.dx_prev1, self.dx_prev2 = scratch_like(model, 2)  # the Chebyshev history
         self._sweep_key, self._sweep = None, []
-        # per particle, from the last sweep: the contact's normal (0: none), collider velocity and force, state (0 free, 1 slide, 2 stick)
-        self.contact_normal, self.contact_velocity, self.contact_force = scratch_like(model, 3)
-        self.contact_state = wp.zeros(model.particle_count, dtype=int)
-        self.no_colliders = wp.zeros(0, dtype=ck.Collider)
-        self.no_box = wp.zeros(2, dtype=wp.vec3)
         self.hessian = None
         if self.vbd_multigrid_every > 0 and grid_structure_reason(model) is None:
             # h^2 times the potential's Hessian is implicit Euler's A = M + h D + h^2 K (drag aside)
-            self.hessian = ImplicitEuler(preconditioner="multigrid", matrix="bsr").bind(model)
+            self.hessian = ImplicitSystem(model, jacobian="full", matrix="bsr", preconditioner="multigrid")
             # l1 smoothing: with damped block Jacobi (omega 0.7, the CG preconditioner's) the
             # 64 x 64 flag blew up in its first step (measured); with l1 it did not
             self.hessian.multigrid.l1_smoother = True
@@ -149,18 +112,15 @@ class VBD(Integrator):
 
     def step(self, state, control, dt):
         m, h = self.model, float(dt)
-        x, v, f = state.particle_q, state.particle_qd, state.particle_f
-        eval_external_forces(m, x, v, control, f)
-        wp.launch(ik.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h], outputs=[self.dy, self.dx], device=m.device)
-        if has_pin_tracks(control):  # a kinematic pin's dx = track(t + h) - x, held through the sweeps
-            control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
-        contacts = contact_arguments(control, h)
+        x = state.particle_q
+        contacts = self.predict(state, control, h)
         sweep = self.color_sweep(x, h, contacts)
         accelerate = self.vbd_chebyshev_rho > 0.0
         if accelerate:
             wp.launch(vk.copy_increment, dim=m.particle_count, inputs=[self.dx], outputs=[self.dx_prev1, self.dx_prev2], device=m.device)
         if self.hessian is not None:
-            self.hessian.assemble_system(x, h, 0.0)
+            self.hessian.assemble(x, h, 0.0)
+            self.hessian.update_preconditioner(h, 0.0)
         for it, omega in enumerate(chebyshev_weights(self.vbd_iterations, self.vbd_chebyshev_rho)):
             if self.hessian is not None and it % self.vbd_multigrid_every == 0:
                 self.coarse_correction(x, h, contacts)
@@ -169,46 +129,37 @@ class VBD(Integrator):
             if accelerate:
                 wp.launch(vk.apply_chebyshev, dim=m.particle_count, inputs=[omega], outputs=[self.dx, self.dx_prev1, self.dx_prev2], device=m.device)
                 if contacts is not None:  # the extrapolation may reach into a collider
-                    wp.launch(vk.project_increments, dim=m.particle_count, inputs=[x, m.particle_inv_mass, *contacts, h],
-                              outputs=[self.dx, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device)
-        if contacts is not None:
-            wp.launch(vk.update_from_increment_contact, dim=m.particle_count,
-                      inputs=[x, v, self.dx, m.particle_inv_mass, h, self.contact_normal, self.contact_velocity], device=m.device)
-        else:
-            wp.launch(vk.update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h], device=m.device)
-        apply_pins(control, x, v, h)  # kinematic pins: x = track(t + h), v = track'(t + h)
+                    wp.launch(nk.project_increments, dim=m.particle_count, inputs=[x, m.particle_inv_mass, contacts, h],
+                              outputs=[self.dx, self.contact], device=m.device)
+        self.finish(state, control, h, contacts)
 
     def coarse_correction(self, x, h: float, contacts=None) -> None:
         """dx += V(r): r = -h^2 grad G at dx, V one multigrid V-cycle of A = h^2 Hessian."""
         m = self.model
-        wp.launch(
-            vk.eval_increment_residual, dim=m.particle_count,
-            inputs=[x, self.dy, self.dx, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                    m.spring_rest_length, m.spring_stiffness, m.spring_damping, h],
-            outputs=[self.residual], device=m.device,
-        )
+        wp.launch(vk.eval_increment_residual, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, h],
+                  outputs=[self.residual], device=m.device)
         if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
-            wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact_state, self.contact_force, h], outputs=[self.residual], device=m.device)
+            wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact, h], outputs=[self.residual],
+                      device=m.device)
         self.hessian.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
         if contacts is not None:
-            wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact_normal], outputs=[self.delta], device=m.device)
+            wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact], outputs=[self.delta],
+                      device=m.device)
         wp.launch(vk.add_increment, dim=m.particle_count, inputs=[self.delta], outputs=[self.dx], device=m.device)
 
     def color_sweep(self, x, h: float, contacts=None) -> list:
-        """One Gauss-Seidel sweep: a recorded launch of the local Newton kernel per colour,
-        rebuilt only when the positions array, h or the colliders change (cuts the Python cost
-        of colours x iterations launches)."""
-        contacts = contacts if contacts is not None else [self.no_colliders, self.no_box, 0]
-        key = (x.ptr, h, contacts[0].ptr, contacts[1].ptr, contacts[2])
+        """One Gauss-Seidel sweep: a recorded launch of the local Newton kernel per colour
+        (``contacts``: the colliders' struct, or None), rebuilt only when the positions array, h or
+        the colliders change (cuts the Python cost of colours x iterations launches; a recorded
+        launch keeps the struct arguments' values of its recording)."""
+        colliders = contacts if contacts is not None else self.no_colliders
+        key = (x.ptr, h, colliders.records.ptr, colliders.box.ptr, colliders.plane_count)
         if key != self._sweep_key:
             m = self.model
-            params = [
-                x, self.dy, m.particle_mass, m.particle_inv_mass, self.adjacency_offsets, self.adjacency_spring, self.adjacency_other,
-                m.spring_rest_length, m.spring_stiffness, m.spring_damping, h, *contacts,
-            ]
             self._sweep = [
-                wp.launch(vk.solve_vertices_vbd, dim=count, inputs=[self.vertex_order, start, *params],
-                          outputs=[self.dx, self.contact_normal, self.contact_velocity, self.contact_force, self.contact_state], device=m.device, record_cmd=True)
+                wp.launch(vk.solve_vertices_vbd, dim=count,
+                          inputs=[self.vertex_order, start, x, self.inertia, self.springs, h, colliders],
+                          outputs=[self.dx, self.contact], device=m.device, record_cmd=True)
                 for start, count in zip(self.coloring.starts, self.coloring.counts)
             ]
             self._sweep_key = key

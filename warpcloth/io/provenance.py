@@ -63,8 +63,14 @@ def _jsonable(value):
 
 
 def machine(device=None) -> dict:
-    """Where a measurement ran: ``host`` (host name), ``cpu`` (model and logical cores) and
-    ``gpu`` (the CUDA device's name when ``device`` is one, else empty)."""
+    """Where a measurement ran, for a benchmark's rows and a study's report.
+
+    Returns:
+        ``host`` (host name), ``cpu`` (the CPU's model), ``cores`` (logical cores visible),
+        ``gpu`` (the name of ``device`` when it is a CUDA device, else empty), ``gpus`` (every
+        CUDA device, ``cuda:0 NAME``), ``driver`` (the CUDA driver's version, or None), ``warp``,
+        ``python``, ``os`` and ``date`` (now, UTC, to the minute).
+    """
     import os
     import platform
     import socket
@@ -84,4 +90,17 @@ def machine(device=None) -> dict:
             gpu = d.name if d.is_cuda else ""
         except Exception:  # noqa: BLE001 - a device that is not there: no name
             gpu = ""
-    return {"host": socket.gethostname(), "cpu": f"{cpu} ({os.cpu_count()} logical cores)", "gpu": gpu}
+    gpus = []
+    try:
+        for d in wp.get_cuda_devices():
+            gpus.append(f"{d} {wp.get_device(d).name}")
+    except Exception:  # noqa: BLE001 - no CUDA
+        pass
+    driver = None
+    try:
+        driver = wp.get_cuda_driver_version() if hasattr(wp, "get_cuda_driver_version") else None
+    except Exception:  # noqa: BLE001
+        driver = None
+    return {"host": socket.gethostname(), "cpu": cpu, "cores": os.cpu_count(), "gpu": gpu, "gpus": gpus,
+            "driver": driver, "warp": wp.config.version, "python": platform.python_version(), "os": platform.platform(),
+            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")}

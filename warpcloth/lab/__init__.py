@@ -3,7 +3,10 @@
 * :mod:`warpcloth.lab.testlist` and :mod:`warpcloth.lab.sweep`: XML test lists run to CSV (seed 4.3);
 * :mod:`warpcloth.lab.maxdt`: the max-stable-dt search;
 * :mod:`warpcloth.lab.bench`: the CPU vs CUDA benchmark;
-* :mod:`warpcloth.lab.study` (with ``accuracy``, ``frontier``, ``report``): the accuracy-aware study;
+* :mod:`warpcloth.lab.study`: the accuracy-aware study's driver, with :mod:`~warpcloth.lab.plan` (what it
+  measures), :mod:`~warpcloth.lab.measure` (the measurements), :mod:`~warpcloth.lab.accuracy`,
+  :mod:`~warpcloth.lab.results` (results.csv), :mod:`~warpcloth.lab.report`, :mod:`~warpcloth.lab.frontier`
+  and :mod:`~warpcloth.lab.estimate` (``--estimate``);
 * :mod:`warpcloth.lab.reference`: float64 references that warpcloth's float32 runs are measured
   against (NumPy forces, SciPy ``solve_ivp``, a Newton solve of the static equilibrium; docs/reference.md);
 * :mod:`warpcloth.lab.parallel`: local worker processes and Ray tasks for sweeps and studies.

@@ -135,7 +135,8 @@ def bench_one(integrator: str, size: int | None, device: str, graph: bool, steps
         "realtime_30fps": timing.realtime(30.0), "realtime_60fps": timing.realtime(60.0), "compile_s": timing.compile_s,
         "speedup_vs_cpu": "", "force_evals_per_step": sim.integrator.force_evals_per_step, "roofline_ms": "", "floor_multiple": "",
         "stable": finite, "solver_iterations_mean": iters, "solver_converged": "" if converged is None else converged,
-        "solver_capped_steps": capped, "host": where["host"], "cpu": where["cpu"], "gpu": where["gpu"],
+        "solver_capped_steps": capped, "host": where["host"], "cpu": f"{where['cpu']} ({where['cores']} logical cores)",
+        "gpu": where["gpu"],
         "warp_version": wp.config.version, "warpcloth_version": __version__,
     }
 

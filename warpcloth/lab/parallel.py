@@ -22,8 +22,9 @@ completion order; the caller (the only writer of its results file) writes each o
   (local: busy workers, counted by the driver; Ray: the driver's tasks in flight, capped by the
   slots of the node the task ran on: its CPUs for a CPU job, its GPUs for a CUDA job).
 
-The study (warpcloth.lab.study) and the sweep both use this module; neither it nor its workers
-write files.
+The study (warpcloth.lab.study) and the sweep (warpcloth.lab.sweep) both run their jobs through
+:func:`run_jobs` (pools from :func:`open_pool`, workers started by :func:`init_worker`); neither
+this module nor its workers write files.
 """
 
 from __future__ import annotations
@@ -36,6 +37,8 @@ import traceback
 from dataclasses import dataclass, field
 from multiprocessing.connection import wait as wait_any
 from typing import Callable, Hashable, Iterable, Iterator
+
+from warpcloth.errors import WarpclothError
 
 
 @dataclass(frozen=True)
@@ -470,20 +473,82 @@ class RayPool:
         self.started = False
 
 
+def init_worker(place) -> None:
+    """The ``init`` of the sweep's and the study's workers: run once in each worker process (local
+    or Ray) before its first job: Warp initialised quietly."""
+    from warpcloth.sim.device import init_warp
+
+    init_warp(False)
+
+
+def event_printer(stream, prefix: str = "warpcloth: ") -> Callable:
+    """An ``on_event`` for a pool: each note as one line ``PREFIX note`` on ``stream`` (None: dropped)."""
+
+    def note(text: str) -> None:
+        if stream is not None:
+            stream.write(f"{prefix}{text}\n")
+            stream.flush()
+
+    return note
+
+
+def check_count(flag: str, value) -> None:
+    """A worker count given to the library: None, or a whole number >= 1 (WarpclothError names ``flag``)."""
+    if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+        raise WarpclothError(f"{flag} must be a whole number >= 1, got {value!r}")
+
+
+def require_ray() -> None:
+    """A WarpclothError saying how to install Ray when ``--ray`` is asked for without it."""
+    try:
+        import_ray()
+    except ImportError as exc:
+        raise WarpclothError(f"--ray needs Ray: {str(exc).split(': ', 1)[1]}") from None
+
+
+def open_pool(fn: Callable, workers: int = 1, devices: list[str] | None = None, ray: str | None = None,
+              init: Callable | None = None, max_retries: int = 2, on_event: Callable | None = None):
+    """The pool that runs ``fn``'s jobs: ``workers`` local processes (``devices`` handed out to
+    them), or, with ``ray`` (an address), a :class:`RayPool` connected now, so that a cluster that
+    does not answer is refused before any file is touched.
+
+    Raises:
+        WarpclothError: ``--ray ADDRESS: why`` when the cluster cannot be reached.
+    """
+    if ray is None:
+        return LocalPool(fn, workers, devices=devices, init=init, max_retries=max_retries, on_event=on_event)
+    pool = RayPool(fn, ray, init=init, max_retries=max_retries, on_event=on_event)
+    try:
+        pool.connect()
+    except ConnectionError as exc:
+        raise WarpclothError(f"--ray {ray}: {exc}") from None
+    return pool
+
+
 def run_jobs(fn: Callable, jobs: Iterable[Job], workers: int = 1, devices: list[str] | None = None,
              ray_address: str | None = None, init: Callable | None = None, max_retries: int = 2,
-             on_event: Callable | None = None) -> Iterator[Done]:
-    """Run ``jobs`` with ``fn`` in ``workers`` local processes, or as Ray tasks when
-    ``ray_address`` is given; yield a :class:`Done` per job as it completes."""
-    if ray_address is not None:
-        pool = RayPool(fn, ray_address, init=init, max_retries=max_retries, on_event=on_event)
-    else:
-        pool = LocalPool(fn, workers, devices=devices, init=init, max_retries=max_retries, on_event=on_event)
+             on_event: Callable | None = None, pool=None, at_a_time: int | None = None) -> Iterator[Done]:
+    """Run ``jobs`` with ``fn`` and yield a :class:`Done` per job as it completes: the one driver
+    of the sweep and the study (the caller writes each row).
+
+    ``pool``: an open pool (:func:`open_pool`) to run them on, left open; without it a pool is
+    opened for these jobs (``workers`` local processes, or Ray tasks when ``ray_address`` is
+    given) and closed after. ``at_a_time``: the jobs go to the pool in slices of this many, one
+    slice after the other (on Ray, whose tasks otherwise all start at once: at most that many in
+    flight)."""
+    jobs = list(jobs)
+    own = pool is None
+    if own:
+        pool = open_pool(fn, workers, devices=devices, ray=ray_address, init=init, max_retries=max_retries,
+                         on_event=on_event)
     try:
-        yield from pool.run(jobs)
+        step = at_a_time or max(1, len(jobs))
+        for at in range(0, len(jobs), step):
+            yield from pool.run(jobs[at:at + step])
     finally:
-        pool.close()
+        if own:
+            pool.close()
 
 
-__all__ = ["CONNECT_TIMEOUT", "Done", "Job", "LocalPool", "Place", "RAY_INSTALL_HINT", "RayPool", "check_address", "import_ray",
-           "is_cuda", "run_jobs", "units_of"]
+__all__ = ["CONNECT_TIMEOUT", "Done", "Job", "LocalPool", "Place", "RAY_INSTALL_HINT", "RayPool", "check_address", "check_count",
+           "event_printer", "import_ray", "init_worker", "is_cuda", "open_pool", "require_ray", "run_jobs", "units_of"]

@@ -7,14 +7,12 @@ for one run. Without matplotlib the report says that the plots need ``pip instal
 
 from __future__ import annotations
 
-import datetime
 import math
 import os
-import platform
 import sys
-from collections import defaultdict
 
 from warpcloth.io.files import AtomicFile, write_atomic
+from warpcloth.io.provenance import machine
 from warpcloth.lab.frontier import frontier
 from warpcloth.lab.results import COLUMN_DOCS, COLUMNS, MESH_NOTE
 
@@ -101,35 +99,6 @@ class Data:
         if not pts:
             return None
         return frontier([p for p, _ in pts], [c for _, c in pts])
-
-
-# -- the machine -----------------------------------------------------------------------------
-def machine() -> dict:
-    import warp as wp
-
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    gpus = []
-    try:
-        for d in wp.get_cuda_devices():
-            gpus.append(f"{d} {wp.get_device(d).name}")
-    except Exception:  # noqa: BLE001 - no CUDA
-        pass
-    driver = None
-    try:
-        driver = wp.get_cuda_driver_version() if hasattr(wp, "get_cuda_driver_version") else None
-    except Exception:  # noqa: BLE001
-        driver = None
-    return {"cpu": cpu, "cores": os.cpu_count(), "gpus": gpus, "driver": driver, "warp": wp.config.version,
-            "python": platform.python_version(), "os": platform.platform(),
-            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")}
 
 
 # -- the verdict -----------------------------------------------------------------------------
@@ -520,4 +489,4 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
     return ["results.csv", "report.md"] + (written or [])
 
 
-__all__ = ["Data", "PLOTS", "machine", "verdict", "write_report"]
+__all__ = ["Data", "PLOTS", "verdict", "write_report"]

@@ -1,5 +1,9 @@
 """The study's results file: its columns and what each means (docs/study.md is generated from
-the same text), shared by the study that writes it and the report that reads it."""
+the same text), its format (:data:`RESULTS`: a :class:`~warpcloth.io.results.ResultsFile` of these
+columns, cells parsed back to values) and :func:`read_rows`, shared by the study that writes it
+and the report that reads it."""
+
+from warpcloth.io.results import ResultsFormat, parse_cell
 
 COLUMNS = [
     "measurement", "scenario", "integrator", "options", "device", "rows", "cols", "particles", "springs",
@@ -43,3 +47,14 @@ COLUMN_DOCS = {
 #: why a fixed-mesh scenario has no accuracy rows
 MESH_NOTE = ("no float64 reference for this scenario (warpcloth.lab.reference integrates the sheet and flag transients; "
              "a scenario file's mesh, kinematic pin tracks and colliders are not modelled there): accuracy not measured")
+
+#: The study's results.csv: these columns, values parsed back (:func:`~warpcloth.io.results.parse_cell`).
+RESULTS = ResultsFormat(tuple(COLUMNS), what="study", unit="measurement", parse=parse_cell)
+
+
+def read_rows(path) -> list[dict]:
+    """The rows of a study's results.csv, values parsed."""
+    return RESULTS.read(path)
+
+
+__all__ = ["COLUMNS", "COLUMN_DOCS", "MESH_NOTE", "RESULTS", "parse_cell", "read_rows"]

@@ -18,17 +18,15 @@
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import io
 import os
 import socket
-import sys
 import time
 from dataclasses import dataclass, field
 
 from warpcloth.errors import WarpclothError
-from warpcloth.io.files import OutputError, WriterLock, csv_line, check_output_path, describe_write_error, sweep_stale_temporaries, write_atomic
+from warpcloth.io.progress import Progress, format_clock
+from warpcloth.io.results import ResultsFile, ResultsFormat
 from warpcloth.run.params import TimeStep, csv_columns, per_type_triple
 from warpcloth.lab.testlist import RunSpec, TestList, parse_test_list, resolved_params
 
@@ -43,9 +41,6 @@ COLUMNS = [
     "max_strain_rel", "wall_cap_reached", "solver_iterations", "solver_converged", "solver_capped_steps", "solver", "error",
     "host", "worker", "concurrent_runs", "warpcloth_version", "warp_version", "key",
 ]
-
-#: The seed's real-time threshold: 30 frames of 1/30 s per wall second, i.e. real-time factor >= 1.
-REALTIME_FPS = 30.0
 
 OUTCOMES = ("equilibrium", "completed", "wall_cap", "unstable", "error")
 
@@ -169,223 +164,20 @@ def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
 
 
 # -- output ----------------------------------------------------------------------------------
-def format_row(row: dict) -> str:
-    """One CSV line (with its newline) for ``row``; missing columns are empty."""
-    return csv_line(row, COLUMNS)
+#: The sweep's results file (:class:`~warpcloth.io.results.ResultsFile`): these columns, cells
+#: kept as text, ``-`` for stdout.
+RESULTS = ResultsFormat(tuple(COLUMNS), what="sweep", unit="run", stdout=True)
+#: One CSV line (with its newline) for a row; missing columns are empty.
+format_row = RESULTS.format_row
+#: The results file of a sweep (kept importable by this name).
+CsvOutput = ResultsFile
 
 
-class CsvOutput:
-    """The results file: created with its header atomically, appended one fsync'd row at a time.
-
-    The file is locked (:class:`~warpcloth.io.files.WriterLock`) from before it is read or
-    created until :meth:`close`: a second writer is refused, naming the holder's pid.
-
-    Args:
-        path: file path, or ``-`` for stdout.
-        resume: continue an existing file (its keys are skipped); a missing file is created.
-        overwrite: replace an existing file.
-        report: stream for one-line notes (stale temporaries removed), or None.
-
-    Raises:
-        WarpclothError: the path cannot be written, is being written by another warpcloth,
-            exists without ``resume``/``overwrite``, or is a CSV with other columns. In every
-            such case the file is left exactly as it was.
-    """
-
-    def __init__(self, path: str, resume: bool = False, overwrite: bool = False, report=None):
-        self.path = str(path)
-        self.done_keys: set[str] = set()
-        self.truncated = False
-        self.dropped: bytes = b""  # the incomplete last line dropped on resume
-        self.dropped_path: str | None = None  # where a copy of it was saved
-        self.lock: WriterLock | None = None
-        self.rows = 0
-        if self.path == "-":
-            if resume:
-                raise WarpclothError("--resume needs a results file, not stdout (-)")
-            self.fh = sys.stdout
-            self._fsync = False
-            self._write(format_row(dict(zip(COLUMNS, COLUMNS))))
-            return
-        self._fsync = True
-        if os.path.isdir(self.path):
-            raise WarpclothError(f"cannot write results to {self.path}: it is a directory")
-        directory = os.path.dirname(os.path.abspath(self.path))
-        if not os.path.isdir(directory):
-            raise WarpclothError(f"cannot write results to {self.path}: directory {directory} does not exist")
-        try:
-            check_output_path(self.path, "results")
-        except WarpclothError as exc:
-            raise WarpclothError(f"cannot write results to {self.path}: {exc}") from None
-        self.lock = WriterLock(self.path).acquire()
-        try:
-            sweep_stale_temporaries(directory, report)
-            exists = os.path.exists(self.path) and os.path.getsize(self.path) > 0
-            if exists and resume:
-                self._read_existing()
-            elif exists and not overwrite:
-                raise WarpclothError(f"{self.path} already exists: use --resume to continue it or --overwrite to replace it")
-            else:
-                self._create()
-            try:
-                self.fh = open(self.path, "a", newline="", encoding="utf-8")
-            except OSError as exc:
-                raise WarpclothError(f"cannot write results to {self.path}: {exc.strerror or exc}") from None
-        except BaseException:
-            self.lock.release()
-            raise
-
-    def _create(self) -> None:
-        try:
-            write_atomic(self.path, format_row(dict(zip(COLUMNS, COLUMNS))), "results CSV")
-        except OutputError as exc:
-            raise WarpclothError(str(exc)) from None
-
-    def _read_existing(self) -> None:
-        """Validate the whole file first; change it (drop a cut last line) only once it is
-        known to be ours and the resume goes ahead."""
-        try:
-            with open(self.path, "rb") as fh:
-                data = fh.read()
-        except OSError as exc:
-            raise WarpclothError(f"cannot read {self.path} to resume: {exc.strerror or exc}") from None
-        cut = data.rfind(b"\n") + 1
-        if cut == 0:
-            raise WarpclothError(f"cannot resume {self.path}: it has no complete header line (left unchanged)")
-        complete, tail = data[:cut], data[cut:]
-        try:
-            text = complete.decode("utf-8")
-        except UnicodeDecodeError:
-            text = None
-        reader = csv.reader(io.StringIO(text or ""))
-        header = next(reader, None) if text is not None else None
-        if header != COLUMNS:
-            raise WarpclothError(f"cannot resume {self.path}: its header is not this warpcloth's sweep columns "
-                                 "(another program, or another warpcloth version, wrote it); left unchanged")
-        k = COLUMNS.index("key")
-        keys = set()
-        for line_no, cells in enumerate(reader, start=2):
-            if len(cells) != len(COLUMNS):
-                raise WarpclothError(f"cannot resume {self.path}: line {line_no} has {len(cells)} cells, expected {len(COLUMNS)} (left unchanged)")
-            keys.add(cells[k])
-        if tail:  # a row cut short by a kill: keep a copy, drop it; its run runs again
-            self.dropped = tail
-            side = f"{self.path}.dropped-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}-{os.getpid()}"
-            try:
-                write_atomic(side, tail, "copy of the dropped line")
-                self.dropped_path = side
-            except (OSError, WarpclothError):
-                self.dropped_path = None  # the bytes are shown in the message instead
-            try:
-                os.truncate(self.path, cut)
-            except OSError as exc:
-                raise WarpclothError(f"cannot resume {self.path}: {exc.strerror or exc}") from None
-            self.truncated = True
-        self.done_keys = keys
-        self.rows = len(keys)
-
-    def dropped_note(self) -> str:
-        """One line about the dropped incomplete last line (empty if none)."""
-        if not self.truncated:
-            return ""
-        where = f"a copy is in {self.dropped_path}" if self.dropped_path else f"it was {self.dropped[:120]!r}"
-        return f"{self.path}: dropped an incomplete last line ({len(self.dropped)} bytes, a run cut short; {where}); it runs again"
-
-    def _write(self, text: str) -> None:
-        try:
-            self.fh.write(text)
-            self.fh.flush()
-            if self._fsync:
-                os.fsync(self.fh.fileno())
-        except BrokenPipeError:
-            raise
-        except OSError as exc:
-            if self.fh is sys.stdout:
-                err = OutputError(f"cannot write the CSV to stdout: {exc.strerror or exc}")
-                err.stdout = True
-                raise err from None
-            line = describe_write_error(exc, self.path, "results CSV", needed=len(text.encode("utf-8")))
-            line = line.replace(f"; {self.path} is unchanged", "")
-            raise OutputError(f"{line}; the {self.rows} rows before it are kept (a cut last row is dropped on --resume)") from None
-
-    def write(self, row: dict) -> None:
-        """Append ``row`` and force it to disk."""
-        self._write(format_row(row))
-        self.rows += 1
-
-    def close(self) -> None:
-        try:
-            if self.fh is not sys.stdout:
-                try:
-                    self.fh.close()
-                except OSError:
-                    pass
-        finally:
-            if self.lock is not None:
-                self.lock.release()
-
-
-# -- progress --------------------------------------------------------------------------------
-def _clock(seconds: float) -> str:
-    s = int(round(seconds))
-    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
-
-
-class Progress:
-    """Runs done / total, the current run, elapsed and remaining time, on a stream (stderr).
-
-    On a terminal one bar is redrawn in place; otherwise one line is printed per event.
-    """
-
-    def __init__(self, total: int, stream=None, width: int = 24):
-        self.total = total
-        self.stream = stream
-        self.width = width
-        self.done = 0
-        self.start = time.perf_counter()
-        self.tty = bool(stream is not None and getattr(stream, "isatty", lambda: False)())
-        self.current = ""
-
-    def _remaining(self) -> str:
-        if self.done == 0:
-            return "?"
-        elapsed = time.perf_counter() - self.start
-        return "~" + _clock(elapsed / self.done * (self.total - self.done))
-
-    def _line(self, status: str) -> str:
-        filled = int(self.width * self.done / self.total) if self.total else self.width
-        bar = "#" * filled + "-" * (self.width - filled)
-        elapsed = _clock(time.perf_counter() - self.start)
-        return f"[{bar}] {self.done}/{self.total} | {status} | elapsed {elapsed} | remaining {self._remaining()}"
-
-    def _emit(self, text: str) -> None:
-        if self.stream is None:
-            return
-        if self.tty:
-            self.stream.write("\r\033[K" + text)
-        else:
-            self.stream.write(text + "\n")
-        self.stream.flush()
-
-    def running(self, label: str) -> None:
-        self.current = label
-        self._emit(self._line(f"running {label}"))
-
-    def note(self, text: str) -> None:
-        if self.tty:
-            self._emit(self._line(f"{self.current}: {text}"))
-
-    def finished(self, row: dict) -> None:
-        self.done += 1
-        outcome = row.get("outcome", "")
-        if outcome == "error":
-            outcome += f" ({row.get('error', '')[:80]})"
-        self._emit(self._line(f"{self.current}: {outcome}"))
-
-    def close(self) -> None:
-        if self.stream is not None and self.tty:
-            self.stream.write("\n")
-            self.stream.flush()
+def _line(bar: Progress, done: int, total: int, status: str, unit: str = "") -> str:
+    """The sweep's progress line: ``[####----] 3/8 | status | elapsed 0:12 | remaining ~0:20``."""
+    eta = bar.eta(done, total)
+    return (f"{bar.bar(done / total if total else 1.0, 24, '-')} {done}/{total} | {status} | elapsed "
+            f"{format_clock(bar.elapsed())} | remaining {'?' if eta is None else '~' + format_clock(eta)}")
 
 
 # -- the sweep -------------------------------------------------------------------------------
@@ -402,7 +194,7 @@ class SweepSummary:
     def describe(self) -> str:
         parts = ", ".join(f"{n} {k}" for k, n in self.outcomes.items() if n)
         skipped = f"; {self.skipped} already in the file" if self.skipped else ""
-        return f"{self.written} runs written ({parts or 'none'}){skipped} in {_clock(self.wall_time)}"
+        return f"{self.written} runs written ({parts or 'none'}){skipped} in {format_clock(self.wall_time)}"
 
 
 def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: bool = False, progress=None,
@@ -440,7 +232,7 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
     plan = ParallelPlan.check(test_list.runs, workers, devices, ray)
     pool = plan.pool(max_retries, report)  # Ray: connected here, before the file is touched
     try:
-        output = CsvOutput(out, resume=resume, overwrite=overwrite, report=report)
+        output = CsvOutput(out, RESULTS, resume=resume, overwrite=overwrite, report=report)
     except BaseException:
         if pool is not None:
             pool.close()
@@ -448,7 +240,8 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
     todo = [r for r in test_list.runs if r.key not in output.done_keys]
     summary = SweepSummary(total=len(test_list.runs), skipped=len(test_list.runs) - len(todo))
     summary.outcomes = {k: 0 for k in OUTCOMES}
-    bar = Progress(len(todo), progress)
+    bar = Progress(stream=progress, enabled=progress is not None, layout=_line, keep=True)
+    current = ""
     if output.truncated and report is not None:
         report.write(output.dropped_note() + "\n")
     if plan.warning and report is not None:
@@ -470,22 +263,31 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
         written.add(row["key"])
         summary.written += 1
         summary.outcomes[row["outcome"]] = summary.outcomes.get(row["outcome"], 0) + 1
-        bar.finished(row)
+        outcome = row.get("outcome", "")
+        if outcome == "error":
+            outcome += f" ({row.get('error', '')[:80]})"
+        bar.update(summary.written, len(todo), f"{current}: {outcome}", force=True)
+
+    def on_trial(t) -> None:  # a terminal only: one line per trial would flood a log
+        if bar.tty:
+            bar.update(summary.written, len(todo), f"{current}: max-dt trial dt={t.dt:.4g} s "
+                       f"{'stable' if t.stable else 'unstable'}", force=True)
 
     try:
         if not plan.parallel:
             host = socket.gethostname()
-            cache = MaxDtCache(on_trial=lambda t: bar.note(f"max-dt trial dt={t.dt:.4g} s {'stable' if t.stable else 'unstable'}"))
+            cache = MaxDtCache(on_trial=on_trial)
             for spec in todo:
-                bar.running(spec.describe())
+                current = spec.describe()
+                bar.update(summary.written, len(todo), f"running {current}", force=True)
                 row = execute_run(spec, cache)
                 row.update(host=host, worker="main", concurrent_runs=1)
                 record(row)
         elif todo:
-            from warpcloth.lab.parallel import Job
+            from warpcloth.lab.parallel import Job, run_jobs
 
             jobs = [Job(spec.key, spec, spec.device, spec.search_key if spec.dt.uses_max else None) for spec in todo]
-            for done in pool.run(jobs):
+            for done in run_jobs(parallel_run, jobs, pool=pool):
                 spec = done.job.payload
                 row = done.row
                 if row is None:
@@ -495,7 +297,7 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
                     row.update(host=done.place.host, worker=done.place.worker)
                 row["concurrent_runs"] = done.concurrent
                 row["key"] = spec.key
-                bar.current = spec.describe()
+                current = spec.describe()
                 record(row)
     finally:
         bar.close()
@@ -531,22 +333,10 @@ class ParallelPlan:
         WarpclothError says why it could not be."""
         if not self.parallel:
             return None
-        from warpcloth.lab.parallel import LocalPool, RayPool
+        from warpcloth.lab.parallel import event_printer, init_worker, open_pool
 
-        def on_event(text: str) -> None:
-            if report is not None:
-                report.write(f"warpcloth: {text}\n")
-                report.flush()
-
-        if self.ray is None:
-            return LocalPool(parallel_run, self.workers, devices=self.devices, init=parallel_init,
-                             max_retries=max_retries, on_event=on_event)
-        pool = RayPool(parallel_run, self.ray, init=parallel_init, max_retries=max_retries, on_event=on_event)
-        try:
-            pool.connect()
-        except ConnectionError as exc:
-            raise WarpclothError(f"--ray {self.ray}: {exc}") from None
-        return pool
+        return open_pool(parallel_run, self.workers, devices=self.devices, ray=self.ray, init=init_worker,
+                         max_retries=max_retries, on_event=event_printer(report))
 
     @classmethod
     def check(cls, runs, workers=None, devices=None, ray=None) -> "ParallelPlan":
@@ -556,15 +346,13 @@ class ParallelPlan:
                 raise WarpclothError("--ray runs the sweep on the cluster's CPUs and GPUs: it takes neither --workers nor --devices")
             if not str(ray).strip():
                 raise WarpclothError("--ray: give 'auto', 'local' or a cluster address HOST:PORT")
-            try:
-                from warpcloth.lab.parallel import import_ray
+            from warpcloth.lab.parallel import require_ray
 
-                import_ray()
-            except ImportError as exc:
-                raise WarpclothError(f"--ray needs Ray: {str(exc).split(': ', 1)[1]}") from None
+            require_ray()
             return cls(ray=str(ray).strip())
-        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-            raise WarpclothError(f"--workers must be a whole number >= 1, got {workers!r}")
+        from warpcloth.lab.parallel import check_count
+
+        check_count("--workers", workers)
         names = None
         if devices is not None:
             from warpcloth.sim.device import device_name
@@ -604,13 +392,6 @@ class ParallelPlan:
 _WORKER_CACHE: MaxDtCache | None = None
 
 
-def parallel_init(place) -> None:
-    """Run once in each worker process: Warp initialised quietly."""
-    from warpcloth.sim.device import init_warp
-
-    init_warp(False)
-
-
 def parallel_run(spec: RunSpec, place) -> dict:
     """A run in a worker process (``warpcloth.lab.parallel``): a CUDA run moves to the worker's
     device when it has one (its key stays the test list's, so --resume does not depend on where
@@ -628,9 +409,8 @@ def parallel_run(spec: RunSpec, place) -> dict:
 
 def read_results(path: str) -> list[dict]:
     """The rows of a sweep CSV as dicts of strings (a convenience for analysis and tests)."""
-    with open(path, newline="", encoding="utf-8") as fh:
-        return list(csv.DictReader(fh))
+    return RESULTS.read(path)
 
 
-__all__ = ["COLUMNS", "CsvOutput", "MaxDtCache", "ParallelPlan", "Progress", "SweepSummary", "execute_run", "parallel_run",
-           "read_results", "run_sweep"]
+__all__ = ["COLUMNS", "CsvOutput", "MaxDtCache", "ParallelPlan", "RESULTS", "SweepSummary", "execute_run", "format_row",
+           "parallel_run", "read_results", "run_sweep"]

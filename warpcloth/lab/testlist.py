@@ -422,9 +422,4 @@ def params_of_kind(kind: str) -> tuple[Param, ...]:
     return tuple(p for p in params.params_for("sweep") if p.applies == kind)
 
 
-def load_runs(path: str) -> list[RunSpec]:
-    """The expanded runs of the test list at ``path`` (see :func:`parse_test_list`)."""
-    return parse_test_list(path).runs
-
-
-__all__ = ["ATTRIBUTES", "RunSpec", "TestList", "TimeStep", "load_runs", "parse_test_list"]
+__all__ = ["ATTRIBUTES", "RunSpec", "TestList", "TimeStep", "parse_test_list"]

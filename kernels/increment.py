@@ -1,0 +1,219 @@
+"""The per-vertex pieces of the solvers that solve a step for the increment dx = x_new - x (vbd,
+projective): the inertial prediction, vertex i's local Newton step on the incremental potential
+
+    G(dx) = sum_i m_i / (2 h^2) |dx_i - dy_i|^2 + sum_s E_s(x + dx),   dy = h v + h^2 f_ext / m,
+
+(its gradient g_i and Hessian H_i with its neighbours fixed, see :mod:`warpcloth.kernels.vbd`),
+the projection of x + dx out of the colliders with Coulomb friction in the metric of H_i, and the
+update v = dx / h, x += dx. Positions are carried as the increment dx: the kernels form
+x_j - x_i and dx_j - dx_i apart, never x + dx.
+"""
+
+import warp as wp
+
+from warpcloth.kernels.collide import (Collider, Colliders, contact_band, in_box, plane_contact, shape_contact,
+                                      surface_velocity)
+from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
+
+# forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.struct
+class Inertia:
+    """The inertial term m / (2 h^2) |dx - dy|^2 of a step's potential: filled once at bind."""
+
+    dy: wp.array(dtype=wp.vec3)  # the inertial target y - x = h v + h^2 f_ext / m [m], shape (particle_count,)
+    mass: wp.array(dtype=float)  # particle mass [kg]
+    inv_mass: wp.array(dtype=float)  # 1 / mass [1/kg]; 0: pinned (its dx is prescribed)
+
+
+@wp.struct
+class ContactState:
+    """Per particle, what the last contact pass of an increment solve found: filled once at bind."""
+
+    normal: wp.array(dtype=wp.vec3)  # the contact's normal (0: none)
+    velocity: wp.array(dtype=wp.vec3)  # the collider's velocity there [m/s]
+    force: wp.array(dtype=wp.vec3)  # the colliders' force on the vertex in its local problem [N]
+    state: wp.array(dtype=int)  # 0 free, 1 sliding, 2 sticking
+
+
+@wp.kernel
+def predict_inertia(
+    v: wp.array(dtype=wp.vec3),
+    f_ext: wp.array(dtype=wp.vec3),
+    particle_inv_mass: wp.array(dtype=float),
+    h: float,
+    dy: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+):
+    # dy = h v + h^2 f_ext / m (inertial target y - x);  dx = h v (initial guess x + h v);  pinned: 0
+    # (the increments that vbd and projective solve for)
+    i = wp.tid()
+    w = particle_inv_mass[i]
+    if w == 0.0:
+        dy[i] = wp.vec3(0.0)
+        dx[i] = wp.vec3(0.0)
+        return
+    dy[i] = h * v[i] + (h * h * w) * f_ext[i]
+    dx[i] = h * v[i]
+
+
+@wp.func
+def vertex_gradient_hessian(i: int, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), inertia: Inertia,
+                            springs: SpringAdjacency, h: float):
+    # vertex i's local problem with its neighbours fixed: the gradient g = m / h^2 (dx_i - dy_i) -
+    # sum f and Hessian H = m / h^2 I + sum K of the step's potential at its increment dx_i
+    xi = x[i]
+    dxi = dx[i]
+    mh2 = inertia.mass[i] / (h * h)
+    g = mh2 * (dxi - inertia.dy[i])
+    H = mh2 * wp.identity(n=3, dtype=float)
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        s = springs.spring[a]
+        j = springs.other[a]
+        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s],
+                                       springs.damping[s], h)
+        g = g - f
+        H = H + K
+    return g, H
+
+
+@wp.func
+def newton_increment(g: wp.vec3, H: wp.mat33):
+    # -H^-1 g, or 0 where H is singular
+    det = wp.determinant(H)
+    if wp.abs(det) < 1.0e-30:
+        return wp.vec3(0.0)
+    return -(wp.inverse(H) * g)
+
+
+@wp.func(inline=True)
+def contact_response(colliders: wp.array(dtype=Collider), k: int, p: wp.vec3, d: wp.vec3, phi: float, n: wp.vec3, h: float,
+                     H: wp.mat33, Hinv: wp.mat33):
+    # the vertex's local problem min 1/2 e^T H e - c^T e (e = its displacement from d, the unconstrained
+    # minimiser; c the collider's force) with p = x + d within collider k's thickness, the surface
+    # linearised at p with normal n. Stick: e takes p to the surface at the collider's motion over the
+    # step (h v_c, the pose at the step's end); its force c = H e held if |c_t| <= mu c_n (Coulomb).
+    # Slide: c = lambda (n + mu t), t along the sticking force's tangential part, lambda such that
+    # p + H^-1 c is on the surface. With H isotropic this is the projection along n and friction as
+    # position-based solvers' (up to mu times the depth); an anisotropic H (stiff springs along the
+    # surface) needs the solve: projecting along n alone lets the normal force's H^-1 coupling slide
+    # the contact. Returns d, hit (1: a contact) and v_c
+    depth = colliders[k].thickness - phi
+    if depth <= 0.0:
+        return d, 0, wp.vec3(0.0), wp.vec3(0.0)
+    vc = surface_velocity(colliders, k, p)
+    r = d + depth * n - h * vc
+    stick = depth * n - (r - wp.dot(r, n) * n)
+    c = H * stick
+    cn = wp.dot(c, n)
+    ct = c - cn * n
+    lt = wp.length(ct)
+    mu = colliders[k].mu
+    if lt <= mu * cn:
+        return d + stick, 2, vc, c
+    w = n + (mu / lt) * ct
+    q = Hinv * w
+    denom = wp.dot(n, q)
+    if denom <= 0.0:  # not expected (H SPD, mu moderate): the projection along n
+        return d + depth * n, 1, vc, depth * (H * n)
+    return d + (depth / denom) * q, 1, vc, (depth / denom) * w
+
+
+@wp.func
+def project_increment(xi: wp.vec3, d: wp.vec3, colliders: Colliders, h: float, H: wp.mat33, Hinv: wp.mat33):
+    # x_i + d out of every collider with friction (contact_response, the vertex's local Hessian H):
+    # planes first, the others when x_i + d is in the box around them (as kernels.collide's
+    # responses); returns d, the last contact's normal (0: none), its collider velocity, the
+    # colliders' force on the vertex and the state (0: free, 1: sliding, 2: sticking)
+    normal = wp.vec3(0.0)
+    velocity = wp.vec3(0.0)
+    force = wp.vec3(0.0)
+    state = int(0)
+    records = colliders.records
+    for k in range(colliders.plane_count):
+        p = xi + d
+        phi, n = plane_contact(p, records[k].a, records[k].b)
+        d, hit, vc, c = contact_response(records, k, p, d, phi, n, h, H, Hinv)
+        if hit != 0:
+            normal = n
+            velocity = vc
+            force = force + c
+            state = hit
+    if in_box(xi + d, colliders.box):
+        for k in range(colliders.plane_count, records.shape[0]):
+            p = xi + d
+            phi, n = shape_contact(records, k, p, contact_band(records, k))
+            d, hit, vc, c = contact_response(records, k, p, d, phi, n, h, H, Hinv)
+            if hit != 0:
+                normal = n
+                velocity = vc
+                force = force + c
+                state = hit
+    return d, normal, velocity, force, state
+
+
+@wp.kernel
+def project_increments(
+    x: wp.array(dtype=wp.vec3),
+    particle_inv_mass: wp.array(dtype=float),
+    colliders: Colliders,
+    h: float,
+    dx: wp.array(dtype=wp.vec3),
+    contact: ContactState,
+):
+    # every free particle's x + dx out of the colliders with friction (after a Chebyshev extrapolation,
+    # or projective dynamics' global step), its contact's normal (0: none) and collider velocity
+    # kept; pinned particles stay
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        return
+    eye = wp.identity(n=3, dtype=float)
+    d, n, vc, c, state = project_increment(x[i], dx[i], colliders, h, eye, eye)
+    dx[i] = d
+    contact.normal[i] = n
+    contact.velocity[i] = vc
+    contact.force[i] = c
+    contact.state[i] = state
+
+
+@wp.kernel
+def update_from_increment(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    particle_inv_mass: wp.array(dtype=float),
+    h: float,
+):
+    # v = dx / h ;  x += dx   (pinned particles untouched)
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        return
+    d = dx[i]
+    v[i] = d / h
+    x[i] = x[i] + d
+
+
+@wp.kernel
+def update_from_increment_contact(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    particle_inv_mass: wp.array(dtype=float),
+    h: float,
+    contact: ContactState,
+):
+    # v = dx / h ;  x += dx, and a particle the last solve held on a collider leaves with no normal
+    # velocity relative to it ((v - v_c).n = 0: dx / h rounds it by ~ulp(x) / h, which at small h
+    # would carry it off a moving collider); pinned particles untouched
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        return
+    d = dx[i]
+    vi = d / h
+    n = contact.normal[i]
+    if wp.dot(n, n) > 0.0:
+        vi = vi - wp.dot(vi - contact.velocity[i], n) * n
+    v[i] = vi
+    x[i] = x[i] + d

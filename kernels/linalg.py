@@ -1,0 +1,202 @@
+"""Linear algebra on vec3 fields and 3 x 3 blocks, shared by the linear solvers: CSR block
+products, diagonal and block-diagonal (Jacobi) preconditioners, axpy, and dot products summed in a
+fixed order (per-element terms, sums over fixed chunks, then the chunks' sum by one thread; no
+atomics, so results are bit-identical run to run, between launches and graph replay). The
+preconditioned CG whose scalars live on the device (implicit Euler's solver on the CPU) is here
+too."""
+
+import warp as wp
+
+# forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.func
+def inverse_diagonal(a: wp.mat33):
+    # the Jacobi preconditioner of one row block: 1 / diag(A_ii)
+    return wp.vec3(1.0 / a[0, 0], 1.0 / a[1, 1], 1.0 / a[2, 2])
+
+
+@wp.func
+def inverse_block(a: wp.mat33):
+    # the block-Jacobi preconditioner of one row block: A_ii^-1 (SPD, so det > 0)
+    det = wp.determinant(a)
+    if det <= 0.0:
+        return wp.identity(n=3, dtype=float)
+    return wp.inverse(a)
+
+
+@wp.kernel
+def block_gemv(
+    offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    values: wp.array(dtype=wp.mat33),
+    x: wp.array(dtype=wp.vec3),
+    y: wp.array(dtype=wp.vec3),
+    alpha: float,
+    beta: float,
+    z: wp.array(dtype=wp.vec3),
+):
+    # z = alpha A x + beta y, A in CSR of 3 x 3 blocks (row i: blocks offsets[i]:offsets[i + 1]); y may alias z
+    i = wp.tid()
+    acc = wp.vec3(0.0)
+    for e in range(offsets[i], offsets[i + 1]):
+        acc = acc + values[e] * x[columns[e]]
+    out = alpha * acc
+    if beta != 0.0:
+        out = out + beta * y[i]
+    z[i] = out
+
+
+@wp.kernel
+def apply_block_diagonal(
+    x: wp.array(dtype=wp.vec3),
+    y: wp.array(dtype=wp.vec3),
+    blocks: wp.array(dtype=wp.mat33),
+    alpha: float,
+    beta: float,
+    z: wp.array(dtype=wp.vec3),
+):
+    # z = alpha P x + beta y, P block diagonal (block Jacobi: P_ii = A_ii^-1)
+    i = wp.tid()
+    out = alpha * (blocks[i] * x[i])
+    if beta != 0.0:
+        out = out + beta * y[i]
+    z[i] = out
+
+
+@wp.kernel
+def invert_diagonal_blocks(values: wp.array(dtype=wp.mat33), diag_index: wp.array(dtype=int), inverse: wp.array(dtype=wp.mat33)):
+    # inverse_i = A_ii^-1 (I where singular), A_ii = values[diag_index[i]]: the smoother of a multigrid level
+    i = wp.tid()
+    inverse[i] = inverse_block(values[diag_index[i]])
+
+
+@wp.kernel
+def scale_add(x: wp.array(dtype=wp.vec3), y: wp.array(dtype=wp.vec3), alpha: float, beta: float, z: wp.array(dtype=wp.vec3)):
+    # z = alpha x + beta y
+    i = wp.tid()
+    out = alpha * x[i]
+    if beta != 0.0:
+        out = out + beta * y[i]
+    z[i] = out
+
+
+@wp.kernel
+def dot_terms(a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), terms: wp.array(dtype=float)):
+    # terms_i = a_i . b_i  (summed in a fixed order by sum_chunks / sum_partials)
+    i = wp.tid()
+    terms[i] = wp.dot(a[i], b[i])
+
+
+@wp.kernel
+def sum_chunks(terms: wp.array(dtype=float), chunk: int, count: int, partial: wp.array(dtype=float)):
+    # partial[c] = sum of terms[c chunk : (c + 1) chunk], in index order
+    c = wp.tid()
+    acc = float(0.0)
+    for i in range(c * chunk, wp.min((c + 1) * chunk, count)):
+        acc = acc + terms[i]
+    partial[c] = acc
+
+
+@wp.kernel
+def sum_partials(partial: wp.array(dtype=float), k: int, out: wp.array(dtype=float)):
+    # out[k] = sum of the chunk sums, in order (one thread)
+    acc = float(0.0)
+    for c in range(partial.shape[0]):
+        acc = acc + partial[c]
+    out[k] = acc
+
+
+# -- preconditioned CG with its scalars on the device (implicit_euler's CPU solver) -----------
+# scalars: [r.z, r.z (new), p.Ap, r.r, b.b, tolerance^2 = tol^2 b.b, iterations, done]
+CG_RZ = wp.constant(0)
+
+
+CG_RZ_NEW = wp.constant(1)
+
+
+CG_PAP = wp.constant(2)
+
+
+CG_RR = wp.constant(3)
+
+
+CG_BB = wp.constant(4)
+
+
+CG_TOL2 = wp.constant(5)
+
+
+CG_ITER = wp.constant(6)
+
+
+CG_DONE = wp.constant(7)
+
+
+@wp.kernel
+def cg_start(tol: float, scalars: wp.array(dtype=float), p: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3), x: wp.array(dtype=wp.vec3)):
+    # p = z ;  tolerance^2 = tol^2 b.b ;  iterations = 0 ;  done when r.r <= tolerance^2 already;
+    # b = 0 exactly: x = 0 is the solution (a relative tolerance cannot be met from a warm start)
+    i = wp.tid()
+    p[i] = z[i]
+    bb = scalars[CG_BB]
+    if bb == 0.0:
+        x[i] = wp.vec3(0.0)
+    if i == 0:
+        if bb == 0.0:
+            scalars[CG_RR] = 0.0
+        tol2 = tol * tol * scalars[CG_BB]
+        scalars[CG_TOL2] = tol2
+        scalars[CG_ITER] = 0.0
+        scalars[CG_DONE] = 0.0
+        if scalars[CG_RR] <= tol2:
+            scalars[CG_DONE] = 1.0
+
+
+@wp.kernel
+def cg_update_solution(
+    scalars: wp.array(dtype=float),
+    p: wp.array(dtype=wp.vec3),
+    Ap: wp.array(dtype=wp.vec3),
+    x: wp.array(dtype=wp.vec3),
+    r: wp.array(dtype=wp.vec3),
+    terms: wp.array(dtype=float),
+):
+    # alpha = r.z / p.Ap ;  x += alpha p ;  r -= alpha Ap ;  terms = r.r   (nothing once done)
+    i = wp.tid()
+    ri = r[i]
+    if scalars[CG_DONE] == 0.0 and scalars[CG_PAP] > 0.0:
+        alpha = scalars[CG_RZ] / scalars[CG_PAP]
+        x[i] = x[i] + alpha * p[i]
+        ri = ri - alpha * Ap[i]
+        r[i] = ri
+    terms[i] = wp.dot(ri, ri)
+
+
+@wp.kernel
+def cg_count(max_iter: int, scalars: wp.array(dtype=float)):
+    # one iteration more; done when r.r <= tolerance^2 (warp's cg test) or at the cap
+    if scalars[CG_DONE] == 0.0:
+        it = scalars[CG_ITER] + 1.0
+        scalars[CG_ITER] = it
+        if scalars[CG_RR] <= scalars[CG_TOL2] or it >= float(max_iter):
+            scalars[CG_DONE] = 1.0
+
+
+@wp.kernel
+def cg_update_direction(scalars: wp.array(dtype=float), z: wp.array(dtype=wp.vec3), p: wp.array(dtype=wp.vec3)):
+    # beta = r.z (new) / r.z ;  p = z + beta p   (nothing once done)
+    i = wp.tid()
+    if scalars[CG_DONE] == 0.0:
+        beta = float(0.0)
+        if scalars[CG_RZ] > 0.0:
+            beta = scalars[CG_RZ_NEW] / scalars[CG_RZ]
+        p[i] = z[i] + beta * p[i]
+
+
+@wp.kernel
+def cg_shift(scalars: wp.array(dtype=float)):
+    # r.z <- r.z (new), for the next iteration
+    if scalars[CG_DONE] == 0.0:
+        scalars[CG_RZ] = scalars[CG_RZ_NEW]

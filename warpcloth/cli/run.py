@@ -1,0 +1,157 @@
+"""``warpcloth run SCENARIO`` and ``python -m warpcloth.scenarios.X`` (:func:`scenario_main`): a
+scenario run with its outputs (USD, HTML player, preview), its progress and its summary."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+
+from warpcloth.cli.model import DefaultDtExplained, add_model_arguments, check_spacing, config_from_args
+from warpcloth.cli.parse import Parser, add_verbose, guarded
+from warpcloth.errors import WarpclothError
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The flags of ``warpcloth run``."""
+    p.add_argument("scenario", help="scenario name (see 'warpcloth list') or a scenario file, path/to/scenario.toml")
+    add_run_arguments(p)
+
+
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
+    """Flags of a scenario run (shared by ``warpcloth run`` and ``python -m warpcloth.scenarios.X``)."""
+    num_frames = (("--num-frames",), dict(type=int, default=None, help="run this many frames instead of --duration"))
+    add_model_arguments(p, "run", exclusive={"duration": [num_frames]})
+    out = p.add_argument_group("outputs")
+    out.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH",
+                     help="write the animation to this USD file (.usd/.usda/.usdc, or .usdz: a package)")
+    out.add_argument("--usd-color", choices=["none", "strain"], default="none",
+                     help="strain: a per-frame primvars:displayColor of spring strain, blue 0 to red 10%% (default none)")
+    out.add_argument("--html", default=None, metavar="PATH", help="write a self-contained HTML player of the animation (WebGL, no network)")
+    out.add_argument("--preview", default=None, metavar="PATH",
+                     help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs warpcloth[plot]")
+    p.add_argument("--fail-unstable", action="store_true", help="exit with status 3 when the run goes unstable")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
+
+
+def summary(result) -> str:
+    """A short human-readable summary of a RunResult."""
+    lines = [
+        f"{result.scenario}: {result.integrator} on {result.device}, {result.rows}x{result.cols} "
+        f"({result.particles} particles, {result.springs} springs), dt={result.dt:.3g} s",
+        f"  simulated {result.sim_time:.3f} s in {result.steps} steps, {result.wall_time:.2f} s wall "
+        f"(+{result.compile_time:.2f} s compile" + (f", +{result.capture_time:.2f} s graph capture" if result.capture_time else "") + ")",
+        f"  {result.ms_per_step:.4f} ms/step, {result.steps_per_sec:,.0f} steps/s, real-time factor {result.realtime_factor:.2f}"
+        + (" (graph replay)" if result.graph else ""),
+        f"  stable: {'yes' if result.stable else 'NO (' + result.unstable_reason + ')'}, max strain {100 * result.max_strain:.2f} %",
+    ]
+    if result.scenario != "flag" or result.equilibrium_reached:
+        eq = f"yes, at t={result.time_to_equilibrium:.2f} s" if result.equilibrium_reached else "not reached"
+        lines.append(f"  equilibrium: {eq}")
+    if result.solver_converged is not None:
+        converged = "yes" if result.solver_converged else (
+            f"NO (iteration cap hit above tolerance in {result.solver_capped_steps} of {result.steps} steps)")
+        lines.append(f"  solver converged: {converged}")
+    if result.solver:
+        lines.append("  solver: " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.solver.items()))
+    return "\n".join(lines)
+
+
+#: Exit status of ``run --fail-unstable`` when the run went unstable.
+EXIT_UNSTABLE = 3
+
+
+def output_writers(scenario_name: str, args) -> list:
+    """Check every output path of a run (before any work) and return the writer factories
+    ``(sim, cfg) -> writer`` that :meth:`Scenario.run` calls once the model is built."""
+    from warpcloth.io.files import sweep_stale_temporaries
+    from warpcloth.io.provenance import provenance
+
+    argv = getattr(args, "argv", None)
+    paths, writers = [], []
+
+    prefix = getattr(args, "command_prefix", ("warpcloth",))
+
+    def frames(cfg):  # frames a run of cfg writes at most (the first one too)
+        return math.ceil(cfg.duration * cfg.fps - 1e-9) + 1
+
+    def info(sim, cfg):
+        return provenance(sim, scenario_name, cfg.fps, argv, prefix=prefix)
+
+    if getattr(args, "preview", None):
+        from warpcloth.io.preview import check_preview_path
+
+        check_preview_path(args.preview)  # also: matplotlib installed
+        paths.append(args.preview)
+    if args.usd:
+        from warpcloth.io.usd import usd_frames
+
+        writers.append(usd_frames(args.usd, getattr(args, "usd_color", "none"), info))  # the path is checked now
+        paths.append(args.usd)
+    if getattr(args, "html", None):
+        from warpcloth.io.player import HtmlWriter, check_html_path
+
+        check_html_path(args.html)
+        paths.append(args.html)
+        writers.append(lambda sim, cfg: HtmlWriter(args.html, sim.model, cfg.fps, title=f"warpcloth {scenario_name}: {sim.integrator.name}, "
+                                                   f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s", info=info(sim, cfg),
+                                                   expected_frames=frames(cfg), colliders=sim.control.colliders))
+    if getattr(args, "preview", None):
+        from warpcloth.io.preview import PreviewWriter
+
+        writers.append(lambda sim, cfg: PreviewWriter(args.preview, sim.model, cfg.fps, title=f"{scenario_name}, {sim.integrator.name}",
+                                                      expected_frames=frames(cfg)))
+    if len({os.path.abspath(p) for p in paths}) < len(paths):
+        raise WarpclothError("two outputs name the same file: " + ", ".join(paths))
+    for folder in sorted({os.path.dirname(os.path.abspath(p)) for p in paths}):
+        sweep_stale_temporaries(folder, sys.stderr)
+    return writers
+
+
+def run_scenario(scenario_name: str, args) -> int:
+    """Run the scenario ``scenario_name`` with the flags ``args``; the exit status."""
+    from warpcloth.scenarios import get_scenario
+
+    scenario = get_scenario(scenario_name)
+    cfg = config_from_args(scenario, args)
+    check_spacing(scenario, cfg)
+    writers = output_writers(scenario_name, args)
+    if not getattr(args, "quiet", False):
+        from warpcloth.io.progress import RunProgress
+
+        writers.insert(0, lambda sim, cfg: RunProgress(cfg.duration, label=f"run {scenario_name}"))
+    with DefaultDtExplained(args):
+        result = scenario.run(cfg, wall_cap=args.wall_cap, writers=writers)
+    quiet = getattr(args, "quiet", False)
+    if args.json:
+        print(result.to_json())
+    elif not quiet:
+        print(summary(result))
+        written = result.frames + (1 if result.stable else 0)  # the first frame, not the unstable last one
+        for path in (args.usd, getattr(args, "html", None), getattr(args, "preview", None)):
+            if path:
+                print(f"  wrote {path} ({os.path.getsize(path):,} bytes, {written} frames)")
+    if getattr(args, "fail_unstable", False) and not result.stable:
+        if not args.json:
+            print(f"warpcloth: the run went unstable ({result.unstable_reason}); exit {EXIT_UNSTABLE}", file=sys.stderr)
+        return EXIT_UNSTABLE
+    return 0
+
+
+def run(args) -> int:
+    return run_scenario(args.scenario, args)
+
+
+def scenario_main(name: str, argv=None) -> None:
+    """Entry point of ``python -m warpcloth.scenarios.<name>`` (Warp-example style flags)."""
+    parser = Parser(prog=f"python -m warpcloth.scenarios.{name}", description=f"Run the {name} scenario.")
+    add_run_arguments(parser)
+    add_verbose(parser)
+    args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
+    args.command_prefix = ("python", "-m", f"warpcloth.scenarios.{name}")
+    sys.exit(guarded(args, lambda: run_scenario(name, args)))
+
+
+__all__ = ["EXIT_UNSTABLE", "add_arguments", "add_run_arguments", "run", "run_scenario", "scenario_main", "summary"]

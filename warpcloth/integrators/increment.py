@@ -1,0 +1,120 @@
+"""What the increment solvers share (vbd and projective dynamics): a step is solved for the
+increment dx = x_new - x,
+
+    dy = h v + h^2 f_ext / m ;  dx = h v          (predict; kinematic pins: dx = track(t + h) - x)
+    ... the scheme's iterations on dx ...          (colliders held inside them)
+    v = dx / h ;  x += dx                          (finish; kinematic pins: x = track(t + h))
+
+f_ext = gravity + drag + wind, explicit. The initial guess x + h v makes a rest state of the
+stepping the exact static equilibrium whatever the iteration counts. Positions are carried as the
+increment dx, so float32 keeps h v whatever |x|. Kernels: :mod:`warpcloth.kernels.increment`.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import warp as wp
+
+from warpcloth.kernels import collide as ck
+from warpcloth.kernels import increment as nk
+
+from warpcloth.integrators.forces import eval_external_forces
+from warpcloth.sim.pins import apply_pins, has_pin_tracks
+from warpcloth.integrators.base import Integrator, scratch_like, spring_adjacency
+
+
+def at_least_one(value) -> str | None:
+    """The check of an iteration-count option (:class:`~warpcloth.integrators.base.Option`)."""
+    return None if value >= 1 else "must be an integer >= 1"
+
+
+class IncrementSolver(Integrator):
+    """Base of :class:`~warpcloth.integrators.vbd.VBD` and
+    :class:`~warpcloth.integrators.projective.Projective`.
+
+    Binding allocates dx, dy and the per-particle contact state of the last contact pass, and fills
+    the kernels' struct arguments once (:attr:`springs`, :attr:`inertia`, :attr:`contact`); a
+    subclass adds its own scratch in :meth:`_allocate_solver`. Its :meth:`step` is :meth:`predict`,
+    its iterations on :attr:`dx`, :meth:`finish`.
+    """
+
+    force_evals_per_step: ClassVar[int] = 1
+    #: contacts inside the iterations (each increment projected out of the colliders with Coulomb
+    #: friction, :func:`warpcloth.kernels.increment.project_increment`), no projection after the step
+    collides_in_solver: ClassVar[bool] = True
+
+    def default_dt(self, model, drag_rate: float = 0.0) -> float:
+        """One 60 Hz frame: the step is implicit (a solve of backward Euler's potential)."""
+        return self.default_dt_cap
+
+    def _allocate(self, model) -> None:
+        #: Each particle's springs and their parameters (:class:`~warpcloth.kernels.springs.SpringAdjacency`).
+        self.springs = spring_adjacency(model)
+        #: The increment dx = x_new - x [m] and the inertial target dy = h v + h^2 f_ext / m [m], shape
+        #: (particle_count,).
+        self.dx, self.dy = scratch_like(model, 2)
+        #: dy with the particle masses (:class:`~warpcloth.kernels.increment.Inertia`).
+        self.inertia = nk.Inertia()
+        self.inertia.dy = self.dy
+        self.inertia.mass, self.inertia.inv_mass = model.particle_mass, model.particle_inv_mass
+        # per particle, from the last contact pass: the contact's normal (0: none), collider velocity
+        # and force, state (0 free, 1 slide, 2 stick)
+        self.contact_normal, self.contact_velocity, self.contact_force = scratch_like(model, 3)
+        self.contact_state = wp.zeros(model.particle_count, dtype=int)
+        #: Those four arrays as one kernel argument (:class:`~warpcloth.kernels.increment.ContactState`).
+        self.contact = nk.ContactState()
+        self.contact.normal, self.contact.velocity = self.contact_normal, self.contact_velocity
+        self.contact.force, self.contact.state = self.contact_force, self.contact_state
+        # the colliders as one kernel argument: none (empty records), and the control's (filled when it changes)
+        self.no_colliders = ck.Colliders()
+        self.no_colliders.records, self.no_colliders.box = wp.zeros(0, dtype=ck.Collider), wp.zeros(2, dtype=wp.vec3)
+        self._colliders = ck.Colliders()
+        self._allocate_solver(model)
+
+    def _allocate_solver(self, model) -> None:
+        """The scheme's own scratch (override)."""
+
+    def predict(self, state, control, h: float):
+        """dy = h v + h^2 f_ext / m, dx = h v (a kinematic pin's dx = track(t + h) - x, held through
+        the iterations); returns the colliders as a kernel argument (:meth:`colliders`), or None
+        without colliders."""
+        m = self.model
+        x, v, f = state.particle_q, state.particle_qd, state.particle_f
+        eval_external_forces(m, x, v, control, f)
+        wp.launch(nk.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h],
+                  outputs=[self.dy, self.dx], device=m.device)
+        if has_pin_tracks(control):
+            control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
+        return self.colliders(control, h)
+
+    def colliders(self, control, h: float):
+        """The control's colliders as one kernel argument (:class:`~warpcloth.kernels.collide.Colliders`:
+        records, broad-phase box, plane count), moving ones posed at the step's end t + h (device
+        launches only), or None without colliders. The struct is refilled only when the control's
+        collider arrays change (no device memory either way)."""
+        contacts = control.collision
+        if contacts is None or len(contacts.colliders) == 0:
+            return None
+        if contacts.moving:
+            contacts.pose(h)  # positions relative to the pose at t + h, friction relative to v_c there
+        c = self._colliders
+        if c.records is not contacts.params or c.box is not contacts.box or c.plane_count != contacts.plane_count:
+            c.records, c.box, c.plane_count = contacts.params, contacts.box, contacts.plane_count
+        return c
+
+    def finish(self, state, control, h: float, contacts) -> None:
+        """v = dx / h ;  x += dx (with colliders: no normal velocity relative to a collider that
+        held the particle); kinematic pins x = track(t + h), v = track'(t + h)."""
+        m = self.model
+        x, v = state.particle_q, state.particle_qd
+        if contacts is not None:
+            wp.launch(nk.update_from_increment_contact, dim=m.particle_count,
+                      inputs=[x, v, self.dx, m.particle_inv_mass, h, self.contact], device=m.device)
+        else:
+            wp.launch(nk.update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h],
+                      device=m.device)
+        apply_pins(control, x, v, h)
+
+
+__all__ = ["IncrementSolver", "at_least_one"]

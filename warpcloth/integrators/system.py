@@ -1,0 +1,178 @@
+"""The implicit system of a mass-spring step, shared by implicit Euler (its linear system) and vbd
+(h^2 times its Hessian, for the multigrid correction):
+
+    A = M (1 + h c) - h df/dv - h^2 df/dx,
+
+df/dx the spring Jacobian (full, with the compression clamp that keeps A symmetric positive
+definite, or the seed's constant approximation eq. 2.23), df/dv the spring damping, c the linear
+air drag rate (kernels: :mod:`warpcloth.kernels.system`). With B_s = h^2 K_s + h D_s per spring,
+A is applied assembled (``matrix="bsr"``: a ``warp.sparse`` BSR matrix of 3 x 3 blocks whose
+pattern, one diagonal block per particle and one block per spring and direction, is built once,
+its values refilled by a kernel) or matrix-free (``matrix="free"``: a gather over each particle's
+springs); both give the same A. Pinned particles have identity rows and zero columns.
+
+Preconditioners: ``jacobi`` (1 / diag A, refilled by the assembly), ``block_jacobi`` (A's inverse
+3 x 3 diagonal blocks) and ``multigrid`` (a geometric V-cycle for grid models,
+:class:`~warpcloth.integrators.multigrid.GridMultigrid`; it needs A assembled, so it assembles
+the BSR matrix whatever ``matrix`` says).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+import warp.sparse as wps
+from warp.optim.linear import LinearOperator, aslinearoperator
+
+from warpcloth.kernels import linalg as lk
+from warpcloth.kernels import system as sk
+
+from warpcloth.integrators.base import spring_adjacency
+from warpcloth.integrators.multigrid import GridMultigrid
+
+JACOBIANS = ("full", "approx")
+MATRICES = ("free", "bsr")
+PRECONDITIONERS = ("jacobi", "block_jacobi", "multigrid")
+
+
+class ImplicitSystem:
+    """A = M (1 + h c) - h df/dv - h^2 df/dx of ``model``'s springs, its operator and preconditioner.
+
+    Args:
+        model: the :class:`~warpcloth.sim.model.ClothModel`.
+        jacobian: ``"full"`` (refilled every step) or ``"approx"`` (seed eq. 2.23, constant: refilled
+            only when h or the drag change).
+        matrix: the operator :attr:`A_op` applies, ``"bsr"`` (assembled) or ``"free"``.
+        preconditioner: ``"jacobi"``, ``"block_jacobi"`` or ``"multigrid"`` (a grid model: see
+            :func:`~warpcloth.integrators.multigrid.grid_structure_reason`).
+
+    Every array is allocated here; :meth:`assemble` and :meth:`update_preconditioner` launch
+    kernels only.
+    """
+
+    def __init__(self, model, jacobian: str = "full", matrix: str = "bsr", preconditioner: str = "jacobi"):
+        self.model, self.jacobian, self.matrix, self.preconditioner = model, jacobian, matrix, preconditioner
+        with wp.ScopedDevice(model.device):
+            self._allocate(model)
+
+    def _allocate(self, model) -> None:
+        n, device = model.particle_count, model.device
+        pairs = model.host["pairs"].astype(np.int64).reshape(-1, 2)
+        #: K_s and B_s = h^2 K_s + h D_s per spring, shape (spring_count,).
+        self.spring_K = wp.zeros(model.spring_count, dtype=wp.mat33)
+        self.spring_B = wp.zeros(model.spring_count, dtype=wp.mat33)
+        #: 1 / diag(A) (the Jacobi preconditioner), shape (particle_count,).
+        self.inv_diag = wp.zeros(n, dtype=wp.vec3)
+        self.mass_term = wp.zeros(n, dtype=float)
+        # the multigrid's Galerkin products need A assembled (BSR); A_op still applies A as ``matrix`` says
+        self.bsr = self.matrix == "bsr" or self.preconditioner == "multigrid"
+
+        if self.bsr:
+            # pattern: diagonal blocks + (i, j) and (j, i) per spring, built once
+            rows = np.concatenate([np.arange(n), pairs[:, 0], pairs[:, 1]]).astype(np.int32)
+            cols = np.concatenate([np.arange(n), pairs[:, 1], pairs[:, 0]]).astype(np.int32)
+            ones = np.tile(np.eye(3, dtype=np.float32), (rows.size, 1, 1))
+            self.A = wps.bsr_from_triplets(n, n, wp.array(rows, dtype=int), wp.array(cols, dtype=int), wp.array(ones, dtype=wp.mat33), prune_numerical_zeros=False)
+            self.A.nnz_sync()
+            offsets = self.A.offsets.numpy()[: n + 1].astype(np.int64)
+            columns = self.A.columns.numpy()[: offsets[-1]].astype(np.int64)
+            keys = np.repeat(np.arange(n), np.diff(offsets)) * n + columns  # sorted: row-major, columns ascending
+
+            def block_of(r, c):
+                return np.searchsorted(keys, np.asarray(r) * n + np.asarray(c)).astype(np.int32)
+        else:
+            self.A = None
+
+        #: Each particle's springs (the row kernels' gather; :class:`~warpcloth.kernels.springs.SpringAdjacency`).
+        self.springs = spring_adjacency(model)
+        if self.bsr:  # where each adjacency entry (particle, neighbour) and each diagonal block sits in A.values
+            ends = np.repeat(np.arange(n), np.diff(self.springs.offsets.numpy()))
+            self.adjacency_block = wp.array(block_of(ends, self.springs.other.numpy()), dtype=int)
+            self.row_offsets = wp.array(offsets.astype(np.int32), dtype=int)
+            self.block_columns = wp.array(columns.astype(np.int32), dtype=int)
+            self.diag_block = wp.array(block_of(np.arange(n), np.arange(n)), dtype=int)
+
+        # Jacobi preconditioner: the same operator as preconditioner(A, "diag"), but its inverse
+        # diagonal is refilled by the assembly kernel instead of being reallocated each step
+        self.multigrid = None
+        if self.preconditioner == "multigrid":
+            self.multigrid = GridMultigrid(self.A, model.rows, model.cols, model.pinned, device)
+            self.M = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self.multigrid.apply)
+        elif self.preconditioner == "block_jacobi":
+            self.inv_block = wp.zeros(n, dtype=wp.mat33)
+            self.M = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), self.apply_block_jacobi)
+        else:
+            self.M = aslinearoperator(self.inv_diag)
+        matvec = self.bsr_matvec if self.matrix == "bsr" else self.matvec
+        #: A as a LinearOperator (assembled or matrix-free, as ``matrix`` says).
+        self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), matvec)
+        self._assembled_for = None
+
+    def invalidate(self) -> None:
+        """Refill A at the next :meth:`assemble` even where its values would be unchanged (after a
+        change of the state, or after A's values were changed in place: the contact filter)."""
+        self._assembled_for = None
+
+    def assemble(self, x, h: float, drag: float) -> None:
+        """Refill K_s, B_s = h^2 K_s + h D_s and the values of A (and the Jacobi diagonal):
+        every step with the full Jacobian, only when h or the drag change with the approximation."""
+        m = self.model
+        if self.jacobian == "full":
+            wp.launch(sk.eval_spring_jacobians, dim=m.spring_count, inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
+        elif self._assembled_for == (h, drag):
+            return
+        else:
+            wp.launch(sk.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
+            self._assembled_for = (h, drag)
+        if self.bsr:
+            wp.launch(
+                sk.assemble_system_rows, dim=m.particle_count,
+                inputs=[self.springs, self.adjacency_block, self.row_offsets, self.diag_block, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
+                outputs=[self.A.values, self.inv_diag], device=m.device,
+            )
+        if self.matrix == "free":
+            wp.launch(
+                sk.eval_system_diagonal, dim=m.particle_count,
+                inputs=[self.springs, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
+                outputs=[self.mass_term, self.inv_diag], device=m.device,
+            )
+
+    def update_preconditioner(self, h: float, drag: float, filtered: bool = False) -> None:
+        """The preconditioner of this step's A (after the contact filter where ``filtered``;
+        Jacobi's diagonal is refilled by the assembly and the filter)."""
+        m = self.model
+        if self.preconditioner == "multigrid":
+            self.multigrid.update()
+        elif self.preconditioner == "block_jacobi" and filtered:
+            wp.launch(lk.invert_diagonal_blocks, dim=m.particle_count, inputs=[self.A.values, self.diag_block], outputs=[self.inv_block], device=m.device)
+        elif self.preconditioner == "block_jacobi":
+            wp.launch(
+                sk.eval_inverse_diagonal_blocks, dim=m.particle_count,
+                inputs=[self.springs, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
+                outputs=[self.inv_block], device=m.device,
+            )
+
+    def bsr_matvec(self, x, y, z, alpha, beta, values=None) -> None:
+        """z = alpha A x + beta y with the assembled A (its BSR blocks, row by row; ``values``:
+        other values on A's pattern): one 3 x 3 product per stored block, read in storage order;
+        warp.sparse.bsr_mv computes the same row by row of scalars."""
+        m = self.model
+        values = self.A.values if values is None else values
+        wp.launch(lk.block_gemv, dim=m.particle_count, inputs=[self.row_offsets, self.block_columns, values, x, y, float(alpha), float(beta)], outputs=[z], device=m.device)
+
+    def matvec(self, x, y, z, alpha, beta) -> None:
+        """z = alpha A x + beta y without assembling A (the LinearOperator's matvec)."""
+        m = self.model
+        wp.launch(
+            sk.apply_system_matrix, dim=m.particle_count,
+            inputs=[x, y, self.springs, self.spring_B, self.mass_term, m.particle_inv_mass, float(alpha), float(beta)],
+            outputs=[z], device=m.device,
+        )
+
+    def apply_block_jacobi(self, x, y, z, alpha, beta) -> None:
+        """z = alpha P x + beta y with P = blockdiag(A_ii^-1) (the block-Jacobi LinearOperator)."""
+        m = self.model
+        wp.launch(lk.apply_block_diagonal, dim=m.particle_count, inputs=[x, y, self.inv_block, float(alpha), float(beta)], outputs=[z], device=m.device)
+
+
+__all__ = ["ImplicitSystem", "JACOBIANS", "MATRICES", "PRECONDITIONERS"]
