@@ -125,3 +125,18 @@ def test_blender_imports_and_renders_the_stage(tmp_path, scenario, frames, clip)
     last = np.array(UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth")).GetPointsAttr().Get(sim_writer.last_code))
     assert got["count"] == len(last) and got["frame_end"] == int(sim_writer.last_code)
     assert np.allclose(got["points"], last[:3], atol=1e-5)  # the last frame's points (Blender turns Y up by the object)
+
+
+def test_the_run_line_names_the_clip_folder_and_the_purpose_flag(tmp_path, capsys, monkeypatch):
+    # warpcloth run ... --usd OUT.usdc on a run longer than a chunk: the line after "wrote" says
+    # where the samples went; --usd-colliders render draws the colliders
+    import warpcloth.io.usd as usd
+    from warpcloth.cli import main
+
+    monkeypatch.setattr(usd, "CLIP_BYTES", 1)  # the smallest chunk: 60 frames
+    out = tmp_path / "long.usdc"
+    assert main(["run", "drape", "--size", "4", "--num-frames", "130", "--usd", str(out), "--usd-colliders", "render"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "wrote" in x)
+    assert f"its samples are in {out}.clips{os.sep} (3 clips): copy the folder with the file" in line
+    stage = Usd.Stage.Open(str(out))
+    assert all(UsdGeom.Imageable(p).ComputePurpose() == "render" for p in stage.GetPrimAtPath("/World/Colliders").GetChildren())

@@ -56,6 +56,15 @@ def check_usd_path(path: str) -> str:
     return check_output_path(path, "USD", extensions=USD_EXTENSIONS)
 
 
+def clip_folder_of(path: str) -> tuple[str | None, int]:
+    """(the value-clip folder ``PATH.clips`` a closed writer left beside ``path``, its clip count),
+    or (None, 0) for a one-file stage."""
+    folder = path + ".clips"
+    if not os.path.isdir(folder):
+        return None, 0
+    return folder, sum(1 for name in os.listdir(folder) if name.startswith("clip_") and name.endswith(".usdc"))
+
+
 def _usd_failure(exc: BaseException, target: str, tmp: str) -> OutputError:
     """One line for a failed USD write (pxr's error text can be thousands of lines)."""
     import errno
