@@ -47,3 +47,30 @@ def test_compile_time_counts_every_module_the_run_loads(args):
     loads = {name: s for name, s in probe["loads"].items() if name.startswith("warpcloth.")}
     assert "warpcloth.kernels.collide" in loads  # the run has colliders: their module is among the loads
     assert probe["compile_time"] >= sum(loads.values()), probe
+
+
+def _python(code: str) -> str:
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                          env={k: v for k, v in os.environ.items() if k != "WARPCLOTH_WARP_VERBOSE"})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc.stdout
+
+
+def test_version_answers_without_importing_warp():
+    # `warpcloth --version` took 5-8 s: the package face imported Warp (about 1 s alone) and all of
+    # warpcloth; now it is the version module and the CLI's top level (0.18 s on the build machine)
+    out = _python("import sys\nfrom warpcloth.cli import main\ntry:\n    main(['--version'])\nexcept SystemExit:\n    pass\n"
+                  "print('warp' in sys.modules, sorted(m for m in sys.modules if m.startswith('warpcloth')))")
+    assert out.splitlines()[0].startswith("warpcloth 0.1")
+    imported, modules = out.splitlines()[1].split(" ", 1)
+    assert imported == "False" and "warpcloth.sim" not in modules, out
+
+
+def test_warp_is_quiet_whoever_imports_it_first():
+    # the face is lazy, but Warp still gets warpcloth's quiet configuration before it initialises:
+    # imported after warpcloth by the user, by a warpcloth module, or before warpcloth
+    for code in ("import warpcloth, warp", "import warpcloth.sim.grid, warp", "import warp, warpcloth"):
+        out = _python(code + "\nimport warp as wp\nprint(wp.config.quiet, wp.config.log_level == wp.LOG_WARNING)")
+        assert out.split() == ["True", "True"], code
+    out = _python("import warpcloth\nprint(warpcloth.Simulator.__module__, 'Simulator' in dir(warpcloth))")
+    assert out.split() == ["warpcloth.simulator", "True"]
