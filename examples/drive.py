@@ -10,8 +10,11 @@ import argparse
 import numpy as np
 import warp as wp
 
-import warpcloth
-from warpcloth import ColliderTrack, Control, PinTrack, Simulator, Sphere
+from warpcloth.sim.colliders import ColliderTrack, Sphere
+from warpcloth.sim.control import Control
+from warpcloth.sim.grid import build_grid_cloth
+from warpcloth.sim.pins import PinTrack
+from warpcloth.simulator import Simulator
 
 
 class Example:
@@ -19,7 +22,7 @@ class Example:
 
     def __init__(self, size: int = 32, stage_path: str | None = None, frame_dt: float = 1.0 / 60.0):
         corner, other = 0, size - 1  # the top corners of the hanging sheet
-        self.model = warpcloth.build_grid_cloth(size, size, pins=[corner, other])
+        self.model = build_grid_cloth(size, size, pins=[corner, other])
         self.hand = PinTrack.driven([corner], name="hand")
         ball = Sphere(center=(0.5, -0.6, -0.3), radius=0.15, friction=0.3, track=ColliderTrack.driven())
         self.control = Control(pin_tracks=(self.hand,), colliders=(ball,))
