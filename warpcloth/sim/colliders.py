@@ -376,6 +376,40 @@ class MeshCollider(_Posed):
         return "mesh"
 
 
+def signed_distance(c, points) -> np.ndarray | None:
+    """phi (P,) [m] of ``points`` (P, 3) from collider ``c`` as it is given (negative inside; its
+    thickness not counted), on the host in float64; None for a mesh (inside is the device's)."""
+    x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if c.kind == "plane":
+        return (x - np.asarray(c.point)) @ np.asarray(c.normal)
+    if c.kind == "sphere":
+        return np.linalg.norm(x - np.asarray(c.center), axis=1) - c.radius
+    if c.kind == "capsule":
+        a, b = np.asarray(c.a), np.asarray(c.b)
+        ab = b - a
+        t = np.clip((x - a) @ ab / max(float(ab @ ab), 1e-20), 0.0, 1.0)
+        return np.linalg.norm(x - (a + t[:, None] * ab), axis=1) - c.radius
+    if c.kind == "box":
+        p = (x - np.asarray(c.center)) @ _quat_matrix(c.rotation)  # R^T (x - c), row-wise
+        q = np.abs(p) - np.asarray(c.half_extents)
+        return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+    return None
+
+
+def describe(c) -> str:
+    """A collider in a few words, for messages: ``sphere at (0, 0.3, 0), radius 0.5``."""
+    v = lambda p: "(" + ", ".join(f"{float(u):.3g}" for u in p) + ")"  # noqa: E731
+    if c.kind == "plane":
+        return f"plane through {v(c.point)}, normal {v(c.normal)}"
+    if c.kind == "sphere":
+        return f"sphere at {v(c.center)}, radius {c.radius:g}"
+    if c.kind == "capsule":
+        return f"capsule {v(c.a)}-{v(c.b)}, radius {c.radius:g}"
+    if c.kind == "box":
+        return f"box at {v(c.center)}, half extents {v(c.half_extents)}"
+    return f"mesh collider {c.source or ''}".strip()
+
+
 COLLIDER_TYPES = {"plane": Plane, "sphere": Sphere, "capsule": Capsule, "box": Box, "mesh": MeshCollider}
 
 
@@ -408,4 +442,5 @@ def _matrix_quat(m: np.ndarray) -> tuple:
     return tuple(float(c) for c in q / np.linalg.norm(q))
 
 
-__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderDrive", "ColliderTrack", "KINDS", "MeshCollider", "Plane", "Sphere"]
+__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderDrive", "ColliderTrack", "KINDS", "MeshCollider", "Plane", "Sphere",
+           "describe", "signed_distance"]

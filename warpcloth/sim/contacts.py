@@ -29,7 +29,7 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError
 from warpcloth.kernels import collide as ck
-from warpcloth.sim.colliders import COLLIDER_TYPES, KINDS, _quat_matrix
+from warpcloth.sim.colliders import COLLIDER_TYPES, KINDS, _quat_matrix, describe, signed_distance
 
 
 class ColliderSet:
@@ -143,6 +143,21 @@ class ColliderSet:
             self.pose(substep=True)
 
 
+def starting_inside(colliders, points, free, t: float = 0.0) -> list[tuple[int, str, int]]:
+    """The colliders that free cloth vertices start inside: (index in ``colliders``, the collider in
+    words, how many of the ``free`` (N,) bool vertices of ``points`` (N, 3) have phi < 0 at time
+    ``t``), on the host. A vertex inside is pushed out at the first step (often with a spring
+    strain far past any limit); mesh colliders are not checked here."""
+    x = np.asarray(points, dtype=np.float64)[np.asarray(free, dtype=bool)]
+    found = []
+    for k, c in enumerate(colliders or ()):
+        posed = c.at(t) if c.track is not None else c
+        phi = signed_distance(posed, x)
+        if phi is not None and (inside := int(np.count_nonzero(phi < 0.0))):
+            found.append((k, describe(posed), inside))
+    return found
+
+
 def _record(c, mesh=None):
     """The rest :class:`~warpcloth.kernels.collide.Collider` record of a collider (``mesh``: the
     wp.Mesh of a MeshCollider)."""
@@ -176,4 +191,4 @@ def _record(c, mesh=None):
     return r
 
 
-__all__ = ["ColliderSet"]
+__all__ = ["ColliderSet", "starting_inside"]
