@@ -105,7 +105,7 @@ def output_writers(scenario_name: str, args) -> list:
         from warpcloth.io.preview import PreviewWriter
 
         writers.append(lambda sim, cfg: PreviewWriter(args.preview, sim.model, cfg.fps, title=f"{scenario_name}, {sim.integrator.name}",
-                                                      expected_frames=frames(cfg)))
+                                                      expected_frames=frames(cfg), colliders=sim.control.colliders))
     if len({os.path.abspath(p) for p in paths}) < len(paths):
         raise WarpclothError("two outputs name the same file: " + ", ".join(paths))
     for folder in sorted({os.path.dirname(os.path.abspath(p)) for p in paths}):
