@@ -140,3 +140,16 @@ def test_the_run_line_names_the_clip_folder_and_the_purpose_flag(tmp_path, capsy
     assert f"its samples are in {out}.clips{os.sep} (3 clips): copy the folder with the file" in line
     stage = Usd.Stage.Open(str(out))
     assert all(UsdGeom.Imageable(p).ComputePurpose() == "render" for p in stage.GetPrimAtPath("/World/Colliders").GetChildren())
+
+
+def test_a_written_stage_reads_back_as_a_mesh_input(tmp_path):
+    # README: `warpcloth run mesh --mesh cape.usda --prim /World/Cloth` on the stage a run wrote:
+    # the cloth's points have a default value (the first frame) besides their time samples
+    from warpcloth.io.meshio import load_mesh
+
+    writer = _write(tmp_path / "sheet.usda", "sheet")
+    mesh = load_mesh(writer.path, prim="/World/Cloth")
+    stage = Usd.Stage.Open(writer.path)
+    points = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth")).GetPointsAttr()
+    assert len(points.GetTimeSamples()) == writer.frames  # still animated
+    assert np.allclose(mesh.vertices, np.array(points.Get(points.GetTimeSamples()[0])), atol=1e-6)

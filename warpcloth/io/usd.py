@@ -341,6 +341,7 @@ class UsdWriter:
         self.colliders = ColliderPrims(self.stage, "/World/Colliders", colliders, plane_size=max(4.0, 10.0 * size),
                                        purpose=colliders_purpose)
         self.frames = 0
+        self._first_points = None
         self.last_code = -1.0
         if self.usdz:  # one package: no clip files beside it
             clip_frames = 2**62
@@ -362,6 +363,8 @@ class UsdWriter:
         code = float(round(sim_time * self.fps)) if sim_time is not None else float(self.last_code + 1)
         self._prev_code, self.last_code = self.last_code, code
         p = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
+        if self.frames == 0:
+            self._first_points = p.copy()  # the default value of a one-file stage (close)
         self.points_attr.Set(Vt.Vec3fArray.FromNumpy(p), code)
         lo, hi = p.min(axis=0), p.max(axis=0)
         self.extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), code)
@@ -464,6 +467,11 @@ class UsdWriter:
             return self.path
         try:
             self._finish_clips()
+            if not self._clips and self.frames:  # the first frame as the default too: a reader that asks for no
+                first = self._first_points       # time (a mesh input, a DCC's rest pose) gets the cloth, not nothing
+                self.points_attr.Set(self._Vt.Vec3fArray.FromNumpy(first))
+                self.extent_attr.Set(self._Vt.Vec3fArray([self._Gf.Vec3f(*map(float, first.min(axis=0))),
+                                                          self._Gf.Vec3f(*map(float, first.max(axis=0)))]))
             self.stage.SetStartTimeCode(0.0)
             self.stage.SetEndTimeCode(max(0.0, self.last_code))
             if not self.stage.GetRootLayer().Save():
