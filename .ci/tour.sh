@@ -30,7 +30,8 @@ say warpcloth bench --scenario examples/cape.toml --integrators xpbd,implicit_eu
 say warpcloth run curtain --size 8 --num-frames 2
 say warpcloth run drape --size 8 --num-frames 2
 say warpcloth run tablecloth --integrator xpbd --size 8 --num-frames 2
-say warpcloth run drape --collider capsule:a=-0.6/0.1/0.35,b=0.6/0.1/0.35,radius=0.1,friction=0.5 --size 8 --num-frames 2
+say warpcloth run drape --collider capsule:a=-0.6/0.1/0.35,b=0.6/0.1/0.35,radius=0.1,friction=0.5 \
+    --size 8 --num-frames 2
 say warpcloth run mesh --mesh examples/cape.obj --pin-group shoulders --usd cape.usda --num-frames 2
 say warpcloth run mesh --mesh cape.usda --prim /World/Cloth --pin 'y > 0.95 * y.max()' --num-frames 2
 say warpcloth run examples/cape.toml --num-frames 2

@@ -15,7 +15,8 @@ import warp as wp
 
 from warpcloth.io.provenance import machine
 from warpcloth.scenarios.mesh import make_cape
-from warpcloth.sim.coloring import greedy_spring_colors, greedy_vertex_colors, is_valid_coloring, is_valid_vertex_coloring
+from warpcloth.sim.coloring import (greedy_spring_colors, greedy_vertex_colors, is_valid_coloring,
+                                    is_valid_vertex_coloring)
 from warpcloth.sim.grid import build_grid_cloth
 from warpcloth.sim.mesh import build_mesh_cloth
 
@@ -83,7 +84,8 @@ def main():
 
         def mcs_springs():
             c = wp.zeros(len(pairs), dtype=int, device="cpu")
-            k = wp.utils.graph_coloring_assign(wp.array(line_graph(pairs, n).astype(np.int32), dtype=int, device="cpu"), c)
+            edges = wp.array(line_graph(pairs, n).astype(np.int32), dtype=int, device="cpu")
+            k = wp.utils.graph_coloring_assign(edges, c)
             return k, c.numpy()
 
         (k, c), tl = best(mcs_springs, args.repeats)

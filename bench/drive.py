@@ -33,10 +33,11 @@ def build(size, device, mode):
     top = list(range(size))  # the top row of the hanging sheet
     model = build_grid_cloth(size, size, pins=top, device=device)
     rest = model.host["q"].astype(np.float64)
+    ball = dict(center=(0.5, -0.6, -0.2), radius=0.15)
     if mode == "new track":
-        tracks, sphere = (PinTrack.keyframes(top, [0.0], [[0.0, 0.0, 0.0]]),), Sphere(center=(0.5, -0.6, -0.2), radius=0.15)
+        tracks, sphere = (PinTrack.keyframes(top, [0.0], [[0.0, 0.0, 0.0]]),), Sphere(**ball)
     else:
-        tracks, sphere = (PinTrack.driven(top),), Sphere(center=(0.5, -0.6, -0.2), radius=0.15, track=ColliderTrack.driven())
+        tracks, sphere = (PinTrack.driven(top),), Sphere(**ball, track=ColliderTrack.driven())
     sim = Simulator(model, "xpbd", Control(device=device, pin_tracks=tracks, colliders=(sphere,)))
     steps = max(1, round(FRAME / sim.dt))
     return sim, rest[top], steps
@@ -99,7 +100,8 @@ def main():
             print(f"  {m:<10} {spread(times[m])} ms/frame")
         print(f"  driven / replay {spread(ratio)}")
         if args.recapture:
-            print(f"  new track / replay {statistics.median(times['new track']) / statistics.median(times['replay']):.0f}x")
+            slow = statistics.median(times["new track"]) / statistics.median(times["replay"])
+            print(f"  new track / replay {slow:.0f}x")
 
 
 if __name__ == "__main__":

@@ -403,7 +403,8 @@ def next_collider_substep(substep: wp.array(dtype=int)):
 
 
 @wp.func
-def posed_collider(r: Collider, c: wp.vec3d, d: wp.vec3d, dd: wp.vec3d, axis: wp.vec3d, theta: wp.float64, theta_dot: wp.float64):
+def posed_collider(r: Collider, c: wp.vec3d, d: wp.vec3d, dd: wp.vec3d, axis: wp.vec3d, theta: wp.float64,
+                   theta_dot: wp.float64):
     # the rest record r moved by y -> c + d + R(axis, theta)(y - c), with v_c(y) = d' + theta' axis x (y - c - d)
     m = r
     rot = rotation_matrix(axis, theta)
@@ -464,9 +465,10 @@ def eval_collider_pose(
 
 @wp.kernel
 def eval_collider_driven_pose(
-    time: wp.array(dtype=wp.float64), offset: wp.float64, step_dt: wp.array(dtype=wp.float64), substep: wp.array(dtype=int), use_substep: int,
-    index: int, rest: wp.array(dtype=Collider),
-    frame_times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d), tangents: wp.array(dtype=wp.vec3d), cubic: int,
+    time: wp.array(dtype=wp.float64), offset: wp.float64, step_dt: wp.array(dtype=wp.float64),
+    substep: wp.array(dtype=int), use_substep: int, index: int, rest: wp.array(dtype=Collider),
+    frame_times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d), tangents: wp.array(dtype=wp.vec3d),
+    cubic: int,
     turn: wp.array(dtype=wp.vec4d),
     colliders: wp.array(dtype=Collider),
 ):
@@ -485,7 +487,8 @@ def eval_collider_driven_pose(
     axis = wp.vec3d(a[0], a[1], a[2])
     if a[3] == zero and q[0] == zero and q[1] == zero and q[2] == zero:
         # not turned: a translation, the same arithmetic as eval_collider_pose's keyframes
-        colliders[index] = posed_collider(r, wp.vec3d(zero, zero, zero), d, dd, wp.vec3d(zero, zero, wp.float64(1.0)), zero, zero)
+        z_axis = wp.vec3d(zero, zero, wp.float64(1.0))
+        colliders[index] = posed_collider(r, wp.vec3d(zero, zero, zero), d, dd, z_axis, zero, zero)
         return
     h = frame_times[2] - frame_times[1]
     theta = (t - frame_times[1]) / h * a[3]

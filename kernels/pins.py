@@ -117,7 +117,8 @@ def eval_pin_rigid_delta(
 
 @wp.kernel
 def eval_frame_times(
-    time: wp.array(dtype=wp.float64), time_base: wp.array(dtype=wp.float64), clock: wp.array(dtype=wp.int64), dt: wp.float64, steps: int,
+    time: wp.array(dtype=wp.float64), time_base: wp.array(dtype=wp.float64), clock: wp.array(dtype=wp.int64),
+    dt: wp.float64, steps: int,
     frame_times: wp.array(dtype=wp.float64),
 ):
     # the keys of a frame driven from the host, (t0 - 1, t0, t1, t1 + 1): t0 = t now, t1 = the time
