@@ -12,6 +12,7 @@ import warp as wp
 
 from warpcloth.sim.colliders import ColliderTrack, Sphere
 from warpcloth.sim.control import Control
+from warpcloth.sim.device import init_warp
 from warpcloth.sim.grid import build_grid_cloth
 from warpcloth.sim.pins import PinTrack
 from warpcloth.simulator import Simulator
@@ -55,6 +56,7 @@ def main(argv=None) -> None:
     parser.add_argument("--size", type=int, default=32)
     parser.add_argument("--usd", dest="stage_path", default=None, help="write the frames to this USD file")
     args = parser.parse_args(argv)
+    init_warp()  # without Warp's start-up lines (e.g. "CUDA driver not found") on stderr
     with wp.ScopedDevice(args.device):
         example = Example(args.size, args.stage_path)
         for _ in range(args.num_frames):
