@@ -286,6 +286,28 @@ def hinge_vertex_force_hessian(
     return f, H
 
 
+@wp.struct
+class HingeAdjacency:
+    """Each particle's hinges (CSR: particle i's entries offsets[i]:offsets[i + 1], the hinge and the
+    particle's slot 0..3 in it) with the hinges' arrays, as one kernel argument (vbd, projective);
+    made once at bind. Without hinges every array is empty but ``offsets`` (zeros)."""
+
+    offsets: wp.array(dtype=int)
+    hinge: wp.array(dtype=int)
+    slot: wp.array(dtype=int)
+    indices: wp.array(dtype=wp.vec4i)
+    rest_angle: wp.array(dtype=float)
+    stiffness: wp.array(dtype=float)
+    damping: wp.array(dtype=float)
+
+
+@wp.func
+def vertex_hinge_terms(i: int, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), hinges: HingeAdjacency, h: float):
+    # (f_i, H_i) of vertex i's hinges at x + dx with the dx / h damping rate (hinge_vertex_force_hessian)
+    return hinge_vertex_force_hessian(i, x, dx, hinges.offsets, hinges.hinge, hinges.slot, hinges.indices,
+                                      hinges.rest_angle, hinges.stiffness, hinges.damping, h)
+
+
 @wp.kernel
 def eval_hinge_vertex_terms(
     x: wp.array(dtype=wp.vec3),

@@ -88,7 +88,7 @@ from warpcloth.io.meshio import load_mesh, load_mesh_collider
 from warpcloth.sim.pins import PinTrack
 from warpcloth.sim.selection import parse_predicate, resolve_pins
 from warpcloth.run.params import BY_NAME, config_values, non_negative, params_for, positive
-from warpcloth.scenarios.common import Scenario, ScenarioConfig, mesh_bend
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 TOP_KEYS = {"name", "description", "stop_at_equilibrium", "cloth", "pins", "tracks", "colliders", "forces", "run"}
 CLOTH_KEYS = {"mesh", "prim", "quads", "bend", "mass", "density", "mass_mode", "stiffness", "damping"}
@@ -370,13 +370,13 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     colliders = _colliders(data.get("colliders", []), where, path)
 
     def model(config: ScenarioConfig, device: str):
-        bend_springs = mesh_bend(config)
         m = load_mesh(config.mesh, config.prim) if config.mesh != mesh_path or config.prim != prim else mesh
         tracked = [p for k, t in enumerate(tracks) for p in _track(t, m.vertices, m.groups, f"{where}: [[tracks]] #{k + 1}").particles]
         return build_mesh_cloth(
             m, total_mass=config.mass, mass_mode=mass_mode, stiffness=config.stiffness, damping=config.damping,
             pins=pin_indices + tracked, pin_groups=config.pin_group or (), pin_where=config.pin_where,
-            quads=bool(config.quads), bend=bend_springs, device=device,
+            quads=bool(config.quads), bend=config.bend, bend_rigidity=config.bend_rigidity,
+            device=device,
         )
 
     def pin_tracks(config: ScenarioConfig, model_):

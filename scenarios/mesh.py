@@ -16,7 +16,7 @@ from warpcloth.sim.control import Control
 from warpcloth.sim.mesh import TriangleMesh, build_mesh_cloth
 from warpcloth.io.meshio import load_mesh
 from warpcloth.sim.grid import grid_triangles
-from warpcloth.scenarios.common import Scenario, ScenarioConfig, mesh_bend
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 CAPE_ROWS, CAPE_COLS = 20, 16
 
@@ -43,7 +43,8 @@ def _model(config: ScenarioConfig, device: str):
         groups = ("shoulders",)
     return build_mesh_cloth(
         mesh, total_mass=config.mass, stiffness=config.stiffness, damping=config.damping, pin_groups=groups or (),
-        pin_where=where, quads=bool(config.quads), bend=mesh_bend(config), device=device,
+        pin_where=where, quads=bool(config.quads), bend=config.bend, bend_rigidity=config.bend_rigidity,
+        device=device,
     )
 
 

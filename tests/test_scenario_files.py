@@ -372,10 +372,3 @@ def test_a_usd_mesh_naming_a_fifo_layer_is_refused_before_it_is_opened(capsys, t
         assert message in line and "is a FIFO, not a regular file" in line, line
     assert fifo.opened == 0
 
-
-def test_choi_ko_bend_on_a_mesh_is_refused_not_read_as_provot(capsys, scenario_file):
-    assert "bend 'choi_ko' applies to grids" in one_line_exit_2(capsys, "run", "mesh", "--bend", "choi_ko")
-    scenario_file.write_text(SCENARIO_TOML.replace("quads = true", 'quads = true\nbend = "choi_ko"'))
-    assert "bend 'choi_ko' applies to grids" in one_line_exit_2(capsys, "run", str(scenario_file))
-    scenario_file.write_text(SCENARIO_TOML.replace("quads = true", 'quads = true\nbend = "none"'))
-    assert get_scenario(str(scenario_file)).build().model.spring_counts()["bend"] == 0
