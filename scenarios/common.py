@@ -17,6 +17,7 @@ from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 from warpcloth.io.frames import FrameSinks
 from warpcloth.io.meshio import load_mesh_collider
 from warpcloth.io.usd import usd_frames
+from warpcloth.run.params import SPRING_TYPES
 from warpcloth.run.parse import ColliderSpec
 from warpcloth.run.harness import RunHarness, RunResult
 from warpcloth.simulator import Simulator
@@ -94,13 +95,21 @@ class Scenario:
         unknown = set(overrides) - set(ScenarioConfig.__dataclass_fields__)
         if unknown:
             raise WarpclothError(f"unknown scenario parameter {sorted(unknown)[0]!r}")
-        return replace(self.defaults, **{k: v for k, v in overrides.items() if v is not None})
+        given = {k: v for k, v in overrides.items() if v is not None}
+        for kind in ("stiffness", "damping"):  # a partial {type: value} keeps the default's other types
+            base = getattr(self.defaults, kind)
+            if isinstance(given.get(kind), dict) and base is not None and not isinstance(base, dict):
+                full = base if isinstance(base, tuple) else (base,) * 3
+                given[kind] = tuple(given[kind].get(t, full[i]) for i, t in enumerate(SPRING_TYPES))
+        return replace(self.defaults, **given)
 
     def build(self, config: ScenarioConfig | None = None, **overrides) -> Simulator:
         """A :class:`~warpcloth.simulator.Simulator` for this scenario."""
         cfg = replace(config, **overrides) if config is not None else self.config(**overrides)
         device = resolve_device(cfg.device)
         require_positive("mass", cfg.mass, "kg")
+        if not isinstance(cfg.integrator_options, dict):
+            raise WarpclothError(f"integrator_options must be a dict of option names and values, got {cfg.integrator_options!r:.80}")
         if self.model is not None:  # a mesh: the scenario builds its own model
             integrator = make_integrator(cfg.integrator, **cfg.integrator_options)
             with wp.ScopedDevice(device):

@@ -146,3 +146,39 @@ def parse_collider(text: str):
     from warpcloth.run.parse import parse_collider_spec
 
     return parse_collider_spec(text).collider(load_mesh_collider)
+
+
+class unblocked_fifo:
+    """A FIFO at ``path`` for tests of readers that must refuse it: while the block runs, a
+    thread opens its writing end whenever a reader waits on it and closes it at once, so a reader
+    that (wrongly) opens it sees an empty file instead of blocking the test forever."""
+
+    def __init__(self, path):
+        import os
+        import threading
+
+        self.path = str(path)
+        os.mkfifo(self.path)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._unblock, daemon=True)
+        self.opened = 0  # how often a reader opened it
+
+    def _unblock(self):
+        import os
+
+        while not self._stop.wait(0.05):
+            try:
+                fd = os.open(self.path, os.O_WRONLY | os.O_NONBLOCK)  # ENXIO while no reader waits
+            except OSError:
+                continue
+            self.opened += 1
+            os.close(fd)
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        return False

@@ -9,6 +9,7 @@ from warpcloth import Control, Simulator, WarpclothError, build_grid_cloth, make
 from warpcloth.scenarios import sheet
 from warpcloth.run.harness import RunHarness
 from warpcloth.io.usd import UsdWriter
+from warpcloth.sim.control import WindSchedule
 
 INF, NAN = math.inf, math.nan
 
@@ -124,3 +125,31 @@ def test_control_bad_arguments():
         Control(device="foo")
     with pytest.raises(WarpclothError, match="gravity must be 3 numbers"):
         Control(gravity="abc")
+
+
+# -- issue 31 ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("call,match", [
+    (lambda: sheet.SCENARIO.run(integrator_options="abc", rows=4, cols=4, duration=0.01),
+     "integrator_options must be a dict of option names and values, got 'abc'"),
+    (lambda: sheet.SCENARIO.run(usd_path=123, rows=4, cols=4, duration=0.01), "USD path must be a file name, got 123"),
+    (lambda: UsdWriter(123, build_grid_cloth(3, 3, device="cpu")), "USD path must be a file name, got 123"),
+])
+def test_scenario_run_bad_arguments(call, match):
+    with pytest.raises(WarpclothError, match=match):
+        call()
+
+
+@pytest.mark.parametrize("call,match", [
+    (lambda: WindSchedule.gusts("abc", 1.0, 1.0), r"gust wind must be 3 numbers \[m/s\], got 'abc'"),
+    (lambda: WindSchedule.gusts((1, 0, 0), "abc", 1.0), "gust on duration must be a number, got 'abc'"),
+    (lambda: WindSchedule.gusts((1, 0, 0), 1.0, -1.0), "gust off duration must be > 0 s"),
+    (lambda: WindSchedule.gusts((1, 0, 0), 1.0, 1.0, base=(0, NAN, 0)), r"gust base wind\[1\] must be a finite number"),
+    (lambda: WindSchedule.constant((NAN, 0, 0)), r"wind\[0\] must be a finite number, got nan"),
+    (lambda: WindSchedule.constant("abc"), r"wind must be 3 numbers \[m/s\]"),
+    (lambda: WindSchedule(starts=(0.0, INF), winds=((0, 0, 0), (1, 0, 0))), "wind schedule start 1 must be a finite number"),
+    (lambda: WindSchedule(starts="ab", winds=((0, 0, 0), (1, 0, 0))), "wind schedule starts must be a sequence"),
+    (lambda: WindSchedule(starts=(0.0,), winds=(("a", 0, 0),)), r"wind schedule wind 0\[0\] must be a number"),
+])
+def test_wind_schedule_bad_arguments(call, match):
+    with pytest.raises(WarpclothError, match=match):
+        call()

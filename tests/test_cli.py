@@ -178,3 +178,115 @@ def test_verbose_shows_warp_start_up_messages():
 def test_bench_does_not_import_cli():
     code = "import sys, warpcloth.lab.bench; assert 'warpcloth.cli' not in sys.modules, 'bench imported cli'"
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+# -- issue 31: every input honoured or refused -------------------------------------------------
+def _colliders(*argv):
+    from warpcloth.cli import build_parser, config_from_args
+    from warpcloth.scenarios import get_scenario
+
+    args = build_parser().parse_args(["run", "sheet", *argv])
+    return config_from_args(get_scenario("sheet"), args).colliders
+
+
+def test_collider_specs_take_exponents_and_file_names_with_plus(tmp_path):
+    (a, b) = _colliders("--collider", "sphere:center=0/1e+0/0,radius=2.5e-1+plane:point=0/-1E+1/0")
+    assert dict(a.settings) == {"center": (0.0, 1.0, 0.0), "radius": 0.25} and dict(b.settings) == {"point": (0.0, -10.0, 0.0)}
+    (c,) = _colliders("--collider", "sphere:radius=1e+3")
+    assert dict(c.settings) == {"radius": 1000.0}
+    path = tmp_path / "a+b plane.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n")
+    (m, s) = _colliders("--collider", f"mesh:path={path}", "--collider", "sphere:radius=0.1")
+    assert dict(m.settings)["path"] == str(path) and s.kind == "sphere"
+    (q,) = _colliders("--collider", f'mesh:path="{tmp_path}/a+b plane.obj",thickness=1e-3')
+    assert dict(q.settings) == {"path": str(path), "thickness": 0.001}
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--collider", "sphere:radius=1,radius=2"], "collider sphere: setting 'radius' is given twice"),
+    (["--collider", "plane:point=0/0/0,point=0/1/0"], "setting 'point' is given twice"),
+    (["--collider", ""], "the collider is empty; give KIND:K=V,..."),
+    (["--collider", "sphere:radius=1", "--collider", ""], "has an empty collider"),
+    (["--collider", "sphere:radius=1+"], "has an empty collider"),
+    (["--collider", 'mesh:path="a.obj'], "has an unclosed \" quote"),
+    (["--pin", "1"], None), (["--pin", "x"], None), (["--pin", "y + 0.5"], None), (["--pin", "y.max()"], None),
+    (["--pin", "0.5"], None), (["--pin", "1e30"], None),
+    (["--pin", "10 ** 400 > y"], "'10 ** 400' is out of range"),
+    (["--pin", "1 / 0 < y"], "'1 / 0' divides by zero"),
+    (["--pin", " + ".join(["y"] * 5000) + " > 0"], "is longer than 1000 characters"),
+    (["--pin", "y > " + "9" * 100_000], "is longer than 1000 characters"),
+])
+def test_collider_and_pin_inputs_are_refused_in_one_short_line(capsys, argv, message):
+    scenario = "mesh" if argv[0] == "--pin" else "sheet"
+    with pytest.raises(SystemExit) as exc:
+        raise SystemExit(main(["run", scenario, *argv, "--duration", "0.01"]))
+    out, err = capsys.readouterr()
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert exc.value.code == 2 and len(lines) == 1 and lines[0].startswith("warpcloth: error: "), err
+    assert (message or "is a number, not a condition such as") in lines[0]
+    assert len(lines[0]) <= 230 and "Warning" not in err
+
+
+def test_a_predicate_that_divides_by_zero_at_a_vertex_prints_no_numpy_warning(capsys, recwarn):
+    code, out, err = run_cli(capsys, "run", "mesh", "--pin", "y / (x - x) > 0", "--duration", "0.01", "--json")
+    assert code == 0, err
+    assert "RuntimeWarning" not in err and json.loads(out)["scenario"] == "mesh"
+    assert [str(w.message) for w in recwarn if issubclass(w.category, RuntimeWarning)] == []  # none raised, so none printed
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["run", "sheet", "--html", ""], "HTML path is empty"),
+    (["run", "sheet", "--usd", ""], "USD path is empty"),
+    (["run", "sheet", "--preview", ""], "preview path is empty"),
+    (["bench", "--seconds", "1e40"], "argument --seconds: '1e40' does not fit in float32"),
+    (["bench", "--seconds", "inf"], "argument --seconds: 'inf' is not a finite number"),
+    (["bench", "--seconds", "1e5"], "100000 s is more than 86400 s (a day) per combination"),
+    (["bench", "--steps", "10000000000000"], "--steps must be at most 1e+12, got 10000000000000"),
+    (["study", "--sizes", "4,99999", "--out", "never-made"], "the study's 99999 x 99999 cloth (--sizes) needs about"),
+    (["run", "sheet", "--rows", "1" * 100_000], "invalid int value: '" + "1" * 60 + "...' (100,000 characters)"),
+])
+def test_more_inputs_are_refused_in_one_line(capsys, tmp_path, monkeypatch, argv, message):
+    import warpcloth.lab.bench as lab_bench
+    import warpcloth.lab.study as study
+
+    def started(*args, **kwargs):
+        raise AssertionError("the work started: the input was not refused first")
+
+    monkeypatch.setattr(lab_bench, "bench_one", started)  # bench --seconds 1e40 would time for ever
+    monkeypatch.setattr(study, "Measurements", started)
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("warpcloth: error: ") and message in lines[0], err
+    assert len(lines[0]) < 250
+    assert not (tmp_path / "never-made").exists()
+
+
+def test_the_study_checks_memory_before_its_first_run(capsys, tmp_path, monkeypatch):
+    import warpcloth.lab.study as study
+
+    ran = []
+    monkeypatch.setattr(study, "Measurements", lambda *a, **k: ran.append(a) or (_ for _ in ()).throw(AssertionError("ran")))
+    code = main(["study", "--sizes", "4,6,99999", "--integrators", "rk4", "--out", str(tmp_path / "s")])
+    assert code == 2 and ran == [] and "99999 x 99999" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["list"], ["list", "--examples"], ["run", "sheet", "--rows", "4", "--cols", "4", "--duration", "0.01"]])
+def test_a_closed_stdout_is_one_line_exit_74(argv):
+    p = subprocess.run([sys.executable, "-m", "warpcloth.cli", *argv], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                       text=True, preexec_fn=lambda: __import__("os").close(1))
+    assert p.returncode == 74, p.stderr
+    assert p.stderr.splitlines() == ["warpcloth: error: cannot write to stdout: it is closed"]
+    q = subprocess.run([sys.executable, "-m", "warpcloth.cli", "list", "--quiet"], stderr=subprocess.PIPE, text=True,
+                       preexec_fn=lambda: __import__("os").close(1))
+    assert q.returncode == 0 and q.stderr == ""
+
+
+def test_numpy_warnings_never_reach_stderr(capsys, recwarn):
+    code, out, err = run_cli(capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--width", "3e38", "--duration", "0.01", "--json")
+    assert "RuntimeWarning" not in err and "encountered" not in err, err
+    assert [str(w.message) for w in recwarn if issubclass(w.category, RuntimeWarning)] == []  # pytest would hide them from err

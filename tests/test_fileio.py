@@ -361,3 +361,48 @@ def test_any_command_onto_a_full_stdout_is_one_line(argv):
         proc = subprocess.run(WARPCLOTH + argv, stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
     assert proc.returncode == fileio.EXIT_IO
     assert err_lines(proc.stderr) == ["warpcloth: error: cannot write to stdout: No space left on device"]
+
+
+# -- issue 31: disk full during value clips; inputs that block --------------------------------------
+def _enospc_tf(*args):
+    raise RuntimeError("\n\tError in 'ArFilesystemWritableAsset::Write' at line 78: 'Error occurred writing file: "
+                       "No space left on device'\n" * 40)
+
+
+def test_usd_clips_on_a_full_disk_are_one_line_exit_74(tmp_path, small_disk, monkeypatch, capsys):
+    import warpcloth.io.usd as usd
+
+    folder = small_disk or tmp_path
+    target = folder / "a.usdc"
+    monkeypatch.setattr(usd, "CLIP_BYTES", 20_000)  # a clip every few frames of a 16 x 16 sheet
+    if small_disk is None:  # pxr's text for a clip that does not fit
+        monkeypatch.setattr(usd.UsdWriter, "_flush_clip", _enospc_tf)
+    code = main(["run", "sheet", "--rows", "16", "--cols", "16", "--duration", "2", "--usd", str(target), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == fileio.EXIT_IO, err
+    (line,) = err_lines(err)
+    assert line.startswith(f"warpcloth: error: no space left on the device of {folder} writing the USD file {target}"), line
+    assert not target.exists() and no_temporaries(folder) == []
+
+
+def test_input_files_are_regular_files_of_bounded_size_read_without_blocking(tmp_path):
+    from helpers import unblocked_fifo
+
+    (tmp_path / "a.txt").write_bytes(b"x" * 100)
+    assert fileio.read_input(str(tmp_path / "a.txt"), "input", 100) == b"x" * 100
+    with pytest.raises(fileio.WarpclothError, match=r"input '.*a.txt' is 100 bytes, more than the 99 bytes warpcloth reads"):
+        fileio.read_input(str(tmp_path / "a.txt"), "input", 99)
+    with pytest.raises(fileio.WarpclothError, match="is a folder, not a file"):
+        fileio.check_input_file(str(tmp_path), "input")
+    with pytest.raises(fileio.WarpclothError, match="does not exist"):
+        fileio.check_input_file(str(tmp_path / "none"), "input")
+    for special in ("/proc/kmsg", "/proc/self/status", "/sys/kernel/mm/transparent_hugepage/enabled", "/dev/zero"):
+        if os.path.exists(special):
+            with pytest.raises(fileio.WarpclothError, match="not a regular file"):
+                fileio.check_input_file(special, "input")
+    with unblocked_fifo(tmp_path / "pipe") as fifo:
+        with pytest.raises(fileio.WarpclothError, match="is a FIFO, not a regular file"):
+            fileio.read_input(str(tmp_path / "pipe"), "input")
+    assert fifo.opened == 0
+    with pytest.raises(fileio.WarpclothError, match="input must be a file name, got 123"):
+        fileio.check_input_file(123, "input")

@@ -2,6 +2,7 @@
 masses, pins by group and predicate, the OBJ and USD readers, UVs, and bad input."""
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -346,3 +347,116 @@ def test_uvs_read_from_an_obj_go_to_the_exported_usd(tmp_path):
     st = np.asarray(UsdGeom.PrimvarsAPI(prim).GetPrimvar("st").Get())
     np.testing.assert_array_equal(st, mesh.uv.reshape(-1, 2))
     assert np.asarray(UsdGeom.Mesh(prim).GetFaceVertexIndicesAttr().Get()).tolist() == mesh.triangles.ravel().tolist()
+
+
+# -- issue 31: every input honoured or refused -------------------------------------------------
+@pytest.mark.parametrize("text,match", [
+    ("1", "pin predicate '1' is a number, not a condition"),
+    ("x", "pin predicate 'x' is a number, not a condition"),
+    ("y + 0.5", "is a number, not a condition"),
+    ("y.max()", "is a number, not a condition"),
+    ("0.5", "is a number, not a condition"),
+    ("1e30", "is a number, not a condition"),
+    ("x & (y > 1)", "& or | of a number is not allowed"),
+    ("not x", "not or ~ of a number is not allowed"),
+    ("(y > 1) + 1 > 0", "arithmetic on a condition is not allowed"),
+    ("10 ** 400 > y", r"'10 \*\* 400' is out of range \(\|value\| <= 3.4e\+38\)"),
+    ("y < 1e39", r"'1e39' is out of range"),
+    ("1 / 0 < y", "'1 / 0' divides by zero"),
+    ("y > 2 % 0", "'2 % 0' divides by zero"),
+    ("(-8) ** (1 / 3) < y", "is not a real number"),
+    ("x" + " + x" * 4999 + " > 0", r"\(20,001 characters\) is longer than 1000 characters"),
+    ("y > " + "1" * 100_000, r"\(100,004 characters\) is longer than 1000 characters"),
+    ("y > " + " + ".join(["1"] * 200), "is nested more than 50 deep"),
+])
+def test_predicates_are_conditions_with_bounded_constants_or_one_short_error(text, match):
+    with pytest.raises(WarpclothError, match=match) as exc:
+        parse_predicate(text)
+    assert len(str(exc.value)) <= 210 and "\n" not in str(exc.value)
+
+
+def test_predicates_fold_constants_and_divide_silently_by_zero_at_vertices(recwarn):
+    q = grid_positions(3, 3, 1.0, 1.0)
+    assert select_vertices(q, "x >= 2 ** -1 * 0").tolist() == list(range(9))
+    assert select_vertices(q, "x / x > 0.5").tolist() == [1, 2, 4, 5, 7, 8]  # 0 / 0 at x = 0 is nan: not selected
+    assert select_vertices(q, "1 < 2").tolist() == list(range(9))  # a constant condition holds everywhere
+    assert [w for w in recwarn if issubclass(w.category, RuntimeWarning)] == []
+
+
+@pytest.mark.parametrize("pins,match", [
+    ([1.5], "pins must hold integer vertex indices, got 1.5"),
+    ([True], "pins must hold integer vertex indices, got True"),
+    (["1"], "pins must hold integer vertex indices, got '1'"),
+    ([math.nan], "pins must hold integer vertex indices, got nan"),
+    (3, "pins must be a sequence of vertex indices"),
+])
+def test_pin_indices_must_be_integers(pins, match):
+    v, t = _grid()
+    with pytest.raises(WarpclothError, match=match):
+        build_mesh_cloth(v, t, pins=pins)
+    assert build_mesh_cloth(v, t, pins=[1.0, np.int64(2)]).pinned.tolist() == [1, 2]
+
+
+def test_a_predicate_callable_must_return_bools_or_integers():
+    v, t = _grid()
+    with pytest.raises(WarpclothError, match="must return a bool mask or integer indices, got float64"):
+        build_mesh_cloth(v, t, pin_where=lambda p: p[:, 1] + 0.5)
+
+
+def test_a_usd_mesh_under_a_huge_scale_is_refused(tmp_path):
+    from pxr import Gf, Usd, UsdGeom
+
+    path = tmp_path / "huge.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    xf = UsdGeom.Xform.Define(stage, "/World")
+    xf.AddScaleOp().Set(Gf.Vec3f(1e30, 1e30, 1e30))
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Cloth")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)])
+    mesh.CreateFaceVertexCountsAttr([4])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    stage.GetRootLayer().Save()
+    with pytest.raises(WarpclothError, match=r"vertex 1 at \(1e\+30, 0, 0\) m is out of range: coordinates must be within \+-1e\+18 m"):
+        load_mesh(str(path))
+    v, t = _grid()
+    with pytest.raises(WarpclothError, match="vertex 1 at .* is out of range"):
+        build_mesh_cloth(v * 1e20, t)
+    assert build_mesh_cloth(v * 1e3, t).particle_count == v.shape[0]
+
+
+def test_meshes_get_an_up_front_memory_estimate(tmp_path, monkeypatch):
+    import warpcloth.sim.device as device
+    from warpcloth.sim.mesh import mesh_memory_estimate
+    from warpcloth.sim.grid import grid_memory_estimate
+
+    # a triangulated grid is estimated as the grid is
+    assert mesh_memory_estimate(64 * 64, 2 * 63 * 63) <= grid_memory_estimate(64, 64) * 1.3
+    assert mesh_memory_estimate(64 * 64, 2 * 63 * 63) >= grid_memory_estimate(63, 63)
+    v, t = grid_positions(20, 20, 1.0, 1.0), grid_triangles(20, 20)
+    write_obj(str(tmp_path / "m.obj"), v, t)
+    size = (tmp_path / "m.obj").stat().st_size
+    monkeypatch.setattr(device, "available_memory", lambda d: 4 * size)  # less than reading the file needs
+    with pytest.raises(WarpclothError, match=r"reading mesh file .*m.obj' \(.* bytes\) needs about .* but cpu has .* available"):
+        load_mesh(str(tmp_path / "m.obj"))
+    monkeypatch.setattr(device, "available_memory", lambda d: 100_000)
+    with pytest.raises(WarpclothError, match="a mesh cloth of 400 vertices and 722 triangles needs about .* but cpu has 97.7 KiB available"):
+        build_mesh_cloth(v, t, device="cpu")
+
+
+def test_usd_layers_are_checked_before_the_stage_opens(tmp_path):
+    from pxr import Sdf
+
+    from warpcloth.io.meshio import MAX_MESH_FILE_BYTES, open_usd_stage
+
+    _usd_mesh(tmp_path / "cloth.usda")
+    top = Sdf.Layer.CreateNew(str(tmp_path / "top.usda"))
+    top.subLayerPaths.append("./cloth.usda")
+    top.subLayerPaths.append("./missing.usda")
+    top.Save()
+    with pytest.raises(WarpclothError, match=r"names './missing.usda' \(sublayer, reference or payload in top.usda\), which does not exist"):
+        load_mesh(str(tmp_path / "top.usda"))
+    top.subLayerPaths.remove("./missing.usda")
+    top.Save()
+    stage, layers = open_usd_stage(str(tmp_path / "top.usda"))
+    assert [os.path.basename(layer.identifier) for layer in layers] == ["top.usda", "cloth.usda"]
+    assert load_mesh(str(tmp_path / "top.usda")).vertices.shape == (5, 3)
+    assert MAX_MESH_FILE_BYTES == 2**31

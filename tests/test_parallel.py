@@ -8,6 +8,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -398,3 +399,52 @@ def test_study_via_ray_gives_the_serial_rows(ray_cluster, tmp_path):
     # the cluster's workers outlive a study: a second study of the same plan still gets every row
     run_study(plan, tmp_path / "ray2", ray="auto")
     assert sorted(r["key"] for r in read_rows(tmp_path / "ray2" / "results.csv")) == sorted(by_key)
+
+
+# -- issue 31: workers exit when their driver dies -------------------------------------------------
+DRIVER = """
+import sys, time
+sys.path.insert(0, {tests!r})
+from parallel_toy import toy
+from warpcloth.lab.parallel import Job, LocalPool
+if __name__ == "__main__":  # the spawned workers import this file
+    for done in LocalPool(toy, 2).run([Job("a", ("ok", "a")), Job("b", ("sleep", 600)), Job("c", ("sleep", 600))]):
+        print("done", done.job.key, done.row["pid"], flush=True)
+"""
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:  # a zombie of ours counts as gone
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return True
+
+
+def test_workers_exit_when_their_driver_is_killed(tmp_path):
+    script = tmp_path / "driver.py"
+    script.write_text(DRIVER.format(tests=str(Path(__file__).resolve().parent)))
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()  # job a is done: both workers are up, the other busy sleeping
+        assert line.startswith("done a"), line
+        children = [int(p) for p in open(f"/proc/{proc.pid}/task/{proc.pid}/children").read().split()]
+        workers = [p for p in children if "spawn_main" in open(f"/proc/{p}/cmdline").read().replace("\0", " ")]
+        assert len(workers) == 2, children
+        os.kill(proc.pid, signal.SIGKILL)  # the driver only, as `kill -9`
+        proc.wait(timeout=60)
+        deadline = time.monotonic() + 60  # a liveness bound, not a timing: they would sleep 600 s
+        while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not any(_alive(p) for p in workers), "workers ran on after their driver died"
+    finally:
+        proc.kill()
+        for p in workers if "workers" in locals() else []:
+            try:
+                os.kill(p, signal.SIGKILL)
+            except ProcessLookupError:
+                pass

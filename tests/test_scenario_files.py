@@ -221,3 +221,154 @@ def test_the_shipped_example_scenario_file_runs(capsys):
     assert code == 0, err
     d = json.loads(out)
     assert d["scenario"] == "swaying-cape" and d["particles"] == 320 and d["stable"]
+
+
+# -- issue 31: every key of a scenario file honoured or refused --------------------------------
+def _model_ks(path, *argv):
+    """The per-type stiffness of the model a run of the file builds, with ``argv`` flags."""
+    from warpcloth.cli import build_parser, config_from_args
+
+    args = build_parser().parse_args(["run", str(path), *argv])
+    scenario = get_scenario(str(path))
+    sim = scenario.build(config_from_args(scenario, args))
+    return {t.name.lower(): p.stiffness for t, p in sim.model.spring_params.items()}, sim
+
+
+def test_scenario_file_stiffness_and_damping_are_used_and_flags_override(scenario_file):
+    soft = SCENARIO_TOML.replace("mass = 0.25", "mass = 0.25\nstiffness = 1\ndamping = [0.5, 0.25, 0.125]")
+    scenario_file.write_text(soft)
+    ks, sim = _model_ks(scenario_file)
+    assert ks == {"structural": 1.0, "shear": 1.0, "bend": 1.0}
+    assert {t.name.lower(): p.damping for t, p in sim.model.spring_params.items()} == {"structural": 0.5, "shear": 0.25, "bend": 0.125}
+    scenario_file.write_text(soft.replace("stiffness = 1", "stiffness = 1000000"))
+    assert _model_ks(scenario_file)[0] == {"structural": 1e6, "shear": 1e6, "bend": 1e6}
+    assert _model_ks(scenario_file, "--stiffness", "7")[0] == {"structural": 7.0, "shear": 7.0, "bend": 7.0}
+    # a per-type flag replaces that type only; the file's value stays for the others
+    assert _model_ks(scenario_file, "--stiffness-bend", "3")[0] == {"structural": 1e6, "shear": 1e6, "bend": 3.0}
+
+
+@pytest.mark.parametrize("change,message", [
+    (("quads = true", 'quads = "no"'), "windy.toml: cloth.quads: must be true or false, got 'no'"),
+    (("quads = true", 'quads = true\nbend = "false"'), "windy.toml: cloth.bend: unknown bend model 'false'"),
+    (("name =", 'stop_at_equilibrium = "false"\nname ='), "windy.toml: stop_at_equilibrium: must be true or false, got 'false'"),
+    (("[pins]", "[pins]\nindices = [1.5]"), "windy.toml: pins.indices: must be a list of vertex indices (integers), got 1.5"),
+    (("[pins]", "[pins]\nindices = 3"), "windy.toml: pins.indices: must be a list of vertex indices (integers), got 3"),
+    (("[pins]", '[pins]\nindices = ["a"]'), "windy.toml: pins.indices: must be a list of vertex indices"),
+    (("wind = [2, 0, 1]", "wind = [nan, 0, 0]"), "windy.toml: forces.wind[0] must be a finite number, got nan"),
+    (("wind = [2, 0, 1]", 'wind = [2, 0, "x"]'), "windy.toml: forces.wind must be 3 numbers [m/s], got [2, 0, 'x']"),
+    (("wind = [2, 0, 1]", 'wind = [2, 0, 1]\nwind_coefficient = "strong"'), "windy.toml: forces.wind_coefficient: must be a number, got 'strong'"),
+    (("drag = 0.5", "drag = -1"), "windy.toml: forces.drag: '-1' must be >= 0"),
+    (('name = "windy-cape"', "name = { a = 1 }"), "windy.toml: name: must be a non-empty string, got {'a': 1}"),
+    (("quads = true", "quads = true\nprim = 5"), "windy.toml: cloth.prim: must be a string, got 5"),
+    (("mass = 0.25", 'mass = "0.25"'), "windy.toml: cloth.mass: must be a number, got '0.25'"),
+    (("mass = 0.25", "mass = 0.25\nstiffness = [1, 2]"), "windy.toml: cloth.stiffness: must be a number or 3 numbers"),
+    (("mass = 0.25", "mass = 0.25\nstiffness = -5"), "windy.toml: cloth.stiffness: '-5' must be >= 0"),
+    (("mass = 0.25", 'mass = 0.25\nmass_mode = "lumpy"'), "windy.toml: cloth.mass_mode: must be one of"),
+    (("dt = 0.005", "dt = 0.005\nstrain_limit = true"), "windy.toml: run.strain_limit: must be a number, got True"),
+    (("dt = 0.005", "dt = [0.005]"), "windy.toml: run.dt: must be a number or a string, got [0.005]"),
+    (('where = "y > 1.45"', 'where = "y + 1"'), "windy.toml: pins.where: pin predicate 'y + 1' is a number, not a condition"),
+    (('groups = ["shoulders"]', "groups = [1]"), "windy.toml: tracks[0].groups: must be a list of names (strings), got [1]"),
+    (("[run]", '[[colliders]]\nkind = "sphere"\nradius = 0.2\ntrack = { kind = "rigid", angular_velocity = "fast" }\n[run]'),
+     "windy.toml: [[colliders]] #1: collider track angular_velocity must be a number, got 'fast'"),
+    (("[run]", '[[colliders]]\nkind = "sphere"\nradius = "big"\n[run]'),
+     "windy.toml: [[colliders]] #1: radius must be a number or a list of numbers, got 'big'"),
+    (("[run]", '[[colliders]]\nkind = "mesh"\npath = "cape.obj"\nprim = 5\n[run]'),
+     "windy.toml: [[colliders]] #1: prim must be a prim path such as '/World/Table', got 5"),
+])
+def test_wrong_types_in_a_scenario_file_are_one_line_naming_file_key_and_value(capsys, scenario_file, change, message):
+    assert change[0] in SCENARIO_TOML
+    scenario_file.write_text(SCENARIO_TOML.replace(*change, 1))
+    line = one_line_exit_2(capsys, "run", str(scenario_file))
+    assert message in line, line
+    assert len(line) < 300
+
+
+def test_a_file_device_is_used_unless_the_flag_gives_one(capsys, scenario_file):
+    scenario_file.write_text(SCENARIO_TOML.replace("[run]", '[run]\ndevice = "cuda:7"'))
+    line = one_line_exit_2(capsys, "run", str(scenario_file))
+    assert "device 'cuda:7' is not available" in line
+    code, out, err = run_cli(capsys, "run", str(scenario_file), "--device", "cpu", "--duration", "0.02", "--json")
+    assert code == 0, err
+    assert json.loads(out)["device"] == "cpu"
+
+
+@pytest.mark.parametrize("content,message", [
+    (b"a = " + b"[" * 2000 + b"]" * 2000, "nested 2000 deep; a scenario file nests at most 8"),
+    (b"a = " + b"{ b = " * 2000 + b"1" + b" }" * 2000, "nested 2000 deep"),
+    (b'name = "caf\xe9"\n', "not UTF-8 text (byte 0xe9 at offset 11)"),
+    (b"# " + b"x" * 1_200_000 + b"\n", "is 1.14 MiB, more than the 1 MiB warpcloth reads"),  # checked before it is parsed
+    (b"a" + b".b" * 20 + b" = 1\n", "nested more than 8 deep"),
+])
+def test_the_toml_reader_is_bounded(capsys, tmp_path, content, message):
+    path = tmp_path / "bad.toml"
+    path.write_bytes(content)
+    line = one_line_exit_2(capsys, "run", str(path))
+    assert message in line, line
+    assert len(line) < 300
+
+
+def test_special_files_are_refused_as_scenario_files_and_meshes(capsys, tmp_path, scenario_file):
+    from helpers import unblocked_fifo
+
+    with unblocked_fifo(tmp_path / "pipe.toml") as fifo:
+        assert "pipe.toml' is a FIFO, not a regular file" in one_line_exit_2(capsys, "run", str(tmp_path / "pipe.toml"))
+    with unblocked_fifo(tmp_path / "pipe.obj") as fifo2:
+        scenario_file.write_text(SCENARIO_TOML.replace('mesh = "cape.obj"', 'mesh = "pipe.obj"'))
+        assert "pipe.obj' is a FIFO, not a regular file" in one_line_exit_2(capsys, "run", str(scenario_file))
+        assert "pipe.obj' is a FIFO, not a regular file" in one_line_exit_2(capsys, "run", "mesh", "--mesh", str(tmp_path / "pipe.obj"))
+        line = one_line_exit_2(capsys, "run", "sheet", "--collider", f"mesh:path={tmp_path / 'pipe.obj'}")
+        assert "is not a regular file" in line, line
+    assert fifo.opened == fifo2.opened == 0
+    (tmp_path / "kmsg.obj").symlink_to("/proc/self/mounts")  # a "regular" file that /proc/kmsg would be, but it never blocks
+    assert "is a system file under /proc, not a regular file" in one_line_exit_2(capsys, "run", "mesh", "--mesh", str(tmp_path / "kmsg.obj"))
+    scenario_file.write_text(SCENARIO_TOML.replace('mesh = "cape.obj"', 'mesh = "kmsg.obj"'))
+    assert "is a system file under /proc" in one_line_exit_2(capsys, "run", str(scenario_file))
+    line = one_line_exit_2(capsys, "run", "sheet", "--collider", f"mesh:path={tmp_path / 'kmsg.obj'}")
+    assert "is a system file under /proc" in line, line
+
+
+def _usd_mesh_with_fifo_layer(tmp_path, how: str) -> str:
+    """A USD file whose mesh is fine but which names a FIFO as a sublayer, reference, payload
+    or value clip."""
+    from pxr import Sdf, Usd, UsdGeom
+
+    good = tmp_path / "good.usda"
+    if not good.exists():
+        stage = Usd.Stage.CreateNew(str(good))
+        mesh = UsdGeom.Mesh.Define(stage, "/World/Cloth")
+        mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)])
+        mesh.CreateFaceVertexCountsAttr([4])
+        mesh.CreateFaceVertexIndicesAttr([0, 1, 3, 2])
+        stage.GetRootLayer().Save()
+    layer = Sdf.Layer.CreateNew(str(tmp_path / f"{how}.usda"))
+    layer.subLayerPaths.append("./good.usda")
+    world = Sdf.CreatePrimInLayer(layer, "/World")
+    world.specifier = Sdf.SpecifierDef
+    if how == "sublayer":
+        layer.subLayerPaths.append("./pipe.usda")
+    elif how == "reference":
+        world.referenceList.Prepend(Sdf.Reference("./pipe.usda"))
+    elif how == "payload":
+        world.payloadList.Prepend(Sdf.Payload("./pipe.usda"))
+    else:
+        world.SetInfo("clips", {"default": {"assetPaths": Sdf.AssetPathArray(["./pipe.usda"]), "primPath": "/World"}})
+    layer.Save()
+    return str(tmp_path / f"{how}.usda")
+
+
+@pytest.mark.parametrize("how", ["sublayer", "reference", "payload", "clip"])
+def test_a_usd_mesh_naming_a_fifo_layer_is_refused_before_it_is_opened(capsys, tmp_path, scenario_file, how):
+    from helpers import unblocked_fifo
+
+    usd = _usd_mesh_with_fifo_layer(tmp_path, how)
+    with unblocked_fifo(tmp_path / "pipe.usda") as fifo:
+        message = f"names './pipe.usda' ("
+        assert message in one_line_exit_2(capsys, "run", "mesh", "--mesh", usd)
+        scenario_file.write_text(SCENARIO_TOML.replace('mesh = "cape.obj"', f'mesh = "{how}.usda"').replace("[pins]\n", "[pins]\nindices = [0]\n")
+                                 .replace('groups = ["shoulders"]', "indices = [1]"))
+        line = one_line_exit_2(capsys, "run", str(scenario_file))
+        assert message in line and "is a FIFO, not a regular file" in line, line
+        line = one_line_exit_2(capsys, "run", "sheet", "--collider", f"mesh:path={usd}")
+        assert message in line and "is a FIFO, not a regular file" in line, line
+    assert fifo.opened == 0
+

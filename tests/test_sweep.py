@@ -608,3 +608,20 @@ def test_instability_strain_attribute(tmp_path):
     rows = {r["test_id"]: r for r in sweep.read_results(str(out))}
     assert rows["strict"]["outcome"] == "unstable" and rows["strict"]["instability_strain"] == "0.0001"
     assert rows["default"]["outcome"] != "unstable"
+
+
+# -- issue 31 ----------------------------------------------------------------------------------
+def test_a_test_list_in_an_unknown_encoding_or_a_fifo_is_one_line(tmp_path, capsys):
+    from helpers import unblocked_fifo
+
+    path = tmp_path / "enc.xml"
+    path.write_bytes(b'<?xml version="1.0" encoding="klingon"?>\n<test_list><test integrator="rk4" scenario="sheet"/></test_list>\n')
+    with pytest.raises(WarpclothError, match=r"enc.xml:1: the XML declaration names an encoding Python does not know "
+                                             r"\(unknown encoding: klingon\); write the test list in UTF-8"):
+        parse_test_list(str(path))
+    assert main(["sweep", str(path), "--out", str(tmp_path / "r.csv")]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    with unblocked_fifo(tmp_path / "pipe.xml") as fifo:
+        with pytest.raises(WarpclothError, match=r"cannot read test list .*pipe.xml: file .* is a FIFO, not a regular file"):
+            parse_test_list(str(tmp_path / "pipe.xml"))
+    assert fifo.opened == 0

@@ -31,6 +31,11 @@ def require_positive(name: str, value, unit: str = "") -> float:
     return v
 
 
+def require_number(name: str, value, unit: str = "") -> float:
+    """Return ``value`` as a float if it is a finite number in float32's range, else raise."""
+    return _as_float(name, value)
+
+
 def require_non_negative(name: str, value, unit: str = "") -> float:
     """Return ``value`` as a float if it is a finite number >= 0, else raise."""
     v = _as_float(name, value)

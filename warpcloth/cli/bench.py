@@ -26,6 +26,24 @@ def build_parser(prog: str = "bench/devices.py") -> argparse.ArgumentParser:
     return p
 
 
+#: The longest --seconds of one combination [s] (a day): a benchmark ends, as a run's duration is
+#: bounded by its step count.
+MAX_BENCH_SECONDS = 86400.0
+
+
+def _seconds(text: str) -> float:
+    """``--seconds``: a finite number of wall seconds > 0, at most :data:`MAX_BENCH_SECONDS`."""
+    from warpcloth.run.params import positive
+
+    try:
+        value = positive(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if value > MAX_BENCH_SECONDS:
+        raise argparse.ArgumentTypeError(f"{value:g} s is more than {MAX_BENCH_SECONDS:g} s (a day) per combination")
+    return value
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--integrators", default=None, help="comma-separated names (default: every registered integrator)")
     p.add_argument("--scenario", default="sheet", help="scenario name or scenario file (.toml) to time (default sheet)")
@@ -33,7 +51,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--devices", default=None, help="comma-separated Warp devices (default: cpu and every CUDA device present)")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--steps", type=int, default=None, help="steps to time per combination")
-    group.add_argument("--seconds", type=float, default=1.0, help="wall seconds to time per combination, over all windows (default 1)")
+    group.add_argument("--seconds", type=_seconds, default=1.0, help="wall seconds to time per combination, over all windows (default 1)")
     p.add_argument("--windows", type=int, default=DEFAULT_WINDOWS, help=f"timed windows per combination: the median and the [min-max] spread come from them (default {DEFAULT_WINDOWS})")
     p.add_argument("--graph", choices=["both", "on", "off"], default="both", help="time with graph capture, without, or both (default both)")
     p.add_argument("--roofline", action="store_true", help="time the speed-of-light force pass and report multiples of it")
@@ -62,7 +80,10 @@ def run(args) -> int:
         sizes = [None]
     else:
         sizes = parse_sizes("32,64,128" if args.sizes is None else args.sizes)
+    from warpcloth.run.harness import MAX_RUN_STEPS
+
     require(args.steps is None or args.steps >= 1, f"--steps must be >= 1, got {args.steps}")
+    require(args.steps is None or args.steps <= MAX_RUN_STEPS, f"--steps must be at most {MAX_RUN_STEPS:.0e}, got {args.steps}")
     require(args.seconds is None or args.seconds > 0, f"--seconds must be > 0, got {args.seconds}")
     require(args.windows >= 1, f"--windows must be >= 1, got {args.windows}")
     wanted = default_devices() if args.devices is None else [s.strip() for s in args.devices.split(",") if s.strip()]

@@ -64,8 +64,8 @@ def config_from_args(scenario, args, command: str = "run"):
     if values.get("size") is not None and (values.get("rows") is not None or values.get("cols") is not None):
         raise WarpclothError("give either --size or --rows and --cols, not both")
     check_applies(values, scenario.model is not None, scenario.name)
-    if values.get("device") is None:
-        values["device"] = BY_NAME["device"].default  # the CLI's default device
+    if values.get("device") is None:  # the scenario's (a scenario file's [run] device), else the CLI's default
+        values["device"] = scenario.defaults.device or BY_NAME["device"].default
     kwargs = config_values(values)
     kwargs.update(integrator=integrator, integrator_options=integrator_options_from_args(integrator, args),
                   dt=values.get("dt"))

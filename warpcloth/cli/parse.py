@@ -14,6 +14,7 @@ import os
 import re
 import signal
 import sys
+import warnings
 
 from warpcloth.errors import WarpclothError
 from warpcloth.io.files import EXIT_IO, OutputError
@@ -43,7 +44,7 @@ class Parser(argparse.ArgumentParser):
         return super()._parse_optional(arg_string)
 
     def error(self, message):
-        self.exit(EXIT_USAGE, f"{ERROR_PREFIX}{message}\n")
+        self.exit(EXIT_USAGE, f"{ERROR_PREFIX}{_shorten(message)}\n")
 
 
 def add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
@@ -54,9 +55,21 @@ def add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
                        help="print nothing on success (no summary, no progress); errors still print")
 
 
+#: A quoted value in argparse's messages longer than this is cut (a 100,000-digit number is not
+#: echoed whole); in warpcloth's own messages (which quote file paths) one longer than MAX_QUOTED_ANY.
+MAX_QUOTED = 60
+MAX_QUOTED_ANY = 1000
+
+
+def _shorten(message: str, limit: int = MAX_QUOTED) -> str:
+    """``message`` with every quoted value over ``limit`` characters cut to ``limit``."""
+    quoted = re.compile(r"'([^']{%d})[^']+'" % limit)
+    return quoted.sub(lambda m: f"'{m.group(1)}...' ({len(m.group(0)) - 2:,} characters)", str(message))
+
+
 def print_error(message: str, stream=None) -> None:
     """Print ``warpcloth: error: message`` as one line."""
-    text = " ".join(str(message).split())
+    text = _shorten(" ".join(str(message).split()), MAX_QUOTED_ANY)
     print(f"{ERROR_PREFIX}{text}", file=stream or sys.stderr)
 
 
@@ -91,6 +104,31 @@ def _silence_stdout() -> None:
         pass
 
 
+#: NumPy's floating-point RuntimeWarnings (overflow in a cast, 0 / 0, ...), which never reach stderr.
+_NUMPY_FP_WARNINGS = r".*(overflow|divide by zero|invalid value|underflow) encountered"
+
+
+class _ClosedStdout:
+    """``sys.stdout`` of a process started with fd 1 closed: a write is an :class:`OutputError`
+    (one line, exit 74), not a silent loss or a traceback."""
+
+    def write(self, text: str) -> int:
+        if not text:
+            return 0
+        err = OutputError("cannot write to stdout: it is closed")
+        err.stdout = True
+        raise err
+
+    def flush(self) -> None:
+        pass
+
+    def fileno(self) -> int:
+        raise OSError(9, "stdout is closed")
+
+    def isatty(self) -> bool:
+        return False
+
+
 def guarded(args, body, interrupted_hint: str = "") -> int:
     """Run ``body()`` as a command: one-line errors (status 2 for bad input, 74 for an output
     that could not be written), a quiet exit when stdout's reader went away (141), and SIGTERM
@@ -100,12 +138,16 @@ def guarded(args, body, interrupted_hint: str = "") -> int:
     from warpcloth.sim.device import init_warp
 
     init_warp(getattr(args, "verbose", False))
+    if sys.stdout is None:  # started with stdout closed (`warpcloth list >&-`): writing to it is an error
+        sys.stdout = _ClosedStdout()
     previous = None
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         try:
-            code = body()
+            with warnings.catch_warnings():  # NumPy's floating-point warnings (inf and nan are checked where they matter)
+                warnings.filterwarnings("ignore", message=_NUMPY_FP_WARNINGS, category=RuntimeWarning)
+                code = body()
             try:
                 sys.stdout.flush()
             except BrokenPipeError:

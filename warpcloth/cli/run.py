@@ -82,18 +82,18 @@ def output_writers(scenario_name: str, args) -> list:
     def info(sim, cfg):
         return provenance(sim, scenario_name, cfg.fps, argv, prefix=prefix)
 
-    if getattr(args, "preview", None):
+    if getattr(args, "preview", None) is not None:  # "" is an error (the path check), not "no preview"
         from warpcloth.io.preview import check_preview_path
 
         check_preview_path(args.preview)  # also: matplotlib installed
         paths.append(args.preview)
-    if args.usd:
+    if args.usd is not None:
         from warpcloth.io.usd import usd_frames
 
         writers.append(usd_frames(args.usd, getattr(args, "usd_color", "none"), info,
                                   colliders=getattr(args, "usd_colliders", "guide")))  # the path is checked now
         paths.append(args.usd)
-    if getattr(args, "html", None):
+    if getattr(args, "html", None) is not None:
         from warpcloth.io.player import HtmlWriter, check_html_path
 
         check_html_path(args.html)
@@ -101,7 +101,7 @@ def output_writers(scenario_name: str, args) -> list:
         writers.append(lambda sim, cfg: HtmlWriter(args.html, sim.model, cfg.fps, title=f"warpcloth {scenario_name}: {sim.integrator.name}, "
                                                    f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s", info=info(sim, cfg),
                                                    expected_frames=frames(cfg), colliders=sim.control.colliders))
-    if getattr(args, "preview", None):
+    if getattr(args, "preview", None) is not None:
         from warpcloth.io.preview import PreviewWriter
 
         writers.append(lambda sim, cfg: PreviewWriter(args.preview, sim.model, cfg.fps, title=f"{scenario_name}, {sim.integrator.name}",

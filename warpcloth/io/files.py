@@ -13,6 +13,10 @@
 * :class:`WriterLock`: one writer per results file (an ``flock`` on a lock file beside it).
 * :class:`OutputError`: an output could not be written during the work (disk full, I/O error);
   the CLI prints it as one line and exits with :data:`EXIT_IO`.
+* :func:`check_input_file` / :func:`read_input`: every file warpcloth reads (scenario files,
+  meshes, the layers a USD file names) is a regular file of bounded size, checked before it is
+  opened, never a FIFO, a device or a file of /proc, /sys or /dev (which block or never end),
+  and opened without blocking.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import os
 import re
 import secrets
 import shutil
+import stat
 
 from warpcloth.errors import WarpclothError
 
@@ -113,13 +118,102 @@ def sweep_stale_temporaries(folder: str, report=None) -> list[str]:
     return removed
 
 
+#: Folders of kernel files: "regular" files there block (/proc/kmsg), never end or change as read.
+SPECIAL_FOLDERS = ("/proc", "/sys", "/dev")
+
+
+def _size(n: int) -> str:
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB"):
+        if n < 1024 or unit == "TiB":
+            return f"{n:,} bytes" if unit == "bytes" else f"{n:.3g} {unit}"
+        n /= 1024.0
+    return f"{n:.3g} TiB"  # pragma: no cover
+
+
+def _file_name(path, what: str) -> str:
+    try:
+        p = os.fspath(path)
+    except TypeError:
+        raise WarpclothError(f"{what} must be a file name, got {path!r:.80}") from None
+    if isinstance(p, bytes):
+        p = os.fsdecode(p)
+    if not p:
+        raise WarpclothError(f"{what} path is empty")
+    if "\0" in p:
+        raise WarpclothError(f"{what} path {p[:80]!r} contains a NUL character")
+    return p
+
+
+def _check_input_stat(p: str, st: os.stat_result, what: str, max_bytes: int | None) -> None:
+    if stat.S_ISDIR(st.st_mode):
+        raise WarpclothError(f"{what} {p!r} is a folder, not a file")
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode) else "a device"
+        raise WarpclothError(f"{what} {p!r} is {kind}, not a regular file")
+    if max_bytes is not None and st.st_size > max_bytes:
+        raise WarpclothError(f"{what} {p!r} is {_size(st.st_size)}, more than the {_size(max_bytes)} warpcloth reads")
+
+
+def check_input_file(path, what: str = "input file", max_bytes: int | None = None) -> str:
+    """Check, before opening it, that ``path`` names a file warpcloth may read: it exists, is a
+    regular file (not a folder, FIFO, socket or device), not under /proc, /sys or /dev (their
+    "regular" files block or never end), and at most ``max_bytes`` long; returns it.
+
+    Raises:
+        WarpclothError: one line naming the file and why it is refused.
+    """
+    p = _file_name(path, what)
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise WarpclothError(f"{what} {p!r} does not exist") from None
+    except OSError as exc:
+        raise WarpclothError(f"cannot read {what} {p!r}: {exc.strerror or exc}") from None
+    real = os.path.realpath(p)
+    for folder in SPECIAL_FOLDERS:
+        if real == folder or real.startswith(folder + os.sep):
+            raise WarpclothError(f"{what} {p!r} is a system file under {folder}, not a regular file")
+    _check_input_stat(p, st, what, max_bytes)
+    return p
+
+
+def read_input(path, what: str = "input file", max_bytes: int | None = None) -> bytes:
+    """The bytes of a file :func:`check_input_file` accepts, opened without blocking (a file
+    replaced by a FIFO after the check is refused, not waited on) and read up to ``max_bytes``."""
+    p = check_input_file(path, what, max_bytes)
+    try:
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0))
+    except OSError as exc:
+        raise WarpclothError(f"cannot read {what} {p!r}: {exc.strerror or exc}") from None
+    try:
+        _check_input_stat(p, os.fstat(fd), what, max_bytes)
+        limit = max_bytes if max_bytes is not None else os.fstat(fd).st_size
+        chunks, total = [], 0
+        while True:
+            chunk = os.read(fd, min(1 << 20, limit + 1 - total))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            total += len(chunk)
+            if total > limit:
+                raise WarpclothError(f"{what} {p!r} grew past {_size(limit)} while it was read")
+    except OSError as exc:
+        raise WarpclothError(f"cannot read {what} {p!r}: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    return b"".join(chunks)
+
+
 def check_output_path(path: str, what: str = "output", extensions: tuple | None = None) -> str:
     """Check, before any work, that ``path`` can be written atomically; returns it.
 
     Raises:
         WarpclothError: one line naming the path and why it cannot be written.
     """
-    p = os.fspath(path)
+    try:
+        p = os.fspath(path)
+    except TypeError:
+        raise WarpclothError(f"{what} path must be a file name, got {path!r:.80}") from None
     if not p:
         raise WarpclothError(f"{what} path is empty")
     if extensions is not None and os.path.splitext(p)[1].lower() not in extensions:
@@ -361,8 +455,8 @@ class WriterLock:
         self.release()
 
 
-__all__ = ["AtomicFile", "EXIT_IO", "OutputError", "TEMP_PREFIX", "WriterLock", "check_output_path", "describe_write_error",
-           "fsync_dir", "remove_temporary", "sweep_stale_temporaries", "temp_path", "write_atomic"]
+__all__ = ["AtomicFile", "EXIT_IO", "OutputError", "TEMP_PREFIX", "WriterLock", "check_input_file", "check_output_path", "describe_write_error",
+           "fsync_dir", "read_input", "remove_temporary", "sweep_stale_temporaries", "temp_path", "write_atomic"]
 
 
 # -- CSV cells: one way for every results file (sweep, study, bench) --------------------------

@@ -8,31 +8,56 @@ faces that follow belong to that vertex group). Other statements (``vn``, ``s``,
 mesh on the stage), its points in world space (the prim's local-to-world transform applied),
 ``faceVertexCounts`` fan-triangulated, ``primvars:st`` kept (vertex or faceVarying), and each
 ``UsdGeom.Subset`` of faces or points a vertex group named after the subset prim.
+
+Every file read is checked before it is opened (:func:`~warpcloth.io.files.check_input_file`: a
+regular file of at most :data:`MAX_MESH_FILE_BYTES`, not a FIFO or a file of /proc, /sys, /dev),
+and so is every layer a USD file names (sublayers, references, payloads, value clips and their
+manifests, :func:`open_usd_stage`), so no read blocks. The memory a reader needs is estimated
+from the file's size and refused up front when the machine lacks it, as a grid's is.
 """
 
 from __future__ import annotations
 
+import io
 import os
 
 import numpy as np
 
 from warpcloth.errors import WarpclothError, require
+from warpcloth.io.files import check_input_file, read_input
 from warpcloth.sim.colliders import MeshCollider
+from warpcloth.sim.device import require_memory
 from warpcloth.sim.mesh import TriangleMesh, check_mesh
 
 MESH_FORMATS = {".obj": "OBJ", ".usd": "USD", ".usda": "USD", ".usdc": "USD", ".usdz": "USD"}
+#: The largest mesh file (and USD layer) read [bytes].
+MAX_MESH_FILE_BYTES = 2**31
+#: Layers one USD mesh file may name, all told (sublayers, references, payloads, clips).
+MAX_USD_LAYERS = 1000
+#: Host memory a reader needs per byte of the file, at most (measured: 13 for OBJ; Python lists
+#: of floats and the per-face index arrays), so a file too large for the machine is refused
+#: before it is read.
+READ_BYTES_PER_FILE_BYTE = 16
 
 
 def load_mesh(path: str, prim: str | None = None) -> TriangleMesh:
     """Read a triangle mesh from an OBJ or USD file (checked with :func:`~warpcloth.sim.mesh.check_mesh`)."""
-    path = os.fspath(path)
+    try:
+        path = os.fspath(path)
+    except TypeError:
+        raise WarpclothError(f"mesh file must be a file name, got {path!r:.80}") from None
+    if not isinstance(path, str) or not path:
+        raise WarpclothError(f"mesh file must be a file name, got {path!r:.80}")
     ext = os.path.splitext(path)[1].lower()
     if ext not in MESH_FORMATS:
         raise WarpclothError(f"mesh file {path!r} has an unsupported format {ext or '(no extension)'!r}: use {', '.join(MESH_FORMATS)}")
-    if not os.path.isfile(path):
-        raise WarpclothError(f"mesh file {path!r} does not exist" if not os.path.exists(path) else f"mesh file {path!r} is not a file")
+    check_input_file(path, "mesh file", MAX_MESH_FILE_BYTES)
+    if prim is not None and not isinstance(prim, str):
+        raise WarpclothError(f"prim must be a prim path such as '/World/Cloth', got {prim!r:.80}")
     if prim is not None and MESH_FORMATS[ext] != "USD":
         raise WarpclothError(f"a prim path ({prim!r}) applies to USD files only, not {path!r}")
+    size = os.stat(path).st_size
+    require_memory(f"reading mesh file {path!r} ({size:,} bytes)", READ_BYTES_PER_FILE_BYTE * size, "cpu")
     mesh = read_obj(path) if ext == ".obj" else read_usd(path, prim)
     check_mesh(mesh.vertices, mesh.triangles, what=f"mesh {path}")
     return mesh
@@ -57,11 +82,9 @@ def read_obj(path: str) -> TriangleMesh:
     groups: dict[str, set] = {}
     current: list[str] = []
     has_uv = True
-    try:
-        with open(path, "r", encoding="utf-8", errors="replace") as f:
-            lines = f.readlines()
-    except OSError as exc:
-        raise WarpclothError(f"cannot read mesh file {path!r}: {exc.strerror or exc}") from None
+    text = read_input(path, "mesh file", MAX_MESH_FILE_BYTES).decode("utf-8", errors="replace")
+    lines = io.StringIO(text, newline=None).readlines()  # as open() in text mode splits them
+    del text
     for lineno, raw in enumerate(lines, 1):
         line = raw.split("#", 1)[0].strip()
         if not line:
@@ -134,11 +157,109 @@ def read_usd(path: str, prim: str | None = None) -> TriangleMesh:
         from pxr import Usd, UsdGeom
     except ImportError:  # pragma: no cover - usd-core is a dependency
         raise WarpclothError("reading USD meshes needs usd-core (pip install usd-core)") from None
+    stage, layers = open_usd_stage(path)
     try:
-        stage = Usd.Stage.Open(path)
+        return _read_usd_mesh(stage, path, prim)
+    finally:
+        del stage, layers
+
+
+def _usd_error(exc: BaseException) -> str:
+    """The first line of pxr's error text (which can run to many lines), at most 200 characters."""
+    first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)
+    return first[:200]
+
+
+def _clip_assets(layer) -> list:
+    """(asset path, what) of the value clips and clip manifests a layer's prims name."""
+    from pxr import Sdf
+
+    out = []
+
+    def clip_set(info: dict) -> None:
+        for key in ("assetPaths", "clipAssetPaths"):
+            for a in info.get(key) or ():
+                out.append((a.path, "value clip"))
+        for key in ("manifestAssetPath", "clipManifestAssetPath"):
+            if info.get(key) is not None and info[key].path:
+                out.append((info[key].path, "value-clip manifest"))
+        if info.get("templateAssetPath") or info.get("clipTemplateAssetPath"):
+            out.append((None, "template value clips"))
+
+    def visit(path) -> None:
+        if not (path.IsPrimPath() or path.IsPrimVariantSelectionPath()):
+            return
+        spec = layer.GetPrimAtPath(path)
+        if spec is None:
+            return
+        if spec.HasInfo("clips"):
+            for info in dict(spec.GetInfo("clips")).values():
+                clip_set(dict(info))
+        old = {key: spec.GetInfo(key) for key in ("clipAssetPaths", "clipManifestAssetPath", "clipTemplateAssetPath")
+               if spec.HasInfo(key)}
+        if old:
+            clip_set(old)
+
+    layer.Traverse(Sdf.Path.absoluteRootPath, visit)
+    return out
+
+
+def open_usd_stage(path: str):
+    """``(stage, layers)``: the USD stage of ``path`` composed from layers that were each checked
+    before they were opened: the file itself and every sublayer, reference, payload, value clip
+    and clip manifest it names, transitively (:func:`~warpcloth.io.files.check_input_file`: a
+    regular file, not a FIFO or a file of /proc, /sys, /dev, at most :data:`MAX_MESH_FILE_BYTES`;
+    a missing one is an error, as USD would only warn). ``layers`` holds the opened layers:
+    keep it while the stage is used (the stage then finds them open, and opens no file itself).
+    """
+    from pxr import Ar, Sdf, Usd
+
+    resolver = Ar.GetResolver()
+    top = os.path.abspath(path)
+    check_input_file(top, "USD file", MAX_MESH_FILE_BYTES)
+    layers, seen = [], set()
+    todo = [(top, None, "the file")]
+    while todo:
+        asset, anchor, what = todo.pop()
+        name = top if anchor is None else f"{asset!r} ({what} in {os.path.basename(anchor.identifier)})"
+        if asset is None:
+            raise WarpclothError(f"USD file {path!r} uses {what}, which warpcloth does not read in a mesh file")
+        identifier = asset if anchor is None else resolver.CreateIdentifier(asset, Ar.ResolvedPath(str(anchor.resolvedPath)))
+        if identifier in seen:
+            continue
+        seen.add(identifier)
+        if len(seen) > MAX_USD_LAYERS:
+            raise WarpclothError(f"USD file {path!r} names more than {MAX_USD_LAYERS} layers")
+        outer = Ar.SplitPackageRelativePathOuter(identifier)[0] if Ar.IsPackageRelativePath(identifier) else identifier
+        resolved = str(resolver.Resolve(outer)) if anchor is not None else outer
+        if not resolved:
+            raise WarpclothError(f"USD file {path!r} names {name}, which does not exist")
+        try:
+            check_input_file(resolved, "layer" if anchor is not None else "USD file", MAX_MESH_FILE_BYTES)
+        except WarpclothError as exc:
+            raise WarpclothError(f"USD file {path!r} names {name}: {exc}" if anchor is not None else str(exc)) from None
+        try:
+            layer = Sdf.Layer.FindOrOpen(identifier)
+        except Exception as exc:
+            raise WarpclothError(f"cannot open USD file {path!r}: {_usd_error(exc)}") from None
+        if layer is None:
+            raise WarpclothError(f"cannot open USD file {path!r}: {name} is not a USD layer")
+        layers.append(layer)
+        deps = [(a, "sublayer, reference or payload") for a in layer.GetCompositionAssetDependencies()]
+        for a, kind in deps + _clip_assets(layer):
+            todo.append((a, layer, kind))
+    try:
+        stage = Usd.Stage.Open(layers[0])
     except Exception as exc:
-        first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)
-        raise WarpclothError(f"cannot open USD file {path!r}: {first[:200]}") from None
+        raise WarpclothError(f"cannot open USD file {path!r}: {_usd_error(exc)}") from None
+    if stage is None:
+        raise WarpclothError(f"cannot open USD file {path!r}")
+    return stage, layers
+
+
+def _read_usd_mesh(stage, path: str, prim: str | None) -> TriangleMesh:
+    from pxr import Usd, UsdGeom
+
     if prim is None:
         meshes = [p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
         require(len(meshes) > 0, f"USD file {path!r} has no UsdGeom.Mesh")
@@ -225,4 +346,5 @@ def write_obj(path: str, vertices, triangles, uv=None, groups: dict | None = Non
         f.write("\n".join(lines) + "\n")
 
 
-__all__ = ["load_mesh_collider", "MESH_FORMATS", "load_mesh", "read_obj", "read_usd", "write_obj"]
+__all__ = ["load_mesh_collider", "MAX_MESH_FILE_BYTES", "MESH_FORMATS", "load_mesh", "open_usd_stage", "read_obj", "read_usd",
+           "write_obj"]

@@ -381,7 +381,14 @@ class UsdWriter:
             self._clip_first = code
         self.frames_in_memory += 1
         if self.frames_in_memory >= self.clip_frames:
-            self._flush_clip()
+            failure = None
+            try:
+                self._flush_clip()
+            except Exception as exc:  # a full disk while a clip is saved: one line (OutputError, exit 74), not pxr's text
+                failure = _usd_failure(exc, self.path, self._tmp)
+            if failure is not None:  # raised outside the handler: pxr's exception (and the clip layer its frames hold) is freed
+                self.abort()
+                raise failure
 
     def _flush_clip(self) -> None:
         """Move every time sample of the stage's layer into a new value-clip layer on disk."""

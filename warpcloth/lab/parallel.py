@@ -102,10 +102,36 @@ def is_cuda(device: str | None) -> bool:
 
 
 # -- local worker processes --------------------------------------------------------------------
+#: Exit status of a worker that stops because its driver died.
+EXIT_DRIVER_GONE = 70
+
+
+def _exit_with_driver() -> None:
+    """Stop this worker process as soon as its driver is gone (``kill -9`` of the driver leaves
+    nobody to read its rows, and its runs would go on for their whole wall cap): a thread waits
+    on the parent's sentinel, which becomes readable when the parent process ends."""
+    import threading
+
+    parent = multiprocessing.parent_process()
+    if parent is None or getattr(parent, "sentinel", None) is None:
+        return
+
+    def watch() -> None:
+        try:
+            wait_any([parent.sentinel])
+        except (OSError, ValueError):  # pragma: no cover - the sentinel closed under us
+            return
+        os._exit(EXIT_DRIVER_GONE)
+
+    threading.Thread(target=watch, name="warpcloth-driver-watch", daemon=True).start()
+
+
 def _worker_main(conn, fn, place: Place, init) -> None:
     """A local worker: receive a list of (key, payload), send ("row", key, row) per job, then
-    ("idle",); stop on None. A job that raises sends ("error", key, message)."""
+    ("idle",); stop on None. A job that raises sends ("error", key, message). The worker exits
+    when its driver dies (:func:`_exit_with_driver`)."""
     place.pid = os.getpid()
+    _exit_with_driver()
     try:
         if init is not None:
             init(place)

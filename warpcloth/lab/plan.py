@@ -107,8 +107,26 @@ def make_plan(profile: str = "quick", integrators=None, sizes=None, devices=None
     devices = list(devices)
     require(bool(devices), "the device list is empty")
     grid, files = check_scenarios(scenarios)
+    if grid:
+        check_memory(sorted(set(base["sizes"]) | set(base["accuracy_sizes"])), devices)
     return StudyPlan(profile=profile, integrators=integrators, devices=devices, tolerance=check_tolerance(tolerance),
                      match_accuracy=bool(match_accuracy), grid=grid, scenario_files=files, **base)
+
+
+def check_memory(sizes, devices) -> None:
+    """Refuse, before the first run, a size whose n x n cloth a device cannot hold (the grid's
+    up-front estimate, :func:`~warpcloth.sim.grid.grid_memory_estimate`); a device that is not
+    present is left to the study (it is reported and skipped there)."""
+    from warpcloth.sim.device import require_memory, resolve_device
+    from warpcloth.sim.grid import grid_memory_estimate
+
+    for device in devices:
+        try:
+            resolve_device(device)
+        except WarpclothError:
+            continue
+        for n in sorted(sizes, reverse=True):  # the largest first: the one that fails
+            require_memory(f"the study's {n} x {n} cloth (--sizes)", grid_memory_estimate(n, n), device)
 
 
 def check_scenarios(scenarios) -> tuple[bool, list]:

@@ -174,12 +174,17 @@ class _Source:
         return element.line + self.data.count(b"\n", element.byte, m.start(1))
 
 
+#: The largest test list read [bytes].
+MAX_TEST_LIST_BYTES = 16 * 2**20
+
+
 def _read_tree(path: str) -> tuple[_Source, _Element]:
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read()
-    except OSError as exc:
-        raise WarpclothError(f"cannot read test list {path}: {exc.strerror or exc}") from None
+    from warpcloth.io.files import read_input
+
+    try:  # a regular file of bounded size, never a FIFO or a file of /proc, /dev
+        data = read_input(path, "file", MAX_TEST_LIST_BYTES)
+    except WarpclothError as exc:
+        raise WarpclothError(f"cannot read test list {path}: {exc}") from None
     src = _Source(path, data)
     parser = expat.ParserCreate()
     stack: list[_Element] = []
@@ -218,6 +223,9 @@ def _read_tree(path: str) -> tuple[_Source, _Element]:
         parser.Parse(data, True)
     except expat.ExpatError as exc:
         raise src.error(exc.lineno, f"malformed XML: {expat.ErrorString(exc.code)} (column {exc.offset + 1})") from None
+    except LookupError as exc:  # <?xml ... encoding="klingon"?>
+        raise src.error(1, f"the XML declaration names an encoding Python does not know ({str(exc)[:60]}); "
+                           "write the test list in UTF-8") from None
     return src, root[0]
 
 

@@ -8,6 +8,8 @@ check and help. From :data:`PARAMS` come:
 * the CLI flags of ``warpcloth run`` and ``warpcloth max-dt`` (:func:`add_flags`) and the
   :class:`~warpcloth.scenarios.ScenarioConfig` they make (:func:`config_values`);
 * the attributes of an XML test list and their checks (:mod:`warpcloth.lab.testlist`);
+* the keys of a scenario file (TOML values, typed: :meth:`Param.from_typed`,
+  :mod:`warpcloth.scenarios.file`);
 * the parameter columns of the sweep's CSV and the run key that ``--resume`` matches
   (:mod:`warpcloth.lab.sweep`, :class:`~warpcloth.lab.testlist.RunSpec`);
 * the attribute table of ``docs/sweep.md`` (:func:`markdown_table`; a test keeps it in step).
@@ -36,6 +38,13 @@ from warpcloth.run.parse import collider_specs
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 
 SPRING_TYPES = ("structural", "shear", "bend")
+
+
+def _shown(value) -> str:
+    """A value as a message shows it: its repr, cut to 60 characters."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
 
 #: The defaults of a sweep where they differ from a single run's (the seed's test plan, 4.3):
 #: a wall-clock cap of one minute per run, sampling at the seed's real-time threshold of 30 FPS.
@@ -73,25 +82,25 @@ def number(text: str) -> float:
     try:
         v = float(text)
     except (TypeError, ValueError):
-        raise ValueError(f"{text!r} is not a number") from None
+        raise ValueError(f"{_shown(text)} is not a number") from None
     if not math.isfinite(v):
-        raise ValueError(f"{text!r} is not a finite number")
+        raise ValueError(f"{_shown(text)} is not a finite number")
     if abs(v) > FLOAT32_MAX:
-        raise ValueError(f"{text!r} does not fit in float32 (|value| <= {FLOAT32_MAX:.4g})")
+        raise ValueError(f"{_shown(text)} does not fit in float32 (|value| <= {FLOAT32_MAX:.4g})")
     return v
 
 
 def positive(text: str) -> float:
     v = number(text)
     if not v > 0.0:
-        raise ValueError(f"{text!r} must be > 0")
+        raise ValueError(f"{_shown(text)} must be > 0")
     return v
 
 
 def non_negative(text: str) -> float:
     v = number(text)
     if not v >= 0.0:
-        raise ValueError(f"{text!r} must be >= 0")
+        raise ValueError(f"{_shown(text)} must be >= 0")
     return v
 
 
@@ -99,9 +108,9 @@ def grid_dim(text: str) -> int:
     try:
         v = int(text)
     except (TypeError, ValueError):
-        raise ValueError(f"{text!r} is not an integer") from None
+        raise ValueError(f"{_shown(text)} is not an integer") from None
     if v < 3:
-        raise ValueError(f"{text!r} must be an integer >= 3")
+        raise ValueError(f"{_shown(text)} must be an integer >= 3")
     return v
 
 
@@ -112,7 +121,7 @@ def size(text: str) -> tuple[int, int]:
         return n, n
     if len(parts) == 2:
         return grid_dim(parts[0]), grid_dim(parts[1])
-    raise ValueError(f"{text!r} is not N or ROWSxCOLS")
+    raise ValueError(f"{_shown(text)} is not N or ROWSxCOLS")
 
 
 def number_list(text: str):
@@ -120,23 +129,23 @@ def number_list(text: str):
     where the model is built)."""
     parts = text.split(",")
     if len(parts) > 1 and any(not p.strip() for p in parts):
-        raise argparse.ArgumentTypeError(f"{text!r} has an empty item: give one number, or three separated by single commas (structural,shear,bend)")
+        raise argparse.ArgumentTypeError(f"{_shown(text)} has an empty item: give one number, or three separated by single commas (structural,shear,bend)")
     try:
         values = [float(p) for p in parts]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers, got {_shown(text)}") from None
     if len(values) == 1:
         return values[0]
     if len(values) == 3:
         return tuple(values)
-    raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers (structural,shear,bend), got {text!r}")
+    raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers (structural,shear,bend), got {_shown(text)}")
 
 
 def per_type(text: str):
     """``'1000'`` -> 1000.0; ``'1000,500,100'`` -> (1000.0, 500.0, 100.0) (structural, shear, bend)."""
     parts = text.split(",")
     if len(parts) not in (1, 3) or any(not p.strip() for p in parts):
-        raise ValueError(f"{text!r}: give one number, or three separated by single commas (structural,shear,bend)")
+        raise ValueError(f"{_shown(text)}: give one number, or three separated by single commas (structural,shear,bend)")
     values = tuple(non_negative(p) for p in parts)
     return values[0] if len(values) == 1 else values
 
@@ -151,11 +160,11 @@ def timestep(text: str) -> TimeStep:
         try:
             return TimeStep("max", positive(t[4:]))
         except ValueError:
-            raise ValueError(f"{text!r}: the factor in max*F must be a number > 0") from None
+            raise ValueError(f"{_shown(text)}: the factor in max*F must be a number > 0") from None
     try:
         return TimeStep("value", positive(text))
     except ValueError:
-        raise ValueError(f"{text!r} is not a time step > 0 [s], 'max', 'max*F' or 'default'") from None
+        raise ValueError(f"{_shown(text)} is not a time step > 0 [s], 'max', 'max*F' or 'default'") from None
 
 
 def wall_cap(text: str) -> float | None:
@@ -164,7 +173,7 @@ def wall_cap(text: str) -> float | None:
     try:
         return positive(text)
     except ValueError:
-        raise ValueError(f"{text!r} is not a number of seconds > 0 or 'none'") from None
+        raise ValueError(f"{_shown(text)} is not a number of seconds > 0 or 'none'") from None
 
 
 def cli_wall_cap(text: str) -> float | None:
@@ -174,20 +183,20 @@ def cli_wall_cap(text: str) -> float | None:
     try:
         return float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid float value: {text!r} (seconds, or 'none')") from None
+        raise argparse.ArgumentTypeError(f"invalid float value: {_shown(text)} (seconds, or 'none')") from None
 
 
 def fraction(text: str) -> float:
     v = number(text)
     if not 0.0 < v < 1.0:
-        raise ValueError(f"{text!r} must be between 0 and 1 (relative, e.g. 0.02)")
+        raise ValueError(f"{_shown(text)} must be between 0 and 1 (relative, e.g. 0.02)")
     return v
 
 
 def choice(*choices: str, what: str):
     def parse(text: str) -> str:
         if text not in choices:
-            raise ValueError(f"unknown {what} {text!r}; choose from {', '.join(choices)}")
+            raise ValueError(f"unknown {what} {_shown(text)}; choose from {', '.join(choices)}")
         return text
 
     return parse
@@ -198,7 +207,7 @@ def integrator(text: str) -> str:
 
     names = integrator_names()
     if text != "all" and text not in names:
-        raise ValueError(f"unknown integrator {text!r}; choose from {', '.join(names)} (or 'all' in a test list)")
+        raise ValueError(f"unknown integrator {_shown(text)}; choose from {', '.join(names)} (or 'all' in a test list)")
     return text
 
 
@@ -218,7 +227,8 @@ def device(text: str) -> str:
 
 
 def colliders(text: str) -> str:
-    """One or more colliders joined by ``+`` (``sphere:center=0/1/0,radius=0.3+plane``); checked
+    """One or more colliders joined by ``+`` (``sphere:center=0/1/0,radius=0.3+plane``; a ``+``
+    joins where a collider kind follows it, so ``radius=1e+3`` and ``path=a+b.obj`` stay whole); checked
     here (:func:`warpcloth.run.parse.collider_specs`: no file is read), kept as text (the run
     key and the CSV show it as written)."""
     try:
@@ -232,7 +242,7 @@ def names(text: str) -> str:
     """Comma-separated names (vertex groups)."""
     items = [s.strip() for s in text.split(",")]
     if any(not s for s in items):
-        raise ValueError(f"{text!r} has an empty name; separate names with single commas")
+        raise ValueError(f"{_shown(text)} has an empty name; separate names with single commas")
     return ",".join(items)
 
 
@@ -341,13 +351,39 @@ class Param:
         except ValueError as exc:
             raise WarpclothError(f"{self.name}: {exc}") from None
 
+    def from_typed(self, value):
+        """A value from a typed file (a scenario file's TOML: numbers, strings, arrays) parsed as
+        its text would be, so a file's key has the CLI flag's type, range and unit; a value of
+        another type raises ``ValueError`` (``must be a number, got 'abc'``), as ``parse`` does."""
+        takes = _TYPED.get(self.parse, "text")
+        if isinstance(value, bool) or not isinstance(value, (str, int, float, list)):
+            raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
+        if isinstance(value, list):
+            if takes != "per_type" or len(value) != 3 or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
+                raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
+            return self.parse(",".join(repr(float(v)) for v in value))
+        if isinstance(value, str):
+            if takes in ("number", "per_type"):
+                raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
+            return self.parse(value)
+        if takes == "text":
+            raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
+        return self.parse(repr(value) if isinstance(value, float) else str(value))
+
+
+#: What a typed file's value of a parameter may be, by its parser (the rest take text).
+_TYPED = {number: "number", positive: "number", non_negative: "number", fraction: "number", grid_dim: "number",
+          per_type: "per_type", timestep: "number_or_text", wall_cap: "number_or_text"}
+_TYPED_WORDS = {"number": "a number", "per_type": "a number or 3 numbers [structural, shear, bend]",
+                "number_or_text": "a number or a string", "text": "a string"}
+
 
 def _graph_config(value):
     return {"on": True, "off": False, "auto": None}[value]
 
 
 def _colliders_config(value):
-    return collider_specs(value) if value else None
+    return None if value is None else collider_specs(value)  # "" is an error (collider_specs), not "no collider"
 
 
 def _group_config(value):
@@ -550,10 +586,13 @@ def check_applies(values: dict, is_mesh: bool, scenario_name: str, spell=lambda 
 
 
 def config_values(values: dict) -> dict:
-    """ScenarioConfig keyword arguments from parameter values (None: unset)."""
+    """ScenarioConfig keyword arguments from parameter values (None: unset, and left out, so a
+    scenario's own value, e.g. a scenario file's, stays)."""
     out = {}
     for kind in ("stiffness", "damping"):
-        out[kind] = resolve_per_type(values, kind)
+        value = resolve_per_type(values, kind)
+        if value is not None:
+            out[kind] = value
     if values.get("size") is not None and values.get("rows") is None:
         out["rows"], out["cols"] = values["size"]
     for p in PARAMS:

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warpcloth.errors import WarpclothError, require, require_non_negative, require_vector
+from warpcloth.errors import WarpclothError, require, require_non_negative, require_number, require_positive, require_vector
+
 from warpcloth.kernels import collide as ck
 from warpcloth.kernels import forces as fk
 from warpcloth.kernels import pins as pk
@@ -36,19 +37,30 @@ class WindSchedule:
     period: float = 0.0
 
     def __post_init__(self):
+        for name in ("starts", "winds"):
+            if isinstance(getattr(self, name), (str, bytes)) or not hasattr(getattr(self, name), "__len__"):
+                raise WarpclothError(f"wind schedule {name} must be a sequence, got {getattr(self, name)!r:.80}")
         require(len(self.starts) == len(self.winds), "wind schedule needs one wind vector per start time")
+        starts = tuple(require_number(f"wind schedule start {k}", s, "s") for k, s in enumerate(self.starts))
+        winds = tuple(require_vector(f"wind schedule wind {k}", w, 3, "m/s") for k, w in enumerate(self.winds))
+        object.__setattr__(self, "starts", starts)
+        object.__setattr__(self, "winds", winds)
         require(all(b >= a for a, b in zip(self.starts, self.starts[1:])), f"wind schedule start times must be increasing, got {list(self.starts)}")
-        require_non_negative("wind schedule period", self.period, "s")
+        object.__setattr__(self, "period", require_non_negative("wind schedule period", self.period, "s"))
 
     @classmethod
     def constant(cls, wind) -> "WindSchedule":
-        return cls(starts=(0.0,), winds=(tuple(float(c) for c in wind),))
+        """The constant wind ``wind`` [m/s] from t = 0."""
+        return cls(starts=(0.0,), winds=(require_vector("wind", wind, 3, "m/s"),))
 
     @classmethod
     def gusts(cls, wind, on: float, off: float, base=(0.0, 0.0, 0.0)) -> "WindSchedule":
         """Gusts of ``wind`` for ``on`` seconds, then ``base`` for ``off`` seconds, repeating."""
-        require(on > 0 and off > 0, f"gust on/off durations must be > 0 s, got on={on!r}, off={off!r}")
-        return cls(starts=(0.0, float(on)), winds=(tuple(map(float, wind)), tuple(map(float, base))), period=float(on + off))
+        wind = require_vector("gust wind", wind, 3, "m/s")
+        base = require_vector("gust base wind", base, 3, "m/s")
+        on = require_positive("gust on duration", on, "s")
+        off = require_positive("gust off duration", off, "s")
+        return cls(starts=(0.0, on), winds=(wind, base), period=on + off)
 
     def __call__(self, t: float) -> np.ndarray:
         """W(t) evaluated on the host (for tests and reports)."""

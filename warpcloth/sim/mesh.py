@@ -36,6 +36,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive
+from warpcloth.sim.device import require_memory, resolve_device
+from warpcloth.sim.grid import BYTES_PER_PARTICLE, BYTES_PER_SPRING
 from warpcloth.sim.hinges import (DEFAULT_BEND_DAMPING_RATIO, DEFAULT_BEND_RIGIDITY, build_hinges, hinge_damping_for_ratio,
                                   triangle_hinges)
 from warpcloth.sim.model import BendModel, ClothModel, SpringParams, SpringType, build_model, default_spring_params
@@ -47,6 +49,23 @@ STRAIGHT_ANGLE_DEG = 150.0
 LONGEST_MARGIN = 1e-6
 #: A triangle whose area is below this fraction of the squared bounding-box diagonal is degenerate.
 DEGENERATE_AREA = 1e-12
+#: The largest |coordinate| of a vertex [m]: the kernels square distances in float32 (spring
+#: lengths, triangle areas), which must stay below float32's largest value (3.4e38).
+MAX_COORDINATE = 1e18
+#: Bytes per triangle a mesh cloth needs beside its particles and springs (the topology's edge
+#: tables, areas, the triangle list on the device and host).
+BYTES_PER_TRIANGLE = 200
+#: Springs per triangle at most: its edges (1.5), the bends across them (1.5) and a quad's shear.
+SPRINGS_PER_TRIANGLE = 4
+
+
+def mesh_memory_estimate(vertex_count: int, triangle_count: int) -> int:
+    """An upper estimate [bytes] of the memory a mesh cloth of ``vertex_count`` vertices and
+    ``triangle_count`` triangles and its run need, per particle and spring as
+    :func:`~warpcloth.sim.grid.grid_memory_estimate` (a triangulated grid has 2 triangles, 8
+    springs per particle)."""
+    v, t = int(vertex_count), int(triangle_count)
+    return v * BYTES_PER_PARTICLE + t * (SPRINGS_PER_TRIANGLE * BYTES_PER_SPRING + BYTES_PER_TRIANGLE)
 
 
 @dataclass
@@ -84,6 +103,11 @@ def check_mesh(vertices, triangles, what: str = "mesh") -> tuple[np.ndarray, np.
     bad = np.flatnonzero(~np.all(np.isfinite(v), axis=1))
     if bad.size:
         raise WarpclothError(f"{what}: vertex {int(bad[0])} is not finite ({v[bad[0]].tolist()}); vertices must be finite numbers")
+    far = np.flatnonzero(np.any(np.abs(v) > MAX_COORDINATE, axis=1))
+    if far.size:
+        k = int(far[0])
+        raise WarpclothError(f"{what}: vertex {k} at ({', '.join(f'{c:.3g}' for c in v[k])}) m is out of range: coordinates must "
+                             f"be within +-{MAX_COORDINATE:.0e} m (float32 must hold squared distances)")
     t = np.asarray(triangles)
     require(t.size > 0, f"{what} is empty: no triangles")
     require(t.ndim == 2 and t.shape[1] == 3, f"{what}: triangles must have shape (T, 3), got {t.shape}")
@@ -343,6 +367,9 @@ def build_mesh_cloth(
         uv = mesh.uv if uv is None else uv
         groups = {**mesh.groups, **(groups or {})}
     v, t = check_mesh(vertices, triangles)
+    device = resolve_device(device)
+    require_memory(f"a mesh cloth of {v.shape[0]:,} vertices and {t.shape[0]:,} triangles",
+                   mesh_memory_estimate(v.shape[0], t.shape[0]), device)
     masses = lumped_masses(v, t, total_mass, density, mass_mode)
     if spring_params is None:
         spring_params = default_spring_params(float(masses.mean()), stiffness, damping)
@@ -393,5 +420,5 @@ def corner_uvs(uv, triangles: np.ndarray, vertex_count: int) -> np.ndarray:
 
 __all__ = [
     "MASS_MODES", "MeshTopology", "TriangleMesh", "build_mesh_cloth", "check_mesh", "corner_uvs", "lumped_masses",
-    "mesh_springs", "mesh_topology", "triangle_areas",
+    "mesh_memory_estimate", "mesh_springs", "mesh_topology", "triangle_areas",
 ]

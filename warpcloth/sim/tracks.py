@@ -38,26 +38,43 @@ def _finite(what: str, name: str, a: np.ndarray) -> np.ndarray:
     return a
 
 
+def _numbers(what: str, name: str, value) -> np.ndarray:
+    """``value`` as a float64 array, or a :class:`WarpclothError` (text, booleans, tables and
+    ragged lists are not numbers)."""
+    def bad():
+        return WarpclothError(f"{what} {name} must be numbers, got {value!r:.80}")
+
+    if isinstance(value, (str, bytes, bool, dict)) or value is None:
+        raise bad()
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise bad() from None
+    if isinstance(value, (list, tuple)) and any(isinstance(x, (bool, str)) for x in np.asarray(value, dtype=object).ravel()):
+        raise bad()
+    return a
+
+
 def check_keyframes(what: str, times, positions, interpolation: str, tangents, points: int):
     """Checked keyframes (times (K,) float64, values (K, 3) or (K, P, 3) with P = ``points``,
     tangents shaped like the values or None); errors start with ``what`` ("pin track")."""
     require(interpolation in INTERPOLATIONS,
             f"{what} interpolation must be one of {', '.join(INTERPOLATIONS)}, got {interpolation!r}")
-    t = _finite(what, "times", np.asarray(times, dtype=np.float64).reshape(-1))
+    t = _finite(what, "times", _numbers(what, "times", times).reshape(-1))
     require(t.size >= 1, f"{what} needs at least one keyframe")
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         k = int(bad[0])
         raise WarpclothError(f"{what} keyframes out of order: time {float(t[k + 1])!r} s (key {k + 1}) is not after "
                              f"{float(t[k])!r} s (key {k}); key times must increase")
-    v = _finite(what, "positions", np.asarray(positions, dtype=np.float64))
+    v = _finite(what, "positions", _numbers(what, "positions", positions))
     shapes = [(t.size, 3), (t.size, points, 3)]
     require(v.shape in shapes,
             f"{what} positions must have shape (K, 3) offsets or (K, P, 3) = {shapes[1]}, got {v.shape}")
     tan = None
     if interpolation == "hermite":
         require(tangents is not None, f"{what} interpolation 'hermite' needs tangents (shaped like positions) [m/s]")
-        tan = _finite(what, "tangents", np.asarray(tangents, dtype=np.float64))
+        tan = _finite(what, "tangents", _numbers(what, "tangents", tangents))
         require(tan.shape == v.shape, f"{what} tangents must have the shape of positions {v.shape}, got {tan.shape}")
     elif tangents is not None:
         raise WarpclothError(f"{what} tangents apply to interpolation 'hermite' only, not {interpolation!r}")
@@ -68,12 +85,21 @@ def check_rigid(what: str, center, axis, angular_velocity, swing_amplitude, swin
                 velocity) -> dict:
     """The checked fields of a rigid motion (``kind="rigid"``, centre, unit axis, ...) for a
     :class:`Track` subclass's constructor; errors start with ``what``."""
-    a = _finite(what, "axis", np.asarray(axis, dtype=np.float64).reshape(-1))
-    require(a.size == 3 and np.linalg.norm(a) > 0, f"{what} axis must be a non-zero 3-vector, got {list(axis)!r}")
-    c = _finite(what, "center", np.asarray(center, dtype=np.float64).reshape(-1))
-    u = _finite(what, "velocity", np.asarray(velocity, dtype=np.float64).reshape(-1))
+    a = _finite(what, "axis", _numbers(what, "axis", axis).reshape(-1))
+    require(a.size == 3 and np.linalg.norm(a) > 0, f"{what} axis must be a non-zero 3-vector, got {axis!r:.80}")
+    c = _finite(what, "center", _numbers(what, "center", center).reshape(-1))
+    u = _finite(what, "velocity", _numbers(what, "velocity", velocity).reshape(-1))
     require(c.size == 3 and u.size == 3, f"{what} center and velocity must be 3-vectors")
-    nums = np.array([angular_velocity, swing_amplitude, swing_frequency, swing_phase], dtype=np.float64)
+    scalars = {"angular_velocity": angular_velocity, "swing_amplitude": swing_amplitude,
+               "swing_frequency": swing_frequency, "swing_phase": swing_phase}
+    for name, value in scalars.items():
+        try:
+            one = np.ndim(_numbers(what, name, value)) == 0
+        except WarpclothError:
+            one = False
+        if not one:
+            raise WarpclothError(f"{what} {name} must be a number, got {value!r:.80}")
+    nums = np.array(list(scalars.values()), dtype=np.float64)
     nums = _finite(what, "motion", nums)
     require(nums[2] >= 0, f"{what} swing frequency must be >= 0 Hz, got {swing_frequency!r}")
     return dict(kind="rigid", center=tuple(c), axis=tuple(a / np.linalg.norm(a)), velocity=tuple(u),
