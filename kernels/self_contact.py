@@ -22,13 +22,19 @@ exits at once when no rebuild is due, so a captured frame replays the adaptive s
 have a fixed capacity chosen at bind; a pair that does not fit is counted (overflow), never
 dropped silently.
 
-Response: a repulsion force k (h - d) along n, capped so that its impulse over dt changes the
-normal relative velocity by at most 0.1 (h - d) / dt - v_n (Bridson et al. 2002, Sec. 7.2), and
-a velocity filter after the step: an inelastic impulse on pairs closer than h that approach,
-an impulse that brings every pair's end-of-step gap back to at least a fraction of h, and
-Coulomb friction |dv_t| <= mu dv_n on both. The filter is Jacobi over the contacts with mass
-splitting (each contact sees a vertex in c contacts with mass m / c), so that shared vertices
-are not over-corrected, iterated a fixed number of times.
+An edge-edge pair whose closest point is at an end of either edge is not a contact: that end's
+vertex-triangle contact holds it (the vertex is at least as near the edge's triangles). Edge
+pairs may act within a smaller thickness h_e = edge_fraction h than vertex-triangle pairs (two
+parallel layers have many crossing edges, each a contact, that their vertex-triangle contacts
+already hold apart).
+
+Response (Bridson et al. 2002, Sec. 7.2), a velocity filter after the step: an inelastic impulse
+on pairs closer than h that approach, the repulsion impulse min(dt k (h - d), m (0.1 (h - d)/dt -
+v_n)), an impulse that brings every pair's end-of-step gap back to at least a fraction of h, and
+Coulomb friction |dv_t| <= mu dv_n. The filter is Jacobi over the contacts with mass splitting
+(each contact sees a vertex in c contacts with mass m / c), so that shared vertices are not
+over-corrected, iterated a fixed number of times. The repulsion is also a force (for schemes that
+want it in their force, with the filter's repulsion off).
 
 Contacts are handled in grid-stride loops over a launch of fixed dimension, so their cost is the
 contact count, not the capacity.
@@ -70,8 +76,13 @@ R_ACTIVE = wp.constant(3)  # gap below which a candidate is an active contact: h
 RHO_MAX = wp.constant(4)  # largest half diagonal of a triangle's box at the build [m]
 HALF_EDGE_MAX = wp.constant(5)  # largest half length of an edge at the build [m]
 SKIN = wp.constant(6)  # the skin of the current list [m]
-SCALAR_SLOTS = 7
+R_BUILD_EE = wp.constant(7)  # radius of the edge-edge list: h_e + skin [m], h_e = edge_fraction h
+R_ACTIVE_EE = wp.constant(8)  # gap below which an edge-edge candidate is a contact: h_e + 2 v_max dt [m]
+SCALAR_SLOTS = 9
 
+#: an edge-edge contact whose closest point is within this parameter of an edge's end is left to that end's
+#: vertex-triangle contact (the vertex is at least as near the edge's triangles as the edge)
+END_PARAMETER = wp.constant(1.0e-4)
 #: cells searched per axis at most by one query (a larger radius is counted in TRUNCATED)
 MAX_CELLS_PER_AXIS = wp.constant(6)
 
@@ -330,18 +341,20 @@ def eval_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array,
 
 
 @wp.kernel
-def decide_self_contact_rebuild(counts: IntArray, scalars: FloatArray, thickness: float, skin: float,
-                                skin_max: float, dt: float):
+def decide_self_contact_rebuild(counts: IntArray, scalars: FloatArray, thickness: float, edge_thickness: float,
+                                skin: float, skin_max: float, dt: float):
     # rebuild when never built or when 2 motion > skin (an unlisted pair may be within h); the new
     # skin covers four steps of the fastest vertex, between skin and skin_max
     speed = scalars[SPEED]
     scalars[R_ACTIVE] = thickness + 2.0 * speed * dt
+    scalars[R_ACTIVE_EE] = edge_thickness + 2.0 * speed * dt
     if counts[BUILT] != 0 and 2.0 * scalars[MOTION] <= scalars[SKIN]:
         counts[REBUILD] = 0
         return
     new_skin = wp.clamp(4.0 * speed * dt, skin, skin_max)
     scalars[SKIN] = new_skin
     scalars[R_BUILD] = thickness + new_skin
+    scalars[R_BUILD_EE] = edge_thickness + new_skin
     scalars[RHO_MAX] = 0.0
     scalars[HALF_EDGE_MAX] = 0.0
     counts[REBUILD] = 1
@@ -419,8 +432,8 @@ def cell_range(p: wp.vec3, radius: float, inv_cell: float, counts: IntArray):
 def find_vertex_triangle_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Array,
                                     tris: Vec3iArray, inv_cell: float, mask: int, head: IntArray,
                                     next_item: IntArray, exclude_offsets: IntArray,
-                                    exclude: IntArray, capacity: int, out: Vec2iArray):
-    # (rebuild only) every triangle t within R_BUILD of vertex i, not its own and not excluded
+                                    exclude: IntArray, capacity: int, out: Vec2iArray, out_gap: FloatArray):
+    # (rebuild only) every triangle t within R_BUILD of vertex i, not its own and not excluded, with its gap
     i = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -449,10 +462,12 @@ def find_vertex_triangle_candidates(counts: IntArray, scalars: FloatArray, x: Ve
                         if inside and own[0] == ci and own[1] == cj and own[2] == ck:
                             if not sorted_contains(exclude, e0, e1, t):
                                 q, w = closest_point_triangle(p, a, b, c)
-                                if wp.length(p - q) <= r:
+                                gap = wp.length(p - q)
+                                if gap <= r:
                                     k = append_index(counts, CAND_VT, OVERFLOW_CANDIDATES, capacity)
                                     if k >= 0:
                                         out[k] = wp.vec2i(i, t)
+                                        out_gap[k] = gap
                     t = next_item[t]
 
 
@@ -460,8 +475,8 @@ def find_vertex_triangle_candidates(counts: IntArray, scalars: FloatArray, x: Ve
 def find_edge_edge_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Array,
                               edges: Vec2iArray, inv_cell: float, mask: int, head: IntArray,
                               next_item: IntArray, exclude_offsets: IntArray,
-                              exclude: IntArray, capacity: int, out: Vec2iArray):
-    # (rebuild only) every edge f > e within R_BUILD of edge e, sharing no vertex and not excluded
+                              exclude: IntArray, capacity: int, out: Vec2iArray, out_gap: FloatArray):
+    # (rebuild only) every edge f > e within R_BUILD_EE of edge e, sharing no vertex and not excluded, with its gap
     e = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -469,7 +484,7 @@ def find_edge_edge_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Arra
     eb = edges[e][1]
     a = x[ea]
     b = x[eb]
-    r = scalars[R_BUILD]
+    r = scalars[R_BUILD_EE]
     mid = 0.5 * (a + b)
     lo, hi = cell_range(mid, r + 0.5 * wp.length(b - a) + scalars[HALF_EDGE_MAX], inv_cell, counts)
     e0 = exclude_offsets[e]
@@ -499,37 +514,53 @@ def find_edge_edge_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Arra
                                     k = append_index(counts, CAND_EE, OVERFLOW_CANDIDATES, capacity)
                                     if k >= 0:
                                         out[k] = wp.vec2i(e, f)
+                                        out_gap[k] = gap
                     f = next_item[f]
 
 
 @wp.kernel
 def eval_self_contacts(stride: int, counts: IntArray, scalars: FloatArray, x: Vec3Array,
-                       tris: Vec3iArray, edges: Vec2iArray, cand_vt: Vec2iArray,
-                       cand_ee: Vec2iArray, capacity: int, splits: IntArray,
+                       tris: Vec3iArray, edges: Vec2iArray, cand_vt: Vec2iArray, cand_vt_gap: FloatArray,
+                       cand_ee: Vec2iArray, cand_ee_gap: FloatArray, capacity: int, splits: IntArray,
                        c_idx: Vec4iArray, c_w: Vec4Array, c_n: Vec3Array,
-                       c_d: FloatArray):
+                       c_d: FloatArray, c_h: FloatArray, thickness: float, edge_thickness: float):
     # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair
-    # with gap d < R_ACTIVE at x; per vertex, the number of its contacts (mass splitting)
+    # with gap d < R_ACTIVE at x; per vertex, the number of its contacts (mass splitting). A pair
+    # whose gap at the build, less twice the largest motion since, is not below R_ACTIVE is not
+    # evaluated (its gap cannot have fallen below it)
     tid = wp.tid()
     n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
     total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])
-    r_active = scalars[R_ACTIVE]
+    reach = 2.0 * scalars[MOTION]
     for k in range(tid, total, stride):
         idx = wp.vec4i()
         w = wp.vec4()
         n = wp.vec3()
         d = float(0.0)
+        r_active = scalars[R_ACTIVE]
+        h = thickness
         if k < n_vt:
+            if cand_vt_gap[k] - reach >= r_active:
+                continue
             pair = cand_vt[k]
             tri = tris[pair[1]]
             idx = wp.vec4i(pair[0], tri[0], tri[1], tri[2])
             w, n, d = vertex_triangle_record(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]])
         else:
+            if cand_ee_gap[k - n_vt] - reach >= scalars[R_ACTIVE_EE]:
+                continue
             pair = cand_ee[k - n_vt]
             ea = edges[pair[0]]
             eb = edges[pair[1]]
             idx = wp.vec4i(ea[0], ea[1], eb[0], eb[1])
             w, n, d = edge_edge_record(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]])
+            r_active = scalars[R_ACTIVE_EE]
+            h = edge_thickness
+            # closest points at an end of either edge: that end's vertex-triangle contact holds it
+            s = w[1]
+            t = -w[3]
+            if wp.min(s, t) <= END_PARAMETER or wp.max(s, t) >= 1.0 - END_PARAMETER:
+                d = r_active
         if d < r_active:
             slot = append_index(counts, CONTACTS, OVERFLOW_CONTACTS, capacity)
             if slot >= 0:
@@ -537,6 +568,7 @@ def eval_self_contacts(stride: int, counts: IntArray, scalars: FloatArray, x: Ve
                 c_w[slot] = w
                 c_n[slot] = n
                 c_d[slot] = d
+                c_h[slot] = h
                 for j in range(4):
                     wp.atomic_add(splits, idx[j], 1)
 
@@ -557,16 +589,16 @@ def finish_self_contact_detect(counts: IntArray, vt_capacity: int, ee_capacity: 
 @wp.kernel
 def eval_self_contact_forces(stride: int, counts: IntArray, x: Vec3Array, v: Vec3Array,
                              inv_mass: FloatArray, splits: IntArray, c_idx: Vec4iArray,
-                             c_w: Vec4Array, c_n: Vec3Array, thickness: float,
+                             c_w: Vec4Array, c_n: Vec3Array, c_h: FloatArray,
                              stiffness: float, dt: float, f: Vec3Array):
     # repulsion F = min(k (h - d), m_eff (0.1 (h - d)/dt - v_n)/dt) >= 0 along n, f_k += W_k F n
-    # (Bridson et al. 2002, Sec. 7.2), d = n . sum W x at x, v_n = n . sum W v
+    # (Bridson et al. 2002, Sec. 7.2), d = n . sum W x at x, v_n = n . sum W v, h the contact's thickness
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
         idx = c_idx[k]
         w = c_w[k]
         n = c_n[k]
-        overlap = thickness - wp.dot(n, weighted_sum(x, idx, w))
+        overlap = c_h[k] - wp.dot(n, weighted_sum(x, idx, w))
         if overlap > 0.0:
             inv_m = split_inverse_mass(idx, w, inv_mass, splits)
             if inv_m > 0.0:
@@ -578,14 +610,16 @@ def eval_self_contact_forces(stride: int, counts: IntArray, x: Vec3Array, v: Vec
 
 
 @wp.kernel
-def filter_self_contact_velocities(stride: int, counts: IntArray, x: Vec3Array, v: Vec3Array,
-                                   inv_mass: FloatArray, splits: IntArray,
-                                   c_idx: Vec4iArray, c_w: Vec4Array,
-                                   c_n: Vec3Array, c_d: FloatArray, thickness: float,
-                                   min_gap: float, mu: float, dt_x: float, dv: Vec3Array):
-    # impulse per contact at the step's end (x, v): dv_n = max(0, -v_n if d0 < h and v_n < 0,
-    # (min_gap - d)/dt_x) with d = n . sum W x, dt_x the time over which v moves x; friction
-    # |dv_t| = min(mu dv_n, |v_t|); J = dv / sum W^2 c / m; dv_k += W_k J / m_k (Jacobi, split masses)
+def filter_self_contact_velocities(stride: int, counts: IntArray, x: Vec3Array, v: Vec3Array, inv_mass: FloatArray,
+                                   splits: IntArray, c_idx: Vec4iArray, c_w: Vec4Array, c_n: Vec3Array,
+                                   c_d: FloatArray, c_h: FloatArray, min_gap: float, mu: float, stiffness: float,
+                                   dt: float, dt_x: float, dv: Vec3Array):
+    # per contact at the step's end (x, v), d0 its gap at detection, h its thickness (h, or h_e for
+    # an edge pair), delta = h - d0: the normal relative velocity v_n = n . sum W v is raised to
+    #   max(0 [inelastic, d0 < h], min(0.1 delta / dt, dt k delta / m_eff) [repulsion, stiffness > 0],
+    #       v_n + (min_gap - d) / dt_x [the gap d = n . sum W x kept >= min_gap])
+    # (Bridson et al. 2002, Sec. 7.2), friction |dv_t| = min(mu dv_n, |v_t|); impulse J = dv /
+    # sum W^2 c / m; dv_k += W_k J / m_k (Jacobi, masses split over c contacts)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
         idx = c_idx[k]
@@ -593,11 +627,17 @@ def filter_self_contact_velocities(stride: int, counts: IntArray, x: Vec3Array, 
         n = c_n[k]
         vr = weighted_sum(v, idx, w)
         vn = wp.dot(n, vr)
-        dvn = float(0.0)
-        if c_d[k] < thickness and vn < 0.0:
-            dvn = -vn
-        need = (min_gap - wp.dot(n, weighted_sum(x, idx, w))) / dt_x
-        dvn = wp.max(dvn, need)
+        target = -1.0e30
+        delta = c_h[k] - c_d[k]
+        if delta > 0.0:
+            target = 0.0
+            if stiffness > 0.0:
+                full = float(0.0)
+                for j in range(4):
+                    full += w[j] * w[j] * inv_mass[idx[j]]
+                target = wp.min(0.1 * delta / dt, dt * stiffness * delta * full)
+        target = wp.max(target, vn + (min_gap - wp.dot(n, weighted_sum(x, idx, w))) / dt_x)
+        dvn = target - vn
         if dvn > 0.0:
             inv_m = split_inverse_mass(idx, w, inv_mass, splits)
             if inv_m > 0.0:

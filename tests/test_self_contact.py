@@ -204,7 +204,7 @@ def test_verlet_list_holds_every_pair_within_its_radius():
     sc.detect(x, wp.zeros_like(x), 1e-3)
     stats = sc.stats()
     r = stats["radius"]
-    assert r == pytest.approx(2 * h, rel=1e-6) and stats["overflow_candidates"] == 0 and stats["truncated_queries"] == 0
+    assert r == pytest.approx(1.5 * h, rel=1e-6) and stats["overflow_candidates"] == 0 and stats["truncated_queries"] == 0
     vt, ee = sc.candidates()
     q = q.astype(np.float32).astype(np.float64)
     t = model.host["tris"].astype(np.int64)
@@ -253,14 +253,17 @@ def test_exclusion_tables_of_one_and_two_rings():
 
 
 # -- the response, by a minimal symplectic Euler loop --------------------------------------------
-def step(model, control, x, v, f, sc, dt):
-    """One symplectic Euler step with self-contact: detect, forces (+ repulsion), v and x, filter."""
+def step(model, control, x, v, f, sc, dt, repulsion_force=False):
+    """One symplectic Euler step with self-contact as an explicit scheme uses it: detect at the
+    start, the step, the velocity filter (Bridson's repulsion impulse in it); or with
+    ``repulsion_force`` the repulsion in the force and the filter without it."""
     sc.detect(x, v, dt)
     eval_forces(model, x, v, control, f)
-    sc.apply_forces(x, v, f, dt)
+    if repulsion_force:
+        sc.apply_forces(x, v, f, dt)
     wp.launch(ik.integrate_explicit_euler, dim=model.particle_count,
               inputs=[x, v, f, model.particle_inv_mass, float(dt)], device=model.device)
-    sc.filter_velocities(x, v, dt)
+    sc.filter_velocities(x, v, dt, repulsion=not repulsion_force)
 
 
 def arrays(q, v=None):
@@ -273,8 +276,9 @@ def params(ks, kd=0.0):
     return {s: SpringParams(ks, kd) for s in SpringType}
 
 
+@pytest.mark.parametrize("force", [False, True], ids=["repulsion impulse", "repulsion force"])
 @pytest.mark.parametrize("start", [5.0, 0.3], ids=["dropped from 5 h", "started at 0.3 h"])
-def test_a_vertex_on_a_triangle_is_held_at_the_thickness(start):
+def test_a_vertex_on_a_triangle_is_held_at_the_thickness(start, force):
     """Dropped onto a pinned triangle, the vertex stops where it comes within h (the inelastic
     filter; a spring alone would sag to h - m g / k = 0.67 h); started inside, the repulsion
     pushes it out to h (the filter alone would leave it at 0.3 h, above the minimum gap)."""
@@ -287,7 +291,7 @@ def test_a_vertex_on_a_triangle_is_held_at_the_thickness(start):
     x, v, f = arrays(q)
     low = np.inf
     for _ in range(1500):
-        step(model, control, x, v, f, sc, dt)
+        step(model, control, x, v, f, sc, dt, repulsion_force=force)
         low = min(low, float(x.numpy()[3, 1]))
     y = x.numpy()[3, 1]
     assert abs(y - h) < 0.05 * h, y
@@ -414,6 +418,18 @@ def test_the_response_without_the_filter_is_what_conserves_momentum_badly():
     lower, upper = (m[:n] * dv[:n]).sum(axis=0), (m[n:] * dv[n:]).sum(axis=0)
     np.testing.assert_allclose(lower, -upper, atol=1e-7)
     assert abs(lower[1]) > 1e-4
+
+
+def test_the_repulsion_force_is_equal_and_opposite():
+    model, q, vel = two_sheets(gap=0.003)
+    sc = SelfCollision(model, thickness=0.005)
+    x, v, f = arrays(q, vel)
+    sc.detect(x, v, 2e-4)
+    sc.apply_forces(x, v, f, 2e-4)
+    forces = f.numpy().astype(np.float64)
+    n = len(q) // 2
+    assert forces[:n, 1].sum() < -1e-3 and forces[n:, 1].sum() > 1e-3  # the layers pushed apart
+    np.testing.assert_allclose(forces.sum(axis=0), 0.0, atol=1e-6 * np.abs(forces).sum())
 
 
 def test_pins_win():

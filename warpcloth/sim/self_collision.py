@@ -89,8 +89,12 @@ class SelfCollision:
             step stays stable with a contact at a vertex; the velocity cap bounds it anyway).
         min_gap_fraction: the filter leaves every contact at least this fraction of h apart.
         iterations: Jacobi passes of the velocity filter.
-        skin: the least extra radius of the candidate list [m] (default h); the list is rebuilt
-            when a vertex may have moved skin / 2 since the last build.
+        edge_fraction: edge-edge pairs act within h_e = edge_fraction h (1: as vertex-triangle
+            pairs; less is cheaper where layers lie parallel, whose crossing edges are all contacts,
+            but lets two edges that no vertex-triangle pair holds rest nearer than h).
+        skin: the least extra radius of the candidate list [m] (default h / 2); the list is rebuilt
+            when a vertex may have moved skin / 2 since the last build (a larger skin rebuilds less
+            often but holds more candidates, each tested every step).
         skin_max: the largest skin [m] (default 4 h): the list's radius covers four steps of the
             fastest vertex up to it; faster motion than skin_max / 2 a step can miss a pair.
         exclude_rings: 1: exclude a vertex and its own triangles, edges sharing a vertex; r > 1:
@@ -100,16 +104,19 @@ class SelfCollision:
     """
 
     def __init__(self, model, thickness: float, friction: float = 0.0, stiffness: float | None = None,
-                 min_gap_fraction: float = 0.1, iterations: int = 4, skin: float | None = None,
-                 skin_max: float | None = None, exclude_rings: int = 2, candidates_per_vertex: int = 16,
-                 candidates_per_edge: int = 16, contacts_per_element: int = 8):
+                 min_gap_fraction: float = 0.1, iterations: int = 2, skin: float | None = None,
+                 skin_max: float | None = None, exclude_rings: int = 2, edge_fraction: float = 1.0,
+                 candidates_per_vertex: int = 16, candidates_per_edge: int = 16, contacts_per_element: int = 8):
         self.model = model
         self.thickness = require_positive("self-collision thickness", thickness, "m")
         self.friction = require_non_negative("self-collision friction mu", friction)
+        self.edge_fraction = float(edge_fraction)
+        require(0.0 < self.edge_fraction <= 1.0, f"edge_fraction must be in (0, 1], got {edge_fraction!r}")
         self.min_gap_fraction = float(min_gap_fraction)
-        require(0.0 < self.min_gap_fraction <= 1.0, f"min_gap_fraction must be in (0, 1], got {min_gap_fraction!r}")
+        require(0.0 < self.min_gap_fraction <= self.edge_fraction,
+                f"min_gap_fraction must be in (0, edge_fraction = {self.edge_fraction:g}], got {min_gap_fraction!r}")
         self.iterations = require_count("self-collision iterations", iterations, 1)
-        self.skin = require_positive("self-collision skin", self.thickness if skin is None else skin, "m")
+        self.skin = require_positive("self-collision skin", 0.5 * self.thickness if skin is None else skin, "m")
         skin_max = 4.0 * self.thickness if skin_max is None else skin_max
         self.skin_max = require_positive("self-collision skin_max", skin_max, "m")
         self.skin_max = max(self.skin_max, self.skin)
@@ -148,10 +155,13 @@ class SelfCollision:
             self.x_build = wp.zeros(n, dtype=wp.vec3)
             self.cand_vt = wp.zeros(self.vt_capacity, dtype=wp.vec2i)
             self.cand_ee = wp.zeros(self.ee_capacity, dtype=wp.vec2i)
+            self.cand_vt_gap = wp.zeros(self.vt_capacity, dtype=float)
+            self.cand_ee_gap = wp.zeros(self.ee_capacity, dtype=float)
             self.contact_indices = wp.zeros(self.contact_capacity, dtype=wp.vec4i)
             self.contact_weights = wp.zeros(self.contact_capacity, dtype=wp.vec4)
             self.contact_normals = wp.zeros(self.contact_capacity, dtype=wp.vec3)
             self.contact_gaps = wp.zeros(self.contact_capacity, dtype=float)
+            self.contact_thickness = wp.zeros(self.contact_capacity, dtype=float)
             self.splits = wp.zeros(n, dtype=int)
             self.dv = wp.zeros(n, dtype=wp.vec3)
             self.counts = wp.zeros(sk.COUNT_SLOTS, dtype=int)
@@ -168,6 +178,11 @@ class SelfCollision:
         return 0.25 * k
 
     @property
+    def edge_thickness(self) -> float:
+        """h_e [m]: the thickness edge-edge contacts act within (``edge_fraction`` h)."""
+        return self.edge_fraction * self.thickness
+
+    @property
     def min_gap(self) -> float:
         """The least gap [m] the filter leaves a contact with (``min_gap_fraction`` h)."""
         return self.min_gap_fraction * self.thickness
@@ -181,7 +196,7 @@ class SelfCollision:
         wp.launch(sk.begin_self_contact_detect, dim=1, inputs=[c, s], device=d)
         wp.launch(sk.eval_self_contact_motion, dim=n, inputs=[x, v, self.x_build, float(dt), self.splits, s], device=d)
         wp.launch(sk.decide_self_contact_rebuild, dim=1,
-                  inputs=[c, s, self.thickness, self.skin, self.skin_max, float(dt)], device=d)
+                  inputs=[c, s, self.thickness, self.edge_thickness, self.skin, self.skin_max, float(dt)], device=d)
         wp.launch(sk.clear_self_contact_cells, dim=max(self.bucket_count, n),
                   inputs=[c, x, self.x_build, self.head_tri, self.head_edge], device=d)
         wp.launch(sk.insert_self_contact_triangles, dim=m.tri_count,
@@ -190,14 +205,15 @@ class SelfCollision:
                   inputs=[c, x, self.edges, inv_cell, mask, self.head_edge, self.next_edge, s], device=d)
         wp.launch(sk.find_vertex_triangle_candidates, dim=n,
                   inputs=[c, s, x, self.tris, inv_cell, mask, self.head_tri, self.next_tri, self.vt_exclude_offsets,
-                          self.vt_exclude, self.vt_capacity, self.cand_vt], device=d)
+                          self.vt_exclude, self.vt_capacity, self.cand_vt, self.cand_vt_gap], device=d)
         wp.launch(sk.find_edge_edge_candidates, dim=self.edge_count,
                   inputs=[c, s, x, self.edges, inv_cell, mask, self.head_edge, self.next_edge, self.ee_exclude_offsets,
-                          self.ee_exclude, self.ee_capacity, self.cand_ee], device=d)
+                          self.ee_exclude, self.ee_capacity, self.cand_ee, self.cand_ee_gap], device=d)
         wp.launch(sk.eval_self_contacts, dim=n,
-                  inputs=[n, c, s, x, self.tris, self.edges, self.cand_vt, self.cand_ee, self.contact_capacity,
+                  inputs=[n, c, s, x, self.tris, self.edges, self.cand_vt, self.cand_vt_gap, self.cand_ee,
+                          self.cand_ee_gap, self.contact_capacity,
                           self.splits, self.contact_indices, self.contact_weights, self.contact_normals,
-                          self.contact_gaps], device=d)
+                          self.contact_gaps, self.contact_thickness, self.thickness, self.edge_thickness], device=d)
         wp.launch(sk.finish_self_contact_detect, dim=1,
                   inputs=[c, self.vt_capacity, self.ee_capacity, self.contact_capacity], device=d)
 
@@ -206,24 +222,27 @@ class SelfCollision:
         n = self.model.particle_count
         wp.launch(sk.eval_self_contact_forces, dim=n,
                   inputs=[n, self.counts, x, v, self.model.particle_inv_mass, self.splits, self.contact_indices,
-                          self.contact_weights, self.contact_normals, self.thickness, self.stiffness, float(dt)],
+                          self.contact_weights, self.contact_normals, self.contact_thickness, self.stiffness, float(dt)],
                   outputs=[f], device=self.device)
 
     def filter_velocities(self, x: wp.array, v: wp.array, dt: float, position_weight: float = 1.0,
-                          displacement: wp.array | None = None) -> None:
+                          displacement: wp.array | None = None, repulsion: bool = True) -> None:
         """After the step (``x``, ``v`` at its end): the velocity filter, in place. A velocity change
         dv moves x by ``position_weight`` dt dv (1 where x += dt v_new; 1/2 for the Runge-Kutta
-        schemes, as for colliders); ``displacement`` (Verlet's x - x_prev) moves with x."""
+        schemes, as for colliders); ``displacement`` (Verlet's x - x_prev) moves with x.
+        ``repulsion``: Bridson's repulsion impulse in the filter (off where the scheme had
+        :meth:`apply_forces` in its force)."""
         n, d = self.model.particle_count, self.device
         dt_x = float(position_weight) * float(dt)
         if not dt_x > 0.0:
             raise WarpclothError(f"self-collision filter: position_weight * dt must be > 0, got {dt_x!r}")
         disp = displacement if displacement is not None else self._no_displacement
+        k = self.stiffness if repulsion else 0.0
         for _ in range(self.iterations):
             wp.launch(sk.filter_self_contact_velocities, dim=n,
                       inputs=[n, self.counts, x, v, self.model.particle_inv_mass, self.splits, self.contact_indices,
-                              self.contact_weights, self.contact_normals, self.contact_gaps, self.thickness,
-                              self.min_gap, self.friction, dt_x], outputs=[self.dv], device=d)
+                              self.contact_weights, self.contact_normals, self.contact_gaps, self.contact_thickness,
+                              self.min_gap, self.friction, k, float(dt), dt_x], outputs=[self.dv], device=d)
             wp.launch(sk.apply_self_contact_velocities, dim=n,
                       inputs=[self.dv, dt_x, int(displacement is not None)], outputs=[x, v, disp], device=d)
         wp.launch(sk.count_unresolved_self_contacts, dim=n,
