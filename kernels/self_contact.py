@@ -66,7 +66,8 @@ BUILT = wp.constant(9)  # 0 until the first build (or after an invalidate)
 DETECTS = wp.constant(10)  # detect calls so far
 CONTACTS_MAX = wp.constant(11)  # largest contact count of a step so far
 CANDIDATES_MAX = wp.constant(12)  # largest candidate count of a build so far
-COUNT_SLOTS = 13
+FAST = wp.constant(13)  # detects whose motion (four steps of the fastest vertex) exceeded skin_max, so far
+COUNT_SLOTS = 14
 
 # -- indices of the float scalars (``scalars``) ---------------------------------------------------
 MOTION = wp.constant(0)  # max |x - x_build| + |v| dt this detect [m]
@@ -351,6 +352,8 @@ def decide_self_contact_rebuild(counts: IntArray, scalars: FloatArray, thickness
     if counts[BUILT] != 0 and 2.0 * scalars[MOTION] <= scalars[SKIN]:
         counts[REBUILD] = 0
         return
+    if 4.0 * speed * dt > skin_max:  # the list cannot cover the motion: a pair may be missed
+        counts[FAST] = counts[FAST] + 1
     new_skin = wp.clamp(4.0 * speed * dt, skin, skin_max)
     scalars[SKIN] = new_skin
     scalars[R_BUILD] = thickness + new_skin

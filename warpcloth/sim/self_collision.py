@@ -37,11 +37,11 @@ COUNT_NAMES = {
     "candidates_vertex_triangle": sk.CAND_VT, "candidates_edge_edge": sk.CAND_EE, "contacts": sk.CONTACTS,
     "rebuilds": sk.REBUILDS, "overflow_candidates": sk.OVERFLOW_CANDIDATES, "overflow_contacts": sk.OVERFLOW_CONTACTS,
     "truncated_queries": sk.TRUNCATED, "unresolved": sk.UNRESOLVED, "detects": sk.DETECTS,
-    "contacts_max": sk.CONTACTS_MAX, "candidates_max": sk.CANDIDATES_MAX,
+    "contacts_max": sk.CONTACTS_MAX, "candidates_max": sk.CANDIDATES_MAX, "fast": sk.FAST,
 }
 #: The counters :meth:`SelfCollision.reset_stats` zeroes (those that accumulate over steps).
 CUMULATIVE = ("rebuilds", "overflow_candidates", "overflow_contacts", "truncated_queries", "unresolved", "detects",
-              "contacts_max", "candidates_max")
+              "contacts_max", "candidates_max", "fast")
 
 
 def exclusion_tables(triangles: np.ndarray, edges: np.ndarray, vertex_count: int, rings: int):
@@ -257,7 +257,9 @@ class SelfCollision:
     def stats(self) -> dict:
         """Counters (reads the device): this step's candidates and contacts, and since the last
         :meth:`reset_stats`: rebuilds, overflows (pairs that did not fit), truncated queries, contacts
-        left closer than the minimum gap, detects, the largest lists; the list's radius [m]."""
+        left closer than the minimum gap, detects, the largest lists, ``fast`` (rebuilds whose
+        vertices moved more than the list's largest skin covers: a pair may have been missed); the
+        list's radius [m]."""
         c = self.counts.numpy()
         s = self.scalars.numpy()
         out = {name: int(c[k]) for name, k in COUNT_NAMES.items()}
