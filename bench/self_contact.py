@@ -128,6 +128,7 @@ def alternatives(size, thickness, repeats, device):
     spacing = 1.0 / (size - 1)
     with wp.ScopedDevice(device):
         x = wp.array(q, dtype=wp.vec3)
+        v0 = wp.zeros_like(x)
         tris = sc.tris
         lo, hi = wp.zeros(t, dtype=wp.vec3), wp.zeros(t, dtype=wp.vec3)
         centres = wp.zeros(t, dtype=wp.vec3)
@@ -158,32 +159,16 @@ def alternatives(size, thickness, repeats, device):
 
     def ours():
         sc.invalidate()
-        c, s, mask, inv = sc.counts, sc.scalars, sc.bucket_count - 1, 1.0 / sc.cell_size
-        wp.launch(sk.begin_self_contact_detect, 1, [c, s], device=device)
-        wp.launch(sk.decide_self_contact_rebuild, 1, [c, s, sc.thickness, sc.edge_thickness, sc.skin, sc.skin_max, 1e-4],
-                  device=device)
-        wp.launch(sk.clear_self_contact_cells, max(sc.bucket_count, n), [c, x, sc.x_build, sc.head_tri, sc.head_edge],
-                  device=device)
-        wp.launch(sk.insert_self_contact_triangles, t, [c, x, tris, inv, mask, sc.head_tri, sc.next_tri, s], device=device)
-        wp.launch(sk.find_vertex_triangle_candidates, n,
-                  [c, s, x, tris, inv, mask, sc.head_tri, sc.next_tri, sc.vt_exclude_offsets, sc.vt_exclude,
-                   sc.vt_capacity, sc.cand_vt, sc.cand_vt_gap], device=device)
+        sc._decide(x, v0, 1e-4)
+        sc._build(x, edges=False)
 
     def refit_alone():
         wp.launch(_boxes, t, [x, tris, r, lo, hi, centres], device=device)
         bvh.refit()
 
-    def gated():  # what a step without a rebuild pays for the broad phase: the launches exit at once
-        c, s, mask, inv = sc.counts, sc.scalars, sc.bucket_count - 1, 1.0 / sc.cell_size
-        wp.launch(sk.begin_self_contact_detect, 1, [c, s], device=device)  # motion 0: no rebuild due
-        wp.launch(sk.decide_self_contact_rebuild, 1, [c, s, sc.thickness, sc.edge_thickness, sc.skin, sc.skin_max, 1e-4],
-                  device=device)
-        wp.launch(sk.clear_self_contact_cells, max(sc.bucket_count, n), [c, x, sc.x_build, sc.head_tri, sc.head_edge],
-                  device=device)
-        wp.launch(sk.insert_self_contact_triangles, t, [c, x, tris, inv, mask, sc.head_tri, sc.next_tri, s], device=device)
-        wp.launch(sk.find_vertex_triangle_candidates, n,
-                  [c, s, x, tris, inv, mask, sc.head_tri, sc.next_tri, sc.vt_exclude_offsets, sc.vt_exclude,
-                   sc.vt_capacity, sc.cand_vt, sc.cand_vt_gap], device=device)
+    def gated():  # what a step without a rebuild pays for the broad phase: its launches return at once
+        sc._decide(x, v0, 1e-4)  # no motion since the build: no rebuild due
+        sc._build(x, edges=False)
 
     cases = {"wp.HashGrid build + query": hashgrid, "wp.Bvh refit + query": bvh_refit,
              "wp.Mesh refit + query": mesh_refit, "own hash (kernels)": ours,
@@ -279,9 +264,11 @@ def main(argv=None):
     p.add_argument("--alternatives", action="store_true", help="also time broad phases of Warp's HashGrid, Bvh, Mesh")
     a = p.parse_args(argv)
     wp.init()
-    print(f"# warp {wp.config.version}, device {a.device}, thickness {a.thickness} m, fold gap 0.9 h (slid 0.5, 0.3 cells), "
-          f"{a.iterations} filter iterations, {a.repeats} windows of {a.batch} cycles (captured), cases alternating")
-    print("# ms per cycle: median [min-max]; ratio: median of the per-window ratios to the same repeat's explicit_euler step")
+    print(f"# warp {wp.config.version}, device {a.device}, thickness {a.thickness} m, fold gap 0.9 h "
+          f"(slid 0.5, 0.3 cells), {a.iterations} filter iterations, {a.repeats} windows of {a.batch} cycles "
+          f"(captured), cases alternating")
+    print("# ms per cycle: median [min-max]; ratio: median of the per-window ratios to the same repeat's "
+          "explicit_euler step")
     for size in a.sizes:
         for fraction in a.edge_fractions:
             model, ms, before, after = measure(size, a.thickness, a.repeats, a.batch, a.device, fraction, a.iterations)
@@ -290,16 +277,18 @@ def main(argv=None):
             t0 = time.perf_counter()
             bad = count_self_intersections(x, model.host["tris"])
             check_s = time.perf_counter() - t0
-            print(f"{size}x{size}, edge fraction {fraction:g}: {model.particle_count} vertices, {model.tri_count} triangles, "
-                  f"{before['candidates_vertex_triangle']} + {before['candidates_edge_edge']} candidates (vt + ee), "
-                  f"{before['contacts']} contacts, overflow {after['overflow_candidates']} / {after['overflow_contacts']}, "
-                  f"checker {check_s:.2f} s ({bad} intersections)")
+            print(f"{size}x{size}, edge fraction {fraction:g}: {model.particle_count} vertices, "
+                  f"{model.tri_count} triangles, {before['candidates_vertex_triangle']} + "
+                  f"{before['candidates_edge_edge']} candidates (vt + ee), {before['contacts']} contacts, overflow "
+                  f"{after['overflow_candidates']} / {after['overflow_contacts']}, checker {check_s:.2f} s "
+                  f"({bad} intersections)")
             for name, values in ms.items():
                 ratio = [v / b for v, b in zip(values, base)]
                 print(f"  {size}x{size} {a.device} e{fraction:g} {name:20s} {fmt(values)} ms   "
                       f"ratio {statistics.median(ratio):6.2f} [{min(ratio):.2f}-{max(ratio):.2f}]")
     if a.alternatives:
-        print("# broad phase alternatives, vertex-triangle candidates only, ms per build (plain launches, 10 per window)")
+        print("# broad phase alternatives, vertex-triangle candidates only, ms per build "
+              "(plain launches, 10 per window)")
         for size in [s for s in a.sizes if s >= 64]:
             for name, values in alternatives(size, a.thickness, a.repeats, a.device).items():
                 print(f"  {size}x{size} {a.device} {name:34s} {fmt(values)} ms")

@@ -384,8 +384,9 @@ def clear_self_contact_cells(counts: IntArray, x: Vec3Array, x_build: Vec3Array,
 @wp.kernel
 def insert_self_contact_triangles(counts: IntArray, x: Vec3Array, tris: Vec3iArray,
                                   inv_cell: float, mask: int, head: IntArray, next_item: IntArray,
-                                  scalars: FloatArray):
-    # (rebuild only) triangle t into the bucket of its box centre; rho_max = max half diagonal of the boxes
+                                  scalars: FloatArray, box_lo: Vec3Array, box_hi: Vec3Array, item_cell: Vec3iArray):
+    # (rebuild only) triangle t into the bucket of its box centre (its box and cell kept for the
+    # queries); rho_max = max half diagonal of the boxes
     t = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -395,6 +396,9 @@ def insert_self_contact_triangles(counts: IntArray, x: Vec3Array, tris: Vec3iArr
     lo = wp.min(wp.min(a, b), c)
     hi = wp.max(wp.max(a, b), c)
     cell = cell_of(0.5 * (lo + hi), inv_cell)
+    box_lo[t] = lo
+    box_hi[t] = hi
+    item_cell[t] = cell
     next_item[t] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), t)
     wp.atomic_max(scalars, RHO_MAX, 0.5 * wp.length(hi - lo))
 
@@ -402,23 +406,26 @@ def insert_self_contact_triangles(counts: IntArray, x: Vec3Array, tris: Vec3iArr
 @wp.kernel
 def insert_self_contact_edges(counts: IntArray, x: Vec3Array, edges: Vec2iArray,
                               inv_cell: float, mask: int, head: IntArray, next_item: IntArray,
-                              scalars: FloatArray):
-    # (rebuild only) edge e into the bucket of its midpoint; the largest half length
+                              scalars: FloatArray, box_lo: Vec3Array, box_hi: Vec3Array, item_cell: Vec3iArray):
+    # (rebuild only) edge e into the bucket of its midpoint (its box and cell kept); the largest half length
     e = wp.tid()
     if counts[REBUILD] == 0:
         return
     a = x[edges[e][0]]
     b = x[edges[e][1]]
     cell = cell_of(0.5 * (a + b), inv_cell)
+    box_lo[e] = wp.min(a, b)
+    box_hi[e] = wp.max(a, b)
+    item_cell[e] = cell
     next_item[e] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), e)
     wp.atomic_max(scalars, HALF_EDGE_MAX, 0.5 * wp.length(b - a))
 
 
 @wp.func
-def cell_range(p: wp.vec3, radius: float, inv_cell: float, counts: IntArray):
-    # the cells of the box p +- radius, at most MAX_CELLS_PER_AXIS per axis (a cut is counted)
-    lo = cell_of(p - wp.vec3(radius), inv_cell)
-    hi = cell_of(p + wp.vec3(radius), inv_cell)
+def cell_range(lo_p: wp.vec3, hi_p: wp.vec3, inv_cell: float, counts: IntArray):
+    # the cells of the box [lo_p, hi_p], at most MAX_CELLS_PER_AXIS per axis (a cut is counted)
+    lo = cell_of(lo_p, inv_cell)
+    hi = cell_of(hi_p, inv_cell)
     cut = int(0)
     for k in range(3):
         if hi[k] - lo[k] + 1 > MAX_CELLS_PER_AXIS:
@@ -434,7 +441,8 @@ def cell_range(p: wp.vec3, radius: float, inv_cell: float, counts: IntArray):
 @wp.kernel
 def find_vertex_triangle_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Array,
                                     tris: Vec3iArray, inv_cell: float, mask: int, head: IntArray,
-                                    next_item: IntArray, exclude_offsets: IntArray,
+                                    next_item: IntArray, box_lo: Vec3Array, box_hi: Vec3Array,
+                                    item_cell: Vec3iArray, exclude_offsets: IntArray,
                                     exclude: IntArray, capacity: int, out: Vec2iArray, out_gap: FloatArray):
     # (rebuild only) every triangle t within R_BUILD of vertex i, not its own and not excluded, with its gap
     i = wp.tid()
@@ -442,7 +450,8 @@ def find_vertex_triangle_candidates(counts: IntArray, scalars: FloatArray, x: Ve
         return
     p = x[i]
     r = scalars[R_BUILD]
-    lo, hi = cell_range(p, r + scalars[RHO_MAX], inv_cell, counts)
+    reach = wp.vec3(r + scalars[RHO_MAX])  # a triangle's box centre within r + its half diagonal
+    lo, hi = cell_range(p - reach, p + reach, inv_cell, counts)
     e0 = exclude_offsets[i]
     e1 = exclude_offsets[i + 1]
     for ci in range(lo[0], hi[0] + 1):
@@ -450,34 +459,33 @@ def find_vertex_triangle_candidates(counts: IntArray, scalars: FloatArray, x: Ve
             for ck in range(lo[2], hi[2] + 1):
                 t = head[cell_bucket(ci, cj, ck, mask)]
                 while t >= 0:
-                    tri = tris[t]
-                    if tri[0] != i and tri[1] != i and tri[2] != i:
-                        a = x[tri[0]]
-                        b = x[tri[1]]
-                        c = x[tri[2]]
-                        lo_t = wp.min(wp.min(a, b), c) - wp.vec3(r)
-                        hi_t = wp.max(wp.max(a, b), c) + wp.vec3(r)
-                        inside = p[0] >= lo_t[0] and p[1] >= lo_t[1] and p[2] >= lo_t[2]
-                        inside = inside and p[0] <= hi_t[0] and p[1] <= hi_t[1] and p[2] <= hi_t[2]
-                        # a bucket holds one cell's triangles and other cells' that hash alike: the
-                        # box test keeps only a triangle near p, found once from the cell of its centre
-                        own = cell_of(0.5 * (lo_t + hi_t), inv_cell)
-                        if inside and own[0] == ci and own[1] == cj and own[2] == ck:
-                            if not sorted_contains(exclude, e0, e1, t):
-                                q, w = closest_point_triangle(p, a, b, c)
-                                gap = wp.length(p - q)
-                                if gap <= r:
-                                    k = append_index(counts, CAND_VT, OVERFLOW_CANDIDATES, capacity)
-                                    if k >= 0:
-                                        out[k] = wp.vec2i(i, t)
-                                        out_gap[k] = gap
+                    # a bucket holds one cell's triangles and other cells' that hash alike: a triangle
+                    # is taken from the cell of its box centre only, so it is found once
+                    lo_t = box_lo[t] - wp.vec3(r)
+                    hi_t = box_hi[t] + wp.vec3(r)
+                    inside = p[0] >= lo_t[0] and p[1] >= lo_t[1] and p[2] >= lo_t[2]
+                    inside = inside and p[0] <= hi_t[0] and p[1] <= hi_t[1] and p[2] <= hi_t[2]
+                    if inside and item_cell[t] == wp.vec3i(ci, cj, ck):
+                        tri = tris[t]
+                        if tri[0] != i and tri[1] != i and tri[2] != i and not sorted_contains(exclude, e0, e1, t):
+                            a = x[tri[0]]
+                            b = x[tri[1]]
+                            c = x[tri[2]]
+                            q, w = closest_point_triangle(p, a, b, c)
+                            gap = wp.length(p - q)
+                            if gap <= r:
+                                k = append_index(counts, CAND_VT, OVERFLOW_CANDIDATES, capacity)
+                                if k >= 0:
+                                    out[k] = wp.vec2i(i, t)
+                                    out_gap[k] = gap
                     t = next_item[t]
 
 
 @wp.kernel
 def find_edge_edge_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Array,
                               edges: Vec2iArray, inv_cell: float, mask: int, head: IntArray,
-                              next_item: IntArray, exclude_offsets: IntArray,
+                              next_item: IntArray, box_lo: Vec3Array, box_hi: Vec3Array, item_cell: Vec3iArray,
+                              exclude_offsets: IntArray,
                               exclude: IntArray, capacity: int, out: Vec2iArray, out_gap: FloatArray):
     # (rebuild only) every edge f > e within R_BUILD_EE of edge e, sharing no vertex and not excluded, with its gap
     e = wp.tid()
@@ -488,8 +496,8 @@ def find_edge_edge_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Arra
     a = x[ea]
     b = x[eb]
     r = scalars[R_BUILD_EE]
-    mid = 0.5 * (a + b)
-    lo, hi = cell_range(mid, r + 0.5 * wp.length(b - a) + scalars[HALF_EDGE_MAX], inv_cell, counts)
+    reach = wp.vec3(r + scalars[HALF_EDGE_MAX])  # an edge's midpoint within r + its half length of e's box
+    lo, hi = cell_range(wp.min(a, b) - reach, wp.max(a, b) + reach, inv_cell, counts)
     e0 = exclude_offsets[e]
     e1 = exclude_offsets[e + 1]
     lo_e = wp.min(a, b) - wp.vec3(r)
@@ -499,25 +507,25 @@ def find_edge_edge_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Arra
             for ck in range(lo[2], hi[2] + 1):
                 f = head[cell_bucket(ci, cj, ck, mask)]
                 while f >= 0:
-                    fc = edges[f][0]
-                    fd = edges[f][1]
-                    if f > e and fc != ea and fc != eb and fd != ea and fd != eb:
-                        c = x[fc]
-                        d = x[fd]
-                        own = cell_of(0.5 * (c + d), inv_cell)
-                        lo_f = wp.min(c, d)
-                        hi_f = wp.max(c, d)
+                    overlap = False
+                    if f > e:
+                        lo_f = box_lo[f]
+                        hi_f = box_hi[f]
                         overlap = lo_f[0] <= hi_e[0] and lo_f[1] <= hi_e[1] and lo_f[2] <= hi_e[2]
                         overlap = overlap and hi_f[0] >= lo_e[0] and hi_f[1] >= lo_e[1] and hi_f[2] >= lo_e[2]
-                        if overlap and own[0] == ci and own[1] == cj and own[2] == ck:
-                            if not sorted_contains(exclude, e0, e1, f):
-                                st = closest_points_edge_edge(a, b, c, d)
-                                gap = wp.length((a + st[0] * (b - a)) - (c + st[1] * (d - c)))
-                                if gap <= r:
-                                    k = append_index(counts, CAND_EE, OVERFLOW_CANDIDATES, capacity)
-                                    if k >= 0:
-                                        out[k] = wp.vec2i(e, f)
-                                        out_gap[k] = gap
+                    if overlap and item_cell[f] == wp.vec3i(ci, cj, ck):  # found once: from its midpoint's cell
+                        fc = edges[f][0]
+                        fd = edges[f][1]
+                        if fc != ea and fc != eb and fd != ea and fd != eb and not sorted_contains(exclude, e0, e1, f):
+                            c = x[fc]
+                            d = x[fd]
+                            st = closest_points_edge_edge(a, b, c, d)
+                            gap = wp.length((a + st[0] * (b - a)) - (c + st[1] * (d - c)))
+                            if gap <= r:
+                                k = append_index(counts, CAND_EE, OVERFLOW_CANDIDATES, capacity)
+                                if k >= 0:
+                                    out[k] = wp.vec2i(e, f)
+                                    out_gap[k] = gap
                     f = next_item[f]
 
 

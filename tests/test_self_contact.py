@@ -204,7 +204,8 @@ def test_verlet_list_holds_every_pair_within_its_radius():
     sc.detect(x, wp.zeros_like(x), 1e-3)
     stats = sc.stats()
     r = stats["radius"]
-    assert r == pytest.approx(1.5 * h, rel=1e-6) and stats["overflow_candidates"] == 0 and stats["truncated_queries"] == 0
+    assert r == pytest.approx(1.5 * h, rel=1e-6)
+    assert stats["overflow_candidates"] == 0 and stats["truncated_queries"] == 0
     vt, ee = sc.candidates()
     q = q.astype(np.float32).astype(np.float64)
     t = model.host["tris"].astype(np.int64)

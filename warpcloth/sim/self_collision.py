@@ -152,6 +152,10 @@ class SelfCollision:
             self.head_edge = wp.full(buckets, -1, dtype=int)
             self.next_tri = wp.zeros(len(tris), dtype=int)
             self.next_edge = wp.zeros(len(edges), dtype=int)
+            self.tri_lo, self.tri_hi = wp.zeros(len(tris), dtype=wp.vec3), wp.zeros(len(tris), dtype=wp.vec3)
+            self.tri_cell = wp.zeros(len(tris), dtype=wp.vec3i)
+            self.edge_lo, self.edge_hi = wp.zeros(len(edges), dtype=wp.vec3), wp.zeros(len(edges), dtype=wp.vec3)
+            self.edge_cell = wp.zeros(len(edges), dtype=wp.vec3i)
             self.x_build = wp.zeros(n, dtype=wp.vec3)
             self.cand_vt = wp.zeros(self.vt_capacity, dtype=wp.vec2i)
             self.cand_ee = wp.zeros(self.ee_capacity, dtype=wp.vec2i)
@@ -190,39 +194,62 @@ class SelfCollision:
     # -- per step (kernel launches only) ------------------------------------------------------
     def detect(self, x: wp.array, v: wp.array, dt: float) -> None:
         """Contacts at the step's start: positions ``x`` [m], velocities ``v`` [m/s], step ``dt`` [s]."""
+        self._decide(x, v, dt)
+        self._build(x)
+        self._narrow(x)
+
+    def _decide(self, x, v, dt) -> None:
+        """Motion since the last build; whether this detect rebuilds (on the device)."""
+        c, s, d = self.counts, self.scalars, self.device
+        wp.launch(sk.begin_self_contact_detect, dim=1, inputs=[c, s], device=d)
+        wp.launch(sk.eval_self_contact_motion, dim=self.model.particle_count,
+                  inputs=[x, v, self.x_build, float(dt), self.splits, s], device=d)
+        wp.launch(sk.decide_self_contact_rebuild, dim=1,
+                  inputs=[c, s, self.thickness, self.edge_thickness, self.skin, self.skin_max, float(dt)], device=d)
+
+    def _build(self, x, edges: bool = True) -> None:
+        """The hash and the candidate lists (every launch returns at once unless a rebuild is due);
+        ``edges`` False: the vertex-triangle part only (for the bench)."""
         m, d, n = self.model, self.device, self.model.particle_count
         c, s = self.counts, self.scalars
         inv_cell, mask = 1.0 / self.cell_size, self.bucket_count - 1
-        wp.launch(sk.begin_self_contact_detect, dim=1, inputs=[c, s], device=d)
-        wp.launch(sk.eval_self_contact_motion, dim=n, inputs=[x, v, self.x_build, float(dt), self.splits, s], device=d)
-        wp.launch(sk.decide_self_contact_rebuild, dim=1,
-                  inputs=[c, s, self.thickness, self.edge_thickness, self.skin, self.skin_max, float(dt)], device=d)
         wp.launch(sk.clear_self_contact_cells, dim=max(self.bucket_count, n),
                   inputs=[c, x, self.x_build, self.head_tri, self.head_edge], device=d)
         wp.launch(sk.insert_self_contact_triangles, dim=m.tri_count,
-                  inputs=[c, x, self.tris, inv_cell, mask, self.head_tri, self.next_tri, s], device=d)
-        wp.launch(sk.insert_self_contact_edges, dim=self.edge_count,
-                  inputs=[c, x, self.edges, inv_cell, mask, self.head_edge, self.next_edge, s], device=d)
+                  inputs=[c, x, self.tris, inv_cell, mask, self.head_tri, self.next_tri, s, self.tri_lo, self.tri_hi,
+                          self.tri_cell], device=d)
         wp.launch(sk.find_vertex_triangle_candidates, dim=n,
-                  inputs=[c, s, x, self.tris, inv_cell, mask, self.head_tri, self.next_tri, self.vt_exclude_offsets,
-                          self.vt_exclude, self.vt_capacity, self.cand_vt, self.cand_vt_gap], device=d)
+                  inputs=[c, s, x, self.tris, inv_cell, mask, self.head_tri, self.next_tri, self.tri_lo, self.tri_hi,
+                          self.tri_cell, self.vt_exclude_offsets, self.vt_exclude, self.vt_capacity, self.cand_vt,
+                          self.cand_vt_gap], device=d)
+        if not edges:
+            return
+        wp.launch(sk.insert_self_contact_edges, dim=self.edge_count,
+                  inputs=[c, x, self.edges, inv_cell, mask, self.head_edge, self.next_edge, s, self.edge_lo,
+                          self.edge_hi, self.edge_cell], device=d)
         wp.launch(sk.find_edge_edge_candidates, dim=self.edge_count,
-                  inputs=[c, s, x, self.edges, inv_cell, mask, self.head_edge, self.next_edge, self.ee_exclude_offsets,
-                          self.ee_exclude, self.ee_capacity, self.cand_ee, self.cand_ee_gap], device=d)
+                  inputs=[c, s, x, self.edges, inv_cell, mask, self.head_edge, self.next_edge, self.edge_lo,
+                          self.edge_hi, self.edge_cell, self.ee_exclude_offsets, self.ee_exclude, self.ee_capacity,
+                          self.cand_ee, self.cand_ee_gap], device=d)
+
+    def _narrow(self, x) -> None:
+        """This step's contacts from the candidate lists."""
+        n, d = self.model.particle_count, self.device
         wp.launch(sk.eval_self_contacts, dim=n,
-                  inputs=[n, c, s, x, self.tris, self.edges, self.cand_vt, self.cand_vt_gap, self.cand_ee,
-                          self.cand_ee_gap, self.contact_capacity,
-                          self.splits, self.contact_indices, self.contact_weights, self.contact_normals,
-                          self.contact_gaps, self.contact_thickness, self.thickness, self.edge_thickness], device=d)
+                  inputs=[n, self.counts, self.scalars, x, self.tris, self.edges, self.cand_vt, self.cand_vt_gap,
+                          self.cand_ee, self.cand_ee_gap, self.contact_capacity, self.splits, self.contact_indices,
+                          self.contact_weights, self.contact_normals, self.contact_gaps, self.contact_thickness,
+                          self.thickness, self.edge_thickness], device=d)
         wp.launch(sk.finish_self_contact_detect, dim=1,
-                  inputs=[c, self.vt_capacity, self.ee_capacity, self.contact_capacity], device=d)
+                  inputs=[self.counts, self.vt_capacity, self.ee_capacity, self.contact_capacity], device=d)
 
     def apply_forces(self, x: wp.array, v: wp.array, f: wp.array, dt: float) -> None:
         """Add the repulsion of every contact at ``x``, ``v`` to the forces ``f`` [N] (equal and opposite)."""
         n = self.model.particle_count
         wp.launch(sk.eval_self_contact_forces, dim=n,
                   inputs=[n, self.counts, x, v, self.model.particle_inv_mass, self.splits, self.contact_indices,
-                          self.contact_weights, self.contact_normals, self.contact_thickness, self.stiffness, float(dt)],
+                          self.contact_weights, self.contact_normals, self.contact_thickness, self.stiffness,
+                          float(dt)],
                   outputs=[f], device=self.device)
 
     def filter_velocities(self, x: wp.array, v: wp.array, dt: float, position_weight: float = 1.0,
