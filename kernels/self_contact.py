@@ -17,7 +17,8 @@ Broad phase: a linked-cell spatial hash made by kernels (a head per hash bucket,
 per item, inserted with ``atomic_exch``; no capacity, no host work), over triangle and edge
 box centres; a Verlet list of candidate pairs within r = h + skin, rebuilt on the device only
 when the largest displacement since the last build, plus a step's motion, could have brought
-an unlisted pair within h (2 (|x - x_build| + |v| dt)_max > skin). Every broad-phase launch
+an unlisted pair within h (2 (|x - x_build - u| + |v - w| dt)_max > skin, relative to the mean
+displacement u and velocity w: a common motion, such as a fall, changes no gap). Every broad-phase launch
 exits at once when no rebuild is due, so a captured frame replays the adaptive schedule. Lists
 have a fixed capacity chosen at bind; a pair that does not fit is counted (overflow), never
 dropped silently.
@@ -70,8 +71,8 @@ FAST = wp.constant(13)  # detects whose motion (four steps of the fastest vertex
 COUNT_SLOTS = 14
 
 # -- indices of the float scalars (``scalars``) ---------------------------------------------------
-MOTION = wp.constant(0)  # max |x - x_build| + |v| dt this detect [m]
-SPEED = wp.constant(1)  # max |v| this detect [m/s]
+MOTION = wp.constant(0)  # max |x - x_build - u| + |v - w| dt this detect, u, w the mean motion [m]
+SPEED = wp.constant(1)  # max |v - w| this detect [m/s]
 R_BUILD = wp.constant(2)  # radius of the Verlet list: h + skin [m]
 R_ACTIVE = wp.constant(3)  # gap below which a candidate is an active contact: h + 2 v_max dt [m]
 RHO_MAX = wp.constant(4)  # largest half diagonal of a triangle's box at the build [m]
@@ -322,21 +323,34 @@ def invalidate_self_contact_list(counts: IntArray):
 
 
 @wp.kernel
-def begin_self_contact_detect(counts: IntArray, scalars: FloatArray):
-    # a detect starts: no contacts yet, motion and speed maxima from zero
+def begin_self_contact_detect(counts: IntArray, scalars: FloatArray, sums: Vec3Array):
+    # a detect starts: no contacts yet, motion and speed maxima and the sums of the means from zero
     counts[CONTACTS] = 0
     counts[DETECTS] = counts[DETECTS] + 1
     scalars[MOTION] = 0.0
     scalars[SPEED] = 0.0
+    sums[0] = wp.vec3(0.0)
+    sums[1] = wp.vec3(0.0)
 
 
 @wp.kernel
-def eval_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array,
-                             dt: float, splits: IntArray, scalars: FloatArray):
-    # motion = max_i |x_i - x_build_i| + |v_i| dt, speed = max_i |v_i|; contact counts per vertex from zero
+def sum_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sums: Vec3Array):
+    # sums of the displacements since the build and of the velocities (their means: a common motion)
     i = wp.tid()
-    speed = wp.length(v[i])
-    wp.atomic_max(scalars, MOTION, wp.length(x[i] - x_build[i]) + speed * dt)
+    wp.atomic_add(sums, 0, x[i] - x_build[i])
+    wp.atomic_add(sums, 1, v[i])
+
+
+@wp.kernel
+def eval_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sums: Vec3Array,
+                             dt: float, splits: IntArray, scalars: FloatArray):
+    # motion relative to a common one (u, w: the mean displacement and velocity; a common motion
+    # changes no gap, and any u, w bound it): motion = max_i |x_i - x_build_i - u| + |v_i - w| dt,
+    # speed = max_i |v_i - w|; contact counts per vertex from zero
+    i = wp.tid()
+    scale = 1.0 / float(x.shape[0])
+    speed = wp.length(v[i] - scale * sums[1])
+    wp.atomic_max(scalars, MOTION, wp.length(x[i] - x_build[i] - scale * sums[0]) + speed * dt)
     wp.atomic_max(scalars, SPEED, speed)
     splits[i] = 0
 

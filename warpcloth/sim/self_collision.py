@@ -170,6 +170,7 @@ class SelfCollision:
             self.dv = wp.zeros(n, dtype=wp.vec3)
             self.counts = wp.zeros(sk.COUNT_SLOTS, dtype=int)
             self.scalars = wp.zeros(sk.SCALAR_SLOTS, dtype=float)
+            self.motion_sums = wp.zeros(2, dtype=wp.vec3)
             self._no_displacement = wp.zeros(1, dtype=wp.vec3)
 
     @staticmethod
@@ -201,9 +202,11 @@ class SelfCollision:
     def _decide(self, x, v, dt) -> None:
         """Motion since the last build; whether this detect rebuilds (on the device)."""
         c, s, d = self.counts, self.scalars, self.device
-        wp.launch(sk.begin_self_contact_detect, dim=1, inputs=[c, s], device=d)
-        wp.launch(sk.eval_self_contact_motion, dim=self.model.particle_count,
-                  inputs=[x, v, self.x_build, float(dt), self.splits, s], device=d)
+        n = self.model.particle_count
+        wp.launch(sk.begin_self_contact_detect, dim=1, inputs=[c, s, self.motion_sums], device=d)
+        wp.launch(sk.sum_self_contact_motion, dim=n, inputs=[x, v, self.x_build, self.motion_sums], device=d)
+        wp.launch(sk.eval_self_contact_motion, dim=n,
+                  inputs=[x, v, self.x_build, self.motion_sums, float(dt), self.splits, s], device=d)
         wp.launch(sk.decide_self_contact_rebuild, dim=1,
                   inputs=[c, s, self.thickness, self.edge_thickness, self.skin, self.skin_max, float(dt)], device=d)
 
