@@ -18,8 +18,10 @@ per item, inserted with ``atomic_exch``; no capacity, no host work), over triang
 box centres; a Verlet list of candidate pairs within r = h + skin, rebuilt on the device only
 when the largest displacement since the last build, plus a step's motion, could have brought
 an unlisted pair within h (2 (|x - x_build - u| + |v - w| dt)_max > skin, relative to the mean
-displacement u and velocity w: a common motion, such as a fall, changes no gap). Every broad-phase launch
-exits at once when no rebuild is due, so a captured frame replays the adaptive schedule. Lists
+displacement u and velocity w: a common motion, such as a fall, changes no gap). Every
+broad-phase launch exits at once when no rebuild is due, so a captured frame replays the
+adaptive schedule. A candidate whose gap at the build, less twice that motion, cannot be near is
+skipped by the narrow phase without being evaluated. Lists
 have a fixed capacity chosen at bind; a pair that does not fit is counted (overflow), never
 dropped silently.
 

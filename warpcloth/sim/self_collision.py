@@ -9,12 +9,13 @@ kernels only (no host work, no allocation), so they can sit inside a captured fr
 * :meth:`SelfCollision.detect` at the step's start (x, v): rebuild the candidate list on the
   device when motion since the last build asks for it, then the contacts (gap < h + 2 v_max dt)
   with their weights, normals and gaps;
-* :meth:`SelfCollision.apply_forces`: the repulsion k (h - d) n, equal and opposite, added to a
-  force accumulator (Bridson et al. 2002, capped so a step changes the normal velocity by at most
-  0.1 (h - d) / dt);
 * :meth:`SelfCollision.filter_velocities` after the step (x, v at its end): inelastic impulses on
-  approaching pairs within h, impulses that leave every pair at least ``min_gap_fraction`` h apart,
-  Coulomb friction; x moves with v as the step would have moved it.
+  approaching pairs within h, Bridson's repulsion impulse min(dt k (h - d), m (0.1 (h - d)/dt - v_n)),
+  impulses that leave every pair at least ``min_gap_fraction`` h apart, Coulomb friction; x moves
+  with v as the step would have moved it (Bridson, Fedkiw & Anderson 2002, Sec. 7.2). An explicit
+  scheme needs only ``detect`` and this;
+* :meth:`SelfCollision.apply_forces`: the same repulsion as a force k (h - d) n, equal and
+  opposite, capped likewise, for schemes that want it in their force (then the filter's is off).
 
 How each integrator uses them: docs in ``/work/notes/self-contact-api.md`` (part 2 wires them in).
 """
@@ -93,8 +94,8 @@ class SelfCollision:
             pairs; less is cheaper where layers lie parallel, whose crossing edges are all contacts,
             but lets two edges that no vertex-triangle pair holds rest nearer than h).
         skin: the least extra radius of the candidate list [m] (default h / 2); the list is rebuilt
-            when a vertex may have moved skin / 2 since the last build (a larger skin rebuilds less
-            often but holds more candidates, each tested every step).
+            when a vertex may have moved skin / 2 since the last build, relative to the cloth's mean
+            motion (a larger skin rebuilds less often but holds more candidates, each tested every step).
         skin_max: the largest skin [m] (default 4 h): the list's radius covers four steps of the
             fastest vertex up to it; faster motion than skin_max / 2 a step can miss a pair.
         exclude_rings: 1: exclude a vertex and its own triangles, edges sharing a vertex; r > 1:
