@@ -1,0 +1,705 @@
+"""Self-contact kernels: vertex-triangle and edge-edge proximity of a cloth with itself, with a
+thickness h [m] and a Coulomb friction coefficient mu (Bridson, Fedkiw & Anderson 2002).
+
+Every contact is one record of four vertices k with weights W_k that sum to zero, a unit normal
+n and the gap d = n . sum_k W_k x_k at detection:
+
+* vertex p over triangle (a, b, c), closest point q = w0 a + w1 b + w2 c: vertices (p, a, b, c),
+  W = (1, -w0, -w1, -w2), n = (p - q) / |p - q|;
+* edge (a, b) near edge (c, d), closest points a + s (b - a) and c + t (d - c): vertices
+  (a, b, c, d), W = (1 - s, s, t - 1, -t), n from the second closest point to the first.
+
+An impulse J along n changes v_k by W_k J n / m_k, so sum_k m_k dv_k = J n sum_k W_k = 0: every
+response is equal and opposite (momentum conserved to float32 rounding); a pinned vertex
+(1/m = 0) takes none of it (pins win).
+
+Broad phase: a linked-cell spatial hash made by kernels (a head per hash bucket, one ``next``
+per item, inserted with ``atomic_exch``; no capacity, no host work), over triangle and edge
+box centres; a Verlet list of candidate pairs within r = h + skin, rebuilt on the device only
+when the largest displacement since the last build, plus a step's motion, could have brought
+an unlisted pair within h (2 (|x - x_build - u| + |v - w| dt)_max > skin, relative to the mean
+displacement u and velocity w: a common motion, such as a fall, changes no gap). Every
+broad-phase launch exits at once when no rebuild is due, so a captured frame replays the
+adaptive schedule. A candidate whose gap at the build, less twice that motion, cannot be near is
+skipped by the narrow phase without being evaluated. Lists
+have a fixed capacity chosen at bind; a pair that does not fit is counted (overflow), never
+dropped silently.
+
+An edge-edge pair whose closest point is at an end of either edge is not a contact: that end's
+vertex-triangle contact holds it (the vertex is at least as near the edge's triangles). Edge
+pairs may act within a smaller thickness h_e = edge_fraction h than vertex-triangle pairs (two
+parallel layers have many crossing edges, each a contact, that their vertex-triangle contacts
+already hold apart).
+
+Response (Bridson et al. 2002, Sec. 7.2), a velocity filter after the step: an inelastic impulse
+on pairs closer than h that approach, the repulsion impulse min(dt k (h - d), m (0.1 (h - d)/dt -
+v_n)), an impulse that brings every pair's end-of-step gap back to at least a fraction of h, and
+Coulomb friction |dv_t| <= mu dv_n. The filter is Jacobi over the contacts with mass splitting
+(each contact sees a vertex in c contacts with mass m / c), so that shared vertices are not
+over-corrected, iterated a fixed number of times. The repulsion is also a force (for schemes that
+want it in their force, with the filter's repulsion off).
+
+Contacts are handled in grid-stride loops over a launch of fixed dimension, so their cost is the
+contact count, not the capacity.
+"""
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+Vec3Array = wp.array(dtype=wp.vec3)
+FloatArray = wp.array(dtype=float)
+IntArray = wp.array(dtype=int)
+Vec2iArray = wp.array(dtype=wp.vec2i)
+Vec3iArray = wp.array(dtype=wp.vec3i)
+Vec4iArray = wp.array(dtype=wp.vec4i)
+Vec4Array = wp.array(dtype=wp.vec4)
+
+# -- indices of the integer counters (``counts``) -------------------------------------------------
+CAND_VT = wp.constant(0)  # vertex-triangle candidates in the Verlet list
+CAND_EE = wp.constant(1)  # edge-edge candidates in the Verlet list
+CONTACTS = wp.constant(2)  # active contacts this step
+REBUILD = wp.constant(3)  # 1 while this detect rebuilds the list
+REBUILDS = wp.constant(4)  # list builds so far
+OVERFLOW_CANDIDATES = wp.constant(5)  # candidate pairs that did not fit, so far
+OVERFLOW_CONTACTS = wp.constant(6)  # contacts that did not fit, so far
+TRUNCATED = wp.constant(7)  # queries whose radius exceeded the cells searched, so far
+UNRESOLVED = wp.constant(8)  # contacts left closer than the minimum gap after a filter, so far
+BUILT = wp.constant(9)  # 0 until the first build (or after an invalidate)
+DETECTS = wp.constant(10)  # detect calls so far
+CONTACTS_MAX = wp.constant(11)  # largest contact count of a step so far
+CANDIDATES_MAX = wp.constant(12)  # largest candidate count of a build so far
+FAST = wp.constant(13)  # detects whose motion (four steps of the fastest vertex) exceeded skin_max, so far
+COUNT_SLOTS = 14
+
+# -- indices of the float scalars (``scalars``) ---------------------------------------------------
+MOTION = wp.constant(0)  # max |x - x_build - u| + |v - w| dt this detect, u, w the mean motion [m]
+SPEED = wp.constant(1)  # max |v - w| this detect [m/s]
+R_BUILD = wp.constant(2)  # radius of the Verlet list: h + skin [m]
+R_ACTIVE = wp.constant(3)  # gap below which a candidate is an active contact: h + 2 v_max dt [m]
+RHO_MAX = wp.constant(4)  # largest half diagonal of a triangle's box at the build [m]
+HALF_EDGE_MAX = wp.constant(5)  # largest half length of an edge at the build [m]
+SKIN = wp.constant(6)  # the skin of the current list [m]
+R_BUILD_EE = wp.constant(7)  # radius of the edge-edge list: h_e + skin [m], h_e = edge_fraction h
+R_ACTIVE_EE = wp.constant(8)  # gap below which an edge-edge candidate is a contact: h_e + 2 v_max dt [m]
+SCALAR_SLOTS = 9
+
+#: an edge-edge contact whose closest point is within this parameter of an edge's end is left to that end's
+#: vertex-triangle contact (the vertex is at least as near the edge's triangles as the edge)
+END_PARAMETER = wp.constant(1.0e-4)
+#: cells searched per axis at most by one query (a larger radius is counted in TRUNCATED)
+MAX_CELLS_PER_AXIS = wp.constant(6)
+
+
+# -- geometry ---------------------------------------------------------------------------------------
+@wp.func
+def segment_parameter(p: wp.vec3, a: wp.vec3, b: wp.vec3):
+    # t in [0, 1] of the point a + t (b - a) nearest p
+    ab = b - a
+    l2 = wp.dot(ab, ab)
+    if l2 <= 0.0:
+        return 0.0
+    return wp.clamp(wp.dot(p - a, ab) / l2, 0.0, 1.0)
+
+
+@wp.func
+def closest_point_sides(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3):
+    # the point of the three sides ab, bc, ca nearest p, with its weights (a degenerate triangle's)
+    t0 = segment_parameter(p, a, b)
+    t1 = segment_parameter(p, b, c)
+    t2 = segment_parameter(p, c, a)
+    q0 = a + t0 * (b - a)
+    q1 = b + t1 * (c - b)
+    q2 = c + t2 * (a - c)
+    d0 = wp.length_sq(p - q0)
+    d1 = wp.length_sq(p - q1)
+    d2 = wp.length_sq(p - q2)
+    if d0 <= d1 and d0 <= d2:
+        return q0, wp.vec3(1.0 - t0, t0, 0.0)
+    if d1 <= d2:
+        return q1, wp.vec3(0.0, 1.0 - t1, t1)
+    return q2, wp.vec3(t2, 0.0, 1.0 - t2)
+
+
+@wp.func
+def closest_point_triangle(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3):
+    # q = w0 a + w1 b + w2 c, the point of the closed triangle nearest p (Ericson 2005, 5.1.5)
+    ab = b - a
+    ac = c - a
+    if wp.length_sq(wp.cross(ab, ac)) <= 1.0e-12 * wp.dot(ab, ab) * wp.dot(ac, ac):
+        return closest_point_sides(p, a, b, c)  # (nearly) degenerate: the nearest side
+    ap = p - a
+    d1 = wp.dot(ab, ap)
+    d2 = wp.dot(ac, ap)
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a, wp.vec3(1.0, 0.0, 0.0)
+    bp = p - b
+    d3 = wp.dot(ab, bp)
+    d4 = wp.dot(ac, bp)
+    if d3 >= 0.0 and d4 <= d3:
+        return b, wp.vec3(0.0, 1.0, 0.0)
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        return a + v * ab, wp.vec3(1.0 - v, v, 0.0)
+    cp = p - c
+    d5 = wp.dot(ab, cp)
+    d6 = wp.dot(ac, cp)
+    if d6 >= 0.0 and d5 <= d6:
+        return c, wp.vec3(0.0, 0.0, 1.0)
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        return a + w * ac, wp.vec3(1.0 - w, 0.0, w)
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return b + w * (c - b), wp.vec3(0.0, 1.0 - w, w)
+    denom = va + vb + vc
+    v = vb / denom
+    w = vc / denom
+    return a + v * ab + w * ac, wp.vec3(1.0 - v - w, v, w)
+
+
+@wp.func
+def closest_points_edge_edge(p1: wp.vec3, q1: wp.vec3, p2: wp.vec3, q2: wp.vec3):
+    # (s, t) of the closest points p1 + s (q1 - p1), p2 + t (q2 - p2) of two closed segments
+    # (Ericson 2005, 5.1.9); (nearly) parallel segments (sin^2 of their angle < 1e-6) take the
+    # middle of their overlap, so the contact sits where they overlap, not at an end
+    d1 = q1 - p1
+    d2 = q2 - p2
+    r = p1 - p2
+    a = wp.dot(d1, d1)
+    e = wp.dot(d2, d2)
+    f = wp.dot(d2, r)
+    eps = float(1.0e-20)
+    if a <= eps and e <= eps:
+        return wp.vec2(0.0, 0.0)
+    if a <= eps:
+        return wp.vec2(0.0, wp.clamp(f / e, 0.0, 1.0))
+    c = wp.dot(d1, r)
+    if e <= eps:
+        return wp.vec2(wp.clamp(-c / a, 0.0, 1.0), 0.0)
+    b = wp.dot(d1, d2)
+    denom = a * e - b * b
+    s = float(0.0)
+    if denom > 1.0e-6 * a * e:
+        s = wp.clamp((b * f - c * e) / denom, 0.0, 1.0)
+    else:
+        sp = -c / a  # p2 and q2 projected on segment 1
+        sq = (b - c) / a
+        lo = wp.max(0.0, wp.min(sp, sq))
+        hi = wp.min(1.0, wp.max(sp, sq))
+        if lo <= hi:
+            s = 0.5 * (lo + hi)
+        else:
+            s = wp.clamp(0.5 * (sp + sq), 0.0, 1.0)
+    t = (b * s + f) / e
+    if t < 0.0:
+        t = 0.0
+        s = wp.clamp(-c / a, 0.0, 1.0)
+    elif t > 1.0:
+        t = 1.0
+        s = wp.clamp((b - c) / a, 0.0, 1.0)
+    return wp.vec2(s, t)
+
+
+@wp.func
+def any_perpendicular(u: wp.vec3):
+    # a unit vector perpendicular to u (u need not be unit; zero u gives +y)
+    a = wp.vec3(0.0, 1.0, 0.0)
+    if wp.abs(u[1]) > wp.abs(u[0]) and wp.abs(u[1]) > wp.abs(u[2]):
+        a = wp.vec3(1.0, 0.0, 0.0)
+    w = wp.cross(u, a)
+    lw = wp.length(w)
+    if lw == 0.0:
+        return wp.vec3(0.0, 1.0, 0.0)
+    return w / lw
+
+
+@wp.func
+def vertex_triangle_record(p: wp.vec3, a: wp.vec3, b: wp.vec3, c: wp.vec3):
+    # weights W = (1, -w0, -w1, -w2), normal n = (p - q)/|p - q| (the face normal when p is on
+    # the triangle) and gap d = |p - q|
+    q, w = closest_point_triangle(p, a, b, c)
+    diff = p - q
+    d = wp.length(diff)
+    n = wp.vec3(0.0)
+    if d > 1.0e-9:
+        n = diff / d
+    else:
+        face = wp.cross(b - a, c - a)
+        lf = wp.length(face)
+        if lf > 0.0:
+            n = face / lf
+        else:
+            n = any_perpendicular(b - a)
+    return wp.vec4(1.0, -w[0], -w[1], -w[2]), n, d
+
+
+@wp.func
+def edge_edge_record(a: wp.vec3, b: wp.vec3, c: wp.vec3, d: wp.vec3):
+    # weights W = (1 - s, s, t - 1, -t), normal from the second closest point to the first (the
+    # normal of both edges when they touch), gap = the distance between the closest points
+    st = closest_points_edge_edge(a, b, c, d)
+    s = st[0]
+    t = st[1]
+    diff = (a + s * (b - a)) - (c + t * (d - c))
+    gap = wp.length(diff)
+    n = wp.vec3(0.0)
+    if gap > 1.0e-9:
+        n = diff / gap
+    else:
+        m = wp.cross(b - a, d - c)
+        lm = wp.length(m)
+        if lm > 0.0:
+            n = m / lm
+        else:
+            n = any_perpendicular(b - a)
+    return wp.vec4(1.0 - s, s, t - 1.0, -t), n, gap
+
+
+@wp.func
+def weighted_sum(x: Vec3Array, idx: wp.vec4i, w: wp.vec4):
+    # sum_k W_k x_k: the relative position (or, with v, velocity) of a contact's two sides
+    return w[0] * x[idx[0]] + w[1] * x[idx[1]] + w[2] * x[idx[2]] + w[3] * x[idx[3]]
+
+
+@wp.func
+def split_inverse_mass(idx: wp.vec4i, w: wp.vec4, inv_mass: FloatArray, splits: IntArray):
+    # sum_k W_k^2 c_k / m_k: the contact's inverse effective mass, each vertex's mass split over its c_k contacts
+    s = float(0.0)
+    for k in range(4):
+        c = wp.max(splits[idx[k]], 1)
+        s += w[k] * w[k] * inv_mass[idx[k]] * float(c)
+    return s
+
+
+# -- the spatial hash -------------------------------------------------------------------------------
+@wp.func
+def cell_of(p: wp.vec3, inv_cell: float):
+    return wp.vec3i(int(wp.floor(p[0] * inv_cell)), int(wp.floor(p[1] * inv_cell)), int(wp.floor(p[2] * inv_cell)))
+
+
+@wp.func
+def cell_bucket(i: int, j: int, k: int, mask: int):
+    # bucket of cell (i, j, k): a multiplicative hash (Teschner et al. 2003), wrapped in uint32
+    h = wp.uint32(i) * wp.uint32(73856093)
+    h = h ^ (wp.uint32(j) * wp.uint32(19349663))
+    h = h ^ (wp.uint32(k) * wp.uint32(83492791))
+    return int(h & wp.uint32(mask))
+
+
+@wp.func
+def sorted_contains(values: IntArray, start: int, end: int, key: int):
+    # whether the sorted values[start:end] hold key (binary search)
+    lo = start
+    hi = end
+    while lo < hi:
+        mid = (lo + hi) // 2
+        v = values[mid]
+        if v == key:
+            return True
+        if v < key:
+            lo = mid + 1
+        else:
+            hi = mid
+    return False
+
+
+@wp.func
+def append_index(counts: IntArray, slot: int, overflow_slot: int, capacity: int):
+    # the next free index of a fixed-capacity list, or -1 (counted as overflow) when it is full
+    k = wp.atomic_add(counts, slot, 1)
+    if k >= capacity:
+        wp.atomic_add(counts, overflow_slot, 1)
+        return -1
+    return k
+
+
+# -- detect: motion, rebuild decision, broad phase, narrow phase ------------------------------------
+@wp.kernel
+def invalidate_self_contact_list(counts: IntArray):
+    # the next detect rebuilds the candidate list
+    counts[BUILT] = 0
+
+
+@wp.kernel
+def begin_self_contact_detect(counts: IntArray, scalars: FloatArray, sums: Vec3Array):
+    # a detect starts: no contacts yet, motion and speed maxima and the sums of the means from zero
+    counts[CONTACTS] = 0
+    counts[DETECTS] = counts[DETECTS] + 1
+    scalars[MOTION] = 0.0
+    scalars[SPEED] = 0.0
+    sums[0] = wp.vec3(0.0)
+    sums[1] = wp.vec3(0.0)
+
+
+@wp.kernel
+def sum_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sums: Vec3Array):
+    # sums of the displacements since the build and of the velocities (their means: a common motion)
+    i = wp.tid()
+    wp.atomic_add(sums, 0, x[i] - x_build[i])
+    wp.atomic_add(sums, 1, v[i])
+
+
+@wp.kernel
+def eval_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sums: Vec3Array,
+                             dt: float, splits: IntArray, scalars: FloatArray):
+    # motion relative to a common one (u, w: the mean displacement and velocity; a common motion
+    # changes no gap, and any u, w bound it): motion = max_i |x_i - x_build_i - u| + |v_i - w| dt,
+    # speed = max_i |v_i - w|; contact counts per vertex from zero
+    i = wp.tid()
+    scale = 1.0 / float(x.shape[0])
+    speed = wp.length(v[i] - scale * sums[1])
+    wp.atomic_max(scalars, MOTION, wp.length(x[i] - x_build[i] - scale * sums[0]) + speed * dt)
+    wp.atomic_max(scalars, SPEED, speed)
+    splits[i] = 0
+
+
+@wp.kernel
+def decide_self_contact_rebuild(counts: IntArray, scalars: FloatArray, thickness: float, edge_thickness: float,
+                                skin: float, skin_max: float, dt: float):
+    # rebuild when never built or when 2 motion > skin (an unlisted pair may be within h); the new
+    # skin covers four steps of the fastest vertex, between skin and skin_max
+    speed = scalars[SPEED]
+    scalars[R_ACTIVE] = thickness + 2.0 * speed * dt
+    scalars[R_ACTIVE_EE] = edge_thickness + 2.0 * speed * dt
+    if counts[BUILT] != 0 and 2.0 * scalars[MOTION] <= scalars[SKIN]:
+        counts[REBUILD] = 0
+        return
+    if 4.0 * speed * dt > skin_max:  # the list cannot cover the motion: a pair may be missed
+        counts[FAST] = counts[FAST] + 1
+    new_skin = wp.clamp(4.0 * speed * dt, skin, skin_max)
+    scalars[SKIN] = new_skin
+    scalars[R_BUILD] = thickness + new_skin
+    scalars[R_BUILD_EE] = edge_thickness + new_skin
+    scalars[RHO_MAX] = 0.0
+    scalars[HALF_EDGE_MAX] = 0.0
+    counts[REBUILD] = 1
+    counts[BUILT] = 1
+    counts[REBUILDS] = counts[REBUILDS] + 1
+    counts[CAND_VT] = 0
+    counts[CAND_EE] = 0
+
+
+@wp.kernel
+def clear_self_contact_cells(counts: IntArray, x: Vec3Array, x_build: Vec3Array,
+                             head_tri: IntArray, head_edge: IntArray):
+    # (rebuild only) empty buckets; x_build = x (launched over max(buckets, particles))
+    i = wp.tid()
+    if counts[REBUILD] == 0:
+        return
+    if i < head_tri.shape[0]:
+        head_tri[i] = -1
+        head_edge[i] = -1
+    if i < x.shape[0]:
+        x_build[i] = x[i]
+
+
+@wp.kernel
+def insert_self_contact_triangles(counts: IntArray, x: Vec3Array, tris: Vec3iArray,
+                                  inv_cell: float, mask: int, head: IntArray, next_item: IntArray,
+                                  scalars: FloatArray, box_lo: Vec3Array, box_hi: Vec3Array, item_cell: Vec3iArray):
+    # (rebuild only) triangle t into the bucket of its box centre (its box and cell kept for the
+    # queries); rho_max = max half diagonal of the boxes
+    t = wp.tid()
+    if counts[REBUILD] == 0:
+        return
+    a = x[tris[t][0]]
+    b = x[tris[t][1]]
+    c = x[tris[t][2]]
+    lo = wp.min(wp.min(a, b), c)
+    hi = wp.max(wp.max(a, b), c)
+    cell = cell_of(0.5 * (lo + hi), inv_cell)
+    box_lo[t] = lo
+    box_hi[t] = hi
+    item_cell[t] = cell
+    next_item[t] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), t)
+    wp.atomic_max(scalars, RHO_MAX, 0.5 * wp.length(hi - lo))
+
+
+@wp.kernel
+def insert_self_contact_edges(counts: IntArray, x: Vec3Array, edges: Vec2iArray,
+                              inv_cell: float, mask: int, head: IntArray, next_item: IntArray,
+                              scalars: FloatArray, box_lo: Vec3Array, box_hi: Vec3Array, item_cell: Vec3iArray):
+    # (rebuild only) edge e into the bucket of its midpoint (its box and cell kept); the largest half length
+    e = wp.tid()
+    if counts[REBUILD] == 0:
+        return
+    a = x[edges[e][0]]
+    b = x[edges[e][1]]
+    cell = cell_of(0.5 * (a + b), inv_cell)
+    box_lo[e] = wp.min(a, b)
+    box_hi[e] = wp.max(a, b)
+    item_cell[e] = cell
+    next_item[e] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), e)
+    wp.atomic_max(scalars, HALF_EDGE_MAX, 0.5 * wp.length(b - a))
+
+
+@wp.func
+def cell_range(lo_p: wp.vec3, hi_p: wp.vec3, inv_cell: float, counts: IntArray):
+    # the cells of the box [lo_p, hi_p], at most MAX_CELLS_PER_AXIS per axis (a cut is counted)
+    lo = cell_of(lo_p, inv_cell)
+    hi = cell_of(hi_p, inv_cell)
+    cut = int(0)
+    for k in range(3):
+        if hi[k] - lo[k] + 1 > MAX_CELLS_PER_AXIS:
+            mid = (lo[k] + hi[k]) // 2
+            lo[k] = mid - MAX_CELLS_PER_AXIS // 2
+            hi[k] = lo[k] + MAX_CELLS_PER_AXIS - 1
+            cut = 1
+    if cut != 0:
+        wp.atomic_add(counts, TRUNCATED, 1)
+    return lo, hi
+
+
+@wp.kernel
+def find_vertex_triangle_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Array,
+                                    tris: Vec3iArray, inv_cell: float, mask: int, head: IntArray,
+                                    next_item: IntArray, box_lo: Vec3Array, box_hi: Vec3Array,
+                                    item_cell: Vec3iArray, exclude_offsets: IntArray,
+                                    exclude: IntArray, capacity: int, out: Vec2iArray, out_gap: FloatArray):
+    # (rebuild only) every triangle t within R_BUILD of vertex i, not its own and not excluded, with its gap
+    i = wp.tid()
+    if counts[REBUILD] == 0:
+        return
+    p = x[i]
+    r = scalars[R_BUILD]
+    reach = wp.vec3(r + scalars[RHO_MAX])  # a triangle's box centre within r + its half diagonal
+    lo, hi = cell_range(p - reach, p + reach, inv_cell, counts)
+    e0 = exclude_offsets[i]
+    e1 = exclude_offsets[i + 1]
+    for ci in range(lo[0], hi[0] + 1):
+        for cj in range(lo[1], hi[1] + 1):
+            for ck in range(lo[2], hi[2] + 1):
+                t = head[cell_bucket(ci, cj, ck, mask)]
+                while t >= 0:
+                    # a bucket holds one cell's triangles and other cells' that hash alike: a triangle
+                    # is taken from the cell of its box centre only, so it is found once
+                    lo_t = box_lo[t] - wp.vec3(r)
+                    hi_t = box_hi[t] + wp.vec3(r)
+                    inside = p[0] >= lo_t[0] and p[1] >= lo_t[1] and p[2] >= lo_t[2]
+                    inside = inside and p[0] <= hi_t[0] and p[1] <= hi_t[1] and p[2] <= hi_t[2]
+                    if inside and item_cell[t] == wp.vec3i(ci, cj, ck):
+                        tri = tris[t]
+                        if tri[0] != i and tri[1] != i and tri[2] != i and not sorted_contains(exclude, e0, e1, t):
+                            a = x[tri[0]]
+                            b = x[tri[1]]
+                            c = x[tri[2]]
+                            q, w = closest_point_triangle(p, a, b, c)
+                            gap = wp.length(p - q)
+                            if gap <= r:
+                                k = append_index(counts, CAND_VT, OVERFLOW_CANDIDATES, capacity)
+                                if k >= 0:
+                                    out[k] = wp.vec2i(i, t)
+                                    out_gap[k] = gap
+                    t = next_item[t]
+
+
+@wp.kernel
+def find_edge_edge_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Array,
+                              edges: Vec2iArray, inv_cell: float, mask: int, head: IntArray,
+                              next_item: IntArray, box_lo: Vec3Array, box_hi: Vec3Array, item_cell: Vec3iArray,
+                              exclude_offsets: IntArray,
+                              exclude: IntArray, capacity: int, out: Vec2iArray, out_gap: FloatArray):
+    # (rebuild only) every edge f > e within R_BUILD_EE of edge e, sharing no vertex and not excluded, with its gap
+    e = wp.tid()
+    if counts[REBUILD] == 0:
+        return
+    ea = edges[e][0]
+    eb = edges[e][1]
+    a = x[ea]
+    b = x[eb]
+    r = scalars[R_BUILD_EE]
+    reach = wp.vec3(r + scalars[HALF_EDGE_MAX])  # an edge's midpoint within r + its half length of e's box
+    lo, hi = cell_range(wp.min(a, b) - reach, wp.max(a, b) + reach, inv_cell, counts)
+    e0 = exclude_offsets[e]
+    e1 = exclude_offsets[e + 1]
+    lo_e = wp.min(a, b) - wp.vec3(r)
+    hi_e = wp.max(a, b) + wp.vec3(r)
+    for ci in range(lo[0], hi[0] + 1):
+        for cj in range(lo[1], hi[1] + 1):
+            for ck in range(lo[2], hi[2] + 1):
+                f = head[cell_bucket(ci, cj, ck, mask)]
+                while f >= 0:
+                    overlap = False
+                    if f > e:
+                        lo_f = box_lo[f]
+                        hi_f = box_hi[f]
+                        overlap = lo_f[0] <= hi_e[0] and lo_f[1] <= hi_e[1] and lo_f[2] <= hi_e[2]
+                        overlap = overlap and hi_f[0] >= lo_e[0] and hi_f[1] >= lo_e[1] and hi_f[2] >= lo_e[2]
+                    if overlap and item_cell[f] == wp.vec3i(ci, cj, ck):  # found once: from its midpoint's cell
+                        fc = edges[f][0]
+                        fd = edges[f][1]
+                        if fc != ea and fc != eb and fd != ea and fd != eb and not sorted_contains(exclude, e0, e1, f):
+                            c = x[fc]
+                            d = x[fd]
+                            st = closest_points_edge_edge(a, b, c, d)
+                            gap = wp.length((a + st[0] * (b - a)) - (c + st[1] * (d - c)))
+                            if gap <= r:
+                                k = append_index(counts, CAND_EE, OVERFLOW_CANDIDATES, capacity)
+                                if k >= 0:
+                                    out[k] = wp.vec2i(e, f)
+                                    out_gap[k] = gap
+                    f = next_item[f]
+
+
+@wp.kernel
+def eval_self_contacts(stride: int, counts: IntArray, scalars: FloatArray, x: Vec3Array,
+                       tris: Vec3iArray, edges: Vec2iArray, cand_vt: Vec2iArray, cand_vt_gap: FloatArray,
+                       cand_ee: Vec2iArray, cand_ee_gap: FloatArray, capacity: int, splits: IntArray,
+                       c_idx: Vec4iArray, c_w: Vec4Array, c_n: Vec3Array,
+                       c_d: FloatArray, c_h: FloatArray, thickness: float, edge_thickness: float):
+    # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair
+    # with gap d < R_ACTIVE at x; per vertex, the number of its contacts (mass splitting). A pair
+    # whose gap at the build, less twice the largest motion since, is not below R_ACTIVE is not
+    # evaluated (its gap cannot have fallen below it)
+    tid = wp.tid()
+    n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
+    total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])
+    reach = 2.0 * scalars[MOTION]
+    for k in range(tid, total, stride):
+        idx = wp.vec4i()
+        w = wp.vec4()
+        n = wp.vec3()
+        d = float(0.0)
+        r_active = scalars[R_ACTIVE]
+        h = thickness
+        if k < n_vt:
+            if cand_vt_gap[k] - reach >= r_active:
+                continue
+            pair = cand_vt[k]
+            tri = tris[pair[1]]
+            idx = wp.vec4i(pair[0], tri[0], tri[1], tri[2])
+            w, n, d = vertex_triangle_record(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]])
+        else:
+            if cand_ee_gap[k - n_vt] - reach >= scalars[R_ACTIVE_EE]:
+                continue
+            pair = cand_ee[k - n_vt]
+            ea = edges[pair[0]]
+            eb = edges[pair[1]]
+            idx = wp.vec4i(ea[0], ea[1], eb[0], eb[1])
+            w, n, d = edge_edge_record(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]])
+            r_active = scalars[R_ACTIVE_EE]
+            h = edge_thickness
+            # closest points at an end of either edge: that end's vertex-triangle contact holds it
+            s = w[1]
+            t = -w[3]
+            if wp.min(s, t) <= END_PARAMETER or wp.max(s, t) >= 1.0 - END_PARAMETER:
+                d = r_active
+        if d < r_active:
+            slot = append_index(counts, CONTACTS, OVERFLOW_CONTACTS, capacity)
+            if slot >= 0:
+                c_idx[slot] = idx
+                c_w[slot] = w
+                c_n[slot] = n
+                c_d[slot] = d
+                c_h[slot] = h
+                for j in range(4):
+                    wp.atomic_add(splits, idx[j], 1)
+
+
+@wp.kernel
+def finish_self_contact_detect(counts: IntArray, vt_capacity: int, ee_capacity: int, capacity: int):
+    # list lengths capped at their capacities (a full list counted on, for the overflow count);
+    # the largest so far
+    if counts[REBUILD] != 0:
+        counts[CAND_VT] = wp.min(counts[CAND_VT], vt_capacity)
+        counts[CAND_EE] = wp.min(counts[CAND_EE], ee_capacity)
+        counts[CANDIDATES_MAX] = wp.max(counts[CANDIDATES_MAX], counts[CAND_VT] + counts[CAND_EE])
+    counts[CONTACTS] = wp.min(counts[CONTACTS], capacity)
+    counts[CONTACTS_MAX] = wp.max(counts[CONTACTS_MAX], counts[CONTACTS])
+
+
+# -- response ---------------------------------------------------------------------------------------
+@wp.kernel
+def eval_self_contact_forces(stride: int, counts: IntArray, x: Vec3Array, v: Vec3Array,
+                             inv_mass: FloatArray, splits: IntArray, c_idx: Vec4iArray,
+                             c_w: Vec4Array, c_n: Vec3Array, c_h: FloatArray,
+                             stiffness: float, dt: float, f: Vec3Array):
+    # repulsion F = min(k (h - d), m_eff (0.1 (h - d)/dt - v_n)/dt) >= 0 along n, f_k += W_k F n
+    # (Bridson et al. 2002, Sec. 7.2), d = n . sum W x at x, v_n = n . sum W v, h the contact's thickness
+    tid = wp.tid()
+    for k in range(tid, counts[CONTACTS], stride):
+        idx = c_idx[k]
+        w = c_w[k]
+        n = c_n[k]
+        overlap = c_h[k] - wp.dot(n, weighted_sum(x, idx, w))
+        if overlap > 0.0:
+            inv_m = split_inverse_mass(idx, w, inv_mass, splits)
+            if inv_m > 0.0:
+                vn = wp.dot(n, weighted_sum(v, idx, w))
+                force = wp.min(stiffness * overlap, (0.1 * overlap / dt - vn) / (inv_m * dt))
+                if force > 0.0:
+                    for j in range(4):
+                        wp.atomic_add(f, idx[j], (w[j] * force) * n)
+
+
+@wp.kernel
+def filter_self_contact_velocities(stride: int, counts: IntArray, x: Vec3Array, v: Vec3Array, inv_mass: FloatArray,
+                                   splits: IntArray, c_idx: Vec4iArray, c_w: Vec4Array, c_n: Vec3Array,
+                                   c_d: FloatArray, c_h: FloatArray, min_gap: float, mu: float, stiffness: float,
+                                   dt: float, dt_x: float, dv: Vec3Array):
+    # per contact at the step's end (x, v), d0 its gap at detection, h its thickness (h, or h_e for
+    # an edge pair), delta = h - d0: the normal relative velocity v_n = n . sum W v is raised to
+    #   max(0 [inelastic, d0 < h], min(0.1 delta / dt, dt k delta / m_eff) [repulsion, stiffness > 0],
+    #       v_n + (min_gap - d) / dt_x [the gap d = n . sum W x kept >= min_gap])
+    # (Bridson et al. 2002, Sec. 7.2), friction |dv_t| = min(mu dv_n, |v_t|); impulse J = dv /
+    # sum W^2 c / m; dv_k += W_k J / m_k (Jacobi, masses split over c contacts)
+    tid = wp.tid()
+    for k in range(tid, counts[CONTACTS], stride):
+        idx = c_idx[k]
+        w = c_w[k]
+        n = c_n[k]
+        vr = weighted_sum(v, idx, w)
+        vn = wp.dot(n, vr)
+        target = -1.0e30
+        delta = c_h[k] - c_d[k]
+        if delta > 0.0:
+            target = 0.0
+            if stiffness > 0.0:
+                full = float(0.0)
+                for j in range(4):
+                    full += w[j] * w[j] * inv_mass[idx[j]]
+                target = wp.min(0.1 * delta / dt, dt * stiffness * delta * full)
+        target = wp.max(target, vn + (min_gap - wp.dot(n, weighted_sum(x, idx, w))) / dt_x)
+        dvn = target - vn
+        if dvn > 0.0:
+            inv_m = split_inverse_mass(idx, w, inv_mass, splits)
+            if inv_m > 0.0:
+                impulse = dvn * n
+                vt = vr - vn * n
+                lt = wp.length(vt)
+                if lt > 0.0:
+                    impulse = impulse - (wp.min(mu * dvn, lt) / lt) * vt
+                impulse = impulse / inv_m
+                for j in range(4):
+                    wp.atomic_add(dv, idx[j], (w[j] * inv_mass[idx[j]]) * impulse)
+
+
+@wp.kernel
+def apply_self_contact_velocities(dv: Vec3Array, dt_x: float, with_displacement: int,
+                                  x: Vec3Array, v: Vec3Array, displacement: Vec3Array):
+    # v += dv; x += dt_x dv (and a position history d += dt_x dv); dv = 0
+    i = wp.tid()
+    dvi = dv[i]
+    v[i] = v[i] + dvi
+    x[i] = x[i] + dt_x * dvi
+    if with_displacement != 0:
+        displacement[i] = displacement[i] + dt_x * dvi
+    dv[i] = wp.vec3(0.0)
+
+
+@wp.kernel
+def count_unresolved_self_contacts(stride: int, counts: IntArray, x: Vec3Array, c_idx: Vec4iArray,
+                                   c_w: Vec4Array, c_n: Vec3Array, min_gap: float,
+                                   inv_mass: FloatArray):
+    # contacts (with a free vertex) still closer than 0.99 min_gap along their normal after the filter
+    tid = wp.tid()
+    for k in range(tid, counts[CONTACTS], stride):
+        idx = c_idx[k]
+        w = c_w[k]
+        free = inv_mass[idx[0]] + inv_mass[idx[1]] + inv_mass[idx[2]] + inv_mass[idx[3]]
+        if free > 0.0 and wp.dot(c_n[k], weighted_sum(x, idx, w)) < 0.99 * min_gap:
+            wp.atomic_add(counts, UNRESOLVED, 1)

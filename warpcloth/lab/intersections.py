@@ -1,0 +1,392 @@
+"""Intersection checker in float64 NumPy: does a cloth pass through itself, or a collider's edge
+through the cloth? Independent of the simulator's kernels (no Warp), for tests and for frames
+written to USD.
+
+* :func:`self_intersections`: the pairs of cloth triangles that intersect, topological
+  neighbours (triangles that share a vertex) excluded;
+* :func:`collider_edge_crossings`: the (collider edge, cloth triangle) pairs that cross, for box
+  colliders (their 12 edges) and triangle-mesh colliders (their unique edges); planes, spheres and
+  capsules have no edges;
+* :func:`check_frames` and :func:`check_usd`: both counts at every frame (a USD file as
+  :class:`~warpcloth.io.usd.UsdWriter` writes it: ``/World/Cloth`` points, time-sampled, and
+  ``/World/Colliders``).
+
+The tests are on closed sets: two triangles intersect when they share a point (touching counts;
+coplanar triangles that overlap or touch count), a segment crosses a triangle when it has a point
+in it. Sign tests of float64 orientation determinants, zero within a relative 1e-12 of the
+configuration's size cubed (Moller 1997; the segment-triangle test of the Plucker signs of the
+segment against the three edges); a coplanar segment is tested in the triangle's plane, projected
+along the normal's largest axis. Two non-coplanar triangles
+intersect exactly when an edge of one meets the other, so the pair test is six segment tests.
+
+Broad phase: a uniform grid of cell size the largest box extent, so two boxes that overlap have
+centres in adjacent cells; pairs come from sorted cell keys (vectorised), then an exact box test.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from warpcloth.errors import WarpclothError
+from warpcloth.sim.colliders import _quat_matrix
+from warpcloth.sim.mesh import mesh_topology
+
+
+# -- predicates ---------------------------------------------------------------------------------------
+def _orient(a, b, c, d):
+    """Signed volume (six times the tetrahedron's) det[b - a, c - a, d - a], row-wise."""
+    return np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a)
+
+
+def _snap(values, tol):
+    """Values within ``tol`` of zero are zero: float64 orientations of near-degenerate
+    configurations (a coplanar pair a rounding error off its plane) are treated as exact ones."""
+    return np.where(np.abs(values) <= tol, 0.0, values)
+
+
+def _orient2(a, b, c, tol):
+    return _snap((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]), tol)
+
+
+def _on_segment2(a, b, p):
+    """p (collinear with ab) within the box of ab."""
+    return ((np.minimum(a[:, 0], b[:, 0]) <= p[:, 0]) & (p[:, 0] <= np.maximum(a[:, 0], b[:, 0]))
+            & (np.minimum(a[:, 1], b[:, 1]) <= p[:, 1]) & (p[:, 1] <= np.maximum(a[:, 1], b[:, 1])))
+
+
+def _segments_meet2(p, q, a, b, tol):
+    """Closed 2-D segments pq and ab share a point."""
+    d1, d2 = _orient2(a, b, p, tol), _orient2(a, b, q, tol)
+    d3, d4 = _orient2(p, q, a, tol), _orient2(p, q, b, tol)
+    proper = (((d1 > 0) & (d2 < 0)) | ((d1 < 0) & (d2 > 0))) & (((d3 > 0) & (d4 < 0)) | ((d3 < 0) & (d4 > 0)))
+    touch = ((d1 == 0) & _on_segment2(a, b, p)) | ((d2 == 0) & _on_segment2(a, b, q))
+    touch |= ((d3 == 0) & _on_segment2(p, q, a)) | ((d4 == 0) & _on_segment2(p, q, b))
+    return proper | touch
+
+
+def _inside2(a, b, c, p, tol):
+    """p in the closed 2-D triangle abc (either winding)."""
+    s1, s2, s3 = _orient2(a, b, p, tol), _orient2(b, c, p, tol), _orient2(c, a, p, tol)
+    return ((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))
+
+
+def _coplanar_segment_meets(p, q, a, b, c, tol):
+    """A segment in the plane of triangle abc meets it (tested in 2-D, dropping the normal's
+    largest axis)."""
+    axis = np.argmax(np.abs(np.cross(b - a, c - a)), axis=1)
+    keep = np.array([[1, 2], [0, 2], [0, 1]])[axis]
+    rows = np.arange(len(p))[:, None]
+    p2, q2, a2, b2, c2 = (m[rows, keep] for m in (p, q, a, b, c))
+    hit = _inside2(a2, b2, c2, p2, tol) | _inside2(a2, b2, c2, q2, tol)
+    for u, w in ((a2, b2), (b2, c2), (c2, a2)):
+        hit |= _segments_meet2(p2, q2, u, w, tol)
+    return hit
+
+
+#: Orientations below this fraction of L^3 (L the configuration's size) count as zero: float64
+#: rounding of float32 positions is about 1e-16 L^3, a real offset of 1e-7 L is 1e-7 L^3.
+RELATIVE_TOLERANCE = 1e-12
+
+
+def segments_meet_triangles(p, q, a, b, c) -> np.ndarray:
+    """Row-wise: the closed segment pq has a point in the closed triangle abc (float64;
+    orientations within :data:`RELATIVE_TOLERANCE` L^3 of zero count as zero, so a pair that is
+    coplanar up to rounding is tested as coplanar and touching counts).
+
+    Args:
+        p, q: segment ends (K, 3); a, b, c: triangle corners (K, 3).
+    """
+    p, q, a, b, c = (np.asarray(m, dtype=np.float64).reshape(-1, 3) for m in (p, q, a, b, c))
+    size = np.max([np.linalg.norm(m - a, axis=1) for m in (b, c, p, q)], axis=0)
+    tol3 = RELATIVE_TOLERANCE * size**3
+    op, oq = _snap(_orient(a, b, c, p), tol3), _snap(_orient(a, b, c, q), tol3)
+    straddle = ~(((op > 0) & (oq > 0)) | ((op < 0) & (oq < 0)))
+    coplanar = (op == 0) & (oq == 0)
+    s1, s2, s3 = (_snap(_orient(p, q, u, w), tol3) for u, w in ((a, b), (b, c), (c, a)))
+    through = ((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))
+    hit = straddle & ~coplanar & through
+    degenerate = np.linalg.norm(np.cross(b - a, c - a), axis=1) <= RELATIVE_TOLERANCE * size**2
+    hit &= ~degenerate
+    k = np.flatnonzero(coplanar & ~degenerate)
+    if k.size:
+        hit[k] = _coplanar_segment_meets(p[k], q[k], a[k], b[k], c[k], RELATIVE_TOLERANCE * size[k] ** 2)
+    return hit
+
+
+def triangles_intersect(t1, t2) -> np.ndarray:
+    """Row-wise: closed triangles t1[k] and t2[k] (K, 3, 3) share a point (float64): an edge of one
+    meets the other (exact for non-coplanar pairs; coplanar pairs are tested edge by edge in their
+    plane, so containment is found by the other triangle's edges)."""
+    t1 = np.asarray(t1, dtype=np.float64).reshape(-1, 3, 3)
+    t2 = np.asarray(t2, dtype=np.float64).reshape(-1, 3, 3)
+    hit = np.zeros(len(t1), dtype=bool)
+    for s, o in ((t1, t2), (t2, t1)):
+        for i in range(3):
+            rest = ~hit
+            if not rest.any():
+                break
+            k = np.flatnonzero(rest)
+            hit[k] |= segments_meet_triangles(s[k, i], s[k, (i + 1) % 3], o[k, 0], o[k, 1], o[k, 2])
+    return hit
+
+
+# -- broad phase ----------------------------------------------------------------------------------------
+def _grid_pairs(lo_a, hi_a, lo_b, hi_b, same: bool):
+    """(i, j) with box a_i overlapping box b_j (i < j when ``same``), from a uniform grid of cell
+    size the largest extent: overlapping boxes have centres in adjacent cells."""
+    if len(lo_a) == 0 or len(lo_b) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    cell = max(float(np.max(hi_a - lo_a)), float(np.max(hi_b - lo_b)), 1e-12)
+    ca, cb = 0.5 * (lo_a + hi_a), 0.5 * (lo_b + hi_b)
+    origin = np.minimum(ca.min(axis=0), cb.min(axis=0))
+    ia = np.floor((ca - origin) / cell).astype(np.int64) + 1
+    ib = np.floor((cb - origin) / cell).astype(np.int64) + 1
+    dims = np.maximum(ia.max(axis=0), ib.max(axis=0)) + 2
+
+    def key(c):
+        return (c[:, 0] * dims[1] + c[:, 1]) * dims[2] + c[:, 2]
+
+    kb = key(ib)
+    order = np.argsort(kb, kind="stable")
+    cells, start, count = np.unique(kb[order], return_index=True, return_counts=True)
+    out_i, out_j = [], []
+    offsets = np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), axis=-1).reshape(-1, 3)
+    for off in offsets:
+        ka = key(ia + off)
+        pos = np.searchsorted(cells, ka)
+        pos_c = np.minimum(pos, len(cells) - 1)
+        hit = np.flatnonzero(cells[pos_c] == ka)
+        if hit.size == 0:
+            continue
+        cnt = count[pos_c[hit]]
+        first = start[pos_c[hit]]
+        rep = np.repeat(hit, cnt)
+        within = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        out_i.append(rep)
+        out_j.append(order[np.repeat(first, cnt) + within])
+    if not out_i:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    i, j = np.concatenate(out_i), np.concatenate(out_j)
+    if same:
+        keep = i < j
+        i, j = i[keep], j[keep]
+    overlap = np.all((lo_a[i] <= hi_b[j]) & (lo_b[j] <= hi_a[i]), axis=1)
+    return i[overlap], j[overlap]
+
+
+def _check_mesh(points, triangles):
+    x = np.asarray(points, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    if x.ndim != 2 or x.shape[1] != 3:
+        raise WarpclothError(f"points must have shape (N, 3), got {x.shape}")
+    if t.ndim != 2 or t.shape[1] != 3 or (t.size and (t.min() < 0 or t.max() >= len(x))):
+        raise WarpclothError(f"triangles must be (T, 3) indices into {len(x)} points, got shape {t.shape}")
+    return x, t
+
+
+# -- self-intersection ----------------------------------------------------------------------------------
+def self_intersections(points, triangles) -> np.ndarray:
+    """The pairs (i, j), i < j, of cloth triangles that intersect (closed sets), triangles that share
+    a vertex excluded; shape (K, 2)."""
+    x, t = _check_mesh(points, triangles)
+    corners = x[t]
+    lo, hi = corners.min(axis=1), corners.max(axis=1)
+    i, j = _grid_pairs(lo, hi, lo, hi, same=True)
+    share = np.zeros(len(i), dtype=bool)
+    for a in range(3):
+        for b in range(3):
+            share |= t[i, a] == t[j, b]
+    i, j = i[~share], j[~share]
+    hit = triangles_intersect(corners[i], corners[j])
+    return np.stack([i[hit], j[hit]], axis=1)
+
+
+def count_self_intersections(points, triangles) -> int:
+    """The number of intersecting pairs of non-neighbouring cloth triangles (:func:`self_intersections`)."""
+    return int(len(self_intersections(points, triangles)))
+
+
+# -- collider edges ---------------------------------------------------------------------------------
+_BOX_EDGES = np.array([[0, 1], [2, 3], [4, 5], [6, 7], [0, 2], [1, 3], [4, 6], [5, 7], [0, 4], [1, 5], [2, 6], [3, 7]])
+_BOX_CORNERS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
+
+
+def box_segments(center, half_extents, rotation_matrix) -> np.ndarray:
+    """The 12 edges (12, 2, 3) of an oriented box."""
+    local = _BOX_CORNERS * np.asarray(half_extents, dtype=np.float64)
+    corners = np.asarray(center, dtype=np.float64) + local @ np.asarray(rotation_matrix).T
+    return corners[_BOX_EDGES]
+
+
+def mesh_segments(vertices, triangles) -> np.ndarray:
+    """The unique edges (E, 2, 3) of a triangle mesh."""
+    v = np.asarray(vertices, dtype=np.float64)
+    e = mesh_topology(np.asarray(triangles, dtype=np.int64), len(v)).edges
+    return v[e]
+
+
+def collider_segments(collider, time: float = 0.0) -> np.ndarray:
+    """The edges (S, 2, 3) of a :class:`~warpcloth.sim.colliders.Box` or
+    :class:`~warpcloth.sim.colliders.MeshCollider` posed at ``time`` [s] (empty for the kinds
+    without edges: plane, sphere, capsule)."""
+    c = collider.at(time) if getattr(collider, "track", None) is not None else collider
+    if c.kind == "box":
+        return box_segments(c.center, c.half_extents, _quat_matrix(c.rotation))
+    if c.kind == "mesh":
+        return mesh_segments(c.vertices, c.triangles)
+    return np.zeros((0, 2, 3))
+
+
+def segment_crossings(points, triangles, segments) -> np.ndarray:
+    """The pairs (segment s, cloth triangle t) that meet, shape (K, 2), each pair once. Long
+    segments are cut into pieces no longer than the grid cell for the broad phase."""
+    x, t = _check_mesh(points, triangles)
+    seg = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 3)
+    if len(seg) == 0 or len(t) == 0:
+        return np.zeros((0, 2), np.int64)
+    corners = x[t]
+    lo_t, hi_t = corners.min(axis=1), corners.max(axis=1)
+    cell = max(float(np.max(hi_t - lo_t)), 1e-12)
+    length = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1)
+    pieces = np.maximum(1, np.ceil(length / cell).astype(np.int64))
+    owner = np.repeat(np.arange(len(seg)), pieces)
+    k = np.arange(pieces.sum()) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    f0 = (k / pieces[owner])[:, None]
+    f1 = ((k + 1) / pieces[owner])[:, None]
+    d = seg[owner, 1] - seg[owner, 0]
+    p, q = seg[owner, 0] + f0 * d, seg[owner, 0] + f1 * d
+    q[k == pieces[owner] - 1] = seg[owner[k == pieces[owner] - 1], 1]  # the last piece ends exactly at the end
+    i, j = _grid_pairs(np.minimum(p, q), np.maximum(p, q), lo_t, hi_t, same=False)
+    hit = segments_meet_triangles(p[i], q[i], corners[j, 0], corners[j, 1], corners[j, 2])
+    pairs = np.unique(owner[i[hit]] * np.int64(len(t)) + j[hit])
+    return np.stack([pairs // len(t), pairs % len(t)], axis=1)
+
+
+def collider_edge_crossings(points, triangles, colliders, time: float = 0.0) -> int:
+    """The number of (collider edge, cloth triangle) pairs that meet, over ``colliders``
+    (:mod:`warpcloth.sim.colliders` objects, posed at ``time`` [s]; those without edges add 0)."""
+    segs = [collider_segments(c, time) for c in colliders]
+    segs = [s for s in segs if len(s)]
+    if not segs:
+        return 0
+    return int(len(segment_crossings(points, triangles, np.concatenate(segs))))
+
+
+# -- frames ------------------------------------------------------------------------------------------
+@dataclass
+class IntersectionReport:
+    """Counts per frame: ``times`` [s] (or time codes / fps), ``self_intersections`` (pairs of
+    non-neighbouring cloth triangles that intersect) and ``collider_crossings`` (collider edges
+    crossing cloth triangles)."""
+
+    times: list = field(default_factory=list)
+    self_intersections: list = field(default_factory=list)
+    collider_crossings: list = field(default_factory=list)
+
+    @property
+    def frames(self) -> int:
+        return len(self.times)
+
+    @property
+    def clean(self) -> bool:
+        """No intersection and no crossing in any frame."""
+        return not any(self.self_intersections) and not any(self.collider_crossings)
+
+    def first_bad_frame(self) -> int | None:
+        for k, (a, b) in enumerate(zip(self.self_intersections, self.collider_crossings)):
+            if a or b:
+                return k
+        return None
+
+    def summary(self) -> str:
+        bad = self.first_bad_frame()
+        head = (f"{self.frames} frames: {sum(1 for a in self.self_intersections if a)} with self-intersections "
+                f"(max {max(self.self_intersections, default=0)} triangle pairs), "
+                f"{sum(1 for b in self.collider_crossings if b)} with collider edges through the cloth "
+                f"(max {max(self.collider_crossings, default=0)})")
+        return head if bad is None else f"{head}; first at frame {bad} (t = {self.times[bad]:g} s)"
+
+
+def check_frames(frames, triangles, times=None, segments_at=None) -> IntersectionReport:
+    """Both counts for every frame of cloth positions ``frames`` (F, N, 3); ``segments_at(k)``
+    gives frame k's collider edges (S, 2, 3) (none when None)."""
+    report = IntersectionReport()
+    for k, x in enumerate(frames):
+        report.times.append(float(times[k]) if times is not None else float(k))
+        report.self_intersections.append(count_self_intersections(x, triangles))
+        segs = segments_at(k) if segments_at is not None else None
+        crossing = segment_crossings(x, triangles, segs) if segs is not None and len(segs) else ()
+        report.collider_crossings.append(int(len(crossing)))
+    return report
+
+
+def _usd_collider_segments(stage, root: str = "/World/Colliders"):
+    """A function of the time code giving the edges of the file's box (Cube) and mesh colliders."""
+    from pxr import Usd, UsdGeom
+
+    scope = stage.GetPrimAtPath(root)
+    items = []
+    if scope and scope.IsValid():
+        for prim in scope.GetChildren():
+            name = prim.GetName().lower()
+            if prim.IsA(UsdGeom.Cube) and name.startswith("box"):
+                size = float(UsdGeom.Cube(prim).GetSizeAttr().Get() or 2.0)
+                items.append(("box", prim, 0.5 * size * _BOX_CORNERS[_BOX_EDGES]))
+            elif prim.IsA(UsdGeom.Mesh) and name.startswith("mesh"):
+                mesh = UsdGeom.Mesh(prim)
+                counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
+                if counts.size and np.all(counts == 3):
+                    pts = np.asarray(mesh.GetPointsAttr().Get(), dtype=np.float64)
+                    tri = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64).reshape(-1, 3)
+                    items.append(("mesh", prim, mesh_segments(pts, tri)))
+    cache = UsdGeom.XformCache()
+
+    def at(code):
+        out = []
+        cache.SetTime(Usd.TimeCode(code))
+        for _, prim, local in items:
+            m = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64)  # row vectors: p' = [p 1] M
+            flat = local.reshape(-1, 3)
+            world = flat @ m[:3, :3] + m[3, :3]
+            out.append(world.reshape(-1, 2, 3))
+        return np.concatenate(out) if out else np.zeros((0, 2, 3))
+
+    return at
+
+
+def check_usd(path: str, cloth: str = "/World/Cloth", colliders: str = "/World/Colliders") -> IntersectionReport:
+    """Both counts at every time sample of the cloth's points in a USD file written by warpcloth
+    (value clips resolved by USD); times in seconds (time code / timeCodesPerSecond)."""
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(path))
+    if stage is None:
+        raise WarpclothError(f"cannot open USD file {path!r}")
+    prim = stage.GetPrimAtPath(cloth)
+    if not prim or not prim.IsA(UsdGeom.Mesh):
+        raise WarpclothError(f"{path}: no mesh at {cloth!r}")
+    mesh = UsdGeom.Mesh(prim)
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
+    if counts.size and not np.all(counts == 3):
+        raise WarpclothError(f"{path}: {cloth} has faces that are not triangles")
+    tris = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64).reshape(-1, 3)
+    attr = mesh.GetPointsAttr()
+    codes = attr.GetTimeSamples() or [Usd.TimeCode.Default()]
+    fps = stage.GetTimeCodesPerSecond() or 1.0
+    segments_at = _usd_collider_segments(stage, colliders)
+    report = IntersectionReport()
+    for code in codes:
+        x = np.asarray(attr.Get(code), dtype=np.float64)
+        report.times.append(float(code) / fps if not isinstance(code, Usd.TimeCode) else 0.0)
+        report.self_intersections.append(count_self_intersections(x, tris))
+        c = code if not isinstance(code, Usd.TimeCode) else 0.0
+        segs = segments_at(c)
+        report.collider_crossings.append(int(len(segment_crossings(x, tris, segs))) if len(segs) else 0)
+    return report
+
+
+__all__ = ["IntersectionReport", "box_segments", "check_frames", "check_usd", "collider_edge_crossings",
+           "collider_segments", "count_self_intersections", "mesh_segments", "segment_crossings",
+           "segments_meet_triangles", "self_intersections", "triangles_intersect"]

@@ -1,0 +1,325 @@
+"""Self-collision of a cloth: vertex-triangle and edge-edge contacts with a thickness h [m] and a
+Coulomb friction coefficient mu, on the device (kernels in :mod:`warpcloth.kernels.self_contact`).
+
+A :class:`SelfCollision` is bound to a :class:`~warpcloth.sim.model.ClothModel` once: it makes
+the unique edges, the neighbour exclusion tables, the spatial hash, the Verlet list of candidate
+pairs and the contact list (fixed capacities), and every counter. Its three methods launch
+kernels only (no host work, no allocation), so they can sit inside a captured frame:
+
+* :meth:`SelfCollision.detect` at the step's start (x, v): rebuild the candidate list on the
+  device when motion since the last build asks for it, then the contacts (gap < h + 2 v_max dt)
+  with their weights, normals and gaps;
+* :meth:`SelfCollision.filter_velocities` after the step (x, v at its end): inelastic impulses on
+  approaching pairs within h, Bridson's repulsion impulse min(dt k (h - d), m (0.1 (h - d)/dt - v_n)),
+  impulses that leave every pair at least ``min_gap_fraction`` h apart, Coulomb friction; x moves
+  with v as the step would have moved it (Bridson, Fedkiw & Anderson 2002, Sec. 7.2). An explicit
+  scheme needs only ``detect`` and this;
+* :meth:`SelfCollision.apply_forces`: the same repulsion as a force k (h - d) n, equal and
+  opposite, capped likewise, for schemes that want it in their force (then the filter's is off).
+
+How each integrator uses them: docs in ``/work/notes/self-contact-api.md`` (part 2 wires them in).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+import warp as wp
+
+from warpcloth.errors import WarpclothError, require, require_count, require_non_negative, require_positive
+from warpcloth.kernels import self_contact as sk
+from warpcloth.sim.mesh import mesh_topology
+from warpcloth.sim.model import SpringType
+
+#: Counter names of :meth:`SelfCollision.stats`, by their slot in the device counter array.
+COUNT_NAMES = {
+    "candidates_vertex_triangle": sk.CAND_VT, "candidates_edge_edge": sk.CAND_EE, "contacts": sk.CONTACTS,
+    "rebuilds": sk.REBUILDS, "overflow_candidates": sk.OVERFLOW_CANDIDATES, "overflow_contacts": sk.OVERFLOW_CONTACTS,
+    "truncated_queries": sk.TRUNCATED, "unresolved": sk.UNRESOLVED, "detects": sk.DETECTS,
+    "contacts_max": sk.CONTACTS_MAX, "candidates_max": sk.CANDIDATES_MAX, "fast": sk.FAST,
+}
+#: The counters :meth:`SelfCollision.reset_stats` zeroes (those that accumulate over steps).
+CUMULATIVE = ("rebuilds", "overflow_candidates", "overflow_contacts", "truncated_queries", "unresolved", "detects",
+              "contacts_max", "candidates_max", "fast")
+
+
+def exclusion_tables(triangles: np.ndarray, edges: np.ndarray, vertex_count: int, rings: int):
+    """Neighbour exclusion as CSR tables (sorted rows): per vertex the triangles it must not
+    collide with, per edge the edges, beyond the rule every kernel applies itself (a vertex and its
+    own triangles; edges that share a vertex). ``rings`` 1 adds nothing; ``rings`` r > 1 excludes
+    every triangle with a vertex within r - 1 edge rings of the vertex, and every edge with a vertex
+    within r - 1 rings of the edge's vertices (Newton's n-ring contact filter).
+
+    Returns ((vt_offsets, vt_items), (ee_offsets, ee_items)), int32 NumPy arrays."""
+    n = int(vertex_count)
+    tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if rings <= 1:
+        return ((np.zeros(n + 1, np.int32), np.zeros(0, np.int32)),
+                (np.zeros(len(edges) + 1, np.int32), np.zeros(0, np.int32)))
+    ones_e = np.ones(len(edges))
+    adj = sp.coo_matrix((ones_e, (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
+    ring = (adj + adj.T + sp.identity(n, format="csr")).astype(bool).astype(np.int32)
+    reach = sp.identity(n, format="csr", dtype=np.int32)
+    for _ in range(rings - 1):
+        reach = (reach @ ring).astype(bool).astype(np.int32)
+    vt_inc = sp.coo_matrix((np.ones(tris.size, np.int32), (tris.reshape(-1), np.repeat(np.arange(len(tris)), 3))),
+                           shape=(n, len(tris))).tocsr()
+    ev_inc = sp.coo_matrix((np.ones(edges.size, np.int32), (np.repeat(np.arange(len(edges)), 2), edges.reshape(-1))),
+                           shape=(len(edges), n)).tocsr()
+    vt = (reach @ vt_inc).astype(bool).tocsr()
+    ee = (ev_inc @ reach @ ev_inc.T).astype(bool).tocsr()
+    out = []
+    for m in (vt, ee):
+        m.sort_indices()
+        out.append((m.indptr.astype(np.int32), m.indices.astype(np.int32)))
+    return tuple(out)
+
+
+class SelfCollision:
+    """Self-contact of one cloth model, bound once (every array allocated here).
+
+    Args:
+        model: the :class:`~warpcloth.sim.model.ClothModel` (its triangles and masses).
+        thickness: h [m], the distance the response keeps between any two non-neighbouring parts.
+        friction: Coulomb mu of cloth on cloth.
+        stiffness: k [N/m] of the repulsion spring; default a quarter of the model's largest
+            structural spring stiffness (of the order of the cloth's stretch springs, so an explicit
+            step stays stable with a contact at a vertex; the velocity cap bounds it anyway).
+        min_gap_fraction: the filter leaves every contact at least this fraction of h apart.
+        iterations: Jacobi passes of the velocity filter.
+        edge_fraction: edge-edge pairs act within h_e = edge_fraction h (1: as vertex-triangle
+            pairs; less is cheaper where layers lie parallel, whose crossing edges are all contacts,
+            but lets two edges that no vertex-triangle pair holds rest nearer than h).
+        skin: the least extra radius of the candidate list [m] (default h / 2); the list is rebuilt
+            when a vertex may have moved skin / 2 since the last build, relative to the cloth's mean
+            motion (a larger skin rebuilds less often but holds more candidates, each tested every step).
+        skin_max: the largest skin [m] (default 4 h): the list's radius covers four steps of the
+            fastest vertex up to it; faster motion than skin_max / 2 a step can miss a pair.
+        exclude_rings: 1: exclude a vertex and its own triangles, edges sharing a vertex; r > 1:
+            also pairs within r - 1 rings (:func:`exclusion_tables`); default 2.
+        candidates_per_vertex, candidates_per_edge, contacts_per_element: capacities of the lists
+            (vertex-triangle candidates: per vertex, edge-edge: per edge, contacts: per vertex + edge).
+    """
+
+    def __init__(self, model, thickness: float, friction: float = 0.0, stiffness: float | None = None,
+                 min_gap_fraction: float = 0.1, iterations: int = 2, skin: float | None = None,
+                 skin_max: float | None = None, exclude_rings: int = 2, edge_fraction: float = 1.0,
+                 candidates_per_vertex: int = 16, candidates_per_edge: int = 16, contacts_per_element: int = 8):
+        self.model = model
+        self.thickness = require_positive("self-collision thickness", thickness, "m")
+        self.friction = require_non_negative("self-collision friction mu", friction)
+        self.edge_fraction = float(edge_fraction)
+        require(0.0 < self.edge_fraction <= 1.0, f"edge_fraction must be in (0, 1], got {edge_fraction!r}")
+        self.min_gap_fraction = float(min_gap_fraction)
+        require(0.0 < self.min_gap_fraction <= self.edge_fraction,
+                f"min_gap_fraction must be in (0, edge_fraction = {self.edge_fraction:g}], got {min_gap_fraction!r}")
+        self.iterations = require_count("self-collision iterations", iterations, 1)
+        self.skin = require_positive("self-collision skin", 0.5 * self.thickness if skin is None else skin, "m")
+        skin_max = 4.0 * self.thickness if skin_max is None else skin_max
+        self.skin_max = require_positive("self-collision skin_max", skin_max, "m")
+        self.skin_max = max(self.skin_max, self.skin)
+        self.exclude_rings = require_count("exclude_rings", exclude_rings, 1)
+        stiffness = self._default_stiffness(model) if stiffness is None else stiffness
+        self.stiffness = require_positive("self-collision stiffness", stiffness, "N/m")
+        host = model.host
+        tris = np.asarray(host["tris"], dtype=np.int32).reshape(-1, 3)
+        require(len(tris) > 0, "self-collision needs a model with triangles")
+        n = model.particle_count
+        edges = mesh_topology(tris, n).edges.astype(np.int32)
+        q = np.asarray(host["q"], dtype=np.float64)
+        longest = float(np.max(np.linalg.norm(q[edges[:, 1]] - q[edges[:, 0]], axis=1)))
+        #: cell size [m]: a query of the list radius plus a triangle's reach spans about three cells
+        self.cell_size = self.thickness + self.skin + 0.75 * longest
+        buckets = 1 << max(4, math.ceil(math.log2(2 * max(len(tris), len(edges)))))
+        (vt_off, vt_ex), (ee_off, ee_ex) = exclusion_tables(tris, edges, n, self.exclude_rings)
+        self.vt_capacity = require_count("candidates_per_vertex", candidates_per_vertex, 1) * n
+        self.ee_capacity = require_count("candidates_per_edge", candidates_per_edge, 1) * len(edges)
+        self.contact_capacity = require_count("contacts_per_element", contacts_per_element, 1) * (n + len(edges))
+        self.edge_count = len(edges)
+        self.bucket_count = buckets
+        device = model.device
+        self.device = device
+        with wp.ScopedDevice(device):
+            self.tris = wp.array(tris, dtype=wp.vec3i)
+            self.edges = wp.array(edges, dtype=wp.vec2i)
+            self.vt_exclude_offsets = wp.array(vt_off, dtype=int)
+            self.vt_exclude = wp.array(vt_ex if vt_ex.size else np.zeros(1, np.int32), dtype=int)
+            self.ee_exclude_offsets = wp.array(ee_off, dtype=int)
+            self.ee_exclude = wp.array(ee_ex if ee_ex.size else np.zeros(1, np.int32), dtype=int)
+            self.head_tri = wp.full(buckets, -1, dtype=int)
+            self.head_edge = wp.full(buckets, -1, dtype=int)
+            self.next_tri = wp.zeros(len(tris), dtype=int)
+            self.next_edge = wp.zeros(len(edges), dtype=int)
+            self.tri_lo, self.tri_hi = wp.zeros(len(tris), dtype=wp.vec3), wp.zeros(len(tris), dtype=wp.vec3)
+            self.tri_cell = wp.zeros(len(tris), dtype=wp.vec3i)
+            self.edge_lo, self.edge_hi = wp.zeros(len(edges), dtype=wp.vec3), wp.zeros(len(edges), dtype=wp.vec3)
+            self.edge_cell = wp.zeros(len(edges), dtype=wp.vec3i)
+            self.x_build = wp.zeros(n, dtype=wp.vec3)
+            self.cand_vt = wp.zeros(self.vt_capacity, dtype=wp.vec2i)
+            self.cand_ee = wp.zeros(self.ee_capacity, dtype=wp.vec2i)
+            self.cand_vt_gap = wp.zeros(self.vt_capacity, dtype=float)
+            self.cand_ee_gap = wp.zeros(self.ee_capacity, dtype=float)
+            self.contact_indices = wp.zeros(self.contact_capacity, dtype=wp.vec4i)
+            self.contact_weights = wp.zeros(self.contact_capacity, dtype=wp.vec4)
+            self.contact_normals = wp.zeros(self.contact_capacity, dtype=wp.vec3)
+            self.contact_gaps = wp.zeros(self.contact_capacity, dtype=float)
+            self.contact_thickness = wp.zeros(self.contact_capacity, dtype=float)
+            self.splits = wp.zeros(n, dtype=int)
+            self.dv = wp.zeros(n, dtype=wp.vec3)
+            self.counts = wp.zeros(sk.COUNT_SLOTS, dtype=int)
+            self.scalars = wp.zeros(sk.SCALAR_SLOTS, dtype=float)
+            self.motion_sums = wp.zeros(2, dtype=wp.vec3)
+            self._no_displacement = wp.zeros(1, dtype=wp.vec3)
+
+    @staticmethod
+    def _default_stiffness(model) -> float:
+        ks = model.spring_stiffness.numpy()
+        structural = model.spring_type == int(SpringType.STRUCTURAL)
+        k = float(ks[structural].max()) if np.any(structural) else float(ks.max()) if ks.size else 0.0
+        if k <= 0.0:
+            raise WarpclothError("self-collision stiffness: the model has no stiff springs; give stiffness [N/m]")
+        return 0.25 * k
+
+    @property
+    def edge_thickness(self) -> float:
+        """h_e [m]: the thickness edge-edge contacts act within (``edge_fraction`` h)."""
+        return self.edge_fraction * self.thickness
+
+    @property
+    def min_gap(self) -> float:
+        """The least gap [m] the filter leaves a contact with (``min_gap_fraction`` h)."""
+        return self.min_gap_fraction * self.thickness
+
+    # -- per step (kernel launches only) ------------------------------------------------------
+    def detect(self, x: wp.array, v: wp.array, dt: float) -> None:
+        """Contacts at the step's start: positions ``x`` [m], velocities ``v`` [m/s], step ``dt`` [s]."""
+        self._decide(x, v, dt)
+        self._build(x)
+        self._narrow(x)
+
+    def _decide(self, x, v, dt) -> None:
+        """Motion since the last build; whether this detect rebuilds (on the device)."""
+        c, s, d = self.counts, self.scalars, self.device
+        n = self.model.particle_count
+        wp.launch(sk.begin_self_contact_detect, dim=1, inputs=[c, s, self.motion_sums], device=d)
+        wp.launch(sk.sum_self_contact_motion, dim=n, inputs=[x, v, self.x_build, self.motion_sums], device=d)
+        wp.launch(sk.eval_self_contact_motion, dim=n,
+                  inputs=[x, v, self.x_build, self.motion_sums, float(dt), self.splits, s], device=d)
+        wp.launch(sk.decide_self_contact_rebuild, dim=1,
+                  inputs=[c, s, self.thickness, self.edge_thickness, self.skin, self.skin_max, float(dt)], device=d)
+
+    def _build(self, x, edges: bool = True) -> None:
+        """The hash and the candidate lists (every launch returns at once unless a rebuild is due);
+        ``edges`` False: the vertex-triangle part only (for the bench)."""
+        m, d, n = self.model, self.device, self.model.particle_count
+        c, s = self.counts, self.scalars
+        inv_cell, mask = 1.0 / self.cell_size, self.bucket_count - 1
+        wp.launch(sk.clear_self_contact_cells, dim=max(self.bucket_count, n),
+                  inputs=[c, x, self.x_build, self.head_tri, self.head_edge], device=d)
+        wp.launch(sk.insert_self_contact_triangles, dim=m.tri_count,
+                  inputs=[c, x, self.tris, inv_cell, mask, self.head_tri, self.next_tri, s, self.tri_lo, self.tri_hi,
+                          self.tri_cell], device=d)
+        wp.launch(sk.find_vertex_triangle_candidates, dim=n,
+                  inputs=[c, s, x, self.tris, inv_cell, mask, self.head_tri, self.next_tri, self.tri_lo, self.tri_hi,
+                          self.tri_cell, self.vt_exclude_offsets, self.vt_exclude, self.vt_capacity, self.cand_vt,
+                          self.cand_vt_gap], device=d)
+        if not edges:
+            return
+        wp.launch(sk.insert_self_contact_edges, dim=self.edge_count,
+                  inputs=[c, x, self.edges, inv_cell, mask, self.head_edge, self.next_edge, s, self.edge_lo,
+                          self.edge_hi, self.edge_cell], device=d)
+        wp.launch(sk.find_edge_edge_candidates, dim=self.edge_count,
+                  inputs=[c, s, x, self.edges, inv_cell, mask, self.head_edge, self.next_edge, self.edge_lo,
+                          self.edge_hi, self.edge_cell, self.ee_exclude_offsets, self.ee_exclude, self.ee_capacity,
+                          self.cand_ee, self.cand_ee_gap], device=d)
+
+    def _narrow(self, x) -> None:
+        """This step's contacts from the candidate lists."""
+        n, d = self.model.particle_count, self.device
+        wp.launch(sk.eval_self_contacts, dim=n,
+                  inputs=[n, self.counts, self.scalars, x, self.tris, self.edges, self.cand_vt, self.cand_vt_gap,
+                          self.cand_ee, self.cand_ee_gap, self.contact_capacity, self.splits, self.contact_indices,
+                          self.contact_weights, self.contact_normals, self.contact_gaps, self.contact_thickness,
+                          self.thickness, self.edge_thickness], device=d)
+        wp.launch(sk.finish_self_contact_detect, dim=1,
+                  inputs=[self.counts, self.vt_capacity, self.ee_capacity, self.contact_capacity], device=d)
+
+    def apply_forces(self, x: wp.array, v: wp.array, f: wp.array, dt: float) -> None:
+        """Add the repulsion of every contact at ``x``, ``v`` to the forces ``f`` [N] (equal and opposite)."""
+        n = self.model.particle_count
+        wp.launch(sk.eval_self_contact_forces, dim=n,
+                  inputs=[n, self.counts, x, v, self.model.particle_inv_mass, self.splits, self.contact_indices,
+                          self.contact_weights, self.contact_normals, self.contact_thickness, self.stiffness,
+                          float(dt)],
+                  outputs=[f], device=self.device)
+
+    def filter_velocities(self, x: wp.array, v: wp.array, dt: float, position_weight: float = 1.0,
+                          displacement: wp.array | None = None, repulsion: bool = True) -> None:
+        """After the step (``x``, ``v`` at its end): the velocity filter, in place. A velocity change
+        dv moves x by ``position_weight`` dt dv (1 where x += dt v_new; 1/2 for the Runge-Kutta
+        schemes, as for colliders); ``displacement`` (Verlet's x - x_prev) moves with x.
+        ``repulsion``: Bridson's repulsion impulse in the filter (off where the scheme had
+        :meth:`apply_forces` in its force)."""
+        n, d = self.model.particle_count, self.device
+        dt_x = float(position_weight) * float(dt)
+        if not dt_x > 0.0:
+            raise WarpclothError(f"self-collision filter: position_weight * dt must be > 0, got {dt_x!r}")
+        disp = displacement if displacement is not None else self._no_displacement
+        k = self.stiffness if repulsion else 0.0
+        for _ in range(self.iterations):
+            wp.launch(sk.filter_self_contact_velocities, dim=n,
+                      inputs=[n, self.counts, x, v, self.model.particle_inv_mass, self.splits, self.contact_indices,
+                              self.contact_weights, self.contact_normals, self.contact_gaps, self.contact_thickness,
+                              self.min_gap, self.friction, k, float(dt), dt_x], outputs=[self.dv], device=d)
+            wp.launch(sk.apply_self_contact_velocities, dim=n,
+                      inputs=[self.dv, dt_x, int(displacement is not None)], outputs=[x, v, disp], device=d)
+        wp.launch(sk.count_unresolved_self_contacts, dim=n,
+                  inputs=[n, self.counts, x, self.contact_indices, self.contact_weights, self.contact_normals,
+                          self.min_gap, self.model.particle_inv_mass], device=d)
+
+    # -- outside the step (host reads) --------------------------------------------------------------
+    def invalidate(self) -> None:
+        """Rebuild the candidate list at the next detect (after the state was changed from outside)."""
+        wp.launch(sk.invalidate_self_contact_list, dim=1, inputs=[self.counts], device=self.device)
+
+    def stats(self) -> dict:
+        """Counters (reads the device): this step's candidates and contacts, and since the last
+        :meth:`reset_stats`: rebuilds, overflows (pairs that did not fit), truncated queries, contacts
+        left closer than the minimum gap, detects, the largest lists, ``fast`` (rebuilds whose
+        vertices moved more than the list's largest skin covers: a pair may have been missed); the
+        list's radius [m]."""
+        c = self.counts.numpy()
+        s = self.scalars.numpy()
+        out = {name: int(c[k]) for name, k in COUNT_NAMES.items()}
+        out.update(radius=float(s[sk.R_BUILD]), skin=float(s[sk.SKIN]),
+                   capacity_candidates=self.vt_capacity + self.ee_capacity, capacity_contacts=self.contact_capacity)
+        return out
+
+    def reset_stats(self) -> None:
+        """Zero the cumulative counters (rebuilds, overflows, truncated, unresolved, detects, maxima)."""
+        c = self.counts.numpy()
+        for name in CUMULATIVE:
+            c[COUNT_NAMES[name]] = 0
+        self.counts.assign(c)
+
+    def contacts(self) -> dict:
+        """This step's contacts as NumPy arrays: ``indices`` (C, 4), ``weights`` (C, 4),
+        ``normals`` (C, 3), ``gaps`` (C,) [m] at detection."""
+        k = int(self.counts.numpy()[sk.CONTACTS])
+        return {"indices": self.contact_indices.numpy()[:k], "weights": self.contact_weights.numpy()[:k],
+                "normals": self.contact_normals.numpy()[:k], "gaps": self.contact_gaps.numpy()[:k]}
+
+    def candidates(self) -> tuple[np.ndarray, np.ndarray]:
+        """The Verlet list: (vertex, triangle) pairs (K, 2) and (edge, edge) pairs (L, 2)."""
+        c = self.counts.numpy()
+        return self.cand_vt.numpy()[: c[sk.CAND_VT]], self.cand_ee.numpy()[: c[sk.CAND_EE]]
+
+    def edge_array(self) -> np.ndarray:
+        """The unique edges (E, 2) the edge-edge contacts index."""
+        return self.edges.numpy()
+
+
+__all__ = ["SelfCollision", "exclusion_tables"]
