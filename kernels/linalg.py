@@ -108,6 +108,39 @@ def sum_partials(partial: wp.array(dtype=float), k: int, out: wp.array(dtype=flo
     out[k] = acc
 
 
+
+@wp.kernel
+def sum_block_chunks(b: wp.array(dtype=wp.vec3), A: wp.array(dtype=wp.mat33), chunk: int, count: int,
+                     b_partial: wp.array(dtype=wp.vec3), A_partial: wp.array(dtype=wp.mat33)):
+    # chunk sums of b and A in index order (a fixed order: results do not depend on scheduling)
+    c = wp.tid()
+    bs = wp.vec3(0.0)
+    As = wp.mat33(0.0)
+    for i in range(c * chunk, wp.min((c + 1) * chunk, count)):
+        bs = bs + b[i]
+        As = As + A[i]
+    b_partial[c] = bs
+    A_partial[c] = As
+
+
+@wp.kernel
+def solve_block_sum(b_partial: wp.array(dtype=wp.vec3), A_partial: wp.array(dtype=wp.mat33), regular: float,
+                    t: wp.array(dtype=wp.vec3)):
+    # t = (sum A + regular I)^-1 sum b from the chunk sums, in order (one thread); 0 where singular.
+    # A 3-unknown Galerkin problem (the rigid translation mode of vbd and projective): where every free
+    # particle slides on one plane (or sticks), sum A is singular along the normal, and a small regular
+    # term (1e-6 of the free mass) keeps it invertible without changing t elsewhere
+    bs = wp.vec3(0.0)
+    As = wp.mat33(0.0)
+    for c in range(b_partial.shape[0]):
+        bs = bs + b_partial[c]
+        As = As + A_partial[c]
+    As = As + regular * wp.identity(n=3, dtype=float)
+    out = wp.vec3(0.0)
+    if wp.abs(wp.determinant(As)) > 0.0:
+        out = wp.inverse(As) * bs
+    t[0] = out
+
 # -- preconditioned CG with its scalars on the device (implicit_euler's CPU solver) -----------
 # scalars: [r.z, r.z (new), p.Ap, r.r, b.b, tolerance^2 = tol^2 b.b, iterations, done]
 CG_RZ = wp.constant(0)

@@ -49,7 +49,9 @@ def local_newton_reference(x0, v0, xp, ks, kd, rest, mass, h, g):
 def test_one_iteration_with_one_free_vertex_is_the_local_newton_step(stretch):
     ks, kd, mass, h = 80.0, 0.3, 0.05, 1.0 / 60.0
     model = hanging_mass(ks=ks, kd=kd, mass=mass, top=1.5)
-    sim = Simulator(model, make_integrator("vbd", vbd_iterations=1), Control(), dt=h)
+    # the sweep alone (vbd_rigid_mode 0): with one free vertex the rigid correction after it is a
+    # second Newton step on the same vertex
+    sim = Simulator(model, make_integrator("vbd", vbd_iterations=1, vbd_rigid_mode=0), Control(), dt=h)
     q = sim.state.particle_q.numpy()
     q[1] += np.array([0.07, -stretch, 0.02], dtype=np.float32)
     v = np.array([[0.0, 0.0, 0.0], [0.3, -0.2, 0.4]], dtype=np.float32)
@@ -189,7 +191,8 @@ def test_multigrid_correction_settles_a_larger_sheet():
     -4.0 %, +0.4 % at 0.5, 1, 1.5 s); the same 4 sweeps without it leave the slow stretch mode
     far from rest (Gauss-Seidel resolves it at ~1e-4 per sweep at this size): > 10 % off."""
     assert abs(sheet_sag_error(48, 180)) < 0.02
-    assert abs(sheet_sag_error(48, 180, vbd_multigrid_every=0)) > 0.10
+    # (sweeps alone: without the rigid translation correction too, which by itself brings it to ~1 %)
+    assert abs(sheet_sag_error(48, 180, vbd_multigrid_every=0, vbd_rigid_mode=0)) > 0.10
 
 
 def test_multigrid_correction_keeps_the_backward_euler_solution():

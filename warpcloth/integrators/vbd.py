@@ -6,6 +6,8 @@ the mass-spring energy.
         [grid models, every vbd_multigrid_every-th iteration: dx <- dx + V(-h^2 grad G(dx))]
         colour by colour (Gauss-Seidel over vertex colours):
         dx_i <- dx_i - H_i^-1 g_i      (3 x 3 Newton step on vertex i's local energy)
+        dx <- dx + P t                 (rigid translation correction, vbd_rigid_mode; with
+                                        colliders before the sweep instead of after it)
         [Chebyshev: dx <- omega_n (dx - dx^(n-2)) + dx^(n-2)]
     v = dx / h ;  x += dx
 
@@ -35,6 +37,20 @@ It is zero where the gradient is zero, so the converged solution is unchanged
 (tests/test_vbd.py); with 4 iterations the 128 x 128 sheet's sag is within 0.5 % after 0.5 s
 and the 256 x 256 flag runs stable (docs/solvers.md). Chebyshev acceleration with a spectral
 radius near the sweeps' (rho 0.99 and above) blew up within the first second at 64 x 64.
+
+Rigid translation correction (``vbd_rigid_mode``, default 1; issue 26): neither the sweeps nor
+the V-cycle move the cloth as a whole. A vertex's Newton step meets its stiff in-plane springs
+with its neighbours held, and the V-cycle's coarsest level (10 l1 sweeps) leaves the constant
+mode at ~4 % (V(M 1) = 0.035-0.05 instead of 1 on a free 16 x 16 cloth): an unpinned cloth fell
+along its plane at 16 % of g t^2/2 in 0.5 s, slid down a frictionless slope at 0.6 % of g sin,
+and a truncated solve's residual did not sum to zero, so it made momentum (0.03 kg m/s on a free
+stretched 16 x 16 cloth; a V-cycle at an even size, whose coarse grid is not mirror-symmetric,
+0.03 kg m/s per application). After each sweep the Galerkin problem of the translation mode (3
+unknowns, :meth:`VBD.rigid_correction`) is solved exactly: free fall and the frictionless slope
+are backward Euler's to 1e-7 and momentum is kept to ~1e-8 kg m/s. It is zero where the gradient
+is zero, so a rest state is still the exact equilibrium. Contacts with friction are held in the
+mode (its 3 unknowns cannot see the contacts' Coulomb cones as a whole; moving them let the drape
+slide for good), so a cloth on a slope with friction still slides too slowly.
 """
 
 from __future__ import annotations
@@ -88,6 +104,12 @@ class VBD(IncrementSolver):
             check=lambda v: None if v >= 0 else "must be an integer >= 0",
         ),
         Option(
+            "vbd_rigid_mode", int, 1,
+            "rigid translation correction: 1 after every sweep (the cloth's mean motion solved exactly; conserves momentum), "
+            "2 also before every sweep, 0 off",
+            check=lambda v: None if v in (0, 1, 2) else "must be 0, 1 or 2",
+        ),
+        Option(
             "vbd_chebyshev_rho", float, 0.0,
             "spectral radius estimate for Chebyshev acceleration of the VBD iterations (Wang 2015), in [0, 1); 0 disables it",
             check=_spectral_radius,
@@ -115,6 +137,8 @@ class VBD(IncrementSolver):
         x = state.particle_q
         contacts = self.predict(state, control, h)
         sweep = self.color_sweep(x, h, contacts)
+        if contacts is None and self.vbd_rigid_mode:
+            self.contact_state.zero_()  # none held (the rigid mode reads it; colliders may have been removed)
         accelerate = self.vbd_chebyshev_rho > 0.0
         if accelerate:
             wp.launch(vk.copy_increment, dim=m.particle_count, inputs=[self.dx], outputs=[self.dx_prev1, self.dx_prev2], device=m.device)
@@ -124,8 +148,12 @@ class VBD(IncrementSolver):
         for it, omega in enumerate(chebyshev_weights(self.vbd_iterations, self.vbd_chebyshev_rho)):
             if self.hessian is not None and it % self.vbd_multigrid_every == 0:
                 self.coarse_correction(x, h, contacts)
+            if self.vbd_rigid_mode == 2 or (self.vbd_rigid_mode == 1 and contacts is not None):
+                self.rigid_correction(x, h)
             for color in sweep:
                 color.launch()
+            if self.vbd_rigid_mode >= 1 and contacts is None:
+                self.rigid_correction(x, h)
             if accelerate:
                 wp.launch(vk.apply_chebyshev, dim=m.particle_count, inputs=[omega], outputs=[self.dx, self.dx_prev1, self.dx_prev2], device=m.device)
                 if contacts is not None:  # the extrapolation may reach into a collider
@@ -146,6 +174,27 @@ class VBD(IncrementSolver):
             wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact], outputs=[self.delta],
                       device=m.device)
         wp.launch(vk.add_increment, dim=m.particle_count, inputs=[self.delta], outputs=[self.dx], device=m.device)
+
+    def rigid_correction(self, x, h: float) -> None:
+        """dx += P t: the Galerkin correction of the rigid translation mode (3 unknowns), t =
+        (T^T A T)^-1 T^T r, r = -h^2 grad G at dx (colliders' forces of the last sweep included),
+        A = h^2 times the potential's Hessian at dx, T's columns P_i e_k (P_i: I free, the tangent
+        projector sliding without friction, 0 pinned, sticking or with friction;
+        :func:`~warpcloth.kernels.increment.rigid_mode_terms`). Springs between free particles do
+        not resist a translation, so on a free cloth T^T A T = M I and afterwards sum m dx = sum m dy
+        exactly: the step's momentum change is h F_ext, as backward Euler's. Zero where r is zero.
+
+        Called after every sweep; with colliders before every sweep instead, so that a step ends
+        on a sweep, which holds the contacts (after it, the translation moved free particles near
+        the sphere 5.5e-5 m into it on the 16 x 16 drape; projecting them out there with an
+        identity Hessian, as after a Chebyshev extrapolation, lost the sweeps' contact states and
+        the drape did not settle: both measured)."""
+        m, rigid = self.model, self.rigid
+        wp.launch(nk.rigid_mode_terms, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, h, self.contact],
+                  outputs=[rigid.b, rigid.A], device=m.device)
+        rigid.solve()
+        wp.launch(nk.apply_rigid_mode, dim=m.particle_count, inputs=[rigid.translation, m.particle_inv_mass, self.contact],
+                  outputs=[self.dx], device=m.device)
 
     def color_sweep(self, x, h: float, contacts=None) -> list:
         """One Gauss-Seidel sweep: a recorded launch of the local Newton kernel per colour
