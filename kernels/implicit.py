@@ -295,24 +295,33 @@ def filter_system_rows(
     diag_block: wp.array(dtype=int),
     mode: wp.array(dtype=int),
     normal: wp.array(dtype=wp.vec3),
+    row_part: wp.array(dtype=wp.mat33),
     values: wp.array(dtype=wp.mat33),
     inv_diag: wp.array(dtype=wp.vec3),
+    row_part_solve: wp.array(dtype=wp.mat33),
 ):
     # A <- S A S + P A_ii P (P = I - S) on the diagonal, S_i A_ij S_j off it: the prescribed
     # directions leave the solve (P A_ii P keeps them nonsingular and uncoupled; for SLIDE it is
-    # (n^T A_ii n) n n^T); inv_diag = 1 / diag(A_ii) of the filtered A (Jacobi)
+    # (n^T A_ii n) n n^T); inv_diag = 1 / diag(A_ii) of the filtered A (Jacobi). row_part_solve =
+    # the filtered E'_i = A'_ii + sum_j A'_ij = S_i E_i S_i + P_i A_ii P_i + sum_j S_i A_ij (S_j - S_i),
+    # from the unfiltered E_i (row_part) and blocks: terms vanish where S_i = S_j (block_gemv_split)
     i = wp.tid()
     Si = contact_filter(mode[i], normal[i])
     Pi = wp.identity(n=3, dtype=float) - Si
     d = diag_block[i]
+    E = Si * row_part[i] * Si
     for e in range(row_offsets[i], row_offsets[i + 1]):
         if e == d:
             block = values[e]
             values[e] = Si * block * Si + Pi * block * Pi
+            E = E + Pi * block * Pi
         else:
             j = columns[e]
-            values[e] = Si * values[e] * contact_filter(mode[j], normal[j])
+            Sj = contact_filter(mode[j], normal[j])
+            E = E + Si * values[e] * (Sj - Si)
+            values[e] = Si * values[e] * Sj
     inv_diag[i] = inverse_diagonal(values[d])
+    row_part_solve[i] = E
 
 
 @wp.kernel

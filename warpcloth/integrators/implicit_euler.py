@@ -13,8 +13,11 @@ With B_s = h^2 K_s + h D_s per spring (refilled by one kernel each step), A is a
 assembled (``matrix="bsr"``, the default: a ``warp.sparse`` BSR matrix of 3x3 blocks whose
 pattern, one diagonal block per particle and one block per spring and direction, is built once
 at bind and whose values a kernel refills; CG multiplies by it with
-:func:`~warpcloth.kernels.linalg.block_gemv`, one 3 x 3 product per stored block in storage
-order) or matrix-free (``matrix="free"``: a gather over each particle's springs). Both give the
+:func:`~warpcloth.kernels.linalg.block_gemv_split`, one 3 x 3 product per stored block in storage
+order, in the split form (A x)_i = E_i x_i + sum_j A_ij (x_j - x_i) with E_i = m (1 + h c) I + the
+pinned springs' B_s formed from the mass: issue 26, the stored float32 A_ii = m I + sum B_s kept
+the mass only to ulp(sum B_s), ~1e-2 of it at 256^2 on the peers' sheet, and a smooth dv (the fall,
+the sag) cancelled as much; now bsr and free agree to 3e-7 of |dv|) or matrix-free (``matrix="free"``: a gather over each particle's springs). Both give the
 same A. On the CPU the assembled product is the faster: 0.66 against 1.62 ms per product at
 128^2 in one profiling run (``warp.sparse.bsr_mv``, which works on scalar rows, was slower than
 both), and per step bsr / free was 0.98, 0.83 and 0.80 at 32^2, 64^2 and 128^2 (medians of 3,
@@ -224,8 +227,10 @@ class ImplicitEuler(Integrator):
         wp.launch(ik.eval_contact_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_collider_v, v], outputs=[self.contact_dv], device=m.device)
         wp.copy(self.contact_values, self.A.values)
         wp.copy(self.contact_b, self.b)
-        s.bsr_matvec(self.contact_dv, self.contact_Az, self.contact_Az, 1.0, 0.0)
-        wp.launch(ik.filter_system_rows, dim=m.particle_count, inputs=[s.row_offsets, s.block_columns, s.diag_block, self.contact_mode, self.contact_normal], outputs=[self.A.values, self.inv_diag], device=m.device)
+        s.bsr_matvec(self.contact_dv, self.contact_Az, self.contact_Az, 1.0, 0.0, row_part=s.row_part)  # A before the filter
+        wp.launch(ik.filter_system_rows, dim=m.particle_count,
+                  inputs=[s.row_offsets, s.block_columns, s.diag_block, self.contact_mode, self.contact_normal, s.row_part],
+                  outputs=[self.A.values, self.inv_diag, s.row_part_solve], device=m.device)
         wp.launch(ik.filter_rhs, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_Az, self.contact_friction_impulse], outputs=[self.b, self.dv], device=m.device)
         s.invalidate()  # A.values now hold this step's filter: reassemble next step
 
@@ -235,7 +240,8 @@ class ImplicitEuler(Integrator):
         friction reversed stops; a stuck one past the cone slips by the excess."""
         m = self.model
         wp.launch(ik.unfilter_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_dv], outputs=[self.dv], device=m.device)
-        self.system.bsr_matvec(self.dv, self.contact_b, self.contact_Az, -1.0, 1.0, values=self.contact_values)
+        self.system.bsr_matvec(self.dv, self.contact_b, self.contact_Az, -1.0, 1.0, values=self.contact_values,
+                               row_part=self.system.row_part)
         wp.launch(ik.apply_contact_friction, dim=m.particle_count,
                   inputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v, self.contact_Az, v, m.particle_mass, self.contact_values, self.system.diag_block, self.contact_friction_impulse],
                   outputs=[self.dv, self.contact_impulse], device=m.device)
