@@ -82,6 +82,35 @@ def record_cg_stats(
         stats[5] = stats[5] + wp.float64(1.0)
 
 
+@wp.kernel
+def record_true_residual(partial: wp.array(dtype=wp.vec3d), tol: float, stats: wp.array(dtype=wp.float64)):
+    # from the chunk sums of (|b - A dv|^2, |b|^2, |A delta|^2) (kernels.linalg.residual_terms): stats[6] +=
+    # the true |b - A dv| / |b|, stats[7] = its max, stats[8] = max floor estimate |A delta| / |b|,
+    # stats[9] += 1 where the true residual is above tol (or NaN), stats[10] += the floor estimate (one thread)
+    acc = wp.vec3d(0.0)
+    for c in range(partial.shape[0]):
+        acc = acc + partial[c]
+    true = wp.float64(0.0)
+    floor = wp.float64(0.0)
+    if acc[1] > wp.float64(0.0):
+        true = wp.sqrt(acc[0] / acc[1])
+        floor = wp.sqrt(acc[2] / acc[1])
+    elif acc[0] > wp.float64(0.0):
+        true = wp.float64(1.0)
+    stats[6] = stats[6] + true
+    stats[7] = wp.max(stats[7], true)
+    stats[8] = wp.max(stats[8], floor)
+    if not (true <= wp.float64(tol)):
+        stats[9] = stats[9] + wp.float64(1.0)
+    stats[10] = stats[10] + floor
+
+
+@wp.kernel
+def add_cg_iterations(iterations: wp.array(dtype=int), stats: wp.array(dtype=wp.float64)):
+    # a restarted solve's earlier pass: its iterations into the sum (CUDA; record_cg_stats adds the last pass)
+    stats[1] = stats[1] + wp.float64(iterations[0])
+
+
 # -- contacts seen by the solve (Baraff & Witkin's filter, with sticking) ----------------------
 # Per particle and step: mode 0 (no contact: S = I), SLIDE (S = I - n n^T, the normal dv prescribed,
 # kinetic friction as a known impulse in the solve) or STICK (S = 0, the tangential dv too: it moves

@@ -171,6 +171,42 @@ def solve_block_sum(b_partial: wp.array(dtype=wp.vec3), A_partial: wp.array(dtyp
         out = wp.inverse(As) * bs
     t[0] = out
 
+
+@wp.kernel
+def rounding_perturbation(x: wp.array(dtype=wp.vec3), seed: int, delta: wp.array(dtype=wp.vec3)):
+    # delta_i = (u - 1/2) ulp(x_i) per component, u uniform in [0, 1): a random float32 rounding of x.
+    # |A delta| / |b| estimates the residual of the exact solution rounded to float32 (the reachable
+    # floor): within 3 % of it on the 32 x 32 sheet (issue 26)
+    i = wp.tid()
+    state = wp.rand_init(seed, i)
+    d = x[i]
+    out = wp.vec3(0.0)
+    for k in range(3):
+        a = wp.abs(d[k])
+        if a > 0.0:
+            out[k] = (wp.randf(state) - 0.5) * wp.pow(2.0, wp.floor(wp.log2(a)) - 23.0)
+    delta[i] = out
+
+
+@wp.kernel
+def residual_terms(b: wp.array(dtype=wp.vec3), r: wp.array(dtype=wp.vec3), q: wp.array(dtype=wp.vec3), terms: wp.array(dtype=wp.vec3d)):
+    # terms_i = (|r_i|^2, |b_i|^2, |q_i|^2) in float64 (summed in a fixed order by sum_chunks3)
+    i = wp.tid()
+    ri = wp.vec3d(r[i])
+    bi = wp.vec3d(b[i])
+    qi = wp.vec3d(q[i])
+    terms[i] = wp.vec3d(wp.dot(ri, ri), wp.dot(bi, bi), wp.dot(qi, qi))
+
+
+@wp.kernel
+def sum_chunks3(terms: wp.array(dtype=wp.vec3d), chunk: int, count: int, partial: wp.array(dtype=wp.vec3d)):
+    # partial[c] = sum of terms[c chunk : (c + 1) chunk], in index order (float64)
+    c = wp.tid()
+    acc = wp.vec3d(0.0)
+    for i in range(c * chunk, wp.min((c + 1) * chunk, count)):
+        acc = acc + terms[i]
+    partial[c] = acc
+
 # -- preconditioned CG with its scalars on the device (implicit_euler's CPU solver) -----------
 # scalars: [r.z, r.z (new), p.Ap, r.r, b.b, tolerance^2 = tol^2 b.b, iterations, done]
 CG_RZ = wp.constant(0)
