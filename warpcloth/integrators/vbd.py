@@ -3,7 +3,7 @@ the mass-spring energy.
 
     dy = h v + h^2 f_ext / m ;  dx = h v              (initial guess x + h v)
     repeat vbd_iterations times:
-        [grid models, every vbd_multigrid_every-th iteration: dx <- dx + V(-h^2 grad G(dx))]
+        [every vbd_multigrid_every-th iteration: dx <- dx + V(-h^2 grad G(dx))]
         colour by colour (Gauss-Seidel over vertex colours):
         dx_i <- dx_i - H_i^-1 g_i      (3 x 3 Newton step on vertex i's local energy)
         dx <- dx + P t                 (rigid translation correction, vbd_rigid_mode; with
@@ -26,7 +26,7 @@ external acceleration along the previous one) did not settle (speeds ~1 m/s afte
 Converged (many iterations), a step is nonlinear backward Euler of the same energy. Positions
 are carried as the increment dx, so float32 keeps h v whatever |x|.
 
-Multigrid correction (grid models; ``vbd_multigrid_every``, default before every sweep): local
+Multigrid correction (``vbd_multigrid_every``, default before every sweep): local
 sweeps resolve the long, stiff modes of a large sheet at ~1e-4 per sweep at 128^2 (h^2 ks / m ~
 9e4), so with sweeps alone the 128 x 128 sheet was still -68 % off the float64 equilibrium's sag
 after 10 s with 20 sweeps per step (and a step without convergence acts like a heavy, barely
@@ -37,6 +37,14 @@ It is zero where the gradient is zero, so the converged solution is unchanged
 (tests/test_vbd.py); with 4 iterations the 128 x 128 sheet's sag is within 0.5 % after 0.5 s
 and the 256 x 256 flag runs stable (docs/solvers.md). Chebyshev acceleration with a spectral
 radius near the sweeps' (rho 0.99 and above) blew up within the first second at 64 x 64.
+
+Models that are not grids (``vbd_mesh_multigrid``, default 1; issue 26): the same correction
+on an aggregation hierarchy of the Hessian's graph (:func:`~warpcloth.integrators.multigrid.aggregation_prolongation`,
+piecewise-constant P, Galerkin levels down to <= 16 nodes; models of <= 16 particles get none).
+The 32 x 32 sheet as a build_mesh_cloth model: sag -0.97, -0.07, +0.00 % at 0.5, 1, 2 s (rigid
+correction alone -5.7, +1.1, +0.6 %); 64 x 64: +0.67, +0.22, -0.01 % at 1, 1.5, 3 s (alone -7.8,
++6.1, +0.14 %); cost as the grid's geometric multigrid (21 vs 26 ms/step at 64^2). The built-in
+cape (``warpcloth run mesh``), which went unstable (energy growing) without it, settles.
 
 Rigid translation correction (``vbd_rigid_mode``, default 1; issue 26): neither the sweeps nor
 the V-cycle move the cloth as a whole. A vertex's Newton step meets its stiff in-plane springs
@@ -65,7 +73,7 @@ from warpcloth.kernels import vbd as vk
 from warpcloth.sim.coloring import VertexColoring, color_vertices
 from warpcloth.integrators.base import Option, scratch_like
 from warpcloth.integrators.increment import IncrementSolver, at_least_one
-from warpcloth.integrators.multigrid import grid_structure_reason
+from warpcloth.integrators.multigrid import GridMultigrid, grid_structure_reason
 from warpcloth.integrators.system import ImplicitSystem
 
 
@@ -100,8 +108,14 @@ class VBD(IncrementSolver):
         Option("vbd_iterations", int, 4, "VBD iterations (sweeps over every vertex colour) per time step (>= 1)", check=at_least_one),
         Option(
             "vbd_multigrid_every", int, 1,
-            "grid models: a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; other models: never)",
+            "a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; models that are not grids: "
+            "an aggregation hierarchy, see vbd_mesh_multigrid)",
             check=lambda v: None if v >= 0 else "must be an integer >= 0",
+        ),
+        Option(
+            "vbd_mesh_multigrid", int, 1,
+            "models that are not grids: the multigrid correction on an aggregation hierarchy of the Hessian's graph (1) or none (0)",
+            check=lambda v: None if v in (0, 1) else "must be 0 or 1",
         ),
         Option(
             "vbd_rigid_mode", int, 1,
@@ -123,13 +137,21 @@ class VBD(IncrementSolver):
         self.vertex_order = wp.array(self.coloring.order, dtype=int)
         self.dx_prev1, self.dx_prev2 = scratch_like(model, 2)  # the Chebyshev history
         self._sweep_key, self._sweep = None, []
-        self.hessian = None
+        self.hessian = self.multigrid = None
         if self.vbd_multigrid_every > 0 and grid_structure_reason(model) is None:
             # h^2 times the potential's Hessian is implicit Euler's A = M + h D + h^2 K (drag aside)
             self.hessian = ImplicitSystem(model, jacobian="full", matrix="bsr", preconditioner="multigrid")
+            self.multigrid = self.hessian.multigrid
+        elif self.vbd_multigrid_every > 0 and self.vbd_mesh_multigrid and model.spring_count:
+            # any other mesh: the same V-cycle on an aggregation hierarchy of A's graph (issue 26)
+            self.hessian = ImplicitSystem(model, jacobian="full", matrix="bsr", preconditioner="jacobi")
+            self.multigrid = GridMultigrid(self.hessian.A, 0, 0, model.pinned, model.device, aggregation=True)
+            if self.multigrid.levels < 2:  # too small to coarsen (<= 16 particles): the sweeps suffice
+                self.hessian = self.multigrid = None
+        if self.multigrid is not None:
             # l1 smoothing: with damped block Jacobi (omega 0.7, the CG preconditioner's) the
             # 64 x 64 flag blew up in its first step (measured); with l1 it did not
-            self.hessian.multigrid.l1_smoother = True
+            self.multigrid.l1_smoother = True
             self.residual, self.delta = scratch_like(model, 2)
 
     def step(self, state, control, dt):
@@ -145,6 +167,8 @@ class VBD(IncrementSolver):
         if self.hessian is not None:
             self.hessian.assemble(x, h, 0.0)
             self.hessian.update_preconditioner(h, 0.0)
+            if self.multigrid is not self.hessian.multigrid:  # the aggregation hierarchy (not the system's own)
+                self.multigrid.update()
         for it, omega in enumerate(chebyshev_weights(self.vbd_iterations, self.vbd_chebyshev_rho)):
             if self.hessian is not None and it % self.vbd_multigrid_every == 0:
                 self.coarse_correction(x, h, contacts)
@@ -169,7 +193,7 @@ class VBD(IncrementSolver):
         if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
             wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact, h], outputs=[self.residual],
                       device=m.device)
-        self.hessian.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
+        self.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
         if contacts is not None:
             wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact], outputs=[self.delta],
                       device=m.device)
