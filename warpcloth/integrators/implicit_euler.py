@@ -62,8 +62,9 @@ solver_capped_steps judge the true residual; a tolerance below the floor is name
 Statistics: on CUDA a kernel accumulates iterations, residuals and the count of steps that ended
 at the iteration cap above the tolerance, so a step never syncs with the host;
 :meth:`ImplicitEuler.stats` reads them once, at the end of a run. On the CPU they are accumulated
-in Python from the chunk reads. A run with a capped step reports ``solver_converged = False`` and
-warns once (:meth:`ImplicitEuler.convergence`).
+in Python from the chunk reads (the true residuals are recorded on the device on both). A run with
+a capped step, or a step whose true residual missed the tolerance, reports
+``solver_converged = False`` and warns once (:meth:`ImplicitEuler.convergence`).
 """
 
 from __future__ import annotations
