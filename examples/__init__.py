@@ -1,2 +1,4 @@
-"""The example XML test lists (``warpcloth.examples`` once installed): ``warpcloth list --examples``
-prints their paths, ``warpcloth sweep --example quick`` runs one."""
+"""The shipped examples (``warpcloth.examples`` once installed): the XML test lists, the cape mesh
+and its scenario file, and example scripts. ``warpcloth list --examples`` prints their paths,
+``python -m warpcloth.examples`` copies them into ./examples, ``warpcloth sweep --example quick``
+runs a test list, ``python -m warpcloth.examples.drive`` drives a cloth from a frame loop."""

@@ -24,7 +24,8 @@ argument by value at every call) and read only the record fields their kind need
 
 Poses: :func:`eval_collider_pose` moves a collider's rest record along its track (keyframed
 translation offsets, or a rigid motion c + u t + R(axis, theta(t))(y - c)), in float64 from the
-float64 simulated time, rounding to float32 once.
+float64 simulated time, rounding to float32 once; :func:`eval_collider_driven_pose` does the same
+for a pose the host sets each frame (offset keys and a turn about the collider's centre).
 """
 
 import warp as wp
@@ -401,6 +402,34 @@ def next_collider_substep(substep: wp.array(dtype=int)):
     substep[0] = substep[0] + 1
 
 
+@wp.func
+def posed_collider(r: Collider, c: wp.vec3d, d: wp.vec3d, dd: wp.vec3d, axis: wp.vec3d, theta: wp.float64,
+                   theta_dot: wp.float64):
+    # the rest record r moved by y -> c + d + R(axis, theta)(y - c), with v_c(y) = d' + theta' axis x (y - c - d)
+    m = r
+    rot = rotation_matrix(axis, theta)
+    if r.kind == PLANE:
+        m.a = move_point(r.a, c, d, axis, theta)
+        m.b = rot * r.b
+    else:
+        m.a = move_point(r.a, c, d, axis, theta)
+        if r.kind == CAPSULE:
+            m.b = move_point(r.b, c, d, axis, theta)
+    m.rotation = rot * r.rotation
+    m.bound_center = move_point(r.bound_center, c, d, axis, theta)
+    m.origin = wp.vec3(c + d)
+    m.velocity = wp.vec3(dd)
+    m.omega = float(theta_dot) * wp.vec3(axis)
+    m.moving = 1
+    return m
+
+
+@wp.func
+def turn_point(y: wp.vec3, center: wp.vec3d, offset: wp.vec3d, start: wp.quatd, axis: wp.vec3d, theta: wp.float64):
+    # c + d + R(axis, theta) R0 (y - c), R0 the rotation of the quaternion `start`, in float64, rounded once
+    return wp.vec3(center + offset + rotate_axis_angle(axis, theta, wp.quat_rotate(start, wp.vec3d(y) - center)))
+
+
 @wp.kernel
 def eval_collider_pose(
     time: wp.array(dtype=wp.float64), offset: wp.float64, step_dt: wp.array(dtype=wp.float64), substep: wp.array(dtype=int), use_substep: int,
@@ -431,21 +460,52 @@ def eval_collider_pose(
         dd = velocity
     else:
         d, dd = track_keyframes(t, times, values, tangents, cubic, 0, 1)
+    colliders[index] = posed_collider(rest[index], c, d, dd, axis, theta, theta_dot)
+
+
+@wp.kernel
+def eval_collider_driven_pose(
+    time: wp.array(dtype=wp.float64), offset: wp.float64, step_dt: wp.array(dtype=wp.float64),
+    substep: wp.array(dtype=int), use_substep: int, index: int, rest: wp.array(dtype=Collider),
+    frame_times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d), tangents: wp.array(dtype=wp.vec3d),
+    cubic: int,
+    turn: wp.array(dtype=wp.vec4d),
+    colliders: wp.array(dtype=Collider),
+):
+    # a collider posed from the host each frame: its offset d(t) keyframed over the frame's keys
+    # (frame_times, values: as a ColliderTrack's keyframes), and its turn about its own centre c,
+    # R(t) = R(axis, s angle) R0 with s = (t - t0) / (t1 - t0), turn = (R0 as x y z w, (axis, angle));
+    # y -> c + d + R(t)(y - c), v_c(y) = d' + (angle / (t1 - t0)) axis x (y - c - d)
+    t = time[0] + offset
+    if use_substep != 0:
+        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
+    d, dd = track_keyframes(t, frame_times, values, tangents, cubic, 0, 1)
     r = rest[index]
+    q = turn[0]
+    a = turn[1]
+    zero = wp.float64(0.0)
+    axis = wp.vec3d(a[0], a[1], a[2])
+    if a[3] == zero and q[0] == zero and q[1] == zero and q[2] == zero:
+        # not turned: a translation, the same arithmetic as eval_collider_pose's keyframes
+        z_axis = wp.vec3d(zero, zero, wp.float64(1.0))
+        colliders[index] = posed_collider(r, wp.vec3d(zero, zero, zero), d, dd, z_axis, zero, zero)
+        return
+    h = frame_times[2] - frame_times[1]
+    theta = (t - frame_times[1]) / h * a[3]
+    start = wp.quatd(q[0], q[1], q[2], q[3])
+    c = wp.vec3d(r.bound_center)
     m = r
-    rot = rotation_matrix(axis, theta)
+    rot = rotation_matrix(axis, theta) * wp.quat_to_matrix(wp.quat(float(q[0]), float(q[1]), float(q[2]), float(q[3])))
+    m.a = turn_point(r.a, c, d, start, axis, theta)
     if r.kind == PLANE:
-        m.a = move_point(r.a, c, d, axis, theta)
         m.b = rot * r.b
-    else:
-        m.a = move_point(r.a, c, d, axis, theta)
-        if r.kind == CAPSULE:
-            m.b = move_point(r.b, c, d, axis, theta)
+    elif r.kind == CAPSULE:
+        m.b = turn_point(r.b, c, d, start, axis, theta)
     m.rotation = rot * r.rotation
-    m.bound_center = move_point(r.bound_center, c, d, axis, theta)
+    m.bound_center = turn_point(r.bound_center, c, d, start, axis, theta)
     m.origin = wp.vec3(c + d)
     m.velocity = wp.vec3(dd)
-    m.omega = float(theta_dot) * wp.vec3(axis)
+    m.omega = float(a[3] / h) * wp.vec3(axis)
     m.moving = 1
     colliders[index] = m
 

@@ -11,6 +11,7 @@ x_j - x_i and dx_j - dx_i apart, never x + dx.
 
 import warp as wp
 
+from warpcloth.kernels.bending import HingeAdjacency, hinge_angle_gradient, hinge_force_scale, pick_vec3
 from warpcloth.kernels.collide import (Collider, Colliders, contact_band, in_box, plane_contact, shape_contact,
                                       surface_velocity)
 from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
@@ -242,12 +243,52 @@ def rigid_mode_projector(i: int, inv_mass: wp.array(dtype=float), contact: Conta
     return eye
 
 
+@wp.func
+def rigid_mode_hinge_terms(i: int, Pi: wp.mat33, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                           hinges: HingeAdjacency, h: float, contact: ContactState):
+    # the dihedral hinges' share of particle i's rigid-mode terms: for each hinge of i whose four vertices
+    # do not all move alike in the mode, P_i f_i (f_i its force on i, as vbd's vertex step sees it) and
+    # (k + kd/h) (P_i g_i) (sum_b P_b g_b)^T (its Gauss-Newton block; summed over the hinge's vertices this is
+    # (sum P g)(sum P g)^T). A hinge whose vertices share P adds sum_b f_b = 0 and nothing to T^T A T
+    xi = x[i]
+    dxi = dx[i]
+    f = wp.vec3(0.0)
+    H = wp.mat33(0.0)
+    for a in range(hinges.offsets[i], hinges.offsets[i + 1]):
+        e = hinges.hinge[a]
+        q = hinges.indices[e]
+        P0 = rigid_mode_projector(q[0], inv_mass, contact)
+        P1 = rigid_mode_projector(q[1], inv_mass, contact)
+        P2 = rigid_mode_projector(q[2], inv_mass, contact)
+        P3 = rigid_mode_projector(q[3], inv_mass, contact)
+        D0 = P0 - Pi
+        D1 = P1 - Pi
+        D2 = P2 - Pi
+        D3 = P3 - Pi
+        if wp.ddot(D0, D0) + wp.ddot(D1, D1) + wp.ddot(D2, D2) + wp.ddot(D3, D3) > 0.0:
+            d0 = dx[q[0]] - dxi
+            d1 = dx[q[1]] - dxi
+            d2 = dx[q[2]] - dxi
+            d3 = dx[q[3]] - dxi
+            theta, g0, g1, g2, g3, valid = hinge_angle_gradient(
+                (x[q[0]] - xi) + d0, (x[q[1]] - xi) + d1, (x[q[2]] - xi) + d2, (x[q[3]] - xi) + d3)
+            if valid != 0:
+                k = hinges.stiffness[e]
+                kd = hinges.damping[e]
+                s = hinge_force_scale(theta, hinges.rest_angle[e], k, kd / h, g0, g1, g2, g3, d0, d1, d2, d3)
+                gi = pick_vec3(hinges.slot[a], g0, g1, g2, g3)
+                f = f + Pi * (s * gi)
+                H = H + (k + kd / h) * wp.outer(Pi * gi, P0 * g0 + P1 * g1 + P2 * g2 + P3 * g3)
+    return f, H
+
+
 @wp.kernel
 def rigid_mode_terms(
     x: wp.array(dtype=wp.vec3),
     dx: wp.array(dtype=wp.vec3),
     inertia: Inertia,
     springs: SpringAdjacency,
+    hinges: HingeAdjacency,
     h: float,
     contact: ContactState,
     b: wp.array(dtype=wp.vec3),
@@ -282,6 +323,10 @@ def rigid_mode_terms(
                                            springs.damping[s], h)
             bi = bi + (0.5 * h2) * (Pd * f)
             Ai = Ai + (0.5 * h2) * (wp.transpose(Pd) * K * Pd)
+    if hinges.indices.shape[0] > 0 and inertia.inv_mass[i] != 0.0:
+        fh, Hh = rigid_mode_hinge_terms(i, Pi, x, dx, inertia.inv_mass, hinges, h, contact)
+        bi = bi + h2 * fh
+        Ai = Ai + h2 * Hh
     b[i] = bi
     A[i] = Ai
 

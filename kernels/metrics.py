@@ -2,6 +2,8 @@
 
 import warp as wp
 
+from warpcloth.kernels.bending import hinge_energy
+
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
 
@@ -103,3 +105,18 @@ def reduce_energy(
         ij = spring_indices[s]
         stretch = wp.length(x[ij[1]] - x[ij[0]]) - spring_rest_length[s]
         wp.atomic_add(energy, ENERGY_TOTAL, wp.float64(0.5 * spring_stiffness[s] * stretch * stretch))
+
+
+@wp.kernel
+def reduce_hinge_energy(
+    x: wp.array(dtype=wp.vec3),
+    hinge_indices: wp.array(dtype=wp.vec4i),
+    hinge_rest_angle: wp.array(dtype=float),
+    hinge_stiffness: wp.array(dtype=float),
+    energy: wp.array(dtype=wp.float64),
+):
+    # E += sum_e 1/2 k_e wrap(theta - theta0)^2  (dihedral hinges)
+    e = wp.tid()
+    q = hinge_indices[e]
+    value = hinge_energy(x[q[0]], x[q[1]], x[q[2]], x[q[3]], hinge_rest_angle[e], hinge_stiffness[e])
+    wp.atomic_add(energy, ENERGY_TOTAL, wp.float64(value))

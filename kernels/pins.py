@@ -116,6 +116,22 @@ def eval_pin_rigid_delta(
 
 
 @wp.kernel
+def eval_frame_times(
+    time: wp.array(dtype=wp.float64), time_base: wp.array(dtype=wp.float64), clock: wp.array(dtype=wp.int64),
+    dt: wp.float64, steps: int,
+    frame_times: wp.array(dtype=wp.float64),
+):
+    # the keys of a frame driven from the host, (t0 - 1, t0, t1, t1 + 1): t0 = t now, t1 = the time
+    # after `steps` steps, as advance_time will compute it (t_base + n dt)
+    t0 = time[0]
+    t1 = time_base[0] + wp.float64(clock[0] + wp.int64(steps)) * dt
+    frame_times[0] = t0 - wp.float64(1.0)
+    frame_times[1] = t0
+    frame_times[2] = t1
+    frame_times[3] = t1 + wp.float64(1.0)
+
+
+@wp.kernel
 def add_pinned_coupling(
     springs: SpringAdjacency,
     spring_B: wp.array(dtype=wp.mat33),

@@ -22,6 +22,7 @@ too.
 
 import warp as wp
 
+from warpcloth.kernels.bending import HingeAdjacency, vertex_hinge_terms
 from warpcloth.kernels.collide import Colliders
 from warpcloth.kernels.increment import (ContactState, Inertia, newton_increment, project_increment,
                                         vertex_gradient_hessian)
@@ -46,16 +47,18 @@ def spring_increment_residual(e: wp.vec3, ddx: wp.vec3, rest: float, ks: float, 
 @wp.kernel
 def assemble_global_matrix(
     springs: SpringAdjacency,
+    row_offsets: wp.array(dtype=int),
     particle_mass: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
     h: float,
     values: wp.array(dtype=float),
     inv_diag: wp.array(dtype=float),
 ):
-    # row i of S = M + h D + h^2 L (CSR: diagonal first, then one entry per adjacent spring):
-    # S_ii = m_i + sum_s w_s, S_ij = -w_s, w_s = h^2 ks + h kd;  pinned: identity row, zero column
+    # row i of S = M + h D + h^2 L (CSR: diagonal first, then one entry per adjacent spring, then the
+    # dihedral hinges' other pairs, left alone here): S_ii = m_i + sum_s w_s, S_ij = -w_s, w_s = h^2 ks + h kd;
+    # pinned: identity row, zero column
     i = wp.tid()
-    row = i + springs.offsets[i]
+    row = row_offsets[i]
     if particle_inv_mass[i] == 0.0:
         values[row] = 1.0
         for a in range(springs.offsets[i], springs.offsets[i + 1]):
@@ -118,11 +121,59 @@ def eval_local_residual(
 
 
 @wp.kernel
+def add_hinge_matrix_terms(
+    row_offsets: wp.array(dtype=int),
+    hinge_K: wp.array(dtype=float),
+    hinge_D: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    h: float,
+    values: wp.array(dtype=float),
+    inv_diag: wp.array(dtype=float),
+):
+    # S += h^2 sum_e k_e c c^T + h sum_e kd_e c c^T (constant, per CSR entry; 0 on pinned rows and columns),
+    # then the Jacobi inverse diagonal of the new rows
+    i = wp.tid()
+    for e in range(row_offsets[i], row_offsets[i + 1]):
+        values[e] = values[e] + (h * h) * hinge_K[e] + h * hinge_D[e]
+    if particle_inv_mass[i] != 0.0:
+        inv_diag[i] = 1.0 / values[row_offsets[i]]
+
+
+@wp.kernel
+def add_hinge_residual(
+    x: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    inertia: Inertia,
+    hinges: HingeAdjacency,
+    inv_diag: wp.array(dtype=float),
+    h: float,
+    contact: ContactState,
+    r: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
+    p: wp.array(dtype=wp.vec3),
+    dot_terms: wp.array(dtype=float),
+):
+    # after eval_local_residual: r_i += h^2 f_i of the dihedral hinges (their true forces, damping with the dx / h
+    # rate as the springs'; S's constant h^2 k c c^T + h kd c c^T approximates their Jacobian), and CG's start again
+    i = wp.tid()
+    if inertia.inv_mass[i] == 0.0 or contact.state[i] == 2:
+        return
+    f, H = vertex_hinge_terms(i, x, dx, hinges, h)
+    res = r[i] + (h * h) * f
+    zi = inv_diag[i] * res
+    r[i] = res
+    z[i] = zi
+    p[i] = zi
+    dot_terms[i] = wp.dot(res, zi)
+
+
+@wp.kernel
 def solve_contacts(
     x: wp.array(dtype=wp.vec3),
     dx: wp.array(dtype=wp.vec3),
     inertia: Inertia,
     springs: SpringAdjacency,
+    hinges: HingeAdjacency,
     h: float,
     colliders: Colliders,
     out: wp.array(dtype=wp.vec3),
@@ -145,6 +196,10 @@ def solve_contacts(
     Hinv = eye
     if contact.state[i] != 0:
         g, H = vertex_gradient_hessian(i, x, dx, inertia, springs, h)
+        if hinges.indices.shape[0] > 0:
+            fb, Hb = vertex_hinge_terms(i, x, dx, hinges, h)
+            g = g - fb
+            H = H + Hb
         d = d + newton_increment(g, H)
         if wp.abs(wp.determinant(H)) >= 1.0e-30:
             Hinv = wp.inverse(H)

@@ -178,3 +178,69 @@ def apply_system_matrix(
     if beta != 0.0:
         out = out + beta * y[i]
     z[i] = out
+
+
+# -- dihedral hinges (warpcloth.kernels.bending assembles their rows; these refresh the preconditioners) --------
+@wp.kernel
+def refresh_inverse_diagonal(
+    values: wp.array(dtype=wp.mat33),
+    diag_block: wp.array(dtype=int),
+    particle_inv_mass: wp.array(dtype=float),
+    inv_diag: wp.array(dtype=wp.vec3),
+):
+    # inv_diag = 1 / diag(A_ii) from the assembled values (after the hinge rows were added); pins keep 1
+    i = wp.tid()
+    if particle_inv_mass[i] != 0.0:
+        inv_diag[i] = inverse_diagonal(values[diag_block[i]])
+
+
+@wp.kernel
+def add_hinge_diagonal_blocks(
+    adjacency_offsets: wp.array(dtype=int),
+    adjacency_hinge: wp.array(dtype=int),
+    adjacency_slot: wp.array(dtype=int),
+    hinge_gradient: wp.array2d(dtype=wp.vec3),
+    hinge_stiffness: wp.array(dtype=float),
+    hinge_damping: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    alpha: float,
+    beta: float,
+    blocks: wp.array(dtype=wp.mat33),
+):
+    # blocks_i += sum_e (alpha k + beta kd) g_slot g_slot^T  (the hinges' diagonal block of A, matrix-free); pins 0
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        return
+    acc = wp.mat33(0.0)
+    for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
+        e = adjacency_hinge[a]
+        g = hinge_gradient[e, adjacency_slot[a]]
+        acc = acc + (alpha * hinge_stiffness[e] + beta * hinge_damping[e]) * wp.outer(g, g)
+    blocks[i] = blocks[i] + acc
+
+
+@wp.kernel
+def add_to_inverse_diagonal(
+    extra: wp.array(dtype=wp.mat33),
+    particle_inv_mass: wp.array(dtype=float),
+    inv_diag: wp.array(dtype=wp.vec3),
+):
+    # inv_diag = 1 / (1 / inv_diag + diag(extra)): Jacobi with the hinges' diagonal blocks added; pins keep 1
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        return
+    d = inv_diag[i]
+    x = extra[i]
+    inv_diag[i] = wp.vec3(1.0 / (1.0 / d[0] + x[0, 0]), 1.0 / (1.0 / d[1] + x[1, 1]), 1.0 / (1.0 / d[2] + x[2, 2]))
+
+
+@wp.kernel
+def add_to_inverse_blocks(
+    extra: wp.array(dtype=wp.mat33),
+    particle_inv_mass: wp.array(dtype=float),
+    inv_block: wp.array(dtype=wp.mat33),
+):
+    # inv_block = (inv_block^-1 + extra)^-1: block Jacobi with the hinges' diagonal blocks added (matrix-free); pins I
+    i = wp.tid()
+    if particle_inv_mass[i] != 0.0:
+        inv_block[i] = inverse_block(inverse_block(inv_block[i]) + extra[i])

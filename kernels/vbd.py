@@ -21,6 +21,7 @@ contact projection, the update from dx) are in :mod:`warpcloth.kernels.increment
 
 import warp as wp
 
+from warpcloth.kernels.bending import HingeAdjacency, vertex_hinge_terms
 from warpcloth.kernels.collide import Colliders
 from warpcloth.kernels.increment import (ContactState, Inertia, newton_increment, project_increment,
                                         vertex_gradient_hessian)
@@ -37,20 +38,26 @@ def solve_vertices_vbd(
     x: wp.array(dtype=wp.vec3),
     inertia: Inertia,
     springs: SpringAdjacency,
+    hinges: HingeAdjacency,
     h: float,
     colliders: Colliders,
     dx: wp.array(dtype=wp.vec3),
     contact: ContactState,
 ):
-    # one colour: dx_i <- dx_i - H_i^-1 g_i  (module docstring), then out of the colliders with
-    # friction (project_increment; no colliders: empty records), the contact's normal (0: none)
-    # and collider velocity kept; pinned particles stay
+    # one colour: dx_i <- dx_i - H_i^-1 g_i  (module docstring; dihedral hinges add -f_i to g_i and their
+    # Gauss-Newton (k + kd/h) g g^T to H_i), then out of the colliders with friction (project_increment;
+    # no colliders: empty records), the contact's normal (0: none) and collider velocity kept; pinned
+    # particles stay
     i = order[start + wp.tid()]
     if inertia.inv_mass[i] == 0.0:
         return
     xi = x[i]
     dxi = dx[i]
     g, H = vertex_gradient_hessian(i, x, dx, inertia, springs, h)
+    if hinges.indices.shape[0] > 0:
+        fb, Hb = vertex_hinge_terms(i, x, dx, hinges, h)
+        g = g - fb
+        H = H + Hb
     d = dxi + newton_increment(g, H)
     if colliders.records.shape[0] > 0:
         Hinv = wp.mat33(0.0)
@@ -111,10 +118,12 @@ def eval_increment_residual(
     dx: wp.array(dtype=wp.vec3),
     inertia: Inertia,
     springs: SpringAdjacency,
+    hinges: HingeAdjacency,
     h: float,
     r: wp.array(dtype=wp.vec3),
 ):
-    # r_i = -h^2 g_i = m_i (dy_i - dx_i) + h^2 sum_s f_s  (the whole potential's negative gradient, times h^2);  pinned: 0
+    # r_i = -h^2 g_i = m_i (dy_i - dx_i) + h^2 (sum_s f_s + sum_e f_e)  (the whole potential's negative gradient,
+    # times h^2; f_e the dihedral hinges');  pinned: 0
     i = wp.tid()
     if inertia.inv_mass[i] == 0.0:
         r[i] = wp.vec3(0.0)
@@ -128,6 +137,9 @@ def eval_increment_residual(
         f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s],
                                        springs.damping[s], h)
         force = force + f
+    if hinges.indices.shape[0] > 0:
+        fb, Hb = vertex_hinge_terms(i, x, dx, hinges, h)
+        force = force + fb
     r[i] = inertia.mass[i] * (inertia.dy[i] - dxi) + (h * h) * force
 
 

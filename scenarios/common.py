@@ -48,6 +48,7 @@ class ScenarioConfig:
     damping: float | tuple | None = None
     drag: float | None = None
     bend: str = "provot"
+    bend_rigidity: float | None = None  # B [N m] of the dihedral hinges (bend="dihedral"); None: the builder's
     device: str | None = None
     strain_limit: float | None = None
     instability_strain: float = DEFAULT_INSTABILITY_STRAIN
@@ -108,7 +109,7 @@ class Scenario:
             bend = BendModel(cfg.bend)
         except ValueError:
             raise WarpclothError(f"bend must be one of {', '.join(b.value for b in BendModel)}, got {cfg.bend!r}") from None
-        min_dim = 2 if bend == BendModel.NONE else 3
+        min_dim = 2 if bend in (BendModel.NONE, BendModel.DIHEDRAL) else 3
         rows = require_int("rows", cfg.rows, min_dim)
         cols = require_int("cols", cfg.cols, min_dim)
         integrator = make_integrator(cfg.integrator, **cfg.integrator_options)
@@ -117,6 +118,7 @@ class Scenario:
             model = build_grid_cloth(
                 rows, cols, cfg.width, cfg.height, cfg.mass, spring_params=params, pins=self.pins(rows, cols),
                 origin=self.origin(cfg), plane=self.plane, bend=bend, device=device,
+                **({"bend_rigidity": cfg.bend_rigidity} if cfg.bend_rigidity is not None else {}),
             )
             return self._simulator(cfg, model, integrator, device)
 

@@ -185,7 +185,8 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         return build_mesh_cloth(
             m, total_mass=config.mass, mass_mode=mass_mode, stiffness=config.stiffness, damping=config.damping,
             pins=pin_indices + tracked, pin_groups=config.pin_group or (), pin_where=config.pin_where,
-            quads=bool(config.quads), bend=config.bend != "none", device=device,
+            quads=bool(config.quads), bend=config.bend, bend_rigidity=config.bend_rigidity,
+            device=device,
         )
 
     def pin_tracks(config: ScenarioConfig, model_):

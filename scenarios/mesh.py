@@ -43,7 +43,8 @@ def _model(config: ScenarioConfig, device: str):
         groups = ("shoulders",)
     return build_mesh_cloth(
         mesh, total_mass=config.mass, stiffness=config.stiffness, damping=config.damping, pin_groups=groups or (),
-        pin_where=where, quads=bool(config.quads), bend=config.bend != "none", device=device,
+        pin_where=where, quads=bool(config.quads), bend=config.bend, bend_rigidity=config.bend_rigidity,
+        device=device,
     )
 
 

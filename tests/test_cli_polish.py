@@ -85,11 +85,17 @@ def test_python_dash_m_warpcloth():
 def test_examples_ship_with_the_package(capsys):
     code, out, err = _run(capsys, "list", "--examples")
     assert code == 0
-    listed = dict(line.split(None, 1) for line in out.strip().splitlines())
-    assert set(listed) == {"quick", "seed_plan"}
-    for name, path in listed.items():
-        assert os.path.isfile(path) and path == example_path(name)
-        assert Path(path).read_bytes() == (REPO / "examples" / f"{name}.xml").read_bytes()
+    rows = [line.rsplit(None, 2) for line in out.strip().splitlines()]
+    rows = [r for r in rows if len(r) == 3]
+    files = {(kind.strip(), name): path for kind, name, path in rows if os.path.isabs(path)}
+    assert set(files) == {("test list:", "quick"), ("test list:", "seed_plan"), ("mesh:", "cape"),
+                          ("scenario file:", "cape")}
+    for (kind, name), path in files.items():
+        shipped = REPO / "examples" / os.path.basename(path)
+        assert os.path.isfile(path) and Path(path).read_bytes() == shipped.read_bytes()
+        if kind == "test list:":
+            assert path == example_path(name)
+    assert "python -m warpcloth.examples.drive" in out and "python -m warpcloth.examples.make_cape" in out
     from warpcloth.lab.testlist import parse_test_list
 
     assert parse_test_list(example_path("quick")).runs  # a valid test list
@@ -99,7 +105,7 @@ def test_examples_ship_with_the_package(capsys):
     assert code == 2 and "--example" in err
     # the package data declares them (a wheel holds them; checked by building one: see the report)
     text = (REPO / "pyproject.toml").read_text()
-    assert '"warpcloth.examples" = ["*.xml"]' in text and '"warpcloth.examples" = "examples"' in text
+    assert '"warpcloth.examples" = ["*.xml", "*.obj", "*.toml"]' in text and '"warpcloth.examples" = "examples"' in text
 
 
 def test_bench_json_and_out_dash(capsys):

@@ -193,14 +193,6 @@ def test_xpbd_single_spring_is_backward_euler(substeps, kd):
     np.testing.assert_allclose(lengths, expected, atol=2e-5)
 
 
-def test_xpbd_hanging_mass_rests_at_m_g_over_ks():
-    mass, ks = 0.1, 100.0
-    sim = Simulator(hanging_mass(mass, 0.5, ks), make_integrator("xpbd"), Control(device="cpu"), dt=DT)
-    sim.simulate(600)
-    extension = -float(sim.state.particle_q.numpy()[1, 1]) - 0.5
-    assert extension == pytest.approx(mass * G / ks, rel=0.01)
-
-
 def sheet_drop(integrator, duration, **options):
     # drag 5 1/s settles rk4 within 3 s; drag does not move the equilibrium
     sim = sheet.build(integrator=integrator, rows=8, cols=8, drag=5.0, integrator_options=options)
@@ -248,18 +240,6 @@ def test_velocity_damping_scales_velocity_per_step(name, options):
 
 
 @pytest.mark.parametrize("name", ["pbd", "xpbd"])
-def test_pins_do_not_move_by_one_bit(name):
-    sim = sheet.build(integrator=name, rows=8, cols=8)
-    pins = sim.model.pinned
-    q0 = sim.state.particle_q.numpy().copy()
-    sim.simulate(30)
-    q = sim.state.particle_q.numpy()
-    assert np.array_equal(q[pins], q0[pins])
-    assert np.array_equal(sim.state.particle_qd.numpy()[pins], np.zeros((len(pins), 3), np.float32))
-    assert np.abs(q - q0).max() > 1e-4  # the rest of the sheet moved (a frozen cloth: 0)
-
-
-@pytest.mark.parametrize("name", ["pbd", "xpbd"])
 @pytest.mark.parametrize("scenario", [sheet, flag])
 def test_stable_at_one_frame_step_with_defaults(name, scenario):
     # the scenarios' own meshes (sheet 32 x 32, flag 20 x 30) and the integrators' defaults;
@@ -272,27 +252,6 @@ def test_stable_at_one_frame_step_with_defaults(name, scenario):
     assert result.max_strain < 0.5
     q = sim.state.particle_q.numpy()
     assert np.all(np.isfinite(q)) and np.abs(q - sim.model.host["q"]).max() > 1e-3
-
-
-@pytest.mark.parametrize("name", ["pbd", "xpbd"])
-def test_step_allocates_nothing_and_captures(name, monkeypatch):
-    # two simulators; one steps directly, one replays a captured step: bit-identical
-    direct = flag.build(integrator=name, rows=6, cols=8)
-    replay = flag.build(integrator=name, rows=6, cols=8)
-    for sim in (direct, replay):
-        sim.step()  # warm-up: compile
-
-    def forbidden(*args, **kwargs):
-        raise AssertionError("a step allocated a Warp array")
-
-    for fn in ("zeros", "empty", "ones", "full", "clone", "zeros_like", "empty_like"):
-        monkeypatch.setattr(wp, fn, forbidden)
-    with wp.ScopedCapture(device="cpu") as capture:
-        replay._launch_step()
-    for _ in range(5):
-        direct._launch_step()
-        wp.capture_launch(capture.graph)
-    assert np.array_equal(direct.state.particle_q.numpy(), replay.state.particle_q.numpy())
 
 
 # -- colouring -----------------------------------------------------------------------------------

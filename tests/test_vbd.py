@@ -18,19 +18,6 @@ def hanging_mass(ks=50.0, kd=0.0, mass=0.1, rest=0.5, top=2.0):
     return build_model(q, [[0, 1]], [SpringType.STRUCTURAL], [mass, mass], spring_params(ks, kd), pins=[0], device="cpu")
 
 
-def test_hanging_mass_rests_at_m_g_over_k():
-    """At y ~ 1.5 m the extension m g / k = 0.0196 m is reached to 1e-5 m (float32 spacing there
-    is 1.2e-7 m); 5 iterations, so the rest state does not depend on converged solves."""
-    ks, mass, g = 50.0, 0.1, 9.81
-    model = hanging_mass(ks=ks, kd=0.5, mass=mass)
-    sim = Simulator(model, make_integrator("vbd", vbd_iterations=5), Control(drag_rate=2.0), dt=1.0 / 60.0)
-    sim.simulate(600)
-    y = sim.state.particle_q.numpy()[:, 1].astype(np.float64)
-    extension = (y[0] - y[1]) - 0.5
-    assert abs(y[1] - 1.5) < 0.05
-    assert abs(extension - mass * g / ks) < 1e-5, extension
-
-
 def local_newton_reference(x0, v0, xp, ks, kd, rest, mass, h, g):
     """One Newton step on the free vertex's energy from dx = h v (float64, the module formulas)."""
     dy = h * v0 + h * h * g
@@ -156,18 +143,6 @@ def test_vertex_coloring_check_and_greedy_fallback():
 def test_bad_options(options, message):
     with pytest.raises(WarpclothError, match=message):
         make_integrator("vbd", **options)
-
-
-def test_pins_do_not_move_by_one_bit():
-    from warpcloth.scenarios import flag
-
-    sim = flag.build(rows=6, cols=8, integrator="vbd")
-    pins = sim.model.pinned
-    before = sim.state.particle_q.numpy()[pins].copy()
-    sim.simulate(60)
-    after = sim.state.particle_q.numpy()
-    assert np.array_equal(after[pins], before)
-    assert np.abs(np.delete(after, pins, axis=0) - np.delete(sim.model.particle_q.numpy(), pins, axis=0)).max() > 1e-3
 
 
 def sheet_sag_error(rows, steps, **options):

@@ -173,6 +173,34 @@ class Simulator:
         tracks += [c.track for c in self.control.colliders or () if getattr(c, "track", None) is not None]
         return max([0.0, *(float(track.moving_until()) for track in tracks)])
 
+    def set_pin_targets(self, positions, velocities=None, track: str | None = None) -> None:
+        """Where the pins of a driven track (:meth:`PinTrack.driven
+        <warpcloth.sim.pins.PinTrack.driven>`) are at the end of the next :meth:`simulate` call:
+        ``positions`` (P, 3) [m], and for a ``"hermite"`` track ``velocities`` (P, 3) [m/s].
+        ``track``: its name (None: the only driven track). Costs a copy into the arrays the
+        captured frame reads, never a capture (see docs/driving.md)."""
+        driven = [t for t in self.control.pin_tracks if t.kind == "driven" and (track is None or t.name == track)]
+        if len(driven) != 1:
+            names = [t.name for t in self.control.pin_tracks if t.kind == "driven"]
+            raise WarpclothError(f"no driven pin track {track!r}; driven tracks: {', '.join(map(repr, names)) or 'none'} "
+                                 "(add PinTrack.driven(particles) to the control's pin tracks)" if track is not None or not names
+                                 else f"{len(names)} driven pin tracks ({', '.join(map(repr, names))}): name one with track=")
+        driven[0].set(positions, velocities)
+
+    def set_collider_pose(self, index: int, offset=(0.0, 0.0, 0.0), rotation=None, velocity=None) -> None:
+        """Where collider ``index`` (of ``control.colliders``, on a :meth:`ColliderTrack.driven
+        <warpcloth.sim.colliders.ColliderTrack.driven>`) is at the end of the next
+        :meth:`simulate` call: the collider as given, turned by the quaternion ``rotation``
+        (x, y, z, w) about its centre and moved by ``offset`` [m] (see
+        :meth:`ColliderTrack.set <warpcloth.sim.colliders.ColliderTrack.set>`)."""
+        colliders = self.control.colliders
+        if not isinstance(index, int) or not 0 <= index < len(colliders):
+            raise WarpclothError(f"collider index must be 0..{len(colliders) - 1}, got {index!r}")
+        track = colliders[index].track
+        if track is None or track.kind != "driven":
+            raise WarpclothError(f"collider {index} ({colliders[index].kind}) is not driven: give it track=ColliderTrack.driven()")
+        track.set(offset, rotation, velocity)
+
     def set_dt(self, dt: float) -> None:
         dt = require_positive("dt", dt, "s")
         self._rebase_clock()
@@ -228,9 +256,9 @@ class Simulator:
 
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> None:
-        """Advance one time step: W(t) update, integrator step, strain limit, t += dt (launches only)."""
-        if self._needs_begin:
-            self._begin()
+        """Advance one time step: W(t) update, integrator step, strain limit, t += dt (launches only;
+        a driven track's target set before it is reached at its end)."""
+        self._drive(1)
         self._launch_step()
         self._count_steps(1)
 
@@ -241,11 +269,22 @@ class Simulator:
         return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, c.colliders, self._pins_version,
                 tuple(sorted((k, repr(v)) for k, v in self.integrator.option_values().items())))
 
-    def _begin(self) -> None:
-        """Let the integrator start its history from the current state and wind W(t)."""
+    def _drive(self, steps: int) -> None:
+        """Before a frame of ``steps`` steps: the integrator's start if due (:meth:`_begin`) and
+        the driven tracks' keys for the frame (their targets set since the last frame)."""
+        if self._needs_begin:
+            self._begin(steps)
+        elif self.control.upload_drives(self._dt, steps, self.sim_time):
+            self.control.kinematic_pins.apply_driven(self.control, self.state.particle_q, self.state.particle_qd)
+
+    def _begin(self, drive_steps: int | None = None) -> None:
+        """Let the integrator start its history from the current state and wind W(t) (and with
+        ``drive_steps``, the driven tracks' keys for a frame of that many steps first)."""
         self._rebase_clock()
         self.control.rebase()
         self.control.update()
+        if drive_steps is not None:
+            self.control.upload_drives(self._dt, drive_steps, self.sim_time)
         apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # pins on their track at t
         self.integrator.begin(self.state, self.control, self._dt)
         self._needs_begin = False
@@ -267,12 +306,12 @@ class Simulator:
         steps = require_count("steps", steps)
         if steps == 0:
             return
+        self._drive(steps)
         if not self.graph_enabled:
             for _ in range(steps):
-                self.step()
+                self._launch_step()
+                self._count_steps(1)
             return
-        if self._needs_begin:
-            self._begin()
         chunk = min(steps, GRAPH_CHUNK)
         full, rest = divmod(steps, chunk)
         graph = self._graph(chunk)

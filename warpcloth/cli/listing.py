@@ -1,5 +1,5 @@
-"""``warpcloth list``: the scenarios and integrators, or (``--examples``) the XML test lists shipped
-with warpcloth."""
+"""``warpcloth list``: the scenarios and integrators, or (``--examples``) the examples shipped with
+warpcloth: XML test lists, meshes, scenario files and example scripts, with their paths."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ from warpcloth.errors import WarpclothError
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--examples", action="store_true", help="list the example test lists shipped with warpcloth and their paths")
+    p.add_argument("--examples", action="store_true",
+                   help="list the examples shipped with warpcloth (test lists, meshes, scenario files, scripts) and their paths")
 
 
 def examples_dir() -> str:
@@ -32,14 +33,26 @@ def example_path(name: str) -> str:
     return os.path.join(examples_dir(), name + ".xml")
 
 
+def _print_examples() -> None:
+    from warpcloth.examples.__main__ import example_files
+
+    for kind, path in example_files():
+        name = os.path.splitext(os.path.basename(path))[0]
+        print(f"{kind + ':':15s}{name:12s} {path}")
+    scripts = sorted(os.path.splitext(n)[0] for n in os.listdir(examples_dir())
+                     if n.endswith(".py") and not n.startswith("_"))
+    for name in scripts:
+        print(f"{'script:':15s}{name:12s} python -m warpcloth.examples.{name}")
+    print("(python -m warpcloth.examples [DIR] copies the files into DIR, default ./examples)")
+
+
 def run(args) -> int:
     from warpcloth.integrators import integrator_class, integrator_names
     from warpcloth.scenarios import get_scenario, scenario_names
 
     if getattr(args, "examples", False):
         if not args.quiet:
-            for name in example_names():
-                print(f"{name:12s} {example_path(name)}")
+            _print_examples()
         return 0
     if args.quiet:
         return 0

@@ -28,6 +28,9 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                      help="write the animation to this USD file (.usd/.usda/.usdc, or .usdz: a package)")
     out.add_argument("--usd-color", choices=["none", "strain"], default="none",
                      help="strain: a per-frame primvars:displayColor of spring strain, blue 0 to red 10%% (default none)")
+    out.add_argument("--usd-colliders", choices=["guide", "render"], default="guide",
+                     help="UsdGeom purpose of the collider prims: guide (shown in viewports, not rendered) or render "
+                          "(default guide)")
     out.add_argument("--html", default=None, metavar="PATH", help="write a self-contained HTML player of the animation (WebGL, no network)")
     out.add_argument("--preview", default=None, metavar="PATH",
                      help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs warpcloth[plot]")
@@ -89,7 +92,8 @@ def output_writers(scenario_name: str, args) -> list:
     if args.usd:
         from warpcloth.io.usd import usd_frames
 
-        writers.append(usd_frames(args.usd, getattr(args, "usd_color", "none"), info))  # the path is checked now
+        writers.append(usd_frames(args.usd, getattr(args, "usd_color", "none"), info,
+                                  colliders=getattr(args, "usd_colliders", "guide")))  # the path is checked now
         paths.append(args.usd)
     if getattr(args, "html", None):
         from warpcloth.io.player import HtmlWriter, check_html_path
@@ -103,12 +107,24 @@ def output_writers(scenario_name: str, args) -> list:
         from warpcloth.io.preview import PreviewWriter
 
         writers.append(lambda sim, cfg: PreviewWriter(args.preview, sim.model, cfg.fps, title=f"{scenario_name}, {sim.integrator.name}",
-                                                      expected_frames=frames(cfg)))
+                                                      expected_frames=frames(cfg), colliders=sim.control.colliders))
     if len({os.path.abspath(p) for p in paths}) < len(paths):
         raise WarpclothError("two outputs name the same file: " + ", ".join(paths))
     for folder in sorted({os.path.dirname(os.path.abspath(p)) for p in paths}):
         sweep_stale_temporaries(folder, sys.stderr)
     return writers
+
+
+def _clips_note(path: str, usd: str | None) -> str:
+    """For a USD file whose samples went to value clips: where they are (the file alone opens empty)."""
+    if path != usd:
+        return ""
+    from warpcloth.io.usd import clip_folder_of
+
+    folder, count = clip_folder_of(path)
+    if folder is None:
+        return ""
+    return f"; its samples are in {folder}{os.sep} ({count} clip{'s' * (count != 1)}): copy the folder with the file"
 
 
 def run_scenario(scenario_name: str, args) -> int:
@@ -133,7 +149,7 @@ def run_scenario(scenario_name: str, args) -> int:
         written = result.frames + (1 if result.stable else 0)  # the first frame, not the unstable last one
         for path in (args.usd, getattr(args, "html", None), getattr(args, "preview", None)):
             if path:
-                print(f"  wrote {path} ({os.path.getsize(path):,} bytes, {written} frames)")
+                print(f"  wrote {path} ({os.path.getsize(path):,} bytes, {written} frames)" + _clips_note(path, args.usd))
     if getattr(args, "fail_unstable", False) and not result.stable:
         if not args.json:
             print(f"warpcloth: the run went unstable ({result.unstable_reason}); exit {EXIT_UNSTABLE}", file=sys.stderr)

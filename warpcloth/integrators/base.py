@@ -17,8 +17,10 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError
+from warpcloth.kernels.bending import HingeAdjacency
 from warpcloth.kernels.springs import SpringAdjacency
 from warpcloth.sim.coloring import particle_adjacency
+from warpcloth.sim.hinges import hinge_adjacency
 
 
 @dataclass(frozen=True)
@@ -178,11 +180,13 @@ def stable_dt_estimate(model, drag_rate: float = 0.0) -> float:
     m_i + drag. Symplectic Euler on x'' = -omega^2 x - c x' is stable while
     h^2 omega^2 + 2 h c < 4, i.e. h < (sqrt(c^2 + 4 omega^2) - c) / omega^2. Unlike the seed's
     single-spring estimate 0.4 pi sqrt(m/K), this accounts for every spring at a particle.
+    Dihedral hinges add their block-Gershgorin row sums (:meth:`ClothModel.particle_hinge_sums`,
+    sum_e k_e |g_i| sum_b |g_b|), which grow as 1/h^2 (bending limits dt as h^2).
     """
-    ks_sum, kd_sum = model.particle_spring_sums()
+    ks_sum, kd_sum = _stiffness_rows(model)
     mass = model.host["mass"].astype(np.float64)
-    omega2 = float(np.max(2.0 * ks_sum / mass))
-    c = float(np.max(2.0 * kd_sum / mass)) + float(drag_rate)
+    omega2 = float(np.max(ks_sum / mass))
+    c = float(np.max(kd_sum / mass)) + float(drag_rate)
     if omega2 <= 0.0:
         return math.inf if c <= 0.0 else 2.0 / c
     return (math.sqrt(c * c + 4.0 * omega2) - c) / omega2
@@ -193,15 +197,30 @@ def model_spectrum(model, drag_rate: float = 0.0) -> tuple[float, float, float]:
     the stiffness eigenvalues by Gershgorin (max_i 2 sum_j ks_ij / m_i), and a mode of angular
     frequency omega is damped at the rate at least c(omega) = alpha + beta omega^2, alpha the air
     drag and beta the smallest kd / ks of the springs (damping proportional to stiffness, as the
-    default kd = 2 zeta sqrt(ks m) gives per spring type)."""
-    ks_sum, _ = model.particle_spring_sums()
+    default kd = 2 zeta sqrt(ks m) gives per spring type). Dihedral hinges count in both: their
+    Gershgorin rows in omega_max, their kd_e / k_e in beta."""
+    ks_sum, _ = _stiffness_rows(model)
     mass = model.host["mass"].astype(np.float64)
-    omega_max = math.sqrt(float(np.max(2.0 * ks_sum / mass))) if ks_sum.size else 0.0
+    omega_max = math.sqrt(float(np.max(ks_sum / mass))) if ks_sum.size else 0.0
     ks = model.spring_stiffness.numpy().astype(np.float64)
     kd = model.spring_damping.numpy().astype(np.float64)
+    if model.hinge_count:
+        ks = np.concatenate([ks, model.host.hinges.stiffness])
+        kd = np.concatenate([kd, model.host.hinges.damping])
     stiff = ks > 0
     beta = float(np.min(kd[stiff] / ks[stiff])) if np.any(stiff) else 0.0
     return omega_max, float(drag_rate), beta
+
+
+def _stiffness_rows(model) -> tuple[np.ndarray, np.ndarray]:
+    """Per particle, Gershgorin row sums of the stiffness and damping matrices [N/m], [N s/m]:
+    2 sum_j ks_ij (2 sum_j kd_ij) plus the hinges' rows."""
+    ks_sum, kd_sum = model.particle_spring_sums()
+    ks_rows, kd_rows = 2.0 * ks_sum, 2.0 * kd_sum
+    if model.hinge_count:
+        hs, hd = model.particle_hinge_sums()
+        ks_rows, kd_rows = ks_rows + hs, kd_rows + hd
+    return ks_rows, kd_rows
 
 
 def runge_kutta_stable_dt(amplification: Callable, model, drag_rate: float = 0.0) -> float:
@@ -260,5 +279,25 @@ def spring_adjacency(model) -> SpringAdjacency:
     return springs
 
 
-__all__ = ["Integrator", "Option", "explicit_euler_dt_bound", "model_spectrum", "runge_kutta_stable_dt", "scratch_like",
-           "spring_adjacency", "stable_dt_estimate"]
+def hinge_adjacency_of(model) -> HingeAdjacency:
+    """Each particle's dihedral hinges (:func:`warpcloth.sim.hinges.hinge_adjacency`) with the model's
+    hinge arrays, as one kernel argument (:class:`~warpcloth.kernels.bending.HingeAdjacency`; empty
+    arrays, zero offsets, without hinges); made once at bind."""
+    n, device = model.particle_count, model.device
+    adj = HingeAdjacency()
+    if model.hinge_count:
+        offsets, hinge, slot = hinge_adjacency(model.host.hinges.indices, n)
+        adj.offsets = wp.array(offsets, dtype=int, device=device)
+        adj.hinge = wp.array(hinge, dtype=int, device=device)
+        adj.slot = wp.array(slot, dtype=int, device=device)
+        adj.indices, adj.rest_angle, adj.stiffness, adj.damping = model.hinge_arrays()
+    else:
+        adj.offsets = wp.zeros(n + 1, dtype=int, device=device)
+        adj.hinge, adj.slot = wp.zeros(0, dtype=int, device=device), wp.zeros(0, dtype=int, device=device)
+        adj.indices = wp.zeros(0, dtype=wp.vec4i, device=device)
+        adj.rest_angle, adj.stiffness, adj.damping = (wp.zeros(0, dtype=float, device=device) for _ in range(3))
+    return adj
+
+
+__all__ = ["Integrator", "Option", "explicit_euler_dt_bound", "hinge_adjacency_of", "model_spectrum", "runge_kutta_stable_dt",
+           "scratch_like", "spring_adjacency", "stable_dt_estimate"]

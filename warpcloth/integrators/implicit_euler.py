@@ -2,7 +2,9 @@
 
     (M - h df/dv - h^2 df/dx) dv = h (f + h df/dx v) ;  v <- v + dv ;  x <- x + h v
 
-One Newton step of backward Euler per time step. df/dx is the full spring Jacobian with the
+One Newton step of backward Euler per time step (dihedral hinges, ``bend="dihedral"``, add their
+Gauss-Newton blocks (h^2 k_e + h kd_e) g g^T to A and -h^2 k_e g (g . v) to b:
+:class:`~warpcloth.integrators.system.ImplicitSystem`). df/dx is the full spring Jacobian with the
 compression clamp of design.md (it keeps the matrix symmetric positive definite, see
 :func:`warpcloth.kernels.springs.spring_stiffness_block`), df/dv the spring damping and air
 drag Jacobian; wind is treated explicitly. With ``jacobian="approx"`` df/dx is the seed's
@@ -208,10 +210,12 @@ class ImplicitEuler(Integrator):
         s.assemble(x, h, float(control.drag_rate))
         wp.launch(ik.eval_rhs, dim=m.particle_count, inputs=[f, v, s.springs, s.spring_K, m.particle_inv_mass, h], outputs=[self.b],
                   device=m.device)
+        s.add_hinge_rhs(v, self.b, h)  # dihedral hinges: b += -h^2 sum_e k_e g (g . v)
         if has_pin_tracks(control):  # pinned dv = (track(t + h) - x)/h - v, moved to the free rows' right side
             control.kinematic_pins.delta(control, x, v, h, 1.0 / h, 1.0, self.pin_dv)
             wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[s.springs, s.spring_B, m.particle_inv_mass, self.pin_dv],
                       outputs=[self.b], device=m.device)
+            s.add_hinge_product(self.pin_dv, self.b, -h * h, -h, 0)  # and the hinges' -(h^2 k + h kd) g (g . dv_pin)
         contacts = self.matrix == "bsr" and control.collision is not None and len(control.collision.colliders) > 0
         if contacts:
             self._filter_contacts(control, x, v, f, h)

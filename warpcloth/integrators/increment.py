@@ -21,7 +21,7 @@ from warpcloth.kernels import increment as nk
 
 from warpcloth.integrators.forces import eval_external_forces
 from warpcloth.sim.pins import apply_pins, has_pin_tracks
-from warpcloth.integrators.base import Integrator, scratch_like, spring_adjacency
+from warpcloth.integrators.base import Integrator, hinge_adjacency_of, scratch_like, spring_adjacency
 from warpcloth.integrators.linalg import TranslationSolve
 
 
@@ -52,6 +52,8 @@ class IncrementSolver(Integrator):
     def _allocate(self, model) -> None:
         #: Each particle's springs and their parameters (:class:`~warpcloth.kernels.springs.SpringAdjacency`).
         self.springs = spring_adjacency(model)
+        #: Each particle's dihedral hinges (:class:`~warpcloth.kernels.bending.HingeAdjacency`; empty without).
+        self.hinges = hinge_adjacency_of(model)
         #: The increment dx = x_new - x [m] and the inertial target dy = h v + h^2 f_ext / m [m], shape
         #: (particle_count,).
         self.dx, self.dy = scratch_like(model, 2)

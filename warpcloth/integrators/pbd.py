@@ -15,6 +15,10 @@ a lone constraint keeps the fraction (1 - k) of its error whatever n is. ``subst
 paper's algorithm; more substeps (Macklin et al. 2019) make an unconverged solve stiffer. The
 stiffness k in [0, 1] is per substep and not a material constant: it does not map to ks (use
 ``xpbd`` for that).
+
+Dihedral hinges (``bend="dihedral"``) are constraints C = theta - theta0 with ``pbd_bend_stiffness``
+(dp_b = -k' w_b C g_b / sum w |g|^2, :func:`warpcloth.kernels.bending.solve_hinges_pbd`), swept by their
+own colouring after the springs: the rigidity B plays no role (docs/materials.md).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from typing import ClassVar
 
 import warp as wp
 
+from warpcloth.kernels import bending as bk
 from warpcloth.kernels import constraints as ck
 
 from warpcloth.sim.model import SpringType
@@ -44,7 +49,8 @@ class PBD(PositionBasedIntegrator):
         ITERATIONS,
         SUBSTEPS,
         Option("pbd_stiffness", float, 1.0, "PBD stiffness k of structural and shear constraints, in [0, 1]", check=_unit_interval),
-        Option("pbd_bend_stiffness", float, 1.0, "PBD stiffness k of bend constraints, in [0, 1]", check=_unit_interval),
+        Option("pbd_bend_stiffness", float, 1.0, "PBD stiffness k of bend constraints (bend springs, or the dihedral "
+               "hinges' C = theta - theta0), in [0, 1]", check=_unit_interval),
         VELOCITY_DAMPING,
     )
 
@@ -65,6 +71,10 @@ class PBD(PositionBasedIntegrator):
         keep = self.velocity_keep()
         params = [m.spring_indices, m.spring_rest_length, self.spring_type, self.type_stiffness(), m.particle_inv_mass, state.particle_q]
         sweep = self.color_sweep(ck.solve_springs_pbd, params, [self.particle_dp])
+        if m.hinge_count:  # dihedral hinges: C = theta - theta0 at the bend stiffness (no unit, like the springs')
+            k = float(self.type_stiffness()[int(SpringType.BEND)])
+            hinge = [m.hinge_indices, m.hinge_rest_angle, k, m.particle_inv_mass, state.particle_q]
+            sweep = sweep + self.hinge_sweep(bk.solve_hinges_pbd, hinge, [self.particle_dp])
         for k in range(self.substeps):
             self.predict(state, control, h, keep, (k + 1) * h)
             self.solve(state, control, sweep)

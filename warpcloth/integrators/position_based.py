@@ -15,6 +15,7 @@ import warp as wp
 from warpcloth.kernels import constraints as ck
 
 from warpcloth.sim.coloring import SpringColoring, color_springs
+from warpcloth.sim.hinges import color_hinges
 from warpcloth.integrators.forces import eval_external_forces
 from warpcloth.sim.pins import has_pin_tracks
 from warpcloth.integrators.base import Integrator, Option, scratch_like
@@ -78,9 +79,16 @@ class PositionBasedIntegrator(Integrator):
         self.particle_dp = scratch_like(model)
         self.contact_normal = wp.zeros(model.particle_count, dtype=float, device=model.device)  # per substep
         self._sweep_key, self._sweep = None, []
+        # dihedral hinges: their own colouring (no two hinges of a colour share a vertex), swept after the springs
+        self.hinge_coloring = color_hinges(model.host.hinges.indices, model.particle_count) if model.hinge_count else None
+        self.hinge_order = wp.array(self.hinge_coloring.order, dtype=wp.int32) if model.hinge_count else None
+        self._hinge_sweep_key, self._hinge_sweep = None, []
 
     def stats(self) -> dict:
-        return {"colors": self.coloring.color_count if self.model is not None else 0}
+        colors = self.coloring.color_count if self.model is not None else 0
+        if self.model is not None and self.hinge_coloring is not None:
+            colors += self.hinge_coloring.color_count
+        return {"colors": colors}
 
     # -- the three phases of Müller et al. 2007, Algorithm 1 ------------------------------------
     def velocity_keep(self) -> float:
@@ -113,6 +121,23 @@ class PositionBasedIntegrator(Integrator):
             ]
             self._sweep_key = key
         return self._sweep
+
+    def hinge_sweep(self, kernel, params: list, outputs: list) -> list:
+        """One Gauss-Seidel sweep over the dihedral hinges (none without them): a launch of ``kernel``
+        per hinge colour, with inputs (hinge_order, colour start, *params) and ``outputs``, recorded
+        once like :meth:`color_sweep`'s. Sweeping them after the springs keeps Gauss-Seidel valid:
+        each launch is independent within itself."""
+        if self.hinge_coloring is None:
+            return []
+        key = (kernel.key, tuple(_argument_key(a) for a in (*params, *outputs)))
+        if key != self._hinge_sweep_key:
+            d = self.model.device
+            self._hinge_sweep = [
+                wp.launch(kernel, dim=count, inputs=[self.hinge_order, start, *params], outputs=outputs, device=d, record_cmd=True)
+                for start, count in zip(self.hinge_coloring.starts, self.hinge_coloring.counts)
+            ]
+            self._hinge_sweep_key = key
+        return self._hinge_sweep
 
     def solve(self, state, control, sweep) -> None:
         """``iterations`` Gauss-Seidel sweeps over the springs, each followed by the collision

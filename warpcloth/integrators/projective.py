@@ -22,6 +22,12 @@ x + h v makes a rest state of the stepping the exact static equilibrium whatever
 counts (at rest the residual is the net force times h^2). Pinned particles have identity rows
 and zero columns: their dx is 0.
 
+Dihedral hinges (``bend="dihedral"``): S gains the constant h^2 sum_e k_e c c^T + h sum_e kd_e c c^T (c the
+rest coefficients, g_a = c_a n at a flat rest; new CSR entries for the pairs only hinges couple) and the
+residual the hinges' true forces (their damping at the dx / h rate, as the springs'). With stiff membrane
+springs S's isotropic h^2 L also stiffens the out-of-plane direction, so bending converges slowly at large
+dt (docs/materials.md, the cantilever).
+
 Rigid translation (``pd_rigid_mode``, default 1; issue 26): before each global CG, without
 colliders, the Galerkin step on the rigid translation T solves the cloth's mean motion exactly
 (S is scalar: T^T S T is the sum of its free rows, no product needed). The fixed 10 Jacobi-PCG
@@ -45,6 +51,7 @@ from warpcloth.kernels import projective as pk
 from warpcloth.integrators.base import Option, scratch_like
 from warpcloth.integrators.increment import IncrementSolver, at_least_one
 from warpcloth.integrators.linalg import OrderedSum
+from warpcloth.sim.hinges import hinge_pairs, hinge_rest_coefficients
 
 
 class Projective(IncrementSolver):
@@ -65,16 +72,28 @@ class Projective(IncrementSolver):
     def _allocate_solver(self, model) -> None:
         n = model.particle_count
         offsets, other = self.springs.offsets.numpy(), self.springs.other.numpy()
-        # CSR of S: row i = [diagonal, one entry per adjacent spring (neighbour order)]
-        row_offsets = offsets + np.arange(n + 1, dtype=np.int32)
+        # CSR of S: row i = [diagonal, one entry per adjacent spring (neighbour order), the pairs a dihedral
+        # hinge couples that no spring does]
+        extra = _hinge_only_pairs(model, offsets, other)
+        extra_count = np.bincount(extra[:, 0], minlength=n) if extra.size else np.zeros(n, dtype=np.int64)
+        row_offsets = offsets + np.arange(n + 1, dtype=np.int32) + np.concatenate([[0], np.cumsum(extra_count)])
         columns = np.empty(int(row_offsets[-1]), dtype=np.int32)
-        columns[row_offsets[:-1]] = np.arange(n, dtype=np.int32)
-        off_diagonal = np.ones(columns.size, dtype=bool)
-        off_diagonal[row_offsets[:-1]] = False
-        columns[off_diagonal] = other
+        starts = row_offsets[:-1]
+        columns[starts] = np.arange(n, dtype=np.int32)
+        degree = np.diff(offsets)
+        spring_slot = np.repeat(starts + 1, degree) + (np.arange(degree.sum()) - np.repeat(offsets[:-1], degree))
+        columns[spring_slot] = other
+        if extra.size:  # rows sorted by particle: each row's extras after its springs
+            order = np.argsort(extra[:, 0], kind="stable")
+            rows_e, cols_e = extra[order, 0], extra[order, 1]
+            first = np.concatenate([[0], np.cumsum(extra_count)])[:-1]
+            columns[(starts + 1 + degree)[rows_e] + (np.arange(rows_e.size) - first[rows_e])] = cols_e
         self.row_offsets = wp.array(row_offsets.astype(np.int32), dtype=int)
         self.columns = wp.array(columns, dtype=int)
         self.values = wp.zeros(columns.size, dtype=float)
+        self.hinge_K = self.hinge_D = None
+        if model.hinge_count:  # S's constant hinge part, sum_e k_e c c^T and sum_e kd_e c c^T per CSR entry
+            self.hinge_K, self.hinge_D = (wp.array(a, dtype=float) for a in _hinge_matrix_terms(model, row_offsets, columns))
         self.inv_diag = wp.zeros(n, dtype=float)
         self.r, self.z, self.p, self.Ap = scratch_like(model, 4)
         self.rz = wp.zeros(self.pd_cg_iterations + 1, dtype=float)
@@ -106,7 +125,7 @@ class Projective(IncrementSolver):
         held particles' constrained local Newton step, the others out of the colliders; the new
         contact set is held in the next global step."""
         m = self.model
-        wp.launch(pk.solve_contacts, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, h, contacts],
+        wp.launch(pk.solve_contacts, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h, contacts],
                   outputs=[self.Ap, self.contact], device=m.device)
         wp.copy(self.dx, self.Ap)
 
@@ -115,11 +134,17 @@ class Projective(IncrementSolver):
         m = self.model
         if self._assembled_for == h:
             return
+        if self.hinge_K is not None:
+            self.values.zero_()  # the hinge-only entries (assemble_global_matrix writes the springs')
         wp.launch(
             pk.assemble_global_matrix, dim=m.particle_count,
-            inputs=[self.springs, m.particle_mass, m.particle_inv_mass, h],
+            inputs=[self.springs, self.row_offsets, m.particle_mass, m.particle_inv_mass, h],
             outputs=[self.values, self.inv_diag], device=m.device,
         )
+        if self.hinge_K is not None:
+            wp.launch(pk.add_hinge_matrix_terms, dim=m.particle_count,
+                      inputs=[self.row_offsets, self.hinge_K, self.hinge_D, m.particle_inv_mass, h],
+                      outputs=[self.values, self.inv_diag], device=m.device)
         self._assembled_for = h
 
     def local_step(self, x, h: float) -> None:
@@ -130,6 +155,10 @@ class Projective(IncrementSolver):
             inputs=[x, self.dx, self.inertia, self.springs, self.inv_diag, h, self.contact],
             outputs=[self.r, self.z, self.p, self.dot.terms], device=m.device,
         )
+        if m.hinge_count:  # + h^2 times the hinges' forces
+            wp.launch(pk.add_hinge_residual, dim=m.particle_count,
+                      inputs=[x, self.dx, self.inertia, self.hinges, self.inv_diag, h, self.contact],
+                      outputs=[self.r, self.z, self.p, self.dot.terms], device=m.device)
         self._reduce(self.rz, 0)
 
     def translation_step(self) -> None:
@@ -175,3 +204,41 @@ class Projective(IncrementSolver):
     def stats(self) -> dict:
         return {"pd_iterations": self.pd_iterations, "pd_cg_iterations": self.pd_cg_iterations}
 
+
+
+def _hinge_only_pairs(model, offsets, other) -> np.ndarray:
+    """The (i, j) vertex pairs, both directions, that a dihedral hinge couples and no spring does, (P, 2) int64."""
+    if not model.hinge_count:
+        return np.zeros((0, 2), dtype=np.int64)
+    n = model.particle_count
+    pairs = hinge_pairs(model.host.hinges.indices).astype(np.int64)
+    rows = np.repeat(np.arange(n), np.diff(offsets))
+    springs = np.unique(rows * n + other.astype(np.int64))
+    key = pairs[:, 0] * n + pairs[:, 1]
+    missing = pairs[~np.isin(key, springs)]
+    return np.concatenate([missing, missing[:, ::-1]])
+
+
+def _hinge_matrix_terms(model, row_offsets, columns) -> tuple[np.ndarray, np.ndarray]:
+    """Per CSR entry of S, sum_e k_e c_a c_b and sum_e kd_e c_a c_b over the hinges coupling its row a and
+    column b (c the rest coefficients, :func:`~warpcloth.sim.hinges.hinge_rest_coefficients`); 0 on pinned
+    rows and columns. float32 arrays."""
+    n = model.particle_count
+    hinges = model.host.hinges
+    c = hinge_rest_coefficients(model.host["q"], hinges.indices)
+    q = hinges.indices.astype(np.int64)
+    a, b = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+    rows, cols = q[:, a.ravel()].ravel(), q[:, b.ravel()].ravel()
+    cc = (c[:, a.ravel()] * c[:, b.ravel()]).ravel()
+    k = np.repeat(hinges.stiffness, 16) * cc
+    kd = np.repeat(hinges.damping, 16) * cc
+    free = model.host["inv_mass"] > 0
+    keep = free[rows] & free[cols]
+    rows_csr = np.repeat(np.arange(n), np.diff(row_offsets))
+    keys = rows_csr * n + columns.astype(np.int64)
+    order = np.argsort(keys, kind="stable")
+    pos = order[np.searchsorted(keys[order], rows[keep] * n + cols[keep])]
+    K, D = np.zeros(columns.size), np.zeros(columns.size)
+    np.add.at(K, pos, k[keep])
+    np.add.at(D, pos, kd[keep])
+    return K.astype(np.float32), D.astype(np.float32)

@@ -17,6 +17,9 @@ clamped (positive semi-definite) Hessian, and the spring damping kd along the sp
 implicitly (the paper's kd / h term). Gravity, air drag and wind are external forces,
 evaluated once at the start of the step (explicit). The particles are coloured so that no two
 of one colour share a spring (:func:`warpcloth.sim.coloring.color_vertices`: 9 colours on a grid).
+Dihedral hinges (``bend="dihedral"``) add each vertex's hinge force and Gauss-Newton block
+(k + kd/h) g_i g_i^T (:func:`warpcloth.kernels.bending.hinge_vertex_force_hessian`) to g_i and H_i, and
+their vertex pairs to the colouring graph; a vertex step stalls where k |g|^2 >> m / h^2 (docs/materials.md).
 The initial guess is the paper's "previous velocity" one, x + h v. At rest it is dx = 0, so a
 rest state of the stepping is the exact static equilibrium whatever the number of iterations.
 Measured on the 16 x 16 and 32 x 32 sheets at dt = 1/60 s with 10 iterations: starting from
@@ -65,12 +68,14 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import numpy as np
 import warp as wp
 
 from warpcloth.kernels import increment as nk
 from warpcloth.kernels import vbd as vk
 
 from warpcloth.sim.coloring import VertexColoring, color_vertices
+from warpcloth.sim.hinges import hinge_pairs
 from warpcloth.integrators.base import Option, scratch_like
 from warpcloth.integrators.increment import IncrementSolver, at_least_one
 from warpcloth.integrators.multigrid import GridMultigrid, grid_structure_reason
@@ -133,7 +138,10 @@ class VBD(IncrementSolver):
     coloring: VertexColoring
 
     def _allocate_solver(self, model) -> None:
-        self.coloring = color_vertices(model.host["pairs"], model.particle_count, model.cols)
+        pairs = model.host["pairs"]
+        if model.hinge_count:  # no two vertices of a colour share a hinge either
+            pairs = np.concatenate([pairs, hinge_pairs(model.host.hinges.indices)])
+        self.coloring = color_vertices(pairs, model.particle_count, model.cols)
         self.vertex_order = wp.array(self.coloring.order, dtype=int)
         self.dx_prev1, self.dx_prev2 = scratch_like(model, 2)  # the Chebyshev history
         self._sweep_key, self._sweep = None, []
@@ -188,7 +196,7 @@ class VBD(IncrementSolver):
     def coarse_correction(self, x, h: float, contacts=None) -> None:
         """dx += V(r): r = -h^2 grad G at dx, V one multigrid V-cycle of A = h^2 Hessian."""
         m = self.model
-        wp.launch(vk.eval_increment_residual, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, h],
+        wp.launch(vk.eval_increment_residual, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h],
                   outputs=[self.residual], device=m.device)
         if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
             wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact, h], outputs=[self.residual],
@@ -214,7 +222,7 @@ class VBD(IncrementSolver):
         identity Hessian, as after a Chebyshev extrapolation, lost the sweeps' contact states and
         the drape did not settle: both measured)."""
         m, rigid = self.model, self.rigid
-        wp.launch(nk.rigid_mode_terms, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, h, self.contact],
+        wp.launch(nk.rigid_mode_terms, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h, self.contact],
                   outputs=[rigid.b, rigid.A], device=m.device)
         rigid.solve()
         wp.launch(nk.apply_rigid_mode, dim=m.particle_count, inputs=[rigid.translation, m.particle_inv_mass, self.contact],
@@ -231,7 +239,7 @@ class VBD(IncrementSolver):
             m = self.model
             self._sweep = [
                 wp.launch(vk.solve_vertices_vbd, dim=count,
-                          inputs=[self.vertex_order, start, x, self.inertia, self.springs, h, colliders],
+                          inputs=[self.vertex_order, start, x, self.inertia, self.springs, self.hinges, h, colliders],
                           outputs=[self.dx, self.contact], device=m.device, record_cmd=True)
                 for start, count in zip(self.coloring.starts, self.coloring.counts)
             ]

@@ -32,6 +32,11 @@ went unstable at 10 x 4 (also scaled by 0.8-0.95) and at 64^2 with 1 x 64 (the m
 unconverged smooth modes lag the state: a delay instability); over-relaxation (omega 1.5-1.9)
 brought +273 % to +80 % at best (32^2: unstable at 1.9). For the spring material's statics use
 vbd, implicit_euler or projective.
+
+Dihedral hinges (``bend="dihedral"``) are constraints C = theta - theta0, gradC = g, with compliance
+1 / k_e and damping kd_e (:func:`warpcloth.kernels.bending.solve_hinges_xpbd`), swept by their own
+colouring after the springs, lambda per hinge. The rest shape depends on the substep: an unconverged
+solve is softer by ~ (h omega_e)^2 (the cantilever strip, docs/materials.md).
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ from typing import ClassVar
 
 import warp as wp
 
+from warpcloth.kernels import bending as bk
 from warpcloth.kernels import constraints as ck
 
 from warpcloth.integrators.position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator
@@ -58,6 +64,7 @@ class XPBD(PositionBasedIntegrator):
     def _allocate(self, model) -> None:
         super()._allocate(model)
         self.spring_lambda = wp.zeros(model.spring_count, dtype=float)
+        self.hinge_lambda = wp.zeros(model.hinge_count, dtype=float)
 
     def step(self, state, control, dt):
         m = self.model
@@ -65,6 +72,9 @@ class XPBD(PositionBasedIntegrator):
         keep = self.velocity_keep()
         params = [m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, m.particle_inv_mass, state.particle_q, h]
         sweep = self.color_sweep(ck.solve_springs_xpbd, params, [self.spring_lambda, self.particle_dp])
+        if m.hinge_count:  # dihedral hinges: C = theta - theta0, compliance 1 / k_e, damping kd_e
+            hinge = [*m.hinge_arrays(), m.particle_inv_mass, state.particle_q, h]
+            sweep = sweep + self.hinge_sweep(bk.solve_hinges_xpbd, hinge, [self.hinge_lambda, self.particle_dp])
         for k in range(self.substeps):
             self.predict(state, control, h, keep, (k + 1) * h)
             self.clear_lambda()
@@ -75,6 +85,8 @@ class XPBD(PositionBasedIntegrator):
         """lambda = 0 for every constraint."""
         if self.model.spring_count:
             wp.launch(ck.clear_lambda, dim=self.model.spring_count, outputs=[self.spring_lambda], device=self.model.device)
+        if self.model.hinge_count:
+            wp.launch(ck.clear_lambda, dim=self.model.hinge_count, outputs=[self.hinge_lambda], device=self.model.device)
 
     def stats(self) -> dict:
         return {**super().stats(), "iterations": self.iterations, "substeps": self.substeps}

@@ -16,8 +16,11 @@ so any USD reader sees one animated stage. A run shorter than one chunk stays a 
 clip folder is written under a temporary name and moved into place with the target.
 
 Pipeline extras: the layer's ``customLayerData`` holds the run's provenance under ``warpcloth``
-(:mod:`warpcloth.io.provenance`); ``/World/Pins`` carries an extent and is written once (no time
-samples) while the pins do not move; ``color="strain"`` writes a vertex ``primvars:displayColor``
+(:mod:`warpcloth.io.provenance`); ``/World/Pins`` (only where the cloth has pins: no prim is
+written empty, an empty point cloud crashed Blender 5.0's Cycles) carries an extent and is written
+once (no time samples) while the pins do not move; the colliders under ``/World/Colliders`` have
+``purpose = "guide"`` by default, so renderers show the cloth and not its collision proxies
+(``colliders_purpose="render"`` draws them too); ``color="strain"`` writes a vertex ``primvars:displayColor``
 per frame, spring strain from blue (0) to red (``strain_scale``, default 10 %); a ``.usdz``
 target is a ``.usdc`` stage packaged with ``UsdUtils.CreateNewUsdzPackage`` (one package:
 no value clips, so a .usdz keeps its samples in memory until it is written).
@@ -38,6 +41,8 @@ USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
 USD_COLORS = ("none", "strain")
 #: Strain at the red end of the displayColor ramp by default (10 %).
 DEFAULT_STRAIN_SCALE = 0.1
+#: ``purpose`` of the collider prims (``--usd-colliders``): "guide" (viewports and tools only) or "render".
+COLLIDER_PURPOSES = ("guide", "render")
 #: Bytes of time samples a writer keeps in memory before it moves them to a value clip.
 CLIP_BYTES = 64 * 2**20
 #: Bytes per point per frame in memory (points, pins, extent, colours, and the layer's overhead).
@@ -49,6 +54,15 @@ def check_usd_path(path: str) -> str:
     takes, a folder where a file can be created, not an immutable file
     (:func:`~warpcloth.io.files.check_output_path`)."""
     return check_output_path(path, "USD", extensions=USD_EXTENSIONS)
+
+
+def clip_folder_of(path: str) -> tuple[str | None, int]:
+    """(the value-clip folder ``PATH.clips`` a closed writer left beside ``path``, its clip count),
+    or (None, 0) for a one-file stage."""
+    folder = path + ".clips"
+    if not os.path.isdir(folder):
+        return None, 0
+    return folder, sum(1 for name in os.listdir(folder) if name.startswith("clip_") and name.endswith(".usdc"))
 
 
 def _usd_failure(exc: BaseException, target: str, tmp: str) -> OutputError:
@@ -108,20 +122,24 @@ class ColliderPrims:
       turned onto the plane's normal), centred on its point.
 
     Static colliders hold default values (no time samples); a collider on a track gets a time
-    sample of its transform at every frame written. Thickness and friction go to the prim's
+    sample of its transform at every frame written. Each prim and the scope carry ``purpose``
+    (``"guide"`` by default: collision proxies that renderers skip; ``"render"``: drawn). Thickness and friction go to the prim's
     ``customData`` (``warpcloth:thickness``, ``warpcloth:friction``); the prim is the surface itself,
     so a resting cloth floats ``thickness`` above it.
     """
 
-    def __init__(self, stage, root: str, colliders, plane_size: float = 10.0):
+    def __init__(self, stage, root: str, colliders, plane_size: float = 10.0, purpose: str = "guide"):
         from pxr import Gf, UsdGeom, Vt
 
+        if purpose not in COLLIDER_PURPOSES:
+            raise WarpclothError(f"collider purpose must be one of {', '.join(COLLIDER_PURPOSES)}, got {purpose!r}")
         self._Gf = Gf
         self.items = []
         colliders = tuple(colliders or ())
         if not colliders:
             return
-        UsdGeom.Scope.Define(stage, root)
+        token = UsdGeom.Tokens.guide if purpose == "guide" else UsdGeom.Tokens.render
+        UsdGeom.Scope.Define(stage, root).CreatePurposeAttr(token)
         for k, c in enumerate(colliders):
             path = f"{root}/{c.kind.capitalize()}_{k}"
             if c.kind == "sphere":
@@ -160,6 +178,7 @@ class ColliderPrims:
                 prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
                 prim.CreateDoubleSidedAttr(True)
                 prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-h, 0, -h), Gf.Vec3f(h, 0, h)]))
+            prim.CreatePurposeAttr(token)  # as the scope's: a reader that does not inherit purpose sees it too
             p = prim.GetPrim()
             p.SetCustomDataByKey("warpcloth:thickness", float(c.thickness))
             p.SetCustomDataByKey("warpcloth:friction", float(c.friction))
@@ -217,13 +236,16 @@ class ColliderPrims:
                     self._set(c.at(sim_time), ops, code)
 
 
-def usd_frames(path: str, color: str = "none", provenance=None):
+def usd_frames(path: str, color: str = "none", provenance=None, colliders: str = "guide"):
     """The one way a run's USD writer is made: checks ``path`` now (before any work) and returns
     the factory ``(sim, config) -> UsdWriter`` that a scenario run calls once its simulator is
-    built. ``provenance``: None, or a function ``(sim, config) -> dict`` (the layer's record)."""
+    built. ``provenance``: None, or a function ``(sim, config) -> dict`` (the layer's record);
+    ``colliders``: the collider prims' purpose (:data:`COLLIDER_PURPOSES`)."""
     check_usd_path(path)
+    if colliders not in COLLIDER_PURPOSES:
+        raise WarpclothError(f"--usd-colliders must be one of {', '.join(COLLIDER_PURPOSES)}, got {colliders!r}")
     return lambda sim, cfg: UsdWriter(path, sim.model, cfg.fps, provenance=provenance(sim, cfg) if provenance else None,
-                                      color=color, colliders=sim.control.colliders)
+                                      color=color, colliders=sim.control.colliders, colliders_purpose=colliders)
 
 
 class UsdWriter:
@@ -240,10 +262,15 @@ class UsdWriter:
             doc); default: as many as fit in :data:`CLIP_BYTES` (a .usdz: all, one package).
         colliders: the run's colliders (``Control.colliders``), written as prims under
             ``/World/Colliders`` (see :class:`ColliderPrims`); moving ones get a time sample per frame.
+        colliders_purpose: ``"guide"`` (default: not rendered) or ``"render"``.
+
+    After :meth:`close`, :attr:`clip_folder` names the value-clip folder of a long run (None for
+    one file): the stage reads its samples from there, so the two travel together.
     """
 
     def __init__(self, path: str, model, fps: float = 60.0, provenance: dict | None = None, color: str | None = None,
-                 strain_scale: float = DEFAULT_STRAIN_SCALE, clip_frames: int | None = None, colliders=()):
+                 strain_scale: float = DEFAULT_STRAIN_SCALE, clip_frames: int | None = None, colliders=(),
+                 colliders_purpose: str = "guide"):
         from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
         self._Gf, self._Vt = Gf, Vt
@@ -292,11 +319,13 @@ class UsdWriter:
         if uv is not None:  # texture coordinates per triangle corner (grids, meshes read with UVs)
             st = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
             st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(uv, dtype=np.float32).reshape(-1, 2)))
-        self.pins = UsdGeom.Points.Define(self.stage, "/World/Pins")
-        self.pins.CreateWidthsAttr(Vt.FloatArray([0.02] * len(model.pinned)))
         self._pin_idx = np.asarray(model.pinned, dtype=np.int64)
-        self.pins_attr = self.pins.CreatePointsAttr()
-        self.pins_extent_attr = self.pins.CreateExtentAttr()
+        self.pins = self.pins_attr = self.pins_extent_attr = None
+        if self._pin_idx.size:  # no empty point cloud (Blender 5.0's Cycles crashed rendering one)
+            self.pins = UsdGeom.Points.Define(self.stage, "/World/Pins")
+            self.pins.CreateWidthsAttr(Vt.FloatArray([0.02] * len(model.pinned)))
+            self.pins_attr = self.pins.CreatePointsAttr()
+            self.pins_extent_attr = self.pins.CreateExtentAttr()
         self._pins_first: np.ndarray | None = None  # the pins' first positions, written once while they stay
         self._pins_moving = False
         self.color_attr = None
@@ -309,8 +338,10 @@ class UsdWriter:
             self.mesh.GetPrim().SetCustomDataByKey("warpcloth:displayColor", f"spring strain, blue 0 to red {self.strain_scale:g}")
         rest = model.host["q"]
         size = float(np.max(rest.max(axis=0) - rest.min(axis=0))) if len(rest) else 1.0
-        self.colliders = ColliderPrims(self.stage, "/World/Colliders", colliders, plane_size=max(4.0, 10.0 * size))
+        self.colliders = ColliderPrims(self.stage, "/World/Colliders", colliders, plane_size=max(4.0, 10.0 * size),
+                                       purpose=colliders_purpose)
         self.frames = 0
+        self._first_points = None
         self.last_code = -1.0
         if self.usdz:  # one package: no clip files beside it
             clip_frames = 2**62
@@ -322,6 +353,7 @@ class UsdWriter:
         self._clip_first = 0.0
         self._clip_dir_tmp = self._tmp + ".clips"
         self._clip_dir = self.path + ".clips"
+        self.clip_folder: str | None = None
 
     def write_frame(self, points: np.ndarray, sim_time: float | None = None) -> None:
         """Write one frame of particle positions (N, 3) at time code ``round(sim_time * fps)``
@@ -331,6 +363,8 @@ class UsdWriter:
         code = float(round(sim_time * self.fps)) if sim_time is not None else float(self.last_code + 1)
         self._prev_code, self.last_code = self.last_code, code
         p = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
+        if self.frames == 0:
+            self._first_points = p.copy()  # the default value of a one-file stage (close)
         self.points_attr.Set(Vt.Vec3fArray.FromNumpy(p), code)
         lo, hi = p.min(axis=0), p.max(axis=0)
         self.extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), code)
@@ -433,6 +467,11 @@ class UsdWriter:
             return self.path
         try:
             self._finish_clips()
+            if not self._clips and self.frames:  # the first frame as the default too: a reader that asks for no
+                first = self._first_points       # time (a mesh input, a DCC's rest pose) gets the cloth, not nothing
+                self.points_attr.Set(self._Vt.Vec3fArray.FromNumpy(first))
+                self.extent_attr.Set(self._Vt.Vec3fArray([self._Gf.Vec3f(*map(float, first.min(axis=0))),
+                                                          self._Gf.Vec3f(*map(float, first.max(axis=0)))]))
             self.stage.SetStartTimeCode(0.0)
             self.stage.SetEndTimeCode(max(0.0, self.last_code))
             if not self.stage.GetRootLayer().Save():
@@ -464,8 +503,20 @@ class UsdWriter:
                 raise failure from None
             raise
         self._closed = True
+        self.clip_folder = self._clip_dir if self._clips else None
         fsync_dir(os.path.dirname(os.path.abspath(self.path)))
         return self.path
+
+    def describe(self) -> str:
+        """What :meth:`close` wrote, for a run's output line: the file's size and frames, and for
+        a long run the clip folder it reads its samples from (copy both; the file alone opens
+        with no time samples)."""
+        text = f"{self.path} ({os.path.getsize(self.path):,} bytes, {self.frames} frames)"
+        if self.clip_folder:
+            count = len(self._clips)
+            text += (f", samples in {self.clip_folder}{os.sep} ({count} clip{'s' * (count != 1)}: "
+                     f"keep the folder beside the file)")
+        return text
 
     def abort(self) -> None:
         """Drop the temporary file (and USD's own safe-save file) without touching the target."""

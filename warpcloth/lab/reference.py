@@ -73,6 +73,9 @@ class Float64Model:
     def from_model(cls, model, control: Control | None = None) -> "Float64Model":
         """Read ``model``'s host arrays and per-spring ks/kd, and ``control``'s gravity, drag and
         wind (default: ``Control()``, gravity only)."""
+        if getattr(model, "hinge_count", 0):
+            raise WarpclothError("the float64 reference has springs only, no dihedral bending: it cannot judge a "
+                                 "bend='dihedral' model (use provot, choi_ko or none)")
         control = control if control is not None else Control(device="cpu")
         h = model.host
         n = int(h["q"].shape[0])

@@ -177,7 +177,7 @@ def _table(header, rows) -> list[str]:
 def scenario_tables(rows: list) -> list[str]:
     """The fixed-mesh scenarios' table: max stable dt, ms/step and real time there, time to
     equilibrium; and why there is no accuracy."""
-    body = []
+    body, cost = [], []
     for sc in dict.fromkeys(r["scenario"] for r in rows):
         for d in dict.fromkeys(r["device"] for r in rows if r["scenario"] == sc):
             for i in dict.fromkeys(r["integrator"] for r in rows if r["scenario"] == sc and r["device"] == d):
@@ -188,14 +188,14 @@ def scenario_tables(rows: list) -> list[str]:
                     continue
                 dt = st["dt_s"]
                 body.append([f"`{sc}`", i, d, st["particles"], st["springs"],
-                             _g(dt, " s") + (" (one frame: the search's limit)" if st["search_bounded"] else ""),
-                             _g(t["ms_per_step_median"]) if t else "–", _g(t["wall_s_per_sim_s"]) if t else "–",
+                             ("≥ " if st["search_bounded"] else "") + _g(dt, " s") + (" (one frame: the search's limit)" if st["search_bounded"] else "")])
+                cost.append([f"`{sc}`", i, d, _g(t["ms_per_step_median"]) if t else "–", _g(t["wall_s_per_sim_s"]) if t else "–",
                              _yn(t["realtime_30fps"]) if t else "–", _yn(t["realtime_60fps"]) if t else "–",
                              (_g(eq["time_to_equilibrium_sim_s"], " s") if eq and eq["equilibrium_reached"] else "not at rest") if eq else "–"])
     out = [f"Measured at each scenario's own mesh: the max stable dt, ms/step at it (rounded down to (1/60 s)/k) and "
            f"time to equilibrium there. {MESH_NOTE[0].upper()}{MESH_NOTE[1:]}.", ""]
-    out += _table(["scenario", "integrator", "device", "particles", "springs", "max stable dt", "ms/step", "wall s / sim s",
-                   "30 FPS", "60 FPS", "to equilibrium (sim)"], body)
+    out += _table(["scenario", "integrator", "device", "particles", "springs", "max stable dt"], body) + [""]
+    out += _table(["scenario", "integrator", "device", "ms/step", "wall s / sim s", "30 FPS", "60 FPS", "to equilibrium (sim)"], cost)
     return out + [""]
 
 
@@ -203,7 +203,7 @@ def tables(data: Data) -> list[str]:
     out = []
     for d in data.devices:
         out += [f"### Per integrator and size on {d}", ""]
-        body = []
+        limits, costs, rest = [], [], []
         for n in sorted(set(data.sizes) | set(data.accuracy_sizes)):
             for i in data.integrators:
                 st, fl = data.stable(d, i, n, "sheet"), data.stable(d, i, n, "flag")
@@ -225,20 +225,26 @@ def tables(data: Data) -> list[str]:
                 def ms(t):
                     return "–" if t is None else f"{_g(t['ms_per_step_median'])} [{_g(t['ms_per_step_min'])}–{_g(t['ms_per_step_max'])}]"
 
-                body.append([
-                    i, f"{n}x{n}", dtcell(st), dtcell(fl), _pct(st["max_strain_rel"]),
-                    dtcell(a_s) + (f" (e {_pct(a_s['error_rel'])})" if a_s and a_s["error_rel"] is not None else ""),
-                    dtcell(a_f), dtcell(msa), _pct(seq["static_error_rel"]) if seq else "–",
-                    ms(ts), ms(ta), _g(ta["wall_s_per_sim_s"]) if ta else "–",
-                    _yn(ta["realtime_30fps"]) if ta else "–", _yn(ta["realtime_60fps"]) if ta else "–",
-                    _g(ts["wall_s_per_sim_s"]) if ts else "–", _yn(ts["realtime_30fps"]) if ts else "–",
-                    _g(eq["time_to_equilibrium_sim_s"], " s") if eq else "–", _g(eq["time_to_equilibrium_wall_s"], " s") if eq else "–",
-                ])
+                key = [i, f"{n}x{n}"]
+                limits.append(key + [dtcell(st), dtcell(fl), _pct(st["max_strain_rel"]),
+                                     dtcell(a_s) + (f" (e {_pct(a_s['error_rel'])})" if a_s and a_s["error_rel"] is not None else ""),
+                                     dtcell(a_f), dtcell(msa), _pct(seq["static_error_rel"]) if seq else "–"])
+                costs.append(key + [ms(ts), ms(ta), _g(ta["wall_s_per_sim_s"]) if ta else "–",
+                                    _yn(ta["realtime_30fps"]) if ta else "–", _yn(ta["realtime_60fps"]) if ta else "–",
+                                    _g(ts["wall_s_per_sim_s"]) if ts else "–", _yn(ts["realtime_30fps"]) if ts else "–"])
+                rest.append(key + [_g(eq["time_to_equilibrium_sim_s"], " s") if eq else "–",
+                                   _g(eq["time_to_equilibrium_wall_s"], " s") if eq else "–"])
+        # three tables of at most 10 columns (one of 18 did not fit a page): limits, cost, rest
+        out += [f"#### Time-step limits and accuracy on {d}", ""]
         out += _table(["integrator", "size", "max stable dt sheet", "max stable dt flag", "max strain at it",
-                       "max accurate dt sheet swing", "max accurate dt flag", "max static-accurate dt", "static error at accurate dt",
-                       "ms/step at stable dt (median [min–max])", "ms/step at accurate dt", "wall s / sim s (accurate)",
-                       "RT 30 FPS (accurate)", "RT 60 FPS (accurate)", "wall s / sim s (stable)", "RT 30 FPS (stable)",
-                       "time to equilibrium (sim)", "(wall)"], body)
+                       "max accurate dt sheet swing", "max accurate dt flag", "max static-accurate dt",
+                       "static error at accurate dt"], limits)
+        out += ["", f"#### Cost and real time on {d}", ""]
+        out += _table(["integrator", "size", "ms/step at stable dt (median [min–max])", "ms/step at accurate dt",
+                       "wall s / sim s (accurate)", "RT 30 FPS (accurate)", "RT 60 FPS (accurate)", "wall s / sim s (stable)",
+                       "RT 30 FPS (stable)"], costs)
+        out += ["", f"#### Time to equilibrium at the max stable dt on {d}", ""]
+        out += _table(["integrator", "size", "time to equilibrium (sim)", "(wall)"], rest)
         out += ["", "“≥” marks a search that stopped at its upper bound (one 60 FPS frame, or the max stable dt): "
                 "the true limit is at least that. “–”: not measured at this size (no float64 reference above the accuracy sizes) or no dt found.", ""]
         out += [f"### Real-time frontier on {d} (30 FPS: wall s per simulated s ≤ 1)", ""]
@@ -276,22 +282,35 @@ def tables(data: Data) -> list[str]:
 
 
 # -- plots -----------------------------------------------------------------------------------
+#: One marker per integrator (with its colour), the same in every plot.
+MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*", "h", "<", ">", "p")
+#: The searches' upper bound: one 60 FPS frame.
+SEARCH_CAP = 1.0 / 60.0
+
+
 def plots(out_dir: str, data: Data, tolerance) -> list[str] | None:
+    """The study's PNGs: legends outside the data, one marker and colour per integrator, the
+    searches' caps drawn as bounds (hollow markers on a "≥ 1/60 s" line), "not reached" as such."""
     try:
         import matplotlib
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        from matplotlib.lines import Line2D
+        from matplotlib.patches import Patch
+        from matplotlib.ticker import NullFormatter, ScalarFormatter
     except ImportError:
         return None
     written = []
     styles = ["-", "--", ":", "-."]
+    palette = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    look = {i: (palette[k % len(palette)], MARKERS[k % len(MARKERS)]) for k, i in enumerate(data.integrators)}
 
     def save(fig, name):
         path = os.path.join(out_dir, name)
         f = AtomicFile(path, "plot", mode="wb")
         try:
-            fig.savefig(f.fh, format="png", dpi=90)
+            fig.savefig(f.fh, format="png", dpi=90, bbox_inches="tight")  # nothing clipped: legends sit outside
         except BaseException:
             f.abort()
             plt.close(fig)
@@ -300,101 +319,152 @@ def plots(out_dir: str, data: Data, tolerance) -> list[str] | None:
         f.commit()
         written.append(name)
 
+    def legend_outside(ax, handles=None, **kw):
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=7, **kw)
+
+    def plain_log_ticks(axis, values):
+        """Ticks at the measured values, written plainly (not 7 x 10^1)."""
+        values = sorted(set(values))
+        if values:
+            axis.set_major_formatter(ScalarFormatter())
+            axis.set_minor_formatter(NullFormatter())
+            axis.set_ticks(values)
+
+    def integrator_handles(names, line=True):
+        return [Line2D([], [], color=look[i][0], marker=look[i][1], ls="-" if line else "none", label=i) for i in names]
+
     # 1. wall s per simulated s at max accurate dt
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    counts = []
     for di, d in enumerate(data.devices):
         for i in data.integrators:
             pts = sorted((n * n, t["wall_s_per_sim_s"]) for n in data.accuracy_sizes for t in [data.timing(d, i, n, "accurate")] if t)
             if pts:
-                ax.loglog(*zip(*pts), styles[di % 4], marker="o", label=f"{i} ({d})")
-    ax.axhline(1.0, color="k", lw=1)
-    ax.text(0.01, 1.0, " real time at 30 and 60 FPS (dt ≤ 1/60 s: both need ≤ 1)", transform=ax.get_yaxis_transform(), va="bottom", fontsize=8)
+                counts += [p for p, _ in pts]
+                ax.loglog(*zip(*pts), styles[di % 4], color=look[i][0], marker=look[i][1], label=f"{i} ({d})")
+    ax.axhline(1.0, color="k", lw=1, label="real time (≤ 1 at 30 and 60 FPS: dt ≤ 1/60 s)")
+    plain_log_ticks(ax.xaxis, counts)
     ax.set_xlabel("particles")
     ax.set_ylabel("wall s per simulated s")
     ax.set_title(f"cost at the max accurate dt (e ≤ {_pct(tolerance)})")
-    ax.legend(fontsize=7)
+    legend_outside(ax)
     save(fig, "wall_per_sim_second.png")
 
-    # 2. max stable and max accurate dt
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    colors = {}
+    # 2. max stable and max accurate dt (a stable dt at the search's cap is a bound: hollow, "≥ 1/60 s")
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    d = data.devices[0] if data.devices else None
+    counts, capped_any, drawn = [], False, []
     for i in data.integrators:
-        for di, d in enumerate(data.devices[:1]):
-            st = sorted((n * n, r["dt_s"]) for n in data.sizes + data.accuracy_sizes for r in [data.stable(d, i, n)] if r and r["dt_s"])
-            line = ax.loglog(*zip(*sorted(set(st))), "-", marker="o", label=f"{i} stable") if st else None
-            c = line[0].get_color() if line else None
-            colors[i] = c
-            ac = sorted((n * n, data.accurate_dt(d, i, n)) for n in data.accuracy_sizes if data.accurate_dt(d, i, n))
-            if ac:
-                ax.loglog(*zip(*ac), "--", marker="s", color=c, label=f"{i} accurate")
+        color, marker = look[i]
+        st = sorted({(n * n, r["dt_s"], bool(r.get("search_bounded"))) for n in data.sizes + data.accuracy_sizes
+                     for r in [data.stable(d, i, n)] if r and r["dt_s"]})
+        if st:
+            drawn.append(i)
+            counts += [p for p, _, _ in st]
+            ax.loglog([p for p, _, _ in st], [v for _, v, _ in st], "-", color=color)
+            for p, v, capped in st:
+                capped_any |= capped
+                ax.plot([p], [v], marker=marker, color=color, mfc="none" if capped else color, ls="none")
+        ac = sorted((n * n, data.accurate_dt(d, i, n)) for n in data.accuracy_sizes if data.accurate_dt(d, i, n))
+        if ac:
+            ax.loglog(*zip(*ac), "--", marker=marker, color=color)
+    handles = integrator_handles(drawn, line=False)
+    handles += [Line2D([], [], color="k", ls="-", label="max stable dt"), Line2D([], [], color="k", ls="--", label="max accurate dt")]
+    if capped_any:
+        ax.axhline(SEARCH_CAP, color="gray", ls=":", lw=1)
+        handles.append(Line2D([], [], color="gray", ls=":", marker="o", mfc="none",
+                              label="≥ 1/60 s: the search's cap\n(hollow: stable at least there)"))
+    plain_log_ticks(ax.xaxis, counts)
     ax.set_xlabel("particles")
     ax.set_ylabel("dt [s]")
-    ax.set_title(f"max stable dt and max accurate dt ({data.devices[0] if data.devices else ''})")
-    ax.legend(fontsize=6, ncol=2)
+    ax.set_title(f"max stable dt and max accurate dt ({d or ''})")
+    legend_outside(ax, handles)
     save(fig, "max_dt.png")
 
-    # 3. frontier bars
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    labels, acc, stab, hatch = [], [], [], []
+    # 3. frontier bars (real-time at every measured size: the frontier is at least the bar)
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    labels, acc, stab, bound = [], [], [], []
     for d in data.devices:
         for i in data.integrators:
             fa, fs = data.frontier(d, i, "accurate"), data.frontier(d, i, "stable")
-            labels.append(f"{i}\n{d}")
+            labels.append(i if len(data.devices) == 1 else f"{i} ({d})")
             acc.append((fa.measured or 0) if fa else 0)
             stab.append((fs.measured or 0) if fs else 0)
-            hatch.append((fa is not None and fa.all_realtime, fs is not None and fs.all_realtime))
-    x = range(len(labels))
-    b1 = ax.bar([v - 0.2 for v in x], acc, 0.4, label="at max accurate dt")
-    b2 = ax.bar([v + 0.2 for v in x], stab, 0.4, label="at max stable dt")
+            bound.append((fa is not None and fa.all_realtime, fs is not None and fs.all_realtime))
+    x = list(range(len(labels)))
+    b1 = ax.bar([v - 0.2 for v in x], acc, 0.4, color=palette[0])
+    b2 = ax.bar([v + 0.2 for v in x], stab, 0.4, color=palette[1])
     for bars, k in ((b1, 0), (b2, 1)):
-        for b, h in zip(bars, hatch):
+        for bar, h in zip(bars, bound):
             if h[k]:
-                b.set_hatch("//")
-    ax.set_xticks(list(x))
-    ax.set_xticklabels(labels, fontsize=7)
+                bar.set_hatch("//")
+                ax.text(bar.get_x() + bar.get_width() / 2, bar.get_height(), r"$\geq$", ha="center", va="bottom", fontsize=12,
+                        rotation=0)
+    ax.set_xticks(x)
+    ax.set_xticklabels(labels, fontsize=8, rotation=30, ha="right")
     ax.set_ylabel("largest real-time particle count (measured)")
-    ax.set_title("real-time frontier at 30 FPS (hatched: real-time at every measured size, frontier is higher)")
-    ax.title.set_fontsize(8)
-    ax.legend(fontsize=7)
+    ax.set_title("real-time frontier at 30 FPS")
+    ax.margins(y=0.1)
+    legend_outside(ax, [Patch(color=palette[0], label="at max accurate dt"), Patch(color=palette[1], label="at max stable dt"),
+                        Patch(facecolor="white", edgecolor="k", hatch="//",
+                              label="≥: real-time at every measured\nsize (the frontier is higher)")])
     save(fig, "frontier.png")
 
-    # 4. error vs dt
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
+    # 4. error vs dt (one legend for both panels, right of them)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
     n0 = data.accuracy_sizes[0] if data.accuracy_sizes else None
     d0 = data.devices[0] if data.devices else None
+    drawn = []
     for ax, sc in zip(axes, ("sheet", "flag")):
         for i in data.integrators:
             pts = sorted((r["dt_s"], r["error_rel"]) for r in _rows(data.rows, "error", scenario=sc, integrator=i, rows=n0, device=d0)
                          if r["options"] is None and r["error_rel"] is not None and math.isfinite(r["error_rel"]) and r["error_rel"] > 0)
             if pts:
-                ax.loglog(*zip(*pts), marker="o", label=i)
-        ax.axhline(tolerance, color="k", lw=1, label="tolerance")
+                ax.loglog(*zip(*pts), color=look[i][0], marker=look[i][1], ms=5)
+                drawn.append(i)
+        ax.axhline(tolerance, color="k", lw=1)
         fl = _one(data.rows, "floor", scenario=sc, rows=n0, device=d0)
         if fl and fl["error_rel"]:
-            ax.axhline(fl["error_rel"], color="gray", ls=":", label="float32 floor")
+            ax.axhline(fl["error_rel"], color="gray", ls=":")
         ax.set_xlabel("dt [s]")
         ax.set_ylabel("e (fraction of the cloth size)")
         ax.set_title(f"{sc} transient, {n0}x{n0}")
-        ax.legend(fontsize=7)
+    handles = integrator_handles(list(dict.fromkeys(drawn)))
+    handles += [Line2D([], [], color="k", lw=1, label=f"tolerance ({_pct(tolerance)})"),
+                Line2D([], [], color="gray", ls=":", label="float32 floor")]
+    legend_outside(axes[-1], handles)
     save(fig, "error_vs_dt.png")
 
-    # 5. time to equilibrium
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
+    # 5. time to equilibrium ("×": not reached, instead of a bar of 0)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
     sizes = sorted(set(data.sizes) | set(data.accuracy_sizes))
     width = 0.8 / max(1, len(sizes))
+    size_colors = plt.get_cmap("viridis")([k / max(1, len(sizes) - 1) for k in range(len(sizes))])
     for ax, col, what in zip(axes, ("time_to_equilibrium_sim_s", "time_to_equilibrium_wall_s"), ("simulated", "wall")):
+        missed = False
         for si, n in enumerate(sizes):
-            vals = []
-            for i in data.integrators:
+            xs, vals, none = [], [], []
+            for k, i in enumerate(data.integrators):
                 t = data.timing(d0, i, n, "stable")
                 eq = data.static(d0, i, n, t["dt_s"] if t else None)
-                vals.append(eq[col] if eq and eq[col] is not None else 0.0)
-            ax.bar([k + si * width for k in range(len(data.integrators))], vals, width, label=f"{n}x{n}")
+                pos = k + si * width
+                if eq and eq[col] is not None and eq["equilibrium_reached"]:
+                    xs.append(pos)
+                    vals.append(eq[col])
+                elif t is not None:
+                    none.append(pos)
+            ax.bar(xs, vals, width, color=size_colors[si], label=f"{n}x{n}")
+            if none:
+                missed = True
+                ax.plot(none, [0.0] * len(none), "x", color=size_colors[si], ms=6, mew=1.5, clip_on=False)
         ax.set_xticks([k + 0.4 - width / 2 for k in range(len(data.integrators))])
-        ax.set_xticklabels(data.integrators, fontsize=7, rotation=30)
-        ax.set_ylabel(f"{what} time to equilibrium [s] (0: not reached)")
+        ax.set_xticklabels(data.integrators, fontsize=8, rotation=30, ha="right")
+        ax.set_ylabel(f"{what} time to equilibrium [s]")
         ax.set_title(f"sheet at the max stable dt ({d0})")
-        ax.legend(fontsize=7)
+    handles, _ = axes[-1].get_legend_handles_labels()
+    if missed:
+        handles.append(Line2D([], [], color="k", marker="x", ls="none", label="not reached"))
+    legend_outside(axes[-1], handles, title="sheet size")
     save(fig, "time_to_equilibrium.png")
     return written
 

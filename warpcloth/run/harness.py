@@ -21,6 +21,7 @@ import statistics
 import time
 from dataclasses import asdict, dataclass, field
 
+import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require_count, require_positive, warn
@@ -227,6 +228,15 @@ class RunResult:
         return json.dumps(self.to_dict(), **kwargs)
 
 
+def _unstable_cause(sim, inside: list) -> str:
+    """Why a run most likely went unstable, in words, for its summary."""
+    if inside:
+        k, what, count = inside[0]
+        return f"{count} vertices started inside collider {k} ({what}): move the cloth out of it"
+    return (f"the likeliest cause is the time step: dt = {sim.dt:.3g} s for {sim.integrator.name} on this cloth; "
+            f"try a smaller --dt (warpcloth max-dt finds the largest stable one) or another integrator")
+
+
 class RunHarness:
     """Runs a :class:`~warpcloth.simulator.Simulator` for a simulated duration: frames, metrics,
     verdicts (unstable, equilibrium), timing and frame sinks (USD, HTML, ...)::
@@ -356,6 +366,7 @@ class RunHarness:
         # moving kinematic pins do work no a-priori bound knows: the energy criterion waits until
         # they stop and starts from the energy then (non-finite state and strain still apply)
         pins_move_until = sim.pins_moving_until()
+        inside = self._check_start(sim)
         if frames is not None:
             t0 = time.perf_counter()
             frames.write_frame(sim.state.particle_q.numpy(), sim.sim_time)
@@ -418,6 +429,8 @@ class RunHarness:
                 result.wall_cap_reached = True
                 break
 
+        if not result.stable:
+            result.unstable_reason += "; " + _unstable_cause(sim, inside)
         result.wall_time = time.perf_counter() - loop_start
         result.capture_time = sim.capture_time - start_capture
         result.integration_time = max(0.0, result.integration_time - result.capture_time)
@@ -434,6 +447,22 @@ class RunHarness:
         if warning:
             warn(warning)  # once per run
         return result
+
+    def _check_start(self, sim) -> list:
+        """Before a run: one warning line per collider that free vertices start inside (they
+        are thrown out at the first step); returns those colliders (the unstable cause)."""
+        from warpcloth.sim.contacts import starting_inside
+
+        colliders = sim.control.colliders
+        if not colliders:
+            return []
+        free = np.ones(sim.model.particle_count, dtype=bool)
+        free[np.asarray(sim.model.pinned, dtype=np.int64)] = False
+        found = starting_inside(colliders, sim.state.particle_q.numpy(), free, sim.sim_time)
+        for k, what, count in found:
+            warn(f"{count} of {int(free.sum())} free cloth vertices start inside collider {k} ({what}): the first step "
+                 f"throws them out; move the cloth or the collider")
+        return found
 
     def _advance(self, n: int, loop_start: float, wall_cap: float | None) -> bool:
         """Advance ``n`` steps in chunks of about :data:`CHUNK_SECONDS` of wall time, checking

@@ -148,7 +148,8 @@ class MetricsProbe:
         )
 
     def energy(self, state) -> float:
-        """Total mechanical energy [J]: kinetic + gravitational + spring (ks (L - L0)^2 / 2)."""
+        """Total mechanical energy [J]: kinetic + gravitational + spring (ks (L - L0)^2 / 2) + hinge
+        (k_e (theta - theta0)^2 / 2)."""
         return self.energies(state)[0]
 
     def energies(self, state) -> tuple[float, float]:
@@ -162,6 +163,9 @@ class MetricsProbe:
             outputs=[self.energy_buffer],
             device=m.device,
         )
+        if m.hinge_count:  # + dihedral bending, 1/2 k_e (theta - theta0)^2
+            wp.launch(mk.reduce_hinge_energy, dim=m.hinge_count, inputs=[state.particle_q, *m.hinge_arrays()[:3]],
+                      outputs=[self.energy_buffer], device=m.device)
         e = self.energy_buffer.numpy()
         return float(e[mk.ENERGY_TOTAL]), float(e[mk.ENERGY_KINETIC])
 

@@ -388,8 +388,11 @@ PARAMS: tuple[Param, ...] = (
           default_doc="the scenario's (sheet 0.2, flag 0.3)", from_scenario=True, cli_type=float),
     *_spring_params("stiffness", "N/m", "1000 structural and shear, 200 bend"),
     *_spring_params("damping", "N s/m", "2 * 0.05 * sqrt(ks m), m the particle mass"),
-    Param("bend", choice("provot", "choi_ko", "none", what="bend model"), "", "bend springs", "`provot`, `choi_ko`, `none`",
-          "cloth", default="provot", choices=("provot", "choi_ko", "none")),
+    Param("bend", choice("provot", "choi_ko", "none", "dihedral", what="bend model"), "",
+          "bend springs, or dihedral: no bend springs, dihedral-angle hinges of rigidity bend_rigidity",
+          "`provot`, `choi_ko`, `none`, `dihedral`", "cloth", default="provot", choices=("provot", "choi_ko", "none", "dihedral")),
+    Param("bend_rigidity", non_negative, "N m", "bending rigidity B of the dihedral hinges (bend dihedral only)", ">= 0", "cloth",
+          default_doc="31.4e-6 (cotton)", key="set", metavar="B", cli_type=float),
     Param("drag", non_negative, "1/s", "linear air drag rate", ">= 0", "forces", default_doc="the scenario's (sheet 1, flag 0)", cli_type=float),
     Param("collider", colliders, "", "add colliders: KIND:K=V,... (vectors as x/y/z), several joined by '+' or the flag "
           "repeated, e.g. sphere:center=0/1/0,radius=0.3,thickness=0.005,friction=0.4 or mesh:path=table.obj "

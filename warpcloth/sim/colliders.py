@@ -2,7 +2,8 @@
 (:class:`MeshCollider`), each with a thickness (the cloth's offset from the surface) [m] and a
 Coulomb friction coefficient mu, given to :class:`~warpcloth.sim.control.Control` as ``colliders=(...)``.
 Any of them may move rigidly on a :class:`ColliderTrack` (keyframed offsets
-or a rigid motion, as pin tracks), posed on the device inside the step.
+or a rigid motion, as pin tracks, or a pose your own loop sets each frame:
+:meth:`ColliderTrack.driven`), posed on the device inside the step.
 
 The quaternion helpers convert a box's rotation (x, y, z, w) to and from a matrix. On the device
 the colliders are a :class:`~warpcloth.sim.contacts.ColliderSet` (:mod:`warpcloth.sim.contacts`:
@@ -18,7 +19,7 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive, require_vector
-from warpcloth.sim.tracks import Track, check_keyframes, check_rigid
+from warpcloth.sim.tracks import FrameDrive, HostWrite, Track, check_keyframes, check_rigid
 
 #: Collider kinds in the order of their kernel launches (the kernels' ``kind`` argument).
 KINDS = ("plane", "sphere", "capsule", "box", "mesh")
@@ -30,7 +31,8 @@ def _material(thickness, friction):
 
 def _track(c):
     if c.track is not None and not isinstance(c.track, ColliderTrack):
-        raise WarpclothError(f"{c.kind} track must be a ColliderTrack (ColliderTrack.keyframes or .rigid), got {c.track!r:.80}")
+        raise WarpclothError(f"{c.kind} track must be a ColliderTrack (ColliderTrack.keyframes, .rigid or .driven), "
+                             f"got {c.track!r:.80}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,8 +95,29 @@ class ColliderTrack(Track):
                 raise WarpclothError(f"collider track (keyframes): {exc}") from None
         return cls.rigid(**args)
 
+    @classmethod
+    def driven(cls, interpolation: str = "linear") -> "ColliderTrack":
+        """A pose that your loop sets each frame: ``track.set(offset, rotation)`` (or
+        :meth:`Simulator.set_collider_pose <warpcloth.simulator.Simulator.set_collider_pose>`)
+        says where the collider is at the end of the next ``simulate()`` call, and its steps
+        move it there: the offset as a linear (or, with ``"hermite"``, cubic) keyframed
+        translation, the rotation about the collider's centre at a constant rate (friction sees
+        that velocity). The pose goes into device arrays the captured frame already reads, so
+        it costs a copy, not a capture. Give one driven track to one collider."""
+        return cls(kind="driven", interpolation=interpolation, drive=ColliderDrive(interpolation))
+
+    def set(self, offset=(0.0, 0.0, 0.0), rotation=None, velocity=None) -> None:
+        """A driven track's pose at the end of the next frame: the collider as given, turned by
+        the unit quaternion ``rotation`` (x, y, z, w; None: as given) about its centre (a
+        sphere's or a box's centre, a capsule's midpoint, a plane's point, a mesh's box centre)
+        and moved by ``offset`` [m]; ``velocity`` [m/s] of the offset there (``"hermite"`` only)."""
+        require(self.kind == "driven", f"collider track is {self.kind}, not driven: only ColliderTrack.driven takes poses")
+        self.drive.set_pose(offset, rotation, velocity)
+
     def transform(self, t: float):
         """(rotation matrix R (3, 3), centre c, offset d) at time t [s]: y -> c + d + R (y - c)."""
+        if self.kind == "driven":
+            return self.drive.transform(t)
         if self.kind == "rigid":
             theta, _ = self._angle(t)
             a = np.asarray(self.axis)
@@ -112,6 +135,8 @@ class ColliderTrack(Track):
 
     def launch_args(self) -> list:
         """The pose kernel's track arguments (device arrays made once, on the current device)."""
+        if self.kind == "driven":
+            raise WarpclothError("a driven collider track's arguments come from its drive (ColliderSet binds it)")
         if self.kind == "rigid":
             dummy = wp.zeros(1, dtype=wp.float64), wp.zeros(1, dtype=wp.vec3d)
             return [1, *self._rigid_args(), dummy[0], dummy[1], dummy[1], 0]
@@ -119,6 +144,79 @@ class ColliderTrack(Track):
         tangents = self._key_tangents(np.zeros((1, 3))).reshape(-1, 3)
         return [0, zero, wp.vec3d(0.0, 0.0, 1.0), zero, wp.vec4d(0.0, 0.0, 0.0, 0.0),
                 *self._keyframe_args(self.offsets, tangents)]
+
+
+class ColliderDrive(FrameDrive):
+    """A :class:`~warpcloth.sim.tracks.FrameDrive` of a collider's offset (one point), and its
+    turn: the rotation R0 at the frame's start and the (axis, angle) of R1 R0^T to the target,
+    in a device array of two ``vec4d`` (R0 as x, y, z, w; axis and angle [rad]) that the driven
+    pose kernel reads (:func:`warpcloth.kernels.collide.eval_collider_driven_pose`)."""
+
+    def __init__(self, interpolation: str = "linear"):
+        super().__init__("driven collider", 1, interpolation)
+        self.start(np.zeros((1, 3)))
+        self.rotation = np.array([0.0, 0.0, 0.0, 1.0])  # (x, y, z, w) at the end of the last frame
+        self.center = np.zeros(3)  # the collider's centre as given (bind)
+        self._turn = None  # the pending rotation target
+        self._turn_keys = (np.array([0.0, 0.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0]), 0.0)  # (R0, axis, angle)
+        self.turn = None
+
+    def set_pose(self, offset, rotation=None, velocity=None) -> None:
+        q = self.rotation if rotation is None else np.asarray(require_vector("driven collider rotation", rotation, 4), dtype=np.float64)
+        require(np.linalg.norm(q) > 0.0, f"driven collider rotation must be a non-zero quaternion (x, y, z, w), got {rotation!r}")
+        self.set(require_vector("driven collider offset", offset, 3, "m"), None if velocity is None else [velocity])
+        self._turn = q / np.linalg.norm(q)
+
+    def bind_turn(self, device, center) -> wp.array:
+        """The device array of the turn (holding the current rotation), for a collider centred at ``center``."""
+        self.center = np.asarray(center, dtype=np.float64)
+        self._turn_write = HostWrite(np.array([self.rotation, [0.0, 0.0, 1.0, 0.0]]), wp.vec4d, device)
+        self.turn = self._turn_write.array
+        self._turn_keys = (self.rotation.copy(), np.array([0.0, 0.0, 1.0]), 0.0)
+        return self.turn
+
+    def upload(self, t0: float, t1: float) -> bool:
+        """Write the next frame's offset keys (:meth:`FrameDrive.upload`) and its turn: from the
+        rotation now to the one set (the short way round), or none (a held frame)."""
+        target, self._turn = self._turn, None
+        q0, axis, angle = self.rotation, np.array([0.0, 0.0, 1.0]), 0.0
+        if target is not None:
+            target = -target if np.dot(target, q0) < 0.0 else target
+            rel = _quat_mul(target, _quat_conj(q0))  # R1 R0^T
+            s = float(np.linalg.norm(rel[:3]))
+            if s > 0.0:
+                axis, angle = rel[:3] / s, 2.0 * math.atan2(s, float(rel[3]))
+        if not super().upload(t0, t1):
+            return False
+        self._turn_write.write(np.array([q0, [*axis, angle]]))
+        self._turn_keys, self._turn_frame = (q0.copy(), axis, angle), (t0, t1)
+        if target is not None:
+            self.rotation = target.copy()
+        return True
+
+    def transform(self, t: float):
+        """(R (3, 3), centre c, offset d) at time t [s] within the last frame: y -> c + d + R (y - c)."""
+        d, _ = self.evaluate(t)
+        q0, axis, angle = self._turn_keys
+        r = _quat_matrix(q0)
+        if angle != 0.0:
+            t0, t1 = self._turn_frame
+            theta = angle * min(max((float(t) - t0) / (t1 - t0), 0.0), 1.0)
+            k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+            r = (math.cos(theta) * np.eye(3) + math.sin(theta) * k + (1 - math.cos(theta)) * np.outer(axis, axis)) @ r
+        return r, self.center, d[0]
+
+
+def _quat_mul(a, b) -> np.ndarray:
+    """The product a b of quaternions (x, y, z, w)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return np.array([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz])
+
+
+def _quat_conj(q) -> np.ndarray:
+    return np.array([-q[0], -q[1], -q[2], q[3]])
 
 
 class _Posed:
@@ -278,6 +376,40 @@ class MeshCollider(_Posed):
         return "mesh"
 
 
+def signed_distance(c, points) -> np.ndarray | None:
+    """phi (P,) [m] of ``points`` (P, 3) from collider ``c`` as it is given (negative inside; its
+    thickness not counted), on the host in float64; None for a mesh (inside is the device's)."""
+    x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if c.kind == "plane":
+        return (x - np.asarray(c.point)) @ np.asarray(c.normal)
+    if c.kind == "sphere":
+        return np.linalg.norm(x - np.asarray(c.center), axis=1) - c.radius
+    if c.kind == "capsule":
+        a, b = np.asarray(c.a), np.asarray(c.b)
+        ab = b - a
+        t = np.clip((x - a) @ ab / max(float(ab @ ab), 1e-20), 0.0, 1.0)
+        return np.linalg.norm(x - (a + t[:, None] * ab), axis=1) - c.radius
+    if c.kind == "box":
+        p = (x - np.asarray(c.center)) @ _quat_matrix(c.rotation)  # R^T (x - c), row-wise
+        q = np.abs(p) - np.asarray(c.half_extents)
+        return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+    return None
+
+
+def describe(c) -> str:
+    """A collider in a few words, for messages: ``sphere at (0, 0.3, 0), radius 0.5``."""
+    v = lambda p: "(" + ", ".join(f"{float(u):.3g}" for u in p) + ")"  # noqa: E731
+    if c.kind == "plane":
+        return f"plane through {v(c.point)}, normal {v(c.normal)}"
+    if c.kind == "sphere":
+        return f"sphere at {v(c.center)}, radius {c.radius:g}"
+    if c.kind == "capsule":
+        return f"capsule {v(c.a)}-{v(c.b)}, radius {c.radius:g}"
+    if c.kind == "box":
+        return f"box at {v(c.center)}, half extents {v(c.half_extents)}"
+    return f"mesh collider {c.source or ''}".strip()
+
+
 COLLIDER_TYPES = {"plane": Plane, "sphere": Sphere, "capsule": Capsule, "box": Box, "mesh": MeshCollider}
 
 
@@ -310,4 +442,5 @@ def _matrix_quat(m: np.ndarray) -> tuple:
     return tuple(float(c) for c in q / np.linalg.norm(q))
 
 
-__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderTrack", "KINDS", "MeshCollider", "Plane", "Sphere"]
+__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderDrive", "ColliderTrack", "KINDS", "MeshCollider", "Plane", "Sphere",
+           "describe", "signed_distance"]

@@ -29,7 +29,7 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError
 from warpcloth.kernels import collide as ck
-from warpcloth.sim.colliders import COLLIDER_TYPES, KINDS, _quat_matrix
+from warpcloth.sim.colliders import COLLIDER_TYPES, KINDS, _quat_matrix, describe, signed_distance
 
 
 class ColliderSet:
@@ -38,9 +38,15 @@ class ColliderSet:
 
     Moving colliders are re-posed on the device from the control's simulated time before each
     response (one tiny launch per moving collider), so a captured frame replays their motion.
+    Driven ones (:meth:`ColliderTrack.driven <warpcloth.sim.colliders.ColliderTrack.driven>`)
+    read their pose from device arrays the host rewrites each frame (``frame_times``: the
+    control's :attr:`~warpcloth.sim.control.Control.frame_times`).
+
+    The broad phase's box is computed at the first response (not here: building a control
+    loads no kernel module, so a run's compile time counts every module it loads).
     """
 
-    def __init__(self, colliders, device, time=None, step_dt=None):
+    def __init__(self, colliders, device, time=None, step_dt=None, frame_times=None):
         for c in colliders:
             if not isinstance(c, tuple(COLLIDER_TYPES.values())):
                 raise WarpclothError(f"colliders must be Plane, Sphere, Capsule, Box or MeshCollider objects, got {c!r:.80}")
@@ -54,12 +60,26 @@ class ColliderSet:
             records = [_record(c, m) for c, m in zip(order, self.meshes)]
             self.rest = wp.array(records, dtype=ck.Collider)
             self.params = wp.array(records, dtype=ck.Collider)
-            self.box = wp.zeros(2, dtype=wp.vec3)  # broad phase: the box around the non-plane colliders (kernels.collide.eval_collider_bounds)
+            self._box = wp.zeros(2, dtype=wp.vec3)  # broad phase: the box around the non-plane colliders (kernels.collide.eval_collider_bounds)
             self.time = time if time is not None else wp.zeros(1, dtype=wp.float64)
             self.step_dt = step_dt if step_dt is not None else wp.zeros(1, dtype=wp.float64)
             self.substep = wp.array([0, 1], dtype=int)  # (k, S): the position-based substep k of S
-            self._moving = [(k, c.track.launch_args()) for k, c in enumerate(order) if c.track is not None]
-        self._bound()
+            self.frame_times = frame_times if frame_times is not None else wp.zeros(4, dtype=wp.float64)
+            self._moving, self.drives, seen = [], [], set()
+            for k, (c, record) in enumerate(zip(order, records)):
+                if c.track is None:
+                    continue
+                if c.track.kind != "driven":
+                    self._moving.append((ck.eval_collider_pose, k, c.track.launch_args()))
+                    continue
+                drive = c.track.drive
+                if id(drive) in seen:
+                    raise WarpclothError("a driven collider track moves one collider: give each its own ColliderTrack.driven()")
+                seen.add(id(drive))
+                turn = drive.bind_turn(device, np.array(record.bound_center, dtype=np.float64))
+                self._moving.append((ck.eval_collider_driven_pose, k, [self.frame_times, *drive.bind(device), turn]))
+                self.drives.append(drive)
+        self._box_ready = False
 
     @property
     def moving(self) -> bool:
@@ -69,8 +89,8 @@ class ColliderSet:
         """Move every tracked collider to its pose at t = time + offset, or with ``substep`` at
         the end of the current position-based substep, t + dt min(k + 1, S) / S (device
         launches only)."""
-        for k, args in self._moving:
-            wp.launch(ck.eval_collider_pose, dim=1, inputs=[self.time, wp.float64(offset), self.step_dt, self.substep, int(substep), k, self.rest, *args],
+        for kernel, k, args in self._moving:
+            wp.launch(kernel, dim=1, inputs=[self.time, wp.float64(offset), self.step_dt, self.substep, int(substep), k, self.rest, *args],
                       outputs=[self.params], device=self.device)
         if self._moving:
             self._bound()
@@ -82,8 +102,17 @@ class ColliderSet:
             wp.launch(ck.begin_collider_step, dim=1, inputs=[self.substep], device=self.device)
             self.pose(substep=True)
 
+    @property
+    def box(self) -> wp.array:
+        """The broad phase's box around the non-plane colliders (2,) vec3 [m]: computed at its first
+        use (a step's, in the warm-up before any capture) and at every pose."""
+        if not self._box_ready:
+            self._bound()
+        return self._box
+
     def _bound(self) -> None:
-        wp.launch(ck.eval_collider_bounds, dim=1, inputs=[self.params, self.plane_count], outputs=[self.box], device=self.device)
+        wp.launch(ck.eval_collider_bounds, dim=1, inputs=[self.params, self.plane_count], outputs=[self._box], device=self.device)
+        self._box_ready = True
 
     def _broad_phase(self) -> list:
         return [self.params, self.box, self.plane_count]
@@ -112,6 +141,21 @@ class ColliderSet:
         if friction and self._moving:  # the substep ends: the next one's pose
             wp.launch(ck.next_collider_substep, dim=1, inputs=[self.substep], device=self.device)
             self.pose(substep=True)
+
+
+def starting_inside(colliders, points, free, t: float = 0.0) -> list[tuple[int, str, int]]:
+    """The colliders that free cloth vertices start inside: (index in ``colliders``, the collider in
+    words, how many of the ``free`` (N,) bool vertices of ``points`` (N, 3) have phi < 0 at time
+    ``t``), on the host. A vertex inside is pushed out at the first step (often with a spring
+    strain far past any limit); mesh colliders are not checked here."""
+    x = np.asarray(points, dtype=np.float64)[np.asarray(free, dtype=bool)]
+    found = []
+    for k, c in enumerate(colliders or ()):
+        posed = c.at(t) if c.track is not None else c
+        phi = signed_distance(posed, x)
+        if phi is not None and (inside := int(np.count_nonzero(phi < 0.0))):
+            found.append((k, describe(posed), inside))
+    return found
 
 
 def _record(c, mesh=None):
@@ -147,4 +191,4 @@ def _record(c, mesh=None):
     return r
 
 
-__all__ = ["ColliderSet"]
+__all__ = ["ColliderSet", "starting_inside"]

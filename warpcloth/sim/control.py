@@ -15,6 +15,7 @@ import warp as wp
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_vector
 from warpcloth.kernels import collide as ck
 from warpcloth.kernels import forces as fk
+from warpcloth.kernels import pins as pk
 from warpcloth.sim.contacts import ColliderSet
 from warpcloth.sim.device import resolve_device
 from warpcloth.sim.pins import KinematicPins, PinTrack
@@ -109,6 +110,11 @@ class Control:
             self.wind = wp.zeros(1, dtype=wp.vec3)
             """Current wind velocity W(time) [m/s], device array of shape (1,), vec3 (:meth:`update`)."""
             self._step_dt = wp.zeros(1, dtype=wp.float64)  # the last step's dt: position-based steps pose moving colliders with it
+            self.frame_times = wp.zeros(4, dtype=wp.float64)
+            """The key times (t0 - 1, t0, t1, t1 + 1) [s] of the frame being driven from the host
+            (:meth:`upload_drives`), device array of shape (4,), float64: read by driven pin
+            tracks and colliders (:class:`~warpcloth.sim.tracks.FrameDrive`)."""
+        self._frame_launch = None  # ((dt, steps), the recorded eval_frame_times launch)
         self._schedule_start = self._schedule_wind = None  # the device copy of the wind schedule (_fill_schedule)
         self.colliders = colliders
         self.wind_schedule = wind_schedule
@@ -130,7 +136,7 @@ class Control:
     @colliders.setter
     def colliders(self, value) -> None:
         value = tuple(value)
-        collision = ColliderSet(value, self.device, time=self.time, step_dt=self._step_dt) if value else None
+        collision = ColliderSet(value, self.device, time=self.time, step_dt=self._step_dt, frame_times=self.frame_times) if value else None
         self._colliders, self._collision = value, collision
 
     @property
@@ -161,7 +167,36 @@ class Control:
             tracks = (tracks,)
         tracks = tuple(tracks or ())
         self.pin_tracks = tracks
-        self.kinematic_pins = KinematicPins(model, tracks) if tracks else None
+        self.kinematic_pins = KinematicPins(model, tracks, self.frame_times) if tracks else None
+
+    @property
+    def drives(self) -> list:
+        """The :class:`~warpcloth.sim.tracks.FrameDrive` s of the driven pin tracks and colliders."""
+        pins = [d for d, _ in self.kinematic_pins.drives] if self.kinematic_pins is not None else []
+        return pins + (self.collision.drives if self.collision is not None else [])
+
+    def upload_drives(self, dt: float, steps: int, t0: float) -> bool:
+        """Before a frame of ``steps`` steps of ``dt`` from the host time ``t0``: the frame's key
+        times on the device (from its clock, as the steps will advance it) and every driven
+        track's keys for it (its new target, or a hold after a moving frame). Returns whether
+        a driven pin track was written (its pins then take the frame's start, see
+        :meth:`KinematicPins.apply_driven <warpcloth.sim.pins.KinematicPins.apply_driven>`)."""
+        pins = [d for d, _ in self.kinematic_pins.drives] if self.kinematic_pins is not None else []
+        others = self.collision.drives if self.collision is not None else []
+        if not pins and not others:
+            return False
+        if any(d.pending for d in pins) or any(d.pending for d in others):
+            key = (float(dt), int(steps))
+            if self._frame_launch is None or self._frame_launch[0] != key:  # recorded once per frame length
+                cmd = wp.launch(pk.eval_frame_times, dim=1, inputs=[self.time, self._time_base, self._clock, wp.float64(dt), int(steps)],
+                                outputs=[self.frame_times], device=self.device, record_cmd=True)
+                self._frame_launch = (key, cmd)
+            self._frame_launch[1].launch()
+        t1 = t0 + steps * dt
+        moved = [d.upload(t0, t1) for d in pins]
+        for d in others:
+            d.upload(t0, t1)
+        return any(moved)
 
     def _fill_schedule(self) -> None:
         """Copy :attr:`wind_schedule` to the device (float64 start times) and re-evaluate W(t)."""

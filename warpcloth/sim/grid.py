@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from warpcloth.errors import WarpclothError, require_int, require_positive, require_vector
+from warpcloth.errors import WarpclothError, require, require_int, require_non_negative, require_positive, require_vector
 from warpcloth.sim.device import require_memory, resolve_device
+from warpcloth.sim.hinges import DEFAULT_BEND_DAMPING_RATIO, DEFAULT_BEND_RIGIDITY, grid_hinges, hinge_damping_for_ratio
 from warpcloth.sim.model import (BendModel, ClothModel, SpringParams, SpringType, build_model, check_spring_params,
                                  default_spring_params)
 
@@ -25,7 +26,7 @@ def expected_spring_counts(rows: int, cols: int, bend: str | BendModel = BendMod
         "shear": 2 * (m - 1) * (n - 1),
         "bend": 0,
     }
-    if bend != BendModel.NONE:
+    if bend in (BendModel.PROVOT, BendModel.CHOI_KO):
         counts["bend"] = 2 * (m - 2) * (n - 2) + 2 * ((m - 2) + (n - 2))
     if bend == BendModel.CHOI_KO:
         counts["bend"] += 2 * (m - 2) * (n - 2)
@@ -36,13 +37,17 @@ def expected_spring_counts(rows: int, cols: int, bend: str | BendModel = BendMod
 #: integrator's scratch, metrics) and the host copies and temporaries made while building.
 BYTES_PER_PARTICLE = 400
 BYTES_PER_SPRING = 160
+#: Bytes per dihedral hinge: its arrays, colouring and adjacency, and its share of the implicit
+#: system's larger pattern (about 8 more 3 x 3 blocks per particle, 2 hinges per particle).
+BYTES_PER_HINGE = 400
 
 
-def grid_memory_estimate(rows: int, cols: int) -> int:
+def grid_memory_estimate(rows: int, cols: int, bend: str | BendModel = BendModel.PROVOT) -> int:
     """An upper estimate [bytes] of the memory a rows x cols Provot cloth and its run need
-    (about 8 springs per particle with Choi-Ko bend springs)."""
+    (about 8 springs per particle with Choi-Ko bend springs; 4 hinges per particle with ``dihedral``)."""
     n = int(rows) * int(cols)
-    return n * (BYTES_PER_PARTICLE + 8 * BYTES_PER_SPRING)
+    hinges = 4 * n * BYTES_PER_HINGE if BendModel(bend) == BendModel.DIHEDRAL else 0
+    return n * (BYTES_PER_PARTICLE + 8 * BYTES_PER_SPRING) + hinges
 
 
 def grid_springs(rows: int, cols: int, bend: BendModel = BendModel.PROVOT) -> tuple[np.ndarray, np.ndarray]:
@@ -50,7 +55,7 @@ def grid_springs(rows: int, cols: int, bend: BendModel = BendModel.PROVOT) -> tu
 
     Particle [r, c] has index r * cols + c. Structural: [r,c]-[r+1,c], [r,c]-[r,c+1]; shear:
     [r,c]-[r+1,c+1], [r+1,c]-[r,c+1]; bend: [r,c]-[r+2,c], [r,c]-[r,c+2] (Choi-Ko adds
-    [r,c]-[r+2,c+2], [r+2,c]-[r,c+2]).
+    [r,c]-[r+2,c+2], [r+2,c]-[r,c+2]); ``none`` and ``dihedral`` (hinges, not springs) add no bend springs.
     """
     idx = np.arange(rows * cols, dtype=np.int32).reshape(rows, cols)
     pairs, types = [], []
@@ -63,7 +68,7 @@ def grid_springs(rows: int, cols: int, bend: BendModel = BendModel.PROVOT) -> tu
     add(idx[:, :-1], idx[:, 1:], SpringType.STRUCTURAL)
     add(idx[:-1, :-1], idx[1:, 1:], SpringType.SHEAR)
     add(idx[1:, :-1], idx[:-1, 1:], SpringType.SHEAR)
-    if bend != BendModel.NONE:
+    if bend in (BendModel.PROVOT, BendModel.CHOI_KO):
         add(idx[:-2, :], idx[2:, :], SpringType.BEND)
         add(idx[:, :-2], idx[:, 2:], SpringType.BEND)
     if bend == BendModel.CHOI_KO:
@@ -114,25 +119,43 @@ def build_grid_cloth(
     plane: str = "vertical",
     bend: str | BendModel = BendModel.PROVOT,
     device: str | None = None,
+    *,
+    bend_rigidity: float | None = None,
+    bend_damping_ratio: float | None = None,
+    mass_mode: str = "uniform",
 ) -> ClothModel:
     """Build a Provot mass-spring grid cloth.
 
     Args:
         rows, cols: particles per column and per row (>= 2; >= 3 with bend springs).
         width, height: physical size of the cloth [m].
-        total_mass: cloth mass [kg], split evenly over the particles (seed 4.2.4).
+        total_mass: cloth mass [kg], split evenly over the particles (seed 4.2.4) or by vertex
+            area (``mass_mode``).
         spring_params: per-type :class:`SpringParams`; default :func:`default_spring_params`.
         pins: indices of pinned particles (inverse mass 0).
         origin: position of particle [0, 0] [m].
         plane: ``"vertical"`` (hanging, x-y plane) or ``"horizontal"`` (x-z plane).
-        bend: ``"provot"``, ``"choi_ko"`` or ``"none"``.
+        bend: ``"provot"``, ``"choi_ko"``, ``"none"`` (bend springs) or ``"dihedral"``: no bend
+            springs, dihedral-angle hinges (discrete shells) on every interior structural edge, once
+            per diagonal choice of its two cells (:func:`~warpcloth.sim.hinges.grid_hinges`).
         device: Warp device (default: Warp's current device, see :mod:`warpcloth.sim.device`).
+        bend_rigidity: bending rigidity B [N m] of the hinges (``dihedral`` only; default
+            :data:`~warpcloth.sim.hinges.DEFAULT_BEND_RIGIDITY`, cotton's).
+        bend_damping_ratio: damping ratio of each hinge's own mode (``dihedral`` only; default
+            :data:`~warpcloth.sim.hinges.DEFAULT_BEND_DAMPING_RATIO`;
+            :func:`~warpcloth.sim.hinges.hinge_damping_for_ratio`).
+        mass_mode: ``"uniform"`` (total_mass / particles, the seed's) or ``"area"`` (lumped by
+            vertex area: edge particles half, corners a quarter of an interior one's).
     """
     try:
         bend = BendModel(bend)
     except ValueError:
         raise WarpclothError(f"bend must be one of {[b.value for b in BendModel]}, got {bend!r}") from None
-    min_dim = 2 if bend == BendModel.NONE else 3
+    min_dim = 2 if bend in (BendModel.NONE, BendModel.DIHEDRAL) else 3
+    if bend != BendModel.DIHEDRAL and (bend_rigidity is not None or bend_damping_ratio is not None):
+        raise WarpclothError(f"bend_rigidity and bend_damping_ratio are the dihedral model's (bend='dihedral'), not "
+                             f"{bend.value!r}'s: its bend springs take the bend stiffness and damping")
+    require(mass_mode in ("uniform", "area"), f"mass_mode must be 'uniform' or 'area', got {mass_mode!r}")
     rows = require_int("rows", rows, min_dim)
     cols = require_int("cols", cols, min_dim)
     width = require_positive("width", width, "m")
@@ -143,16 +166,36 @@ def build_grid_cloth(
         spring_params = default_spring_params(total_mass / (rows * cols))
     check_spring_params(spring_params)
     device = resolve_device(device)
-    require_memory(f"a {rows} x {cols} cloth", grid_memory_estimate(rows, cols), device)
+    require_memory(f"a {rows} x {cols} cloth", grid_memory_estimate(rows, cols, bend), device)
 
     q = grid_positions(rows, cols, width, height, origin, plane)
     pairs, types = grid_springs(rows, cols, bend)
-    model = build_model(q, pairs, types, np.full(rows * cols, total_mass / (rows * cols)), spring_params, pins, grid_triangles(rows, cols), device)
+    if mass_mode == "uniform":
+        masses = np.full(rows * cols, total_mass / (rows * cols))
+    else:
+        share = np.outer(_end_halves(rows), _end_halves(cols)).ravel()
+        masses = total_mass * share / share.sum()
+    model = build_model(q, pairs, types, masses, spring_params, pins, grid_triangles(rows, cols), device)
     from dataclasses import replace
 
     uv = grid_uvs(rows, cols)[model.host.tris].reshape(-1, 2)
-    return replace(model, rows=rows, cols=cols, width=width, height=height, bend=bend, total_mass=total_mass,
-                   host=replace(model.host, uv=uv))
+    model = replace(model, rows=rows, cols=cols, width=width, height=height, bend=bend, total_mass=total_mass,
+                    host=replace(model.host, uv=uv))
+    if bend == BendModel.DIHEDRAL:
+        rigidity = DEFAULT_BEND_RIGIDITY if bend_rigidity is None else require_non_negative("bend_rigidity", bend_rigidity, "N m")
+        ratio = DEFAULT_BEND_DAMPING_RATIO if bend_damping_ratio is None else \
+            require_non_negative("bend_damping_ratio", bend_damping_ratio, "")
+        hinges = grid_hinges(model.host["q"], rows, cols, rigidity)
+        hinges = replace(hinges, damping=hinge_damping_for_ratio(model.host["q"], hinges, model.host["mass"], ratio))
+        model = model.with_hinges(hinges)
+    return model
+
+
+def _end_halves(count: int) -> np.ndarray:
+    """1 inside, 1/2 at both ends: a particle's share of a line of equal segments."""
+    w = np.ones(count)
+    w[[0, -1]] = 0.5
+    return w
 
 
 def grid_uvs(rows: int, cols: int) -> np.ndarray:
@@ -162,6 +205,6 @@ def grid_uvs(rows: int, cols: int) -> np.ndarray:
 
 
 __all__ = [
-    "BYTES_PER_PARTICLE", "BYTES_PER_SPRING", "build_grid_cloth", "expected_spring_counts", "grid_memory_estimate",
+    "BYTES_PER_HINGE", "BYTES_PER_PARTICLE", "BYTES_PER_SPRING", "build_grid_cloth", "expected_spring_counts", "grid_memory_estimate",
     "grid_positions", "grid_springs", "grid_triangles", "grid_uvs",
 ]

@@ -39,6 +39,11 @@ EDGE_EPS = 1.0e-9
 AREA_EPS = 1.0e-12
 #: The heights in the gradient are clamped from below at this fraction of |e| (ARCSim's ``distance``).
 HEIGHT_FLOOR = 1.0e-3
+#: The builders' default bending rigidity B [N m]: the cotton preset's (warpcloth.sim.material, docs/materials.md).
+DEFAULT_BEND_RIGIDITY = 31.4e-6
+#: The builders' default hinge damping ratio (as the springs' default, warpcloth.sim.model.DEFAULT_DAMPING_RATIO):
+#: each hinge's own mode gets this ratio, so refining the mesh does not make explicit steps unstable.
+DEFAULT_BEND_DAMPING_RATIO = 0.05
 
 
 @dataclass(frozen=True)
@@ -299,6 +304,30 @@ def build_hinges(x, indices, rigidity, weight=1.0, damping_time: float = 0.0) ->
     stiffness = np.where(valid, weight * rigidity * length**2 / np.where(valid, area_sum, 1.0), 0.0)
     return Hinges(indices=q, rest_angle=theta, rest_length=length, rest_area=area, weight=weight,
                   rigidity=rigidity, stiffness=stiffness, damping=float(damping_time) * stiffness)
+
+
+def hinge_damping_for_ratio(x, hinges: Hinges, mass, ratio: float) -> np.ndarray:
+    """kd_e = 2 zeta sqrt(k_e / sum_b |g_b|^2 / m_b) [N m s / rad^2] per hinge, at the rest shape ``x``:
+    the hinge's own mode (E = 1/2 k_e C^2, its inertia 1 / sum_b |g_b|^2 / m_b) then has damping ratio
+    ``ratio`` = zeta at every resolution (the hinge analogue of the springs' kd = 2 zeta sqrt(ks m))."""
+    _, g, valid = hinge_angle_gradients(x, hinges.indices)
+    inv_mass = 1.0 / np.asarray(mass, dtype=np.float64)
+    wg = np.einsum("hb,hb->h", inv_mass[hinges.indices], np.einsum("hbi,hbi->hb", g, g))
+    return np.where(valid & (wg > 0.0), 2.0 * float(ratio) * np.sqrt(hinges.stiffness / np.where(wg > 0.0, wg, 1.0)), 0.0)
+
+
+def hinge_row_sums(x, hinges: Hinges, particle_count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per particle i, the block-Gershgorin row sums of sum_e k_e g g^T and sum_e kd_e g g^T at ``x``:
+    sum_(e at i) k_e |g_i| sum_b |g_b| [N/m] and the same with kd_e [N s/m] (float64): a bound on what
+    the hinges add to the stiffness (damping) eigenvalues of particle i's rows (block norms |g_a| |g_b|)."""
+    _, g, _ = hinge_angle_gradients(x, hinges.indices)
+    norms = np.sqrt(np.einsum("hbi,hbi->hb", g, g))  # (H, 4)
+    row = norms * norms.sum(axis=1, keepdims=True)  # |g_a| sum_b |g_b|
+    stiff, damp = np.zeros(particle_count), np.zeros(particle_count)
+    idx = hinges.indices.ravel()
+    np.add.at(stiff, idx, (hinges.stiffness[:, None] * row).ravel())
+    np.add.at(damp, idx, (hinges.damping[:, None] * row).ravel())
+    return stiff, damp
 
 
 def grid_hinges(positions, rows: int, cols: int, bend_warp: float, bend_weft: float | None = None,

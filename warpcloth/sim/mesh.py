@@ -35,8 +35,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from warpcloth.errors import WarpclothError, require, require_positive
-from warpcloth.sim.model import ClothModel, SpringParams, SpringType, build_model, default_spring_params
+from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive
+from warpcloth.sim.hinges import (DEFAULT_BEND_DAMPING_RATIO, DEFAULT_BEND_RIGIDITY, build_hinges, hinge_damping_for_ratio,
+                                  triangle_hinges)
+from warpcloth.sim.model import BendModel, ClothModel, SpringParams, SpringType, build_model, default_spring_params
 from warpcloth.sim.selection import resolve_pins
 
 #: A bend spring of the quad rule spans at least this angle u-v-w [degrees] at rest.
@@ -302,8 +304,11 @@ def build_mesh_cloth(
     groups: dict | None = None,
     uv=None,
     quads: bool = False,
-    bend: bool = True,
+    bend: bool | str = True,
     device: str | None = None,
+    *,
+    bend_rigidity: float | None = None,
+    bend_damping_ratio: float | None = None,
 ) -> ClothModel:
     """Build a mass-spring cloth from a triangle mesh (rules in :mod:`warpcloth.sim.mesh`).
 
@@ -323,8 +328,14 @@ def build_mesh_cloth(
             USD as ``primvars:st``.
         quads: detect triangle pairs forming quads: shear springs on their diagonals, bend
             springs on 2-ring straight lines (a triangulated grid gives the Provot springs).
-        bend: add bend springs.
+        bend: add bend springs (True, ``"provot"``, ``"choi_ko"``), none (False, ``"none"``), or
+            ``"dihedral"``: no bend springs, a dihedral-angle hinge on every interior edge
+            (:func:`~warpcloth.sim.hinges.triangle_hinges`, one diagonal per quad: on a triangulated
+            grid 3x stiffer across that diagonal, docs/materials.md).
         device: Warp device.
+        bend_rigidity: bending rigidity B [N m] of the hinges (``dihedral`` only; default
+            :data:`~warpcloth.sim.hinges.DEFAULT_BEND_RIGIDITY`).
+        bend_damping_ratio: damping ratio of each hinge's own mode (``dihedral`` only).
     """
     if isinstance(vertices, TriangleMesh):
         mesh = vertices
@@ -336,13 +347,36 @@ def build_mesh_cloth(
     if spring_params is None:
         spring_params = default_spring_params(float(masses.mean()), stiffness, damping)
     pinned = resolve_pins(v, pins, pin_groups, pin_where, groups)
-    pairs, types = mesh_springs(v, t, quads=quads, bend=bend)
+    bend_model = _mesh_bend(bend)
+    if bend_model != BendModel.DIHEDRAL and (bend_rigidity is not None or bend_damping_ratio is not None):
+        raise WarpclothError("bend_rigidity and bend_damping_ratio are the dihedral model's (bend='dihedral'), "
+                             "not the bend springs'")
+    pairs, types = mesh_springs(v, t, quads=quads, bend=bend_model in (BendModel.PROVOT, BendModel.CHOI_KO))
     model = build_model(v, pairs, types, masses, spring_params, pinned, t, device)
     from dataclasses import replace
 
     host = replace(model.host, uv=corner_uvs(uv, t, v.shape[0]) if uv is not None else None,
                    groups={k: np.asarray(g, dtype=np.int64) for k, g in (groups or {}).items()})
-    return replace(model, host=host)
+    model = replace(model, host=host)
+    if bend_model == BendModel.DIHEDRAL:
+        rigidity = DEFAULT_BEND_RIGIDITY if bend_rigidity is None else require_non_negative("bend_rigidity", bend_rigidity, "N m")
+        ratio = DEFAULT_BEND_DAMPING_RATIO if bend_damping_ratio is None else \
+            require_non_negative("bend_damping_ratio", bend_damping_ratio, "")
+        q = model.host["q"]
+        hinges = build_hinges(q, triangle_hinges(t), rigidity, 1.0)
+        hinges = replace(hinges, damping=hinge_damping_for_ratio(q, hinges, model.host["mass"], ratio))
+        model = replace(model.with_hinges(hinges), bend=BendModel.DIHEDRAL)
+    return model
+
+
+def _mesh_bend(bend) -> BendModel:
+    """A mesh's ``bend`` argument (a bool or a :class:`BendModel` name) as a BendModel."""
+    if isinstance(bend, (bool, np.bool_)):
+        return BendModel.PROVOT if bend else BendModel.NONE
+    try:
+        return BendModel(bend)
+    except ValueError:
+        raise WarpclothError(f"bend must be True, False or one of {[b.value for b in BendModel]}, got {bend!r}") from None
 
 
 def corner_uvs(uv, triangles: np.ndarray, vertex_count: int) -> np.ndarray:

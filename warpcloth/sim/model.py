@@ -18,6 +18,7 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_indices, require_non_negative
 from warpcloth.sim.device import resolve_device
+from warpcloth.sim.hinges import Hinges
 
 
 class SpringType(enum.IntEnum):
@@ -34,6 +35,7 @@ class BendModel(str, enum.Enum):
     PROVOT = "provot"  # [i,j]-[i+2,j], [i,j]-[i,j+2]
     CHOI_KO = "choi_ko"  # Provot's plus the diagonals [i,j]-[i+2,j+2], [i+2,j]-[i,j+2]
     NONE = "none"
+    DIHEDRAL = "dihedral"  # no bend springs: dihedral-angle hinges (discrete shells), warpcloth.sim.hinges
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,7 @@ class HostArrays:
         tris: triangles, (T, 3) int32.
         uv: texture coordinates per triangle corner, (3T, 2), or None.
         groups: named vertex groups of a mesh (name -> indices).
+        hinges: the dihedral-bending hinges (:class:`~warpcloth.sim.hinges.Hinges`, float64), or None.
     """
 
     q: np.ndarray
@@ -68,6 +71,7 @@ class HostArrays:
     tris: np.ndarray
     uv: np.ndarray | None = None
     groups: dict = field(default_factory=dict)
+    hinges: Hinges | None = None
 
     def __getitem__(self, name: str):
         value = getattr(self, name, None) if name in self.__dataclass_fields__ else None
@@ -104,6 +108,12 @@ class ClothModel:
             per spring).
         tri_indices: triangles (a, b, c), two per grid cell, shape (tri_count,), vec3i.
         spring_params: per-type :class:`SpringParams`.
+        bend: the :class:`BendModel` the cloth was built with.
+        hinge_indices: dihedral-bending hinges (x0, x1, x2, x3), shape (hinge_count,), vec4i, or
+            None without hinges (:meth:`with_hinges`; host copy ``host.hinges``).
+        hinge_rest_angle: theta0 [rad] per hinge.
+        hinge_stiffness: k_e [N m / rad^2] per hinge.
+        hinge_damping: kd_e [N m s / rad^2] per hinge.
     """
 
     rows: int
@@ -125,6 +135,10 @@ class ClothModel:
     spring_params: dict[SpringType, SpringParams]
     bend: BendModel = BendModel.PROVOT
     host: HostArrays | None = field(default=None, repr=False)
+    hinge_indices: wp.array | None = None
+    hinge_rest_angle: wp.array | None = None
+    hinge_stiffness: wp.array | None = None
+    hinge_damping: wp.array | None = None
 
     @property
     def particle_count(self) -> int:
@@ -137,6 +151,42 @@ class ClothModel:
     @property
     def tri_count(self) -> int:
         return int(self.tri_indices.shape[0])
+
+    @property
+    def hinge_count(self) -> int:
+        """Number of dihedral-bending hinges (0 without them)."""
+        return 0 if self.hinge_indices is None else int(self.hinge_indices.shape[0])
+
+    def hinge_arrays(self) -> tuple:
+        """(hinge_indices, hinge_rest_angle, hinge_stiffness, hinge_damping): the device arrays in
+        the order :mod:`warpcloth.kernels.bending`'s kernels take them."""
+        return self.hinge_indices, self.hinge_rest_angle, self.hinge_stiffness, self.hinge_damping
+
+    def with_hinges(self, hinges: Hinges | None) -> "ClothModel":
+        """A new model with these dihedral-bending hinges (None: none), device copies on :attr:`device`;
+        this model is left unchanged."""
+        from dataclasses import replace
+
+        host = replace(self.host, hinges=hinges)
+        if hinges is None:
+            return replace(self, host=host, hinge_indices=None, hinge_rest_angle=None, hinge_stiffness=None,
+                           hinge_damping=None)
+        require(hinges.hinge_count == 0 or int(hinges.indices.max()) < self.particle_count,
+                f"hinge particle indices must be in 0..{self.particle_count - 1}")
+        d = hinges.to_device(self.device)
+        return replace(self, host=host, hinge_indices=d.hinge_indices, hinge_rest_angle=d.hinge_rest_angle,
+                       hinge_stiffness=d.hinge_stiffness, hinge_damping=d.hinge_damping)
+
+    def particle_hinge_sums(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per particle, Gershgorin row sums of the hinges' stiffness and damping matrices at the
+        rest shape, sum_e k_e |g_i| sum_b |g_b| [N/m] and the same with kd_e [N s/m] (float64, host;
+        zeros without hinges): what a particle's row of sum_e k_e g g^T adds to 2 sum_j ks_ij."""
+        from warpcloth.sim.hinges import hinge_row_sums
+
+        if not self.hinge_count:
+            z = np.zeros(self.particle_count)
+            return z, z.copy()
+        return hinge_row_sums(self.host["q"], self.host.hinges, self.particle_count)
 
     @property
     def particle_mass_value(self) -> float:

@@ -1,8 +1,9 @@
 """Kinematic pins: pinned particles that follow a prescribed track.
 
 A :class:`PinTrack` moves some pinned particles along keyframes (linear, Catmull-Rom or Hermite
-interpolation) or a rigid motion (translation and rotation about an axis: a rod swinging, a
-shoulder moving). Tracks go in :attr:`Control.pin_tracks <warpcloth.sim.control.Control>` or
+interpolation), a rigid motion (translation and rotation about an axis: a rod swinging, a
+shoulder moving), or targets that your own loop sets each frame (:meth:`PinTrack.driven`: a
+hand dragging a corner; see docs/driving.md). Tracks go in :attr:`Control.pin_tracks <warpcloth.sim.control.Control>` or
 :meth:`Simulator.set_pin_track <warpcloth.simulator.Simulator.set_pin_track>`.
 
 Evaluation is on the device, from the simulated time in ``Control.time`` (float64, plus a
@@ -28,7 +29,7 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError, require
 from warpcloth.kernels import pins as pk
-from warpcloth.sim.tracks import INTERPOLATIONS, Track, check_keyframes, check_rigid
+from warpcloth.sim.tracks import INTERPOLATIONS, FrameDrive, Track, check_keyframes, check_rigid
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +87,31 @@ class PinTrack(Track):
                              velocity)
         return cls(particles=tuple(idx.tolist()), name=name, **motion)
 
+    @classmethod
+    def driven(cls, particles, interpolation: str = "linear", name: str = "driven") -> "PinTrack":
+        """Pins that your loop moves each frame: ``track.set(positions)`` (or
+        :meth:`Simulator.set_pin_targets <warpcloth.simulator.Simulator.set_pin_targets>`) says
+        where they are at the end of the next ``simulate()`` call, and its steps interpolate to
+        it (:class:`~warpcloth.sim.tracks.FrameDrive`). The targets go into device arrays the
+        captured frame already reads: a new target costs a copy, not a capture.
+
+        Args:
+            particles: P pinned particle indices; they start at their rest positions.
+            interpolation: ``"linear"`` (velocity (p1 - p0) / frame time; the same motion as a
+                linear :meth:`keyframes` track through the targets, to the bit) or ``"hermite"``
+                (give each target's velocity too: ``set(positions, velocities)``, e.g. a hand's
+                velocity, which damping, drag and wind see).
+        """
+        idx = _particles(particles)
+        drive = FrameDrive(f"pin track {name!r}", idx.size, interpolation)
+        return cls(particles=tuple(idx.tolist()), kind="driven", interpolation=interpolation, name=name, drive=drive)
+
+    def set(self, positions, velocities=None) -> None:
+        """A driven track's target: ``positions`` (P, 3) [m] at the end of the next frame (a
+        ``simulate()`` call), and with ``"hermite"`` the ``velocities`` (P, 3) [m/s] there."""
+        require(self.kind == "driven", f"pin track {self.name!r} is {self.kind}, not driven: only PinTrack.driven takes targets")
+        self.drive.set(positions, velocities)
+
     # -- host evaluation (tests, reports) --------------------------------------------------------
     def _rest(self, rest: np.ndarray) -> np.ndarray:
         return np.asarray(rest, dtype=np.float64)[list(self.particles)]
@@ -109,6 +135,8 @@ class PinTrack(Track):
         particle = wp.array(idx.astype(np.int32), dtype=int)
         if self.kind == "rigid":
             return [particle, wp.array(rest[idx], dtype=wp.vec3d), *self._rigid_args()]
+        if self.kind == "driven":
+            raise WarpclothError("a driven pin track's arguments come from its drive (KinematicPins binds it)")
         keys, tangents = self.key_positions(rest).reshape(-1, 3), self.key_tangents(rest).reshape(-1, 3)
         return [particle, *self._keyframe_args(keys, tangents)]
 
@@ -126,9 +154,12 @@ def _particles(particles) -> np.ndarray:
 
 
 class KinematicPins:
-    """Pin tracks bound to a model: device arrays built once, launches per step only."""
+    """Pin tracks bound to a model: device arrays built once, launches per step only.
 
-    def __init__(self, model, tracks):
+    ``frame_times``: the device array of a driven frame's key times (:attr:`Control.frame_times
+    <warpcloth.sim.control.Control.frame_times>`), read by the driven tracks."""
+
+    def __init__(self, model, tracks, frame_times=None):
         self.device = model.device
         self.tracks = tuple(tracks)
         rest = model.host["q"].astype(np.float64)
@@ -137,6 +168,8 @@ class KinematicPins:
         pinned[model.pinned] = True
         owner = {}
         self._bound = []
+        self.drives = []  # (FrameDrive, its entry in _bound) of the driven tracks
+        self._driven_launches = None  # ((x, v, time) pointers, recorded apply launches of the driven tracks)
         with wp.ScopedDevice(self.device):
             for track in self.tracks:
                 require(isinstance(track, PinTrack), f"pin tracks must be PinTrack objects, got {track!r}")
@@ -153,12 +186,29 @@ class KinematicPins:
                     owner[i] = track.name
                 kernels = (pk.apply_pin_rigid, pk.eval_pin_rigid_delta) if track.kind == "rigid" else \
                     (pk.apply_pin_keyframes, pk.eval_pin_keyframes_delta)
-                self._bound.append((*kernels, idx.size, track.launch_args(rest)))
+                if track.kind == "driven":
+                    require(frame_times is not None, "driven pin tracks need the control's frame_times")
+                    track.drive.start(rest[idx])
+                    particle = wp.array(idx.astype(np.int32), dtype=int)
+                    self._bound.append((*kernels, idx.size, [particle, frame_times, *track.drive.bind(self.device)]))
+                    self.drives.append((track.drive, self._bound[-1]))
+                else:
+                    self._bound.append((*kernels, idx.size, track.launch_args(rest)))
 
     def apply(self, control, x, v, offset: float = 0.0) -> None:
         """x_i = track(t + offset), v_i = track'(t + offset) for every tracked pin (t = control.time)."""
         for kernel, _, count, args in self._bound:
             wp.launch(kernel, dim=count, inputs=[control.time, wp.float64(offset), *args], outputs=[x, v], device=self.device)
+
+    def apply_driven(self, control, x, v) -> None:
+        """x_i = track(t), v_i = track'(t) for the driven tracks only (a new frame's keys start
+        at t: the pins take its velocity, as a keyframes track's pins would at a key)."""
+        if self._driven_launches is None or self._driven_launches[0] != (x.ptr, v.ptr, control.time.ptr):
+            cmds = [wp.launch(kernel, dim=count, inputs=[control.time, wp.float64(0.0), *args], outputs=[x, v], device=self.device,
+                              record_cmd=True) for _, (kernel, _, count, args) in self.drives]
+            self._driven_launches = ((x.ptr, v.ptr, control.time.ptr), cmds)
+        for cmd in self._driven_launches[1]:
+            cmd.launch()
 
     def delta(self, control, x, v, offset: float, scale: float, velocity_weight: float, out) -> None:
         """out_i = scale (track(t + offset) - x_i) - velocity_weight v_i for every tracked pin."""

@@ -7,7 +7,11 @@ track (:class:`~warpcloth.sim.colliders.ColliderTrack`) share:
   interpolated linearly, by Catmull-Rom (tangents (p_{k+1} - p_{k-1}) / (t_{k+1} - t_{k-1}), zero
   at the first and last key) or by cubic Hermite with given tangents [m/s]; held still before the
   first key and after the last;
-- ``"rigid"``: y -> c + u t + R(axis, theta(t)) (y - c), theta(t) = omega t + A sin(2 pi f t + phi).
+- ``"rigid"``: y -> c + u t + R(axis, theta(t)) (y - c), theta(t) = omega t + A sin(2 pi f t + phi);
+- ``"driven"``: set from the host each frame (:class:`FrameDrive`): a game's or a tool's own loop
+  says where the pins or the collider are at the end of the next frame, and the frame's steps
+  interpolate to it. The values go into device arrays that a captured frame already reads, so
+  driving costs a few small copies per frame and never a new capture.
 
 The step evaluates tracks on the device (:mod:`warpcloth.kernels.pins`,
 :mod:`warpcloth.kernels.collide`); this module holds their description, its validation, the host
@@ -83,17 +87,18 @@ class Track:
     (:attr:`keys`) and make one through their ``keyframes`` and ``rigid`` constructors.
 
     Attributes (keyword-only):
-        kind: ``"keyframes"`` or ``"rigid"``.
+        kind: ``"keyframes"``, ``"rigid"`` or ``"driven"``.
         times: key times [s], (K,) float64 (keyframes).
         tangents: Hermite tangents [m/s], shaped like the key values, or None.
         interpolation: one of :data:`INTERPOLATIONS`.
         center, axis, velocity: c [m], the unit rotation axis, u [m/s] (rigid).
         angular_velocity, swing_amplitude, swing_frequency, swing_phase: omega [rad/s], A [rad],
             f [Hz], phi [rad] (rigid).
+        drive: the :class:`FrameDrive` of a driven track.
     """
 
     _: KW_ONLY
-    kind: str  # "keyframes" or "rigid"
+    kind: str  # "keyframes", "rigid" or "driven"
     times: np.ndarray | None = None
     tangents: np.ndarray | None = None
     interpolation: str = "linear"
@@ -104,6 +109,7 @@ class Track:
     swing_amplitude: float = 0.0
     swing_frequency: float = 0.0
     swing_phase: float = 0.0
+    drive: "FrameDrive | None" = None  # kind "driven": the host side (targets, device arrays)
 
     @property
     def keys(self) -> np.ndarray | None:
@@ -115,6 +121,8 @@ class Track:
         that moves, 0 for one that does not)."""
         if self.kind == "keyframes":
             return float(self.times[-1])
+        if self.kind == "driven":  # the host may move it at any frame
+            return math.inf
         moving = any(self.velocity) or self.angular_velocity or (self.swing_amplitude and self.swing_frequency)
         return math.inf if moving else 0.0
 
@@ -153,22 +161,10 @@ class Track:
             r = p0 - c
             rr = r * math.cos(theta) + np.cross(a, r) * math.sin(theta) + np.outer(r @ a, a) * (1 - math.cos(theta))
             return c + u * t + rr, u + theta_dot * np.cross(a, rr)
-        pos, times = self._key_points(p0), self.times
-        if t <= times[0]:
-            return pos[0].copy(), np.zeros_like(pos[0])
-        if t >= times[-1]:
-            return pos[-1].copy(), np.zeros_like(pos[-1])
-        k = int(np.searchsorted(times, t, side="right") - 1)
-        h = times[k + 1] - times[k]
-        s = (t - times[k]) / h
-        a, b = pos[k], pos[k + 1]
-        if self.interpolation == "linear":
-            return a + s * (b - a), (b - a) / h
-        tan = self._key_tangents(p0)
-        ma, mb = tan[k] * h, tan[k + 1] * h
-        p = (2 * s**3 - 3 * s**2 + 1) * a + (s**3 - 2 * s**2 + s) * ma + (3 * s**2 - 2 * s**3) * b + (s**3 - s**2) * mb
-        dp = (6 * s**2 - 6 * s) * (a - b) + (3 * s**2 - 4 * s + 1) * ma + (3 * s**2 - 2 * s) * mb
-        return p, dp / h
+        if self.kind == "driven":
+            return self.drive.evaluate(t)
+        pos = self._key_points(p0)
+        return interpolate(self.times, pos, self._key_tangents(p0) if self.interpolation != "linear" else None, t)
 
     # -- the kernels' track arguments (device arrays on the current device) -------------------
     def _rigid_args(self) -> list:
@@ -183,4 +179,145 @@ class Track:
                 wp.array(tangents, dtype=wp.vec3d), int(self.interpolation != "linear")]
 
 
-__all__ = ["INTERPOLATIONS", "Track", "check_keyframes", "check_rigid"]
+def interpolate(times: np.ndarray, pos: np.ndarray, tangents: np.ndarray | None, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """(positions (P, 3), velocities (P, 3)) at time t of keys ``pos`` (K, P, 3) at ``times`` (K,):
+    linear (``tangents`` None) or cubic Hermite with ``tangents`` (K, P, 3) [m/s]; held before the
+    first key and after the last (float64, on the host: the kernels' formulas)."""
+    if t <= times[0]:
+        return pos[0].copy(), np.zeros_like(pos[0])
+    if t >= times[-1]:
+        return pos[-1].copy(), np.zeros_like(pos[-1])
+    k = int(np.searchsorted(times, t, side="right") - 1)
+    h = times[k + 1] - times[k]
+    s = (t - times[k]) / h
+    a, b = pos[k], pos[k + 1]
+    if tangents is None:
+        return a + s * (b - a), (b - a) / h
+    ma, mb = tangents[k] * h, tangents[k + 1] * h
+    p = (2 * s**3 - 3 * s**2 + 1) * a + (s**3 - 2 * s**2 + s) * ma + (3 * s**2 - 2 * s**3) * b + (s**3 - s**2) * mb
+    dp = (6 * s**2 - 6 * s) * (a - b) + (3 * s**2 - 4 * s + 1) * ma + (3 * s**2 - 2 * s) * mb
+    return p, dp / h
+
+
+class HostWrite:
+    """A device array that the host rewrites each frame, in place: on the CPU through a NumPy view
+    of the array itself, on a GPU through a pinned host copy and one asynchronous ``wp.copy``
+    (no allocation per frame, so the captured frame keeps reading the same array)."""
+
+    def __init__(self, values: np.ndarray, dtype, device):
+        device = wp.get_device(device)
+        self.array = wp.array(values, dtype=dtype, device=device)
+        self._staging = None if device.is_cpu else wp.array(values, dtype=dtype, device="cpu", pinned=True)
+        self._view = (self.array if device.is_cpu else self._staging).numpy()
+
+    def write(self, values: np.ndarray) -> None:
+        self._view[...] = values.reshape(self._view.shape)
+        if self._staging is not None:
+            wp.copy(self.array, self._staging)
+
+
+class FrameDrive:
+    """The host side of a ``"driven"`` track: P points (pinned particles, or a collider's offset)
+    that the host moves each frame with :meth:`set`, and the device arrays that the step reads.
+
+    A frame is one :meth:`Simulator.simulate <warpcloth.simulator.Simulator.simulate>` call
+    (or one :meth:`~warpcloth.simulator.Simulator.step`). A target set before it is reached at
+    its end: the steps in between follow the keys ``(t0 - 1, t0, t1, t1 + 1)`` with positions
+    ``(p0 - v, p0, p1, p1 + v)`` (``p0`` where the points are, ``p1`` the target, t0 and t1 the
+    frame's start and end on the device clock), interpolated by the pin and collider kernels as
+    keyframes: ``"linear"`` (v = (p1 - p0) / (t1 - t0), the same arithmetic as a
+    ``keyframes`` track through the same points, so a driven run equals that track's run) or
+    ``"hermite"`` (cubic, with the velocities given to :meth:`set` as tangents at t0 and t1).
+    Without a new target a frame holds the points at their last one, at rest.
+    """
+
+    def __init__(self, what: str, points: int, interpolation: str = "linear"):
+        require(interpolation in ("linear", "hermite"),
+                f"{what} interpolation must be 'linear' or 'hermite', got {interpolation!r}")
+        self.what = what
+        self.points = int(points)
+        self.interpolation = interpolation
+        self.position: np.ndarray | None = None  # (P, 3) where the points are at the end of the last frame [m]
+        self.velocity = np.zeros((self.points, 3))  # (P, 3) their velocity there [m/s] (hermite; 0 when held)
+        self._pending: tuple[np.ndarray, np.ndarray] | None = None
+        self._moving = False
+        self._keys = None  # host copy of the last frame's keys: (times (4,), positions (4, P, 3), tangents or None)
+        self.values = self.tangents = None  # the device arrays (bind)
+
+    def start(self, position) -> None:
+        """Where the points are before the first target (a model's rest positions, a collider's 0)."""
+        if self.position is None:
+            self.position = np.array(position, dtype=np.float64).reshape(self.points, 3)
+
+    @property
+    def pending(self) -> bool:
+        """Whether a target waits for the next frame."""
+        return self._pending is not None
+
+    def set(self, positions, velocities=None) -> None:
+        """Where the points are at the end of the next frame: ``positions`` (P, 3) [m] (a 3-vector
+        for one point) and, for ``"hermite"``, their ``velocities`` (P, 3) [m/s] there."""
+        p = _finite(self.what, "target", np.array(positions, dtype=np.float64))
+        require(p.size == 3 * self.points and p.shape in ((self.points, 3), (3,)),
+                f"{self.what} target must have shape ({self.points}, 3), got {p.shape}")
+        if self.interpolation == "hermite":
+            require(velocities is not None, f"{self.what} is 'hermite': give the targets' velocities too [m/s]")
+        v = np.zeros((self.points, 3))
+        if velocities is not None:
+            require(self.interpolation == "hermite",
+                    f"{self.what} velocities need interpolation 'hermite' (linear moves at (p1 - p0) / frame time)")
+            v = _finite(self.what, "velocities", np.array(velocities, dtype=np.float64))
+            require(v.size == 3 * self.points, f"{self.what} velocities must have shape ({self.points}, 3), got {v.shape}")
+        self._pending = (p.reshape(self.points, 3), v.reshape(self.points, 3))
+
+    def bind(self, device) -> list:
+        """Allocate the device arrays (holding the points where they are); returns the keyframe
+        kernels' arguments after the key times: values, tangents, whether cubic."""
+        hold = np.broadcast_to(self.position[None], (4, self.points, 3)).reshape(-1, 3)
+        self._values = HostWrite(hold, wp.vec3d, device)
+        self._tangents = HostWrite(np.zeros_like(hold), wp.vec3d, device)
+        self.values, self.tangents = self._values.array, self._tangents.array
+        self._moving = False
+        return [self.values, self.tangents, int(self.interpolation != "linear")]
+
+    def upload(self, t0: float, t1: float) -> bool:
+        """Write the next frame's keys into the device arrays (a target set, or a hold after a
+        moving frame; ``t0``, ``t1`` the frame's host times, for :meth:`evaluate`). Returns
+        whether anything was written."""
+        if self._pending is None:
+            if not self._moving:
+                return False
+            p = self.position
+            keys = np.broadcast_to(p[None], (4, self.points, 3))
+            self.velocity = np.zeros_like(p)
+            self._write(keys, np.zeros_like(keys), t0, t1, moving=False)
+            return True
+        (p1, v1), self._pending = self._pending, None
+        p0, v0 = self.position, self.velocity
+        if self.interpolation == "linear":
+            v = (p1 - p0) / max(t1 - t0, 1e-300)
+            v0 = v1 = v
+        keys = np.stack([p0 - v0, p0, p1, p1 + v1])
+        tangents = np.stack([v0, v0, v1, v1]) if self.interpolation == "hermite" else np.zeros_like(keys)
+        self.position, self.velocity = p1, v1 if self.interpolation == "hermite" else np.zeros_like(p1)
+        self._write(keys, tangents, t0, t1, moving=True)
+        return True
+
+    def _write(self, keys, tangents, t0, t1, moving: bool) -> None:
+        self._values.write(keys)
+        if self.interpolation == "hermite":
+            self._tangents.write(tangents)
+        self._keys = (np.array([t0 - 1.0, t0, t1, t1 + 1.0]), np.array(keys), np.array(tangents))
+        self._moving = moving
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(positions (P, 3), velocities (P, 3)) at time t [s] on the host, within the last frame
+        written (writers and reports; before any frame: where the points started, at rest)."""
+        if self._keys is None:
+            p = self.position if self.position is not None else np.zeros((self.points, 3))
+            return p.copy(), np.zeros_like(p)
+        times, keys, tangents = self._keys
+        return interpolate(times, keys, tangents if self.interpolation == "hermite" else None, float(t))
+
+
+__all__ = ["INTERPOLATIONS", "FrameDrive", "HostWrite", "Track", "check_keyframes", "check_rigid", "interpolate"]

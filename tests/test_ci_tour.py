@@ -1,0 +1,29 @@
+"""The CI's wheel tour (.ci/tour.sh) covers the README's tour: every command line of README.md's
+"A tour of the CLI" block has a line in the script, in the same order (same command and first
+argument; the script's are short variants, with fewer frames and smaller sheets)."""
+
+import re
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _readme_tour() -> list[str]:
+    text = (REPO / "README.md").read_text()
+    block = text.split("## A tour of the CLI", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
+    return [line.split("#", 1)[0].strip() for line in block.strip().splitlines() if line.strip()]
+
+
+def _key(command: str) -> tuple:
+    words = command.replace("python -m warpcloth ", "warpcloth ").split()
+    return tuple(words[:3]) if words[:2] == ["warpcloth", "run"] or words[:1] == ["python"] else tuple(words[:2])
+
+
+def test_every_readme_tour_line_runs_in_the_ci_tour():
+    script = [m.group(1) for m in re.finditer(r"^say (.+)$", (REPO / ".ci" / "tour.sh").read_text(), re.M)]
+    keys = [_key(s) for s in script]
+    position = 0
+    for line in _readme_tour():
+        key = _key(line)
+        assert key in keys[position:], f"README tour line not in .ci/tour.sh (in order): {line}"
+        position = keys.index(key, position) + 1
