@@ -6,8 +6,9 @@ the mass-spring energy.
         [every vbd_multigrid_every-th iteration: dx <- dx + V(-h^2 grad G(dx))]
         colour by colour (Gauss-Seidel over vertex colours):
         dx_i <- dx_i - H_i^-1 g_i      (3 x 3 Newton step on vertex i's local energy)
-        dx <- dx + P t                 (rigid translation correction, vbd_rigid_mode; with
-                                        colliders before the sweep instead of after it)
+        dx <- dx + P t                 (rigid translation correction, vbd_rigid_mode: after every
+                                        sweep and before the first; with colliders before every
+                                        sweep instead)
         [Chebyshev: dx <- omega_n (dx - dx^(n-2)) + dx^(n-2)]
     v = dx / h ;  x += dx
 
@@ -43,7 +44,7 @@ radius near the sweeps' (rho 0.99 and above) blew up within the first second at 
 
 Models that are not grids (``vbd_mesh_multigrid``, default 1; issue 26): the same correction
 on an aggregation hierarchy of the Hessian's graph (:func:`~warpcloth.integrators.multigrid.aggregation_prolongation`,
-piecewise-constant P, Galerkin levels down to <= 16 nodes; models of <= 16 particles get none).
+piecewise-constant P, Galerkin levels down to <= 16 nodes; models of fewer than 7 x 7 particles get none).
 The 32 x 32 sheet as a build_mesh_cloth model: sag -0.97, -0.07, +0.00 % at 0.5, 1, 2 s (rigid
 correction alone -5.7, +1.1, +0.6 %); 64 x 64: +0.67, +0.22, -0.01 % at 1, 1.5, 3 s (alone -7.8,
 +6.1, +0.14 %); cost as the grid's geometric multigrid (21 vs 26 ms/step at 64^2). The built-in
@@ -57,7 +58,10 @@ along its plane at 16 % of g t^2/2 in 0.5 s, slid down a frictionless slope at 0
 and a truncated solve's residual did not sum to zero, so it made momentum (0.03 kg m/s on a free
 stretched 16 x 16 cloth; a V-cycle at an even size, whose coarse grid is not mirror-symmetric,
 0.03 kg m/s per application). After each sweep the Galerkin problem of the translation mode (3
-unknowns, :meth:`VBD.rigid_correction`) is solved exactly: free fall and the frictionless slope
+unknowns, :meth:`VBD.rigid_correction`) is solved exactly, and once before the first sweep (a first
+sweep from a guess whose mean lags the fall leaves a shape error the later sweeps resolve slowly: a
+free tilted 6 x 6 cloth with dihedral hinges bent 1.9e-3 rad in 0.4 s without it, 1.6e-5 with
+it): free fall and the frictionless slope
 are backward Euler's to 1e-7 and momentum is kept to ~1e-8 kg m/s. It is zero where the gradient
 is zero, so a rest state is still the exact equilibrium. Contacts with friction are held in the
 mode (its 3 unknowns cannot see the contacts' Coulomb cones as a whole; moving them let the drape
@@ -78,7 +82,13 @@ from warpcloth.sim.coloring import VertexColoring, color_vertices
 from warpcloth.sim.hinges import hinge_pairs
 from warpcloth.integrators.base import Option, scratch_like
 from warpcloth.integrators.increment import IncrementSolver, at_least_one
-from warpcloth.integrators.multigrid import GridMultigrid, grid_structure_reason
+from warpcloth.integrators.multigrid import MIN_COARSE_SIDE, GridMultigrid, grid_structure_reason
+
+#: Fewest particles of a model that gets the aggregation multigrid (models that are not grids): the
+#: smallest grid the geometric hierarchy coarsens, 7 x 7. Below it the sweeps and the rigid correction
+#: suffice, and a two-level V-cycle on a 6 x 6 cloth left a tilted free fall's shape 1.5e-4 m off
+#: (2.6e-7 m without it).
+MIN_AGGREGATION_PARTICLES = (2 * MIN_COARSE_SIDE - 1) ** 2
 from warpcloth.integrators.system import ImplicitSystem
 
 
@@ -124,8 +134,8 @@ class VBD(IncrementSolver):
         ),
         Option(
             "vbd_rigid_mode", int, 1,
-            "rigid translation correction: 1 after every sweep (the cloth's mean motion solved exactly; conserves momentum), "
-            "2 also before every sweep, 0 off",
+            "rigid translation correction: 1 after every sweep and before the first (with colliders: before every "
+            "sweep; the cloth's mean motion solved exactly, conserves momentum), 2 before and after every sweep, 0 off",
             check=lambda v: None if v in (0, 1, 2) else "must be 0, 1 or 2",
         ),
         Option(
@@ -150,11 +160,11 @@ class VBD(IncrementSolver):
             # h^2 times the potential's Hessian is implicit Euler's A = M + h D + h^2 K (drag aside)
             self.hessian = ImplicitSystem(model, jacobian="full", matrix="bsr", preconditioner="multigrid")
             self.multigrid = self.hessian.multigrid
-        elif self.vbd_multigrid_every > 0 and self.vbd_mesh_multigrid and model.spring_count:
+        elif self.vbd_multigrid_every > 0 and self.vbd_mesh_multigrid and model.particle_count >= MIN_AGGREGATION_PARTICLES:
             # any other mesh: the same V-cycle on an aggregation hierarchy of A's graph (issue 26)
             self.hessian = ImplicitSystem(model, jacobian="full", matrix="bsr", preconditioner="jacobi")
             self.multigrid = GridMultigrid(self.hessian.A, 0, 0, model.pinned, model.device, aggregation=True)
-            if self.multigrid.levels < 2:  # too small to coarsen (<= 16 particles): the sweeps suffice
+            if self.multigrid.levels < 2:  # nothing to coarsen (no springs): the sweeps suffice
                 self.hessian = self.multigrid = None
         if self.multigrid is not None:
             # l1 smoothing: with damped block Jacobi (omega 0.7, the CG preconditioner's) the
@@ -180,7 +190,9 @@ class VBD(IncrementSolver):
         for it, omega in enumerate(chebyshev_weights(self.vbd_iterations, self.vbd_chebyshev_rho)):
             if self.hessian is not None and it % self.vbd_multigrid_every == 0:
                 self.coarse_correction(x, h, contacts)
-            if self.vbd_rigid_mode == 2 or (self.vbd_rigid_mode == 1 and contacts is not None):
+            # with colliders before every sweep (a step ends on a sweep, which holds the contacts); without,
+            # before the first one too: a first sweep from a guess whose mean lags leaves a shape error
+            if self.vbd_rigid_mode == 2 or (self.vbd_rigid_mode == 1 and (contacts is not None or it == 0)):
                 self.rigid_correction(x, h)
             for color in sweep:
                 color.launch()
@@ -216,13 +228,14 @@ class VBD(IncrementSolver):
         not resist a translation, so on a free cloth T^T A T = M I and afterwards sum m dx = sum m dy
         exactly: the step's momentum change is h F_ext, as backward Euler's. Zero where r is zero.
 
-        Called after every sweep; with colliders before every sweep instead, so that a step ends
-        on a sweep, which holds the contacts (after it, the translation moved free particles near
-        the sphere 5.5e-5 m into it on the 16 x 16 drape; projecting them out there with an
-        identity Hessian, as after a Chebyshev extrapolation, lost the sweeps' contact states and
-        the drape did not settle: both measured)."""
+        Called after every sweep and before the first; with colliders before every sweep instead,
+        so that a step ends on a sweep, which holds the contacts (after it, the translation moved
+        free particles near the sphere 5.5e-5 m into it on the 16 x 16 drape; projecting them out
+        there with an identity Hessian, as after a Chebyshev extrapolation, lost the sweeps' contact
+        states and the drape did not settle: both measured)."""
         m, rigid = self.model, self.rigid
-        wp.launch(nk.rigid_mode_terms, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h, self.contact],
+        wp.launch(nk.rigid_mode_terms, dim=m.particle_count,
+                  inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h, self.contact],
                   outputs=[rigid.b, rigid.A], device=m.device)
         rigid.solve()
         wp.launch(nk.apply_rigid_mode, dim=m.particle_count, inputs=[rigid.translation, m.particle_inv_mass, self.contact],
