@@ -197,12 +197,17 @@ def add_hinge_system_rows(
     alpha: float,
     beta: float,
     values: wp.array(dtype=wp.mat33),
+    row_part: wp.array(dtype=wp.mat33),
+    row_part_solve: wp.array(dtype=wp.mat33),
 ):
     # row i of a BSR matrix: values[(i, x_b)] += (alpha k + beta kd) g_slot g_b^T over i's hinges, after the
-    # spring assembly (gather, no atomics); pinned rows and pinned columns are left alone (identity/zero)
+    # spring assembly (gather, no atomics); pinned rows and pinned columns are left alone (identity/zero).
+    # The row's sum of the added blocks goes into row_part and row_part_solve too (E_i = sum_j A_ij of the
+    # split product, kernels.linalg.block_gemv_split)
     i = wp.tid()
     if particle_inv_mass[i] == 0.0:
         return
+    added = wp.mat33(0.0)
     for a in range(adjacency_offsets[i], adjacency_offsets[i + 1]):
         e = adjacency_hinge[a]
         q = hinge_indices[e]
@@ -211,7 +216,11 @@ def add_hinge_system_rows(
         for b in range(4):
             if particle_inv_mass[q[b]] != 0.0:
                 k = adjacency_block[a, b]
-                values[k] = values[k] + s * wp.outer(ga, hinge_gradient[e, b])
+                block = s * wp.outer(ga, hinge_gradient[e, b])
+                values[k] = values[k] + block
+                added = added + block
+    row_part[i] = row_part[i] + added
+    row_part_solve[i] = row_part_solve[i] + added
 
 
 @wp.kernel

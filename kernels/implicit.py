@@ -82,6 +82,35 @@ def record_cg_stats(
         stats[5] = stats[5] + wp.float64(1.0)
 
 
+@wp.kernel
+def record_true_residual(partial: wp.array(dtype=wp.vec3d), tol: float, stats: wp.array(dtype=wp.float64)):
+    # from the chunk sums of (|b - A dv|^2, |b|^2, |A delta|^2) (kernels.linalg.residual_terms): stats[6] +=
+    # the true |b - A dv| / |b|, stats[7] = its max, stats[8] = max floor estimate |A delta| / |b|,
+    # stats[9] += 1 where the true residual is above tol (or NaN), stats[10] += the floor estimate (one thread)
+    acc = wp.vec3d(0.0)
+    for c in range(partial.shape[0]):
+        acc = acc + partial[c]
+    true = wp.float64(0.0)
+    floor = wp.float64(0.0)
+    if acc[1] > wp.float64(0.0):
+        true = wp.sqrt(acc[0] / acc[1])
+        floor = wp.sqrt(acc[2] / acc[1])
+    elif acc[0] > wp.float64(0.0):
+        true = wp.float64(1.0)
+    stats[6] = stats[6] + true
+    stats[7] = wp.max(stats[7], true)
+    stats[8] = wp.max(stats[8], floor)
+    if not (true <= wp.float64(tol)):
+        stats[9] = stats[9] + wp.float64(1.0)
+    stats[10] = stats[10] + floor
+
+
+@wp.kernel
+def add_cg_iterations(iterations: wp.array(dtype=int), stats: wp.array(dtype=wp.float64)):
+    # a restarted solve's earlier pass: its iterations into the sum (CUDA; record_cg_stats adds the last pass)
+    stats[1] = stats[1] + wp.float64(iterations[0])
+
+
 # -- contacts seen by the solve (Baraff & Witkin's filter, with sticking) ----------------------
 # Per particle and step: mode 0 (no contact: S = I), SLIDE (S = I - n n^T, the normal dv prescribed,
 # kinetic friction as a known impulse in the solve) or STICK (S = 0, the tangential dv too: it moves
@@ -295,24 +324,33 @@ def filter_system_rows(
     diag_block: wp.array(dtype=int),
     mode: wp.array(dtype=int),
     normal: wp.array(dtype=wp.vec3),
+    row_part: wp.array(dtype=wp.mat33),
     values: wp.array(dtype=wp.mat33),
     inv_diag: wp.array(dtype=wp.vec3),
+    row_part_solve: wp.array(dtype=wp.mat33),
 ):
     # A <- S A S + P A_ii P (P = I - S) on the diagonal, S_i A_ij S_j off it: the prescribed
     # directions leave the solve (P A_ii P keeps them nonsingular and uncoupled; for SLIDE it is
-    # (n^T A_ii n) n n^T); inv_diag = 1 / diag(A_ii) of the filtered A (Jacobi)
+    # (n^T A_ii n) n n^T); inv_diag = 1 / diag(A_ii) of the filtered A (Jacobi). row_part_solve =
+    # the filtered E'_i = A'_ii + sum_j A'_ij = S_i E_i S_i + P_i A_ii P_i + sum_j S_i A_ij (S_j - S_i),
+    # from the unfiltered E_i (row_part) and blocks: terms vanish where S_i = S_j (block_gemv_split)
     i = wp.tid()
     Si = contact_filter(mode[i], normal[i])
     Pi = wp.identity(n=3, dtype=float) - Si
     d = diag_block[i]
+    E = Si * row_part[i] * Si
     for e in range(row_offsets[i], row_offsets[i + 1]):
         if e == d:
             block = values[e]
             values[e] = Si * block * Si + Pi * block * Pi
+            E = E + Pi * block * Pi
         else:
             j = columns[e]
-            values[e] = Si * values[e] * contact_filter(mode[j], normal[j])
+            Sj = contact_filter(mode[j], normal[j])
+            E = E + Si * values[e] * (Sj - Si)
+            values[e] = Si * values[e] * Sj
     inv_diag[i] = inverse_diagonal(values[d])
+    row_part_solve[i] = E
 
 
 @wp.kernel

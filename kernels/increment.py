@@ -11,6 +11,7 @@ x_j - x_i and dx_j - dx_i apart, never x + dx.
 
 import warp as wp
 
+from warpcloth.kernels.bending import HingeAdjacency, hinge_angle_gradient, hinge_force_scale, pick_vec3
 from warpcloth.kernels.collide import (Collider, Colliders, contact_band, in_box, plane_contact, shape_contact,
                                       surface_velocity)
 from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
@@ -217,3 +218,122 @@ def update_from_increment_contact(
         vi = vi - wp.dot(vi - contact.velocity[i], n) * n
     v[i] = vi
     x[i] = x[i] + d
+
+
+# -- the rigid translation mode of a step's potential (vbd's correction; issue 26) ------------------
+@wp.func
+def rigid_mode_projector(i: int, inv_mass: wp.array(dtype=float), contact: ContactState):
+    # how particle i takes part in a rigid translation t of the cloth: P_i t with P_i = I (free),
+    # I - n n^T (sliding on a frictionless collider: along its surface), 0 (pinned, or a contact with
+    # friction: sticking, or sliding with a friction force -- the mode cannot see the contacts'
+    # Coulomb cone as a whole, and translating them let the drape slide for good, measured)
+    if inv_mass[i] == 0.0:
+        return wp.mat33(0.0)
+    state = contact.state[i]
+    if state == 2:
+        return wp.mat33(0.0)
+    eye = wp.identity(n=3, dtype=float)
+    if state == 1:
+        n = contact.normal[i]
+        c = contact.force[i]
+        cn = wp.dot(c, n)
+        if wp.length(c - cn * n) > 1.0e-4 * wp.abs(cn):
+            return wp.mat33(0.0)
+        return eye - wp.outer(n, n)
+    return eye
+
+
+@wp.func
+def rigid_mode_hinge_terms(i: int, Pi: wp.mat33, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
+                           hinges: HingeAdjacency, h: float, contact: ContactState):
+    # the dihedral hinges' share of particle i's rigid-mode terms: for each hinge of i whose four vertices
+    # do not all move alike in the mode, P_i f_i (f_i its force on i, as vbd's vertex step sees it) and
+    # (k + kd/h) (P_i g_i) (sum_b P_b g_b)^T (its Gauss-Newton block; summed over the hinge's vertices this is
+    # (sum P g)(sum P g)^T). A hinge whose vertices share P adds sum_b f_b = 0 and nothing to T^T A T
+    xi = x[i]
+    dxi = dx[i]
+    f = wp.vec3(0.0)
+    H = wp.mat33(0.0)
+    for a in range(hinges.offsets[i], hinges.offsets[i + 1]):
+        e = hinges.hinge[a]
+        q = hinges.indices[e]
+        P0 = rigid_mode_projector(q[0], inv_mass, contact)
+        P1 = rigid_mode_projector(q[1], inv_mass, contact)
+        P2 = rigid_mode_projector(q[2], inv_mass, contact)
+        P3 = rigid_mode_projector(q[3], inv_mass, contact)
+        D0 = P0 - Pi
+        D1 = P1 - Pi
+        D2 = P2 - Pi
+        D3 = P3 - Pi
+        if wp.ddot(D0, D0) + wp.ddot(D1, D1) + wp.ddot(D2, D2) + wp.ddot(D3, D3) > 0.0:
+            d0 = dx[q[0]] - dxi
+            d1 = dx[q[1]] - dxi
+            d2 = dx[q[2]] - dxi
+            d3 = dx[q[3]] - dxi
+            theta, g0, g1, g2, g3, valid = hinge_angle_gradient(
+                (x[q[0]] - xi) + d0, (x[q[1]] - xi) + d1, (x[q[2]] - xi) + d2, (x[q[3]] - xi) + d3)
+            if valid != 0:
+                k = hinges.stiffness[e]
+                kd = hinges.damping[e]
+                s = hinge_force_scale(theta, hinges.rest_angle[e], k, kd / h, g0, g1, g2, g3, d0, d1, d2, d3)
+                gi = pick_vec3(hinges.slot[a], g0, g1, g2, g3)
+                f = f + Pi * (s * gi)
+                H = H + (k + kd / h) * wp.outer(Pi * gi, P0 * g0 + P1 * g1 + P2 * g2 + P3 * g3)
+    return f, H
+
+
+@wp.kernel
+def rigid_mode_terms(
+    x: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    inertia: Inertia,
+    springs: SpringAdjacency,
+    hinges: HingeAdjacency,
+    h: float,
+    contact: ContactState,
+    b: wp.array(dtype=wp.vec3),
+    A: wp.array(dtype=wp.mat33),
+):
+    # particle i's share of the Galerkin problem of the rigid translation mode T (columns P_i e_k):
+    # T^T r = sum_i P_i r_i, r_i = m_i (dy_i - dx_i) + h^2 (sum_s f_s + c_i) the potential's negative
+    # gradient times h^2 (c_i the collider's force of the last sweep), and T^T A T = sum_i m_i P_i +
+    # sum_s (P_i - P_j)^T h^2 K_s (P_i - P_j). A spring's forces on its two ends cancel where
+    # P_i = P_j (sum P f = sum_s (P_i - P_j) f_s), so only springs whose ends move differently in the
+    # mode (a pinned, sticking or sliding end) are evaluated, half at each end (pinned ones too);
+    # on a free cloth none: b_i = m_i (dy_i - dx_i), A_i = m_i I, and the springs' forces cancel exactly
+    i = wp.tid()
+    Pi = rigid_mode_projector(i, inertia.inv_mass, contact)
+    bi = wp.vec3(0.0)
+    Ai = wp.mat33(0.0)
+    h2 = h * h
+    if inertia.inv_mass[i] != 0.0:
+        c = wp.vec3(0.0)
+        if contact.state[i] != 0:
+            c = contact.force[i]
+        bi = Pi * (inertia.mass[i] * (inertia.dy[i] - dx[i]) + h2 * c)
+        Ai = inertia.mass[i] * Pi
+    xi = x[i]
+    dxi = dx[i]
+    for a in range(springs.offsets[i], springs.offsets[i + 1]):
+        j = springs.other[a]
+        Pd = Pi - rigid_mode_projector(j, inertia.inv_mass, contact)
+        if wp.ddot(Pd, Pd) > 0.0:
+            s = springs.spring[a]
+            f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s],
+                                           springs.damping[s], h)
+            bi = bi + (0.5 * h2) * (Pd * f)
+            Ai = Ai + (0.5 * h2) * (wp.transpose(Pd) * K * Pd)
+    if hinges.indices.shape[0] > 0 and inertia.inv_mass[i] != 0.0:
+        fh, Hh = rigid_mode_hinge_terms(i, Pi, x, dx, inertia.inv_mass, hinges, h, contact)
+        bi = bi + h2 * fh
+        Ai = Ai + h2 * Hh
+    b[i] = bi
+    A[i] = Ai
+
+
+@wp.kernel
+def apply_rigid_mode(translation: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), contact: ContactState,
+                     dx: wp.array(dtype=wp.vec3)):
+    # dx_i += P_i t  (t = translation[0], rigid_mode_projector)
+    i = wp.tid()
+    dx[i] = dx[i] + rigid_mode_projector(i, inv_mass, contact) * translation[0]

@@ -70,6 +70,17 @@ def reduce_particle_motion(
 
 
 @wp.kernel
+def reduce_patch_force(f: wp.array(dtype=wp.vec3), offsets: wp.array(dtype=int), members: wp.array(dtype=int),
+                       patch_force: wp.array(dtype=wp.vec3)):
+    # the net force of patch k: sum of f over its members offsets[k]:offsets[k + 1], in order (no atomics)
+    k = wp.tid()
+    acc = wp.vec3(0.0)
+    for e in range(offsets[k], offsets[k + 1]):
+        acc = acc + f[members[e]]
+    patch_force[k] = acc
+
+
+@wp.kernel
 def reduce_energy(
     x: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),

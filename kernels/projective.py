@@ -270,3 +270,64 @@ def cg_update_direction(z: wp.array(dtype=wp.vec3), rz: wp.array(dtype=float), k
     if rz[k] > 0.0:
         beta = rz[k + 1] / rz[k]
     p[i] = z[i] + beta * p[i]
+
+
+# -- the global system's rigid translation, solved exactly before CG (issue 26) ---------------------
+@wp.func
+def free_row_sum(i: int, row_offsets: wp.array(dtype=int), columns: wp.array(dtype=int), values: wp.array(dtype=float),
+                 particle_inv_mass: wp.array(dtype=float)):
+    # sum_j S_ij over the free columns of row i (pinned columns hold 0): S applied to a translation
+    acc = float(0.0)
+    for e in range(row_offsets[i], row_offsets[i + 1]):
+        if particle_inv_mass[columns[e]] != 0.0:
+            acc = acc + values[e]
+    return acc
+
+
+@wp.kernel
+def translation_terms(
+    r: wp.array(dtype=wp.vec3),
+    row_offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    values: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    b: wp.array(dtype=wp.vec3),
+    A: wp.array(dtype=wp.mat33),
+):
+    # the global system's Galerkin problem on the rigid translation T (free particles move by t):
+    # T^T r = sum r_i, T^T S T = sum_i sum_(j free) S_ij (times I: S is scalar); pinned rows 0
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        b[i] = wp.vec3(0.0)
+        A[i] = wp.mat33(0.0)
+        return
+    b[i] = r[i]
+    A[i] = free_row_sum(i, row_offsets, columns, values, particle_inv_mass) * wp.identity(n=3, dtype=float)
+
+
+@wp.kernel
+def apply_translation(
+    translation: wp.array(dtype=wp.vec3),
+    row_offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    values: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+    inv_diag: wp.array(dtype=float),
+    dx: wp.array(dtype=wp.vec3),
+    r: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
+    p: wp.array(dtype=wp.vec3),
+    dot_terms: wp.array(dtype=float),
+):
+    # dx += t, r -= S T t = (sum_(j free) S_ij) t on the free particles; CG's start again: z = P^-1 r, p = z, r.z
+    i = wp.tid()
+    if particle_inv_mass[i] == 0.0:
+        return
+    t = translation[0]
+    dx[i] = dx[i] + t
+    res = r[i] - free_row_sum(i, row_offsets, columns, values, particle_inv_mass) * t
+    zi = inv_diag[i] * res
+    r[i] = res
+    z[i] = zi
+    p[i] = zi
+    dot_terms[i] = wp.dot(res, zi)

@@ -72,25 +72,37 @@ def assemble_system_rows(
     h: float,
     values: wp.array(dtype=wp.mat33),
     inv_diag: wp.array(dtype=wp.vec3),
+    row_part: wp.array(dtype=wp.mat33),
+    row_part_solve: wp.array(dtype=wp.mat33),
 ):
     # row i of A: A_ii = m (1 + h c) I + sum_s B_s,  A_ij = -B_s;  pinned: identity row, zero column;
-    # inv_diag = 1 / diag(A_ii)  (Jacobi)
+    # inv_diag = 1 / diag(A_ii)  (Jacobi); row_part = E_i = A_ii + sum_(j != i) A_ij = m (1 + h c) I +
+    # the B_s of springs to pinned particles, formed from the mass (not from the rounded A_ii), for
+    # block_gemv_split (also copied to row_part_solve, which the contact filter overwrites)
     i = wp.tid()
     for b in range(row_offsets[i], row_offsets[i + 1]):
         values[b] = wp.mat33(0.0)
     if particle_inv_mass[i] == 0.0:
         values[diag_block[i]] = wp.identity(n=3, dtype=float)
         inv_diag[i] = wp.vec3(1.0)
+        row_part[i] = wp.identity(n=3, dtype=float)
+        row_part_solve[i] = wp.identity(n=3, dtype=float)
         return
-    diag = (particle_mass[i] * (1.0 + h * drag_rate)) * wp.identity(n=3, dtype=float)
+    mass = (particle_mass[i] * (1.0 + h * drag_rate)) * wp.identity(n=3, dtype=float)
+    diag = mass
+    pinned = wp.mat33(0.0)
     for a in range(springs.offsets[i], springs.offsets[i + 1]):
         block = spring_B[springs.spring[a]]
         diag = diag + block
         if particle_inv_mass[springs.other[a]] != 0.0:
             b = adjacency_block[a]
             values[b] = values[b] - block
+        else:
+            pinned = pinned + block
     values[diag_block[i]] = diag
     inv_diag[i] = inverse_diagonal(diag)
+    row_part[i] = mass + pinned
+    row_part_solve[i] = mass + pinned
 
 
 @wp.kernel

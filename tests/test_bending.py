@@ -445,7 +445,8 @@ def test_implicit_row_gather_and_matrix_free_product_match_the_blocks():
     h = 0.01
     block = wp.array(block, dtype=int, device=DEVICE)
     gathered = (d.hinge_indices, grad, d.hinge_stiffness, d.hinge_damping, w)
-    launch(K.add_hinge_system_rows, n, *adj, block, *gathered, h * h, h, values)
+    row_part = [wp.zeros(n, dtype=wp.mat33, device=DEVICE) for _ in range(2)]  # E_i of the split product
+    launch(K.add_hinge_system_rows, n, *adj, block, *gathered, h * h, h, values, *row_part)
     got = np.zeros((3 * n, 3 * n))
     for (i, j), m in zip(entries, values.numpy()):
         got[3 * i:3 * i + 3, 3 * j:3 * j + 3] = m
@@ -458,6 +459,9 @@ def test_implicit_row_gather_and_matrix_free_product_match_the_blocks():
                     expected[3 * q[a]:3 * q[a] + 3, 3 * q[b]:3 * q[b] + 3] += blocks[e, a, b]
     assert np.abs(got - expected).max() < 1e-5 * np.abs(expected).max()
     assert np.linalg.eigvalsh(expected).min() > -1e-6 * np.abs(expected).max()
+    row_sums = expected.reshape(n, 3, n, 3).sum(axis=2)  # sum_j A_ij per row block
+    for e in row_part:
+        assert np.abs(e.numpy() - row_sums).max() < 1e-5 * np.abs(expected).max()
     # matrix-free: z += A_hinge y
     y = rng.normal(size=(n, 3))
     z = vec3(np.full((n, 3), 1e-3))

@@ -165,14 +165,7 @@ def test_default_dt_is_stable_with_stiff_hinges(name, size):
 
 
 # -- rigid motion -----------------------------------------------------------------------------------
-def _fall_cases():
-    # vbd does not accelerate a cloth along its own plane (issue 26 item 1; fixed by its rigid-mode correction on
-    # branch solvers-26): the tilted cloth falls 74 % of g t^2 / 2 there, flat. Drop the mark once that is merged.
-    vbd = pytest.mark.xfail(reason="issue 26 item 1: vbd's in-plane acceleration", strict=False)
-    return [pytest.param(n, marks=vbd) if n == "vbd" else n for n in NAMES]
-
-
-@pytest.mark.parametrize("name", _fall_cases())
+@pytest.mark.parametrize("name", NAMES)  # (vbd fell 74 % of it before its rigid translation correction, issue 26)
 def test_flat_cloth_falling_under_gravity_stays_flat(name):
     """A free, tilted flat cloth with stiff hinges (B = 0.05 N m) falls as a rigid body: its hinges
     stay at their rest angle (no spurious bending moment from a translation) and it falls g t^2 / 2

@@ -36,7 +36,9 @@ def local_newton_reference(x0, v0, xp, ks, kd, rest, mass, h, g):
 def test_one_iteration_with_one_free_vertex_is_the_local_newton_step(stretch):
     ks, kd, mass, h = 80.0, 0.3, 0.05, 1.0 / 60.0
     model = hanging_mass(ks=ks, kd=kd, mass=mass, top=1.5)
-    sim = Simulator(model, make_integrator("vbd", vbd_iterations=1), Control(), dt=h)
+    # the sweep alone (vbd_rigid_mode 0): with one free vertex the rigid correction after it is a
+    # second Newton step on the same vertex
+    sim = Simulator(model, make_integrator("vbd", vbd_iterations=1, vbd_rigid_mode=0), Control(), dt=h)
     q = sim.state.particle_q.numpy()
     q[1] += np.array([0.07, -stretch, 0.02], dtype=np.float32)
     v = np.array([[0.0, 0.0, 0.0], [0.3, -0.2, 0.4]], dtype=np.float32)
@@ -164,7 +166,8 @@ def test_multigrid_correction_settles_a_larger_sheet():
     -4.0 %, +0.4 % at 0.5, 1, 1.5 s); the same 4 sweeps without it leave the slow stretch mode
     far from rest (Gauss-Seidel resolves it at ~1e-4 per sweep at this size): > 10 % off."""
     assert abs(sheet_sag_error(48, 180)) < 0.02
-    assert abs(sheet_sag_error(48, 180, vbd_multigrid_every=0)) > 0.10
+    # (sweeps alone: without the rigid translation correction too, which by itself brings it to ~1 %)
+    assert abs(sheet_sag_error(48, 180, vbd_multigrid_every=0, vbd_rigid_mode=0)) > 0.10
 
 
 def test_multigrid_correction_keeps_the_backward_euler_solution():
@@ -191,12 +194,13 @@ def test_l1_smoothed_correction_keeps_the_flag_stable():
     """32 x 32 flag, dt = 1/60 s, 3 steps from rest: with the correction's l1 block-Jacobi V-cycle
     no particle moves more than 5 cm (measured 1.5 cm); with the CG preconditioner's damped block
     Jacobi (omega 0.7) instead, the step blows up (measured 0.7 m after 3 steps, 4e9 m at 48 x 48;
-    at 16 x 16 both stay put, so this needs the 32 x 32 flag)."""
+    at 16 x 16 both stay put, so this needs the 32 x 32 flag). The V-cycle alone: without the rigid
+    translation correction, which by itself holds the damped-Jacobi cycle to 0.11 m in 3 steps."""
     from warpcloth.scenarios import flag
 
     moved = {}
     for l1 in (True, False):
-        sim = flag.build(rows=32, cols=32, integrator="vbd", dt=1.0 / 60.0)
+        sim = flag.build(rows=32, cols=32, integrator="vbd", dt=1.0 / 60.0, integrator_options={"vbd_rigid_mode": 0})
         sim.integrator.hessian.multigrid.l1_smoother = l1
         q0 = sim.state.particle_q.numpy().copy()
         sim.simulate(3)

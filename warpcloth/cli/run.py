@@ -53,8 +53,10 @@ def summary(result) -> str:
         eq = f"yes, at t={result.time_to_equilibrium:.2f} s" if result.equilibrium_reached else "not reached"
         lines.append(f"  equilibrium: {eq}")
     if result.solver_converged is not None:
-        converged = "yes" if result.solver_converged else (
-            f"NO (iteration cap hit above tolerance in {result.solver_capped_steps} of {result.steps} steps)")
+        # implicit_euler judges the true residual |b - A dv| / |b|, not only CG's own (issue 26)
+        reason = ("iteration cap hit above tolerance" if (result.solver or {}).get("cg_capped_steps", 1)
+                  else "true residual above tolerance")
+        converged = "yes" if result.solver_converged else f"NO ({reason} in {result.solver_capped_steps} of {result.steps} steps)"
         lines.append(f"  solver converged: {converged}")
     if result.solver:
         lines.append("  solver: " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.solver.items()))

@@ -22,6 +22,7 @@ from warpcloth.kernels import increment as nk
 from warpcloth.integrators.forces import eval_external_forces
 from warpcloth.sim.pins import apply_pins, has_pin_tracks
 from warpcloth.integrators.base import Integrator, hinge_adjacency_of, scratch_like, spring_adjacency
+from warpcloth.integrators.linalg import TranslationSolve
 
 
 def at_least_one(value) -> str | None:
@@ -72,6 +73,11 @@ class IncrementSolver(Integrator):
         self.no_colliders = ck.Colliders()
         self.no_colliders.records, self.no_colliders.box = wp.zeros(0, dtype=ck.Collider), wp.zeros(2, dtype=wp.vec3)
         self._colliders = ck.Colliders()
+        #: The rigid translation mode's 3 x 3 Galerkin problem (:class:`~warpcloth.integrators.linalg.TranslationSolve`;
+        #: its regular term 1e-6 of the free mass keeps it invertible where every free particle slides on one plane).
+        host = model.host
+        free_mass = float(host["mass"].astype("float64")[host["inv_mass"] > 0].sum())
+        self.rigid = TranslationSolve(model.particle_count, 1.0e-6 * free_mass, model.device)
         self._allocate_solver(model)
 
     def _allocate_solver(self, model) -> None:

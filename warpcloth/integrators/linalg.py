@@ -1,5 +1,6 @@
-"""Linear-solver pieces the integrators share: sums in a fixed order and a preconditioned CG whose
-scalars live on the device.
+"""Linear-solver pieces the integrators share: sums in a fixed order, the exact solve of a
+3-unknown (rigid translation) Galerkin problem and a preconditioned CG whose scalars live on the
+device.
 
 Dot products are summed without atomics, in an order fixed by the problem size alone (per-element
 terms, sums over fixed chunks, then the chunks' sum by one thread), so results are bit-identical
@@ -34,6 +35,34 @@ class OrderedSum:
                   device=d)
         wp.launch(lk.sum_partials, dim=1, inputs=[self.partial, k], outputs=[out], device=d)
 
+
+
+class TranslationSolve:
+    """A 3-unknown Galerkin problem solved exactly, t = (sum_i A_i + regular I)^-1 sum_i b_i, the
+    sums in a fixed order (:mod:`warpcloth.kernels.linalg`: ``sum_block_chunks`` then
+    ``solve_block_sum``): the rigid translation mode of vbd's and projective dynamics' solves
+    (issue 26). A kernel writes the per-particle terms to :attr:`b` and :attr:`A`; :meth:`solve`
+    leaves t in :attr:`translation` [m], shape (1,). All arrays are allocated here.
+    """
+
+    def __init__(self, count: int, regular: float, device):
+        self.count, self.regular, self.device = int(count), float(regular), device
+        #: The per-particle terms T^T r and T^T A T, shape (count,); written by the caller's kernels.
+        self.b = wp.zeros(self.count, dtype=wp.vec3, device=device)
+        self.A = wp.zeros(self.count, dtype=wp.mat33, device=device)
+        self.chunk = max(1, -(-self.count // 128))
+        chunks = -(-self.count // self.chunk)
+        self.b_partial = wp.zeros(chunks, dtype=wp.vec3, device=device)
+        self.A_partial = wp.zeros(chunks, dtype=wp.mat33, device=device)
+        self.translation = wp.zeros(1, dtype=wp.vec3, device=device)
+
+    def solve(self) -> None:
+        """translation[0] = t (device launches only)."""
+        d = self.device
+        wp.launch(lk.sum_block_chunks, dim=self.b_partial.shape[0], inputs=[self.b, self.A, self.chunk, self.count],
+                  outputs=[self.b_partial, self.A_partial], device=d)
+        wp.launch(lk.solve_block_sum, dim=1, inputs=[self.b_partial, self.A_partial, self.regular],
+                  outputs=[self.translation], device=d)
 
 class DevicePCG:
     """Preconditioned CG whose scalars live in a device array, run in chunks of ``check_every``
@@ -117,4 +146,4 @@ class DevicePCG:
         return int(s[6]), (float(np.sqrt(rr / bb)) if bb > 0.0 else 0.0), bool(s[3] <= s[5])
 
 
-__all__ = ["DevicePCG", "OrderedSum"]
+__all__ = ["DevicePCG", "OrderedSum", "TranslationSolve"]

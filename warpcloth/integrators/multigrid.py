@@ -120,6 +120,46 @@ def prolongation(rows: int, cols: int, pinned=()) -> tuple[int, int, np.ndarray,
     return rc, cc, np.array(fi, dtype=np.int32), np.array(ci, dtype=np.int32), np.array(w, dtype=np.float32)
 
 
+def aggregation_prolongation(n: int, fine_rows: np.ndarray, fine_cols: np.ndarray, pinned=()) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """Plain aggregation of a level's matrix graph (any mesh): an unaggregated node whose
+    neighbours are all unaggregated starts an aggregate with them; the nodes left join a
+    neighbouring aggregate (the one with most links to it), isolated ones are their own. P is
+    piecewise constant (weight 1), with no rows on ``pinned`` nodes. Returns (coarse size, fine
+    index, coarse index, weight)."""
+    pinned = np.zeros(n, dtype=bool) if len(pinned) == 0 else np.isin(np.arange(n), np.asarray(pinned))
+    off = fine_rows != fine_cols
+    r, c = fine_rows[off].astype(np.int64), fine_cols[off].astype(np.int64)
+    keep = ~pinned[r] & ~pinned[c]
+    r, c = r[keep], c[keep]
+    order = np.argsort(r, kind="stable")
+    r, c = r[order], c[order]
+    start = np.zeros(n + 1, dtype=np.int64)
+    start[1:] = np.cumsum(np.bincount(r, minlength=n))
+    label = np.full(n, -1, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        if pinned[i] or label[i] >= 0:
+            continue
+        nb = c[start[i]:start[i + 1]]
+        if np.all(label[nb] < 0):
+            label[i] = count
+            label[nb] = count
+            count += 1
+    for i in range(n):
+        if pinned[i] or label[i] >= 0:
+            continue
+        nb = c[start[i]:start[i + 1]]
+        nb = nb[label[nb] >= 0]
+        if nb.size:
+            values, counts = np.unique(label[nb], return_counts=True)
+            label[i] = values[np.argmax(counts)]
+        else:
+            label[i] = count
+            count += 1
+    fi = np.flatnonzero(label >= 0)
+    return count, fi.astype(np.int32), label[fi].astype(np.int32), np.ones(fi.size, dtype=np.float32)
+
+
 def _scalar_csr(rows: np.ndarray, cols: np.ndarray, weights: np.ndarray, nrow: int):
     """(offsets, columns, weights) of a scalar CSR matrix from triplets, rows in order."""
     order = np.lexsort((cols, rows))
@@ -153,9 +193,12 @@ class GridMultigrid:
     #: Graphs kept per operation before the cache is cleared (new argument arrays make new graphs).
     MAX_GRAPHS = 8
 
-    def __init__(self, A, rows: int, cols: int, pinned, device, smoothing_steps: int = 1, coarse_steps: int = 10, omega: float = 0.7, post_smoothing: bool = True):
+    def __init__(self, A, rows: int, cols: int, pinned, device, smoothing_steps: int = 1, coarse_steps: int = 10, omega: float = 0.7, post_smoothing: bool = True,
+                 aggregation: bool = False, min_coarse: int = 16):
         """``post_smoothing=False`` drops the sweeps after the coarse correction: the V-cycle is
-        then not symmetric (only to show that the symmetry test can fail)."""
+        then not symmetric (only to show that the symmetry test can fail). ``aggregation``:
+        coarsen any mesh by :func:`aggregation_prolongation` (``rows``, ``cols`` ignored; levels
+        until at most ``min_coarse`` nodes or no coarsening) instead of the grid's bilinear one."""
         self.smoothing_steps, self.coarse_steps, self.omega = smoothing_steps, coarse_steps, omega
         self.post_smoothing = post_smoothing
         #: Smoother: False, damped block Jacobi (``omega``; the CG preconditioner's, fewest CG
@@ -170,6 +213,9 @@ class GridMultigrid:
         self.grids = [(rows, cols)]
         self.csr = []  # per level: (offsets, columns, diagonal block index) of A_l's blocks
         fine_rows, fine_cols = _bsr_pattern(A)
+        if aggregation:
+            rows, cols = A.nrow, 1
+            self.grids = [(rows, cols)]
         while True:
             n_f = rows * cols
             offsets = np.zeros(n_f + 1, dtype=np.int32)
@@ -177,10 +223,18 @@ class GridMultigrid:
             diag = np.flatnonzero(fine_rows == fine_cols)
             assert diag.size == n_f and np.array_equal(fine_rows[diag], np.arange(n_f)), "every level needs its diagonal blocks"
             self.csr.append((wp.array(offsets, dtype=int), wp.array(fine_cols.astype(np.int32), dtype=int), wp.array(diag.astype(np.int32), dtype=int)))
-            if min(rows, cols) < 2 * MIN_COARSE_SIDE - 1:
-                break
-            rc, cc, fi, ci, w = prolongation(rows, cols, pinned if len(self.P) == 0 else ())
-            n_c = rc * cc
+            if aggregation:
+                if n_f <= min_coarse:
+                    break
+                n_c, fi, ci, w = aggregation_prolongation(n_f, fine_rows, fine_cols, pinned if len(self.P) == 0 else ())
+                if n_c >= n_f or n_c == 0:
+                    break
+                rc, cc = n_c, 1
+            else:
+                if min(rows, cols) < 2 * MIN_COARSE_SIDE - 1:
+                    break
+                rc, cc, fi, ci, w = prolongation(rows, cols, pinned if len(self.P) == 0 else ())
+                n_c = rc * cc
             rows_c, cols_c, term_offsets, sources, weights = galerkin_terms(fine_rows, fine_cols, n_c, fi, ci, w)
             # the coarse blocks in the order bsr_from_triplets stores them (row-major, sorted columns)
             Ac = wps.bsr_from_triplets(n_c, n_c, wp.array(rows_c, dtype=int), wp.array(cols_c, dtype=int), wp.zeros(rows_c.size, dtype=wp.mat33), prune_numerical_zeros=False)

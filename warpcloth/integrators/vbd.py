@@ -3,9 +3,12 @@ the mass-spring energy.
 
     dy = h v + h^2 f_ext / m ;  dx = h v              (initial guess x + h v)
     repeat vbd_iterations times:
-        [grid models, every vbd_multigrid_every-th iteration: dx <- dx + V(-h^2 grad G(dx))]
+        [every vbd_multigrid_every-th iteration: dx <- dx + V(-h^2 grad G(dx))]
         colour by colour (Gauss-Seidel over vertex colours):
         dx_i <- dx_i - H_i^-1 g_i      (3 x 3 Newton step on vertex i's local energy)
+        dx <- dx + P t                 (rigid translation correction, vbd_rigid_mode: after every
+                                        sweep and before the first; with colliders before every
+                                        sweep instead)
         [Chebyshev: dx <- omega_n (dx - dx^(n-2)) + dx^(n-2)]
     v = dx / h ;  x += dx
 
@@ -27,7 +30,7 @@ external acceleration along the previous one) did not settle (speeds ~1 m/s afte
 Converged (many iterations), a step is nonlinear backward Euler of the same energy. Positions
 are carried as the increment dx, so float32 keeps h v whatever |x|.
 
-Multigrid correction (grid models; ``vbd_multigrid_every``, default before every sweep): local
+Multigrid correction (``vbd_multigrid_every``, default before every sweep): local
 sweeps resolve the long, stiff modes of a large sheet at ~1e-4 per sweep at 128^2 (h^2 ks / m ~
 9e4), so with sweeps alone the 128 x 128 sheet was still -68 % off the float64 equilibrium's sag
 after 10 s with 20 sweeps per step (and a step without convergence acts like a heavy, barely
@@ -38,6 +41,31 @@ It is zero where the gradient is zero, so the converged solution is unchanged
 (tests/test_vbd.py); with 4 iterations the 128 x 128 sheet's sag is within 0.5 % after 0.5 s
 and the 256 x 256 flag runs stable (docs/solvers.md). Chebyshev acceleration with a spectral
 radius near the sweeps' (rho 0.99 and above) blew up within the first second at 64 x 64.
+
+Models that are not grids (``vbd_mesh_multigrid``, default 1; issue 26): the same correction
+on an aggregation hierarchy of the Hessian's graph (:func:`~warpcloth.integrators.multigrid.aggregation_prolongation`,
+piecewise-constant P, Galerkin levels down to <= 16 nodes; models of fewer than 7 x 7 particles get none).
+The 32 x 32 sheet as a build_mesh_cloth model: sag -0.97, -0.07, +0.00 % at 0.5, 1, 2 s (rigid
+correction alone -5.7, +1.1, +0.6 %); 64 x 64: +0.67, +0.22, -0.01 % at 1, 1.5, 3 s (alone -7.8,
++6.1, +0.14 %); cost as the grid's geometric multigrid (21 vs 26 ms/step at 64^2). The built-in
+cape (``warpcloth run mesh``), which went unstable (energy growing) without it, settles.
+
+Rigid translation correction (``vbd_rigid_mode``, default 1; issue 26): neither the sweeps nor
+the V-cycle move the cloth as a whole. A vertex's Newton step meets its stiff in-plane springs
+with its neighbours held, and the V-cycle's coarsest level (10 l1 sweeps) leaves the constant
+mode at ~4 % (V(M 1) = 0.035-0.05 instead of 1 on a free 16 x 16 cloth): an unpinned cloth fell
+along its plane at 16 % of g t^2/2 in 0.5 s, slid down a frictionless slope at 0.6 % of g sin,
+and a truncated solve's residual did not sum to zero, so it made momentum (0.03 kg m/s on a free
+stretched 16 x 16 cloth; a V-cycle at an even size, whose coarse grid is not mirror-symmetric,
+0.03 kg m/s per application). After each sweep the Galerkin problem of the translation mode (3
+unknowns, :meth:`VBD.rigid_correction`) is solved exactly, and once before the first sweep (a first
+sweep from a guess whose mean lags the fall leaves a shape error the later sweeps resolve slowly: a
+free tilted 6 x 6 cloth with dihedral hinges bent 1.9e-3 rad in 0.4 s without it, 1.6e-5 with
+it): free fall and the frictionless slope
+are backward Euler's to 1e-7 and momentum is kept to ~1e-8 kg m/s. It is zero where the gradient
+is zero, so a rest state is still the exact equilibrium. Contacts with friction are held in the
+mode (its 3 unknowns cannot see the contacts' Coulomb cones as a whole; moving them let the drape
+slide for good), so a cloth on a slope with friction still slides too slowly.
 """
 
 from __future__ import annotations
@@ -54,7 +82,13 @@ from warpcloth.sim.coloring import VertexColoring, color_vertices
 from warpcloth.sim.hinges import hinge_pairs
 from warpcloth.integrators.base import Option, scratch_like
 from warpcloth.integrators.increment import IncrementSolver, at_least_one
-from warpcloth.integrators.multigrid import grid_structure_reason
+from warpcloth.integrators.multigrid import MIN_COARSE_SIDE, GridMultigrid, grid_structure_reason
+
+#: Fewest particles of a model that gets the aggregation multigrid (models that are not grids): the
+#: smallest grid the geometric hierarchy coarsens, 7 x 7. Below it the sweeps and the rigid correction
+#: suffice, and a two-level V-cycle on a 6 x 6 cloth left a tilted free fall's shape 1.5e-4 m off
+#: (2.6e-7 m without it).
+MIN_AGGREGATION_PARTICLES = (2 * MIN_COARSE_SIDE - 1) ** 2
 from warpcloth.integrators.system import ImplicitSystem
 
 
@@ -89,8 +123,20 @@ class VBD(IncrementSolver):
         Option("vbd_iterations", int, 4, "VBD iterations (sweeps over every vertex colour) per time step (>= 1)", check=at_least_one),
         Option(
             "vbd_multigrid_every", int, 1,
-            "grid models: a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; other models: never)",
+            "a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; models that are not grids: "
+            "an aggregation hierarchy, see vbd_mesh_multigrid)",
             check=lambda v: None if v >= 0 else "must be an integer >= 0",
+        ),
+        Option(
+            "vbd_mesh_multigrid", int, 1,
+            "models that are not grids: the multigrid correction on an aggregation hierarchy of the Hessian's graph (1) or none (0)",
+            check=lambda v: None if v in (0, 1) else "must be 0 or 1",
+        ),
+        Option(
+            "vbd_rigid_mode", int, 1,
+            "rigid translation correction: 1 after every sweep and before the first (with colliders: before every "
+            "sweep; the cloth's mean motion solved exactly, conserves momentum), 2 before and after every sweep, 0 off",
+            check=lambda v: None if v in (0, 1, 2) else "must be 0, 1 or 2",
         ),
         Option(
             "vbd_chebyshev_rho", float, 0.0,
@@ -109,13 +155,21 @@ class VBD(IncrementSolver):
         self.vertex_order = wp.array(self.coloring.order, dtype=int)
         self.dx_prev1, self.dx_prev2 = scratch_like(model, 2)  # the Chebyshev history
         self._sweep_key, self._sweep = None, []
-        self.hessian = None
+        self.hessian = self.multigrid = None
         if self.vbd_multigrid_every > 0 and grid_structure_reason(model) is None:
             # h^2 times the potential's Hessian is implicit Euler's A = M + h D + h^2 K (drag aside)
             self.hessian = ImplicitSystem(model, jacobian="full", matrix="bsr", preconditioner="multigrid")
+            self.multigrid = self.hessian.multigrid
+        elif self.vbd_multigrid_every > 0 and self.vbd_mesh_multigrid and model.particle_count >= MIN_AGGREGATION_PARTICLES:
+            # any other mesh: the same V-cycle on an aggregation hierarchy of A's graph (issue 26)
+            self.hessian = ImplicitSystem(model, jacobian="full", matrix="bsr", preconditioner="jacobi")
+            self.multigrid = GridMultigrid(self.hessian.A, 0, 0, model.pinned, model.device, aggregation=True)
+            if self.multigrid.levels < 2:  # nothing to coarsen (no springs): the sweeps suffice
+                self.hessian = self.multigrid = None
+        if self.multigrid is not None:
             # l1 smoothing: with damped block Jacobi (omega 0.7, the CG preconditioner's) the
             # 64 x 64 flag blew up in its first step (measured); with l1 it did not
-            self.hessian.multigrid.l1_smoother = True
+            self.multigrid.l1_smoother = True
             self.residual, self.delta = scratch_like(model, 2)
 
     def step(self, state, control, dt):
@@ -123,17 +177,27 @@ class VBD(IncrementSolver):
         x = state.particle_q
         contacts = self.predict(state, control, h)
         sweep = self.color_sweep(x, h, contacts)
+        if contacts is None and self.vbd_rigid_mode:
+            self.contact_state.zero_()  # none held (the rigid mode reads it; colliders may have been removed)
         accelerate = self.vbd_chebyshev_rho > 0.0
         if accelerate:
             wp.launch(vk.copy_increment, dim=m.particle_count, inputs=[self.dx], outputs=[self.dx_prev1, self.dx_prev2], device=m.device)
         if self.hessian is not None:
             self.hessian.assemble(x, h, 0.0)
             self.hessian.update_preconditioner(h, 0.0)
+            if self.multigrid is not self.hessian.multigrid:  # the aggregation hierarchy (not the system's own)
+                self.multigrid.update()
         for it, omega in enumerate(chebyshev_weights(self.vbd_iterations, self.vbd_chebyshev_rho)):
             if self.hessian is not None and it % self.vbd_multigrid_every == 0:
                 self.coarse_correction(x, h, contacts)
+            # with colliders before every sweep (a step ends on a sweep, which holds the contacts); without,
+            # before the first one too: a first sweep from a guess whose mean lags leaves a shape error
+            if self.vbd_rigid_mode == 2 or (self.vbd_rigid_mode == 1 and (contacts is not None or it == 0)):
+                self.rigid_correction(x, h)
             for color in sweep:
                 color.launch()
+            if self.vbd_rigid_mode >= 1 and contacts is None:
+                self.rigid_correction(x, h)
             if accelerate:
                 wp.launch(vk.apply_chebyshev, dim=m.particle_count, inputs=[omega], outputs=[self.dx, self.dx_prev1, self.dx_prev2], device=m.device)
                 if contacts is not None:  # the extrapolation may reach into a collider
@@ -149,11 +213,33 @@ class VBD(IncrementSolver):
         if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
             wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact, h], outputs=[self.residual],
                       device=m.device)
-        self.hessian.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
+        self.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
         if contacts is not None:
             wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact], outputs=[self.delta],
                       device=m.device)
         wp.launch(vk.add_increment, dim=m.particle_count, inputs=[self.delta], outputs=[self.dx], device=m.device)
+
+    def rigid_correction(self, x, h: float) -> None:
+        """dx += P t: the Galerkin correction of the rigid translation mode (3 unknowns), t =
+        (T^T A T)^-1 T^T r, r = -h^2 grad G at dx (colliders' forces of the last sweep included),
+        A = h^2 times the potential's Hessian at dx, T's columns P_i e_k (P_i: I free, the tangent
+        projector sliding without friction, 0 pinned, sticking or with friction;
+        :func:`~warpcloth.kernels.increment.rigid_mode_terms`). Springs between free particles do
+        not resist a translation, so on a free cloth T^T A T = M I and afterwards sum m dx = sum m dy
+        exactly: the step's momentum change is h F_ext, as backward Euler's. Zero where r is zero.
+
+        Called after every sweep and before the first; with colliders before every sweep instead,
+        so that a step ends on a sweep, which holds the contacts (after it, the translation moved
+        free particles near the sphere 5.5e-5 m into it on the 16 x 16 drape; projecting them out
+        there with an identity Hessian, as after a Chebyshev extrapolation, lost the sweeps' contact
+        states and the drape did not settle: both measured)."""
+        m, rigid = self.model, self.rigid
+        wp.launch(nk.rigid_mode_terms, dim=m.particle_count,
+                  inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h, self.contact],
+                  outputs=[rigid.b, rigid.A], device=m.device)
+        rigid.solve()
+        wp.launch(nk.apply_rigid_mode, dim=m.particle_count, inputs=[rigid.translation, m.particle_inv_mass, self.contact],
+                  outputs=[self.dx], device=m.device)
 
     def color_sweep(self, x, h: float, contacts=None) -> list:
         """One Gauss-Seidel sweep: a recorded launch of the local Newton kernel per colour

@@ -38,6 +38,7 @@ class Trial:
     capped: bool = False  # stopped by the wall-clock cap before the duration (counted as stable)
     wall_time: float = 0.0
     max_strain: float = 0.0  # the largest spring strain reached
+    duration: float = 0.0  # simulated time asked of the trial [s]
 
 
 @dataclass
@@ -75,6 +76,8 @@ class MaxDtResult:
     no_stable_reason: str = ""
     #: The largest spring strain reached in the trial at :attr:`dt`.
     max_strain: float | None = None
+    #: Simulated time the found dt was verified over (the run's own duration and schedule; 0: not asked).
+    verified_duration: float = 0.0
 
     @property
     def limit_reached(self) -> bool:
@@ -93,19 +96,22 @@ class MaxDtResult:
             "explicit_euler_reference": self.reference, "particle_mass": self.particle_mass,
             "max_stiffness": self.max_stiffness, "trials": [t.__dict__ for t in self.trials], "wall_time": self.wall_time,
             "max_strain": self.max_strain, "no_stable_reason": self.no_stable_reason,
+            "verified_duration": self.verified_duration,
         }
 
 
-def trial_stable(harness, dt: float, duration: float, fps: float = 60.0, wall_cap: float | None = None) -> Trial:
+def trial_stable(harness, dt: float, duration: float, fps: float = 60.0, wall_cap: float | None = None,
+                 stop_at_equilibrium: bool = False) -> Trial:
     """Run the simulator of ``harness`` (a :class:`~warpcloth.run.harness.RunHarness`) from rest
-    for ``duration`` seconds at ``dt``; is it stable?"""
+    for ``duration`` seconds at ``dt`` (ending at equilibrium where asked, as the scenario's own
+    runs do); is it stable?"""
     sim = harness.sim
     sim.reset()
     sim.set_dt(dt)
     with Stopwatch(sim.model.device) as watch:
-        r = harness.run(duration, fps=fps, stop_at_equilibrium=False, wall_cap=wall_cap, warm_up=False)
+        r = harness.run(duration, fps=fps, stop_at_equilibrium=stop_at_equilibrium, wall_cap=wall_cap, warm_up=False)
     return Trial(dt=dt, stable=r.stable, reason=r.unstable_reason, capped=r.wall_cap_reached and r.stable,
-                 wall_time=watch.seconds, max_strain=r.max_strain)
+                 wall_time=watch.seconds, max_strain=r.max_strain, duration=duration)
 
 
 def find_max_dt(
@@ -118,6 +124,8 @@ def find_max_dt(
     start: float | None = None,
     wall_cap: float | None = None,
     on_trial=None,
+    verify_duration: float | None = None,
+    stop_at_equilibrium: bool = False,
 ) -> MaxDtResult:
     """The largest stable dt of ``config.integrator`` on ``scenario`` with ``config``.
 
@@ -131,6 +139,14 @@ def find_max_dt(
         wall_cap: wall-clock cap of one trial [s]; a trial that reaches it without going
             unstable counts as stable (reported in :attr:`MaxDtResult.inconclusive_trials`).
         on_trial: called with each :class:`Trial` as it finishes.
+        verify_duration: where longer than ``duration``, the found dt must also survive a trial
+            of this length (the run it is for: its whole duration and wind schedule, ending at
+            equilibrium if ``stop_at_equilibrium``); while it does not, dt steps down by
+            2^(-1/4) and the boundary is bisected again with trials of that length. The search's
+            short trials miss what comes later in a run: the quick sweep's flag at its 2 s max
+            dt went past the instability strain (0.62 explicit Euler, 0.54 midpoint) in its 3 s
+            run (issue 26). Stability is assumed monotonic in dt below the boundary.
+        stop_at_equilibrium: the verification trials end at equilibrium, as the run does.
     """
     from warpcloth.integrators import explicit_euler_dt_bound
 
@@ -162,8 +178,8 @@ def find_max_dt(
     sim.set_dt(sim.integrator.default_dt(model, sim.control.drag_rate))
     sim.warm_up()
 
-    def test(dt: float) -> bool:
-        trial = trial_stable(harness, dt, duration, fps=config.fps, wall_cap=wall_cap)
+    def test(dt: float, length: float = duration, stop: bool = False) -> bool:
+        trial = trial_stable(harness, dt, length, fps=config.fps, wall_cap=wall_cap, stop_at_equilibrium=stop)
         result.trials.append(trial)
         if on_trial is not None:
             on_trial(trial)
@@ -196,6 +212,22 @@ def find_max_dt(
                 lo = mid
             else:
                 hi = mid
+    # Verify over the run's own duration: step down while unstable, then bisect with such trials.
+    if verify_duration is not None and verify_duration > duration and lo is not None:
+        verify_duration = require_positive("verify_duration", verify_duration, "s")
+        result.verified_duration = verify_duration
+        stepped = False
+        while lo is not None and not test(lo, verify_duration, stop_at_equilibrium):
+            stepped = True
+            hi = lo
+            lo = lo * 2.0 ** -0.25 if lo * 2.0 ** -0.25 >= dt_min else None
+        if stepped and lo is not None:
+            while (hi - lo) / lo > precision:
+                mid = math.sqrt(lo * hi)
+                if test(mid, verify_duration, stop_at_equilibrium):
+                    lo = mid
+                else:
+                    hi = mid
     result.dt, result.unstable_dt = lo, hi
     if lo is not None:
         result.max_strain = max(t.max_strain for t in result.trials if t.dt == lo and t.stable)
@@ -205,7 +237,9 @@ def find_max_dt(
 
 def format_result(r: MaxDtResult) -> str:
     """The human-readable report of ``warpcloth max-dt``."""
-    lines = [f"{r.scenario}: {r.integrator} on {r.device}, {r.rows}x{r.cols}; stable = {r.duration:g} s simulated without going unstable"]
+    verified = f" (the found dt verified over {r.verified_duration:g} s)" if r.verified_duration else ""
+    lines = [f"{r.scenario}: {r.integrator} on {r.device}, {r.rows}x{r.cols}; stable = {r.duration:g} s simulated without going unstable"
+             f"{verified}"]
     if r.no_stable_reason:
         lines.append(f"  no stable dt exists: {r.no_stable_reason}")
     elif r.dt is None:

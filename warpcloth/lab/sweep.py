@@ -7,8 +7,10 @@
   (:attr:`~warpcloth.lab.testlist.RunSpec.key`, built from the run's parameters) is already in the
   file. A run that raises records ``outcome=error`` and its message, and the sweep goes on.
 * ``dt="max"`` / ``"max*F"`` uses :func:`~warpcloth.lab.maxdt.find_max_dt`, searched once per
-  integrator, scenario, mesh and parameters within a sweep, up to one frame (1/frame_rate): a
-  real-time run takes at least one step per frame, so a larger dt is never useful here.
+  integrator, scenario, mesh, parameters and run duration within a sweep, up to one frame
+  (1/frame_rate): a real-time run takes at least one step per frame, so a larger dt is never
+  useful here. The found dt is verified over the run's own duration and schedule (stepped down
+  until that run is stable), so a run at "max" (or max*F, F <= 1) is stable for its whole length.
 * Progress goes to stderr, never to stdout.
 * Parallel (``workers`` > 1, ``devices``, ``ray``): the runs go to
   :mod:`warpcloth.lab.parallel` (local ``spawn`` worker processes or Ray tasks); this process
@@ -124,10 +126,12 @@ class MaxDtCache:
         key = spec.search_key
         if key not in self._results:
             try:
+                scenario = get_scenario(spec.scenario)
+                # "max" is for this run: the found dt is verified over the run's own duration and schedule
                 self._results[key] = find_max_dt(
-                    get_scenario(spec.scenario), spec.config(), precision=spec.maxdt_precision,
+                    scenario, spec.config(), precision=spec.maxdt_precision,
                     duration=spec.maxdt_duration, dt_max=1.0 / spec.frame_rate, wall_cap=spec.wall_cap,
-                    on_trial=self.on_trial,
+                    on_trial=self.on_trial, verify_duration=spec.duration, stop_at_equilibrium=scenario.stop_at_equilibrium,
                 )
             except Exception as exc:  # recorded in every run that needs it
                 self._results[key] = exc

@@ -114,8 +114,9 @@ class RunSpec:
 
     @property
     def search_key(self) -> tuple:
-        """What the max-stable-dt search depends on (every parameter declared ``search``)."""
-        return tuple((k, v) for k, v in self.values if params.BY_NAME[k].search) + (self.options,)
+        """What the max-stable-dt search depends on (every parameter declared ``search``, and the
+        run's duration, over which the found dt is verified)."""
+        return tuple((k, v) for k, v in self.values if params.BY_NAME[k].search) + (self.options, ("duration", self.duration))
 
     def config(self, dt: float | None = None, duration: float | None = None):
         """The :class:`~warpcloth.scenarios.ScenarioConfig` of this run."""
