@@ -134,13 +134,16 @@ def test_runspec_pickles_for_worker_processes(tmp_path):
     assert dataclasses.asdict(again)["test_id"] == "1"
 
 
-def test_the_max_dt_search_key_holds_the_wall_cap_not_the_duration(tmp_path):
+def test_the_max_dt_search_key_holds_the_wall_cap_and_the_duration(tmp_path):
     # a max-dt trial that reaches the wall cap counts as capped, so runs with other caps must not
-    # share one search; the run's duration does not enter the search (its trials have their own)
+    # share one search; "max" is verified over the run's own duration (docs/sweep.md), so runs of
+    # other durations do not share one either
     runs = parse_test_list(write(tmp_path, '<test_list dt="max" scenario="sheet" integrator="rk4" size="4">\n'
-                                            '<test wall_cap="5"/><test wall_cap="none"/><test wall_cap="5" duration="2"/></test_list>')).runs
+                                            '<test wall_cap="5"/><test wall_cap="none"/><test wall_cap="5" duration="2"/>'
+                                            '<test wall_cap="5" mass="0.3"/></test_list>')).runs
     assert runs[0].search_key != runs[1].search_key
-    assert runs[0].search_key == runs[2].search_key and runs[0].key != runs[2].key
+    assert runs[0].search_key != runs[2].search_key and runs[0].key != runs[2].key
+    assert runs[0].search_key != runs[3].search_key  # another model
 
 
 def test_time_steps_times_exactly_the_steps_asked():
