@@ -38,7 +38,7 @@ class StudyPlan:
     tolerance: float = DEFAULT_TOLERANCE
     tolerances: tuple = TOLERANCES
     budget_ms: float = DEFAULT_BUDGET_MS
-    windows: tuple = (("swing", ((0, 60), (64, 24), (128, 16))), ("flag", ((0, 30), (64, 24), (128, 16))))
+    windows: tuple = (("swing", ((0, 60), (64, 24), (128, 16))), ("flag", ((0, 30), (32, 16), (64, 8))))
     level: str = "full"
     run_wall_cap: float = 60.0
     max_frame_ms: float = 1000.0
@@ -82,7 +82,7 @@ PROFILES = {
     "standard": dict(sizes=[16, 32, 64, 128], run_wall_cap=60.0, maxdt_wall_cap=30.0, equilibrium_wall_cap=30.0),
     # a GPU (H100/H200): 64-512 on cuda, within 8 min of device time (--estimate)
     "gpu": dict(sizes=[64, 128, 256, 512], devices=["cuda"],
-                windows=(("swing", ((0, 24), (128, 16), (256, 12), (512, 8))), ("flag", ((0, 24), (128, 16), (256, 12), (512, 8)))),
+                windows=(("swing", ((0, 24), (128, 16), (256, 12), (512, 8))), ("flag", ((0, 8),))),
                 run_wall_cap=20.0, maxdt_wall_cap=10.0, equilibrium_wall_cap=20.0, timing_windows=5, window_seconds=0.05),
 }
 
