@@ -88,7 +88,8 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
     * stability: 2 scenarios x 6 trials of the swing's window at 1.5x the default dt for the
       explicit schemes, 1 trial for those stable at one frame, each at most the wall cap;
     * trials: every configuration x 2 transients, frames x k steps at the calibrated ms/step x
-      :func:`~warpcloth.lab.configs.work` per step; one predicted above the plan's run cap is not run;
+      :func:`~warpcloth.lab.configs.work` per step; one predicted above the plan's caps is not run
+      (but the cheapest, which always runs);
     * contact: 2 runs of :data:`CONTACT_REST_S` simulated, at most the wall cap;
     * timings: warm-up, capture and the timed windows of every configuration that ran."""
     ref = stab = trials = contact = tim = 0.0
@@ -117,13 +118,13 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
             stab += 2 * (6 if explicit else 1) * trial
             counts["stab"] += 2
             configs = configurations(i, dt0 if explicit else None, plan.level)
-            for c in configs:
+            for first, c in enumerate(configs):
                 per_step = ms / 1000.0 * work(i, c.option_dict)
                 run = 0.0
                 for name in DYNAMIC:
                     seconds = plan.window_frames(name, n) * float(c.k) * per_step
-                    if seconds > cap or 1000.0 * float(c.k) * per_step > plan.max_frame_ms:
-                        seconds = 0.0  # predicted above the caps: not run
+                    if first and (seconds > cap or 1000.0 * float(c.k) * per_step > plan.max_frame_ms):
+                        seconds = 0.0  # predicted above the caps: not run (the cheapest always runs)
                     run += seconds
                     counts["trial"] += 1
                 trials += run
