@@ -28,6 +28,14 @@ CONTACT_S = 3.3 / 1024 ** 1.5
 CONTACT_REST_S = 3.0
 #: Runs of a Warp reference and its floor: h, h/2, and two floor runs at h/2, in units of the h run.
 REFERENCE_RUNS = 7.0
+#: Measured / modelled on the standard profile's 16 x 16 groups (``--sizes 16 --workers 2`` on
+#: the project's 2-core CPU at load average ~7, 2026-12-02; docs/study.md, "Estimate"): the
+#: configuration runs took 2.5x the model (their frames' host copies and metrics, the workers
+#: sharing the cores), the timings 3.4x (a warm-up and a graph capture per configuration).
+TRIAL_FACTOR = 2.5
+TIMING_FACTOR = 3.4
+#: Two search workers on 2 cores gave 1.6x, not 2x (measured on the same run).
+WORKER_SPEEDUP = {1: 1.0, 2: 1.6}
 
 
 @dataclass
@@ -85,13 +93,16 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
     * references: DOP853 at :data:`REFERENCE_S_PER_PARTICLE_S`, or the Warp RK4 at half its
       stability limit 2.61 / omega, :data:`REFERENCE_RUNS` runs of the window (with the floor's),
       at :data:`REFERENCE_S_PER_PARTICLE_STEP`; the contact equilibrium at :data:`CONTACT_S` N^1.5;
-    * stability: 2 scenarios x 6 trials of the swing's window at 1.5x the default dt for the
+    * stability: 6 trials of the swing's window (its sheet) at 1.5x the default dt for the
       explicit schemes, 1 trial for those stable at one frame, each at most the wall cap;
     * trials: every configuration x 2 transients, frames x k steps at the calibrated ms/step x
       :func:`~warpcloth.lab.configs.work` per step; one predicted above the plan's caps is not run
       (but the cheapest, which always runs);
     * contact: 2 runs of :data:`CONTACT_REST_S` simulated, at most the wall cap;
-    * timings: warm-up, capture and the timed windows of every configuration that ran."""
+    * timings: warm-up, capture and the timed windows of every configuration that ran;
+
+    the configurations and the timings scaled by :data:`TRIAL_FACTOR` and :data:`TIMING_FACTOR`,
+    measured on a standard run."""
     ref = stab = trials = contact = tim = 0.0
     counts = {"ref": 0, "stab": 0, "trial": 0, "contact": 0, "timing": 0}
     cap = plan.run_wall_cap
@@ -107,16 +118,18 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
                 per = GPU_REFERENCE_S_PER_STEP if device.startswith("cuda") else REFERENCE_S_PER_PARTICLE_STEP * particles
                 ref += REFERENCE_RUNS * steps * per
             counts["ref"] += 1
-        ref += 3 * CONTACT_S * particles ** 1.5
-        counts["ref"] += 1
+        contact_here = n <= plan.contact_max_size
+        if contact_here:
+            ref += 1.5 * CONTACT_S * particles ** 1.5  # the solve, and two floor solves from it (a few iterations each)
+            counts["ref"] += 1
         for i in plan.integrators:
             k0, ms = costs[(i, n)]
             explicit = i in EXPLICIT
             dt0 = FRAME_DT / k0
             trial = plan.maxdt_duration_at(n) / (1.5 * dt0 if explicit else dt0) * ms / 1000.0
             trial = min(trial, plan.maxdt_wall_cap) if plan.maxdt_wall_cap else trial
-            stab += 2 * (6 if explicit else 1) * trial
-            counts["stab"] += 2
+            stab += (6 if explicit else 1) * trial
+            counts["stab"] += 1
             configs = configurations(i, dt0 if explicit else None, plan.level)
             for first, c in enumerate(configs):
                 per_step = ms / 1000.0 * work(i, c.option_dict)
@@ -132,21 +145,22 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
                     frame = float(c.k) * per_step
                     tim += (3 + plan.timing_windows * max(1.0, math.ceil(plan.window_seconds / max(frame, 1e-9)))) * frame
                     counts["timing"] += 1
-            for c in static_configurations(i, dt0 if explicit else None):
+            for c in static_configurations(i, dt0 if explicit else None) if contact_here else []:
                 seconds = CONTACT_REST_S * FRAME_DT ** -1 * float(c.k) * ms / 1000.0
                 contact += min(seconds, plan.equilibrium_wall_cap or seconds)
                 counts["contact"] += 1
     return [PhaseEstimate("references and floors (shared by the integrators)", counts["ref"], ref),
             PhaseEstimate("stability (max stable dt)", counts["stab"], stab),
-            PhaseEstimate("configurations on the swing and the flag", counts["trial"], trials),
+            PhaseEstimate("configurations on the swing and the flag", counts["trial"], TRIAL_FACTOR * trials),
             PhaseEstimate("contact runs to rest", counts["contact"], contact),
-            PhaseEstimate("timings (one at a time)", counts["timing"], tim, parallel=False)]
+            PhaseEstimate("timings (one at a time)", counts["timing"], TIMING_FACTOR * tim, parallel=False)]
 
 
 def total_seconds(phases: list, workers: int = 1) -> float:
     """The wall time of ``phases`` with ``workers`` search workers (the references are shared,
     the timings run alone)."""
-    return sum(ph.seconds / (max(1, workers) if ph.parallel else 1) for ph in phases)
+    speedup = WORKER_SPEEDUP.get(max(1, workers), 0.8 * max(1, workers))
+    return sum(ph.seconds / (speedup if ph.parallel else 1) for ph in phases)
 
 
 def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1) -> str:
@@ -170,4 +184,5 @@ def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1) -> str:
 
 
 __all__ = ["CONTACT_REST_S", "CONTACT_S", "PhaseEstimate", "REFERENCE_RUNS", "REFERENCE_S_PER_PARTICLE_S",
-           "REFERENCE_S_PER_PARTICLE_STEP", "calibrate", "estimate_plan", "format_estimate", "total_seconds"]
+           "REFERENCE_S_PER_PARTICLE_STEP", "TIMING_FACTOR", "TRIAL_FACTOR", "WORKER_SPEEDUP", "calibrate", "estimate_plan",
+           "format_estimate", "total_seconds"]

@@ -1,8 +1,8 @@
 """The study's measurements, each made once and written as one row of results.csv
 (:data:`~warpcloth.lab.results.COLUMNS`), keyed so that a resumed study reuses it:
 
-* ``max_stable_dt`` (the swing's sheet and the flag): :func:`warpcloth.lab.maxdt.find_max_dt` up to
-  one 60 FPS frame, trials as long as the swing's window at that size;
+* ``max_stable_dt`` (the swing's sheet): :func:`warpcloth.lab.maxdt.find_max_dt` up to one 60 FPS
+  frame, trials as long as the swing's window at that size;
 * ``floor`` (per transient x size, shared by the integrators): the float64 reference (its method,
   halving estimate, step) and the conditioning floor of every metric
   (:meth:`~warpcloth.lab.accuracy.TransientProblem.floor`, :meth:`~warpcloth.lab.accuracy.ContactProblem.floor`);
@@ -387,10 +387,10 @@ class Measurements:
 
     # a group ------------------------------------------------------------------------------------
     def configs(self, device: str, integrator: str, n: int) -> tuple[list, float | None]:
-        """The configurations of ``integrator`` at ``n`` and the max stable dt they start from
-        (the smaller of the swing's and the flag's)."""
-        stable = [self.max_stable_dt(TRANSIENTS[t].scenario.name, integrator, device, n)["dt_s"] for t in DYNAMIC]
-        dt = None if any(s is None for s in stable) else min(stable)
+        """The configurations of ``integrator`` at ``n`` and the max stable dt they start from:
+        the swing's sheet's (the flag's has been larger at every size measured; a configuration
+        beyond it on the flag is recorded unstable there)."""
+        dt = self.max_stable_dt(TRANSIENTS["swing"].scenario.name, integrator, device, n)["dt_s"]
         return configurations(integrator, dt, self.plan.level), dt
 
     def group(self, device: str, integrator: str, n) -> None:
@@ -399,14 +399,16 @@ class Measurements:
         if isinstance(n, str):  # a fixed-mesh scenario's group
             return self.mesh_group(device, integrator, n)
         configs, stable_dt = self.configs(device, integrator, n)
+        contact = n <= self.plan.contact_max_size
         for name in TRANSIENTS:
-            self.floor(name, device, n)
+            if contact or not TRANSIENTS[name].static:
+                self.floor(name, device, n)
         ran = []
         for c in configs:
             rows = [self.trial(name, c, device, n) for name in DYNAMIC]
             if all(r.get("stable") and r.get("error_rel") is not None for r in rows):
                 ran.append(c)
-        statics = static_configurations(integrator, stable_dt)
+        statics = static_configurations(integrator, stable_dt) if contact else []
         for c in statics:
             self.static(c, device, n)
         for c in dict.fromkeys(ran + statics):

@@ -508,7 +508,7 @@ class ContactEquilibrium(NamedTuple):
 
 
 def contact_equilibrium(model, control: Control | None = None, x0=None, colliders=None, tol: float = 1e-9,
-                        penetration_tol: float = 1e-9, max_iter: int = 200) -> ContactEquilibrium:
+                        penetration_tol: float = 1e-9, max_iter: int = 200, kappa: float | None = None) -> ContactEquilibrium:
     """The float64 static equilibrium under gravity with frictionless contact against spheres and
     planes (``colliders``; default ``control.colliders``): springs and gravity in balance with
     normal contact forces, no particle inside a collider's surface offset by its thickness.
@@ -518,14 +518,16 @@ def contact_equilibrium(model, control: Control | None = None, x0=None, collider
     the deepest penetration is <= ``penetration_tol`` x the cloth size; the contact force on a
     particle is kappa phi along the collider's normal. With frictionless colliders and the cloth
     held by pins the equilibrium is unique where it is a strict minimum; starting from ``x0``
-    (default: the rest shape, which may intersect a collider). Raises WarpclothError when the
-    continuation does not reach the penetration tolerance.
+    (default: the rest shape, which may intersect a collider); ``kappa``: the first penalty
+    stiffness instead (e.g. a previous solve's, to start from its solution). Raises
+    WarpclothError when the continuation does not reach the penetration tolerance.
     """
     m64 = Float64Model.from_model(model, control)
     x, _ = _initial_state(m64, x0, None)
     colliders = tuple(control.colliders if colliders is None and control is not None else colliders or ())
     size = cloth_size(model)
-    kappa = 100.0 * max(1.0, float(m64.ks.max()) if m64.ks.size else 1.0)
+    if kappa is None:
+        kappa = 100.0 * max(1.0, float(m64.ks.max()) if m64.ks.size else 1.0)
     for _ in range(20):
         pen = _Penalty(colliders, kappa)
         # the force's rounding grows with kappa: kappa x 1e-14 of the size is the attainable residual

@@ -36,7 +36,8 @@ COLUMN_DOCS = {
     "centroid_error_rel": "max over frames |centre of mass - the reference's| / size",
     "patch_error_rel": "max over frames and 4 x 4 patches |patch mean - the reference's| / size",
     "damping_rel": "numerical damping: 1 - (kinetic energy summed over the frames) / the reference's (< 0: energy gained)",
-    "max_strain_rel": "largest strain of a structural or shear spring in the run (> 0.1: stretchy)",
+    "max_strain_rel": "largest strain of a structural spring in the run (stretch along warp or weft; > 0.1: stretchy); "
+                      "max_stable_dt: the largest of any spring at that dt",
     "ref_max_strain_rel": "the reference's largest strain", "stable": "the run stayed finite",
     "floor_point_rel": "conditioning floor of e: float64 growth of a 1e-7 m perturbation of the start (2 seeds, max), / size",
     "floor_centroid_rel": "floor of the centroid error", "floor_patch_rel": "floor of the patch error",
