@@ -294,7 +294,7 @@ def test_report_refuses_a_verdict_above_the_floor_and_judges_on_the_other_transi
 from warpcloth.cli import main  # noqa: E402
 from warpcloth.lab.report import PLOTS  # noqa: E402
 from warpcloth.lab.plan import make_plan  # noqa: E402
-from warpcloth.lab.results import COLUMNS, read_rows  # noqa: E402
+from warpcloth.lab.results import read_rows  # noqa: E402
 from warpcloth.lab.study import run_study  # noqa: E402
 
 def cli(argv) -> int:

@@ -30,8 +30,10 @@ EXPLICIT = ("explicit_euler", "midpoint", "verlet", "rk4")
 GRIDS = {
     "full": {
         "explicit": ({}, (1, 2, 4, 8)),
-        "implicit_euler": ({"preconditioner": ("jacobi", "multigrid"), "cg_tol": (1e-2, 1e-3, 1e-5)},
-                           (Fraction(1, 2), 1, 2, 4, 8, 16)),
+        "implicit_euler": (
+            {"preconditioner": ("jacobi", "multigrid"), "cg_tol": (1e-2, 1e-3, 1e-5)},
+            (Fraction(1, 2), 1, 2, 4, 8, 16),
+        ),
         "pbd": ({"substeps": (1, 4, 16, 64, 256), "iterations": (1, 5, 20)}, (Fraction(1, 2), 1, 4)),
         "xpbd": ({"substeps": (1, 4, 16, 64, 256), "iterations": (1, 5, 20)}, (Fraction(1, 2), 1, 4)),
         "vbd": ({"vbd_iterations": (1, 2, 4, 10, 20)}, (Fraction(1, 2), 1, 2, 4, 8)),
@@ -94,7 +96,9 @@ def work(integrator: str, options: dict) -> float:
         return o["vbd_iterations"] / defaults["vbd_iterations"]
     if integrator == "projective":
         per = lambda it, cg: it * (2.0 + cg)  # noqa: E731 (local step + CG iterations)
-        return per(o["pd_iterations"], o["pd_cg_iterations"]) / per(defaults["pd_iterations"], defaults["pd_cg_iterations"])
+        return per(o["pd_iterations"], o["pd_cg_iterations"]) / per(
+            defaults["pd_iterations"], defaults["pd_cg_iterations"]
+        )
     if integrator == "implicit_euler":
         return max(1.0, math.log10(1e-3 / o["cg_tol"]) / 3.0 + 1.0) if o["cg_tol"] < 1e-3 else 1.0
     return 1.0

@@ -22,8 +22,8 @@ REFERENCE_S_PER_PARTICLE_S = 0.1
 REFERENCE_S_PER_PARTICLE_STEP = 0.4e-6
 GPU_REFERENCE_S_PER_STEP = 0.25e-3
 #: The float64 contact equilibrium (Newton with a sparse direct solve): seconds ~ this x N^1.5
-#: (measured 3.3 s at 32 x 32 on the CPU).
-CONTACT_S = 3.3 / 1024 ** 1.5
+#: (measured on the loaded 2-core CPU: 54 s at 64 x 64, 27 Newton steps; 7 s at 32 x 32).
+CONTACT_S = 54.0 / 4096**1.5
 #: Simulated seconds a contact run takes to come to rest (measured 1.7-2.4 s at 4 x 4 and 6 x 6).
 CONTACT_REST_S = 3.0
 #: Runs of a Warp reference and its floor: h, h/2, and two floor runs at h/2, in units of the h run.
@@ -82,7 +82,11 @@ def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
             k0 = steps_for(min(make_integrator(i).default_dt(sim.model, sim.control.drag_rate), FRAME_DT))
             out[(i, n)] = (k0, ms_per_step(sim, FRAME_DT / k0))
             if stream is not None:
-                print(f"calibrate {i} {n}x{n} {device}: {out[(i, n)][1]:.3g} ms/step at (1/60 s)/{k0}", file=stream, flush=True)
+                print(
+                    f"calibrate {i} {n}x{n} {device}: {out[(i, n)][1]:.3g} ms/step at (1/60 s)/{k0}",
+                    file=stream,
+                    flush=True,
+                )
     return out
 
 
@@ -115,12 +119,14 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
                 ref += 3 * REFERENCE_S_PER_PARTICLE_S * particles * frames * FRAME_DT
             else:
                 steps = frames * FRAME_DT / (0.5 * 2.61 / omega) if omega else 0.0
-                per = GPU_REFERENCE_S_PER_STEP if device.startswith("cuda") else REFERENCE_S_PER_PARTICLE_STEP * particles
+                per = (
+                    GPU_REFERENCE_S_PER_STEP if device.startswith("cuda") else REFERENCE_S_PER_PARTICLE_STEP * particles
+                )
                 ref += REFERENCE_RUNS * steps * per
             counts["ref"] += 1
         contact_here = n <= plan.contact_max_size
         if contact_here:
-            ref += 1.5 * CONTACT_S * particles ** 1.5  # the solve, and two floor solves from it (a few iterations each)
+            ref += 1.3 * CONTACT_S * particles**1.5  # the solve, and two floor solves from it (a step or two each)
             counts["ref"] += 1
         for i in plan.integrators:
             k0, ms = costs[(i, n)]
@@ -143,17 +149,21 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
                 trials += run
                 if run > 0:
                     frame = float(c.k) * per_step
-                    tim += (3 + plan.timing_windows * max(1.0, math.ceil(plan.window_seconds / max(frame, 1e-9)))) * frame
+                    tim += (
+                        3 + plan.timing_windows * max(1.0, math.ceil(plan.window_seconds / max(frame, 1e-9)))
+                    ) * frame
                     counts["timing"] += 1
             for c in static_configurations(i, dt0 if explicit else None) if contact_here else []:
-                seconds = CONTACT_REST_S * FRAME_DT ** -1 * float(c.k) * ms / 1000.0
+                seconds = CONTACT_REST_S * FRAME_DT**-1 * float(c.k) * ms / 1000.0
                 contact += min(seconds, plan.equilibrium_wall_cap or seconds)
                 counts["contact"] += 1
-    return [PhaseEstimate("references and floors (shared by the integrators)", counts["ref"], ref),
-            PhaseEstimate("stability (max stable dt)", counts["stab"], stab),
-            PhaseEstimate("configurations on the swing and the flag", counts["trial"], TRIAL_FACTOR * trials),
-            PhaseEstimate("contact runs to rest", counts["contact"], contact),
-            PhaseEstimate("timings (one at a time)", counts["timing"], TIMING_FACTOR * tim, parallel=False)]
+    return [
+        PhaseEstimate("references and floors (shared by the integrators)", counts["ref"], ref),
+        PhaseEstimate("stability (max stable dt)", counts["stab"], stab),
+        PhaseEstimate("configurations on the swing and the flag", counts["trial"], TRIAL_FACTOR * trials),
+        PhaseEstimate("contact runs to rest", counts["contact"], contact),
+        PhaseEstimate("timings (one at a time)", counts["timing"], TIMING_FACTOR * tim, parallel=False),
+    ]
 
 
 def total_seconds(phases: list, workers: int = 1) -> float:
@@ -165,24 +175,49 @@ def total_seconds(phases: list, workers: int = 1) -> float:
 
 def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1) -> str:
     """The estimate as text: per device, per phase, and in all."""
-    lines = [f"estimate of profile {plan.profile}: integrators {', '.join(plan.integrators)}; sizes "
-             f"{', '.join(map(str, plan.all_sizes))} (every size with a float64 reference); configurations {plan.level}"]
+    lines = [
+        f"estimate of profile {plan.profile}: integrators {', '.join(plan.integrators)}; sizes "
+        f"{', '.join(map(str, plan.all_sizes))} (every size with a float64 reference); configurations {plan.level}"
+    ]
     serial = parallel = 0.0
     for d, phases in by_device.items():
         for ph in phases:
             lines.append(f"  {d:6s} {ph.phase:52s} {ph.measurements:5d} measurements  {ph.seconds / 60:7.1f} min")
         serial += total_seconds(phases, 1)
         parallel += total_seconds(phases, workers)
-    lines.append(f"  total about {serial / 60:.0f} min serially"
-                 + (f", about {parallel / 60:.0f} min with --workers {workers} (the searches split, the timings not)" if workers > 1 else ""))
+    lines.append(
+        f"  total about {serial / 60:.0f} min serially"
+        + (
+            f", about {parallel / 60:.0f} min with --workers {workers} (the searches split, the timings not)"
+            if workers > 1
+            else ""
+        )
+    )
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     if load is not None:
-        lines.append(f"  load average {load:.1f} on {os.cpu_count()} cores while calibrating: other jobs' share is in the per-step costs")
-    lines.append("  (a model from per-step costs measured now: see docs/study.md, 'Estimate'"
-                 + (f"; the scenarios {', '.join(plan.scenario_files)} are not included" if plan.scenario_files else "") + ")")
+        lines.append(
+            f"  load average {load:.1f} on {os.cpu_count()} cores while calibrating: other jobs' share is in the per-step costs"
+        )
+    lines.append(
+        "  (a model from per-step costs measured now: see docs/study.md, 'Estimate'"
+        + (f"; the scenarios {', '.join(plan.scenario_files)} are not included" if plan.scenario_files else "")
+        + ")"
+    )
     return "\n".join(lines)
 
 
-__all__ = ["CONTACT_REST_S", "CONTACT_S", "PhaseEstimate", "REFERENCE_RUNS", "REFERENCE_S_PER_PARTICLE_S",
-           "REFERENCE_S_PER_PARTICLE_STEP", "TIMING_FACTOR", "TRIAL_FACTOR", "WORKER_SPEEDUP", "calibrate", "estimate_plan",
-           "format_estimate", "total_seconds"]
+__all__ = [
+    "CONTACT_REST_S",
+    "CONTACT_S",
+    "PhaseEstimate",
+    "REFERENCE_RUNS",
+    "REFERENCE_S_PER_PARTICLE_S",
+    "REFERENCE_S_PER_PARTICLE_STEP",
+    "TIMING_FACTOR",
+    "TRIAL_FACTOR",
+    "WORKER_SPEEDUP",
+    "calibrate",
+    "estimate_plan",
+    "format_estimate",
+    "total_seconds",
+]

@@ -37,7 +37,9 @@ class Point:
 
 
 def _finite(p: Point) -> bool:
-    return p.cost is not None and p.error is not None and math.isfinite(p.cost) and math.isfinite(p.error) and p.cost > 0
+    return (
+        p.cost is not None and p.error is not None and math.isfinite(p.cost) and math.isfinite(p.error) and p.cost > 0
+    )
 
 
 def pareto_front(points) -> list[Point]:
@@ -99,8 +101,13 @@ def fit_power_law(n, cost) -> PowerLaw | None:
     x, y = np.log(n), np.log(c)
     p, log_a = np.polyfit(x, y, 1)
     resid = (y - (log_a + p * x)) / math.log(10.0)
-    return PowerLaw(a=float(math.exp(log_a)), p=float(p), residual=float(np.sqrt(np.mean(resid ** 2))),
-                    points=int(n.size), range=(float(n.min()), float(n.max())))
+    return PowerLaw(
+        a=float(math.exp(log_a)),
+        p=float(p),
+        residual=float(np.sqrt(np.mean(resid**2))),
+        points=int(n.size),
+        range=(float(n.min()), float(n.max())),
+    )
 
 
 @dataclass(frozen=True)
@@ -126,9 +133,14 @@ class Frontier:
         if self.fit is None:
             return head
         if self.fitted is None:
-            return head + ("; fit beyond 2x the measured range: not extrapolated" if self.where == "beyond" else "; fit n/a")
-        where = {"": "within the measured range", "above": "extrapolated, < 2x above the measured range",
-                 "below": "below the measured range"}[self.where]
+            return head + (
+                "; fit beyond 2x the measured range: not extrapolated" if self.where == "beyond" else "; fit n/a"
+            )
+        where = {
+            "": "within the measured range",
+            "above": "extrapolated, < 2x above the measured range",
+            "below": "below the measured range",
+        }[self.where]
         return head + f"; fit {self.fitted:.3g} ({where})"
 
 
@@ -141,9 +153,24 @@ def budget_frontier(costs: dict, budget: float, all_sizes=()) -> Frontier:
     fit = fit_power_law([n for n, _ in pts], [c for _, c in pts])
     fitted, where = fit.solve(budget) if fit is not None else (None, "")
     missing = tuple(sorted(int(n) for n in all_sizes if int(n) not in dict(pts)))
-    return Frontier(measured=max(ok) if ok else None, sizes=tuple(n for n, _ in pts), missing=missing, fit=fit,
-                    fitted=fitted, where=where)
+    return Frontier(
+        measured=max(ok) if ok else None,
+        sizes=tuple(n for n, _ in pts),
+        missing=missing,
+        fit=fit,
+        fitted=fitted,
+        where=where,
+    )
 
 
-__all__ = ["MAX_EXTRAPOLATION", "MIN_FIT_SIZES", "Frontier", "Point", "PowerLaw", "budget_frontier", "cheapest",
-           "fit_power_law", "pareto_front"]
+__all__ = [
+    "MAX_EXTRAPOLATION",
+    "MIN_FIT_SIZES",
+    "Frontier",
+    "Point",
+    "PowerLaw",
+    "budget_frontier",
+    "cheapest",
+    "fit_power_law",
+    "pareto_front",
+]

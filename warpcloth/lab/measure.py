@@ -159,21 +159,39 @@ class Measurements:
         sim = self._sims.get(key)
         if sim is None:
             size = {} if n is None else {"rows": n, "cols": n}  # n None: a fixed-mesh scenario
-            sim = self._sims[key] = self._scenario(scenario).build(**size, device=self.device_map.get(device, device),
-                                                                   integrator=integrator, dt=FRAME_DT)
+            sim = self._sims[key] = self._scenario(scenario).build(
+                **size, device=self.device_map.get(device, device), integrator=integrator, dt=FRAME_DT
+            )
             self._counts[key] = (sim.model.particle_count, sim.model.spring_count)
         sim.set_integrator(make_integrator(integrator, **(options or {})), dt=FRAME_DT)
         sim.reset()
         return sim
 
-    def base(self, measurement: str, scenario: str, integrator: str, device: str, n, options: dict | None = None,
-             transient: str | None = None) -> dict:
+    def base(
+        self,
+        measurement: str,
+        scenario: str,
+        integrator: str,
+        device: str,
+        n,
+        options: dict | None = None,
+        transient: str | None = None,
+    ) -> dict:
         if (scenario, n, device) not in self._counts:
             self.sim(scenario, n, device, "explicit_euler")
         particles, springs = self._counts[(scenario, n, device)]
-        return {"measurement": measurement, "scenario": scenario, "transient": transient, "integrator": integrator,
-                "options": _options_text(options or {}), "device": device, "rows": n, "cols": n,
-                "particles": particles, "springs": springs}
+        return {
+            "measurement": measurement,
+            "scenario": scenario,
+            "transient": transient,
+            "integrator": integrator,
+            "options": _options_text(options or {}),
+            "device": device,
+            "rows": n,
+            "cols": n,
+            "particles": particles,
+            "springs": springs,
+        }
 
     # references and floors (shared by the groups of a size) -------------------------------------
     def problem(self, name: str, n: int, device: str):
@@ -190,9 +208,15 @@ class Measurements:
         else:
             frames = self.plan.window_frames(name, n)
             data = self.cache.get(f"{name}_{n}_{frames}", lambda: self._dynamic_data(sim, tr, frames))
-            ref = Reference(data["frames"], float(data["estimate"]) if data["estimate"] >= 0 else None, bool(data["accepted"]),
-                            str(data["method"]), float(data["dt"]) if data["dt"] > 0 else None,
-                            tuple(int(c) for c in data["piece_steps"]), tuple(float(e) for e in data["estimates"]))
+            ref = Reference(
+                data["frames"],
+                float(data["estimate"]) if data["estimate"] >= 0 else None,
+                bool(data["accepted"]),
+                str(data["method"]),
+                float(data["dt"]) if data["dt"] > 0 else None,
+                tuple(int(c) for c in data["piece_steps"]),
+                tuple(float(e) for e in data["estimates"]),
+            )
             prob = TransientProblem(sim, tr, frames, reference=ref)
         prob.cached = data
         self._problems[key] = prob
@@ -204,10 +228,17 @@ class Measurements:
         prob = TransientProblem(sim, tr, frames)
         floor = prob.floor(sim)
         r = prob.ref
-        return {"frames": r.frames, "estimate": -1.0 if r.estimate is None else r.estimate, "accepted": r.accepted,
-                "method": r.method, "dt": r.dt or -1.0, "piece_steps": np.asarray(r.piece_steps, dtype=np.int64),
-                "estimates": np.asarray(r.estimates, dtype=np.float64), "seconds": time.perf_counter() - t0,
-                **{f"floor_{k}": v for k, v in floor.items()}}
+        return {
+            "frames": r.frames,
+            "estimate": -1.0 if r.estimate is None else r.estimate,
+            "accepted": r.accepted,
+            "method": r.method,
+            "dt": r.dt or -1.0,
+            "piece_steps": np.asarray(r.piece_steps, dtype=np.int64),
+            "estimates": np.asarray(r.estimates, dtype=np.float64),
+            "seconds": time.perf_counter() - t0,
+            **{f"floor_{k}": v for k, v in floor.items()},
+        }
 
     @staticmethod
     def _contact_data(sim, tr) -> dict:
@@ -227,17 +258,31 @@ class Measurements:
             d = prob.cached
             row = {"reference_s": float(d["seconds"]), "measure_wall_s": float(d["seconds"])}
             if tr.static:
-                row.update(reference="Newton+contact", floor_rest_rel=float(d["floor_rest"]), floor_sag_rel=float(d["floor_sag"]),
-                           note="float64 equilibrium with the frictionless contact (penalty continuation); the floor: "
-                                "solved again from it moved by 1e-7 m (2 seeds)")
+                row.update(
+                    reference="Newton+contact",
+                    floor_rest_rel=float(d["floor_rest"]),
+                    floor_sag_rel=float(d["floor_sag"]),
+                    note="float64 equilibrium with the frictionless contact (penalty continuation); the floor: "
+                    "solved again from it moved by 1e-7 m (2 seeds)",
+                )
             else:
                 r = prob.ref
-                row.update(reference=r.method, reference_estimate_rel=r.estimate, reference_dt_s=r.dt,
-                           transient_s=frames * FRAME_DT, ref_max_strain_rel=prob.shape.max_strain(r.frames),
-                           **{f"floor_{k}_rel": float(d[f"floor_{k}"]) for k in ("point", "centroid", "patch", "damping", "stretch")})
+                row.update(
+                    reference=r.method,
+                    reference_estimate_rel=r.estimate,
+                    reference_dt_s=r.dt,
+                    transient_s=frames * FRAME_DT,
+                    ref_max_strain_rel=prob.shape.max_strain(r.frames),
+                    **{
+                        f"floor_{k}_rel": float(d[f"floor_{k}"])
+                        for k in ("point", "centroid", "patch", "damping", "stretch")
+                    },
+                )
                 if r.method != "DOP853" and not r.accepted:
-                    row["note"] = (f"reference not accepted: halving estimates {', '.join(f'{e:.2g}' for e in r.estimates)} "
-                                   "x size (> 1e-5): accuracy verdicts refused")
+                    row["note"] = (
+                        f"reference not accepted: halving estimates {', '.join(f'{e:.2g}' for e in r.estimates)} "
+                        "x size (> 1e-5): accuracy verdicts refused"
+                    )
                 elif r.method != "DOP853":
                     row["note"] = "halving estimates " + ", ".join(f"{e:.2g}" for e in r.estimates)
             return row
@@ -256,13 +301,31 @@ class Measurements:
 
             sc = self._scenario(scenario)
             size = {} if n is None else {"rows": n, "cols": n}
-            r = find_max_dt(sc, sc.config(**size, integrator=integrator, device=self.device_map.get(device, device)),
-                            precision=p.maxdt_precision, duration=duration, dt_max=FRAME_DT, wall_cap=p.maxdt_wall_cap)
-            note = r.no_stable_reason or ("stable up to the search limit (one 60 FPS frame)" if r.limit_reached and r.dt else "")
+            r = find_max_dt(
+                sc,
+                sc.config(**size, integrator=integrator, device=self.device_map.get(device, device)),
+                precision=p.maxdt_precision,
+                duration=duration,
+                dt_max=FRAME_DT,
+                wall_cap=p.maxdt_wall_cap,
+            )
+            note = r.no_stable_reason or (
+                "stable up to the search limit (one 60 FPS frame)" if r.limit_reached and r.dt else ""
+            )
             if r.inconclusive_trials:
-                note = (note + "; " if note else "") + f"{r.inconclusive_trials} trials stopped by the wall cap (counted stable)"
-            return {"dt_s": r.dt, "bound_dt_s": r.unstable_dt, "search_bounded": r.limit_reached, "max_strain_rel": r.max_strain,
-                    "stable": r.dt is not None, "trials": len(r.trials), "transient_s": duration, "note": note}
+                note = (
+                    note + "; " if note else ""
+                ) + f"{r.inconclusive_trials} trials stopped by the wall cap (counted stable)"
+            return {
+                "dt_s": r.dt,
+                "bound_dt_s": r.unstable_dt,
+                "search_bounded": r.limit_reached,
+                "max_strain_rel": r.max_strain,
+                "stable": r.dt is not None,
+                "trials": len(r.trials),
+                "transient_s": duration,
+                "note": note,
+            }
 
         return self.once(key, base, run)
 
@@ -280,14 +343,22 @@ class Measurements:
         opts = c.option_dict
 
         def run():
-            out = {"dt_s": c.dt, "steps_per_frame": float(c.k), "transient_s": frames * FRAME_DT,
-                   "iterations": opts.get("iterations"), "substeps": opts.get("substeps")}
+            out = {
+                "dt_s": c.dt,
+                "steps_per_frame": float(c.k),
+                "transient_s": frames * FRAME_DT,
+                "iterations": opts.get("iterations"),
+                "substeps": opts.get("substeps"),
+            }
             predicted = self._predicted(c, n, device, steps)
             if predicted is not None and predicted > p.run_wall_cap:
                 return {**out, "note": f"not run: predicted {predicted:.3g} s > the {p.run_wall_cap:g} s cap per run"}
             per_frame = self._predicted(c, n, device, float(c.k))
             if per_frame is not None and 1000.0 * per_frame > p.max_frame_ms:
-                return {**out, "note": f"not run: predicted {1000.0 * per_frame:.3g} ms per 1/60 s frame > {p.max_frame_ms:g} ms"}
+                return {
+                    **out,
+                    "note": f"not run: predicted {1000.0 * per_frame:.3g} ms per 1/60 s frame > {p.max_frame_ms:g} ms",
+                }
             prob = self.problem(name, n, device)  # first: building it rebinds the cached sim's integrator
             sim = self.sim(tr.scenario.name, n, device, c.integrator, opts)
             r = prob.measure(sim, float(c.k), wall_cap=2.0 * p.run_wall_cap)
@@ -296,10 +367,18 @@ class Measurements:
                 key_s = (c.integrator, n, device)
                 self._speed[key_s] = min(self._speed.get(key_s, math.inf), rate)
             m = r.metrics or {}
-            return {**out, "stable": r.stable, "error_rel": m.get("point", math.inf if not r.stable else None),
-                    "centroid_error_rel": m.get("centroid"), "patch_error_rel": m.get("patch"),
-                    "damping_rel": m.get("damping"), "max_strain_rel": m.get("stretch"),
-                    "ref_max_strain_rel": m.get("stretch_ref"), "note": r.note, "measure_wall_s": r.wall}
+            return {
+                **out,
+                "stable": r.stable,
+                "error_rel": m.get("point", math.inf if not r.stable else None),
+                "centroid_error_rel": m.get("centroid"),
+                "patch_error_rel": m.get("patch"),
+                "damping_rel": m.get("damping"),
+                "max_strain_rel": m.get("stretch"),
+                "ref_max_strain_rel": m.get("stretch_ref"),
+                "note": r.note,
+                "measure_wall_s": r.wall,
+            }
 
         return self.once(key, self.base("trial", tr.scenario.name, c.integrator, device, n, opts, transient=name), run)
 
@@ -307,24 +386,47 @@ class Measurements:
         """Configuration ``c`` run to rest on the contact transient."""
         p = self.plan
         tr = TRANSIENTS["contact"]
-        key = (f"static|contact|{c.integrator}|{c.options_text()}|{device}|{n}|k={_k_text(c.k)}"
-               f"|dur={p.equilibrium_duration}|cap={p.equilibrium_wall_cap}")
+        key = (
+            f"static|contact|{c.integrator}|{c.options_text()}|{device}|{n}|k={_k_text(c.k)}"
+            f"|dur={p.equilibrium_duration}|cap={p.equilibrium_wall_cap}"
+        )
         opts = c.option_dict
 
         def run():
             prob = self.problem("contact", n, device)
             sim = self.sim(tr.scenario.name, n, device, c.integrator, opts)
             s = prob.measure(sim, float(c.k), p.equilibrium_duration, p.equilibrium_wall_cap)
-            return {"dt_s": c.dt, "steps_per_frame": float(c.k), "equilibrium_reached": s.equilibrium_reached, "stable": s.stable,
-                    "time_to_equilibrium_sim_s": s.time_to_equilibrium, "time_to_equilibrium_wall_s": s.time_to_equilibrium_wall,
-                    "static_error_rel": s.error, "sag_error_rel": s.sag_error, "error_rel": s.error,
-                    "note": "" if s.equilibrium_reached else f"not at rest after {s.sim_time:.3g} s simulated "
-                                                             f"(cap {p.equilibrium_duration:g} s or {p.equilibrium_wall_cap} s wall)"}
+            return {
+                "dt_s": c.dt,
+                "steps_per_frame": float(c.k),
+                "equilibrium_reached": s.equilibrium_reached,
+                "stable": s.stable,
+                "time_to_equilibrium_sim_s": s.time_to_equilibrium,
+                "time_to_equilibrium_wall_s": s.time_to_equilibrium_wall,
+                "static_error_rel": s.error,
+                "sag_error_rel": s.sag_error,
+                "error_rel": s.error,
+                "note": ""
+                if s.equilibrium_reached
+                else f"not at rest after {s.sim_time:.3g} s simulated "
+                f"(cap {p.equilibrium_duration:g} s or {p.equilibrium_wall_cap} s wall)",
+            }
 
-        return self.once(key, self.base("static", tr.scenario.name, c.integrator, device, n, opts, transient="contact"), run)
+        return self.once(
+            key, self.base("static", tr.scenario.name, c.integrator, device, n, opts, transient="contact"), run
+        )
 
-    def timing(self, scenario: str, integrator: str, device: str, n, dt: float, label: str, options: dict | None = None,
-               start=None) -> dict:
+    def timing(
+        self,
+        scenario: str,
+        integrator: str,
+        device: str,
+        n,
+        dt: float,
+        label: str,
+        options: dict | None = None,
+        start=None,
+    ) -> dict:
         """ms/step of ``integrator`` with ``options`` at ``dt`` on ``scenario`` (from ``start``, a
         transient whose start state the timed steps begin at; None: the rest shape)."""
         p = self.plan
@@ -350,11 +452,23 @@ class Measurements:
             ms = t.ms_per_step
             med = t.median_ms
             cost = t.wall_s_per_sim_s
-            return {"dt_s": dt, "steps_per_frame": FRAME_DT / dt, "ms_per_step_median": med, "ms_per_step_min": min(ms),
-                    "ms_per_step_max": max(ms), "timed_windows": len(ms), "steps_per_window": t.steps_per_window,
-                    "ms_per_frame": med * FRAME_DT / dt, "wall_s_per_sim_s": cost, "realtime_factor": 1.0 / cost,
-                    "realtime_30fps": t.realtime(30.0), "realtime_60fps": t.realtime(60.0), "note": f"at the {label} dt",
-                    "iterations": (options or {}).get("iterations"), "substeps": (options or {}).get("substeps")}
+            return {
+                "dt_s": dt,
+                "steps_per_frame": FRAME_DT / dt,
+                "ms_per_step_median": med,
+                "ms_per_step_min": min(ms),
+                "ms_per_step_max": max(ms),
+                "timed_windows": len(ms),
+                "steps_per_window": t.steps_per_window,
+                "ms_per_frame": med * FRAME_DT / dt,
+                "wall_s_per_sim_s": cost,
+                "realtime_factor": 1.0 / cost,
+                "realtime_30fps": t.realtime(30.0),
+                "realtime_60fps": t.realtime(60.0),
+                "note": f"at the {label} dt",
+                "iterations": (options or {}).get("iterations"),
+                "substeps": (options or {}).get("substeps"),
+            }
 
         return self.once(key, self.base("timing", scenario, integrator, device, n, options), run)
 
@@ -369,9 +483,16 @@ class Measurements:
             dt = FRAME_DT / k
             sim.set_dt(dt)
             r = RunHarness(sim).run(p.equilibrium_duration, stop_at_equilibrium=True, wall_cap=p.equilibrium_wall_cap)
-            return {"dt_s": dt, "steps_per_frame": k, "equilibrium_reached": r.equilibrium_reached, "stable": r.stable,
-                    "time_to_equilibrium_sim_s": r.time_to_equilibrium, "time_to_equilibrium_wall_s": r.time_to_equilibrium_wall,
-                    "max_strain_rel": r.max_strain, "note": MESH_NOTE}
+            return {
+                "dt_s": dt,
+                "steps_per_frame": k,
+                "equilibrium_reached": r.equilibrium_reached,
+                "stable": r.stable,
+                "time_to_equilibrium_sim_s": r.time_to_equilibrium,
+                "time_to_equilibrium_wall_s": r.time_to_equilibrium_wall,
+                "max_strain_rel": r.max_strain,
+                "note": MESH_NOTE,
+            }
 
         return self.once(key, self.base("static", scenario, integrator, device, None), run)
 
@@ -412,8 +533,16 @@ class Measurements:
         for c in statics:
             self.static(c, device, n)
         for c in dict.fromkeys(ran + statics):
-            self.timing(TRANSIENTS["swing"].scenario.name, integrator, device, n, c.dt, "configuration", c.option_dict,
-                        start=TRANSIENTS["swing"])
+            self.timing(
+                TRANSIENTS["swing"].scenario.name,
+                integrator,
+                device,
+                n,
+                c.dt,
+                "configuration",
+                c.option_dict,
+                start=TRANSIENTS["swing"],
+            )
 
 
 def _size(n) -> str:

@@ -518,7 +518,7 @@ def contact_equilibrium(model, control: Control | None = None, x0=None, collider
     the deepest penetration is <= ``penetration_tol`` x the cloth size; the contact force on a
     particle is kappa phi along the collider's normal. With frictionless colliders and the cloth
     held by pins the equilibrium is unique where it is a strict minimum; starting from ``x0``
-    (default: the rest shape, which may intersect a collider); ``kappa``: the first penalty
+    (default: the rest shape with the particles inside a collider moved onto its surface); ``kappa``: the first penalty
     stiffness instead (e.g. a previous solve's, to start from its solution). Raises
     WarpclothError when the continuation does not reach the penetration tolerance.
     """
@@ -526,6 +526,9 @@ def contact_equilibrium(model, control: Control | None = None, x0=None, collider
     x, _ = _initial_state(m64, x0, None)
     colliders = tuple(control.colliders if colliders is None and control is not None else colliders or ())
     size = cloth_size(model)
+    if x0 is None:  # the rest shape with every free particle inside a collider moved out onto its surface
+        for phi, nrm, _ in _Penalty(colliders, 1.0).terms(x):
+            x[m64.free] += (phi[:, None] * nrm)[m64.free]
     if kappa is None:
         kappa = 100.0 * max(1.0, float(m64.ks.max()) if m64.ks.size else 1.0)
     for _ in range(20):

@@ -26,17 +26,19 @@ from warpcloth.lab.transients import DYNAMIC, STUDY_MATERIAL, TRANSIENTS
 
 PLOTS = {
     "work_precision.png": "Work-precision per size: ms per 1/60 s frame against pointwise e (the worse of the swing and "
-                          "the flag), every configuration a point, each integrator's Pareto front a line",
+    "the flag), every configuration a point, each integrator's Pareto front a line",
     "budget.png": "The cheapest measured configuration reaching e <= 1 % and <= 5 % per integrator, ms per 1/60 s frame "
-                  "against particles, with the budget and the whole frame",
+    "against particles, with the budget and the whole frame",
     "error_vs_dt.png": "Pointwise e against dt at the smallest size, each integrator at its default options (the slope is the order)",
     "max_dt.png": "Max stable dt of the swing's sheet per integrator against particles (bounded at one 60 FPS frame)",
 }
 MARKERS = ["o", "s", "^", "v", "D", "P", "X", "*", "<", ">", "h"]
 #: The metrics of the tables: (column of a trial row, floor column, name for people).
-METRIC_COLUMNS = {"point": ("error_rel", "floor_point_rel", "pointwise e"),
-                  "centroid": ("centroid_error_rel", "floor_centroid_rel", "centroid error"),
-                  "patch": ("patch_error_rel", "floor_patch_rel", "4 x 4 patch error")}
+METRIC_COLUMNS = {
+    "point": ("error_rel", "floor_point_rel", "pointwise e"),
+    "centroid": ("centroid_error_rel", "floor_centroid_rel", "centroid error"),
+    "patch": ("patch_error_rel", "floor_patch_rel", "4 x 4 patch error"),
+}
 
 
 # -- reading the rows ------------------------------------------------------------------------
@@ -181,7 +183,10 @@ def verdict(data: Data, plan_tolerance: float, budget_ms: float) -> list[str]:
     tolerances = sorted({0.01, 0.05, plan_tolerance})
     for d in data.devices:
         for tol in tolerances:
-            for budget, what in ((budget_ms, f"a {budget_ms:g} ms budget"), (WHOLE_FRAME_MS, "the whole 16.7 ms frame")):
+            for budget, what in (
+                (budget_ms, f"a {budget_ms:g} ms budget"),
+                (WHOLE_FRAME_MS, "the whole 16.7 ms frame"),
+            ):
                 held, rejected, alt, refused_at = [], [], [], []
                 for n in data.sizes:
                     why = data.refusal(d, n, "point", tol)
@@ -191,7 +196,10 @@ def verdict(data: Data, plan_tolerance: float, budget_ms: float) -> list[str]:
                     fit = [i for i in data.integrators if _fits(data, d, i, n, tol, budget)]
                     slow = [i for i in data.integrators if i not in fit]
                     (held if not slow else rejected).append(
-                        f"{n}x{n}" if not slow else f"{n}x{n} (no configuration within it at e ≤ {_pct(tol)}: {', '.join(slow)})")
+                        f"{n}x{n}"
+                        if not slow
+                        else f"{n}x{n} (no configuration within it at e ≤ {_pct(tol)}: {', '.join(slow)})"
+                    )
                     if fit and slow:
                         alt.append(f"{n}x{n} (within it: {', '.join(fit)})")
                 head = f"pointwise e ≤ {_pct(tol)} within {what} per 60 FPS frame on {d}"
@@ -199,27 +207,46 @@ def verdict(data: Data, plan_tolerance: float, budget_ms: float) -> list[str]:
                     for n in data.sizes:
                         ex = data.excluded(d, n, "point", tol)
                         if ex:
-                            out.append(f"At {n}x{n}, e ≤ {_pct(tol)}: judged on {', '.join(data.judged(d, n, 'point', tol))} "
-                                       f"alone ({ex}).")
-                out.append(f"**H0** (every integrator real-time), {head}: "
-                           + (f"holds at {', '.join(held)}" if held else "holds at no measured size")
-                           + (f"; rejected at {'; '.join(rejected)}" if rejected else "")
-                           + (f"; refused at {'; '.join(refused_at)}" if refused_at else "") + ".")
-                out.append(f"**H1** (some integrators prohibitively expensive, others real-time), {head}: "
-                           + (f"supported at {'; '.join(alt)}." if alt else "not shown at any measured size (all or none fit there)."))
+                            out.append(
+                                f"At {n}x{n}, e ≤ {_pct(tol)}: judged on {', '.join(data.judged(d, n, 'point', tol))} "
+                                f"alone ({ex})."
+                            )
+                out.append(
+                    f"**H0** (every integrator real-time), {head}: "
+                    + (f"holds at {', '.join(held)}" if held else "holds at no measured size")
+                    + (f"; rejected at {'; '.join(rejected)}" if rejected else "")
+                    + (f"; refused at {'; '.join(refused_at)}" if refused_at else "")
+                    + "."
+                )
+                out.append(
+                    f"**H1** (some integrators prohibitively expensive, others real-time), {head}: "
+                    + (
+                        f"supported at {'; '.join(alt)}."
+                        if alt
+                        else "not shown at any measured size (all or none fit there)."
+                    )
+                )
         for n in data.sizes:
             why = data.refusal(d, n, "point", plan_tolerance)
             if why:
                 out.append(f"At {n}x{n} on {d}, pointwise e ≤ {_pct(plan_tolerance)}: refused ({why}).")
                 continue
-            best = sorted((c.cost, i, c) for i in data.integrators for c in [data.cheapest(d, i, n, plan_tolerance)] if c)
+            best = sorted(
+                (c.cost, i, c) for i in data.integrators for c in [data.cheapest(d, i, n, plan_tolerance)] if c
+            )
             if best:
                 cost, i, c = best[0]
-                tail = (f"; the dearest that reaches it, {best[-1][1]}, costs {best[-1][0] / cost:.3g}x as much" if len(best) > 1 else "")
+                tail = (
+                    f"; the dearest that reaches it, {best[-1][1]}, costs {best[-1][0] / cost:.3g}x as much"
+                    if len(best) > 1
+                    else ""
+                )
                 none = [i for i in data.integrators if data.cheapest(d, i, n, plan_tolerance) is None]
-                out.append(f"Cheapest at {n}x{n} on {d} reaching pointwise e ≤ {_pct(plan_tolerance)} on both transients: {i} "
-                           f"({config_label(c.label[1])}), {_g(cost)} ms per 1/60 s frame{tail}"
-                           + (f"; no measured configuration of {', '.join(none)} reaches it." if none else "."))
+                out.append(
+                    f"Cheapest at {n}x{n} on {d} reaching pointwise e ≤ {_pct(plan_tolerance)} on both transients: {i} "
+                    f"({config_label(c.label[1])}), {_g(cost)} ms per 1/60 s frame{tail}"
+                    + (f"; no measured configuration of {', '.join(none)} reaches it." if none else ".")
+                )
     return out
 
 
@@ -240,25 +267,70 @@ def floor_table(data: Data) -> list[str]:
                 if f is None:
                     continue
                 if TRANSIENTS[t].static:
-                    body.append([t, f"{n}x{n}", "at rest", f["reference"], "–", f"rest {_pct(f['floor_rest_rel'], 2)}",
-                                 "–", "–", f"sag {_pct(f['floor_sag_rel'], 2)}", "–"])
+                    body.append(
+                        [
+                            t,
+                            f"{n}x{n}",
+                            "at rest",
+                            f["reference"],
+                            "–",
+                            f"rest {_pct(f['floor_rest_rel'], 2)}",
+                            "–",
+                            "–",
+                            f"sag {_pct(f['floor_sag_rel'], 2)}",
+                            "–",
+                        ]
+                    )
                     continue
-                noise = [r["error_rel"] for r in _rows(data.rows, "trial", device=d, rows=n, transient=t, integrator="rk4")
-                         if r["stable"] and r["error_rel"] is not None]
-                body.append([t, f"{n}x{n}", _g(f["transient_s"], " s"), f["reference"],
-                             _g(f["reference_estimate_rel"], "", 2) + ("" if f["reference"] == "DOP853" or
-                                                                       (f["reference_estimate_rel"] or 0) <= 1e-5 else " (not accepted)"),
-                             _pct(f["floor_point_rel"], 2), _pct(f["floor_centroid_rel"], 2), _pct(f["floor_patch_rel"], 2),
-                             f"damping {_pct(f['floor_damping_rel'], 2)}, strain {_pct(f['floor_stretch_rel'], 2)}",
-                             _pct(min(noise), 2) if noise else "–"])
+                noise = [
+                    r["error_rel"]
+                    for r in _rows(data.rows, "trial", device=d, rows=n, transient=t, integrator="rk4")
+                    if r["stable"] and r["error_rel"] is not None
+                ]
+                body.append(
+                    [
+                        t,
+                        f"{n}x{n}",
+                        _g(f["transient_s"], " s"),
+                        f["reference"],
+                        _g(f["reference_estimate_rel"], "", 2)
+                        + (
+                            ""
+                            if f["reference"] == "DOP853" or (f["reference_estimate_rel"] or 0) <= 1e-5
+                            else " (not accepted)"
+                        ),
+                        _pct(f["floor_point_rel"], 2),
+                        _pct(f["floor_centroid_rel"], 2),
+                        _pct(f["floor_patch_rel"], 2),
+                        f"damping {_pct(f['floor_damping_rel'], 2)}, strain {_pct(f['floor_stretch_rel'], 2)}",
+                        _pct(min(noise), 2) if noise else "–",
+                    ]
+                )
         out += [f"### References and conditioning floors on {d}", ""]
-        out += _table(["transient", "size", "window", "reference", "halving estimate / size", "floor of e",
-                       "floor of centroid", "floor of patches", "other floors", "float32 noise: rk4's least e"], body)
-        out += ["", f"A floor is the float64 growth of a {1e-7:g} m random perturbation of the start (2 seeds, the max over the "
-                f"window); a verdict at tolerance t is refused where a floor exceeds {FLOOR_FRACTION:g} t or the Warp reference's "
-                "halving estimate exceeds 1e-5 of the size. Contact: the equilibrium solved again from itself moved by 1e-7 m. "
-                "The float32 noise is rk4's least e over its configurations (down to 1/8 of its max stable dt): the rounding "
-                "of float32 coordinates, grown by the same conditioning over many steps, which no float32 run beats.", ""]
+        out += _table(
+            [
+                "transient",
+                "size",
+                "window",
+                "reference",
+                "halving estimate / size",
+                "floor of e",
+                "floor of centroid",
+                "floor of patches",
+                "other floors",
+                "float32 noise: rk4's least e",
+            ],
+            body,
+        )
+        out += [
+            "",
+            f"A floor is the float64 growth of a {1e-7:g} m random perturbation of the start (2 seeds, the max over the "
+            f"window); a verdict at tolerance t is refused where a floor exceeds {FLOOR_FRACTION:g} t or the Warp reference's "
+            "halving estimate exceeds 1e-5 of the size. Contact: the equilibrium solved again from itself moved by 1e-7 m. "
+            "The float32 noise is rk4's least e over its configurations (down to 1/8 of its max stable dt): the rounding "
+            "of float32 coordinates, grown by the same conditioning over many steps, which no float32 run beats.",
+            "",
+        ]
     return out
 
 
@@ -285,9 +357,12 @@ def cheapest_tables(data: Data, tolerances) -> list[str]:
             out += [f"### Cheapest configuration reaching pointwise e ≤ {_pct(tol)} on {d} (ms per 1/60 s frame)", ""]
             out += _table(["integrator"] + [f"{n}x{n}" for n in data.sizes], body)
             out += [""]
-    out += ["e is the worse of the swing and the flag; “none measured”: no configuration of the grid reached it (the best "
-            "e measured is given); “refused”: the conditioning floor or the reference says the tolerance cannot be judged "
-            "at that size; “stretchy”: the run's largest strain exceeds 10 %.", ""]
+    out += [
+        "e is the worse of the swing and the flag; “none measured”: no configuration of the grid reached it (the best "
+        "e measured is given); “refused”: the conditioning floor or the reference says the tolerance cannot be judged "
+        "at that size; “stretchy”: the run's largest strain exceeds 10 %.",
+        "",
+    ]
     return out
 
 
@@ -315,10 +390,23 @@ def budget_tables(data: Data, tolerances, budget_ms: float) -> list[str]:
                 cells.append(", ".join(f"{int(math.sqrt(n))}x{int(math.sqrt(n))}" for n in f.missing) or "–")
                 body.append(cells)
         out += [f"### Largest measured size within the budget on {d} (pointwise e ≤ the tolerance)", ""]
-        out += _table(["integrator", "e ≤", f"within {budget_ms:g} ms", "within 16.7 ms (whole frame)", "cost exponent p",
-                       "sizes where none reached e"], body)
-        out += ["", "The size is in particles; the fit (cost = a N^p over the cheapest configurations) is given only through "
-                "≥ 3 sizes and never beyond 2x the measured range (n/a otherwise). Sizes whose verdict is refused are left out.", ""]
+        out += _table(
+            [
+                "integrator",
+                "e ≤",
+                f"within {budget_ms:g} ms",
+                "within 16.7 ms (whole frame)",
+                "cost exponent p",
+                "sizes where none reached e",
+            ],
+            body,
+        )
+        out += [
+            "",
+            "The size is in particles; the fit (cost = a N^p over the cheapest configurations) is given only through "
+            "≥ 3 sizes and never beyond 2x the measured range (n/a otherwise). Sizes whose verdict is refused are left out.",
+            "",
+        ]
     return out
 
 
@@ -337,26 +425,53 @@ def metrics_table(data: Data, tol: float) -> list[str]:
                     cells += ["–", "–", "–"]
                 else:
                     sw, fl = c.label[1], c.label[2]
-                    cells += [f"{_pct(sw['damping_rel'], 2)} / {_pct(fl['damping_rel'], 2)}",
-                              f"{_pct(sw['max_strain_rel'], 2)} / {_pct(fl['max_strain_rel'], 2)} (ref {_pct(sw['ref_max_strain_rel'], 2)} / "
-                              f"{_pct(fl['ref_max_strain_rel'], 2)})",
-                              f"{_pct(sw['patch_error_rel'], 2)} / {_pct(fl['patch_error_rel'], 2)}"]
+                    cells += [
+                        f"{_pct(sw['damping_rel'], 2)} / {_pct(fl['damping_rel'], 2)}",
+                        f"{_pct(sw['max_strain_rel'], 2)} / {_pct(fl['max_strain_rel'], 2)} (ref {_pct(sw['ref_max_strain_rel'], 2)} / "
+                        f"{_pct(fl['ref_max_strain_rel'], 2)})",
+                        f"{_pct(sw['patch_error_rel'], 2)} / {_pct(fl['patch_error_rel'], 2)}",
+                    ]
                 body.append(cells)
         out += [f"### Coarse shape, damping and stretch on {d} (tolerance {_pct(tol)})", ""]
-        out += _table(["integrator", "size", f"cheapest with centroid error ≤ {_pct(tol)}", f"cheapest with patch error ≤ {_pct(tol)}",
-                       "damping at the cheapest e config (swing / flag)", "max strain there (swing / flag)",
-                       "patch error there (swing / flag)"], body)
-        out += ["", "Damping: 1 − the frames' kinetic energy summed over the window / the reference's (> 0: numerically "
-                "damped, < 0: energy gained); the refusal rule of the floors applies to these metrics too "
-                "(their floors are in the table above).", ""]
-        stretchy = sorted({(r["integrator"], r["rows"], config_label(r)) for r in data.rows if r["measurement"] == "trial"
-                           and r["device"] == d and r["stable"] and (r["max_strain_rel"] or 0) > STRETCHY})
+        out += _table(
+            [
+                "integrator",
+                "size",
+                f"cheapest with centroid error ≤ {_pct(tol)}",
+                f"cheapest with patch error ≤ {_pct(tol)}",
+                "damping at the cheapest e config (swing / flag)",
+                "max strain there (swing / flag)",
+                "patch error there (swing / flag)",
+            ],
+            body,
+        )
+        out += [
+            "",
+            "Damping: 1 − the frames' kinetic energy summed over the window / the reference's (> 0: numerically "
+            "damped, < 0: energy gained); the refusal rule of the floors applies to these metrics too "
+            "(their floors are in the table above).",
+            "",
+        ]
+        stretchy = sorted(
+            {
+                (r["integrator"], r["rows"], config_label(r))
+                for r in data.rows
+                if r["measurement"] == "trial"
+                and r["device"] == d
+                and r["stable"]
+                and (r["max_strain_rel"] or 0) > STRETCHY
+            }
+        )
         if stretchy:
             per = {}
             for i, n, label in stretchy:
                 per.setdefault((i, n), []).append(label)
-            out += [f"Stretchy (stable, but a spring strained beyond {_pct(STRETCHY)}): "
-                    + "; ".join(f"{i} {n}x{n}: {len(v)} configuration(s), e.g. {v[0]}" for (i, n), v in sorted(per.items())) + ".", ""]
+            out += [
+                f"Stretchy (stable, but a spring strained beyond {_pct(STRETCHY)}): "
+                + "; ".join(f"{i} {n}x{n}: {len(v)} configuration(s), e.g. {v[0]}" for (i, n), v in sorted(per.items()))
+                + ".",
+                "",
+            ]
     return out
 
 
@@ -369,14 +484,40 @@ def static_table(data: Data) -> list[str]:
             for i in data.integrators:
                 for r in _rows(data.rows, "static", device=d, integrator=i, rows=n, transient="contact"):
                     t = data.timing(d, i, n, (r["options"] or "", float(r["steps_per_frame"])))
-                    body.append([i, f"{n}x{n}", config_label(r), _pct(r["static_error_rel"]), _pct(r["sag_error_rel"]),
-                                 "yes" if r["equilibrium_reached"] else "no (cap)", _g(r["time_to_equilibrium_sim_s"], " s"),
-                                 _g(t["ms_per_frame"]) if t else "–", _pct(f["floor_rest_rel"], 2) if f else "–"])
+                    body.append(
+                        [
+                            i,
+                            f"{n}x{n}",
+                            config_label(r),
+                            _pct(r["static_error_rel"]),
+                            _pct(r["sag_error_rel"]),
+                            "yes" if r["equilibrium_reached"] else "no (cap)",
+                            _g(r["time_to_equilibrium_sim_s"], " s"),
+                            _g(t["ms_per_frame"]) if t else "–",
+                            _pct(f["floor_rest_rel"], 2) if f else "–",
+                        ]
+                    )
         out += [f"### Contact: the rest shape on the frictionless plane on {d}", ""]
-        out += _table(["integrator", "size", "configuration", "rest-shape error", "sag error", "at rest", "time to rest (sim)",
-                       "ms per frame", "floor"], body)
-        out += ["", "The rest shape where the run stopped (at rest, or at the simulated / wall cap) against the float64 "
-                "equilibrium with the contact; sag: the largest displacement from the hanging rest shape.", ""]
+        out += _table(
+            [
+                "integrator",
+                "size",
+                "configuration",
+                "rest-shape error",
+                "sag error",
+                "at rest",
+                "time to rest (sim)",
+                "ms per frame",
+                "floor",
+            ],
+            body,
+        )
+        out += [
+            "",
+            "The rest shape where the run stopped (at rest, or at the simulated / wall cap) against the float64 "
+            "equilibrium with the contact; sag: the largest displacement from the hanging rest shape.",
+            "",
+        ]
     return out
 
 
@@ -388,12 +529,21 @@ def stability_table(data: Data) -> list[str]:
             cells = [i]
             for n in data.sizes:
                 r = data.stable(d, i, n, "study_sheet")
-                cells.append("–" if r is None else ("≥ " if r["search_bounded"] and r["dt_s"] else "") + _g(r["dt_s"], " s")
-                             + (f" (strain {_pct(r['max_strain_rel'], 2)})" if r["max_strain_rel"] is not None else ""))
+                cells.append(
+                    "–"
+                    if r is None
+                    else ("≥ " if r["search_bounded"] and r["dt_s"] else "")
+                    + _g(r["dt_s"], " s")
+                    + (f" (strain {_pct(r['max_strain_rel'], 2)})" if r["max_strain_rel"] is not None else "")
+                )
             body.append(cells)
         out += [f"### Max stable dt on {d} (the swing's sheet)", ""]
         out += _table(["integrator"] + [f"{n}x{n}" for n in data.sizes], body)
-        out += ["", "“≥”: stable up to the search's bound, one 60 FPS frame. Trials as long as the swing's window at each size.", ""]
+        out += [
+            "",
+            "“≥”: stable up to the search's bound, one 60 FPS frame. Trials as long as the swing's window at each size.",
+            "",
+        ]
     return out
 
 
@@ -409,14 +559,44 @@ def scenario_tables(rows: list) -> list[str]:
                 eq = _one(rows, "static", scenario=sc, device=d, integrator=i)
                 if st is None:
                     continue
-                body.append([f"`{sc}`", i, d, st["particles"], _g(st["dt_s"], " s") + (" (≥: one frame)" if st["search_bounded"] else ""),
-                             _g(t["ms_per_step_median"]) if t else "–", _g(t["wall_s_per_sim_s"]) if t else "–",
-                             _yn(t["realtime_60fps"]) if t else "–",
-                             (_g(eq["time_to_equilibrium_sim_s"], " s") if eq and eq["equilibrium_reached"] else "not at rest") if eq else "–"])
-    out = [f"Measured at each scenario's own mesh: the max stable dt, ms/step at it (rounded down to (1/60 s)/k) and "
-           f"time to equilibrium there. {MESH_NOTE[0].upper()}{MESH_NOTE[1:]}.", ""]
-    out += _table(["scenario", "integrator", "device", "particles", "max stable dt", "ms/step", "wall s / sim s", "60 FPS",
-                   "to equilibrium (sim)"], body)
+                body.append(
+                    [
+                        f"`{sc}`",
+                        i,
+                        d,
+                        st["particles"],
+                        _g(st["dt_s"], " s") + (" (≥: one frame)" if st["search_bounded"] else ""),
+                        _g(t["ms_per_step_median"]) if t else "–",
+                        _g(t["wall_s_per_sim_s"]) if t else "–",
+                        _yn(t["realtime_60fps"]) if t else "–",
+                        (
+                            _g(eq["time_to_equilibrium_sim_s"], " s")
+                            if eq and eq["equilibrium_reached"]
+                            else "not at rest"
+                        )
+                        if eq
+                        else "–",
+                    ]
+                )
+    out = [
+        f"Measured at each scenario's own mesh: the max stable dt, ms/step at it (rounded down to (1/60 s)/k) and "
+        f"time to equilibrium there. {MESH_NOTE[0].upper()}{MESH_NOTE[1:]}.",
+        "",
+    ]
+    out += _table(
+        [
+            "scenario",
+            "integrator",
+            "device",
+            "particles",
+            "max stable dt",
+            "ms/step",
+            "wall s / sim s",
+            "60 FPS",
+            "to equilibrium (sim)",
+        ],
+        body,
+    )
     return out + [""]
 
 
@@ -450,7 +630,7 @@ def plots(out_dir: str, data: Data, budget_ms: float, tolerance: float) -> list[
 
     def legend_outside(fig, axes):
         seen = {}
-        for ax in (axes if isinstance(axes, (list, tuple)) else [axes]):
+        for ax in axes if isinstance(axes, (list, tuple)) else [axes]:
             for h, label in zip(*ax.get_legend_handles_labels()):
                 seen.setdefault(label, h)
         fig.legend(seen.values(), seen.keys(), loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=8, frameon=False)
@@ -471,9 +651,13 @@ def plots(out_dir: str, data: Data, budget_ms: float, tolerance: float) -> list[
             pts = [p for p in data.points(d0, i, n) if math.isfinite(p.error) and p.error > 0]
             if not pts:
                 continue
-            ax.loglog([p.error for p in pts], [p.cost for p in pts], marker[i], color=color[i], ms=4, alpha=0.45, ls="none")
+            ax.loglog(
+                [p.error for p in pts], [p.cost for p in pts], marker[i], color=color[i], ms=4, alpha=0.45, ls="none"
+            )
             front = pareto_front(pts)
-            ax.loglog([p.error for p in front], [p.cost for p in front], "-", marker=marker[i], color=color[i], ms=6, label=i)
+            ax.loglog(
+                [p.error for p in front], [p.cost for p in front], "-", marker=marker[i], color=color[i], ms=6, label=i
+            )
         for tol, ls in ((0.01, ":"), (0.05, "--"), (0.10, "-.")):
             ax.axvline(tol, color="0.5", lw=0.8, ls=ls, label=f"e = {_pct(tol)}")
         ax.axhline(budget_ms, color="k", lw=0.8, ls="--", label=f"budget {budget_ms:g} ms")
@@ -482,10 +666,12 @@ def plots(out_dir: str, data: Data, budget_ms: float, tolerance: float) -> list[
         ax.set_xlabel("pointwise e (worse of swing and flag, fraction of the size)", fontsize=8)
         ax.set_ylabel("ms per 1/60 s frame", fontsize=8)
         ax.tick_params(labelsize=7)
-    for ax in axes.ravel()[len(sizes):]:
+    for ax in axes.ravel()[len(sizes) :]:
         ax.axis("off")
     legend_outside(fig, list(axes.ravel()))
-    fig.suptitle("work-precision: every configuration a faint point, each integrator's Pareto front a line", fontsize=10)
+    fig.suptitle(
+        "work-precision: every configuration a faint point, each integrator's Pareto front a line", fontsize=10
+    )
     fig.tight_layout()
     save(fig, "work_precision.png")
 
@@ -493,8 +679,12 @@ def plots(out_dir: str, data: Data, budget_ms: float, tolerance: float) -> list[
     fig, axes = plt.subplots(1, 2, figsize=(10.5, 4.0), squeeze=False)
     for ax, tol in zip(axes.ravel(), (0.01, 0.05)):
         for i in data.integrators:
-            pts = [(n * n, c.cost) for n in sizes for c in [data.cheapest(d0, i, n, tol)]
-                   if c is not None and not data.refusal(d0, n, "point", tol)]
+            pts = [
+                (n * n, c.cost)
+                for n in sizes
+                for c in [data.cheapest(d0, i, n, tol)]
+                if c is not None and not data.refusal(d0, n, "point", tol)
+            ]
             if pts:
                 ax.loglog(*zip(*pts), "-", marker=marker[i], color=color[i], label=i)
         ax.axhline(budget_ms, color="k", lw=0.8, ls="--", label=f"budget {budget_ms:g} ms")
@@ -512,8 +702,14 @@ def plots(out_dir: str, data: Data, budget_ms: float, tolerance: float) -> list[
     fig, axes = plt.subplots(1, 2, figsize=(10.5, 4.0), squeeze=False)
     for ax, t in zip(axes.ravel(), DYNAMIC):
         for i in data.integrators:
-            pts = sorted((r["dt_s"], r["error_rel"]) for r in _rows(data.rows, "trial", transient=t, integrator=i, rows=n0, device=d0)
-                         if (r["options"] or "") == "" and r["error_rel"] is not None and math.isfinite(r["error_rel"]) and r["error_rel"] > 0)
+            pts = sorted(
+                (r["dt_s"], r["error_rel"])
+                for r in _rows(data.rows, "trial", transient=t, integrator=i, rows=n0, device=d0)
+                if (r["options"] or "") == ""
+                and r["error_rel"] is not None
+                and math.isfinite(r["error_rel"])
+                and r["error_rel"] > 0
+            )
             if pts:
                 ax.loglog(*zip(*pts), "-", marker=marker[i], color=color[i], label=i)
         f = data.floor(d0, n0, t)
@@ -531,7 +727,9 @@ def plots(out_dir: str, data: Data, budget_ms: float, tolerance: float) -> list[
     # 4. max stable dt
     fig, ax = plt.subplots(figsize=(6.5, 4.0))
     for i in data.integrators:
-        pts = sorted((n * n, r["dt_s"]) for n in sizes for r in [data.stable(d0, i, n, "study_sheet")] if r and r["dt_s"])
+        pts = sorted(
+            (n * n, r["dt_s"]) for n in sizes for r in [data.stable(d0, i, n, "study_sheet")] if r and r["dt_s"]
+        )
         if pts:
             ax.loglog(*zip(*pts), "-", marker=marker[i], color=color[i], label=i)
     ax.axhline(1.0 / 60.0, color="k", lw=0.8, ls="--", label="search bound: ≥ 1/60 s")
@@ -555,7 +753,11 @@ def sharing_lines(rows: list) -> list:
             workers = sorted({str(r.get("worker") or "?") for r in mine})
             timed = [int(r.get("concurrent_runs") or 1) for r in mine if r["measurement"] == "timing"]
             other = [int(r.get("concurrent_runs") or 1) for r in mine if r["measurement"] != "timing"]
-            how = "serially" if workers == ["main"] else f"by {len(workers)} worker(s) ({', '.join(workers[:4])}{', ...' if len(workers) > 4 else ''})"
+            how = (
+                "serially"
+                if workers == ["main"]
+                else f"by {len(workers)} worker(s) ({', '.join(workers[:4])}{', ...' if len(workers) > 4 else ''})"
+            )
             line = f"- host {host}, {d}: measured {how}; at most {max(timed, default=0)} timed run(s) at once"
             line += f", at most {max(other, default=0)} search run(s) at once"
             if max(timed, default=1) > 1:
@@ -568,8 +770,10 @@ def method_lines(plan) -> list[str]:
     m = STUDY_MATERIAL
     from warpcloth.lab.configs import GRIDS
 
-    windows = "; ".join(f"{t}: " + ", ".join(f"{fr / 60:.3g} s from {n}x{n}" if n else f"{fr / 60:.3g} s" for n, fr in sorted(w))
-                        for t, w in plan.windows)
+    windows = "; ".join(
+        f"{t}: " + ", ".join(f"{fr / 60:.3g} s from {n}x{n}" if n else f"{fr / 60:.3g} s" for n, fr in sorted(w))
+        for t, w in plan.windows
+    )
     grids = GRIDS[plan.level]
     return [
         f"- Profile `{plan.profile}`: integrators {', '.join(plan.integrators)}; n x n cloths at n = "
@@ -580,7 +784,8 @@ def method_lines(plan) -> list[str]:
         "masses are the density times the vertex area. Bending: Provot bend springs with the material's approximate rule "
         "(ks = 9 B / (κ² h⁴)), which is not size-independent (0.0013 N/m at 16x16, 6.9 N/m at 128x128): bending is not what "
         "this study compares (a dihedral model is being integrated separately).",
-        "- **Transients**: " + "; ".join(f"`{k}`: {t.description}" for k, t in TRANSIENTS.items())
+        "- **Transients**: "
+        + "; ".join(f"`{k}`: {t.description}" for k, t in TRANSIENTS.items())
         + f". Windows: {windows} (the 1 s swing is not accepted from 64x64: docs/study.md, “Windows”).",
         "- **References**: SciPy DOP853 (rtol 1e-10) up to 12x12; above, the float64 Warp RK4 at half its stability limit with "
         "a run at half the step, accepted when the halving estimate is ≤ 1e-5 of the size. Contact: the float64 equilibrium "
@@ -592,10 +797,18 @@ def method_lines(plan) -> list[str]:
         "the sag against the equilibrium.",
         f"- **Floors**: the float64 growth of a 1e-7 m random perturbation of the start (2 seeds, max over the window), per "
         f"metric; a verdict at tolerance t is refused where the floor exceeds {FLOOR_FRACTION:g} t.",
-        "- **Configurations** (level `" + plan.level + "`): explicit schemes at fractions "
-        + ", ".join(f"1/{f}" for f in grids["explicit"][1]) + " of their max stable dt; "
-        + "; ".join(f"{i}: " + " x ".join(f"{k} {{{', '.join(map(str, v))}}}" for k, v in sorted(grids[i][0].items()))
-                    + f" x dt 1/60 s / k, k {{{', '.join(str(k) for k in grids[i][1])}}}" for i in grids if i != "explicit")
+        "- **Configurations** (level `"
+        + plan.level
+        + "`): explicit schemes at fractions "
+        + ", ".join(f"1/{f}" for f in grids["explicit"][1])
+        + " of their max stable dt; "
+        + "; ".join(
+            f"{i}: "
+            + " x ".join(f"{k} {{{', '.join(map(str, v))}}}" for k, v in sorted(grids[i][0].items()))
+            + f" x dt 1/60 s / k, k {{{', '.join(str(k) for k in grids[i][1])}}}"
+            for i in grids
+            if i != "explicit"
+        )
         + f". A configuration predicted to take more than {plan.run_wall_cap:g} s per run is not run (its row says so).",
         f"- **Cost**: ms per 1/60 s frame = median ms/step x steps per frame, {plan.timing_windows} timed windows of at least "
         f"{plan.window_seconds:g} s on the swing's sheet from the swing's start (compile and graph capture excluded); wall s per "
@@ -642,29 +855,49 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
     written = plots(out_dir, data, budget_ms, tolerance) if data.rows else []
     lines = ["# warpcloth study", ""]
     lines += ["## Machine and command", ""]
-    lines += [f"- CPU: {m['cpu']}, {m['cores']} logical cores visible; OS {m['os']}, Python {m['python']}",
-              f"- GPU: {', '.join(m['gpus']) if m['gpus'] else 'none found'}" + (f" (CUDA driver {m['driver']})" if m["driver"] else ""),
-              f"- Warp {m['warp']}; report written {m['date']}",
-              f"- devices measured: {', '.join(data.devices)}",
-              *sharing_lines(rows),
-              f"- command: `{command or ' '.join(sys.argv)}`"]
+    lines += [
+        f"- CPU: {m['cpu']}, {m['cores']} logical cores visible; OS {m['os']}, Python {m['python']}",
+        f"- GPU: {', '.join(m['gpus']) if m['gpus'] else 'none found'}"
+        + (f" (CUDA driver {m['driver']})" if m["driver"] else ""),
+        f"- Warp {m['warp']}; report written {m['date']}",
+        f"- devices measured: {', '.join(data.devices)}",
+        *sharing_lines(rows),
+        f"- command: `{command or ' '.join(sys.argv)}`",
+    ]
     walls = [r["measure_wall_s"] for r in rows if r.get("measure_wall_s")]
     if walls:
-        lines.append(f"- {len(rows)} measurements, {sum(walls) / 60:.0f} min of measurement wall time in all (summed over workers)")
+        lines.append(
+            f"- {len(rows)} measurements, {sum(walls) / 60:.0f} min of measurement wall time in all (summed over workers)"
+        )
     lines += [""]
     if plan is not None:
         lines += ["## Method", ""] + method_lines(plan) + [""]
         if plan.scenario_files:
-            lines.insert(-1, f"- Scenarios at their own mesh: {', '.join(f'`{s}`' for s in plan.scenario_files)}: max stable dt, "
-                             "time to equilibrium and ms/step at it; no accuracy (no float64 reference for them).")
+            lines.insert(
+                -1,
+                f"- Scenarios at their own mesh: {', '.join(f'`{s}`' for s in plan.scenario_files)}: max stable dt, "
+                "time to equilibrium and ms/step at it; no accuracy (no float64 reference for them).",
+            )
     if plan is not None and plan.grid:
-        missing = [f"{i} {n}x{n} on {d}" for d in plan.devices for n in plan.all_sizes for i in plan.integrators
-                   if not any(r["measurement"] == "timing" and r["device"] == d and r["integrator"] == i and r["rows"] == n for r in rows)]
+        missing = [
+            f"{i} {n}x{n} on {d}"
+            for d in plan.devices
+            for n in plan.all_sizes
+            for i in plan.integrators
+            if not any(
+                r["measurement"] == "timing" and r["device"] == d and r["integrator"] == i and r["rows"] == n
+                for r in rows
+            )
+        ]
         if missing:
-            lines += ["## Not measured", "",
-                      f"The plan has {len(missing)} device x integrator x size groups without a timing row in results.csv "
-                      f"(the study was interrupted, or no configuration ran finite; `--resume` continues an interrupted one): "
-                      f"{', '.join(missing)}.", ""]
+            lines += [
+                "## Not measured",
+                "",
+                f"The plan has {len(missing)} device x integrator x size groups without a timing row in results.csv "
+                f"(the study was interrupted, or no configuration ran finite; `--resume` continues an interrupted one): "
+                f"{', '.join(missing)}.",
+                "",
+            ]
     if data.rows:
         lines += ["## Verdict", ""] + [f"- {s}" for s in verdict(data, tolerance, budget_ms)] + [""]
         lines += ["## What changed since the previous study", ""] + [f"- {c}" for c in CHANGES] + [""]
@@ -675,7 +908,10 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
         lines += ["## Scenarios", ""] + scenario_tables(data.mesh_rows)
     lines += ["## Plots", ""]
     if written is None:
-        lines += ["The plots need matplotlib: `pip install 'warpcloth[plot]'`; results.csv and this report are complete without them.", ""]
+        lines += [
+            "The plots need matplotlib: `pip install 'warpcloth[plot]'`; results.csv and this report are complete without them.",
+            "",
+        ]
     else:
         for name in written:
             lines += [f"![{PLOTS[name]}]({name})", "", f"*{PLOTS[name]}.*", ""]
@@ -683,7 +919,10 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
     lines += _table(["column", "meaning"], [[c, COLUMN_DOCS.get(c, "")] for c in COLUMNS]) + [""]
     write_atomic(os.path.join(out_dir, "report.md"), "\n".join(lines), "study report")
     if written is None and stream is not None:
-        print("warpcloth: study: the plots need matplotlib: pip install 'warpcloth[plot]' (results.csv and report.md written)", file=stream)
+        print(
+            "warpcloth: study: the plots need matplotlib: pip install 'warpcloth[plot]' (results.csv and report.md written)",
+            file=stream,
+        )
     return ["results.csv", "report.md"] + (written or [])
 
 

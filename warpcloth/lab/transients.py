@@ -43,9 +43,17 @@ from warpcloth.scenarios.common import Scenario, ScenarioConfig
 #: polyester_light, 343 N/m, and cotton, 4070 N/m), isotropic so that the sheet and the flag
 #: differ only in shape and load. Its membrane springs on a square grid: ks = 750 N/m structural,
 #: 250 N/m shear, at every size.
-STUDY_MATERIAL = Material("study", density=0.2, stretch_warp=1000.0, stretch_weft=1000.0, shear=250.0,
-                          bend_warp=10.0e-6, bend_weft=10.0e-6, stretch_damping_ratio=0.05,
-                          note="the study's cloth (docs/study.md): stated, not a measured fabric")
+STUDY_MATERIAL = Material(
+    "study",
+    density=0.2,
+    stretch_warp=1000.0,
+    stretch_weft=1000.0,
+    shear=250.0,
+    bend_warp=10.0e-6,
+    bend_weft=10.0e-6,
+    stretch_damping_ratio=0.05,
+    note="the study's cloth (docs/study.md): stated, not a measured fabric",
+)
 
 #: The plane of the contact transient: through CONTACT_POINT [m], inclined CONTACT_INCLINE [deg]
 #: from the vertical (its outward normal (0, sin, cos)), thickness [m]; frictionless.
@@ -71,11 +79,28 @@ def material_grid_model(cfg: ScenarioConfig, device, origin, pins, mat: Material
     rows, cols = int(cfg.rows), int(cfg.cols)
     q = grid_positions(rows, cols, cfg.width, cfg.height, origin, "vertical")
     springs = grid_spring_params(mat, rows, cols, cfg.width, cfg.height, bend=BendModel.PROVOT)
-    model = build_model(q, springs.pairs, springs.types, springs.mass, None, pins, grid_triangles(rows, cols), device,
-                        **springs.build_kwargs())
+    model = build_model(
+        q,
+        springs.pairs,
+        springs.types,
+        springs.mass,
+        None,
+        pins,
+        grid_triangles(rows, cols),
+        device,
+        **springs.build_kwargs(),
+    )
     uv = grid_uvs(rows, cols)[model.host.tris].reshape(-1, 2)
-    return replace(model, rows=rows, cols=cols, width=cfg.width, height=cfg.height, bend=BendModel.PROVOT,
-                   total_mass=float(springs.mass.sum()), host=replace(model.host, uv=uv))
+    return replace(
+        model,
+        rows=rows,
+        cols=cols,
+        width=cfg.width,
+        height=cfg.height,
+        bend=BendModel.PROVOT,
+        total_mass=float(springs.mass.sum()),
+        host=replace(model.host, uv=uv),
+    )
 
 
 def _top_row(rows: int, cols: int) -> list:
@@ -101,8 +126,12 @@ def _sheet_control(cfg, device) -> Control:
 def _flag_control(cfg, device) -> Control:
     from warpcloth.scenarios.flag import GUST, GUST_OFF, GUST_ON, LULL, WIND_COEFFICIENT
 
-    return Control(drag_rate=0.0 if cfg.drag is None else cfg.drag, wind_coefficient=WIND_COEFFICIENT,
-                   wind_schedule=WindSchedule.gusts(GUST, GUST_ON, GUST_OFF, base=LULL), device=device)
+    return Control(
+        drag_rate=0.0 if cfg.drag is None else cfg.drag,
+        wind_coefficient=WIND_COEFFICIENT,
+        wind_schedule=WindSchedule.gusts(GUST, GUST_ON, GUST_OFF, base=LULL),
+        device=device,
+    )
 
 
 def contact_plane() -> Plane:
@@ -112,26 +141,54 @@ def contact_plane() -> Plane:
 
 
 def _contact_control(cfg, device) -> Control:
-    return Control(drag_rate=CONTACT_DRAG if cfg.drag is None else cfg.drag, colliders=(contact_plane(),), device=device)
+    return Control(
+        drag_rate=CONTACT_DRAG if cfg.drag is None else cfg.drag, colliders=(contact_plane(),), device=device
+    )
 
 
 def _scenario(name, description, defaults, pins, control, origin, stop) -> Scenario:
-    return Scenario(name=name, description=description, defaults=defaults, pins=pins, control=control, origin=origin,
-                    stop_at_equilibrium=stop, model=lambda cfg, device: material_grid_model(cfg, device, origin(cfg), pins(cfg.rows, cfg.cols)))
+    return Scenario(
+        name=name,
+        description=description,
+        defaults=defaults,
+        pins=pins,
+        control=control,
+        origin=origin,
+        stop_at_equilibrium=stop,
+        model=lambda cfg, device: material_grid_model(cfg, device, origin(cfg), pins(cfg.rows, cfg.cols)),
+    )
 
 
 #: The study's sheet: 1 m x 1 m of :data:`STUDY_MATERIAL`, its top row pinned, drag 1/s.
-STUDY_SHEET = _scenario("study_sheet", "the study's sheet: its top row pinned (the study material)",
-                        ScenarioConfig(rows=32, cols=32, width=1.0, height=1.0, duration=1.0), _top_row, _sheet_control,
-                        _sheet_origin, False)
+STUDY_SHEET = _scenario(
+    "study_sheet",
+    "the study's sheet: its top row pinned (the study material)",
+    ScenarioConfig(rows=32, cols=32, width=1.0, height=1.0, duration=1.0),
+    _top_row,
+    _sheet_control,
+    _sheet_origin,
+    False,
+)
 #: The study's flag: 1.5 m x 1 m of :data:`STUDY_MATERIAL` on its pole (left edge), in the flag's wind.
-STUDY_FLAG = _scenario("study_flag", "the study's flag: its left edge pinned, in gusting wind (the study material)",
-                       ScenarioConfig(rows=32, cols=32, width=1.5, height=1.0, duration=1.0), _left_edge, _flag_control,
-                       _flag_origin, False)
+STUDY_FLAG = _scenario(
+    "study_flag",
+    "the study's flag: its left edge pinned, in gusting wind (the study material)",
+    ScenarioConfig(rows=32, cols=32, width=1.5, height=1.0, duration=1.0),
+    _left_edge,
+    _flag_control,
+    _flag_origin,
+    False,
+)
 #: The study's contact cloth: the sheet with a frictionless inclined plane in front of it.
-STUDY_CONTACT = _scenario("study_contact", "the study's sheet settling onto a frictionless plane (the study material)",
-                          ScenarioConfig(rows=32, cols=32, width=1.0, height=1.0, duration=10.0), _top_row, _contact_control,
-                          _sheet_origin, True)
+STUDY_CONTACT = _scenario(
+    "study_contact",
+    "the study's sheet settling onto a frictionless plane (the study material)",
+    ScenarioConfig(rows=32, cols=32, width=1.0, height=1.0, duration=10.0),
+    _top_row,
+    _contact_control,
+    _sheet_origin,
+    True,
+)
 
 
 def tilted_start(model, degrees: float) -> np.ndarray:
@@ -172,18 +229,38 @@ class StudyTransient:
 
 
 TRANSIENTS = {
-    "swing": StudyTransient("swing", STUDY_SHEET, 90.0, False,
-                            "the sheet, its top row pinned, released from horizontal (tension dominated)"),
+    "swing": StudyTransient(
+        "swing", STUDY_SHEET, 90.0, False, "the sheet, its top row pinned, released from horizontal (tension dominated)"
+    ),
     "flag": StudyTransient("flag", STUDY_FLAG, 0.0, False, "the flag from rest in its wind (the lull, 2 m/s)"),
-    "contact": StudyTransient("contact", STUDY_CONTACT, CONTACT_TILT, True,
-                              f"the sheet tilted {CONTACT_TILT:g} degrees forward swings back onto a frictionless plane "
-                              f"inclined {CONTACT_INCLINE:g} degrees, 0.4 m below its top row, and settles on it; its rest "
-                              "shape against the float64 equilibrium with the contact"),
+    "contact": StudyTransient(
+        "contact",
+        STUDY_CONTACT,
+        CONTACT_TILT,
+        True,
+        f"the sheet tilted {CONTACT_TILT:g} degrees forward swings back onto a frictionless plane "
+        f"inclined {CONTACT_INCLINE:g} degrees, 0.4 m below its top row, and settles on it; its rest "
+        "shape against the float64 equilibrium with the contact",
+    ),
 }
 #: The transients compared frame by frame (the others: their rest shape).
 DYNAMIC = ("swing", "flag")
 
 
-__all__ = ["CONTACT_DRAG", "CONTACT_INCLINE", "CONTACT_POINT", "CONTACT_THICKNESS", "CONTACT_TILT", "DYNAMIC", "STUDY_CONTACT",
-           "STUDY_FLAG", "STUDY_MATERIAL", "STUDY_SHEET", "StudyTransient", "TRANSIENTS", "contact_plane",
-           "material_grid_model", "tilted_start"]
+__all__ = [
+    "CONTACT_DRAG",
+    "CONTACT_INCLINE",
+    "CONTACT_POINT",
+    "CONTACT_THICKNESS",
+    "CONTACT_TILT",
+    "DYNAMIC",
+    "STUDY_CONTACT",
+    "STUDY_FLAG",
+    "STUDY_MATERIAL",
+    "STUDY_SHEET",
+    "StudyTransient",
+    "TRANSIENTS",
+    "contact_plane",
+    "material_grid_model",
+    "tilted_start",
+]
