@@ -205,6 +205,8 @@ def test_configurations_cover_the_knobs_cheapest_first():
     assert [c.work() for c in pbd] == sorted(c.work() for c in pbd)
     ie = configurations("implicit_euler", None, "full")
     assert {c.option_dict["preconditioner"] for c in ie} == {"jacobi", "multigrid"} and Fraction(1, 2) in {c.k for c in ie}
+    small = configurations("implicit_euler", None, "quick", n=6)  # below the multigrid's 7 x 7: jacobi alone
+    assert {c.option_dict["preconditioner"] for c in small} == {"jacobi"}
     assert {c.option_dict["vbd_iterations"] for c in configurations("vbd", None)} == {1, 2, 4, 10, 20}
     assert {(c.option_dict["pd_iterations"], c.option_dict["pd_cg_iterations"]) for c in configurations("projective", None)} \
         == {(i, g) for i in (1, 5, 20) for g in (5, 20)}

@@ -42,8 +42,8 @@ GRIDS = {
     "quick": {
         "explicit": ({}, (1, 2, 4)),
         "implicit_euler": ({"preconditioner": ("jacobi", "multigrid"), "cg_tol": (1e-2, 1e-4)}, (Fraction(1, 2), 1, 4)),
-        "pbd": ({"substeps": (1, 16, 256), "iterations": (1, 20)}, (Fraction(1, 2), 1)),
-        "xpbd": ({"substeps": (1, 16, 256), "iterations": (1, 20)}, (Fraction(1, 2), 1)),
+        "pbd": ({"substeps": (1, 16), "iterations": (1, 10)}, (Fraction(1, 2), 1)),
+        "xpbd": ({"substeps": (1, 16), "iterations": (1, 10)}, (Fraction(1, 2), 1)),
         "vbd": ({"vbd_iterations": (1, 4, 20)}, (Fraction(1, 2), 1, 4)),
         "projective": ({"pd_iterations": (1, 20), "pd_cg_iterations": (5, 20)}, (Fraction(1, 2), 1, 4)),
     },
@@ -111,14 +111,20 @@ def steps_for(dt: float) -> int:
     return max(1, math.ceil(FRAME_DT / dt - 1e-9))
 
 
-def configurations(integrator: str, stable_dt: float | None, level: str = "full") -> list[Config]:
+def configurations(integrator: str, stable_dt: float | None, level: str = "full", n: int | None = None) -> list[Config]:
     """Every configuration of ``integrator`` at ``level`` (:data:`GRIDS`), cheapest (by
     :meth:`Config.work`) first. ``stable_dt``: the max stable dt [s] (None: not stable at any
     dt searched), from which the explicit schemes' steps are fractions; the others take their
-    steps as they are (a step above their max stable dt runs, and is recorded unstable)."""
+    steps as they are (a step above their max stable dt runs, and is recorded unstable). ``n``:
+    the grid's side; below the multigrid's smallest grid, no multigrid preconditioner (it would
+    fall back to block Jacobi)."""
+    from warpcloth.integrators.multigrid import MIN_COARSE_SIDE
+
     grids = GRIDS[level]
     explicit = integrator in EXPLICIT
     options, steps = grids["explicit" if explicit else integrator]
+    if n is not None and n < 2 * MIN_COARSE_SIDE - 1 and "preconditioner" in options:
+        options = {**options, "preconditioner": tuple(p for p in options["preconditioner"] if p != "multigrid")}
     if explicit:
         if stable_dt is None:
             return []

@@ -136,7 +136,7 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
             trial = min(trial, plan.maxdt_wall_cap) if plan.maxdt_wall_cap else trial
             stab += (6 if explicit else 1) * trial
             counts["stab"] += 1
-            configs = configurations(i, dt0 if explicit else None, plan.level)
+            configs = configurations(i, dt0 if explicit else None, plan.level, n)
             for first, c in enumerate(configs):
                 per_step = ms / 1000.0 * work(i, c.option_dict)
                 run = 0.0

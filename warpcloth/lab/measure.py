@@ -512,7 +512,7 @@ class Measurements:
         the swing's sheet's (the flag's has been larger at every size measured; a configuration
         beyond it on the flag is recorded unstable there)."""
         dt = self.max_stable_dt(TRANSIENTS["swing"].scenario.name, integrator, device, n)["dt_s"]
-        return configurations(integrator, dt, self.plan.level), dt
+        return configurations(integrator, dt, self.plan.level, n), dt
 
     def group(self, device: str, integrator: str, n) -> None:
         """The measurements of one device x integrator x size group (``n`` a scenario name: a

@@ -77,7 +77,7 @@ class StudyPlan:
 PROFILES = {
     # tiny sizes (SciPy references), the quick configuration grids: minutes on 2 CPU cores
     "quick": dict(sizes=[4, 6, 8], windows=(("swing", ((0, 30),)), ("flag", ((0, 16),))), level="quick",
-                  run_wall_cap=10.0, maxdt_precision=0.1, maxdt_wall_cap=5.0, timing_windows=3, window_seconds=0.02,
+                  run_wall_cap=10.0, max_frame_ms=50.0, maxdt_precision=0.1, maxdt_wall_cap=5.0, timing_windows=3, window_seconds=0.02,
                   equilibrium_duration=4.0, equilibrium_wall_cap=5.0),
     # the committed CPU study: 16-128, every configuration, <= 90 min on a 2-core CPU with --workers 2
     # (docs/study.md, "Estimate"); the swing's 1 s window is ill-conditioned from 64x64 (docs/study.md, "Windows")

@@ -243,7 +243,8 @@ def verdict(data: Data, plan_tolerance: float, budget_ms: float) -> list[str]:
                 )
                 none = [i for i in data.integrators if data.cheapest(d, i, n, plan_tolerance) is None]
                 out.append(
-                    f"Cheapest at {n}x{n} on {d} reaching pointwise e ≤ {_pct(plan_tolerance)} on both transients: {i} "
+                    f"Cheapest at {n}x{n} on {d} reaching pointwise e ≤ {_pct(plan_tolerance)} on "
+                    f"{' and '.join(data.judged(d, n, 'point', plan_tolerance))}: {i} "
                     f"({config_label(c.label[1])}), {_g(cost)} ms per 1/60 s frame{tail}"
                     + (f"; no measured configuration of {', '.join(none)} reaches it." if none else ".")
                 )
@@ -352,13 +353,16 @@ def cheapest_tables(data: Data, tolerances) -> list[str]:
                         cells.append(f"none measured (best e {_pct(best)})" if pts else "none measured")
                     else:
                         stretchy = " stretchy" if max(r["max_strain_rel"] or 0 for r in c.label[1:3]) > STRETCHY else ""
-                        cells.append(f"{config_label(c.label[1])}: {_g(c.cost)} ms (e {_pct(c.error, 2)}){stretchy}")
+                        judged = data.judged(d, n, "point", tol)
+                        only = f" ({judged[0]} only)" if len(judged) == 1 else ""
+                        cells.append(f"{config_label(c.label[1])}: {_g(c.cost)} ms (e {_pct(c.error, 2)}{only}){stretchy}")
                 body.append(cells)
             out += [f"### Cheapest configuration reaching pointwise e ≤ {_pct(tol)} on {d} (ms per 1/60 s frame)", ""]
             out += _table(["integrator"] + [f"{n}x{n}" for n in data.sizes], body)
             out += [""]
     out += [
-        "e is the worse of the swing and the flag; “none measured”: no configuration of the grid reached it (the best "
+        "e is the worse of the swing and the flag (“swing only”: the flag's verdict refused there, its floor above 10 % of "
+        "the tolerance); “none measured”: no configuration of the grid reached it (the best "
         "e measured is given); “refused”: the conditioning floor or the reference says the tolerance cannot be judged "
         "at that size; “stretchy”: the run's largest strain exceeds 10 %.",
         "",
@@ -607,6 +611,7 @@ def plots(out_dir: str, data: Data, budget_ms: float, tolerance: float) -> list[
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        from matplotlib.ticker import NullFormatter
     except ImportError:
         return None
     written = []
@@ -716,6 +721,7 @@ def plots(out_dir: str, data: Data, budget_ms: float, tolerance: float) -> list[
         if f and f["floor_point_rel"]:
             ax.axhline(f["floor_point_rel"], color="0.5", ls=":", label="conditioning floor of e")
         ax.axhline(tolerance, color="k", lw=0.8, label=f"tolerance {_pct(tolerance)}")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # no overlapping minor labels on a short log axis
         ax.set_title(f"{t}, {n0}x{n0}: default options", fontsize=9)
         ax.set_xlabel("dt [s]", fontsize=8)
         ax.set_ylabel("pointwise e", fontsize=8)
