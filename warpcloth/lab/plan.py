@@ -49,7 +49,7 @@ class StudyPlan:
     window_seconds: float = 0.05
     equilibrium_duration: float = 10.0  # s simulated at most (the contact transient)
     equilibrium_wall_cap: float | None = 60.0
-    contact_max_size: int = 128  # the contact transient up to this n (its equilibrium: SciPy's sparse direct solve, on the CPU)
+    contact_max_size: int = 64  # the contact transient up to this n (its equilibrium: SciPy's sparse direct solve, on the CPU)
     reference_cache: str = ""
     grid: bool = True  # the study's transients at the sizes above
     scenario_files: list = field(default_factory=list)  # fixed-mesh scenarios: stability, equilibrium, timing
@@ -85,8 +85,7 @@ PROFILES = {
     # a GPU (H100/H200): 64-512 on cuda, within 8 min of device time (--estimate)
     "gpu": dict(sizes=[64, 128, 256, 512], devices=["cuda"],
                 windows=(("swing", ((0, 24), (128, 16), (256, 12), (512, 8))), ("flag", ((0, 8),))),
-                run_wall_cap=20.0, maxdt_wall_cap=10.0, equilibrium_wall_cap=20.0, timing_windows=5, window_seconds=0.05,
-                contact_max_size=128),
+                run_wall_cap=20.0, maxdt_wall_cap=10.0, equilibrium_wall_cap=20.0, timing_windows=5, window_seconds=0.05),
 }
 
 

@@ -824,8 +824,10 @@ def method_lines(plan) -> list[str]:
         "never beyond 2x the measured range.",
         f"- Max stable dt: `warpcloth.lab.maxdt.find_max_dt`, trials as long as the swing's window, precision "
         f"{plan.maxdt_precision:g}, up to one 60 FPS frame, wall cap {plan.maxdt_wall_cap} s per trial.",
-        f"- Contact runs: to rest, at most {plan.equilibrium_duration:g} s simulated, {plan.equilibrium_wall_cap} s wall; each "
-        "integrator at its default options at its largest step and at a quarter of it.",
+        f"- Contact runs (up to {plan.contact_max_size}x{plan.contact_max_size}: above, the float64 equilibrium's sparse "
+        f"direct solve takes over 10 min of CPU): to rest, at most {plan.equilibrium_duration:g} s simulated, "
+        f"{plan.equilibrium_wall_cap} s wall; each integrator at its default options at 1/60 s and 1/240 s, the explicit "
+        "schemes at their max stable dt.",
     ]
 
 
