@@ -378,17 +378,17 @@ def test_study_with_an_unreachable_ray_address_is_one_line_and_writes_nothing(tm
 
 
 def test_study_via_ray_gives_the_serial_rows(ray_cluster, tmp_path):
-    """The study of explicit_euler at 4x4 (stability, accuracy, equilibrium, timing) as Ray tasks:
+    """The study of explicit_euler at 4x4 (stability, floors, trials, contact, timings) as Ray tasks:
     the serial run's keys and values (not timings); the driver wrote every row once."""
     from warpcloth.lab.plan import make_plan
     from warpcloth.lab.results import read_rows
     from warpcloth.lab.study import run_study
 
-    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4], accuracy_sizes=[4])
+    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4])
     run_study(plan, tmp_path / "serial")
     run_study(plan, tmp_path / "ray", ray="auto")
     serial, par = read_rows(tmp_path / "serial" / "results.csv"), read_rows(tmp_path / "ray" / "results.csv")
-    same = ["measurement", "scenario", "integrator", "dt_s", "steps_per_frame", "bound_dt_s", "error_rel", "floor_error_rel",
+    same = ["measurement", "scenario", "integrator", "dt_s", "steps_per_frame", "bound_dt_s", "error_rel", "floor_point_rel",
             "max_strain_rel", "stable", "equilibrium_reached", "time_to_equilibrium_sim_s", "static_error_rel", "trials"]
     assert sorted(r["key"] for r in serial) == sorted(r["key"] for r in par)
     by_key = {r["key"]: r for r in par}

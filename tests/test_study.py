@@ -1,4 +1,4 @@
-"""The accuracy study (warpcloth.lab: accuracy, frontier, study, report; ``warpcloth study``)."""
+"""The accuracy study (warpcloth.lab: accuracy, configs, frontier, transients, study, report; ``warpcloth study``)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from warpcloth.errors import WarpclothError
-from warpcloth.lab.accuracy import FRAME_DT, AccuracyProblem, Transient, check_tolerance, search_steps_per_frame, steps_per_frame_at_most
-from warpcloth.lab.frontier import fit_power_law, frontier
+from warpcloth.lab.accuracy import FRAME_DT, AccuracyProblem, Transient, check_tolerance, steps_per_frame_at_most
+from warpcloth.lab.results import COLUMNS
 
 
 # -- the metric means what it says -------------------------------------------------------------
@@ -55,47 +55,127 @@ def test_transient_must_be_whole_frames(swing5):
         AccuracyProblem(sim, Transient("sheet", 0.51, swing=True))
 
 
-# -- the search ------------------------------------------------------------------------------
-@pytest.mark.parametrize("C,p,tol,k_start", [(50.0, 1, 0.01, 1), (3e4, 2, 0.01, 3), (1e6, 4, 1e-3, 1), (2.0, 1, 0.01, 40)])
-def test_search_finds_the_largest_accurate_dt_of_a_synthetic_curve(C, p, tol, k_start):
-    calls = []
+# -- metrics, floors, references -----------------------------------------------------------------
+class _Start:
+    """A transient for TransientProblem: the model's rest shape, or given positions, at rest."""
 
-    def error(k):
-        calls.append(k)
-        return C * (FRAME_DT / k) ** p
+    static = False
 
-    found = search_steps_per_frame(error, tol, k_start=k_start, precision=0.0)
-    k_true = max(k_start, math.ceil(FRAME_DT / (tol / C) ** (1 / p) - 1e-12))
-    assert found.k == k_true
-    assert error(found.k) <= tol
-    if found.k > k_start:
-        assert found.k_inaccurate == found.k - 1 and error(found.k - 1) > tol
-        assert not found.bounded
-    else:
-        assert found.bounded  # accurate at the search's upper dt bound
-    assert len(calls) <= 2 * math.log2(k_true + 1) + 4  # bracket + bisection, not a scan
+    def __init__(self, x=None):
+        self.x = x
+
+    def start(self, model):
+        x = model.host["q"].astype(np.float64) if self.x is None else self.x
+        return np.asarray(x, dtype=np.float32).astype(np.float64)
 
 
-def test_search_with_precision_stops_early_but_stays_accurate():
-    found = search_steps_per_frame(lambda k: 100.0 * (FRAME_DT / k), 0.01, precision=0.05)
-    k_true = math.ceil(FRAME_DT * 100.0 / 0.01)
-    assert found.k >= k_true and (found.k - found.k_inaccurate) / found.k_inaccurate <= 0.05
-    assert 100.0 * FRAME_DT / found.k <= 0.01
+def test_metrics_of_a_known_offset_and_a_slower_run():
+    """A rigid shift d: pointwise, centroid and patch errors all d / size, no damping; the same
+    path at half the speed (frame differences halved): damping 1 - 1/4, e 0."""
+    from warpcloth.lab.accuracy import _Shape, trajectory_metrics
+    from warpcloth.lab.transients import STUDY_SHEET
+
+    sim = STUDY_SHEET.build(rows=6, cols=6)
+    shape = _Shape(sim.model)
+    rng = np.random.default_rng(0)
+    q = sim.model.host["q"].astype(np.float64)
+    ref = np.stack([q + 0.01 * k * rng.normal(size=q.shape) for k in range(5)])
+    m = trajectory_metrics(ref + np.array([0.0, 0.003, 0.004]), ref, 1.0, shape, FRAME_DT)
+    assert m["point"] == pytest.approx(0.005) and m["centroid"] == pytest.approx(0.005) and m["patch"] == pytest.approx(0.005)
+    assert m["damping"] == pytest.approx(0.0, abs=1e-12) and m["stretch"] == pytest.approx(m["stretch_ref"])
+    slow = ref[:1] + 0.5 * (ref - ref[:1])  # every displacement from the start halved
+    m = trajectory_metrics(slow, ref, 1.0, shape, FRAME_DT)
+    assert m["damping"] == pytest.approx(0.75) and m["point"] > 0
+    assert len(shape.patches) == 16 and sorted(np.concatenate(shape.patches)) == list(range(36))
 
 
-def test_search_reports_nothing_when_the_floor_is_above_the_tolerance():
-    found = search_steps_per_frame(lambda k: 0.02 + 1.0 / k, 0.01, k_max=256)
-    assert found.k is None and found.dt() is None and found.k_inaccurate == 256 and not found.stalled
-    calls = []
-    flat = search_steps_per_frame(lambda k: calls.append(k) or 0.05 * (1 + 0.01 / k), 0.01, k_max=4096)
-    assert flat.k is None and flat.stalled and calls == [1, 2, 4, 8]  # a plateau: gives up after 3 doublings
-    noisy = search_steps_per_frame(lambda k: float("inf") if k < 16 else 0.5 / k, 0.01, precision=0.0)
-    assert noisy.k == 50 and not noisy.stalled  # unstable (inf) trials do not count as a plateau
+def inverted_pendulum():
+    """A particle 5 cm straight above a pinned one on a stiff spring: upright, unstable
+    (a perturbation grows as e^(sqrt(g / L) t) = e^(14 t)): an ill-posed transient."""
+    from dataclasses import replace
+
+    from warpcloth.sim.model import SpringType, build_model
+    from warpcloth.simulator import Simulator
+    from warpcloth.sim.control import Control
+
+    q = np.array([[0.0, 1.0, 0.0], [0.0, 1.05, 0.0]])
+    model = build_model(q, [[0, 1]], [int(SpringType.STRUCTURAL)], [0.01, 0.01], None, [0], None, "cpu",
+                        spring_stiffness=[1e3], spring_damping=[0.0])
+    model = replace(model, rows=1, cols=2, width=0.05, height=0.05)
+    return Simulator(model, "explicit_euler", Control(drag_rate=0.0, device="cpu"), dt=1e-3)
 
 
-def test_search_treats_nan_as_inaccurate():
-    found = search_steps_per_frame(lambda k: float("nan") if k < 8 else 0.0, 0.01, precision=0.0)
-    assert found.k == 8
+def test_conditioning_floor_refuses_an_ill_posed_case_and_passes_a_well_posed_one():
+    from warpcloth.lab.accuracy import TransientProblem, refused
+    from warpcloth.lab.transients import TRANSIENTS
+
+    sim = inverted_pendulum()
+    ill = TransientProblem(sim, _Start(), 60)  # 1 s: e^14 x 1e-7 m, far beyond 10 % of any tolerance
+    floor = ill.floor(sim)
+    assert floor["point"] > 0.1 and refused(floor["point"], 0.10) and refused(floor["point"], 0.01)
+    sheet = TRANSIENTS["swing"].scenario.build(rows=5, cols=5)
+    well = TransientProblem(sheet, TRANSIENTS["swing"], 30)
+    floor = well.floor(sheet)
+    assert set(floor) == {"point", "centroid", "patch", "damping", "stretch"}
+    assert 1e-8 < floor["point"] < 1e-5 and not refused(floor["point"], 0.01)  # about the perturbation / size
+    assert refused(None, 0.01) and refused(math.inf, 0.01) and not refused(0.0009, 0.01) and refused(0.0011, 0.01)
+
+
+def test_warp_reference_above_12_and_its_floor_runs_at_its_steps():
+    """Above 12 x 12 the reference is the float64 Warp RK4, accepted; its floor's unperturbed run
+    at the same steps gives the reference to the bit."""
+    from warpcloth.lab.accuracy import reference_for
+    from warpcloth.lab.reference_warp import warp_trajectory
+    from warpcloth.lab.transients import TRANSIENTS
+
+    tr = TRANSIENTS["swing"]
+    sim = tr.scenario.build(rows=13, cols=13)
+    ref = reference_for(sim.model, sim.control, 4, tr.start(sim.model))
+    assert ref.method == "Warp RK4" and ref.accepted and ref.estimate <= 1e-5 and len(ref.piece_steps) == 4
+    again = warp_trajectory(sim.model, sim.control, 4 * FRAME_DT, FRAME_DT, x0=tr.start(sim.model), piece_steps=ref.piece_steps)
+    assert np.array_equal(again, ref.frames)
+    small = TRANSIENTS["swing"].scenario.build(rows=5, cols=5)
+    assert reference_for(small.model, small.control, 2, tr.start(small.model)).method == "DOP853"
+
+
+def test_contact_equilibrium_of_a_particle_on_a_frictionless_plane():
+    """A particle on a spring below a pin, held up by a plane above its free equilibrium: it rests
+    on the plane (offset by the thickness), not inside it; a plane below changes nothing."""
+    from dataclasses import replace
+
+    from warpcloth.lab.reference import contact_equilibrium, static_equilibrium
+    from warpcloth.sim.colliders import Plane
+    from warpcloth.sim.control import Control
+    from warpcloth.sim.model import SpringType, build_model
+
+    q = np.array([[0.0, 1.0, 0.0], [0.0, 0.5, 0.0]])
+    model = build_model(q, [[0, 1]], [int(SpringType.STRUCTURAL)], [0.1, 0.1], None, [0], None, "cpu",
+                        spring_stiffness=[10.0], spring_damping=[0.0])
+    model = replace(model, width=1.0, height=1.0)
+    g = -float(Control(device="cpu").gravity[1])
+    free_y = 0.5 - float(model.host["mass"][1]) * g / 10.0  # 0.4019 m (the float32 mass)
+    plane = Plane(point=(0.0, 0.45, 0.0), normal=(0.0, 1.0, 0.0), thickness=0.01)
+    eq = contact_equilibrium(model, Control(drag_rate=0.0, device="cpu"), colliders=(plane,))
+    assert eq.x[1, 1] == pytest.approx(0.46, abs=1e-9) and eq.contacts == 1 and eq.penetration <= 1e-9
+    assert eq.residual < 1e-6 and abs(eq.x[1, 0]) < 1e-12
+    low = Plane(point=(0.0, 0.2, 0.0), normal=(0.0, 1.0, 0.0))
+    eq = contact_equilibrium(model, Control(drag_rate=0.0, device="cpu"), colliders=(low,))
+    assert eq.contacts == 0 and eq.x[1, 1] == pytest.approx(free_y, abs=1e-9)
+    assert np.allclose(eq.x, static_equilibrium(model, Control(drag_rate=0.0, device="cpu")).x, atol=1e-9)
+
+
+def test_the_study_contact_equilibrium_is_unique_and_on_the_plane():
+    from warpcloth.lab.reference import contact_equilibrium
+    from warpcloth.lab.transients import CONTACT_THICKNESS, TRANSIENTS, contact_plane
+
+    tr = TRANSIENTS["contact"]
+    sim = tr.scenario.build(rows=6, cols=6)
+    a = contact_equilibrium(sim.model, sim.control)
+    b = contact_equilibrium(sim.model, sim.control, x0=tr.start(sim.model))  # from the tilted start
+    assert np.max(np.abs(a.x - b.x)) < 1e-9 and a.contacts >= 6
+    p = contact_plane()
+    gap = (a.x - np.array(p.point)) @ np.array(p.normal) - CONTACT_THICKNESS
+    assert gap.min() > -1e-9 and np.sort(gap)[a.contacts - 1] < 1e-9
 
 
 def test_steps_per_frame_at_most():
@@ -110,34 +190,113 @@ def test_tolerance_must_be_a_fraction(bad):
         check_tolerance(bad)
 
 
-# -- the frontier ----------------------------------------------------------------------------
-def test_power_law_fit_recovers_a_known_exponent():
-    rng = np.random.default_rng(0)
-    n = np.array([64, 256, 1024, 4096, 16384])
-    cost = 2e-4 * n ** 1.3 * np.exp(rng.normal(0, 0.02, n.size))
-    fit = fit_power_law(n, cost)
-    assert abs(fit.p - 1.3) < 0.03 and 0 < fit.residual < 0.02 and fit.points == 5
-    exact = fit_power_law(n, 2e-4 * n ** 1.3)
-    assert abs(exact.p - 1.3) < 1e-9 and exact.residual < 1e-9 and abs(exact.a / 2e-4 - 1) < 1e-9
+# -- configurations, Pareto fronts, budgets, fits ------------------------------------------------------
+def test_configurations_cover_the_knobs_cheapest_first():
+    from fractions import Fraction
+
+    from warpcloth.lab.configs import configurations, static_configurations
+
+    ee = configurations("explicit_euler", FRAME_DT / 10.5, "full")  # max stable dt: k = 11 at the most
+    assert [c.k for c in ee] == [11, 21, 42, 84] and all(c.options == () for c in ee)
+    assert configurations("rk4", None) == []
+    pbd = configurations("pbd", None, "full")
+    assert {c.option_dict["substeps"] for c in pbd} == {1, 4, 16, 64, 256} and {c.option_dict["iterations"] for c in pbd} == {1, 5, 20}
+    assert {c.k for c in pbd} == {Fraction(1, 2), 1, 4} and len(pbd) == 45
+    assert [c.work() for c in pbd] == sorted(c.work() for c in pbd)
+    ie = configurations("implicit_euler", None, "full")
+    assert {c.option_dict["preconditioner"] for c in ie} == {"jacobi", "multigrid"} and Fraction(1, 2) in {c.k for c in ie}
+    small = configurations("implicit_euler", None, "quick", n=6)  # below the multigrid's 7 x 7: jacobi alone
+    assert {c.option_dict["preconditioner"] for c in small} == {"jacobi"}
+    assert {c.option_dict["vbd_iterations"] for c in configurations("vbd", None)} == {1, 2, 4, 10, 20}
+    assert {(c.option_dict["pd_iterations"], c.option_dict["pd_cg_iterations"]) for c in configurations("projective", None)} \
+        == {(i, g) for i in (1, 5, 20) for g in (5, 20)}
+    assert ee[0].dt == pytest.approx(FRAME_DT / 11) and configurations("vbd", None)[0].label().startswith("dt 1/30 s")
+    assert [c.k for c in static_configurations("vbd", None)] == [1, 4] and [c.k for c in static_configurations("rk4", 1e-3)] == [17]
 
 
-def test_frontier_inside_and_beyond_the_measured_range():
-    n = [100, 400, 1600, 6400]
-    f = frontier(n, [1e-3 * v for v in n])  # real time up to N = 1000
-    assert f.measured == 400 and abs(f.fitted - 1000) < 1e-6 and f.extrapolated == ""
-    assert not f.all_realtime and not f.none_realtime
-    g = frontier(n, [1e-5 * v for v in n])  # N* = 1e5, beyond 6400
-    assert g.measured == 6400 and g.all_realtime and g.extrapolated == "above" and "extrapolated above" in g.describe()
-    h = frontier(n, [1e-1 * v for v in n])  # N* = 10, below 100
-    assert h.measured is None and h.none_realtime and h.extrapolated == "below"
-    assert frontier([100], [0.5]).fit is None  # one size: no fit
+def test_pareto_front_and_cheapest_on_synthetic_points():
+    from warpcloth.lab.frontier import Point, cheapest, pareto_front
+
+    pts = [Point(1.0, 0.20, "a"), Point(2.0, 0.05, "b"), Point(3.0, 0.08, "c"), Point(4.0, 0.004, "d"),
+           Point(0.5, math.inf, "unstable"), Point(2.0, 0.06, "b2"), Point(5.0, 0.004, "e")]
+    assert [p.label for p in pareto_front(pts)] == ["a", "b", "d"]  # c, b2, e are dominated, inf never on it
+    assert cheapest(pts, 0.10).label == "b" and cheapest(pts, 0.01).label == "d" and cheapest(pts, 0.001) is None
+    assert cheapest(pts, 0.2).label == "a" and cheapest([Point(1.0, 0.05, "x"), Point(1.0, 0.01, "y")], 0.1).label == "y"
+    assert pareto_front([]) == [] and cheapest([], 0.1) is None
+
+
+def test_budget_frontier_is_the_largest_measured_size_and_fits_need_three_sizes():
+    from warpcloth.lab.frontier import budget_frontier, fit_power_law
+
+    costs = {256: 0.4, 1024: 1.6, 4096: 6.4, 16384: 25.6}  # cost = N / 640 ms
+    f = budget_frontier(costs, 2.0, all_sizes=[256, 1024, 4096, 16384, 65536])
+    assert f.measured == 1024 and f.missing == (65536,) and f.fit.p == pytest.approx(1.0)
+    assert f.fitted == pytest.approx(1280) and f.where == "" and "within the measured range" in f.describe()
+    g = budget_frontier(costs, 16.7)
+    assert g.measured == 4096 and g.fitted == pytest.approx(16.7 * 640)
+    big = budget_frontier(costs, 30.0)  # fit: 19200 particles, above 16384 but within 2x
+    assert big.measured == 16384 and big.where == "above" and big.fitted == pytest.approx(19200)
+    far = budget_frontier(costs, 100.0)  # 64000 > 2 x 16384: not extrapolated
+    assert far.fitted is None and far.where == "beyond" and "not extrapolated" in far.describe()
+    assert budget_frontier(costs, 0.1).measured is None and "none fits" in budget_frontier(costs, 0.1).describe()
+    two = budget_frontier({256: 0.4, 1024: 1.6}, 2.0)
+    assert two.fit is None and two.fitted is None and two.measured == 1024 and "fit" not in two.describe()
+    assert fit_power_law([256, 1024], [0.4, 1.6]) is None and fit_power_law([1, 2, 4], [1.0, 2.0, 4.0]).p == pytest.approx(1.0)
+
+
+def test_a_fit_through_two_sizes_prints_na_in_the_report():
+    from warpcloth.lab.report import Data, budget_tables
+
+    rows = []
+    for n, ms in ((8, 0.5), (12, 1.0)):
+        rows += synthetic_group("explicit_euler", n, error=0.004, ms=ms)
+    lines = budget_tables(Data(rows), (0.01,), 2.0)
+    row = next(line for line in lines if line.startswith("| explicit_euler"))
+    assert "| n/a |" in row and "144 particles" in row
+
+
+def synthetic_group(integrator, n, error, ms, floor=1e-6, k=1.0):
+    """Rows of one configuration of ``integrator`` at n x n: floors, the two trials, a timing."""
+    base = {c: None for c in COLUMNS}
+    base.update(device="cpu", rows=n, cols=n, integrator=integrator, options=None, steps_per_frame=k, stable=True)
+    out = [dict(base, measurement="max_stable_dt", scenario="study_sheet", dt_s=FRAME_DT / k)]
+    for t in ("swing", "flag"):
+        out.append(dict(base, measurement="floor", integrator="reference", transient=t, reference="DOP853",
+                        floor_point_rel=floor, floor_centroid_rel=floor, floor_patch_rel=floor))
+        out.append(dict(base, measurement="trial", transient=t, error_rel=error, centroid_error_rel=error,
+                        patch_error_rel=error, max_strain_rel=0.01, damping_rel=0.0))
+    out.append(dict(base, measurement="timing", note="at the configuration dt", ms_per_frame=ms))
+    return out
+
+
+def test_report_refuses_a_verdict_above_the_floor_and_judges_on_the_other_transient():
+    from warpcloth.lab.report import Data, verdict
+
+    rows = synthetic_group("explicit_euler", 8, error=0.004, ms=0.5)
+    data = Data(rows)
+    assert data.cheapest("cpu", "explicit_euler", 8, 0.01).cost == 0.5 and not data.refusal("cpu", 8, "point", 0.01)
+    for r in rows:
+        if r["measurement"] == "floor" and r["transient"] == "flag":
+            r["floor_point_rel"] = 0.002  # > 10 % of 1 %
+    data = Data(rows)
+    assert data.judged("cpu", 8, "point", 0.01) == ["swing"] and data.judged("cpu", 8, "point", 0.05) == ["swing", "flag"]
+    assert "flag floor of the pointwise e is 0.2 %" in data.excluded("cpu", 8, "point", 0.01)
+    for r in rows:
+        if r["measurement"] == "floor":
+            r["floor_point_rel"] = 0.002
+    data = Data(rows)
+    assert data.cheapest("cpu", "explicit_euler", 8, 0.01) is None and data.refusal("cpu", 8, "point", 0.01)
+    lines = verdict(data, 0.01, 2.0)
+    assert any("refused at 8x8" in line and "pointwise e ≤ 1 %" in line for line in lines)
+    assert any(line.startswith("At 8x8 on cpu, pointwise e ≤ 1 %: refused") for line in lines)
+    assert any("pointwise e ≤ 5 %" in line and "holds at 8x8" in line for line in lines)
 
 
 # -- the study end to end --------------------------------------------------------------------
 from warpcloth.cli import main  # noqa: E402
 from warpcloth.lab.report import PLOTS  # noqa: E402
 from warpcloth.lab.plan import make_plan  # noqa: E402
-from warpcloth.lab.results import COLUMNS, read_rows  # noqa: E402
+from warpcloth.lab.results import read_rows  # noqa: E402
 from warpcloth.lab.study import run_study  # noqa: E402
 
 def cli(argv) -> int:
@@ -148,7 +307,7 @@ def cli(argv) -> int:
         return exc.code
 
 
-TINY = ["study", "--profile", "quick", "--integrators", "explicit_euler,pbd", "--sizes", "4", "--accuracy-sizes", "4", "--quiet"]
+TINY = ["study", "--profile", "quick", "--integrators", "explicit_euler,vbd", "--sizes", "4", "--quiet"]
 
 
 @pytest.fixture(scope="module")
@@ -159,7 +318,7 @@ def tiny_study(tmp_path_factory):
 
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
-        code = main(TINY + ["--devices", "cpu,cuda:7", "--match-accuracy", "--out", str(out)])
+        code = main(TINY + ["--devices", "cpu,cuda:7", "--out", str(out)])
     return code, out, err.getvalue()
 
 
@@ -176,23 +335,44 @@ def test_tiny_study_end_to_end(tiny_study):
     keys = [r["key"] for r in rows]
     assert len(keys) == len(set(keys))
     kinds = {r["measurement"] for r in rows}
-    assert {"max_stable_dt", "floor", "error", "max_accurate_dt", "static", "max_static_accurate_dt", "timing", "match_result"} <= kinds
+    assert kinds == {"max_stable_dt", "floor", "trial", "static", "timing"}
     for r in rows:
         assert r["device"] == "cpu" and r["particles"] == 16
-    for r in [r for r in rows if r["measurement"] == "timing"]:
-        assert r["timed_windows"] >= 5 and r["ms_per_step_min"] <= r["ms_per_step_median"] <= r["ms_per_step_max"]
+    floors = {r["transient"]: r for r in rows if r["measurement"] == "floor"}
+    assert set(floors) == {"swing", "flag", "contact"} and floors["swing"]["reference"] == "DOP853"
+    for t in ("swing", "flag"):
+        assert all(0 < floors[t][f"floor_{m}_rel"] < 1e-4 for m in ("point", "centroid", "patch"))
+    assert floors["contact"]["floor_rest_rel"] < 1e-9
+    trials = [r for r in rows if r["measurement"] == "trial"]
+    assert {r["transient"] for r in trials} == {"swing", "flag"} and {r["steps_per_frame"] for r in trials if r["integrator"] == "vbd"} == {0.5, 1, 4}
+    for r in trials:
+        assert r["stable"] is False or (r["error_rel"] >= r["patch_error_rel"] - 1e-12 and r["damping_rel"] is not None
+                                        and r["max_strain_rel"] > 0 and r["ref_max_strain_rel"] > 0)
+    timed = [r for r in rows if r["measurement"] == "timing"]
+    for r in timed:
+        assert r["timed_windows"] >= 3 and r["ms_per_step_min"] <= r["ms_per_step_median"] <= r["ms_per_step_max"]
         assert r["wall_s_per_sim_s"] == pytest.approx(r["ms_per_step_median"] / 1000 / r["dt_s"])
-    acc = {(r["integrator"], r["scenario"]): r for r in rows if r["measurement"] == "max_accurate_dt"}
-    ee = acc[("explicit_euler", "sheet")]
-    assert ee["dt_s"] and ee["error_rel"] <= ee["tolerance_rel"] and ee["floor_error_rel"] < ee["tolerance_rel"] / 100
+        assert r["ms_per_frame"] == pytest.approx(r["ms_per_step_median"] * r["steps_per_frame"])
+    ran = {(r["integrator"], r["options"], r["steps_per_frame"]) for r in trials if r["stable"]}
+    assert ran <= {(r["integrator"], r["options"], r["steps_per_frame"]) for r in timed}
+    statics = [r for r in rows if r["measurement"] == "static"]
+    assert {r["integrator"] for r in statics} == {"explicit_euler", "vbd"} and all(r["static_error_rel"] < 0.05 for r in statics)
     report = (out / "report.md").read_text()
-    for section in ("## Machine and command", "## Method", "## Verdict", "**Null hypothesis**", "**Alternative hypothesis**",
-                    "Cheapest per simulated second", "### Real-time frontier", "### Float32 noise floor", "## Plots",
-                    "## Columns of results.csv", "pbd at 4x4 on cpu", "warpcloth study --profile quick"):
+    for section in ("## Machine and command", "## Method", "## Verdict", "**H0**", "**H1**", "within a 2 ms budget",
+                    "within the whole 16.7 ms frame", "pointwise e ≤ 1 %", "pointwise e ≤ 5 %",
+                    "## What changed since the previous study", "### References and conditioning floors",
+                    "### Cheapest configuration reaching pointwise e ≤ 1 %", "### Cheapest configuration reaching pointwise e ≤ 10 %",
+                    "### Largest measured size within the budget", "### Coarse shape, damping and stretch",
+                    "### Contact: the rest shape", "### Max stable dt", "One cloth at every size", "## Plots",
+                    "## Columns of results.csv", "warpcloth study --profile quick"):
         assert section in report, section
+    for line in report.splitlines():  # Markdown tables of at most about 10 columns
+        if line.startswith("|") and not line.startswith("|---"):
+            assert line.count(" | ") <= 10, line
     for name in PLOTS:
         assert (out / name).stat().st_size > 1000 and f"]({name})" in report
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (out / ".references" / ".gitignore").read_text() == "*\n"
 
 
 def test_study_refuses_to_overwrite_without_a_flag(tiny_study, capsys):
@@ -204,7 +384,7 @@ def test_study_refuses_to_overwrite_without_a_flag(tiny_study, capsys):
 
 
 def test_resume_after_an_interrupt_does_not_redo_finished_measurements(tmp_path):
-    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4], accuracy_sizes=[4])
+    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4])
     seen = []
 
     def interrupt_after_five(row):
@@ -270,9 +450,10 @@ def test_unwritable_out_is_refused_before_any_work(tmp_path, capsys):
 
 # -- in parallel (issue 17) --------------------------------------------------------------------
 #: the columns that must not depend on where or alongside what a measurement ran (not timings)
-SAME = ["measurement", "scenario", "integrator", "options", "device", "particles", "dt_s", "steps_per_frame", "bound_dt_s",
-        "search_bounded", "tolerance_rel", "error_rel", "floor_error_rel", "max_strain_rel", "stable", "equilibrium_reached",
-        "time_to_equilibrium_sim_s", "static_error_rel", "sag_error_rel", "iterations", "substeps", "trials"]
+SAME = ["measurement", "scenario", "transient", "integrator", "options", "device", "particles", "dt_s", "steps_per_frame",
+        "bound_dt_s", "search_bounded", "error_rel", "centroid_error_rel", "patch_error_rel", "damping_rel", "floor_point_rel",
+        "floor_rest_rel", "max_strain_rel", "stable", "equilibrium_reached", "time_to_equilibrium_sim_s", "static_error_rel",
+        "sag_error_rel", "iterations", "substeps", "trials"]
 
 
 def same_rows(a: list, b: list) -> None:
@@ -283,16 +464,16 @@ def same_rows(a: list, b: list) -> None:
 
 
 def test_workers_2_gives_the_serial_rows(tiny_study, tmp_path):
-    """The tiny study (explicit_euler and pbd, --match-accuracy) in 2 worker processes: the same
+    """The tiny study (explicit_euler and vbd) in 2 worker processes: the same
     keys and stability/accuracy values as the serial run; the searches ran in both workers, the
     timings one at a time, and the driver wrote every row once."""
     _, serial_out, _ = tiny_study
     out = tmp_path / "par"
-    assert main(TINY + ["--devices", "cpu", "--match-accuracy", "--workers", "2", "--out", str(out)]) == 0
+    assert main(TINY + ["--devices", "cpu", "--workers", "2", "--out", str(out)]) == 0
     serial, par = read_rows(serial_out / "results.csv"), read_rows(out / "results.csv")
     same_rows(serial, par)
     assert {r["worker"] for r in serial} == {"main"} and {r["concurrent_runs"] for r in serial} == {1}
-    searches = [r for r in par if r["measurement"] not in ("timing", "match_result")]
+    searches = [r for r in par if r["measurement"] not in ("timing", "floor")]
     assert {r["worker"] for r in searches} == {"local:1", "local:2"}  # one group per worker
     timed = [r for r in par if r["measurement"] == "timing"]
     assert timed and all(r["concurrent_runs"] == 1 for r in timed)
@@ -350,8 +531,8 @@ def test_a_scenario_file_runs_through_the_quick_profile(tmp_path):
 
     path = write_scenario(tmp_path)
     out = tmp_path / "out"
-    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler,xpbd", "--sizes", "4", "--accuracy-sizes", "4",
-                 "--scenarios", f"sheet,flag,{path}", "--quiet", "--out", str(out)]) == 0
+    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler,xpbd", "--sizes", "4",
+                 "--scenarios", f"grid,{path}", "--quiet", "--out", str(out)]) == 0
     rows = read_rows(out / "results.csv")
     mine = [r for r in rows if r["scenario"] == path]
     assert {(r["measurement"], r["integrator"]) for r in mine} == {(m, i) for m in ("max_stable_dt", "static", "timing")
@@ -365,7 +546,7 @@ def test_a_scenario_file_runs_through_the_quick_profile(tmp_path):
             assert r["dt_s"] <= stable[r["integrator"]]["dt_s"] and r["ms_per_step_median"] > 0
         if r["measurement"] == "static":
             assert "no float64 reference" in r["note"] and r["static_error_rel"] is None
-    assert {r["measurement"] for r in rows if r["scenario"] == "sheet"} >= {"max_accurate_dt", "error", "timing"}
+    assert {r["measurement"] for r in rows if r["scenario"] == "study_sheet"} >= {"trial", "timing", "max_stable_dt"}
     report = (out / "report.md").read_text()
     assert "## Scenarios" in report and f"`{path}`" in report and "accuracy not measured" in report and "## Verdict" in report
 
@@ -382,6 +563,7 @@ def test_a_scenario_file_study_in_workers_gives_the_serial_rows(tmp_path):
 
 @pytest.mark.parametrize("scenarios,message", [
     ("sheet", "--scenarios: sheet without flag: the study's sheet and flag go together"),
+    ("grid,nosuch", "unknown scenario 'nosuch'"),
     ("flag,missing.toml", "--scenarios: flag without sheet"),
     ("sheet,flag,missing.toml", "missing.toml"),
     ("sheet,flag,nosuch", "unknown scenario 'nosuch'"),
@@ -400,42 +582,50 @@ def test_standard_profile_is_every_integrator_at_16_to_128():
 
     plan = make_plan("standard")
     assert plan.integrators == list(integrator_names()) and {"vbd", "projective"} <= set(plan.integrators)
-    assert plan.sizes == [16, 32, 64, 128] and plan.devices == ["cpu"]
-    assert [plan.maxdt_duration_at(n) for n in (8, 16, 32, 64, 128, 256)] == [1.0, 1.0, 1.0, 0.5, 0.25, 0.25]
+    assert plan.sizes == [16, 32, 64, 128] and plan.devices == ["cpu"] and plan.level == "full" and plan.budget_ms == 2.0
+    assert [plan.window_frames("swing", n) for n in (16, 32, 64, 128)] == [60, 60, 24, 16]
+    assert [plan.maxdt_duration_at(n) for n in (16, 64)] == [1.0, pytest.approx(0.4)]
+    assert make_plan("gpu").devices == ["cuda"] and make_plan("gpu").sizes == [64, 128, 256, 512]
+    assert make_plan("quick", budget_ms=4).budget_ms == 4.0 and 0.02 in make_plan("quick", tolerance=0.02).tolerances
+    for bad in (0, -1, "x", float("inf")):
+        with pytest.raises(WarpclothError, match="--budget-ms"):
+            make_plan("quick", budget_ms=bad)
 
 
 def test_estimate_adds_up_the_modelled_steps():
-    """One integrator at one size, costs given: each phase is the documented step count x the
-    per-step cost, capped by the wall caps; doubling the per-step cost doubles the uncapped phases."""
+    """One integrator at one size, costs given: the trials are configurations x transients x the
+    window's steps x the per-step cost; doubling the cost doubles the trials until the caps prune."""
     from dataclasses import replace
 
-    from warpcloth.lab.estimate import estimate_plan
+    from warpcloth.lab.configs import configurations
+    from warpcloth.lab.estimate import TRIAL_FACTOR, estimate_plan
 
-    plan = replace(make_plan("quick", integrators=["explicit_euler"], sizes=[10], accuracy_sizes=[]), maxdt_wall_cap=None,
-                   equilibrium_wall_cap=None)
+    plan = replace(make_plan("quick", integrators=["explicit_euler"], sizes=[10]), maxdt_wall_cap=None,
+                   equilibrium_wall_cap=None, run_wall_cap=1e9, max_frame_ms=1e9)
     k0, ms = 10, 0.5  # dt0 = (1/60 s) / 10
-    phases = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, {("explicit_euler", 10): (k0, ms, None)})}
-    steps_trial = plan.maxdt_duration / (1.5 * FRAME_DT / k0)  # 6 trials at 1.5x the default dt, per scenario
-    assert phases["stability"].seconds == pytest.approx(2 * 6 * steps_trial * ms / 1000)
-    assert phases["equilibrium"].seconds == pytest.approx(plan.equilibrium_duration / (FRAME_DT / k0) * ms / 1000)
-    assert phases["accuracy"].seconds == 0 and phases["accuracy"].measurements == 0
-    frame = k0 * ms / 1000
-    assert phases["timing"].seconds == pytest.approx((3 + plan.windows * math.ceil(plan.window_seconds / frame)) * frame)
-    double = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, {("explicit_euler", 10): (k0, 2 * ms, None)})}
-    assert double["stability"].seconds == pytest.approx(2 * phases["stability"].seconds)
-    capped = {p.phase.split(" ")[0]: p for p in estimate_plan(replace(plan, maxdt_wall_cap=0.01),
-                                                               {("explicit_euler", 10): (k0, ms, None)})}
-    assert capped["stability"].seconds == pytest.approx(2 * 6 * 0.01)  # every trial stopped at the wall cap
+    costs = {("explicit_euler", 10): (k0, ms), ("omega", 10): 1000.0}
+    phases = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, costs)}
+    frames = plan.window_frames("swing", 10) + plan.window_frames("flag", 10)
+    ks = [float(c.k) for c in configurations("explicit_euler", FRAME_DT / k0, plan.level)]
+    assert phases["configurations"].seconds == pytest.approx(TRIAL_FACTOR * sum(frames * k * ms / 1000 for k in ks))
+    assert phases["configurations"].measurements == 2 * len(ks) and phases["timings"].measurements == len(ks)
+    steps_trial = plan.maxdt_duration_at(10) / (1.5 * FRAME_DT / k0)  # 6 trials at 1.5x the default dt
+    assert phases["stability"].seconds == pytest.approx(6 * steps_trial * ms / 1000)
+    double = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, {**costs, ("explicit_euler", 10): (k0, 2 * ms)})}
+    assert double["configurations"].seconds == pytest.approx(2 * phases["configurations"].seconds)
+    pruned = {p.phase.split(" ")[0]: p for p in estimate_plan(replace(plan, max_frame_ms=k0 * ms * 1.5), costs)}
+    assert pruned["configurations"].seconds == pytest.approx(TRIAL_FACTOR * frames * ks[0] * ms / 1000)  # only the k0 one
 
 
 def test_estimate_flag_prints_the_phases_and_writes_nothing(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler,xpbd", "--sizes", "4", "--accuracy-sizes", "4",
-                 "--estimate", "--quiet"]) == 0
+    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler,xpbd", "--sizes", "4",
+                 "--estimate", "--workers", "2", "--quiet"]) == 0
     out = capsys.readouterr().out
-    for phase in ("stability (max stable dt)", "equilibrium and static accuracy", "accuracy (references, floors, searches)", "timing"):
+    for phase in ("references and floors", "stability (max stable dt)", "configurations on the swing and the flag",
+                  "contact runs to rest", "timings (one at a time)"):
         assert phase in out
-    assert "estimate of profile quick" in out and "total about" in out
+    assert "estimate of profile quick" in out and "total about" in out and "with --workers 2" in out
     assert list(tmp_path.iterdir()) == []
 
 
@@ -448,7 +638,7 @@ def test_out_is_required_but_with_estimate(capsys):
 def test_an_interrupted_study_resumes_in_workers(tmp_path):
     """Rows of an interrupted serial study are reused (not remeasured, not duplicated) when it
     resumes with --workers 2; the file ends with the keys of a whole study."""
-    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4], accuracy_sizes=[4])
+    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4])
     seen = []
 
     def interrupt_after_six(row):

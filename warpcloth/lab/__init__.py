@@ -4,11 +4,14 @@
 * :mod:`warpcloth.lab.maxdt`: the max-stable-dt search;
 * :mod:`warpcloth.lab.bench`: the CPU vs CUDA benchmark;
 * :mod:`warpcloth.lab.study`: the accuracy-aware study's driver, with :mod:`~warpcloth.lab.plan` (what it
-  measures), :mod:`~warpcloth.lab.measure` (the measurements), :mod:`~warpcloth.lab.accuracy`,
-  :mod:`~warpcloth.lab.results` (results.csv), :mod:`~warpcloth.lab.report`, :mod:`~warpcloth.lab.frontier`
-  and :mod:`~warpcloth.lab.estimate` (``--estimate``);
+  measures), :mod:`~warpcloth.lab.transients` (its cloth and transients), :mod:`~warpcloth.lab.configs`
+  (the configurations), :mod:`~warpcloth.lab.measure` (the measurements), :mod:`~warpcloth.lab.accuracy`
+  (references, metrics, floors), :mod:`~warpcloth.lab.results` (results.csv), :mod:`~warpcloth.lab.report`,
+  :mod:`~warpcloth.lab.frontier` (Pareto fronts, budgets, fits) and :mod:`~warpcloth.lab.estimate` (``--estimate``);
 * :mod:`warpcloth.lab.reference`: float64 references that warpcloth's float32 runs are measured
-  against (NumPy forces, SciPy ``solve_ivp``, a Newton solve of the static equilibrium; docs/reference.md);
+  against (NumPy forces, SciPy ``solve_ivp``, a Newton solve of the static equilibrium and of the
+  equilibrium with frictionless contact; docs/reference.md), and :mod:`warpcloth.lab.reference_warp`
+  (the float64 Warp RK4 above 12 x 12);
 * :mod:`warpcloth.lab.parallel`: local worker processes and Ray tasks for sweeps and studies.
 
 Nothing in :mod:`warpcloth`'s physics imports this package. The reference's names are
@@ -17,7 +20,8 @@ first use only, so a sweep does not pay for it.
 """
 
 _REFERENCE = (
-    "Convergence", "Equilibrium", "Float64Model", "cloth_size", "convergence_check", "reference_forces",
+    "ContactEquilibrium", "Convergence", "Equilibrium", "Float64Model", "cloth_size", "contact_equilibrium",
+    "convergence_check", "reference_forces",
     "reference_trajectory", "simulate_frames", "static_equilibrium", "swing_from_horizontal", "trajectory_error",
     "wind_switch_times",
 )

@@ -1,39 +1,56 @@
 """Accuracy of the float32 integrators against the float64 reference (design.md, "Accuracy and
 the study").
 
-* **Transient error** e(dt): max over frames and particles of |x - x_ref| / cloth size on a
-  transient every integrator can follow: the sheet released from horizontal, swinging down on
-  its two pins (:func:`~warpcloth.lab.reference.swing_from_horizontal`), and the flag's first
-  seconds from rest in its wind. Frames are 1/60 s apart, so a trial dt is one frame divided by
-  a whole number of steps k: dt = (1/60 s) / k.
-* **Max accurate dt**: the largest dt = frame/k with e <= tolerance, found by
-  :func:`search_steps_per_frame` (bracket by doubling k, then bisection on k). The search
-  *assumes* e grows monotonically with dt (it does for a scheme in its asymptotic range; a
-  non-monotone curve makes the answer one accurate dt, not necessarily the largest).
-* **Float32 noise floor**: e of rk4 at a tiny dt (a quarter of its default dt), reported beside
-  every max accurate dt so that the tolerance is known to be above it.
-* **Static error**: after a run of the sheet from rest to equilibrium, max |x - x_eq| / size
-  against the float64 equilibrium (:func:`~warpcloth.lab.reference.static_equilibrium`), and the
-  relative error of the sag (the largest displacement from rest).
+* **References.** At <= 12 x 12 the SciPy DOP853 integration (:mod:`warpcloth.lab.reference`);
+  above, the float64 Warp RK4 with its halving run (:mod:`warpcloth.lab.reference_warp`),
+  accepted when the halving estimate is <= 1e-5 of the cloth size (DOP853 is its cross-check at
+  <= 12 x 12, tests/test_reference_warp.py). Static: the float64 equilibrium with the contact
+  (:func:`~warpcloth.lab.reference.contact_equilibrium`).
+* **Metrics** (:func:`trajectory_metrics`, :data:`METRICS`), each a fraction of the cloth size or
+  a ratio: pointwise e = max over frames and particles |x - x_ref| / size; coarse shape (the
+  centre of mass, and the 4 x 4 patch means); damping (1 - the frames' kinetic energy summed over
+  the window / the reference's: numerical damping, > 0 damped, < 0 energy gained); stretch (the
+  run's largest strain of a structural spring; above 10 % "stretchy"); static: the rest shape and the sag against the
+  float64 equilibrium (:data:`STATIC_METRICS`).
+* **Conditioning floor** of a transient x size (:meth:`TransientProblem.floor`): the same metrics
+  between the float64 reference and float64 runs from the start moved by a 1e-7 m random
+  perturbation (2 seeds; the max). A verdict at tolerance t is refused where the floor exceeds
+  :data:`FLOOR_FRACTION` t (:func:`refused`).
+* A trial's step is dt = (1/60 s) / k, k a whole number of steps per frame, or k = 1/2 (dt =
+  1/30 s: compared every other frame).
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
 from warpcloth.errors import WarpclothError, require
 from warpcloth.run.harness import RunHarness
-from warpcloth.lab.reference import cloth_size, reference_trajectory, simulate_frames, static_equilibrium, swing_from_horizontal, trajectory_error
+from warpcloth.lab.reference import (cloth_size, reference_trajectory, simulate_frames, static_equilibrium,
+                                     swing_from_horizontal, trajectory_error)
 
 #: The frame of every accuracy run [s]: trial dts are FRAME_DT / k.
 FRAME_DT = 1.0 / 60.0
 #: Default tolerance of e: 1 % of the cloth size.
 DEFAULT_TOLERANCE = 0.01
+#: The tolerances of the study's tables ("cheapest configuration reaching e <= ...").
+TOLERANCES = (0.01, 0.05, 0.10)
+#: A verdict at tolerance t is refused where the conditioning floor exceeds this fraction of t.
+FLOOR_FRACTION = 0.1
+#: The conditioning floor's perturbation of the start [m] (per free particle, a random direction).
+PERTURBATION = 1e-7
+#: Above this many particles a side the reference is the float64 Warp RK4 (below: SciPy DOP853).
+SCIPY_MAX_SIZE = 12
+#: The metrics of a dynamic transient (fractions of the size, but damping: a ratio, and stretch: a strain).
+METRICS = ("point", "centroid", "patch", "damping", "stretch")
+#: The metrics of a static one (the rest shape: a fraction of the size; the sag: relative).
+STATIC_METRICS = ("rest", "sag")
+#: A run whose largest strain exceeds this is "stretchy" (even when stable).
+STRETCHY = 0.10
 
 
 @dataclass(frozen=True)
@@ -70,6 +87,7 @@ class AccuracyProblem:
     """
 
     def __init__(self, sim, transient: Transient, rtol: float = 1e-10, atol: float = 1e-12):
+        # DOP853 up to SCIPY_MAX_SIZE particles a side, the float64 Warp RK4 above (reference_for)
         require(transient.frames >= 1 and abs(transient.frames * FRAME_DT - transient.duration) < 1e-9,
                 f"transient duration {transient.duration!r} s must be a whole number of 1/60 s frames")
         self.transient = transient
@@ -77,8 +95,8 @@ class AccuracyProblem:
         x0 = swing_from_horizontal(sim.model) if transient.swing else sim.model.host["q"].astype(np.float64)
         self.x0 = _float32_exact(x0)
         t0 = time.perf_counter()
-        self.reference = reference_trajectory(sim.model, sim.control, transient.frames * FRAME_DT, FRAME_DT,
-                                              x0=self.x0, rtol=rtol, atol=atol)
+        ref = reference_for(sim.model, sim.control, transient.frames, self.x0, rtol=rtol, atol=atol)
+        self.reference, self.reference_estimate = ref.frames, ref.estimate
         self.reference_seconds = time.perf_counter() - t0
 
     def run(self, sim, k: int) -> np.ndarray:
@@ -98,86 +116,6 @@ class AccuracyProblem:
         if not np.all(np.isfinite(traj)):
             return math.inf
         return trajectory_error(traj, self.reference, self.size)
-
-
-# -- the search ------------------------------------------------------------------------------
-@dataclass
-class AccurateSearch:
-    """Outcome of :func:`search_steps_per_frame`.
-
-    Attributes:
-        k: the fewest steps per frame found accurate (dt = frame / k), None if none up to k_max.
-        k_inaccurate: the most steps per frame found inaccurate (the bracket's other side), None
-            if the first trial (k_start) was already accurate.
-        trials: (k, e) in the order tried.
-        bounded: True when k == k_start was accurate: the max accurate dt is at least the upper
-            bound of the search (the max stable dt or one frame), not a found boundary.
-        stalled: True when the bracket gave up because e stopped falling as dt shrank (an error
-            floor above the tolerance: float32 noise, or a scheme whose error is not set by dt).
-    """
-
-    k: int | None
-    k_inaccurate: int | None
-    trials: list = field(default_factory=list)
-    bounded: bool = False
-    stalled: bool = False
-
-    def dt(self, frame_dt: float = FRAME_DT) -> float | None:
-        return None if self.k is None else frame_dt / self.k
-
-
-def search_steps_per_frame(error: Callable[[int], float], tolerance: float, k_start: int = 1, k_max: int = 4096,
-                           precision: float = 0.05, stall_doublings: int = 3) -> AccurateSearch:
-    """The fewest steps per frame k (the largest dt = frame/k) with ``error(k) <= tolerance``.
-
-    Brackets by doubling k from ``k_start`` (the smallest k allowed, e.g. the one of the max
-    stable dt) until accurate, then bisects on integers until (k_hi - k_lo) / k_lo <=
-    ``precision`` or the two are adjacent. Assumes error(k) decreases monotonically as k grows
-    (dt shrinks); NaN counts as inaccurate. The bracket gives up (``stalled``) when
-    ``stall_doublings`` doublings in a row have not lowered the smallest finite e seen by 20 %:
-    e has reached a floor above the tolerance and smaller dts would not help.
-    """
-    require(tolerance > 0, f"tolerance must be > 0, got {tolerance!r}")
-    k_start = max(1, int(k_start))
-    out = AccurateSearch(k=None, k_inaccurate=None)
-
-    def ok(k: int) -> bool:
-        e = float(error(k))
-        out.trials.append((k, e))
-        return e <= tolerance  # NaN and inf are False
-
-    if ok(k_start):
-        out.k, out.bounded = k_start, True
-        return out
-    lo = k_start  # inaccurate
-    hi = None
-    k = k_start
-    best, since = out.trials[-1][1], 0
-    while k < k_max:
-        k = min(2 * k, k_max)
-        if ok(k):
-            hi = k
-            break
-        lo = k
-        e = out.trials[-1][1]
-        if math.isfinite(e) and (not math.isfinite(best) or e < best / 1.2):
-            best, since = e, 0
-        elif math.isfinite(best):
-            since += 1
-            if since >= stall_doublings:
-                out.stalled = True
-                break
-    out.k_inaccurate = lo
-    if hi is None:
-        return out
-    while hi - lo > 1 and (hi - lo) / lo > precision:
-        mid = (lo + hi) // 2
-        if ok(mid):
-            hi = mid
-        else:
-            lo = mid
-    out.k, out.k_inaccurate = hi, lo
-    return out
 
 
 def steps_per_frame_at_most(dt: float | None) -> int:
@@ -229,6 +167,271 @@ class StaticProblem:
                               sim_time=r.sim_time, wall_time=r.wall_time, stable=r.stable and finite)
 
 
+# -- references ----------------------------------------------------------------------------
+@dataclass
+class Reference:
+    """A float64 reference trajectory: frames (frames + 1, N, 3); estimate: its error estimate
+    as a fraction of the size (the Warp halving estimate; DOP853: None, its tolerances are 1e-10);
+    accepted: the estimate is within the Warp reference's tolerance; method; dt: the step of the
+    Warp run [s]; piece_steps: its steps per piece (for :func:`conditioning_floor`'s runs)."""
+
+    frames: np.ndarray
+    estimate: float | None
+    accepted: bool
+    method: str
+    dt: float | None = None
+    piece_steps: tuple = ()
+    estimates: tuple = ()
+
+
+def reference_for(model, control, frames: int, x0, rtol: float = 1e-10, atol: float = 1e-12) -> Reference:
+    """The float64 reference of ``frames`` 1/60 s frames from ``x0`` (at rest): SciPy DOP853 up to
+    :data:`SCIPY_MAX_SIZE` particles a side, the float64 Warp RK4 with its halving run above
+    with at most one more halving (not accepted then: returned with ``accepted`` False, its
+    estimates saying by how much; a window that needs more is ill-conditioned, and its floor says so)."""
+    n = max(int(model.rows or 0), int(model.cols or 0)) or int(round(math.sqrt(model.particle_count)))
+    if n <= SCIPY_MAX_SIZE:
+        return Reference(reference_trajectory(model, control, frames * FRAME_DT, FRAME_DT, x0=x0, rtol=rtol, atol=atol),
+                         None, True, "DOP853")
+    from warpcloth.lab.reference_warp import warp_reference
+
+    r = warp_reference(model, control, frames * FRAME_DT, FRAME_DT, x0=x0, max_halvings=1, require_accepted=False)
+    return Reference(r.frames, r.relative_estimate, r.accepted, "Warp RK4", r.dt, r.piece_steps, tuple(r.estimates))
+
+
+def _perturbed(model, x0: np.ndarray, seed: int) -> np.ndarray:
+    """x0 with every free particle moved by :data:`PERTURBATION` in a random direction."""
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=x0.shape)
+    d *= PERTURBATION / np.linalg.norm(d, axis=1, keepdims=True)
+    d[model.host["inv_mass"] <= 0] = 0.0
+    d[np.asarray(model.pinned, dtype=np.int64)] = 0.0
+    return x0 + d
+
+
+# -- metrics -------------------------------------------------------------------------------
+def sample_stride(k: float) -> tuple[int, int]:
+    """(reference frames per sample, steps per sample) of a run at dt = (1/60 s) / k."""
+    if k >= 1:
+        require(abs(k - round(k)) < 1e-9, f"steps per frame must be whole or 1/2, got {k!r}")
+        return 1, int(round(k))
+    m = round(1.0 / k)
+    require(m >= 1 and abs(m * k - 1.0) < 1e-9, f"steps per frame below 1 must be 1/m, got {k!r}")
+    return m, 1
+
+
+class _Shape:
+    """What the metrics need of a grid model: masses, the 4 x 4 patches, the membrane springs."""
+
+    def __init__(self, model):
+        h = model.host
+        self.mass = h["mass"].astype(np.float64)
+        rows, cols = int(model.rows or 0), int(model.cols or 0)
+        if rows * cols == model.particle_count and rows >= 1:
+            grid = np.arange(rows * cols).reshape(rows, cols)
+            self.patches = [grid[np.ix_(r, c)].ravel() for r in np.array_split(np.arange(rows), min(4, rows))
+                            for c in np.array_split(np.arange(cols), min(4, cols))]
+        else:
+            self.patches = [np.arange(model.particle_count)]
+        from warpcloth.sim.model import SpringType
+
+        pairs = h["pairs"].astype(np.int64).reshape(-1, 2)
+        # stretch along the warp and the weft: structural springs (a shear spring's strain is the
+        # cloth's shear, which a soft-shear fabric takes freely: the flag's diagonals strain 16 %)
+        keep = np.asarray(model.spring_type) == int(SpringType.STRUCTURAL)
+        self.pairs = pairs[keep]
+        self.rest = h["rest"].astype(np.float64)[keep]
+
+    def centroid(self, x):  # (F, N, 3) -> (F, 3)
+        return np.einsum("n,fnk->fk", self.mass, x) / self.mass.sum()
+
+    def patch_means(self, x):  # (F, N, 3) -> (F, P, 3)
+        return np.stack([np.einsum("n,fnk->fk", self.mass[p], x[:, p]) / self.mass[p].sum() for p in self.patches], axis=1)
+
+    def kinetic(self, x, interval: float):  # frame-difference kinetic energy per interval (F - 1,)
+        v = np.diff(x, axis=0) / interval
+        return 0.5 * np.einsum("n,fnk,fnk->f", self.mass, v, v)
+
+    def max_strain(self, x) -> float:
+        if not len(self.pairs):
+            return 0.0
+        d = x[:, self.pairs[:, 1]] - x[:, self.pairs[:, 0]]
+        return float(np.max(np.linalg.norm(d, axis=-1) / self.rest[None] - 1.0))
+
+
+def trajectory_metrics(traj, ref, size: float, shape: "_Shape", interval: float) -> dict:
+    """The metrics (:data:`METRICS`) of ``traj`` against ``ref``, both (F, N, 3) at the same
+    times ``interval`` [s] apart: point, centroid, patch (fractions of ``size``), damping (1 - sum
+    of the kinetic energy / the reference's; numerical damping) and stretch (``traj``'s largest
+    strain of a structural spring: stretch along the warp or the weft); plus ``stretch_ref`` (the
+    reference's)."""
+    a = np.asarray(traj, dtype=np.float64)
+    b = np.asarray(ref, dtype=np.float64)
+    require(a.shape == b.shape, f"trajectories differ in shape: {a.shape} vs {b.shape}")
+    ke, ke_ref = shape.kinetic(a, interval), shape.kinetic(b, interval)
+    return {"point": float(np.max(np.linalg.norm(a - b, axis=-1)) / size),
+            "centroid": float(np.max(np.linalg.norm(shape.centroid(a) - shape.centroid(b), axis=-1)) / size),
+            "patch": float(np.max(np.linalg.norm(shape.patch_means(a) - shape.patch_means(b), axis=-1)) / size),
+            "damping": float(1.0 - ke.sum() / ke_ref.sum()) if ke_ref.sum() > 0 else 0.0,
+            "stretch": shape.max_strain(a), "stretch_ref": shape.max_strain(b)}
+
+
+def floor_of(metrics: dict) -> dict:
+    """The conditioning floor of each metric from a perturbed run's :func:`trajectory_metrics`:
+    the metric itself, |damping|, and the change of the largest strain."""
+    out = {k: abs(metrics[k]) for k in ("point", "centroid", "patch", "damping")}
+    out["stretch"] = abs(metrics["stretch"] - metrics["stretch_ref"])
+    return out
+
+
+def refused(floor, tolerance: float) -> bool:
+    """Whether a verdict at ``tolerance`` is refused: a floor above :data:`FLOOR_FRACTION` of it
+    (or unknown)."""
+    return floor is None or not math.isfinite(floor) or floor > FLOOR_FRACTION * tolerance
+
+
+@dataclass
+class RunMetrics:
+    """One float32 run against the reference: its metrics (None where it was not finite or stopped
+    by the wall cap), whether it stayed finite, its wall time [s], and a note."""
+
+    metrics: dict | None
+    stable: bool
+    wall: float
+    note: str = ""
+
+
+class TransientProblem:
+    """A dynamic transient (:class:`~warpcloth.lab.transients.StudyTransient`) of ``frames`` 1/60 s
+    frames on one simulator's model: the float64 reference (:func:`reference_for`), computed once
+    (or given: ``reference``, e.g. from a cache), :meth:`measure` for any configuration, and
+    :meth:`floor`."""
+
+    def __init__(self, sim, transient, frames: int, reference: Reference | None = None):
+        require(int(frames) >= 2 and int(frames) % 2 == 0, f"a transient's window must be an even number of frames >= 2 "
+                                                            f"(dt = 1/30 s runs compare every other frame), got {frames!r}")
+        self.transient = transient
+        self.frames = int(frames)
+        self.size = cloth_size(sim.model)
+        self.x0 = transient.start(sim.model)
+        self.shape = _Shape(sim.model)
+        t0 = time.perf_counter()
+        self.ref = reference if reference is not None else reference_for(sim.model, sim.control, self.frames, self.x0)
+        self.reference_seconds = time.perf_counter() - t0
+
+    @property
+    def reference(self) -> np.ndarray:
+        return self.ref.frames
+
+    def run(self, sim, k: float, wall_cap: float | None = None) -> tuple:
+        """The float32 trajectory of ``sim`` (its current integrator) at dt = (1/60 s)/k from the
+        start, sampled every stride frames: ((samples, N, 3) or None if stopped by ``wall_cap``
+        [s], wall seconds)."""
+        import warp as wp
+
+        stride, steps = sample_stride(k)
+        sim.reset()
+        sim.state.particle_q.assign(wp.array(self.x0.astype(np.float32), dtype=wp.vec3, device=sim.model.device))
+        sim.set_dt(FRAME_DT / k)
+        out = [sim.state.particle_q.numpy().astype(np.float64)]
+        t0 = time.perf_counter()
+        for _ in range(self.frames // stride):
+            sim.simulate(steps)
+            x = sim.state.particle_q.numpy().astype(np.float64)
+            out.append(x)
+            if not np.all(np.isfinite(x)):
+                return np.stack(out + [x] * (self.frames // stride + 1 - len(out))), time.perf_counter() - t0
+            if wall_cap is not None and time.perf_counter() - t0 > wall_cap:
+                return None, time.perf_counter() - t0
+        return np.stack(out), time.perf_counter() - t0
+
+    def measure(self, sim, k: float, wall_cap: float | None = None) -> RunMetrics:
+        """The metrics of ``sim``'s integrator at dt = (1/60 s)/k (:func:`trajectory_metrics`)."""
+        traj, wall = self.run(sim, k, wall_cap)
+        if traj is None:
+            return RunMetrics(None, True, wall, f"stopped by the wall cap ({wall_cap:g} s) before the window's end")
+        if not np.all(np.isfinite(traj)):
+            return RunMetrics(None, False, wall, "unstable: the state went non-finite")
+        stride, _ = sample_stride(k)
+        return RunMetrics(trajectory_metrics(traj, self.reference[::stride], self.size, self.shape, FRAME_DT * stride),
+                          True, wall)
+
+    def floor(self, sim, seeds=(0, 1)) -> dict:
+        """The conditioning floor: per metric, the max over ``seeds`` of its value between the
+        reference and a float64 run from the start perturbed by :data:`PERTURBATION` (the same
+        integrator as the reference, at its steps)."""
+        out = {}
+        for seed in seeds:
+            x0 = _perturbed(sim.model, self.x0, seed)
+            if self.ref.method == "DOP853":
+                traj = reference_trajectory(sim.model, sim.control, self.frames * FRAME_DT, FRAME_DT, x0=x0)
+            else:
+                from warpcloth.lab.reference_warp import warp_trajectory
+
+                traj = warp_trajectory(sim.model, sim.control, self.frames * FRAME_DT, FRAME_DT, x0=x0,
+                                       piece_steps=self.ref.piece_steps)
+            f = floor_of(trajectory_metrics(traj, self.reference, self.size, self.shape, FRAME_DT))
+            out = {k: max(out.get(k, 0.0), v) for k, v in f.items()}
+        return out
+
+
+class ContactProblem:
+    """The contact transient: the float64 equilibrium with the contact
+    (:func:`~warpcloth.lab.reference.contact_equilibrium`), computed once (or given), and
+    :meth:`measure`: a float32 run from the transient's start until at rest, its rest shape and
+    sag against it."""
+
+    def __init__(self, sim, transient, x_eq: np.ndarray | None = None):
+        from warpcloth.lab.reference import contact_equilibrium
+
+        self.transient = transient
+        self.size = cloth_size(sim.model)
+        self.x0 = transient.start(sim.model)
+        self.rest = sim.model.host["q"].astype(np.float64)
+        t0 = time.perf_counter()
+        self.kappa = None
+        if x_eq is None:
+            eq = contact_equilibrium(sim.model, sim.control)
+            x_eq, self.kappa = eq.x, eq.kappa
+        self.x_eq = np.asarray(x_eq, dtype=np.float64)
+        self.reference_seconds = time.perf_counter() - t0
+        self.sag = float(np.max(np.linalg.norm(self.x_eq - self.rest, axis=1)))
+
+    def metrics(self, x: np.ndarray) -> dict:
+        """rest: max |x - x_eq| / size; sag: |sag - sag_eq| / sag_eq (sag: the largest displacement
+        from the hanging rest shape)."""
+        sag = float(np.max(np.linalg.norm(x - self.rest, axis=1)))
+        return {"rest": float(np.max(np.linalg.norm(x - self.x_eq, axis=1)) / self.size),
+                "sag": abs(sag - self.sag) / self.sag if self.sag > 0 else 0.0}
+
+    def floor(self, sim, seeds=(0, 1)) -> dict:
+        """The floor of the static metrics: the equilibrium solved again from itself moved by
+        :data:`PERTURBATION` (2 seeds): a unique equilibrium comes back to within the solver's tolerance."""
+        from warpcloth.lab.reference import contact_equilibrium
+
+        out = {}
+        for seed in seeds:
+            eq = contact_equilibrium(sim.model, sim.control, x0=_perturbed(sim.model, self.x_eq, seed), kappa=self.kappa)
+            out = {k: max(out.get(k, 0.0), v) for k, v in self.metrics(eq.x).items()}
+        return out
+
+    def measure(self, sim, k: float, duration: float, wall_cap: float | None) -> StaticAccuracy:
+        """Run ``sim`` from the start at dt = (1/60 s)/k until at rest (or ``duration`` simulated,
+        ``wall_cap`` wall seconds); the error of where it stops."""
+        import warp as wp
+
+        sim.reset()
+        sim.state.particle_q.assign(wp.array(self.x0.astype(np.float32), dtype=wp.vec3, device=sim.model.device))
+        sim.set_dt(FRAME_DT / k)
+        r = RunHarness(sim).run(duration, fps=60.0, stop_at_equilibrium=True, wall_cap=wall_cap)
+        x = sim.state.particle_q.numpy().astype(np.float64)
+        finite = bool(np.all(np.isfinite(x)))
+        m = self.metrics(x) if finite else {"rest": math.inf, "sag": math.inf}
+        return StaticAccuracy(dt=FRAME_DT / k, error=m["rest"], sag_error=m["sag"], equilibrium_reached=r.equilibrium_reached,
+                              time_to_equilibrium=r.time_to_equilibrium, time_to_equilibrium_wall=r.time_to_equilibrium_wall,
+                              sim_time=r.sim_time, wall_time=r.wall_time, stable=r.stable and finite)
+
+
 def check_tolerance(tolerance) -> float:
     """The tolerance as a float in (0, 1), or a one-line error."""
     try:
@@ -240,5 +443,7 @@ def check_tolerance(tolerance) -> float:
     return t
 
 
-__all__ = ["AccuracyProblem", "AccurateSearch", "DEFAULT_TOLERANCE", "FRAME_DT", "StaticAccuracy", "StaticProblem",
-           "Transient", "check_tolerance", "search_steps_per_frame", "steps_per_frame_at_most"]
+__all__ = ["AccuracyProblem", "ContactProblem", "DEFAULT_TOLERANCE", "FLOOR_FRACTION", "FRAME_DT", "METRICS",
+           "PERTURBATION", "Reference", "RunMetrics", "SCIPY_MAX_SIZE", "STATIC_METRICS", "StaticAccuracy", "StaticProblem",
+           "TOLERANCES", "Transient", "TransientProblem", "check_tolerance", "reference_for", "refused", "sample_stride",
+           "steps_per_frame_at_most", "trajectory_metrics"]

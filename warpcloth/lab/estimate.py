@@ -8,15 +8,34 @@ import math
 import os
 from dataclasses import dataclass
 
-from warpcloth.lab.accuracy import FRAME_DT, steps_per_frame_at_most
-from warpcloth.lab.plan import SCENARIOS, StudyPlan
+from warpcloth.lab.accuracy import FRAME_DT, SCIPY_MAX_SIZE
+from warpcloth.lab.configs import EXPLICIT, configurations, static_configurations, steps_for, work
+from warpcloth.lab.plan import StudyPlan
+from warpcloth.lab.transients import DYNAMIC, TRANSIENTS
 
-#: on the project's 2-core CPU: 5.1 s for the 8x8 sheet's 1 s swing, 15 s at 12x12, 19 s at 16x16)
+#: SciPy DOP853 (<= 12 x 12): seconds per particle per simulated second (measured on the
+#: project's 2-core CPU: 5.1 s for an 8 x 8 sheet's 1 s swing, 15 s at 12 x 12).
 REFERENCE_S_PER_PARTICLE_S = 0.1
-#: the accuracy search of an integrator stable at one frame (implicit_euler, pbd, xpbd, vbd,
-#: projective) is modelled as reaching k = this x (n/8)^2 steps per frame: the last standard run
-#: found k = 13-76 at 8x8 and 37-416 at 12x12 for them
-ACCURATE_K_AT_8 = 64
+#: The float64 Warp RK4 reference: seconds per particle per RK4 step on one CPU core (measured:
+#: 6.5 ms per step at 128 x 128, 0.43 ms at 32 x 32: about 0.4 us per particle); a CUDA device
+#: is modelled at :data:`GPU_REFERENCE_S_PER_STEP` per step (launch-bound at these sizes).
+REFERENCE_S_PER_PARTICLE_STEP = 0.4e-6
+GPU_REFERENCE_S_PER_STEP = 0.25e-3
+#: The float64 contact equilibrium (Newton with a sparse direct solve): seconds ~ this x N^1.5
+#: (measured on the loaded 2-core CPU: 54 s at 64 x 64, 27 Newton steps; 7 s at 32 x 32).
+CONTACT_S = 54.0 / 4096**1.5
+#: Simulated seconds a contact run takes to come to rest (measured 1.7-2.4 s at 4 x 4 and 6 x 6).
+CONTACT_REST_S = 3.0
+#: Runs of a Warp reference and its floor: h, h/2, and two floor runs at h/2, in units of the h run.
+REFERENCE_RUNS = 7.0
+#: Measured / modelled on the standard profile's 16 x 16 groups (``--sizes 16 --workers 2`` on
+#: the project's 2-core CPU at load average ~7, 2026-12-02; docs/study.md, "Estimate"): the
+#: configuration runs took 2.5x the model (their frames' host copies and metrics, the workers
+#: sharing the cores), the timings 3.4x (a warm-up and a graph capture per configuration).
+TRIAL_FACTOR = 2.5
+TIMING_FACTOR = 3.4
+#: Two search workers on 2 cores gave 1.6x, not 2x (measured on the same run).
+WORKER_SPEEDUP = {1: 1.0, 2: 1.6}
 
 
 @dataclass
@@ -24,24 +43,32 @@ class PhaseEstimate:
     phase: str
     measurements: int
     seconds: float
+    parallel: bool = True  # split over the workers (the timings are not)
+
+
+def _omega(n: int, device: str) -> float:
+    """The study sheet's highest frequency [rad/s] at n x n (Lanczos, as the reference)."""
+    from warpcloth.lab.reference import Float64Model
+    from warpcloth.lab.reference_warp import stability_limit
+
+    tr = TRANSIENTS["swing"]
+    sim = tr.scenario.build(rows=n, cols=n, device="cpu", integrator="explicit_euler")
+    return stability_limit(Float64Model.from_model(sim.model, sim.control), tr.start(sim.model)).rho
 
 
 def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
-    """Measured ms per step of the sheet for every integrator x size of ``plan`` on ``device`` at
-    the integrator's default dt (one frame at most), and at (1/60 s)/64 at the accuracy sizes:
-    ``{(integrator, n): (k0, ms at default dt, ms at frame/64 or None)}``. A few steps each
-    after a warm-up; seconds in all (the implicit integrators' steps at 128x128 take ~1 s)."""
+    """Measured ms per step of the study's sheet for every integrator x size of ``plan`` on
+    ``device`` at the integrator's default options and dt (one frame at most), and each size's
+    highest frequency: ``{(integrator, n): (k0, ms), ("omega", n): rad/s}``. A few steps each after
+    a warm-up; seconds to a minute in all."""
     from warpcloth.integrators import make_integrator
-    from warpcloth.scenarios import get_scenario
+    from warpcloth.run.harness import time_steps
 
     out = {}
-    sheet = get_scenario("sheet")
+    sheet = TRANSIENTS["swing"].scenario
 
     def ms_per_step(sim, dt):
-        """The fastest of 3 windows of about 30 ms (other jobs on the machine only add), with the
-        shared timing helper (compile and the first replay excluded)."""
-        from warpcloth.run.harness import time_steps
-
+        """The fastest of 3 windows of about 30 ms (other jobs on the machine only add)."""
         sim.reset()
         sim.set_dt(dt)
         frame = max(1, math.ceil(FRAME_DT / dt - 1e-9))
@@ -49,91 +76,148 @@ def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
 
     for n in plan.all_sizes if plan.grid else []:
         sim = sheet.build(rows=n, cols=n, device=device, integrator="explicit_euler", dt=FRAME_DT)
+        out[("omega", n)] = _omega(n, device)
         for i in plan.integrators:
             sim.set_integrator(make_integrator(i), dt=FRAME_DT)
-            k0 = steps_per_frame_at_most(min(make_integrator(i).default_dt(sim.model, sim.control.drag_rate), FRAME_DT))
-            small = ms_per_step(sim, FRAME_DT / 64) if n in plan.accuracy_sizes else None
-            out[(i, n)] = (k0, ms_per_step(sim, FRAME_DT / k0), small)
+            k0 = steps_for(min(make_integrator(i).default_dt(sim.model, sim.control.drag_rate), FRAME_DT))
+            out[(i, n)] = (k0, ms_per_step(sim, FRAME_DT / k0))
             if stream is not None:
-                print(f"calibrate {i} {n}x{n} {device}: {out[(i, n)][1]:.3g} ms/step at (1/60 s)/{k0}", file=stream, flush=True)
+                print(
+                    f"calibrate {i} {n}x{n} {device}: {out[(i, n)][1]:.3g} ms/step at (1/60 s)/{k0}",
+                    file=stream,
+                    flush=True,
+                )
     return out
 
 
-def estimate_plan(plan: StudyPlan, costs: dict) -> list[PhaseEstimate]:
-    """Seconds per phase of ``plan`` on one device from ``costs`` (:func:`calibrate`), serially.
-    A model, not a measurement (docs/study.md, "Estimate"): stability trials at 1.5x the default
-    dt (6 trials per search, 1 for an integrator stable at one frame), each capped by the wall cap;
-    equilibrium runs to their simulated or wall cap; the float64 references at
-    :data:`REFERENCE_S_PER_PARTICLE_S`; accuracy searches of 3 trials at k0 for the explicit
-    schemes and doubling to k = :data:`ACCURATE_K_AT_8` (n/8)^2 (bounded by ``accuracy_k_max``)
-    then bisection ((3 + log2(0.5 / precision)) k frames) for those stable at one frame; timings their warm-up, capture and windows of whole frames."""
-    stab = eq = acc = tim = 0.0
-    counts = {"stability": 0, "equilibrium": 0, "accuracy": 0, "timing": 0}
+def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[PhaseEstimate]:
+    """Seconds per phase of ``plan`` on one device from ``costs`` (:func:`calibrate`). A model,
+    not a measurement (docs/study.md, "Estimate"):
+
+    * references: DOP853 at :data:`REFERENCE_S_PER_PARTICLE_S`, or the Warp RK4 at half its
+      stability limit 2.61 / omega, :data:`REFERENCE_RUNS` runs of the window (with the floor's),
+      at :data:`REFERENCE_S_PER_PARTICLE_STEP`; the contact equilibrium at :data:`CONTACT_S` N^1.5;
+    * stability: 6 trials of the swing's window (its sheet) at 1.5x the default dt for the
+      explicit schemes, 1 trial for those stable at one frame, each at most the wall cap;
+    * trials: every configuration x 2 transients, frames x k steps at the calibrated ms/step x
+      :func:`~warpcloth.lab.configs.work` per step; one predicted above the plan's caps is not run
+      (but the cheapest, which always runs);
+    * contact: 2 runs of :data:`CONTACT_REST_S` simulated, at most the wall cap;
+    * timings: warm-up, capture and the timed windows of every configuration that ran;
+
+    the configurations and the timings scaled by :data:`TRIAL_FACTOR` and :data:`TIMING_FACTOR`,
+    measured on a standard run."""
+    ref = stab = trials = contact = tim = 0.0
+    counts = {"ref": 0, "stab": 0, "trial": 0, "contact": 0, "timing": 0}
+    cap = plan.run_wall_cap
     for n in plan.all_sizes if plan.grid else []:
+        particles = n * n
+        omega = costs.get(("omega", n))
+        for name in DYNAMIC:
+            frames = plan.window_frames(name, n)
+            if n <= SCIPY_MAX_SIZE:
+                ref += 3 * REFERENCE_S_PER_PARTICLE_S * particles * frames * FRAME_DT
+            else:
+                steps = frames * FRAME_DT / (0.5 * 2.61 / omega) if omega else 0.0
+                per = (
+                    GPU_REFERENCE_S_PER_STEP if device.startswith("cuda") else REFERENCE_S_PER_PARTICLE_STEP * particles
+                )
+                ref += REFERENCE_RUNS * steps * per
+            counts["ref"] += 1
+        contact_here = n <= plan.contact_max_size
+        if contact_here:
+            ref += 1.3 * CONTACT_S * particles**1.5  # the solve, and two floor solves from it (a step or two each)
+            counts["ref"] += 1
         for i in plan.integrators:
-            k0, ms, ms_small = costs[(i, n)]
+            k0, ms = costs[(i, n)]
+            explicit = i in EXPLICIT
             dt0 = FRAME_DT / k0
-            # the search's trials straddle the max stable dt, ~1.5-2x the default dt of the explicit
-            # schemes (those above it stop early when they blow up): 6 trials at 1.5 dt0
-            dt_trial = dt0 if k0 == 1 else 1.5 * dt0
-            trial = plan.maxdt_duration_at(n) / dt_trial * ms / 1000.0
+            trial = plan.maxdt_duration_at(n) / (1.5 * dt0 if explicit else dt0) * ms / 1000.0
             trial = min(trial, plan.maxdt_wall_cap) if plan.maxdt_wall_cap else trial
-            stab += len(SCENARIOS) * (1 if k0 == 1 else 6) * trial
-            counts["stability"] += len(SCENARIOS)
-            run_eq = plan.equilibrium_duration / dt0 * ms / 1000.0
-            run_eq = min(run_eq, plan.equilibrium_wall_cap) if plan.equilibrium_wall_cap else run_eq
-            eq += run_eq
-            counts["equilibrium"] += 1
-            frame = k0 * ms / 1000.0
-            one_timing = (3 + plan.windows * max(1.0, math.ceil(plan.window_seconds / max(frame, 1e-9)))) * frame
-            timings = len(plan.timing_scenarios) * (1 + len(plan.extra_dt_fractions))
-            if n in plan.accuracy_sizes:
-                timings += len(plan.timing_scenarios)
-                eq += 3 * run_eq  # the static-accurate search and the static run at the accurate dt
-                counts["equilibrium"] += 2
-                for sc in SCENARIOS:
-                    T = plan.transient(sc).duration
-                    if k0 > 1:
-                        acc += 3 * 60 * T * k0 * ms / 1000.0
-                    else:
-                        k = min(max(plan.accuracy_k_max, 64), ACCURATE_K_AT_8 * (n / 8) ** 2)
-                        # doubling to the first k past the answer (~3 k in all), then bisection
-                        # trials of ~k each down to the precision
-                        trials_k = 3 + math.log2(0.5 / max(plan.accurate_precision, 0.01))
-                        acc += 60 * T * trials_k * k * (ms_small if ms_small is not None else ms) / 1000.0
-                    counts["accuracy"] += 1
-            tim += timings * one_timing
-            counts["timing"] += timings
-    for n in plan.accuracy_sizes if plan.grid else []:  # references and floors, once per size (per worker process in parallel)
-        for sc in SCENARIOS:
-            T = plan.transient(sc).duration
-            acc += REFERENCE_S_PER_PARTICLE_S * n * n * T
-            k0, ms, _ = costs.get(("rk4", n), (1, 0.0, None))
-            acc += 60 * T * 4 * k0 * ms / 1000.0
-            counts["accuracy"] += 1
-    return [PhaseEstimate("stability (max stable dt)", counts["stability"], stab),
-            PhaseEstimate("equilibrium and static accuracy", counts["equilibrium"], eq),
-            PhaseEstimate("accuracy (references, floors, searches)", counts["accuracy"], acc),
-            PhaseEstimate("timing", counts["timing"], tim)]
+            stab += (6 if explicit else 1) * trial
+            counts["stab"] += 1
+            configs = configurations(i, dt0 if explicit else None, plan.level, n)
+            for first, c in enumerate(configs):
+                per_step = ms / 1000.0 * work(i, c.option_dict)
+                run = 0.0
+                for name in DYNAMIC:
+                    seconds = plan.window_frames(name, n) * float(c.k) * per_step
+                    if first and (seconds > cap or 1000.0 * float(c.k) * per_step > plan.max_frame_ms):
+                        seconds = 0.0  # predicted above the caps: not run (the cheapest always runs)
+                    run += seconds
+                    counts["trial"] += 1
+                trials += run
+                if run > 0:
+                    frame = float(c.k) * per_step
+                    tim += (
+                        3 + plan.timing_windows * max(1.0, math.ceil(plan.window_seconds / max(frame, 1e-9)))
+                    ) * frame
+                    counts["timing"] += 1
+            for c in static_configurations(i, dt0 if explicit else None) if contact_here else []:
+                seconds = CONTACT_REST_S * FRAME_DT**-1 * float(c.k) * ms / 1000.0
+                contact += min(seconds, plan.equilibrium_wall_cap or seconds)
+                counts["contact"] += 1
+    return [
+        PhaseEstimate("references and floors (shared by the integrators)", counts["ref"], ref),
+        PhaseEstimate("stability (max stable dt)", counts["stab"], stab),
+        PhaseEstimate("configurations on the swing and the flag", counts["trial"], TRIAL_FACTOR * trials),
+        PhaseEstimate("contact runs to rest", counts["contact"], contact),
+        PhaseEstimate("timings (one at a time)", counts["timing"], TIMING_FACTOR * tim, parallel=False),
+    ]
+
+
+def total_seconds(phases: list, workers: int = 1) -> float:
+    """The wall time of ``phases`` with ``workers`` search workers (the references are shared,
+    the timings run alone)."""
+    speedup = WORKER_SPEEDUP.get(max(1, workers), 0.8 * max(1, workers))
+    return sum(ph.seconds / (speedup if ph.parallel else 1) for ph in phases)
 
 
 def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1) -> str:
     """The estimate as text: per device, per phase, and in all."""
-    lines = [f"estimate of profile {plan.profile}: integrators {', '.join(plan.integrators)}; sizes "
-             f"{', '.join(map(str, plan.all_sizes))}; accuracy at {', '.join(map(str, plan.accuracy_sizes)) or 'none'}"]
-    total = 0.0
+    lines = [
+        f"estimate of profile {plan.profile}: integrators {', '.join(plan.integrators)}; sizes "
+        f"{', '.join(map(str, plan.all_sizes))} (every size with a float64 reference); configurations {plan.level}"
+    ]
+    serial = parallel = 0.0
     for d, phases in by_device.items():
         for ph in phases:
-            lines.append(f"  {d:6s} {ph.phase:42s} {ph.measurements:4d} measurements  {ph.seconds / 60:7.1f} min")
-            total += ph.seconds
-    lines.append(f"  total about {total / 60:.0f} min serially" + (f"; the searches split over {workers} workers, the timings not" if workers > 1 else ""))
+            lines.append(f"  {d:6s} {ph.phase:52s} {ph.measurements:5d} measurements  {ph.seconds / 60:7.1f} min")
+        serial += total_seconds(phases, 1)
+        parallel += total_seconds(phases, workers)
+    lines.append(
+        f"  total about {serial / 60:.0f} min serially"
+        + (
+            f", about {parallel / 60:.0f} min with --workers {workers} (the searches split, the timings not)"
+            if workers > 1
+            else ""
+        )
+    )
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     if load is not None:
-        lines.append(f"  load average {load:.1f} on {os.cpu_count()} cores while calibrating: other jobs' share is in the per-step costs")
-    lines.append("  (a model from per-step costs measured now: see docs/study.md, 'Estimate'; --match-accuracy is not included"
-                 + (f"; nor the scenarios {', '.join(plan.scenario_files)}" if plan.scenario_files else "") + ")")
+        lines.append(
+            f"  load average {load:.1f} on {os.cpu_count()} cores while calibrating: other jobs' share is in the per-step costs"
+        )
+    lines.append(
+        "  (a model from per-step costs measured now: see docs/study.md, 'Estimate'"
+        + (f"; the scenarios {', '.join(plan.scenario_files)} are not included" if plan.scenario_files else "")
+        + ")"
+    )
     return "\n".join(lines)
 
 
-__all__ = ["ACCURATE_K_AT_8", "PhaseEstimate", "REFERENCE_S_PER_PARTICLE_S", "calibrate", "estimate_plan",
-           "format_estimate"]
+__all__ = [
+    "CONTACT_REST_S",
+    "CONTACT_S",
+    "PhaseEstimate",
+    "REFERENCE_RUNS",
+    "REFERENCE_S_PER_PARTICLE_S",
+    "REFERENCE_S_PER_PARTICLE_STEP",
+    "TIMING_FACTOR",
+    "TRIAL_FACTOR",
+    "WORKER_SPEEDUP",
+    "calibrate",
+    "estimate_plan",
+    "format_estimate",
+    "total_seconds",
+]

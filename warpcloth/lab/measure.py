@@ -1,40 +1,42 @@
 """The study's measurements, each made once and written as one row of results.csv
 (:data:`~warpcloth.lab.results.COLUMNS`), keyed so that a resumed study reuses it:
 
-* ``max_stable_dt`` (sheet and flag): :func:`warpcloth.lab.maxdt.find_max_dt` up to one 60 FPS frame,
-  with the max strain at that dt;
-* at the *accuracy sizes* (where a float64 reference is computed): ``floor`` (rk4 at a quarter of
-  its default dt: the float32 noise floor of the transient), ``error`` (e at dt = frame/k, every
-  trial), ``max_accurate_dt`` (sheet swing and flag transient, :mod:`warpcloth.lab.accuracy`),
-  ``static`` (the sheet run from rest to equilibrium: static error, sag error, time to
-  equilibrium) and ``max_static_accurate_dt``; with ``match_accuracy``, ``match`` rows for
-  pbd/xpbd (iterations x substeps at one step per frame) and ``match_result``;
-* ``timing`` on the sheet at the max stable dt and the max accurate dt (the smaller of the two
-  transients'): ms/step over ``windows`` timed windows after a warm-up (compile) and an untimed
-  replay (graph capture), median and spread; wall s per simulated s, real time at 30 and 60 FPS;
-* ``static`` at the max stable dt at every size (time to equilibrium; static error where the
-  float64 equilibrium is computed);
+* ``max_stable_dt`` (the swing's sheet): :func:`warpcloth.lab.maxdt.find_max_dt` up to one 60 FPS
+  frame, trials as long as the swing's window at that size;
+* ``floor`` (per transient x size, shared by the integrators): the float64 reference (its method,
+  halving estimate, step) and the conditioning floor of every metric
+  (:meth:`~warpcloth.lab.accuracy.TransientProblem.floor`, :meth:`~warpcloth.lab.accuracy.ContactProblem.floor`);
+* ``trial``: one configuration (:mod:`warpcloth.lab.configs`) on one dynamic transient: every
+  metric (:func:`~warpcloth.lab.accuracy.trajectory_metrics`). A configuration predicted to take
+  longer than the plan's ``run_wall_cap`` is not run (its row says so);
+* ``static``: a configuration run to rest on the contact transient: rest shape and sag against the
+  float64 equilibrium with the contact, time to equilibrium;
+* ``timing``: every configuration that ran finite on both dynamic transients, on the swing's sheet
+  from the swing's start: ms/step over ``timing_windows`` windows after a warm-up (compile) and an
+  untimed replay (graph capture), median and spread; ms per 1/60 s frame, wall s per simulated s;
 * a fixed-mesh scenario (a file or a registered scenario): max stable dt, time to equilibrium
   and ms/step at it; no accuracy (:data:`~warpcloth.lab.results.MESH_NOTE`).
 
-:meth:`Measurements.group` makes those of one device x integrator x size group.
+:meth:`Measurements.group` makes those of one device x integrator x size group. References and
+floors are kept in the plan's ``reference_cache`` folder (one file each, made under a lock): the
+worker processes of a parallel study and a resumed study compute each once.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import socket
 import time
 
-from warpcloth.run.harness import RunHarness
-from warpcloth.lab.accuracy import (FRAME_DT, AccuracyProblem, StaticProblem, search_steps_per_frame,
-                                    steps_per_frame_at_most)
-from warpcloth.lab.plan import SCENARIOS, StudyPlan
-from warpcloth.lab.results import MESH_NOTE
+import numpy as np
 
-#: pbd/xpbd iterations x substeps tried by ``--match-accuracy``, cheapest (iterations x substeps) first.
-MATCH_ITERATIONS = (5, 10, 20, 40, 80)
-MATCH_SUBSTEPS = (1, 2, 4, 8, 16)
+from warpcloth.run.harness import RunHarness
+from warpcloth.lab.accuracy import FRAME_DT, ContactProblem, Reference, TransientProblem, steps_per_frame_at_most
+from warpcloth.lab.configs import Config, configurations, static_configurations
+from warpcloth.lab.plan import StudyPlan
+from warpcloth.lab.results import MESH_NOTE
+from warpcloth.lab.transients import DYNAMIC, TRANSIENTS
 
 
 class _Deferred(Exception):
@@ -43,6 +45,51 @@ class _Deferred(Exception):
 
 def _options_text(options: dict) -> str:
     return " ".join(f"{k}={v}" for k, v in sorted(options.items()))
+
+
+def _k_text(k) -> str:
+    k = float(k)
+    return f"{k:g}" if k >= 1 else f"1/{round(1 / k)}"
+
+
+class _Cache:
+    """Files of ``folder`` made once under an exclusive lock (other processes wait, then read)."""
+
+    def __init__(self, folder: str):
+        self.folder = folder
+        self.memory: dict = {}
+
+    def get(self, name: str, compute):
+        """The arrays of ``name`` (a dict of NumPy arrays and scalars), computed by ``compute()`` if
+        no process has made them yet."""
+        if name in self.memory:
+            return self.memory[name]
+        if not self.folder:
+            self.memory[name] = compute()
+            return self.memory[name]
+        import fcntl
+
+        os.makedirs(self.folder, exist_ok=True)
+        ignore = os.path.join(self.folder, ".gitignore")
+        if not os.path.exists(ignore):  # float64 trajectories (MBs): kept for workers and --resume, not for a commit
+            with open(ignore, "w") as fh:
+                fh.write("*\n")
+        path = os.path.join(self.folder, name + ".npz")
+        with open(path + ".lock", "a+") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            try:
+                if os.path.exists(path):
+                    with np.load(path, allow_pickle=False) as f:
+                        out = {k: f[k] for k in f.files}
+                else:
+                    out = compute()
+                    tmp = path + ".tmp.npz"
+                    np.savez(tmp, **out)
+                    os.replace(tmp, path)
+            finally:
+                fcntl.flock(lock, fcntl.LOCK_UN)
+        self.memory[name] = out
+        return out
 
 
 class Measurements:
@@ -65,10 +112,11 @@ class Measurements:
         self.place = {"host": socket.gethostname(), "worker": "main", "concurrent_runs": 1}
         self.defer_timing = False  # the search phase of a parallel study: timings come later, alone
         self.device_map: dict = {}  # plan device -> the device this process runs it on (a Ray GPU task: cuda:0)
+        self.cache = _Cache(plan.reference_cache)
         self._sims: dict = {}
         self._counts: dict = {}  # (scenario, n, device) -> (particles, springs)
         self._problems: dict = {}
-        self._static: dict = {}
+        self._speed: dict = {}  # (integrator, n, device) -> least wall s per (work unit x step) seen
         self.measured = 0
         self.reused = 0
 
@@ -96,235 +144,333 @@ class Measurements:
         if self.on_row is not None:
             self.on_row(row)
 
+    def _scenario(self, scenario: str):
+        from warpcloth.scenarios import get_scenario
+
+        for tr in TRANSIENTS.values():
+            if tr.scenario.name == scenario:
+                return tr.scenario
+        return get_scenario(scenario)
+
     def sim(self, scenario: str, n: int, device: str, integrator: str, options: dict | None = None):
         from warpcloth.integrators import make_integrator
-        from warpcloth.scenarios import get_scenario
 
         key = (scenario, n, device)
         sim = self._sims.get(key)
         if sim is None:
             size = {} if n is None else {"rows": n, "cols": n}  # n None: a fixed-mesh scenario
-            sim = self._sims[key] = get_scenario(scenario).build(**size, device=self.device_map.get(device, device),
-                                                                 integrator=integrator, dt=FRAME_DT)
+            sim = self._sims[key] = self._scenario(scenario).build(
+                **size, device=self.device_map.get(device, device), integrator=integrator, dt=FRAME_DT
+            )
             self._counts[key] = (sim.model.particle_count, sim.model.spring_count)
         sim.set_integrator(make_integrator(integrator, **(options or {})), dt=FRAME_DT)
         sim.reset()
         return sim
 
-    def problem(self, scenario: str, n: int, device: str) -> AccuracyProblem:
-        key = (scenario, n, device)
-        if key not in self._problems:
-            self._problems[key] = AccuracyProblem(self.sim(scenario, n, device, "explicit_euler"), self.plan.transient(scenario))
-        return self._problems[key]
+    def base(
+        self,
+        measurement: str,
+        scenario: str,
+        integrator: str,
+        device: str,
+        n,
+        options: dict | None = None,
+        transient: str | None = None,
+    ) -> dict:
+        if (scenario, n, device) not in self._counts:
+            self.sim(scenario, n, device, "explicit_euler")
+        particles, springs = self._counts[(scenario, n, device)]
+        return {
+            "measurement": measurement,
+            "scenario": scenario,
+            "transient": transient,
+            "integrator": integrator,
+            "options": _options_text(options or {}),
+            "device": device,
+            "rows": n,
+            "cols": n,
+            "particles": particles,
+            "springs": springs,
+        }
 
-    def static_problem(self, n: int, device: str) -> StaticProblem | None:
-        if n > self.plan.static_max_size:
-            return None
-        key = (n, device)
-        if key not in self._static:
-            self._static[key] = StaticProblem(self.sim("sheet", n, device, "explicit_euler"))
-        return self._static[key]
+    # references and floors (shared by the groups of a size) -------------------------------------
+    def problem(self, name: str, n: int, device: str):
+        """The :class:`TransientProblem` or :class:`ContactProblem` of transient ``name`` at ``n``,
+        its reference from the cache (made once across processes)."""
+        key = (name, n, device)
+        if key in self._problems:
+            return self._problems[key]
+        tr = TRANSIENTS[name]
+        sim = self.sim(tr.scenario.name, n, device, "explicit_euler")
+        if tr.static:
+            data = self.cache.get(f"contact_{n}", lambda: self._contact_data(sim, tr))
+            prob = ContactProblem(sim, tr, x_eq=data["x_eq"])
+        else:
+            frames = self.plan.window_frames(name, n)
+            data = self.cache.get(f"{name}_{n}_{frames}", lambda: self._dynamic_data(sim, tr, frames))
+            ref = Reference(
+                data["frames"],
+                float(data["estimate"]) if data["estimate"] >= 0 else None,
+                bool(data["accepted"]),
+                str(data["method"]),
+                float(data["dt"]) if data["dt"] > 0 else None,
+                tuple(int(c) for c in data["piece_steps"]),
+                tuple(float(e) for e in data["estimates"]),
+            )
+            prob = TransientProblem(sim, tr, frames, reference=ref)
+        prob.cached = data
+        self._problems[key] = prob
+        return prob
 
-    def base(self, measurement: str, scenario: str, integrator: str, device: str, n: int, options: dict | None = None) -> dict:
-        from warpcloth.sim.grid import expected_spring_counts
+    @staticmethod
+    def _dynamic_data(sim, tr, frames: int) -> dict:
+        t0 = time.perf_counter()
+        prob = TransientProblem(sim, tr, frames)
+        floor = prob.floor(sim)
+        r = prob.ref
+        return {
+            "frames": r.frames,
+            "estimate": -1.0 if r.estimate is None else r.estimate,
+            "accepted": r.accepted,
+            "method": r.method,
+            "dt": r.dt or -1.0,
+            "piece_steps": np.asarray(r.piece_steps, dtype=np.int64),
+            "estimates": np.asarray(r.estimates, dtype=np.float64),
+            "seconds": time.perf_counter() - t0,
+            **{f"floor_{k}": v for k, v in floor.items()},
+        }
 
-        if n is None:  # a fixed-mesh scenario: its own counts
-            if (scenario, None, device) not in self._counts:
-                self.sim(scenario, None, device, integrator)
-            particles, springs = self._counts[(scenario, None, device)]
-            return {"measurement": measurement, "scenario": scenario, "integrator": integrator, "options": _options_text(options or {}),
-                    "device": device, "rows": None, "cols": None, "particles": particles, "springs": springs}
-        return {"measurement": measurement, "scenario": scenario, "integrator": integrator, "options": _options_text(options or {}),
-                "device": device, "rows": n, "cols": n, "particles": n * n,
-                "springs": sum(expected_spring_counts(n, n, "provot").values())}
+    @staticmethod
+    def _contact_data(sim, tr) -> dict:
+        t0 = time.perf_counter()
+        prob = ContactProblem(sim, tr)
+        floor = prob.floor(sim)
+        return {"x_eq": prob.x_eq, "seconds": time.perf_counter() - t0, **{f"floor_{k}": v for k, v in floor.items()}}
+
+    def floor(self, name: str, device: str, n: int) -> dict:
+        """The ``floor`` row of transient ``name`` at ``n``: its reference and conditioning floors."""
+        tr = TRANSIENTS[name]
+        frames = None if tr.static else self.plan.window_frames(name, n)
+        key = f"floor|{name}|{device}|{n}" + ("" if frames is None else f"|frames={frames}")
+
+        def run():
+            prob = self.problem(name, n, device)
+            d = prob.cached
+            row = {"reference_s": float(d["seconds"]), "measure_wall_s": float(d["seconds"])}
+            if tr.static:
+                row.update(
+                    reference="Newton+contact",
+                    floor_rest_rel=float(d["floor_rest"]),
+                    floor_sag_rel=float(d["floor_sag"]),
+                    note="float64 equilibrium with the frictionless contact (penalty continuation); the floor: "
+                    "solved again from it moved by 1e-7 m (2 seeds)",
+                )
+            else:
+                r = prob.ref
+                row.update(
+                    reference=r.method,
+                    reference_estimate_rel=r.estimate,
+                    reference_dt_s=r.dt,
+                    transient_s=frames * FRAME_DT,
+                    ref_max_strain_rel=prob.shape.max_strain(r.frames),
+                    **{
+                        f"floor_{k}_rel": float(d[f"floor_{k}"])
+                        for k in ("point", "centroid", "patch", "damping", "stretch")
+                    },
+                )
+                if r.method != "DOP853" and not r.accepted:
+                    row["note"] = (
+                        f"reference not accepted: halving estimates {', '.join(f'{e:.2g}' for e in r.estimates)} "
+                        "x size (> 1e-5): accuracy verdicts refused"
+                    )
+                elif r.method != "DOP853":
+                    row["note"] = "halving estimates " + ", ".join(f"{e:.2g}" for e in r.estimates)
+            return row
+
+        return self.once(key, self.base("floor", tr.scenario.name, "reference", device, n, transient=name), run)
 
     # the measurements ---------------------------------------------------------------------------
-    def max_stable_dt(self, scenario: str, integrator: str, device: str, n: int) -> dict:
+    def max_stable_dt(self, scenario: str, integrator: str, device: str, n) -> dict:
         p = self.plan
         base = self.base("max_stable_dt", scenario, integrator, device, n)
         duration = p.maxdt_duration_at(n if n is not None else round(math.sqrt(base["particles"])))
-        key = f"max_stable_dt|{scenario}|{integrator}|{device}|{_size(n)}|dur={duration}|prec={p.maxdt_precision}|cap={p.maxdt_wall_cap}"
+        key = f"max_stable_dt|{scenario}|{integrator}|{device}|{_size(n)}|dur={duration:.6g}|prec={p.maxdt_precision}|cap={p.maxdt_wall_cap}"
 
         def run():
             from warpcloth.lab.maxdt import find_max_dt
-            from warpcloth.scenarios import get_scenario
 
-            sc = get_scenario(scenario)
+            sc = self._scenario(scenario)
             size = {} if n is None else {"rows": n, "cols": n}
-            r = find_max_dt(sc, sc.config(**size, integrator=integrator, device=self.device_map.get(device, device)),
-                            precision=p.maxdt_precision,
-                            duration=duration, dt_max=FRAME_DT, wall_cap=p.maxdt_wall_cap)
-            note = r.no_stable_reason or ("stable up to the search limit (one 60 FPS frame)" if r.limit_reached and r.dt else "")
+            r = find_max_dt(
+                sc,
+                sc.config(**size, integrator=integrator, device=self.device_map.get(device, device)),
+                precision=p.maxdt_precision,
+                duration=duration,
+                dt_max=FRAME_DT,
+                wall_cap=p.maxdt_wall_cap,
+            )
+            note = r.no_stable_reason or (
+                "stable up to the search limit (one 60 FPS frame)" if r.limit_reached and r.dt else ""
+            )
             if r.inconclusive_trials:
-                note = (note + "; " if note else "") + f"{r.inconclusive_trials} trials stopped by the wall cap (counted stable)"
-            return {"dt_s": r.dt, "bound_dt_s": r.unstable_dt, "search_bounded": r.limit_reached, "max_strain_rel": r.max_strain,
-                    "stable": r.dt is not None, "trials": len(r.trials), "transient_s": duration, "note": note}
+                note = (
+                    note + "; " if note else ""
+                ) + f"{r.inconclusive_trials} trials stopped by the wall cap (counted stable)"
+            return {
+                "dt_s": r.dt,
+                "bound_dt_s": r.unstable_dt,
+                "search_bounded": r.limit_reached,
+                "max_strain_rel": r.max_strain,
+                "stable": r.dt is not None,
+                "trials": len(r.trials),
+                "transient_s": duration,
+                "note": note,
+            }
 
         return self.once(key, base, run)
 
-    def floor(self, scenario: str, device: str, n: int) -> dict:
-        from warpcloth.integrators import make_integrator
+    def _predicted(self, c: Config, n: int, device: str, steps: float) -> float | None:
+        speed = self._speed.get((c.integrator, n, device))
+        return None if speed is None else speed * c.work() / float(c.k) * steps
 
+    def trial(self, name: str, c: Config, device: str, n: int) -> dict:
+        """The metrics of configuration ``c`` on dynamic transient ``name`` at ``n``."""
         p = self.plan
-        tr = p.transient(scenario)
-        key = f"floor|{scenario}|rk4|{device}|{n}|T={tr.duration}"
+        tr = TRANSIENTS[name]
+        frames = p.window_frames(name, n)
+        key = f"trial|{name}|{c.integrator}|{c.options_text()}|{device}|{n}|frames={frames}|k={_k_text(c.k)}"
+        steps = frames * float(c.k)
+        opts = c.option_dict
 
         def run():
-            problem = self.problem(scenario, n, device)  # first: building it rebinds the cached sim's integrator
-            sim = self.sim(scenario, n, device, "rk4")
-            k = 4 * steps_per_frame_at_most(make_integrator("rk4").default_dt(sim.model, sim.control.drag_rate))
-            e = problem.error(sim, k)
-            return {"dt_s": FRAME_DT / k, "steps_per_frame": k, "error_rel": e, "floor_error_rel": e, "transient_s": tr.duration,
-                    "note": "rk4 at a quarter of its default dt: the float32 noise floor of this transient"}
+            out = {
+                "dt_s": c.dt,
+                "steps_per_frame": float(c.k),
+                "transient_s": frames * FRAME_DT,
+                "iterations": opts.get("iterations"),
+                "substeps": opts.get("substeps"),
+            }
+            predicted = self._predicted(c, n, device, steps)
+            if predicted is not None and predicted > p.run_wall_cap:
+                return {**out, "note": f"not run: predicted {predicted:.3g} s > the {p.run_wall_cap:g} s cap per run"}
+            per_frame = self._predicted(c, n, device, float(c.k))
+            if per_frame is not None and 1000.0 * per_frame > p.max_frame_ms:
+                return {
+                    **out,
+                    "note": f"not run: predicted {1000.0 * per_frame:.3g} ms per 1/60 s frame > {p.max_frame_ms:g} ms",
+                }
+            prob = self.problem(name, n, device)  # first: building it rebinds the cached sim's integrator
+            sim = self.sim(tr.scenario.name, n, device, c.integrator, opts)
+            r = prob.measure(sim, float(c.k), wall_cap=2.0 * p.run_wall_cap)
+            if r.stable and steps > 0:
+                rate = r.wall / (steps * c.work() / float(c.k))
+                key_s = (c.integrator, n, device)
+                self._speed[key_s] = min(self._speed.get(key_s, math.inf), rate)
+            m = r.metrics or {}
+            return {
+                **out,
+                "stable": r.stable,
+                "error_rel": m.get("point", math.inf if not r.stable else None),
+                "centroid_error_rel": m.get("centroid"),
+                "patch_error_rel": m.get("patch"),
+                "damping_rel": m.get("damping"),
+                "max_strain_rel": m.get("stretch"),
+                "ref_max_strain_rel": m.get("stretch_ref"),
+                "note": r.note,
+                "measure_wall_s": r.wall,
+            }
 
-        return self.once(key, self.base("floor", scenario, "rk4", device, n), run)
+        return self.once(key, self.base("trial", tr.scenario.name, c.integrator, device, n, opts, transient=name), run)
 
-    def error(self, scenario: str, integrator: str, device: str, n: int, k: int, options: dict | None = None) -> float:
-        tr = self.plan.transient(scenario)
-        opt = _options_text(options or {})
-        key = f"error|{scenario}|{integrator}|{opt}|{device}|{n}|T={tr.duration}|k={k}"
-
-        def run():
-            problem = self.problem(scenario, n, device)  # first: building it rebinds the cached sim's integrator
-            sim = self.sim(scenario, n, device, integrator, options)
-            e = problem.error(sim, k)
-            return {"dt_s": FRAME_DT / k, "steps_per_frame": k, "error_rel": e, "transient_s": tr.duration, "stable": math.isfinite(e),
-                    **({"iterations": options.get("iterations"), "substeps": options.get("substeps")} if options else {})}
-
-        return self.once(key, self.base("error", scenario, integrator, device, n, options), run)["error_rel"]
-
-    def max_accurate_dt(self, scenario: str, integrator: str, device: str, n: int, stable_dt) -> dict:
+    def static(self, c: Config, device: str, n: int) -> dict:
+        """Configuration ``c`` run to rest on the contact transient."""
         p = self.plan
-        tr = p.transient(scenario)
-        key = (f"max_accurate_dt|{scenario}|{integrator}|{device}|{n}|T={tr.duration}|tol={p.tolerance}|prec={p.accurate_precision}"
-               + (f"|kmax={p.accuracy_k_max}" if p.accuracy_k_max != 4096 else ""))
-        floor = self.floor(scenario, device, n)["error_rel"]
+        tr = TRANSIENTS["contact"]
+        key = (
+            f"static|contact|{c.integrator}|{c.options_text()}|{device}|{n}|k={_k_text(c.k)}"
+            f"|dur={p.equilibrium_duration}|cap={p.equilibrium_wall_cap}"
+        )
+        opts = c.option_dict
 
         def run():
-            if stable_dt is None:
-                return {"note": "no stable dt: no accurate dt", "tolerance_rel": p.tolerance, "floor_error_rel": floor}
-            k0 = steps_per_frame_at_most(stable_dt)
-            s = search_steps_per_frame(lambda k: self.error(scenario, integrator, device, n, k), p.tolerance, k_start=k0,
-                                       k_max=max(p.accuracy_k_max, 64 * k0), precision=p.accurate_precision)
-            e = dict(s.trials).get(s.k) if s.k else None
-            note = "monotone e(dt) assumed"
-            if s.bounded:
-                note += "; accurate at the search's upper bound (the max stable dt or one frame)"
-            if s.k is None:
-                last = s.trials[-1][1] if s.trials else None
-                note += (f"; e stopped falling as dt shrank (about {last:.3g}): no dt is accurate with these options" if s.stalled
-                         else f"; no dt found accurate down to (1/60 s)/{max(p.accuracy_k_max, 64 * k0)} (the search's bound)")
-            return {"dt_s": s.dt(), "steps_per_frame": s.k, "bound_dt_s": FRAME_DT / s.k_inaccurate if s.k_inaccurate else None,
-                    "search_bounded": s.bounded, "tolerance_rel": p.tolerance, "error_rel": e, "floor_error_rel": floor,
-                    "transient_s": tr.duration, "trials": len(s.trials), "note": note}
+            prob = self.problem("contact", n, device)
+            sim = self.sim(tr.scenario.name, n, device, c.integrator, opts)
+            s = prob.measure(sim, float(c.k), p.equilibrium_duration, p.equilibrium_wall_cap)
+            return {
+                "dt_s": c.dt,
+                "steps_per_frame": float(c.k),
+                "equilibrium_reached": s.equilibrium_reached,
+                "stable": s.stable,
+                "time_to_equilibrium_sim_s": s.time_to_equilibrium,
+                "time_to_equilibrium_wall_s": s.time_to_equilibrium_wall,
+                "static_error_rel": s.error,
+                "sag_error_rel": s.sag_error,
+                "error_rel": s.error,
+                "note": ""
+                if s.equilibrium_reached
+                else f"not at rest after {s.sim_time:.3g} s simulated "
+                f"(cap {p.equilibrium_duration:g} s or {p.equilibrium_wall_cap} s wall)",
+            }
 
-        return self.once(key, self.base("max_accurate_dt", scenario, integrator, device, n), run)
+        return self.once(
+            key, self.base("static", tr.scenario.name, c.integrator, device, n, opts, transient="contact"), run
+        )
 
-    def static(self, integrator: str, device: str, n: int, k: int, options: dict | None = None) -> dict:
-        p = self.plan
-        opt = _options_text(options or {})
-        key = f"static|sheet|{integrator}|{opt}|{device}|{n}|k={k}|dur={p.equilibrium_duration}|cap={p.equilibrium_wall_cap}"
-
-        def run():
-            prob = self.static_problem(n, device)  # first: building it rebinds the cached sim's integrator
-            sim = self.sim("sheet", n, device, integrator, options)
-            dt = FRAME_DT / k
-            if prob is None:
-                sim.set_dt(dt)
-                r = RunHarness(sim).run(p.equilibrium_duration, stop_at_equilibrium=True, wall_cap=p.equilibrium_wall_cap)
-                return {"dt_s": dt, "steps_per_frame": k, "equilibrium_reached": r.equilibrium_reached, "stable": r.stable,
-                        "time_to_equilibrium_sim_s": r.time_to_equilibrium, "time_to_equilibrium_wall_s": r.time_to_equilibrium_wall,
-                        "max_strain_rel": r.max_strain, "note": f"no float64 equilibrium above {p.static_max_size}x{p.static_max_size}"}
-            s = prob.measure(sim, dt, p.equilibrium_duration, p.equilibrium_wall_cap)
-            return {"dt_s": dt, "steps_per_frame": k, "equilibrium_reached": s.equilibrium_reached, "stable": s.stable,
-                    "time_to_equilibrium_sim_s": s.time_to_equilibrium, "time_to_equilibrium_wall_s": s.time_to_equilibrium_wall,
-                    "static_error_rel": s.error, "sag_error_rel": s.sag_error, "tolerance_rel": p.tolerance,
-                    "note": "" if s.equilibrium_reached else f"not at rest after {s.sim_time:.3g} s simulated (cap {p.equilibrium_duration:g} s or {p.equilibrium_wall_cap} s wall)"}
-
-        return self.once(key, self.base("static", "sheet", integrator, device, n, options), run)
-
-    def max_static_accurate_dt(self, integrator: str, device: str, n: int, stable_dt) -> dict:
-        p = self.plan
-        key = f"max_static_accurate_dt|sheet|{integrator}|{device}|{n}|tol={p.tolerance}|dur={p.equilibrium_duration}"
-
-        def run():
-            if stable_dt is None:
-                return {"note": "no stable dt", "tolerance_rel": p.tolerance}
-            k0 = steps_per_frame_at_most(stable_dt)
-
-            def err(k):
-                row = self.static(integrator, device, n, k)
-                return row["static_error_rel"] if row.get("static_error_rel") is not None else math.inf
-
-            s = search_steps_per_frame(err, p.tolerance, k_start=k0, k_max=max(1024, 16 * k0), precision=max(p.accurate_precision, 0.2))
-            note = "monotone static error assumed"
-            if s.bounded:
-                note += "; accurate at the max stable dt (the search's upper bound)"
-            return {"dt_s": s.dt(), "steps_per_frame": s.k, "bound_dt_s": FRAME_DT / s.k_inaccurate if s.k_inaccurate else None,
-                    "search_bounded": s.bounded, "tolerance_rel": p.tolerance, "error_rel": dict(s.trials).get(s.k) if s.k else None,
-                    "trials": len(s.trials), "note": note}
-
-        return self.once(key, self.base("max_static_accurate_dt", "sheet", integrator, device, n), run)
-
-    def timing(self, scenario: str, integrator: str, device: str, n: int, dt: float, label: str, options: dict | None = None) -> dict:
+    def timing(
+        self,
+        scenario: str,
+        integrator: str,
+        device: str,
+        n,
+        dt: float,
+        label: str,
+        options: dict | None = None,
+        start=None,
+    ) -> dict:
+        """ms/step of ``integrator`` with ``options`` at ``dt`` on ``scenario`` (from ``start``, a
+        transient whose start state the timed steps begin at; None: the rest shape)."""
         p = self.plan
         opt = _options_text(options or {})
-        key = f"timing|{scenario}|{integrator}|{opt}|{device}|{n}|{label}|dt={dt!r}|w={p.windows}"
+        key = f"timing|{scenario}|{integrator}|{opt}|{device}|{_size(n)}|{label}|dt={dt!r}|w={p.timing_windows}x{p.window_seconds}"
 
         if self.defer_timing and key not in self.out.done:
             return {}
 
         def run():
+            import warp as wp
+
             from warpcloth.run.harness import time_steps
 
             sim = self.sim(scenario, n, device, integrator, options)
             sim.set_dt(dt)
+            if start is not None:
+                x0 = start.start(sim.model).astype(np.float32)
+                sim.state.particle_q.assign(wp.array(x0, dtype=wp.vec3, device=sim.model.device))
             steps_frame = max(1, math.ceil(FRAME_DT / dt - 1e-9))
             # compile and the first replay (graph capture) excluded; windows replay the frame's steps
-            t = time_steps(sim, windows=p.windows, window_seconds=p.window_seconds, batch=steps_frame)
-            ms, m = t.ms_per_step, t.steps_per_window
+            t = time_steps(sim, windows=p.timing_windows, window_seconds=p.window_seconds, batch=steps_frame)
+            ms = t.ms_per_step
             med = t.median_ms
             cost = t.wall_s_per_sim_s
-
-            return {"dt_s": dt, "ms_per_step_median": med, "ms_per_step_min": min(ms), "ms_per_step_max": max(ms),
-                    "timed_windows": len(ms), "steps_per_window": m, "wall_s_per_sim_s": cost, "realtime_factor": 1.0 / cost,
-                    "realtime_30fps": t.realtime(30.0), "realtime_60fps": t.realtime(60.0), "note": f"at the {label} dt",
-                    **({"iterations": options.get("iterations"), "substeps": options.get("substeps")} if options else {})}
+            return {
+                "dt_s": dt,
+                "steps_per_frame": FRAME_DT / dt,
+                "ms_per_step_median": med,
+                "ms_per_step_min": min(ms),
+                "ms_per_step_max": max(ms),
+                "timed_windows": len(ms),
+                "steps_per_window": t.steps_per_window,
+                "ms_per_frame": med * FRAME_DT / dt,
+                "wall_s_per_sim_s": cost,
+                "realtime_factor": 1.0 / cost,
+                "realtime_30fps": t.realtime(30.0),
+                "realtime_60fps": t.realtime(60.0),
+                "note": f"at the {label} dt",
+                "iterations": (options or {}).get("iterations"),
+                "substeps": (options or {}).get("substeps"),
+            }
 
         return self.once(key, self.base("timing", scenario, integrator, device, n, options), run)
-
-    def match(self, integrator: str, device: str, n: int) -> dict:
-        """The cheapest iterations x substeps (by their product) at one step per frame reaching the
-        tolerance on both transients."""
-        p = self.plan
-        key = f"match_result|{integrator}|{device}|{n}|tol={p.tolerance}|T={p.sheet_transient},{p.flag_transient}"
-
-        def run():
-            pairs = sorted(((i, s) for i in MATCH_ITERATIONS for s in MATCH_SUBSTEPS), key=lambda t: (t[0] * t[1], t[1]))
-            tried = 0
-            for it, sub in pairs:
-                opts = {"iterations": it, "substeps": sub}
-                tried += 1
-                errs = []
-                for sc in SCENARIOS:
-                    errs.append(self.error(sc, integrator, device, n, 1, opts))
-                    if not errs[-1] <= p.tolerance:
-                        break
-                if len(errs) == len(SCENARIOS) and all(e <= p.tolerance for e in errs):
-                    if self.defer_timing:
-                        raise _Deferred
-                    t = self.timing("sheet", integrator, device, n, FRAME_DT, "matched", opts)
-                    return {"dt_s": FRAME_DT, "steps_per_frame": 1, "iterations": it, "substeps": sub, "error_rel": max(errs),
-                            "tolerance_rel": p.tolerance, "trials": tried, "ms_per_step_median": t["ms_per_step_median"],
-                            "wall_s_per_sim_s": t["wall_s_per_sim_s"], "realtime_30fps": t["realtime_30fps"],
-                            "realtime_60fps": t["realtime_60fps"], "note": "cheapest iterations x substeps reaching the tolerance on both transients at dt = 1/60 s"}
-            return {"dt_s": FRAME_DT, "tolerance_rel": p.tolerance, "trials": tried,
-                    "note": f"no pair up to {MATCH_ITERATIONS[-1]} iterations x {MATCH_SUBSTEPS[-1]} substeps reaches the tolerance"}
-
-        try:
-            return self.once(key, self.base("match_result", "sheet+flag", integrator, device, n), run)
-        except _Deferred:  # found in the search phase; timed (and written) in the timing phase
-            return {}
 
     def settle(self, scenario: str, integrator: str, device: str, k: int) -> dict:
         """A fixed-mesh scenario run from its start at dt = frame/k until at rest (or the caps):
@@ -337,9 +483,16 @@ class Measurements:
             dt = FRAME_DT / k
             sim.set_dt(dt)
             r = RunHarness(sim).run(p.equilibrium_duration, stop_at_equilibrium=True, wall_cap=p.equilibrium_wall_cap)
-            return {"dt_s": dt, "steps_per_frame": k, "equilibrium_reached": r.equilibrium_reached, "stable": r.stable,
-                    "time_to_equilibrium_sim_s": r.time_to_equilibrium, "time_to_equilibrium_wall_s": r.time_to_equilibrium_wall,
-                    "max_strain_rel": r.max_strain, "note": MESH_NOTE}
+            return {
+                "dt_s": dt,
+                "steps_per_frame": k,
+                "equilibrium_reached": r.equilibrium_reached,
+                "stable": r.stable,
+                "time_to_equilibrium_sim_s": r.time_to_equilibrium,
+                "time_to_equilibrium_wall_s": r.time_to_equilibrium_wall,
+                "max_strain_rel": r.max_strain,
+                "note": MESH_NOTE,
+            }
 
         return self.once(key, self.base("static", scenario, integrator, device, None), run)
 
@@ -354,44 +507,46 @@ class Measurements:
         self.timing(scenario, integrator, device, None, FRAME_DT / k, "stable")
 
     # a group ------------------------------------------------------------------------------------
+    def configs(self, device: str, integrator: str, n: int) -> tuple[list, float | None]:
+        """The configurations of ``integrator`` at ``n`` and the max stable dt they start from:
+        the swing's sheet's (the flag's has been larger at every size measured; a configuration
+        beyond it on the flag is recorded unstable there)."""
+        dt = self.max_stable_dt(TRANSIENTS["swing"].scenario.name, integrator, device, n)["dt_s"]
+        return configurations(integrator, dt, self.plan.level, n), dt
+
     def group(self, device: str, integrator: str, n) -> None:
         """The measurements of one device x integrator x size group (``n`` a scenario name: a
         fixed-mesh group), in the order each needs the last."""
         if isinstance(n, str):  # a fixed-mesh scenario's group
             return self.mesh_group(device, integrator, n)
-        p = self.plan
-        stable = {sc: self.max_stable_dt(sc, integrator, device, n)["dt_s"] for sc in SCENARIOS}
-        accurate = None
-        if n in p.accuracy_sizes:
-            acc = {}
-            for sc in SCENARIOS:
-                if n == min(p.accuracy_sizes):  # the error-vs-dt ladder for the plot of orders
-                    k_stable = steps_per_frame_at_most(stable[sc]) if stable[sc] is not None else None
-                    for k in p.error_ladder:
-                        if k_stable is not None and k >= k_stable:
-                            self.error(sc, integrator, device, n, k)
-                acc[sc] = self.max_accurate_dt(sc, integrator, device, n, stable[sc])["dt_s"]
-            if all(v is not None for v in acc.values()):
-                accurate = min(acc.values())
-            self.max_static_accurate_dt(integrator, device, n, stable["sheet"])
-            if accurate is not None:
-                self.static(integrator, device, n, steps_per_frame_at_most(accurate))
-            if p.match_accuracy and integrator in ("pbd", "xpbd"):
-                self.match(integrator, device, n)
-        if stable["sheet"] is not None:
-            self.static(integrator, device, n, steps_per_frame_at_most(stable["sheet"]))
-        for sc in p.timing_scenarios:
-            if stable[sc] is not None:
-                dt_stable = FRAME_DT / steps_per_frame_at_most(stable[sc])
-                self.timing(sc, integrator, device, n, dt_stable, "stable")
-                for f in p.extra_dt_fractions:
-                    self.timing(sc, integrator, device, n, FRAME_DT / steps_per_frame_at_most(stable[sc] * f), f"stable x {f:g}")
-            if accurate is not None:
-                self.timing(sc, integrator, device, n, accurate, "accurate")
+        configs, stable_dt = self.configs(device, integrator, n)
+        contact = n <= self.plan.contact_max_size
+        for name in TRANSIENTS:
+            if contact or not TRANSIENTS[name].static:
+                self.floor(name, device, n)
+        ran = []
+        for c in configs:
+            rows = [self.trial(name, c, device, n) for name in DYNAMIC]
+            if all(r.get("stable") and r.get("error_rel") is not None for r in rows):
+                ran.append(c)
+        statics = static_configurations(integrator, stable_dt) if contact else []
+        for c in statics:
+            self.static(c, device, n)
+        for c in dict.fromkeys(ran + statics):
+            self.timing(
+                TRANSIENTS["swing"].scenario.name,
+                integrator,
+                device,
+                n,
+                c.dt,
+                "configuration",
+                c.option_dict,
+                start=TRANSIENTS["swing"],
+            )
 
 
 def _size(n) -> str:
     return "mesh" if n is None else str(n)
 
 
-__all__ = ["MATCH_ITERATIONS", "MATCH_SUBSTEPS", "Measurements"]
+__all__ = ["Measurements"]

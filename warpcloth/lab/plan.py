@@ -7,77 +7,90 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from warpcloth.errors import WarpclothError, require
-from warpcloth.lab.accuracy import DEFAULT_TOLERANCE, Transient, check_tolerance
+from warpcloth.lab.accuracy import DEFAULT_TOLERANCE, TOLERANCES, check_tolerance
 
-#: The study's two grid scenarios (the accuracy uses both).
-SCENARIOS = ("sheet", "flag")
+#: The study's grid transients (lab/transients.py): swing and flag frame by frame, contact at rest.
+SCENARIOS = ("swing", "flag", "contact")
+#: The 60 FPS frame budget the study answers for by default [ms], and the whole frame [ms].
+DEFAULT_BUDGET_MS = 2.0
+WHOLE_FRAME_MS = 1000.0 / 60.0
 
 
 @dataclass
 class StudyPlan:
-    """What a study measures. ``sizes``: the timing/stability ladder (n x n); ``accuracy_sizes``:
-    where the float64 references are computed (their timing is measured too)."""
+    """What a study measures: every integrator's configurations (:mod:`warpcloth.lab.configs`) on
+    the transients (:mod:`warpcloth.lab.transients`) at every n x n size of ``sizes``, against
+    float64 references, with their conditioning floors, costs and the max stable dt.
+
+    ``windows``: per dynamic transient, ((n_min, frames), ...): the window from size n_min up, in
+    1/60 s frames (even: dt = 1/30 s runs compare every other frame); ``level``: the
+    configuration grids (``full`` / ``quick``, :data:`~warpcloth.lab.configs.GRIDS`);
+    ``run_wall_cap``: a configuration predicted to take longer than this [s] per run, or
+    ``max_frame_ms`` per 1/60 s frame (15x the whole frame by default: no budget question reaches
+    it), is not run (a row
+    says so; its speed is predicted from the group's configurations already run), and a run is
+    stopped at twice the cap; ``reference_cache``: a folder where
+    references and floors are kept for workers and ``--resume`` (set by the study)."""
 
     profile: str
     integrators: list
     sizes: list
-    accuracy_sizes: list
     devices: list
     tolerance: float = DEFAULT_TOLERANCE
-    sheet_transient: float = 1.0  # s
-    flag_transient: float = 0.5  # s
-    maxdt_duration: float = 1.0  # s each stability trial must survive
-    maxdt_durations: tuple = ()  # ((n_min, seconds), ...): shorter trials from size n_min up (large sizes)
+    tolerances: tuple = TOLERANCES
+    budget_ms: float = DEFAULT_BUDGET_MS
+    windows: tuple = (("swing", ((0, 60), (64, 24), (128, 16))), ("flag", ((0, 30), (32, 16), (64, 8))))
+    level: str = "full"
+    run_wall_cap: float = 60.0
+    max_frame_ms: float = 250.0
     maxdt_precision: float = 0.05
     maxdt_wall_cap: float | None = 30.0
-    accurate_precision: float = 0.05
-    accuracy_k_max: int = 4096  # the accuracy search's bound: dt >= (1/60 s) / max(this, 64 k_stable)
-    windows: int = 5
-    window_seconds: float = 0.1
-    equilibrium_duration: float = 10.0  # s simulated at most
-    equilibrium_wall_cap: float | None = 30.0
-    static_max_size: int = 64  # the float64 equilibrium (Newton) up to this n
-    error_ladder: tuple = (1, 2, 4, 8, 16, 32, 64)  # steps per frame, at the smallest accuracy size
-    timing_scenarios: tuple = ("sheet",)
-    extra_dt_fractions: tuple = ()  # timing also at max stable dt x each (the seed's "two smaller")
-    match_accuracy: bool = False
-    grid: bool = True  # the sheet and flag at the sizes above
-    scenario_files: list = field(default_factory=list)  # fixed-mesh scenarios (files or registered names): stability, equilibrium, timing
+    timing_windows: int = 5
+    window_seconds: float = 0.05
+    equilibrium_duration: float = 10.0  # s simulated at most (the contact transient)
+    equilibrium_wall_cap: float | None = 60.0
+    contact_max_size: int = 64  # the contact transient up to this n (its equilibrium: SciPy's sparse direct solve, on the CPU)
+    reference_cache: str = ""
+    grid: bool = True  # the study's transients at the sizes above
+    scenario_files: list = field(default_factory=list)  # fixed-mesh scenarios: stability, equilibrium, timing
+
+    def window_frames(self, transient: str, n: int) -> int:
+        """The window of a dynamic transient at size ``n`` [1/60 s frames]."""
+        out = None
+        for n_min, frames in sorted(dict(self.windows)[transient]):
+            if n >= n_min:
+                out = frames
+        require(out is not None, f"no window for the {transient} transient at {n}x{n}")
+        return int(out)
 
     def maxdt_duration_at(self, n: int) -> float:
-        """The stability trial's simulated duration [s] at size ``n`` (``maxdt_durations``)."""
-        out = self.maxdt_duration
-        for n_min, seconds in sorted(self.maxdt_durations):
-            if n >= n_min:
-                out = seconds
-        return out
+        """The stability trial's simulated duration [s] at size ``n``: the swing's window there."""
+        from warpcloth.lab.accuracy import FRAME_DT
+
+        return self.window_frames("swing", n) * FRAME_DT
 
     @property
     def all_sizes(self) -> list:
-        return sorted(set(self.sizes) | set(self.accuracy_sizes))
-
-    def transient(self, scenario: str) -> Transient:
-        return Transient(scenario, self.sheet_transient if scenario == "sheet" else self.flag_transient, swing=scenario == "sheet")
+        return sorted(set(self.sizes))
 
 
 PROFILES = {
-    "quick": dict(sizes=[4, 6, 8], accuracy_sizes=[4, 6], sheet_transient=0.5, flag_transient=0.25, maxdt_duration=0.5,
-                  maxdt_precision=0.1, accurate_precision=0.1, window_seconds=0.03, equilibrium_duration=4.0,
-                  equilibrium_wall_cap=5.0, maxdt_wall_cap=5.0, error_ladder=(1, 2, 4, 8, 16, 32)),
-    # every integrator, 16-128 on a 2-core CPU within about 40 minutes (docs/study.md, "Profiles"):
-    # stability trials shortened with size (a 1 s trial of rk4 at 128x128 is ~9k steps of ~4.5 ms);
-    # accuracy at 8 and 12 (implicit-type integrators search to k of hundreds there; at 16 the
-    # last standard run spent 25 min on them), bisection to 15 %.
-    "standard": dict(sizes=[16, 32, 64, 128], accuracy_sizes=[8, 12], maxdt_durations=((64, 0.5), (128, 0.25)),
-                     maxdt_wall_cap=30.0, equilibrium_wall_cap=10.0, accurate_precision=0.15),
-    "seed": dict(sizes=[32, 64, 128], accuracy_sizes=[8, 16], timing_scenarios=("sheet", "flag"),
-                 extra_dt_fractions=(0.5, 0.25), maxdt_duration=2.0, maxdt_precision=0.02, equilibrium_wall_cap=60.0,
-                 maxdt_wall_cap=60.0),
+    # tiny sizes (SciPy references), the quick configuration grids: minutes on 2 CPU cores
+    "quick": dict(sizes=[4, 6, 8], windows=(("swing", ((0, 30),)), ("flag", ((0, 16),))), level="quick",
+                  run_wall_cap=10.0, max_frame_ms=50.0, maxdt_precision=0.1, maxdt_wall_cap=5.0, timing_windows=3, window_seconds=0.02,
+                  equilibrium_duration=4.0, equilibrium_wall_cap=5.0),
+    # the committed CPU study: 16-128, every configuration, <= 90 min on a 2-core CPU with --workers 2
+    # (docs/study.md, "Estimate"); the swing's 1 s window is ill-conditioned from 64x64 (docs/study.md, "Windows")
+    "standard": dict(sizes=[16, 32, 64, 128], run_wall_cap=60.0, maxdt_wall_cap=30.0, equilibrium_wall_cap=30.0),
+    # a GPU (H100/H200): 64-512 on cuda, within 8 min of device time (--estimate)
+    "gpu": dict(sizes=[64, 128, 256, 512], devices=["cuda"],
+                windows=(("swing", ((0, 24), (128, 16), (256, 12), (512, 8))), ("flag", ((0, 8),))),
+                run_wall_cap=20.0, maxdt_wall_cap=10.0, equilibrium_wall_cap=20.0, timing_windows=5, window_seconds=0.05),
 }
 
 
 def make_plan(profile: str = "quick", integrators=None, sizes=None, devices=None, tolerance=DEFAULT_TOLERANCE,
-              match_accuracy: bool = False, accuracy_sizes=None, scenarios=None) -> StudyPlan:
+              scenarios=None, budget_ms=None) -> StudyPlan:
     """A :class:`StudyPlan` from a profile and explicit overrides (checked; one-line errors)."""
     from warpcloth.integrators import integrator_names
 
@@ -98,19 +111,27 @@ def make_plan(profile: str = "quick", integrators=None, sizes=None, devices=None
         for s in sizes:
             require(isinstance(s, int) and s >= 3, f"sizes must be integers >= 3 (n x n particles), got {s!r}")
         base["sizes"] = sizes
-        if accuracy_sizes is None:
-            base["accuracy_sizes"] = [s for s in sizes if s <= max(PROFILES[profile]["accuracy_sizes"])] or [min(sizes)]
-    if accuracy_sizes is not None:
-        base["accuracy_sizes"] = list(accuracy_sizes)
     if devices is None:
-        devices = ["cpu", "cuda"] if profile == "seed" else ["cpu"]
+        devices = base.pop("devices", ["cpu"])
+    else:
+        base.pop("devices", None)
     devices = list(devices)
     require(bool(devices), "the device list is empty")
+    if budget_ms is not None:
+        try:
+            budget_ms = float(budget_ms)
+        except (TypeError, ValueError):
+            raise WarpclothError(f"--budget-ms must be a number of milliseconds > 0, got {budget_ms!r}") from None
+        require(budget_ms > 0 and budget_ms == budget_ms and budget_ms != float("inf"),
+                f"--budget-ms must be a number of milliseconds > 0, got {budget_ms!r}")
+        base["budget_ms"] = budget_ms
+    tol = check_tolerance(tolerance)
+    tolerances = tuple(sorted(set(TOLERANCES) | {tol}))
     grid, files = check_scenarios(scenarios)
     if grid:
-        check_memory(sorted(set(base["sizes"]) | set(base["accuracy_sizes"])), devices)
-    return StudyPlan(profile=profile, integrators=integrators, devices=devices, tolerance=check_tolerance(tolerance),
-                     match_accuracy=bool(match_accuracy), grid=grid, scenario_files=files, **base)
+        check_memory(base["sizes"], devices)
+    return StudyPlan(profile=profile, integrators=integrators, devices=devices, tolerance=tol, tolerances=tolerances,
+                     grid=grid, scenario_files=files, **base)
 
 
 def check_memory(sizes, devices) -> None:
@@ -130,8 +151,8 @@ def check_memory(sizes, devices) -> None:
 
 
 def check_scenarios(scenarios) -> tuple[bool, list]:
-    """``--scenarios``: (whether the sheet/flag grid study runs, the other scenarios). None: the
-    grid only. ``sheet`` and ``flag`` go together (the accuracy metric uses both); any other
+    """``--scenarios``: (whether the grid study runs, the other scenarios). None: the grid only.
+    ``grid`` (or its old names ``sheet`` and ``flag``, together) names the study's transients; any other
     item is a scenario file (.toml) or a registered scenario, loaded here so that a bad one is
     refused before any work."""
     if scenarios is None:
@@ -140,11 +161,12 @@ def check_scenarios(scenarios) -> tuple[bool, list]:
 
     items = list(dict.fromkeys(scenarios))
     require(bool(items), "the scenario list is empty: give e.g. --scenarios sheet,flag,examples/cape.toml")
-    grid = [s for s in items if s in SCENARIOS]
-    if len(grid) == 1:
+    grid_names = ("grid", "sheet", "flag")
+    grid = [s for s in items if s in grid_names]
+    if grid in (["sheet"], ["flag"]):
         raise WarpclothError(f"--scenarios: {grid[0]} without {'flag' if grid[0] == 'sheet' else 'sheet'}: the study's sheet and "
-                             "flag go together (the accuracy uses both); give both or neither")
-    files = [s for s in items if s not in SCENARIOS]
+                             "flag go together (the accuracy uses both); give both, or grid, or neither")
+    files = [s for s in items if s not in grid_names]
     for name in files:
         get_scenario(name)  # WarpclothError: unknown name, missing or malformed file
     return bool(grid), files
@@ -161,4 +183,5 @@ def group_label(n) -> str:
     return n if isinstance(n, str) else f"{n}x{n}"
 
 
-__all__ = ["PROFILES", "SCENARIOS", "StudyPlan", "check_scenarios", "group_label", "make_plan", "plan_groups"]
+__all__ = ["DEFAULT_BUDGET_MS", "PROFILES", "SCENARIOS", "StudyPlan", "WHOLE_FRAME_MS", "check_scenarios", "group_label",
+           "make_plan", "plan_groups"]

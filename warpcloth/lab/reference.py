@@ -371,22 +371,101 @@ def static_equilibrium(model, control: Control | None = None, x0=None, tol: floa
     """
     m64 = Float64Model.from_model(model, control)
     x, _ = _initial_state(m64, x0, None)
+    return _minimize(m64, x, None, tol, max_iter)
+
+
+class _Penalty:
+    """Frictionless contact with spheres and planes as the penalty energy 1/2 kappa phi^2 per
+    particle, phi = max(0, penetration) of the collider's surface offset by its thickness."""
+
+    def __init__(self, colliders, kappa: float):
+        from warpcloth.sim.colliders import Plane, Sphere
+
+        self.kappa = float(kappa)
+        self.spheres, self.planes = [], []
+        for c in colliders:
+            if isinstance(c, Sphere):
+                self.spheres.append((np.asarray(c.center, dtype=np.float64), float(c.radius) + float(c.thickness)))
+            elif isinstance(c, Plane):
+                nrm = np.asarray(c.normal, dtype=np.float64)
+                nrm = nrm / np.linalg.norm(nrm)
+                self.planes.append((np.asarray(c.point, dtype=np.float64) + float(c.thickness) * nrm, nrm))
+            else:
+                raise WarpclothError(f"contact_equilibrium supports spheres and planes, not {type(c).__name__}")
+
+    def terms(self, x: np.ndarray):
+        """Per contact: (penetration (N,) >= 0, outward normal (N, 3), curvature 1/r (N,) or 0)."""
+        out = []
+        for c, radius in self.spheres:
+            d = x - c
+            r = np.sqrt(np.einsum("nk,nk->n", d, d))
+            nrm = d / np.where(r > 0, r, 1.0)[:, None]
+            out.append((np.maximum(0.0, radius - r), nrm, 1.0 / np.where(r > 0, r, np.inf)))
+        for p, nrm in self.planes:
+            out.append((np.maximum(0.0, -(x - p) @ nrm), np.broadcast_to(nrm, x.shape), np.zeros(x.shape[0])))
+        return out
+
+    def energy(self, x) -> float:
+        return float(sum(0.5 * self.kappa * np.sum(phi ** 2) for phi, _, _ in self.terms(x)))
+
+    def forces(self, x) -> np.ndarray:
+        f = np.zeros_like(x)
+        for phi, nrm, _ in self.terms(x):
+            f += self.kappa * phi[:, None] * nrm
+        return f
+
+    def penetration(self, x) -> float:
+        return float(max((phi.max() for phi, _, _ in self.terms(x)), default=0.0))
+
+    def hessian(self, x) -> sp.csr_matrix:
+        """d^2 E / dx^2: kappa (n n^T - phi / r (I - n n^T)) on the particles in contact."""
+        n_dof = x.size
+        rows, cols, vals = [], [], []
+        r3 = np.arange(3)
+        for phi, nrm, curv in self.terms(x):
+            active = np.nonzero(phi > 0)[0]
+            if active.size == 0:
+                continue
+            nn = nrm[active, :, None] * nrm[active, None, :]
+            blk = self.kappa * (nn - (phi[active] * curv[active])[:, None, None] * (np.eye(3)[None] - nn))
+            rows.append(np.broadcast_to(3 * active[:, None, None] + r3[None, :, None], blk.shape).ravel())
+            cols.append(np.broadcast_to(3 * active[:, None, None] + r3[None, None, :], blk.shape).ravel())
+            vals.append(blk.ravel())
+        if not rows:
+            return sp.csr_matrix((n_dof, n_dof))
+        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_dof, n_dof))
+
+
+def _minimize(m64: Float64Model, x: np.ndarray, penalty: "_Penalty | None", tol: float, max_iter: int) -> Equilibrium:
+    """Newton (Levenberg-Marquardt where needed, Armijo line search) on the potential energy plus
+    ``penalty``'s, from ``x``, until the largest net force on a free particle is <= ``tol`` [N]."""
     free = m64.free
     fdof = (3 * np.nonzero(free)[0][:, None] + np.arange(3)[None, :]).ravel()
     if fdof.size == 0:
         return Equilibrium(x, 0.0)
     mu_floor = 1e-10 * max(1.0, float(m64.ks.max()) if m64.ks.size else 1.0)
 
+    def forces(y):
+        f = m64.static_forces(y)
+        return f + penalty.forces(y) if penalty is not None else f
+
+    def energy(y):
+        e = m64.potential_energy(y)
+        return e + penalty.energy(y) if penalty is not None else e
+
     def residual(f):
         return float(np.max(np.linalg.norm(f[free], axis=1)))
 
-    f = m64.static_forces(x)
+    f = forces(x)
     res = residual(f)
     for _ in range(max_iter):
         if res <= tol:
             break
         g = -f.ravel()[fdof]  # gradient of E on the free degrees of freedom
-        H = m64.stiffness_matrix(x)[fdof][:, fdof].tocsc()
+        K = m64.stiffness_matrix(x)
+        if penalty is not None:
+            K = K + penalty.hessian(x)
+        H = K[fdof][:, fdof].tocsc()
         eye = sp.identity(fdof.size, format="csc")
         mu, d = 0.0, None
         for _attempt in range(60):
@@ -402,17 +481,67 @@ def static_equilibrium(model, control: Control | None = None, x0=None, tol: floa
             mu = max(10.0 * mu, mu_floor)
         if d is None:
             raise WarpclothError("static equilibrium: no descent direction (is every free particle held by springs?)")
-        e0 = m64.potential_energy(x)
+        e0 = energy(x)
         slack = 1e-13 * (abs(e0) + float(np.sum(m64.mass * np.abs(x @ m64.gravity))) + 1.0)
         slope = float(g @ d)
         alpha = 1.0
         while True:
             trial = x.copy()
             trial.ravel()[fdof] += alpha * d
-            if m64.potential_energy(trial) <= e0 + 1e-4 * alpha * slope + slack or alpha < 1e-12:
+            if energy(trial) <= e0 + 1e-4 * alpha * slope + slack or alpha < 1e-12:
                 break
             alpha *= 0.5
         x = trial
-        f = m64.static_forces(x)
+        f = forces(x)
         res = residual(f)
     return Equilibrium(x, res)
+
+
+class ContactEquilibrium(NamedTuple):
+    """Result of :func:`contact_equilibrium`: positions x (N, 3) [m]; residual: the largest net
+    force on a free particle, the contact force included [N]; penetration: the largest depth of
+    a particle inside a collider's offset surface [m]; contacts: particles in contact; kappa:
+    the last penalty stiffness [N/m]."""
+
+    x: np.ndarray
+    residual: float
+    penetration: float
+    contacts: int
+    kappa: float
+
+
+def contact_equilibrium(model, control: Control | None = None, x0=None, colliders=None, tol: float = 1e-9,
+                        penetration_tol: float = 1e-9, max_iter: int = 200, kappa: float | None = None) -> ContactEquilibrium:
+    """The float64 static equilibrium under gravity with frictionless contact against spheres and
+    planes (``colliders``; default ``control.colliders``): springs and gravity in balance with
+    normal contact forces, no particle inside a collider's surface offset by its thickness.
+
+    A penalty continuation: Newton (:func:`static_equilibrium`'s, on E + 1/2 kappa sum phi^2,
+    phi the penetration depth) for kappa = 100 max ks, then x 10 from the last solution, until
+    the deepest penetration is <= ``penetration_tol`` x the cloth size; the contact force on a
+    particle is kappa phi along the collider's normal. With frictionless colliders and the cloth
+    held by pins the equilibrium is unique where it is a strict minimum; starting from ``x0``
+    (default: the rest shape with the particles inside a collider moved onto its surface); ``kappa``: the first penalty
+    stiffness instead (e.g. a previous solve's, to start from its solution). Raises
+    WarpclothError when the continuation does not reach the penetration tolerance.
+    """
+    m64 = Float64Model.from_model(model, control)
+    x, _ = _initial_state(m64, x0, None)
+    colliders = tuple(control.colliders if colliders is None and control is not None else colliders or ())
+    size = cloth_size(model)
+    if x0 is None:  # the rest shape with every free particle inside a collider moved out onto its surface
+        for phi, nrm, _ in _Penalty(colliders, 1.0).terms(x):
+            x[m64.free] += (phi[:, None] * nrm)[m64.free]
+    if kappa is None:
+        kappa = 100.0 * max(1.0, float(m64.ks.max()) if m64.ks.size else 1.0)
+    for _ in range(20):
+        pen = _Penalty(colliders, kappa)
+        # the force's rounding grows with kappa: kappa x 1e-14 of the size is the attainable residual
+        eq = _minimize(m64, x, pen, max(tol, 1e-14 * kappa * size), max_iter)
+        x = eq.x
+        depth = pen.penetration(x)
+        if depth <= penetration_tol * size:
+            contacts = int(sum(int(np.count_nonzero(phi > 0)) for phi, _, _ in pen.terms(x)))
+            return ContactEquilibrium(x, eq.residual, depth, contacts, kappa)
+        kappa *= 10.0 if depth > 1e3 * penetration_tol * size else max(2.0, 1.5 * depth / (penetration_tol * size))
+    raise WarpclothError(f"contact equilibrium: penetration {depth:.3g} m after kappa = {kappa:.3g} N/m")

@@ -353,6 +353,7 @@ class WarpReference:
     stability: StabilityLimit
     estimates: list
     seconds: float
+    piece_steps: tuple = ()  # the finest run's steps per piece of the time grid (for warp_trajectory)
 
 
 def _pin_tracks(model, control) -> tuple:
@@ -440,7 +441,31 @@ def warp_reference(model, control=None, duration: float = 1.0, frame_dt: float =
     dt_fine = max((p.end - p.start) / n for p, n in zip(pieces, fine_counts))
     return WarpReference(frames=fine, halving_estimate=e, relative_estimate=e / size, accepted=accepted, dt=dt_fine,
                          steps=int(sum(fine_counts)), stability=limit, estimates=estimates,
-                         seconds=time.perf_counter() - t_start)
+                         seconds=time.perf_counter() - t_start, piece_steps=tuple(int(c) for c in fine_counts))
+
+
+def warp_trajectory(model, control, duration: float, frame_dt: float, x0=None, v0=None, *, dt: float | None = None,
+                    piece_steps=None, device=None) -> np.ndarray:
+    """One float64 RK4 run of :func:`warp_reference`'s model on its time grid (cut at frames, wind
+    switches and track keys), without a halving run: frames (frames + 1, N, 3). Each piece in
+    equal steps of at most ``dt`` [s], or in ``piece_steps`` steps (a :class:`WarpReference`'s
+    ``piece_steps``: the same steps as its finest run). For runs beside an accepted reference (the
+    conditioning floor's perturbed starts, :func:`warpcloth.lab.accuracy.conditioning_floor`)."""
+    frames = _frame_count(duration, frame_dt)
+    m64 = Float64Model.from_model(model, control)
+    x, v = _initial_state(m64, x0, v0)
+    tracks = _pin_tracks(model, control)
+    device = model.device if device is None else wp.get_device(device)
+    pieces = _pieces(m64, tracks, float(duration), frames, float(frame_dt))
+    if piece_steps is not None:
+        counts = [int(c) for c in piece_steps]
+        require(len(counts) == len(pieces) and min(counts) >= 1,
+                f"piece_steps must give {len(pieces)} step counts >= 1 (one per piece of the time grid)")
+    else:
+        require(dt is not None, "warp_trajectory needs dt or piece_steps")
+        dt = require_positive("reference dt", dt, "s")
+        counts = [max(1, math.ceil((p.end - p.start) / dt * (1.0 - 1e-12))) for p in pieces]
+    return _Run(m64, tracks, x, v, frames, device).run(pieces, counts)
 
 
 def reference_trajectory(model, control, duration: float, frame_dt: float, x0=None, v0=None, **options) -> np.ndarray:
@@ -450,4 +475,4 @@ def reference_trajectory(model, control, duration: float, frame_dt: float, x0=No
 
 
 __all__ = ["DEFAULT_TOLERANCE", "RK4_STABILITY_RADIUS", "StabilityLimit", "WarpReference", "reference_trajectory",
-           "stability_limit", "warp_reference"]
+           "stability_limit", "warp_reference", "warp_trajectory"]

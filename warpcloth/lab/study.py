@@ -41,7 +41,7 @@ def _line(bar: Progress, done: float, total: float, label: str, unit: str = "") 
 def _group_weight(plan: StudyPlan, n) -> float:
     if isinstance(n, str):
         return 32 * 32
-    return n * n * (4 if n in plan.accuracy_sizes else 1)
+    return n * n
 
 
 def run_serial(study: Measurements, progress=None) -> None:
@@ -221,7 +221,7 @@ def prepare_out(out_dir: str) -> str:
             os.mkdir(out_dir)
         except OSError as exc:
             raise WarpclothError(f"--out {out_dir!r} cannot be created: {exc.strerror or exc}") from None
-    for name in ("results.csv", "report.md", "wall_per_sim_second.png"):
+    for name in ("results.csv", "report.md", "work_precision.png"):
         check_output_path(os.path.join(out_dir, name), "study output")
     return os.path.join(out_dir, "results.csv")
 
@@ -251,7 +251,7 @@ def _run_study(plan, devices, settings, ray_pool, out_dir, resume, overwrite, pr
     from warpcloth.lab.report import write_report
 
     csv_path = prepare_out(out_dir)
-    plan = replace(plan, devices=devices)
+    plan = replace(plan, devices=devices, reference_cache=plan.reference_cache or os.path.abspath(os.path.join(out_dir, ".references")))
     out = ResultsFile(csv_path, RESULTS, resume=resume, overwrite=overwrite, report=progress, keep_rows=True)
     t0 = time.perf_counter()
     failed = 0
