@@ -310,7 +310,7 @@ def _chromium_run(browser, args, tmp_path, tag):
     return p.stdout, p.stderr[-600:]
 
 
-def _dom(browser, url, tmp_path, tries=2):
+def _dom(browser, url, tmp_path, tries=3):
     """The DOM after the page ran (one retry: a headless browser on a loaded machine may stop early)."""
     for k in range(tries):
         dom, err = _chromium_run(browser, ["--dump-dom", url], tmp_path, f"dom{k}")
