@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 import warp as wp
-
 from warpcloth.kernels import bending
 from warpcloth.kernels.forces import eval_springs
+
 from warpcloth.sim import hinges as hinge_lib
 from warpcloth.sim.grid import grid_positions, grid_springs
 
@@ -75,11 +75,24 @@ def measure(n: int, repeats: int, device) -> dict:
         "greedy_hinge_colors_s": color_s,
         "eval_springs_ms": timed(launch(eval_springs, len(pairs), x, v, springs, rest, ks, kd, f), repeats, device),
         "eval_hinge_forces_ms": timed(launch(bending.eval_hinge_forces, count, x, v, *hinge_in, f), repeats, device),
-        "eval_hinge_gradients_ms": timed(launch(bending.eval_hinge_gradients, count, x, d.hinge_indices, theta, grad),
-                                         repeats, device),
-        "eval_hinge_hessian_blocks_ms": timed(launch(bending.eval_hinge_hessian_blocks, count, x, d.hinge_indices,
-                                                     d.hinge_stiffness, d.hinge_damping, 1.0, 0.0, blocks),
-                                              max(repeats // 4, 1), device),
+        "eval_hinge_gradients_ms": timed(
+            launch(bending.eval_hinge_gradients, count, x, d.hinge_indices, theta, grad), repeats, device
+        ),
+        "eval_hinge_hessian_blocks_ms": timed(
+            launch(
+                bending.eval_hinge_hessian_blocks,
+                count,
+                x,
+                d.hinge_indices,
+                d.hinge_stiffness,
+                d.hinge_damping,
+                1.0,
+                0.0,
+                blocks,
+            ),
+            max(repeats // 4, 1),
+            device,
+        ),
     }
 
 
@@ -93,11 +106,14 @@ def main(argv=None) -> None:
     for n in args.sizes:
         r = measure(n, args.repeats, args.device)
         ratio = r["eval_hinge_forces_ms"] / r["eval_springs_ms"]
-        print(f"{r['n']}^2: {r['springs']} springs, {r['hinges']} hinges ({r['colors']} colours); "
-              f"eval_springs {r['eval_springs_ms']:.3f} ms, eval_hinge_forces {r['eval_hinge_forces_ms']:.3f} ms "
-              f"({ratio:.2f}x), eval_hinge_gradients {r['eval_hinge_gradients_ms']:.3f} ms, "
-              f"eval_hinge_hessian_blocks {r['eval_hinge_hessian_blocks_ms']:.3f} ms; "
-              f"host: grid_hinges {r['grid_hinges_s']:.3f} s, greedy_hinge_colors {r['greedy_hinge_colors_s']:.3f} s")
+        print(
+            f"{r['n']}^2: {r['springs']} springs, {r['hinges']} hinges ({r['colors']} colours); "
+            f"eval_springs {r['eval_springs_ms']:.3f} ms, eval_hinge_forces {r['eval_hinge_forces_ms']:.3f} ms "
+            f"({ratio:.2f}x), eval_hinge_gradients {r['eval_hinge_gradients_ms']:.3f} ms, "
+            f"eval_hinge_hessian_blocks {r['eval_hinge_hessian_blocks_ms']:.3f} ms; "
+            f"host: grid_hinges {r['grid_hinges_s']:.3f} s, greedy_hinge_colors {r['greedy_hinge_colors_s']:.3f} s"
+        )
+
 
 if __name__ == "__main__":
     main()

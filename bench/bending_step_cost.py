@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 import warp as wp
+from warpcloth.scenarios import sheet
 
 from warpcloth.integrators import integrator_names
-from warpcloth.scenarios import sheet
 
 
 def window(sim, steps: int) -> float:
@@ -30,7 +30,10 @@ def window(sim, steps: int) -> float:
 
 
 def measure(name: str, size: int, steps: int, windows: int, device: str) -> dict:
-    sims = {bend: sheet.build(rows=size, cols=size, integrator=name, bend=bend, device=device) for bend in ("provot", "dihedral")}
+    sims = {
+        bend: sheet.build(rows=size, cols=size, integrator=name, bend=bend, device=device)
+        for bend in ("provot", "dihedral")
+    }
     for sim in sims.values():  # compile, capture both step counts
         sim.simulate(steps)
         sim.simulate(steps)
@@ -52,7 +55,9 @@ def main() -> None:
     parser.add_argument("--windows", type=int, default=5)
     parser.add_argument("--device", default="cpu")
     args = parser.parse_args()
-    print(f"sheet {args.size}x{args.size} on {args.device}, ms/step (median of {args.windows} windows of {args.steps} steps)")
+    print(
+        f"sheet {args.size}x{args.size} on {args.device}, ms/step (median of {args.windows} windows of {args.steps} steps)"
+    )
     print(f"| integrator | provot | dihedral | ratio |")
     print("|---|---|---|---|")
     for name in args.integrators:

@@ -61,7 +61,10 @@ def main() -> None:
         error = strip_tip_drop(sim) / want - 1.0
         speed = float(np.abs(sim.state.particle_qd.numpy()).max())
         label = ", ".join(f"{k}={v}" for k, v in options.items()) or "defaults"
-        print(f"| {name} | {label} | {sim.dt:.3g} | {steps} | {error * 100:+.2f} % | {speed:.1e} | {wall:.2f} |", flush=True)
+        print(
+            f"| {name} | {label} | {sim.dt:.3g} | {steps} | {error * 100:+.2f} % | {speed:.1e} | {wall:.2f} |",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

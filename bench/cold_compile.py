@@ -28,8 +28,13 @@ def _spread(values) -> str:
 def run_once(cache: str, extra: list[str]) -> tuple[float, float]:
     env = {**os.environ, "WARP_CACHE_PATH": cache}
     t0 = time.perf_counter()
-    out = subprocess.run([sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--json", *extra],
-                         env=env, capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--json", *extra],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
     return json.loads(out)["compile_time"], time.perf_counter() - t0
 
 
@@ -38,8 +43,10 @@ def main(argv=None) -> None:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("extra", nargs="*", help="flags passed to 'warpcloth run sheet' (after --)")
     args = p.parse_args(argv)
-    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores ({platform.processor() or platform.machine()}), "
-          f"warpcloth run sheet --json {' '.join(args.extra)}".rstrip())
+    print(
+        f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores ({platform.processor() or platform.machine()}), "
+        f"warpcloth run sheet --json {' '.join(args.extra)}".rstrip()
+    )
     print(f"{'repeat':>6} {'cache':>6} {'compile_time s':>15} {'process s':>10}")
     results = {"empty": ([], []), "filled": ([], [])}
     for i in range(args.repeats):

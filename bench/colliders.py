@@ -24,16 +24,23 @@ import time
 
 import numpy as np
 import warp as wp
-
-from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, build_grid_cloth
 from warpcloth.scenarios import sheet
 
-APART = (Plane(point=(0, -5, 0)), Sphere(center=(0, -3, 0), radius=0.5), Capsule(a=(-1, -4, 0), b=(1, -4, 0), radius=0.2),
-         Box(center=(0, -6, 0), half_extents=(0.5, 0.5, 0.5)))
+from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, build_grid_cloth
+
+APART = (
+    Plane(point=(0, -5, 0)),
+    Sphere(center=(0, -3, 0), radius=0.5),
+    Capsule(a=(-1, -4, 0), b=(1, -4, 0), radius=0.2),
+    Box(center=(0, -6, 0), half_extents=(0.5, 0.5, 0.5)),
+)
 THICKNESS = 0.002
-CONTACT = (Plane(thickness=THICKNESS, friction=0.3), Sphere(center=(0.0, -0.25, 0.0), radius=0.25, thickness=THICKNESS, friction=0.3),
-           Capsule(a=(-0.4, -0.1, 0.3), b=(0.4, -0.1, 0.3), radius=0.1, thickness=THICKNESS, friction=0.3),
-           Box(center=(0.3, -0.2, -0.3), half_extents=(0.2, 0.2, 0.2), thickness=THICKNESS, friction=0.3))
+CONTACT = (
+    Plane(thickness=THICKNESS, friction=0.3),
+    Sphere(center=(0.0, -0.25, 0.0), radius=0.25, thickness=THICKNESS, friction=0.3),
+    Capsule(a=(-0.4, -0.1, 0.3), b=(0.4, -0.1, 0.3), radius=0.1, thickness=THICKNESS, friction=0.3),
+    Box(center=(0.3, -0.2, -0.3), half_extents=(0.2, 0.2, 0.2), thickness=THICKNESS, friction=0.3),
+)
 
 
 def simulator(config, colliders, size, device):
@@ -41,12 +48,21 @@ def simulator(config, colliders, size, device):
         sim = sheet.build(rows=size, cols=size, device=device)
         sim.control.colliders = colliders
         return sim
-    model = build_grid_cloth(size, size, 1.0, 1.0, 0.2, plane="horizontal", origin=(-0.5, THICKNESS, -0.5), device=device)
+    model = build_grid_cloth(
+        size, size, 1.0, 1.0, 0.2, plane="horizontal", origin=(-0.5, THICKNESS, -0.5), device=device
+    )
     return Simulator(model, "explicit_euler", Control(colliders=colliders, device=device))
 
 
 @wp.kernel(enable_backward=False)
-def minimal_plane(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), plane: wp.vec4, mu: float, dt: float):
+def minimal_plane(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    plane: wp.vec4,
+    mu: float,
+    dt: float,
+):
     # x onto the plane n.x >= w, approaching v removed, tangential v reduced by mu dv_n (Coulomb)
     i = wp.tid()
     xi = x[i]
@@ -68,8 +84,9 @@ def minimal_plane(x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_ma
 def kernel_alone(size, repeats, device):
     """ms of the contact launch alone on the resting cloth's state after a step's gravity, before
     its projection (x, v restored before each launch)."""
-    from warpcloth.sim.contacts import ColliderSet
     from warpcloth.kernels import collide as ck
+
+    from warpcloth.sim.contacts import ColliderSet
 
     sim = simulator("contact", CONTACT, size, device)
     sim.warm_up()
@@ -85,7 +102,12 @@ def kernel_alone(size, repeats, device):
     sets = {k: ColliderSet(c, m.device) for k, c in (("ground", CONTACT[:1]), ("all four", CONTACT))}
     cases = {
         "restore x, v only": lambda: None,
-        "minimal plane kernel": lambda: wp.launch(minimal_plane, n, inputs=[x, v, m.particle_inv_mass, wp.vec4(0.0, 1.0, 0.0, THICKNESS), 0.3, dt], device=device),
+        "minimal plane kernel": lambda: wp.launch(
+            minimal_plane,
+            n,
+            inputs=[x, v, m.particle_inv_mass, wp.vec4(0.0, 1.0, 0.0, THICKNESS), 0.3, dt],
+            device=device,
+        ),
     }
     for name, cs in sets.items():
         cases[f"collide_velocity, {name}"] = (lambda cs: lambda: cs.project_velocity(m, sim.state, dt))(cs)
@@ -105,7 +127,9 @@ def kernel_alone(size, repeats, device):
     sim.state.particle_q, sim.state.particle_qd = state_x, state_v
     base = statistics.median(times.pop("restore x, v only"))
     step = ms_per_step(simulator("contact", (), size, device), 200, device)
-    print(f"# the contact launch alone (median of {repeats} x 100, restore subtracted), against a no-collider step of {step:.3f} ms")
+    print(
+        f"# the contact launch alone (median of {repeats} x 100, restore subtracted), against a no-collider step of {step:.3f} ms"
+    )
     for name, r in times.items():
         ms = statistics.median(r) - base
         print(f"{size}x{size} {device} {name:36s} {ms:8.4f} ms  {100 * ms / step:5.1f} % of a step")
@@ -144,7 +168,9 @@ def main(argv=None):
     p.add_argument("--repeats", type=int, default=7)
     p.add_argument("--device", default="cpu")
     p.add_argument("--mesh-triangles", type=int, default=0)
-    p.add_argument("--kernel", action="store_true", help="also time the contact launch alone against a minimal plane kernel")
+    p.add_argument(
+        "--kernel", action="store_true", help="also time the contact launch alone against a minimal plane kernel"
+    )
     a = p.parse_args(argv)
     cases = {
         "apart none": simulator("apart", (), a.size, a.device),
@@ -166,13 +192,17 @@ def main(argv=None):
     for _ in range(a.repeats):  # alternate, so machine noise falls on every case
         for name, sim in cases.items():
             runs[name].append(ms_per_step(sim, a.steps, a.device))
-    print(f"# ms/step: median [min-max] of {a.repeats} windows of {a.steps} steps; cost: median [min-max] over the windows of "
-          f"(this case / the same window's no-collider case - 1) (paired, so machine noise cancels)")
+    print(
+        f"# ms/step: median [min-max] of {a.repeats} windows of {a.steps} steps; cost: median [min-max] over the windows of "
+        f"(this case / the same window's no-collider case - 1) (paired, so machine noise cancels)"
+    )
     for name, r in runs.items():
         base = runs[name.split()[0] + " none"]
         ratio = [100 * (x / b - 1) for x, b in zip(r, base)]
-        print(f"{a.size}x{a.size} {a.device} {name:36s} {statistics.median(r):8.4f} ms/step [{min(r):.4f}-{max(r):.4f}]  "
-              f"{statistics.median(ratio):+6.1f} % [{min(ratio):+.1f} to {max(ratio):+.1f}]")
+        print(
+            f"{a.size}x{a.size} {a.device} {name:36s} {statistics.median(r):8.4f} ms/step [{min(r):.4f}-{max(r):.4f}]  "
+            f"{statistics.median(ratio):+6.1f} % [{min(ratio):+.1f} to {max(ratio):+.1f}]"
+        )
     if a.kernel:
         kernel_alone(a.size, a.repeats, a.device)
 

@@ -12,11 +12,15 @@ import time
 
 import numpy as np
 import warp as wp
+from warpcloth.scenarios.mesh import make_cape
 
 from warpcloth.io.provenance import machine
-from warpcloth.scenarios.mesh import make_cape
-from warpcloth.sim.coloring import (greedy_spring_colors, greedy_vertex_colors, is_valid_coloring,
-                                    is_valid_vertex_coloring)
+from warpcloth.sim.coloring import (
+    greedy_spring_colors,
+    greedy_vertex_colors,
+    is_valid_coloring,
+    is_valid_vertex_coloring,
+)
 from warpcloth.sim.grid import build_grid_cloth
 from warpcloth.sim.mesh import build_mesh_cloth
 
@@ -42,7 +46,7 @@ def line_graph(pairs: np.ndarray, n: int) -> np.ndarray:
     starts = np.searchsorted(ends, np.arange(n + 1))
     out = []
     for i in range(n):
-        group = ids[starts[i]:starts[i + 1]]
+        group = ids[starts[i] : starts[i + 1]]
         if len(group) > 1:
             a, b = np.triu_indices(len(group), 1)
             out.append(np.stack([group[a], group[b]], 1))
@@ -66,8 +70,11 @@ def main():
     print(f"# {time.strftime('%Y-%m-%d %H:%M')} {machine()}; warp {wp.config.version}; best of {args.repeats}")
     grid = build_grid_cloth(96, 96, device="cpu")
     cape = make_cape()
-    cases = {"cape": (cape.vertices, cape.triangles), "grid96 as a mesh": (grid.host["q"], grid.host["tris"]),
-             "uv sphere": uv_sphere(136)}
+    cases = {
+        "cape": (cape.vertices, cape.triangles),
+        "grid96 as a mesh": (grid.host["q"], grid.host["tris"]),
+        "uv sphere": uv_sphere(136),
+    }
     for name, (v, t) in cases.items():
         m = build_mesh_cloth(v, t, device="cpu")
         pairs, n = m.spring_indices.numpy().reshape(-1, 2).astype(np.int64), m.particle_count

@@ -81,8 +81,10 @@ def main():
     args = parser.parse_args()
     wp.init()
     print(f"# {time.strftime('%Y-%m-%d %H:%M')} {machine()}; warp {wp.config.version}; device {args.device}")
-    print(f"# xpbd, top row pinned, one sphere; ms per 1/60 s frame, median [min-max] of {args.repeats} windows of "
-          f"{args.frames} frames")
+    print(
+        f"# xpbd, top row pinned, one sphere; ms per 1/60 s frame, median [min-max] of {args.repeats} windows of "
+        f"{args.frames} frames"
+    )
     modes = ["replay", "driven"] + (["new track"] if args.recapture else [])
     for size in args.sizes:
         sims = {m: build(size, args.device, m) for m in modes}

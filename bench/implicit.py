@@ -22,7 +22,6 @@ import statistics
 import time
 
 import warp as wp
-
 from warpcloth.scenarios import sheet
 
 
@@ -56,23 +55,45 @@ def main(argv=None) -> None:
     p.add_argument("--steps", type=int, default=10, help="implicit steps timed per case")
     p.add_argument("--explicit-steps", type=int, default=100)
     p.add_argument("--matrix", nargs="+", default=["free", "bsr"], choices=["free", "bsr"])
-    p.add_argument("--repeats", type=int, default=1, help="times each case is timed (matrices alternating); > 1 adds a median summary")
+    p.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help="times each case is timed (matrices alternating); > 1 adds a median summary",
+    )
     p.add_argument("--cg-tol", type=float, default=None)
     p.add_argument("--cg-max-iter", type=int, default=None)
     p.add_argument("--jacobian", default=None, choices=["full", "approx"])
     args = p.parse_args(argv)
-    options = {k: v for k, v in (("cg_tol", args.cg_tol), ("cg_max_iter", args.cg_max_iter), ("jacobian", args.jacobian)) if v is not None}
+    options = {
+        k: v
+        for k, v in (("cg_tol", args.cg_tol), ("cg_max_iter", args.cg_max_iter), ("jacobian", args.jacobian))
+        if v is not None
+    }
 
     with wp.ScopedDevice(args.device):
-        print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores ({platform.processor() or platform.machine()}), "
-              f"device {wp.get_device()}, warp {wp.config.version}, implicit options {options or 'defaults'}, "
-              f"{args.steps} steps per case, {args.repeats} repeat(s)")
-        print(f"{'sheet':>9} {'matrix':>6} {'ms/step':>9} {'CG mean':>8} {'CG max':>7} {'explicit ms':>12} {'ratio to 12 explicit':>21}")
+        print(
+            f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores ({platform.processor() or platform.machine()}), "
+            f"device {wp.get_device()}, warp {wp.config.version}, implicit options {options or 'defaults'}, "
+            f"{args.steps} steps per case, {args.repeats} repeat(s)"
+        )
+        print(
+            f"{'sheet':>9} {'matrix':>6} {'ms/step':>9} {'CG mean':>8} {'CG max':>7} {'explicit ms':>12} {'ratio to 12 explicit':>21}"
+        )
         summary = []
         for n in args.sizes:
             explicit = sheet.build(rows=n, cols=n, integrator="explicit_euler", device=args.device)
-            sims = {matrix: sheet.build(rows=n, cols=n, integrator="implicit_euler", dt=1.0 / 60.0, device=args.device,
-                                        integrator_options={**options, "matrix": matrix}) for matrix in args.matrix}
+            sims = {
+                matrix: sheet.build(
+                    rows=n,
+                    cols=n,
+                    integrator="implicit_euler",
+                    dt=1.0 / 60.0,
+                    device=args.device,
+                    integrator_options={**options, "matrix": matrix},
+                )
+                for matrix in args.matrix
+            }
             ms = {matrix: [] for matrix in args.matrix}
             ms_iter = {matrix: [] for matrix in args.matrix}
             for _ in range(args.repeats):
@@ -84,12 +105,17 @@ def main(argv=None) -> None:
                     st = sim.integrator.stats()
                     ms[matrix].append(t)
                     ms_iter[matrix].append(t / max(st["cg_iterations_mean"], 1e-9))
-                    print(f"{n:>4}x{n:<4} {matrix:>6} {t:9.2f} {st['cg_iterations_mean']:8.1f} {st['cg_iterations_max']:7d} {explicit_ms:12.3f} {t / (12.0 * explicit_ms):21.2f}", flush=True)
+                    print(
+                        f"{n:>4}x{n:<4} {matrix:>6} {t:9.2f} {st['cg_iterations_mean']:8.1f} {st['cg_iterations_max']:7d} {explicit_ms:12.3f} {t / (12.0 * explicit_ms):21.2f}",
+                        flush=True,
+                    )
             summary.append((n, ms, ms_iter))
         if args.repeats > 1:
             print(f"\nmedian [min-max] over {args.repeats} repeats")
             for n, ms, ms_iter in summary:
-                line = f"{n:>4}x{n:<4} " + ", ".join(f"{matrix} {spread(values)} ms/step" for matrix, values in ms.items())
+                line = f"{n:>4}x{n:<4} " + ", ".join(
+                    f"{matrix} {spread(values)} ms/step" for matrix, values in ms.items()
+                )
                 if "free" in ms and "bsr" in ms:
                     per_step = [b / f for b, f in zip(ms["bsr"], ms["free"])]
                     per_iter = [b / f for b, f in zip(ms_iter["bsr"], ms_iter["free"])]

@@ -23,7 +23,9 @@ def main(argv=None):
             sim = harness.sim
             sim.set_dt(sim.dt * fraction)
             r = harness.run(duration, stop_at_equilibrium=False)
-            print(f"{scenario.SCENARIO.name:9s} {integrator:15s} {sim.dt:9.3g}  {100 * r.max_strain:6.2f} %", flush=True)
+            print(
+                f"{scenario.SCENARIO.name:9s} {integrator:15s} {sim.dt:9.3g}  {100 * r.max_strain:6.2f} %", flush=True
+            )
 
 
 if __name__ == "__main__":

@@ -36,15 +36,17 @@ def main(argv=None):
     ap.add_argument("--device", default="cpu")
     args = ap.parse_args(argv)
     q, t = wavy_grid(args.triangles)
-    for quads in ([False, True] if args.quads else [False]):
+    for quads in [False, True] if args.quads else [False]:
         warpcloth.build_mesh_cloth(*wavy_grid(200), device=args.device)  # warm-up
         best = math.inf
         for _ in range(args.repeat):
             t0 = time.perf_counter()
             model = warpcloth.build_mesh_cloth(q, t, density=0.2, pin_where="x < 0.01", quads=quads, device=args.device)
             best = min(best, time.perf_counter() - t0)
-        print(f"{t.shape[0]} triangles, {q.shape[0]} vertices, {model.spring_count} springs, quads={quads}: "
-              f"build_mesh_cloth {best:.3f} s (best of {args.repeat}, {args.device})")
+        print(
+            f"{t.shape[0]} triangles, {q.shape[0]} vertices, {model.spring_count} springs, quads={quads}: "
+            f"build_mesh_cloth {best:.3f} s (best of {args.repeat}, {args.device})"
+        )
 
 
 if __name__ == "__main__":

@@ -15,9 +15,9 @@ import argparse
 import time
 
 import warp as wp
+from warpcloth.scenarios import sheet
 
 import warpcloth  # noqa: F401  (quiet Warp before init)
-from warpcloth.scenarios import sheet
 
 
 def time_steps(integrator: str, size: int, device: str, steps: int, options: dict):
@@ -43,13 +43,21 @@ def main(argv=None) -> None:
 
     with wp.ScopedDevice(args.device):
         device = str(wp.get_device())
-        print(f"# warp {wp.config.version}, device {device} ({wp.get_device().name}), dt = 1/60 s, {args.steps} timed steps")
-        print(f"{'integrator':10s} {'sheet':>9s} {'springs':>8s} {'colours':>7s} {'iter':>4s} {'sub':>3s} {'ms/step':>9s}")
+        print(
+            f"# warp {wp.config.version}, device {device} ({wp.get_device().name}), dt = 1/60 s, {args.steps} timed steps"
+        )
+        print(
+            f"{'integrator':10s} {'sheet':>9s} {'springs':>8s} {'colours':>7s} {'iter':>4s} {'sub':>3s} {'ms/step':>9s}"
+        )
         for size in args.sizes:
             for substeps in args.substeps:
                 for name in ("pbd", "xpbd"):
-                    ms, sim = time_steps(name, size, device, args.steps, {"iterations": args.iterations, "substeps": substeps})
-                    print(f"{name:10s} {f'{size}x{size}':>9s} {sim.model.spring_count:8d} {sim.integrator.coloring.color_count:7d} {args.iterations:4d} {substeps:3d} {ms:9.3f}")
+                    ms, sim = time_steps(
+                        name, size, device, args.steps, {"iterations": args.iterations, "substeps": substeps}
+                    )
+                    print(
+                        f"{name:10s} {f'{size}x{size}':>9s} {sim.model.spring_count:8d} {sim.integrator.coloring.color_count:7d} {args.iterations:4d} {substeps:3d} {ms:9.3f}"
+                    )
 
 
 if __name__ == "__main__":

@@ -16,10 +16,18 @@ import time
 
 import numpy as np
 import warp as wp
+from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator
-from warpcloth.lab import cloth_size, convergence_check, reference_trajectory, simulate_frames, static_equilibrium, swing_from_horizontal, trajectory_error
-from warpcloth.scenarios import flag, sheet
+from warpcloth.lab import (
+    cloth_size,
+    convergence_check,
+    reference_trajectory,
+    simulate_frames,
+    static_equilibrium,
+    swing_from_horizontal,
+    trajectory_error,
+)
 
 
 def _run(model, integrator, dt, control, x0, duration, frame_dt):
@@ -33,11 +41,15 @@ def transient(name, model, make_control, x0, duration, frame_dt, runs, condition
     t0 = time.perf_counter()
     conv = convergence_check(model, make_control(), duration, frame_dt, x0=x0)
     wall = time.perf_counter() - t0
-    print(f"{name}: {model.particle_count} particles, {duration:g} s, size {size:g} m; "
-          f"reference rtol 1e-10 vs 1e-12: max |dx| = {conv.difference:.3g} m = {conv.difference / size:.3g} x size "
-          f"(threshold 1e-2, required < 1e-5); both solves {wall:.1f} s")
+    print(
+        f"{name}: {model.particle_count} particles, {duration:g} s, size {size:g} m; "
+        f"reference rtol 1e-10 vs 1e-12: max |dx| = {conv.difference:.3g} m = {conv.difference / size:.3g} x size "
+        f"(threshold 1e-2, required < 1e-5); both solves {wall:.1f} s"
+    )
     for integrator, dt in runs:
-        err = trajectory_error(_run(model, integrator, dt, make_control(), x0, duration, frame_dt), conv.reference, size)
+        err = trajectory_error(
+            _run(model, integrator, dt, make_control(), x0, duration, frame_dt), conv.reference, size
+        )
         print(f"  {integrator:15s} dt {dt:.3g} s: e = {err:.3g} x size")
     if conditioning:
         # the float64 reference from x0 + a random 1e-7 m perturbation (about float32 rounding at
@@ -47,8 +59,10 @@ def transient(name, model, make_control, x0, duration, frame_dt, runs, condition
         xp[model.pinned] = np.asarray(x0, dtype=np.float64)[model.pinned]
         perturbed = reference_trajectory(model, make_control(), duration, frame_dt, x0=xp)
         growth = np.linalg.norm(perturbed - conv.reference, axis=-1).max(axis=1)
-        print(f"  conditioning: a 1e-7 m perturbation of x0 grows to {growth.max():.3g} m "
-              f"(at t = {np.argmax(growth) * frame_dt:.2f} s) = {growth.max() / size:.3g} x size")
+        print(
+            f"  conditioning: a 1e-7 m perturbation of x0 grows to {growth.max():.3g} m "
+            f"(at t = {np.argmax(growth) * frame_dt:.2f} s) = {growth.max() / size:.3g} x size"
+        )
 
 
 def main(argv=None):
@@ -65,20 +79,31 @@ def main(argv=None):
 
     s = sheet.build(rows=args.rows, cols=args.cols, device="cpu")
     drag = s.control.drag_rate
-    transient(f"sheet swing {args.rows}x{args.cols}", s.model, lambda: Control(drag_rate=drag), swing_from_horizontal(s.model),
-              args.swing, 0.01,
-              [("explicit_euler", 1e-4), ("explicit_euler", 5e-5), ("rk4", 1 / 400), ("rk4", 1 / 800), ("rk4", 1 / 1600)]
-              + ([("rk4", 1 / 2000), ("rk4", 1 / 4000), ("rk4", 1 / 8000), ("explicit_euler", 2.5e-5)] if args.floor else []),
-              args.conditioning)
+    transient(
+        f"sheet swing {args.rows}x{args.cols}",
+        s.model,
+        lambda: Control(drag_rate=drag),
+        swing_from_horizontal(s.model),
+        args.swing,
+        0.01,
+        [("explicit_euler", 1e-4), ("explicit_euler", 5e-5), ("rk4", 1 / 400), ("rk4", 1 / 800), ("rk4", 1 / 1600)]
+        + ([("rk4", 1 / 2000), ("rk4", 1 / 4000), ("rk4", 1 / 8000), ("explicit_euler", 2.5e-5)] if args.floor else []),
+        args.conditioning,
+    )
 
     f = flag.build(rows=args.rows, cols=args.cols, device="cpu")
     fc = f.control
-    transient(f"flag {args.rows}x{args.cols}", f.model,
-              lambda: Control(drag_rate=fc.drag_rate, wind_coefficient=fc.wind_coefficient, wind_schedule=fc.wind_schedule),
-              f.model.host["q"], args.flag, 0.01,
-              [("explicit_euler", 1e-4), ("explicit_euler", 5e-5), ("rk4", 1 / 1000), ("rk4", 1 / 2000)]
-              + ([("rk4", 1 / 4000), ("rk4", 1 / 8000), ("explicit_euler", 2.5e-5)] if args.floor else []),
-              args.conditioning)
+    transient(
+        f"flag {args.rows}x{args.cols}",
+        f.model,
+        lambda: Control(drag_rate=fc.drag_rate, wind_coefficient=fc.wind_coefficient, wind_schedule=fc.wind_schedule),
+        f.model.host["q"],
+        args.flag,
+        0.01,
+        [("explicit_euler", 1e-4), ("explicit_euler", 5e-5), ("rk4", 1 / 1000), ("rk4", 1 / 2000)]
+        + ([("rk4", 1 / 4000), ("rk4", 1 / 8000), ("explicit_euler", 2.5e-5)] if args.floor else []),
+        args.conditioning,
+    )
 
     n = args.static_size
     st = sheet.build(rows=n, cols=n, device="cpu")
@@ -86,7 +111,9 @@ def main(argv=None):
     eq = static_equilibrium(st.model, st.control)
     wall = time.perf_counter() - t0
     moved = np.linalg.norm(eq.x - st.model.host["q"], axis=1).max()
-    print(f"static sheet {n}x{n}: residual {eq.residual:.3g} N in {wall * 1e3:.0f} ms; max displacement from rest {moved:.4g} m")
+    print(
+        f"static sheet {n}x{n}: residual {eq.residual:.3g} N in {wall * 1e3:.0f} ms; max displacement from rest {moved:.4g} m"
+    )
     for dt, drag in ((2.5e-4, 5.0),):
         run = Simulator(st.model, "explicit_euler", Control(drag_rate=drag), dt=dt)
         run.simulate(int(round(2.0 / dt)))

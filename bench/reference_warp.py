@@ -24,8 +24,9 @@ import warp as wp
 
 
 def top_row_swing(n: int, device: str):
-    from warpcloth.lab.reference import swing_from_horizontal
     from warpcloth.scenarios import sheet
+
+    from warpcloth.lab.reference import swing_from_horizontal
 
     scenario = replace(sheet.SCENARIO, pins=lambda rows, cols: list(range(cols)))
     sim = scenario.build(rows=n, cols=n, device=device)
@@ -71,8 +72,9 @@ def main() -> None:
             for lo, hi in zip(levels[:-1], levels[1:]):
                 per = np.linalg.norm(out[lo] - out[hi], axis=-1).max(axis=1) / size
                 every = " ".join(f"{v:.2g}" for v in per[::6])
-                print(f"  |x_{lo} - x_{hi}| / size every 6 frames: {every}; "
-                      f"max {per.max():.3g} at frame {per.argmax()}")
+                print(
+                    f"  |x_{lo} - x_{hi}| / size every 6 frames: {every}; max {per.max():.3g} at frame {per.argmax()}"
+                )
             continue
         options = {}
         if a.safety is not None:
@@ -80,13 +82,26 @@ def main() -> None:
         if a.max_halvings is not None:
             options["max_halvings"] = a.max_halvings
         t0 = time.perf_counter()
-        r = rw.warp_reference(sim.model, sim.control, a.duration, a.frame_dt, x0=x0, device=a.device,
-                              parallel=a.parallel, require_accepted=False, **options)
+        r = rw.warp_reference(
+            sim.model,
+            sim.control,
+            a.duration,
+            a.frame_dt,
+            x0=x0,
+            device=a.device,
+            parallel=a.parallel,
+            require_accepted=False,
+            **options,
+        )
         wall = time.perf_counter() - t0
         s = r.stability
-        print(f"{n}x{n} swing {a.duration:g} s: omega {s.omega:.4g} rad/s (Gershgorin {s.omega_gershgorin:.4g}), "
-              f"gamma {s.gamma:.4g} 1/s, limit {s.dt:.3g} s; finest dt {r.dt:.3g} s, {r.steps} steps; estimates/size "
-              + ", ".join(f"{e:.3g}" for e in r.estimates) + f"; accepted {r.accepted}; wall {wall:.1f} s", flush=True)
+        print(
+            f"{n}x{n} swing {a.duration:g} s: omega {s.omega:.4g} rad/s (Gershgorin {s.omega_gershgorin:.4g}), "
+            f"gamma {s.gamma:.4g} 1/s, limit {s.dt:.3g} s; finest dt {r.dt:.3g} s, {r.steps} steps; estimates/size "
+            + ", ".join(f"{e:.3g}" for e in r.estimates)
+            + f"; accepted {r.accepted}; wall {wall:.1f} s",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

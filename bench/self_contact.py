@@ -36,9 +36,9 @@ import time
 
 import numpy as np
 import warp as wp
+from warpcloth.kernels import self_contact as sk
 
 from warpcloth import Control, Simulator, build_grid_cloth
-from warpcloth.kernels import self_contact as sk
 from warpcloth.lab.intersections import count_self_intersections
 from warpcloth.run.harness import time_steps
 from warpcloth.sim.self_collision import SelfCollision
@@ -105,7 +105,10 @@ def measure(size, thickness, repeats, batch, device, edge_fraction=1.0, iteratio
     cases = {
         "cycle": lambda: (detect(), filt()),
         "cycle+rebuild": lambda: (rebuild(), filt()),
-        "detect": detect, "detect+rebuild": rebuild, "filter": filt, "forces": forces,
+        "detect": detect,
+        "detect+rebuild": rebuild,
+        "filter": filt,
+        "forces": forces,
     }
     graphs = {name: capture(fn, batch, device) for name, fn in cases.items()}
     time_steps(sim, windows=1, steps=batch)  # warm-up, capture of the step count
@@ -170,9 +173,13 @@ def alternatives(size, thickness, repeats, device):
         sc._decide(x, v0, 1e-4)  # no motion since the build: no rebuild due
         sc._build(x, edges=False)
 
-    cases = {"wp.HashGrid build + query": hashgrid, "wp.Bvh refit + query": bvh_refit,
-             "wp.Mesh refit + query": mesh_refit, "own hash (kernels)": ours,
-             "wp.Bvh refit alone (every step)": refit_alone}
+    cases = {
+        "wp.HashGrid build + query": hashgrid,
+        "wp.Bvh refit + query": bvh_refit,
+        "wp.Mesh refit + query": mesh_refit,
+        "own hash (kernels)": ours,
+        "wp.Bvh refit alone (every step)": refit_alone,
+    }
     for fn in cases.values():
         fn()
     cases["own hash, no rebuild due"] = gated
@@ -189,8 +196,14 @@ def alternatives(size, thickness, repeats, device):
 
 
 @wp.kernel(enable_backward=False)
-def _boxes(x: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.vec3i), r: float, lo: wp.array(dtype=wp.vec3),
-           hi: wp.array(dtype=wp.vec3), centres: wp.array(dtype=wp.vec3)):
+def _boxes(
+    x: wp.array(dtype=wp.vec3),
+    tris: wp.array(dtype=wp.vec3i),
+    r: float,
+    lo: wp.array(dtype=wp.vec3),
+    hi: wp.array(dtype=wp.vec3),
+    centres: wp.array(dtype=wp.vec3),
+):
     t = wp.tid()
     a, b, c = x[tris[t][0]], x[tris[t][1]], x[tris[t][2]]
     lo[t] = wp.min(wp.min(a, b), c) - wp.vec3(r)
@@ -209,8 +222,14 @@ def _near(x: wp.array(dtype=wp.vec3), tri: wp.vec3i, i: int, r: float):
 
 
 @wp.kernel(enable_backward=False)
-def _grid_query(grid: wp.uint64, x: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.vec3i), r: float, reach: float,
-                out: wp.array(dtype=int)):
+def _grid_query(
+    grid: wp.uint64,
+    x: wp.array(dtype=wp.vec3),
+    tris: wp.array(dtype=wp.vec3i),
+    r: float,
+    reach: float,
+    out: wp.array(dtype=int),
+):
     t = wp.tid()
     tri = tris[t]
     centre = (x[tri[0]] + x[tri[1]] + x[tri[2]]) / 3.0
@@ -223,8 +242,9 @@ def _grid_query(grid: wp.uint64, x: wp.array(dtype=wp.vec3), tris: wp.array(dtyp
 
 
 @wp.kernel(enable_backward=False)
-def _bvh_query(bvh: wp.uint64, x: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.vec3i), r: float,
-               out: wp.array(dtype=int)):
+def _bvh_query(
+    bvh: wp.uint64, x: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.vec3i), r: float, out: wp.array(dtype=int)
+):
     i = wp.tid()
     p = x[i]
     query = wp.bvh_query_aabb(bvh, p, p)
@@ -236,8 +256,9 @@ def _bvh_query(bvh: wp.uint64, x: wp.array(dtype=wp.vec3), tris: wp.array(dtype=
 
 
 @wp.kernel(enable_backward=False)
-def _mesh_query(mesh: wp.uint64, x: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.vec3i), r: float,
-                out: wp.array(dtype=int)):
+def _mesh_query(
+    mesh: wp.uint64, x: wp.array(dtype=wp.vec3), tris: wp.array(dtype=wp.vec3i), r: float, out: wp.array(dtype=int)
+):
     i = wp.tid()
     p = x[i]
     query = wp.mesh_query_aabb(mesh, p - wp.vec3(r), p + wp.vec3(r))
@@ -264,11 +285,15 @@ def main(argv=None):
     p.add_argument("--alternatives", action="store_true", help="also time broad phases of Warp's HashGrid, Bvh, Mesh")
     a = p.parse_args(argv)
     wp.init()
-    print(f"# warp {wp.config.version}, device {a.device}, thickness {a.thickness} m, fold gap 0.9 h "
-          f"(slid 0.5, 0.3 cells), {a.iterations} filter iterations, {a.repeats} windows of {a.batch} cycles "
-          f"(captured), cases alternating")
-    print("# ms per cycle: median [min-max]; ratio: median of the per-window ratios to the same repeat's "
-          "explicit_euler step")
+    print(
+        f"# warp {wp.config.version}, device {a.device}, thickness {a.thickness} m, fold gap 0.9 h "
+        f"(slid 0.5, 0.3 cells), {a.iterations} filter iterations, {a.repeats} windows of {a.batch} cycles "
+        f"(captured), cases alternating"
+    )
+    print(
+        "# ms per cycle: median [min-max]; ratio: median of the per-window ratios to the same repeat's "
+        "explicit_euler step"
+    )
     for size in a.sizes:
         for fraction in a.edge_fractions:
             model, ms, before, after = measure(size, a.thickness, a.repeats, a.batch, a.device, fraction, a.iterations)
@@ -277,18 +302,23 @@ def main(argv=None):
             t0 = time.perf_counter()
             bad = count_self_intersections(x, model.host["tris"])
             check_s = time.perf_counter() - t0
-            print(f"{size}x{size}, edge fraction {fraction:g}: {model.particle_count} vertices, "
-                  f"{model.tri_count} triangles, {before['candidates_vertex_triangle']} + "
-                  f"{before['candidates_edge_edge']} candidates (vt + ee), {before['contacts']} contacts, overflow "
-                  f"{after['overflow_candidates']} / {after['overflow_contacts']}, checker {check_s:.2f} s "
-                  f"({bad} intersections)")
+            print(
+                f"{size}x{size}, edge fraction {fraction:g}: {model.particle_count} vertices, "
+                f"{model.tri_count} triangles, {before['candidates_vertex_triangle']} + "
+                f"{before['candidates_edge_edge']} candidates (vt + ee), {before['contacts']} contacts, overflow "
+                f"{after['overflow_candidates']} / {after['overflow_contacts']}, checker {check_s:.2f} s "
+                f"({bad} intersections)"
+            )
             for name, values in ms.items():
                 ratio = [v / b for v, b in zip(values, base)]
-                print(f"  {size}x{size} {a.device} e{fraction:g} {name:20s} {fmt(values)} ms   "
-                      f"ratio {statistics.median(ratio):6.2f} [{min(ratio):.2f}-{max(ratio):.2f}]")
+                print(
+                    f"  {size}x{size} {a.device} e{fraction:g} {name:20s} {fmt(values)} ms   "
+                    f"ratio {statistics.median(ratio):6.2f} [{min(ratio):.2f}-{max(ratio):.2f}]"
+                )
     if a.alternatives:
-        print("# broad phase alternatives, vertex-triangle candidates only, ms per build "
-              "(plain launches, 10 per window)")
+        print(
+            "# broad phase alternatives, vertex-triangle candidates only, ms per build (plain launches, 10 per window)"
+        )
         for size in [s for s in a.sizes if s >= 64]:
             for name, values in alternatives(size, a.thickness, a.repeats, a.device).items():
                 print(f"  {size}x{size} {a.device} {name:34s} {fmt(values)} ms")

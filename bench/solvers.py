@@ -33,9 +33,9 @@ import time
 
 import numpy as np
 import warp as wp
+from warpcloth.scenarios import sheet
 
 from warpcloth.lab.reference import static_equilibrium
-from warpcloth.scenarios import sheet
 
 DT = 1.0 / 60.0
 CG_TOL = 1e-3
@@ -66,8 +66,18 @@ def spread(values) -> str:
 
 
 def peer_workload(size: int, integrator: str, options: dict):
-    return sheet.build(rows=size, cols=size, integrator=integrator, integrator_options=options, dt=DT,
-                       mass=1.0, stiffness=1000.0, damping=1.0, drag=0.0, device="cpu")
+    return sheet.build(
+        rows=size,
+        cols=size,
+        integrator=integrator,
+        integrator_options=options,
+        dt=DT,
+        mass=1.0,
+        stiffness=1000.0,
+        damping=1.0,
+        drag=0.0,
+        device="cpu",
+    )
 
 
 def time_case(sim, steps: int) -> dict:
@@ -88,11 +98,32 @@ def time_case(sim, steps: int) -> dict:
 
 
 def time_peer(peer: str, python: str, size: int, steps: int, cg_tol: float = CG_TOL) -> dict:
-    cmd = [python, peer, "--rows", str(size), "--cols", str(size), "--integrator", "implicit", "--dt", repr(DT),
-           "--cg-rtol", repr(cg_tol), "--steps", str(steps), "--warmup", "1"]
+    cmd = [
+        python,
+        peer,
+        "--rows",
+        str(size),
+        "--cols",
+        str(size),
+        "--integrator",
+        "implicit",
+        "--dt",
+        repr(DT),
+        "--cg-rtol",
+        repr(cg_tol),
+        "--steps",
+        str(steps),
+        "--warmup",
+        "1",
+    ]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
     r = json.loads(out)
-    return {"ms": r["ms_per_step"], "cpu_ms": float("nan"), "stats": {"cg_iterations_mean": r["cg_iters_mean"]}, "finite": r["finite"]}
+    return {
+        "ms": r["ms_per_step"],
+        "cpu_ms": float("nan"),
+        "stats": {"cg_iterations_mean": r["cg_iters_mean"]},
+        "finite": r["finite"],
+    }
 
 
 def main(argv=None) -> None:
@@ -102,29 +133,50 @@ def main(argv=None) -> None:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--settle-size", type=int, default=64, help="sheet side for the static sag check (0 skips it)")
     p.add_argument("--settle-time", type=float, default=10.0, help="simulated seconds of the settling run [s]")
-    p.add_argument("--settle-implicit", action="store_true", help="also settle implicit_euler (multigrid) for the sag check")
+    p.add_argument(
+        "--settle-implicit", action="store_true", help="also settle implicit_euler (multigrid) for the sag check"
+    )
     p.add_argument("--cg-tol", type=float, default=CG_TOL, help="CG relative tolerance of implicit_euler and the peer")
-    p.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES), help="warpcloth cases timed (ratios need theirs)")
+    p.add_argument(
+        "--cases",
+        nargs="+",
+        default=list(CASES),
+        choices=list(CASES),
+        help="warpcloth cases timed (ratios need theirs)",
+    )
     p.add_argument("--peer", default=DEFAULT_PEER, help="the numpy/scipy peer script ('' skips it)")
-    p.add_argument("--peer-python", default=sys.executable, help="the Python that runs the peer (needs numpy and scipy)")
+    p.add_argument(
+        "--peer-python", default=sys.executable, help="the Python that runs the peer (needs numpy and scipy)"
+    )
     args = p.parse_args(argv)
 
     wp.init()
     print(f"# bench/solvers.py {' '.join(argv if argv is not None else sys.argv[1:])}")
-    print(f"# {time.strftime('%Y-%m-%d %H:%M:%S %Z')}, {platform.machine()} {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, warp {wp.config.version}")
-    print(f"# speed: peer workload, {args.size}x{args.size}, dt = 1/60 s, CG tol {args.cg_tol:g}, {args.steps} steps from rest per case")
+    print(
+        f"# {time.strftime('%Y-%m-%d %H:%M:%S %Z')}, {platform.machine()} {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, warp {wp.config.version}"
+    )
+    print(
+        f"# speed: peer workload, {args.size}x{args.size}, dt = 1/60 s, CG tol {args.cg_tol:g}, {args.steps} steps from rest per case"
+    )
     timed = cases(args.cg_tol)
     names = list(args.cases) + ([PEER] if args.peer else [])
     sims = {name: peer_workload(args.size, *timed[name]) for name in args.cases}
     results = {name: [] for name in names}
     for rep in range(args.repeats):
-        order = names[rep % len(names):] + names[: rep % len(names)]
+        order = names[rep % len(names) :] + names[: rep % len(names)]
         for name in order:
-            r = time_peer(args.peer, args.peer_python, args.size, args.steps, args.cg_tol) if name == PEER else time_case(sims[name], args.steps)
+            r = (
+                time_peer(args.peer, args.peer_python, args.size, args.steps, args.cg_tol)
+                if name == PEER
+                else time_case(sims[name], args.steps)
+            )
             results[name].append(r)
             it = r["stats"].get("cg_iterations_mean")
             extra = f", CG iterations mean {it:.1f}" if it is not None else ""
-            print(f"repeat {rep + 1} {name:26s} {r['ms']:9.1f} ms/step wall, {r['cpu_ms']:8.1f} ms CPU{extra}{'' if r['finite'] else ' NON-FINITE'}", flush=True)
+            print(
+                f"repeat {rep + 1} {name:26s} {r['ms']:9.1f} ms/step wall, {r['cpu_ms']:8.1f} ms CPU{extra}{'' if r['finite'] else ' NON-FINITE'}",
+                flush=True,
+            )
 
     print("\n# summary: median [min-max] over repeats")
     for name in names:
@@ -138,7 +190,12 @@ def main(argv=None) -> None:
             print(f"{label:42s} {spread([ra['ms'] / rb['ms'] for ra, rb in zip(results[a], results[b])])}{note}")
 
     print("\n# ratios of ms/step, per repeat, median [min-max]")
-    ratio(PEER, "implicit_euler/multigrid", "peer implicit / implicit_euler multigrid:", "  (target >= 5 at tol 1e-3, >= 2 at 1e-5)")
+    ratio(
+        PEER,
+        "implicit_euler/multigrid",
+        "peer implicit / implicit_euler multigrid:",
+        "  (target >= 5 at tol 1e-3, >= 2 at 1e-5)",
+    )
     ratio(PEER, "implicit_euler/jacobi", "peer implicit / implicit_euler jacobi:")
     ratio("implicit_euler/jacobi", "implicit_euler/multigrid", "implicit_euler jacobi / multigrid:")
     ratio("implicit_euler/jacobi", "vbd", "implicit_euler jacobi / vbd:", "  (target >= 5)")
@@ -161,7 +218,9 @@ def main(argv=None) -> None:
             sim.simulate(steps)
             sag = float((y0 - sim.state.particle_q.numpy()[:, 1]).max())
             speed = float(np.linalg.norm(sim.state.particle_qd.numpy(), axis=1).max())
-            print(f"{name:26s} sag {sag * 1e3:.4f} mm, error {100 * (sag - sag_ref) / sag_ref:+.2f} % (target within 2 %), max speed {speed:.2e} m/s")
+            print(
+                f"{name:26s} sag {sag * 1e3:.4f} mm, error {100 * (sag - sag_ref) / sag_ref:+.2f} % (target within 2 %), max speed {speed:.2e} m/s"
+            )
 
 
 if __name__ == "__main__":

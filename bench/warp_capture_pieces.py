@@ -65,14 +65,22 @@ def main():
         grid = wp.HashGrid(16, 16, 16)
         grid.reserve(500)
         grid.build(x, 0.1)
-        ok = replay_matches(lambda: grid.build(x, 0.1), lambda: wp.launch(count_grid, 500, [grid.id, x, 0.1, out]),
-                            lambda: x.assign(rng.random((500, 3)).astype(np.float32)), out)
+        ok = replay_matches(
+            lambda: grid.build(x, 0.1),
+            lambda: wp.launch(count_grid, 500, [grid.id, x, 0.1, out]),
+            lambda: x.assign(rng.random((500, 3)).astype(np.float32)),
+            out,
+        )
         print(f"wp.HashGrid.build recorded by a CPU capture: {ok}")
         pts = wp.array(rng.random((300, 3)).astype(np.float32), dtype=wp.vec3)
         mesh = wp.Mesh(points=pts, indices=wp.array(rng.integers(0, 300, 1200).astype(np.int32), dtype=int))
         probe = wp.array(rng.random((500, 3)).astype(np.float32), dtype=wp.vec3)
-        ok = replay_matches(mesh.refit, lambda: wp.launch(nearest_face, 500, [mesh.id, probe, out]),
-                            lambda: pts.assign(3.0 * rng.random((300, 3)).astype(np.float32)), out)
+        ok = replay_matches(
+            mesh.refit,
+            lambda: wp.launch(nearest_face, 500, [mesh.id, probe, out]),
+            lambda: pts.assign(3.0 * rng.random((300, 3)).astype(np.float32)),
+            out,
+        )
         print(f"wp.Mesh.refit recorded by a CPU capture: {ok}")
         lo = wp.array(rng.random((400, 3)).astype(np.float32), dtype=wp.vec3)
         hi = wp.array(lo.numpy() + 0.05, dtype=wp.vec3)

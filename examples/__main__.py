@@ -14,8 +14,11 @@ KINDS = {".xml": "test list", ".obj": "mesh", ".toml": "scenario file"}
 def example_files() -> list[tuple[str, str]]:
     """(kind, path) of every shipped example file, by kind then name."""
     here = os.path.dirname(os.path.abspath(__file__))
-    files = [(KINDS[os.path.splitext(n)[1]], os.path.join(here, n)) for n in os.listdir(here)
-             if os.path.splitext(n)[1] in KINDS]
+    files = [
+        (KINDS[os.path.splitext(n)[1]], os.path.join(here, n))
+        for n in os.listdir(here)
+        if os.path.splitext(n)[1] in KINDS
+    ]
     order = list(KINDS.values())
     return sorted(files, key=lambda f: (order.index(f[0]), f[1]))
 

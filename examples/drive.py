@@ -63,8 +63,10 @@ def main(argv=None) -> None:
             example.step()
             example.render()
         corner = example.sim.state.particle_q.numpy()[0]
-        print(f"{args.num_frames} frames of {example.steps} steps; the corner is at {np.round(corner, 3).tolist()}, "
-              f"graph replay: {example.sim.graph_enabled}")
+        print(
+            f"{args.num_frames} frames of {example.steps} steps; the corner is at {np.round(corner, 3).tolist()}, "
+            f"graph replay: {example.sim.graph_enabled}"
+        )
         if example.usd is not None:
             print(f"wrote {example.usd.close()}")
 

@@ -85,9 +85,20 @@ def hinge_energy(x0: wp.vec3, x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, rest: float
 
 
 @wp.func
-def hinge_force_scale(theta: float, rest: float, k: float, kd: float,
-                      g0: wp.vec3, g1: wp.vec3, g2: wp.vec3, g3: wp.vec3,
-                      v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, v3: wp.vec3):
+def hinge_force_scale(
+    theta: float,
+    rest: float,
+    k: float,
+    kd: float,
+    g0: wp.vec3,
+    g1: wp.vec3,
+    g2: wp.vec3,
+    g3: wp.vec3,
+    v0: wp.vec3,
+    v1: wp.vec3,
+    v2: wp.vec3,
+    v3: wp.vec3,
+):
     # s with f_a = s g_a:  s = -k wrap(theta - theta0) - kd (sum_b g_b . v_b)
     rate = wp.dot(g0, v0) + wp.dot(g1, v1) + wp.dot(g2, v2) + wp.dot(g3, v3)
     return -k * wrap_angle(theta - rest) - kd * rate
@@ -121,8 +132,20 @@ def eval_hinge_forces(
     theta, g0, g1, g2, g3, valid = hinge_angle_gradient(x[q[0]], x[q[1]], x[q[2]], x[q[3]])
     if valid == 0:
         return
-    s = hinge_force_scale(theta, hinge_rest_angle[e], hinge_stiffness[e], hinge_damping[e], g0, g1, g2, g3,
-                          v[q[0]], v[q[1]], v[q[2]], v[q[3]])
+    s = hinge_force_scale(
+        theta,
+        hinge_rest_angle[e],
+        hinge_stiffness[e],
+        hinge_damping[e],
+        g0,
+        g1,
+        g2,
+        g3,
+        v[q[0]],
+        v[q[1]],
+        v[q[2]],
+        v[q[3]],
+    )
     wp.atomic_add(f, q[0], s * g0)
     wp.atomic_add(f, q[1], s * g1)
     wp.atomic_add(f, q[2], s * g2)
@@ -284,7 +307,8 @@ def hinge_vertex_force_hessian(
         d2 = dx[q[2]] - dxi
         d3 = dx[q[3]] - dxi
         theta, g0, g1, g2, g3, valid = hinge_angle_gradient(
-            (x[q[0]] - xi) + d0, (x[q[1]] - xi) + d1, (x[q[2]] - xi) + d2, (x[q[3]] - xi) + d3)
+            (x[q[0]] - xi) + d0, (x[q[1]] - xi) + d1, (x[q[2]] - xi) + d2, (x[q[3]] - xi) + d3
+        )
         if valid != 0:
             k = hinge_stiffness[e]
             kd = hinge_damping[e]
@@ -311,10 +335,23 @@ class HingeAdjacency:
 
 
 @wp.func
-def vertex_hinge_terms(i: int, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), hinges: HingeAdjacency, h: float):
+def vertex_hinge_terms(
+    i: int, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), hinges: HingeAdjacency, h: float
+):
     # (f_i, H_i) of vertex i's hinges at x + dx with the dx / h damping rate (hinge_vertex_force_hessian)
-    return hinge_vertex_force_hessian(i, x, dx, hinges.offsets, hinges.hinge, hinges.slot, hinges.indices,
-                                      hinges.rest_angle, hinges.stiffness, hinges.damping, h)
+    return hinge_vertex_force_hessian(
+        i,
+        x,
+        dx,
+        hinges.offsets,
+        hinges.hinge,
+        hinges.slot,
+        hinges.indices,
+        hinges.rest_angle,
+        hinges.stiffness,
+        hinges.damping,
+        h,
+    )
 
 
 @wp.kernel
@@ -334,8 +371,19 @@ def eval_hinge_vertex_terms(
 ):
     # per vertex: (f_i, H_i) = hinge_vertex_force_hessian (what VBD adds to its local 3x3 problem)
     i = wp.tid()
-    f, H = hinge_vertex_force_hessian(i, x, dx, adjacency_offsets, adjacency_hinge, adjacency_slot, hinge_indices,
-                                      hinge_rest_angle, hinge_stiffness, hinge_damping, h)
+    f, H = hinge_vertex_force_hessian(
+        i,
+        x,
+        dx,
+        adjacency_offsets,
+        adjacency_hinge,
+        adjacency_slot,
+        hinge_indices,
+        hinge_rest_angle,
+        hinge_stiffness,
+        hinge_damping,
+        h,
+    )
     force[i] = f
     hessian[i] = H
 
@@ -370,7 +418,8 @@ def solve_hinges_xpbd(
     d3 = dp[q[3]]
     p0 = x[q[0]]
     theta, g0, g1, g2, g3, valid = hinge_angle_gradient(
-        wp.vec3(0.0), (x[q[1]] - p0) + (d1 - d0), (x[q[2]] - p0) + (d2 - d0), (x[q[3]] - p0) + (d3 - d0))
+        wp.vec3(0.0), (x[q[1]] - p0) + (d1 - d0), (x[q[2]] - p0) + (d2 - d0), (x[q[3]] - p0) + (d3 - d0)
+    )
     if valid == 0:
         return
     w0 = particle_inv_mass[q[0]]
@@ -412,7 +461,8 @@ def solve_hinges_pbd(
     d3 = dp[q[3]]
     p0 = x[q[0]]
     theta, g0, g1, g2, g3, valid = hinge_angle_gradient(
-        wp.vec3(0.0), (x[q[1]] - p0) + (d1 - d0), (x[q[2]] - p0) + (d2 - d0), (x[q[3]] - p0) + (d3 - d0))
+        wp.vec3(0.0), (x[q[1]] - p0) + (d1 - d0), (x[q[2]] - p0) + (d2 - d0), (x[q[3]] - p0) + (d3 - d0)
+    )
     if valid == 0:
         return
     w0 = particle_inv_mass[q[0]]

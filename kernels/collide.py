@@ -29,7 +29,6 @@ for a pose the host sets each frame (offset keys and a turn about the collider's
 """
 
 import warp as wp
-
 from warpcloth.kernels.pins import rotate_axis_angle, track_keyframes
 
 wp.set_module_options({"enable_backward": False})
@@ -127,8 +126,17 @@ def mesh_contact(x: wp.vec3, mesh: wp.uint64, thickness: float, reach: float):
 
 
 @wp.func(inline=True)
-def posed_mesh_contact(x: wp.vec3, center: wp.vec3, rotation: wp.mat33, half: wp.vec3, rest_center: wp.vec3, mesh: wp.uint64,
-                       thickness: float, reach: float, moving: int):
+def posed_mesh_contact(
+    x: wp.vec3,
+    center: wp.vec3,
+    rotation: wp.mat33,
+    half: wp.vec3,
+    rest_center: wp.vec3,
+    mesh: wp.uint64,
+    thickness: float,
+    reach: float,
+    moving: int,
+):
     # a mesh moved rigidly (y = center + R (y0 - rest_center)): x taken into the mesh's own frame,
     # rejected outside its box (half: half size grown by the thickness), queried there, n turned
     # back; a static mesh is queried at x itself (no rounding of x through the frame change)
@@ -229,8 +237,17 @@ def shape_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, band:
     h = colliders[k].b
     rotation = colliders[k].rotation
     if kind == MESH:  # its box (b: half size grown by the thickness), then the BVH
-        return posed_mesh_contact(x, c, rotation, h, colliders[k].rest_center, colliders[k].mesh, colliders[k].thickness, colliders[k].radius,
-                                  colliders[k].moving)
+        return posed_mesh_contact(
+            x,
+            c,
+            rotation,
+            h,
+            colliders[k].rest_center,
+            colliders[k].mesh,
+            colliders[k].thickness,
+            colliders[k].radius,
+            colliders[k].moving,
+        )
     p = wp.transpose(rotation) * (x - c)
     if wp.abs(p[0]) >= h[0] + reach or wp.abs(p[1]) >= h[1] + reach or wp.abs(p[2]) >= h[2] + reach:
         return NOT_NEAR, wp.vec3(0.0)
@@ -261,7 +278,9 @@ def surface_velocity(colliders: wp.array(dtype=Collider), k: int, y: wp.vec3):
 
 
 @wp.func(inline=True)
-def velocity_response(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, v: wp.vec3, phi: float, n: wp.vec3, dt: float):
+def velocity_response(
+    colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, v: wp.vec3, phi: float, n: wp.vec3, dt: float
+):
     # respond_velocity against collider k where it is penetrated (phi < thickness); hit = 1 then
     depth = colliders[k].thickness - phi
     if depth > 0.0:
@@ -272,9 +291,16 @@ def velocity_response(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, v
 
 @wp.kernel
 def collide_velocity(
-    x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), dt: float,
-    position_weight: float, displacement: wp.array(dtype=wp.vec3), has_displacement: int,
-    colliders: wp.array(dtype=Collider), box: wp.array(dtype=wp.vec3), plane_count: int,
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    dt: float,
+    position_weight: float,
+    displacement: wp.array(dtype=wp.vec3),
+    has_displacement: int,
+    colliders: wp.array(dtype=Collider),
+    box: wp.array(dtype=wp.vec3),
+    plane_count: int,
 ):
     # after a force-based step: every collider, respond_velocity (the tangential change moves x by
     # position_weight dt dv_t: 1 where x += dt v_new, 1/2 for RK); Verlet's d = v dt. Planes first
@@ -323,8 +349,17 @@ def friction_displacement(dp: wp.vec3, motion: wp.vec3, n: wp.vec3, normal_corre
 
 
 @wp.func(inline=True)
-def displacement_response(colliders: wp.array(dtype=Collider), k: int, p: wp.vec3, d: wp.vec3, nc: float, phi: float, n: wp.vec3,
-                          friction: int, motion_time: float):
+def displacement_response(
+    colliders: wp.array(dtype=Collider),
+    k: int,
+    p: wp.vec3,
+    d: wp.vec3,
+    nc: float,
+    phi: float,
+    n: wp.vec3,
+    friction: int,
+    motion_time: float,
+):
     # the solver pass (friction = 0): d out of collider k, nc += the normal correction; the
     # friction pass: d's tangential motion relative to the collider's over the substep reduced;
     # hit = 1 where d changed
@@ -339,9 +374,16 @@ def displacement_response(colliders: wp.array(dtype=Collider), k: int, p: wp.vec
 
 @wp.kernel
 def collide_displacement(
-    friction: int, x: wp.array(dtype=wp.vec3), dp: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
-    normal_correction: wp.array(dtype=float), colliders: wp.array(dtype=Collider),
-    box: wp.array(dtype=wp.vec3), plane_count: int, step_dt: wp.array(dtype=wp.float64), substep: wp.array(dtype=int),
+    friction: int,
+    x: wp.array(dtype=wp.vec3),
+    dp: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    normal_correction: wp.array(dtype=float),
+    colliders: wp.array(dtype=Collider),
+    box: wp.array(dtype=wp.vec3),
+    plane_count: int,
+    step_dt: wp.array(dtype=wp.float64),
+    substep: wp.array(dtype=int),
 ):
     # position-based solvers: p = x + dp out of every collider (friction = 0), or the friction pass
     # after the iterations (friction = 1; the collider moves v_c h over the substep h = dt / S)
@@ -403,8 +445,9 @@ def next_collider_substep(substep: wp.array(dtype=int)):
 
 
 @wp.func
-def posed_collider(r: Collider, c: wp.vec3d, d: wp.vec3d, dd: wp.vec3d, axis: wp.vec3d, theta: wp.float64,
-                   theta_dot: wp.float64):
+def posed_collider(
+    r: Collider, c: wp.vec3d, d: wp.vec3d, dd: wp.vec3d, axis: wp.vec3d, theta: wp.float64, theta_dot: wp.float64
+):
     # the rest record r moved by y -> c + d + R(axis, theta)(y - c), with v_c(y) = d' + theta' axis x (y - c - d)
     m = r
     rot = rotation_matrix(axis, theta)
@@ -432,10 +475,22 @@ def turn_point(y: wp.vec3, center: wp.vec3d, offset: wp.vec3d, start: wp.quatd, 
 
 @wp.kernel
 def eval_collider_pose(
-    time: wp.array(dtype=wp.float64), offset: wp.float64, step_dt: wp.array(dtype=wp.float64), substep: wp.array(dtype=int), use_substep: int,
-    index: int, rest: wp.array(dtype=Collider),
-    rigid: int, center: wp.vec3d, axis: wp.vec3d, velocity: wp.vec3d, motion: wp.vec4d,
-    times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d), tangents: wp.array(dtype=wp.vec3d), cubic: int,
+    time: wp.array(dtype=wp.float64),
+    offset: wp.float64,
+    step_dt: wp.array(dtype=wp.float64),
+    substep: wp.array(dtype=int),
+    use_substep: int,
+    index: int,
+    rest: wp.array(dtype=Collider),
+    rigid: int,
+    center: wp.vec3d,
+    axis: wp.vec3d,
+    velocity: wp.vec3d,
+    motion: wp.vec4d,
+    times: wp.array(dtype=wp.float64),
+    values: wp.array(dtype=wp.vec3d),
+    tangents: wp.array(dtype=wp.vec3d),
+    cubic: int,
     colliders: wp.array(dtype=Collider),
 ):
     # collider `index` at t = time + offset (+ dt min(k + 1, S) / S, the end of substep k of S, with
@@ -465,9 +520,16 @@ def eval_collider_pose(
 
 @wp.kernel
 def eval_collider_driven_pose(
-    time: wp.array(dtype=wp.float64), offset: wp.float64, step_dt: wp.array(dtype=wp.float64),
-    substep: wp.array(dtype=int), use_substep: int, index: int, rest: wp.array(dtype=Collider),
-    frame_times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d), tangents: wp.array(dtype=wp.vec3d),
+    time: wp.array(dtype=wp.float64),
+    offset: wp.float64,
+    step_dt: wp.array(dtype=wp.float64),
+    substep: wp.array(dtype=int),
+    use_substep: int,
+    index: int,
+    rest: wp.array(dtype=Collider),
+    frame_times: wp.array(dtype=wp.float64),
+    values: wp.array(dtype=wp.vec3d),
+    tangents: wp.array(dtype=wp.vec3d),
     cubic: int,
     turn: wp.array(dtype=wp.vec4d),
     colliders: wp.array(dtype=Collider),

@@ -42,8 +42,16 @@ def distance_correction_pbd(d: wp.vec3, wi: float, wj: float, rest: float, stiff
 
 @wp.func
 def distance_correction_xpbd(
-    d: wp.vec3, dpi: wp.vec3, dpj: wp.vec3, wi: float, wj: float,
-    rest: float, ks: float, kd: float, lam: float, h: float,
+    d: wp.vec3,
+    dpi: wp.vec3,
+    dpj: wp.vec3,
+    wi: float,
+    wj: float,
+    rest: float,
+    ks: float,
+    kd: float,
+    lam: float,
+    h: float,
 ):
     # C = |d| - L0, d = p_j - p_i, n = d/|d|, dp = p - x (the displacement of this substep)
     # dlam = -(ks h^2 C + kd h gradC.(p - x) + lam) / ((ks h^2 + kd h)(w_i + w_j) + 1)
@@ -98,7 +106,9 @@ def solve_springs_pbd(
     i = ij[0]
     j = ij[1]
     d = (x[j] - x[i]) + (dp[j] - dp[i])
-    ci, cj = distance_correction_pbd(d, particle_inv_mass[i], particle_inv_mass[j], spring_rest_length[s], type_stiffness[spring_type[s]])
+    ci, cj = distance_correction_pbd(
+        d, particle_inv_mass[i], particle_inv_mass[j], spring_rest_length[s], type_stiffness[spring_type[s]]
+    )
     dp[i] = dp[i] + ci
     dp[j] = dp[j] + cj
 
@@ -126,8 +136,16 @@ def solve_springs_xpbd(
     dpj = dp[j]
     d = (x[j] - x[i]) + (dpj - dpi)
     ci, cj, dlam = distance_correction_xpbd(
-        d, dpi, dpj, particle_inv_mass[i], particle_inv_mass[j],
-        spring_rest_length[s], spring_stiffness[s], spring_damping[s], lam[s], h,
+        d,
+        dpi,
+        dpj,
+        particle_inv_mass[i],
+        particle_inv_mass[j],
+        spring_rest_length[s],
+        spring_stiffness[s],
+        spring_damping[s],
+        lam[s],
+        h,
     )
     lam[s] = lam[s] + dlam
     dp[i] = dpi + ci

@@ -1,7 +1,6 @@
 """Force kernels: springs (Hooke + damping, Provot), gravity, air drag, wind on triangles."""
 
 import warp as wp
-
 from warpcloth.kernels.springs import spring_force
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -20,7 +19,9 @@ def eval_springs(
 ):
     s = wp.tid()
     ij = spring_indices[s]
-    fi = spring_force(x[ij[0]], x[ij[1]], v[ij[0]], v[ij[1]], spring_rest_length[s], spring_stiffness[s], spring_damping[s])
+    fi = spring_force(
+        x[ij[0]], x[ij[1]], v[ij[0]], v[ij[1]], spring_rest_length[s], spring_stiffness[s], spring_damping[s]
+    )
     wp.atomic_add(f, ij[0], fi)
     wp.atomic_sub(f, ij[1], fi)
 
@@ -89,7 +90,12 @@ def eval_wind_schedule(
 
 
 @wp.kernel
-def advance_time(time: wp.array(dtype=wp.float64), time_base: wp.array(dtype=wp.float64), clock: wp.array(dtype=wp.int64), dt: wp.float64):
+def advance_time(
+    time: wp.array(dtype=wp.float64),
+    time_base: wp.array(dtype=wp.float64),
+    clock: wp.array(dtype=wp.int64),
+    dt: wp.float64,
+):
     # t = t_base + n dt after n steps of dt (not a running sum: n dt lands exactly on switch times)
     n = clock[0] + wp.int64(1)
     clock[0] = n
@@ -97,7 +103,9 @@ def advance_time(time: wp.array(dtype=wp.float64), time_base: wp.array(dtype=wp.
 
 
 @wp.kernel
-def rebase_time(time: wp.array(dtype=wp.float64), time_base: wp.array(dtype=wp.float64), clock: wp.array(dtype=wp.int64)):
+def rebase_time(
+    time: wp.array(dtype=wp.float64), time_base: wp.array(dtype=wp.float64), clock: wp.array(dtype=wp.int64)
+):
     # t_base = t, n = 0 (before stepping with a new dt)
     time_base[0] = time[0]
     clock[0] = wp.int64(0)

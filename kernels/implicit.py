@@ -11,7 +11,6 @@ mass 0) get identity rows and zero columns, so their dv is 0.
 """
 
 import warp as wp
-
 from warpcloth.kernels.collide import Collider, collider_contact, surface_velocity
 from warpcloth.kernels.linalg import inverse_diagonal
 from warpcloth.kernels.springs import SpringAdjacency
@@ -228,8 +227,11 @@ def eval_contact_modes(
 
 @wp.kernel
 def eval_contact_dv(
-    mode: wp.array(dtype=int), normal: wp.array(dtype=wp.vec3), collider_v: wp.array(dtype=wp.vec3),
-    v: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3),
+    mode: wp.array(dtype=int),
+    normal: wp.array(dtype=wp.vec3),
+    collider_v: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
 ):
     # prescribed dv of a contact particle, v_r = v - v_c: the normal z_n = -min(0, v_r . n) n (it
     # stops approaching the collider) and, for STICK, the tangential -v_r,t too (it moves with the
@@ -292,7 +294,10 @@ def apply_contact_friction(
 
 @wp.kernel
 def mark_entered(
-    x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), colliders: wp.array(dtype=Collider), mode: wp.array(dtype=int),
+    x: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    colliders: wp.array(dtype=Collider),
+    mode: wp.array(dtype=int),
     entered: wp.array(dtype=int),
 ):
     # after the step's integration (moving colliders posed at its end): 1 where a particle the
@@ -355,8 +360,12 @@ def filter_system_rows(
 
 @wp.kernel
 def filter_rhs(
-    mode: wp.array(dtype=int), normal: wp.array(dtype=wp.vec3), Az: wp.array(dtype=wp.vec3), friction_impulse: wp.array(dtype=wp.vec3),
-    b: wp.array(dtype=wp.vec3), dv: wp.array(dtype=wp.vec3),
+    mode: wp.array(dtype=int),
+    normal: wp.array(dtype=wp.vec3),
+    Az: wp.array(dtype=wp.vec3),
+    friction_impulse: wp.array(dtype=wp.vec3),
+    b: wp.array(dtype=wp.vec3),
+    dv: wp.array(dtype=wp.vec3),
 ):
     # b <- S (b + F - A z) (a sliding contact's friction impulse F added, the prescribed dv moved
     # to the right side);  dv <- S dv (the warm start)
@@ -367,7 +376,9 @@ def filter_rhs(
 
 
 @wp.kernel
-def unfilter_dv(mode: wp.array(dtype=int), normal: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3), dv: wp.array(dtype=wp.vec3)):
+def unfilter_dv(
+    mode: wp.array(dtype=int), normal: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3), dv: wp.array(dtype=wp.vec3)
+):
     # dv = S y + z (S y: CG's solution without what rounding and the preconditioner left in the
     # prescribed directions)
     i = wp.tid()

@@ -10,10 +10,16 @@ x_j - x_i and dx_j - dx_i apart, never x + dx.
 """
 
 import warp as wp
-
 from warpcloth.kernels.bending import HingeAdjacency, hinge_angle_gradient, hinge_force_scale, pick_vec3
-from warpcloth.kernels.collide import (Collider, Colliders, contact_band, in_box, plane_contact, shape_contact,
-                                      surface_velocity)
+from warpcloth.kernels.collide import (
+    Collider,
+    Colliders,
+    contact_band,
+    in_box,
+    plane_contact,
+    shape_contact,
+    surface_velocity,
+)
 from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -61,8 +67,14 @@ def predict_inertia(
 
 
 @wp.func
-def vertex_gradient_hessian(i: int, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), inertia: Inertia,
-                            springs: SpringAdjacency, h: float):
+def vertex_gradient_hessian(
+    i: int,
+    x: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    inertia: Inertia,
+    springs: SpringAdjacency,
+    h: float,
+):
     # vertex i's local problem with its neighbours fixed: the gradient g = m / h^2 (dx_i - dy_i) -
     # sum f and Hessian H = m / h^2 I + sum K of the step's potential at its increment dx_i
     xi = x[i]
@@ -73,8 +85,9 @@ def vertex_gradient_hessian(i: int, x: wp.array(dtype=wp.vec3), dx: wp.array(dty
     for a in range(springs.offsets[i], springs.offsets[i + 1]):
         s = springs.spring[a]
         j = springs.other[a]
-        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s],
-                                       springs.damping[s], h)
+        f, K = spring_gradient_hessian(
+            x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s], springs.damping[s], h
+        )
         g = g - f
         H = H + K
     return g, H
@@ -90,8 +103,17 @@ def newton_increment(g: wp.vec3, H: wp.mat33):
 
 
 @wp.func(inline=True)
-def contact_response(colliders: wp.array(dtype=Collider), k: int, p: wp.vec3, d: wp.vec3, phi: float, n: wp.vec3, h: float,
-                     H: wp.mat33, Hinv: wp.mat33):
+def contact_response(
+    colliders: wp.array(dtype=Collider),
+    k: int,
+    p: wp.vec3,
+    d: wp.vec3,
+    phi: float,
+    n: wp.vec3,
+    h: float,
+    H: wp.mat33,
+    Hinv: wp.mat33,
+):
     # the vertex's local problem min 1/2 e^T H e - c^T e (e = its displacement from d, the unconstrained
     # minimiser; c the collider's force) with p = x + d within collider k's thickness, the surface
     # linearised at p with normal n. Stick: e takes p to the surface at the collider's motion over the
@@ -244,8 +266,16 @@ def rigid_mode_projector(i: int, inv_mass: wp.array(dtype=float), contact: Conta
 
 
 @wp.func
-def rigid_mode_hinge_terms(i: int, Pi: wp.mat33, x: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float),
-                           hinges: HingeAdjacency, h: float, contact: ContactState):
+def rigid_mode_hinge_terms(
+    i: int,
+    Pi: wp.mat33,
+    x: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    hinges: HingeAdjacency,
+    h: float,
+    contact: ContactState,
+):
     # the dihedral hinges' share of particle i's rigid-mode terms: for each hinge of i whose four vertices
     # do not all move alike in the mode, P_i f_i (f_i its force on i, as vbd's vertex step sees it) and
     # (k + kd/h) (P_i g_i) (sum_b P_b g_b)^T (its Gauss-Newton block; summed over the hinge's vertices this is
@@ -271,7 +301,8 @@ def rigid_mode_hinge_terms(i: int, Pi: wp.mat33, x: wp.array(dtype=wp.vec3), dx:
             d2 = dx[q[2]] - dxi
             d3 = dx[q[3]] - dxi
             theta, g0, g1, g2, g3, valid = hinge_angle_gradient(
-                (x[q[0]] - xi) + d0, (x[q[1]] - xi) + d1, (x[q[2]] - xi) + d2, (x[q[3]] - xi) + d3)
+                (x[q[0]] - xi) + d0, (x[q[1]] - xi) + d1, (x[q[2]] - xi) + d2, (x[q[3]] - xi) + d3
+            )
             if valid != 0:
                 k = hinges.stiffness[e]
                 kd = hinges.damping[e]
@@ -319,8 +350,9 @@ def rigid_mode_terms(
         Pd = Pi - rigid_mode_projector(j, inertia.inv_mass, contact)
         if wp.ddot(Pd, Pd) > 0.0:
             s = springs.spring[a]
-            f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s],
-                                           springs.damping[s], h)
+            f, K = spring_gradient_hessian(
+                x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s], springs.damping[s], h
+            )
             bi = bi + (0.5 * h2) * (Pd * f)
             Ai = Ai + (0.5 * h2) * (wp.transpose(Pd) * K * Pd)
     if hinges.indices.shape[0] > 0 and inertia.inv_mass[i] != 0.0:
@@ -332,8 +364,12 @@ def rigid_mode_terms(
 
 
 @wp.kernel
-def apply_rigid_mode(translation: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), contact: ContactState,
-                     dx: wp.array(dtype=wp.vec3)):
+def apply_rigid_mode(
+    translation: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    contact: ContactState,
+    dx: wp.array(dtype=wp.vec3),
+):
     # dx_i += P_i t  (t = translation[0], rigid_mode_projector)
     i = wp.tid()
     dx[i] = dx[i] + rigid_mode_projector(i, inv_mass, contact) * translation[0]

@@ -96,14 +96,18 @@ def apply_block_diagonal(
 
 
 @wp.kernel
-def invert_diagonal_blocks(values: wp.array(dtype=wp.mat33), diag_index: wp.array(dtype=int), inverse: wp.array(dtype=wp.mat33)):
+def invert_diagonal_blocks(
+    values: wp.array(dtype=wp.mat33), diag_index: wp.array(dtype=int), inverse: wp.array(dtype=wp.mat33)
+):
     # inverse_i = A_ii^-1 (I where singular), A_ii = values[diag_index[i]]: the smoother of a multigrid level
     i = wp.tid()
     inverse[i] = inverse_block(values[diag_index[i]])
 
 
 @wp.kernel
-def scale_add(x: wp.array(dtype=wp.vec3), y: wp.array(dtype=wp.vec3), alpha: float, beta: float, z: wp.array(dtype=wp.vec3)):
+def scale_add(
+    x: wp.array(dtype=wp.vec3), y: wp.array(dtype=wp.vec3), alpha: float, beta: float, z: wp.array(dtype=wp.vec3)
+):
     # z = alpha x + beta y
     i = wp.tid()
     out = alpha * x[i]
@@ -138,10 +142,15 @@ def sum_partials(partial: wp.array(dtype=float), k: int, out: wp.array(dtype=flo
     out[k] = acc
 
 
-
 @wp.kernel
-def sum_block_chunks(b: wp.array(dtype=wp.vec3), A: wp.array(dtype=wp.mat33), chunk: int, count: int,
-                     b_partial: wp.array(dtype=wp.vec3), A_partial: wp.array(dtype=wp.mat33)):
+def sum_block_chunks(
+    b: wp.array(dtype=wp.vec3),
+    A: wp.array(dtype=wp.mat33),
+    chunk: int,
+    count: int,
+    b_partial: wp.array(dtype=wp.vec3),
+    A_partial: wp.array(dtype=wp.mat33),
+):
     # chunk sums of b and A in index order (a fixed order: results do not depend on scheduling)
     c = wp.tid()
     bs = wp.vec3(0.0)
@@ -154,8 +163,9 @@ def sum_block_chunks(b: wp.array(dtype=wp.vec3), A: wp.array(dtype=wp.mat33), ch
 
 
 @wp.kernel
-def solve_block_sum(b_partial: wp.array(dtype=wp.vec3), A_partial: wp.array(dtype=wp.mat33), regular: float,
-                    t: wp.array(dtype=wp.vec3)):
+def solve_block_sum(
+    b_partial: wp.array(dtype=wp.vec3), A_partial: wp.array(dtype=wp.mat33), regular: float, t: wp.array(dtype=wp.vec3)
+):
     # t = (sum A + regular I)^-1 sum b from the chunk sums, in order (one thread); 0 where singular.
     # A 3-unknown Galerkin problem (the rigid translation mode of vbd and projective): where every free
     # particle slides on one plane (or sticks), sum A is singular along the normal, and a small regular
@@ -189,7 +199,9 @@ def rounding_perturbation(x: wp.array(dtype=wp.vec3), seed: int, delta: wp.array
 
 
 @wp.kernel
-def residual_terms(b: wp.array(dtype=wp.vec3), r: wp.array(dtype=wp.vec3), q: wp.array(dtype=wp.vec3), terms: wp.array(dtype=wp.vec3d)):
+def residual_terms(
+    b: wp.array(dtype=wp.vec3), r: wp.array(dtype=wp.vec3), q: wp.array(dtype=wp.vec3), terms: wp.array(dtype=wp.vec3d)
+):
     # terms_i = (|r_i|^2, |b_i|^2, |q_i|^2) in float64 (summed in a fixed order by sum_chunks3)
     i = wp.tid()
     ri = wp.vec3d(r[i])
@@ -206,6 +218,7 @@ def sum_chunks3(terms: wp.array(dtype=wp.vec3d), chunk: int, count: int, partial
     for i in range(c * chunk, wp.min((c + 1) * chunk, count)):
         acc = acc + terms[i]
     partial[c] = acc
+
 
 # -- preconditioned CG with its scalars on the device (implicit_euler's CPU solver) -----------
 # scalars: [r.z, r.z (new), p.Ap, r.r, b.b, tolerance^2 = tol^2 b.b, iterations, done]
@@ -234,7 +247,13 @@ CG_DONE = wp.constant(7)
 
 
 @wp.kernel
-def cg_start(tol: float, scalars: wp.array(dtype=float), p: wp.array(dtype=wp.vec3), z: wp.array(dtype=wp.vec3), x: wp.array(dtype=wp.vec3)):
+def cg_start(
+    tol: float,
+    scalars: wp.array(dtype=float),
+    p: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
+    x: wp.array(dtype=wp.vec3),
+):
     # p = z ;  tolerance^2 = tol^2 b.b ;  iterations = 0 ;  done when r.r <= tolerance^2 already;
     # b = 0 exactly: x = 0 is the solution (a relative tolerance cannot be met from a warm start)
     i = wp.tid()

@@ -1,7 +1,6 @@
 """Reductions for run metrics: strain, speeds, net force, finiteness. Read once per frame."""
 
 import warp as wp
-
 from warpcloth.kernels.bending import hinge_energy
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -70,8 +69,12 @@ def reduce_particle_motion(
 
 
 @wp.kernel
-def reduce_patch_force(f: wp.array(dtype=wp.vec3), offsets: wp.array(dtype=int), members: wp.array(dtype=int),
-                       patch_force: wp.array(dtype=wp.vec3)):
+def reduce_patch_force(
+    f: wp.array(dtype=wp.vec3),
+    offsets: wp.array(dtype=int),
+    members: wp.array(dtype=int),
+    patch_force: wp.array(dtype=wp.vec3),
+):
     # the net force of patch k: sum of f over its members offsets[k]:offsets[k + 1], in order (no atomics)
     k = wp.tid()
     acc = wp.vec3(0.0)

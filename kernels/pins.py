@@ -2,7 +2,6 @@
 one rounding to float32 at the end)."""
 
 import warp as wp
-
 from warpcloth.kernels.springs import SpringAdjacency
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -10,7 +9,15 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.func
-def track_keyframes(t: wp.float64, times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d), tangents: wp.array(dtype=wp.vec3d), cubic: int, p: int, count: int):
+def track_keyframes(
+    t: wp.float64,
+    times: wp.array(dtype=wp.float64),
+    values: wp.array(dtype=wp.vec3d),
+    tangents: wp.array(dtype=wp.vec3d),
+    cubic: int,
+    p: int,
+    count: int,
+):
     # before the first / after the last key: hold it (velocity 0); between keys k, k+1 with
     # s = (t - t_k) / h: linear p = a + s (b - a), or cubic Hermite
     # p = h00 a + h10 h m_a + h01 b + h11 h m_b (h00 = 2s^3 - 3s^2 + 1, h10 = s^3 - 2s^2 + s,
@@ -39,7 +46,11 @@ def track_keyframes(t: wp.float64, times: wp.array(dtype=wp.float64), values: wp
     s2 = s * s
     s3 = s2 * s
     pos = (two * s3 - three * s2 + one) * a + (s3 - two * s2 + s) * ma + (three * s2 - two * s3) * b + (s3 - s2) * mb
-    dpos = (wp.float64(6.0) * s2 - wp.float64(6.0) * s) * (a - b) + (three * s2 - wp.float64(4.0) * s + one) * ma + (three * s2 - two * s) * mb
+    dpos = (
+        (wp.float64(6.0) * s2 - wp.float64(6.0) * s) * (a - b)
+        + (three * s2 - wp.float64(4.0) * s + one) * ma
+        + (three * s2 - two * s) * mb
+    )
     return pos, dpos / h
 
 
@@ -65,9 +76,15 @@ def track_rigid(t: wp.float64, rest: wp.vec3d, center: wp.vec3d, axis: wp.vec3d,
 
 @wp.kernel
 def apply_pin_keyframes(
-    time: wp.array(dtype=wp.float64), offset: wp.float64,
-    particle: wp.array(dtype=int), times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d), tangents: wp.array(dtype=wp.vec3d), cubic: int,
-    x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+    time: wp.array(dtype=wp.float64),
+    offset: wp.float64,
+    particle: wp.array(dtype=int),
+    times: wp.array(dtype=wp.float64),
+    values: wp.array(dtype=wp.vec3d),
+    tangents: wp.array(dtype=wp.vec3d),
+    cubic: int,
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
 ):
     # x_i = track(t + offset), v_i = track'(t + offset) for the track's particles
     p = wp.tid()
@@ -79,9 +96,18 @@ def apply_pin_keyframes(
 
 @wp.kernel
 def eval_pin_keyframes_delta(
-    time: wp.array(dtype=wp.float64), offset: wp.float64,
-    particle: wp.array(dtype=int), times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d), tangents: wp.array(dtype=wp.vec3d), cubic: int,
-    x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), scale: float, velocity_weight: float, out: wp.array(dtype=wp.vec3),
+    time: wp.array(dtype=wp.float64),
+    offset: wp.float64,
+    particle: wp.array(dtype=int),
+    times: wp.array(dtype=wp.float64),
+    values: wp.array(dtype=wp.vec3d),
+    tangents: wp.array(dtype=wp.vec3d),
+    cubic: int,
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    scale: float,
+    velocity_weight: float,
+    out: wp.array(dtype=wp.vec3),
 ):
     # out_i = scale (track(t + offset) - x_i) - velocity_weight v_i  (dp = target - x; dv = (target - x)/h - v)
     p = wp.tid()
@@ -92,9 +118,16 @@ def eval_pin_keyframes_delta(
 
 @wp.kernel
 def apply_pin_rigid(
-    time: wp.array(dtype=wp.float64), offset: wp.float64,
-    particle: wp.array(dtype=int), rest: wp.array(dtype=wp.vec3d), center: wp.vec3d, axis: wp.vec3d, velocity: wp.vec3d, motion: wp.vec4d,
-    x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3),
+    time: wp.array(dtype=wp.float64),
+    offset: wp.float64,
+    particle: wp.array(dtype=int),
+    rest: wp.array(dtype=wp.vec3d),
+    center: wp.vec3d,
+    axis: wp.vec3d,
+    velocity: wp.vec3d,
+    motion: wp.vec4d,
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
 ):
     p = wp.tid()
     pos, vel = track_rigid(time[0] + offset, rest[p], center, axis, velocity, motion)
@@ -105,9 +138,19 @@ def apply_pin_rigid(
 
 @wp.kernel
 def eval_pin_rigid_delta(
-    time: wp.array(dtype=wp.float64), offset: wp.float64,
-    particle: wp.array(dtype=int), rest: wp.array(dtype=wp.vec3d), center: wp.vec3d, axis: wp.vec3d, velocity: wp.vec3d, motion: wp.vec4d,
-    x: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), scale: float, velocity_weight: float, out: wp.array(dtype=wp.vec3),
+    time: wp.array(dtype=wp.float64),
+    offset: wp.float64,
+    particle: wp.array(dtype=int),
+    rest: wp.array(dtype=wp.vec3d),
+    center: wp.vec3d,
+    axis: wp.vec3d,
+    velocity: wp.vec3d,
+    motion: wp.vec4d,
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    scale: float,
+    velocity_weight: float,
+    out: wp.array(dtype=wp.vec3),
 ):
     p = wp.tid()
     pos, vel = track_rigid(time[0] + offset, rest[p], center, axis, velocity, motion)
@@ -117,8 +160,11 @@ def eval_pin_rigid_delta(
 
 @wp.kernel
 def eval_frame_times(
-    time: wp.array(dtype=wp.float64), time_base: wp.array(dtype=wp.float64), clock: wp.array(dtype=wp.int64),
-    dt: wp.float64, steps: int,
+    time: wp.array(dtype=wp.float64),
+    time_base: wp.array(dtype=wp.float64),
+    clock: wp.array(dtype=wp.int64),
+    dt: wp.float64,
+    steps: int,
     frame_times: wp.array(dtype=wp.float64),
 ):
     # the keys of a frame driven from the host, (t0 - 1, t0, t1, t1 + 1): t0 = t now, t1 = the time

@@ -21,11 +21,15 @@ too.
 """
 
 import warp as wp
-
 from warpcloth.kernels.bending import HingeAdjacency, vertex_hinge_terms
 from warpcloth.kernels.collide import Colliders
-from warpcloth.kernels.increment import (ContactState, Inertia, newton_increment, project_increment,
-                                        vertex_gradient_hessian)
+from warpcloth.kernels.increment import (
+    ContactState,
+    Inertia,
+    newton_increment,
+    project_increment,
+    vertex_gradient_hessian,
+)
 from warpcloth.kernels.springs import SpringAdjacency
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -109,8 +113,9 @@ def eval_local_residual(
         s = springs.spring[a]
         j = springs.other[a]
         ddx = dx[j] - dxi
-        res = res + spring_increment_residual((x[j] - xi) + ddx, ddx, springs.rest_length[s], springs.stiffness[s],
-                                              springs.damping[s], h)
+        res = res + spring_increment_residual(
+            (x[j] - xi) + ddx, ddx, springs.rest_length[s], springs.stiffness[s], springs.damping[s], h
+        )
     if contact.state[i] == 1:
         res = res + (h * h) * contact.force[i]
     zi = inv_diag[i] * res
@@ -274,8 +279,13 @@ def cg_update_direction(z: wp.array(dtype=wp.vec3), rz: wp.array(dtype=float), k
 
 # -- the global system's rigid translation, solved exactly before CG (issue 26) ---------------------
 @wp.func
-def free_row_sum(i: int, row_offsets: wp.array(dtype=int), columns: wp.array(dtype=int), values: wp.array(dtype=float),
-                 particle_inv_mass: wp.array(dtype=float)):
+def free_row_sum(
+    i: int,
+    row_offsets: wp.array(dtype=int),
+    columns: wp.array(dtype=int),
+    values: wp.array(dtype=float),
+    particle_inv_mass: wp.array(dtype=float),
+):
     # sum_j S_ij over the free columns of row i (pinned columns hold 0): S applied to a translation
     acc = float(0.0)
     for e in range(row_offsets[i], row_offsets[i + 1]):

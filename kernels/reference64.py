@@ -4,7 +4,6 @@ atomics: the sums have a fixed order, so a run is bit-reproducible on every devi
 the RK4 stage update."""
 
 import warp as wp
-
 from warpcloth.kernels.pins import track_keyframes, track_rigid
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -34,8 +33,9 @@ class Cloth64:
 
 
 @wp.func
-def spring_force64(xi: wp.vec3d, xj: wp.vec3d, vi: wp.vec3d, vj: wp.vec3d,
-                   rest: wp.float64, ks: wp.float64, kd: wp.float64):
+def spring_force64(
+    xi: wp.vec3d, xj: wp.vec3d, vi: wp.vec3d, vj: wp.vec3d, rest: wp.float64, ks: wp.float64, kd: wp.float64
+):
     # f_i = ks (L - L0) n + kd ((v_j - v_i) . n) n,  n = (x_j - x_i) / L; seen from j the same
     # expression gives exactly -f_i (d, n and the dot product change sign exactly)
     d = xj - xi
@@ -47,8 +47,7 @@ def spring_force64(xi: wp.vec3d, xj: wp.vec3d, vi: wp.vec3d, vj: wp.vec3d,
 
 
 @wp.func
-def wind_force64(xa: wp.vec3d, xb: wp.vec3d, xc: wp.vec3d, v_mean: wp.vec3d, wind: wp.vec3d,
-                 coefficient: wp.float64):
+def wind_force64(xa: wp.vec3d, xb: wp.vec3d, xc: wp.vec3d, v_mean: wp.vec3d, wind: wp.vec3d, coefficient: wp.float64):
     # f = c_w A (n . u) n,  u = W - v_mean, on the whole triangle
     c = wp.cross(xb - xa, xc - xa)
     twice_area = wp.length(c)
@@ -59,18 +58,25 @@ def wind_force64(xa: wp.vec3d, xb: wp.vec3d, xc: wp.vec3d, v_mean: wp.vec3d, win
 
 
 @wp.kernel
-def eval_springs64(cloth: Cloth64, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d),
-                   f_spring: wp.array(dtype=wp.vec3d)):
+def eval_springs64(
+    cloth: Cloth64, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d)
+):
     # f_spring[s] = the force on spring s's first particle (its second gets -f_spring[s])
     s = wp.tid()
     ij = cloth.springs[s]
-    f_spring[s] = spring_force64(x[ij[0]], x[ij[1]], v[ij[0]], v[ij[1]],
-                                 cloth.spring_rest[s], cloth.spring_ks[s], cloth.spring_kd[s])
+    f_spring[s] = spring_force64(
+        x[ij[0]], x[ij[1]], v[ij[0]], v[ij[1]], cloth.spring_rest[s], cloth.spring_ks[s], cloth.spring_kd[s]
+    )
 
 
 @wp.kernel
-def eval_wind64(cloth: Cloth64, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d), wind: wp.vec3d,
-                f_tri: wp.array(dtype=wp.vec3d)):
+def eval_wind64(
+    cloth: Cloth64,
+    x: wp.array(dtype=wp.vec3d),
+    v: wp.array(dtype=wp.vec3d),
+    wind: wp.vec3d,
+    f_tri: wp.array(dtype=wp.vec3d),
+):
     # f_tri[t] = a third of triangle t's wind force: what each of its vertices gets
     t = wp.tid()
     abc = cloth.tris[t]
@@ -80,8 +86,13 @@ def eval_wind64(cloth: Cloth64, x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=w
 
 
 @wp.func
-def acceleration64(cloth: Cloth64, i: int, v: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d),
-                   f_tri: wp.array(dtype=wp.vec3d)):
+def acceleration64(
+    cloth: Cloth64,
+    i: int,
+    v: wp.array(dtype=wp.vec3d),
+    f_spring: wp.array(dtype=wp.vec3d),
+    f_tri: wp.array(dtype=wp.vec3d),
+):
     # a_i = (m g - m c v_i + its springs' forces + its triangles' thirds) / m, summed in a fixed
     # order (no atomics: the same bits on every device and every run)
     m = cloth.mass[i]
@@ -100,12 +111,20 @@ def acceleration64(cloth: Cloth64, i: int, v: wp.array(dtype=wp.vec3d), f_spring
 @wp.kernel
 def integrate_rk4_stage64(
     cloth: Cloth64,
-    x0: wp.array(dtype=wp.vec3d), v0: wp.array(dtype=wp.vec3d),
-    vs: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d), f_tri: wp.array(dtype=wp.vec3d),
-    h: wp.float64, weight: wp.float64, first: int,
-    pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
-    acc_x: wp.array(dtype=wp.vec3d), acc_v: wp.array(dtype=wp.vec3d),
-    x_out: wp.array(dtype=wp.vec3d), v_out: wp.array(dtype=wp.vec3d),
+    x0: wp.array(dtype=wp.vec3d),
+    v0: wp.array(dtype=wp.vec3d),
+    vs: wp.array(dtype=wp.vec3d),
+    f_spring: wp.array(dtype=wp.vec3d),
+    f_tri: wp.array(dtype=wp.vec3d),
+    h: wp.float64,
+    weight: wp.float64,
+    first: int,
+    pin_x: wp.array(dtype=wp.vec3d),
+    pin_v: wp.array(dtype=wp.vec3d),
+    acc_x: wp.array(dtype=wp.vec3d),
+    acc_v: wp.array(dtype=wp.vec3d),
+    x_out: wp.array(dtype=wp.vec3d),
+    v_out: wp.array(dtype=wp.vec3d),
 ):
     # k = (v_s, a(x_s, v_s)) (f_spring, f_tri evaluated at (x_s, v_s)); acc (+)= weight k;
     # (x, v)_out = (x0, v0) + h k; a pinned particle takes its position and velocity at the
@@ -130,11 +149,16 @@ def integrate_rk4_stage64(
 @wp.kernel
 def integrate_rk4_final64(
     cloth: Cloth64,
-    vs: wp.array(dtype=wp.vec3d), f_spring: wp.array(dtype=wp.vec3d), f_tri: wp.array(dtype=wp.vec3d),
+    vs: wp.array(dtype=wp.vec3d),
+    f_spring: wp.array(dtype=wp.vec3d),
+    f_tri: wp.array(dtype=wp.vec3d),
     h: wp.float64,
-    pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
-    acc_x: wp.array(dtype=wp.vec3d), acc_v: wp.array(dtype=wp.vec3d),
-    x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d),
+    pin_x: wp.array(dtype=wp.vec3d),
+    pin_v: wp.array(dtype=wp.vec3d),
+    acc_x: wp.array(dtype=wp.vec3d),
+    acc_v: wp.array(dtype=wp.vec3d),
+    x: wp.array(dtype=wp.vec3d),
+    v: wp.array(dtype=wp.vec3d),
 ):
     # (x, v) += h/6 (k1 + 2 k2 + 2 k3 + k4), acc = k1 + 2 k2 + 2 k3, k4 at (xs, vs); in place
     # (x and v are read only at i); a pinned particle ends the step on its pin (pin_x, pin_v)
@@ -151,8 +175,14 @@ def integrate_rk4_final64(
 
 @wp.kernel
 def eval_pin_keyframes64(
-    t: wp.float64, particle: wp.array(dtype=int), times: wp.array(dtype=wp.float64), values: wp.array(dtype=wp.vec3d),
-    tangents: wp.array(dtype=wp.vec3d), cubic: int, pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
+    t: wp.float64,
+    particle: wp.array(dtype=int),
+    times: wp.array(dtype=wp.float64),
+    values: wp.array(dtype=wp.vec3d),
+    tangents: wp.array(dtype=wp.vec3d),
+    cubic: int,
+    pin_x: wp.array(dtype=wp.vec3d),
+    pin_v: wp.array(dtype=wp.vec3d),
 ):
     # pin_x_i = track(t), pin_v_i = track'(t), float64 throughout (kernels/pins.py's track)
     p = wp.tid()
@@ -163,8 +193,15 @@ def eval_pin_keyframes64(
 
 @wp.kernel
 def eval_pin_rigid64(
-    t: wp.float64, particle: wp.array(dtype=int), rest: wp.array(dtype=wp.vec3d), center: wp.vec3d, axis: wp.vec3d,
-    velocity: wp.vec3d, motion: wp.vec4d, pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
+    t: wp.float64,
+    particle: wp.array(dtype=int),
+    rest: wp.array(dtype=wp.vec3d),
+    center: wp.vec3d,
+    axis: wp.vec3d,
+    velocity: wp.vec3d,
+    motion: wp.vec4d,
+    pin_x: wp.array(dtype=wp.vec3d),
+    pin_v: wp.array(dtype=wp.vec3d),
 ):
     p = wp.tid()
     pos, vel = track_rigid(t, rest[p], center, axis, velocity, motion)
@@ -173,8 +210,13 @@ def eval_pin_rigid64(
 
 
 @wp.kernel
-def apply_pins64(pinned: wp.array(dtype=wp.int32), pin_x: wp.array(dtype=wp.vec3d), pin_v: wp.array(dtype=wp.vec3d),
-                x: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d)):
+def apply_pins64(
+    pinned: wp.array(dtype=wp.int32),
+    pin_x: wp.array(dtype=wp.vec3d),
+    pin_v: wp.array(dtype=wp.vec3d),
+    x: wp.array(dtype=wp.vec3d),
+    v: wp.array(dtype=wp.vec3d),
+):
     # (x, v)_i = (pin_x, pin_v)_i for every pinned particle (a run starts with its tracks at t = 0)
     i = wp.tid()
     if pinned[i] != 0:

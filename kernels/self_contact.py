@@ -344,8 +344,9 @@ def sum_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sums
 
 
 @wp.kernel
-def eval_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sums: Vec3Array,
-                             dt: float, splits: IntArray, scalars: FloatArray):
+def eval_self_contact_motion(
+    x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sums: Vec3Array, dt: float, splits: IntArray, scalars: FloatArray
+):
     # motion relative to a common one (u, w: the mean displacement and velocity; a common motion
     # changes no gap, and any u, w bound it): motion = max_i |x_i - x_build_i - u| + |v_i - w| dt,
     # speed = max_i |v_i - w|; contact counts per vertex from zero
@@ -358,8 +359,15 @@ def eval_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sum
 
 
 @wp.kernel
-def decide_self_contact_rebuild(counts: IntArray, scalars: FloatArray, thickness: float, edge_thickness: float,
-                                skin: float, skin_max: float, dt: float):
+def decide_self_contact_rebuild(
+    counts: IntArray,
+    scalars: FloatArray,
+    thickness: float,
+    edge_thickness: float,
+    skin: float,
+    skin_max: float,
+    dt: float,
+):
     # rebuild when never built or when 2 motion > skin (an unlisted pair may be within h); the new
     # skin covers four steps of the fastest vertex, between skin and skin_max
     speed = scalars[SPEED]
@@ -384,8 +392,9 @@ def decide_self_contact_rebuild(counts: IntArray, scalars: FloatArray, thickness
 
 
 @wp.kernel
-def clear_self_contact_cells(counts: IntArray, x: Vec3Array, x_build: Vec3Array,
-                             head_tri: IntArray, head_edge: IntArray):
+def clear_self_contact_cells(
+    counts: IntArray, x: Vec3Array, x_build: Vec3Array, head_tri: IntArray, head_edge: IntArray
+):
     # (rebuild only) empty buckets; x_build = x (launched over max(buckets, particles))
     i = wp.tid()
     if counts[REBUILD] == 0:
@@ -398,9 +407,19 @@ def clear_self_contact_cells(counts: IntArray, x: Vec3Array, x_build: Vec3Array,
 
 
 @wp.kernel
-def insert_self_contact_triangles(counts: IntArray, x: Vec3Array, tris: Vec3iArray,
-                                  inv_cell: float, mask: int, head: IntArray, next_item: IntArray,
-                                  scalars: FloatArray, box_lo: Vec3Array, box_hi: Vec3Array, item_cell: Vec3iArray):
+def insert_self_contact_triangles(
+    counts: IntArray,
+    x: Vec3Array,
+    tris: Vec3iArray,
+    inv_cell: float,
+    mask: int,
+    head: IntArray,
+    next_item: IntArray,
+    scalars: FloatArray,
+    box_lo: Vec3Array,
+    box_hi: Vec3Array,
+    item_cell: Vec3iArray,
+):
     # (rebuild only) triangle t into the bucket of its box centre (its box and cell kept for the
     # queries); rho_max = max half diagonal of the boxes
     t = wp.tid()
@@ -420,9 +439,19 @@ def insert_self_contact_triangles(counts: IntArray, x: Vec3Array, tris: Vec3iArr
 
 
 @wp.kernel
-def insert_self_contact_edges(counts: IntArray, x: Vec3Array, edges: Vec2iArray,
-                              inv_cell: float, mask: int, head: IntArray, next_item: IntArray,
-                              scalars: FloatArray, box_lo: Vec3Array, box_hi: Vec3Array, item_cell: Vec3iArray):
+def insert_self_contact_edges(
+    counts: IntArray,
+    x: Vec3Array,
+    edges: Vec2iArray,
+    inv_cell: float,
+    mask: int,
+    head: IntArray,
+    next_item: IntArray,
+    scalars: FloatArray,
+    box_lo: Vec3Array,
+    box_hi: Vec3Array,
+    item_cell: Vec3iArray,
+):
     # (rebuild only) edge e into the bucket of its midpoint (its box and cell kept); the largest half length
     e = wp.tid()
     if counts[REBUILD] == 0:
@@ -455,11 +484,24 @@ def cell_range(lo_p: wp.vec3, hi_p: wp.vec3, inv_cell: float, counts: IntArray):
 
 
 @wp.kernel
-def find_vertex_triangle_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Array,
-                                    tris: Vec3iArray, inv_cell: float, mask: int, head: IntArray,
-                                    next_item: IntArray, box_lo: Vec3Array, box_hi: Vec3Array,
-                                    item_cell: Vec3iArray, exclude_offsets: IntArray,
-                                    exclude: IntArray, capacity: int, out: Vec2iArray, out_gap: FloatArray):
+def find_vertex_triangle_candidates(
+    counts: IntArray,
+    scalars: FloatArray,
+    x: Vec3Array,
+    tris: Vec3iArray,
+    inv_cell: float,
+    mask: int,
+    head: IntArray,
+    next_item: IntArray,
+    box_lo: Vec3Array,
+    box_hi: Vec3Array,
+    item_cell: Vec3iArray,
+    exclude_offsets: IntArray,
+    exclude: IntArray,
+    capacity: int,
+    out: Vec2iArray,
+    out_gap: FloatArray,
+):
     # (rebuild only) every triangle t within R_BUILD of vertex i, not its own and not excluded, with its gap
     i = wp.tid()
     if counts[REBUILD] == 0:
@@ -498,11 +540,24 @@ def find_vertex_triangle_candidates(counts: IntArray, scalars: FloatArray, x: Ve
 
 
 @wp.kernel
-def find_edge_edge_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Array,
-                              edges: Vec2iArray, inv_cell: float, mask: int, head: IntArray,
-                              next_item: IntArray, box_lo: Vec3Array, box_hi: Vec3Array, item_cell: Vec3iArray,
-                              exclude_offsets: IntArray,
-                              exclude: IntArray, capacity: int, out: Vec2iArray, out_gap: FloatArray):
+def find_edge_edge_candidates(
+    counts: IntArray,
+    scalars: FloatArray,
+    x: Vec3Array,
+    edges: Vec2iArray,
+    inv_cell: float,
+    mask: int,
+    head: IntArray,
+    next_item: IntArray,
+    box_lo: Vec3Array,
+    box_hi: Vec3Array,
+    item_cell: Vec3iArray,
+    exclude_offsets: IntArray,
+    exclude: IntArray,
+    capacity: int,
+    out: Vec2iArray,
+    out_gap: FloatArray,
+):
     # (rebuild only) every edge f > e within R_BUILD_EE of edge e, sharing no vertex and not excluded, with its gap
     e = wp.tid()
     if counts[REBUILD] == 0:
@@ -546,11 +601,27 @@ def find_edge_edge_candidates(counts: IntArray, scalars: FloatArray, x: Vec3Arra
 
 
 @wp.kernel
-def eval_self_contacts(stride: int, counts: IntArray, scalars: FloatArray, x: Vec3Array,
-                       tris: Vec3iArray, edges: Vec2iArray, cand_vt: Vec2iArray, cand_vt_gap: FloatArray,
-                       cand_ee: Vec2iArray, cand_ee_gap: FloatArray, capacity: int, splits: IntArray,
-                       c_idx: Vec4iArray, c_w: Vec4Array, c_n: Vec3Array,
-                       c_d: FloatArray, c_h: FloatArray, thickness: float, edge_thickness: float):
+def eval_self_contacts(
+    stride: int,
+    counts: IntArray,
+    scalars: FloatArray,
+    x: Vec3Array,
+    tris: Vec3iArray,
+    edges: Vec2iArray,
+    cand_vt: Vec2iArray,
+    cand_vt_gap: FloatArray,
+    cand_ee: Vec2iArray,
+    cand_ee_gap: FloatArray,
+    capacity: int,
+    splits: IntArray,
+    c_idx: Vec4iArray,
+    c_w: Vec4Array,
+    c_n: Vec3Array,
+    c_d: FloatArray,
+    c_h: FloatArray,
+    thickness: float,
+    edge_thickness: float,
+):
     # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair
     # with gap d < R_ACTIVE at x; per vertex, the number of its contacts (mass splitting). A pair
     # whose gap at the build, less twice the largest motion since, is not below R_ACTIVE is not
@@ -614,10 +685,21 @@ def finish_self_contact_detect(counts: IntArray, vt_capacity: int, ee_capacity: 
 
 # -- response ---------------------------------------------------------------------------------------
 @wp.kernel
-def eval_self_contact_forces(stride: int, counts: IntArray, x: Vec3Array, v: Vec3Array,
-                             inv_mass: FloatArray, splits: IntArray, c_idx: Vec4iArray,
-                             c_w: Vec4Array, c_n: Vec3Array, c_h: FloatArray,
-                             stiffness: float, dt: float, f: Vec3Array):
+def eval_self_contact_forces(
+    stride: int,
+    counts: IntArray,
+    x: Vec3Array,
+    v: Vec3Array,
+    inv_mass: FloatArray,
+    splits: IntArray,
+    c_idx: Vec4iArray,
+    c_w: Vec4Array,
+    c_n: Vec3Array,
+    c_h: FloatArray,
+    stiffness: float,
+    dt: float,
+    f: Vec3Array,
+):
     # repulsion F = min(k (h - d), m_eff (0.1 (h - d)/dt - v_n)/dt) >= 0 along n, f_k += W_k F n
     # (Bridson et al. 2002, Sec. 7.2), d = n . sum W x at x, v_n = n . sum W v, h the contact's thickness
     tid = wp.tid()
@@ -637,10 +719,25 @@ def eval_self_contact_forces(stride: int, counts: IntArray, x: Vec3Array, v: Vec
 
 
 @wp.kernel
-def filter_self_contact_velocities(stride: int, counts: IntArray, x: Vec3Array, v: Vec3Array, inv_mass: FloatArray,
-                                   splits: IntArray, c_idx: Vec4iArray, c_w: Vec4Array, c_n: Vec3Array,
-                                   c_d: FloatArray, c_h: FloatArray, min_gap: float, mu: float, stiffness: float,
-                                   dt: float, dt_x: float, dv: Vec3Array):
+def filter_self_contact_velocities(
+    stride: int,
+    counts: IntArray,
+    x: Vec3Array,
+    v: Vec3Array,
+    inv_mass: FloatArray,
+    splits: IntArray,
+    c_idx: Vec4iArray,
+    c_w: Vec4Array,
+    c_n: Vec3Array,
+    c_d: FloatArray,
+    c_h: FloatArray,
+    min_gap: float,
+    mu: float,
+    stiffness: float,
+    dt: float,
+    dt_x: float,
+    dv: Vec3Array,
+):
     # per contact at the step's end (x, v), d0 its gap at detection, h its thickness (h, or h_e for
     # an edge pair), delta = h - d0: the normal relative velocity v_n = n . sum W v is raised to
     #   max(0 [inelastic, d0 < h], min(0.1 delta / dt, dt k delta / m_eff) [repulsion, stiffness > 0],
@@ -679,8 +776,9 @@ def filter_self_contact_velocities(stride: int, counts: IntArray, x: Vec3Array, 
 
 
 @wp.kernel
-def apply_self_contact_velocities(dv: Vec3Array, dt_x: float, with_displacement: int,
-                                  x: Vec3Array, v: Vec3Array, displacement: Vec3Array):
+def apply_self_contact_velocities(
+    dv: Vec3Array, dt_x: float, with_displacement: int, x: Vec3Array, v: Vec3Array, displacement: Vec3Array
+):
     # v += dv; x += dt_x dv (and a position history d += dt_x dv); dv = 0
     i = wp.tid()
     dvi = dv[i]
@@ -692,9 +790,16 @@ def apply_self_contact_velocities(dv: Vec3Array, dt_x: float, with_displacement:
 
 
 @wp.kernel
-def count_unresolved_self_contacts(stride: int, counts: IntArray, x: Vec3Array, c_idx: Vec4iArray,
-                                   c_w: Vec4Array, c_n: Vec3Array, min_gap: float,
-                                   inv_mass: FloatArray):
+def count_unresolved_self_contacts(
+    stride: int,
+    counts: IntArray,
+    x: Vec3Array,
+    c_idx: Vec4iArray,
+    c_w: Vec4Array,
+    c_n: Vec3Array,
+    min_gap: float,
+    inv_mass: FloatArray,
+):
     # contacts (with a free vertex) still closer than 0.99 min_gap along their normal after the filter
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):

@@ -20,11 +20,15 @@ contact projection, the update from dx) are in :mod:`warpcloth.kernels.increment
 """
 
 import warp as wp
-
 from warpcloth.kernels.bending import HingeAdjacency, vertex_hinge_terms
 from warpcloth.kernels.collide import Colliders
-from warpcloth.kernels.increment import (ContactState, Inertia, newton_increment, project_increment,
-                                        vertex_gradient_hessian)
+from warpcloth.kernels.increment import (
+    ContactState,
+    Inertia,
+    newton_increment,
+    project_increment,
+    vertex_gradient_hessian,
+)
 from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -103,7 +107,9 @@ def copy_increment(dx: wp.array(dtype=wp.vec3), prev1: wp.array(dtype=wp.vec3), 
 
 
 @wp.kernel
-def apply_chebyshev(omega: float, dx: wp.array(dtype=wp.vec3), prev1: wp.array(dtype=wp.vec3), prev2: wp.array(dtype=wp.vec3)):
+def apply_chebyshev(
+    omega: float, dx: wp.array(dtype=wp.vec3), prev1: wp.array(dtype=wp.vec3), prev2: wp.array(dtype=wp.vec3)
+):
     # x^(n) = omega_n (xbar^(n) - x^(n-2)) + x^(n-2)   (Chen et al. 2024, eq. 17; Wang 2015)
     i = wp.tid()
     accelerated = omega * (dx[i] - prev2[i]) + prev2[i]
@@ -134,8 +140,9 @@ def eval_increment_residual(
     for a in range(springs.offsets[i], springs.offsets[i + 1]):
         s = springs.spring[a]
         j = springs.other[a]
-        f, K = spring_gradient_hessian(x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s],
-                                       springs.damping[s], h)
+        f, K = spring_gradient_hessian(
+            x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s], springs.damping[s], h
+        )
         force = force + f
     if hinges.indices.shape[0] > 0:
         fb, Hb = vertex_hinge_terms(i, x, dx, hinges, h)

@@ -9,8 +9,9 @@ or a :class:`Scenario` object given to :func:`register` from Python.
 
 from __future__ import annotations
 
-from warpcloth.errors import WarpclothError
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
+
+from warpcloth.errors import WarpclothError
 
 _BUILT_IN = ("sheet", "flag", "curtain", "mesh", "drape", "tablecloth")
 _REGISTERED: dict[str, Scenario] = {}
@@ -37,7 +38,9 @@ def check_scenario(text: str) -> str:
     if text.lower().endswith(".toml"):
         get_scenario(text)
     elif text not in scenario_names():
-        raise WarpclothError(f"unknown scenario {text!r}; choose from {', '.join(scenario_names())}, or a scenario file (.toml)")
+        raise WarpclothError(
+            f"unknown scenario {text!r}; choose from {', '.join(scenario_names())}, or a scenario file (.toml)"
+        )
     return text
 
 
@@ -50,7 +53,9 @@ def get_scenario(name: str) -> Scenario:
     if name in _REGISTERED:
         return _REGISTERED[name]
     if name not in _BUILT_IN:
-        raise WarpclothError(f"unknown scenario {name!r}; choose from {', '.join(scenario_names())}, or give a scenario file (.toml)")
+        raise WarpclothError(
+            f"unknown scenario {name!r}; choose from {', '.join(scenario_names())}, or give a scenario file (.toml)"
+        )
     import importlib
 
     return importlib.import_module(f"{__name__}.{name}").SCENARIO

@@ -7,19 +7,19 @@ from typing import Callable
 
 import warp as wp
 
-from warpcloth.sim.device import resolve_device
 from warpcloth.errors import WarpclothError, require_int, require_positive
-from warpcloth.sim.control import Control
 from warpcloth.integrators import make_integrator
-from warpcloth.sim.grid import build_grid_cloth
-from warpcloth.sim.model import BendModel, default_spring_params
-from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 from warpcloth.io.frames import FrameSinks
 from warpcloth.io.meshio import load_mesh_collider
 from warpcloth.io.usd import usd_frames
+from warpcloth.run.harness import RunHarness, RunResult
+from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 from warpcloth.run.params import SPRING_TYPES
 from warpcloth.run.parse import ColliderSpec
-from warpcloth.run.harness import RunHarness, RunResult
+from warpcloth.sim.control import Control
+from warpcloth.sim.device import resolve_device
+from warpcloth.sim.grid import build_grid_cloth
+from warpcloth.sim.model import BendModel, default_spring_params
 from warpcloth.simulator import Simulator
 
 
@@ -109,7 +109,9 @@ class Scenario:
         device = resolve_device(cfg.device)
         require_positive("mass", cfg.mass, "kg")
         if not isinstance(cfg.integrator_options, dict):
-            raise WarpclothError(f"integrator_options must be a dict of option names and values, got {cfg.integrator_options!r:.80}")
+            raise WarpclothError(
+                f"integrator_options must be a dict of option names and values, got {cfg.integrator_options!r:.80}"
+            )
         if self.model is not None:  # a mesh: the scenario builds its own model
             integrator = make_integrator(cfg.integrator, **cfg.integrator_options)
             with wp.ScopedDevice(device):
@@ -117,7 +119,9 @@ class Scenario:
         try:
             bend = BendModel(cfg.bend)
         except ValueError:
-            raise WarpclothError(f"bend must be one of {', '.join(b.value for b in BendModel)}, got {cfg.bend!r}") from None
+            raise WarpclothError(
+                f"bend must be one of {', '.join(b.value for b in BendModel)}, got {cfg.bend!r}"
+            ) from None
         min_dim = 2 if bend in (BendModel.NONE, BendModel.DIHEDRAL) else 3
         rows = require_int("rows", cfg.rows, min_dim)
         cols = require_int("cols", cfg.cols, min_dim)
@@ -125,8 +129,17 @@ class Scenario:
         params = default_spring_params(cfg.mass / (rows * cols), cfg.stiffness, cfg.damping)
         with wp.ScopedDevice(device):
             model = build_grid_cloth(
-                rows, cols, cfg.width, cfg.height, cfg.mass, spring_params=params, pins=self.pins(rows, cols),
-                origin=self.origin(cfg), plane=self.plane, bend=bend, device=device,
+                rows,
+                cols,
+                cfg.width,
+                cfg.height,
+                cfg.mass,
+                spring_params=params,
+                pins=self.pins(rows, cols),
+                origin=self.origin(cfg),
+                plane=self.plane,
+                bend=bend,
+                device=device,
                 **({"bend_rigidity": cfg.bend_rigidity} if cfg.bend_rigidity is not None else {}),
             )
             return self._simulator(cfg, model, integrator, device)
@@ -135,7 +148,8 @@ class Scenario:
         control = self.control(cfg, device)
         if cfg.colliders:  # added to the scenario's own (--collider); a mesh's file is read here, once
             control.colliders = tuple(control.colliders) + tuple(
-                c.collider(load_mesh_collider) if isinstance(c, ColliderSpec) else c for c in cfg.colliders)
+                c.collider(load_mesh_collider) if isinstance(c, ColliderSpec) else c for c in cfg.colliders
+            )
         if self.tracks is not None:
             control.pin_tracks = tuple(self.tracks(cfg, model))
         return Simulator(model, integrator, control, dt=cfg.dt, strain_limit=cfg.strain_limit, use_graph=cfg.use_graph)
@@ -146,8 +160,14 @@ class Scenario:
         cfg = replace(config, **overrides) if config is not None else self.config(**overrides)
         return RunHarness(self.build(cfg), scenario=self.name, instability_strain=cfg.instability_strain)
 
-    def run(self, config: ScenarioConfig | None = None, usd_path: str | None = None, wall_cap: float | None = None,
-            writers=(), **overrides) -> RunResult:
+    def run(
+        self,
+        config: ScenarioConfig | None = None,
+        usd_path: str | None = None,
+        wall_cap: float | None = None,
+        writers=(),
+        **overrides,
+    ) -> RunResult:
         """Build and run; writes a USD file when ``usd_path`` is given.
 
         ``writers``: more frame writers, each a function ``(sim, config) -> writer`` called
@@ -166,8 +186,13 @@ class Scenario:
         try:
             for make in writers:
                 sinks.writers.append(make(sim, cfg))
-            result = harness.run(cfg.duration, fps=cfg.fps, stop_at_equilibrium=self.stop_at_equilibrium,
-                                 wall_cap=wall_cap, frames=sinks if sinks else None)
+            result = harness.run(
+                cfg.duration,
+                fps=cfg.fps,
+                stop_at_equilibrium=self.stop_at_equilibrium,
+                wall_cap=wall_cap,
+                frames=sinks if sinks else None,
+            )
         except BaseException:
             sinks.abort()
             raise

@@ -7,9 +7,10 @@ A run ends at equilibrium. Run it with ``python -m warpcloth.scenarios.curtain``
 ``warpcloth run curtain``.
 """
 
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
+
 from warpcloth.sim.control import Control
 from warpcloth.sim.pins import PinTrack
-from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 #: How far the rod slides [m] along +x, and in how long [s].
 SLIDE = 0.5
@@ -22,7 +23,11 @@ def _pins(rows: int, cols: int) -> list:
 
 def _tracks(config: ScenarioConfig, model):
     top = list(range(model.cols))
-    return [PinTrack.keyframes(top, [0.0, SLIDE_TIME], [[0.0, 0.0, 0.0], [SLIDE, 0.0, 0.0]], interpolation="catmull_rom", name="rod")]
+    return [
+        PinTrack.keyframes(
+            top, [0.0, SLIDE_TIME], [[0.0, 0.0, 0.0], [SLIDE, 0.0, 0.0]], interpolation="catmull_rom", name="rod"
+        )
+    ]
 
 
 def _control(config: ScenarioConfig, device: str) -> Control:

@@ -3,9 +3,10 @@
 ``python -m warpcloth.scenarios.drape`` or ``warpcloth run drape``.
 """
 
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
+
 from warpcloth.sim.colliders import Plane, Sphere
 from warpcloth.sim.control import Control
-from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 #: The sphere [m] (resting on the ground y = 0), the cloth's offset from surfaces [m] and mu.
 RADIUS = 0.3
@@ -20,8 +21,10 @@ def _pins(rows: int, cols: int) -> list:
 
 def _control(config: ScenarioConfig, device: str) -> Control:
     drag = 1.0 if config.drag is None else config.drag
-    colliders = (Sphere(center=(0.0, RADIUS, 0.0), radius=RADIUS, thickness=THICKNESS, friction=FRICTION),
-                 Plane(thickness=THICKNESS, friction=FRICTION))
+    colliders = (
+        Sphere(center=(0.0, RADIUS, 0.0), radius=RADIUS, thickness=THICKNESS, friction=FRICTION),
+        Plane(thickness=THICKNESS, friction=FRICTION),
+    )
     return Control(drag_rate=drag, colliders=colliders, device=device)
 
 

@@ -79,27 +79,43 @@ import re
 from dataclasses import replace
 
 import numpy as np
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 from warpcloth.errors import WarpclothError, require, require_vector, warn
-from warpcloth.sim.control import GRAVITY, Control, WindSchedule
-from warpcloth.sim.mesh import MASS_MODES, build_mesh_cloth, lumped_masses
 from warpcloth.io.files import check_input_file, read_input
 from warpcloth.io.meshio import load_mesh, load_mesh_collider
+from warpcloth.run.params import BY_NAME, config_values, non_negative, params_for, positive
+from warpcloth.sim.control import GRAVITY, Control, WindSchedule
+from warpcloth.sim.mesh import MASS_MODES, build_mesh_cloth, lumped_masses
 from warpcloth.sim.pins import PinTrack
 from warpcloth.sim.selection import parse_predicate, resolve_pins
-from warpcloth.run.params import BY_NAME, config_values, non_negative, params_for, positive
-from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 TOP_KEYS = {"name", "description", "stop_at_equilibrium", "cloth", "pins", "tracks", "colliders", "forces", "run"}
 CLOTH_KEYS = {"mesh", "prim", "quads", "bend", "mass", "density", "mass_mode", "stiffness", "damping"}
 PIN_KEYS = {"groups", "where", "indices"}
-TRACK_KEYS = PIN_KEYS | {"name", "kind", "times", "offsets", "positions", "interpolation", "tangents", "center", "axis",
-                         "angular_velocity", "swing_amplitude", "swing_frequency", "swing_phase", "velocity"}
+TRACK_KEYS = PIN_KEYS | {
+    "name",
+    "kind",
+    "times",
+    "offsets",
+    "positions",
+    "interpolation",
+    "tangents",
+    "center",
+    "axis",
+    "angular_velocity",
+    "swing_amplitude",
+    "swing_frequency",
+    "swing_phase",
+    "velocity",
+}
 FORCE_KEYS = {"gravity", "drag", "wind", "gusts", "wind_coefficient"}
 GUST_KEYS = {"wind", "on", "off", "base"}
 #: [run] takes the run parameters of warpcloth.run.params that set up a run (``fps`` is the old
 #: spelling of ``frame_rate``) and the integrator's options as a table.
-RUN_PARAMS = tuple(p.name for p in params_for("run") if p.group in ("run", "integrator") and (p.config_field or p.name == "dt"))
+RUN_PARAMS = tuple(
+    p.name for p in params_for("run") if p.group in ("run", "integrator") and (p.config_field or p.name == "dt")
+)
 RUN_KEYS = {"integrator_options", "fps", *RUN_PARAMS}
 #: The largest scenario file read [bytes] (a scenario file is a page of settings; keyframes of a
 #: long track fit many times over).
@@ -117,7 +133,9 @@ def _toml():
         try:
             import tomli as tomllib
         except ImportError:
-            raise WarpclothError("reading scenario files (.toml) needs Python 3.11 (tomllib) or the tomli package (pip install tomli)") from None
+            raise WarpclothError(
+                "reading scenario files (.toml) needs Python 3.11 (tomllib) or the tomli package (pip install tomli)"
+            ) from None
     return tomllib
 
 
@@ -142,11 +160,15 @@ def read_toml(path: str, where: str) -> dict:
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise WarpclothError(f"{where}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start}); a scenario "
-                             "file is TOML, which is UTF-8") from None
+        raise WarpclothError(
+            f"{where}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start}); a scenario "
+            "file is TOML, which is UTF-8"
+        ) from None
     depth = _bracket_depth(text)
     if depth > MAX_DEPTH:
-        raise WarpclothError(f"{where}: tables and arrays nested {depth} deep; a scenario file nests at most {MAX_DEPTH}")
+        raise WarpclothError(
+            f"{where}: tables and arrays nested {depth} deep; a scenario file nests at most {MAX_DEPTH}"
+        )
     try:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -154,7 +176,9 @@ def read_toml(path: str, where: str) -> dict:
     except (RecursionError, MemoryError):
         raise WarpclothError(f"{where}: too deeply nested or too large to read as TOML") from None
     if _table_depth(table) > MAX_DEPTH:  # dotted keys nest tables without brackets
-        raise WarpclothError(f"{where}: tables and arrays nested more than {MAX_DEPTH} deep; a scenario file nests at most {MAX_DEPTH}")
+        raise WarpclothError(
+            f"{where}: tables and arrays nested more than {MAX_DEPTH} deep; a scenario file nests at most {MAX_DEPTH}"
+        )
     return table
 
 
@@ -204,7 +228,7 @@ def _table_depth(value) -> int:
 
 def _cut(text: str, limit: int = 160) -> str:
     text = " ".join(text.split())
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _shown(value) -> str:
@@ -319,7 +343,9 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         tk = _Keys(where, t, f"tracks[{k}]")
         tk.indices("indices"), tk.names("groups"), _predicate(tk, "where"), tk.text("name"), tk.text("kind")
     if "gusts" in forces:
-        require(isinstance(forces["gusts"], dict), f"{where}: forces.gusts must be a table, got {_shown(forces['gusts'])}")
+        require(
+            isinstance(forces["gusts"], dict), f"{where}: forces.gusts must be a table, got {_shown(forces['gusts'])}"
+        )
         _check_keys(forces["gusts"], GUST_KEYS, f"{where}: forces.gusts")
         require("wind" not in forces, f"{where}: give forces.wind (constant) or forces.gusts, not both")
 
@@ -361,8 +387,12 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
             g = _Keys(where, forces["gusts"], "forces.gusts")
             for key in ("wind", "on", "off"):
                 require(key in forces["gusts"], f"{where}: forces.gusts.{key} is required")
-            schedule = WindSchedule.gusts(g.vector("wind", unit="m/s"), g.number("on", positive), g.number("off", positive),
-                                          base=g.vector("base", (0.0, 0.0, 0.0), "m/s"))
+            schedule = WindSchedule.gusts(
+                g.vector("wind", unit="m/s"),
+                g.number("on", positive),
+                g.number("off", positive),
+                base=g.vector("base", (0.0, 0.0, 0.0), "m/s"),
+            )
     except WarpclothError as exc:
         raise WarpclothError(_prefixed(where, exc)) from None
     if coefficient is None:
@@ -371,29 +401,53 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
 
     def model(config: ScenarioConfig, device: str):
         m = load_mesh(config.mesh, config.prim) if config.mesh != mesh_path or config.prim != prim else mesh
-        tracked = [p for k, t in enumerate(tracks) for p in _track(t, m.vertices, m.groups, f"{where}: [[tracks]] #{k + 1}").particles]
+        tracked = [
+            p
+            for k, t in enumerate(tracks)
+            for p in _track(t, m.vertices, m.groups, f"{where}: [[tracks]] #{k + 1}").particles
+        ]
         return build_mesh_cloth(
-            m, total_mass=config.mass, mass_mode=mass_mode, stiffness=config.stiffness, damping=config.damping,
-            pins=pin_indices + tracked, pin_groups=config.pin_group or (), pin_where=config.pin_where,
-            quads=bool(config.quads), bend=config.bend, bend_rigidity=config.bend_rigidity,
+            m,
+            total_mass=config.mass,
+            mass_mode=mass_mode,
+            stiffness=config.stiffness,
+            damping=config.damping,
+            pins=pin_indices + tracked,
+            pin_groups=config.pin_group or (),
+            pin_where=config.pin_where,
+            quads=bool(config.quads),
+            bend=config.bend,
+            bend_rigidity=config.bend_rigidity,
             device=device,
         )
 
     def pin_tracks(config: ScenarioConfig, model_):
         rest = model_.host["q"].astype(np.float64)
-        return [_track(t, rest, model_.host.get("groups", {}), f"{where}: [[tracks]] #{k + 1}") for k, t in enumerate(tracks)]
+        return [
+            _track(t, rest, model_.host.get("groups", {}), f"{where}: [[tracks]] #{k + 1}")
+            for k, t in enumerate(tracks)
+        ]
 
     def control(config: ScenarioConfig, device: str) -> Control:
         drag = (0.0 if drag_given is None else drag_given) if config.drag is None else config.drag
         try:
-            return Control(gravity=gravity, drag_rate=drag, wind_coefficient=coefficient, wind_schedule=schedule, device=device,
-                           colliders=colliders)
+            return Control(
+                gravity=gravity,
+                drag_rate=drag,
+                wind_coefficient=coefficient,
+                wind_schedule=schedule,
+                device=device,
+                colliders=colliders,
+            )
         except WarpclothError as exc:
             raise WarpclothError(f"{where}: [forces]: {exc}") from None
 
     options = run.get("integrator_options", {})
     require(isinstance(options, dict), f"{where}: run.integrator_options must be a table, got {_shown(options)}")
-    require(not ("fps" in run and "frame_rate" in run), f"{where}: give run.frame_rate (or its old spelling run.fps), not both")
+    require(
+        not ("fps" in run and "frame_rate" in run),
+        f"{where}: give run.frame_rate (or its old spelling run.fps), not both",
+    )
     r = _Keys(where, run, "run")
     given = {}
     for key in run:  # checked as the declarations say, like the CLI and the XML
@@ -411,20 +465,39 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
             continue
         given[name] = r.param(key, name)
     dt = given.pop("dt", None)
-    require(dt is None or dt.kind != "max", f"{where}: run.dt must be a time step in s or 'default' (max is for test lists)")
+    require(
+        dt is None or dt.kind != "max", f"{where}: run.dt must be a time step in s or 'default' (max is for test lists)"
+    )
     require(given.get("integrator") != "all", f"{where}: run.integrator must name one integrator, not 'all'")
     defaults = ScenarioConfig(
-        rows=1, cols=int(mesh.vertices.shape[0]), mass=0.2 if mass is None else mass,
-        integrator="explicit_euler", integrator_options=dict(options), duration=10.0, fps=60.0,
-        stiffness=stiffness, damping=damping, drag=None, bend=bend, mesh=mesh_path, prim=prim,
-        pin_group=pin_groups or None, pin_where=pin_where, quads=quads,
+        rows=1,
+        cols=int(mesh.vertices.shape[0]),
+        mass=0.2 if mass is None else mass,
+        integrator="explicit_euler",
+        integrator_options=dict(options),
+        duration=10.0,
+        fps=60.0,
+        stiffness=stiffness,
+        damping=damping,
+        drag=None,
+        bend=bend,
+        mesh=mesh_path,
+        prim=prim,
+        pin_group=pin_groups or None,
+        pin_where=pin_where,
+        quads=quads,
     )
     defaults = replace(defaults, dt=dt.value if dt is not None and dt.kind == "value" else None, **config_values(given))
     scenario = Scenario(
         name=top.text("name", os.path.splitext(where)[0]),
         description=top.text("description", f"scenario file {where}"),
-        defaults=defaults, pins=lambda rows, cols: [], control=control, origin=lambda config: (0.0, 0.0, 0.0),
-        stop_at_equilibrium=top.boolean("stop_at_equilibrium", True), model=model, tracks=pin_tracks,
+        defaults=defaults,
+        pins=lambda rows, cols: [],
+        control=control,
+        origin=lambda config: (0.0, 0.0, 0.0),
+        stop_at_equilibrium=top.boolean("stop_at_equilibrium", True),
+        model=model,
+        tracks=pin_tracks,
     )
     try:  # the integrator, its options and the pins, checked now
         from warpcloth.integrators import make_integrator
@@ -449,7 +522,9 @@ def _colliders(tables, where: str, path: str = "") -> tuple:
     ``friction``, ``reach`` (a static MeshCollider)."""
     from warpcloth.sim.colliders import COLLIDER_TYPES, ColliderTrack, MeshCollider
 
-    require(isinstance(tables, list), f"{where}: colliders must be an array of tables ([[colliders]]), got {_shown(tables)}")
+    require(
+        isinstance(tables, list), f"{where}: colliders must be an array of tables ([[colliders]]), got {_shown(tables)}"
+    )
     out = []
     for k, t in enumerate(tables):
         what = f"{where}: [[colliders]] #{k + 1}"
@@ -476,12 +551,20 @@ def _colliders(tables, where: str, path: str = "") -> tuple:
             track = ColliderTrack.from_table(settings.pop("track")) if "track" in settings else None
             if cls is MeshCollider:
                 mesh = settings.pop("path", None)
-                require(isinstance(mesh, str) and mesh.strip() != "", f"path must be a mesh file name (.obj, .usd), got {_shown(mesh)}")
+                require(
+                    isinstance(mesh, str) and mesh.strip() != "",
+                    f"path must be a mesh file name (.obj, .usd), got {_shown(mesh)}",
+                )
                 prim = settings.pop("prim", None)
-                require(prim is None or (isinstance(prim, str) and prim.strip() != ""),
-                        f"prim must be a prim path such as '/World/Table', got {_shown(prim)}")
-                out.append(load_mesh_collider(os.path.join(os.path.dirname(path), os.path.expanduser(mesh)), prim,
-                                              track=track, **settings))
+                require(
+                    prim is None or (isinstance(prim, str) and prim.strip() != ""),
+                    f"prim must be a prim path such as '/World/Table', got {_shown(prim)}",
+                )
+                out.append(
+                    load_mesh_collider(
+                        os.path.join(os.path.dirname(path), os.path.expanduser(mesh)), prim, track=track, **settings
+                    )
+                )
                 continue
             out.append(cls(track=track, **{key: tuple(v) if isinstance(v, list) else v for key, v in settings.items()}))
         except WarpclothError as exc:
@@ -513,17 +596,39 @@ def _track(t: dict, positions: np.ndarray, groups: dict, where: str) -> PinTrack
         name = str(t.get("name", "track"))
         if kind == "keyframes":
             require("times" in t, "keyframes need times")
-            require(("offsets" in t) != ("positions" in t), "give offsets (from the rest positions) or positions, one of them")
+            require(
+                ("offsets" in t) != ("positions" in t),
+                "give offsets (from the rest positions) or positions, one of them",
+            )
             values = t.get("offsets", t.get("positions"))
             extra = set(t) - PIN_KEYS - {"name", "kind", "times", "offsets", "positions", "interpolation", "tangents"}
             if extra:
                 raise WarpclothError(f"key {sorted(extra)[0]!r} applies to kind 'rigid', not 'keyframes'")
-            return PinTrack.keyframes(sel, t["times"], values, interpolation=t.get("interpolation", "linear"), tangents=t.get("tangents"), name=name)
+            return PinTrack.keyframes(
+                sel,
+                t["times"],
+                values,
+                interpolation=t.get("interpolation", "linear"),
+                tangents=t.get("tangents"),
+                name=name,
+            )
         if kind == "rigid":
             extra = set(t) & {"times", "offsets", "positions", "interpolation", "tangents"}
             if extra:
                 raise WarpclothError(f"key {sorted(extra)[0]!r} applies to kind 'keyframes', not 'rigid'")
-            args = {k: t[k] for k in ("center", "axis", "angular_velocity", "swing_amplitude", "swing_frequency", "swing_phase", "velocity") if k in t}
+            args = {
+                k: t[k]
+                for k in (
+                    "center",
+                    "axis",
+                    "angular_velocity",
+                    "swing_amplitude",
+                    "swing_frequency",
+                    "swing_phase",
+                    "velocity",
+                )
+                if k in t
+            }
             return PinTrack.rigid(sel, name=name, **args)
         raise WarpclothError(f"kind must be 'keyframes' or 'rigid', got {kind!r}")
     except (TypeError, ValueError) as exc:

@@ -4,8 +4,9 @@ switched on and off at pre-determined times. It never reaches equilibrium.
 Run it with ``python -m warpcloth.scenarios.flag [--integrator verlet ...]``.
 """
 
-from warpcloth.sim.control import Control, WindSchedule
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
+
+from warpcloth.sim.control import Control, WindSchedule
 
 #: Gust wind velocity [m/s], and the calmer wind between gusts.
 GUST = (8.0, 0.0, 3.0)

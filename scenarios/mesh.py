@@ -11,12 +11,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from warpcloth.sim.control import Control
-from warpcloth.sim.mesh import TriangleMesh, build_mesh_cloth
-from warpcloth.io.meshio import load_mesh
-from warpcloth.sim.grid import grid_triangles
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
+
+from warpcloth.io.meshio import load_mesh
+from warpcloth.sim.control import Control
+from warpcloth.sim.grid import grid_triangles
+from warpcloth.sim.mesh import TriangleMesh, build_mesh_cloth
 
 CAPE_ROWS, CAPE_COLS = 20, 16
 
@@ -33,7 +33,9 @@ def make_cape(rows: int = CAPE_ROWS, cols: int = CAPE_COLS) -> TriangleMesh:
     q = np.stack([radius * np.sin(phi), 1.5 - 0.9 * s, -radius * np.cos(phi)], axis=1)
     uv = np.stack([u, 1.0 - s], axis=1)
     tris = grid_triangles(rows, cols).astype(np.int64)
-    return TriangleMesh(vertices=q, triangles=tris, uv=uv[tris], groups={"shoulders": np.arange(2 * cols)}, source="built-in cape")
+    return TriangleMesh(
+        vertices=q, triangles=tris, uv=uv[tris], groups={"shoulders": np.arange(2 * cols)}, source="built-in cape"
+    )
 
 
 def _model(config: ScenarioConfig, device: str):
@@ -42,8 +44,15 @@ def _model(config: ScenarioConfig, device: str):
     if not config.mesh and groups is None and where is None:
         groups = ("shoulders",)
     return build_mesh_cloth(
-        mesh, total_mass=config.mass, stiffness=config.stiffness, damping=config.damping, pin_groups=groups or (),
-        pin_where=where, quads=bool(config.quads), bend=config.bend, bend_rigidity=config.bend_rigidity,
+        mesh,
+        total_mass=config.mass,
+        stiffness=config.stiffness,
+        damping=config.damping,
+        pin_groups=groups or (),
+        pin_where=where,
+        quads=bool(config.quads),
+        bend=config.bend,
+        bend_rigidity=config.bend_rigidity,
         device=device,
     )
 

@@ -4,8 +4,9 @@ The sheet hangs in the vertical x-y plane and sags under its weight; a run ends 
 or at its duration. Run it with ``python -m warpcloth.scenarios.sheet [--integrator rk4 ...]``.
 """
 
-from warpcloth.sim.control import Control
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
+
+from warpcloth.sim.control import Control
 
 
 def _pins(rows: int, cols: int) -> list:

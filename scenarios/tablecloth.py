@@ -2,9 +2,10 @@
 hangs over its edges; a run ends at equilibrium. Run it with ``warpcloth run tablecloth``.
 """
 
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
+
 from warpcloth.sim.colliders import Box, Plane
 from warpcloth.sim.control import Control
-from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 #: The table top: 0.8 m square, 0.75 m high (its top face), the cloth's offset [m] and mu.
 HALF = 0.4
@@ -19,7 +20,9 @@ def _pins(rows: int, cols: int) -> list:
 
 def _control(config: ScenarioConfig, device: str) -> Control:
     drag = 1.0 if config.drag is None else config.drag
-    table = Box(center=(0.0, 0.5 * HEIGHT, 0.0), half_extents=(HALF, 0.5 * HEIGHT, HALF), thickness=THICKNESS, friction=FRICTION)
+    table = Box(
+        center=(0.0, 0.5 * HEIGHT, 0.0), half_extents=(HALF, 0.5 * HEIGHT, HALF), thickness=THICKNESS, friction=FRICTION
+    )
     return Control(drag_rate=drag, colliders=(table, Plane(thickness=THICKNESS, friction=FRICTION)), device=device)
 
 

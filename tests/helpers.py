@@ -14,7 +14,9 @@ def single_spring(ks=40.0, mass=0.1, rest=0.5, stretch=0.05, kd=0.0, device="cpu
     """Particle 0 pinned at the origin, particle 1 hanging on one spring, stretched by ``stretch``
     along the spring. Without gravity it oscillates with period 2 pi sqrt(m / ks)."""
     q = [[0.0, 0.0, 0.0], [0.0, -rest, 0.0]]
-    model = build_model(q, [[0, 1]], [SpringType.STRUCTURAL], [mass, mass], spring_params(ks, kd), pins=[0], device=device)
+    model = build_model(
+        q, [[0, 1]], [SpringType.STRUCTURAL], [mass, mass], spring_params(ks, kd), pins=[0], device=device
+    )
     return model
 
 
@@ -26,7 +28,9 @@ def displace(sim, index: int, offset) -> None:
 
 def small_grid(ks=5.0, kd=0.0, rows=3, cols=3, pins=(0,), device="cpu"):
     """A 3 x 3 Provot grid of 0.1 kg particles, soft springs, one pin: a smooth nonlinear problem."""
-    return build_grid_cloth(rows, cols, 1.0, 1.0, 0.1 * rows * cols, spring_params=spring_params(ks, kd), pins=list(pins), device=device)
+    return build_grid_cloth(
+        rows, cols, 1.0, 1.0, 0.1 * rows * cols, spring_params=spring_params(ks, kd), pins=list(pins), device=device
+    )
 
 
 def reference_forces(model, x, v, gravity=(0.0, -9.81, 0.0), drag=0.0):
@@ -124,7 +128,11 @@ def drape_sphere_depth(x):
     """How far each particle is inside the drape scenario's sphere grown by its thickness [m] (< 0: outside)."""
     from warpcloth.scenarios import drape
 
-    return drape.THICKNESS + drape.RADIUS - np.linalg.norm(np.asarray(x, dtype=np.float64) - np.array([0.0, drape.RADIUS, 0.0]), axis=1)
+    return (
+        drape.THICKNESS
+        + drape.RADIUS
+        - np.linalg.norm(np.asarray(x, dtype=np.float64) - np.array([0.0, drape.RADIUS, 0.0]), axis=1)
+    )
 
 
 def deepest_in_drape(sim, steps: int):

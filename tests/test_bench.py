@@ -11,8 +11,21 @@ from warpcloth.lab.bench import COLUMNS
 
 def test_bench_tiny_end_to_end(tmp_path, capsys):
     out = tmp_path / "bench.csv"
-    code = main(["--sizes", "8,16", "--steps", "5", "--devices", "cpu", "--integrators", "explicit_euler,rk4",
-                 "--roofline", "--out", str(out)])
+    code = main(
+        [
+            "--sizes",
+            "8,16",
+            "--steps",
+            "5",
+            "--devices",
+            "cpu",
+            "--integrators",
+            "explicit_euler,rk4",
+            "--roofline",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     stdout = capsys.readouterr().out
     assert "explicit_euler" in stdout and "roofline floor on cpu, 8x8" in stdout
@@ -23,13 +36,23 @@ def test_bench_tiny_end_to_end(tmp_path, capsys):
     for r in rows:
         assert int(r["steps_timed"]) == 5
         assert int(r["particles"]) == int(r["rows"]) * int(r["cols"])
-        for key in ["ms_per_step_median", "steps_per_s", "springs_per_s", "realtime_factor", "roofline_ms", "floor_multiple", "dt_s",
-                    "wall_s_per_sim_s"]:
+        for key in [
+            "ms_per_step_median",
+            "steps_per_s",
+            "springs_per_s",
+            "realtime_factor",
+            "roofline_ms",
+            "floor_multiple",
+            "dt_s",
+            "wall_s_per_sim_s",
+        ]:
             value = float(r[key])
             assert math.isfinite(value) and value > 0, (key, value)
         assert math.isclose(float(r["steps_per_s"]) * float(r["ms_per_step_median"]), 1000.0, rel_tol=1e-6)
         assert float(r["ms_per_step_min"]) <= float(r["ms_per_step_median"]) <= float(r["ms_per_step_max"])
-        assert math.isclose(float(r["wall_s_per_sim_s"]), float(r["ms_per_step_median"]) / 1000.0 / float(r["dt_s"]), rel_tol=1e-9)
+        assert math.isclose(
+            float(r["wall_s_per_sim_s"]), float(r["ms_per_step_median"]) / 1000.0 / float(r["dt_s"]), rel_tol=1e-9
+        )
         assert r["host"] and r["cpu"] and r["warp_version"] and r["warpcloth_version"]
         assert int(r["force_evals_per_step"]) == {"explicit_euler": 1, "rk4": 4}[r["integrator"]]
         assert r["stable"] == "true"
@@ -45,9 +68,16 @@ def test_bench_says_cuda_was_skipped(capsys):
     assert "CUDA skipped: no CUDA device is present" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("argv,message", [(["--sizes", "2"], "--sizes must be"), (["--sizes", "x"], "--sizes must be"),
-                                          (["--integrators", "nope"], "unknown integrator 'nope'"),
-                                          (["--devices", "cuda:9"], "not available"), (["--steps", "0"], "--steps must be >= 1")])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["--sizes", "2"], "--sizes must be"),
+        (["--sizes", "x"], "--sizes must be"),
+        (["--integrators", "nope"], "unknown integrator 'nope'"),
+        (["--devices", "cuda:9"], "not available"),
+        (["--steps", "0"], "--steps must be >= 1"),
+    ],
+)
 def test_bench_bad_input(capsys, argv, message):
     assert main(argv) == 2
     assert message in capsys.readouterr().err
@@ -60,11 +90,30 @@ def test_bench_records_whether_cg_met_its_tolerance(tmp_path, capsys, monkeypatc
     from warpcloth.integrators.implicit_euler import ImplicitEuler
 
     # the bench runs each integrator with its defaults: lower the default CG cap
-    options = tuple(dataclasses.replace(o, default=cap) if o.name == "cg_max_iter" else o for o in ImplicitEuler.options)
+    options = tuple(
+        dataclasses.replace(o, default=cap) if o.name == "cg_max_iter" else o for o in ImplicitEuler.options
+    )
     monkeypatch.setattr(ImplicitEuler, "options", options)
     out = tmp_path / "bench.csv"
-    assert main(["--sizes", "8", "--steps", "3", "--devices", "cpu", "--integrators", "implicit_euler", "--graph", "off",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "--sizes",
+                "8",
+                "--steps",
+                "3",
+                "--devices",
+                "cpu",
+                "--integrators",
+                "implicit_euler",
+                "--graph",
+                "off",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     (row,) = list(csv.DictReader(out.open()))
     assert row["solver_converged"] == converged
     assert row["solver_capped_steps"] == ("3" if cap == 2 else "0")
@@ -93,5 +142,3 @@ def test_bench_implicit_repeats_print_medians_and_ratios(capsys):
     assert [r[1] for r in rows] == ["free", "bsr", "free", "bsr"]  # alternating
     (summary,) = [line for line in out.splitlines() if "bsr/free" in line]
     assert summary.startswith("   5x5") and "per step" in summary and "per CG iteration" in summary
-
-

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
-
 from warpcloth.kernels import bending as K
 from warpcloth.kernels.forces import eval_particle_forces, eval_springs
 from warpcloth.kernels.integrate import integrate_explicit_euler
+
 from warpcloth.sim import hinges as H
 from warpcloth.sim.grid import build_grid_cloth, grid_springs, grid_triangles
 from warpcloth.sim.model import SpringParams, SpringType
@@ -35,8 +35,16 @@ def hinge_inputs(d):
 def one_hinge(x, rest=0.0, k=1.0, kd=0.0) -> H.Hinges:
     """A Hinges of the single hinge (0, 1, 2, 3) with given rest angle, k and kd (rest geometry from x)."""
     h = H.build_hinges(x, [[0, 1, 2, 3]], 1.0)
-    return H.Hinges(h.indices, np.array([rest], float), h.rest_length, h.rest_area, h.weight, h.rigidity,
-                    np.array([k], float), np.array([kd], float))
+    return H.Hinges(
+        h.indices,
+        np.array([rest], float),
+        h.rest_length,
+        h.rest_area,
+        h.weight,
+        h.rigidity,
+        np.array([k], float),
+        np.array([kd], float),
+    )
 
 
 def kernel_forces(x, hinges: H.Hinges, v=None) -> np.ndarray:
@@ -44,8 +52,7 @@ def kernel_forces(x, hinges: H.Hinges, v=None) -> np.ndarray:
     n = len(x)
     f = wp.zeros(n, dtype=wp.vec3, device=DEVICE)
     vv = vec3(np.zeros((n, 3)) if v is None else v)
-    wp.launch(K.eval_hinge_forces, hinges.hinge_count,
-              [vec3(x), vv, *hinge_inputs(d), f], device=DEVICE)
+    wp.launch(K.eval_hinge_forces, hinges.hinge_count, [vec3(x), vv, *hinge_inputs(d), f], device=DEVICE)
     return f.numpy().astype(np.float64)
 
 
@@ -60,8 +67,12 @@ def kernel_blocks(x, hinges: H.Hinges, alpha=1.0, beta=0.0) -> np.ndarray:
     """(H, 4, 4, 3, 3) Gauss-Newton blocks from the kernel."""
     d = hinges.to_device(DEVICE)
     blocks = wp.zeros((hinges.hinge_count, 16), dtype=wp.mat33, device=DEVICE)
-    wp.launch(K.eval_hinge_hessian_blocks, hinges.hinge_count,
-              [vec3(x), d.hinge_indices, d.hinge_stiffness, d.hinge_damping, alpha, beta, blocks], device=DEVICE)
+    wp.launch(
+        K.eval_hinge_hessian_blocks,
+        hinges.hinge_count,
+        [vec3(x), d.hinge_indices, d.hinge_stiffness, d.hinge_damping, alpha, beta, blocks],
+        device=DEVICE,
+    )
     return blocks.numpy().astype(np.float64).reshape(-1, 4, 4, 3, 3)
 
 
@@ -351,7 +362,7 @@ def test_hinge_topology_of_grid_and_mesh():
     assert len(canonical(mesh)) == len(mesh)
     # the first diagonal family of the grid hinges is the mesh's own hinges on the structural edges
     half = (rows - 2) * (cols - 1)
-    first = np.concatenate([q[:half], q[2 * half:2 * half + (rows - 1) * (cols - 2)]])
+    first = np.concatenate([q[:half], q[2 * half : 2 * half + (rows - 1) * (cols - 2)]])
     assert canonical(first) <= canonical(mesh)
     # orientation: a flat grid's hinges all have angle 0 (not pi), triangle A = (x0, x1, x2) in mesh order
     flat = np.c_[grid_points(rows, cols, 0.1), np.zeros(rows * cols)]
@@ -449,14 +460,14 @@ def test_implicit_row_gather_and_matrix_free_product_match_the_blocks():
     launch(K.add_hinge_system_rows, n, *adj, block, *gathered, h * h, h, values, *row_part)
     got = np.zeros((3 * n, 3 * n))
     for (i, j), m in zip(entries, values.numpy()):
-        got[3 * i:3 * i + 3, 3 * j:3 * j + 3] = m
+        got[3 * i : 3 * i + 3, 3 * j : 3 * j + 3] = m
     expected = np.zeros((3 * n, 3 * n))
     blocks = kernel_blocks(x, hinges, h * h, h)
     for e, q in enumerate(hinges.indices):
         for a in range(4):
             for b in range(4):
                 if inv_mass[q[a]] and inv_mass[q[b]]:
-                    expected[3 * q[a]:3 * q[a] + 3, 3 * q[b]:3 * q[b] + 3] += blocks[e, a, b]
+                    expected[3 * q[a] : 3 * q[a] + 3, 3 * q[b] : 3 * q[b] + 3] += blocks[e, a, b]
     assert np.abs(got - expected).max() < 1e-5 * np.abs(expected).max()
     assert np.linalg.eigvalsh(expected).min() > -1e-6 * np.abs(expected).max()
     row_sums = expected.reshape(n, 3, n, 3).sum(axis=2)  # sum_j A_ij per row block
@@ -475,7 +486,7 @@ def test_implicit_row_gather_and_matrix_free_product_match_the_blocks():
         for a in range(4):
             for b in range(4):
                 if inv_mass[q[a]]:
-                    full[3 * q[a]:3 * q[a] + 3, 3 * q[b]:3 * q[b] + 3] += stiff_blocks[e, a, b]
+                    full[3 * q[a] : 3 * q[a] + 3, 3 * q[b] : 3 * q[b] + 3] += stiff_blocks[e, a, b]
     z = vec3(np.zeros((n, 3)))
     launch(K.add_hinge_matrix_product, n, *adj, *gathered, -h * h, 0.0, 0, vec3(y), z)
     rhs = -h * h * (full @ y.ravel()).reshape(n, 3)
@@ -561,8 +572,9 @@ def test_strip_cantilever_with_springs_and_hinges_sags_like_the_linear_predictio
     mass = rho * width * length
     pins = [0, 1, cols, cols + 1]
     params = {t: SpringParams(ks, 0.0) for t in SpringType}
-    model = build_grid_cloth(rows, cols, width, length, mass, spring_params=params, pins=pins, plane="horizontal",
-                             bend="none", device=DEVICE)
+    model = build_grid_cloth(
+        rows, cols, width, length, mass, spring_params=params, pins=pins, plane="horizontal", bend="none", device=DEVICE
+    )
     x0 = model.host["q"].astype(np.float64)
     hinges = H.grid_hinges(x0, rows, cols, bend)
     d = hinges.to_device(DEVICE)
@@ -576,8 +588,17 @@ def test_strip_cantilever_with_springs_and_hinges_sags_like_the_linear_predictio
         for _ in range(n_steps):
             x, v, f = state.particle_q, state.particle_qd, state.particle_f
             launch(eval_particle_forces, model.particle_count, v, model.particle_mass, gravity, drag, f)
-            launch(eval_springs, model.spring_count, x, v, model.spring_indices, model.spring_rest_length,
-                   model.spring_stiffness, model.spring_damping, f)
+            launch(
+                eval_springs,
+                model.spring_count,
+                x,
+                v,
+                model.spring_indices,
+                model.spring_rest_length,
+                model.spring_stiffness,
+                model.spring_damping,
+                f,
+            )
             if with_hinges:
                 launch(K.eval_hinge_forces, hinges.hinge_count, x, v, *hinge_inputs(d), f)
             launch(integrate_explicit_euler, model.particle_count, x, v, f, model.particle_inv_mass, dt)

@@ -6,22 +6,26 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_contract import count_allocations  # noqa: F401  (the fixture)
+from test_implicit import dense_system
+from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators import integrator_names, make_integrator
-from warpcloth.lab.cantilever import (COTTON_DENSITY, COTTON_RIGIDITY, cantilever_strip, elastica_tip_drop,
-                                      strip_tip_drop)
-from warpcloth.scenarios import flag, sheet
-from warpcloth.simulator import graph_capture_supported
+from warpcloth.lab.cantilever import (
+    COTTON_DENSITY,
+    COTTON_RIGIDITY,
+    cantilever_strip,
+    elastica_tip_drop,
+    strip_tip_drop,
+)
 from warpcloth.sim.grid import build_grid_cloth, expected_spring_counts
 from warpcloth.sim.hinges import DEFAULT_BEND_RIGIDITY, grid_hinge_indices, hinge_angle_gradients
 from warpcloth.sim.material import PRESETS
 from warpcloth.sim.mesh import build_mesh_cloth
 from warpcloth.sim.model import BendModel
-
-from test_contract import count_allocations  # noqa: F401  (the fixture)
-from test_implicit import dense_system
+from warpcloth.simulator import graph_capture_supported
 
 NAMES = integrator_names()
 
@@ -31,8 +35,11 @@ def test_dihedral_grid_has_hinges_and_no_bend_springs():
     rows, cols = 6, 7
     model = build_grid_cloth(rows, cols, bend="dihedral", bend_rigidity=2e-4, device="cpu")
     assert model.bend == BendModel.DIHEDRAL
-    assert model.spring_counts() == expected_spring_counts(rows, cols, "dihedral") == {
-        **expected_spring_counts(rows, cols, "none")}
+    assert (
+        model.spring_counts()
+        == expected_spring_counts(rows, cols, "dihedral")
+        == {**expected_spring_counts(rows, cols, "none")}
+    )
     assert model.hinge_count == 2 * ((rows - 2) * (cols - 1) + (rows - 1) * (cols - 2))
     np.testing.assert_array_equal(model.host.hinges.indices, grid_hinge_indices(rows, cols)[0])
     np.testing.assert_array_equal(model.hinge_indices.numpy(), model.host.hinges.indices)
@@ -57,8 +64,13 @@ def test_mesh_cloth_takes_dihedral_hinges_on_interior_edges():
     from warpcloth.sim.grid import grid_positions, grid_triangles
 
     rows, cols = 5, 6
-    model = build_mesh_cloth(grid_positions(rows, cols, 1.0, 1.0), grid_triangles(rows, cols), bend="dihedral",
-                             bend_rigidity=1e-4, device="cpu")
+    model = build_mesh_cloth(
+        grid_positions(rows, cols, 1.0, 1.0),
+        grid_triangles(rows, cols),
+        bend="dihedral",
+        bend_rigidity=1e-4,
+        device="cpu",
+    )
     interior = 3 * (rows - 1) * (cols - 1) - (rows - 1) - (cols - 1)  # edges of the triangulated grid not on its border
     assert model.hinge_count == interior and model.spring_counts()["bend"] == 0
     assert model.bend == BendModel.DIHEDRAL
@@ -100,8 +112,8 @@ def dense_hinge_system(model, x, v, h, drag, jacobian="full"):
             f[q[a]] += -(k[e] * wrap_angle(theta[e] - hinges.rest_angle[e]) + kd[e] * rate) * g[e, a]
             for bb in range(4):
                 blk = np.outer(g[e, a], g[e, bb]) if jacobian == "full" else c[e, a] * c[e, bb] * np.eye(3)
-                dfdx[3 * q[a]:3 * q[a] + 3, 3 * q[bb]:3 * q[bb] + 3] -= k[e] * blk
-                dfdv[3 * q[a]:3 * q[a] + 3, 3 * q[bb]:3 * q[bb] + 3] -= kd[e] * blk
+                dfdx[3 * q[a] : 3 * q[a] + 3, 3 * q[bb] : 3 * q[bb] + 3] -= k[e] * blk
+                dfdv[3 * q[a] : 3 * q[a] + 3, 3 * q[bb] : 3 * q[bb] + 3] -= kd[e] * blk
     Ah = -h * dfdv - h * h * dfdx
     bh = h * (f.ravel() + h * dfdx @ v.ravel())
     for p in model.pinned:
@@ -118,8 +130,15 @@ def test_one_implicit_step_equals_dense_backward_euler_with_hinges(matrix, jacob
     """A stiff hinge set (B = 0.2 N m on a 1 m 5 x 6 sheet: h^2 k_e |g|^2 / m ~ 1) on a perturbed, moving
     sheet: one step equals the dense solve, and dropping the hinge term misses it by far more."""
     rng = np.random.default_rng(3)
-    sim = sheet.build(rows=5, cols=6, integrator="implicit_euler", bend="dihedral", bend_rigidity=0.2, device="cpu",
-                      integrator_options={"matrix": matrix, "jacobian": jacobian, "cg_tol": 1e-6})
+    sim = sheet.build(
+        rows=5,
+        cols=6,
+        integrator="implicit_euler",
+        bend="dihedral",
+        bend_rigidity=0.2,
+        device="cpu",
+        integrator_options={"matrix": matrix, "jacobian": jacobian, "cg_tol": 1e-6},
+    )
     m = sim.model
     x = m.host["q"].astype(np.float64) + rng.normal(scale=0.03, size=(m.particle_count, 3))
     v = rng.normal(scale=0.5, size=(m.particle_count, 3))
@@ -170,8 +189,18 @@ def test_flat_cloth_falling_under_gravity_stays_flat(name):
     """A free, tilted flat cloth with stiff hinges (B = 0.05 N m) falls as a rigid body: its hinges
     stay at their rest angle (no spurious bending moment from a translation) and it falls g t^2 / 2
     to the scheme's accuracy (a cloth that never moved fails)."""
-    model = build_grid_cloth(6, 6, 0.5, 0.5, 0.1, origin=(0.0, 2.0, 0.0), plane="horizontal", bend="dihedral",
-                             bend_rigidity=0.05, device="cpu")
+    model = build_grid_cloth(
+        6,
+        6,
+        0.5,
+        0.5,
+        0.1,
+        origin=(0.0, 2.0, 0.0),
+        plane="horizontal",
+        bend="dihedral",
+        bend_rigidity=0.05,
+        device="cpu",
+    )
     q = model.host["q"].astype(np.float64)
     c, s = np.cos(0.5), np.sin(0.5)  # tilt the plane by 0.5 rad about x
     q[:, 1], q[:, 2] = 2.0 + s * (q[:, 2] - 0.25), c * (q[:, 2] - 0.25)
@@ -199,8 +228,9 @@ COLS, OVERHANG = 32, 0.05
 def cantilever(name: str, options=None, dt=None, rigidity: float = RIGIDITY, drag=None):
     """The clamped cotton strip (warpcloth.lab.cantilever: the clamp midway between the two pinned
     columns, masses by vertex area, drag 2 omega_1) with integrator ``name``."""
-    return cantilever_strip(make_integrator(name, **(options or {})), cols=COLS, overhang=OVERHANG, rigidity=rigidity,
-                            drag=drag, dt=dt)
+    return cantilever_strip(
+        make_integrator(name, **(options or {})), cols=COLS, overhang=OVERHANG, rigidity=rigidity, drag=drag, dt=dt
+    )
 
 
 def tip_drop(sim) -> float:
@@ -259,6 +289,7 @@ def test_pbd_rest_shape_ignores_the_rigidity_and_stiffens_with_iterations():
     """pbd projects C = theta - theta0 with its dimensionless pbd_bend_stiffness: the strip's motion is
     bit-identical at 10x the rigidity, and more iterations make it stiffer (an unconverged Gauss-Seidel
     sweep along a 30-hinge chain is soft: after 0.2 s +55 % off the elastica's drop at 5 iterations, +39 % at 20)."""
+
     def strip(options, rigidity=RIGIDITY):
         return cantilever("pbd", options, rigidity=rigidity, drag=34.0)  # the same drag for both rigidities
 

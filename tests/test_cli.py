@@ -4,9 +4,9 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
-from pathlib import Path
 
 from warpcloth.cli import main
 
@@ -23,9 +23,26 @@ def test_run_json_parses_and_is_consistent(capsys):
     code, out, err = run_cli(capsys, "run", "sheet", "--rows", "6", "--cols", "7", "--duration", "0.5", "--json")
     assert code == 0
     d = json.loads(out)
-    for key in ["scenario", "integrator", "device", "rows", "cols", "particles", "springs", "dt", "steps", "sim_time",
-                "wall_time", "ms_per_step", "steps_per_sec", "realtime_factor", "stable", "equilibrium_reached",
-                "time_to_equilibrium", "max_strain"]:
+    for key in [
+        "scenario",
+        "integrator",
+        "device",
+        "rows",
+        "cols",
+        "particles",
+        "springs",
+        "dt",
+        "steps",
+        "sim_time",
+        "wall_time",
+        "ms_per_step",
+        "steps_per_sec",
+        "realtime_factor",
+        "stable",
+        "equilibrium_reached",
+        "time_to_equilibrium",
+        "max_strain",
+    ]:
         assert key in d, key
     assert d["scenario"] == "sheet" and d["rows"] == 6 and d["cols"] == 7 and d["particles"] == 42
     assert math.isclose(d["steps"] * d["dt"], d["sim_time"], rel_tol=1e-12)
@@ -34,16 +51,40 @@ def test_run_json_parses_and_is_consistent(capsys):
 
 def test_run_summary_and_flags(capsys, tmp_path):
     usd = tmp_path / "f.usda"
-    code, out, err = run_cli(capsys, "run", "flag", "-i", "rk4", "--rows", "5", "--cols", "6", "--dt", "1e-3",
-                             "--duration", "0.2", "--fps", "30", "--stiffness", "800,600,100", "--damping", "0.1",
-                             "--mass", "0.2", "--usd", str(usd))
+    code, out, err = run_cli(
+        capsys,
+        "run",
+        "flag",
+        "-i",
+        "rk4",
+        "--rows",
+        "5",
+        "--cols",
+        "6",
+        "--dt",
+        "1e-3",
+        "--duration",
+        "0.2",
+        "--fps",
+        "30",
+        "--stiffness",
+        "800,600,100",
+        "--damping",
+        "0.1",
+        "--mass",
+        "0.2",
+        "--usd",
+        str(usd),
+    )
     assert code == 0, err
     assert "flag: rk4 on cpu, 5x6" in out and "dt=0.001" in out and "stable: yes" in out
     assert usd.exists()
 
 
 def test_num_frames_sets_duration(capsys):
-    code, out, err = run_cli(capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "6", "--fps", "60", "--json")
+    code, out, err = run_cli(
+        capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "6", "--fps", "60", "--json"
+    )
     assert code == 0
     assert math.isclose(json.loads(out)["sim_time"], 0.1, abs_tol=json.loads(out)["dt"])
 
@@ -60,7 +101,10 @@ def test_list(capsys):
     [
         (["run", "sheet", "--rows", "1"], "rows must be an integer >= 3, got 1"),
         (["run", "sheet", "--cols", "2"], "cols must be an integer >= 3, got 2"),
-        (["run", "sheet", "--rows", "2", "--cols", "2", "--bend", "none", "--mass", "-1"], "mass must be > 0 kg, got -1.0"),
+        (
+            ["run", "sheet", "--rows", "2", "--cols", "2", "--bend", "none", "--mass", "-1"],
+            "mass must be > 0 kg, got -1.0",
+        ),
         (["run", "sheet", "--mass", "0"], "mass must be > 0 kg"),
         (["run", "sheet", "--width", "-2"], "width must be > 0 m"),
         (["run", "sheet", "--dt", "0"], "dt must be > 0 s, got 0.0"),
@@ -104,10 +148,16 @@ def test_missing_cuda_device_error(capsys):
 
 def test_console_script_and_module_entry_points(tmp_path):
     """As a user runs them: the installed script, and python -m for a scenario."""
-    out = subprocess.run([sys.executable, "-m", "warpcloth.scenarios.flag", "--rows", "4", "--cols", "5",
-                          "--num-frames", "3", "--json"], capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-m", "warpcloth.scenarios.flag", "--rows", "4", "--cols", "5", "--num-frames", "3", "--json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
     assert json.loads(out)["scenario"] == "flag"
-    bad = subprocess.run([sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--dt", "-1"], capture_output=True, text=True)
+    bad = subprocess.run(
+        [sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--dt", "-1"], capture_output=True, text=True
+    )
     assert bad.returncode == 2 and "Traceback" not in bad.stderr and "dt must be > 0" in bad.stderr
 
 
@@ -118,7 +168,10 @@ def test_console_script_and_module_entry_points(tmp_path):
         (["run", "sheet", "--mass", "1e30"], "default time step computed from --mass 1e+30 is 0.0 s, not a usable dt"),
         (["run", "sheet", "--damping", "1e38"], "computed from --damping 1e+38 is 0.0 s"),
         (["run", "sheet", "--drag", "1e38"], "computed from --drag 1e+38 is 0.0 s"),
-        (["run", "sheet", "--height", "1e-30"], "--height 1e-30 m over 32 particles puts neighbours 3.23e-32 m apart, below float32's resolution"),
+        (
+            ["run", "sheet", "--height", "1e-30"],
+            "--height 1e-30 m over 32 particles puts neighbours 3.23e-32 m apart, below float32's resolution",
+        ),
         (["run", "sheet", "--dt", "-inf"], "dt must be a finite number, got -inf"),
         (["run", "sheet", "--mass", "-inf"], "mass must be a finite number, got -inf"),
         (["run", "sheet", "--dt", "-1e-3"], "dt must be > 0 s, got -0.001"),
@@ -126,7 +179,10 @@ def test_console_script_and_module_entry_points(tmp_path):
         (["run", "sheet", "--integrator", ""], "--integrator is empty; choose one of explicit_euler"),
         (["bench", "--integrators", ","], "--integrators ',' names no integrator"),
         (["bench", "--devices", ""], "--devices '' names no device"),
-        (["max-dt", "sheet", "--start", "inf"], "start must be a finite dt within [dt_min, dt_max] = [1e-07, 0.1] s, got inf"),
+        (
+            ["max-dt", "sheet", "--start", "inf"],
+            "start must be a finite dt within [dt_min, dt_max] = [1e-07, 0.1] s, got inf",
+        ),
         (["max-dt", "sheet", "--start", "1e40"], "got 1e+40"),
         (["max-dt", "sheet", "--start", "0"], "got 0.0"),
         (["max-dt", "sheet", "--start", "-1"], "got -1.0"),
@@ -145,28 +201,50 @@ def test_messages_name_the_input(capsys, argv, message):
 
 
 # -- issue 19 item 8: one error format, no Warp start-up lines unless --verbose -------------------
-@pytest.mark.parametrize("argv", [["run", "sheet", "--rows", "abc"], ["run", "sheet", "--mass", "0"], ["sweep", "x.xml"],
-                                  ["max-dt", "sheet", "--bogus"], ["bench", "--sizes", "2"]])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "sheet", "--rows", "abc"],
+        ["run", "sheet", "--mass", "0"],
+        ["sweep", "x.xml"],
+        ["max-dt", "sheet", "--bogus"],
+        ["bench", "--sizes", "2"],
+    ],
+)
 def test_errors_are_exactly_one_stderr_line_from_the_console(argv):
     p = subprocess.run([sys.executable, "-m", "warpcloth.cli", *argv], capture_output=True, text=True)
     assert p.returncode == 2
     lines = p.stderr.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("warpcloth: error: "), p.stderr  # not "warpcloth run: error:", no CUDA line
+    assert len(lines) == 1 and lines[0].startswith("warpcloth: error: "), (
+        p.stderr
+    )  # not "warpcloth run: error:", no CUDA line
     assert p.stdout == ""
 
 
 def test_bench_script_and_scenario_module_use_the_same_error_format():
-    for cmd in ([sys.executable, str(REPO / "bench" / "devices.py"), "--sizes", "2"],
-                [sys.executable, "-m", "warpcloth.scenarios.sheet", "--rows", "1"]):
+    for cmd in (
+        [sys.executable, str(REPO / "bench" / "devices.py"), "--sizes", "2"],
+        [sys.executable, "-m", "warpcloth.scenarios.sheet", "--rows", "1"],
+    ):
         p = subprocess.run(cmd, capture_output=True, text=True)
-        assert p.returncode == 2 and p.stderr.splitlines()[0].startswith("warpcloth: error: ") and len(p.stderr.splitlines()) == 1, p.stderr
+        assert (
+            p.returncode == 2
+            and p.stderr.splitlines()[0].startswith("warpcloth: error: ")
+            and len(p.stderr.splitlines()) == 1
+        ), p.stderr
 
 
 def test_verbose_shows_warp_start_up_messages():
     import warp as wp
 
-    quiet = subprocess.run([sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--mass", "0"], capture_output=True, text=True)
-    loud = subprocess.run([sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--mass", "0", "--verbose"], capture_output=True, text=True)
+    quiet = subprocess.run(
+        [sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--mass", "0"], capture_output=True, text=True
+    )
+    loud = subprocess.run(
+        [sys.executable, "-m", "warpcloth.cli", "run", "sheet", "--mass", "0", "--verbose"],
+        capture_output=True,
+        text=True,
+    )
     assert quiet.returncode == loud.returncode == 2
     assert "Warp" not in quiet.stdout + quiet.stderr
     assert "Warp" in loud.stdout + loud.stderr  # the banner (and, without a GPU, the CUDA driver line)
@@ -182,8 +260,9 @@ def test_bench_does_not_import_cli():
 
 # -- issue 31: every input honoured or refused -------------------------------------------------
 def _colliders(*argv):
-    from warpcloth.cli import build_parser, config_from_args
     from warpcloth.scenarios import get_scenario
+
+    from warpcloth.cli import build_parser, config_from_args
 
     args = build_parser().parse_args(["run", "sheet", *argv])
     return config_from_args(get_scenario("sheet"), args).colliders
@@ -191,7 +270,9 @@ def _colliders(*argv):
 
 def test_collider_specs_take_exponents_and_file_names_with_plus(tmp_path):
     (a, b) = _colliders("--collider", "sphere:center=0/1e+0/0,radius=2.5e-1+plane:point=0/-1E+1/0")
-    assert dict(a.settings) == {"center": (0.0, 1.0, 0.0), "radius": 0.25} and dict(b.settings) == {"point": (0.0, -10.0, 0.0)}
+    assert dict(a.settings) == {"center": (0.0, 1.0, 0.0), "radius": 0.25} and dict(b.settings) == {
+        "point": (0.0, -10.0, 0.0)
+    }
     (c,) = _colliders("--collider", "sphere:radius=1e+3")
     assert dict(c.settings) == {"radius": 1000.0}
     path = tmp_path / "a+b plane.obj"
@@ -202,20 +283,27 @@ def test_collider_specs_take_exponents_and_file_names_with_plus(tmp_path):
     assert dict(q.settings) == {"path": str(path), "thickness": 0.001}
 
 
-@pytest.mark.parametrize("argv,message", [
-    (["--collider", "sphere:radius=1,radius=2"], "collider sphere: setting 'radius' is given twice"),
-    (["--collider", "plane:point=0/0/0,point=0/1/0"], "setting 'point' is given twice"),
-    (["--collider", ""], "the collider is empty; give KIND:K=V,..."),
-    (["--collider", "sphere:radius=1", "--collider", ""], "has an empty collider"),
-    (["--collider", "sphere:radius=1+"], "has an empty collider"),
-    (["--collider", 'mesh:path="a.obj'], "has an unclosed \" quote"),
-    (["--pin", "1"], None), (["--pin", "x"], None), (["--pin", "y + 0.5"], None), (["--pin", "y.max()"], None),
-    (["--pin", "0.5"], None), (["--pin", "1e30"], None),
-    (["--pin", "10 ** 400 > y"], "'10 ** 400' is out of range"),
-    (["--pin", "1 / 0 < y"], "'1 / 0' divides by zero"),
-    (["--pin", " + ".join(["y"] * 5000) + " > 0"], "is longer than 1000 characters"),
-    (["--pin", "y > " + "9" * 100_000], "is longer than 1000 characters"),
-])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["--collider", "sphere:radius=1,radius=2"], "collider sphere: setting 'radius' is given twice"),
+        (["--collider", "plane:point=0/0/0,point=0/1/0"], "setting 'point' is given twice"),
+        (["--collider", ""], "the collider is empty; give KIND:K=V,..."),
+        (["--collider", "sphere:radius=1", "--collider", ""], "has an empty collider"),
+        (["--collider", "sphere:radius=1+"], "has an empty collider"),
+        (["--collider", 'mesh:path="a.obj'], 'has an unclosed " quote'),
+        (["--pin", "1"], None),
+        (["--pin", "x"], None),
+        (["--pin", "y + 0.5"], None),
+        (["--pin", "y.max()"], None),
+        (["--pin", "0.5"], None),
+        (["--pin", "1e30"], None),
+        (["--pin", "10 ** 400 > y"], "'10 ** 400' is out of range"),
+        (["--pin", "1 / 0 < y"], "'1 / 0' divides by zero"),
+        (["--pin", " + ".join(["y"] * 5000) + " > 0"], "is longer than 1000 characters"),
+        (["--pin", "y > " + "9" * 100_000], "is longer than 1000 characters"),
+    ],
+)
 def test_collider_and_pin_inputs_are_refused_in_one_short_line(capsys, argv, message):
     scenario = "mesh" if argv[0] == "--pin" else "sheet"
     with pytest.raises(SystemExit) as exc:
@@ -231,20 +319,28 @@ def test_a_predicate_that_divides_by_zero_at_a_vertex_prints_no_numpy_warning(ca
     code, out, err = run_cli(capsys, "run", "mesh", "--pin", "y / (x - x) > 0", "--duration", "0.01", "--json")
     assert code == 0, err
     assert "RuntimeWarning" not in err and json.loads(out)["scenario"] == "mesh"
-    assert [str(w.message) for w in recwarn if issubclass(w.category, RuntimeWarning)] == []  # none raised, so none printed
+    assert [
+        str(w.message) for w in recwarn if issubclass(w.category, RuntimeWarning)
+    ] == []  # none raised, so none printed
 
 
-@pytest.mark.parametrize("argv,message", [
-    (["run", "sheet", "--html", ""], "HTML path is empty"),
-    (["run", "sheet", "--usd", ""], "USD path is empty"),
-    (["run", "sheet", "--preview", ""], "preview path is empty"),
-    (["bench", "--seconds", "1e40"], "argument --seconds: '1e40' does not fit in float32"),
-    (["bench", "--seconds", "inf"], "argument --seconds: 'inf' is not a finite number"),
-    (["bench", "--seconds", "1e5"], "100000 s is more than 86400 s (a day) per combination"),
-    (["bench", "--steps", "10000000000000"], "--steps must be at most 1e+12, got 10000000000000"),
-    (["study", "--sizes", "4,99999", "--out", "never-made"], "the study's 99999 x 99999 cloth (--sizes) needs about"),
-    (["run", "sheet", "--rows", "1" * 100_000], "invalid int value: '" + "1" * 60 + "...' (100,000 characters)"),
-])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["run", "sheet", "--html", ""], "HTML path is empty"),
+        (["run", "sheet", "--usd", ""], "USD path is empty"),
+        (["run", "sheet", "--preview", ""], "preview path is empty"),
+        (["bench", "--seconds", "1e40"], "argument --seconds: '1e40' does not fit in float32"),
+        (["bench", "--seconds", "inf"], "argument --seconds: 'inf' is not a finite number"),
+        (["bench", "--seconds", "1e5"], "100000 s is more than 86400 s (a day) per combination"),
+        (["bench", "--steps", "10000000000000"], "--steps must be at most 1e+12, got 10000000000000"),
+        (
+            ["study", "--sizes", "4,99999", "--out", "never-made"],
+            "the study's 99999 x 99999 cloth (--sizes) needs about",
+        ),
+        (["run", "sheet", "--rows", "1" * 100_000], "invalid int value: '" + "1" * 60 + "...' (100,000 characters)"),
+    ],
+)
 def test_more_inputs_are_refused_in_one_line(capsys, tmp_path, monkeypatch, argv, message):
     import warpcloth.lab.bench as lab_bench
     import warpcloth.lab.study as study
@@ -270,23 +366,40 @@ def test_the_study_checks_memory_before_its_first_run(capsys, tmp_path, monkeypa
     import warpcloth.lab.study as study
 
     ran = []
-    monkeypatch.setattr(study, "Measurements", lambda *a, **k: ran.append(a) or (_ for _ in ()).throw(AssertionError("ran")))
+    monkeypatch.setattr(
+        study, "Measurements", lambda *a, **k: ran.append(a) or (_ for _ in ()).throw(AssertionError("ran"))
+    )
     code = main(["study", "--sizes", "4,6,99999", "--integrators", "rk4", "--out", str(tmp_path / "s")])
     assert code == 2 and ran == [] and "99999 x 99999" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("argv", [["list"], ["list", "--examples"], ["run", "sheet", "--rows", "4", "--cols", "4", "--duration", "0.01"]])
+@pytest.mark.parametrize(
+    "argv", [["list"], ["list", "--examples"], ["run", "sheet", "--rows", "4", "--cols", "4", "--duration", "0.01"]]
+)
 def test_a_closed_stdout_is_one_line_exit_74(argv):
-    p = subprocess.run([sys.executable, "-m", "warpcloth.cli", *argv], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                       text=True, preexec_fn=lambda: __import__("os").close(1))
+    p = subprocess.run(
+        [sys.executable, "-m", "warpcloth.cli", *argv],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: __import__("os").close(1),
+    )
     assert p.returncode == 74, p.stderr
     assert p.stderr.splitlines() == ["warpcloth: error: cannot write to stdout: it is closed"]
-    q = subprocess.run([sys.executable, "-m", "warpcloth.cli", "list", "--quiet"], stderr=subprocess.PIPE, text=True,
-                       preexec_fn=lambda: __import__("os").close(1))
+    q = subprocess.run(
+        [sys.executable, "-m", "warpcloth.cli", "list", "--quiet"],
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: __import__("os").close(1),
+    )
     assert q.returncode == 0 and q.stderr == ""
 
 
 def test_numpy_warnings_never_reach_stderr(capsys, recwarn):
-    code, out, err = run_cli(capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--width", "3e38", "--duration", "0.01", "--json")
+    code, out, err = run_cli(
+        capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--width", "3e38", "--duration", "0.01", "--json"
+    )
     assert "RuntimeWarning" not in err and "encountered" not in err, err
-    assert [str(w.message) for w in recwarn if issubclass(w.category, RuntimeWarning)] == []  # pytest would hide them from err
+    assert [
+        str(w.message) for w in recwarn if issubclass(w.category, RuntimeWarning)
+    ] == []  # pytest would hide them from err

@@ -11,12 +11,24 @@ from pathlib import Path
 
 import pytest
 
-from warpcloth.io import progress as progress_module
 from warpcloth.cli import example_path, main
+from warpcloth.io import progress as progress_module
 from warpcloth.io.progress import Progress
 
 REPO = Path(__file__).resolve().parents[1]
-BENCH = ["bench", "--integrators", "explicit_euler", "--sizes", "4", "--steps", "3", "--graph", "off", "--devices", "cpu"]
+BENCH = [
+    "bench",
+    "--integrators",
+    "explicit_euler",
+    "--sizes",
+    "4",
+    "--steps",
+    "3",
+    "--graph",
+    "off",
+    "--devices",
+    "cpu",
+]
 
 
 def _run(capsys, *argv):
@@ -32,13 +44,29 @@ def _usage_error(capsys, *argv):
     return exit_.value.code, err
 
 
-@pytest.mark.parametrize("argv", [
-    ["run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "3"],
-    ["list"],
-    ["list", "--examples"],
-    ["max-dt", "sheet", "--rows", "4", "--cols", "4", "--duration", "0.05", "--precision", "0.5", "--start", "1e-3"],
-    BENCH,
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "3"],
+        ["list"],
+        ["list", "--examples"],
+        [
+            "max-dt",
+            "sheet",
+            "--rows",
+            "4",
+            "--cols",
+            "4",
+            "--duration",
+            "0.05",
+            "--precision",
+            "0.5",
+            "--start",
+            "1e-3",
+        ],
+        BENCH,
+    ],
+)
 def test_quiet_prints_nothing_on_success(capsys, argv):
     code, out, err = _run(capsys, *argv)
     assert code == 0 and out.strip(), "without --quiet the command prints something"
@@ -49,7 +77,9 @@ def test_quiet_prints_nothing_on_success(capsys, argv):
 
 def test_quiet_run_still_writes_outputs_and_errors(capsys, tmp_path):
     usd = tmp_path / "q.usda"
-    code, out, err = _run(capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "2", "--usd", str(usd), "-q")
+    code, out, err = _run(
+        capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "2", "--usd", str(usd), "-q"
+    )
     assert code == 0 and out == "" and err == "" and usd.exists()
     code, out, err = _run(capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "2", "--json", "-q")
     assert code == 0 and json.loads(out)["rows"] == 4  # what --json asks for still prints
@@ -76,9 +106,13 @@ def test_fail_unstable_exits_3(capsys):
 
 def test_python_dash_m_warpcloth():
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    p = subprocess.run([sys.executable, "-m", "warpcloth", "list"], capture_output=True, text=True, env=env, timeout=300)
+    p = subprocess.run(
+        [sys.executable, "-m", "warpcloth", "list"], capture_output=True, text=True, env=env, timeout=300
+    )
     assert p.returncode == 0 and "scenarios:" in p.stdout and "integrators:" in p.stdout
-    p = subprocess.run([sys.executable, "-m", "warpcloth", "run", "nope"], capture_output=True, text=True, env=env, timeout=300)
+    p = subprocess.run(
+        [sys.executable, "-m", "warpcloth", "run", "nope"], capture_output=True, text=True, env=env, timeout=300
+    )
     assert p.returncode == 2 and p.stderr.startswith("warpcloth: error:")
 
 
@@ -88,8 +122,12 @@ def test_examples_ship_with_the_package(capsys):
     rows = [line.rsplit(None, 2) for line in out.strip().splitlines()]
     rows = [r for r in rows if len(r) == 3]
     files = {(kind.strip(), name): path for kind, name, path in rows if os.path.isabs(path)}
-    assert set(files) == {("test list:", "quick"), ("test list:", "seed_plan"), ("mesh:", "cape"),
-                          ("scenario file:", "cape")}
+    assert set(files) == {
+        ("test list:", "quick"),
+        ("test list:", "seed_plan"),
+        ("mesh:", "cape"),
+        ("scenario file:", "cape"),
+    }
     for (kind, name), path in files.items():
         shipped = REPO / "examples" / os.path.basename(path)
         assert os.path.isfile(path) and Path(path).read_bytes() == shipped.read_bytes()
@@ -167,5 +205,19 @@ def test_run_shows_progress_on_a_terminal(capsys, monkeypatch):
     code, out, err = _run(capsys, "run", "flag", "--rows", "4", "--cols", "4", "--num-frames", "6")
     assert code == 0 and "\r" in err and "run flag" in err and "ETA" in err
     assert "\r" not in out
-    code, out, err = _run(capsys, "max-dt", "sheet", "--rows", "4", "--cols", "4", "--duration", "0.05", "--precision", "0.5", "--start", "1e-3")
+    code, out, err = _run(
+        capsys,
+        "max-dt",
+        "sheet",
+        "--rows",
+        "4",
+        "--cols",
+        "4",
+        "--duration",
+        "0.05",
+        "--precision",
+        "0.5",
+        "--start",
+        "1e-3",
+    )
     assert code == 0 and "trial 1: dt=" in err and "ETA" in err

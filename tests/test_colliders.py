@@ -5,11 +5,20 @@ import math
 
 import numpy as np
 import pytest
-
-from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, WarpclothError, build_grid_cloth, integrator_names
-
-from warpcloth.run.harness import RunHarness
 from helpers import free_particles, parse_collider
+
+from warpcloth import (
+    Box,
+    Capsule,
+    Control,
+    Plane,
+    Simulator,
+    Sphere,
+    WarpclothError,
+    build_grid_cloth,
+    integrator_names,
+)
+from warpcloth.run.harness import RunHarness
 
 G = 9.81
 INTEGRATORS = ["explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd", "vbd", "projective"]
@@ -17,7 +26,12 @@ INTEGRATORS = ["explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 def test_a_dropped_particle_rests_at_the_thickness(integrator):
-    sim = Simulator(free_particles([[0.0, 0.5, 0.0]]), integrator, Control(colliders=(Plane(thickness=0.01),), device="cpu"), dt=1e-3)
+    sim = Simulator(
+        free_particles([[0.0, 0.5, 0.0]]),
+        integrator,
+        Control(colliders=(Plane(thickness=0.01),), device="cpu"),
+        dt=1e-3,
+    )
     sim.simulate(800)  # it lands after 0.32 s
     assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(0.01, abs=1e-6)
     assert abs(float(sim.state.particle_qd.numpy()[0, 1])) < 1e-4
@@ -27,7 +41,12 @@ def slide(integrator, theta, mu, duration=0.5, dt=1e-3):
     """A particle released at rest on a plane inclined by theta: its displacement along the slope."""
     n = (-math.sin(theta), math.cos(theta), 0.0)
     down = np.array([-math.cos(theta), -math.sin(theta), 0.0])
-    sim = Simulator(free_particles([[0.0, 0.0, 0.0]]), integrator, Control(colliders=(Plane(normal=n, friction=mu),), device="cpu"), dt=dt)
+    sim = Simulator(
+        free_particles([[0.0, 0.0, 0.0]]),
+        integrator,
+        Control(colliders=(Plane(normal=n, friction=mu),), device="cpu"),
+        dt=dt,
+    )
     x0 = sim.state.particle_q.numpy()[0].astype(np.float64)
     sim.simulate(int(round(duration / dt)))
     x = sim.state.particle_q.numpy()[0].astype(np.float64)
@@ -55,8 +74,12 @@ def depth_into(sphere, x):
 def test_a_cloth_dropped_on_a_sphere_never_goes_inside(integrator):
     sphere = Sphere(center=(0.5, 0.0, 0.5), radius=0.3, thickness=0.005, friction=0.3)
     model = build_grid_cloth(10, 10, 1.0, 1.0, 0.1, plane="horizontal", origin=(0.0, 0.4, 0.0), device="cpu")
-    sim = Simulator(model, integrator, Control(drag_rate=0.5, colliders=(sphere,), device="cpu"),
-                    dt=1.0 / 60.0 if integrator in ("implicit_euler", "pbd", "xpbd") else None)
+    sim = Simulator(
+        model,
+        integrator,
+        Control(drag_rate=0.5, colliders=(sphere,), device="cpu"),
+        dt=1.0 / 60.0 if integrator in ("implicit_euler", "pbd", "xpbd") else None,
+    )
     deepest, touched = 0.0, False
     for _ in range(40):  # 0.67 s: it lands at 0.16 s and drapes
         sim.simulate(max(1, round(1.0 / 60.0 / sim.dt)))
@@ -67,20 +90,34 @@ def test_a_cloth_dropped_on_a_sphere_never_goes_inside(integrator):
     assert np.isfinite(sim.state.particle_q.numpy()).all()
 
 
-@pytest.mark.parametrize("collider,top", [
-    (Box(center=(0.0, -0.5, 0.0), half_extents=(1.0, 0.5, 1.0), thickness=0.002), 0.002),
-    (Box(center=(0.0, -0.5, 0.0), half_extents=(0.5, 1.0, 0.5), rotation=(0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4))), 0.0),
-    (Capsule(a=(-1.0, -0.2, 0.0), b=(1.0, -0.2, 0.0), radius=0.2, thickness=0.001), 0.001),
-    (Sphere(center=(0.0, -0.2, 0.0), radius=0.2), 0.0),
-])
+@pytest.mark.parametrize(
+    "collider,top",
+    [
+        (Box(center=(0.0, -0.5, 0.0), half_extents=(1.0, 0.5, 1.0), thickness=0.002), 0.002),
+        (
+            Box(
+                center=(0.0, -0.5, 0.0),
+                half_extents=(0.5, 1.0, 0.5),
+                rotation=(0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4)),
+            ),
+            0.0,
+        ),
+        (Capsule(a=(-1.0, -0.2, 0.0), b=(1.0, -0.2, 0.0), radius=0.2, thickness=0.001), 0.001),
+        (Sphere(center=(0.0, -0.2, 0.0), radius=0.2), 0.0),
+    ],
+)
 def test_shapes_hold_a_particle_on_top(collider, top):
-    sim = Simulator(free_particles([[0.0, 0.3, 0.0]]), "explicit_euler", Control(colliders=(collider,), device="cpu"), dt=1e-3)
+    sim = Simulator(
+        free_particles([[0.0, 0.3, 0.0]]), "explicit_euler", Control(colliders=(collider,), device="cpu"), dt=1e-3
+    )
     sim.simulate(600)
     assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(top, abs=1e-6)
 
 
 def test_pins_win_over_contacts():
-    model = build_grid_cloth(3, 3, 0.2, 0.2, 0.05, pins=[0], origin=(0.0, -0.05, 0.0), device="cpu")  # pin 0 below the ground
+    model = build_grid_cloth(
+        3, 3, 0.2, 0.2, 0.05, pins=[0], origin=(0.0, -0.05, 0.0), device="cpu"
+    )  # pin 0 below the ground
     sim = Simulator(model, "explicit_euler", Control(colliders=(Plane(),), device="cpu"))
     sim.simulate(50)
     np.testing.assert_array_equal(sim.state.particle_q.numpy()[0], model.host["q"][0])
@@ -96,17 +133,23 @@ def test_colliders_can_be_replaced_and_captured_runs_follow():
     assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(-0.5, abs=1e-6)
 
 
-@pytest.mark.parametrize("make,match", [
-    (lambda: Sphere(radius=-1.0), "sphere radius must be > 0"),
-    (lambda: Plane(thickness=-0.1), "collider thickness must be >= 0"),
-    (lambda: Plane(friction=-0.1), "collider friction mu must be >= 0"),
-    (lambda: Box(half_extents=(1.0, 0.0, 1.0)), "degenerate box"),
-    (lambda: Plane(normal=(0, 0, 0)), "plane normal must not be zero"),
-    (lambda: Capsule(radius=float("nan")), "capsule radius must be a finite number"),
-    (lambda: parse_collider("torus:radius=1"), "unknown collider kind 'torus'"),
-    (lambda: parse_collider("sphere:radius=1,colour=2"), "unknown or empty setting 'colour=2'"),
-    (lambda: Control(colliders=("sphere",)), "colliders must be Plane, Sphere, Capsule, Box or MeshCollider objects, got .sphere."),
-])
+@pytest.mark.parametrize(
+    "make,match",
+    [
+        (lambda: Sphere(radius=-1.0), "sphere radius must be > 0"),
+        (lambda: Plane(thickness=-0.1), "collider thickness must be >= 0"),
+        (lambda: Plane(friction=-0.1), "collider friction mu must be >= 0"),
+        (lambda: Box(half_extents=(1.0, 0.0, 1.0)), "degenerate box"),
+        (lambda: Plane(normal=(0, 0, 0)), "plane normal must not be zero"),
+        (lambda: Capsule(radius=float("nan")), "capsule radius must be a finite number"),
+        (lambda: parse_collider("torus:radius=1"), "unknown collider kind 'torus'"),
+        (lambda: parse_collider("sphere:radius=1,colour=2"), "unknown or empty setting 'colour=2'"),
+        (
+            lambda: Control(colliders=("sphere",)),
+            "colliders must be Plane, Sphere, Capsule, Box or MeshCollider objects, got .sphere.",
+        ),
+    ],
+)
 def test_bad_colliders_name_the_value(make, match):
     with pytest.raises(WarpclothError, match=match):
         make()
@@ -156,8 +199,21 @@ def test_collider_flag_and_scenario_file(capsys, tmp_path):
 
     from warpcloth.cli import main
 
-    argv = ["run", "sheet", "--rows", "8", "--cols", "8", "--duration", "0.5", "--json",
-            "--collider", "sphere:center=0/1.3/0.05,radius=0.2,friction=0.3", "--collider", "plane:point=0/1.2/0"]
+    argv = [
+        "run",
+        "sheet",
+        "--rows",
+        "8",
+        "--cols",
+        "8",
+        "--duration",
+        "0.5",
+        "--json",
+        "--collider",
+        "sphere:center=0/1.3/0.05,radius=0.2,friction=0.3",
+        "--collider",
+        "plane:point=0/1.2/0",
+    ]
     assert main(argv) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["stable"] and d["equilibrium_criterion"] == "speed"
@@ -169,7 +225,9 @@ def test_collider_flag_and_scenario_file(capsys, tmp_path):
 
     (tmp_path / "grid.obj").write_text("v 0 1 0\nv 1 1 0\nv 0 1 1\nv 1 1 1\nf 1 3 4 2\n")
     path = tmp_path / "s.toml"
-    path.write_text('[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\ncenter = [0.5, 0.5, 0.5]\nradius = 0.3\nfriction = 0.2\n')
+    path.write_text(
+        '[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\ncenter = [0.5, 0.5, 0.5]\nradius = 0.3\nfriction = 0.2\n'
+    )
     sim = get_scenario(str(path)).build()
     assert sim.control.colliders == (Sphere(center=(0.5, 0.5, 0.5), radius=0.3, friction=0.2),)
     path.write_text('[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\nradius = 0.3\ncolour = 1\n')

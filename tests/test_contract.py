@@ -15,27 +15,28 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 import warp as wp
-
-import math
+from conftest import DEVICES
+from helpers import spring_params
+from warpcloth.scenarios import flag
 
 from warpcloth import Control, Plane, Simulator, SpringParams, SpringType, build_grid_cloth, make_integrator
 from warpcloth.integrators import integrator_names
-from warpcloth.scenarios import flag
 from warpcloth.sim.model import DEFAULT_STIFFNESS, build_model
 from warpcloth.simulator import graph_capture_supported
-
-from conftest import DEVICES
-from helpers import spring_params
 
 NAMES = integrator_names()
 G = 9.81
 
 
 def test_the_contract_covers_every_scheme():
-    assert {"explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd", "vbd", "projective"} <= set(NAMES)
+    assert {"explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd", "vbd", "projective"} <= set(
+        NAMES
+    )
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -54,7 +55,9 @@ def test_pins_do_not_move_by_one_bit(name):
 def hanging_mass(ks: float, mass: float, kd: float):
     """Particle 0 pinned at y = 2 m, particle 1 hanging 0.5 m below it on one spring."""
     q = [[0.0, 2.0, 0.0], [0.0, 1.5, 0.0]]
-    return build_model(q, [[0, 1]], [SpringType.STRUCTURAL], [mass, mass], spring_params(ks, kd), pins=[0], device="cpu")
+    return build_model(
+        q, [[0, 1]], [SpringType.STRUCTURAL], [mass, mass], spring_params(ks, kd), pins=[0], device="cpu"
+    )
 
 
 def expected_extension(integrator, mass: float, ks: float, dt: float) -> float:
@@ -76,7 +79,9 @@ def test_hanging_mass_rests_at_its_schemes_extension(name):
     y = sim.state.particle_q.numpy()[:, 1].astype(np.float64)
     extension = (y[0] - y[1]) - 0.5
     want = expected_extension(integrator, mass, ks, sim.dt)
-    assert abs(extension - want) < 2e-5, f"{name}: extension {extension:.7f} m, expected {want:.7f} m (dt {sim.dt:.3g} s)"
+    assert abs(extension - want) < 2e-5, (
+        f"{name}: extension {extension:.7f} m, expected {want:.7f} m (dt {sim.dt:.3g} s)"
+    )
     assert np.abs(sim.state.particle_qd.numpy()).max() < 1e-3
 
 
@@ -199,7 +204,9 @@ def test_free_cloth_falls_along_its_plane_by_its_schemes_discrete_free_fall(name
     moved = x0[0] - sim.state.particle_q.numpy().astype(np.float64).mean(axis=0)[0]
     want = G * discrete_free_fall(integrator, steps, sim.dt)
     rel = 1e-3 if name in EXACT else 0.02
-    assert moved == pytest.approx(want, rel=rel), f"{name}: fell {moved:.6f} m along its plane, expected {want:.6f} m (dt {sim.dt:.3g} s)"
+    assert moved == pytest.approx(want, rel=rel), (
+        f"{name}: fell {moved:.6f} m along its plane, expected {want:.6f} m (dt {sim.dt:.3g} s)"
+    )
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -209,8 +216,11 @@ def test_free_cloth_slides_down_a_frictionless_slope_at_g_sin(name):
     n h g sin(30) (to 1e-3 for the exact schemes, 2 % for the solvers; vbd slid at 0.6 % of it)."""
     theta = math.radians(30.0)
     model = build_grid_cloth(8, 8, 0.3, 0.3, 0.05, plane="horizontal", origin=(0.0, 0.005, 0.0), device="cpu")
-    control = Control(gravity=(G * math.sin(theta), -G * math.cos(theta), 0.0), colliders=(Plane(thickness=0.005, friction=0.0),),
-                      device="cpu")
+    control = Control(
+        gravity=(G * math.sin(theta), -G * math.cos(theta), 0.0),
+        colliders=(Plane(thickness=0.005, friction=0.0),),
+        device="cpu",
+    )
     sim = Simulator(model, name, control)
     steps = max(1, round(0.5 / sim.dt))
     sim.simulate(steps)
@@ -219,7 +229,9 @@ def test_free_cloth_slides_down_a_frictionless_slope_at_g_sin(name):
     assert np.abs(y - 0.005).max() < 1e-4, f"{name}: left the surface by {np.abs(y - 0.005).max():.3g} m"
     want = steps * sim.dt * G * math.sin(theta)
     rel = 1e-3 if name in EXACT else 0.02
-    assert v[:, 0].mean() == pytest.approx(want, rel=rel), f"{name}: slides at {v[:, 0].mean():.5f} m/s, expected {want:.5f} m/s"
+    assert v[:, 0].mean() == pytest.approx(want, rel=rel), (
+        f"{name}: slides at {v[:, 0].mean():.5f} m/s, expected {want:.5f} m/s"
+    )
 
 
 #: midpoint (RK2) has no stable dt without damping (its default dt needs kd or drag): it amplifies
@@ -235,7 +247,9 @@ def test_free_cloth_keeps_its_momentum(name):
     default dt (the total |m v| of the oscillation is ~1e-2 kg m/s; vbd made 0.03 kg m/s)."""
     params = {t: SpringParams(DEFAULT_STIFFNESS[t], 0.0) for t in SpringType}
     model = build_grid_cloth(16, 16, 1.0, 1.0, 0.2, spring_params=params, plane="horizontal", device="cpu")
-    sim = Simulator(model, name, Control(gravity=(0.0, 0.0, 0.0), drag_rate=0.0, device="cpu"), dt=UNDAMPED_DT.get(name))
+    sim = Simulator(
+        model, name, Control(gravity=(0.0, 0.0, 0.0), drag_rate=0.0, device="cpu"), dt=UNDAMPED_DT.get(name)
+    )
     q = sim.state.particle_q.numpy()
     c = q.mean(axis=0)
     sim.state.particle_q.assign(((q - c) * 1.05 + c).astype(np.float32))

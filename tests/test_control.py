@@ -4,13 +4,12 @@ reassignment; one device rule for every builder."""
 import numpy as np
 import pytest
 import warp as wp
+from helpers import spring_params
+from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator, WarpclothError, WindSchedule, build_grid_cloth
 from warpcloth.sim.device import resolve_device
 from warpcloth.sim.model import build_model
-from warpcloth.scenarios import flag, sheet
-
-from helpers import spring_params
 
 
 def device_wind_per_step(schedule, dt, steps, use_graph=False):
@@ -25,11 +24,18 @@ def device_wind_per_step(schedule, dt, steps, use_graph=False):
     return out
 
 
-@pytest.mark.parametrize("schedule,dt,steps", [
-    (WindSchedule(starts=(0.0, 0.1), winds=((8.0, 0.0, 3.0), (2.0, 0.0, -1.0))), 1e-4, 1010),
-    (WindSchedule.gusts((8.0, 0.0, 3.0), on=0.1, off=0.15), 1e-3, 400),  # float32(0.35) mod 0.25 < 0.1 switched late
-    (WindSchedule.gusts((8.0, 0.0, 3.0), on=0.3, off=0.2), 1.0 / 60.0, 90),
-])
+@pytest.mark.parametrize(
+    "schedule,dt,steps",
+    [
+        (WindSchedule(starts=(0.0, 0.1), winds=((8.0, 0.0, 3.0), (2.0, 0.0, -1.0))), 1e-4, 1010),
+        (
+            WindSchedule.gusts((8.0, 0.0, 3.0), on=0.1, off=0.15),
+            1e-3,
+            400,
+        ),  # float32(0.35) mod 0.25 < 0.1 switched late
+        (WindSchedule.gusts((8.0, 0.0, 3.0), on=0.3, off=0.2), 1.0 / 60.0, 90),
+    ],
+)
 def test_device_schedule_equals_host_schedule_at_every_step(schedule, dt, steps):
     for t, w in device_wind_per_step(schedule, dt, steps):
         np.testing.assert_array_equal(w, schedule(t).astype(np.float32), err_msg=f"t = {t!r}")
@@ -49,7 +55,9 @@ def test_reassigned_wind_schedule_reaches_the_device():
     np.testing.assert_array_equal(control.wind.numpy()[0], [1.0, 0.0, 0.0])
     control.wind_schedule = WindSchedule.constant((0.0, 0.0, 5.0))
     np.testing.assert_array_equal(control.wind.numpy()[0], [0.0, 0.0, 5.0])
-    control.wind_schedule = WindSchedule(starts=(0.0, 1.0, 2.0), winds=((1, 1, 1), (2, 2, 2), (3, 3, 3)))  # more entries
+    control.wind_schedule = WindSchedule(
+        starts=(0.0, 1.0, 2.0), winds=((1, 1, 1), (2, 2, 2), (3, 3, 3))
+    )  # more entries
     control.set_time(1.5)
     np.testing.assert_array_equal(control.wind.numpy()[0], [2.0, 2.0, 2.0])
     with pytest.raises(WarpclothError, match="wind_schedule must be a WindSchedule"):

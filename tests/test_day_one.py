@@ -30,8 +30,20 @@ def test_vertices_inside_are_counted_per_collider():
 def test_a_cloth_started_inside_a_sphere_is_warned_before_the_run_and_its_failure_explained(capsys):
     # the drape's cloth (y = 0.75) inside a sphere of radius 0.5 at y = 0.4; a low instability
     # strain makes the push-out an instability: the summary names the collider as the cause
-    code = main(["run", "drape", "--size", "8", "--num-frames", "5", "--collider", "sphere:center=0/0.4/0,radius=0.5",
-                 "--instability-strain", "0.01"])
+    code = main(
+        [
+            "run",
+            "drape",
+            "--size",
+            "8",
+            "--num-frames",
+            "5",
+            "--collider",
+            "sphere:center=0/0.4/0,radius=0.5",
+            "--instability-strain",
+            "0.01",
+        ]
+    )
     out, err = capsys.readouterr()
     assert code == 0
     warning = [line for line in err.splitlines() if "start inside" in line]

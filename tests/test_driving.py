@@ -35,7 +35,9 @@ def _driven_run(integrator, interpolation="hermite", collider=True):
     model = build_grid_cloth(N, N, pins=CORNERS, device="cpu")
     rest = model.host["q"].astype(np.float64)
     hand = PinTrack.driven(CORNERS, interpolation=interpolation, name="hand")
-    colliders = (Sphere(**SPHERE, track=ColliderTrack.driven(interpolation)), Plane(point=(0, -1, 0))) if collider else ()
+    colliders = (
+        (Sphere(**SPHERE, track=ColliderTrack.driven(interpolation)), Plane(point=(0, -1, 0))) if collider else ()
+    )
     sim = Simulator(model, integrator, Control(device="cpu", pin_tracks=(hand,), colliders=colliders))
     steps = _steps(sim.dt)
     times, frames = [0.0], []
@@ -68,9 +70,15 @@ def _track_run(integrator, dt, times, interpolation="hermite", collider=True):
     if collider:
         ball = [_ball(t) for t in hosts]
         offsets = np.stack([np.zeros(3), np.zeros(3), *(d for d, _ in ball)])
-        ckw = dict(tangents=np.stack([np.zeros(3), np.zeros(3), *(u for _, u in ball)])) if interpolation == "hermite" else {}
-        colliders = (Sphere(**SPHERE, track=ColliderTrack.keyframes(keys, offsets, interpolation=interpolation, **ckw)),
-                     Plane(point=(0, -1, 0)))
+        ckw = (
+            dict(tangents=np.stack([np.zeros(3), np.zeros(3), *(u for _, u in ball)]))
+            if interpolation == "hermite"
+            else {}
+        )
+        colliders = (
+            Sphere(**SPHERE, track=ColliderTrack.keyframes(keys, offsets, interpolation=interpolation, **ckw)),
+            Plane(point=(0, -1, 0)),
+        )
     sim = Simulator(model, integrator, Control(device="cpu", pin_tracks=(track,), colliders=colliders), dt=dt)
     frames = []
     for _ in range(FRAMES):

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 import warpcloth.lab.sweep as sweep
-from warpcloth.io import files as fileio
 from warpcloth.cli import main
+from warpcloth.io import files as fileio
 
 REPO = Path(__file__).resolve().parents[1]
 WARPCLOTH = [sys.executable, "-m", "warpcloth.cli"]
@@ -43,8 +43,11 @@ def no_temporaries(folder):
 
 
 # -- 1. --resume validates before it changes anything -----------------------------------------
-@pytest.mark.parametrize("content", [b"name,score\nalice,1\nbob,2", bytes(range(256)) * 20 + b"tail without newline"],
-                         ids=["foreign-csv", "binary"])
+@pytest.mark.parametrize(
+    "content",
+    [b"name,score\nalice,1\nbob,2", bytes(range(256)) * 20 + b"tail without newline"],
+    ids=["foreign-csv", "binary"],
+)
 def test_refused_resume_leaves_the_file_byte_identical(tmp_path, monkeypatch, capsys, content):
     path = write(tmp_path, K_XML)
     out = tmp_path / "s.csv"
@@ -52,7 +55,10 @@ def test_refused_resume_leaves_the_file_byte_identical(tmp_path, monkeypatch, ca
     monkeypatch.setattr(sweep, "execute_run", lambda *a: pytest.fail("a run started"))
     assert main(["sweep", path, "-o", str(out), "--resume"]) == 2
     err = capsys.readouterr().err
-    assert err_lines(err) == [l for l in err_lines(err) if l.startswith("warpcloth: error: cannot resume")] and len(err_lines(err)) == 1
+    assert (
+        err_lines(err) == [l for l in err_lines(err) if l.startswith("warpcloth: error: cannot resume")]
+        and len(err_lines(err)) == 1
+    )
     assert out.read_bytes() == content  # was cut to its last newline before the refusal
     assert sorted(os.listdir(tmp_path)) == ["k.xml", "s.csv"]  # no side file, no lock, no temporary
 
@@ -92,8 +98,12 @@ def test_a_second_writer_is_refused_while_the_first_finishes_intact(tmp_path, ca
     path = write(tmp_path, K_XML)
     out = tmp_path / "r.csv"
     go = tmp_path / "go"
-    first = subprocess.Popen([sys.executable, "-c", HOLD, str(go), "sweep", path, "-o", str(out), "--overwrite", "-q"],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = subprocess.Popen(
+        [sys.executable, "-c", HOLD, str(go), "sweep", path, "-o", str(out), "--overwrite", "-q"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 120
         while not (out.exists() and out.stat().st_size > 0) and first.poll() is None and time.monotonic() < deadline:
@@ -135,7 +145,10 @@ def small_disk(tmp_path):
     if sys.platform != "linux" or os.geteuid() != 0:
         yield None
         return
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(folder)], capture_output=True).returncode == 0
+    mounted = (
+        subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(folder)], capture_output=True).returncode
+        == 0
+    )
     if not mounted:
         yield None
         return
@@ -210,18 +223,36 @@ def test_bench_csv_on_a_full_disk_is_one_line(tmp_path, small_disk, monkeypatch,
     target.write_text("old")
     if small_disk is not None:
         (folder / "filler").write_bytes(b"\0" * (64 * 1024 - 8192))
-    monkeypatch.setattr(bench, "bench_one", lambda name, size, device, graph, steps, seconds, scenario="sheet", windows=5: {
-        c: 1 for c in bench.COLUMNS} | {"integrator": name, "device": device, "graph": graph, "rows": size, "cols": size,
-                                        "particles": size * size, "ms_per_step_median": 1.0, "steps_per_s": 1000.0,
-                                        "realtime_factor": 1.0, "floor_multiple": "", "speedup_vs_cpu": "",
-                                        "solver_iterations_mean": "x" * 4000})
+    monkeypatch.setattr(
+        bench,
+        "bench_one",
+        lambda name, size, device, graph, steps, seconds, scenario="sheet", windows=5: (
+            {c: 1 for c in bench.COLUMNS}
+            | {
+                "integrator": name,
+                "device": device,
+                "graph": graph,
+                "rows": size,
+                "cols": size,
+                "particles": size * size,
+                "ms_per_step_median": 1.0,
+                "steps_per_s": 1000.0,
+                "realtime_factor": 1.0,
+                "floor_multiple": "",
+                "speedup_vs_cpu": "",
+                "solver_iterations_mean": "x" * 4000,
+            }
+        ),
+    )
     if small_disk is None:
         monkeypatch.setattr(fileio.os, "fsync", _enospc)
     code = bench_main(["--sizes", "4,5,6", "--steps", "1", "--devices", "cpu", "--graph", "off", "--out", str(target)])
     err = capsys.readouterr().err
     assert code == fileio.EXIT_IO
     lines = [l for l in err_lines(err) if not l.startswith("bench:")]
-    assert len(lines) == 1 and lines[0].startswith(f"warpcloth: error: no space left on the device of {folder} writing the benchmark CSV")
+    assert len(lines) == 1 and lines[0].startswith(
+        f"warpcloth: error: no space left on the device of {folder} writing the benchmark CSV"
+    )
     assert "bytes needed" in lines[0]
     assert target.read_text() == "old"
     assert no_temporaries(folder) == []
@@ -230,7 +261,9 @@ def test_bench_csv_on_a_full_disk_is_one_line(tmp_path, small_disk, monkeypatch,
 # -- 4. closed and full output pipes -----------------------------------------------------------
 def test_closed_stdout_pipe_ends_quietly(tmp_path):
     path = write(tmp_path, K_XML)
-    proc = subprocess.Popen(WARPCLOTH + ["sweep", path, "-o", "-", "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        WARPCLOTH + ["sweep", path, "-o", "-", "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
     proc.stdout.read(200)
     proc.stdout.close()  # like `| head -c 200`
     err = proc.stderr.read().decode()
@@ -242,7 +275,9 @@ def test_closed_stdout_pipe_ends_quietly(tmp_path):
 def test_full_stdout_is_one_line(tmp_path):
     path = write(tmp_path, K_XML)
     with open("/dev/full", "w") as full:
-        proc = subprocess.run(WARPCLOTH + ["sweep", path, "-o", "-", "-q"], stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
+        proc = subprocess.run(
+            WARPCLOTH + ["sweep", path, "-o", "-", "-q"], stdout=full, stderr=subprocess.PIPE, text=True, timeout=300
+        )
     assert proc.returncode == fileio.EXIT_IO
     assert err_lines(proc.stderr) == ["warpcloth: error: cannot write the CSV to stdout: No space left on device"]
 
@@ -336,8 +371,12 @@ def test_stale_temporaries_of_dead_processes_are_removed_and_reported(tmp_path, 
 
 def test_sigterm_during_run_usd_removes_the_temporary(tmp_path):
     target = tmp_path / "t.usda"
-    proc = subprocess.Popen(WARPCLOTH + ["run", "sheet", "--rows", "40", "--cols", "40", "--duration", "600", "--usd", str(target)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        WARPCLOTH + ["run", "sheet", "--rows", "40", "--cols", "40", "--duration", "600", "--usd", str(target)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 120
         while not no_temporaries(tmp_path) and proc.poll() is None and time.monotonic() < deadline:
@@ -355,7 +394,9 @@ def test_sigterm_during_run_usd_removes_the_temporary(tmp_path):
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
-@pytest.mark.parametrize("argv", [["list"], ["run", "sheet", "--rows", "4", "--cols", "4", "--duration", "0.05", "--json"]])
+@pytest.mark.parametrize(
+    "argv", [["list"], ["run", "sheet", "--rows", "4", "--cols", "4", "--duration", "0.05", "--json"]]
+)
 def test_any_command_onto_a_full_stdout_is_one_line(argv):
     with open("/dev/full", "w") as full:
         proc = subprocess.run(WARPCLOTH + argv, stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
@@ -365,8 +406,10 @@ def test_any_command_onto_a_full_stdout_is_one_line(argv):
 
 # -- issue 31: disk full during value clips; inputs that block --------------------------------------
 def _enospc_tf(*args):
-    raise RuntimeError("\n\tError in 'ArFilesystemWritableAsset::Write' at line 78: 'Error occurred writing file: "
-                       "No space left on device'\n" * 40)
+    raise RuntimeError(
+        "\n\tError in 'ArFilesystemWritableAsset::Write' at line 78: 'Error occurred writing file: "
+        "No space left on device'\n" * 40
+    )
 
 
 def test_usd_clips_on_a_full_disk_are_one_line_exit_74(tmp_path, small_disk, monkeypatch, capsys):
@@ -381,7 +424,9 @@ def test_usd_clips_on_a_full_disk_are_one_line_exit_74(tmp_path, small_disk, mon
     err = capsys.readouterr().err
     assert code == fileio.EXIT_IO, err
     (line,) = err_lines(err)
-    assert line.startswith(f"warpcloth: error: no space left on the device of {folder} writing the USD file {target}"), line
+    assert line.startswith(
+        f"warpcloth: error: no space left on the device of {folder} writing the USD file {target}"
+    ), line
     assert not target.exists() and no_temporaries(folder) == []
 
 
@@ -390,7 +435,9 @@ def test_input_files_are_regular_files_of_bounded_size_read_without_blocking(tmp
 
     (tmp_path / "a.txt").write_bytes(b"x" * 100)
     assert fileio.read_input(str(tmp_path / "a.txt"), "input", 100) == b"x" * 100
-    with pytest.raises(fileio.WarpclothError, match=r"input '.*a.txt' is 100 bytes, more than the 99 bytes warpcloth reads"):
+    with pytest.raises(
+        fileio.WarpclothError, match=r"input '.*a.txt' is 100 bytes, more than the 99 bytes warpcloth reads"
+    ):
         fileio.read_input(str(tmp_path / "a.txt"), "input", 99)
     with pytest.raises(fileio.WarpclothError, match="is a folder, not a file"):
         fileio.check_input_file(str(tmp_path), "input")

@@ -3,11 +3,11 @@ at realistic heights (y = 1.5 m, where ulp(y) = 1.2e-7 m) and small time steps."
 
 import numpy as np
 import pytest
+from warpcloth.scenarios import sheet
 
 from warpcloth import Control, Simulator, SpringParams, SpringType, make_integrator
-from warpcloth.sim.model import build_model
-from warpcloth.scenarios import sheet
 from warpcloth.run.harness import RunHarness
+from warpcloth.sim.model import build_model
 
 G = 9.81
 Y0 = 1.5
@@ -20,7 +20,9 @@ def _params(ks, kd=0.0):
 
 def falling_pair(y=Y0):
     """Two free 0.1 kg particles 0.1 m apart on a spring of ks = 0 (it exerts nothing)."""
-    return build_model([[0.0, y, 0.0], [0.1, y, 0.0]], [[0, 1]], [SpringType.STRUCTURAL], [0.1, 0.1], _params(0.0), device="cpu")
+    return build_model(
+        [[0.0, y, 0.0], [0.1, y, 0.0]], [[0, 1]], [SpringType.STRUCTURAL], [0.1, 0.1], _params(0.0), device="cpu"
+    )
 
 
 def sheet64_default_dt(name):
@@ -73,7 +75,12 @@ def test_xpbd_static_extension_at_realistic_height(substeps):
     # and 2.3e-3 (64 substeps, h = 1/3840 s) relative at y = 1.5 m
     mass, ks = 0.1, 100.0
     model = hanging_mass(mass=mass, ks=ks)
-    sim = Simulator(model, make_integrator("xpbd", substeps=substeps, iterations=4), Control(drag_rate=20.0, device="cpu"), dt=1.0 / 60.0)
+    sim = Simulator(
+        model,
+        make_integrator("xpbd", substeps=substeps, iterations=4),
+        Control(drag_rate=20.0, device="cpu"),
+        dt=1.0 / 60.0,
+    )
     sim.simulate(150)  # drag (which does not move the equilibrium) settles it within 2.5 s
     q = sim.state.particle_q.numpy().astype(np.float64)
     extension = (q[0, 1] - q[1, 1]) - 0.5
@@ -83,7 +90,9 @@ def test_xpbd_static_extension_at_realistic_height(substeps):
 def chain(n=8, y=Y0, ks=200.0, mass=0.02, spacing=0.05):
     q = [[0.0, y - k * spacing, 0.0] for k in range(n + 1)]
     pairs = [[k, k + 1] for k in range(n)]
-    return build_model(q, pairs, [SpringType.STRUCTURAL] * n, [mass] * (n + 1), _params(ks, 0.05), pins=[0], device="cpu")
+    return build_model(
+        q, pairs, [SpringType.STRUCTURAL] * n, [mass] * (n + 1), _params(ks, 0.05), pins=[0], device="cpu"
+    )
 
 
 def test_verlet_hanging_chain_settles_at_a_quarter_of_the_default_dt():
@@ -109,7 +118,9 @@ def test_verlet_error_against_a_float64_reference_falls_when_dt_halves():
 
     from warpcloth import build_grid_cloth
 
-    model = build_grid_cloth(4, 4, 0.3, 0.3, 0.16, spring_params=spring_params(20.0), pins=[0], origin=(0.0, Y0, 0.0), device="cpu")
+    model = build_grid_cloth(
+        4, 4, 0.3, 0.3, 0.16, spring_params=spring_params(20.0), pins=[0], origin=(0.0, Y0, 0.0), device="cpu"
+    )
     duration = 0.2
     x_ref = reference_rk4(model, duration, 4000)
 

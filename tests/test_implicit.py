@@ -5,14 +5,14 @@ import pytest
 import warp as wp
 import warp.sparse as wps
 from warp.optim.linear import cg, preconditioner
+from warpcloth.kernels import implicit as ik
+from warpcloth.kernels import system as sk
+from warpcloth.scenarios import sheet
 
 from warpcloth.cli import main as cli_main
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators import make_integrator
 from warpcloth.integrators.implicit_euler import ImplicitEuler
-from warpcloth.kernels import implicit as ik
-from warpcloth.kernels import system as sk
-from warpcloth.scenarios import sheet
 from warpcloth.run.harness import RunHarness
 
 GRAVITY = np.array([0.0, -9.81, 0.0])
@@ -54,7 +54,7 @@ def dense_system(model, x, v, h, drag, jacobian="full"):
         f[j] -= fi
         for J, blk in ((dfdx, K), (dfdv, D)):
             for a, b, sign in ((i, j, 1), (j, i, 1), (i, i, -1), (j, j, -1)):
-                J[3 * a:3 * a + 3, 3 * b:3 * b + 3] += sign * blk
+                J[3 * a : 3 * a + 3, 3 * b : 3 * b + 3] += sign * blk
     dfdv -= np.kron(np.diag(mass * drag), np.eye(3))
     A = np.kron(np.diag(mass), np.eye(3)) - h * dfdv - h * h * dfdx
     b = h * (f.ravel() + h * dfdx @ v.ravel())
@@ -73,7 +73,7 @@ def bsr_to_dense(A):
     for r in range(A.nrow):
         for k in range(offsets[r], offsets[r + 1]):
             c = columns[k]
-            dense[3 * r:3 * r + 3, 3 * c:3 * c + 3] += values[k]
+            dense[3 * r : 3 * r + 3, 3 * c : 3 * c + 3] += values[k]
     return dense
 
 
@@ -97,7 +97,19 @@ def _kernel_blocks(xi, xj, rest, ks, kd, h=1.0):
     x = wp.array(np.stack([xi, xj]).astype(np.float32), dtype=wp.vec3)
     K = wp.zeros(1, dtype=wp.mat33)
     B = wp.zeros(1, dtype=wp.mat33)
-    wp.launch(sk.eval_spring_jacobians, dim=1, inputs=[x, wp.array([[0, 1]], dtype=wp.vec2i), wp.array([rest], dtype=float), wp.array([ks], dtype=float), wp.array([kd], dtype=float), h], outputs=[K, B])
+    wp.launch(
+        sk.eval_spring_jacobians,
+        dim=1,
+        inputs=[
+            x,
+            wp.array([[0, 1]], dtype=wp.vec2i),
+            wp.array([rest], dtype=float),
+            wp.array([ks], dtype=float),
+            wp.array([kd], dtype=float),
+            h,
+        ],
+        outputs=[K, B],
+    )
     K = K.numpy()[0].astype(np.float64)
     return K, (B.numpy()[0].astype(np.float64) - h * h * K) / h  # K, D
 
@@ -154,7 +166,9 @@ def test_approx_blocks_are_eq_2_23_constants():
     h = 0.01
     wp.launch(sk.eval_spring_jacobians_approx, dim=2, inputs=[ks, kd, h], outputs=[K, B])
     np.testing.assert_allclose(K.numpy(), [100.0 * np.eye(3), 250.0 * np.eye(3)], rtol=1e-6)
-    np.testing.assert_allclose(B.numpy(), [(h * h * 100 + h * 1) * np.eye(3), (h * h * 250 + h * 2) * np.eye(3)], rtol=1e-6)
+    np.testing.assert_allclose(
+        B.numpy(), [(h * h * 100 + h * 1) * np.eye(3), (h * h * 250 + h * 2) * np.eye(3)], rtol=1e-6
+    )
 
 
 # -- assembly ---------------------------------------------------------------------------------
@@ -185,7 +199,9 @@ def test_matrix_free_operator_equals_dense_numpy_product(jacobian):
     rng = np.random.default_rng(2)
     y, w = rng.normal(size=(2, m.particle_count, 3))
     z = wp.zeros(m.particle_count, dtype=wp.vec3)
-    integ.A_op.matvec(wp.array(y.astype(np.float32), dtype=wp.vec3), wp.array(w.astype(np.float32), dtype=wp.vec3), z, 2.0, -0.5)
+    integ.A_op.matvec(
+        wp.array(y.astype(np.float32), dtype=wp.vec3), wp.array(w.astype(np.float32), dtype=wp.vec3), z, 2.0, -0.5
+    )
     expected = 2.0 * A_ref @ y.ravel() - 0.5 * w.ravel()
     np.testing.assert_allclose(z.numpy().ravel(), expected, atol=1e-5 * np.abs(expected).max())
 
@@ -223,7 +239,9 @@ def test_one_step_equals_dense_linearised_backward_euler(matrix, jacobian):
 
 def test_cg_final_residual_recomputed_in_numpy_is_under_tolerance():
     tol = 1e-3
-    sim = sheet.build(rows=8, cols=8, integrator="implicit_euler", dt=1.0 / 60.0, integrator_options={"matrix": "bsr", "cg_tol": tol})
+    sim = sheet.build(
+        rows=8, cols=8, integrator="implicit_euler", dt=1.0 / 60.0, integrator_options={"matrix": "bsr", "cg_tol": tol}
+    )
     sim.simulate(4)  # a moving cloth and a warm start
     integ = sim.integrator
     A = bsr_to_dense(integ.A)  # the matrix, right-hand side and solution of the last solve
@@ -242,7 +260,13 @@ def test_cg_final_residual_recomputed_in_numpy_is_under_tolerance():
 
 def test_jacobi_preconditioner_takes_no_more_iterations_than_none_on_stiff_cloth():
     # stiff, mixed springs: diagonal entries differ a lot between rows
-    sim = sheet.build(rows=10, cols=10, integrator="implicit_euler", stiffness=(2.0e4, 2.0e3, 5.0), integrator_options={"matrix": "bsr"})
+    sim = sheet.build(
+        rows=10,
+        cols=10,
+        integrator="implicit_euler",
+        stiffness=(2.0e4, 2.0e3, 5.0),
+        integrator_options={"matrix": "bsr"},
+    )
     sim.set_dt(1.0 / 30.0)
     sim.simulate(3)
     integ = sim.integrator
@@ -302,7 +326,9 @@ def test_small_dt_agrees_with_rk4(stiffness, dt, tol):
 
 
 def test_energy_never_grows_without_damping():
-    sim = sheet.build(rows=8, cols=8, integrator="implicit_euler", dt=1.0 / 60.0, stiffness=200.0, damping=0.0, drag=0.0)
+    sim = sheet.build(
+        rows=8, cols=8, integrator="implicit_euler", dt=1.0 / 60.0, stiffness=200.0, damping=0.0, drag=0.0
+    )
     v = np.random.default_rng(4).normal(scale=0.5, size=(sim.model.particle_count, 3))
     v[sim.model.pinned] = 0.0
     sim.state.particle_qd.assign(v.astype(np.float32))  # a shaken cloth: about 25 mJ of kinetic energy
@@ -332,7 +358,13 @@ def test_equilibrium_sag_matches_rk4_within_one_percent():
 
 # -- options, approx matrix, CLI ----------------------------------------------------------------
 def test_approx_matrix_is_assembled_once_and_not_refilled():
-    sim = sheet.build(rows=6, cols=6, integrator="implicit_euler", dt=1.0 / 30.0, integrator_options={"jacobian": "approx", "matrix": "bsr"})
+    sim = sheet.build(
+        rows=6,
+        cols=6,
+        integrator="implicit_euler",
+        dt=1.0 / 30.0,
+        integrator_options={"jacobian": "approx", "matrix": "bsr"},
+    )
     sim.step()
     values = sim.integrator.A.values.numpy().copy()
     sim.simulate(5)
@@ -353,14 +385,43 @@ def test_options_defaults_and_errors():
     model = sheet.build(rows=4, cols=4, integrator="explicit_euler").model
     assert ImplicitEuler().default_dt(model) == pytest.approx(1.0 / 60.0)
     assert sheet.build(rows=4, cols=4, integrator="implicit_euler").dt == pytest.approx(1.0 / 60.0)
-    for bad in ({"cg_tol": 0.0}, {"cg_tol": 1.5}, {"cg_max_iter": 0}, {"jacobian": "exact"}, {"matrix": "dense"}, {"tolerance": 1e-3}):
+    for bad in (
+        {"cg_tol": 0.0},
+        {"cg_tol": 1.5},
+        {"cg_max_iter": 0},
+        {"jacobian": "exact"},
+        {"matrix": "dense"},
+        {"tolerance": 1e-3},
+    ):
         with pytest.raises(WarpclothError):
             make_integrator("implicit_euler", **bad)
 
 
 @pytest.mark.parametrize("scenario", ["sheet", "flag"])
 def test_cli_runs_implicit_euler(scenario, capsys):
-    rc = cli_main(["run", scenario, "-i", "implicit_euler", "--rows", "6", "--cols", "7", "--num-frames", "6", "--dt", "0.0333", "--cg-tol", "1e-4", "--cg-max-iter", "400", "--jacobian", "approx", "--json"])
+    rc = cli_main(
+        [
+            "run",
+            scenario,
+            "-i",
+            "implicit_euler",
+            "--rows",
+            "6",
+            "--cols",
+            "7",
+            "--num-frames",
+            "6",
+            "--dt",
+            "0.0333",
+            "--cg-tol",
+            "1e-4",
+            "--cg-max-iter",
+            "400",
+            "--jacobian",
+            "approx",
+            "--json",
+        ]
+    )
     assert rc == 0
     import json
 
@@ -382,16 +443,30 @@ def test_record_cg_stats_kernel_counts_solves_that_end_above_tolerance():
     stats = wp.zeros(6, dtype=wp.float64)
     cases = [(2, 4.0, 1.0), (1, 1.0, 1.0), (2, 0.25, 1.0), (2, float("nan"), 1.0), (2, 9.0, 1.0)]
     for iterations, residual_sq, tolerance_sq in cases:
-        wp.launch(ik.record_cg_stats, dim=1, inputs=[wp.array([iterations], dtype=int), wp.array([residual_sq], dtype=float),
-                                                      wp.array([tolerance_sq], dtype=float), 1e-3], outputs=[stats])
+        wp.launch(
+            ik.record_cg_stats,
+            dim=1,
+            inputs=[
+                wp.array([iterations], dtype=int),
+                wp.array([residual_sq], dtype=float),
+                wp.array([tolerance_sq], dtype=float),
+                1e-3,
+            ],
+            outputs=[stats],
+        )
     s = stats.numpy()
     assert s[0] == 5 and s[1] == 9 and s[2] == 2
     assert s[5] == 3  # 4 > 1, NaN, 9 > 1
 
 
 def capped_sheet(cg_max_iter, cg_tol=1e-5, rows=6):
-    return sheet.build(rows=rows, cols=rows, integrator="implicit_euler", dt=1.0 / 60.0,
-                       integrator_options={"cg_tol": cg_tol, "cg_max_iter": cg_max_iter})
+    return sheet.build(
+        rows=rows,
+        cols=rows,
+        integrator="implicit_euler",
+        dt=1.0 / 60.0,
+        integrator_options={"cg_tol": cg_tol, "cg_max_iter": cg_max_iter},
+    )
 
 
 def test_tiny_iteration_cap_is_reported_not_converged_with_one_warning(capsys):
@@ -437,7 +512,9 @@ def test_capped_steps_are_exactly_the_steps_that_end_at_the_cap_above_tolerance(
         before = integ.stats()
         sim.simulate(1)
         after = integ.stats()
-        iterations = after["cg_iterations_mean"] * after["cg_solves"] - before["cg_iterations_mean"] * before["cg_solves"]
+        iterations = (
+            after["cg_iterations_mean"] * after["cg_solves"] - before["cg_iterations_mean"] * before["cg_solves"]
+        )
         residual = after["cg_residual_mean"] * after["cg_solves"] - before["cg_residual_mean"] * before["cg_solves"]
         at_cap = round(iterations) == cap and residual > tol
         capped_by_hand += at_cap
@@ -453,7 +530,22 @@ def test_integrators_without_an_iterative_solver_report_not_applicable(capsys):
 
 
 def test_cli_summary_and_json_say_the_tolerance_was_missed(capsys):
-    argv = ["run", "sheet", "-i", "implicit_euler", "--rows", "5", "--cols", "5", "--num-frames", "6", "--cg-tol", "1e-5", "--cg-max-iter", "2"]
+    argv = [
+        "run",
+        "sheet",
+        "-i",
+        "implicit_euler",
+        "--rows",
+        "5",
+        "--cols",
+        "5",
+        "--num-frames",
+        "6",
+        "--cg-tol",
+        "1e-5",
+        "--cg-max-iter",
+        "2",
+    ]
     assert cli_main(argv) == 0
     out, err = capsys.readouterr()
     assert "solver converged: NO (iteration cap hit above tolerance in 6 of 6 steps)" in out
@@ -479,6 +571,7 @@ def test_contact_on_a_slope_follows_coulomb(mu, slides):
     with mu = 0.8 they stay put (static friction). The post-step projection alone (matrix free)
     gives the same answer here: this checks that the filter keeps Coulomb's law."""
     from helpers import spring_params
+
     from warpcloth import Control, Simulator
     from warpcloth.sim.colliders import Plane
     from warpcloth.sim.model import SpringType, build_model

@@ -9,11 +9,11 @@ import math
 
 import numpy as np
 import pytest
+from helpers import deepest_in_drape, drape_sphere_depth
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
-from warpcloth.sim.colliders import ColliderTrack
 from warpcloth.run.harness import RunHarness
-from helpers import deepest_in_drape, drape_sphere_depth
+from warpcloth.sim.colliders import ColliderTrack
 
 G = 9.81
 H = 1.0 / 60.0
@@ -41,7 +41,9 @@ def test_a_cloth_on_a_slope_follows_coulomb(mu):
     # v = N h g (sin - mu cos) where mu < tan (also in the first step, which starts at rest), and
     # with mu = 0.7 > tan static friction holds every particle where it lay.
     theta, steps = math.radians(30.0), 30
-    v, dx, sim = resting_cloth((G * math.sin(theta), -G * math.cos(theta), 0.0), Plane(thickness=THICKNESS, friction=mu), steps)
+    v, dx, sim = resting_cloth(
+        (G * math.sin(theta), -G * math.cos(theta), 0.0), Plane(thickness=THICKNESS, friction=mu), steps
+    )
     a = G * max(0.0, math.sin(theta) - mu * math.cos(theta))
     assert np.abs(dx[:, 1]).max() < 1e-6 and np.abs(v[:, :, 1]).max() < 1e-6  # on the surface
     assert np.abs(dx[:, 2]).max() < 1e-6  # straight down the slope
@@ -91,13 +93,17 @@ def test_the_16x16_drape_reaches_equilibrium(preconditioner):
     # sliding friction after the solve slid off the sphere with block_jacobi
     from warpcloth.scenarios import drape
 
-    sim = drape.build(rows=16, cols=16, integrator="implicit_euler", integrator_options={"preconditioner": preconditioner})
+    sim = drape.build(
+        rows=16, cols=16, integrator="implicit_euler", integrator_options={"preconditioner": preconditioner}
+    )
     r = RunHarness(sim).run(8.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached, (r.unstable_reason, r.final_max_speed)
     assert r.time_to_equilibrium < 6.0
     x = sim.state.particle_q.numpy().astype(np.float64)
     assert drape_sphere_depth(x).max() < DEPTH_TOL
-    assert np.abs(drape_sphere_depth(x)).min() < 5e-5  # still on the sphere (multigrid: 12.7 µm above the 5 mm shell, after the contact kernel's rewrite)
+    assert (
+        np.abs(drape_sphere_depth(x)).min() < 5e-5
+    )  # still on the sphere (multigrid: 12.7 µm above the 5 mm shell, after the contact kernel's rewrite)
     assert np.linalg.norm(x.mean(axis=0)[[0, 2]]) < 0.01  # centred: it did not slide off
 
 
@@ -108,13 +114,19 @@ def test_the_default_drape_and_the_tablecloth_reach_equilibrium():
 
     sim = drape.build(integrator="implicit_euler")
     r = RunHarness(sim).run(8.0, stop_at_equilibrium=True)
-    assert r.stable and r.equilibrium_reached and r.time_to_equilibrium < 6.0, (r.final_max_speed, r.time_to_equilibrium)
+    assert r.stable and r.equilibrium_reached and r.time_to_equilibrium < 6.0, (
+        r.final_max_speed,
+        r.time_to_equilibrium,
+    )
     x = sim.state.particle_q.numpy().astype(np.float64)
     assert drape_sphere_depth(x).max() < DEPTH_TOL and x[:, 1].min() > drape.THICKNESS - DEPTH_TOL
 
     sim = t.build(integrator="implicit_euler")
     r = RunHarness(sim).run(8.0, stop_at_equilibrium=True)
-    assert r.stable and r.equilibrium_reached and r.time_to_equilibrium < 4.0, (r.final_max_speed, r.time_to_equilibrium)
+    assert r.stable and r.equilibrium_reached and r.time_to_equilibrium < 4.0, (
+        r.final_max_speed,
+        r.time_to_equilibrium,
+    )
     x = sim.state.particle_q.numpy().astype(np.float64)
     on_top = (np.abs(x[:, 0]) < t.HALF - 0.05) & (np.abs(x[:, 2]) < t.HALF - 0.05)
     assert x[on_top, 1].min() > t.HEIGHT + t.THICKNESS - DEPTH_TOL  # never inside the table
@@ -131,7 +143,13 @@ def test_a_moving_sphere_carries_a_cloth_by_friction():
     from warpcloth import Sphere
 
     u = 0.2
-    sphere = Sphere(center=(0.5, 0.0, 0.5), radius=0.3, thickness=THICKNESS, friction=0.8, track=ColliderTrack.rigid(velocity=(u, 0.0, 0.0)))
+    sphere = Sphere(
+        center=(0.5, 0.0, 0.5),
+        radius=0.3,
+        thickness=THICKNESS,
+        friction=0.8,
+        track=ColliderTrack.rigid(velocity=(u, 0.0, 0.0)),
+    )
     model = build_grid_cloth(10, 10, 0.6, 0.6, 0.1, plane="horizontal", origin=(0.2, 0.35, 0.2), device="cpu")
     sim = Simulator(model, "implicit_euler", Control(drag_rate=0.5, colliders=(sphere,), device="cpu"), dt=H)
     deepest = -1.0

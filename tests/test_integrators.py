@@ -5,12 +5,11 @@ import math
 import numpy as np
 import pytest
 import warp as wp
+from helpers import displace, reference_rk4, simulate, single_spring, small_grid
 
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
 from warpcloth.integrators import explicit_euler_dt_bound, stable_dt_estimate
 from warpcloth.run.harness import RunHarness
-
-from helpers import displace, reference_rk4, simulate, single_spring, small_grid
 
 EXPLICIT = ["explicit_euler", "midpoint", "rk4", "verlet"]
 NO_GRAVITY = (0.0, 0.0, 0.0)
@@ -91,8 +90,9 @@ def test_free_fall_is_exact_per_scheme(integrator):
     explicit Euler's positions lead by g t dt / 2. Velocities: exact, except Verlet's
     (x_new - x) / dt, which is the half-step velocity g (t - dt/2). The scheme-specific terms
     (0.05 m, 0.05 m/s here) are 10x the float32 tolerance (Verlet's roundoff grows as n^2)."""
-    from warpcloth.sim.model import build_model
     from helpers import spring_params
+
+    from warpcloth.sim.model import build_model
 
     g, dt, n = 10.0, 0.01, 100
     model = build_model([[0.0, 0.0, 0.0]], np.zeros((0, 2)), np.zeros(0), [1.0], spring_params(0.0))
@@ -159,11 +159,16 @@ def test_unknown_integrator_and_option():
 
 from conftest import DEVICES  # noqa: E402
 
-
 #: the solvers that hold contacts themselves (vbd also with its Chebyshev projection), and schemes
 #: with the projection after the step
-COLLIDING = [("vbd", {}), ("vbd", {"vbd_chebyshev_rho": 0.3}), ("projective", {}), ("pbd", {}), ("implicit_euler", {}),
-             ("rk4", {})]
+COLLIDING = [
+    ("vbd", {}),
+    ("vbd", {"vbd_chebyshev_rho": 0.3}),
+    ("projective", {}),
+    ("pbd", {}),
+    ("implicit_euler", {}),
+    ("rk4", {}),
+]
 
 
 @pytest.mark.parametrize("device", DEVICES)
@@ -205,6 +210,7 @@ def test_graph_replay_with_colliders_is_bit_identical(device, integrator, option
 @pytest.mark.parametrize("device", DEVICES)
 def test_graph_replay_with_strain_limit_is_bit_identical(device):
     from warpcloth.scenarios import flag
+
     from warpcloth.simulator import graph_capture_supported
 
     if not graph_capture_supported(device):

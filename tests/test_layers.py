@@ -36,8 +36,15 @@ LAYERS = [
 ]
 #: The package face: ``warpcloth`` itself and the forwarding modules kept for one release. Users
 #: import it; nothing inside the package does.
-FACE = ("warpcloth", "warpcloth.harness", "warpcloth.model", "warpcloth.colliders", "warpcloth.usd",
-        "warpcloth.meshio", "warpcloth.forces")
+FACE = (
+    "warpcloth",
+    "warpcloth.harness",
+    "warpcloth.model",
+    "warpcloth.colliders",
+    "warpcloth.usd",
+    "warpcloth.meshio",
+    "warpcloth.forces",
+)
 
 #: The optional extras (``warpcloth[plot]``, ``warpcloth[cluster]``): imported inside the
 #: functions that use them, so that everything else works without them.
@@ -58,8 +65,12 @@ def modules() -> dict[str, Path]:
 
 def _is_main_block(node) -> bool:
     t = node.test if isinstance(node, ast.If) else None
-    return (isinstance(t, ast.Compare) and isinstance(t.left, ast.Name) and t.left.id == "__name__"
-            and any(isinstance(c, ast.Constant) and c.value == "__main__" for c in t.comparators))
+    return (
+        isinstance(t, ast.Compare)
+        and isinstance(t.left, ast.Name)
+        and t.left.id == "__name__"
+        and any(isinstance(c, ast.Constant) and c.value == "__main__" for c in t.comparators)
+    )
 
 
 def _walk(nodes, top: bool):
@@ -81,7 +92,11 @@ def imports(name: str, path: Path, known) -> list[tuple[str, bool, int]]:
         if isinstance(node, ast.Import):
             found += [(a.name, top, node.lineno) for a in node.names if a.name.startswith("warpcloth")]
         elif isinstance(node, ast.ImportFrom):
-            mod = ".".join(base[: len(base) - node.level + 1] + [node.module or ""]).strip(".") if node.level else node.module
+            mod = (
+                ".".join(base[: len(base) - node.level + 1] + [node.module or ""]).strip(".")
+                if node.level
+                else node.module
+            )
             if not (mod or "").startswith("warpcloth"):
                 continue
             for a in node.names:  # a submodule imported by name is that module; a symbol is its module's
@@ -142,7 +157,7 @@ def test_no_import_circles():
 
     def visit(m):
         if m in stack:
-            cycles.append(stack[stack.index(m):] + [m])
+            cycles.append(stack[stack.index(m) :] + [m])
             return
         if m in seen:
             return
@@ -170,7 +185,9 @@ def test_optional_libraries_are_imported_lazily():
 def test_the_checker_sees_a_function_level_import_upward(tmp_path):
     """Negative control: an import inside a function that goes up a layer is found."""
     bad = tmp_path / "model.py"
-    bad.write_text("def f():\n    from warpcloth.lab import study\n\nif __name__ == '__main__':\n    from warpcloth import cli\n")
+    bad.write_text(
+        "def f():\n    from warpcloth.lab import study\n\nif __name__ == '__main__':\n    from warpcloth import cli\n"
+    )
     found = imports("warpcloth.sim.model", bad, modules())
     assert [(t, top) for t, top, _ in found] == [("warpcloth.lab.study", False)]
 
@@ -178,10 +195,12 @@ def test_the_checker_sees_a_function_level_import_upward(tmp_path):
 @pytest.mark.parametrize("entry", ["warpcloth.simulator", "warpcloth.run.harness"])
 def test_stepping_loads_no_lab_cli_or_optional_library(entry):
     """Stepping and running load none of the lab, the CLI, SciPy, matplotlib, USD or Ray."""
-    code = (f"import sys, warpcloth, {entry};"
-            "bad = [m for m in sys.modules if m.startswith(('warpcloth.lab', 'warpcloth.cli', 'scipy', 'matplotlib', "
-            "'pxr', 'ray'))];"
-            "assert not bad, bad")
+    code = (
+        f"import sys, warpcloth, {entry};"
+        "bad = [m for m in sys.modules if m.startswith(('warpcloth.lab', 'warpcloth.cli', 'scipy', 'matplotlib', "
+        "'pxr', 'ray'))];"
+        "assert not bad, bad"
+    )
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
 
 
@@ -206,22 +225,33 @@ def test_kernel_scheme_files_import_only_shared_kernel_files():
 def test_the_scheme_check_sees_a_kernel_scheme_importing_another(tmp_path):
     """Negative control: vbd borrowing implicit's function is found; a shared file is not."""
     bad = tmp_path / "vbd.py"
-    bad.write_text("from warpcloth.kernels.implicit import eval_rhs\n"
-                   "from warpcloth.kernels.springs import spring_force\n")
+    bad.write_text(
+        "from warpcloth.kernels.implicit import eval_rhs\nfrom warpcloth.kernels.springs import spring_force\n"
+    )
     mods = modules()
-    found = [("warpcloth.kernels.vbd", resolve(t, mods), top, line)
-             for t, top, line in imports("warpcloth.kernels.vbd", bad, mods)]
+    found = [
+        ("warpcloth.kernels.vbd", resolve(t, mods), top, line)
+        for t, top, line in imports("warpcloth.kernels.vbd", bad, mods)
+    ]
     assert cross_scheme_imports(found, "warpcloth.kernels", KERNEL_SCHEMES) == [
-        "warpcloth.kernels.vbd:1 imports warpcloth.kernels.implicit"]
+        "warpcloth.kernels.vbd:1 imports warpcloth.kernels.implicit"
+    ]
 
 
 #: Integrator modules of one scheme each, with the kernel scheme files each may use; the other
 #: modules of warpcloth/integrators/ hold what schemes share (base, forces, position_based,
 #: increment, system, linalg, multigrid).
 INTEGRATOR_SCHEMES = {
-    "explicit_euler": "integrate", "midpoint": "integrate", "rk4": "integrate", "verlet": "integrate",
-    "implicit_euler": "implicit", "pbd": "constraints", "xpbd": "constraints", "vbd": "vbd",
-    "projective": "projective", "strain_limit": "strain_limit",
+    "explicit_euler": "integrate",
+    "midpoint": "integrate",
+    "rk4": "integrate",
+    "verlet": "integrate",
+    "implicit_euler": "implicit",
+    "pbd": "constraints",
+    "xpbd": "constraints",
+    "vbd": "vbd",
+    "projective": "projective",
+    "strain_limit": "strain_limit",
 }
 
 

@@ -11,10 +11,16 @@ import numpy as np
 import pytest
 
 from warpcloth.errors import WarpclothError
-from warpcloth.sim.material import (PRESETS, Material, bend_spring_stiffness, grid_spring_params, material,
-                                    mesh_spring_params)
-from warpcloth.sim.mesh import mesh_springs
 from warpcloth.sim.grid import grid_springs, grid_triangles
+from warpcloth.sim.material import (
+    PRESETS,
+    Material,
+    bend_spring_stiffness,
+    grid_spring_params,
+    material,
+    mesh_spring_params,
+)
+from warpcloth.sim.mesh import mesh_springs
 from warpcloth.sim.model import SpringParams, SpringType, build_model
 
 TEST = Material("test", 0.2, 1000.0, 800.0, 50.0, 1e-3, 2e-4)
@@ -72,9 +78,13 @@ def test_grid_3x3_hand_values_with_provot_bend_springs():
     kby = 9.0 * 2e-4 ** (5 / 3) / 0.05**4  # y-bend springs (weft), h = hy
     assert kbx == pytest.approx(0.9, rel=1e-12)
     # every structural spring of a 3 x 3 grid is spanned by one bend spring: 2 k_b off each
-    expected = ([787.5 - 2 * kby, 1575.0 - 2 * kby, 787.5 - 2 * kby] * 2
-                + [200.0 - 2 * kbx, 200.0 - 2 * kbx, 400.0 - 2 * kbx, 400.0 - 2 * kbx, 200.0 - 2 * kbx, 200.0 - 2 * kbx]
-                + [62.5] * 8 + [kby] * 3 + [kbx] * 3)
+    expected = (
+        [787.5 - 2 * kby, 1575.0 - 2 * kby, 787.5 - 2 * kby] * 2
+        + [200.0 - 2 * kbx, 200.0 - 2 * kbx, 400.0 - 2 * kbx, 400.0 - 2 * kbx, 200.0 - 2 * kbx, 200.0 - 2 * kbx]
+        + [62.5] * 8
+        + [kby] * 3
+        + [kbx] * 3
+    )
     np.testing.assert_allclose(r.stiffness, expected, rtol=1e-12)
     assert r.membrane_error < 1e-12
 
@@ -188,7 +198,8 @@ def test_quad_mesh_energy_equals_the_membrane_energy(bend):
     assert r.membrane_error < 1e-9
     for eps in random_strains(8, seed=3):
         assert lattice_energy(q, r.pairs, r.stiffness, eps) == pytest.approx(
-            float(material("cotton").membrane_energy_density(eps)) * w * h, rel=1e-9)
+            float(material("cotton").membrane_energy_density(eps)) * w * h, rel=1e-9
+        )
 
 
 def hex_mesh(n=6, a=0.05):
@@ -240,6 +251,7 @@ def test_triangle_mesh_energy_within_the_reported_bound(name):
 
 def quadratic_form(q, pairs, ks, area):
     """The lattice's membrane matrix D (W = 1/2 e^T D e, e = (e11, e22, 2 e12)) from its energies."""
+
     def energy(e):
         return lattice_energy(q, pairs, ks, np.array([[e[0], e[2] / 2], [e[2] / 2, e[1]]])) / area
 
@@ -380,12 +392,15 @@ def test_build_model_takes_per_spring_arrays():
     assert plain.spring_params == params
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"spring_stiffness": [1.0, 2.0]}, "spring_stiffness must have one value per spring"),
-    ({"spring_stiffness": "bad"}, "spring_stiffness must be numbers"),
-    ({"spring_damping": [1.0, -2.0, 1.0]}, "spring_damping of spring 1 must be a finite number >= 0"),
-    ({"spring_stiffness": [1.0, float("nan"), 1.0]}, "spring_stiffness of spring 1 must be a finite number >= 0"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"spring_stiffness": [1.0, 2.0]}, "spring_stiffness must have one value per spring"),
+        ({"spring_stiffness": "bad"}, "spring_stiffness must be numbers"),
+        ({"spring_damping": [1.0, -2.0, 1.0]}, "spring_damping of spring 1 must be a finite number >= 0"),
+        ({"spring_stiffness": [1.0, float("nan"), 1.0]}, "spring_stiffness of spring 1 must be a finite number >= 0"),
+    ],
+)
 def test_build_model_rejects_bad_per_spring_arrays(kwargs, message):
     q = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
     params = {t: SpringParams(1.0, 0.0) for t in SpringType}
@@ -406,8 +421,14 @@ def test_build_model_needs_one_source_of_spring_values():
 
 
 def test_presets_bending_lengths_and_sources():
-    table = {"cotton": (2.44, 2.44), "denim": (1.72, 1.97), "polyester": (2.18, 1.84), "wool": (1.50, 1.45),
-             "silk": (1.37, 1.37), "polyester_light": (1.48, 1.66)}
+    table = {
+        "cotton": (2.44, 2.44),
+        "denim": (1.72, 1.97),
+        "polyester": (2.18, 1.84),
+        "wool": (1.50, 1.45),
+        "silk": (1.37, 1.37),
+        "polyester_light": (1.48, 1.66),
+    }
     assert set(table) == set(PRESETS)
     for name, (cw, cf) in table.items():
         m = material(name)
@@ -430,24 +451,27 @@ def test_unknown_preset_is_a_one_line_error():
         assert name in msg
 
 
-@pytest.mark.parametrize("field, value, allowed", [
-    ("density", -0.2, "must be > 0 kg/m^2"),
-    ("density", float("nan"), "must be a finite number"),
-    ("stretch_warp", float("inf"), "must be a finite number"),
-    ("stretch_weft", 0.0, "must be > 0 N/m"),
-    ("shear", -1.0, "must be > 0 N/m"),
-    ("shear", 900.0, "must be < sqrt(stretch_warp * stretch_weft)"),
-    ("bend_warp", -1e-6, "must be >= 0 N m"),
-    ("bend_weft", float("nan"), "must be a finite number"),
-    ("compression", 1.5, "must be in [0, 1]"),
-    ("compression", -0.1, "must be >= 0"),
-    ("stretch_damping_ratio", -0.01, "must be >= 0"),
-    ("bend_damping_frequency", 0.0, "must be > 0 Hz"),
-    ("warp_angle", 4.0, "must be in [-pi, pi]"),
-    ("warp_angle", "x", "must be a number"),
-    ("density", True, "must be a number"),
-    ("estimated", ("colour",), "unknown field 'colour'"),
-])
+@pytest.mark.parametrize(
+    "field, value, allowed",
+    [
+        ("density", -0.2, "must be > 0 kg/m^2"),
+        ("density", float("nan"), "must be a finite number"),
+        ("stretch_warp", float("inf"), "must be a finite number"),
+        ("stretch_weft", 0.0, "must be > 0 N/m"),
+        ("shear", -1.0, "must be > 0 N/m"),
+        ("shear", 900.0, "must be < sqrt(stretch_warp * stretch_weft)"),
+        ("bend_warp", -1e-6, "must be >= 0 N m"),
+        ("bend_weft", float("nan"), "must be a finite number"),
+        ("compression", 1.5, "must be in [0, 1]"),
+        ("compression", -0.1, "must be >= 0"),
+        ("stretch_damping_ratio", -0.01, "must be >= 0"),
+        ("bend_damping_frequency", 0.0, "must be > 0 Hz"),
+        ("warp_angle", 4.0, "must be in [-pi, pi]"),
+        ("warp_angle", "x", "must be a number"),
+        ("density", True, "must be a number"),
+        ("estimated", ("colour",), "unknown field 'colour'"),
+    ],
+)
 def test_bad_material_values_are_one_line_errors(field, value, allowed):
     with pytest.raises(WarpclothError) as info:
         TEST.replace(**{field: value})

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from warpcloth import SpringType, WarpclothError, build_grid_cloth, build_mesh_cloth, load_mesh
-from warpcloth.sim.mesh import lumped_masses
 from warpcloth.io.meshio import write_obj
 from warpcloth.sim.grid import grid_positions, grid_triangles
+from warpcloth.sim.mesh import lumped_masses
 from warpcloth.sim.selection import parse_predicate, select_vertices
 
 
@@ -40,7 +40,9 @@ def uv_sphere(stacks=6, slices=8, radius=0.5):
         phi = math.pi * i / stacks
         for j in range(slices):
             th = 2 * math.pi * j / slices
-            verts.append([radius * math.sin(phi) * math.cos(th), radius * math.cos(phi), radius * math.sin(phi) * math.sin(th)])
+            verts.append(
+                [radius * math.sin(phi) * math.cos(th), radius * math.cos(phi), radius * math.sin(phi) * math.sin(th)]
+            )
     verts.append([0.0, -radius, 0.0])
     south = len(verts) - 1
 
@@ -85,7 +87,9 @@ def test_grid_without_quads_has_edges_and_opposite_vertex_bends():
     boundary = 2 * (rows - 1) + 2 * (cols - 1)
     assert model.spring_counts() == {"structural": edges, "shear": 0, "bend": edges - boundary}
     # a bend across the horizontal edge [1,1]-[1,2] joins [2,1] and [0,2] (the opposite vertices)
-    pairs = {tuple(sorted(p)) for p, ty in zip(model.host["pairs"].tolist(), model.spring_type) if ty == SpringType.BEND}
+    pairs = {
+        tuple(sorted(p)) for p, ty in zip(model.host["pairs"].tolist(), model.spring_type) if ty == SpringType.BEND
+    }
     assert tuple(sorted((2 * cols + 1, 0 * cols + 2))) in pairs
 
 
@@ -149,7 +153,10 @@ def test_pins_by_predicate_string_callable_and_group():
     assert select_vertices(q, "(abs(x - 0.5) < 0.2) & (y >= 1.5) or not (z == 0)").tolist() == [1, 2]
 
 
-@pytest.mark.parametrize("text", ["__import__('os').system('true')", "x.__class__", "open('f')", "y > 'a'", "lambda: 1", "[x for x in y]", "q > 1"])
+@pytest.mark.parametrize(
+    "text",
+    ["__import__('os').system('true')", "x.__class__", "open('f')", "y > 'a'", "lambda: 1", "[x for x in y]", "q > 1"],
+)
 def test_predicate_string_refuses_anything_but_arithmetic(text):
     with pytest.raises(WarpclothError, match="pin predicate"):
         parse_predicate(text)
@@ -217,7 +224,9 @@ def _usd_mesh(path, translate=(1.0, 2.0, 3.0), angle=90.0):
     xf.AddTranslateOp().Set(Gf.Vec3d(*translate))
     xf.AddRotateYOp().Set(angle)
     mesh = UsdGeom.Mesh.Define(stage, "/World/Cloth")
-    mesh.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 0, 0), Gf.Vec3f(1, 0, 0), Gf.Vec3f(1, 1, 0), Gf.Vec3f(0, 1, 0), Gf.Vec3f(2, 0, 0)]))
+    mesh.CreatePointsAttr(
+        Vt.Vec3fArray([Gf.Vec3f(0, 0, 0), Gf.Vec3f(1, 0, 0), Gf.Vec3f(1, 1, 0), Gf.Vec3f(0, 1, 0), Gf.Vec3f(2, 0, 0)])
+    )
     mesh.CreateFaceVertexCountsAttr(Vt.IntArray([4, 3]))
     mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3, 1, 4, 2]))
     st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex)
@@ -258,7 +267,9 @@ def test_uvs_go_to_the_exported_usd(tmp_path):
     values = np.asarray(st.Get())
     tris = model.host["tris"].reshape(-1)
     r, c = np.divmod(tris, 4)
-    np.testing.assert_allclose(values, np.stack([c / 3, 1 - r / 2], axis=1), atol=1e-7)  # u = col/(cols-1), v = 1 - row/(rows-1)
+    np.testing.assert_allclose(
+        values, np.stack([c / 3, 1 - r / 2], axis=1), atol=1e-7
+    )  # u = col/(cols-1), v = 1 - row/(rows-1)
 
 
 # -- bad input -----------------------------------------------------------------------------
@@ -273,9 +284,15 @@ def _grid():
     [
         (lambda v, t: (v[:0], t), "empty: no vertices"),
         (lambda v, t: (v, t[:0]), "empty: no triangles"),
-        (lambda v, t: (v, np.vstack([t, [[0, 1, 9]]])), r"triangle 8 has vertex index \[0, 1, 9\] out of range: vertices are 0..8"),
+        (
+            lambda v, t: (v, np.vstack([t, [[0, 1, 9]]])),
+            r"triangle 8 has vertex index \[0, 1, 9\] out of range: vertices are 0..8",
+        ),
         (lambda v, t: (v, np.vstack([t, [[0, -1, 2]]])), r"triangle 8 has vertex index \[0, -1, 2\] out of range"),
-        (lambda v, t: (np.vstack([v, [[0.25, -0.25, 0]]]), np.vstack([t, [[0, 9, 8]]])), r"triangle 8 \(\[0, 9, 8\]\) is degenerate \(zero area\)"),
+        (
+            lambda v, t: (np.vstack([v, [[0.25, -0.25, 0]]]), np.vstack([t, [[0, 9, 8]]])),
+            r"triangle 8 \(\[0, 9, 8\]\) is degenerate \(zero area\)",
+        ),
         (lambda v, t: (v, np.vstack([t, [[0, 0, 1]]])), "triangle 8 repeats a vertex"),
         (lambda v, t: (np.where(np.arange(9)[:, None] == 4, np.nan, v), t), "vertex 4 is not finite"),
         (lambda v, t: (np.where(np.arange(9)[:, None] == 2, np.inf, v), t), "vertex 2 is not finite"),
@@ -290,9 +307,13 @@ def test_bad_meshes_are_refused_naming_the_value(change, match):
 
 def test_bad_pins_are_refused():
     v, t = _grid()
-    with pytest.raises(WarpclothError, match=r"pin group 'shoulders' does not exist in the mesh \(its vertex groups: left\)"):
+    with pytest.raises(
+        WarpclothError, match=r"pin group 'shoulders' does not exist in the mesh \(its vertex groups: left\)"
+    ):
         build_mesh_cloth(v, t, groups={"left": [0]}, pin_groups=["shoulders"])
-    with pytest.raises(WarpclothError, match=r"pin predicate 'y > 5' selects no vertex \(the mesh spans x in \[0, 1\], y in \[-1, 0\]"):
+    with pytest.raises(
+        WarpclothError, match=r"pin predicate 'y > 5' selects no vertex \(the mesh spans x in \[0, 1\], y in \[-1, 0\]"
+    ):
         build_mesh_cloth(v, t, pin_where="y > 5")
     with pytest.raises(WarpclothError, match="pin index 12 is out of range"):
         build_mesh_cloth(v, t, pins=[12])
@@ -329,7 +350,9 @@ def test_mass_options_are_checked():
         build_mesh_cloth(v, t, mass_mode="lumped")
     with pytest.raises(WarpclothError, match="density must be > 0 kg/m\\^2, got -1"):
         build_mesh_cloth(v, t, density=-1)
-    assert build_mesh_cloth(v, t, density=0.5).host["mass"].astype(float).sum() == pytest.approx(0.5 * 1.0 * 1.0, rel=1e-6)
+    assert build_mesh_cloth(v, t, density=0.5).host["mass"].astype(float).sum() == pytest.approx(
+        0.5 * 1.0 * 1.0, rel=1e-6
+    )
 
 
 def test_uvs_read_from_an_obj_go_to_the_exported_usd(tmp_path):
@@ -350,25 +373,28 @@ def test_uvs_read_from_an_obj_go_to_the_exported_usd(tmp_path):
 
 
 # -- issue 31: every input honoured or refused -------------------------------------------------
-@pytest.mark.parametrize("text,match", [
-    ("1", "pin predicate '1' is a number, not a condition"),
-    ("x", "pin predicate 'x' is a number, not a condition"),
-    ("y + 0.5", "is a number, not a condition"),
-    ("y.max()", "is a number, not a condition"),
-    ("0.5", "is a number, not a condition"),
-    ("1e30", "is a number, not a condition"),
-    ("x & (y > 1)", "& or | of a number is not allowed"),
-    ("not x", "not or ~ of a number is not allowed"),
-    ("(y > 1) + 1 > 0", "arithmetic on a condition is not allowed"),
-    ("10 ** 400 > y", r"'10 \*\* 400' is out of range \(\|value\| <= 3.4e\+38\)"),
-    ("y < 1e39", r"'1e39' is out of range"),
-    ("1 / 0 < y", "'1 / 0' divides by zero"),
-    ("y > 2 % 0", "'2 % 0' divides by zero"),
-    ("(-8) ** (1 / 3) < y", "is not a real number"),
-    ("x" + " + x" * 4999 + " > 0", r"\(20,001 characters\) is longer than 1000 characters"),
-    ("y > " + "1" * 100_000, r"\(100,004 characters\) is longer than 1000 characters"),
-    ("y > " + " + ".join(["1"] * 200), "is nested more than 50 deep"),
-])
+@pytest.mark.parametrize(
+    "text,match",
+    [
+        ("1", "pin predicate '1' is a number, not a condition"),
+        ("x", "pin predicate 'x' is a number, not a condition"),
+        ("y + 0.5", "is a number, not a condition"),
+        ("y.max()", "is a number, not a condition"),
+        ("0.5", "is a number, not a condition"),
+        ("1e30", "is a number, not a condition"),
+        ("x & (y > 1)", "& or | of a number is not allowed"),
+        ("not x", "not or ~ of a number is not allowed"),
+        ("(y > 1) + 1 > 0", "arithmetic on a condition is not allowed"),
+        ("10 ** 400 > y", r"'10 \*\* 400' is out of range \(\|value\| <= 3.4e\+38\)"),
+        ("y < 1e39", r"'1e39' is out of range"),
+        ("1 / 0 < y", "'1 / 0' divides by zero"),
+        ("y > 2 % 0", "'2 % 0' divides by zero"),
+        ("(-8) ** (1 / 3) < y", "is not a real number"),
+        ("x" + " + x" * 4999 + " > 0", r"\(20,001 characters\) is longer than 1000 characters"),
+        ("y > " + "1" * 100_000, r"\(100,004 characters\) is longer than 1000 characters"),
+        ("y > " + " + ".join(["1"] * 200), "is nested more than 50 deep"),
+    ],
+)
 def test_predicates_are_conditions_with_bounded_constants_or_one_short_error(text, match):
     with pytest.raises(WarpclothError, match=match) as exc:
         parse_predicate(text)
@@ -383,13 +409,16 @@ def test_predicates_fold_constants_and_divide_silently_by_zero_at_vertices(recwa
     assert [w for w in recwarn if issubclass(w.category, RuntimeWarning)] == []
 
 
-@pytest.mark.parametrize("pins,match", [
-    ([1.5], "pins must hold integer vertex indices, got 1.5"),
-    ([True], "pins must hold integer vertex indices, got True"),
-    (["1"], "pins must hold integer vertex indices, got '1'"),
-    ([math.nan], "pins must hold integer vertex indices, got nan"),
-    (3, "pins must be a sequence of vertex indices"),
-])
+@pytest.mark.parametrize(
+    "pins,match",
+    [
+        ([1.5], "pins must hold integer vertex indices, got 1.5"),
+        ([True], "pins must hold integer vertex indices, got True"),
+        (["1"], "pins must hold integer vertex indices, got '1'"),
+        ([math.nan], "pins must hold integer vertex indices, got nan"),
+        (3, "pins must be a sequence of vertex indices"),
+    ],
+)
 def test_pin_indices_must_be_integers(pins, match):
     v, t = _grid()
     with pytest.raises(WarpclothError, match=match):
@@ -415,7 +444,9 @@ def test_a_usd_mesh_under_a_huge_scale_is_refused(tmp_path):
     mesh.CreateFaceVertexCountsAttr([4])
     mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
     stage.GetRootLayer().Save()
-    with pytest.raises(WarpclothError, match=r"vertex 1 at \(1e\+30, 0, 0\) m is out of range: coordinates must be within \+-1e\+18 m"):
+    with pytest.raises(
+        WarpclothError, match=r"vertex 1 at \(1e\+30, 0, 0\) m is out of range: coordinates must be within \+-1e\+18 m"
+    ):
         load_mesh(str(path))
     v, t = _grid()
     with pytest.raises(WarpclothError, match="vertex 1 at .* is out of range"):
@@ -425,8 +456,8 @@ def test_a_usd_mesh_under_a_huge_scale_is_refused(tmp_path):
 
 def test_meshes_get_an_up_front_memory_estimate(tmp_path, monkeypatch):
     import warpcloth.sim.device as device
-    from warpcloth.sim.mesh import mesh_memory_estimate
     from warpcloth.sim.grid import grid_memory_estimate
+    from warpcloth.sim.mesh import mesh_memory_estimate
 
     # a triangulated grid is estimated as the grid is
     assert mesh_memory_estimate(64 * 64, 2 * 63 * 63) <= grid_memory_estimate(64, 64) * 1.3
@@ -435,10 +466,15 @@ def test_meshes_get_an_up_front_memory_estimate(tmp_path, monkeypatch):
     write_obj(str(tmp_path / "m.obj"), v, t)
     size = (tmp_path / "m.obj").stat().st_size
     monkeypatch.setattr(device, "available_memory", lambda d: 4 * size)  # less than reading the file needs
-    with pytest.raises(WarpclothError, match=r"reading mesh file .*m.obj' \(.* bytes\) needs about .* but cpu has .* available"):
+    with pytest.raises(
+        WarpclothError, match=r"reading mesh file .*m.obj' \(.* bytes\) needs about .* but cpu has .* available"
+    ):
         load_mesh(str(tmp_path / "m.obj"))
     monkeypatch.setattr(device, "available_memory", lambda d: 100_000)
-    with pytest.raises(WarpclothError, match="a mesh cloth of 400 vertices and 722 triangles needs about .* but cpu has 97.7 KiB available"):
+    with pytest.raises(
+        WarpclothError,
+        match="a mesh cloth of 400 vertices and 722 triangles needs about .* but cpu has 97.7 KiB available",
+    ):
         build_mesh_cloth(v, t, device="cpu")
 
 
@@ -452,7 +488,10 @@ def test_usd_layers_are_checked_before_the_stage_opens(tmp_path):
     top.subLayerPaths.append("./cloth.usda")
     top.subLayerPaths.append("./missing.usda")
     top.Save()
-    with pytest.raises(WarpclothError, match=r"names './missing.usda' \(sublayer, reference or payload in top.usda\), which does not exist"):
+    with pytest.raises(
+        WarpclothError,
+        match=r"names './missing.usda' \(sublayer, reference or payload in top.usda\), which does not exist",
+    ):
         load_mesh(str(tmp_path / "top.usda"))
     top.subLayerPaths.remove("./missing.usda")
     top.Save()

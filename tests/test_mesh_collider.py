@@ -16,14 +16,29 @@ from warpcloth.io.meshio import load_mesh_collider
 from warpcloth.sim.colliders import MeshCollider
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from bench.colliders import mesh_sphere  # noqa: E402
 from helpers import free_particles, parse_collider  # noqa: E402
+
+from bench.colliders import mesh_sphere  # noqa: E402
 
 G = 9.81
 CUBE_V = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
 # 12 triangles wound outward (counter-clockwise seen from outside); vertex index = 4 (x>0) + 2 (y>0) + (z>0)
-CUBE_T = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-                   [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+CUBE_T = np.array(
+    [
+        [0, 1, 3],
+        [0, 3, 2],
+        [4, 6, 7],
+        [4, 7, 5],
+        [0, 4, 5],
+        [0, 5, 1],
+        [2, 3, 7],
+        [2, 7, 6],
+        [0, 2, 6],
+        [0, 6, 4],
+        [1, 5, 7],
+        [1, 7, 3],
+    ]
+)
 
 
 def cube(center, half, **settings):
@@ -39,7 +54,12 @@ def test_the_cube_is_wound_outward():
 @pytest.mark.parametrize("integrator", ["explicit_euler", "rk4", "verlet", "implicit_euler", "pbd", "xpbd"])
 def test_a_particle_rests_on_the_pole_of_a_mesh_sphere(integrator):
     v, t = mesh_sphere(2000, radius=0.3)
-    sim = Simulator(free_particles([[0.0, 0.6, 0.0]]), integrator, Control(colliders=(MeshCollider(vertices=v, triangles=t, thickness=0.01),), device="cpu"), dt=1e-3)
+    sim = Simulator(
+        free_particles([[0.0, 0.6, 0.0]]),
+        integrator,
+        Control(colliders=(MeshCollider(vertices=v, triangles=t, thickness=0.01),), device="cpu"),
+        dt=1e-3,
+    )
     sim.simulate(600)  # lands at 0.25 s
     x = sim.state.particle_q.numpy()[0]
     assert x[1] == pytest.approx(0.31, abs=1e-6) and abs(x[0]) + abs(x[2]) == 0.0
@@ -49,13 +69,19 @@ def test_a_particle_rests_on_the_pole_of_a_mesh_sphere(integrator):
 def test_a_cube_mesh_holds_a_cloth_as_the_box_does(integrator):
     def run(collider):
         model = build_grid_cloth(10, 10, 0.8, 0.8, 0.1, plane="horizontal", origin=(-0.4, 0.45, -0.4), device="cpu")
-        sim = Simulator(model, integrator, Control(drag_rate=0.5, colliders=(collider,), device="cpu"),
-                        dt=1.0 / 60.0 if integrator in ("implicit_euler", "pbd") else None)
+        sim = Simulator(
+            model,
+            integrator,
+            Control(drag_rate=0.5, colliders=(collider,), device="cpu"),
+            dt=1.0 / 60.0 if integrator in ("implicit_euler", "pbd") else None,
+        )
         deepest, lowest_centre = -1.0, np.inf
         for _ in range(30):
             sim.simulate(max(1, round(1.0 / 60.0 / sim.dt)))
             x = sim.state.particle_q.numpy().astype(np.float64)
-            inside = np.all(np.abs(x - (0.0, 0.2, 0.0)) < (0.25, 0.2 + 0.005, 0.25), axis=1)  # within the box grown by its thickness
+            inside = np.all(
+                np.abs(x - (0.0, 0.2, 0.0)) < (0.25, 0.2 + 0.005, 0.25), axis=1
+            )  # within the box grown by its thickness
             depth = np.min(np.abs(np.abs(x - (0.0, 0.2, 0.0)) - (0.25, 0.2 + 0.005, 0.25)), axis=1)
             deepest = max(deepest, depth[inside].max() if inside.any() else -1.0)
             lowest_centre = min(lowest_centre, x[np.argsort(np.linalg.norm(x[:, [0, 2]], axis=1))[:4], 1].min())
@@ -64,7 +90,9 @@ def test_a_cube_mesh_holds_a_cloth_as_the_box_does(integrator):
     x_mesh, deep_mesh, centre_mesh = run(cube((0.0, 0.2, 0.0), (0.25, 0.2, 0.25), thickness=0.005, friction=0.3))
     x_box, deep_box, _ = run(Box(center=(0.0, 0.2, 0.0), half_extents=(0.25, 0.2, 0.25), thickness=0.005, friction=0.3))
     assert deep_mesh < 1e-5 and deep_box < 1e-5  # never inside (by more than float32 rounding)
-    assert centre_mesh == pytest.approx(0.405, abs=1e-5)  # it lands on the top face at the thickness (then the flaps bounce it)
+    assert centre_mesh == pytest.approx(
+        0.405, abs=1e-5
+    )  # it lands on the top face at the thickness (then the flaps bounce it)
     np.testing.assert_allclose(x_mesh, x_box, atol=2e-3)  # the same drape as the analytic box
 
 
@@ -76,7 +104,12 @@ def slide(theta, mu, duration=0.5, dt=1e-3):
     tris = np.array([[0, 1, 2], [0, 2, 3]])
     if np.dot(np.cross(quad[1] - quad[0], quad[2] - quad[0]), n) < 0:
         tris = tris[:, ::-1]
-    sim = Simulator(free_particles([[0.0, 0.0, 0.0]]), "explicit_euler", Control(colliders=(MeshCollider(vertices=quad, triangles=tris, friction=mu),), device="cpu"), dt=dt)
+    sim = Simulator(
+        free_particles([[0.0, 0.0, 0.0]]),
+        "explicit_euler",
+        Control(colliders=(MeshCollider(vertices=quad, triangles=tris, friction=mu),), device="cpu"),
+        dt=dt,
+    )
     sim.simulate(int(round(duration / dt)))
     x = sim.state.particle_q.numpy()[0].astype(np.float64)
     return float(np.dot(x, down)), float(np.dot(x, n))
@@ -93,21 +126,34 @@ def test_coulomb_friction_on_a_tilted_mesh():
 
 def test_mesh_from_obj_toml_cli_and_usd(tmp_path, capsys):
     from pxr import Usd, UsdGeom
+    from warpcloth.scenarios import get_scenario
 
     from warpcloth.cli import main
     from warpcloth.io.meshio import write_obj
-    from warpcloth.scenarios import get_scenario
     from warpcloth.io.usd import UsdWriter
 
     write_obj(str(tmp_path / "table.obj"), CUBE_V * 0.3 + (0.5, -0.3, 0.5), CUBE_T)
     from_file = load_mesh_collider(str(tmp_path / "table.obj"), thickness=0.01)
     assert from_file.triangles.shape == (12, 3) and from_file.thickness == 0.01
     (tmp_path / "grid.obj").write_text("v 0 1 0\nv 1 1 0\nv 0 1 1\nv 1 1 1\nf 1 3 4 2\n")
-    (tmp_path / "s.toml").write_text('[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "mesh"\npath = "table.obj"\nfriction = 0.3\n')
+    (tmp_path / "s.toml").write_text(
+        '[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "mesh"\npath = "table.obj"\nfriction = 0.3\n'
+    )
     (mesh,) = get_scenario(str(tmp_path / "s.toml")).build().control.colliders
     assert isinstance(mesh, MeshCollider) and mesh.friction == 0.3 and len(mesh.vertices) == 8
     assert parse_collider(f"mesh:path={tmp_path / 'table.obj'},thickness=0.002,reach=0.1").reach == 0.1
-    argv = ["run", "sheet", "--rows", "6", "--cols", "6", "--duration", "0.2", "--collider", f"mesh:path={tmp_path / 'table.obj'}"]
+    argv = [
+        "run",
+        "sheet",
+        "--rows",
+        "6",
+        "--cols",
+        "6",
+        "--duration",
+        "0.2",
+        "--collider",
+        f"mesh:path={tmp_path / 'table.obj'}",
+    ]
     assert main(argv) == 0, capsys.readouterr().err
     model = build_grid_cloth(4, 4, 0.5, 0.5, 0.1, plane="horizontal", device="cpu")
     with UsdWriter(str(tmp_path / "m.usda"), model, 30.0, colliders=(from_file,)) as w:
@@ -118,15 +164,24 @@ def test_mesh_from_obj_toml_cli_and_usd(tmp_path, capsys):
     assert list(prim.GetFaceVertexIndicesAttr().Get()) == CUBE_T.reshape(-1).tolist()
 
 
-@pytest.mark.parametrize("make,match", [
-    (lambda: MeshCollider(vertices=np.zeros((0, 3)), triangles=np.zeros((0, 3), int)), "mesh collider is empty"),
-    (lambda: MeshCollider(vertices=CUBE_V, triangles=np.zeros((0, 3), int)), r"mesh collider is empty \(no triangles\)"),
-    (lambda: MeshCollider(vertices=CUBE_V, triangles=CUBE_T + 1), "vertex index .* out of range: vertices are 0..7"),
-    (lambda: cube((0, 0, 0), (1, 1, 1), reach=0.0), "mesh collider reach must be > 0"),
-    (lambda: cube((0, 0, 0), (1, 1, 1), thickness=-1.0), "collider thickness must be >= 0"),
-    (lambda: parse_collider("mesh:thickness=0.1"), "collider mesh needs path=FILE"),
-    (lambda: parse_collider("mesh:path=nothing.obj"), "mesh file 'nothing.obj' does not exist"),
-])
+@pytest.mark.parametrize(
+    "make,match",
+    [
+        (lambda: MeshCollider(vertices=np.zeros((0, 3)), triangles=np.zeros((0, 3), int)), "mesh collider is empty"),
+        (
+            lambda: MeshCollider(vertices=CUBE_V, triangles=np.zeros((0, 3), int)),
+            r"mesh collider is empty \(no triangles\)",
+        ),
+        (
+            lambda: MeshCollider(vertices=CUBE_V, triangles=CUBE_T + 1),
+            "vertex index .* out of range: vertices are 0..7",
+        ),
+        (lambda: cube((0, 0, 0), (1, 1, 1), reach=0.0), "mesh collider reach must be > 0"),
+        (lambda: cube((0, 0, 0), (1, 1, 1), thickness=-1.0), "collider thickness must be >= 0"),
+        (lambda: parse_collider("mesh:thickness=0.1"), "collider mesh needs path=FILE"),
+        (lambda: parse_collider("mesh:path=nothing.obj"), "mesh file 'nothing.obj' does not exist"),
+    ],
+)
 def test_bad_mesh_colliders_name_the_value(make, match):
     with pytest.raises(WarpclothError, match=match):
         make()
@@ -149,8 +204,12 @@ def test_a_sliding_mesh_ground_drags_a_particle_by_friction(integrator):
     from warpcloth.sim.colliders import ColliderTrack
 
     mu, u, duration = 0.5, 0.5, 0.5
-    quad = np.array([[-5.0, 0.0, -5.0], [-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0]])  # counter-clockwise seen from +y
-    ground = MeshCollider(vertices=quad, triangles=[[0, 1, 2], [0, 2, 3]], friction=mu, track=ColliderTrack.rigid(velocity=(u, 0.0, 0.0)))
+    quad = np.array(
+        [[-5.0, 0.0, -5.0], [-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0]]
+    )  # counter-clockwise seen from +y
+    ground = MeshCollider(
+        vertices=quad, triangles=[[0, 1, 2], [0, 2, 3]], friction=mu, track=ColliderTrack.rigid(velocity=(u, 0.0, 0.0))
+    )
     dt = 1.0 / 600.0 if integrator == "pbd" else 1e-3
     sim = Simulator(free_particles([[0.0, 0.0, 0.0]]), integrator, Control(colliders=(ground,), device="cpu"), dt=dt)
     sim.simulate(int(round(duration / dt)))
@@ -166,26 +225,38 @@ def test_a_moving_turning_cube_mesh_pushes_a_cloth_as_the_box_does(integrator):
     # sweep through a cloth with no gravity: no particle ever inside the moving box, the same cloth
     from warpcloth.sim.colliders import ColliderTrack
 
-    track = ColliderTrack.rigid(center=(0.5, 0.0, -0.3), axis=(0.0, 1.0, 0.0), angular_velocity=2.0, velocity=(0.0, 0.0, 1.0))
+    track = ColliderTrack.rigid(
+        center=(0.5, 0.0, -0.3), axis=(0.0, 1.0, 0.0), angular_velocity=2.0, velocity=(0.0, 0.0, 1.0)
+    )
     centre, half = np.array([0.5, 0.0, -0.3]), np.array([0.2, 0.2, 0.1])
 
     def run(collider):
         model = build_grid_cloth(9, 9, 1.0, 1.0, 0.2, plane="vertical", origin=(0.0, 0.5, 0.0), device="cpu")
-        sim = Simulator(model, integrator, Control(gravity=(0, 0, 0), colliders=(collider,), device="cpu"),
-                        dt=1.0 / 600.0 if integrator == "pbd" else None)
+        sim = Simulator(
+            model,
+            integrator,
+            Control(gravity=(0, 0, 0), colliders=(collider,), device="cpu"),
+            dt=1.0 / 600.0 if integrator == "pbd" else None,
+        )
         deepest = -1.0
         for _ in range(20):
             sim.simulate(max(1, round(0.025 / sim.dt)))
             r, c, d = track.transform(sim.sim_time)
-            local = (sim.state.particle_q.numpy().astype(np.float64) - (c + d + r @ (centre - c))) @ r  # into the box's frame
+            local = (
+                sim.state.particle_q.numpy().astype(np.float64) - (c + d + r @ (centre - c))
+            ) @ r  # into the box's frame
             depth = np.min(half + 0.005 - np.abs(local), axis=1)  # > 0: inside the box grown by the thickness
             deepest = max(deepest, depth.max())
         return sim.state.particle_q.numpy().astype(np.float64), deepest
 
     x_mesh, deep_mesh = run(cube(centre, half, thickness=0.005, friction=0.3, track=track))
-    x_box, deep_box = run(Box(center=tuple(centre), half_extents=tuple(half), thickness=0.005, friction=0.3, track=track))
+    x_box, deep_box = run(
+        Box(center=tuple(centre), half_extents=tuple(half), thickness=0.005, friction=0.3, track=track)
+    )
     assert deep_mesh < 1e-4 and deep_box < 1e-4  # never inside the moving box (beyond a step's rounding)
-    assert np.abs(x_box - x_mesh).max() < 3e-3  # the same sweep as the analytic box (pbd: 2.4 mm of a 0.7 m sweep, float32 frame changes)
+    assert (
+        np.abs(x_box - x_mesh).max() < 3e-3
+    )  # the same sweep as the analytic box (pbd: 2.4 mm of a 0.7 m sweep, float32 frame changes)
     assert np.abs(x_box[:, 2]).max() > 0.1  # and it did push the cloth
 
 
@@ -195,6 +266,8 @@ def test_a_particle_rests_on_a_flat_mesh_floor(thickness):
     # went up to reach below it (it used to let it fall through when thickness = 0)
     quad = np.array([[-1.0, 0.0, -1.0], [-1.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]])
     floor = MeshCollider(vertices=quad, triangles=[[0, 1, 2], [0, 2, 3]], thickness=thickness)
-    sim = Simulator(free_particles([[0.1, 0.2, 0.0]]), "explicit_euler", Control(colliders=(floor,), device="cpu"), dt=1e-3)
+    sim = Simulator(
+        free_particles([[0.1, 0.2, 0.0]]), "explicit_euler", Control(colliders=(floor,), device="cpu"), dt=1e-3
+    )
     sim.simulate(400)  # lands at 0.2 s
     assert sim.state.particle_q.numpy()[0, 1] == pytest.approx(thickness, abs=1e-6)

@@ -3,18 +3,21 @@
 import numpy as np
 import pytest
 import warp as wp
+from helpers import reference_forces, spring_params
 
 from warpcloth import SpringType, WarpclothError, build_grid_cloth, expected_spring_counts
-from warpcloth.sim.control import Control
 from warpcloth.integrators.forces import eval_forces
+from warpcloth.sim.control import Control
 from warpcloth.sim.grid import grid_springs
-
-from helpers import reference_forces, spring_params
 
 
 def eq_2_2(m, n):
     """Seed eq. 2.2, written out independently of the library."""
-    return (2 * (m - 1) * (n - 1) + (m - 1) + (n - 1), 2 * (m - 1) * (n - 1), 2 * (m - 2) * (n - 2) + 2 * ((m - 2) + (n - 2)))
+    return (
+        2 * (m - 1) * (n - 1) + (m - 1) + (n - 1),
+        2 * (m - 1) * (n - 1),
+        2 * (m - 2) * (n - 2) + 2 * ((m - 2) + (n - 2)),
+    )
 
 
 @pytest.mark.parametrize("rows,cols", [(3, 3), (4, 7), (10, 5), (50, 50)])
@@ -108,7 +111,9 @@ def test_wind_force_on_a_flat_triangle_pair():
     from warpcloth.sim.control import WindSchedule
 
     model = build_grid_cloth(3, 3, 1.0, 1.0, 0.9, spring_params=spring_params(0.0), plane="vertical")
-    control = Control(gravity=(0.0, 0.0, 0.0), wind_coefficient=0.5, wind_schedule=WindSchedule.constant((0.0, 0.0, 3.0)))
+    control = Control(
+        gravity=(0.0, 0.0, 0.0), wind_coefficient=0.5, wind_schedule=WindSchedule.constant((0.0, 0.0, 3.0))
+    )
     control.update()
     f = wp.zeros(model.particle_count, dtype=wp.vec3)
     state = model.state()
@@ -152,9 +157,9 @@ def test_two_by_two_is_allowed_without_bend_springs():
 
 def test_with_spring_params_returns_a_new_model_and_a_simulator_rebinds():
     # the model is immutable: new parameters give a new model; a Simulator continues on it
-    from warpcloth import Control, Simulator
-
     from helpers import single_spring, spring_params
+
+    from warpcloth import Control, Simulator
 
     model = single_spring(ks=40.0, mass=0.1)
     stiffer = model.with_spring_params(spring_params(160.0))

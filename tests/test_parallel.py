@@ -11,14 +11,13 @@ import time
 from pathlib import Path
 
 import pytest
+from parallel_toy import toy  # noqa: E402 - a job function the spawned workers import without Warp
 
 import warpcloth.lab.sweep as sweep
 from warpcloth.cli import main
 from warpcloth.errors import WarpclothError
 from warpcloth.lab.parallel import Job, LocalPool, units_of
 from warpcloth.lab.testlist import parse_test_list
-
-from parallel_toy import toy  # noqa: E402 - a job function the spawned workers import without Warp
 
 # 2 integrators x 2 time steps x 2 scenarios = 8 runs in 4 max-dt search groups
 TINY = """
@@ -33,9 +32,22 @@ SLOW = """
 </test_list>
 """
 #: Columns that depend on the machine, the clock or the placement, not on the run.
-TIMING = {"wall_time_s", "compile_s", "ms_per_step", "steps_per_s", "frames_per_wall_second", "realtime_factor",
-          "realtime", "integration_ms_mean", "other_ms_mean", "time_to_equilibrium_wall_s", "host", "worker",
-          "concurrent_runs", "solver"}
+TIMING = {
+    "wall_time_s",
+    "compile_s",
+    "ms_per_step",
+    "steps_per_s",
+    "frames_per_wall_second",
+    "realtime_factor",
+    "realtime",
+    "integration_ms_mean",
+    "other_ms_mean",
+    "time_to_equilibrium_wall_s",
+    "host",
+    "worker",
+    "concurrent_runs",
+    "solver",
+}
 
 
 def write(tmp_path, text, name="tests.xml"):
@@ -92,8 +104,12 @@ def test_concurrent_counts_jobs_running_at_once(tmp_path):
 
 def test_a_worker_killed_mid_job_is_replaced_and_its_unfinished_jobs_run_again(tmp_path):
     marker = str(tmp_path / "died")
-    jobs = [Job("a", ("ok", "a"), group="g"), Job("b", ("die_once", marker), group="g"), Job("c", ("ok", "c"), group="g"),
-            Job("d", ("ok", "d"))]
+    jobs = [
+        Job("a", ("ok", "a"), group="g"),
+        Job("b", ("die_once", marker), group="g"),
+        Job("c", ("ok", "c"), group="g"),
+        Job("d", ("ok", "d")),
+    ]
     events = []
     done = list(LocalPool(toy, 2, on_event=events.append).run(jobs))
     assert sorted(d.job.key for d in done) == ["a", "b", "c", "d"]  # a reported once, before the kill
@@ -105,7 +121,9 @@ def test_a_worker_killed_mid_job_is_replaced_and_its_unfinished_jobs_run_again(t
 
 def test_a_job_that_always_kills_its_worker_is_given_up():
     events = []
-    done = list(LocalPool(toy, 1, max_retries=1, on_event=events.append).run([Job("x", ("die", 0)), Job("y", ("ok", 1))]))
+    done = list(
+        LocalPool(toy, 1, max_retries=1, on_event=events.append).run([Job("x", ("die", 0)), Job("y", ("ok", 1))])
+    )
     by_key = {d.job.key: d for d in done}
     assert by_key["x"].row is None and "died 2 times" in by_key["x"].error
     assert by_key["y"].row["value"] == 1
@@ -172,8 +190,12 @@ def test_a_killed_worker_loses_and_duplicates_nothing(tmp_path):
     path = write(tmp_path, SLOW)
     expected = sorted(r.key for r in parse_test_list(path).runs)
     out = tmp_path / "r.csv"
-    proc = subprocess.Popen([sys.executable, "-m", "warpcloth", "sweep", path, "--out", str(out), "--workers", "2"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "warpcloth", "sweep", path, "--out", str(out), "--workers", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         _wait_rows(out, proc, 1)
         workers = _children(proc.pid)
@@ -196,9 +218,13 @@ def test_an_interrupted_parallel_sweep_resumes(tmp_path, capsys):
     out = tmp_path / "r.csv"
     # SIGINT at its default in the child: a shell's background job (`pytest &`) ignores it, and an
     # ignored SIGINT is inherited, so the sweep could not be interrupted there
-    proc = subprocess.Popen([sys.executable, "-m", "warpcloth", "sweep", path, "--out", str(out), "--workers", "2"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "warpcloth", "sweep", path, "--out", str(out), "--workers", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     try:
         _wait_rows(out, proc, 2)
         workers = _children(proc.pid)
@@ -216,20 +242,27 @@ def test_an_interrupted_parallel_sweep_resumes(tmp_path, capsys):
     assert main(["sweep", path, "--out", str(out), "--resume", "--workers", "2", "--quiet"]) == 0
     assert f"{8 - len(first)} runs written" in capsys.readouterr().out
     keys = [r["key"] for r in sweep.read_results(str(out))]
-    assert sorted(keys) == expected and keys[:len(first)] == first
+    assert sorted(keys) == expected and keys[: len(first)] == first
 
 
 # -- bad input ---------------------------------------------------------------------------------
-@pytest.mark.parametrize("args, message", [
-    (["--workers", "0"], "argument --workers: must be at least 1, got 0"),
-    (["--workers", "two"], "argument --workers: 'two' is not a whole number >= 1"),
-    (["--workers", "2", "--ray", "auto"], "--ray runs the sweep on the cluster's CPUs and GPUs: it takes neither --workers nor --devices"),
-    (["--devices", "cuda:0", "--ray", "auto"], "it takes neither --workers nor --devices"),
-    (["--devices", "cpu"], "--devices: 'cpu' is not a CUDA device"),
-    (["--devices", "cuda:7"], "--devices: device 'cuda:7' is not available") if not __import__("warp").is_cuda_available()
-    else (["--devices", "cuda:77"], "device 'cuda:77' is not available"),
-    (["--devices", "cuda:0,,cuda:1"], "is not a comma-separated list of CUDA devices"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--workers", "0"], "argument --workers: must be at least 1, got 0"),
+        (["--workers", "two"], "argument --workers: 'two' is not a whole number >= 1"),
+        (
+            ["--workers", "2", "--ray", "auto"],
+            "--ray runs the sweep on the cluster's CPUs and GPUs: it takes neither --workers nor --devices",
+        ),
+        (["--devices", "cuda:0", "--ray", "auto"], "it takes neither --workers nor --devices"),
+        (["--devices", "cpu"], "--devices: 'cpu' is not a CUDA device"),
+        (["--devices", "cuda:7"], "--devices: device 'cuda:7' is not available")
+        if not __import__("warp").is_cuda_available()
+        else (["--devices", "cuda:77"], "device 'cuda:77' is not available"),
+        (["--devices", "cuda:0,,cuda:1"], "is not a comma-separated list of CUDA devices"),
+    ],
+)
 def test_bad_parallel_flags_are_one_line_exit_2(tmp_path, monkeypatch, capsys, args, message):
     path = write(tmp_path, TINY)
     monkeypatch.setattr(sweep, "execute_run", lambda *a: pytest.fail("a run started"))
@@ -249,8 +282,10 @@ def test_ray_without_ray_says_how_to_install_it(tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray raises ImportError
     assert main(["sweep", path, "--out", str(tmp_path / "r.csv"), "--ray", "auto"]) == 2
     err = capsys.readouterr().err
-    assert err == ("warpcloth: error: --ray needs Ray: pip install 'warpcloth[cluster]' "
-                   "(from a clone: pip install -e '.[cluster]')\n")
+    assert err == (
+        "warpcloth: error: --ray needs Ray: pip install 'warpcloth[cluster]' "
+        "(from a clone: pip install -e '.[cluster]')\n"
+    )
 
 
 def test_plan_warns_only_above_the_device_count(monkeypatch):
@@ -304,7 +339,9 @@ def test_ray_killed_worker_loses_and_duplicates_nothing(serial, ray_cluster, tmp
     path, rows = serial
     out = tmp_path / "ray.csv"
     result = {}
-    thread = threading.Thread(target=lambda: result.setdefault("rc", main(["sweep", path, "--out", str(out), "--ray", "auto", "--quiet"])))
+    thread = threading.Thread(
+        target=lambda: result.setdefault("rc", main(["sweep", path, "--out", str(out), "--ray", "auto", "--quiet"]))
+    )
     thread.start()
     killed = None
     deadline = time.monotonic() + 120
@@ -329,7 +366,9 @@ def test_a_worker_device_moves_cuda_runs_only_and_keeps_the_key(tmp_path, monkey
     path = write(tmp_path, TINY)
     spec = parse_test_list(path).runs[0]
     seen = []
-    monkeypatch.setattr(sweep, "execute_run", lambda s, cache: seen.append(s.device) or {"key": s.key, "device": s.device})
+    monkeypatch.setattr(
+        sweep, "execute_run", lambda s, cache: seen.append(s.device) or {"key": s.key, "device": s.device}
+    )
     monkeypatch.setattr(sweep, "_WORKER_CACHE", None)
     cuda = __import__("dataclasses").replace(spec, device="cuda:0")  # as parsed on a GPU machine
     row = sweep.parallel_run(cuda, Place("h", "local:2", "cuda:1"))
@@ -351,7 +390,9 @@ def test_check_address_refuses_malformed_and_silent_addresses():
     from warpcloth.lab.parallel import check_address
 
     for bad in ("nonsense", "host:", ":6379", "host:99999", "ray://host:port", "host:-1"):
-        with pytest.raises(ConnectionError, match="is not a Ray address: give auto, local, HOST:PORT or ray://HOST:PORT"):
+        with pytest.raises(
+            ConnectionError, match="is not a Ray address: give auto, local, HOST:PORT or ray://HOST:PORT"
+        ):
             check_address(bad)
     port = _closed_port()
     for address in (f"127.0.0.1:{port}", f"ray://127.0.0.1:{port}"):
@@ -369,8 +410,25 @@ def test_study_with_an_unreachable_ray_address_is_one_line_and_writes_nothing(tm
     pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[cluster]')")
     port = _closed_port()
     out = tmp_path / "out"
-    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler", "--sizes", "4", "--quiet",
-                 "--out", str(out), "--ray", f"127.0.0.1:{port}"]) == 2
+    assert (
+        main(
+            [
+                "study",
+                "--profile",
+                "quick",
+                "--integrators",
+                "explicit_euler",
+                "--sizes",
+                "4",
+                "--quiet",
+                "--out",
+                str(out),
+                "--ray",
+                f"127.0.0.1:{port}",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert err.startswith(f"warpcloth: error: --ray 127.0.0.1:{port}: nothing answers at 127.0.0.1:{port} within 5 s")
     assert err.count("\n") == 1
@@ -388,8 +446,22 @@ def test_study_via_ray_gives_the_serial_rows(ray_cluster, tmp_path):
     run_study(plan, tmp_path / "serial")
     run_study(plan, tmp_path / "ray", ray="auto")
     serial, par = read_rows(tmp_path / "serial" / "results.csv"), read_rows(tmp_path / "ray" / "results.csv")
-    same = ["measurement", "scenario", "integrator", "dt_s", "steps_per_frame", "bound_dt_s", "error_rel", "floor_point_rel",
-            "max_strain_rel", "stable", "equilibrium_reached", "time_to_equilibrium_sim_s", "static_error_rel", "trials"]
+    same = [
+        "measurement",
+        "scenario",
+        "integrator",
+        "dt_s",
+        "steps_per_frame",
+        "bound_dt_s",
+        "error_rel",
+        "floor_point_rel",
+        "max_strain_rel",
+        "stable",
+        "equilibrium_reached",
+        "time_to_equilibrium_sim_s",
+        "static_error_rel",
+        "trials",
+    ]
     assert sorted(r["key"] for r in serial) == sorted(r["key"] for r in par)
     by_key = {r["key"]: r for r in par}
     for r in serial:

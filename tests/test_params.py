@@ -26,8 +26,10 @@ def write(tmp_path, text, name="t.xml"):
 def test_docs_table_is_the_generated_one():
     doc = (REPO / "docs" / "sweep.md").read_text()
     begin = doc.index("<!-- params:begin")
-    table = doc[doc.index("\n", begin) + 1:doc.index("<!-- params:end -->")].strip()
-    assert table == params.markdown_table(), "docs/sweep.md is stale: paste `python -m warpcloth.run.params` between the markers"
+    table = doc[doc.index("\n", begin) + 1 : doc.index("<!-- params:end -->")].strip()
+    assert table == params.markdown_table(), (
+        "docs/sweep.md is stale: paste `python -m warpcloth.run.params` between the markers"
+    )
 
 
 def test_every_spelling_comes_from_the_declaration():
@@ -54,10 +56,18 @@ def _actions(command):
 
 
 def test_old_xml_spellings_are_accepted_with_a_note(tmp_path, capsys):
-    old = write(tmp_path, '<test_list cap="5" timestep="1e-3" scenarios="sheet">\n<test integrator="rk4" size="4"/>\n'
-                          '<test integrator="verlet" size="4" cap="none"/></test_list>', "old.xml")
-    new = write(tmp_path, '<test_list wall_cap="5" dt="1e-3" scenario="sheet">\n<test integrator="rk4" size="4"/>\n'
-                          '<test integrator="verlet" size="4" wall_cap="none"/></test_list>', "new.xml")
+    old = write(
+        tmp_path,
+        '<test_list cap="5" timestep="1e-3" scenarios="sheet">\n<test integrator="rk4" size="4"/>\n'
+        '<test integrator="verlet" size="4" cap="none"/></test_list>',
+        "old.xml",
+    )
+    new = write(
+        tmp_path,
+        '<test_list wall_cap="5" dt="1e-3" scenario="sheet">\n<test integrator="rk4" size="4"/>\n'
+        '<test integrator="verlet" size="4" wall_cap="none"/></test_list>',
+        "new.xml",
+    )
     a = parse_test_list(old)
     err = capsys.readouterr().err
     for word, now in (("cap", "wall_cap"), ("timestep", "dt"), ("scenarios", "scenario")):
@@ -68,14 +78,33 @@ def test_old_xml_spellings_are_accepted_with_a_note(tmp_path, capsys):
     assert a.runs[0].wall_cap == a.runs[0].cap == 5.0 and a.runs[1].wall_cap is None
     assert str(a.runs[0].dt) == str(a.runs[0].timestep) == "0.001"
     both = write(tmp_path, '<test_list>\n<test integrator="rk4" cap="5" wall_cap="6"/></test_list>', "both.xml")
-    with pytest.raises(WarpclothError, match=r"both.xml:2: .*'wall_cap' and 'cap' name the same parameter|'cap' and 'wall_cap' name the same"):
+    with pytest.raises(
+        WarpclothError,
+        match=r"both.xml:2: .*'wall_cap' and 'cap' name the same parameter|'cap' and 'wall_cap' name the same",
+    ):
         parse_test_list(both)
 
 
 def test_new_flags_from_declarations_work_on_the_cli(tmp_path, capsys):
     # --size and the per-type stiffness flags exist because the declarations have them
-    code = main(["run", "sheet", "--size", "5x6", "--stiffness", "800", "--stiffness-bend", "50", "--duration", "0.05",
-                 "--wall-cap", "30", "--json", "-q"])
+    code = main(
+        [
+            "run",
+            "sheet",
+            "--size",
+            "5x6",
+            "--stiffness",
+            "800",
+            "--stiffness-bend",
+            "50",
+            "--duration",
+            "0.05",
+            "--wall-cap",
+            "30",
+            "--json",
+            "-q",
+        ]
+    )
     assert code == 0
     import json
 
@@ -86,31 +115,54 @@ def test_new_flags_from_declarations_work_on_the_cli(tmp_path, capsys):
 
 
 def test_per_type_cli_flags_reach_the_model():
-    from warpcloth.cli import config_from_args
-    from warpcloth.sim.model import SpringType
     from warpcloth.scenarios import get_scenario
 
+    from warpcloth.cli import config_from_args
+    from warpcloth.sim.model import SpringType
+
     parser = build_parser()
-    args = parser.parse_args(["run", "sheet", "--rows", "4", "--cols", "4", "--stiffness", "800", "--stiffness-bend", "50",
-                              "--damping-shear", "0.3"])
+    args = parser.parse_args(
+        [
+            "run",
+            "sheet",
+            "--rows",
+            "4",
+            "--cols",
+            "4",
+            "--stiffness",
+            "800",
+            "--stiffness-bend",
+            "50",
+            "--damping-shear",
+            "0.3",
+        ]
+    )
     cfg = config_from_args(get_scenario("sheet"), args)
     sim = get_scenario("sheet").build(cfg)
     p = sim.model.spring_params
-    assert (p[SpringType.STRUCTURAL].stiffness, p[SpringType.SHEAR].stiffness, p[SpringType.BEND].stiffness) == (800, 800, 50)
+    assert (p[SpringType.STRUCTURAL].stiffness, p[SpringType.SHEAR].stiffness, p[SpringType.BEND].stiffness) == (
+        800,
+        800,
+        50,
+    )
     assert p[SpringType.SHEAR].damping == pytest.approx(0.3)
 
 
 def test_adding_a_parameter_is_one_declaration(tmp_path, monkeypatch):
     """A new parameter declared once appears as an XML attribute (checked, with file:line), a
     CSV column, a run-key field and a CLI flag, with no other change but its use."""
-    extra = params.Param("gravity_scale", params.positive, "", "multiplies gravity", "> 0", "forces", default=1.0,
-                         key="set", config=None)
+    extra = params.Param(
+        "gravity_scale", params.positive, "", "multiplies gravity", "> 0", "forces", default=1.0, key="set", config=None
+    )
     monkeypatch.setattr(params, "PARAMS", params.PARAMS + (extra,))
     monkeypatch.setitem(params.BY_NAME, "gravity_scale", extra)
     import warpcloth.lab.testlist as testlist
 
     if True:
-        path = write(tmp_path, '<test_list scenario="sheet">\n<test integrator="rk4" size="4" gravity_scale="0.5 1.0"/></test_list>')
+        path = write(
+            tmp_path,
+            '<test_list scenario="sheet">\n<test integrator="rk4" size="4" gravity_scale="0.5 1.0"/></test_list>',
+        )
         runs = testlist.parse_test_list(path).runs
         assert sorted(r.gravity_scale for r in runs) == [0.5, 1.0]
         assert sum("gravity_scale=0.5" in r.key for r in runs) == 1 and sum("gravity_scale" in r.key for r in runs) == 1
@@ -128,7 +180,9 @@ def test_adding_a_parameter_is_one_declaration(tmp_path, monkeypatch):
 def test_runspec_pickles_for_worker_processes(tmp_path):
     import pickle
 
-    spec = parse_test_list(write(tmp_path, '<test_list><test integrator="rk4" size="4" scenario="sheet"/></test_list>')).runs[0]
+    spec = parse_test_list(
+        write(tmp_path, '<test_list><test integrator="rk4" size="4" scenario="sheet"/></test_list>')
+    ).runs[0]
     again = pickle.loads(pickle.dumps(spec))
     assert again == spec and again.key == spec.key and isinstance(again, RunSpec)
     assert dataclasses.asdict(again)["test_id"] == "1"
@@ -138,31 +192,42 @@ def test_the_max_dt_search_key_holds_the_wall_cap_and_the_duration(tmp_path):
     # a max-dt trial that reaches the wall cap counts as capped, so runs with other caps must not
     # share one search; "max" is verified over the run's own duration (docs/sweep.md), so runs of
     # other durations do not share one either
-    runs = parse_test_list(write(tmp_path, '<test_list dt="max" scenario="sheet" integrator="rk4" size="4">\n'
-                                            '<test wall_cap="5"/><test wall_cap="none"/><test wall_cap="5" duration="2"/>'
-                                            '<test wall_cap="5" mass="0.3"/></test_list>')).runs
+    runs = parse_test_list(
+        write(
+            tmp_path,
+            '<test_list dt="max" scenario="sheet" integrator="rk4" size="4">\n'
+            '<test wall_cap="5"/><test wall_cap="none"/><test wall_cap="5" duration="2"/>'
+            '<test wall_cap="5" mass="0.3"/></test_list>',
+        )
+    ).runs
     assert runs[0].search_key != runs[1].search_key
     assert runs[0].search_key != runs[2].search_key and runs[0].key != runs[2].key
     assert runs[0].search_key != runs[3].search_key  # another model
 
 
 def test_time_steps_times_exactly_the_steps_asked():
-    from warpcloth.run.harness import time_steps
     from warpcloth.scenarios import get_scenario
+
+    from warpcloth.run.harness import time_steps
 
     sim = get_scenario("sheet").build(rows=4, cols=4, device="cpu", use_graph=False)
     for steps, windows in ((13, 5), (100, 5), (7, 7)):
         before = sim.steps
         t = time_steps(sim, windows=windows, steps=steps)
         assert t.steps == steps and len(t.ms_per_step) == windows
-        assert sim.steps - before == steps + sum({steps // windows, steps // windows + (steps % windows > 0)})  # + one untimed replay of each count
+        assert sim.steps - before == steps + sum(
+            {steps // windows, steps // windows + (steps % windows > 0)}
+        )  # + one untimed replay of each count
     with pytest.raises(WarpclothError, match=r"steps \(3\) must be at least windows \(5\)"):
         time_steps(sim, windows=5, steps=3)
 
 
 def test_grid_or_mesh_attributes_no_scenario_of_the_test_takes_are_refused(tmp_path):
     path = write(tmp_path, '<test_list>\n<test integrator="rk4" scenario="mesh"\n size="5 7"/></test_list>')
-    with pytest.raises(WarpclothError, match=r":3: test '1': 'size' applies to grid scenarios and none of the test's scenarios \(mesh\)"):
+    with pytest.raises(
+        WarpclothError,
+        match=r":3: test '1': 'size' applies to grid scenarios and none of the test's scenarios \(mesh\)",
+    ):
         parse_test_list(path)
     path = write(tmp_path, '<test_list>\n<test integrator="rk4" scenario="sheet" mesh="x.obj"/></test_list>', "m.xml")
     with pytest.raises(WarpclothError, match=r":2: test '1': 'mesh' applies to mesh scenarios"):
@@ -179,10 +244,15 @@ def test_a_mesh_in_a_test_list_gets_the_damping_of_its_own_particles(tmp_path):
     from warpcloth.lab.sweep import run_sweep
 
     obj = tmp_path / "small.obj"
-    obj.write_text("".join(f"v {x} {y} 0\n" for y in range(3) for x in range(3)) +
-                   "f 1 2 5\nf 1 5 4\nf 2 3 6\nf 2 6 5\nf 4 5 8\nf 4 8 7\nf 5 6 9\nf 5 9 8\n")
-    path = write(tmp_path, f'<test_list><test integrator="explicit_euler" scenario="mesh" mesh="{obj}" pin="y &gt; 1.9" '
-                           'dt="0.001" duration="0.02"/></test_list>')
+    obj.write_text(
+        "".join(f"v {x} {y} 0\n" for y in range(3) for x in range(3))
+        + "f 1 2 5\nf 1 5 4\nf 2 3 6\nf 2 6 5\nf 4 5 8\nf 4 8 7\nf 5 6 9\nf 5 9 8\n"
+    )
+    path = write(
+        tmp_path,
+        f'<test_list><test integrator="explicit_euler" scenario="mesh" mesh="{obj}" pin="y &gt; 1.9" '
+        'dt="0.001" duration="0.02"/></test_list>',
+    )
     (spec,) = parse_test_list(path).runs
     assert spec.rows is None and spec.damping is None  # known once the mesh is built
     from warpcloth.scenarios import get_scenario

@@ -9,15 +9,25 @@ discrete free fall; and the sheet's sag against rk4.
 import numpy as np
 import pytest
 import warp as wp
-
-from warpcloth import BendModel, ClothModel, Control, Simulator, SpringParams, SpringType, WarpclothError, build_grid_cloth, make_integrator
-from warpcloth.cli import main as cli_main
-from warpcloth.sim.coloring import color_springs, greedy_spring_colors, grid_spring_colors, is_valid_coloring
-from warpcloth.integrators.pbd import iteration_stiffness
 from warpcloth.kernels import constraints as ck
-from warpcloth.sim.grid import grid_springs
 from warpcloth.scenarios import flag, sheet
+
+from warpcloth import (
+    BendModel,
+    ClothModel,
+    Control,
+    Simulator,
+    SpringParams,
+    SpringType,
+    WarpclothError,
+    build_grid_cloth,
+    make_integrator,
+)
+from warpcloth.cli import main as cli_main
+from warpcloth.integrators.pbd import iteration_stiffness
 from warpcloth.run.harness import RunHarness
+from warpcloth.sim.coloring import color_springs, greedy_spring_colors, grid_spring_colors, is_valid_coloring
+from warpcloth.sim.grid import grid_springs
 
 G = 9.81
 DT = 1.0 / 60.0
@@ -35,16 +45,32 @@ def custom_model(q, pairs, mass, pins=(), ks=100.0, kd=0.0, device="cpu") -> Clo
     types = np.full(pairs.shape[0], int(SpringType.STRUCTURAL), dtype=np.int32)
     with wp.ScopedDevice(device):
         return ClothModel(
-            rows=n, cols=1, width=1.0, height=1.0, total_mass=float(mass.sum()), device=device,
-            particle_q=wp.array(q, dtype=wp.vec3), particle_mass=wp.array(mass, dtype=float),
-            particle_inv_mass=wp.array(inv_mass, dtype=float), pinned=np.asarray(sorted(pins), dtype=np.int64),
-            spring_indices=wp.array(pairs, dtype=wp.vec2i), spring_type=types,
+            rows=n,
+            cols=1,
+            width=1.0,
+            height=1.0,
+            total_mass=float(mass.sum()),
+            device=device,
+            particle_q=wp.array(q, dtype=wp.vec3),
+            particle_mass=wp.array(mass, dtype=float),
+            particle_inv_mass=wp.array(inv_mass, dtype=float),
+            pinned=np.asarray(sorted(pins), dtype=np.int64),
+            spring_indices=wp.array(pairs, dtype=wp.vec2i),
+            spring_type=types,
             spring_rest_length=wp.array(rest, dtype=float),
             spring_stiffness=wp.array(np.full(len(pairs), ks, dtype=np.float32), dtype=float),
             spring_damping=wp.array(np.full(len(pairs), kd, dtype=np.float32), dtype=float),
-            tri_indices=wp.zeros(0, dtype=wp.vec3i), spring_params={t: SpringParams(ks, kd) for t in SpringType},
+            tri_indices=wp.zeros(0, dtype=wp.vec3i),
+            spring_params={t: SpringParams(ks, kd) for t in SpringType},
             bend=BendModel.NONE,
-            host={"q": q, "pairs": pairs, "rest": rest, "mass": mass, "inv_mass": inv_mass, "tris": np.zeros((0, 3), np.int32)},
+            host={
+                "q": q,
+                "pairs": pairs,
+                "rest": rest,
+                "mass": mass,
+                "inv_mass": inv_mass,
+                "tris": np.zeros((0, 3), np.int32),
+            },
         )
 
 
@@ -54,6 +80,7 @@ def hanging_mass(mass=0.1, rest=0.5, ks=100.0, kd=0.0):
 
 
 # -- one projection ----------------------------------------------------------------------------
+
 
 def project_once(p, inv_mass, rest, xpbd=False, ks=1.0e3, kd=0.0, h=DT):
     """Positions after projecting the single constraint (0, 1) once with the real kernels
@@ -114,6 +141,7 @@ def test_xpbd_projection_matches_the_compliant_closed_form():
 
 # -- PBD stiffness and the iteration-count correction ----------------------------------------
 
+
 def test_iteration_stiffness_formula():
     assert iteration_stiffness(0.5, 1) == pytest.approx(0.5)
     assert iteration_stiffness(0.75, 2) == pytest.approx(0.5)  # (1 - 0.5)^2 = 1 - 0.75
@@ -125,7 +153,12 @@ def test_pbd_hanging_mass_rests_at_iteration_independent_extension(iterations, s
     # Stationary state: the projection keeps (1 - k) of the error e + g h^2, so e = (1 - k)/k g h^2,
     # h = dt / substeps.
     k, h = 0.5, DT / substeps
-    sim = Simulator(hanging_mass(), make_integrator("pbd", iterations=iterations, substeps=substeps, pbd_stiffness=k), Control(device="cpu"), dt=DT)
+    sim = Simulator(
+        hanging_mass(),
+        make_integrator("pbd", iterations=iterations, substeps=substeps, pbd_stiffness=k),
+        Control(device="cpu"),
+        dt=DT,
+    )
     sim.simulate(300)
     q = sim.state.particle_q.numpy()
     extension = -q[1, 1] - 0.5
@@ -134,7 +167,12 @@ def test_pbd_hanging_mass_rests_at_iteration_independent_extension(iterations, s
 
 def test_pbd_hanging_mass_without_correction_depends_on_iterations():
     # Without k': e = (1 - k)^n / (1 - (1 - k)^n) g dt^2, 1/31 of the corrected value at n = 5.
-    sim = Simulator(hanging_mass(), make_integrator("pbd", iterations=5, substeps=1, pbd_stiffness=0.5), Control(device="cpu"), dt=DT)
+    sim = Simulator(
+        hanging_mass(),
+        make_integrator("pbd", iterations=5, substeps=1, pbd_stiffness=0.5),
+        Control(device="cpu"),
+        dt=DT,
+    )
     sim.integrator.iteration_correction = False
     sim.simulate(300)
     extension = -sim.state.particle_q.numpy()[1, 1] - 0.5
@@ -144,8 +182,13 @@ def test_pbd_hanging_mass_without_correction_depends_on_iterations():
 def pbd_sheet_sag(iterations, correction=True):
     # a deliberately soft material (k = 0.5, one substep) stretches 55 %: above the default
     # instability strain (0.5), which is meant for the scenarios' own materials
-    harness = sheet.SCENARIO.harness(integrator="pbd", rows=10, cols=10, instability_strain=1.0,
-                                     integrator_options={"iterations": iterations, "substeps": 1, "pbd_stiffness": 0.5, "pbd_bend_stiffness": 0.5})
+    harness = sheet.SCENARIO.harness(
+        integrator="pbd",
+        rows=10,
+        cols=10,
+        instability_strain=1.0,
+        integrator_options={"iterations": iterations, "substeps": 1, "pbd_stiffness": 0.5, "pbd_bend_stiffness": 0.5},
+    )
     sim = harness.sim
     sim.integrator.iteration_correction = correction
     result = harness.run(8.0, stop_at_equilibrium=True, warm_up=False)
@@ -166,6 +209,7 @@ def test_pbd_sheet_sag_does_not_depend_on_iterations():
 
 # -- XPBD: the same material as the force-based integrators ------------------------------------
 
+
 def backward_euler_hanging(steps, h, mass, ks, kd, rest):
     """Length of the hanging spring under backward Euler on m x'' = -ks (x - L0) - kd x' + m g,
     from rest at x = L0, in float64 (x: the downward length)."""
@@ -182,12 +226,17 @@ def test_xpbd_single_spring_is_backward_euler(substeps, kd):
     # Converged XPBD on one linear constraint is backward Euler on the damped spring with the
     # spring's own ks and kd (Macklin 2016, eq. 26, gamma = kd / (ks h)).
     mass, ks, rest = 0.1, 100.0, 0.5
-    sim = Simulator(hanging_mass(mass, rest, ks, kd), make_integrator("xpbd", iterations=2, substeps=substeps), Control(device="cpu"), dt=DT)
+    sim = Simulator(
+        hanging_mass(mass, rest, ks, kd),
+        make_integrator("xpbd", iterations=2, substeps=substeps),
+        Control(device="cpu"),
+        dt=DT,
+    )
     lengths = []
     for _ in range(30):
         sim.step()
         lengths.append(-float(sim.state.particle_q.numpy()[1, 1]))
-    expected = backward_euler_hanging(30 * substeps, DT / substeps, mass, ks, kd, rest)[substeps - 1::substeps]
+    expected = backward_euler_hanging(30 * substeps, DT / substeps, mass, ks, kd, rest)[substeps - 1 :: substeps]
     assert np.ptp(expected) > 5e-3  # it does move
     # float32 round-off of v = (p - x) / h reaches ~3e-6 m at 4 substeps; kd off by 10 % gives 1.5e-4 m
     np.testing.assert_allclose(lengths, expected, atol=2e-5)
@@ -211,6 +260,7 @@ def test_xpbd_sheet_sag_matches_rk4():
 
 # -- the integrator loop ------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("name,options", [("pbd", {"substeps": 1, "pbd_stiffness": 0.0}), ("xpbd", {"substeps": 3})])
 def test_free_fall_is_symplectic_euler(name, options):
     # no constraint acts (k = 0 / ks = 0): after M (sub)steps of h, y = -h^2 g M (M + 1) / 2
@@ -226,14 +276,24 @@ def test_free_fall_is_symplectic_euler(name, options):
     np.testing.assert_allclose(sim.state.particle_qd.numpy()[:, 1], -G * m * h, rtol=1e-3)
 
 
-@pytest.mark.parametrize("name,options", [
-    ("pbd", {"substeps": 1, "pbd_stiffness": 0.0}), ("pbd", {"substeps": 3, "pbd_stiffness": 0.0}),
-    ("xpbd", {"substeps": 1}), ("xpbd", {"substeps": 4}),
-])
+@pytest.mark.parametrize(
+    "name,options",
+    [
+        ("pbd", {"substeps": 1, "pbd_stiffness": 0.0}),
+        ("pbd", {"substeps": 3, "pbd_stiffness": 0.0}),
+        ("xpbd", {"substeps": 1}),
+        ("xpbd", {"substeps": 4}),
+    ],
+)
 def test_velocity_damping_scales_velocity_per_step(name, options):
     # without forces, v <- (1 - k_damp) v per step dt, whatever the substeps
     model = custom_model([[0.0, 0.0, 0.0], [0.0, -0.5, 0.0]], [[0, 1]], 0.1, ks=0.0)
-    sim = Simulator(model, make_integrator(name, velocity_damping=0.25, **options), Control(gravity=(0.0, 0.0, 0.0), device="cpu"), dt=DT)
+    sim = Simulator(
+        model,
+        make_integrator(name, velocity_damping=0.25, **options),
+        Control(gravity=(0.0, 0.0, 0.0), device="cpu"),
+        dt=DT,
+    )
     sim.state.particle_qd.assign(np.array([[0, 0, 0], [1.0, 0, 0]], np.float32))
     sim.simulate(2)
     assert sim.state.particle_qd.numpy()[1, 0] == pytest.approx(0.75**2, rel=1e-6)
@@ -256,6 +316,7 @@ def test_stable_at_one_frame_step_with_defaults(name, scenario):
 
 # -- colouring -----------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("bend,colors", [("none", 8), ("provot", 12), ("choi_ko", 16)])
 @pytest.mark.parametrize("rows,cols", [(5, 7), (8, 8)])
 def test_grid_coloring_is_valid(bend, colors, rows, cols):
@@ -267,8 +328,8 @@ def test_grid_coloring_is_valid(bend, colors, rows, cols):
     assert is_valid_coloring(pairs, c.colors, rows * cols)
     assert np.array_equal(np.sort(c.order), np.arange(len(pairs)))
     for k, (start, count) in enumerate(zip(c.starts, c.counts)):
-        members = pairs[c.order[start:start + count]]
-        assert np.all(c.colors[c.order[start:start + count]] == c.colors[c.order[start]])
+        members = pairs[c.order[start : start + count]]
+        assert np.all(c.colors[c.order[start : start + count]] == c.colors[c.order[start]])
         assert np.unique(members).size == 2 * count  # no particle twice within a colour
 
 
@@ -293,17 +354,21 @@ def test_bound_integrator_uses_a_valid_coloring():
 
 # -- options and errors --------------------------------------------------------------------------
 
-@pytest.mark.parametrize("name,options,message", [
-    ("pbd", {"iterations": 0}, "iterations must be an integer >= 1, got 0"),
-    ("xpbd", {"iterations": 0}, "iterations must be an integer >= 1, got 0"),
-    ("xpbd", {"substeps": 0}, "substeps must be an integer >= 1, got 0"),
-    ("pbd", {"substeps": 0}, "substeps must be an integer >= 1, got 0"),
-    ("pbd", {"pbd_stiffness": 1.5}, "pbd_stiffness must be in [0, 1], got 1.5"),
-    ("pbd", {"pbd_stiffness": -0.1}, "pbd_stiffness must be in [0, 1], got -0.1"),
-    ("pbd", {"pbd_bend_stiffness": 2}, "pbd_bend_stiffness must be in [0, 1], got 2"),
-    ("xpbd", {"velocity_damping": 1.5}, "velocity_damping must be in [0, 1], got 1.5"),
-    ("xpbd", {"pbd_stiffness": 0.5}, "integrator 'xpbd' has no option 'pbd_stiffness'"),
-])
+
+@pytest.mark.parametrize(
+    "name,options,message",
+    [
+        ("pbd", {"iterations": 0}, "iterations must be an integer >= 1, got 0"),
+        ("xpbd", {"iterations": 0}, "iterations must be an integer >= 1, got 0"),
+        ("xpbd", {"substeps": 0}, "substeps must be an integer >= 1, got 0"),
+        ("pbd", {"substeps": 0}, "substeps must be an integer >= 1, got 0"),
+        ("pbd", {"pbd_stiffness": 1.5}, "pbd_stiffness must be in [0, 1], got 1.5"),
+        ("pbd", {"pbd_stiffness": -0.1}, "pbd_stiffness must be in [0, 1], got -0.1"),
+        ("pbd", {"pbd_bend_stiffness": 2}, "pbd_bend_stiffness must be in [0, 1], got 2"),
+        ("xpbd", {"velocity_damping": 1.5}, "velocity_damping must be in [0, 1], got 1.5"),
+        ("xpbd", {"pbd_stiffness": 0.5}, "integrator 'xpbd' has no option 'pbd_stiffness'"),
+    ],
+)
 def test_bad_options_raise_one_line_errors(name, options, message):
     with pytest.raises(WarpclothError) as err:
         make_integrator(name, **options)
@@ -316,7 +381,9 @@ def test_shared_options_mean_the_same():
     shared = {o.name for o in type(pbd).options} & {o.name for o in type(xpbd).options}
     assert shared == {"iterations", "substeps", "velocity_damping"}
     for name in shared:
-        assert next(o for o in type(pbd).options if o.name == name) == next(o for o in type(xpbd).options if o.name == name)
+        assert next(o for o in type(pbd).options if o.name == name) == next(
+            o for o in type(xpbd).options if o.name == name
+        )
     assert not pbd.force_based and not xpbd.force_based
     model = build_grid_cloth(4, 4, device="cpu")
     assert pbd.default_dt(model) == xpbd.default_dt(model) == DT
@@ -325,15 +392,39 @@ def test_shared_options_mean_the_same():
 def test_cli_errors(capsys):
     assert cli_main(["run", "sheet", "--integrator", "pbd", "--iterations", "0", "--rows", "4", "--cols", "4"]) == 2
     assert "iterations must be an integer >= 1, got" in capsys.readouterr().err
-    assert cli_main(["run", "sheet", "--integrator", "xpbd", "--pbd-stiffness", "0.5", "--rows", "4", "--cols", "4"]) == 2
+    assert (
+        cli_main(["run", "sheet", "--integrator", "xpbd", "--pbd-stiffness", "0.5", "--rows", "4", "--cols", "4"]) == 2
+    )
     assert "--pbd-stiffness does not apply to integrator 'xpbd'" in capsys.readouterr().err
     assert cli_main(["run", "sheet", "--integrator", "pbd", "--substeps", "0", "--rows", "4", "--cols", "4"]) == 2
     assert "substeps must be an integer >= 1" in capsys.readouterr().err
-    assert cli_main(["run", "sheet", "--integrator", "pbd", "--pbd-stiffness", "1.2", "--rows", "4", "--cols", "4"]) == 2
+    assert (
+        cli_main(["run", "sheet", "--integrator", "pbd", "--pbd-stiffness", "1.2", "--rows", "4", "--cols", "4"]) == 2
+    )
     assert "pbd_stiffness must be in [0, 1]" in capsys.readouterr().err
 
 
 def test_cli_runs_xpbd_with_substeps(capsys):
-    assert cli_main(["run", "sheet", "--integrator", "xpbd", "--iterations", "4", "--substeps", "2", "--rows", "6", "--cols", "6", "--duration", "0.2"]) == 0
+    assert (
+        cli_main(
+            [
+                "run",
+                "sheet",
+                "--integrator",
+                "xpbd",
+                "--iterations",
+                "4",
+                "--substeps",
+                "2",
+                "--rows",
+                "6",
+                "--cols",
+                "6",
+                "--duration",
+                "0.2",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "xpbd" in out and "substeps=2" in out and "iterations=4" in out

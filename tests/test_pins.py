@@ -5,12 +5,11 @@ import math
 
 import numpy as np
 import pytest
+from helpers import single_spring
 
 from warpcloth import Control, Simulator, WarpclothError, build_grid_cloth, integrator_names
-from warpcloth.sim.pins import PinTrack
 from warpcloth.run.harness import RunHarness
-
-from helpers import single_spring
+from warpcloth.sim.pins import PinTrack
 
 ROWS, COLS = 4, 5
 TOP = list(range(COLS))
@@ -32,14 +31,26 @@ def ulp32(x):
     return np.spacing(np.abs(np.asarray(x, dtype=np.float32))).astype(np.float64)
 
 
-INTEGRATOR_DT = {"explicit_euler": 2e-4, "midpoint": 2e-4, "rk4": 2e-4, "verlet": 2e-4, "implicit_euler": 1e-3, "pbd": 1e-3, "xpbd": 1e-3, "vbd": 1e-3, "projective": 1e-3}
+INTEGRATOR_DT = {
+    "explicit_euler": 2e-4,
+    "midpoint": 2e-4,
+    "rk4": 2e-4,
+    "verlet": 2e-4,
+    "implicit_euler": 1e-3,
+    "pbd": 1e-3,
+    "xpbd": 1e-3,
+    "vbd": 1e-3,
+    "projective": 1e-3,
+}
 
 
 @pytest.mark.parametrize("integrator", integrator_names())
 def test_track_followed_exactly_at_every_step_time(integrator):
     model = hanging_grid()
     track = curve_track()
-    sim = Simulator(model, integrator, Control(drag_rate=0.5, pin_tracks=(track,)), dt=INTEGRATOR_DT[integrator], use_graph=False)
+    sim = Simulator(
+        model, integrator, Control(drag_rate=0.5, pin_tracks=(track,)), dt=INTEGRATOR_DT[integrator], use_graph=False
+    )
     rest = model.host["q"]
     moved = 0.0
     for _ in range(int(0.05 / sim.dt)):
@@ -69,7 +80,9 @@ def test_pinned_velocity_is_the_track_derivative():
     assert lin.evaluate(0.6, rest)[1][0].tolist() == [0.0, 0.0, 0.0]
     # Catmull-Rom through the keys, Hermite with given tangents
     np.testing.assert_allclose(track.evaluate(0.027, rest)[0], rest[TOP] + [0.08, -0.02, 0.03], atol=1e-15)
-    her = PinTrack.keyframes([0], [0.0, 1.0], [[0, 0, 0], [1.0, 0, 0]], interpolation="hermite", tangents=[[3.0, 0, 0], [0, 0, 0]])
+    her = PinTrack.keyframes(
+        [0], [0.0, 1.0], [[0, 0, 0], [1.0, 0, 0]], interpolation="hermite", tangents=[[3.0, 0, 0], [0, 0, 0]]
+    )
     np.testing.assert_allclose(her.evaluate(1e-9, rest)[1][0], [3.0, 0, 0], atol=1e-7)
 
 
@@ -81,7 +94,9 @@ def test_swinging_rod_follows_the_analytic_path_with_bounded_strain(integrator):
     rows, cols = 6, 6
     model = build_grid_cloth(rows, cols, 0.5, 0.5, 0.1, pins=range(cols), origin=(-0.25, 1.4, 0.0))
     amplitude, frequency = 0.6, 1.0
-    track = PinTrack.rigid(range(cols), center=(0.0, 1.5, 0.0), axis=(1.0, 0.0, 0.0), swing_amplitude=amplitude, swing_frequency=frequency)
+    track = PinTrack.rigid(
+        range(cols), center=(0.0, 1.5, 0.0), axis=(1.0, 0.0, 0.0), swing_amplitude=amplitude, swing_frequency=frequency
+    )
     dt = {"explicit_euler": 2e-4, "implicit_euler": 2e-3, "xpbd": 1 / 120}[integrator]
     sim = Simulator(model, integrator, Control(drag_rate=0.5), dt=dt)
     sim.set_pin_track(track)
@@ -90,11 +105,16 @@ def test_swinging_rod_follows_the_analytic_path_with_bounded_strain(integrator):
     theta = amplitude * math.sin(2 * math.pi * frequency * t)
     # analytic: a pin 0.1 m below the rod at x0 is at (x0, 1.5 - 0.1 cos theta, -0.1 sin theta)... rotating +theta about +x
     x = sim.state.particle_q.numpy()[:cols]
-    want = np.stack([model.host["q"][:cols, 0], 1.5 - 0.1 * np.cos(theta) * np.ones(cols), -0.1 * np.sin(theta) * np.ones(cols)], axis=1)
+    want = np.stack(
+        [model.host["q"][:cols, 0], 1.5 - 0.1 * np.cos(theta) * np.ones(cols), -0.1 * np.sin(theta) * np.ones(cols)],
+        axis=1,
+    )
     np.testing.assert_allclose(x, want, atol=2e-7)
     v = sim.state.particle_qd.numpy()[:cols]
     theta_dot = amplitude * 2 * math.pi * frequency * math.cos(2 * math.pi * frequency * t)
-    np.testing.assert_allclose(v, np.tile([0.0, 0.1 * math.sin(theta) * theta_dot, -0.1 * math.cos(theta) * theta_dot], (cols, 1)), atol=1e-6)
+    np.testing.assert_allclose(
+        v, np.tile([0.0, 0.1 * math.sin(theta) * theta_dot, -0.1 * math.cos(theta) * theta_dot], (cols, 1)), atol=1e-6
+    )
     assert result.stable
     assert result.max_strain < 0.05  # the cloth follows the rod without being torn
     free = sim.state.particle_q.numpy()[cols:]
@@ -154,7 +174,9 @@ def test_set_pin_track_clears_and_replaces():
 
 
 def test_bad_tracks_are_refused():
-    with pytest.raises(WarpclothError, match=r"keyframes out of order: time 0.1 s \(key 2\) is not after 0.5 s \(key 1\)"):
+    with pytest.raises(
+        WarpclothError, match=r"keyframes out of order: time 0.1 s \(key 2\) is not after 0.5 s \(key 1\)"
+    ):
         PinTrack.keyframes([0], [0.0, 0.5, 0.1], [[0, 0, 0]] * 3)
     with pytest.raises(WarpclothError, match="interpolation must be one of linear, catmull_rom, hermite, got 'cubic'"):
         PinTrack.keyframes([0], [0.0], [[0, 0, 0]], interpolation="cubic")
@@ -171,7 +193,12 @@ def test_bad_tracks_are_refused():
     with pytest.raises(WarpclothError, match=r"particle 99 is out of range"):
         Simulator(hanging_grid(), "explicit_euler", Control(pin_tracks=[PinTrack.rigid([99])]), dt=1e-4)
     with pytest.raises(WarpclothError, match=r"particle 0 is in two pin tracks"):
-        Simulator(hanging_grid(), "explicit_euler", Control(pin_tracks=[PinTrack.rigid([0], name="a"), PinTrack.rigid([0, 1], name="b")]), dt=1e-4)
+        Simulator(
+            hanging_grid(),
+            "explicit_euler",
+            Control(pin_tracks=[PinTrack.rigid([0], name="a"), PinTrack.rigid([0, 1], name="b")]),
+            dt=1e-4,
+        )
 
 
 @pytest.mark.parametrize("integrator", ["midpoint", "rk4"])

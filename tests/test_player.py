@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from warpcloth.cli import main
-from warpcloth.sim.colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere, _quat_matrix
 from warpcloth.io.frames import FrameSinks, nice_scale, strain_colors, vertex_strain
 from warpcloth.io.player import PLANE_PATCH, HtmlWriter, quantise, read_player_data
 from warpcloth.run.harness import RunHarness
+from warpcloth.sim.colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere, _quat_matrix
 
 
 def _run(capsys, *argv):
@@ -119,7 +119,21 @@ def test_vertex_strain_and_colours():
 def test_cli_html_with_usd_and_checks_paths_first(capsys, tmp_path):
     html = tmp_path / "s.html"
     usd = tmp_path / "s.usda"
-    code, out, err = _run(capsys, "run", "sheet", "--rows", "5", "--cols", "5", "--num-frames", "6", "--html", str(html), "--usd", str(usd))
+    code, out, err = _run(
+        capsys,
+        "run",
+        "sheet",
+        "--rows",
+        "5",
+        "--cols",
+        "5",
+        "--num-frames",
+        "6",
+        "--html",
+        str(html),
+        "--usd",
+        str(usd),
+    )
     assert code == 0, err
     assert f"wrote {html}" in out and f"wrote {usd}" in out
     data = read_player_data(str(html))
@@ -145,23 +159,43 @@ QUAT_Y45 = (0.0, np.sin(np.pi / 8), 0.0, np.cos(np.pi / 8))
 
 
 def static_colliders():
-    return (Sphere(center=(0.1, 0.2, -0.3), radius=0.25, thickness=0.005, friction=0.4),
-            Capsule(a=(-0.6, 0.1, 0.4), b=(0.2, 0.1, 0.6), radius=0.08),
-            Box(center=(0.6, 0.2, 0.3), half_extents=(0.2, 0.1, 0.15), rotation=QUAT_Y45, friction=0.5),
-            Plane(point=(0.0, -0.5, 0.0), normal=(0.0, 2.0, 0.5), thickness=0.01),
-            MeshCollider(vertices=TETRA_V, triangles=TETRA_T, thickness=0.002))
+    return (
+        Sphere(center=(0.1, 0.2, -0.3), radius=0.25, thickness=0.005, friction=0.4),
+        Capsule(a=(-0.6, 0.1, 0.4), b=(0.2, 0.1, 0.6), radius=0.08),
+        Box(center=(0.6, 0.2, 0.3), half_extents=(0.2, 0.1, 0.15), rotation=QUAT_Y45, friction=0.5),
+        Plane(point=(0.0, -0.5, 0.0), normal=(0.0, 2.0, 0.5), thickness=0.01),
+        MeshCollider(vertices=TETRA_V, triangles=TETRA_T, thickness=0.002),
+    )
 
 
 def moving_colliders():
     """Every kind that may move, on keyframes and on rigid motions that turn and slide."""
-    return (Sphere(center=(0.0, 0.2, 0.0), radius=0.2,
-                   track=ColliderTrack.keyframes([0.0, 0.3], [[0, 0, 0], [0.4, 0.1, -0.2]], interpolation="catmull_rom")),
-            Box(center=(0.6, 0.2, 0.3), half_extents=(0.2, 0.1, 0.15), rotation=QUAT_Y45,
-                track=ColliderTrack.rigid(center=(0.5, 0.2, 0.1), axis=(0, 1, 0), angular_velocity=3.0, velocity=(0, 0, -0.2))),
-            Capsule(a=(-0.6, 0.1, 0.4), b=(0.2, 0.1, 0.6), radius=0.08,
-                    track=ColliderTrack.rigid(center=(0, 0.1, 0.5), axis=(1, 1, 0), swing_amplitude=0.6, swing_frequency=2.0)),
-            Plane(track=ColliderTrack.rigid(center=(0, 0, 0), axis=(0, 0, 1), swing_amplitude=0.3, swing_frequency=1.0,
-                                            velocity=(0.3, 0, 0))))
+    return (
+        Sphere(
+            center=(0.0, 0.2, 0.0),
+            radius=0.2,
+            track=ColliderTrack.keyframes([0.0, 0.3], [[0, 0, 0], [0.4, 0.1, -0.2]], interpolation="catmull_rom"),
+        ),
+        Box(
+            center=(0.6, 0.2, 0.3),
+            half_extents=(0.2, 0.1, 0.15),
+            rotation=QUAT_Y45,
+            track=ColliderTrack.rigid(
+                center=(0.5, 0.2, 0.1), axis=(0, 1, 0), angular_velocity=3.0, velocity=(0, 0, -0.2)
+            ),
+        ),
+        Capsule(
+            a=(-0.6, 0.1, 0.4),
+            b=(0.2, 0.1, 0.6),
+            radius=0.08,
+            track=ColliderTrack.rigid(center=(0, 0.1, 0.5), axis=(1, 1, 0), swing_amplitude=0.6, swing_frequency=2.0),
+        ),
+        Plane(
+            track=ColliderTrack.rigid(
+                center=(0, 0, 0), axis=(0, 0, 1), swing_amplitude=0.3, swing_frequency=1.0, velocity=(0.3, 0, 0)
+            )
+        ),
+    )
 
 
 def _write(path, model, frames, times, colliders):
@@ -180,11 +214,20 @@ def test_static_colliders_in_the_page(flag_page, tmp_path):
     assert [c["kind"] for c in recs] == ["sphere", "capsule", "box", "plane", "mesh"]
     assert all("motion" not in c for c in recs)  # nothing per frame for a static collider
     sphere, capsule, box, plane, mesh = recs
-    assert sphere["center"] == [0.1, 0.2, -0.3] and sphere["radius"] == 0.25 and sphere["thickness"] == 0.005 and sphere["friction"] == 0.4
+    assert (
+        sphere["center"] == [0.1, 0.2, -0.3]
+        and sphere["radius"] == 0.25
+        and sphere["thickness"] == 0.005
+        and sphere["friction"] == 0.4
+    )
     assert capsule["a"] == [-0.6, 0.1, 0.4] and capsule["b"] == [0.2, 0.1, 0.6] and capsule["radius"] == 0.08
     assert box["center"] == [0.6, 0.2, 0.3] and box["halfExtents"] == [0.2, 0.1, 0.15] and box["friction"] == 0.5
     assert np.allclose(box["rotation"], QUAT_Y45, atol=1e-12)
-    assert np.allclose(plane["normal"], np.array([0.0, 2.0, 0.5]) / np.hypot(2.0, 0.5)) and plane["point"] == [0.0, -0.5, 0.0]
+    assert np.allclose(plane["normal"], np.array([0.0, 2.0, 0.5]) / np.hypot(2.0, 0.5)) and plane["point"] == [
+        0.0,
+        -0.5,
+        0.0,
+    ]
     diagonal = np.linalg.norm(np.array(data["bboxMax"]) - np.array(data["bboxMin"]))
     assert np.isclose(plane["halfSize"], 0.5 * PLANE_PATCH * diagonal)  # a patch around the cloth
     assert mesh["vertexCount"] == 4 and mesh["triangleCount"] == 4 and mesh["thickness"] == 0.002
@@ -202,7 +245,13 @@ def test_moving_colliders_posed_at_every_frame(flag_page, tmp_path):
     colliders = moving_colliders() + (Sphere(center=(0, 2, 0), radius=0.1),)
     times = [0.0, 0.01, 0.05, 0.12, 0.2, 0.31, 0.5, 0.9]  # uneven, past the keyframes' end
     bad = np.full_like(frames[0], np.nan)  # an unstable frame is not shown, nor are its poses
-    data = _write(tmp_path / "moving.html", model, [frames[0], frames[1], bad, *frames[2:8]], [0.0, 0.01, 0.03, *times[2:]], colliders)
+    data = _write(
+        tmp_path / "moving.html",
+        model,
+        [frames[0], frames[1], bad, *frames[2:8]],
+        [0.0, 0.01, 0.03, *times[2:]],
+        colliders,
+    )
     assert data["times"] == times and data["frameCount"] == 8
     recs = data["colliders"]
     assert "motion" not in recs[4]  # the static sphere among moving ones
@@ -220,7 +269,9 @@ def test_moving_colliders_posed_at_every_frame(flag_page, tmp_path):
             if c.kind == "sphere":
                 assert np.allclose(pose(rec["center"]), want.center, atol=1e-4), (k, t)
             elif c.kind == "capsule":
-                assert np.allclose(pose(rec["a"]), want.a, atol=1e-4) and np.allclose(pose(rec["b"]), want.b, atol=1e-4), (k, t)
+                assert np.allclose(pose(rec["a"]), want.a, atol=1e-4) and np.allclose(
+                    pose(rec["b"]), want.b, atol=1e-4
+                ), (k, t)
             elif c.kind == "box":
                 assert np.allclose(pose(rec["center"]), want.center, atol=1e-4), (k, t)
                 rot = _quat_matrix(q) @ _quat_matrix(rec["rotation"])
@@ -235,17 +286,35 @@ def test_moving_colliders_posed_at_every_frame(flag_page, tmp_path):
 
 def test_cli_run_shows_the_scenarios_and_the_command_lines_colliders(capsys, tmp_path):
     html = tmp_path / "t.html"
-    code, out, err = _run(capsys, "run", "tablecloth", "--rows", "5", "--cols", "5", "--num-frames", "3", "--html", str(html),
-                          "--collider", "sphere:center=0/1/0,radius=0.3")
+    code, out, err = _run(
+        capsys,
+        "run",
+        "tablecloth",
+        "--rows",
+        "5",
+        "--cols",
+        "5",
+        "--num-frames",
+        "3",
+        "--html",
+        str(html),
+        "--collider",
+        "sphere:center=0/1/0,radius=0.3",
+    )
     assert code == 0, err
     recs = read_player_data(str(html))["colliders"]
     assert [c["kind"] for c in recs] == ["box", "plane", "sphere"]
-    assert recs[0]["center"] == [0.0, 0.375, 0.0] and recs[0]["halfExtents"] == [0.4, 0.375, 0.4] and recs[0]["rotation"] == [0, 0, 0, 1]
+    assert (
+        recs[0]["center"] == [0.0, 0.375, 0.0]
+        and recs[0]["halfExtents"] == [0.4, 0.375, 0.4]
+        and recs[0]["rotation"] == [0, 0, 0, 1]
+    )
     assert recs[1]["normal"] == [0.0, 1.0, 0.0] and recs[2]["center"] == [0.0, 1.0, 0.0] and recs[2]["radius"] == 0.3
     assert all("motion" not in c for c in recs)
 
 
 # -- in a real browser ------------------------------------------------------------------------
+
 
 def _chromium():
     for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
@@ -261,8 +330,8 @@ def read_png(path) -> np.ndarray:
     assert raw[:8] == b"\x89PNG\r\n\x1a\n"
     pos, idat, header = 8, b"", None
     while pos < len(raw):
-        n, kind = struct.unpack(">I4s", raw[pos:pos + 8])
-        body = raw[pos + 8:pos + 8 + n]
+        n, kind = struct.unpack(">I4s", raw[pos : pos + 8])
+        body = raw[pos + 8 : pos + 8 + n]
         if kind == b"IHDR":
             header = struct.unpack(">IIBBBBB", body)
         elif kind == b"IDAT":
@@ -300,13 +369,25 @@ def read_png(path) -> np.ndarray:
     return out.reshape(h, w, c)[:, :, :3].astype(np.uint8)
 
 
-CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                  "--hide-scrollbars", "--window-size=640,480", "--virtual-time-budget=4000"]
+CHROMIUM_FLAGS = [
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--hide-scrollbars",
+    "--window-size=640,480",
+    "--virtual-time-budget=4000",
+]
 
 
 def _chromium_run(browser, args, tmp_path, tag):
-    p = subprocess.run([browser, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / ('profile-' + tag)}", *args],
-                       capture_output=True, text=True, timeout=180)
+    p = subprocess.run(
+        [browser, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / ('profile-' + tag)}", *args],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
     return p.stdout, p.stderr[-600:]
 
 
@@ -342,7 +423,7 @@ def test_chromium_draws_the_canvas_and_it_moves(flag_page, tmp_path):
     assert 'data-frame="15"' in dom and "data-error" not in dom, (dom[-400:], err)
 
     def view(img):  # the canvas between the labels and the bar
-        return img[60:img.shape[0] - 60].astype(int)
+        return img[60 : img.shape[0] - 60].astype(int)
 
     def cloth(img):  # the cloth's warm beige, not the blue-grey background, floor grid or labels
         v = view(img)
@@ -368,7 +449,10 @@ def test_chromium_draws_the_colliders_where_their_poses_put_them(flag_page, tmp_
     """Every kind, moving and static, drawn without a script error; the page poses each collider
     at the frame shown as collider.at(t) does, and hiding them (#colliders=0) takes grey away."""
     _, _, frames, model = flag_page
-    colliders = moving_colliders() + (MeshCollider(vertices=TETRA_V, triangles=TETRA_T), Sphere(center=(-0.4, 0.3, 0.0), radius=0.15))
+    colliders = moving_colliders() + (
+        MeshCollider(vertices=TETRA_V, triangles=TETRA_T),
+        Sphere(center=(-0.4, 0.3, 0.0), radius=0.15),
+    )
     times = [k / 60 for k in range(20)]
     _write(tmp_path / "c.html", model, frames[:20], times, colliders)
     browser = _chromium()
@@ -379,24 +463,46 @@ def test_chromium_draws_the_colliders_where_their_poses_put_them(flag_page, tmp_
         points = json.loads(re.search(r'data-collider-points="([^"]*)"', dom).group(1).replace("&quot;", '"'))
         for c, got in zip(colliders, points):
             want = c.at(times[k])
-            expect = {"sphere": lambda: [want.center], "capsule": lambda: [want.a, want.b],
-                      "box": lambda: [want.center, np.asarray(want.center) + _rotate(want.rotation, want.half_extents)],
-                      "plane": lambda: [want.point, np.add(want.point, want.normal)], "mesh": lambda: [TETRA_V[0]]}[c.kind]()
+            expect = {
+                "sphere": lambda: [want.center],
+                "capsule": lambda: [want.a, want.b],
+                "box": lambda: [want.center, np.asarray(want.center) + _rotate(want.rotation, want.half_extents)],
+                "plane": lambda: [want.point, np.add(want.point, want.normal)],
+                "mesh": lambda: [TETRA_V[0]],
+            }[c.kind]()
             assert np.allclose(got, expect, atol=2e-4), (c.kind, k, got, expect)
 
     def grey(img):  # the colliders' neutral grey (and the plane's grid), not the background or the cloth
-        v = img[60:img.shape[0] - 60].astype(int)
+        v = img[60 : img.shape[0] - 60].astype(int)
         r, g, b = v[:, :, 0], v[:, :, 1], v[:, :, 2]
         return (r > 55) & (b >= r - 2) & (b - r < 30) & (np.abs(g - r) < 14)
 
     shown = _screenshot(browser, url + "#t=0.3", tmp_path / "c1.png", tmp_path, lambda img: grey(img).mean() > 0.05)
-    hidden = _screenshot(browser, url + "#t=0.3&colliders=0", tmp_path / "c0.png", tmp_path, lambda img: grey(img).mean() < 0.05)
-    assert grey(shown).mean() > 0.05 and grey(shown).mean() > grey(hidden).mean() + 0.05, (grey(shown).mean(), grey(hidden).mean())
+    hidden = _screenshot(
+        browser, url + "#t=0.3&colliders=0", tmp_path / "c0.png", tmp_path, lambda img: grey(img).mean() < 0.05
+    )
+    assert grey(shown).mean() > 0.05 and grey(shown).mean() > grey(hidden).mean() + 0.05, (
+        grey(shown).mean(),
+        grey(hidden).mean(),
+    )
 
 
 def test_too_many_frames_refused_before_the_run(capsys, tmp_path):
     # 512 x 512 particles x 60 fps x 200 s = 12,001 frames x 3 MiB: far past the 2 GiB the player may hold
-    code, out, err = _run(capsys, "run", "flag", "--rows", "512", "--cols", "512", "--duration", "200", "--dt", "1e-3",
-                          "--html", str(tmp_path / "big.html"))
+    code, out, err = _run(
+        capsys,
+        "run",
+        "flag",
+        "--rows",
+        "512",
+        "--cols",
+        "512",
+        "--duration",
+        "200",
+        "--dt",
+        "1e-3",
+        "--html",
+        str(tmp_path / "big.html"),
+    )
     assert code == 2 and "would hold 12001 frames" in err and err.count("\n") == 1 and out == ""
     assert os.listdir(tmp_path) == []

@@ -7,11 +7,10 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import warp as wp
+from helpers import spring_params
 
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
 from warpcloth.sim.model import SpringType, build_model
-
-from helpers import spring_params
 
 PRECONDITIONERS = ["jacobi", "block_jacobi", "multigrid"]
 
@@ -19,8 +18,13 @@ PRECONDITIONERS = ["jacobi", "block_jacobi", "multigrid"]
 def sheet_sim(size, preconditioner, steps=3, **options):
     from warpcloth.scenarios import sheet
 
-    sim = sheet.build(rows=size, cols=size, integrator="implicit_euler", dt=1.0 / 60.0,
-                      integrator_options={"preconditioner": preconditioner, **options})
+    sim = sheet.build(
+        rows=size,
+        cols=size,
+        integrator="implicit_euler",
+        dt=1.0 / 60.0,
+        integrator_options={"preconditioner": preconditioner, **options},
+    )
     sim.simulate(steps)
     return sim
 
@@ -109,7 +113,9 @@ def diagonal_chain(count=40, ks=2.0e4):
     s = 0.05 / math.sqrt(2.0)
     q = [[i * s, 1.5 - i * s, 0.0] for i in range(count)]
     pairs = [[i, i + 1] for i in range(count - 1)]
-    return build_model(q, pairs, [SpringType.STRUCTURAL] * len(pairs), [0.01] * count, spring_params(ks), pins=[0], device="cpu")
+    return build_model(
+        q, pairs, [SpringType.STRUCTURAL] * len(pairs), [0.01] * count, spring_params(ks), pins=[0], device="cpu"
+    )
 
 
 def test_block_jacobi_needs_fewer_iterations_where_blocks_couple_axes():
@@ -118,7 +124,12 @@ def test_block_jacobi_needs_fewer_iterations_where_blocks_couple_axes():
     87 vs 86 at 16^2 and 32^2, steps 3-6)."""
     counts = {}
     for name in ("jacobi", "block_jacobi"):
-        sim = Simulator(diagonal_chain(), make_integrator("implicit_euler", preconditioner=name, cg_tol=1e-6), Control(), dt=1.0 / 60.0)
+        sim = Simulator(
+            diagonal_chain(),
+            make_integrator("implicit_euler", preconditioner=name, cg_tol=1e-6),
+            Control(),
+            dt=1.0 / 60.0,
+        )
         sim.simulate(5)
         counts[name] = sim.integrator.stats()["cg_iterations_mean"]
     assert counts["block_jacobi"] < 0.8 * counts["jacobi"], counts
@@ -130,7 +141,9 @@ def test_unknown_preconditioner_is_an_error():
 
 
 def test_multigrid_on_a_model_without_grid_structure_falls_back_with_one_line(capsys):
-    sim = Simulator(diagonal_chain(), make_integrator("implicit_euler", preconditioner="multigrid"), Control(), dt=1.0 / 60.0)
+    sim = Simulator(
+        diagonal_chain(), make_integrator("implicit_euler", preconditioner="multigrid"), Control(), dt=1.0 / 60.0
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "multigrid needs a grid model" in err[0] and "using block_jacobi" in err[0]
     assert sim.integrator.preconditioner_used == "block_jacobi"

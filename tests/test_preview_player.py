@@ -14,9 +14,15 @@ from warpcloth.sim.grid import build_grid_cloth
 LO, HI = np.array([-1.0, -1.0, -1.0]), np.array([1.0, 1.0, 1.0])
 
 
-@pytest.mark.parametrize("collider", [Sphere(center=(0.1, 0.2, 0.3), radius=0.4), Capsule(a=(-0.5, 0, 0), b=(0.5, 0.2, 0.1), radius=0.2),
-                                      Box(center=(0, 0.5, 0), half_extents=(0.3, 0.2, 0.1), rotation=(0, 0.3826834, 0, 0.9238795)),
-                                      Plane(point=(0, -0.2, 0), normal=(0, 1, 0.2))])
+@pytest.mark.parametrize(
+    "collider",
+    [
+        Sphere(center=(0.1, 0.2, 0.3), radius=0.4),
+        Capsule(a=(-0.5, 0, 0), b=(0.5, 0.2, 0.1), radius=0.2),
+        Box(center=(0, 0.5, 0), half_extents=(0.3, 0.2, 0.1), rotation=(0, 0.3826834, 0, 0.9238795)),
+        Plane(point=(0, -0.2, 0), normal=(0, 1, 0.2)),
+    ],
+)
 def test_preview_triangles_lie_on_the_collider(collider):
     tri = collider_triangles(collider, LO, HI)
     assert tri.shape[1:] == (3, 3) and len(tri) >= 2
@@ -47,7 +53,13 @@ def test_the_player_faces_a_hanging_flag():
     # (cos p sin y, sin p, cos p cos y) is within 0.4 rad of the normal, not at 90 degrees to it
     model = build_grid_cloth(10, 12, device="cpu")
     view = default_view(model.host["q"], model.host["tris"])
-    eye = np.array([np.cos(view["pitch"]) * np.sin(view["yaw"]), np.sin(view["pitch"]), np.cos(view["pitch"]) * np.cos(view["yaw"])])
+    eye = np.array(
+        [
+            np.cos(view["pitch"]) * np.sin(view["yaw"]),
+            np.sin(view["pitch"]),
+            np.cos(view["pitch"]) * np.cos(view["yaw"]),
+        ]
+    )
     p, t = model.host["q"].astype(np.float64), model.host["tris"]
     n = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]).sum(axis=0)
     assert abs(eye @ n / np.linalg.norm(n)) > 0.85

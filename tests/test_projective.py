@@ -2,10 +2,9 @@
 
 import numpy as np
 import pytest
+from helpers import backward_euler_step, small_grid
 
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
-
-from helpers import backward_euler_step, small_grid
 
 
 def numpy_global_matrix(model, h):
@@ -39,7 +38,10 @@ def test_global_matrix_matches_a_numpy_assembly_and_follows_dt():
     assert np.abs(S - S.T).max() == 0.0
     sim.set_dt(1.0 / 120.0)
     sim.simulate(1)
-    assert np.abs(sim.integrator.global_matrix().toarray() - numpy_global_matrix(sim.model, 1.0 / 120.0)).max() < 1e-6 * np.abs(expected).max()
+    assert (
+        np.abs(sim.integrator.global_matrix().toarray() - numpy_global_matrix(sim.model, 1.0 / 120.0)).max()
+        < 1e-6 * np.abs(expected).max()
+    )
 
 
 def disturbed_grid(seed=3):
@@ -109,8 +111,9 @@ def test_one_iteration_with_exact_cg_is_one_global_solve():
 def test_sheet_settles_on_the_static_equilibrium():
     """16 x 16 scenario sheet, default options, dt = 1/60 s, 10 s: sag within 2 % of the float64
     equilibrium's."""
-    from warpcloth.lab.reference import static_equilibrium
     from warpcloth.scenarios import sheet
+
+    from warpcloth.lab.reference import static_equilibrium
 
     sim = sheet.build(rows=16, cols=16, integrator="projective", dt=1.0 / 60.0)
     eq = static_equilibrium(sim.model, sim.control)
@@ -121,12 +124,13 @@ def test_sheet_settles_on_the_static_equilibrium():
     assert abs(sag - sag_ref) < 0.02 * sag_ref, (sag, sag_ref)
 
 
-@pytest.mark.parametrize("options,message", [
-    ({"pd_iterations": 0}, "pd_iterations must be an integer >= 1"),
-    ({"pd_cg_iterations": 0}, "pd_cg_iterations must be an integer >= 1"),
-])
+@pytest.mark.parametrize(
+    "options,message",
+    [
+        ({"pd_iterations": 0}, "pd_iterations must be an integer >= 1"),
+        ({"pd_cg_iterations": 0}, "pd_cg_iterations must be an integer >= 1"),
+    ],
+)
 def test_bad_options(options, message):
     with pytest.raises(WarpclothError, match=message):
         make_integrator("projective", **options)
-
-

@@ -9,14 +9,24 @@ import math
 import numpy as np
 import pytest
 import warp as wp
+from helpers import single_spring, spring_params
+from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator, SpringType, WarpclothError, WindSchedule, build_grid_cloth
 from warpcloth.integrators.forces import eval_forces
-from warpcloth.lab import Float64Model, cloth_size, convergence_check, reference_forces, reference_trajectory, simulate_frames, static_equilibrium, swing_from_horizontal, trajectory_error, wind_switch_times
+from warpcloth.lab import (
+    Float64Model,
+    cloth_size,
+    convergence_check,
+    reference_forces,
+    reference_trajectory,
+    simulate_frames,
+    static_equilibrium,
+    swing_from_horizontal,
+    trajectory_error,
+    wind_switch_times,
+)
 from warpcloth.sim.model import SpringParams, build_model
-from warpcloth.scenarios import flag, sheet
-
-from helpers import single_spring, spring_params
 
 NO_GRAVITY = (0.0, 0.0, 0.0)
 G = 9.81
@@ -36,7 +46,9 @@ def test_single_spring_oscillates_with_the_exact_period():
     k = np.arange(17)
     exact = -rest - s * np.cos(k * math.pi / 4)
     assert np.abs(traj[:, 1, 1] - exact).max() < 1e-9
-    assert np.abs(traj[:, 1, [0, 2]]).max() == 0.0 and np.abs(traj[:, 0]).max() == 0.0  # no sideways motion; the pin stays
+    assert (
+        np.abs(traj[:, 1, [0, 2]]).max() == 0.0 and np.abs(traj[:, 0]).max() == 0.0
+    )  # no sideways motion; the pin stays
     # the period itself: back at the start after T and 2T, at the other extreme after T/2
     assert abs(traj[8, 1, 1] - x0[1, 1]) < 1e-9 and abs(traj[16, 1, 1] - x0[1, 1]) < 1e-9
     assert abs(traj[4, 1, 1] - (-rest + s)) < 1e-9
@@ -92,7 +104,9 @@ def test_free_fall_is_exact(drag):
 # -- wind --------------------------------------------------------------------------------------
 def _triangle_model(mass=0.05):
     # A = 1 m^2, normal +z; no springs: the wind is the only force (with gravity off)
-    return build_model([[0, 0, 0], [2, 0, 0], [0, 1, 0]], np.zeros((0, 2)), [], [mass] * 3, spring_params(1.0), triangles=[[0, 1, 2]])
+    return build_model(
+        [[0, 0, 0], [2, 0, 0], [0, 1, 0]], np.zeros((0, 2)), [], [mass] * 3, spring_params(1.0), triangles=[[0, 1, 2]]
+    )
 
 
 def test_wind_force_on_a_single_triangle_is_the_analytic_one():
@@ -109,11 +123,19 @@ def test_wind_force_on_a_single_triangle_is_the_analytic_one():
     np.testing.assert_allclose(reference_forces(flipped, control, model.host["q"], v), f, rtol=0, atol=1e-15)
     # rotating the triangle, its velocities and the wind rotates the force
     R = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))[0]
-    rotated = Control(gravity=NO_GRAVITY, wind_coefficient=0.6, wind_schedule=WindSchedule.constant(tuple(R @ [5.0, -3.0, 4.0])))
-    np.testing.assert_allclose(reference_forces(model, rotated, model.host["q"] @ R.T, v @ R.T), f @ R.T, rtol=0, atol=1e-14)
+    rotated = Control(
+        gravity=NO_GRAVITY, wind_coefficient=0.6, wind_schedule=WindSchedule.constant(tuple(R @ [5.0, -3.0, 4.0]))
+    )
+    np.testing.assert_allclose(
+        reference_forces(model, rotated, model.host["q"] @ R.T, v @ R.T), f @ R.T, rtol=0, atol=1e-14
+    )
     # before the schedule's first start the air is still: n . (0 - v_mean) = -1, 0.2 N along -z
-    late = Control(gravity=NO_GRAVITY, wind_coefficient=0.6, wind_schedule=WindSchedule(starts=(1.0,), winds=((5.0, -3.0, 4.0),)))
-    np.testing.assert_allclose(reference_forces(model, late, model.host["q"], v, t=0.5), np.tile([0.0, 0.0, -0.2], (3, 1)), rtol=0, atol=1e-15)
+    late = Control(
+        gravity=NO_GRAVITY, wind_coefficient=0.6, wind_schedule=WindSchedule(starts=(1.0,), winds=((5.0, -3.0, 4.0),))
+    )
+    np.testing.assert_allclose(
+        reference_forces(model, late, model.host["q"], v, t=0.5), np.tile([0.0, 0.0, -0.2], (3, 1)), rtol=0, atol=1e-15
+    )
 
 
 def test_a_free_triangle_follows_a_switching_wind_exactly():
@@ -172,7 +194,9 @@ def _warp_forces(model, control, x, v, t):
     return f.numpy().astype(np.float64)
 
 
-WIND = dict(wind_coefficient=0.6, wind_schedule=WindSchedule.gusts((8.0, 0.0, 3.0), on=1.5, off=1.0, base=(2.0, 0.0, -1.0)))
+WIND = dict(
+    wind_coefficient=0.6, wind_schedule=WindSchedule.gusts((8.0, 0.0, 3.0), on=1.5, off=1.0, base=(2.0, 0.0, -1.0))
+)
 
 
 @pytest.mark.parametrize(
@@ -253,7 +277,10 @@ def test_explicit_euler_converges_to_the_reference_at_first_order(swing):
     reference off by d would make the ratio tend to 1)."""
     model, drag, x0, conv = swing
     size = cloth_size(model)
-    errors = [trajectory_error(_run(model, "explicit_euler", dt, x0, Control(drag_rate=drag)), conv.reference, size) for dt in (1e-4, 5e-5)]
+    errors = [
+        trajectory_error(_run(model, "explicit_euler", dt, x0, Control(drag_rate=drag)), conv.reference, size)
+        for dt in (1e-4, 5e-5)
+    ]
     assert errors[0] < 1e-3
     assert 1.8 < errors[0] / errors[1] < 2.2, errors
 
@@ -261,7 +288,9 @@ def test_explicit_euler_converges_to_the_reference_at_first_order(swing):
 def test_rk4_agrees_with_the_reference(swing):
     """rk4 at dt 1/800 s is at the float32 floor on the swinging sheet: error < 5e-6 of the size."""
     model, drag, x0, conv = swing
-    error = trajectory_error(_run(model, "rk4", 1 / 800, x0, Control(drag_rate=drag)), conv.reference, cloth_size(model))
+    error = trajectory_error(
+        _run(model, "rk4", 1 / 800, x0, Control(drag_rate=drag)), conv.reference, cloth_size(model)
+    )
     assert error < 5e-6
 
 
@@ -273,7 +302,10 @@ def test_rk4_error_decreases_when_dt_halves():
     x0 = swing_from_horizontal(sim.model)
     ref = reference_trajectory(sim.model, sim.control, SWING_DURATION, SWING_FRAME, x0=x0)
     size = cloth_size(sim.model)
-    errors = [trajectory_error(_run(sim.model, "rk4", dt, x0, Control(drag_rate=sim.control.drag_rate)), ref, size) for dt in (1 / 200, 1 / 400)]
+    errors = [
+        trajectory_error(_run(sim.model, "rk4", dt, x0, Control(drag_rate=sim.control.drag_rate)), ref, size)
+        for dt in (1 / 200, 1 / 400)
+    ]
     assert errors[0] < 2e-5
     assert errors[0] / errors[1] > 4.0, errors
 
@@ -284,14 +316,20 @@ def test_flag_in_switching_wind_agrees_with_the_integrators():
     model = flag.build(rows=4, cols=4, device="cpu").model
 
     def control():
-        return Control(wind_coefficient=0.6, wind_schedule=WindSchedule(starts=(0.0, 0.1), winds=((8.0, 0.0, 3.0), (2.0, 0.0, -1.0))))
+        return Control(
+            wind_coefficient=0.6,
+            wind_schedule=WindSchedule(starts=(0.0, 0.1), winds=((8.0, 0.0, 3.0), (2.0, 0.0, -1.0))),
+        )
 
     duration, frame_dt = 0.2, 0.02
     ref = reference_trajectory(model, control(), duration, frame_dt)
     size = cloth_size(model)
     x0 = model.host["q"]
     assert trajectory_error(_run(model, "rk4", 1e-3, x0, control(), duration, frame_dt), ref, size) < 5e-6
-    errors = [trajectory_error(_run(model, "explicit_euler", dt, x0, control(), duration, frame_dt), ref, size) for dt in (1e-4, 5e-5)]
+    errors = [
+        trajectory_error(_run(model, "explicit_euler", dt, x0, control(), duration, frame_dt), ref, size)
+        for dt in (1e-4, 5e-5)
+    ]
     assert 1.7 < errors[0] / errors[1] < 2.3, errors
     # without the switch the trajectory is visibly different: the test sees the schedule
     steady = Control(wind_coefficient=0.6, wind_schedule=WindSchedule.constant((8.0, 0.0, 3.0)))
@@ -318,7 +356,11 @@ def test_hanging_chain_extensions_are_the_weight_below_over_k():
     y = -np.concatenate([[0.0], np.cumsum(rest)])
     q = np.stack([np.zeros(n + 1), y, np.zeros(n + 1)], axis=1)
     types = [SpringType(k % 3) for k in range(n)]
-    params = {SpringType.STRUCTURAL: SpringParams(30.0, 0.0), SpringType.SHEAR: SpringParams(55.0, 0.0), SpringType.BEND: SpringParams(80.0, 0.0)}
+    params = {
+        SpringType.STRUCTURAL: SpringParams(30.0, 0.0),
+        SpringType.SHEAR: SpringParams(55.0, 0.0),
+        SpringType.BEND: SpringParams(80.0, 0.0),
+    }
     model = build_model(q, [[k, k + 1] for k in range(n)], types, masses, params, pins=[0])
     eq = static_equilibrium(model, Control())
     assert eq.residual < 1e-10
@@ -343,7 +385,9 @@ def test_stiffness_matrix_is_the_force_jacobian():
     for k in range(36):
         e = np.zeros(36)
         e[k] = h
-        numeric[:, k] = -(m64.static_forces(x + e.reshape(-1, 3)) - m64.static_forces(x - e.reshape(-1, 3))).ravel() / (2 * h)
+        numeric[:, k] = -(m64.static_forces(x + e.reshape(-1, 3)) - m64.static_forces(x - e.reshape(-1, 3))).ravel() / (
+            2 * h
+        )
     assert np.abs(H - numeric).max() < 1e-6 * np.abs(H).max()
     assert np.abs(H - H.T).max() < 1e-14 * np.abs(H).max()
 

@@ -6,14 +6,14 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import DEVICES
 from helpers import single_spring
-from warpcloth import Control, WarpclothError, WindSchedule
-from warpcloth.lab.reference import cloth_size, reference_trajectory, swing_from_horizontal, trajectory_error
-from warpcloth.lab import reference_warp as rw
-from warpcloth.sim.pins import PinTrack
 from warpcloth.scenarios import flag, sheet
+
+from warpcloth import Control, WarpclothError, WindSchedule
+from warpcloth.lab import reference_warp as rw
+from warpcloth.lab.reference import cloth_size, reference_trajectory, swing_from_horizontal, trajectory_error
+from warpcloth.sim.pins import PinTrack
 
 SWING_DURATION, SWING_FRAME = 0.3, 0.01
 GUST, LULL = (8.0, 0.0, 3.0), (2.0, 0.0, -1.0)
@@ -140,19 +140,22 @@ def test_a_keyframed_pin_stopping_between_frames_follows_the_closed_form():
 
 
 # -- (d) bad input -----------------------------------------------------------------------------
-@pytest.mark.parametrize("bad, match", [
-    (dict(duration=0.305), "whole number of frames"),
-    (dict(frame_dt=0.0), "frame dt"),
-    (dict(x0=np.zeros((5, 3))), "shape"),
-    (dict(x0="nan"), "finite"),
-    (dict(safety=0.0), "safety"),
-    (dict(safety=1.5), "safety"),
-    (dict(tolerance=-1e-5), "tolerance"),
-    (dict(max_halvings=-1), "halvings"),
-    (dict(dt=0.0), "dt"),
-    (dict(control="free pin track"), "not pinned"),
-    (dict(tolerance=1e-30, max_halvings=0), "did not converge"),
-])
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (dict(duration=0.305), "whole number of frames"),
+        (dict(frame_dt=0.0), "frame dt"),
+        (dict(x0=np.zeros((5, 3))), "shape"),
+        (dict(x0="nan"), "finite"),
+        (dict(safety=0.0), "safety"),
+        (dict(safety=1.5), "safety"),
+        (dict(tolerance=-1e-5), "tolerance"),
+        (dict(max_halvings=-1), "halvings"),
+        (dict(dt=0.0), "dt"),
+        (dict(control="free pin track"), "not pinned"),
+        (dict(tolerance=1e-30, max_halvings=0), "did not converge"),
+    ],
+)
 def test_bad_input_raises(swing, bad, match):
     model, control, x0, _ = swing
     args = dict(control=control, duration=0.05, frame_dt=SWING_FRAME, x0=x0)
@@ -168,8 +171,9 @@ def test_bad_input_raises(swing, bad, match):
 
 def test_an_unconverged_reference_can_be_returned_flagged(swing):
     model, control, x0, _ = swing
-    r = rw.warp_reference(model, control, 0.05, SWING_FRAME, x0=x0, tolerance=1e-30, max_halvings=0,
-                          require_accepted=False)
+    r = rw.warp_reference(
+        model, control, 0.05, SWING_FRAME, x0=x0, tolerance=1e-30, max_halvings=0, require_accepted=False
+    )
     assert not r.accepted and len(r.estimates) == 1 and np.all(np.isfinite(r.frames))
 
 

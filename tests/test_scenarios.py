@@ -6,9 +6,9 @@ import os
 
 import numpy as np
 import pytest
+from warpcloth.scenarios import flag, get_scenario, sheet
 
 from warpcloth import WarpclothError
-from warpcloth.scenarios import flag, get_scenario, sheet
 from warpcloth.io.usd import UsdWriter
 from warpcloth.run.harness import RunHarness
 
@@ -183,7 +183,9 @@ def test_usd_time_codes_are_simulated_time_when_a_step_is_longer_than_a_frame(tm
     from pxr import Usd, UsdGeom
 
     path = tmp_path / "slow.usda"
-    get_scenario("flag").run(usd_path=str(path), rows=5, cols=5, integrator="implicit_euler", dt=1 / 30, duration=1.0, fps=60.0)
+    get_scenario("flag").run(
+        usd_path=str(path), rows=5, cols=5, integrator="implicit_euler", dt=1 / 30, duration=1.0, fps=60.0
+    )
     stage = Usd.Stage.Open(str(path))
     samples = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth")).GetPointsAttr().GetTimeSamples()
     assert samples[0] == 0.0 and samples[1] == 2.0 and samples[-1] == 60.0
@@ -198,16 +200,39 @@ def test_graph_flag_off_is_bit_identical_to_on_and_capture_is_apart(capsys, tmp_
     outs = {}
     for mode in ("on", "off"):
         usd = tmp_path / f"{mode}.usda"
-        assert main(["run", "flag", "--rows", "5", "--cols", "6", "--duration", "0.3", "--graph", mode, "--json", "--usd", str(usd)]) == 0
+        assert (
+            main(
+                [
+                    "run",
+                    "flag",
+                    "--rows",
+                    "5",
+                    "--cols",
+                    "6",
+                    "--duration",
+                    "0.3",
+                    "--graph",
+                    mode,
+                    "--json",
+                    "--usd",
+                    str(usd),
+                ]
+            )
+            == 0
+        )
         d = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
         assert d["graph"] is (mode == "on")
         assert (d["capture_time"] > 0) is (mode == "on")  # capture reported apart, never in ms/step
         outs[mode] = usd.read_text()
-    assert outs["on"].split("timeSamples", 1)[1] == outs["off"].split("timeSamples", 1)[1]  # the same frames, bit for bit
+    assert (
+        outs["on"].split("timeSamples", 1)[1] == outs["off"].split("timeSamples", 1)[1]
+    )  # the same frames, bit for bit
     from warpcloth.lab.testlist import parse_test_list
 
     xml = tmp_path / "t.xml"
-    xml.write_text('<test_list size="4" scenario="sheet" duration="0.1" dt="1e-3"><test integrator="rk4" graph="off on"/></test_list>')
+    xml.write_text(
+        '<test_list size="4" scenario="sheet" duration="0.1" dt="1e-3"><test integrator="rk4" graph="off on"/></test_list>'
+    )
     runs = parse_test_list(str(xml)).runs
     assert [r.graph for r in runs] == ["off", "on"] and [r.config().use_graph for r in runs] == [False, True]
     with pytest.raises(SystemExit) as exit_:

@@ -8,12 +8,12 @@ allocation, overflow counted, capture and replay bit-identical."""
 import numpy as np
 import pytest
 import warp as wp
+from warpcloth.kernels import integrate as ik
+from warpcloth.kernels import self_contact as sk
 
 from warpcloth import Box, Control, MeshCollider, build_grid_cloth
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators.forces import eval_forces
-from warpcloth.kernels import integrate as ik
-from warpcloth.kernels import self_contact as sk
 from warpcloth.lab import intersections as ix
 from warpcloth.sim.model import SpringParams, SpringType, build_model
 from warpcloth.sim.self_collision import SelfCollision, exclusion_tables
@@ -26,20 +26,23 @@ def intersect(a, b) -> bool:
 
 
 # -- the checker on hand-made pairs ---------------------------------------------------------------
-@pytest.mark.parametrize("other, expected", [
-    ([[0.2, 0.2, -1.0], [0.2, 0.2, 1.0], [0.3, 0.5, 0.5]], True),  # an edge pierces the face
-    ([[0.2, 0.2, 0.5], [0.2, 0.2, 1.5], [0.3, 0.5, 1.0]], False),  # above it
-    ([[0.2, 0.2, 0.0], [0.2, 0.2, 1.0], [0.5, 0.0, 1.0]], True),  # a vertex touches the face's interior
-    ([[0.5, -0.5, 1e-3], [0.5, 0.5, 1e-3], [0.5, 0.0, 1.0]], False),  # an edge just above the face
-    ([[0.5, 0.5, -1.0], [0.5, 0.5, 1.0], [2.0, 2.0, 0.0]], True),  # an edge through the hypotenuse (touching edge)
-    ([[0.6, 0.6, -1.0], [0.6, 0.6, 1.0], [2.0, 2.0, 0.0]], False),  # just beyond the hypotenuse
-    ([[0.1, 0.1, 0.0], [0.6, 0.1, 0.0], [0.1, 0.6, 0.0]], True),  # coplanar, overlapping
-    ([[0.1, 0.1, 0.0], [0.2, 0.1, 0.0], [0.1, 0.2, 0.0]], True),  # coplanar, contained
-    ([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]], True),  # coplanar, touching along an edge
-    ([[1.0, 1.0, 0.0], [2.0, 1.0, 0.0], [1.0, 2.0, 0.0]], False),  # coplanar, apart
-    ([[0.5, 0.5, 0.0], [1.5, 0.5, 0.0], [0.5, 1.5, 0.0]], True),  # coplanar, touching at a point
-    ([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]], False),  # parallel planes
-])
+@pytest.mark.parametrize(
+    "other, expected",
+    [
+        ([[0.2, 0.2, -1.0], [0.2, 0.2, 1.0], [0.3, 0.5, 0.5]], True),  # an edge pierces the face
+        ([[0.2, 0.2, 0.5], [0.2, 0.2, 1.5], [0.3, 0.5, 1.0]], False),  # above it
+        ([[0.2, 0.2, 0.0], [0.2, 0.2, 1.0], [0.5, 0.0, 1.0]], True),  # a vertex touches the face's interior
+        ([[0.5, -0.5, 1e-3], [0.5, 0.5, 1e-3], [0.5, 0.0, 1.0]], False),  # an edge just above the face
+        ([[0.5, 0.5, -1.0], [0.5, 0.5, 1.0], [2.0, 2.0, 0.0]], True),  # an edge through the hypotenuse (touching edge)
+        ([[0.6, 0.6, -1.0], [0.6, 0.6, 1.0], [2.0, 2.0, 0.0]], False),  # just beyond the hypotenuse
+        ([[0.1, 0.1, 0.0], [0.6, 0.1, 0.0], [0.1, 0.6, 0.0]], True),  # coplanar, overlapping
+        ([[0.1, 0.1, 0.0], [0.2, 0.1, 0.0], [0.1, 0.2, 0.0]], True),  # coplanar, contained
+        ([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]], True),  # coplanar, touching along an edge
+        ([[1.0, 1.0, 0.0], [2.0, 1.0, 0.0], [1.0, 2.0, 0.0]], False),  # coplanar, apart
+        ([[0.5, 0.5, 0.0], [1.5, 0.5, 0.0], [0.5, 1.5, 0.0]], True),  # coplanar, touching at a point
+        ([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]], False),  # parallel planes
+    ],
+)
 def test_triangle_pairs(other, expected):
     assert intersect(TRI, other) is expected
     assert intersect(other, TRI) is expected  # symmetric
@@ -97,8 +100,10 @@ def test_collider_edges_through_the_cloth():
     assert ix.collider_edge_crossings(q, t, [Box(center=(0.05, 0.3, 0.05), half_extents=(0.2, 0.2, 0.2))]) == 0
     # a box resting on the cloth: its bottom edges lie in the cloth's plane and touch it (closed sets)
     assert ix.collider_edge_crossings(q, t, [Box(center=(0.05, 0.2, 0.05), half_extents=(0.2, 0.2, 0.2))]) > 0
-    tent = MeshCollider(vertices=np.array([[-0.3, -0.2, 0.0], [0.3, -0.2, 0.0], [0.0, 0.4, 0.0], [0.0, 0.4, 0.3]]),
-                        triangles=np.array([[0, 1, 2], [0, 2, 3]]))
+    tent = MeshCollider(
+        vertices=np.array([[-0.3, -0.2, 0.0], [0.3, -0.2, 0.0], [0.0, 0.4, 0.0], [0.0, 0.4, 0.3]]),
+        triangles=np.array([[0, 1, 2], [0, 2, 3]]),
+    )
     segs = ix.collider_segments(tent)
     assert len(segs) == 5
     crossing = ix.segment_crossings(q, t, segs)
@@ -122,9 +127,17 @@ def test_the_checker_is_quick_at_64():
 
 # -- closest points ------------------------------------------------------------------------------
 @wp.kernel(enable_backward=False)
-def _closest(p: wp.array(dtype=wp.vec3), a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3),
-             c: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3), tri_d: wp.array(dtype=float),
-             tri_w: wp.array(dtype=wp.vec3), st: wp.array(dtype=wp.vec2), ee_d: wp.array(dtype=float)):
+def _closest(
+    p: wp.array(dtype=wp.vec3),
+    a: wp.array(dtype=wp.vec3),
+    b: wp.array(dtype=wp.vec3),
+    c: wp.array(dtype=wp.vec3),
+    d: wp.array(dtype=wp.vec3),
+    tri_d: wp.array(dtype=float),
+    tri_w: wp.array(dtype=wp.vec3),
+    st: wp.array(dtype=wp.vec2),
+    ee_d: wp.array(dtype=float),
+):
     i = wp.tid()
     q, w = sk.closest_point_triangle(p[i], a[i], b[i], c[i])
     tri_d[i] = wp.length(p[i] - q)
@@ -155,8 +168,15 @@ def _point_triangle_distance(p, a, b, c):
 def _edge_edge_distance(a, b, c, d):
     """float64 reference: the minimum of a convex quadratic over [0, 1]^2 is at the interior
     stationary point or on a side, where it is a clamped 1-D minimum."""
-    best = np.min([_segment_distance(a, c, d), _segment_distance(b, c, d), _segment_distance(c, a, b),
-                   _segment_distance(d, a, b)], axis=0)
+    best = np.min(
+        [
+            _segment_distance(a, c, d),
+            _segment_distance(b, c, d),
+            _segment_distance(c, a, b),
+            _segment_distance(d, a, b),
+        ],
+        axis=0,
+    )
     d1, d2, r = b - a, d - c, a - c
     A, B, E = (np.einsum("ij,ij->i", u, w) for u, w in ((d1, d1), (d1, d2), (d2, d2)))
     C, F = np.einsum("ij,ij->i", d1, r), np.einsum("ij,ij->i", d2, r)
@@ -216,21 +236,23 @@ def test_verlet_list_holds_every_pair_within_its_radius():
     vi, ti = vi.ravel(), ti.ravel()
     dist = _point_triangle_distance(q[vi], q[t[ti, 0]], q[t[ti, 1]], q[t[ti, 2]])
     own = np.any(t[ti] == vi[:, None], axis=1)
-    excluded = np.array([tt in set(vx[vo[v]:vo[v + 1]]) for v, tt in zip(vi, ti)])
+    excluded = np.array([tt in set(vx[vo[v] : vo[v + 1]]) for v, tt in zip(vi, ti)])
     listed = {(int(a), int(b)) for a, b in vt}
     assert len(listed) == len(vt)  # no pair twice
-    must = {(int(a), int(b)) for a, b, dd, o, e in zip(vi, ti, dist, own, excluded)
-            if dd < 0.999 * r and not o and not e}
+    must = {
+        (int(a), int(b)) for a, b, dd, o, e in zip(vi, ti, dist, own, excluded) if dd < 0.999 * r and not o and not e
+    }
     never = {(int(a), int(b)) for a, b, dd, o, e in zip(vi, ti, dist, own, excluded) if dd > 1.001 * r or o or e}
     assert must and must <= listed and not (listed & never)
     ei, fi = np.triu_indices(len(edges), 1)
     dist = _edge_edge_distance(q[edges[ei, 0]], q[edges[ei, 1]], q[edges[fi, 0]], q[edges[fi, 1]])
     share = np.any(edges[ei][:, :, None] == edges[fi][:, None, :], axis=(1, 2))
-    excluded = np.array([f in set(ex[eo[e]:eo[e + 1]]) for e, f in zip(ei, fi)])
+    excluded = np.array([f in set(ex[eo[e] : eo[e + 1]]) for e, f in zip(ei, fi)])
     listed = {(int(a), int(b)) for a, b in ee}
     assert len(listed) == len(ee)
-    must = {(int(a), int(b)) for a, b, dd, s, e in zip(ei, fi, dist, share, excluded)
-            if dd < 0.999 * r and not s and not e}
+    must = {
+        (int(a), int(b)) for a, b, dd, s, e in zip(ei, fi, dist, share, excluded) if dd < 0.999 * r and not s and not e
+    }
     never = {(int(a), int(b)) for a, b, dd, s, e in zip(ei, fi, dist, share, excluded) if dd > 1.001 * r or s or e}
     assert must and must <= listed and not (listed & never)
 
@@ -246,12 +268,12 @@ def test_exclusion_tables_of_one_and_two_rings():
     centre = 12  # (2, 2): its one ring is 6 vertices (the grid's diagonals run one way); their triangles
     ring = {int(b) for a, b in edges if a == centre} | {int(a) for a, b in edges if b == centre} | {centre}
     expected = sorted(k for k, tri in enumerate(t) if set(tri.tolist()) & ring)
-    assert vx[vo[centre]:vo[centre + 1]].tolist() == expected
+    assert vx[vo[centre] : vo[centre + 1]].tolist() == expected
     e = 0
     a, b = edges[e]
     near = {int(v) for v in range(25) for u in (a, b) if v == u or [min(u, v), max(u, v)] in edges.tolist()}
     expected = sorted(k for k, (c, d) in enumerate(edges) if c in near or d in near)
-    assert ex[eo[e]:eo[e + 1]].tolist() == expected
+    assert ex[eo[e] : eo[e + 1]].tolist() == expected
 
 
 # -- the response, by a minimal symplectic Euler loop --------------------------------------------
@@ -263,8 +285,12 @@ def step(model, control, x, v, f, sc, dt, repulsion_force=False):
     eval_forces(model, x, v, control, f)
     if repulsion_force:
         sc.apply_forces(x, v, f, dt)
-    wp.launch(ik.integrate_explicit_euler, dim=model.particle_count,
-              inputs=[x, v, f, model.particle_inv_mass, float(dt)], device=model.device)
+    wp.launch(
+        ik.integrate_explicit_euler,
+        dim=model.particle_count,
+        inputs=[x, v, f, model.particle_inv_mass, float(dt)],
+        device=model.device,
+    )
     sc.filter_velocities(x, v, dt, repulsion=not repulsion_force)
 
 
@@ -286,8 +312,16 @@ def test_a_vertex_on_a_triangle_is_held_at_the_thickness(start, force):
     pushes it out to h (the filter alone would leave it at 0.3 h, above the minimum gap)."""
     h, m, k, g, dt = 0.01, 0.01, 30.0, 9.81, 1e-3
     q = [[0, 0, 0], [1, 0, 0], [0, 0, 1], [0.25, start * h, 0.25]]
-    model = build_model(q, [[0, 1], [1, 2], [2, 0]], [SpringType.STRUCTURAL] * 3, [m] * 4, params(100.0),
-                        pins=[0, 1, 2], triangles=[[0, 1, 2]], device="cpu")
+    model = build_model(
+        q,
+        [[0, 1], [1, 2], [2, 0]],
+        [SpringType.STRUCTURAL] * 3,
+        [m] * 4,
+        params(100.0),
+        pins=[0, 1, 2],
+        triangles=[[0, 1, 2]],
+        device="cpu",
+    )
     control = Control(gravity=(0.0, -g, 0.0), device="cpu")
     sc = SelfCollision(model, thickness=h, stiffness=k)
     x, v, f = arrays(q)
@@ -306,8 +340,16 @@ def test_a_vertex_on_a_triangle_is_held_at_the_thickness(start, force):
 def test_a_vertex_falls_through_without_self_collision():
     """The check above can fail: the same vertex without the response ends below the triangle."""
     q = [[0, 0, 0], [1, 0, 0], [0, 0, 1], [0.25, 0.05, 0.25]]
-    model = build_model(q, [[0, 1], [1, 2], [2, 0]], [SpringType.STRUCTURAL] * 3, [0.01] * 4, params(100.0),
-                        pins=[0, 1, 2], triangles=[[0, 1, 2]], device="cpu")
+    model = build_model(
+        q,
+        [[0, 1], [1, 2], [2, 0]],
+        [SpringType.STRUCTURAL] * 3,
+        [0.01] * 4,
+        params(100.0),
+        pins=[0, 1, 2],
+        triangles=[[0, 1, 2]],
+        device="cpu",
+    )
     x, v, f = arrays(q)
     control = Control(device="cpu")
     for _ in range(300):
@@ -320,11 +362,25 @@ def crossing_edges(speed, dt, h):
     """Triangle A in the plane z = 0 below its top edge along x at y = 0; triangle B in the plane x = 0
     above its bottom edge along z at y = 1.5 h, moving down at ``speed``: in one step of dt the
     edges cross (B's edge ends below A's), and no vertex comes near the other's face."""
-    q = [[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, -1.0, 0.0],
-         [0.0, 1.5 * h, -0.5], [0.0, 1.5 * h, 0.5], [0.0, 1.0 + 1.5 * h, 0.0]]
+    q = [
+        [-0.5, 0.0, 0.0],
+        [0.5, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 1.5 * h, -0.5],
+        [0.0, 1.5 * h, 0.5],
+        [0.0, 1.0 + 1.5 * h, 0.0],
+    ]
     v = [[0, 0, 0]] * 3 + [[0.0, -speed, 0.0]] * 3
-    model = build_model(q, [[0, 1], [1, 2], [2, 0], [3, 4], [4, 5], [5, 3]], [SpringType.STRUCTURAL] * 6, [0.01] * 6,
-                        params(100.0), pins=[0, 1, 2], triangles=[[0, 1, 2], [3, 4, 5]], device="cpu")
+    model = build_model(
+        q,
+        [[0, 1], [1, 2], [2, 0], [3, 4], [4, 5], [5, 3]],
+        [SpringType.STRUCTURAL] * 6,
+        [0.01] * 6,
+        params(100.0),
+        pins=[0, 1, 2],
+        triangles=[[0, 1, 2], [3, 4, 5]],
+        device="cpu",
+    )
     return model, q, v
 
 
@@ -455,8 +511,12 @@ def drop_onto_the_ground(self_collision: bool, rows=16, seconds=1.5):
         if sc is not None:
             sc.detect(x, v, dt)
         eval_forces(model, x, v, control, f)
-        wp.launch(ik.integrate_explicit_euler, dim=model.particle_count,
-                  inputs=[x, v, f, model.particle_inv_mass, dt], device="cpu")
+        wp.launch(
+            ik.integrate_explicit_euler,
+            dim=model.particle_count,
+            inputs=[x, v, f, model.particle_inv_mass, dt],
+            device="cpu",
+        )
         if sc is not None:
             sc.filter_velocities(x, v, dt)
         control.collision.project_velocity(model, state, dt)  # colliders after: they win
@@ -479,8 +539,16 @@ def test_a_sheet_dropped_onto_the_ground_piles_without_passing_through_itself():
 def test_pins_win():
     h, dt = 0.01, 1e-3
     q = [[0, 0, 0], [1, 0, 0], [0, 0, 1], [0.25, 0.005, 0.25]]
-    model = build_model(q, [[0, 1], [1, 2], [2, 0]], [SpringType.STRUCTURAL] * 3, [0.01] * 4, params(100.0),
-                        pins=[0, 1, 2, 3], triangles=[[0, 1, 2]], device="cpu")
+    model = build_model(
+        q,
+        [[0, 1], [1, 2], [2, 0]],
+        [SpringType.STRUCTURAL] * 3,
+        [0.01] * 4,
+        params(100.0),
+        pins=[0, 1, 2, 3],
+        triangles=[[0, 1, 2]],
+        device="cpu",
+    )
     sc = SelfCollision(model, thickness=h, stiffness=30.0)
     x, v, f = arrays(q)
     step(model, Control(device="cpu"), x, v, f, sc, dt)
@@ -497,8 +565,9 @@ def test_overflow_is_counted_not_silent():
     full.detect(x, v, 1e-4)
     s = full.stats()
     assert s["overflow_candidates"] == 0 and s["overflow_contacts"] == 0 and s["contacts"] > 40
-    small = SelfCollision(model, thickness=0.005, contacts_per_element=1, candidates_per_vertex=1,
-                          candidates_per_edge=1)
+    small = SelfCollision(
+        model, thickness=0.005, contacts_per_element=1, candidates_per_vertex=1, candidates_per_edge=1
+    )
     for _ in range(3):
         small.detect(x, v, 1e-4)
     s = small.stats()
@@ -580,8 +649,13 @@ def test_capture_and_replay_are_bit_identical():
 
 def test_bad_settings_are_refused():
     model = build_grid_cloth(4, 4, device="cpu")
-    for kwargs in ({"thickness": 0.0}, {"thickness": 0.01, "friction": -1.0}, {"thickness": 0.01, "iterations": 0},
-                   {"thickness": 0.01, "min_gap_fraction": 0.0}, {"thickness": 0.01, "stiffness": -1.0}):
+    for kwargs in (
+        {"thickness": 0.0},
+        {"thickness": 0.01, "friction": -1.0},
+        {"thickness": 0.01, "iterations": 0},
+        {"thickness": 0.01, "min_gap_fraction": 0.0},
+        {"thickness": 0.01, "stiffness": -1.0},
+    ):
         with pytest.raises(WarpclothError):
             SelfCollision(model, **kwargs)
     sc = SelfCollision(model, thickness=0.01)

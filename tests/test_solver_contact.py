@@ -10,10 +10,10 @@ import math
 
 import numpy as np
 import pytest
+from helpers import deepest_in_drape, drape_sphere_depth, free_particles
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
 from warpcloth.run.harness import RunHarness
-from helpers import deepest_in_drape, drape_sphere_depth, free_particles
 
 G = 9.81
 H = 1.0 / 60.0
@@ -27,13 +27,22 @@ def on_a_slope(model, integrator, mu, steps=30):
     (a slope, downhill +x), 60 Hz; the velocities after each step and the displacement."""
     theta = math.radians(30.0)
     ground = Plane(thickness=THICKNESS, friction=mu)
-    sim = Simulator(model, integrator, Control(gravity=(G * math.sin(theta), -G * math.cos(theta), 0.0), colliders=(ground,), device="cpu"), dt=H)
+    sim = Simulator(
+        model,
+        integrator,
+        Control(gravity=(G * math.sin(theta), -G * math.cos(theta), 0.0), colliders=(ground,), device="cpu"),
+        dt=H,
+    )
     x0 = sim.state.particle_q.numpy().astype(np.float64)
     velocities = []
     for _ in range(steps):
         sim.simulate(1)
         velocities.append(sim.state.particle_qd.numpy().astype(np.float64))
-    return np.array(velocities), sim.state.particle_q.numpy().astype(np.float64) - x0, G * max(0.0, math.sin(theta) - mu * math.cos(theta))
+    return (
+        np.array(velocities),
+        sim.state.particle_q.numpy().astype(np.float64) - x0,
+        G * max(0.0, math.sin(theta) - mu * math.cos(theta)),
+    )
 
 
 @pytest.mark.parametrize("integrator", SOLVERS)
@@ -74,7 +83,9 @@ def test_a_cloth_on_a_slope_follows_coulomb_projective(mu):
 
 @pytest.mark.parametrize("integrator", SOLVERS)
 def test_pins_win_over_contacts(integrator):
-    model = build_grid_cloth(3, 3, 0.2, 0.2, 0.05, pins=[0], origin=(0.0, -0.05, 0.0), device="cpu")  # pin 0 below the ground
+    model = build_grid_cloth(
+        3, 3, 0.2, 0.2, 0.05, pins=[0], origin=(0.0, -0.05, 0.0), device="cpu"
+    )  # pin 0 below the ground
     sim = Simulator(model, integrator, Control(colliders=(Plane(),), device="cpu"))
     sim.simulate(50)
     x = sim.state.particle_q.numpy()
@@ -129,9 +140,20 @@ def test_a_step_with_contacts_allocates_nothing(monkeypatch, integrator, use_gra
     from warpcloth import Sphere
     from warpcloth.sim.colliders import ColliderTrack
 
-    sphere = Sphere(center=(0.5, 0.0, 0.5), radius=0.3, thickness=THICKNESS, friction=0.5, track=ColliderTrack.rigid(velocity=(0.1, 0.0, 0.0)))
+    sphere = Sphere(
+        center=(0.5, 0.0, 0.5),
+        radius=0.3,
+        thickness=THICKNESS,
+        friction=0.5,
+        track=ColliderTrack.rigid(velocity=(0.1, 0.0, 0.0)),
+    )
     model = build_grid_cloth(8, 8, 1.0, 1.0, 0.1, plane="horizontal", origin=(0.0, 0.31, 0.0), device="cpu")
-    sim = Simulator(model, integrator, Control(colliders=(sphere, Plane(thickness=THICKNESS, friction=0.5)), device="cpu"), use_graph=use_graph)
+    sim = Simulator(
+        model,
+        integrator,
+        Control(colliders=(sphere, Plane(thickness=THICKNESS, friction=0.5)), device="cpu"),
+        use_graph=use_graph,
+    )
     sim.simulate(3)
     created = []
     original = CpuDefaultAllocator.allocate

@@ -34,8 +34,11 @@ def test_vbd_cloth_slides_down_a_frictionless_slope_at_g_sin():
     # 2 %; measured exact to 1e-7). Before: 0.6 % of it.
     theta = math.radians(30.0)
     model = build_grid_cloth(8, 8, 0.3, 0.3, 0.05, plane="horizontal", origin=(0.0, 0.005, 0.0), device="cpu")
-    control = Control(gravity=(G * math.sin(theta), -G * math.cos(theta), 0.0), colliders=(Plane(thickness=0.005, friction=0.0),),
-                      device="cpu")
+    control = Control(
+        gravity=(G * math.sin(theta), -G * math.cos(theta), 0.0),
+        colliders=(Plane(thickness=0.005, friction=0.0),),
+        device="cpu",
+    )
     sim = Simulator(model, "vbd", control, dt=H)
     sim.simulate(30)
     v = sim.state.particle_qd.numpy().astype(np.float64)
@@ -66,14 +69,23 @@ def test_vbd_keeps_a_free_cloths_momentum():
 def _sheet_mesh_twin(n):
     """The scenario sheet (n x n, two corner pins) and the same sheet as a build_mesh_cloth model
     (its grid's triangles with quads: the same springs, masses and pins)."""
-    from warpcloth import build_mesh_cloth
     from warpcloth.scenarios import get_scenario
+
+    from warpcloth import build_mesh_cloth
     from warpcloth.sim.grid import grid_triangles
 
     grid = get_scenario("sheet").build(rows=n, cols=n, integrator="vbd")
     h = grid.model.host
-    mesh = build_mesh_cloth(h["q"], grid_triangles(n, n), total_mass=float(h["mass"].sum()), mass_mode="uniform", quads=True,
-                            pins=list(np.flatnonzero(h["inv_mass"] == 0)), spring_params=grid.model.spring_params, device="cpu")
+    mesh = build_mesh_cloth(
+        h["q"],
+        grid_triangles(n, n),
+        total_mass=float(h["mass"].sum()),
+        mass_mode="uniform",
+        quads=True,
+        pins=list(np.flatnonzero(h["inv_mass"] == 0)),
+        spring_params=grid.model.spring_params,
+        device="cpu",
+    )
     return grid, mesh
 
 
@@ -119,8 +131,18 @@ def test_implicit_bsr_and_matrix_free_give_the_same_dv():
 
     dv = {}
     for matrix in ("bsr", "free"):
-        sim = sheet.build(rows=16, cols=16, integrator="implicit_euler", integrator_options=dict(matrix=matrix, cg_tol=1e-6), dt=H,
-                          mass=1.0, stiffness=1000.0, damping=1.0, drag=0.0, device="cpu")
+        sim = sheet.build(
+            rows=16,
+            cols=16,
+            integrator="implicit_euler",
+            integrator_options=dict(matrix=matrix, cg_tol=1e-6),
+            dt=H,
+            mass=1.0,
+            stiffness=1000.0,
+            damping=1.0,
+            drag=0.0,
+            device="cpu",
+        )
         sim.simulate(1)
         dv[matrix] = sim.integrator.dv.numpy().astype(np.float64)
     assert np.linalg.norm(dv["bsr"] - dv["free"]) <= 1e-6 * np.linalg.norm(dv["free"])
@@ -153,7 +175,9 @@ def test_implicit_default_tolerance_is_met_by_the_true_residual():
         integ.reset_stats()
         sim.simulate(1)
         b = integ.b.numpy().astype(np.float64)
-        r = b - _float64_system_product(integ, sim.model, integ.dv.numpy().astype(np.float64), float(sim.control.drag_rate))
+        r = b - _float64_system_product(
+            integ, sim.model, integ.dv.numpy().astype(np.float64), float(sim.control.drag_rate)
+        )
         true = np.linalg.norm(r) / np.linalg.norm(b)
         assert true <= 1e-3
         assert integ.stats()["cg_true_residual_max"] == pytest.approx(true, rel=0.02)
@@ -163,10 +187,13 @@ def test_implicit_tolerance_below_the_float32_floor_is_not_converged_and_names_t
     # cg_tol 1e-5 on the 32 x 32 sheet: float32 cannot get there (the exact solution rounded to float32
     # leaves 2-7.5e-5); the run is not converged and one warning line names the floor. Before: reported
     # converged (CG's recursive residual 4-9e-6, the true one 4-8e-4).
-    from warpcloth.run.harness import RunHarness
     from warpcloth.scenarios import sheet
 
-    result = RunHarness(sheet.build(rows=32, cols=32, integrator="implicit_euler", integrator_options={"cg_tol": 1e-5})).run(0.1)
+    from warpcloth.run.harness import RunHarness
+
+    result = RunHarness(
+        sheet.build(rows=32, cols=32, integrator="implicit_euler", integrator_options={"cg_tol": 1e-5})
+    ).run(0.1)
     assert result.solver_converged is False and result.solver_capped_steps > 0
     err = capsys.readouterr().err
     assert err.count("warning") == 1 and "below what float32 reaches" in err
@@ -184,11 +211,16 @@ def test_sweep_max_dt_is_stable_over_the_runs_own_duration(tmp_path):
     from warpcloth.lab.sweep import run_sweep
 
     xml = tmp_path / "flag.xml"
-    xml.write_text('<test_list size="10" duration="3" wall_cap="30"><test id="f" scenario="flag" integrator="explicit_euler" dt="max"/></test_list>')
+    xml.write_text(
+        '<test_list size="10" duration="3" wall_cap="30"><test id="f" scenario="flag" integrator="explicit_euler" dt="max"/></test_list>'
+    )
     out = tmp_path / "flag.csv"
     run_sweep(str(xml), str(out))
     (row,) = list(csv.DictReader(open(out)))
-    assert row["outcome"] != "unstable" and row["stable"] in ("True", "true", "1"), (row["outcome"], row["max_strain_rel"])
+    assert row["outcome"] != "unstable" and row["stable"] in ("True", "true", "1"), (
+        row["outcome"],
+        row["max_strain_rel"],
+    )
     assert float(row["max_strain_rel"]) < 0.5
 
 
@@ -198,7 +230,9 @@ def test_projective_free_fall_keeps_the_cloths_shape():
     # 1e-5 m (measured 1.6e-8). Before: 2.9 mm (34 mm at 32 x 32): 10 Jacobi-PCG iterations from a
     # uniform residual move the edges (smaller diagonal) first.
     params = {t: SpringParams(DEFAULT_STIFFNESS[t], 0.0) for t in SpringType}
-    model = build_grid_cloth(16, 16, 1.0, 1.0, 0.2, spring_params=params, plane="horizontal", origin=(0.0, 1.5, 0.0), device="cpu")
+    model = build_grid_cloth(
+        16, 16, 1.0, 1.0, 0.2, spring_params=params, plane="horizontal", origin=(0.0, 1.5, 0.0), device="cpu"
+    )
     sim = Simulator(model, "projective", Control(gravity=(0.0, -G, 0.0), drag_rate=0.0, device="cpu"), dt=H)
     x0 = sim.state.particle_q.numpy().astype(np.float64)
     sim.simulate(30)
@@ -209,8 +243,9 @@ def test_projective_free_fall_keeps_the_cloths_shape():
 def test_projective_without_damping_does_not_gain_energy_between_frames():
     # the 32 x 32 sheet, kd = 0, no drag, 2 s from rest: no frame gains more than 1e-4 of the energy
     # the fall released (measured 9.8e-6, float noise; implicit Euler 5.6e-6). Before: 2.5e-3.
-    from warpcloth.run.harness import RunHarness
     from warpcloth.scenarios import get_scenario
+
+    from warpcloth.run.harness import RunHarness
 
     harness = RunHarness(get_scenario("sheet").build(rows=32, cols=32, integrator="projective", damping=0.0, drag=0.0))
     e = [harness.energy()]

@@ -5,17 +5,16 @@ import math
 
 import numpy as np
 import pytest
+from helpers import displace, single_spring
+from warpcloth.scenarios import get_scenario, sheet
 
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
 from warpcloth.cli import main
 from warpcloth.integrators.base import runge_kutta_stable_dt
 from warpcloth.integrators.midpoint import rk2_amplification
 from warpcloth.lab.maxdt import find_max_dt, format_result
-from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
-from warpcloth.scenarios import get_scenario, sheet
 from warpcloth.run.harness import RunHarness
-
-from helpers import displace, single_spring
+from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 
 NO_GRAVITY = (0.0, 0.0, 0.0)
 KS, MASS = 40.0, 0.1
@@ -23,7 +22,12 @@ OMEGA = math.sqrt(KS / MASS)  # 20 rad/s: the single spring's angular frequency
 
 
 def spring_run(integrator, h_omega, duration, kd=0.0):
-    sim = Simulator(single_spring(ks=KS, mass=MASS, kd=kd), integrator, Control(gravity=NO_GRAVITY, device="cpu"), dt=h_omega / OMEGA)
+    sim = Simulator(
+        single_spring(ks=KS, mass=MASS, kd=kd),
+        integrator,
+        Control(gravity=NO_GRAVITY, device="cpu"),
+        dt=h_omega / OMEGA,
+    )
     displace(sim, 1, (0.0, -0.05, 0.0))
     return sim, RunHarness(sim).run(duration, warm_up=False)
 
@@ -38,7 +42,9 @@ def test_undamped_midpoint_is_flagged_within_two_seconds():
     assert r.max_strain < 0.5  # the old criterion (strain, non-finite) could not see it
 
 
-@pytest.mark.parametrize("integrator,h_omega", [("explicit_euler", 1.9), ("verlet", 1.9), ("rk4", 2.7), ("midpoint", 0.4)])
+@pytest.mark.parametrize(
+    "integrator,h_omega", [("explicit_euler", 1.9), ("verlet", 1.9), ("rk4", 2.7), ("midpoint", 0.4)]
+)
 def test_bounded_energy_errors_are_not_instability(integrator, h_omega):
     # symplectic Euler and Verlet below h omega = 2, RK4 below 2 sqrt 2: their energy error is
     # bounded (it oscillates); midpoint with a little damping (zeta = 0.05) decays
@@ -71,7 +77,12 @@ def test_midpoint_default_is_stable_without_spring_damping():
 
 
 def test_midpoint_without_any_damping_is_one_line_before_running(capsys):
-    assert main(["run", "sheet", "--integrator", "midpoint", "--damping", "0", "--drag", "0", "--rows", "6", "--cols", "6"]) == 2
+    assert (
+        main(
+            ["run", "sheet", "--integrator", "midpoint", "--damping", "0", "--drag", "0", "--rows", "6", "--cols", "6"]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len([l for l in err if "error" in l]) == 1 and "no stable time step" in err[-1]
 
@@ -89,7 +100,24 @@ def test_instability_strain_default_option_and_max_dt_strain(capsys):
     cfg = get_scenario("sheet").config(rows=6, cols=6, instability_strain=0.001)
     r = get_scenario("sheet").harness(cfg).run(0.2)
     assert not r.stable and "beyond the limit 0.001" in r.unstable_reason and r.instability_strain == 0.001
-    assert main(["run", "sheet", "--rows", "6", "--cols", "6", "--duration", "0.2", "--instability-strain", "0.001", "--json"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "sheet",
+                "--rows",
+                "6",
+                "--cols",
+                "6",
+                "--duration",
+                "0.2",
+                "--instability-strain",
+                "0.001",
+                "--json",
+            ]
+        )
+        == 0
+    )
     assert '"stable": false' in capsys.readouterr().out
     scenario = get_scenario("sheet")
     m = find_max_dt(scenario, scenario.config(rows=6, cols=6, stiffness=(1e4, 1e3, 200)), duration=0.3, precision=0.1)

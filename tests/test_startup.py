@@ -35,8 +35,14 @@ _PROBE = textwrap.dedent("""
 """)
 
 
-@pytest.mark.parametrize("args", [["drape", "--num-frames", "2"], ["tablecloth", "--num-frames", "2", "--size", "12"],
-                                  ["drape", "--num-frames", "2", "-i", "vbd", "--size", "12"]])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["drape", "--num-frames", "2"],
+        ["tablecloth", "--num-frames", "2", "--size", "12"],
+        ["drape", "--num-frames", "2", "-i", "vbd", "--size", "12"],
+    ],
+)
 def test_compile_time_counts_every_module_the_run_loads(args):
     # the collider module used to load while the scenario built its control, before the timed
     # warm-up: a cold drape printed "+5.24 s compile" after 16 s of collider compilation
@@ -50,8 +56,13 @@ def test_compile_time_counts_every_module_the_run_loads(args):
 
 
 def _python(code: str) -> str:
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                          env={k: v for k, v in os.environ.items() if k != "WARPCLOTH_WARP_VERBOSE"})
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={k: v for k, v in os.environ.items() if k != "WARPCLOTH_WARP_VERBOSE"},
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     return proc.stdout
 
@@ -59,8 +70,10 @@ def _python(code: str) -> str:
 def test_version_answers_without_importing_warp():
     # `warpcloth --version` took 5-8 s: the package face imported Warp (about 1 s alone) and all of
     # warpcloth; now it is the version module and the CLI's top level (0.18 s on the build machine)
-    out = _python("import sys\nfrom warpcloth.cli import main\ntry:\n    main(['--version'])\nexcept SystemExit:\n    pass\n"
-                  "print('warp' in sys.modules, sorted(m for m in sys.modules if m.startswith('warpcloth')))")
+    out = _python(
+        "import sys\nfrom warpcloth.cli import main\ntry:\n    main(['--version'])\nexcept SystemExit:\n    pass\n"
+        "print('warp' in sys.modules, sorted(m for m in sys.modules if m.startswith('warpcloth')))"
+    )
     assert out.splitlines()[0].startswith("warpcloth 0.1")
     imported, modules = out.splitlines()[1].split(" ", 1)
     assert imported == "False" and "warpcloth.sim" not in modules, out

@@ -3,15 +3,15 @@
 import numpy as np
 import pytest
 import warp as wp
+from warpcloth.scenarios import sheet
 
 from warpcloth.cli import main as cli_main
 from warpcloth.errors import WarpclothError
+from warpcloth.integrators.strain_limit import StrainLimiter
+from warpcloth.sim.coloring import greedy_spring_colors as color_springs
 from warpcloth.sim.grid import build_grid_cloth
 from warpcloth.sim.model import SpringType
-from warpcloth.scenarios import sheet
 from warpcloth.simulator import Simulator
-from warpcloth.sim.coloring import greedy_spring_colors as color_springs
-from warpcloth.integrators.strain_limit import StrainLimiter
 
 TAU = 0.1
 TOL = 1.0e-4  # the limiter's stopping tolerance on strain (DEFAULT_TOLERANCE)
@@ -26,7 +26,9 @@ def limited_strains(sim):
     return strain[np.isin(m.spring_type, [SpringType.STRUCTURAL, SpringType.SHEAR])]
 
 
-@pytest.mark.parametrize("integrator, dt, steps", [("implicit_euler", 1.0 / 60.0, 60), ("explicit_euler", None, 200), ("verlet", None, 200)])
+@pytest.mark.parametrize(
+    "integrator, dt, steps", [("implicit_euler", 1.0 / 60.0, 60), ("explicit_euler", None, 200), ("verlet", None, 200)]
+)
 def test_no_structural_or_shear_spring_ends_a_step_beyond_tau_and_pins_stay_put(integrator, dt, steps):
     unlimited = sheet.build(rows=10, cols=10, integrator=integrator, dt=dt, stiffness=SOFT)
     unlimited.simulate(steps)
@@ -54,7 +56,9 @@ def _one_spring(inv_mass, stretch):
 
     q = np.array([[0.0, 2.0, 0.0], [stretch, 2.0, 0.0]], dtype=np.float32)
     model = SimpleNamespace(
-        device="cpu", particle_count=2, spring_type=np.array([SpringType.STRUCTURAL]),
+        device="cpu",
+        particle_count=2,
+        spring_type=np.array([SpringType.STRUCTURAL]),
         pinned=np.flatnonzero(np.asarray(inv_mass) == 0.0),
         particle_inv_mass=wp.array(np.asarray(inv_mass, dtype=np.float32), dtype=float),
         host={"pairs": np.array([[0, 1]], dtype=np.int32), "rest": np.array([1.0], dtype=np.float32)},
@@ -114,7 +118,25 @@ def test_limit_off_by_default_and_cli_flag(capsys):
     assert sheet.build(rows=4, cols=4).strain_limiter is None
     import json
 
-    rc = cli_main(["run", "sheet", "--rows", "8", "--cols", "8", "--stiffness", "20,20,2", "-i", "implicit_euler", "--num-frames", "30", "--strain-limit", "0.1", "--json"])
+    rc = cli_main(
+        [
+            "run",
+            "sheet",
+            "--rows",
+            "8",
+            "--cols",
+            "8",
+            "--stiffness",
+            "20,20,2",
+            "-i",
+            "implicit_euler",
+            "--num-frames",
+            "30",
+            "--strain-limit",
+            "0.1",
+            "--json",
+        ]
+    )
     assert rc == 0
     out = json.loads(capsys.readouterr().out)
     assert out["max_strain"] <= TAU + TOL + 2e-6

@@ -81,7 +81,11 @@ def test_metrics_of_a_known_offset_and_a_slower_run():
     q = sim.model.host["q"].astype(np.float64)
     ref = np.stack([q + 0.01 * k * rng.normal(size=q.shape) for k in range(5)])
     m = trajectory_metrics(ref + np.array([0.0, 0.003, 0.004]), ref, 1.0, shape, FRAME_DT)
-    assert m["point"] == pytest.approx(0.005) and m["centroid"] == pytest.approx(0.005) and m["patch"] == pytest.approx(0.005)
+    assert (
+        m["point"] == pytest.approx(0.005)
+        and m["centroid"] == pytest.approx(0.005)
+        and m["patch"] == pytest.approx(0.005)
+    )
     assert m["damping"] == pytest.approx(0.0, abs=1e-12) and m["stretch"] == pytest.approx(m["stretch_ref"])
     slow = ref[:1] + 0.5 * (ref - ref[:1])  # every displacement from the start halved
     m = trajectory_metrics(slow, ref, 1.0, shape, FRAME_DT)
@@ -94,13 +98,23 @@ def inverted_pendulum():
     (a perturbation grows as e^(sqrt(g / L) t) = e^(14 t)): an ill-posed transient."""
     from dataclasses import replace
 
+    from warpcloth.sim.control import Control
     from warpcloth.sim.model import SpringType, build_model
     from warpcloth.simulator import Simulator
-    from warpcloth.sim.control import Control
 
     q = np.array([[0.0, 1.0, 0.0], [0.0, 1.05, 0.0]])
-    model = build_model(q, [[0, 1]], [int(SpringType.STRUCTURAL)], [0.01, 0.01], None, [0], None, "cpu",
-                        spring_stiffness=[1e3], spring_damping=[0.0])
+    model = build_model(
+        q,
+        [[0, 1]],
+        [int(SpringType.STRUCTURAL)],
+        [0.01, 0.01],
+        None,
+        [0],
+        None,
+        "cpu",
+        spring_stiffness=[1e3],
+        spring_damping=[0.0],
+    )
     model = replace(model, rows=1, cols=2, width=0.05, height=0.05)
     return Simulator(model, "explicit_euler", Control(drag_rate=0.0, device="cpu"), dt=1e-3)
 
@@ -132,7 +146,9 @@ def test_warp_reference_above_12_and_its_floor_runs_at_its_steps():
     sim = tr.scenario.build(rows=13, cols=13)
     ref = reference_for(sim.model, sim.control, 4, tr.start(sim.model))
     assert ref.method == "Warp RK4" and ref.accepted and ref.estimate <= 1e-5 and len(ref.piece_steps) == 4
-    again = warp_trajectory(sim.model, sim.control, 4 * FRAME_DT, FRAME_DT, x0=tr.start(sim.model), piece_steps=ref.piece_steps)
+    again = warp_trajectory(
+        sim.model, sim.control, 4 * FRAME_DT, FRAME_DT, x0=tr.start(sim.model), piece_steps=ref.piece_steps
+    )
     assert np.array_equal(again, ref.frames)
     small = TRANSIENTS["swing"].scenario.build(rows=5, cols=5)
     assert reference_for(small.model, small.control, 2, tr.start(small.model)).method == "DOP853"
@@ -149,8 +165,18 @@ def test_contact_equilibrium_of_a_particle_on_a_frictionless_plane():
     from warpcloth.sim.model import SpringType, build_model
 
     q = np.array([[0.0, 1.0, 0.0], [0.0, 0.5, 0.0]])
-    model = build_model(q, [[0, 1]], [int(SpringType.STRUCTURAL)], [0.1, 0.1], None, [0], None, "cpu",
-                        spring_stiffness=[10.0], spring_damping=[0.0])
+    model = build_model(
+        q,
+        [[0, 1]],
+        [int(SpringType.STRUCTURAL)],
+        [0.1, 0.1],
+        None,
+        [0],
+        None,
+        "cpu",
+        spring_stiffness=[10.0],
+        spring_damping=[0.0],
+    )
     model = replace(model, width=1.0, height=1.0)
     g = -float(Control(device="cpu").gravity[1])
     free_y = 0.5 - float(model.host["mass"][1]) * g / 10.0  # 0.4019 m (the float32 mass)
@@ -200,28 +226,44 @@ def test_configurations_cover_the_knobs_cheapest_first():
     assert [c.k for c in ee] == [11, 21, 42, 84] and all(c.options == () for c in ee)
     assert configurations("rk4", None) == []
     pbd = configurations("pbd", None, "full")
-    assert {c.option_dict["substeps"] for c in pbd} == {1, 4, 16, 64, 256} and {c.option_dict["iterations"] for c in pbd} == {1, 5, 20}
+    assert {c.option_dict["substeps"] for c in pbd} == {1, 4, 16, 64, 256} and {
+        c.option_dict["iterations"] for c in pbd
+    } == {1, 5, 20}
     assert {c.k for c in pbd} == {Fraction(1, 2), 1, 4} and len(pbd) == 45
     assert [c.work() for c in pbd] == sorted(c.work() for c in pbd)
     ie = configurations("implicit_euler", None, "full")
-    assert {c.option_dict["preconditioner"] for c in ie} == {"jacobi", "multigrid"} and Fraction(1, 2) in {c.k for c in ie}
+    assert {c.option_dict["preconditioner"] for c in ie} == {"jacobi", "multigrid"} and Fraction(1, 2) in {
+        c.k for c in ie
+    }
     small = configurations("implicit_euler", None, "quick", n=6)  # below the multigrid's 7 x 7: jacobi alone
     assert {c.option_dict["preconditioner"] for c in small} == {"jacobi"}
     assert {c.option_dict["vbd_iterations"] for c in configurations("vbd", None)} == {1, 2, 4, 10, 20}
-    assert {(c.option_dict["pd_iterations"], c.option_dict["pd_cg_iterations"]) for c in configurations("projective", None)} \
-        == {(i, g) for i in (1, 5, 20) for g in (5, 20)}
+    assert {
+        (c.option_dict["pd_iterations"], c.option_dict["pd_cg_iterations"]) for c in configurations("projective", None)
+    } == {(i, g) for i in (1, 5, 20) for g in (5, 20)}
     assert ee[0].dt == pytest.approx(FRAME_DT / 11) and configurations("vbd", None)[0].label().startswith("dt 1/30 s")
-    assert [c.k for c in static_configurations("vbd", None)] == [1, 4] and [c.k for c in static_configurations("rk4", 1e-3)] == [17]
+    assert [c.k for c in static_configurations("vbd", None)] == [1, 4] and [
+        c.k for c in static_configurations("rk4", 1e-3)
+    ] == [17]
 
 
 def test_pareto_front_and_cheapest_on_synthetic_points():
     from warpcloth.lab.frontier import Point, cheapest, pareto_front
 
-    pts = [Point(1.0, 0.20, "a"), Point(2.0, 0.05, "b"), Point(3.0, 0.08, "c"), Point(4.0, 0.004, "d"),
-           Point(0.5, math.inf, "unstable"), Point(2.0, 0.06, "b2"), Point(5.0, 0.004, "e")]
+    pts = [
+        Point(1.0, 0.20, "a"),
+        Point(2.0, 0.05, "b"),
+        Point(3.0, 0.08, "c"),
+        Point(4.0, 0.004, "d"),
+        Point(0.5, math.inf, "unstable"),
+        Point(2.0, 0.06, "b2"),
+        Point(5.0, 0.004, "e"),
+    ]
     assert [p.label for p in pareto_front(pts)] == ["a", "b", "d"]  # c, b2, e are dominated, inf never on it
     assert cheapest(pts, 0.10).label == "b" and cheapest(pts, 0.01).label == "d" and cheapest(pts, 0.001) is None
-    assert cheapest(pts, 0.2).label == "a" and cheapest([Point(1.0, 0.05, "x"), Point(1.0, 0.01, "y")], 0.1).label == "y"
+    assert (
+        cheapest(pts, 0.2).label == "a" and cheapest([Point(1.0, 0.05, "x"), Point(1.0, 0.01, "y")], 0.1).label == "y"
+    )
     assert pareto_front([]) == [] and cheapest([], 0.1) is None
 
 
@@ -241,7 +283,9 @@ def test_budget_frontier_is_the_largest_measured_size_and_fits_need_three_sizes(
     assert budget_frontier(costs, 0.1).measured is None and "none fits" in budget_frontier(costs, 0.1).describe()
     two = budget_frontier({256: 0.4, 1024: 1.6}, 2.0)
     assert two.fit is None and two.fitted is None and two.measured == 1024 and "fit" not in two.describe()
-    assert fit_power_law([256, 1024], [0.4, 1.6]) is None and fit_power_law([1, 2, 4], [1.0, 2.0, 4.0]).p == pytest.approx(1.0)
+    assert fit_power_law([256, 1024], [0.4, 1.6]) is None and fit_power_law(
+        [1, 2, 4], [1.0, 2.0, 4.0]
+    ).p == pytest.approx(1.0)
 
 
 def test_a_fit_through_two_sizes_prints_na_in_the_report():
@@ -261,10 +305,30 @@ def synthetic_group(integrator, n, error, ms, floor=1e-6, k=1.0):
     base.update(device="cpu", rows=n, cols=n, integrator=integrator, options=None, steps_per_frame=k, stable=True)
     out = [dict(base, measurement="max_stable_dt", scenario="study_sheet", dt_s=FRAME_DT / k)]
     for t in ("swing", "flag"):
-        out.append(dict(base, measurement="floor", integrator="reference", transient=t, reference="DOP853",
-                        floor_point_rel=floor, floor_centroid_rel=floor, floor_patch_rel=floor))
-        out.append(dict(base, measurement="trial", transient=t, error_rel=error, centroid_error_rel=error,
-                        patch_error_rel=error, max_strain_rel=0.01, damping_rel=0.0))
+        out.append(
+            dict(
+                base,
+                measurement="floor",
+                integrator="reference",
+                transient=t,
+                reference="DOP853",
+                floor_point_rel=floor,
+                floor_centroid_rel=floor,
+                floor_patch_rel=floor,
+            )
+        )
+        out.append(
+            dict(
+                base,
+                measurement="trial",
+                transient=t,
+                error_rel=error,
+                centroid_error_rel=error,
+                patch_error_rel=error,
+                max_strain_rel=0.01,
+                damping_rel=0.0,
+            )
+        )
     out.append(dict(base, measurement="timing", note="at the configuration dt", ms_per_frame=ms))
     return out
 
@@ -279,7 +343,10 @@ def test_report_refuses_a_verdict_above_the_floor_and_judges_on_the_other_transi
         if r["measurement"] == "floor" and r["transient"] == "flag":
             r["floor_point_rel"] = 0.002  # > 10 % of 1 %
     data = Data(rows)
-    assert data.judged("cpu", 8, "point", 0.01) == ["swing"] and data.judged("cpu", 8, "point", 0.05) == ["swing", "flag"]
+    assert data.judged("cpu", 8, "point", 0.01) == ["swing"] and data.judged("cpu", 8, "point", 0.05) == [
+        "swing",
+        "flag",
+    ]
     assert "flag floor of the pointwise e is 0.2 %" in data.excluded("cpu", 8, "point", 0.01)
     for r in rows:
         if r["measurement"] == "floor":
@@ -294,10 +361,11 @@ def test_report_refuses_a_verdict_above_the_floor_and_judges_on_the_other_transi
 
 # -- the study end to end --------------------------------------------------------------------
 from warpcloth.cli import main  # noqa: E402
-from warpcloth.lab.report import PLOTS  # noqa: E402
 from warpcloth.lab.plan import make_plan  # noqa: E402
+from warpcloth.lab.report import PLOTS  # noqa: E402
 from warpcloth.lab.results import read_rows  # noqa: E402
 from warpcloth.lab.study import run_study  # noqa: E402
+
 
 def cli(argv) -> int:
     """``warpcloth ARGV``'s exit status (argparse's errors exit through SystemExit)."""
@@ -344,10 +412,16 @@ def test_tiny_study_end_to_end(tiny_study):
         assert all(0 < floors[t][f"floor_{m}_rel"] < 1e-4 for m in ("point", "centroid", "patch"))
     assert floors["contact"]["floor_rest_rel"] < 1e-9
     trials = [r for r in rows if r["measurement"] == "trial"]
-    assert {r["transient"] for r in trials} == {"swing", "flag"} and {r["steps_per_frame"] for r in trials if r["integrator"] == "vbd"} == {0.5, 1, 4}
+    assert {r["transient"] for r in trials} == {"swing", "flag"} and {
+        r["steps_per_frame"] for r in trials if r["integrator"] == "vbd"
+    } == {0.5, 1, 4}
     for r in trials:
-        assert r["stable"] is False or (r["error_rel"] >= r["patch_error_rel"] - 1e-12 and r["damping_rel"] is not None
-                                        and r["max_strain_rel"] > 0 and r["ref_max_strain_rel"] > 0)
+        assert r["stable"] is False or (
+            r["error_rel"] >= r["patch_error_rel"] - 1e-12
+            and r["damping_rel"] is not None
+            and r["max_strain_rel"] > 0
+            and r["ref_max_strain_rel"] > 0
+        )
     timed = [r for r in rows if r["measurement"] == "timing"]
     for r in timed:
         assert r["timed_windows"] >= 3 and r["ms_per_step_min"] <= r["ms_per_step_median"] <= r["ms_per_step_max"]
@@ -356,15 +430,33 @@ def test_tiny_study_end_to_end(tiny_study):
     ran = {(r["integrator"], r["options"], r["steps_per_frame"]) for r in trials if r["stable"]}
     assert ran <= {(r["integrator"], r["options"], r["steps_per_frame"]) for r in timed}
     statics = [r for r in rows if r["measurement"] == "static"]
-    assert {r["integrator"] for r in statics} == {"explicit_euler", "vbd"} and all(r["static_error_rel"] < 0.05 for r in statics)
+    assert {r["integrator"] for r in statics} == {"explicit_euler", "vbd"} and all(
+        r["static_error_rel"] < 0.05 for r in statics
+    )
     report = (out / "report.md").read_text()
-    for section in ("## Machine and command", "## Method", "## Verdict", "**H0**", "**H1**", "within a 2 ms budget",
-                    "within the whole 16.7 ms frame", "pointwise e ≤ 1 %", "pointwise e ≤ 5 %",
-                    "## What changed since the previous study", "### References and conditioning floors",
-                    "### Cheapest configuration reaching pointwise e ≤ 1 %", "### Cheapest configuration reaching pointwise e ≤ 10 %",
-                    "### Largest measured size within the budget", "### Coarse shape, damping and stretch",
-                    "### Contact: the rest shape", "### Max stable dt", "One cloth at every size", "## Plots",
-                    "## Columns of results.csv", "warpcloth study --profile quick"):
+    for section in (
+        "## Machine and command",
+        "## Method",
+        "## Verdict",
+        "**H0**",
+        "**H1**",
+        "within a 2 ms budget",
+        "within the whole 16.7 ms frame",
+        "pointwise e ≤ 1 %",
+        "pointwise e ≤ 5 %",
+        "## What changed since the previous study",
+        "### References and conditioning floors",
+        "### Cheapest configuration reaching pointwise e ≤ 1 %",
+        "### Cheapest configuration reaching pointwise e ≤ 10 %",
+        "### Largest measured size within the budget",
+        "### Coarse shape, damping and stretch",
+        "### Contact: the rest shape",
+        "### Max stable dt",
+        "One cloth at every size",
+        "## Plots",
+        "## Columns of results.csv",
+        "warpcloth study --profile quick",
+    ):
         assert section in report, section
     for line in report.splitlines():  # Markdown tables of at most about 10 columns
         if line.startswith("|") and not line.startswith("|---"):
@@ -411,19 +503,22 @@ def test_resume_after_an_interrupt_does_not_redo_finished_measurements(tmp_path)
     assert summary["measured"] == 0 and not again  # a finished study resumes to nothing
 
 
-@pytest.mark.parametrize("argv,message", [
-    (["--profile", "huge"], "invalid choice: 'huge'"),
-    (["--integrators", "euler"], "unknown integrator 'euler'"),
-    (["--integrators", ""], "--integrators must be a comma-separated list"),
-    (["--sizes", ""], "--sizes must be a comma-separated list"),
-    (["--sizes", "8,,16"], "--sizes must be a comma-separated list"),
-    (["--sizes", "2"], "integers >= 3"),
-    (["--tolerance", "0"], "--tolerance must be in (0, 1)"),
-    (["--tolerance", "-0.01"], "--tolerance must be in (0, 1)"),
-    (["--tolerance", "1"], "--tolerance must be in (0, 1)"),
-    (["--tolerance", "nan"], "--tolerance must be in (0, 1)"),
-    (["--devices", "cuda:7"], "none of the devices cuda:7 is available"),
-])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["--profile", "huge"], "invalid choice: 'huge'"),
+        (["--integrators", "euler"], "unknown integrator 'euler'"),
+        (["--integrators", ""], "--integrators must be a comma-separated list"),
+        (["--sizes", ""], "--sizes must be a comma-separated list"),
+        (["--sizes", "8,,16"], "--sizes must be a comma-separated list"),
+        (["--sizes", "2"], "integers >= 3"),
+        (["--tolerance", "0"], "--tolerance must be in (0, 1)"),
+        (["--tolerance", "-0.01"], "--tolerance must be in (0, 1)"),
+        (["--tolerance", "1"], "--tolerance must be in (0, 1)"),
+        (["--tolerance", "nan"], "--tolerance must be in (0, 1)"),
+        (["--devices", "cuda:7"], "none of the devices cuda:7 is available"),
+    ],
+)
 def test_bad_input_is_one_line_and_status_2(argv, message, tmp_path, capsys):
     out = tmp_path / "out"
     assert cli(["study", "--quiet", "--out", str(out)] + argv) == 2
@@ -450,10 +545,34 @@ def test_unwritable_out_is_refused_before_any_work(tmp_path, capsys):
 
 # -- in parallel (issue 17) --------------------------------------------------------------------
 #: the columns that must not depend on where or alongside what a measurement ran (not timings)
-SAME = ["measurement", "scenario", "transient", "integrator", "options", "device", "particles", "dt_s", "steps_per_frame",
-        "bound_dt_s", "search_bounded", "error_rel", "centroid_error_rel", "patch_error_rel", "damping_rel", "floor_point_rel",
-        "floor_rest_rel", "max_strain_rel", "stable", "equilibrium_reached", "time_to_equilibrium_sim_s", "static_error_rel",
-        "sag_error_rel", "iterations", "substeps", "trials"]
+SAME = [
+    "measurement",
+    "scenario",
+    "transient",
+    "integrator",
+    "options",
+    "device",
+    "particles",
+    "dt_s",
+    "steps_per_frame",
+    "bound_dt_s",
+    "search_bounded",
+    "error_rel",
+    "centroid_error_rel",
+    "patch_error_rel",
+    "damping_rel",
+    "floor_point_rel",
+    "floor_rest_rel",
+    "max_strain_rel",
+    "stable",
+    "equilibrium_reached",
+    "time_to_equilibrium_sim_s",
+    "static_error_rel",
+    "sag_error_rel",
+    "iterations",
+    "substeps",
+    "trials",
+]
 
 
 def same_rows(a: list, b: list) -> None:
@@ -497,13 +616,19 @@ def test_parallel_settings_warn_above_the_cores_and_devices(monkeypatch):
             ParallelSettings.check(["cpu"], workers=bad)
 
 
-@pytest.mark.parametrize("argv,message", [
-    (["--workers", "0"], "argument --workers: must be a whole number >= 1, got '0'"),
-    (["--workers", "two"], "argument --workers: must be a whole number >= 1, got 'two'"),
-    (["--timing-workers", "-1"], "argument --timing-workers: must be a whole number >= 1, got '-1'"),
-    (["--ray", "auto", "--workers", "2"], "--ray runs the searches on the cluster's CPUs and GPUs: it takes no --workers"),
-    (["--ray", " "], "--ray: give auto, local, HOST:PORT or ray://HOST:PORT"),
-])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["--workers", "0"], "argument --workers: must be a whole number >= 1, got '0'"),
+        (["--workers", "two"], "argument --workers: must be a whole number >= 1, got 'two'"),
+        (["--timing-workers", "-1"], "argument --timing-workers: must be a whole number >= 1, got '-1'"),
+        (
+            ["--ray", "auto", "--workers", "2"],
+            "--ray runs the searches on the cluster's CPUs and GPUs: it takes no --workers",
+        ),
+        (["--ray", " "], "--ray: give auto, local, HOST:PORT or ray://HOST:PORT"),
+    ],
+)
 def test_bad_parallel_flags_are_one_line_and_status_2(argv, message, tmp_path, capsys):
     out = tmp_path / "out"
     assert cli(["study", "--quiet", "--out", str(out)] + argv) == 2
@@ -516,10 +641,16 @@ def write_scenario(tmp_path) -> str:
     """A 4 x 4 quad grid hung by its top row, as an OBJ and a scenario file next to it."""
     n, h = 4, 0.5 / 3
     verts = [f"v {c * h:.6f} {1.0 - r * h:.6f} 0" for r in range(n) for c in range(n)]
-    faces = [f"f {r * n + c + 1} {r * n + c + 2} {(r + 1) * n + c + 2} {(r + 1) * n + c + 1}" for r in range(n - 1) for c in range(n - 1)]
+    faces = [
+        f"f {r * n + c + 1} {r * n + c + 2} {(r + 1) * n + c + 2} {(r + 1) * n + c + 1}"
+        for r in range(n - 1)
+        for c in range(n - 1)
+    ]
     (tmp_path / "patch.obj").write_text("\n".join(verts + faces) + "\n")
-    (tmp_path / "patch.toml").write_text('name = "patch"\n[cloth]\nmesh = "patch.obj"\nquads = true\nmass = 0.1\n'
-                                         '[pins]\nwhere = "y > 0.99 * y.max()"\n[forces]\ndrag = 1.0\n')
+    (tmp_path / "patch.toml").write_text(
+        'name = "patch"\n[cloth]\nmesh = "patch.obj"\nquads = true\nmass = 0.1\n'
+        '[pins]\nwhere = "y > 0.99 * y.max()"\n[forces]\ndrag = 1.0\n'
+    )
     return str(tmp_path / "patch.toml")
 
 
@@ -531,12 +662,30 @@ def test_a_scenario_file_runs_through_the_quick_profile(tmp_path):
 
     path = write_scenario(tmp_path)
     out = tmp_path / "out"
-    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler,xpbd", "--sizes", "4",
-                 "--scenarios", f"grid,{path}", "--quiet", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "study",
+                "--profile",
+                "quick",
+                "--integrators",
+                "explicit_euler,xpbd",
+                "--sizes",
+                "4",
+                "--scenarios",
+                f"grid,{path}",
+                "--quiet",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     rows = read_rows(out / "results.csv")
     mine = [r for r in rows if r["scenario"] == path]
-    assert {(r["measurement"], r["integrator"]) for r in mine} == {(m, i) for m in ("max_stable_dt", "static", "timing")
-                                                                   for i in ("explicit_euler", "xpbd")}
+    assert {(r["measurement"], r["integrator"]) for r in mine} == {
+        (m, i) for m in ("max_stable_dt", "static", "timing") for i in ("explicit_euler", "xpbd")
+    }
     springs = sum(expected_spring_counts(4, 4, "provot").values())
     assert all(r["particles"] == 16 and r["springs"] == springs and r["rows"] is None for r in mine)
     stable = {r["integrator"]: r for r in mine if r["measurement"] == "max_stable_dt"}
@@ -548,7 +697,12 @@ def test_a_scenario_file_runs_through_the_quick_profile(tmp_path):
             assert "no float64 reference" in r["note"] and r["static_error_rel"] is None
     assert {r["measurement"] for r in rows if r["scenario"] == "study_sheet"} >= {"trial", "timing", "max_stable_dt"}
     report = (out / "report.md").read_text()
-    assert "## Scenarios" in report and f"`{path}`" in report and "accuracy not measured" in report and "## Verdict" in report
+    assert (
+        "## Scenarios" in report
+        and f"`{path}`" in report
+        and "accuracy not measured" in report
+        and "## Verdict" in report
+    )
 
 
 def test_a_scenario_file_study_in_workers_gives_the_serial_rows(tmp_path):
@@ -561,13 +715,16 @@ def test_a_scenario_file_study_in_workers_gives_the_serial_rows(tmp_path):
     assert "## Verdict" not in (tmp_path / "serial" / "report.md").read_text()
 
 
-@pytest.mark.parametrize("scenarios,message", [
-    ("sheet", "--scenarios: sheet without flag: the study's sheet and flag go together"),
-    ("grid,nosuch", "unknown scenario 'nosuch'"),
-    ("flag,missing.toml", "--scenarios: flag without sheet"),
-    ("sheet,flag,missing.toml", "missing.toml"),
-    ("sheet,flag,nosuch", "unknown scenario 'nosuch'"),
-])
+@pytest.mark.parametrize(
+    "scenarios,message",
+    [
+        ("sheet", "--scenarios: sheet without flag: the study's sheet and flag go together"),
+        ("grid,nosuch", "unknown scenario 'nosuch'"),
+        ("flag,missing.toml", "--scenarios: flag without sheet"),
+        ("sheet,flag,missing.toml", "missing.toml"),
+        ("sheet,flag,nosuch", "unknown scenario 'nosuch'"),
+    ],
+)
 def test_bad_scenarios_are_one_line_and_status_2(scenarios, message, tmp_path, capsys):
     out = tmp_path / "out"
     assert cli(["study", "--quiet", "--out", str(out), "--scenarios", scenarios]) == 2
@@ -582,7 +739,9 @@ def test_standard_profile_is_every_integrator_at_16_to_128():
 
     plan = make_plan("standard")
     assert plan.integrators == list(integrator_names()) and {"vbd", "projective"} <= set(plan.integrators)
-    assert plan.sizes == [16, 32, 64, 128] and plan.devices == ["cpu"] and plan.level == "full" and plan.budget_ms == 2.0
+    assert (
+        plan.sizes == [16, 32, 64, 128] and plan.devices == ["cpu"] and plan.level == "full" and plan.budget_ms == 2.0
+    )
     assert [plan.window_frames("swing", n) for n in (16, 32, 64, 128)] == [60, 60, 24, 16]
     assert [plan.maxdt_duration_at(n) for n in (16, 64)] == [1.0, pytest.approx(0.4)]
     assert make_plan("gpu").devices == ["cuda"] and make_plan("gpu").sizes == [64, 128, 256, 512]
@@ -600,8 +759,13 @@ def test_estimate_adds_up_the_modelled_steps():
     from warpcloth.lab.configs import configurations
     from warpcloth.lab.estimate import TRIAL_FACTOR, estimate_plan
 
-    plan = replace(make_plan("quick", integrators=["explicit_euler"], sizes=[10]), maxdt_wall_cap=None,
-                   equilibrium_wall_cap=None, run_wall_cap=1e9, max_frame_ms=1e9)
+    plan = replace(
+        make_plan("quick", integrators=["explicit_euler"], sizes=[10]),
+        maxdt_wall_cap=None,
+        equilibrium_wall_cap=None,
+        run_wall_cap=1e9,
+        max_frame_ms=1e9,
+    )
     k0, ms = 10, 0.5  # dt0 = (1/60 s) / 10
     costs = {("explicit_euler", 10): (k0, ms), ("omega", 10): 1000.0}
     phases = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, costs)}
@@ -614,16 +778,39 @@ def test_estimate_adds_up_the_modelled_steps():
     double = {p.phase.split(" ")[0]: p for p in estimate_plan(plan, {**costs, ("explicit_euler", 10): (k0, 2 * ms)})}
     assert double["configurations"].seconds == pytest.approx(2 * phases["configurations"].seconds)
     pruned = {p.phase.split(" ")[0]: p for p in estimate_plan(replace(plan, max_frame_ms=k0 * ms * 1.5), costs)}
-    assert pruned["configurations"].seconds == pytest.approx(TRIAL_FACTOR * frames * ks[0] * ms / 1000)  # only the k0 one
+    assert pruned["configurations"].seconds == pytest.approx(
+        TRIAL_FACTOR * frames * ks[0] * ms / 1000
+    )  # only the k0 one
 
 
 def test_estimate_flag_prints_the_phases_and_writes_nothing(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert main(["study", "--profile", "quick", "--integrators", "explicit_euler,xpbd", "--sizes", "4",
-                 "--estimate", "--workers", "2", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "study",
+                "--profile",
+                "quick",
+                "--integrators",
+                "explicit_euler,xpbd",
+                "--sizes",
+                "4",
+                "--estimate",
+                "--workers",
+                "2",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
-    for phase in ("references and floors", "stability (max stable dt)", "configurations on the swing and the flag",
-                  "contact runs to rest", "timings (one at a time)"):
+    for phase in (
+        "references and floors",
+        "stability (max stable dt)",
+        "configurations on the swing and the flag",
+        "contact runs to rest",
+        "timings (one at a time)",
+    ):
         assert phase in out
     assert "estimate of profile quick" in out and "total about" in out and "with --workers 2" in out
     assert list(tmp_path.iterdir()) == []
@@ -631,8 +818,10 @@ def test_estimate_flag_prints_the_phases_and_writes_nothing(tmp_path, capsys, mo
 
 def test_out_is_required_but_with_estimate(capsys):
     assert cli(["study", "--quiet"]) == 2
-    assert capsys.readouterr().err == ("warpcloth: error: --out DIR is required (where results.csv, report.md and the plots go), "
-                                       "except with --estimate\n")
+    assert capsys.readouterr().err == (
+        "warpcloth: error: --out DIR is required (where results.csv, report.md and the plots go), "
+        "except with --estimate\n"
+    )
 
 
 def test_an_interrupted_study_resumes_in_workers(tmp_path):

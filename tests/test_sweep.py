@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
+from warpcloth.scenarios import get_scenario
 
 import warpcloth.lab.sweep as sweep
 from warpcloth import integrators
@@ -19,11 +20,10 @@ from warpcloth.errors import WarpclothError
 from warpcloth.integrators import Option, explicit_euler_dt_bound
 from warpcloth.integrators.explicit_euler import ExplicitEuler
 from warpcloth.lab.maxdt import find_max_dt
-from warpcloth.sim.grid import expected_spring_counts
-from warpcloth.sim.model import default_damping
-from warpcloth.scenarios import get_scenario
 from warpcloth.lab.testlist import ATTRIBUTES, parse_test_list
 from warpcloth.run.harness import RunHarness
+from warpcloth.sim.grid import expected_spring_counts
+from warpcloth.sim.model import default_damping
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -39,7 +39,9 @@ class Counting(ExplicitEuler):
     must take it (and its option) from the registry with no change to warpcloth."""
 
     name = "counting"
-    options = (Option("iterations", int, 4, "fake iterations per step", check=lambda v: None if v >= 1 else "must be >= 1"),)
+    options = (
+        Option("iterations", int, 4, "fake iterations per step", check=lambda v: None if v >= 1 else "must be >= 1"),
+    )
 
     def stats(self):
         return {"iterations_mean": float(self.iterations), "residual": 0.0}
@@ -76,14 +78,23 @@ def test_defaults_of_a_minimal_test(tmp_path):
 
 
 def test_lists_expand_to_their_product(tmp_path):
-    tl = parse_test_list(write(tmp_path, """
+    tl = parse_test_list(
+        write(
+            tmp_path,
+            """
         <test_list>
           <test id="p" integrator="explicit_euler rk4" size="6 8x10" dt="1e-3 max*0.5" mass="0.1 0.4"/>
           <test id="q" integrator="verlet" rows="5 7" cols="6 9" scenario="flag"/>
         </test_list>
-    """))
+    """,
+        )
+    )
     p = {(r.integrator, (r.rows, r.cols), str(r.timestep), r.mass, r.scenario) for r in tl.runs if r.test_id == "p"}
-    expected = set(itertools.product(["explicit_euler", "rk4"], [(6, 6), (8, 10)], ["0.001", "max*0.5"], [0.1, 0.4], ["sheet", "flag"]))
+    expected = set(
+        itertools.product(
+            ["explicit_euler", "rk4"], [(6, 6), (8, 10)], ["0.001", "max*0.5"], [0.1, 0.4], ["sheet", "flag"]
+        )
+    )
     assert p == expected and len([r for r in tl.runs if r.test_id == "p"]) == 32
     q = {(r.rows, r.cols) for r in tl.runs if r.test_id == "q"}
     assert q == {(5, 6), (5, 9), (7, 6), (7, 9)}
@@ -92,12 +103,17 @@ def test_lists_expand_to_their_product(tmp_path):
 
 
 def test_root_defaults_per_type_springs_and_all(tmp_path):
-    tl = parse_test_list(write(tmp_path, """
+    tl = parse_test_list(
+        write(
+            tmp_path,
+            """
         <test_list wall_cap="5" stiffness="500" scenario="sheet">
           <test integrator="all" size="4" stiffness_bend="50" damping="0.2" damping_shear="0.3"/>
           <test integrator="rk4" size="4" wall_cap="none" stiffness="800"/>
         </test_list>
-    """))
+    """,
+        )
+    )
     first = [r for r in tl.runs if r.test_id == "1"]
     assert [r.integrator for r in first] == integrators.integrator_names()
     assert all(r.cap == 5.0 and r.stiffness == (500.0, 500.0, 50.0) and r.damping == (0.2, 0.3, 0.2) for r in first)
@@ -108,11 +124,16 @@ def test_root_defaults_per_type_springs_and_all(tmp_path):
 
 
 def test_integrator_options_come_from_the_registry(tmp_path, extra_integrators):
-    tl = parse_test_list(write(tmp_path, """
+    tl = parse_test_list(
+        write(
+            tmp_path,
+            """
         <test_list>
           <test integrator="explicit_euler counting" size="4" scenario="sheet" iterations="2 3"/>
         </test_list>
-    """))
+    """,
+        )
+    )
     runs = [(r.integrator, r.options) for r in tl.runs]
     # the option applies to the integrator that takes it; explicit_euler's duplicate is dropped
     assert runs == [("explicit_euler", ()), ("counting", (("iterations", 2),)), ("counting", (("iterations", 3),))]
@@ -122,12 +143,24 @@ def test_integrator_options_come_from_the_registry(tmp_path, extra_integrators):
 
 
 def test_the_key_ignores_test_ids_and_order(tmp_path):
-    a = parse_test_list(write(tmp_path, """
+    a = parse_test_list(
+        write(
+            tmp_path,
+            """
         <test_list><test id="x" integrator="rk4 verlet" size="5"/><test id="y" integrator="midpoint" dt="0.001"/></test_list>
-    """, "a.xml"))
-    b = parse_test_list(write(tmp_path, """
+    """,
+            "a.xml",
+        )
+    )
+    b = parse_test_list(
+        write(
+            tmp_path,
+            """
         <test_list><test integrator="midpoint" dt="1e-3"/><test integrator="verlet rk4" size="5x5"/></test_list>
-    """, "b.xml"))
+    """,
+            "b.xml",
+        )
+    )
     assert {r.key for r in a.runs} == {r.key for r in b.runs}
     c = parse_test_list(write(tmp_path, '<test_list><test integrator="midpoint" dt="2e-3"/></test_list>', "c.xml"))
     assert not {r.key for r in c.runs} & {r.key for r in a.runs}
@@ -136,16 +169,46 @@ def test_the_key_ignores_test_ids_and_order(tmp_path):
 BAD = [
     ("malformed", '<test_list>\n<test integrator="rk4">\n</test_list>', 3, "malformed XML: mismatched tag"),
     ("no element", "", 1, "malformed XML"),
-    ("duplicate attribute", '<test_list>\n<test integrator="rk4" rows="4" rows="5"/></test_list>', 2, "duplicate attribute"),
+    (
+        "duplicate attribute",
+        '<test_list>\n<test integrator="rk4" rows="4" rows="5"/></test_list>',
+        2,
+        "duplicate attribute",
+    ),
     ("root", '<tests>\n<test integrator="rk4"/></tests>', 1, "root element must be <test_list>"),
-    ("element", '<test_list>\n<test integrator="rk4"/>\n<tset integrator="rk4"/>\n</test_list>', 3, "unknown element <tset>"),
-    ("child element", '<test_list>\n<test integrator="rk4">\n  <rows>5</rows>\n</test></test_list>', 3, "unknown element <rows>"),
+    (
+        "element",
+        '<test_list>\n<test integrator="rk4"/>\n<tset integrator="rk4"/>\n</test_list>',
+        3,
+        "unknown element <tset>",
+    ),
+    (
+        "child element",
+        '<test_list>\n<test integrator="rk4">\n  <rows>5</rows>\n</test></test_list>',
+        3,
+        "unknown element <rows>",
+    ),
     ("text", '<test_list>\n<test integrator="rk4">\n oops</test></test_list>', 3, "unexpected text 'oops'"),
-    ("empty list", '<test_list>\n  <!-- nothing -->\n</test_list>', 1, "empty test list"),
-    ("attribute", '<test_list>\n<test integrator="rk4"\n  stifness="10"/></test_list>', 3, "unknown attribute 'stifness' (did you mean 'stiffness'?)"),
-    ("timestep", '<test_list>\n<test integrator="rk4"\n      rows="5" cols="5"\n      dt="1e-3 fast"/></test_list>', 4, "'fast' is not a time step"),
+    ("empty list", "<test_list>\n  <!-- nothing -->\n</test_list>", 1, "empty test list"),
+    (
+        "attribute",
+        '<test_list>\n<test integrator="rk4"\n  stifness="10"/></test_list>',
+        3,
+        "unknown attribute 'stifness' (did you mean 'stiffness'?)",
+    ),
+    (
+        "timestep",
+        '<test_list>\n<test integrator="rk4"\n      rows="5" cols="5"\n      dt="1e-3 fast"/></test_list>',
+        4,
+        "'fast' is not a time step",
+    ),
     ("max factor", '<test_list><test integrator="rk4" dt="max*x"/></test_list>', 1, "factor in max*F"),
-    ("rows", '<test_list>\n\n<test integrator="rk4" rows="2.5" cols="5"/></test_list>', 3, "rows: '2.5' is not an integer"),
+    (
+        "rows",
+        '<test_list>\n\n<test integrator="rk4" rows="2.5" cols="5"/></test_list>',
+        3,
+        "rows: '2.5' is not an integer",
+    ),
     ("small mesh", '<test_list>\n<test integrator="rk4" size="2"/></test_list>', 2, "must be an integer >= 3"),
     ("mass", '<test_list>\n<test integrator="rk4" mass="-1"/></test_list>', 2, "mass: '-1' must be > 0"),
     ("stiffness", '<test_list>\n<test integrator="rk4" stiffness="stiff"/></test_list>', 2, "'stiff' is not a number"),
@@ -154,17 +217,36 @@ BAD = [
     ("repeated value", '<test_list>\n<test integrator="rk4 rk4"/></test_list>', 2, "repeats a value"),
     ("integrator", '<test_list>\n<test integrator="rk5"/></test_list>', 2, "unknown integrator 'rk5'"),
     ("no integrator", '<test_list>\n<test size="5"/></test_list>', 2, "attribute 'integrator' is required"),
-    ("scenario", '<test_list>\n<test integrator="rk4" scenario="sheet sail"/></test_list>', 2, "unknown scenario 'sail'"),
+    (
+        "scenario",
+        '<test_list>\n<test integrator="rk4" scenario="sheet sail"/></test_list>',
+        2,
+        "unknown scenario 'sail'",
+    ),
     ("device", '<test_list>\n<test integrator="rk4" device="tpu"/></test_list>', 2, "device 'tpu' is not available"),
     ("rows alone", '<test_list>\n<test integrator="rk4" rows="5"/></test_list>', 2, "'cols' is missing"),
-    ("size and rows", '<test_list>\n<test integrator="rk4" size="5"\n rows="5" cols="5"/></test_list>', 3, "either 'size' or 'rows'"),
-    ("duplicate id", '<test_list>\n<test id="a" integrator="rk4"/>\n<test id="a" integrator="rk4"/></test_list>', 3, "duplicate test id 'a' (first used on line 2)"),
+    (
+        "size and rows",
+        '<test_list>\n<test integrator="rk4" size="5"\n rows="5" cols="5"/></test_list>',
+        3,
+        "either 'size' or 'rows'",
+    ),
+    (
+        "duplicate id",
+        '<test_list>\n<test id="a" integrator="rk4"/>\n<test id="a" integrator="rk4"/></test_list>',
+        3,
+        "duplicate test id 'a' (first used on line 2)",
+    ),
     ("id list", '<test_list>\n<test id="a b" integrator="rk4"/></test_list>', 2, "takes one value"),
     ("id on root", '<test_list id="x">\n<test integrator="rk4"/></test_list>', 1, "'id' belongs on <test>"),
     ("precision", '<test_list>\n<test integrator="rk4" maxdt_precision="2"/></test_list>', 2, "between 0 and 1"),
     ("unknown declaration", '<test_list>\n<!FOO bar>\n<test integrator="rk4"/></test_list>', 2, "malformed XML"),
-    ("doctype", '<?xml version="1.0"?>\n<!DOCTYPE test_list [<!ENTITY e SYSTEM "/etc/passwd">]>\n<test_list><test integrator="rk4">&e;</test></test_list>',
-     2, "<!DOCTYPE test_list ...> is not allowed"),
+    (
+        "doctype",
+        '<?xml version="1.0"?>\n<!DOCTYPE test_list [<!ENTITY e SYSTEM "/etc/passwd">]>\n<test_list><test integrator="rk4">&e;</test></test_list>',
+        2,
+        "<!DOCTYPE test_list ...> is not allowed",
+    ),
 ]
 
 
@@ -180,10 +262,13 @@ def test_invalid_test_lists_name_file_line_and_problem(tmp_path, case, text, lin
     assert "\n" not in text
 
 
-@pytest.mark.parametrize("attrs,line,message", [
-    ('iterations="0"', 3, "integrator counting: iterations must be >= 1, got '0'"),
-    ('iterations="two"', 3, "iterations must be int, got 'two'"),
-])
+@pytest.mark.parametrize(
+    "attrs,line,message",
+    [
+        ('iterations="0"', 3, "integrator counting: iterations must be >= 1, got '0'"),
+        ('iterations="two"', 3, "iterations must be int, got 'two'"),
+    ],
+)
 def test_bad_integrator_option_values(tmp_path, extra_integrators, attrs, line, message):
     path = write(tmp_path, f'<test_list>\n<test integrator="counting"\n   {attrs}/></test_list>')
     with pytest.raises(WarpclothError, match=f"^{path}:{line}: .*{message}"):
@@ -196,7 +281,12 @@ def test_option_of_another_integrator_is_an_error(tmp_path, extra_integrators):
 
     owners = ", ".join(all_options()["iterations"][1])
     assert "counting" in owners
-    with pytest.raises(WarpclothError, match=r":2: .*option 'iterations' does not apply to integrator\(s\) rk4, verlet \(it applies to " + owners + r"\)"):
+    with pytest.raises(
+        WarpclothError,
+        match=r":2: .*option 'iterations' does not apply to integrator\(s\) rk4, verlet \(it applies to "
+        + owners
+        + r"\)",
+    ):
         parse_test_list(path)
 
 
@@ -206,7 +296,9 @@ def test_missing_file(tmp_path):
 
 
 def test_whole_file_is_validated_before_any_run(tmp_path, monkeypatch, capsys):
-    path = write(tmp_path, '<test_list>\n<test integrator="rk4" size="4"/>\n<test integrator="rk4" size="four"/>\n</test_list>')
+    path = write(
+        tmp_path, '<test_list>\n<test integrator="rk4" size="4"/>\n<test integrator="rk4" size="four"/>\n</test_list>'
+    )
     monkeypatch.setattr(sweep, "execute_run", lambda *a: pytest.fail("a run started"))
     out = tmp_path / "r.csv"
     assert main(["sweep", path, "--out", str(out)]) == 2
@@ -257,7 +349,8 @@ def test_small_sweep_rows_are_consistent(small_sweep):
     summary, rows, tl = small_sweep
     assert summary.written == len(rows) == 8  # 2 integrators x 2 sizes x 2 scenarios
     assert {(r["integrator"], r["rows"], r["scenario"]) for r in rows} == set(
-        itertools.product(["explicit_euler", "rk4"], ["5", "6"], ["sheet", "flag"]))
+        itertools.product(["explicit_euler", "rk4"], ["5", "6"], ["sheet", "flag"])
+    )
     assert [r["key"] for r in rows] == [s.key for s in tl.runs]
     for r in rows:
         assert list(r) == sweep.COLUMNS
@@ -331,9 +424,13 @@ def test_interrupted_sweep_resumes_every_row_exactly_once(tmp_path, monkeypatch)
     assert sorted(_keys(out)) == sorted(expected)
 
     # resuming with the tests reordered and renamed finds every run done
-    path2 = write(tmp_path, """
+    path2 = write(
+        tmp_path,
+        """
         <test_list><test id="renamed" integrator="verlet explicit_euler" size="5 4" dt="0.001" duration="0.1" wall_cap="30"/></test_list>
-    """, "reordered.xml")
+    """,
+        "reordered.xml",
+    )
     monkeypatch.setattr(sweep, "execute_run", lambda *a: pytest.fail("a finished run was repeated"))
     assert sweep.run_sweep(path2, str(out), resume=True).written == 0
 
@@ -355,8 +452,11 @@ def test_killed_sweep_resumes_every_row_exactly_once(tmp_path, capsys):
         from warpcloth.cli import main
         sys.exit(main(sys.argv[1:]))
     """)
-    proc = subprocess.Popen([sys.executable, "-c", hang_on_third, "sweep", path, "--out", str(out)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", hang_on_third, "sweep", path, "--out", str(out)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline and proc.poll() is None:
@@ -377,14 +477,17 @@ def test_killed_sweep_resumes_every_row_exactly_once(tmp_path, capsys):
 
 
 def test_failing_runs_are_recorded_and_the_sweep_goes_on(tmp_path, extra_integrators, capsys):
-    path = write(tmp_path, """
+    path = write(
+        tmp_path,
+        """
         <test_list size="6" scenario="sheet" duration="0.3">
           <test id="ok" integrator="explicit_euler counting" dt="1e-3" iterations="7"/>
           <test id="bad" integrator="exploding" dt="1e-3"/>
           <test id="unstable" integrator="explicit_euler" dt="5e-3"/>
           <test id="after" integrator="verlet" dt="1e-3"/>
         </test_list>
-    """)
+    """,
+    )
     out = tmp_path / "r.csv"
     assert main(["sweep", path, "--out", str(out)]) == 1  # some run errored
     rows = {r["test_id"] + ":" + r["integrator"]: r for r in sweep.read_results(str(out))}
@@ -425,16 +528,21 @@ def test_timestep_max_searches_once_per_model(tmp_path, monkeypatch):
         return real(*args, **kwargs)
 
     monkeypatch.setattr(maxdt, "find_max_dt", counted)
-    path = write(tmp_path, """
+    path = write(
+        tmp_path,
+        """
         <test_list><test integrator="explicit_euler" size="5" scenario="sheet" dt="max max*0.5" duration="0.2"
             maxdt_precision="0.05" maxdt_duration="1"/></test_list>
-    """)
+    """,
+    )
     sweep.run_sweep(path, str(tmp_path / "r.csv"))
     rows = sweep.read_results(str(tmp_path / "r.csv"))
     assert len(searches) == 1
     full, half = rows
     assert full["max_dt_s"] == half["max_dt_s"] and float(full["max_dt_s"]) > 0
-    assert float(full["dt_s"]) == float(full["max_dt_s"]) and float(half["dt_s"]) == pytest.approx(0.5 * float(full["max_dt_s"]))
+    assert float(full["dt_s"]) == float(full["max_dt_s"]) and float(half["dt_s"]) == pytest.approx(
+        0.5 * float(full["max_dt_s"])
+    )
     assert float(full["max_dt_s"]) < float(full["unstable_dt_s"]) <= 1.05 * float(full["max_dt_s"])
     assert full["stable"] == half["stable"] == "true"
 
@@ -461,8 +569,20 @@ def test_max_dt_of_explicit_euler_on_a_stiff_sheet():
 
 
 def test_max_dt_cli_prints_dt_bracket_and_reference(capsys):
-    argv = ["max-dt", "sheet", "--integrator", "explicit_euler", "--rows", "6", "--cols", "6",
-            "--stiffness", "10000,1000,200", "--precision", "0.05"]
+    argv = [
+        "max-dt",
+        "sheet",
+        "--integrator",
+        "explicit_euler",
+        "--rows",
+        "6",
+        "--cols",
+        "6",
+        "--stiffness",
+        "10000,1000,200",
+        "--precision",
+        "0.05",
+    ]
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "max stable dt:" in out and "bracket: stable at" in out
@@ -514,12 +634,17 @@ def test_docs_describe_every_attribute_and_column():
 
 
 def test_strain_limit_attribute(tmp_path):
-    path = write(tmp_path, '<test_list>\n<test integrator="verlet" size="5" strain_limit="0.1 0.2" scenario="sheet"/>\n</test_list>')
+    path = write(
+        tmp_path,
+        '<test_list>\n<test integrator="verlet" size="5" strain_limit="0.1 0.2" scenario="sheet"/>\n</test_list>',
+    )
     runs = parse_test_list(path).runs
     assert sorted(r.strain_limit for r in runs) == [0.1, 0.2]
     assert len({r.key for r in runs}) == 2 and all("strain_limit=" in r.key for r in runs)
     assert runs[0].config().strain_limit in (0.1, 0.2)
-    bad = write(tmp_path, '<test_list>\n<test integrator="pbd" size="5" strain_limit="0.1"/>\n</test_list>', name="bad.xml")
+    bad = write(
+        tmp_path, '<test_list>\n<test integrator="pbd" size="5" strain_limit="0.1"/>\n</test_list>', name="bad.xml"
+    )
     with pytest.raises(WarpclothError, match=r":2: .*strain_limit applies to force-based integrators, not 'pbd'"):
         parse_test_list(bad)
 
@@ -533,28 +658,45 @@ def test_value_beyond_float32_is_a_validation_error(tmp_path):
 # -- issue 10.13: a product too large to run is refused before it is expanded ---------------------
 def test_a_huge_product_is_refused_without_expanding(tmp_path):
     values = " ".join(str(v) for v in range(1, 21))
-    attrs = ["stiffness", "stiffness_shear", "stiffness_bend", "damping", "damping_shear", "damping_bend", "mass", "width",
-             "height", "drag", "duration", "frame_rate"]
+    attrs = [
+        "stiffness",
+        "stiffness_shear",
+        "stiffness_bend",
+        "damping",
+        "damping_shear",
+        "damping_bend",
+        "mass",
+        "width",
+        "height",
+        "drag",
+        "duration",
+        "frame_rate",
+    ]
     body = " ".join(f'{a}="{values}"' for a in attrs)
     path = write(tmp_path, f'<test_list>\n<test integrator="rk4" {body}/>\n</test_list>')
     assert os.path.getsize(path) < 2200
     with pytest.raises(WarpclothError) as err:
         parse_test_list(path)
-    assert str(err.value).startswith(f"{path}:2: test '1': expands to {20 ** 12 * 2} runs (")
+    assert str(err.value).startswith(f"{path}:2: test '1': expands to {20**12 * 2} runs (")
     assert "more than the limit of 10000 runs; raise it with --max-runs N" in str(err.value)
 
 
 def test_max_runs_flag_raises_and_lowers_the_limit(tmp_path, monkeypatch, capsys):
-    path = write(tmp_path, """
+    path = write(
+        tmp_path,
+        """
         <test_list dt="1e-3" duration="0.05" scenario="sheet">
           <test integrator="rk4 verlet" size="4 5"/>
           <test integrator="midpoint" size="4 5 6"/>
         </test_list>
-    """)
+    """,
+    )
     monkeypatch.setattr(sweep, "execute_run", lambda spec, cache: {**sweep.parameter_row(spec), "outcome": "completed"})
     assert main(["sweep", path, "-o", str(tmp_path / "a.csv"), "--max-runs", "6", "-q"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith(f"warpcloth: error: {path}:3: test '2': expands to 3 runs (after 4 runs of the tests before it), more than the limit of 6")
+    assert err.startswith(
+        f"warpcloth: error: {path}:3: test '2': expands to 3 runs (after 4 runs of the tests before it), more than the limit of 6"
+    )
     assert not (tmp_path / "a.csv").exists()
     assert main(["sweep", path, "-o", str(tmp_path / "a.csv"), "--max-runs", "7", "-q"]) == 0
     assert len(sweep.read_results(str(tmp_path / "a.csv"))) == 7
@@ -574,12 +716,15 @@ def test_sweep_column_is_frames_per_wall_second_and_seed_plan_note_is_gone():
 def test_solver_converged_column(tmp_path, capsys):
     """implicit_euler with a 2-iteration CG cap misses its tolerance in every step: the row says
     so; with a generous cap it converges; an integrator without a solver leaves the cell empty."""
-    path = write(tmp_path, """
+    path = write(
+        tmp_path,
+        """
         <test_list size="5" scenario="sheet" duration="0.1" frame_rate="60">
           <test id="implicit" integrator="implicit_euler" dt="0.0166666667" cg_tol="1e-5" cg_max_iter="2 1000"/>
           <test id="explicit" integrator="explicit_euler" dt="1e-3"/>
         </test_list>
-    """)
+    """,
+    )
     out = tmp_path / "r.csv"
     assert main(["sweep", path, "--out", str(out), "--quiet"]) == 0
     rows = {(r["integrator"], r["options"]): r for r in sweep.read_results(str(out))}
@@ -590,16 +735,22 @@ def test_solver_converged_column(tmp_path, capsys):
     assert generous["solver_converged"] == "true" and generous["solver_capped_steps"] == "0"
     explicit = rows[("explicit_euler", "")]
     assert explicit["solver_converged"] == "" and explicit["solver_capped_steps"] == "0"
-    assert capsys.readouterr().err.count("warpcloth: warning: implicit_euler: CG hit its 2-iteration cap in 6 of 6 steps") == 1
+    assert (
+        capsys.readouterr().err.count("warpcloth: warning: implicit_euler: CG hit its 2-iteration cap in 6 of 6 steps")
+        == 1
+    )
 
 
 def test_instability_strain_attribute(tmp_path):
-    path = write(tmp_path, """
+    path = write(
+        tmp_path,
+        """
         <test_list size="4" scenario="sheet" duration="0.1" dt="1e-3">
           <test id="strict" integrator="explicit_euler" instability_strain="0.0001"/>
           <test id="default" integrator="explicit_euler"/>
         </test_list>
-    """)
+    """,
+    )
     runs = parse_test_list(path).runs
     assert [r.instability_strain for r in runs] == [0.0001, 0.5]
     assert "instability_strain=0.0001" in runs[0].key and "instability_strain" not in runs[1].key
@@ -615,13 +766,20 @@ def test_a_test_list_in_an_unknown_encoding_or_a_fifo_is_one_line(tmp_path, caps
     from helpers import unblocked_fifo
 
     path = tmp_path / "enc.xml"
-    path.write_bytes(b'<?xml version="1.0" encoding="klingon"?>\n<test_list><test integrator="rk4" scenario="sheet"/></test_list>\n')
-    with pytest.raises(WarpclothError, match=r"enc.xml:1: the XML declaration names an encoding Python does not know "
-                                             r"\(unknown encoding: klingon\); write the test list in UTF-8"):
+    path.write_bytes(
+        b'<?xml version="1.0" encoding="klingon"?>\n<test_list><test integrator="rk4" scenario="sheet"/></test_list>\n'
+    )
+    with pytest.raises(
+        WarpclothError,
+        match=r"enc.xml:1: the XML declaration names an encoding Python does not know "
+        r"\(unknown encoding: klingon\); write the test list in UTF-8",
+    ):
         parse_test_list(str(path))
     assert main(["sweep", str(path), "--out", str(tmp_path / "r.csv")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     with unblocked_fifo(tmp_path / "pipe.xml") as fifo:
-        with pytest.raises(WarpclothError, match=r"cannot read test list .*pipe.xml: file .* is a FIFO, not a regular file"):
+        with pytest.raises(
+            WarpclothError, match=r"cannot read test list .*pipe.xml: file .* is a FIFO, not a regular file"
+        ):
             parse_test_list(str(tmp_path / "pipe.xml"))
     assert fifo.opened == 0

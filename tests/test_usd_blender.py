@@ -11,10 +11,10 @@ import textwrap
 import numpy as np
 import pytest
 from pxr import Usd, UsdGeom
+from warpcloth.scenarios import get_scenario
 
 from warpcloth import Control, Simulator, Sphere, build_grid_cloth
 from warpcloth.io.usd import UsdWriter
-from warpcloth.scenarios import get_scenario
 
 
 def _write(path, scenario, frames=4, **kw):
@@ -106,8 +106,13 @@ _BLENDER = textwrap.dedent("""
 
 def _blender(stage_path, png):
     pytest.importorskip("bpy", reason="Blender's bpy module is not installed (pip install bpy: Python 3.11)")
-    proc = subprocess.run([sys.executable, "-c", _BLENDER, str(stage_path), str(png)], capture_output=True, text=True,
-                          timeout=600, env=dict(os.environ, PYTHONWARNINGS="ignore"))
+    proc = subprocess.run(
+        [sys.executable, "-c", _BLENDER, str(stage_path), str(png)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=dict(os.environ, PYTHONWARNINGS="ignore"),
+    )
     assert proc.returncode == 0, (proc.returncode, proc.stdout[-2000:], proc.stderr[-2000:])  # a segfault is -11
     import json
 
@@ -135,11 +140,16 @@ def test_the_run_line_names_the_clip_folder_and_the_purpose_flag(tmp_path, capsy
 
     monkeypatch.setattr(usd, "CLIP_BYTES", 1)  # the smallest chunk: 60 frames
     out = tmp_path / "long.usdc"
-    assert main(["run", "drape", "--size", "4", "--num-frames", "130", "--usd", str(out), "--usd-colliders", "render"]) == 0
+    assert (
+        main(["run", "drape", "--size", "4", "--num-frames", "130", "--usd", str(out), "--usd-colliders", "render"])
+        == 0
+    )
     line = next(x for x in capsys.readouterr().out.splitlines() if "wrote" in x)
     assert f"its samples are in {out}.clips{os.sep} (3 clips): copy the folder with the file" in line
     stage = Usd.Stage.Open(str(out))
-    assert all(UsdGeom.Imageable(p).ComputePurpose() == "render" for p in stage.GetPrimAtPath("/World/Colliders").GetChildren())
+    assert all(
+        UsdGeom.Imageable(p).ComputePurpose() == "render" for p in stage.GetPrimAtPath("/World/Colliders").GetChildren()
+    )
 
 
 def test_a_written_stage_reads_back_as_a_mesh_input(tmp_path):

@@ -10,9 +10,9 @@ import pytest
 from pxr import Usd, UsdGeom
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, build_grid_cloth
-from warpcloth.sim.colliders import ColliderTrack, MeshCollider, _quat_matrix
-from warpcloth.run.harness import RunHarness
 from warpcloth.io.usd import UsdWriter
+from warpcloth.run.harness import RunHarness
+from warpcloth.sim.colliders import ColliderTrack, MeshCollider, _quat_matrix
 
 FPS = 30.0
 SPIN = ColliderTrack.rigid(center=(0.3, 0.2, 0.0), axis=(0.0, 1.0, 0.0), angular_velocity=1.5, velocity=(0.1, 0.0, 0.0))
@@ -21,9 +21,19 @@ COLLIDERS = (
     Plane(point=(0.0, -1.0, 0.0), normal=(0.0, 1.0, 0.2), thickness=0.01, friction=0.4),
     Sphere(center=(0.5, -0.5, 0.2), radius=0.25, track=SLIDE),
     Capsule(a=(-0.3, -0.6, 0.1), b=(0.4, -0.4, -0.2), radius=0.1, friction=0.2),
-    Box(center=(0.3, -0.8, 0.0), half_extents=(0.3, 0.1, 0.2), rotation=(0.0, 0.0, math.sin(0.3), math.cos(0.3)), track=SPIN),
-    MeshCollider(vertices=[[-0.5, -1.2, 0.0], [0.0, -1.2, 0.3], [0.2, -0.9, -0.1], [0.1, -1.0, 0.4]], triangles=[[0, 1, 2], [0, 2, 3]],
-                 thickness=0.02, friction=0.3, track=SPIN),
+    Box(
+        center=(0.3, -0.8, 0.0),
+        half_extents=(0.3, 0.1, 0.2),
+        rotation=(0.0, 0.0, math.sin(0.3), math.cos(0.3)),
+        track=SPIN,
+    ),
+    MeshCollider(
+        vertices=[[-0.5, -1.2, 0.0], [0.0, -1.2, 0.3], [0.2, -0.9, -0.1], [0.1, -1.0, 0.4]],
+        triangles=[[0, 1, 2], [0, 2, 3]],
+        thickness=0.02,
+        friction=0.3,
+        track=SPIN,
+    ),
 )
 
 
@@ -71,7 +81,9 @@ def check_prim(stage, k, c, code):
 @pytest.mark.parametrize("clip_frames", [None, 4])
 def test_colliders_are_prims_that_follow_their_tracks(tmp_path, clip_frames):
     model = build_grid_cloth(4, 4, 0.5, 0.5, 0.1, plane="horizontal", origin=(0.0, 0.5, 0.0), device="cpu")
-    sim = Simulator(model, "explicit_euler", Control(colliders=COLLIDERS, device="cpu"), dt=1.0 / (64 * FPS))  # frames on steps
+    sim = Simulator(
+        model, "explicit_euler", Control(colliders=COLLIDERS, device="cpu"), dt=1.0 / (64 * FPS)
+    )  # frames on steps
     path = str(tmp_path / "c.usda")
     writer = UsdWriter(path, model, FPS, colliders=sim.control.colliders, clip_frames=clip_frames)
     RunHarness(sim).run(10 / FPS, FPS, frames=writer)
@@ -90,7 +102,10 @@ def test_colliders_are_prims_that_follow_their_tracks(tmp_path, clip_frames):
         for code in codes:
             check_prim(stage, k, c.at(code / FPS), code)
     for moving in ("Box_3", "Mesh_4"):
-        assert not np.allclose(world(stage.GetPrimAtPath(f"/World/Colliders/{moving}"), 9.0), world(stage.GetPrimAtPath(f"/World/Colliders/{moving}"), 0.0))
+        assert not np.allclose(
+            world(stage.GetPrimAtPath(f"/World/Colliders/{moving}"), 9.0),
+            world(stage.GetPrimAtPath(f"/World/Colliders/{moving}"), 0.0),
+        )
 
 
 def test_stage_with_colliders_validates(tmp_path):
@@ -108,9 +123,9 @@ def test_cli_and_run_export_the_scenarios_colliders(tmp_path):
     """`warpcloth run drape --usd` and `Scenario.run(usd_path=path)` write the scenario's colliders
     (the drape's sphere and ground) beside the cloth."""
     from pxr import Usd
+    from warpcloth.scenarios import get_scenario
 
     from warpcloth.cli import main
-    from warpcloth.scenarios import get_scenario
 
     out = tmp_path / "drape.usda"
     assert main(["run", "drape", "--rows", "5", "--cols", "5", "--duration", "0.05", "--usd", str(out), "-q"]) == 0

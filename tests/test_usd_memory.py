@@ -4,8 +4,8 @@ import os
 
 import numpy as np
 import pytest
-
 from warpcloth.scenarios import flag
+
 from warpcloth.io.usd import UsdWriter
 
 
@@ -16,7 +16,9 @@ def frames(model, n):
 
 def samples_in_memory(writer):
     layer = writer.stage.GetRootLayer()
-    return max(layer.GetNumTimeSamplesForPath(a.GetPath()) for a in (writer.points_attr, writer.extent_attr, writer.pins_attr))
+    return max(
+        layer.GetNumTimeSamplesForPath(a.GetPath()) for a in (writer.points_attr, writer.extent_attr, writer.pins_attr)
+    )
 
 
 @pytest.mark.parametrize("suffix", [".usda", ".usdc"])

@@ -20,8 +20,26 @@ def _run(capsys, *argv):
 
 def test_provenance_round_trips(capsys, tmp_path):
     usd = tmp_path / "f.usda"
-    argv = ["run", "flag", "-i", "implicit_euler", "--cg-tol", "1e-4", "--rows", "5", "--cols", "6", "--num-frames", "4",
-            "--stiffness", "800,600,100", "--mass", "0.25", "--usd", str(usd)]
+    argv = [
+        "run",
+        "flag",
+        "-i",
+        "implicit_euler",
+        "--cg-tol",
+        "1e-4",
+        "--rows",
+        "5",
+        "--cols",
+        "6",
+        "--num-frames",
+        "4",
+        "--stiffness",
+        "800,600,100",
+        "--mass",
+        "0.25",
+        "--usd",
+        str(usd),
+    ]
     code, out, err = _run(capsys, *argv)
     assert code == 0, err
     stage = Usd.Stage.Open(str(usd))
@@ -63,6 +81,7 @@ def test_pins_written_once_with_extent(capsys, tmp_path):
 
 def test_pins_time_sampled_when_they_move(tmp_path):
     from warpcloth.scenarios import sheet
+
     from warpcloth.io.usd import UsdWriter
 
     sim = sheet.build(rows=4, cols=4)
@@ -83,7 +102,21 @@ def test_pins_time_sampled_when_they_move(tmp_path):
 
 def test_strain_display_color(capsys, tmp_path):
     usd = tmp_path / "c.usda"
-    code, out, err = _run(capsys, "run", "flag", "--rows", "5", "--cols", "6", "--num-frames", "3", "--usd", str(usd), "--usd-color", "strain")
+    code, out, err = _run(
+        capsys,
+        "run",
+        "flag",
+        "--rows",
+        "5",
+        "--cols",
+        "6",
+        "--num-frames",
+        "3",
+        "--usd",
+        str(usd),
+        "--usd-color",
+        "strain",
+    )
     assert code == 0, err
     stage = Usd.Stage.Open(str(usd))
     mesh = stage.GetPrimAtPath("/World/Cloth")
@@ -99,13 +132,30 @@ def test_strain_display_color(capsys, tmp_path):
 
 def test_usdz_opens_and_validates(capsys, tmp_path):
     usdz = tmp_path / "f.usdz"
-    code, out, err = _run(capsys, "run", "flag", "--rows", "4", "--cols", "5", "--num-frames", "3", "--usd", str(usdz), "--usd-color", "strain")
+    code, out, err = _run(
+        capsys,
+        "run",
+        "flag",
+        "--rows",
+        "4",
+        "--cols",
+        "5",
+        "--num-frames",
+        "3",
+        "--usd",
+        str(usdz),
+        "--usd-color",
+        "strain",
+    )
     assert code == 0, err
     assert sorted(os.listdir(tmp_path)) == ["f.usdz"]  # the .usdc and the package temporaries are gone
     assert usdz.read_bytes()[:2] == b"PK"
     stage = Usd.Stage.Open(str(usdz))
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth"))
-    assert len(mesh.GetPointsAttr().Get(2.0)) == 20 and stage.GetRootLayer().customLayerData["warpcloth"]["scenario"] == "flag"
+    assert (
+        len(mesh.GetPointsAttr().Get(2.0)) == 20
+        and stage.GetRootLayer().customLayerData["warpcloth"]["scenario"] == "flag"
+    )
     assert not validation_errors(stage), validation_errors(stage)
 
 
@@ -118,7 +168,9 @@ def validation_errors(stage) -> list:
     validators = UsdValidation.ValidationRegistry().GetOrLoadAllValidators()
     assert len(validators) > 10
     errors = UsdValidation.ValidationContext(validators).Validate(stage)
-    return [f"{e.GetName()}: {e.GetMessage()}" for e in errors if e.GetType() == UsdValidation.ValidationErrorType.Error]
+    return [
+        f"{e.GetName()}: {e.GetMessage()}" for e in errors if e.GetType() == UsdValidation.ValidationErrorType.Error
+    ]
 
 
 def test_usd_validation_passes_usda_and_can_fail(capsys, tmp_path):
@@ -133,12 +185,29 @@ def test_usd_validation_passes_usda_and_can_fail(capsys, tmp_path):
 
 # -- preview ----------------------------------------------------------------------------------
 
+
 def test_preview_png_and_gif(capsys, tmp_path):
     pytest.importorskip("matplotlib")
     png, gif = tmp_path / "p.png", tmp_path / "p.gif"
-    code, out, err = _run(capsys, "run", "flag", "--rows", "5", "--cols", "6", "--num-frames", "4", "--preview", str(png))
+    code, out, err = _run(
+        capsys, "run", "flag", "--rows", "5", "--cols", "6", "--num-frames", "4", "--preview", str(png)
+    )
     assert code == 0, err and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    code, out, err = _run(capsys, "run", "flag", "--rows", "5", "--cols", "6", "--num-frames", "200", "--fps", "100", "--preview", str(gif))
+    code, out, err = _run(
+        capsys,
+        "run",
+        "flag",
+        "--rows",
+        "5",
+        "--cols",
+        "6",
+        "--num-frames",
+        "200",
+        "--fps",
+        "100",
+        "--preview",
+        str(gif),
+    )
     assert code == 0, err
     from PIL import Image
 
@@ -157,6 +226,8 @@ def test_preview_without_matplotlib_is_one_line_before_the_run(capsys, tmp_path,
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib raises ImportError
     code, out, err = _run(capsys, "run", "sheet", "--duration", "1000", "--preview", str(tmp_path / "p.png"))
     assert code == 2 and out == ""
-    assert err.strip() == ("warpcloth: error: --preview needs matplotlib: pip install 'warpcloth[plot]' "
-                           "(from a clone: pip install -e '.[plot]')")
+    assert err.strip() == (
+        "warpcloth: error: --preview needs matplotlib: pip install 'warpcloth[plot]' "
+        "(from a clone: pip install -e '.[plot]')"
+    )
     assert os.listdir(tmp_path) == []

@@ -3,19 +3,20 @@ the vertex colouring, options."""
 
 import numpy as np
 import pytest
+from helpers import backward_euler_step, small_grid, spring_params
 
 from warpcloth import Control, Simulator, WarpclothError, make_integrator
-from warpcloth.sim.coloring import color_vertices, greedy_vertex_colors, is_valid_vertex_coloring
 from warpcloth.integrators.vbd import chebyshev_weights
+from warpcloth.sim.coloring import color_vertices, greedy_vertex_colors, is_valid_vertex_coloring
 from warpcloth.sim.grid import grid_springs
-from warpcloth.sim.model import build_model, SpringType
-
-from helpers import backward_euler_step, small_grid, spring_params
+from warpcloth.sim.model import SpringType, build_model
 
 
 def hanging_mass(ks=50.0, kd=0.0, mass=0.1, rest=0.5, top=2.0):
     q = [[0.0, top, 0.0], [0.0, top - rest, 0.0]]
-    return build_model(q, [[0, 1]], [SpringType.STRUCTURAL], [mass, mass], spring_params(ks, kd), pins=[0], device="cpu")
+    return build_model(
+        q, [[0, 1]], [SpringType.STRUCTURAL], [mass, mass], spring_params(ks, kd), pins=[0], device="cpu"
+    )
 
 
 def local_newton_reference(x0, v0, xp, ks, kd, rest, mass, h, g):
@@ -45,7 +46,9 @@ def test_one_iteration_with_one_free_vertex_is_the_local_newton_step(stretch):
     sim.state.particle_q.assign(q)
     sim.state.particle_qd.assign(v)
     x0 = q.astype(np.float64)
-    expected = local_newton_reference(x0[1], v[1].astype(np.float64), x0[0], ks, kd, 0.5, mass, h, np.array([0.0, -9.81, 0.0]))
+    expected = local_newton_reference(
+        x0[1], v[1].astype(np.float64), x0[0], ks, kd, 0.5, mass, h, np.array([0.0, -9.81, 0.0])
+    )
     sim.step()
     dx = sim.state.particle_q.numpy()[1].astype(np.float64) - x0[1]
     # a step moves ~1e-2 m; the Newton correction itself ~1e-3 m; float32 rounding ~1e-7 m
@@ -62,12 +65,16 @@ def test_converged_vbd_is_backward_euler(rho):
     model = small_grid(ks=40.0, kd=0.2)
     h = 1.0 / 60.0
     rng = np.random.default_rng(3)
-    x0 = model.host["q"].astype(np.float64) + np.where(model.host["inv_mass"][:, None] > 0, rng.normal(0, 0.05, (9, 3)), 0.0)
+    x0 = model.host["q"].astype(np.float64) + np.where(
+        model.host["inv_mass"][:, None] > 0, rng.normal(0, 0.05, (9, 3)), 0.0
+    )
     v0 = np.where(model.host["inv_mass"][:, None] > 0, rng.normal(0, 0.5, (9, 3)), 0.0)
     expected = backward_euler_step(model, x0, v0, h)
 
     def one_step(iterations):
-        sim = Simulator(model, make_integrator("vbd", vbd_iterations=iterations, vbd_chebyshev_rho=rho), Control(), dt=h)
+        sim = Simulator(
+            model, make_integrator("vbd", vbd_iterations=iterations, vbd_chebyshev_rho=rho), Control(), dt=h
+        )
         sim.state.particle_q.assign(x0.astype(np.float32))
         sim.state.particle_qd.assign(v0.astype(np.float32))
         sim.step()
@@ -96,8 +103,9 @@ def test_converged_vbd_matches_implicit_euler_on_a_small_step():
 def test_vbd_sheet_settles_on_the_static_equilibrium():
     """16 x 16 scenario sheet, default options, dt = 1/60 s, 10 s: the sag (lowest drop below
     the rest shape) within 2 % of the float64 equilibrium's."""
-    from warpcloth.lab.reference import static_equilibrium
     from warpcloth.scenarios import sheet
+
+    from warpcloth.lab.reference import static_equilibrium
 
     sim = sheet.build(rows=16, cols=16, integrator="vbd", dt=1.0 / 60.0)
     eq = static_equilibrium(sim.model, sim.control)
@@ -134,12 +142,15 @@ def test_vertex_coloring_check_and_greedy_fallback():
         color_vertices(np.array([[0, 1], [1, 1]]), 2)
 
 
-@pytest.mark.parametrize("options,message", [
-    ({"vbd_iterations": 0}, "vbd_iterations must be an integer >= 1"),
-    ({"vbd_multigrid_every": -1}, "vbd_multigrid_every must be an integer >= 0"),
-    ({"vbd_chebyshev_rho": 1.0}, "vbd_chebyshev_rho must be in"),
-    ({"vbd_chebyshev_rho": -0.1}, "vbd_chebyshev_rho must be in"),
-])
+@pytest.mark.parametrize(
+    "options,message",
+    [
+        ({"vbd_iterations": 0}, "vbd_iterations must be an integer >= 1"),
+        ({"vbd_multigrid_every": -1}, "vbd_multigrid_every must be an integer >= 0"),
+        ({"vbd_chebyshev_rho": 1.0}, "vbd_chebyshev_rho must be in"),
+        ({"vbd_chebyshev_rho": -0.1}, "vbd_chebyshev_rho must be in"),
+    ],
+)
 def test_bad_options(options, message):
     with pytest.raises(WarpclothError, match=message):
         make_integrator("vbd", **options)
@@ -148,8 +159,9 @@ def test_bad_options(options, message):
 def sheet_sag_error(rows, steps, **options):
     """Relative error of the scenario sheet's sag after ``steps`` steps of 1/60 s against the
     float64 equilibrium's."""
-    from warpcloth.lab.reference import static_equilibrium
     from warpcloth.scenarios import sheet
+
+    from warpcloth.lab.reference import static_equilibrium
 
     sim = sheet.build(rows=rows, cols=rows, integrator="vbd", dt=1.0 / 60.0, integrator_options=options)
     eq = static_equilibrium(sim.model, sim.control)

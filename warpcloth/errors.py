@@ -73,7 +73,9 @@ def require_indices(name: str, value, count: int):
     import numpy as np
 
     if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
-        raise WarpclothError(f"{name} must be a sequence of particle indices (integers 0..{count - 1}), got {value!r:.80}")
+        raise WarpclothError(
+            f"{name} must be a sequence of particle indices (integers 0..{count - 1}), got {value!r:.80}"
+        )
     out = []
     for v in value:
         ok = not isinstance(v, bool) and (

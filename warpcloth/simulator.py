@@ -14,11 +14,11 @@ import time
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_count, require_positive
-from warpcloth.sim.control import Control
 from warpcloth.integrators import Integrator, make_integrator
+from warpcloth.integrators.strain_limit import StrainLimiter
+from warpcloth.sim.control import Control
 from warpcloth.sim.model import ClothModel
 from warpcloth.sim.pins import apply_pins
-from warpcloth.integrators.strain_limit import StrainLimiter
 
 #: Most steps in one captured graph: :meth:`Simulator.simulate` replays a graph of this many steps
 #: as often as it fits and one of the rest (capturing a long call whole, 800 steps of projective's
@@ -61,7 +61,9 @@ class Simulator:
         strain_limit: float | None = None,
     ):
         if not isinstance(model, ClothModel):
-            raise WarpclothError(f"model must be a ClothModel (from build_grid_cloth or build_model), got {model!r:.80}")
+            raise WarpclothError(
+                f"model must be a ClothModel (from build_grid_cloth or build_model), got {model!r:.80}"
+            )
         if control is not None and not isinstance(control, Control):
             raise WarpclothError(f"control must be a warpcloth.Control or None, got {control!r:.80}")
         self.model = model
@@ -182,9 +184,12 @@ class Simulator:
         driven = [t for t in self.control.pin_tracks if t.kind == "driven" and (track is None or t.name == track)]
         if len(driven) != 1:
             names = [t.name for t in self.control.pin_tracks if t.kind == "driven"]
-            raise WarpclothError(f"no driven pin track {track!r}; driven tracks: {', '.join(map(repr, names)) or 'none'} "
-                                 "(add PinTrack.driven(particles) to the control's pin tracks)" if track is not None or not names
-                                 else f"{len(names)} driven pin tracks ({', '.join(map(repr, names))}): name one with track=")
+            raise WarpclothError(
+                f"no driven pin track {track!r}; driven tracks: {', '.join(map(repr, names)) or 'none'} "
+                "(add PinTrack.driven(particles) to the control's pin tracks)"
+                if track is not None or not names
+                else f"{len(names)} driven pin tracks ({', '.join(map(repr, names))}): name one with track="
+            )
         driven[0].set(positions, velocities)
 
     def set_collider_pose(self, index: int, offset=(0.0, 0.0, 0.0), rotation=None, velocity=None) -> None:
@@ -198,7 +203,9 @@ class Simulator:
             raise WarpclothError(f"collider index must be 0..{len(colliders) - 1}, got {index!r}")
         track = colliders[index].track
         if track is None or track.kind != "driven":
-            raise WarpclothError(f"collider {index} ({colliders[index].kind}) is not driven: give it track=ColliderTrack.driven()")
+            raise WarpclothError(
+                f"collider {index} ({colliders[index].kind}) is not driven: give it track=ColliderTrack.driven()"
+            )
         track.set(offset, rotation, velocity)
 
     def set_dt(self, dt: float) -> None:
@@ -266,8 +273,15 @@ class Simulator:
         """Every host value a captured frame bakes in besides dt and the integrator (those clear
         the cache): a change to any of them captures a new graph."""
         c = self.control
-        return (tuple(c.gravity), c.drag_rate, c.wind_coefficient, c.wind_schedule, c.colliders, self._pins_version,
-                tuple(sorted((k, repr(v)) for k, v in self.integrator.option_values().items())))
+        return (
+            tuple(c.gravity),
+            c.drag_rate,
+            c.wind_coefficient,
+            c.wind_schedule,
+            c.colliders,
+            self._pins_version,
+            tuple(sorted((k, repr(v)) for k, v in self.integrator.option_values().items())),
+        )
 
     def _drive(self, steps: int) -> None:
         """Before a frame of ``steps`` steps: the integrator's start if due (:meth:`_begin`) and
@@ -293,8 +307,13 @@ class Simulator:
         self.control.update()
         self.integrator.step(self.state, self.control, self._dt)
         if self.control.collision is not None and not self.integrator.collides_in_solver:
-            self.control.collision.project_velocity(self.model, self.state, self._dt, self.integrator.position_history(),
-                                                    self.integrator.velocity_position_weight)
+            self.control.collision.project_velocity(
+                self.model,
+                self.state,
+                self._dt,
+                self.integrator.position_history(),
+                self.integrator.velocity_position_weight,
+            )
         if self.strain_limiter is not None:
             self.strain_limiter.apply(self.state, self._dt)
         self.control.advance(self._dt)

@@ -13,17 +13,27 @@ import argparse
 
 import numpy as np
 import warp as wp
-
-from warpcloth.integrators.forces import eval_forces
 from warpcloth.kernels import implicit as ik
 from warpcloth.scenarios import sheet
+
+from warpcloth.integrators.forces import eval_forces
 
 DT = 1.0 / 60.0
 
 
 def peer(size, matrix, **opts):
-    return sheet.build(rows=size, cols=size, integrator="implicit_euler", integrator_options=dict(matrix=matrix, **opts), dt=DT,
-                       mass=1.0, stiffness=1000.0, damping=1.0, drag=0.0, device="cpu")
+    return sheet.build(
+        rows=size,
+        cols=size,
+        integrator="implicit_euler",
+        integrator_options=dict(matrix=matrix, **opts),
+        dt=DT,
+        mass=1.0,
+        stiffness=1000.0,
+        damping=1.0,
+        drag=0.0,
+        device="cpu",
+    )
 
 
 def reference_Ax(model, B, x):
@@ -49,13 +59,21 @@ def products(size):
         x, v, f = sim.state.particle_q, sim.state.particle_qd, sim.state.particle_f
         eval_forces(m, x, v, sim.control, f)
         s.assemble(x, DT, 0.0)
-        wp.launch(ik.eval_rhs, dim=m.particle_count, inputs=[f, v, s.springs, s.spring_K, m.particle_inv_mass, DT], outputs=[sim.integrator.b])
+        wp.launch(
+            ik.eval_rhs,
+            dim=m.particle_count,
+            inputs=[f, v, s.springs, s.spring_K, m.particle_inv_mass, DT],
+            outputs=[sim.integrator.b],
+        )
     n = sims["bsr"].model.particle_count
     B = sims["bsr"].integrator.system.spring_B.numpy()
     same_B = np.array_equal(B, sims["free"].integrator.system.spring_B.numpy())
     same_b = np.array_equal(sims["bsr"].integrator.b.numpy(), sims["free"].integrator.b.numpy())
     print(f"# {size}^2: B_s identical in both paths: {same_B}; b identical: {same_b}")
-    xs = {"random": np.random.default_rng(1).normal(size=(n, 3)), "b (smooth)": sims["bsr"].integrator.b.numpy().astype(np.float64)}
+    xs = {
+        "random": np.random.default_rng(1).normal(size=(n, 3)),
+        "b (smooth)": sims["bsr"].integrator.b.numpy().astype(np.float64),
+    }
     for name, xv in xs.items():
         ref = reference_Ax(sims["bsr"].model, B, xv.astype(np.float32).astype(np.float64))
         xw = wp.array(xv.astype(np.float32), dtype=wp.vec3)
@@ -64,7 +82,10 @@ def products(size):
             s = sim.integrator.system
             (s.bsr_matvec if k == "bsr" else s.matvec)(xw, out, out, 1.0, 0.0)
             z = out.numpy().astype(np.float64)
-            print(f"{size}^2 x = {name:10s} {k:4s}: |A x - (A x)_64| / |(A x)_64| = {np.linalg.norm(z - ref) / np.linalg.norm(ref):.3e}", flush=True)
+            print(
+                f"{size}^2 x = {name:10s} {k:4s}: |A x - (A x)_64| / |(A x)_64| = {np.linalg.norm(z - ref) / np.linalg.norm(ref):.3e}",
+                flush=True,
+            )
 
 
 def dv_difference(size, tol, steps):
@@ -72,11 +93,18 @@ def dv_difference(size, tol, steps):
     for k in ("bsr", "free"):
         sim = peer(size, k, cg_tol=tol)
         sim.simulate(steps)
-        out[k] = (sim.integrator.dv.numpy().astype(np.float64), float(sim.state.particle_q.numpy()[:, 1].min()), sim.integrator.stats())
+        out[k] = (
+            sim.integrator.dv.numpy().astype(np.float64),
+            float(sim.state.particle_q.numpy()[:, 1].min()),
+            sim.integrator.stats(),
+        )
     d = np.linalg.norm(out["bsr"][0] - out["free"][0]) / np.linalg.norm(out["free"][0])
     low = out["bsr"][1] - out["free"][1]
-    print(f"{size}^2 tol {tol:g} after {steps} steps: |dv_bsr - dv_free| / |dv_free| = {d:.3e}; lowest point bsr - free {low:+.2e} m; "
-          f"CG its bsr {out['bsr'][2]['cg_iterations_mean']:.0f} free {out['free'][2]['cg_iterations_mean']:.0f}", flush=True)
+    print(
+        f"{size}^2 tol {tol:g} after {steps} steps: |dv_bsr - dv_free| / |dv_free| = {d:.3e}; lowest point bsr - free {low:+.2e} m; "
+        f"CG its bsr {out['bsr'][2]['cg_iterations_mean']:.0f} free {out['free'][2]['cg_iterations_mean']:.0f}",
+        flush=True,
+    )
 
 
 def main():

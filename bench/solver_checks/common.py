@@ -40,5 +40,13 @@ def mesh_twin(model):
 
     h = model.host
     pins = list(np.flatnonzero(h["inv_mass"] == 0))
-    return build_mesh_cloth(h["q"], grid_triangles(model.rows, model.cols), total_mass=float(h["mass"].sum()), mass_mode="uniform",
-                            quads=True, pins=pins, device=str(model.device), spring_params=model.spring_params)
+    return build_mesh_cloth(
+        h["q"],
+        grid_triangles(model.rows, model.cols),
+        total_mass=float(h["mass"].sum()),
+        mass_mode="uniform",
+        quads=True,
+        pins=pins,
+        device=str(model.device),
+        spring_params=model.spring_params,
+    )

@@ -11,11 +11,10 @@ import time
 
 import numpy as np
 import warp as wp
-
-from warpcloth import Simulator, make_integrator
+from common import mesh_twin, parse_opts
 from warpcloth.scenarios import get_scenario
 
-from common import mesh_twin, parse_opts
+from warpcloth import Simulator, make_integrator
 
 
 def main():
@@ -23,19 +22,27 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--integrator", default="vbd")
     ap.add_argument("--sizes", type=int, nargs="*", default=[32, 64])
-    ap.add_argument("--cases", nargs="*", default=["", "vbd_rigid_mode=0"], help='"key=value,key=value" ("" the defaults)')
+    ap.add_argument(
+        "--cases", nargs="*", default=["", "vbd_rigid_mode=0"], help='"key=value,key=value" ("" the defaults)'
+    )
     ap.add_argument("--mesh", action="store_true", help="the sheet as a build_mesh_cloth model")
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--repeats", type=int, default=3)
     a = ap.parse_args()
-    print(f"# {a.integrator} ms/step on the {'mesh twin of the ' if a.mesh else ''}scenario sheet, dt 1/60 s, {a.steps} steps x "
-          f"{a.repeats} repeats, cases alternating")
+    print(
+        f"# {a.integrator} ms/step on the {'mesh twin of the ' if a.mesh else ''}scenario sheet, dt 1/60 s, {a.steps} steps x "
+        f"{a.repeats} repeats, cases alternating"
+    )
     for n in a.sizes:
         sims = []
         for case in a.cases:
-            sim = get_scenario("sheet").build(rows=n, cols=n, integrator=a.integrator, integrator_options=parse_opts(case))
+            sim = get_scenario("sheet").build(
+                rows=n, cols=n, integrator=a.integrator, integrator_options=parse_opts(case)
+            )
             if a.mesh:
-                sim = Simulator(mesh_twin(sim.model), make_integrator(a.integrator, **parse_opts(case)), sim.control, dt=sim.dt)
+                sim = Simulator(
+                    mesh_twin(sim.model), make_integrator(a.integrator, **parse_opts(case)), sim.control, dt=sim.dt
+                )
             sim.simulate(a.steps)  # warm-up: compile, capture
             wp.synchronize()
             sims.append(sim)
@@ -50,8 +57,11 @@ def main():
         for case, t in zip(a.cases, times):
             t = np.array(t)
             r = t / ref
-            print(f"{a.integrator} {n}^2 [{case or 'defaults'}]: {np.median(t):.2f} [{t.min():.2f}-{t.max():.2f}] ms/step, "
-                  f"/ first {np.median(r):.2f} [{r.min():.2f}-{r.max():.2f}]", flush=True)
+            print(
+                f"{a.integrator} {n}^2 [{case or 'defaults'}]: {np.median(t):.2f} [{t.min():.2f}-{t.max():.2f}] ms/step, "
+                f"/ first {np.median(r):.2f} [{r.min():.2f}-{r.max():.2f}]",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -13,11 +13,10 @@ import math
 
 import numpy as np
 import warp as wp
-
-from warpcloth import Control, Plane, Simulator, build_grid_cloth, integrator_names, make_integrator
-
 from common import parse_case
 from momentum import run as momentum
+
+from warpcloth import Control, Plane, Simulator, build_grid_cloth, integrator_names, make_integrator
 
 G = 9.81
 
@@ -35,7 +34,9 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", nargs="*", default=None)
     a = ap.parse_args()
-    print("# free fall along the plane / discrete value, frictionless slope v / (n h g sin), max |P| [kg m/s]; default dt")
+    print(
+        "# free fall along the plane / discrete value, frictionless slope v / (n h g sin), max |P| [kg m/s]; default dt"
+    )
     for case in a.cases or integrator_names():
         name, opts = parse_case(case)
         integ = make_integrator(name, **opts)
@@ -44,14 +45,22 @@ def main():
         steps = max(1, round(0.5 / sim.dt))
         x0 = sim.state.particle_q.numpy().astype(np.float64).mean(axis=0)
         sim.simulate(steps)
-        fall = (x0[0] - sim.state.particle_q.numpy().astype(np.float64).mean(axis=0)[0]) / (G * discrete_free_fall(integ, steps, sim.dt))
+        fall = (x0[0] - sim.state.particle_q.numpy().astype(np.float64).mean(axis=0)[0]) / (
+            G * discrete_free_fall(integ, steps, sim.dt)
+        )
         th = math.radians(30.0)
         model = build_grid_cloth(8, 8, 0.3, 0.3, 0.05, plane="horizontal", origin=(0.0, 0.005, 0.0), device="cpu")
-        control = Control(gravity=(G * math.sin(th), -G * math.cos(th), 0.0), colliders=(Plane(thickness=0.005, friction=0.0),), device="cpu")
+        control = Control(
+            gravity=(G * math.sin(th), -G * math.cos(th), 0.0),
+            colliders=(Plane(thickness=0.005, friction=0.0),),
+            device="cpu",
+        )
         slope_sim = Simulator(model, make_integrator(name, **opts), control)
         n = max(1, round(0.5 / slope_sim.dt))
         slope_sim.simulate(n)
-        slope = slope_sim.state.particle_qd.numpy().astype(np.float64)[:, 0].mean() / (n * slope_sim.dt * G * math.sin(th))
+        slope = slope_sim.state.particle_qd.numpy().astype(np.float64)[:, 0].mean() / (
+            n * slope_sim.dt * G * math.sin(th)
+        )
         worst, _, _ = momentum(case, 16, 1.0, 2.0e-5 if name == "midpoint" else None)
         print(f"{case:32s} dt {sim.dt:.4g} s: free fall {fall:.6f}  slope {slope:.6f}  max |P| {worst:.2e}", flush=True)
 

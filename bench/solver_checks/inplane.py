@@ -12,17 +12,18 @@ import math
 
 import numpy as np
 import warp as wp
+from common import parse_opts
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth, make_integrator
-
-from common import parse_opts
 
 G, T = 9.81, 0.5
 
 
 def fall(integrator, n, dt, gravity, opts):
     model = build_grid_cloth(n, n, 1.0, 1.0, 0.2, plane="horizontal", origin=(0.0, 1.5, 0.0), device="cpu")
-    sim = Simulator(model, make_integrator(integrator, **opts), Control(gravity=gravity, drag_rate=0.0, device="cpu"), dt=dt)
+    sim = Simulator(
+        model, make_integrator(integrator, **opts), Control(gravity=gravity, drag_rate=0.0, device="cpu"), dt=dt
+    )
     x0 = sim.state.particle_q.numpy().astype(np.float64).mean(axis=0)
     steps = int(round(T / dt))
     sim.simulate(steps)
@@ -35,7 +36,11 @@ def fall(integrator, n, dt, gravity, opts):
 def slope(integrator, n, dt, opts, mu=0.0, steps=30):
     th = math.radians(30.0)
     model = build_grid_cloth(n, n, 0.3, 0.3, 0.05, plane="horizontal", origin=(0.0, 0.005, 0.0), device="cpu")
-    control = Control(gravity=(G * math.sin(th), -G * math.cos(th), 0.0), colliders=(Plane(thickness=0.005, friction=mu),), device="cpu")
+    control = Control(
+        gravity=(G * math.sin(th), -G * math.cos(th), 0.0),
+        colliders=(Plane(thickness=0.005, friction=mu),),
+        device="cpu",
+    )
     sim = Simulator(model, make_integrator(integrator, **opts), control, dt=dt)
     sim.simulate(steps)
     v = sim.state.particle_qd.numpy().astype(np.float64)
@@ -56,9 +61,15 @@ def main():
     for n in a.sizes:
         along, be = fall(a.integrator, n, dt, (-G, 0.0, 0.0), opts)
         across, _ = fall(a.integrator, n, dt, (0.0, -G, 0.0), opts)
-        print(f"{n}x{n} free fall / (g t^2/2): along {along:.4f} across {across:.4f}  (backward Euler {be:.4f})", flush=True)
+        print(
+            f"{n}x{n} free fall / (g t^2/2): along {along:.4f} across {across:.4f}  (backward Euler {be:.4f})",
+            flush=True,
+        )
     for mu in a.mu:
-        print(f"8x8 on a 30 deg slope, mu {mu:g}: v / (N h g (sin - mu cos)) = {slope(a.integrator, 8, dt, opts, mu):.4f}", flush=True)
+        print(
+            f"8x8 on a 30 deg slope, mu {mu:g}: v / (N h g (sin - mu cos)) = {slope(a.integrator, 8, dt, opts, mu):.4f}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

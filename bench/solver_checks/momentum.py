@@ -9,11 +9,10 @@ import argparse
 
 import numpy as np
 import warp as wp
+from common import parse_case
 
 from warpcloth import Control, Simulator, SpringParams, SpringType, build_grid_cloth, integrator_names, make_integrator
 from warpcloth.sim.model import DEFAULT_STIFFNESS
-
-from common import parse_case
 
 
 def run(case, n, duration, dt=None, stretch=0.05):
@@ -46,11 +45,15 @@ def main():
     ap.add_argument("--dt", type=float, default=None)
     ap.add_argument("--cases", nargs="*", default=None, help="integrator[:key=value,...] (default: every integrator)")
     a = ap.parse_args()
-    print(f"# max |P| [kg m/s] sampled every 1/60 s over {a.duration:g} s: free {a.size}^2 cloth, kd 0, no gravity, "
-          "no drag, released stretched 5 %")
+    print(
+        f"# max |P| [kg m/s] sampled every 1/60 s over {a.duration:g} s: free {a.size}^2 cloth, kd 0, no gravity, "
+        "no drag, released stretched 5 %"
+    )
     for case in a.cases or integrator_names():
         worst, P, dt = run(case, a.size, a.duration, a.dt)
-        print(f"{case:45s} dt={dt:.4g}: max |P| = {worst:.3g}  (final P = {np.array2string(P, precision=3)})", flush=True)
+        print(
+            f"{case:45s} dt={dt:.4g}: max |P| = {worst:.3g}  (final P = {np.array2string(P, precision=3)})", flush=True
+        )
 
 
 if __name__ == "__main__":

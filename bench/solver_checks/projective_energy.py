@@ -9,25 +9,36 @@ import argparse
 
 import numpy as np
 import warp as wp
-
-from warpcloth.run.harness import RunHarness
+from common import parse_case
 from warpcloth.scenarios import get_scenario
 
-from common import parse_case
+from warpcloth.run.harness import RunHarness
 
 
 def main():
     wp.config.quiet = True
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="*", default=[16, 32])
-    ap.add_argument("--cases", nargs="*", default=["projective", "projective:pd_rigid_mode=0", "projective:pd_rigid_mode=0,pd_cg_iterations=100",
-                                                  "implicit_euler"])
+    ap.add_argument(
+        "--cases",
+        nargs="*",
+        default=[
+            "projective",
+            "projective:pd_rigid_mode=0",
+            "projective:pd_rigid_mode=0,pd_cg_iterations=100",
+            "implicit_euler",
+        ],
+    )
     a = ap.parse_args()
     print("# largest energy gain between frames, scenario sheet, kd 0, no drag, 2 s at dt 1/60 s")
     for case in a.cases:
         name, opts = parse_case(case)
         for n in a.sizes:
-            harness = RunHarness(get_scenario("sheet").build(rows=n, cols=n, integrator=name, integrator_options=opts, damping=0.0, drag=0.0))
+            harness = RunHarness(
+                get_scenario("sheet").build(
+                    rows=n, cols=n, integrator=name, integrator_options=opts, damping=0.0, drag=0.0
+                )
+            )
             e = [harness.energy()]
             for _ in range(120):
                 harness.sim.simulate(1)
@@ -35,8 +46,11 @@ def main():
             e = np.array(e)
             d = np.diff(e)
             released = e[0] - e.min()
-            print(f"{case:45s} {n}^2: max gain {d.max():+.3e} J = {d.max() / released:+.2e} of the energy released ({released:.3e} J), "
-                  f"at frame {d.argmax() + 1}", flush=True)
+            print(
+                f"{case:45s} {n}^2: max gain {d.max():+.3e} J = {d.max() / released:+.2e} of the energy released ({released:.3e} J), "
+                f"at frame {d.argmax() + 1}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -11,12 +11,11 @@ import time
 
 import numpy as np
 import warp as wp
+from common import mesh_twin, parse_opts
+from warpcloth.scenarios import get_scenario
 
 from warpcloth import Simulator, make_integrator
 from warpcloth.lab.reference import static_equilibrium
-from warpcloth.scenarios import get_scenario
-
-from common import mesh_twin, parse_opts
 
 
 def main():
@@ -31,14 +30,18 @@ def main():
     ap.add_argument("--opt", action="append", default=[])
     a = ap.parse_args()
     opts = parse_opts(a.opt)
-    sim = get_scenario("sheet").build(rows=a.size, cols=a.size, integrator=a.integrator, integrator_options=opts, dt=a.dt)
+    sim = get_scenario("sheet").build(
+        rows=a.size, cols=a.size, integrator=a.integrator, integrator_options=opts, dt=a.dt
+    )
     if a.mesh:
         sim = Simulator(mesh_twin(sim.model), make_integrator(a.integrator, **opts), sim.control, dt=a.dt)
     eq = static_equilibrium(sim.model, sim.control)
     rest = sim.model.host["q"].astype(np.float64)
     sag_ref = float(np.max(np.linalg.norm(eq.x - rest, axis=1)))
-    print(f"# sag against float64: {a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2 dt={a.dt:.4g}: "
-          f"float64 sag {sag_ref * 1e3:.4f} mm (residual {eq.residual:.2g} N)")
+    print(
+        f"# sag against float64: {a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2 dt={a.dt:.4g}: "
+        f"float64 sag {sag_ref * 1e3:.4f} mm (residual {eq.residual:.2g} N)"
+    )
     steps = int(round(a.every / a.dt))
     t, wall = 0.0, 0.0
     while t < a.duration - 1e-9:
@@ -50,8 +53,11 @@ def main():
         x = sim.state.particle_q.numpy().astype(np.float64)
         sag = float(np.max(np.linalg.norm(x - rest, axis=1)))
         v = float(np.abs(sim.state.particle_qd.numpy()).max())
-        print(f"t={t:5.2f}s sag {sag * 1e3:.4f} mm  error {100 * (sag - sag_ref) / sag_ref:+.2f} %  max|v| {v:.2e}  "
-              f"({1e3 * wall / (t / a.dt):.2f} ms/step)", flush=True)
+        print(
+            f"t={t:5.2f}s sag {sag * 1e3:.4f} mm  error {100 * (sag - sag_ref) / sag_ref:+.2f} %  max|v| {v:.2e}  "
+            f"({1e3 * wall / (t / a.dt):.2f} ms/step)",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

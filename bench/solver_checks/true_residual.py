@@ -14,7 +14,6 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import warp as wp
-
 from warpcloth.scenarios import sheet
 
 EPS32 = float(np.finfo(np.float32).eps)
@@ -77,9 +76,12 @@ def main():
         exact = spla.spsolve(A.tocsc(), b)
         floor = np.linalg.norm(b - A @ exact.astype(np.float32).astype(np.float64)) / nb
         bound = EPS32 * np.linalg.norm(abs(A) @ np.abs(dv)) / nb
-        print(f"step {k + 1}: reported {st['cg_residual_max']:.2e} ({st['cg_iterations_max']} its); device true "
-              f"{st['cg_true_residual_max']:.2e}, floor est. {st['cg_float32_floor_max']:.2e}; float64 true {true:.2e}; "
-              f"floor (exact rounded to float32) {floor:.2e}; eps32 |||A||dv||| / |b| {bound:.2e}", flush=True)
+        print(
+            f"step {k + 1}: reported {st['cg_residual_max']:.2e} ({st['cg_iterations_max']} its); device true "
+            f"{st['cg_true_residual_max']:.2e}, floor est. {st['cg_float32_floor_max']:.2e}; float64 true {true:.2e}; "
+            f"floor (exact rounded to float32) {floor:.2e}; eps32 |||A||dv||| / |b| {bound:.2e}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -9,13 +9,12 @@ import argparse
 
 import numpy as np
 import warp as wp
+from common import mesh_twin, parse_opts
+from warpcloth.scenarios import get_scenario
 
 from warpcloth import Simulator, make_integrator
 from warpcloth.lab.reference import static_equilibrium
 from warpcloth.run.harness import RunHarness
-from warpcloth.scenarios import get_scenario
-
-from common import mesh_twin, parse_opts
 
 
 def main():
@@ -43,11 +42,13 @@ def main():
     sag = float(np.max(np.linalg.norm(x - rest, axis=1)))
     frame = harness.measure()
     verdict = "old verdict (per particle)" if a.per_particle_only else "verdict with patches"
-    print(f"{a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2, {verdict}: equilibrium {r.equilibrium_reached} "
-          f"at {r.time_to_equilibrium} s (stopped at {r.sim_time:.2f} s, force floor {harness.probe.force_floor:.3g}); "
-          f"sag {sag * 1e3:.4f} mm vs {sag_ref * 1e3:.4f} mm ({100 * (sag - sag_ref) / sag_ref:+.2f} %); final max speed "
-          f"{r.final_max_speed:.2e}, max |f|/mg {frame.max_force_per_weight:.3g}, max patch |f|/mg {frame.max_patch_force_per_weight:.3g}",
-          flush=True)
+    print(
+        f"{a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2, {verdict}: equilibrium {r.equilibrium_reached} "
+        f"at {r.time_to_equilibrium} s (stopped at {r.sim_time:.2f} s, force floor {harness.probe.force_floor:.3g}); "
+        f"sag {sag * 1e3:.4f} mm vs {sag_ref * 1e3:.4f} mm ({100 * (sag - sag_ref) / sag_ref:+.2f} %); final max speed "
+        f"{r.final_max_speed:.2e}, max |f|/mg {frame.max_force_per_weight:.3g}, max patch |f|/mg {frame.max_patch_force_per_weight:.3g}",
+        flush=True,
+    )
 
 
 if __name__ == "__main__":

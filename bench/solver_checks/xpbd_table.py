@@ -11,9 +11,9 @@ import time
 
 import numpy as np
 import warp as wp
+from warpcloth.scenarios import get_scenario
 
 from warpcloth.lab.reference import static_equilibrium
-from warpcloth.scenarios import get_scenario
 
 
 def main():
@@ -29,7 +29,9 @@ def main():
         ref = rest = None
         for c in a.configs:
             iterations, substeps = (int(v) for v in c.split("x"))
-            sim = get_scenario("sheet").build(rows=n, cols=n, integrator="xpbd", integrator_options=dict(iterations=iterations, substeps=substeps))
+            sim = get_scenario("sheet").build(
+                rows=n, cols=n, integrator="xpbd", integrator_options=dict(iterations=iterations, substeps=substeps)
+            )
             if ref is None:
                 eq = static_equilibrium(sim.model, sim.control)
                 rest = sim.model.host["q"].astype(np.float64)
@@ -44,8 +46,11 @@ def main():
             x = sim.state.particle_q.numpy().astype(np.float64)
             sag = float(np.max(np.linalg.norm(x - rest, axis=1)))
             v = float(np.abs(sim.state.particle_qd.numpy()).max())
-            print(f"xpbd {n}^2 {c:7s}: sag error {100 * (sag - ref) / ref:+8.2f} %  ({sag * 1e3:.4f} vs {ref * 1e3:.4f} mm, "
-                  f"max|v| {v:.1e})  {ms:7.2f} ms/step", flush=True)
+            print(
+                f"xpbd {n}^2 {c:7s}: sag error {100 * (sag - ref) / ref:+8.2f} %  ({sag * 1e3:.4f} vs {ref * 1e3:.4f} mm, "
+                f"max|v| {v:.1e})  {ms:7.2f} ms/step",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -34,16 +34,21 @@ COMMANDS = {
     "bench": ("warpcloth.cli.bench", "benchmark integrators x sizes x devices on the sheet (bench/devices.py)", True),
     "sweep": ("warpcloth.cli.sweep", "run an XML test list, one CSV row per run (docs/sweep.md)", False),
     "max-dt": ("warpcloth.cli.maxdt", "find the largest stable time step of an integrator on a scenario", True),
-    "study": ("warpcloth.cli.study",
-              "the accuracy-aware study: stable/accurate dt, cost, real-time frontier, report (docs/study.md)", True),
+    "study": (
+        "warpcloth.cli.study",
+        "the accuracy-aware study: stable/accurate dt, cost, real-time frontier, report (docs/study.md)",
+        True,
+    ),
 }
 
 #: Names kept importable from ``warpcloth.cli`` (``from warpcloth.cli import scenario_main``: the
 #: scenarios' ``__main__`` blocks), each loaded from its module on first use.
 _FORWARDED = {
     **dict.fromkeys(("scenario_main", "add_run_arguments", "summary", "EXIT_UNSTABLE"), "warpcloth.cli.run"),
-    **dict.fromkeys(("config_from_args", "add_model_arguments", "integrator_options_from_args", "param_values"),
-                    "warpcloth.cli.model"),
+    **dict.fromkeys(
+        ("config_from_args", "add_model_arguments", "integrator_options_from_args", "param_values"),
+        "warpcloth.cli.model",
+    ),
     **dict.fromkeys(("example_path", "example_names", "examples_dir"), "warpcloth.cli.listing"),
 }
 
@@ -63,7 +68,9 @@ def build_parser(commands=None) -> Parser:
     one; the others are listed, with their help line, without importing their modules)."""
     from warpcloth.version import __version__
 
-    parser = Parser(prog="warpcloth", description="Mass-spring cloth simulator and integrator laboratory on NVIDIA Warp.")
+    parser = Parser(
+        prog="warpcloth", description="Mass-spring cloth simulator and integrator laboratory on NVIDIA Warp."
+    )
     parser.add_argument("--version", action="version", version=f"warpcloth {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for name, (_, help_line, quiet) in COMMANDS.items():

@@ -15,14 +15,25 @@ from warpcloth.errors import WarpclothError, require
 from warpcloth.io.files import check_output_path, sweep_stale_temporaries
 from warpcloth.io.progress import format_seconds
 from warpcloth.lab import bench as lab_bench
-from warpcloth.lab.bench import DEFAULT_WINDOWS, csv_text, default_devices, format_table, parse_sizes, plot, roofline_ms, write_csv
+from warpcloth.lab.bench import (
+    DEFAULT_WINDOWS,
+    csv_text,
+    default_devices,
+    format_table,
+    parse_sizes,
+    plot,
+    roofline_ms,
+    write_csv,
+)
 
 
 def build_parser(prog: str = "bench/devices.py") -> argparse.ArgumentParser:
     p = Parser(prog=prog, description=lab_bench.__doc__.split("\n\n")[0].replace(", as a library", ""))
     add_arguments(p)
     p.add_argument("--verbose", action="store_true", help="show Warp's start-up and module-load messages on stderr")
-    p.add_argument("--quiet", "-q", action="store_true", help="print nothing on success but what --json or --out - ask for")
+    p.add_argument(
+        "--quiet", "-q", action="store_true", help="print nothing on success but what --json or --out - ask for"
+    )
     return p
 
 
@@ -47,16 +58,46 @@ def _seconds(text: str) -> float:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--integrators", default=None, help="comma-separated names (default: every registered integrator)")
     p.add_argument("--scenario", default="sheet", help="scenario name or scenario file (.toml) to time (default sheet)")
-    p.add_argument("--sizes", default=None, help="comma-separated grid sizes N for N x N (default 32,64,128; not for mesh scenarios)")
-    p.add_argument("--devices", default=None, help="comma-separated Warp devices (default: cpu and every CUDA device present)")
+    p.add_argument(
+        "--sizes",
+        default=None,
+        help="comma-separated grid sizes N for N x N (default 32,64,128; not for mesh scenarios)",
+    )
+    p.add_argument(
+        "--devices", default=None, help="comma-separated Warp devices (default: cpu and every CUDA device present)"
+    )
     group = p.add_mutually_exclusive_group()
     group.add_argument("--steps", type=int, default=None, help="steps to time per combination")
-    group.add_argument("--seconds", type=_seconds, default=1.0, help="wall seconds to time per combination, over all windows (default 1)")
-    p.add_argument("--windows", type=int, default=DEFAULT_WINDOWS, help=f"timed windows per combination: the median and the [min-max] spread come from them (default {DEFAULT_WINDOWS})")
-    p.add_argument("--graph", choices=["both", "on", "off"], default="both", help="time with graph capture, without, or both (default both)")
-    p.add_argument("--roofline", action="store_true", help="time the speed-of-light force pass and report multiples of it")
-    p.add_argument("--out", "-o", default=None, help="write the results to this CSV ('-' for stdout; the table then goes to stderr)")
-    p.add_argument("--json", action="store_true", help="print the results as one JSON object on stdout (the table goes to stderr)")
+    group.add_argument(
+        "--seconds",
+        type=_seconds,
+        default=1.0,
+        help="wall seconds to time per combination, over all windows (default 1)",
+    )
+    p.add_argument(
+        "--windows",
+        type=int,
+        default=DEFAULT_WINDOWS,
+        help=f"timed windows per combination: the median and the [min-max] spread come from them (default {DEFAULT_WINDOWS})",
+    )
+    p.add_argument(
+        "--graph",
+        choices=["both", "on", "off"],
+        default="both",
+        help="time with graph capture, without, or both (default both)",
+    )
+    p.add_argument(
+        "--roofline", action="store_true", help="time the speed-of-light force pass and report multiples of it"
+    )
+    p.add_argument(
+        "--out",
+        "-o",
+        default=None,
+        help="write the results to this CSV ('-' for stdout; the table then goes to stderr)",
+    )
+    p.add_argument(
+        "--json", action="store_true", help="print the results as one JSON object on stdout (the table goes to stderr)"
+    )
     p.add_argument("--plot", default=None, help="write a log-log PNG of ms/step vs particles (needs matplotlib)")
 
 
@@ -69,25 +110,35 @@ def run(args) -> int:
         names = integrator_names()
     else:
         names = [s.strip() for s in args.integrators.split(",") if s.strip()]
-        require(bool(names), f"--integrators {args.integrators!r} names no integrator; give comma-separated names from {', '.join(integrator_names())}")
+        require(
+            bool(names),
+            f"--integrators {args.integrators!r} names no integrator; give comma-separated names from {', '.join(integrator_names())}",
+        )
     for n in names:
         integrator_class(n)
     from warpcloth.scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)  # unknown name or bad file: one line
     if scenario.model is not None:  # a mesh: its own particles, no grid sizes
-        require(args.sizes is None, f"--sizes does not apply to the mesh scenario {args.scenario!r} (it has its own mesh)")
+        require(
+            args.sizes is None, f"--sizes does not apply to the mesh scenario {args.scenario!r} (it has its own mesh)"
+        )
         sizes = [None]
     else:
         sizes = parse_sizes("32,64,128" if args.sizes is None else args.sizes)
     from warpcloth.run.harness import MAX_RUN_STEPS
 
     require(args.steps is None or args.steps >= 1, f"--steps must be >= 1, got {args.steps}")
-    require(args.steps is None or args.steps <= MAX_RUN_STEPS, f"--steps must be at most {MAX_RUN_STEPS:.0e}, got {args.steps}")
+    require(
+        args.steps is None or args.steps <= MAX_RUN_STEPS,
+        f"--steps must be at most {MAX_RUN_STEPS:.0e}, got {args.steps}",
+    )
     require(args.seconds is None or args.seconds > 0, f"--seconds must be > 0, got {args.seconds}")
     require(args.windows >= 1, f"--windows must be >= 1, got {args.windows}")
     wanted = default_devices() if args.devices is None else [s.strip() for s in args.devices.split(",") if s.strip()]
-    require(bool(wanted), f"--devices {args.devices!r} names no device; give comma-separated Warp devices, e.g. cpu,cuda:0")
+    require(
+        bool(wanted), f"--devices {args.devices!r} names no device; give comma-separated Warp devices, e.g. cpu,cuda:0"
+    )
     devices, skipped = [], []
     for d in wanted:
         try:
@@ -106,8 +157,10 @@ def run(args) -> int:
         check_output_path(args.out, "--out")
     if args.plot:
         check_output_path(args.plot, "--plot", extensions=(".png", ".pdf", ".svg"))
-    require(not (args.out and args.plot and os.path.abspath(args.out) == os.path.abspath(args.plot)),
-            f"--out and --plot are the same file {args.out!r}")
+    require(
+        not (args.out and args.plot and os.path.abspath(args.out) == os.path.abspath(args.plot)),
+        f"--out and --plot are the same file {args.out!r}",
+    )
     if args.plot:
         from warpcloth.io.preview import require_matplotlib
 
@@ -119,8 +172,14 @@ def run(args) -> int:
 
     quiet = getattr(args, "quiet", False)
     modes = {"both": [False, True], "on": [True], "off": [False]}[args.graph]
-    combos = [(device, size, name, graph) for device in devices for size in sizes for name in names for graph in modes
-              if not graph or (graph_capture_supported(device) and make_integrator(name).capturable_on(device))]
+    combos = [
+        (device, size, name, graph)
+        for device in devices
+        for size in sizes
+        for name in names
+        for graph in modes
+        if not graph or (graph_capture_supported(device) and make_integrator(name).capturable_on(device))
+    ]
     progress = Progress("bench", enabled=not quiet)
     rows, floors = [], {}
     for k, (device, size, name, graph) in enumerate(combos):
@@ -133,7 +192,9 @@ def run(args) -> int:
             eta = progress.eta(k, len(combos))
             more = f" ({k + 1}/{len(combos)}" + (f", ETA {format_seconds(eta)})" if eta is not None else ")")
             print(f"bench: {what} ...{more}", file=sys.stderr, flush=True)
-        row = lab_bench.bench_one(name, size, device, graph, args.steps, args.seconds, scenario=args.scenario, windows=args.windows)
+        row = lab_bench.bench_one(
+            name, size, device, graph, args.steps, args.seconds, scenario=args.scenario, windows=args.windows
+        )
         if args.roofline:
             floor = floors[(device, size)]
             row["roofline_ms"] = floor
@@ -159,8 +220,15 @@ def run(args) -> int:
         if report is not None:
             print(f"wrote {args.out}", file=report)
     if getattr(args, "json", False):
-        print(json.dumps({"rows": rows, "roofline_ms": {f"{d} {s}x{s}": v for (d, s), v in sorted(floors.items())},
-                          "cuda_skipped": not any(d.startswith("cuda") for d in devices)}))
+        print(
+            json.dumps(
+                {
+                    "rows": rows,
+                    "roofline_ms": {f"{d} {s}x{s}": v for (d, s), v in sorted(floors.items())},
+                    "cuda_skipped": not any(d.startswith("cuda") for d in devices),
+                }
+            )
+        )
     if args.plot and plot(args.plot, rows) and report is not None:
         print(f"wrote {args.plot}", file=report)
     return 0

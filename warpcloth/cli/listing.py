@@ -11,8 +11,11 @@ from warpcloth.errors import WarpclothError
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--examples", action="store_true",
-                   help="list the examples shipped with warpcloth (test lists, meshes, scenario files, scripts) and their paths")
+    p.add_argument(
+        "--examples",
+        action="store_true",
+        help="list the examples shipped with warpcloth (test lists, meshes, scenario files, scripts) and their paths",
+    )
 
 
 def examples_dir() -> str:
@@ -29,7 +32,9 @@ def example_names() -> list[str]:
 def example_path(name: str) -> str:
     names = example_names()
     if name not in names:
-        raise WarpclothError(f"no example test list {name!r}; the examples are {', '.join(names)} ('warpcloth list --examples')")
+        raise WarpclothError(
+            f"no example test list {name!r}; the examples are {', '.join(names)} ('warpcloth list --examples')"
+        )
     return os.path.join(examples_dir(), name + ".xml")
 
 
@@ -39,8 +44,9 @@ def _print_examples() -> None:
     for kind, path in example_files():
         name = os.path.splitext(os.path.basename(path))[0]
         print(f"{kind + ':':15s}{name:12s} {path}")
-    scripts = sorted(os.path.splitext(n)[0] for n in os.listdir(examples_dir())
-                     if n.endswith(".py") and not n.startswith("_"))
+    scripts = sorted(
+        os.path.splitext(n)[0] for n in os.listdir(examples_dir()) if n.endswith(".py") and not n.startswith("_")
+    )
     for name in scripts:
         print(f"{'script:':15s}{name:12s} python -m warpcloth.examples.{name}")
     print("(python -m warpcloth.examples [DIR] copies the files into DIR, default ./examples)")
@@ -61,7 +67,11 @@ def run(args) -> int:
         print(f"  {name:16s} {get_scenario(name).description}")
     print("integrators:")
     for name in integrator_names():
-        doc = (integrator_class(name).__doc__ or sys.modules[integrator_class(name).__module__].__doc__ or "").strip().splitlines()
+        doc = (
+            (integrator_class(name).__doc__ or sys.modules[integrator_class(name).__module__].__doc__ or "")
+            .strip()
+            .splitlines()
+        )
         print(f"  {name:16s} {doc[0] if doc else ''}")
     return 0
 

@@ -48,10 +48,15 @@ def run(args) -> int:
     with DefaultDtExplained(args):
         try:
             result = find_max_dt(
-                scenario, cfg, precision=precision, duration=duration,
+                scenario,
+                cfg,
+                precision=precision,
+                duration=duration,
                 dt_min=DEFAULT_DT_MIN if args.dt_min is None else args.dt_min,
                 dt_max=DEFAULT_DT_MAX if args.dt_max is None else args.dt_max,
-                start=args.dt_start, wall_cap=args.wall_cap, on_trial=on_trial,
+                start=args.dt_start,
+                wall_cap=args.wall_cap,
+                on_trial=on_trial,
             )
         finally:
             progress.close()

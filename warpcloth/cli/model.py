@@ -25,8 +25,15 @@ def add_integrator_options(p: argparse.ArgumentParser) -> None:
     group = p.add_argument_group("integrator options")
     for name, (opt, owners) in all_options().items():
         kwargs = {"choices": list(opt.choices)} if opt.choices else {}
-        group.add_argument(opt.flag, dest="opt_" + name, type=str, default=None, metavar=opt.type.__name__.upper(),
-                           help=f"{opt.help} [{', '.join(owners)}; default {opt.default}]", **kwargs)
+        group.add_argument(
+            opt.flag,
+            dest="opt_" + name,
+            type=str,
+            default=None,
+            metavar=opt.type.__name__.upper(),
+            help=f"{opt.help} [{', '.join(owners)}; default {opt.default}]",
+            **kwargs,
+        )
 
 
 def integrator_options_from_args(integrator: str, args) -> dict:
@@ -40,7 +47,9 @@ def integrator_options_from_args(integrator: str, args) -> dict:
         if value is None:
             continue
         if name not in taken:
-            raise WarpclothError(f"{opt.flag} does not apply to integrator {integrator!r} (it applies to {', '.join(owners)})")
+            raise WarpclothError(
+                f"{opt.flag} does not apply to integrator {integrator!r} (it applies to {', '.join(owners)})"
+            )
         out[name] = opt.parse(value)
     return out
 
@@ -58,7 +67,9 @@ def config_from_args(scenario, args, command: str = "run"):
     if values.get("integrator") is not None and not values["integrator"].strip():
         raise WarpclothError(f"--integrator is empty; choose one of {', '.join(integrator_names())}")
     if values.get("integrator") == "all":
-        raise WarpclothError(f"--integrator all is for test lists (warpcloth sweep); choose one of {', '.join(integrator_names())}")
+        raise WarpclothError(
+            f"--integrator all is for test lists (warpcloth sweep); choose one of {', '.join(integrator_names())}"
+        )
     integrator = values.get("integrator") or scenario.defaults.integrator
     integrator_class(integrator)  # unknown name -> clear error
     if values.get("size") is not None and (values.get("rows") is not None or values.get("cols") is not None):
@@ -67,8 +78,9 @@ def config_from_args(scenario, args, command: str = "run"):
     if values.get("device") is None:  # the scenario's (a scenario file's [run] device), else the CLI's default
         values["device"] = scenario.defaults.device or BY_NAME["device"].default
     kwargs = config_values(values)
-    kwargs.update(integrator=integrator, integrator_options=integrator_options_from_args(integrator, args),
-                  dt=values.get("dt"))
+    kwargs.update(
+        integrator=integrator, integrator_options=integrator_options_from_args(integrator, args), dt=values.get("dt")
+    )
     cfg = scenario.config(**kwargs)
     num_frames = getattr(args, "num_frames", None)
     if num_frames is not None:
@@ -97,15 +109,19 @@ def check_spacing(scenario, cfg) -> None:
         if n >= 2 and size > 0 and size / (n - 1) <= ulp:
             raise WarpclothError(
                 f"{flag} {size:g} m over {n} particles puts neighbours {size / (n - 1):.3g} m apart, below float32's "
-                f"resolution ({ulp:.3g} m) at the cloth's position, so they would coincide; use at least {4 * ulp * (n - 1):.2g} m")
+                f"resolution ({ulp:.3g} m) at the cloth's position, so they would coincide; use at least {4 * ulp * (n - 1):.2g} m"
+            )
 
 
 class DefaultDtExplained:
     """Turns "dt must be > 0 s, got 0.0" from a *computed* default dt (the user gave none) into
     a message naming the flags the default came from (``--mass 1e30`` underflows it)."""
 
-    FLAGS = tuple((p.name, p.flag) for p in params_for("run")
-                  if p.name in ("mass", "drag") or p.name.startswith(("stiffness", "damping")))
+    FLAGS = tuple(
+        (p.name, p.flag)
+        for p in params_for("run")
+        if p.name in ("mass", "drag") or p.name.startswith(("stiffness", "damping"))
+    )
 
     def __init__(self, args):
         self.args = args
@@ -129,8 +145,15 @@ class DefaultDtExplained:
         got = text.split("got", 1)[-1].strip().split()[0] if "got" in text else "?"
         raise WarpclothError(
             f"the integrator's default time step computed from {cause} is {got} s, not a usable dt "
-            "(the stability estimate under- or overflows at these values); use values nearer the defaults, or give --dt") from None
+            "(the stability estimate under- or overflows at these values); use values nearer the defaults, or give --dt"
+        ) from None
 
 
-__all__ = ["DefaultDtExplained", "add_model_arguments", "check_spacing", "config_from_args",
-           "integrator_options_from_args", "param_values"]
+__all__ = [
+    "DefaultDtExplained",
+    "add_model_arguments",
+    "check_spacing",
+    "config_from_args",
+    "integrator_options_from_args",
+    "param_values",
+]

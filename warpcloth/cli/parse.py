@@ -51,8 +51,12 @@ def add_verbose(p: argparse.ArgumentParser, quiet: bool = True) -> None:
     """``--verbose`` (Warp's messages) and, unless the subcommand has its own, ``--quiet``."""
     p.add_argument("--verbose", action="store_true", help="show Warp's start-up and module-load messages on stderr")
     if quiet:
-        p.add_argument("--quiet", "-q", action="store_true",
-                       help="print nothing on success (no summary, no progress); errors still print")
+        p.add_argument(
+            "--quiet",
+            "-q",
+            action="store_true",
+            help="print nothing on success (no summary, no progress); errors still print",
+        )
 
 
 #: A quoted value in argparse's messages longer than this is cut (a 100,000-digit number is not
@@ -145,7 +149,9 @@ def guarded(args, body, interrupted_hint: str = "") -> int:
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         try:
-            with warnings.catch_warnings():  # NumPy's floating-point warnings (inf and nan are checked where they matter)
+            with (
+                warnings.catch_warnings()
+            ):  # NumPy's floating-point warnings (inf and nan are checked where they matter)
                 warnings.filterwarnings("ignore", message=_NUMPY_FP_WARNINGS, category=RuntimeWarning)
                 code = body()
             try:
@@ -185,5 +191,16 @@ def guarded(args, body, interrupted_hint: str = "") -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
-__all__ = ["ERROR_PREFIX", "EXIT_IO", "EXIT_PIPE", "EXIT_SIGINT", "EXIT_SIGTERM", "EXIT_USAGE", "Parser", "Terminated",
-           "add_verbose", "guarded", "print_error"]
+__all__ = [
+    "ERROR_PREFIX",
+    "EXIT_IO",
+    "EXIT_PIPE",
+    "EXIT_SIGINT",
+    "EXIT_SIGTERM",
+    "EXIT_USAGE",
+    "Parser",
+    "Terminated",
+    "add_verbose",
+    "guarded",
+    "print_error",
+]

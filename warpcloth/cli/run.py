@@ -24,16 +24,39 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     num_frames = (("--num-frames",), dict(type=int, default=None, help="run this many frames instead of --duration"))
     add_model_arguments(p, "run", exclusive={"duration": [num_frames]})
     out = p.add_argument_group("outputs")
-    out.add_argument("--usd", "--stage-path", dest="usd", default=None, metavar="PATH",
-                     help="write the animation to this USD file (.usd/.usda/.usdc, or .usdz: a package)")
-    out.add_argument("--usd-color", choices=["none", "strain"], default="none",
-                     help="strain: a per-frame primvars:displayColor of spring strain, blue 0 to red 10%% (default none)")
-    out.add_argument("--usd-colliders", choices=["guide", "render"], default="guide",
-                     help="UsdGeom purpose of the collider prims: guide (shown in viewports, not rendered) or render "
-                          "(default guide)")
-    out.add_argument("--html", default=None, metavar="PATH", help="write a self-contained HTML player of the animation (WebGL, no network)")
-    out.add_argument("--preview", default=None, metavar="PATH",
-                     help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs warpcloth[plot]")
+    out.add_argument(
+        "--usd",
+        "--stage-path",
+        dest="usd",
+        default=None,
+        metavar="PATH",
+        help="write the animation to this USD file (.usd/.usda/.usdc, or .usdz: a package)",
+    )
+    out.add_argument(
+        "--usd-color",
+        choices=["none", "strain"],
+        default="none",
+        help="strain: a per-frame primvars:displayColor of spring strain, blue 0 to red 10%% (default none)",
+    )
+    out.add_argument(
+        "--usd-colliders",
+        choices=["guide", "render"],
+        default="guide",
+        help="UsdGeom purpose of the collider prims: guide (shown in viewports, not rendered) or render "
+        "(default guide)",
+    )
+    out.add_argument(
+        "--html",
+        default=None,
+        metavar="PATH",
+        help="write a self-contained HTML player of the animation (WebGL, no network)",
+    )
+    out.add_argument(
+        "--preview",
+        default=None,
+        metavar="PATH",
+        help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs warpcloth[plot]",
+    )
     p.add_argument("--fail-unstable", action="store_true", help="exit with status 3 when the run goes unstable")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
 
@@ -44,7 +67,9 @@ def summary(result) -> str:
         f"{result.scenario}: {result.integrator} on {result.device}, {result.rows}x{result.cols} "
         f"({result.particles} particles, {result.springs} springs), dt={result.dt:.3g} s",
         f"  simulated {result.sim_time:.3f} s in {result.steps} steps, {result.wall_time:.2f} s wall "
-        f"(+{result.compile_time:.2f} s compile" + (f", +{result.capture_time:.2f} s graph capture" if result.capture_time else "") + ")",
+        f"(+{result.compile_time:.2f} s compile"
+        + (f", +{result.capture_time:.2f} s graph capture" if result.capture_time else "")
+        + ")",
         f"  {result.ms_per_step:.4f} ms/step, {result.steps_per_sec:,.0f} steps/s, real-time factor {result.realtime_factor:.2f}"
         + (" (graph replay)" if result.graph else ""),
         f"  stable: {'yes' if result.stable else 'NO (' + result.unstable_reason + ')'}, max strain {100 * result.max_strain:.2f} %",
@@ -54,12 +79,22 @@ def summary(result) -> str:
         lines.append(f"  equilibrium: {eq}")
     if result.solver_converged is not None:
         # implicit_euler judges the true residual |b - A dv| / |b|, not only CG's own (issue 26)
-        reason = ("iteration cap hit above tolerance" if (result.solver or {}).get("cg_capped_steps", 1)
-                  else "true residual above tolerance")
-        converged = "yes" if result.solver_converged else f"NO ({reason} in {result.solver_capped_steps} of {result.steps} steps)"
+        reason = (
+            "iteration cap hit above tolerance"
+            if (result.solver or {}).get("cg_capped_steps", 1)
+            else "true residual above tolerance"
+        )
+        converged = (
+            "yes"
+            if result.solver_converged
+            else f"NO ({reason} in {result.solver_capped_steps} of {result.steps} steps)"
+        )
         lines.append(f"  solver converged: {converged}")
     if result.solver:
-        lines.append("  solver: " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.solver.items()))
+        lines.append(
+            "  solver: "
+            + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.solver.items())
+        )
     return "\n".join(lines)
 
 
@@ -92,22 +127,42 @@ def output_writers(scenario_name: str, args) -> list:
     if args.usd is not None:
         from warpcloth.io.usd import usd_frames
 
-        writers.append(usd_frames(args.usd, getattr(args, "usd_color", "none"), info,
-                                  colliders=getattr(args, "usd_colliders", "guide")))  # the path is checked now
+        writers.append(
+            usd_frames(
+                args.usd, getattr(args, "usd_color", "none"), info, colliders=getattr(args, "usd_colliders", "guide")
+            )
+        )  # the path is checked now
         paths.append(args.usd)
     if getattr(args, "html", None) is not None:
         from warpcloth.io.player import HtmlWriter, check_html_path
 
         check_html_path(args.html)
         paths.append(args.html)
-        writers.append(lambda sim, cfg: HtmlWriter(args.html, sim.model, cfg.fps, title=f"warpcloth {scenario_name}: {sim.integrator.name}, "
-                                                   f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s", info=info(sim, cfg),
-                                                   expected_frames=frames(cfg), colliders=sim.control.colliders))
+        writers.append(
+            lambda sim, cfg: HtmlWriter(
+                args.html,
+                sim.model,
+                cfg.fps,
+                title=f"warpcloth {scenario_name}: {sim.integrator.name}, "
+                f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s",
+                info=info(sim, cfg),
+                expected_frames=frames(cfg),
+                colliders=sim.control.colliders,
+            )
+        )
     if getattr(args, "preview", None) is not None:
         from warpcloth.io.preview import PreviewWriter
 
-        writers.append(lambda sim, cfg: PreviewWriter(args.preview, sim.model, cfg.fps, title=f"{scenario_name}, {sim.integrator.name}",
-                                                      expected_frames=frames(cfg), colliders=sim.control.colliders))
+        writers.append(
+            lambda sim, cfg: PreviewWriter(
+                args.preview,
+                sim.model,
+                cfg.fps,
+                title=f"{scenario_name}, {sim.integrator.name}",
+                expected_frames=frames(cfg),
+                colliders=sim.control.colliders,
+            )
+        )
     if len({os.path.abspath(p) for p in paths}) < len(paths):
         raise WarpclothError("two outputs name the same file: " + ", ".join(paths))
     for folder in sorted({os.path.dirname(os.path.abspath(p)) for p in paths}):
@@ -149,7 +204,9 @@ def run_scenario(scenario_name: str, args) -> int:
         written = result.frames + (1 if result.stable else 0)  # the first frame, not the unstable last one
         for path in (args.usd, getattr(args, "html", None), getattr(args, "preview", None)):
             if path:
-                print(f"  wrote {path} ({os.path.getsize(path):,} bytes, {written} frames)" + _clips_note(path, args.usd))
+                print(
+                    f"  wrote {path} ({os.path.getsize(path):,} bytes, {written} frames)" + _clips_note(path, args.usd)
+                )
     if getattr(args, "fail_unstable", False) and not result.stable:
         if not args.json:
             print(f"warpcloth: the run went unstable ({result.unstable_reason}); exit {EXIT_UNSTABLE}", file=sys.stderr)

@@ -6,6 +6,7 @@ register themselves with :func:`register`.
 
 from __future__ import annotations
 
+from warpcloth.errors import WarpclothError
 from warpcloth.integrators.base import Integrator, Option, explicit_euler_dt_bound, stable_dt_estimate
 from warpcloth.integrators.explicit_euler import ExplicitEuler
 from warpcloth.integrators.implicit_euler import ImplicitEuler
@@ -13,10 +14,9 @@ from warpcloth.integrators.midpoint import Midpoint
 from warpcloth.integrators.pbd import PBD
 from warpcloth.integrators.projective import Projective
 from warpcloth.integrators.rk4 import RK4
-from warpcloth.integrators.verlet import Verlet
 from warpcloth.integrators.vbd import VBD
+from warpcloth.integrators.verlet import Verlet
 from warpcloth.integrators.xpbd import XPBD
-from warpcloth.errors import WarpclothError
 
 _REGISTRY: dict[str, type[Integrator]] = {}
 
@@ -57,4 +57,14 @@ def make_integrator(name: str, **options) -> Integrator:
     return integrator_class(name)(**options)
 
 
-__all__ = ["Integrator", "Option", "all_options", "explicit_euler_dt_bound", "stable_dt_estimate", "integrator_class", "integrator_names", "make_integrator", "register"]
+__all__ = [
+    "Integrator",
+    "Option",
+    "all_options",
+    "explicit_euler_dt_bound",
+    "stable_dt_estimate",
+    "integrator_class",
+    "integrator_names",
+    "make_integrator",
+    "register",
+]

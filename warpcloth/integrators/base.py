@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import Callable, ClassVar
 
 import numpy as np
-
 import warp as wp
 
 from warpcloth.errors import WarpclothError
@@ -299,5 +298,14 @@ def hinge_adjacency_of(model) -> HingeAdjacency:
     return adj
 
 
-__all__ = ["Integrator", "Option", "explicit_euler_dt_bound", "hinge_adjacency_of", "model_spectrum", "runge_kutta_stable_dt",
-           "scratch_like", "spring_adjacency", "stable_dt_estimate"]
+__all__ = [
+    "Integrator",
+    "Option",
+    "explicit_euler_dt_bound",
+    "hinge_adjacency_of",
+    "model_spectrum",
+    "runge_kutta_stable_dt",
+    "scratch_like",
+    "spring_adjacency",
+    "stable_dt_estimate",
+]

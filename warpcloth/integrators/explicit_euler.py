@@ -1,14 +1,13 @@
 """Explicit (semi-implicit, symplectic) Euler, Provot 1995 (seed eq. 2.15).
 
-    a = f(x, v) / m ;  v <- v + dt a ;  x <- x + dt v
+a = f(x, v) / m ;  v <- v + dt a ;  x <- x + dt v
 """
 
 import warp as wp
 
-from warpcloth.kernels import integrate as ik
-
-from warpcloth.integrators.forces import eval_forces
 from warpcloth.integrators.base import Integrator
+from warpcloth.integrators.forces import eval_forces
+from warpcloth.kernels import integrate as ik
 
 
 class ExplicitEuler(Integrator):
@@ -19,4 +18,9 @@ class ExplicitEuler(Integrator):
     def step(self, state, control, dt):
         model = self.model
         eval_forces(model, state.particle_q, state.particle_qd, control, state.particle_f)
-        wp.launch(ik.integrate_explicit_euler, dim=model.particle_count, inputs=[state.particle_q, state.particle_qd, state.particle_f, model.particle_inv_mass, float(dt)], device=model.device)
+        wp.launch(
+            ik.integrate_explicit_euler,
+            dim=model.particle_count,
+            inputs=[state.particle_q, state.particle_qd, state.particle_f, model.particle_inv_mass, float(dt)],
+            device=model.device,
+        )

@@ -76,16 +76,15 @@ import sys
 import warp as wp
 from warp.optim.linear import cg
 
-from warpcloth.kernels import implicit as ik
-from warpcloth.kernels import linalg as lk
-from warpcloth.kernels import pins as pk
-
-from warpcloth.integrators.forces import eval_forces
-from warpcloth.sim.pins import has_pin_tracks
 from warpcloth.integrators.base import Integrator, Option, scratch_like
+from warpcloth.integrators.forces import eval_forces
 from warpcloth.integrators.linalg import DevicePCG
 from warpcloth.integrators.multigrid import grid_structure_reason
 from warpcloth.integrators.system import JACOBIANS, MATRICES, PRECONDITIONERS, ImplicitSystem
+from warpcloth.kernels import implicit as ik
+from warpcloth.kernels import linalg as lk
+from warpcloth.kernels import pins as pk
+from warpcloth.sim.pins import has_pin_tracks
 
 
 def _check_tol(value: float):
@@ -102,8 +101,6 @@ def _sci(x: float) -> str:
     return f"{mantissa}e{int(exponent)}" if exponent else mantissa
 
 
-
-
 class ImplicitEuler(Integrator):
     """Baraff-Witkin implicit Euler with Jacobi-preconditioned CG (seed eq. 2.19-2.23)."""
 
@@ -112,31 +109,46 @@ class ImplicitEuler(Integrator):
     options = (
         Option("cg_tol", float, 1.0e-3, "CG relative residual tolerance |b - A dv| / |b|", _check_tol),
         Option("cg_max_iter", int, 1000, "CG iteration cap per step", _check_max_iter),
-        Option("jacobian", str, "full", "spring Jacobian: full (exact, refilled each step) or approx (seed eq. 2.23, constant)", choices=JACOBIANS),
         Option(
-            "preconditioner", str, "jacobi",
+            "jacobian",
+            str,
+            "full",
+            "spring Jacobian: full (exact, refilled each step) or approx (seed eq. 2.23, constant)",
+            choices=JACOBIANS,
+        ),
+        Option(
+            "preconditioner",
+            str,
+            "jacobi",
             "CG preconditioner: jacobi (1 / diag A), block_jacobi (the inverse 3 x 3 diagonal blocks of A) or multigrid "
             "(geometric V-cycle on grid models; assembles A as BSR; other models fall back to block_jacobi with a note on stderr)",
             choices=PRECONDITIONERS,
         ),
         Option(
-            "cg_check_every", int, 4,
+            "cg_check_every",
+            int,
+            4,
             "CPU: CG iterations run (as one captured chunk) between host convergence checks; iterations past convergence "
-            "within a chunk change nothing (CUDA checks on the device)", _check_max_iter,
+            "within a chunk change nothing (CUDA checks on the device)",
+            _check_max_iter,
         ),
         Option(
-            "cg_restarts", int, 1,
+            "cg_restarts",
+            int,
+            1,
             "CG restarts per step from the true residual b - A dv (residual replacement: float32 CG's recursive residual "
             "drifts from the true one; each restart costs one product when already converged)",
             check=lambda v: None if v >= 0 else "must be an integer >= 0",
         ),
         Option(
-            "matrix", str, "bsr",
+            "matrix",
+            str,
+            "bsr",
             "system matrix CG applies: bsr (assembled 3 x 3 blocks, refilled each step; the faster on the CPU, see bench/implicit.py) "
-            "or free (matrix-free, gathering over each particle's springs)", choices=MATRICES,
+            "or free (matrix-free, gathering over each particle's springs)",
+            choices=MATRICES,
         ),
     )
-
 
     # -- binding -----------------------------------------------------------------------
     def _allocate(self, model):
@@ -156,7 +168,10 @@ class ImplicitEuler(Integrator):
         if self.preconditioner == "multigrid":
             reason = grid_structure_reason(model)
             if reason:
-                print(f"note: implicit_euler: multigrid needs a grid model ({reason}); using block_jacobi", file=sys.stderr)
+                print(
+                    f"note: implicit_euler: multigrid needs a grid model ({reason}); using block_jacobi",
+                    file=sys.stderr,
+                )
                 self.preconditioner_used = "block_jacobi"
         #: The system A dv = b's matrix, operator and preconditioner (:mod:`warpcloth.integrators.system`).
         self.system = ImplicitSystem(model, self.jacobian, self.matrix, self.preconditioner_used)
@@ -170,12 +185,37 @@ class ImplicitEuler(Integrator):
         is_cuda = wp.get_device(device).is_cuda
         self._device_side = is_cuda and wp.is_conditional_graph_supported()
         # CUDA: warp's cg, convergence checked on the device (conditional graph), no host sync
-        self.solver = cg(
-            self.A_op, self.b, self.dv, tol=self.cg_tol, atol=0.0, maxiter=self.cg_max_iter, M=self.M,
-            check_every=0, use_cuda_graph=True, run=False,
-        ) if self._device_side else None
+        self.solver = (
+            cg(
+                self.A_op,
+                self.b,
+                self.dv,
+                tol=self.cg_tol,
+                atol=0.0,
+                maxiter=self.cg_max_iter,
+                M=self.M,
+                check_every=0,
+                use_cuda_graph=True,
+                run=False,
+            )
+            if self._device_side
+            else None
+        )
         # CPU: our own PCG, its scalars on the device, checked on the host every cg_check_every iterations
-        self.pcg = None if self._device_side else DevicePCG(self.A_op.matvec, self.M.matvec, self.b, self.dv, self.cg_tol, self.cg_max_iter, self.cg_check_every, device)
+        self.pcg = (
+            None
+            if self._device_side
+            else DevicePCG(
+                self.A_op.matvec,
+                self.M.matvec,
+                self.b,
+                self.dv,
+                self.cg_tol,
+                self.cg_max_iter,
+                self.cg_check_every,
+                device,
+            )
+        )
         # the true residual |b - A dv| / |b| and the float32 floor estimate |A delta| / |b| of each solve, on the device
         self.true_r, self.rounding, self.rounding_Ax = scratch_like(model, 3)
         self.residual_terms = wp.zeros(n, dtype=wp.vec3d)
@@ -208,13 +248,23 @@ class ImplicitEuler(Integrator):
         eval_forces(m, x, v, control, f)
         s = self.system
         s.assemble(x, h, float(control.drag_rate))
-        wp.launch(ik.eval_rhs, dim=m.particle_count, inputs=[f, v, s.springs, s.spring_K, m.particle_inv_mass, h], outputs=[self.b],
-                  device=m.device)
+        wp.launch(
+            ik.eval_rhs,
+            dim=m.particle_count,
+            inputs=[f, v, s.springs, s.spring_K, m.particle_inv_mass, h],
+            outputs=[self.b],
+            device=m.device,
+        )
         s.add_hinge_rhs(v, self.b, h)  # dihedral hinges: b += -h^2 sum_e k_e g (g . v)
         if has_pin_tracks(control):  # pinned dv = (track(t + h) - x)/h - v, moved to the free rows' right side
             control.kinematic_pins.delta(control, x, v, h, 1.0 / h, 1.0, self.pin_dv)
-            wp.launch(pk.add_pinned_coupling, dim=m.particle_count, inputs=[s.springs, s.spring_B, m.particle_inv_mass, self.pin_dv],
-                      outputs=[self.b], device=m.device)
+            wp.launch(
+                pk.add_pinned_coupling,
+                dim=m.particle_count,
+                inputs=[s.springs, s.spring_B, m.particle_inv_mass, self.pin_dv],
+                outputs=[self.b],
+                device=m.device,
+            )
             s.add_hinge_product(self.pin_dv, self.b, -h * h, -h, 0)  # and the hinges' -(h^2 k + h kd) g (g . dv_pin)
         contacts = self.matrix == "bsr" and control.collision is not None and len(control.collision.colliders) > 0
         if contacts:
@@ -223,9 +273,20 @@ class ImplicitEuler(Integrator):
         self._solve()
         if contacts:
             self._contact_friction(v)
-        wp.launch(ik.integrate_implicit_euler, dim=m.particle_count, inputs=[x, v, self.dv, m.particle_inv_mass, h], device=m.device)
+        wp.launch(
+            ik.integrate_implicit_euler,
+            dim=m.particle_count,
+            inputs=[x, v, self.dv, m.particle_inv_mass, h],
+            device=m.device,
+        )
         if contacts:
-            wp.launch(ik.mark_entered, dim=m.particle_count, inputs=[x, m.particle_inv_mass, control.collision.params, self.contact_mode], outputs=[self.contact_entered], device=m.device)
+            wp.launch(
+                ik.mark_entered,
+                dim=m.particle_count,
+                inputs=[x, m.particle_inv_mass, control.collision.params, self.contact_mode],
+                outputs=[self.contact_entered],
+                device=m.device,
+            )
 
     def _filter_contacts(self, control, x, v, f, h: float) -> None:
         """Contacts seen by the solve (Baraff & Witkin 1998, sec. 5.3, the filter S), chosen per
@@ -247,17 +308,55 @@ class ImplicitEuler(Integrator):
         0.05 m/s), so a contact that friction can hold sticks in the solve (released when the
         solve's |J_t| > mu J_n) and a sliding one's friction is in the solve."""
         m, s = self.model, self.system
-        wp.launch(ik.eval_contact_modes, dim=m.particle_count,
-                  inputs=[x, v, f, m.particle_mass, m.particle_inv_mass, control.collision.params, h, self.contact_entered, self.contact_impulse],
-                  outputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v, self.contact_friction_impulse], device=m.device)
-        wp.launch(ik.eval_contact_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_collider_v, v], outputs=[self.contact_dv], device=m.device)
+        wp.launch(
+            ik.eval_contact_modes,
+            dim=m.particle_count,
+            inputs=[
+                x,
+                v,
+                f,
+                m.particle_mass,
+                m.particle_inv_mass,
+                control.collision.params,
+                h,
+                self.contact_entered,
+                self.contact_impulse,
+            ],
+            outputs=[
+                self.contact_mode,
+                self.contact_normal,
+                self.contact_friction,
+                self.contact_collider_v,
+                self.contact_friction_impulse,
+            ],
+            device=m.device,
+        )
+        wp.launch(
+            ik.eval_contact_dv,
+            dim=m.particle_count,
+            inputs=[self.contact_mode, self.contact_normal, self.contact_collider_v, v],
+            outputs=[self.contact_dv],
+            device=m.device,
+        )
         wp.copy(self.contact_values, self.A.values)
         wp.copy(self.contact_b, self.b)
-        s.bsr_matvec(self.contact_dv, self.contact_Az, self.contact_Az, 1.0, 0.0, row_part=s.row_part)  # A before the filter
-        wp.launch(ik.filter_system_rows, dim=m.particle_count,
-                  inputs=[s.row_offsets, s.block_columns, s.diag_block, self.contact_mode, self.contact_normal, s.row_part],
-                  outputs=[self.A.values, self.inv_diag, s.row_part_solve], device=m.device)
-        wp.launch(ik.filter_rhs, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_Az, self.contact_friction_impulse], outputs=[self.b, self.dv], device=m.device)
+        s.bsr_matvec(
+            self.contact_dv, self.contact_Az, self.contact_Az, 1.0, 0.0, row_part=s.row_part
+        )  # A before the filter
+        wp.launch(
+            ik.filter_system_rows,
+            dim=m.particle_count,
+            inputs=[s.row_offsets, s.block_columns, s.diag_block, self.contact_mode, self.contact_normal, s.row_part],
+            outputs=[self.A.values, self.inv_diag, s.row_part_solve],
+            device=m.device,
+        )
+        wp.launch(
+            ik.filter_rhs,
+            dim=m.particle_count,
+            inputs=[self.contact_mode, self.contact_normal, self.contact_Az, self.contact_friction_impulse],
+            outputs=[self.b, self.dv],
+            device=m.device,
+        )
         s.invalidate()  # A.values now hold this step's filter: reassemble next step
 
     def _contact_friction(self, v) -> None:
@@ -265,12 +364,40 @@ class ImplicitEuler(Integrator):
         particle (kept for the next step's modes), then Coulomb's caps: a sliding contact that
         friction reversed stops; a stuck one past the cone slips by the excess."""
         m = self.model
-        wp.launch(ik.unfilter_dv, dim=m.particle_count, inputs=[self.contact_mode, self.contact_normal, self.contact_dv], outputs=[self.dv], device=m.device)
-        self.system.bsr_matvec(self.dv, self.contact_b, self.contact_Az, -1.0, 1.0, values=self.contact_values,
-                               row_part=self.system.row_part)
-        wp.launch(ik.apply_contact_friction, dim=m.particle_count,
-                  inputs=[self.contact_mode, self.contact_normal, self.contact_friction, self.contact_collider_v, self.contact_Az, v, m.particle_mass, self.contact_values, self.system.diag_block, self.contact_friction_impulse],
-                  outputs=[self.dv, self.contact_impulse], device=m.device)
+        wp.launch(
+            ik.unfilter_dv,
+            dim=m.particle_count,
+            inputs=[self.contact_mode, self.contact_normal, self.contact_dv],
+            outputs=[self.dv],
+            device=m.device,
+        )
+        self.system.bsr_matvec(
+            self.dv,
+            self.contact_b,
+            self.contact_Az,
+            -1.0,
+            1.0,
+            values=self.contact_values,
+            row_part=self.system.row_part,
+        )
+        wp.launch(
+            ik.apply_contact_friction,
+            dim=m.particle_count,
+            inputs=[
+                self.contact_mode,
+                self.contact_normal,
+                self.contact_friction,
+                self.contact_collider_v,
+                self.contact_Az,
+                v,
+                m.particle_mass,
+                self.contact_values,
+                self.system.diag_block,
+                self.contact_friction_impulse,
+            ],
+            outputs=[self.dv, self.contact_impulse],
+            device=m.device,
+        )
 
     def _solve(self) -> None:
         """dv = A^-1 b by preconditioned CG from the previous dv, restarted ``cg_restarts`` times
@@ -279,9 +406,17 @@ class ImplicitEuler(Integrator):
         if self._device_side:
             for _ in range(self.cg_restarts):
                 iterations, residual_sq, tolerance_sq = self.solver()
-                wp.launch(ik.add_cg_iterations, dim=1, inputs=[iterations], outputs=[self._stats], device=self.model.device)
+                wp.launch(
+                    ik.add_cg_iterations, dim=1, inputs=[iterations], outputs=[self._stats], device=self.model.device
+                )
             iterations, residual_sq, tolerance_sq = self.solver()
-            wp.launch(ik.record_cg_stats, dim=1, inputs=[iterations, residual_sq, tolerance_sq, float(self.cg_tol)], outputs=[self._stats], device=self.model.device)
+            wp.launch(
+                ik.record_cg_stats,
+                dim=1,
+                inputs=[iterations, residual_sq, tolerance_sq, float(self.cg_tol)],
+                outputs=[self._stats],
+                device=self.model.device,
+            )
         else:
             total = 0
             for _ in range(1 + self.cg_restarts):  # a restart from a converged dv: one product and r.r, no iteration
@@ -309,10 +444,27 @@ class ImplicitEuler(Integrator):
         self.A_op.matvec(self.dv, self.b, self.true_r, -1.0, 1.0)
         wp.launch(lk.rounding_perturbation, dim=n, inputs=[self.dv, 12345], outputs=[self.rounding], device=d)
         self.A_op.matvec(self.rounding, self.rounding_Ax, self.rounding_Ax, 1.0, 0.0)
-        wp.launch(lk.residual_terms, dim=n, inputs=[self.b, self.true_r, self.rounding_Ax], outputs=[self.residual_terms], device=d)
-        wp.launch(lk.sum_chunks3, dim=self.residual_partial.shape[0], inputs=[self.residual_terms, self.residual_chunk, n],
-                  outputs=[self.residual_partial], device=d)
-        wp.launch(ik.record_true_residual, dim=1, inputs=[self.residual_partial, float(self.cg_tol)], outputs=[self._stats], device=d)
+        wp.launch(
+            lk.residual_terms,
+            dim=n,
+            inputs=[self.b, self.true_r, self.rounding_Ax],
+            outputs=[self.residual_terms],
+            device=d,
+        )
+        wp.launch(
+            lk.sum_chunks3,
+            dim=self.residual_partial.shape[0],
+            inputs=[self.residual_terms, self.residual_chunk, n],
+            outputs=[self.residual_partial],
+            device=d,
+        )
+        wp.launch(
+            ik.record_true_residual,
+            dim=1,
+            inputs=[self.residual_partial, float(self.cg_tol)],
+            outputs=[self._stats],
+            device=d,
+        )
 
     # -- statistics ----------------------------------------------------------------------
     def stats(self) -> dict:
@@ -354,22 +506,34 @@ class ImplicitEuler(Integrator):
             return True, 0, None
         floor, worst = stats["cg_float32_floor_max"], stats["cg_true_residual_max"]
         if floor >= 0.5 * self.cg_tol:
-            return False, above, (
-                f"{self.name}: cg_tol {_sci(self.cg_tol)} is below what float32 reaches on this model: the exact solution "
-                f"rounded to float32 leaves |b - A dv| / |b| ~ {_sci(floor)} (estimated floor; use a tolerance above it); "
-                f"{above} of {solves} steps ended above the tolerance (worst true residual {_sci(worst)})"
+            return (
+                False,
+                above,
+                (
+                    f"{self.name}: cg_tol {_sci(self.cg_tol)} is below what float32 reaches on this model: the exact solution "
+                    f"rounded to float32 leaves |b - A dv| / |b| ~ {_sci(floor)} (estimated floor; use a tolerance above it); "
+                    f"{above} of {solves} steps ended above the tolerance (worst true residual {_sci(worst)})"
+                ),
             )
         if capped:
-            return False, above, (
-                f"{self.name}: CG hit its {self.cg_max_iter}-iteration cap in {capped} of {solves} steps "
-                f"(worst final relative residual {_sci(stats['cg_residual_max'])} > tolerance {_sci(self.cg_tol)}; "
-                f"true |b - A dv| / |b| above it in {stats['cg_true_above_tol_steps']} steps, worst {_sci(worst)}); "
-                "the result does not meet the tolerance asked"
+            return (
+                False,
+                above,
+                (
+                    f"{self.name}: CG hit its {self.cg_max_iter}-iteration cap in {capped} of {solves} steps "
+                    f"(worst final relative residual {_sci(stats['cg_residual_max'])} > tolerance {_sci(self.cg_tol)}; "
+                    f"true |b - A dv| / |b| above it in {stats['cg_true_above_tol_steps']} steps, worst {_sci(worst)}); "
+                    "the result does not meet the tolerance asked"
+                ),
             )
-        return False, above, (
-            f"{self.name}: the true residual |b - A dv| / |b| ended above the tolerance in {above} of {solves} steps "
-            f"(worst {_sci(worst)} > tolerance {_sci(self.cg_tol)}; CG's own residual met it; raise cg_restarts); "
-            "the result does not meet the tolerance asked"
+        return (
+            False,
+            above,
+            (
+                f"{self.name}: the true residual |b - A dv| / |b| ended above the tolerance in {above} of {solves} steps "
+                f"(worst {_sci(worst)} > tolerance {_sci(self.cg_tol)}; CG's own residual met it; raise cg_restarts); "
+                "the result does not meet the tolerance asked"
+            ),
         )
 
     def reset_stats(self) -> None:

@@ -16,13 +16,12 @@ from typing import ClassVar
 
 import warp as wp
 
+from warpcloth.integrators.base import Integrator, hinge_adjacency_of, scratch_like, spring_adjacency
+from warpcloth.integrators.forces import eval_external_forces
+from warpcloth.integrators.linalg import TranslationSolve
 from warpcloth.kernels import collide as ck
 from warpcloth.kernels import increment as nk
-
-from warpcloth.integrators.forces import eval_external_forces
 from warpcloth.sim.pins import apply_pins, has_pin_tracks
-from warpcloth.integrators.base import Integrator, hinge_adjacency_of, scratch_like, spring_adjacency
-from warpcloth.integrators.linalg import TranslationSolve
 
 
 def at_least_one(value) -> str | None:
@@ -90,8 +89,13 @@ class IncrementSolver(Integrator):
         m = self.model
         x, v, f = state.particle_q, state.particle_qd, state.particle_f
         eval_external_forces(m, x, v, control, f)
-        wp.launch(nk.predict_inertia, dim=m.particle_count, inputs=[v, f, m.particle_inv_mass, h],
-                  outputs=[self.dy, self.dx], device=m.device)
+        wp.launch(
+            nk.predict_inertia,
+            dim=m.particle_count,
+            inputs=[v, f, m.particle_inv_mass, h],
+            outputs=[self.dy, self.dx],
+            device=m.device,
+        )
         if has_pin_tracks(control):
             control.kinematic_pins.delta(control, x, v, h, 1.0, 0.0, self.dx)
         return self.colliders(control, h)
@@ -117,11 +121,19 @@ class IncrementSolver(Integrator):
         m = self.model
         x, v = state.particle_q, state.particle_qd
         if contacts is not None:
-            wp.launch(nk.update_from_increment_contact, dim=m.particle_count,
-                      inputs=[x, v, self.dx, m.particle_inv_mass, h, self.contact], device=m.device)
+            wp.launch(
+                nk.update_from_increment_contact,
+                dim=m.particle_count,
+                inputs=[x, v, self.dx, m.particle_inv_mass, h, self.contact],
+                device=m.device,
+            )
         else:
-            wp.launch(nk.update_from_increment, dim=m.particle_count, inputs=[x, v, self.dx, m.particle_inv_mass, h],
-                      device=m.device)
+            wp.launch(
+                nk.update_from_increment,
+                dim=m.particle_count,
+                inputs=[x, v, self.dx, m.particle_inv_mass, h],
+                device=m.device,
+            )
         apply_pins(control, x, v, h)
 
 

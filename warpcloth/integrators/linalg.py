@@ -31,10 +31,14 @@ class OrderedSum:
     def sum_into(self, out, k: int) -> None:
         """out[k] = sum of :attr:`terms` (device launches only)."""
         d = self.device
-        wp.launch(lk.sum_chunks, dim=self.partial.shape[0], inputs=[self.terms, self.chunk, self.count], outputs=[self.partial],
-                  device=d)
+        wp.launch(
+            lk.sum_chunks,
+            dim=self.partial.shape[0],
+            inputs=[self.terms, self.chunk, self.count],
+            outputs=[self.partial],
+            device=d,
+        )
         wp.launch(lk.sum_partials, dim=1, inputs=[self.partial, k], outputs=[out], device=d)
-
 
 
 class TranslationSolve:
@@ -59,10 +63,21 @@ class TranslationSolve:
     def solve(self) -> None:
         """translation[0] = t (device launches only)."""
         d = self.device
-        wp.launch(lk.sum_block_chunks, dim=self.b_partial.shape[0], inputs=[self.b, self.A, self.chunk, self.count],
-                  outputs=[self.b_partial, self.A_partial], device=d)
-        wp.launch(lk.solve_block_sum, dim=1, inputs=[self.b_partial, self.A_partial, self.regular],
-                  outputs=[self.translation], device=d)
+        wp.launch(
+            lk.sum_block_chunks,
+            dim=self.b_partial.shape[0],
+            inputs=[self.b, self.A, self.chunk, self.count],
+            outputs=[self.b_partial, self.A_partial],
+            device=d,
+        )
+        wp.launch(
+            lk.solve_block_sum,
+            dim=1,
+            inputs=[self.b_partial, self.A_partial, self.regular],
+            outputs=[self.translation],
+            device=d,
+        )
+
 
 class DevicePCG:
     """Preconditioned CG whose scalars live in a device array, run in chunks of ``check_every``
@@ -113,8 +128,13 @@ class DevicePCG:
         for _ in range(count):
             self.apply_A(self.p, self.q, self.q, 1.0, 0.0)
             self._dot(self.p, self.q, 2)
-            wp.launch(lk.cg_update_solution, dim=n, inputs=[s, self.p, self.q], outputs=[self.x, self.r, self.sums.terms],
-                      device=d)
+            wp.launch(
+                lk.cg_update_solution,
+                dim=n,
+                inputs=[s, self.p, self.q],
+                outputs=[self.x, self.r, self.sums.terms],
+                device=d,
+            )
             self._dot(None, None, 3)
             wp.launch(lk.cg_count, dim=1, inputs=[self.max_iter, s], device=d)
             self.apply_M(self.r, self.z, self.z, 1.0, 0.0)

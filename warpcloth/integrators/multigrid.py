@@ -97,7 +97,13 @@ def galerkin_terms(fine_rows, fine_cols, n_coarse: int, p_fine, p_coarse, p_weig
     key, e, weight = key[order], e[order], weight[order]
     unique, first = np.unique(key, return_index=True)
     offsets = np.append(first, key.size).astype(np.int32)
-    return (unique // n_coarse).astype(np.int32), (unique % n_coarse).astype(np.int32), offsets, e.astype(np.int32), weight.astype(np.float32)
+    return (
+        (unique // n_coarse).astype(np.int32),
+        (unique % n_coarse).astype(np.int32),
+        offsets,
+        e.astype(np.int32),
+        weight.astype(np.float32),
+    )
 
 
 def prolongation(rows: int, cols: int, pinned=()) -> tuple[int, int, np.ndarray, np.ndarray, np.ndarray]:
@@ -120,7 +126,9 @@ def prolongation(rows: int, cols: int, pinned=()) -> tuple[int, int, np.ndarray,
     return rc, cc, np.array(fi, dtype=np.int32), np.array(ci, dtype=np.int32), np.array(w, dtype=np.float32)
 
 
-def aggregation_prolongation(n: int, fine_rows: np.ndarray, fine_cols: np.ndarray, pinned=()) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+def aggregation_prolongation(
+    n: int, fine_rows: np.ndarray, fine_cols: np.ndarray, pinned=()
+) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     """Plain aggregation of a level's matrix graph (any mesh): an unaggregated node whose
     neighbours are all unaggregated starts an aggregate with them; the nodes left join a
     neighbouring aggregate (the one with most links to it), isolated ones are their own. P is
@@ -140,7 +148,7 @@ def aggregation_prolongation(n: int, fine_rows: np.ndarray, fine_cols: np.ndarra
     for i in range(n):
         if pinned[i] or label[i] >= 0:
             continue
-        nb = c[start[i]:start[i + 1]]
+        nb = c[start[i] : start[i + 1]]
         if np.all(label[nb] < 0):
             label[i] = count
             label[nb] = count
@@ -148,7 +156,7 @@ def aggregation_prolongation(n: int, fine_rows: np.ndarray, fine_cols: np.ndarra
     for i in range(n):
         if pinned[i] or label[i] >= 0:
             continue
-        nb = c[start[i]:start[i + 1]]
+        nb = c[start[i] : start[i + 1]]
         nb = nb[label[nb] >= 0]
         if nb.size:
             values, counts = np.unique(label[nb], return_counts=True)
@@ -165,8 +173,11 @@ def _scalar_csr(rows: np.ndarray, cols: np.ndarray, weights: np.ndarray, nrow: i
     order = np.lexsort((cols, rows))
     offsets = np.zeros(nrow + 1, dtype=np.int32)
     offsets[1:] = np.cumsum(np.bincount(rows, minlength=nrow))
-    return (wp.array(offsets, dtype=int), wp.array(cols[order].astype(np.int32), dtype=int),
-            wp.array(weights[order].astype(np.float32), dtype=float))
+    return (
+        wp.array(offsets, dtype=int),
+        wp.array(cols[order].astype(np.int32), dtype=int),
+        wp.array(weights[order].astype(np.float32), dtype=float),
+    )
 
 
 def _cpu_capture_supported(device) -> bool:
@@ -193,8 +204,20 @@ class GridMultigrid:
     #: Graphs kept per operation before the cache is cleared (new argument arrays make new graphs).
     MAX_GRAPHS = 8
 
-    def __init__(self, A, rows: int, cols: int, pinned, device, smoothing_steps: int = 1, coarse_steps: int = 10, omega: float = 0.7, post_smoothing: bool = True,
-                 aggregation: bool = False, min_coarse: int = 16):
+    def __init__(
+        self,
+        A,
+        rows: int,
+        cols: int,
+        pinned,
+        device,
+        smoothing_steps: int = 1,
+        coarse_steps: int = 10,
+        omega: float = 0.7,
+        post_smoothing: bool = True,
+        aggregation: bool = False,
+        min_coarse: int = 16,
+    ):
         """``post_smoothing=False`` drops the sweeps after the coarse correction: the V-cycle is
         then not symmetric (only to show that the symmetry test can fail). ``aggregation``:
         coarsen any mesh by :func:`aggregation_prolongation` (``rows``, ``cols`` ignored; levels
@@ -221,8 +244,16 @@ class GridMultigrid:
             offsets = np.zeros(n_f + 1, dtype=np.int32)
             offsets[1:] = np.cumsum(np.bincount(fine_rows, minlength=n_f))
             diag = np.flatnonzero(fine_rows == fine_cols)
-            assert diag.size == n_f and np.array_equal(fine_rows[diag], np.arange(n_f)), "every level needs its diagonal blocks"
-            self.csr.append((wp.array(offsets, dtype=int), wp.array(fine_cols.astype(np.int32), dtype=int), wp.array(diag.astype(np.int32), dtype=int)))
+            assert diag.size == n_f and np.array_equal(fine_rows[diag], np.arange(n_f)), (
+                "every level needs its diagonal blocks"
+            )
+            self.csr.append(
+                (
+                    wp.array(offsets, dtype=int),
+                    wp.array(fine_cols.astype(np.int32), dtype=int),
+                    wp.array(diag.astype(np.int32), dtype=int),
+                )
+            )
             if aggregation:
                 if n_f <= min_coarse:
                     break
@@ -237,10 +268,19 @@ class GridMultigrid:
                 n_c = rc * cc
             rows_c, cols_c, term_offsets, sources, weights = galerkin_terms(fine_rows, fine_cols, n_c, fi, ci, w)
             # the coarse blocks in the order bsr_from_triplets stores them (row-major, sorted columns)
-            Ac = wps.bsr_from_triplets(n_c, n_c, wp.array(rows_c, dtype=int), wp.array(cols_c, dtype=int), wp.zeros(rows_c.size, dtype=wp.mat33), prune_numerical_zeros=False)
+            Ac = wps.bsr_from_triplets(
+                n_c,
+                n_c,
+                wp.array(rows_c, dtype=int),
+                wp.array(cols_c, dtype=int),
+                wp.zeros(rows_c.size, dtype=wp.mat33),
+                prune_numerical_zeros=False,
+            )
             stored_rows, stored_cols = _bsr_pattern(Ac)
             assert np.array_equal(stored_rows, rows_c) and np.array_equal(stored_cols, cols_c)
-            self.terms.append((wp.array(term_offsets, dtype=int), wp.array(sources, dtype=int), wp.array(weights, dtype=float)))
+            self.terms.append(
+                (wp.array(term_offsets, dtype=int), wp.array(sources, dtype=int), wp.array(weights, dtype=float))
+            )
             self.P.append(_scalar_csr(fi, ci, w, n_f))
             self.Pt.append(_scalar_csr(ci, fi, w, n_c))
             self.A.append(Ac)
@@ -250,7 +290,9 @@ class GridMultigrid:
         sizes = [r * c for r, c in self.grids]
         self.inv_block = [wp.zeros(n, dtype=wp.mat33) for n in sizes]
         self.b = [wp.zeros(n, dtype=wp.vec3) for n in sizes]
-        self.x = [(wp.zeros(n, dtype=wp.vec3), wp.zeros(n, dtype=wp.vec3)) for n in sizes]  # two buffers: Jacobi sweeps ping-pong
+        self.x = [
+            (wp.zeros(n, dtype=wp.vec3), wp.zeros(n, dtype=wp.vec3)) for n in sizes
+        ]  # two buffers: Jacobi sweeps ping-pong
         self.r = [wp.zeros(n, dtype=wp.vec3) for n in sizes]
         self._capture = _cpu_capture_supported(self.device)
         self._graphs: dict = {}
@@ -281,12 +323,30 @@ class GridMultigrid:
         for level in range(self.levels):
             if level > 0:
                 offsets, sources, weights = self.terms[level - 1]
-                wp.launch(mk.galerkin_product, dim=offsets.shape[0] - 1, inputs=[offsets, sources, weights, self.A[level - 1].values], outputs=[self.A[level].values], device=self.device)
+                wp.launch(
+                    mk.galerkin_product,
+                    dim=offsets.shape[0] - 1,
+                    inputs=[offsets, sources, weights, self.A[level - 1].values],
+                    outputs=[self.A[level].values],
+                    device=self.device,
+                )
             n = self.inv_block[level].shape[0]
             if not self.l1_smoother:
-                wp.launch(lk.invert_diagonal_blocks, dim=n, inputs=[self.A[level].values, self.csr[level][2]], outputs=[self.inv_block[level]], device=self.device)
+                wp.launch(
+                    lk.invert_diagonal_blocks,
+                    dim=n,
+                    inputs=[self.A[level].values, self.csr[level][2]],
+                    outputs=[self.inv_block[level]],
+                    device=self.device,
+                )
             else:
-                wp.launch(mk.invert_l1_diagonal_blocks, dim=n, inputs=[self.csr[level][0], self.A[level].values, self.csr[level][2]], outputs=[self.inv_block[level]], device=self.device)
+                wp.launch(
+                    mk.invert_l1_diagonal_blocks,
+                    dim=n,
+                    inputs=[self.csr[level][0], self.A[level].values, self.csr[level][2]],
+                    outputs=[self.inv_block[level]],
+                    device=self.device,
+                )
 
     def _omega(self, level: int) -> float:
         """The sweeps' damping: ``omega``, or 1 for the l1 smoother."""
@@ -296,15 +356,34 @@ class GridMultigrid:
         """out = alpha (x + omega D^-1 (b - A_l x)) + beta y: one damped block-Jacobi sweep."""
         offsets, columns, _ = self.csr[level]
         wp.launch(
-            mk.smooth_jacobi_block, dim=b.shape[0],
-            inputs=[offsets, columns, self.A[level].values, self.inv_block[level], b, x, self._omega(level), float(alpha), float(beta), out if y is None else y],
-            outputs=[out], device=self.device,
+            mk.smooth_jacobi_block,
+            dim=b.shape[0],
+            inputs=[
+                offsets,
+                columns,
+                self.A[level].values,
+                self.inv_block[level],
+                b,
+                x,
+                self._omega(level),
+                float(alpha),
+                float(beta),
+                out if y is None else y,
+            ],
+            outputs=[out],
+            device=self.device,
         )
 
     def _smooth_from_zero(self, level: int, b, sweeps: int) -> int:
         """``sweeps`` sweeps on A_l x = b from x = 0; returns the buffer index holding x."""
         first = self.x[level][0]
-        wp.launch(mk.smooth_jacobi, dim=b.shape[0], inputs=[b, self.inv_block[level], self._omega(level), 1], outputs=[first], device=self.device)
+        wp.launch(
+            mk.smooth_jacobi,
+            dim=b.shape[0],
+            inputs=[b, self.inv_block[level], self._omega(level), 1],
+            outputs=[first],
+            device=self.device,
+        )
         cur = 0
         for _ in range(sweeps - 1):
             self._sweep(level, b, self.x[level][cur], self.x[level][1 - cur])
@@ -319,18 +398,42 @@ class GridMultigrid:
             cur = self._smooth_from_zero(level, b, self.coarse_steps)
             x = self.x[level][cur]
             if z is not None:
-                wp.launch(lk.scale_add, dim=b.shape[0], inputs=[x, y, float(alpha), float(beta)], outputs=[z], device=self.device)
+                wp.launch(
+                    lk.scale_add,
+                    dim=b.shape[0],
+                    inputs=[x, y, float(alpha), float(beta)],
+                    outputs=[z],
+                    device=self.device,
+                )
                 return z
             return x
         cur = self._smooth_from_zero(level, b, self.smoothing_steps)
         x, r = self.x[level][cur], self.r[level]
         offsets, columns, _ = self.csr[level]
-        wp.launch(lk.block_gemv, dim=b.shape[0], inputs=[offsets, columns, self.A[level].values, x, b, -1.0, 1.0], outputs=[r], device=self.device)
+        wp.launch(
+            lk.block_gemv,
+            dim=b.shape[0],
+            inputs=[offsets, columns, self.A[level].values, x, b, -1.0, 1.0],
+            outputs=[r],
+            device=self.device,
+        )
         offsets_t, columns_t, weights_t = self.Pt[level]
-        wp.launch(mk.weight_gemv, dim=self.b[level + 1].shape[0], inputs=[offsets_t, columns_t, weights_t, r, 0.0], outputs=[self.b[level + 1]], device=self.device)
+        wp.launch(
+            mk.weight_gemv,
+            dim=self.b[level + 1].shape[0],
+            inputs=[offsets_t, columns_t, weights_t, r, 0.0],
+            outputs=[self.b[level + 1]],
+            device=self.device,
+        )
         coarse = self._vcycle(level + 1, self.b[level + 1])
         offsets_p, columns_p, weights_p = self.P[level]
-        wp.launch(mk.weight_gemv, dim=b.shape[0], inputs=[offsets_p, columns_p, weights_p, coarse, 1.0], outputs=[x], device=self.device)
+        wp.launch(
+            mk.weight_gemv,
+            dim=b.shape[0],
+            inputs=[offsets_p, columns_p, weights_p, coarse, 1.0],
+            outputs=[x],
+            device=self.device,
+        )
         sweeps = self.smoothing_steps if self.post_smoothing else 0
         for k in range(sweeps):
             last = k == sweeps - 1 and z is not None
@@ -341,7 +444,9 @@ class GridMultigrid:
             cur = 1 - cur
         x = self.x[level][cur]
         if z is not None:
-            wp.launch(lk.scale_add, dim=b.shape[0], inputs=[x, y, float(alpha), float(beta)], outputs=[z], device=self.device)
+            wp.launch(
+                lk.scale_add, dim=b.shape[0], inputs=[x, y, float(alpha), float(beta)], outputs=[z], device=self.device
+            )
             return z
         return x
 

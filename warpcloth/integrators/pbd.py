@@ -27,12 +27,17 @@ from typing import ClassVar
 
 import warp as wp
 
+from warpcloth.integrators.base import Option
+from warpcloth.integrators.position_based import (
+    ITERATIONS,
+    SUBSTEPS,
+    VELOCITY_DAMPING,
+    PositionBasedIntegrator,
+    _unit_interval,
+)
 from warpcloth.kernels import bending as bk
 from warpcloth.kernels import constraints as ck
-
 from warpcloth.sim.model import SpringType
-from warpcloth.integrators.base import Option
-from warpcloth.integrators.position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator, _unit_interval
 
 
 def iteration_stiffness(stiffness: float, iterations: int) -> float:
@@ -48,9 +53,20 @@ class PBD(PositionBasedIntegrator):
     options = (
         ITERATIONS,
         SUBSTEPS,
-        Option("pbd_stiffness", float, 1.0, "PBD stiffness k of structural and shear constraints, in [0, 1]", check=_unit_interval),
-        Option("pbd_bend_stiffness", float, 1.0, "PBD stiffness k of bend constraints (bend springs, or the dihedral "
-               "hinges' C = theta - theta0), in [0, 1]", check=_unit_interval),
+        Option(
+            "pbd_stiffness",
+            float,
+            1.0,
+            "PBD stiffness k of structural and shear constraints, in [0, 1]",
+            check=_unit_interval,
+        ),
+        Option(
+            "pbd_bend_stiffness",
+            float,
+            1.0,
+            "PBD stiffness k of bend constraints (bend springs, or the dihedral hinges' C = theta - theta0), in [0, 1]",
+            check=_unit_interval,
+        ),
         VELOCITY_DAMPING,
     )
 
@@ -60,7 +76,11 @@ class PBD(PositionBasedIntegrator):
 
     def type_stiffness(self) -> wp.vec3:
         """Per-iteration stiffness of (structural, shear, bend) constraints."""
-        k = {SpringType.STRUCTURAL: self.pbd_stiffness, SpringType.SHEAR: self.pbd_stiffness, SpringType.BEND: self.pbd_bend_stiffness}
+        k = {
+            SpringType.STRUCTURAL: self.pbd_stiffness,
+            SpringType.SHEAR: self.pbd_stiffness,
+            SpringType.BEND: self.pbd_bend_stiffness,
+        }
         if self.iteration_correction:
             k = {t: iteration_stiffness(v, self.iterations) for t, v in k.items()}
         return wp.vec3(*(k[t] for t in SpringType))
@@ -69,7 +89,14 @@ class PBD(PositionBasedIntegrator):
         m = self.model
         h = dt / self.substeps
         keep = self.velocity_keep()
-        params = [m.spring_indices, m.spring_rest_length, self.spring_type, self.type_stiffness(), m.particle_inv_mass, state.particle_q]
+        params = [
+            m.spring_indices,
+            m.spring_rest_length,
+            self.spring_type,
+            self.type_stiffness(),
+            m.particle_inv_mass,
+            state.particle_q,
+        ]
         sweep = self.color_sweep(ck.solve_springs_pbd, params, [self.particle_dp])
         if m.hinge_count:  # dihedral hinges: C = theta - theta0 at the bend stiffness (no unit, like the springs')
             k = float(self.type_stiffness()[int(SpringType.BEND)])

@@ -12,14 +12,12 @@ from typing import ClassVar
 import numpy as np
 import warp as wp
 
+from warpcloth.integrators.base import Integrator, Option, scratch_like
+from warpcloth.integrators.forces import eval_external_forces
 from warpcloth.kernels import constraints as ck
-
 from warpcloth.sim.coloring import SpringColoring, color_springs
 from warpcloth.sim.hinges import color_hinges
-from warpcloth.integrators.forces import eval_external_forces
 from warpcloth.sim.pins import has_pin_tracks
-from warpcloth.integrators.base import Integrator, Option, scratch_like
-
 
 #: Most iterations or substeps per step: beyond, one step takes minutes (and a captured frame
 #: holds millions of launches); no run needs it.
@@ -41,12 +39,16 @@ ITERATIONS = Option("iterations", int, 10, "constraint solver iterations per sub
 #: sheet stretched past the 100 % strain limit at dt = 1/60 s (the error of an unconverged solve
 #: falls about as 1/substeps, Macklin et al. 2019); 4 keep it near 20 %.
 SUBSTEPS = Option(
-    "substeps", int, 4,
+    "substeps",
+    int,
+    4,
     "substeps per time step, each with its own predict / solve / update (Macklin et al. 2019; >= 1)",
     check=_at_least_one,
 )
 VELOCITY_DAMPING = Option(
-    "velocity_damping", float, 0.0,
+    "velocity_damping",
+    float,
+    0.0,
     "velocity damping per time step dt, v <- (1 - k_damp) v (Müller 2007's simple global form; "
     "(1 - k_damp)^(1/substeps) per substep), in [0, 1]",
     check=_unit_interval,
@@ -80,7 +82,9 @@ class PositionBasedIntegrator(Integrator):
         self.contact_normal = wp.zeros(model.particle_count, dtype=float, device=model.device)  # per substep
         self._sweep_key, self._sweep = None, []
         # dihedral hinges: their own colouring (no two hinges of a colour share a vertex), swept after the springs
-        self.hinge_coloring = color_hinges(model.host.hinges.indices, model.particle_count) if model.hinge_count else None
+        self.hinge_coloring = (
+            color_hinges(model.host.hinges.indices, model.particle_count) if model.hinge_count else None
+        )
         self.hinge_order = wp.array(self.hinge_coloring.order, dtype=wp.int32) if model.hinge_count else None
         self._hinge_sweep_key, self._hinge_sweep = None, []
 
@@ -101,7 +105,13 @@ class PositionBasedIntegrator(Integrator):
         dp = track(t + end) - x (``end`` the substep's end, from the step's start)."""
         m = self.model
         eval_external_forces(m, state.particle_q, state.particle_qd, control, state.particle_f)
-        wp.launch(ck.integrate_predict, dim=m.particle_count, inputs=[state.particle_qd, state.particle_f, m.particle_inv_mass, float(h), float(velocity_keep)], outputs=[self.particle_dp], device=m.device)
+        wp.launch(
+            ck.integrate_predict,
+            dim=m.particle_count,
+            inputs=[state.particle_qd, state.particle_f, m.particle_inv_mass, float(h), float(velocity_keep)],
+            outputs=[self.particle_dp],
+            device=m.device,
+        )
         if end is not None and has_pin_tracks(control):
             control.kinematic_pins.delta(control, state.particle_q, state.particle_qd, end, 1.0, 0.0, self.particle_dp)
 
@@ -116,7 +126,14 @@ class PositionBasedIntegrator(Integrator):
         if key != self._sweep_key:
             d = self.model.device
             self._sweep = [
-                wp.launch(kernel, dim=count, inputs=[self.spring_order, start, *params], outputs=outputs, device=d, record_cmd=True)
+                wp.launch(
+                    kernel,
+                    dim=count,
+                    inputs=[self.spring_order, start, *params],
+                    outputs=outputs,
+                    device=d,
+                    record_cmd=True,
+                )
                 for start, count in zip(self.coloring.starts, self.coloring.counts)
             ]
             self._sweep_key = key
@@ -133,7 +150,14 @@ class PositionBasedIntegrator(Integrator):
         if key != self._hinge_sweep_key:
             d = self.model.device
             self._hinge_sweep = [
-                wp.launch(kernel, dim=count, inputs=[self.hinge_order, start, *params], outputs=outputs, device=d, record_cmd=True)
+                wp.launch(
+                    kernel,
+                    dim=count,
+                    inputs=[self.hinge_order, start, *params],
+                    outputs=outputs,
+                    device=d,
+                    record_cmd=True,
+                )
                 for start, count in zip(self.hinge_coloring.starts, self.hinge_coloring.counts)
             ]
             self._hinge_sweep_key = key
@@ -150,14 +174,23 @@ class PositionBasedIntegrator(Integrator):
             for color in sweep:
                 color.launch()
             if contacts is not None:
-                contacts.project_displacement(self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=False)
+                contacts.project_displacement(
+                    self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=False
+                )
         if contacts is not None:
-            contacts.project_displacement(self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=True)
+            contacts.project_displacement(
+                self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=True
+            )
 
     def update(self, state, h: float, control=None, end: float | None = None) -> None:
         """v = dp / h;  x += dp; kinematic pins x = track(t + end), v = track'(t + end)."""
         m = self.model
-        wp.launch(ck.update_velocities, dim=m.particle_count, inputs=[state.particle_q, state.particle_qd, self.particle_dp, m.particle_inv_mass, float(h)], device=m.device)
+        wp.launch(
+            ck.update_velocities,
+            dim=m.particle_count,
+            inputs=[state.particle_q, state.particle_qd, self.particle_dp, m.particle_inv_mass, float(h)],
+            device=m.device,
+        )
         if end is not None and has_pin_tracks(control):
             control.kinematic_pins.apply(control, state.particle_q, state.particle_qd, end)
 

@@ -1,16 +1,15 @@
 """Classic fourth-order Runge-Kutta on the whole state (x, v) (seed eq. 2.17).
 
-    k1 = (v, a(x, v)),  k2 = F(s + dt/2 k1),  k3 = F(s + dt/2 k2),  k4 = F(s + dt k3)
-    s <- s + dt/6 (k1 + 2 k2 + 2 k3 + k4),   s = (x, v)
+k1 = (v, a(x, v)),  k2 = F(s + dt/2 k1),  k3 = F(s + dt/2 k2),  k4 = F(s + dt k3)
+s <- s + dt/6 (k1 + 2 k2 + 2 k3 + k4),   s = (x, v)
 """
 
 import warp as wp
 
-from warpcloth.kernels import integrate as ik
-
-from warpcloth.integrators.forces import eval_forces
-from warpcloth.sim.pins import apply_pins
 from warpcloth.integrators.base import Integrator, scratch_like
+from warpcloth.integrators.forces import eval_forces
+from warpcloth.kernels import integrate as ik
+from warpcloth.sim.pins import apply_pins
 
 
 class RK4(Integrator):
@@ -29,7 +28,13 @@ class RK4(Integrator):
 
         def stage(v_stage, h, weight, first):
             # acc += weight k(stage) ; (xs, vs) = (x, v) + h k(stage)
-            wp.launch(ik.integrate_rk4_stage, dim=n, inputs=[x, v, v_stage, f, w, h, weight, first, self.acc_x, self.acc_v], outputs=[xs, vs], device=m.device)
+            wp.launch(
+                ik.integrate_rk4_stage,
+                dim=n,
+                inputs=[x, v, v_stage, f, w, h, weight, first, self.acc_x, self.acc_v],
+                outputs=[xs, vs],
+                device=m.device,
+            )
             apply_pins(control, xs, vs, h)  # kinematic pins at the stage time t + h
 
         eval_forces(m, x, v, control, f)  # k1
@@ -39,4 +44,6 @@ class RK4(Integrator):
         eval_forces(m, xs, vs, control, f)  # k3
         stage(vs, float(dt), 2.0, 0)
         eval_forces(m, xs, vs, control, f)  # k4
-        wp.launch(ik.integrate_rk4_final, dim=n, inputs=[x, v, vs, f, w, self.acc_x, self.acc_v, float(dt)], device=m.device)
+        wp.launch(
+            ik.integrate_rk4_final, dim=n, inputs=[x, v, vs, f, w, self.acc_x, self.acc_v, float(dt)], device=m.device
+        )

@@ -22,10 +22,9 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warpcloth.kernels import strain_limit as sk
-
-from warpcloth.sim.coloring import Coloring, greedy_spring_colors
 from warpcloth.errors import require_int, require_positive
+from warpcloth.kernels import strain_limit as sk
+from warpcloth.sim.coloring import Coloring, greedy_spring_colors
 from warpcloth.sim.model import SpringType
 
 #: Most passes over all colours per step.
@@ -110,15 +109,45 @@ class StrainLimiter:
         m = self.model
         x = state.particle_q
         wp.copy(self.x_before, x)
-        wp.launch(sk.solve_long_range_attachment, dim=m.particle_count, inputs=[x, self.attachment_pin, self.attachment_max_length, m.particle_inv_mass], device=m.device)
+        wp.launch(
+            sk.solve_long_range_attachment,
+            dim=m.particle_count,
+            inputs=[x, self.attachment_pin, self.attachment_max_length, m.particle_inv_mass],
+            device=m.device,
+        )
         wp.launch(sk.reset_strain_limit_loop, dim=1, inputs=[self.condition, self.passes], device=m.device)
         wp.capture_while(self.condition, self._pass, x=x)
-        wp.launch(sk.apply_position_correction_velocity, dim=m.particle_count, inputs=[x, self.x_before, m.particle_inv_mass, 1.0 / float(dt)], outputs=[state.particle_qd], device=m.device)
+        wp.launch(
+            sk.apply_position_correction_velocity,
+            dim=m.particle_count,
+            inputs=[x, self.x_before, m.particle_inv_mass, 1.0 / float(dt)],
+            outputs=[state.particle_qd],
+            device=m.device,
+        )
 
     def _pass(self, x) -> None:
         """One pass over all colours, then set the loop flag if a spring is still too long."""
         m = self.model
         for offset, count in self.colors:
-            wp.launch(sk.solve_strain_limit, dim=count, inputs=[x, self.spring_indices, self.spring_max_length, m.particle_inv_mass, offset], device=m.device)
+            wp.launch(
+                sk.solve_strain_limit,
+                dim=count,
+                inputs=[x, self.spring_indices, self.spring_max_length, m.particle_inv_mass, offset],
+                device=m.device,
+            )
         wp.launch(sk.begin_strain_limit_check, dim=1, inputs=[self.condition, self.passes], device=m.device)
-        wp.launch(sk.check_strain_limit, dim=self.spring_indices.shape[0], inputs=[x, self.spring_indices, self.spring_max_length, self.tau, self.tolerance, self.max_passes, self.passes, self.condition], device=m.device)
+        wp.launch(
+            sk.check_strain_limit,
+            dim=self.spring_indices.shape[0],
+            inputs=[
+                x,
+                self.spring_indices,
+                self.spring_max_length,
+                self.tau,
+                self.tolerance,
+                self.max_passes,
+                self.passes,
+                self.condition,
+            ],
+            device=m.device,
+        )

@@ -32,13 +32,12 @@ import warp as wp
 import warp.sparse as wps
 from warp.optim.linear import LinearOperator, aslinearoperator
 
+from warpcloth.integrators.base import spring_adjacency
+from warpcloth.integrators.multigrid import GridMultigrid
 from warpcloth.kernels import bending as bk
 from warpcloth.kernels import linalg as lk
 from warpcloth.kernels import system as sk
 from warpcloth.sim.hinges import hinge_adjacency, hinge_block_index, hinge_pairs, hinge_rest_coefficients
-
-from warpcloth.integrators.base import spring_adjacency
-from warpcloth.integrators.multigrid import GridMultigrid
 
 JACOBIANS = ("full", "approx")
 MATRICES = ("free", "bsr")
@@ -84,7 +83,14 @@ class ImplicitSystem:
             rows = np.concatenate([np.arange(n), pairs[:, 0], pairs[:, 1]]).astype(np.int32)
             cols = np.concatenate([np.arange(n), pairs[:, 1], pairs[:, 0]]).astype(np.int32)
             ones = np.tile(np.eye(3, dtype=np.float32), (rows.size, 1, 1))
-            self.A = wps.bsr_from_triplets(n, n, wp.array(rows, dtype=int), wp.array(cols, dtype=int), wp.array(ones, dtype=wp.mat33), prune_numerical_zeros=False)
+            self.A = wps.bsr_from_triplets(
+                n,
+                n,
+                wp.array(rows, dtype=int),
+                wp.array(cols, dtype=int),
+                wp.array(ones, dtype=wp.mat33),
+                prune_numerical_zeros=False,
+            )
             self.A.nnz_sync()
             offsets = self.A.offsets.numpy()[: n + 1].astype(np.int64)
             columns = self.A.columns.numpy()[: offsets[-1]].astype(np.int64)
@@ -136,7 +142,11 @@ class ImplicitSystem:
         n, count, idx = model.particle_count, model.hinge_count, model.host.hinges.indices
         adj_offsets, adj_hinge, adj_slot = hinge_adjacency(idx, n)
         #: Each particle's hinges (offsets, hinge, slot), the row gathers' adjacency.
-        self.hinge_adjacency = (wp.array(adj_offsets, dtype=int), wp.array(adj_hinge, dtype=int), wp.array(adj_slot, dtype=int))
+        self.hinge_adjacency = (
+            wp.array(adj_offsets, dtype=int),
+            wp.array(adj_hinge, dtype=int),
+            wp.array(adj_slot, dtype=int),
+        )
         if self.bsr:
             self.hinge_block = wp.array(hinge_block_index(idx, adj_offsets, adj_hinge, offsets, columns), dtype=int)
         self.hinge_angle = wp.zeros(count, dtype=float)
@@ -146,8 +156,9 @@ class ImplicitSystem:
             self.hinge_gradients = [self.hinge_gradient]
         else:
             c = hinge_rest_coefficients(model.host["q"], idx)
-            self.hinge_gradients = [wp.array((c[:, :, None] * np.eye(3)[k]).astype(np.float32), dtype=wp.vec3)
-                                    for k in range(3)]
+            self.hinge_gradients = [
+                wp.array((c[:, :, None] * np.eye(3)[k]).astype(np.float32), dtype=wp.vec3) for k in range(3)
+            ]
         if self.matrix == "free":
             self.hinge_diagonal = wp.zeros(n, dtype=wp.mat33)  # sum_e s g_a g_a^T per particle (matrix-free)
 
@@ -157,25 +168,57 @@ class ImplicitSystem:
         m = self.model
         adj = self.hinge_adjacency
         if self.jacobian == "full":
-            wp.launch(bk.eval_hinge_gradients, dim=m.hinge_count, inputs=[x, m.hinge_indices],
-                      outputs=[self.hinge_angle, self.hinge_gradient], device=m.device)
+            wp.launch(
+                bk.eval_hinge_gradients,
+                dim=m.hinge_count,
+                inputs=[x, m.hinge_indices],
+                outputs=[self.hinge_angle, self.hinge_gradient],
+                device=m.device,
+            )
         if self.bsr:
             for g in self.hinge_gradients:
-                wp.launch(bk.add_hinge_system_rows, dim=m.particle_count,
-                          inputs=[*adj, self.hinge_block, m.hinge_indices, g, m.hinge_stiffness, m.hinge_damping,
-                                  m.particle_inv_mass, h * h, h], outputs=[self.A.values, self.row_part, self.row_part_solve],
-                          device=m.device)
+                wp.launch(
+                    bk.add_hinge_system_rows,
+                    dim=m.particle_count,
+                    inputs=[
+                        *adj,
+                        self.hinge_block,
+                        m.hinge_indices,
+                        g,
+                        m.hinge_stiffness,
+                        m.hinge_damping,
+                        m.particle_inv_mass,
+                        h * h,
+                        h,
+                    ],
+                    outputs=[self.A.values, self.row_part, self.row_part_solve],
+                    device=m.device,
+                )
         if self.matrix == "free":
             self.hinge_diagonal.zero_()
             for g in self.hinge_gradients:
-                wp.launch(sk.add_hinge_diagonal_blocks, dim=m.particle_count,
-                          inputs=[*adj, g, m.hinge_stiffness, m.hinge_damping, m.particle_inv_mass, h * h, h],
-                          outputs=[self.hinge_diagonal], device=m.device)
-            wp.launch(sk.add_to_inverse_diagonal, dim=m.particle_count, inputs=[self.hinge_diagonal, m.particle_inv_mass],
-                      outputs=[self.inv_diag], device=m.device)
+                wp.launch(
+                    sk.add_hinge_diagonal_blocks,
+                    dim=m.particle_count,
+                    inputs=[*adj, g, m.hinge_stiffness, m.hinge_damping, m.particle_inv_mass, h * h, h],
+                    outputs=[self.hinge_diagonal],
+                    device=m.device,
+                )
+            wp.launch(
+                sk.add_to_inverse_diagonal,
+                dim=m.particle_count,
+                inputs=[self.hinge_diagonal, m.particle_inv_mass],
+                outputs=[self.inv_diag],
+                device=m.device,
+            )
         else:
-            wp.launch(sk.refresh_inverse_diagonal, dim=m.particle_count, inputs=[self.A.values, self.diag_block, m.particle_inv_mass],
-                      outputs=[self.inv_diag], device=m.device)
+            wp.launch(
+                sk.refresh_inverse_diagonal,
+                dim=m.particle_count,
+                inputs=[self.A.values, self.diag_block, m.particle_inv_mass],
+                outputs=[self.inv_diag],
+                device=m.device,
+            )
 
     def add_hinge_product(self, y, z, alpha: float, beta: float, zero_pinned_columns: int) -> None:
         """z += sum_e (alpha k_e + beta kd_e) g (g . y) on the free rows (nothing without hinges): the
@@ -185,9 +228,24 @@ class ImplicitSystem:
             return
         m = self.model
         for g in self.hinge_gradients:
-            wp.launch(bk.add_hinge_matrix_product, dim=m.particle_count,
-                      inputs=[*self.hinge_adjacency, m.hinge_indices, g, m.hinge_stiffness, m.hinge_damping, m.particle_inv_mass,
-                              float(alpha), float(beta), int(zero_pinned_columns), y], outputs=[z], device=m.device)
+            wp.launch(
+                bk.add_hinge_matrix_product,
+                dim=m.particle_count,
+                inputs=[
+                    *self.hinge_adjacency,
+                    m.hinge_indices,
+                    g,
+                    m.hinge_stiffness,
+                    m.hinge_damping,
+                    m.particle_inv_mass,
+                    float(alpha),
+                    float(beta),
+                    int(zero_pinned_columns),
+                    y,
+                ],
+                outputs=[z],
+                device=m.device,
+            )
 
     def add_hinge_rhs(self, v, b, h: float) -> None:
         """b += h^2 df/dx v of the hinges, -h^2 sum_e k_e g (g . v) (the pins' velocities kept)."""
@@ -204,23 +262,49 @@ class ImplicitSystem:
         m = self.model
         self.h = float(h)
         if self.jacobian == "full":
-            wp.launch(sk.eval_spring_jacobians, dim=m.spring_count, inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
+            wp.launch(
+                sk.eval_spring_jacobians,
+                dim=m.spring_count,
+                inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h],
+                outputs=[self.spring_K, self.spring_B],
+                device=m.device,
+            )
         elif self._assembled_for == (h, drag):
             return
         else:
-            wp.launch(sk.eval_spring_jacobians_approx, dim=m.spring_count, inputs=[m.spring_stiffness, m.spring_damping, h], outputs=[self.spring_K, self.spring_B], device=m.device)
+            wp.launch(
+                sk.eval_spring_jacobians_approx,
+                dim=m.spring_count,
+                inputs=[m.spring_stiffness, m.spring_damping, h],
+                outputs=[self.spring_K, self.spring_B],
+                device=m.device,
+            )
             self._assembled_for = (h, drag)
         if self.bsr:
             wp.launch(
-                sk.assemble_system_rows, dim=m.particle_count,
-                inputs=[self.springs, self.adjacency_block, self.row_offsets, self.diag_block, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
-                outputs=[self.A.values, self.inv_diag, self.row_part, self.row_part_solve], device=m.device,
+                sk.assemble_system_rows,
+                dim=m.particle_count,
+                inputs=[
+                    self.springs,
+                    self.adjacency_block,
+                    self.row_offsets,
+                    self.diag_block,
+                    self.spring_B,
+                    m.particle_mass,
+                    m.particle_inv_mass,
+                    drag,
+                    h,
+                ],
+                outputs=[self.A.values, self.inv_diag, self.row_part, self.row_part_solve],
+                device=m.device,
             )
         if self.matrix == "free":
             wp.launch(
-                sk.eval_system_diagonal, dim=m.particle_count,
+                sk.eval_system_diagonal,
+                dim=m.particle_count,
                 inputs=[self.springs, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
-                outputs=[self.mass_term, self.inv_diag], device=m.device,
+                outputs=[self.mass_term, self.inv_diag],
+                device=m.device,
             )
         if self.has_hinges:
             self._assemble_hinges(x, h)
@@ -232,16 +316,29 @@ class ImplicitSystem:
         if self.preconditioner == "multigrid":
             self.multigrid.update()
         elif self.preconditioner == "block_jacobi" and (filtered or (self.has_hinges and self.bsr)):
-            wp.launch(lk.invert_diagonal_blocks, dim=m.particle_count, inputs=[self.A.values, self.diag_block], outputs=[self.inv_block], device=m.device)
+            wp.launch(
+                lk.invert_diagonal_blocks,
+                dim=m.particle_count,
+                inputs=[self.A.values, self.diag_block],
+                outputs=[self.inv_block],
+                device=m.device,
+            )
         elif self.preconditioner == "block_jacobi":
             wp.launch(
-                sk.eval_inverse_diagonal_blocks, dim=m.particle_count,
+                sk.eval_inverse_diagonal_blocks,
+                dim=m.particle_count,
                 inputs=[self.springs, self.spring_B, m.particle_mass, m.particle_inv_mass, drag, h],
-                outputs=[self.inv_block], device=m.device,
+                outputs=[self.inv_block],
+                device=m.device,
             )
             if self.has_hinges:  # matrix-free: the hinges' diagonal blocks added
-                wp.launch(sk.add_to_inverse_blocks, dim=m.particle_count, inputs=[self.hinge_diagonal, m.particle_inv_mass],
-                          outputs=[self.inv_block], device=m.device)
+                wp.launch(
+                    sk.add_to_inverse_blocks,
+                    dim=m.particle_count,
+                    inputs=[self.hinge_diagonal, m.particle_inv_mass],
+                    outputs=[self.inv_block],
+                    device=m.device,
+                )
 
     def bsr_matvec(self, x, y, z, alpha, beta, values=None, row_part=None) -> None:
         """z = alpha A x + beta y with the assembled A (its BSR blocks, row by row; ``values`` and
@@ -253,24 +350,36 @@ class ImplicitSystem:
         m = self.model
         values = self.A.values if values is None else values
         row_part = self.row_part_solve if row_part is None else row_part
-        wp.launch(lk.block_gemv_split, dim=m.particle_count,
-                  inputs=[self.row_offsets, self.block_columns, values, row_part, x, y, float(alpha), float(beta)], outputs=[z],
-                  device=m.device)
+        wp.launch(
+            lk.block_gemv_split,
+            dim=m.particle_count,
+            inputs=[self.row_offsets, self.block_columns, values, row_part, x, y, float(alpha), float(beta)],
+            outputs=[z],
+            device=m.device,
+        )
 
     def matvec(self, x, y, z, alpha, beta) -> None:
         """z = alpha A x + beta y without assembling A (the LinearOperator's matvec)."""
         m = self.model
         wp.launch(
-            sk.apply_system_matrix, dim=m.particle_count,
+            sk.apply_system_matrix,
+            dim=m.particle_count,
             inputs=[x, y, self.springs, self.spring_B, self.mass_term, m.particle_inv_mass, float(alpha), float(beta)],
-            outputs=[z], device=m.device,
+            outputs=[z],
+            device=m.device,
         )
         self.add_hinge_product(x, z, alpha * self.h * self.h, alpha * self.h, 1)  # + the hinges' (h^2 k + h kd) g g^T x
 
     def apply_block_jacobi(self, x, y, z, alpha, beta) -> None:
         """z = alpha P x + beta y with P = blockdiag(A_ii^-1) (the block-Jacobi LinearOperator)."""
         m = self.model
-        wp.launch(lk.apply_block_diagonal, dim=m.particle_count, inputs=[x, y, self.inv_block, float(alpha), float(beta)], outputs=[z], device=m.device)
+        wp.launch(
+            lk.apply_block_diagonal,
+            dim=m.particle_count,
+            inputs=[x, y, self.inv_block, float(alpha), float(beta)],
+            outputs=[z],
+            device=m.device,
+        )
 
 
 __all__ = ["ImplicitSystem", "JACOBIANS", "MATRICES", "PRECONDITIONERS"]

@@ -75,14 +75,13 @@ from typing import ClassVar
 import numpy as np
 import warp as wp
 
-from warpcloth.kernels import increment as nk
-from warpcloth.kernels import vbd as vk
-
-from warpcloth.sim.coloring import VertexColoring, color_vertices
-from warpcloth.sim.hinges import hinge_pairs
 from warpcloth.integrators.base import Option, scratch_like
 from warpcloth.integrators.increment import IncrementSolver, at_least_one
 from warpcloth.integrators.multigrid import MIN_COARSE_SIDE, GridMultigrid, grid_structure_reason
+from warpcloth.kernels import increment as nk
+from warpcloth.kernels import vbd as vk
+from warpcloth.sim.coloring import VertexColoring, color_vertices
+from warpcloth.sim.hinges import hinge_pairs
 
 #: Fewest particles of a model that gets the aggregation multigrid (models that are not grids): the
 #: smallest grid the geometric hierarchy coarsens, 7 x 7. Below it the sweeps and the rigid correction
@@ -120,26 +119,40 @@ class VBD(IncrementSolver):
         # within 0.5 % of the float64 equilibrium after 0.5 s and the 128 x 128 flag stable for 3 s
         # with 3 or 5 (docs/solvers.md). Sweeps alone (vbd_multigrid_every 0) need 20 on the 64 x 64
         # flag and still leave the 128 x 128 sheet's sag -68 % off after 10 s.
-        Option("vbd_iterations", int, 4, "VBD iterations (sweeps over every vertex colour) per time step (>= 1)", check=at_least_one),
         Option(
-            "vbd_multigrid_every", int, 1,
+            "vbd_iterations",
+            int,
+            4,
+            "VBD iterations (sweeps over every vertex colour) per time step (>= 1)",
+            check=at_least_one,
+        ),
+        Option(
+            "vbd_multigrid_every",
+            int,
+            1,
             "a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; models that are not grids: "
             "an aggregation hierarchy, see vbd_mesh_multigrid)",
             check=lambda v: None if v >= 0 else "must be an integer >= 0",
         ),
         Option(
-            "vbd_mesh_multigrid", int, 1,
+            "vbd_mesh_multigrid",
+            int,
+            1,
             "models that are not grids: the multigrid correction on an aggregation hierarchy of the Hessian's graph (1) or none (0)",
             check=lambda v: None if v in (0, 1) else "must be 0 or 1",
         ),
         Option(
-            "vbd_rigid_mode", int, 1,
+            "vbd_rigid_mode",
+            int,
+            1,
             "rigid translation correction: 1 after every sweep and before the first (with colliders: before every "
             "sweep; the cloth's mean motion solved exactly, conserves momentum), 2 before and after every sweep, 0 off",
             check=lambda v: None if v in (0, 1, 2) else "must be 0, 1 or 2",
         ),
         Option(
-            "vbd_chebyshev_rho", float, 0.0,
+            "vbd_chebyshev_rho",
+            float,
+            0.0,
             "spectral radius estimate for Chebyshev acceleration of the VBD iterations (Wang 2015), in [0, 1); 0 disables it",
             check=_spectral_radius,
         ),
@@ -160,7 +173,11 @@ class VBD(IncrementSolver):
             # h^2 times the potential's Hessian is implicit Euler's A = M + h D + h^2 K (drag aside)
             self.hessian = ImplicitSystem(model, jacobian="full", matrix="bsr", preconditioner="multigrid")
             self.multigrid = self.hessian.multigrid
-        elif self.vbd_multigrid_every > 0 and self.vbd_mesh_multigrid and model.particle_count >= MIN_AGGREGATION_PARTICLES:
+        elif (
+            self.vbd_multigrid_every > 0
+            and self.vbd_mesh_multigrid
+            and model.particle_count >= MIN_AGGREGATION_PARTICLES
+        ):
             # any other mesh: the same V-cycle on an aggregation hierarchy of A's graph (issue 26)
             self.hessian = ImplicitSystem(model, jacobian="full", matrix="bsr", preconditioner="jacobi")
             self.multigrid = GridMultigrid(self.hessian.A, 0, 0, model.pinned, model.device, aggregation=True)
@@ -181,7 +198,13 @@ class VBD(IncrementSolver):
             self.contact_state.zero_()  # none held (the rigid mode reads it; colliders may have been removed)
         accelerate = self.vbd_chebyshev_rho > 0.0
         if accelerate:
-            wp.launch(vk.copy_increment, dim=m.particle_count, inputs=[self.dx], outputs=[self.dx_prev1, self.dx_prev2], device=m.device)
+            wp.launch(
+                vk.copy_increment,
+                dim=m.particle_count,
+                inputs=[self.dx],
+                outputs=[self.dx_prev1, self.dx_prev2],
+                device=m.device,
+            )
         if self.hessian is not None:
             self.hessian.assemble(x, h, 0.0)
             self.hessian.update_preconditioner(h, 0.0)
@@ -199,24 +222,50 @@ class VBD(IncrementSolver):
             if self.vbd_rigid_mode >= 1 and contacts is None:
                 self.rigid_correction(x, h)
             if accelerate:
-                wp.launch(vk.apply_chebyshev, dim=m.particle_count, inputs=[omega], outputs=[self.dx, self.dx_prev1, self.dx_prev2], device=m.device)
+                wp.launch(
+                    vk.apply_chebyshev,
+                    dim=m.particle_count,
+                    inputs=[omega],
+                    outputs=[self.dx, self.dx_prev1, self.dx_prev2],
+                    device=m.device,
+                )
                 if contacts is not None:  # the extrapolation may reach into a collider
-                    wp.launch(nk.project_increments, dim=m.particle_count, inputs=[x, m.particle_inv_mass, contacts, h],
-                              outputs=[self.dx, self.contact], device=m.device)
+                    wp.launch(
+                        nk.project_increments,
+                        dim=m.particle_count,
+                        inputs=[x, m.particle_inv_mass, contacts, h],
+                        outputs=[self.dx, self.contact],
+                        device=m.device,
+                    )
         self.finish(state, control, h, contacts)
 
     def coarse_correction(self, x, h: float, contacts=None) -> None:
         """dx += V(r): r = -h^2 grad G at dx, V one multigrid V-cycle of A = h^2 Hessian."""
         m = self.model
-        wp.launch(vk.eval_increment_residual, dim=m.particle_count, inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h],
-                  outputs=[self.residual], device=m.device)
+        wp.launch(
+            vk.eval_increment_residual,
+            dim=m.particle_count,
+            inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h],
+            outputs=[self.residual],
+            device=m.device,
+        )
         if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
-            wp.launch(vk.add_contact_forces, dim=m.particle_count, inputs=[self.contact, h], outputs=[self.residual],
-                      device=m.device)
+            wp.launch(
+                vk.add_contact_forces,
+                dim=m.particle_count,
+                inputs=[self.contact, h],
+                outputs=[self.residual],
+                device=m.device,
+            )
         self.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
         if contacts is not None:
-            wp.launch(vk.mask_contact_normal, dim=m.particle_count, inputs=[self.contact], outputs=[self.delta],
-                      device=m.device)
+            wp.launch(
+                vk.mask_contact_normal,
+                dim=m.particle_count,
+                inputs=[self.contact],
+                outputs=[self.delta],
+                device=m.device,
+            )
         wp.launch(vk.add_increment, dim=m.particle_count, inputs=[self.delta], outputs=[self.dx], device=m.device)
 
     def rigid_correction(self, x, h: float) -> None:
@@ -234,12 +283,21 @@ class VBD(IncrementSolver):
         there with an identity Hessian, as after a Chebyshev extrapolation, lost the sweeps' contact
         states and the drape did not settle: both measured)."""
         m, rigid = self.model, self.rigid
-        wp.launch(nk.rigid_mode_terms, dim=m.particle_count,
-                  inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h, self.contact],
-                  outputs=[rigid.b, rigid.A], device=m.device)
+        wp.launch(
+            nk.rigid_mode_terms,
+            dim=m.particle_count,
+            inputs=[x, self.dx, self.inertia, self.springs, self.hinges, h, self.contact],
+            outputs=[rigid.b, rigid.A],
+            device=m.device,
+        )
         rigid.solve()
-        wp.launch(nk.apply_rigid_mode, dim=m.particle_count, inputs=[rigid.translation, m.particle_inv_mass, self.contact],
-                  outputs=[self.dx], device=m.device)
+        wp.launch(
+            nk.apply_rigid_mode,
+            dim=m.particle_count,
+            inputs=[rigid.translation, m.particle_inv_mass, self.contact],
+            outputs=[self.dx],
+            device=m.device,
+        )
 
     def color_sweep(self, x, h: float, contacts=None) -> list:
         """One Gauss-Seidel sweep: a recorded launch of the local Newton kernel per colour
@@ -251,9 +309,14 @@ class VBD(IncrementSolver):
         if key != self._sweep_key:
             m = self.model
             self._sweep = [
-                wp.launch(vk.solve_vertices_vbd, dim=count,
-                          inputs=[self.vertex_order, start, x, self.inertia, self.springs, self.hinges, h, colliders],
-                          outputs=[self.dx, self.contact], device=m.device, record_cmd=True)
+                wp.launch(
+                    vk.solve_vertices_vbd,
+                    dim=count,
+                    inputs=[self.vertex_order, start, x, self.inertia, self.springs, self.hinges, h, colliders],
+                    outputs=[self.dx, self.contact],
+                    device=m.device,
+                    record_cmd=True,
+                )
                 for start, count in zip(self.coloring.starts, self.coloring.counts)
             ]
             self._sweep_key = key

@@ -13,10 +13,9 @@ from the first step; it runs after a bind, a switch or a change of dt.
 
 import warp as wp
 
-from warpcloth.kernels import integrate as ik
-
-from warpcloth.integrators.forces import eval_forces
 from warpcloth.integrators.base import Integrator, scratch_like
+from warpcloth.integrators.forces import eval_forces
+from warpcloth.kernels import integrate as ik
 
 
 class Verlet(Integrator):
@@ -33,9 +32,27 @@ class Verlet(Integrator):
     def begin(self, state, control, dt):
         m = self.model
         eval_forces(m, state.particle_q, state.particle_qd, control, state.particle_f)
-        wp.launch(ik.verlet_prime, dim=m.particle_count, inputs=[state.particle_qd, state.particle_f, m.particle_inv_mass, float(dt)], outputs=[self.displacement], device=m.device)
+        wp.launch(
+            ik.verlet_prime,
+            dim=m.particle_count,
+            inputs=[state.particle_qd, state.particle_f, m.particle_inv_mass, float(dt)],
+            outputs=[self.displacement],
+            device=m.device,
+        )
 
     def step(self, state, control, dt):
         m = self.model
         eval_forces(m, state.particle_q, state.particle_qd, control, state.particle_f)
-        wp.launch(ik.integrate_verlet, dim=m.particle_count, inputs=[state.particle_q, self.displacement, state.particle_qd, state.particle_f, m.particle_inv_mass, float(dt)], device=m.device)
+        wp.launch(
+            ik.integrate_verlet,
+            dim=m.particle_count,
+            inputs=[
+                state.particle_q,
+                self.displacement,
+                state.particle_qd,
+                state.particle_f,
+                m.particle_inv_mass,
+                float(dt),
+            ],
+            device=m.device,
+        )

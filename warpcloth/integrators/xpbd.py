@@ -45,10 +45,9 @@ from typing import ClassVar
 
 import warp as wp
 
+from warpcloth.integrators.position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator
 from warpcloth.kernels import bending as bk
 from warpcloth.kernels import constraints as ck
-
-from warpcloth.integrators.position_based import ITERATIONS, SUBSTEPS, VELOCITY_DAMPING, PositionBasedIntegrator
 
 
 class XPBD(PositionBasedIntegrator):
@@ -70,7 +69,15 @@ class XPBD(PositionBasedIntegrator):
         m = self.model
         h = dt / self.substeps
         keep = self.velocity_keep()
-        params = [m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, m.particle_inv_mass, state.particle_q, h]
+        params = [
+            m.spring_indices,
+            m.spring_rest_length,
+            m.spring_stiffness,
+            m.spring_damping,
+            m.particle_inv_mass,
+            state.particle_q,
+            h,
+        ]
         sweep = self.color_sweep(ck.solve_springs_xpbd, params, [self.spring_lambda, self.particle_dp])
         if m.hinge_count:  # dihedral hinges: C = theta - theta0, compliance 1 / k_e, damping kd_e
             hinge = [*m.hinge_arrays(), m.particle_inv_mass, state.particle_q, h]
@@ -84,10 +91,13 @@ class XPBD(PositionBasedIntegrator):
     def clear_lambda(self) -> None:
         """lambda = 0 for every constraint."""
         if self.model.spring_count:
-            wp.launch(ck.clear_lambda, dim=self.model.spring_count, outputs=[self.spring_lambda], device=self.model.device)
+            wp.launch(
+                ck.clear_lambda, dim=self.model.spring_count, outputs=[self.spring_lambda], device=self.model.device
+            )
         if self.model.hinge_count:
-            wp.launch(ck.clear_lambda, dim=self.model.hinge_count, outputs=[self.hinge_lambda], device=self.model.device)
+            wp.launch(
+                ck.clear_lambda, dim=self.model.hinge_count, outputs=[self.hinge_lambda], device=self.model.device
+            )
 
     def stats(self) -> dict:
         return {**super().stats(), "iterations": self.iterations, "substeps": self.substeps}
-

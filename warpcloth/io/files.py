@@ -112,8 +112,10 @@ def sweep_stale_temporaries(folder: str, report=None) -> list[str]:
         removed.append(path)
         freed += size
     if removed and report is not None:
-        report.write(f"warpcloth: removed {len(removed)} stale temporary file(s) of dead warpcloth processes in "
-                     f"{folder} ({freed} bytes): {', '.join(os.path.basename(p) for p in removed)}\n")
+        report.write(
+            f"warpcloth: removed {len(removed)} stale temporary file(s) of dead warpcloth processes in "
+            f"{folder} ({freed} bytes): {', '.join(os.path.basename(p) for p in removed)}\n"
+        )
         report.flush()
     return removed
 
@@ -182,7 +184,9 @@ def read_input(path, what: str = "input file", max_bytes: int | None = None) -> 
     replaced by a FIFO after the check is refused, not waited on) and read up to ``max_bytes``."""
     p = check_input_file(path, what, max_bytes)
     try:
-        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0))
+        fd = os.open(
+            p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0)
+        )
     except OSError as exc:
         raise WarpclothError(f"cannot read {what} {p!r}: {exc.strerror or exc}") from None
     try:
@@ -229,8 +233,10 @@ def check_output_path(path: str, what: str = "output", extensions: tuple | None 
     name_max = _name_max(probe or "/")
     for part in full.split(os.sep):
         if len(os.fsencode(part)) > name_max:
-            raise WarpclothError(f"{what} path {p!r}: the name {part[:40]!r}... is {len(os.fsencode(part))} bytes, "
-                                 f"more than the {name_max} this file system allows")
+            raise WarpclothError(
+                f"{what} path {p!r}: the name {part[:40]!r}... is {len(os.fsencode(part))} bytes, "
+                f"more than the {name_max} this file system allows"
+            )
     path_max = _path_max(probe or "/")
     if len(os.fsencode(full)) >= path_max:
         raise WarpclothError(f"{what} path {p!r} is {len(os.fsencode(full))} bytes, more than the {path_max} allowed")
@@ -246,14 +252,18 @@ def check_output_path(path: str, what: str = "output", extensions: tuple | None 
             os.close(fd)
         except OSError as exc:
             if exc.errno in (errno.EPERM, errno.EROFS):
-                raise WarpclothError(f"{what} path {p!r} cannot be replaced: {exc.strerror} "
-                                     "(an immutable or append-only file, or a read-only file system)") from None
+                raise WarpclothError(
+                    f"{what} path {p!r} cannot be replaced: {exc.strerror} "
+                    "(an immutable or append-only file, or a read-only file system)"
+                ) from None
     tmp = temp_path(full)
     try:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     except OSError as exc:
-        raise WarpclothError(f"{what} path {p!r}: folder {folder!r} is not writable (creating a file there failed: "
-                             f"{exc.strerror or exc})") from None
+        raise WarpclothError(
+            f"{what} path {p!r}: folder {folder!r} is not writable (creating a file there failed: "
+            f"{exc.strerror or exc})"
+        ) from None
     os.close(fd)
     try:
         os.unlink(tmp)
@@ -295,7 +305,9 @@ def fsync_dir(directory: str) -> None:
         os.close(fd)
 
 
-def describe_write_error(exc: OSError, target: str, what: str, needed: int | None = None, written: int | None = None) -> str:
+def describe_write_error(
+    exc: OSError, target: str, what: str, needed: int | None = None, written: int | None = None
+) -> str:
     """One line for a failed write: what, where, and how much was needed where known."""
     folder = os.path.dirname(os.path.abspath(target))
     if exc.errno in (errno.ENOSPC, errno.EDQUOT):
@@ -408,7 +420,9 @@ class WriterLock:
             try:
                 fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
             except OSError as exc:
-                raise WarpclothError(f"cannot lock the {self.what} {self.target}: cannot create {self.path}: {exc.strerror or exc}") from None
+                raise WarpclothError(
+                    f"cannot lock the {self.what} {self.target}: cannot create {self.path}: {exc.strerror or exc}"
+                ) from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError as exc:
@@ -420,8 +434,10 @@ class WriterLock:
                 os.close(fd)
                 if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
                     who = f"pid {holder}" if holder else "another process"
-                    raise WarpclothError(f"{self.target} is being written by another warpcloth ({who}, lock {self.path}); "
-                                         "wait for it to finish or write elsewhere") from None
+                    raise WarpclothError(
+                        f"{self.target} is being written by another warpcloth ({who}, lock {self.path}); "
+                        "wait for it to finish or write elsewhere"
+                    ) from None
                 raise WarpclothError(f"cannot lock the {self.what} {self.target}: {exc.strerror or exc}") from None
             try:  # the file may have been removed by the previous holder between open and flock
                 same = os.path.samestat(os.fstat(fd), os.stat(self.path))
@@ -455,8 +471,22 @@ class WriterLock:
         self.release()
 
 
-__all__ = ["AtomicFile", "EXIT_IO", "OutputError", "TEMP_PREFIX", "WriterLock", "check_input_file", "check_output_path", "describe_write_error",
-           "fsync_dir", "read_input", "remove_temporary", "sweep_stale_temporaries", "temp_path", "write_atomic"]
+__all__ = [
+    "AtomicFile",
+    "EXIT_IO",
+    "OutputError",
+    "TEMP_PREFIX",
+    "WriterLock",
+    "check_input_file",
+    "check_output_path",
+    "describe_write_error",
+    "fsync_dir",
+    "read_input",
+    "remove_temporary",
+    "sweep_stale_temporaries",
+    "temp_path",
+    "write_atomic",
+]
 
 
 # -- CSV cells: one way for every results file (sweep, study, bench) --------------------------

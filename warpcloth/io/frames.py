@@ -41,7 +41,7 @@ class FrameSinks:
             try:
                 paths.append(w.close())
             except BaseException:
-                for other in self.writers[k + 1:]:
+                for other in self.writers[k + 1 :]:
                     other.abort()
                 raise
         return paths
@@ -83,8 +83,10 @@ def vertex_strain(points: np.ndarray, pairs: np.ndarray, rest: np.ndarray) -> np
 
 
 #: Colour ramp of strain, from 0 to the scale: blue, cyan, green, yellow, red (the player's too).
-STRAIN_RAMP = np.array([[0.10, 0.25, 0.85], [0.10, 0.75, 0.85], [0.20, 0.75, 0.25], [0.95, 0.85, 0.15], [0.85, 0.12, 0.10]],
-                       dtype=np.float32)
+STRAIN_RAMP = np.array(
+    [[0.10, 0.25, 0.85], [0.10, 0.75, 0.85], [0.20, 0.75, 0.25], [0.95, 0.85, 0.15], [0.85, 0.12, 0.10]],
+    dtype=np.float32,
+)
 
 
 def strain_colors(strain: np.ndarray, scale: float) -> np.ndarray:

@@ -50,7 +50,9 @@ def load_mesh(path: str, prim: str | None = None) -> TriangleMesh:
         raise WarpclothError(f"mesh file must be a file name, got {path!r:.80}")
     ext = os.path.splitext(path)[1].lower()
     if ext not in MESH_FORMATS:
-        raise WarpclothError(f"mesh file {path!r} has an unsupported format {ext or '(no extension)'!r}: use {', '.join(MESH_FORMATS)}")
+        raise WarpclothError(
+            f"mesh file {path!r} has an unsupported format {ext or '(no extension)'!r}: use {', '.join(MESH_FORMATS)}"
+        )
     check_input_file(path, "mesh file", MAX_MESH_FILE_BYTES)
     if prim is not None and not isinstance(prim, str):
         raise WarpclothError(f"prim must be a prim path such as '/World/Cloth', got {prim!r:.80}")
@@ -148,7 +150,9 @@ def _obj_index(text: str, count: int, where: str, what: str) -> int:
         return k - 1
     if k < 0 and -k <= count:
         return count + k
-    raise WarpclothError(f"{where}: {what} index {k} is out of range: {count} read so far (1..{count}, or -1..-{count})")
+    raise WarpclothError(
+        f"{where}: {what} index {k} is out of range: {count} read so far (1..{count}, or -1..-{count})"
+    )
 
 
 def read_usd(path: str, prim: str | None = None) -> TriangleMesh:
@@ -195,8 +199,11 @@ def _clip_assets(layer) -> list:
         if spec.HasInfo("clips"):
             for info in dict(spec.GetInfo("clips")).values():
                 clip_set(dict(info))
-        old = {key: spec.GetInfo(key) for key in ("clipAssetPaths", "clipManifestAssetPath", "clipTemplateAssetPath")
-               if spec.HasInfo(key)}
+        old = {
+            key: spec.GetInfo(key)
+            for key in ("clipAssetPaths", "clipManifestAssetPath", "clipTemplateAssetPath")
+            if spec.HasInfo(key)
+        }
         if old:
             clip_set(old)
 
@@ -224,7 +231,9 @@ def open_usd_stage(path: str):
         name = top if anchor is None else f"{asset!r} ({what} in {os.path.basename(anchor.identifier)})"
         if asset is None:
             raise WarpclothError(f"USD file {path!r} uses {what}, which warpcloth does not read in a mesh file")
-        identifier = asset if anchor is None else resolver.CreateIdentifier(asset, Ar.ResolvedPath(str(anchor.resolvedPath)))
+        identifier = (
+            asset if anchor is None else resolver.CreateIdentifier(asset, Ar.ResolvedPath(str(anchor.resolvedPath)))
+        )
         if identifier in seen:
             continue
         seen.add(identifier)
@@ -269,20 +278,30 @@ def _read_usd_mesh(stage, path: str, prim: str | None) -> TriangleMesh:
         if p is None or not p.IsValid():
             have = ", ".join(str(m.GetPath()) for m in stage.Traverse() if m.IsA(UsdGeom.Mesh)) or "none"
             raise WarpclothError(f"USD file {path!r} has no prim {prim!r} (its meshes: {have})")
-        require(p.IsA(UsdGeom.Mesh), f"prim {prim!r} in {path!r} is a {p.GetTypeName() or 'typeless prim'}, not a UsdGeom.Mesh")
+        require(
+            p.IsA(UsdGeom.Mesh),
+            f"prim {prim!r} in {path!r} is a {p.GetTypeName() or 'typeless prim'}, not a UsdGeom.Mesh",
+        )
     mesh = UsdGeom.Mesh(p)
     time = Usd.TimeCode.Default()
     points = mesh.GetPointsAttr().Get(time)
     require(points is not None and len(points) > 0, f"USD mesh {p.GetPath()} in {path!r} is empty: no points")
     local = np.asarray(points, dtype=np.float64)
-    xf = np.asarray(UsdGeom.Xformable(p).ComputeLocalToWorldTransform(time), dtype=np.float64)  # row vectors: p' = [p 1] M
+    xf = np.asarray(
+        UsdGeom.Xformable(p).ComputeLocalToWorldTransform(time), dtype=np.float64
+    )  # row vectors: p' = [p 1] M
     world = local @ xf[:3, :3] + xf[3, :3]
     counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(time) or [], dtype=np.int64)
     indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(time) or [], dtype=np.int64)
     require(counts.size > 0, f"USD mesh {p.GetPath()} in {path!r} is empty: no faces")
-    require(int(counts.sum()) == indices.size, f"USD mesh {p.GetPath()}: faceVertexCounts sum to {int(counts.sum())} but there are {indices.size} faceVertexIndices")
+    require(
+        int(counts.sum()) == indices.size,
+        f"USD mesh {p.GetPath()}: faceVertexCounts sum to {int(counts.sum())} but there are {indices.size} faceVertexIndices",
+    )
     if np.any(counts < 3):
-        raise WarpclothError(f"USD mesh {p.GetPath()}: face {int(np.flatnonzero(counts < 3)[0])} has fewer than 3 vertices")
+        raise WarpclothError(
+            f"USD mesh {p.GetPath()}: face {int(np.flatnonzero(counts < 3)[0])} has fewer than 3 vertices"
+        )
     face_start = np.concatenate([[0], np.cumsum(counts)[:-1]])
     corner_of_tri, face_of_tri = [], []
     for c in np.unique(counts):  # one vectorised fan per polygon size
@@ -313,7 +332,9 @@ def _read_usd_mesh(stage, path: str, prim: str | None) -> TriangleMesh:
         if kind == UsdGeom.Tokens.face:
             bad = idx[(idx < 0) | (idx >= counts.size)]
             if bad.size:
-                raise WarpclothError(f"USD subset {subset.GetPath()}: face index {int(bad[0])} out of range 0..{counts.size - 1}")
+                raise WarpclothError(
+                    f"USD subset {subset.GetPath()}: face index {int(bad[0])} out of range 0..{counts.size - 1}"
+                )
             groups[name] = np.unique(triangles[np.isin(face_of_tri, idx)].ravel())
         else:
             groups[name] = np.unique(idx)
@@ -346,5 +367,13 @@ def write_obj(path: str, vertices, triangles, uv=None, groups: dict | None = Non
         f.write("\n".join(lines) + "\n")
 
 
-__all__ = ["load_mesh_collider", "MAX_MESH_FILE_BYTES", "MESH_FORMATS", "load_mesh", "open_usd_stage", "read_obj", "read_usd",
-           "write_obj"]
+__all__ = [
+    "load_mesh_collider",
+    "MAX_MESH_FILE_BYTES",
+    "MESH_FORMATS",
+    "load_mesh",
+    "open_usd_stage",
+    "read_obj",
+    "read_usd",
+    "write_obj",
+]

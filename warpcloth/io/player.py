@@ -53,8 +53,10 @@ def check_frame_memory(model, frames: int | None, what: str) -> None:
         return
     need = int(frames) * int(model.particle_count) * 12
     if need > MAX_BUFFER_BYTES:
-        raise WarpclothError(f"{what} would hold {frames} frames of {model.particle_count} particles, {need / 2**30:.1f} GiB "
-                             f"(at most {MAX_BUFFER_BYTES / 2**30:.0f} GiB); use fewer frames (--fps, --duration) or a smaller cloth")
+        raise WarpclothError(
+            f"{what} would hold {frames} frames of {model.particle_count} particles, {need / 2**30:.1f} GiB "
+            f"(at most {MAX_BUFFER_BYTES / 2**30:.0f} GiB); use fewer frames (--fps, --duration) or a smaller cloth"
+        )
 
 
 def check_html_path(path: str) -> str:
@@ -130,7 +132,11 @@ def collider_records(colliders, lo, hi, poses: dict | None = None) -> list[dict]
     for k, c in enumerate(colliders):
         rec = {"kind": c.kind}
         if c.kind == "plane":
-            rec.update(point=_floats(c.point), normal=_floats(c.normal), halfSize=0.5 * max(PLANE_PATCH * diagonal, PLANE_PATCH_MIN))
+            rec.update(
+                point=_floats(c.point),
+                normal=_floats(c.normal),
+                halfSize=0.5 * max(PLANE_PATCH * diagonal, PLANE_PATCH_MIN),
+            )
         elif c.kind == "sphere":
             rec.update(center=_floats(c.center), radius=float(c.radius))
         elif c.kind == "capsule":
@@ -140,8 +146,14 @@ def collider_records(colliders, lo, hi, poses: dict | None = None) -> list[dict]
         elif c.kind == "mesh":
             q, vlo, vhi = quantise(np.asarray(c.vertices, dtype=np.float64)[None])
             tris = np.asarray(c.triangles).reshape(-1, 3)
-            rec.update(vertexCount=int(q.shape[1]), triangleCount=int(len(tris)), vertices=_b64(q), verticesMin=_floats(vlo),
-                       verticesMax=_floats(vhi), triangles=_b64(tris.astype("<u4")))
+            rec.update(
+                vertexCount=int(q.shape[1]),
+                triangleCount=int(len(tris)),
+                vertices=_b64(q),
+                verticesMin=_floats(vlo),
+                verticesMax=_floats(vhi),
+                triangles=_b64(tris.astype("<u4")),
+            )
         else:
             raise WarpclothError(f"the HTML player cannot draw a collider of kind {c.kind!r}")
         rec.update(thickness=float(c.thickness), friction=float(c.friction))
@@ -164,8 +176,16 @@ class HtmlWriter:
             one's pose is stored at every frame's simulated time (see :func:`collider_records`).
     """
 
-    def __init__(self, path: str, model, fps: float = 60.0, title: str = "warpcloth", info: dict | None = None,
-                 expected_frames: int | None = None, colliders=()):
+    def __init__(
+        self,
+        path: str,
+        model,
+        fps: float = 60.0,
+        title: str = "warpcloth",
+        info: dict | None = None,
+        expected_frames: int | None = None,
+        colliders=(),
+    ):
         self.path = check_html_path(path)
         check_frame_memory(model, expected_frames, "the HTML player")
         self.fps = float(fps)
@@ -182,15 +202,21 @@ class HtmlWriter:
         self.colliders = tuple(colliders or ())
         for c in self.colliders:
             if getattr(c, "kind", None) not in ("plane", "sphere", "capsule", "box", "mesh"):
-                raise WarpclothError(f"the HTML player's colliders must be warpcloth.sim.colliders objects, got {c!r:.80}")
-        self.poses = {k: ColliderPoses(c) for k, c in enumerate(self.colliders) if getattr(c, "track", None) is not None}
+                raise WarpclothError(
+                    f"the HTML player's colliders must be warpcloth.sim.colliders objects, got {c!r:.80}"
+                )
+        self.poses = {
+            k: ColliderPoses(c) for k, c in enumerate(self.colliders) if getattr(c, "track", None) is not None
+        }
         self._closed = False
 
     def write_frame(self, points: np.ndarray, sim_time: float | None = None) -> None:
         p = np.array(points, dtype=np.float32).reshape(-1, 3)
         if (len(self.frames) + 1) * p.nbytes > MAX_BUFFER_BYTES:
-            raise WarpclothError(f"the HTML player would hold more than {MAX_BUFFER_BYTES >> 20} MiB of frames; "
-                                 "use fewer frames (--fps, --duration) or a smaller cloth")
+            raise WarpclothError(
+                f"the HTML player would hold more than {MAX_BUFFER_BYTES >> 20} MiB of frames; "
+                "use fewer frames (--fps, --duration) or a smaller cloth"
+            )
         t = float(sim_time) if sim_time is not None else (self.times[-1] + 1.0 / self.fps if self.times else 0.0)
         if not np.all(np.isfinite(p)):
             return  # an unstable frame has nothing to show
@@ -280,7 +306,7 @@ def read_player_data(path: str) -> dict:
     b = page.find("</script>", a)
     if a < 0 or b < 0:
         raise WarpclothError(f"{path} is not a warpcloth player page")
-    data = json.loads(page[a + len(start_tag):b])
+    data = json.loads(page[a + len(start_tag) : b])
     q = np.frombuffer(base64.b64decode(data["frames"]), dtype="<u2").reshape(data["frameCount"], data["vertexCount"], 3)
     lo, hi = np.array(data["bboxMin"]), np.array(data["bboxMax"])
     data["positions"] = (lo + q * ((hi - lo) / 65535.0)).astype(np.float32)
@@ -289,7 +315,9 @@ def read_player_data(path: str) -> dict:
             v = np.frombuffer(base64.b64decode(c["vertices"]), dtype="<u2").reshape(c["vertexCount"], 3)
             vlo, vhi = np.array(c["verticesMin"]), np.array(c["verticesMax"])
             c["vertexPositions"] = vlo + v * ((vhi - vlo) / 65535.0)
-            c["triangleIndices"] = np.frombuffer(base64.b64decode(c["triangles"]), dtype="<u4").reshape(c["triangleCount"], 3)
+            c["triangleIndices"] = np.frombuffer(base64.b64decode(c["triangles"]), dtype="<u4").reshape(
+                c["triangleCount"], 3
+            )
         m = c.get("motion")
         if m:
             t = np.frombuffer(base64.b64decode(m["translation"]), dtype="<u2").reshape(-1, 3)

@@ -55,8 +55,20 @@ def collider_triangles(c, lo, hi, resolution: int = 16) -> np.ndarray:
     if c.kind == "box":
         corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
         points = np.asarray(c.center) + (corners * np.asarray(c.half_extents)) @ _quat_matrix(c.rotation).T
-        faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
-                 (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+        faces = [
+            (0, 1, 3),
+            (0, 3, 2),
+            (4, 6, 7),
+            (4, 7, 5),
+            (0, 4, 5),
+            (0, 5, 1),
+            (2, 3, 7),
+            (2, 7, 6),
+            (0, 2, 6),
+            (0, 6, 4),
+            (1, 5, 7),
+            (1, 7, 3),
+        ]
         return points[np.array(faces)]
     if c.kind == "mesh":
         tris = np.asarray(c.vertices)[np.asarray(c.triangles)]
@@ -86,15 +98,17 @@ def collider_triangles(c, lo, hi, resolution: int = 16) -> np.ndarray:
         local = c.radius * unit + np.where(unit[..., 2:] >= 0, 0.5 * length, -0.5 * length) * np.array([0.0, 0.0, 1.0])
         grid = 0.5 * (a + b) + local @ frame
     p00, p01, p10, p11 = grid[:-1, :-1], grid[:-1, 1:], grid[1:, :-1], grid[1:, 1:]
-    return np.concatenate([np.stack([p00, p10, p11], axis=-2).reshape(-1, 3, 3),
-                           np.stack([p00, p11, p01], axis=-2).reshape(-1, 3, 3)])
+    return np.concatenate(
+        [np.stack([p00, p10, p11], axis=-2).reshape(-1, 3, 3), np.stack([p00, p11, p01], axis=-2).reshape(-1, 3, 3)]
+    )
 
 
 class PreviewWriter:
     """Collects frames; on :meth:`close` draws the PNG (last frame) or GIF (every k-th)."""
 
-    def __init__(self, path: str, model, fps: float = 60.0, title: str = "", expected_frames: int | None = None,
-                 colliders=()):
+    def __init__(
+        self, path: str, model, fps: float = 60.0, title: str = "", expected_frames: int | None = None, colliders=()
+    ):
         self.path = check_preview_path(path)
         self.gif = os.path.splitext(self.path)[1].lower() == ".gif"
         if self.gif:

@@ -62,8 +62,16 @@ class Progress:
         keep: on a terminal, end the last line with a newline at :meth:`close` instead of clearing it.
     """
 
-    def __init__(self, label: str = "", stream=None, enabled: bool = True, tty: bool | None = None,
-                 clock=time.monotonic, layout=None, keep: bool = False):
+    def __init__(
+        self,
+        label: str = "",
+        stream=None,
+        enabled: bool = True,
+        tty: bool | None = None,
+        clock=time.monotonic,
+        layout=None,
+        keep: bool = False,
+    ):
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
         self.enabled = enabled
@@ -111,7 +119,9 @@ class Progress:
             parts.append(f"ETA {format_seconds(eta)}")
         return " ".join(parts)
 
-    def update(self, done: float, total: float | None = None, note: str = "", unit: str = "", force: bool = False) -> None:
+    def update(
+        self, done: float, total: float | None = None, note: str = "", unit: str = "", force: bool = False
+    ) -> None:
         """Show the line for ``done`` of ``total``, unless one was shown too recently (``force``: show it)."""
         if not self.enabled:
             return

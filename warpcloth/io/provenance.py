@@ -101,6 +101,15 @@ def machine(device=None) -> dict:
         driver = wp.get_cuda_driver_version() if hasattr(wp, "get_cuda_driver_version") else None
     except Exception:  # noqa: BLE001
         driver = None
-    return {"host": socket.gethostname(), "cpu": cpu, "cores": os.cpu_count(), "gpu": gpu, "gpus": gpus,
-            "driver": driver, "warp": wp.config.version, "python": platform.python_version(), "os": platform.platform(),
-            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")}
+    return {
+        "host": socket.gethostname(),
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "gpu": gpu,
+        "gpus": gpus,
+        "driver": driver,
+        "warp": wp.config.version,
+        "python": platform.python_version(),
+        "os": platform.platform(),
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+    }

@@ -27,8 +27,16 @@ from dataclasses import dataclass
 from typing import Callable
 
 from warpcloth.errors import WarpclothError
-from warpcloth.io.files import (OutputError, WriterLock, check_output_path, csv_cell, csv_line, describe_write_error,
-                                sweep_stale_temporaries, write_atomic)
+from warpcloth.io.files import (
+    OutputError,
+    WriterLock,
+    check_output_path,
+    csv_cell,
+    csv_line,
+    describe_write_error,
+    sweep_stale_temporaries,
+    write_atomic,
+)
 
 
 def parse_cell(text: str):
@@ -111,8 +119,15 @@ class ResultsFile:
             such case the file is left exactly as it was.
     """
 
-    def __init__(self, path: str, fmt: ResultsFormat, resume: bool = False, overwrite: bool = False, report=None,
-                 keep_rows: bool = False):
+    def __init__(
+        self,
+        path: str,
+        fmt: ResultsFormat,
+        resume: bool = False,
+        overwrite: bool = False,
+        report=None,
+        keep_rows: bool = False,
+    ):
         self.path = str(path)
         self.format = fmt
         self.keep_rows = keep_rows
@@ -147,8 +162,9 @@ class ResultsFile:
             if exists and resume:
                 self._read_existing()
             elif exists and not overwrite:
-                raise WarpclothError(f"{self.path} already exists: use --resume to continue it "
-                                     "or --overwrite to replace it")
+                raise WarpclothError(
+                    f"{self.path} already exists: use --resume to continue it or --overwrite to replace it"
+                )
             else:
                 self._create()
             try:
@@ -184,14 +200,18 @@ class ResultsFile:
             raise WarpclothError(f"cannot resume {self.path}: not UTF-8 text (left unchanged)") from None
         reader = csv.reader(io.StringIO(text))
         if next(reader, None) != columns:
-            raise WarpclothError(f"cannot resume {self.path}: its header is not this warpcloth's {fmt.what} columns "
-                                 "(another program, or another warpcloth version, wrote it); left unchanged")
+            raise WarpclothError(
+                f"cannot resume {self.path}: its header is not this warpcloth's {fmt.what} columns "
+                "(another program, or another warpcloth version, wrote it); left unchanged"
+            )
         k = columns.index(fmt.key)
         keys, rows = set(), {}
         for line_no, cells in enumerate(reader, start=2):
             if len(cells) != len(columns):
-                raise WarpclothError(f"cannot resume {self.path}: line {line_no} has {len(cells)} cells, "
-                                     f"expected {len(columns)} (left unchanged)")
+                raise WarpclothError(
+                    f"cannot resume {self.path}: line {line_no} has {len(cells)} cells, "
+                    f"expected {len(columns)} (left unchanged)"
+                )
             keys.add(cells[k])
             if self.keep_rows:
                 rows[cells[k]] = fmt.parse_row(dict(zip(columns, cells)))
@@ -217,8 +237,10 @@ class ResultsFile:
         if not self.truncated:
             return ""
         where = f"a copy is in {self.dropped_path}" if self.dropped_path else f"it was {self.dropped[:120]!r}"
-        return (f"{self.path}: dropped an incomplete last line ({len(self.dropped)} bytes, "
-                f"a {self.format.unit} cut short; {where}); it runs again")
+        return (
+            f"{self.path}: dropped an incomplete last line ({len(self.dropped)} bytes, "
+            f"a {self.format.unit} cut short; {where}); it runs again"
+        )
 
     def _write(self, text: str) -> None:
         try:
@@ -235,8 +257,9 @@ class ResultsFile:
                 raise err from None
             line = describe_write_error(exc, self.path, "results CSV", needed=len(text.encode("utf-8")))
             line = line.replace(f"; {self.path} is unchanged", "")
-            raise OutputError(f"{line}; the {self.rows} rows before it are kept "
-                              "(a cut last row is dropped on --resume)") from None
+            raise OutputError(
+                f"{line}; the {self.rows} rows before it are kept (a cut last row is dropped on --resume)"
+            ) from None
 
     def write(self, row: dict) -> None:
         """Append ``row`` and force it to disk."""

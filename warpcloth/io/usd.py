@@ -34,7 +34,14 @@ import shutil
 import numpy as np
 
 from warpcloth.errors import WarpclothError, require_int
-from warpcloth.io.files import OutputError, check_output_path, describe_write_error, fsync_dir, remove_temporary, temp_path
+from warpcloth.io.files import (
+    OutputError,
+    check_output_path,
+    describe_write_error,
+    fsync_dir,
+    remove_temporary,
+    temp_path,
+)
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
 #: Colourings of ``primvars:displayColor`` (``--usd-color``).
@@ -72,7 +79,9 @@ def _usd_failure(exc: BaseException, target: str, tmp: str) -> OutputError:
     text = str(exc)
     written = os.path.getsize(tmp) if os.path.exists(tmp) else None
     if "No space left" in text or (isinstance(exc, OSError) and exc.errno == errno.ENOSPC):
-        return OutputError(describe_write_error(OSError(errno.ENOSPC, "No space left on device"), target, "USD file", written=written))
+        return OutputError(
+            describe_write_error(OSError(errno.ENOSPC, "No space left on device"), target, "USD file", written=written)
+        )
     if isinstance(exc, OSError):
         return OutputError(describe_write_error(exc, target, "USD file"))
     first = next((line.strip() for line in text.splitlines() if line.strip()), type(exc).__name__)
@@ -162,7 +171,9 @@ class ColliderPrims:
                 prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(c.triangles)))
                 prim.CreateFaceVertexIndicesAttr(Vt.IntArray(c.triangles.reshape(-1).tolist()))
                 prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-                prim.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, v.min(axis=0))), Gf.Vec3f(*map(float, v.max(axis=0)))]))
+                prim.CreateExtentAttr(
+                    Vt.Vec3fArray([Gf.Vec3f(*map(float, v.min(axis=0))), Gf.Vec3f(*map(float, v.max(axis=0)))])
+                )
             elif c.kind == "box":
                 prim = UsdGeom.Cube.Define(stage, path)
                 prim.CreateSizeAttr(2.0)
@@ -170,7 +181,9 @@ class ColliderPrims:
             else:
                 prim = UsdGeom.Mesh.Define(stage, path)
                 h = 0.5 * float(plane_size)
-                prim.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(-h, 0, -h), Gf.Vec3f(-h, 0, h), Gf.Vec3f(h, 0, h), Gf.Vec3f(h, 0, -h)]))
+                prim.CreatePointsAttr(
+                    Vt.Vec3fArray([Gf.Vec3f(-h, 0, -h), Gf.Vec3f(-h, 0, h), Gf.Vec3f(h, 0, h), Gf.Vec3f(h, 0, -h)])
+                )
                 prim.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
                 prim.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))  # counter-clockwise seen from +Y
                 prim.CreateNormalsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 1, 0)] * 4))
@@ -244,8 +257,15 @@ def usd_frames(path: str, color: str = "none", provenance=None, colliders: str =
     check_usd_path(path)
     if colliders not in COLLIDER_PURPOSES:
         raise WarpclothError(f"--usd-colliders must be one of {', '.join(COLLIDER_PURPOSES)}, got {colliders!r}")
-    return lambda sim, cfg: UsdWriter(path, sim.model, cfg.fps, provenance=provenance(sim, cfg) if provenance else None,
-                                      color=color, colliders=sim.control.colliders, colliders_purpose=colliders)
+    return lambda sim, cfg: UsdWriter(
+        path,
+        sim.model,
+        cfg.fps,
+        provenance=provenance(sim, cfg) if provenance else None,
+        color=color,
+        colliders=sim.control.colliders,
+        colliders_purpose=colliders,
+    )
 
 
 class UsdWriter:
@@ -268,9 +288,18 @@ class UsdWriter:
     one file): the stage reads its samples from there, so the two travel together.
     """
 
-    def __init__(self, path: str, model, fps: float = 60.0, provenance: dict | None = None, color: str | None = None,
-                 strain_scale: float = DEFAULT_STRAIN_SCALE, clip_frames: int | None = None, colliders=(),
-                 colliders_purpose: str = "guide"):
+    def __init__(
+        self,
+        path: str,
+        model,
+        fps: float = 60.0,
+        provenance: dict | None = None,
+        color: str | None = None,
+        strain_scale: float = DEFAULT_STRAIN_SCALE,
+        clip_frames: int | None = None,
+        colliders=(),
+        colliders_purpose: str = "guide",
+    ):
         from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
         self._Gf, self._Vt = Gf, Vt
@@ -313,11 +342,15 @@ class UsdWriter:
         self.extent_attr = self.mesh.CreateExtentAttr()
         pinned = np.zeros(model.particle_count, dtype=np.int32)
         pinned[model.pinned] = 1
-        primvar = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("pinned", Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.vertex)
+        primvar = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar(
+            "pinned", Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.vertex
+        )
         primvar.Set(Vt.IntArray(pinned.tolist()))
         uv = model.host.get("uv")
         if uv is not None:  # texture coordinates per triangle corner (grids, meshes read with UVs)
-            st = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+            st = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar(
+                "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
+            )
             st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(uv, dtype=np.float32).reshape(-1, 2)))
         self._pin_idx = np.asarray(model.pinned, dtype=np.int64)
         self.pins = self.pins_attr = self.pins_extent_attr = None
@@ -333,13 +366,18 @@ class UsdWriter:
             from warpcloth.io.frames import spring_arrays
 
             self._springs = spring_arrays(model)
-            pv = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex)
+            pv = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar(
+                "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex
+            )
             self.color_attr = pv.GetAttr()
-            self.mesh.GetPrim().SetCustomDataByKey("warpcloth:displayColor", f"spring strain, blue 0 to red {self.strain_scale:g}")
+            self.mesh.GetPrim().SetCustomDataByKey(
+                "warpcloth:displayColor", f"spring strain, blue 0 to red {self.strain_scale:g}"
+            )
         rest = model.host["q"]
         size = float(np.max(rest.max(axis=0) - rest.min(axis=0))) if len(rest) else 1.0
-        self.colliders = ColliderPrims(self.stage, "/World/Colliders", colliders, plane_size=max(4.0, 10.0 * size),
-                                       purpose=colliders_purpose)
+        self.colliders = ColliderPrims(
+            self.stage, "/World/Colliders", colliders, plane_size=max(4.0, 10.0 * size), purpose=colliders_purpose
+        )
         self.frames = 0
         self._first_points = None
         self.last_code = -1.0
@@ -384,9 +422,13 @@ class UsdWriter:
             failure = None
             try:
                 self._flush_clip()
-            except Exception as exc:  # a full disk while a clip is saved: one line (OutputError, exit 74), not pxr's text
+            except (
+                Exception
+            ) as exc:  # a full disk while a clip is saved: one line (OutputError, exit 74), not pxr's text
                 failure = _usd_failure(exc, self.path, self._tmp)
-            if failure is not None:  # raised outside the handler: pxr's exception (and the clip layer its frames hold) is freed
+            if (
+                failure is not None
+            ):  # raised outside the handler: pxr's exception (and the clip layer its frames hold) is freed
                 self.abort()
                 raise failure
 
@@ -403,7 +445,12 @@ class UsdWriter:
             self.pins_extent_attr.Set(self._pin_extent(self._pins_first), self._clip_first)
         layer = self.stage.GetRootLayer()
         sampled = []
-        layer.Traverse(Sdf.Path.absoluteRootPath, lambda path: sampled.append(path) if path.IsPropertyPath() and layer.GetNumTimeSamplesForPath(path) else None)
+        layer.Traverse(
+            Sdf.Path.absoluteRootPath,
+            lambda path: (
+                sampled.append(path) if path.IsPropertyPath() and layer.GetNumTimeSamplesForPath(path) else None
+            ),
+        )
         os.makedirs(self._clip_dir_tmp, exist_ok=True)
         name = f"clip_{len(self._clips):05d}.usdc"
         clip = Sdf.Layer.CreateNew(os.path.join(self._clip_dir_tmp, name))
@@ -475,10 +522,13 @@ class UsdWriter:
         try:
             self._finish_clips()
             if not self._clips and self.frames:  # the first frame as the default too: a reader that asks for no
-                first = self._first_points       # time (a mesh input, a DCC's rest pose) gets the cloth, not nothing
+                first = self._first_points  # time (a mesh input, a DCC's rest pose) gets the cloth, not nothing
                 self.points_attr.Set(self._Vt.Vec3fArray.FromNumpy(first))
-                self.extent_attr.Set(self._Vt.Vec3fArray([self._Gf.Vec3f(*map(float, first.min(axis=0))),
-                                                          self._Gf.Vec3f(*map(float, first.max(axis=0)))]))
+                self.extent_attr.Set(
+                    self._Vt.Vec3fArray(
+                        [self._Gf.Vec3f(*map(float, first.min(axis=0))), self._Gf.Vec3f(*map(float, first.max(axis=0)))]
+                    )
+                )
             self.stage.SetStartTimeCode(0.0)
             self.stage.SetEndTimeCode(max(0.0, self.last_code))
             if not self.stage.GetRootLayer().Save():
@@ -521,8 +571,10 @@ class UsdWriter:
         text = f"{self.path} ({os.path.getsize(self.path):,} bytes, {self.frames} frames)"
         if self.clip_folder:
             count = len(self._clips)
-            text += (f", samples in {self.clip_folder}{os.sep} ({count} clip{'s' * (count != 1)}: "
-                     f"keep the folder beside the file)")
+            text += (
+                f", samples in {self.clip_folder}{os.sep} ({count} clip{'s' * (count != 1)}: "
+                f"keep the folder beside the file)"
+            )
         return text
 
     def abort(self) -> None:

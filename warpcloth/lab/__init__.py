@@ -20,9 +20,19 @@ first use only, so a sweep does not pay for it.
 """
 
 _REFERENCE = (
-    "ContactEquilibrium", "Convergence", "Equilibrium", "Float64Model", "cloth_size", "contact_equilibrium",
-    "convergence_check", "reference_forces",
-    "reference_trajectory", "simulate_frames", "static_equilibrium", "swing_from_horizontal", "trajectory_error",
+    "ContactEquilibrium",
+    "Convergence",
+    "Equilibrium",
+    "Float64Model",
+    "cloth_size",
+    "contact_equilibrium",
+    "convergence_check",
+    "reference_forces",
+    "reference_trajectory",
+    "simulate_frames",
+    "static_equilibrium",
+    "swing_from_horizontal",
+    "trajectory_error",
     "wind_switch_times",
 )
 

@@ -29,9 +29,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from warpcloth.errors import WarpclothError, require
+from warpcloth.lab.reference import (
+    cloth_size,
+    reference_trajectory,
+    simulate_frames,
+    static_equilibrium,
+    swing_from_horizontal,
+    trajectory_error,
+)
 from warpcloth.run.harness import RunHarness
-from warpcloth.lab.reference import (cloth_size, reference_trajectory, simulate_frames, static_equilibrium,
-                                     swing_from_horizontal, trajectory_error)
 
 #: The frame of every accuracy run [s]: trial dts are FRAME_DT / k.
 FRAME_DT = 1.0 / 60.0
@@ -88,8 +94,10 @@ class AccuracyProblem:
 
     def __init__(self, sim, transient: Transient, rtol: float = 1e-10, atol: float = 1e-12):
         # DOP853 up to SCIPY_MAX_SIZE particles a side, the float64 Warp RK4 above (reference_for)
-        require(transient.frames >= 1 and abs(transient.frames * FRAME_DT - transient.duration) < 1e-9,
-                f"transient duration {transient.duration!r} s must be a whole number of 1/60 s frames")
+        require(
+            transient.frames >= 1 and abs(transient.frames * FRAME_DT - transient.duration) < 1e-9,
+            f"transient duration {transient.duration!r} s must be a whole number of 1/60 s frames",
+        )
         self.transient = transient
         self.size = cloth_size(sim.model)
         x0 = swing_from_horizontal(sim.model) if transient.swing else sim.model.host["q"].astype(np.float64)
@@ -162,9 +170,17 @@ class StaticProblem:
         err = float(np.max(np.linalg.norm(x - self.x_eq, axis=1)) / self.size) if finite else math.inf
         sag = float(np.max(np.linalg.norm(x - self.rest, axis=1))) if finite else math.inf
         sag_err = abs(sag - self.sag) / self.sag if self.sag > 0 else 0.0
-        return StaticAccuracy(dt=dt, error=err, sag_error=sag_err, equilibrium_reached=r.equilibrium_reached,
-                              time_to_equilibrium=r.time_to_equilibrium, time_to_equilibrium_wall=r.time_to_equilibrium_wall,
-                              sim_time=r.sim_time, wall_time=r.wall_time, stable=r.stable and finite)
+        return StaticAccuracy(
+            dt=dt,
+            error=err,
+            sag_error=sag_err,
+            equilibrium_reached=r.equilibrium_reached,
+            time_to_equilibrium=r.time_to_equilibrium,
+            time_to_equilibrium_wall=r.time_to_equilibrium_wall,
+            sim_time=r.sim_time,
+            wall_time=r.wall_time,
+            stable=r.stable and finite,
+        )
 
 
 # -- references ----------------------------------------------------------------------------
@@ -191,8 +207,12 @@ def reference_for(model, control, frames: int, x0, rtol: float = 1e-10, atol: fl
     estimates saying by how much; a window that needs more is ill-conditioned, and its floor says so)."""
     n = max(int(model.rows or 0), int(model.cols or 0)) or int(round(math.sqrt(model.particle_count)))
     if n <= SCIPY_MAX_SIZE:
-        return Reference(reference_trajectory(model, control, frames * FRAME_DT, FRAME_DT, x0=x0, rtol=rtol, atol=atol),
-                         None, True, "DOP853")
+        return Reference(
+            reference_trajectory(model, control, frames * FRAME_DT, FRAME_DT, x0=x0, rtol=rtol, atol=atol),
+            None,
+            True,
+            "DOP853",
+        )
     from warpcloth.lab.reference_warp import warp_reference
 
     r = warp_reference(model, control, frames * FRAME_DT, FRAME_DT, x0=x0, max_halvings=1, require_accepted=False)
@@ -229,8 +249,11 @@ class _Shape:
         rows, cols = int(model.rows or 0), int(model.cols or 0)
         if rows * cols == model.particle_count and rows >= 1:
             grid = np.arange(rows * cols).reshape(rows, cols)
-            self.patches = [grid[np.ix_(r, c)].ravel() for r in np.array_split(np.arange(rows), min(4, rows))
-                            for c in np.array_split(np.arange(cols), min(4, cols))]
+            self.patches = [
+                grid[np.ix_(r, c)].ravel()
+                for r in np.array_split(np.arange(rows), min(4, rows))
+                for c in np.array_split(np.arange(cols), min(4, cols))
+            ]
         else:
             self.patches = [np.arange(model.particle_count)]
         from warpcloth.sim.model import SpringType
@@ -246,7 +269,9 @@ class _Shape:
         return np.einsum("n,fnk->fk", self.mass, x) / self.mass.sum()
 
     def patch_means(self, x):  # (F, N, 3) -> (F, P, 3)
-        return np.stack([np.einsum("n,fnk->fk", self.mass[p], x[:, p]) / self.mass[p].sum() for p in self.patches], axis=1)
+        return np.stack(
+            [np.einsum("n,fnk->fk", self.mass[p], x[:, p]) / self.mass[p].sum() for p in self.patches], axis=1
+        )
 
     def kinetic(self, x, interval: float):  # frame-difference kinetic energy per interval (F - 1,)
         v = np.diff(x, axis=0) / interval
@@ -269,11 +294,14 @@ def trajectory_metrics(traj, ref, size: float, shape: "_Shape", interval: float)
     b = np.asarray(ref, dtype=np.float64)
     require(a.shape == b.shape, f"trajectories differ in shape: {a.shape} vs {b.shape}")
     ke, ke_ref = shape.kinetic(a, interval), shape.kinetic(b, interval)
-    return {"point": float(np.max(np.linalg.norm(a - b, axis=-1)) / size),
-            "centroid": float(np.max(np.linalg.norm(shape.centroid(a) - shape.centroid(b), axis=-1)) / size),
-            "patch": float(np.max(np.linalg.norm(shape.patch_means(a) - shape.patch_means(b), axis=-1)) / size),
-            "damping": float(1.0 - ke.sum() / ke_ref.sum()) if ke_ref.sum() > 0 else 0.0,
-            "stretch": shape.max_strain(a), "stretch_ref": shape.max_strain(b)}
+    return {
+        "point": float(np.max(np.linalg.norm(a - b, axis=-1)) / size),
+        "centroid": float(np.max(np.linalg.norm(shape.centroid(a) - shape.centroid(b), axis=-1)) / size),
+        "patch": float(np.max(np.linalg.norm(shape.patch_means(a) - shape.patch_means(b), axis=-1)) / size),
+        "damping": float(1.0 - ke.sum() / ke_ref.sum()) if ke_ref.sum() > 0 else 0.0,
+        "stretch": shape.max_strain(a),
+        "stretch_ref": shape.max_strain(b),
+    }
 
 
 def floor_of(metrics: dict) -> dict:
@@ -308,8 +336,11 @@ class TransientProblem:
     :meth:`floor`."""
 
     def __init__(self, sim, transient, frames: int, reference: Reference | None = None):
-        require(int(frames) >= 2 and int(frames) % 2 == 0, f"a transient's window must be an even number of frames >= 2 "
-                                                            f"(dt = 1/30 s runs compare every other frame), got {frames!r}")
+        require(
+            int(frames) >= 2 and int(frames) % 2 == 0,
+            f"a transient's window must be an even number of frames >= 2 "
+            f"(dt = 1/30 s runs compare every other frame), got {frames!r}",
+        )
         self.transient = transient
         self.frames = int(frames)
         self.size = cloth_size(sim.model)
@@ -353,8 +384,9 @@ class TransientProblem:
         if not np.all(np.isfinite(traj)):
             return RunMetrics(None, False, wall, "unstable: the state went non-finite")
         stride, _ = sample_stride(k)
-        return RunMetrics(trajectory_metrics(traj, self.reference[::stride], self.size, self.shape, FRAME_DT * stride),
-                          True, wall)
+        return RunMetrics(
+            trajectory_metrics(traj, self.reference[::stride], self.size, self.shape, FRAME_DT * stride), True, wall
+        )
 
     def floor(self, sim, seeds=(0, 1)) -> dict:
         """The conditioning floor: per metric, the max over ``seeds`` of its value between the
@@ -368,8 +400,9 @@ class TransientProblem:
             else:
                 from warpcloth.lab.reference_warp import warp_trajectory
 
-                traj = warp_trajectory(sim.model, sim.control, self.frames * FRAME_DT, FRAME_DT, x0=x0,
-                                       piece_steps=self.ref.piece_steps)
+                traj = warp_trajectory(
+                    sim.model, sim.control, self.frames * FRAME_DT, FRAME_DT, x0=x0, piece_steps=self.ref.piece_steps
+                )
             f = floor_of(trajectory_metrics(traj, self.reference, self.size, self.shape, FRAME_DT))
             out = {k: max(out.get(k, 0.0), v) for k, v in f.items()}
         return out
@@ -401,8 +434,10 @@ class ContactProblem:
         """rest: max |x - x_eq| / size; sag: |sag - sag_eq| / sag_eq (sag: the largest displacement
         from the hanging rest shape)."""
         sag = float(np.max(np.linalg.norm(x - self.rest, axis=1)))
-        return {"rest": float(np.max(np.linalg.norm(x - self.x_eq, axis=1)) / self.size),
-                "sag": abs(sag - self.sag) / self.sag if self.sag > 0 else 0.0}
+        return {
+            "rest": float(np.max(np.linalg.norm(x - self.x_eq, axis=1)) / self.size),
+            "sag": abs(sag - self.sag) / self.sag if self.sag > 0 else 0.0,
+        }
 
     def floor(self, sim, seeds=(0, 1)) -> dict:
         """The floor of the static metrics: the equilibrium solved again from itself moved by
@@ -411,7 +446,9 @@ class ContactProblem:
 
         out = {}
         for seed in seeds:
-            eq = contact_equilibrium(sim.model, sim.control, x0=_perturbed(sim.model, self.x_eq, seed), kappa=self.kappa)
+            eq = contact_equilibrium(
+                sim.model, sim.control, x0=_perturbed(sim.model, self.x_eq, seed), kappa=self.kappa
+            )
             out = {k: max(out.get(k, 0.0), v) for k, v in self.metrics(eq.x).items()}
         return out
 
@@ -427,9 +464,17 @@ class ContactProblem:
         x = sim.state.particle_q.numpy().astype(np.float64)
         finite = bool(np.all(np.isfinite(x)))
         m = self.metrics(x) if finite else {"rest": math.inf, "sag": math.inf}
-        return StaticAccuracy(dt=FRAME_DT / k, error=m["rest"], sag_error=m["sag"], equilibrium_reached=r.equilibrium_reached,
-                              time_to_equilibrium=r.time_to_equilibrium, time_to_equilibrium_wall=r.time_to_equilibrium_wall,
-                              sim_time=r.sim_time, wall_time=r.wall_time, stable=r.stable and finite)
+        return StaticAccuracy(
+            dt=FRAME_DT / k,
+            error=m["rest"],
+            sag_error=m["sag"],
+            equilibrium_reached=r.equilibrium_reached,
+            time_to_equilibrium=r.time_to_equilibrium,
+            time_to_equilibrium_wall=r.time_to_equilibrium_wall,
+            sim_time=r.sim_time,
+            wall_time=r.wall_time,
+            stable=r.stable and finite,
+        )
 
 
 def check_tolerance(tolerance) -> float:
@@ -439,11 +484,33 @@ def check_tolerance(tolerance) -> float:
     except (TypeError, ValueError):
         raise WarpclothError(f"--tolerance must be a number in (0, 1), e.g. 0.01 for 1 %, got {tolerance!r}") from None
     if not (math.isfinite(t) and 0.0 < t < 1.0):
-        raise WarpclothError(f"--tolerance must be in (0, 1) (a fraction of the cloth size, e.g. 0.01), got {tolerance!r}")
+        raise WarpclothError(
+            f"--tolerance must be in (0, 1) (a fraction of the cloth size, e.g. 0.01), got {tolerance!r}"
+        )
     return t
 
 
-__all__ = ["AccuracyProblem", "ContactProblem", "DEFAULT_TOLERANCE", "FLOOR_FRACTION", "FRAME_DT", "METRICS",
-           "PERTURBATION", "Reference", "RunMetrics", "SCIPY_MAX_SIZE", "STATIC_METRICS", "StaticAccuracy", "StaticProblem",
-           "TOLERANCES", "Transient", "TransientProblem", "check_tolerance", "reference_for", "refused", "sample_stride",
-           "steps_per_frame_at_most", "trajectory_metrics"]
+__all__ = [
+    "AccuracyProblem",
+    "ContactProblem",
+    "DEFAULT_TOLERANCE",
+    "FLOOR_FRACTION",
+    "FRAME_DT",
+    "METRICS",
+    "PERTURBATION",
+    "Reference",
+    "RunMetrics",
+    "SCIPY_MAX_SIZE",
+    "STATIC_METRICS",
+    "StaticAccuracy",
+    "StaticProblem",
+    "TOLERANCES",
+    "Transient",
+    "TransientProblem",
+    "check_tolerance",
+    "reference_for",
+    "refused",
+    "sample_stride",
+    "steps_per_frame_at_most",
+    "trajectory_metrics",
+]

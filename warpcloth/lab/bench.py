@@ -22,15 +22,45 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require
-from warpcloth.io.files import AtomicFile, csv_cell, OutputError, describe_write_error, write_atomic
+from warpcloth.io.files import AtomicFile, OutputError, csv_cell, describe_write_error, write_atomic
 
 #: Columns of the benchmark CSV: the study's naming (units in the names, booleans true/false).
 COLUMNS = [
-    "scenario", "integrator", "device", "graph", "rows", "cols", "particles", "springs", "dt_s", "timed_windows",
-    "steps_timed", "steps_per_window", "ms_per_step_median", "ms_per_step_min", "ms_per_step_max", "steps_per_s", "springs_per_s",
-    "wall_s_per_sim_s", "realtime_factor", "realtime_30fps", "realtime_60fps", "compile_s", "speedup_vs_cpu",
-    "force_evals_per_step", "roofline_ms", "floor_multiple", "stable", "solver_iterations_mean", "solver_converged",
-    "solver_capped_steps", "host", "cpu", "gpu", "warp_version", "warpcloth_version",
+    "scenario",
+    "integrator",
+    "device",
+    "graph",
+    "rows",
+    "cols",
+    "particles",
+    "springs",
+    "dt_s",
+    "timed_windows",
+    "steps_timed",
+    "steps_per_window",
+    "ms_per_step_median",
+    "ms_per_step_min",
+    "ms_per_step_max",
+    "steps_per_s",
+    "springs_per_s",
+    "wall_s_per_sim_s",
+    "realtime_factor",
+    "realtime_30fps",
+    "realtime_60fps",
+    "compile_s",
+    "speedup_vs_cpu",
+    "force_evals_per_step",
+    "roofline_ms",
+    "floor_multiple",
+    "stable",
+    "solver_iterations_mean",
+    "solver_converged",
+    "solver_capped_steps",
+    "host",
+    "cpu",
+    "gpu",
+    "warp_version",
+    "warpcloth_version",
 ]
 
 #: Timed windows per combination (median and spread).
@@ -62,9 +92,14 @@ def roofline_ms(model, repeats: int = 50) -> float:
     d = model.device
     with wp.ScopedDevice(d):
         args = [
-            model.particle_q, wp.zeros_like(model.particle_q), wp.array(offsets, dtype=int), wp.array(pairs, dtype=wp.vec2i),
-            wp.array(model.spring_rest_length.numpy()[order]), wp.array(model.spring_stiffness.numpy()[order]),
-            wp.array(model.spring_damping.numpy()[order]), wp.zeros_like(model.particle_q),
+            model.particle_q,
+            wp.zeros_like(model.particle_q),
+            wp.array(offsets, dtype=int),
+            wp.array(pairs, dtype=wp.vec2i),
+            wp.array(model.spring_rest_length.numpy()[order]),
+            wp.array(model.spring_stiffness.numpy()[order]),
+            wp.array(model.spring_damping.numpy()[order]),
+            wp.zeros_like(model.particle_q),
         ]
         wp.launch(rk.roofline_stream, dim=model.particle_count, inputs=args)
         wp.synchronize_device(d)
@@ -80,9 +115,11 @@ def roofline_ms(model, repeats: int = 50) -> float:
             def run():
                 wp.capture_launch(cap.graph)
         else:
+
             def run():
                 for _ in range(batch):
                     wp.launch(rk.roofline_stream, dim=model.particle_count, inputs=args)
+
         run()
         wp.synchronize_device(d)
         times = []
@@ -102,15 +139,23 @@ def _build(scenario: str, size: int | None, device: str, **kwargs):
     return get_scenario(scenario).build(device=device, **grid, **kwargs)
 
 
-def bench_one(integrator: str, size: int | None, device: str, graph: bool, steps: int | None, seconds: float,
-              scenario: str = "sheet", windows: int = DEFAULT_WINDOWS) -> dict:
+def bench_one(
+    integrator: str,
+    size: int | None,
+    device: str,
+    graph: bool,
+    steps: int | None,
+    seconds: float,
+    scenario: str = "sheet",
+    windows: int = DEFAULT_WINDOWS,
+) -> dict:
     """Time one integrator on a size x size grid of ``scenario`` (the sheet by default), or on a
     mesh scenario's own mesh (``size`` None), with :func:`warpcloth.run.harness.time_steps`:
     ``windows`` timed windows of about ``seconds / windows`` each (or ``steps`` steps in all),
     warm-up and first replay excluded. Returns a CSV row (without cross-row columns)."""
-    from warpcloth.version import __version__
-    from warpcloth.run.harness import time_steps
     from warpcloth.io.provenance import machine
+    from warpcloth.run.harness import time_steps
+    from warpcloth.version import __version__
 
     sim = _build(scenario, size, device, integrator=integrator)
     sim.use_graph = graph
@@ -127,17 +172,41 @@ def bench_one(integrator: str, size: int | None, device: str, graph: bool, steps
     converged, capped, _ = sim.integrator.convergence(stats)
     where = machine(device)
     return {
-        "scenario": scenario, "integrator": integrator, "device": device, "graph": graph, "rows": m.rows, "cols": m.cols,
-        "particles": m.particle_count, "springs": m.spring_count, "dt_s": sim.dt, "timed_windows": len(timing.ms_per_step),
-        "steps_timed": timing.steps, "steps_per_window": timing.steps_per_window, "ms_per_step_median": ms, "ms_per_step_min": timing.min_ms,
-        "ms_per_step_max": timing.max_ms, "steps_per_s": 1000.0 / ms, "springs_per_s": m.spring_count * 1000.0 / ms,
-        "wall_s_per_sim_s": timing.wall_s_per_sim_s, "realtime_factor": timing.realtime_factor,
-        "realtime_30fps": timing.realtime(30.0), "realtime_60fps": timing.realtime(60.0), "compile_s": timing.compile_s,
-        "speedup_vs_cpu": "", "force_evals_per_step": sim.integrator.force_evals_per_step, "roofline_ms": "", "floor_multiple": "",
-        "stable": finite, "solver_iterations_mean": iters, "solver_converged": "" if converged is None else converged,
-        "solver_capped_steps": capped, "host": where["host"], "cpu": f"{where['cpu']} ({where['cores']} logical cores)",
+        "scenario": scenario,
+        "integrator": integrator,
+        "device": device,
+        "graph": graph,
+        "rows": m.rows,
+        "cols": m.cols,
+        "particles": m.particle_count,
+        "springs": m.spring_count,
+        "dt_s": sim.dt,
+        "timed_windows": len(timing.ms_per_step),
+        "steps_timed": timing.steps,
+        "steps_per_window": timing.steps_per_window,
+        "ms_per_step_median": ms,
+        "ms_per_step_min": timing.min_ms,
+        "ms_per_step_max": timing.max_ms,
+        "steps_per_s": 1000.0 / ms,
+        "springs_per_s": m.spring_count * 1000.0 / ms,
+        "wall_s_per_sim_s": timing.wall_s_per_sim_s,
+        "realtime_factor": timing.realtime_factor,
+        "realtime_30fps": timing.realtime(30.0),
+        "realtime_60fps": timing.realtime(60.0),
+        "compile_s": timing.compile_s,
+        "speedup_vs_cpu": "",
+        "force_evals_per_step": sim.integrator.force_evals_per_step,
+        "roofline_ms": "",
+        "floor_multiple": "",
+        "stable": finite,
+        "solver_iterations_mean": iters,
+        "solver_converged": "" if converged is None else converged,
+        "solver_capped_steps": capped,
+        "host": where["host"],
+        "cpu": f"{where['cpu']} ({where['cores']} logical cores)",
         "gpu": where["gpu"],
-        "warp_version": wp.config.version, "warpcloth_version": __version__,
+        "warp_version": wp.config.version,
+        "warpcloth_version": __version__,
     }
 
 
@@ -162,17 +231,28 @@ def plot(path: str, rows: list[dict]) -> bool:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        print("bench: --plot needs matplotlib (pip install 'warpcloth[plot]', from a clone pip install -e '.[plot]'); no plot written", file=sys.stderr)
+        print(
+            "bench: --plot needs matplotlib (pip install 'warpcloth[plot]', from a clone pip install -e '.[plot]'); no plot written",
+            file=sys.stderr,
+        )
         return False
     fig, ax = plt.subplots(figsize=(8, 5.5))
     keys = sorted({(r["integrator"], r["device"], r["graph"]) for r in rows})
     integrators = sorted({k[0] for k in keys})
     colors = {name: plt.get_cmap("tab10")(i % 10) for i, name in enumerate(integrators)}  # one colour per integrator
     for integ, dev, graph in keys:
-        sel = sorted((r for r in rows if (r["integrator"], r["device"], r["graph"]) == (integ, dev, graph)), key=lambda r: r["particles"])
-        ax.plot([r["particles"] for r in sel], [r["wall_s_per_sim_s"] for r in sel], color=colors[integ],
-                marker="o" if dev == "cpu" else "s", linestyle="-" if graph else "--",
-                label=f"{integ} {dev}{' graph' if graph else ''}")
+        sel = sorted(
+            (r for r in rows if (r["integrator"], r["device"], r["graph"]) == (integ, dev, graph)),
+            key=lambda r: r["particles"],
+        )
+        ax.plot(
+            [r["particles"] for r in sel],
+            [r["wall_s_per_sim_s"] for r in sel],
+            color=colors[integ],
+            marker="o" if dev == "cpu" else "s",
+            linestyle="-" if graph else "--",
+            label=f"{integ} {dev}{' graph' if graph else ''}",
+        )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("particles")
@@ -197,12 +277,18 @@ def plot(path: str, rows: list[dict]) -> bool:
 
 
 def format_table(rows: list[dict]) -> str:
-    head = (f"{'integrator':15s} {'device':7s} {'graph':5s} {'size':>9s} {'particles':>9s} {'ms/step':>10s} {'[min-max]':>19s} "
-            f"{'wall s/sim s':>12s} {'RT factor':>9s} {'x floor':>8s} {'CUDA x':>7s}")
+    head = (
+        f"{'integrator':15s} {'device':7s} {'graph':5s} {'size':>9s} {'particles':>9s} {'ms/step':>10s} {'[min-max]':>19s} "
+        f"{'wall s/sim s':>12s} {'RT factor':>9s} {'x floor':>8s} {'CUDA x':>7s}"
+    )
     lines = [head, "-" * len(head)]
     for r in rows:
+
         def fmt(v, spec):
-            return format(v, spec) if isinstance(v, (int, float)) else format(str(v), ">" + spec.split(".")[0].lstrip(">"))
+            return (
+                format(v, spec) if isinstance(v, (int, float)) else format(str(v), ">" + spec.split(".")[0].lstrip(">"))
+            )
+
         lines.append(
             f"{r['integrator']:15s} {r['device']:7s} {('yes' if r['graph'] else 'no'):5s} {str(r['rows']) + 'x' + str(r['cols']):>9s} "
             f"{r['particles']:>9d} {r['ms_per_step_median']:>10.4f} {'[' + format(r['ms_per_step_min'], '.4g') + '-' + format(r['ms_per_step_max'], '.4g') + ']':>19s} "

@@ -31,9 +31,19 @@ COTTON_DENSITY, COTTON_RIGIDITY = 0.220, 31.4e-6
 GRAVITY = 9.81
 
 
-def cantilever_strip(integrator, cols: int = 32, overhang: float = 0.05, width: float = 0.01, rows: int = 2,
-                     density: float = COTTON_DENSITY, rigidity: float = COTTON_RIGIDITY, stiffness: float = 1000.0,
-                     drag: float | None = None, dt: float | None = None, device: str = "cpu") -> Simulator:
+def cantilever_strip(
+    integrator,
+    cols: int = 32,
+    overhang: float = 0.05,
+    width: float = 0.01,
+    rows: int = 2,
+    density: float = COTTON_DENSITY,
+    rigidity: float = COTTON_RIGIDITY,
+    stiffness: float = 1000.0,
+    drag: float | None = None,
+    dt: float | None = None,
+    device: str = "cpu",
+) -> Simulator:
     """A :class:`~warpcloth.simulator.Simulator` of the clamped strip (module docstring).
 
     Args:
@@ -52,8 +62,20 @@ def cantilever_strip(integrator, cols: int = 32, overhang: float = 0.05, width: 
     mass = density * length * width
     pins = [r * cols + c for r in range(rows) for c in (0, 1)]
     params = default_spring_params(mass / (rows * cols), stiffness)
-    model = build_grid_cloth(rows, cols, length, width, mass, spring_params=params, pins=pins, plane="horizontal",
-                             bend="dihedral", bend_rigidity=rigidity, mass_mode="area", device=device)
+    model = build_grid_cloth(
+        rows,
+        cols,
+        length,
+        width,
+        mass,
+        spring_params=params,
+        pins=pins,
+        plane="horizontal",
+        bend="dihedral",
+        bend_rigidity=rigidity,
+        mass_mode="area",
+        device=device,
+    )
     if drag is None:
         drag = 2.0 * first_mode(overhang, rigidity, density)
     return Simulator(model, integrator, Control(drag_rate=drag, device=device), dt=dt)
@@ -71,7 +93,9 @@ def strip_tip_drop(sim: Simulator) -> float:
     return float(y[:, 0].mean() - y[:, -1].mean())
 
 
-def elastica_tip_drop(overhang: float = 0.05, rigidity: float = COTTON_RIGIDITY, density: float = COTTON_DENSITY) -> float:
+def elastica_tip_drop(
+    overhang: float = 0.05, rigidity: float = COTTON_RIGIDITY, density: float = COTTON_DENSITY
+) -> float:
     """The inextensible elastica's tip drop [m] for the strip."""
     return tip_deflection(overhang, rigidity, density * GRAVITY)[0]
 

@@ -92,8 +92,15 @@ def project(positions, triangles, up="y") -> tuple[np.ndarray, np.ndarray, tuple
     return p[:, list(axes)], t, axes
 
 
-def shadow(positions, triangles, up="y", pixel: float | None = None, extent: float | None = None,
-           center=(0.0, 0.0), chunk: int = 1_000_000) -> Shadow:
+def shadow(
+    positions,
+    triangles,
+    up="y",
+    pixel: float | None = None,
+    extent: float | None = None,
+    center=(0.0, 0.0),
+    chunk: int = 1_000_000,
+) -> Shadow:
     """Rasterise the union of the triangles' top-down projections.
 
     Args:
@@ -184,8 +191,9 @@ def polar_profile(sh: Shadow, center=(0.0, 0.0), bin_deg: float = 0.5, sigma_deg
     return angles, radius
 
 
-def node_count(radius: np.ndarray, bin_deg: float = 0.5, min_prominence: float = 2e-3,
-               min_separation_deg: float = 15.0) -> int:
+def node_count(
+    radius: np.ndarray, bin_deg: float = 0.5, min_prominence: float = 2e-3, min_separation_deg: float = 15.0
+) -> int:
     """Peaks of a periodic outline R(phi) (one value per ``bin_deg`` bin): prominence >= max(
     ``min_prominence`` [m], 0.1 (R_max - R_min)), at least ``min_separation_deg`` apart, counted
     once per period (found on the profile repeated three times, kept in the middle period, so that
@@ -200,8 +208,9 @@ def node_count(radius: np.ndarray, bin_deg: float = 0.5, min_prominence: float =
     return int(np.count_nonzero((peaks >= n) & (peaks < 2 * n)))
 
 
-def drape_coefficient(projected: float, specimen_radius: float = SPECIMEN_RADIUS,
-                      pedestal_radius: float = PEDESTAL_RADIUS) -> float:
+def drape_coefficient(
+    projected: float, specimen_radius: float = SPECIMEN_RADIUS, pedestal_radius: float = PEDESTAL_RADIUS
+) -> float:
     """DC = (A_proj - pi R_p^2) / (pi R_s^2 - pi R_p^2) for a shadow area ``projected`` [m^2]."""
     rs = require_positive("specimen radius", specimen_radius, "m")
     rp = require_positive("pedestal radius", pedestal_radius, "m")
@@ -210,9 +219,16 @@ def drape_coefficient(projected: float, specimen_radius: float = SPECIMEN_RADIUS
     return (float(projected) - a_ped) / (math.pi * rs * rs - a_ped)
 
 
-def cusick_drape(positions, triangles, up="y", center=(0.0, 0.0), specimen_radius: float = SPECIMEN_RADIUS,
-                 pedestal_radius: float = PEDESTAL_RADIUS, pixel: float | None = None,
-                 min_prominence: float = 2e-3) -> DrapeResult:
+def cusick_drape(
+    positions,
+    triangles,
+    up="y",
+    center=(0.0, 0.0),
+    specimen_radius: float = SPECIMEN_RADIUS,
+    pedestal_radius: float = PEDESTAL_RADIUS,
+    pixel: float | None = None,
+    min_prominence: float = 2e-3,
+) -> DrapeResult:
     """Drape coefficient and node count of a draped cloth (positions [m], triangles).
 
     ``center`` is the pedestal's axis in the horizontal plane's (a, b) coordinates (the two axes
@@ -226,6 +242,15 @@ def cusick_drape(positions, triangles, up="y", center=(0.0, 0.0), specimen_radiu
 
 
 __all__ = [
-    "DrapeResult", "PEDESTAL_RADIUS", "SPECIMEN_RADIUS", "Shadow", "cusick_drape", "drape_coefficient", "node_count",
-    "polar_profile", "project", "projected_area", "shadow",
+    "DrapeResult",
+    "PEDESTAL_RADIUS",
+    "SPECIMEN_RADIUS",
+    "Shadow",
+    "cusick_drape",
+    "drape_coefficient",
+    "node_count",
+    "polar_profile",
+    "project",
+    "projected_area",
+    "shadow",
 ]

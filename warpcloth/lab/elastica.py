@@ -41,8 +41,9 @@ def _rhs(lam: float):
 def _integrate(lam: float, tip_angle: float, t_eval=None):
     from scipy.integrate import solve_ivp
 
-    return solve_ivp(_rhs(lam), (1.0, 0.0), [tip_angle, 0.0, 0.0, 0.0], method="DOP853", rtol=_RTOL, atol=_ATOL,
-                     t_eval=t_eval)
+    return solve_ivp(
+        _rhs(lam), (1.0, 0.0), [tip_angle, 0.0, 0.0, 0.0], method="DOP853", rtol=_RTOL, atol=_ATOL, t_eval=t_eval
+    )
 
 
 def tip_angle(lam: float) -> float:
@@ -137,7 +138,16 @@ def rigidity_from_overhang(overhang: float, weight: float, angle: float = ASTM_A
 
 
 __all__ = [
-    "ASTM_ANGLE", "bending_length", "cantilever_elastica", "chord_angle_of", "lambda_for_chord_angle",
-    "linear_tip_drop", "peirce_bending_length", "rigidity_from_bending_length", "rigidity_from_overhang",
-    "tip_angle", "tip_chord_angle", "tip_deflection",
+    "ASTM_ANGLE",
+    "bending_length",
+    "cantilever_elastica",
+    "chord_angle_of",
+    "lambda_for_chord_angle",
+    "linear_tip_drop",
+    "peirce_bending_length",
+    "rigidity_from_bending_length",
+    "rigidity_from_overhang",
+    "tip_angle",
+    "tip_chord_angle",
+    "tip_deflection",
 ]

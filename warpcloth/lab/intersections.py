@@ -52,8 +52,12 @@ def _orient2(a, b, c, tol):
 
 def _on_segment2(a, b, p):
     """p (collinear with ab) within the box of ab."""
-    return ((np.minimum(a[:, 0], b[:, 0]) <= p[:, 0]) & (p[:, 0] <= np.maximum(a[:, 0], b[:, 0]))
-            & (np.minimum(a[:, 1], b[:, 1]) <= p[:, 1]) & (p[:, 1] <= np.maximum(a[:, 1], b[:, 1])))
+    return (
+        (np.minimum(a[:, 0], b[:, 0]) <= p[:, 0])
+        & (p[:, 0] <= np.maximum(a[:, 0], b[:, 0]))
+        & (np.minimum(a[:, 1], b[:, 1]) <= p[:, 1])
+        & (p[:, 1] <= np.maximum(a[:, 1], b[:, 1]))
+    )
 
 
 def _segments_meet2(p, q, a, b, tol):
@@ -302,10 +306,12 @@ class IntersectionReport:
 
     def summary(self) -> str:
         bad = self.first_bad_frame()
-        head = (f"{self.frames} frames: {sum(1 for a in self.self_intersections if a)} with self-intersections "
-                f"(max {max(self.self_intersections, default=0)} triangle pairs), "
-                f"{sum(1 for b in self.collider_crossings if b)} with collider edges through the cloth "
-                f"(max {max(self.collider_crossings, default=0)})")
+        head = (
+            f"{self.frames} frames: {sum(1 for a in self.self_intersections if a)} with self-intersections "
+            f"(max {max(self.self_intersections, default=0)} triangle pairs), "
+            f"{sum(1 for b in self.collider_crossings if b)} with collider edges through the cloth "
+            f"(max {max(self.collider_crossings, default=0)})"
+        )
         return head if bad is None else f"{head}; first at frame {bad} (t = {self.times[bad]:g} s)"
 
 
@@ -387,6 +393,17 @@ def check_usd(path: str, cloth: str = "/World/Cloth", colliders: str = "/World/C
     return report
 
 
-__all__ = ["IntersectionReport", "box_segments", "check_frames", "check_usd", "collider_edge_crossings",
-           "collider_segments", "count_self_intersections", "mesh_segments", "segment_crossings",
-           "segments_meet_triangles", "self_intersections", "triangles_intersect"]
+__all__ = [
+    "IntersectionReport",
+    "box_segments",
+    "check_frames",
+    "check_usd",
+    "collider_edge_crossings",
+    "collider_segments",
+    "count_self_intersections",
+    "mesh_segments",
+    "segment_crossings",
+    "segments_meet_triangles",
+    "self_intersections",
+    "triangles_intersect",
+]

@@ -90,18 +90,36 @@ class MaxDtResult:
 
     def to_dict(self) -> dict:
         return {
-            "scenario": self.scenario, "integrator": self.integrator, "device": self.device, "rows": self.rows,
-            "cols": self.cols, "max_dt": self.dt, "unstable_dt": self.unstable_dt, "precision": self.precision,
-            "duration": self.duration, "dt_min": self.dt_min, "dt_max": self.dt_max,
-            "explicit_euler_reference": self.reference, "particle_mass": self.particle_mass,
-            "max_stiffness": self.max_stiffness, "trials": [t.__dict__ for t in self.trials], "wall_time": self.wall_time,
-            "max_strain": self.max_strain, "no_stable_reason": self.no_stable_reason,
+            "scenario": self.scenario,
+            "integrator": self.integrator,
+            "device": self.device,
+            "rows": self.rows,
+            "cols": self.cols,
+            "max_dt": self.dt,
+            "unstable_dt": self.unstable_dt,
+            "precision": self.precision,
+            "duration": self.duration,
+            "dt_min": self.dt_min,
+            "dt_max": self.dt_max,
+            "explicit_euler_reference": self.reference,
+            "particle_mass": self.particle_mass,
+            "max_stiffness": self.max_stiffness,
+            "trials": [t.__dict__ for t in self.trials],
+            "wall_time": self.wall_time,
+            "max_strain": self.max_strain,
+            "no_stable_reason": self.no_stable_reason,
             "verified_duration": self.verified_duration,
         }
 
 
-def trial_stable(harness, dt: float, duration: float, fps: float = 60.0, wall_cap: float | None = None,
-                 stop_at_equilibrium: bool = False) -> Trial:
+def trial_stable(
+    harness,
+    dt: float,
+    duration: float,
+    fps: float = 60.0,
+    wall_cap: float | None = None,
+    stop_at_equilibrium: bool = False,
+) -> Trial:
     """Run the simulator of ``harness`` (a :class:`~warpcloth.run.harness.RunHarness`) from rest
     for ``duration`` seconds at ``dt`` (ending at equilibrium where asked, as the scenario's own
     runs do); is it stable?"""
@@ -110,8 +128,15 @@ def trial_stable(harness, dt: float, duration: float, fps: float = 60.0, wall_ca
     sim.set_dt(dt)
     with Stopwatch(sim.model.device) as watch:
         r = harness.run(duration, fps=fps, stop_at_equilibrium=stop_at_equilibrium, wall_cap=wall_cap, warm_up=False)
-    return Trial(dt=dt, stable=r.stable, reason=r.unstable_reason, capped=r.wall_cap_reached and r.stable,
-                 wall_time=watch.seconds, max_strain=r.max_strain, duration=duration)
+    return Trial(
+        dt=dt,
+        stable=r.stable,
+        reason=r.unstable_reason,
+        capped=r.wall_cap_reached and r.stable,
+        wall_time=watch.seconds,
+        max_strain=r.max_strain,
+        duration=duration,
+    )
 
 
 def find_max_dt(
@@ -157,17 +182,29 @@ def find_max_dt(
     dt_max = require_positive("dt_max", dt_max, "s")
     require(dt_min < dt_max, f"dt_min ({dt_min:g} s) must be below dt_max ({dt_max:g} s)")
     if start is not None:  # a first dt outside the search's bounds is refused, not clamped
-        require(isinstance(start, (int, float)) and math.isfinite(start) and dt_min <= start <= dt_max,
-                f"start must be a finite dt within [dt_min, dt_max] = [{dt_min:g}, {dt_max:g}] s, got {start!r}")
+        require(
+            isinstance(start, (int, float)) and math.isfinite(start) and dt_min <= start <= dt_max,
+            f"start must be a finite dt within [dt_min, dt_max] = [{dt_min:g}, {dt_max:g}] s, got {start!r}",
+        )
 
     t_start = time.perf_counter()
     harness = scenario.harness(config, dt=dt_max)  # an explicit dt: the default may not exist
     sim = harness.sim
     model = sim.model
     result = MaxDtResult(
-        scenario=scenario.name, integrator=sim.integrator.name, device=str(model.device), rows=model.rows,
-        cols=model.cols, dt=None, unstable_dt=None, precision=precision, duration=duration, dt_min=dt_min,
-        dt_max=dt_max, reference=explicit_euler_dt_bound(model), particle_mass=model.particle_mass_value,
+        scenario=scenario.name,
+        integrator=sim.integrator.name,
+        device=str(model.device),
+        rows=model.rows,
+        cols=model.cols,
+        dt=None,
+        unstable_dt=None,
+        precision=precision,
+        duration=duration,
+        dt_min=dt_min,
+        dt_max=dt_max,
+        reference=explicit_euler_dt_bound(model),
+        particle_mass=model.particle_mass_value,
         max_stiffness=model.max_stiffness(),
     )
     reason = sim.integrator.no_stable_dt_reason(model, sim.control.drag_rate)
@@ -220,7 +257,7 @@ def find_max_dt(
         while lo is not None and not test(lo, verify_duration, stop_at_equilibrium):
             stepped = True
             hi = lo
-            lo = lo * 2.0 ** -0.25 if lo * 2.0 ** -0.25 >= dt_min else None
+            lo = lo * 2.0**-0.25 if lo * 2.0**-0.25 >= dt_min else None
         if stepped and lo is not None:
             while (hi - lo) / lo > precision:
                 mid = math.sqrt(lo * hi)
@@ -238,30 +275,50 @@ def find_max_dt(
 def format_result(r: MaxDtResult) -> str:
     """The human-readable report of ``warpcloth max-dt``."""
     verified = f" (the found dt verified over {r.verified_duration:g} s)" if r.verified_duration else ""
-    lines = [f"{r.scenario}: {r.integrator} on {r.device}, {r.rows}x{r.cols}; stable = {r.duration:g} s simulated without going unstable"
-             f"{verified}"]
+    lines = [
+        f"{r.scenario}: {r.integrator} on {r.device}, {r.rows}x{r.cols}; stable = {r.duration:g} s simulated without going unstable"
+        f"{verified}"
+    ]
     if r.no_stable_reason:
         lines.append(f"  no stable dt exists: {r.no_stable_reason}")
     elif r.dt is None:
         lines.append(f"  no stable dt found down to {r.dt_min:.4g} s")
     elif r.unstable_dt is None:
-        lines.append(f"  max stable dt: >= {r.dt:.4g} s (stable up to the search limit {r.dt_max:.4g} s; no instability found)")
+        lines.append(
+            f"  max stable dt: >= {r.dt:.4g} s (stable up to the search limit {r.dt_max:.4g} s; no instability found)"
+        )
     else:
         lines.append(f"  max stable dt: {r.dt:.4g} s (max strain {100 * r.max_strain:.3g} % at that dt)")
-        lines.append(f"  bracket: stable at {r.dt:.4g} s, unstable at {r.unstable_dt:.4g} s "
-                     f"(relative width {(r.unstable_dt - r.dt) / r.dt:.2%}, precision {r.precision:.2%})")
+        lines.append(
+            f"  bracket: stable at {r.dt:.4g} s, unstable at {r.unstable_dt:.4g} s "
+            f"(relative width {(r.unstable_dt - r.dt) / r.dt:.2%}, precision {r.precision:.2%})"
+        )
     top = next((t for t in r.trials if not t.stable and t.dt == r.unstable_dt), None)
     if top is not None:
         lines.append(f"  at {top.dt:.4g} s: {top.reason}")
     if r.limit_reached and r.dt is not None:
         lines.append(f"  max strain at {r.dt:.4g} s: {100 * r.max_strain:.3g} %")
-    lines.append(f"  {len(r.trials)} trials in {r.wall_time:.1f} s wall"
-                 + (f" ({r.inconclusive_trials} stopped by the wall cap, counted as stable)" if r.inconclusive_trials else ""))
+    lines.append(
+        f"  {len(r.trials)} trials in {r.wall_time:.1f} s wall"
+        + (f" ({r.inconclusive_trials} stopped by the wall cap, counted as stable)" if r.inconclusive_trials else "")
+    )
     if r.integrator == "explicit_euler":
-        ratio = f"; found / reference = {r.dt / r.reference:.2f}" if r.dt is not None and math.isfinite(r.reference) else ""
-        lines.append(f"  explicit-Euler reference 0.4 pi sqrt(m/K) (seed 4.2.2): {r.reference:.4g} s "
-                     f"(m = {r.particle_mass:.4g} kg, K = {r.max_stiffness:.4g} N/m){ratio}")
+        ratio = (
+            f"; found / reference = {r.dt / r.reference:.2f}" if r.dt is not None and math.isfinite(r.reference) else ""
+        )
+        lines.append(
+            f"  explicit-Euler reference 0.4 pi sqrt(m/K) (seed 4.2.2): {r.reference:.4g} s "
+            f"(m = {r.particle_mass:.4g} kg, K = {r.max_stiffness:.4g} N/m){ratio}"
+        )
     return "\n".join(lines)
 
 
-__all__ = ["DEFAULT_DURATION", "DEFAULT_PRECISION", "MaxDtResult", "Trial", "find_max_dt", "format_result", "trial_stable"]
+__all__ = [
+    "DEFAULT_DURATION",
+    "DEFAULT_PRECISION",
+    "MaxDtResult",
+    "Trial",
+    "find_max_dt",
+    "format_result",
+    "trial_stable",
+]

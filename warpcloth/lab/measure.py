@@ -31,12 +31,12 @@ import time
 
 import numpy as np
 
-from warpcloth.run.harness import RunHarness
 from warpcloth.lab.accuracy import FRAME_DT, ContactProblem, Reference, TransientProblem, steps_per_frame_at_most
 from warpcloth.lab.configs import Config, configurations, static_configurations
 from warpcloth.lab.plan import StudyPlan
 from warpcloth.lab.results import MESH_NOTE
 from warpcloth.lab.transients import DYNAMIC, TRANSIENTS
+from warpcloth.run.harness import RunHarness
 
 
 class _Deferred(Exception):

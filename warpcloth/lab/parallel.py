@@ -176,8 +176,15 @@ class LocalPool:
         on_event: ``on_event(text)`` for one-line notes (a worker died and was replaced).
     """
 
-    def __init__(self, fn: Callable, workers: int, devices: list[str] | None = None, init: Callable | None = None,
-                 max_retries: int = 2, on_event: Callable | None = None):
+    def __init__(
+        self,
+        fn: Callable,
+        workers: int,
+        devices: list[str] | None = None,
+        init: Callable | None = None,
+        max_retries: int = 2,
+        on_event: Callable | None = None,
+    ):
         if workers < 1:
             raise ValueError("workers must be >= 1")
         self.fn, self.init, self.max_retries, self.on_event = fn, init, max_retries, on_event
@@ -191,8 +198,12 @@ class LocalPool:
 
     def _start(self, w: _Worker) -> None:
         parent, child = self.ctx.Pipe()
-        w.process = self.ctx.Process(target=_worker_main, args=(child, self.fn, self._place(w), self.init),
-                                     name=f"warpcloth-worker-{w.index}", daemon=True)
+        w.process = self.ctx.Process(
+            target=_worker_main,
+            args=(child, self.fn, self._place(w), self.init),
+            name=f"warpcloth-worker-{w.index}",
+            daemon=True,
+        )
         w.process.start()
         child.close()
         w.conn, w.unit, w.pending, w.ready = parent, None, [], False
@@ -305,11 +316,19 @@ class LocalPool:
         what = f"{len(lost)} unfinished run(s) run again" if retry else "it was idle"
         if failed:
             what = f"{len(retry)} run(s) run again, {len(failed)} given up after {self.max_retries + 1} attempts"
-        self._note(f"worker {w.index} (pid {place.pid}) died ({how}); {what}; a new worker (pid {w.process.pid}) took its place")
+        self._note(
+            f"worker {w.index} (pid {place.pid}) died ({how}); {what}; a new worker (pid {w.process.pid}) took its place"
+        )
         for job in failed:
             reported.add(job.key)
-            yield Done(job, None, place, 1, attempts.get(job.key, 1),
-                       error=f"its worker process died {attempts.get(job.key, 1)} times while running it ({how})")
+            yield Done(
+                job,
+                None,
+                place,
+                1,
+                attempts.get(job.key, 1),
+                error=f"its worker process died {attempts.get(job.key, 1)} times while running it ({how})",
+            )
 
     def close(self) -> None:
         for w in self.workers:
@@ -386,7 +405,7 @@ def check_address(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
     """
     if address in ("auto", "local"):
         return
-    hostport = address[len("ray://"):] if address.startswith("ray://") else address
+    hostport = address[len("ray://") :] if address.startswith("ray://") else address
     host, sep, port = hostport.rpartition(":")
     host = host.strip("[]")
     if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
@@ -396,8 +415,10 @@ def check_address(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
             pass
     except OSError as exc:
         why = "no answer" if isinstance(exc, socket.timeout) else (exc.strerror or type(exc).__name__)
-        raise ConnectionError(f"nothing answers at {host}:{port} within {timeout:g} s ({why}); "
-                              "is the cluster's head node started (ray start --head) and reachable?") from None
+        raise ConnectionError(
+            f"nothing answers at {host}:{port} within {timeout:g} s ({why}); "
+            "is the cluster's head node started (ray start --head) and reachable?"
+        ) from None
 
 
 class RayPool:
@@ -411,8 +432,14 @@ class RayPool:
         on_event: one-line notes.
     """
 
-    def __init__(self, fn: Callable, address: str = "auto", init: Callable | None = None, max_retries: int = 2,
-                 on_event: Callable | None = None):
+    def __init__(
+        self,
+        fn: Callable,
+        address: str = "auto",
+        init: Callable | None = None,
+        max_retries: int = 2,
+        on_event: Callable | None = None,
+    ):
         self.ray = import_ray()
         self.fn, self.init, self.address, self.max_retries, self.on_event = fn, init, address, max_retries, on_event
         self.started = False
@@ -422,7 +449,9 @@ class RayPool:
         check_address(self.address)  # also when Ray is up already: a wrong address is still a mistake
         if ray.is_initialized():
             return
-        kwargs = dict(log_to_driver=False, include_dashboard=False) if self.address == "local" else dict(log_to_driver=False)
+        kwargs = (
+            dict(log_to_driver=False, include_dashboard=False) if self.address == "local" else dict(log_to_driver=False)
+        )
         try:
             if self.address == "local":
                 ray.init(**kwargs)
@@ -452,7 +481,8 @@ class RayPool:
             device = unit.jobs[0].device
             opts = dict(num_gpus=1, num_cpus=0) if is_cuda(device) else dict(num_cpus=1)
             ref = remote.options(max_retries=self.max_retries, retry_exceptions=False, **opts).remote(
-                self.fn, self.init, [(j.key, j.payload) for j in unit.jobs], device)
+                self.fn, self.init, [(j.key, j.payload) for j in unit.jobs], device
+            )
             in_flight[ref] = unit
         for ref in in_flight:
             most[ref] = len(in_flight)
@@ -467,7 +497,9 @@ class RayPool:
                     except Exception as exc:  # noqa: BLE001 - the task failed after its retries
                         message = " ".join(f"{type(exc).__name__}: {exc}".split())[:300]
                         if self.on_event is not None:
-                            self.on_event(f"a Ray task of {len(unit.jobs)} run(s) failed after {self.max_retries} retries: {message[:120]}")
+                            self.on_event(
+                                f"a Ray task of {len(unit.jobs)} run(s) failed after {self.max_retries} retries: {message[:120]}"
+                            )
                         for job in unit.jobs:
                             if job.key not in reported:
                                 reported.add(job.key)
@@ -532,8 +564,15 @@ def require_ray() -> None:
         raise WarpclothError(f"--ray needs Ray: {str(exc).split(': ', 1)[1]}") from None
 
 
-def open_pool(fn: Callable, workers: int = 1, devices: list[str] | None = None, ray: str | None = None,
-              init: Callable | None = None, max_retries: int = 2, on_event: Callable | None = None):
+def open_pool(
+    fn: Callable,
+    workers: int = 1,
+    devices: list[str] | None = None,
+    ray: str | None = None,
+    init: Callable | None = None,
+    max_retries: int = 2,
+    on_event: Callable | None = None,
+):
     """The pool that runs ``fn``'s jobs: ``workers`` local processes (``devices`` handed out to
     them), or, with ``ray`` (an address), a :class:`RayPool` connected now, so that a cluster that
     does not answer is refused before any file is touched.
@@ -551,9 +590,18 @@ def open_pool(fn: Callable, workers: int = 1, devices: list[str] | None = None, 
     return pool
 
 
-def run_jobs(fn: Callable, jobs: Iterable[Job], workers: int = 1, devices: list[str] | None = None,
-             ray_address: str | None = None, init: Callable | None = None, max_retries: int = 2,
-             on_event: Callable | None = None, pool=None, at_a_time: int | None = None) -> Iterator[Done]:
+def run_jobs(
+    fn: Callable,
+    jobs: Iterable[Job],
+    workers: int = 1,
+    devices: list[str] | None = None,
+    ray_address: str | None = None,
+    init: Callable | None = None,
+    max_retries: int = 2,
+    on_event: Callable | None = None,
+    pool=None,
+    at_a_time: int | None = None,
+) -> Iterator[Done]:
     """Run ``jobs`` with ``fn`` and yield a :class:`Done` per job as it completes: the one driver
     of the sweep and the study (the caller writes each row).
 
@@ -565,16 +613,34 @@ def run_jobs(fn: Callable, jobs: Iterable[Job], workers: int = 1, devices: list[
     jobs = list(jobs)
     own = pool is None
     if own:
-        pool = open_pool(fn, workers, devices=devices, ray=ray_address, init=init, max_retries=max_retries,
-                         on_event=on_event)
+        pool = open_pool(
+            fn, workers, devices=devices, ray=ray_address, init=init, max_retries=max_retries, on_event=on_event
+        )
     try:
         step = at_a_time or max(1, len(jobs))
         for at in range(0, len(jobs), step):
-            yield from pool.run(jobs[at:at + step])
+            yield from pool.run(jobs[at : at + step])
     finally:
         if own:
             pool.close()
 
 
-__all__ = ["CONNECT_TIMEOUT", "Done", "Job", "LocalPool", "Place", "RAY_INSTALL_HINT", "RayPool", "check_address", "check_count",
-           "event_printer", "import_ray", "init_worker", "is_cuda", "open_pool", "require_ray", "run_jobs", "units_of"]
+__all__ = [
+    "CONNECT_TIMEOUT",
+    "Done",
+    "Job",
+    "LocalPool",
+    "Place",
+    "RAY_INSTALL_HINT",
+    "RayPool",
+    "check_address",
+    "check_count",
+    "event_printer",
+    "import_ray",
+    "init_worker",
+    "is_cuda",
+    "open_pool",
+    "require_ray",
+    "run_jobs",
+    "units_of",
+]

@@ -49,7 +49,9 @@ class StudyPlan:
     window_seconds: float = 0.05
     equilibrium_duration: float = 10.0  # s simulated at most (the contact transient)
     equilibrium_wall_cap: float | None = 60.0
-    contact_max_size: int = 64  # the contact transient up to this n (its equilibrium: SciPy's sparse direct solve, on the CPU)
+    contact_max_size: int = (
+        64  # the contact transient up to this n (its equilibrium: SciPy's sparse direct solve, on the CPU)
+    )
     reference_cache: str = ""
     grid: bool = True  # the study's transients at the sizes above
     scenario_files: list = field(default_factory=list)  # fixed-mesh scenarios: stability, equilibrium, timing
@@ -76,21 +78,45 @@ class StudyPlan:
 
 PROFILES = {
     # tiny sizes (SciPy references), the quick configuration grids: minutes on 2 CPU cores
-    "quick": dict(sizes=[4, 6, 8], windows=(("swing", ((0, 30),)), ("flag", ((0, 16),))), level="quick",
-                  run_wall_cap=10.0, max_frame_ms=50.0, maxdt_precision=0.1, maxdt_wall_cap=5.0, timing_windows=3, window_seconds=0.02,
-                  equilibrium_duration=4.0, equilibrium_wall_cap=5.0),
+    "quick": dict(
+        sizes=[4, 6, 8],
+        windows=(("swing", ((0, 30),)), ("flag", ((0, 16),))),
+        level="quick",
+        run_wall_cap=10.0,
+        max_frame_ms=50.0,
+        maxdt_precision=0.1,
+        maxdt_wall_cap=5.0,
+        timing_windows=3,
+        window_seconds=0.02,
+        equilibrium_duration=4.0,
+        equilibrium_wall_cap=5.0,
+    ),
     # the committed CPU study: 16-128, every configuration, <= 90 min on a 2-core CPU with --workers 2
     # (docs/study.md, "Estimate"); the swing's 1 s window is ill-conditioned from 64x64 (docs/study.md, "Windows")
     "standard": dict(sizes=[16, 32, 64, 128], run_wall_cap=60.0, maxdt_wall_cap=30.0, equilibrium_wall_cap=30.0),
     # a GPU (H100/H200): 64-512 on cuda, within 8 min of device time (--estimate)
-    "gpu": dict(sizes=[64, 128, 256, 512], devices=["cuda"],
-                windows=(("swing", ((0, 24), (128, 16), (256, 12), (512, 8))), ("flag", ((0, 8),))),
-                run_wall_cap=20.0, maxdt_wall_cap=10.0, equilibrium_wall_cap=20.0, timing_windows=5, window_seconds=0.05),
+    "gpu": dict(
+        sizes=[64, 128, 256, 512],
+        devices=["cuda"],
+        windows=(("swing", ((0, 24), (128, 16), (256, 12), (512, 8))), ("flag", ((0, 8),))),
+        run_wall_cap=20.0,
+        maxdt_wall_cap=10.0,
+        equilibrium_wall_cap=20.0,
+        timing_windows=5,
+        window_seconds=0.05,
+    ),
 }
 
 
-def make_plan(profile: str = "quick", integrators=None, sizes=None, devices=None, tolerance=DEFAULT_TOLERANCE,
-              scenarios=None, budget_ms=None) -> StudyPlan:
+def make_plan(
+    profile: str = "quick",
+    integrators=None,
+    sizes=None,
+    devices=None,
+    tolerance=DEFAULT_TOLERANCE,
+    scenarios=None,
+    budget_ms=None,
+) -> StudyPlan:
     """A :class:`StudyPlan` from a profile and explicit overrides (checked; one-line errors)."""
     from warpcloth.integrators import integrator_names
 
@@ -122,16 +148,26 @@ def make_plan(profile: str = "quick", integrators=None, sizes=None, devices=None
             budget_ms = float(budget_ms)
         except (TypeError, ValueError):
             raise WarpclothError(f"--budget-ms must be a number of milliseconds > 0, got {budget_ms!r}") from None
-        require(budget_ms > 0 and budget_ms == budget_ms and budget_ms != float("inf"),
-                f"--budget-ms must be a number of milliseconds > 0, got {budget_ms!r}")
+        require(
+            budget_ms > 0 and budget_ms == budget_ms and budget_ms != float("inf"),
+            f"--budget-ms must be a number of milliseconds > 0, got {budget_ms!r}",
+        )
         base["budget_ms"] = budget_ms
     tol = check_tolerance(tolerance)
     tolerances = tuple(sorted(set(TOLERANCES) | {tol}))
     grid, files = check_scenarios(scenarios)
     if grid:
         check_memory(base["sizes"], devices)
-    return StudyPlan(profile=profile, integrators=integrators, devices=devices, tolerance=tol, tolerances=tolerances,
-                     grid=grid, scenario_files=files, **base)
+    return StudyPlan(
+        profile=profile,
+        integrators=integrators,
+        devices=devices,
+        tolerance=tol,
+        tolerances=tolerances,
+        grid=grid,
+        scenario_files=files,
+        **base,
+    )
 
 
 def check_memory(sizes, devices) -> None:
@@ -164,8 +200,10 @@ def check_scenarios(scenarios) -> tuple[bool, list]:
     grid_names = ("grid", "sheet", "flag")
     grid = [s for s in items if s in grid_names]
     if grid in (["sheet"], ["flag"]):
-        raise WarpclothError(f"--scenarios: {grid[0]} without {'flag' if grid[0] == 'sheet' else 'sheet'}: the study's sheet and "
-                             "flag go together (the accuracy uses both); give both, or grid, or neither")
+        raise WarpclothError(
+            f"--scenarios: {grid[0]} without {'flag' if grid[0] == 'sheet' else 'sheet'}: the study's sheet and "
+            "flag go together (the accuracy uses both); give both, or grid, or neither"
+        )
     files = [s for s in items if s not in grid_names]
     for name in files:
         get_scenario(name)  # WarpclothError: unknown name, missing or malformed file
@@ -183,5 +221,14 @@ def group_label(n) -> str:
     return n if isinstance(n, str) else f"{n}x{n}"
 
 
-__all__ = ["DEFAULT_BUDGET_MS", "PROFILES", "SCENARIOS", "StudyPlan", "WHOLE_FRAME_MS", "check_scenarios", "group_label",
-           "make_plan", "plan_groups"]
+__all__ = [
+    "DEFAULT_BUDGET_MS",
+    "PROFILES",
+    "SCENARIOS",
+    "StudyPlan",
+    "WHOLE_FRAME_MS",
+    "check_scenarios",
+    "group_label",
+    "make_plan",
+    "plan_groups",
+]

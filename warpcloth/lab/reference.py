@@ -74,8 +74,10 @@ class Float64Model:
         """Read ``model``'s host arrays and per-spring ks/kd, and ``control``'s gravity, drag and
         wind (default: ``Control()``, gravity only)."""
         if getattr(model, "hinge_count", 0):
-            raise WarpclothError("the float64 reference has springs only, no dihedral bending: it cannot judge a "
-                                 "bend='dihedral' model (use provot, choi_ko or none)")
+            raise WarpclothError(
+                "the float64 reference has springs only, no dihedral bending: it cannot judge a "
+                "bend='dihedral' model (use provot, choi_ko or none)"
+            )
         control = control if control is not None else Control(device="cpu")
         h = model.host
         n = int(h["q"].shape[0])
@@ -224,8 +226,10 @@ def _frame_count(duration: float, frame_dt: float) -> int:
     duration = require_positive("duration", duration, "s")
     frame_dt = require_positive("frame dt", frame_dt, "s")
     frames = int(round(duration / frame_dt))
-    require(frames >= 1 and abs(frames * frame_dt - duration) <= 1e-9 * duration,
-            f"duration {duration!r} s must be a whole number of frames of {frame_dt!r} s")
+    require(
+        frames >= 1 and abs(frames * frame_dt - duration) <= 1e-9 * duration,
+        f"duration {duration!r} s must be a whole number of frames of {frame_dt!r} s",
+    )
     return frames
 
 
@@ -238,8 +242,17 @@ def _initial_state(m64: Float64Model, x0, v0) -> tuple[np.ndarray, np.ndarray]:
     return x, v
 
 
-def reference_trajectory(model, control: Control | None, duration: float, frame_dt: float, x0=None, v0=None,
-                         rtol: float = 1e-10, atol: float = 1e-12, method: str = "DOP853") -> np.ndarray:
+def reference_trajectory(
+    model,
+    control: Control | None,
+    duration: float,
+    frame_dt: float,
+    x0=None,
+    v0=None,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    method: str = "DOP853",
+) -> np.ndarray:
     """Positions [m] at the frame times t_k = k frame_dt, k = 0..frames, shape (frames + 1, N, 3),
     integrated in float64 from (``x0``, ``v0``) at t = 0 (default: the model's rest shape, at rest).
 
@@ -263,9 +276,9 @@ def reference_trajectory(model, control: Control | None, duration: float, frame_
 
     def rhs(t, y, wind):
         x_work[free] = y[: 3 * nf].reshape(nf, 3)
-        v_work[free] = y[3 * nf:].reshape(nf, 3)
+        v_work[free] = y[3 * nf :].reshape(nf, 3)
         f = m64.forces(x_work, v_work, wind)
-        return np.concatenate([y[3 * nf:], (f[free] / m_free).ravel()])
+        return np.concatenate([y[3 * nf :], (f[free] / m_free).ravel()])
 
     y = np.concatenate([x[free].ravel(), v[free].ravel()])
     bounds = [0.0] + wind_switch_times(m64.wind_schedule, 0.0, float(duration)) if m64.wind_on else [0.0]
@@ -296,8 +309,17 @@ class Convergence(NamedTuple):
     reference: np.ndarray
 
 
-def convergence_check(model, control: Control | None, duration: float, frame_dt: float, x0=None, v0=None,
-                      rtol: float = 1e-10, atol: float = 1e-12, factor: float = 100.0) -> Convergence:
+def convergence_check(
+    model,
+    control: Control | None,
+    duration: float,
+    frame_dt: float,
+    x0=None,
+    v0=None,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    factor: float = 100.0,
+) -> Convergence:
     """Integrate at (rtol, atol) and at (rtol/factor, atol/factor); the max difference between
     the two estimates the error of the first (the second is ``factor``x more accurate)."""
     require(factor > 1.0, f"factor must be > 1, got {factor!r}")
@@ -326,8 +348,10 @@ def simulate_frames(sim, duration: float, frame_dt: float) -> np.ndarray:
     :func:`reference_trajectory`. ``frame_dt`` must be a whole number of steps ``sim.dt``."""
     frames = _frame_count(duration, frame_dt)
     steps = int(round(frame_dt / sim.dt))
-    require(steps >= 1 and abs(steps * sim.dt - frame_dt) <= 1e-9 * frame_dt,
-            f"frame dt {frame_dt!r} s must be a whole number of steps of {sim.dt!r} s")
+    require(
+        steps >= 1 and abs(steps * sim.dt - frame_dt) <= 1e-9 * frame_dt,
+        f"frame dt {frame_dt!r} s must be a whole number of steps of {sim.dt!r} s",
+    )
     out = [sim.state.particle_q.numpy().astype(np.float64)]
     for _ in range(frames):
         sim.simulate(steps)
@@ -356,7 +380,9 @@ class Equilibrium(NamedTuple):
     residual: float
 
 
-def static_equilibrium(model, control: Control | None = None, x0=None, tol: float = 1e-10, max_iter: int = 200) -> Equilibrium:
+def static_equilibrium(
+    model, control: Control | None = None, x0=None, tol: float = 1e-10, max_iter: int = 200
+) -> Equilibrium:
     """The float64 static equilibrium under gravity (wind, drag and damping do not enter):
     positions where the net force on every free particle is zero.
 
@@ -406,7 +432,7 @@ class _Penalty:
         return out
 
     def energy(self, x) -> float:
-        return float(sum(0.5 * self.kappa * np.sum(phi ** 2) for phi, _, _ in self.terms(x)))
+        return float(sum(0.5 * self.kappa * np.sum(phi**2) for phi, _, _ in self.terms(x)))
 
     def forces(self, x) -> np.ndarray:
         f = np.zeros_like(x)
@@ -510,8 +536,16 @@ class ContactEquilibrium(NamedTuple):
     kappa: float
 
 
-def contact_equilibrium(model, control: Control | None = None, x0=None, colliders=None, tol: float = 1e-9,
-                        penetration_tol: float = 1e-9, max_iter: int = 200, kappa: float | None = None) -> ContactEquilibrium:
+def contact_equilibrium(
+    model,
+    control: Control | None = None,
+    x0=None,
+    colliders=None,
+    tol: float = 1e-9,
+    penetration_tol: float = 1e-9,
+    max_iter: int = 200,
+    kappa: float | None = None,
+) -> ContactEquilibrium:
     """The float64 static equilibrium under gravity with frictionless contact against spheres and
     planes (``colliders``; default ``control.colliders``): springs and gravity in balance with
     normal contact forces, no particle inside a collider's surface offset by its thickness.

@@ -42,8 +42,8 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_int, require_positive
-from warpcloth.sim.pins import KinematicPins, PinTrack
 from warpcloth.lab.reference import Float64Model, _frame_count, _initial_state, cloth_size, wind_switch_times
+from warpcloth.sim.pins import KinematicPins, PinTrack
 
 #: RK4's stability region contains the half-disc |z| <= 2.61, Re z <= 0 (its boundary comes
 #: closest to 0 in the left half-plane at about 125 degrees, |z| = 2.6197; 2.8284 = 2 sqrt 2 on
@@ -202,8 +202,11 @@ class _Run:
             order = np.lexsort((hi, lo))
             pairs = np.stack([lo, hi], axis=1)[order]
             n_springs = pairs.shape[0]
-            offsets, slot = _adjacency(np.concatenate([pairs[:, 0], pairs[:, 1]]), n,
-                                       np.concatenate([np.arange(n_springs), -1 - np.arange(n_springs)]))
+            offsets, slot = _adjacency(
+                np.concatenate([pairs[:, 0], pairs[:, 1]]),
+                n,
+                np.concatenate([np.arange(n_springs), -1 - np.arange(n_springs)]),
+            )
             cloth.spring_offsets = wp.array(offsets, dtype=wp.int32)
             cloth.spring_slot = wp.array(slot, dtype=wp.int32)
             cloth.springs = wp.array(pairs.astype(np.int32), dtype=wp.vec2i)
@@ -240,18 +243,35 @@ class _Run:
         particle = wp.array(idx.astype(np.int32), dtype=int)
         if track.kind == "rigid":
             motion = (track.angular_velocity, track.swing_amplitude, track.swing_frequency, track.swing_phase)
-            args = [particle, wp.array(rest[idx], dtype=wp.vec3d), wp.vec3d(*track.center), wp.vec3d(*track.axis),
-                    wp.vec3d(*track.velocity), wp.vec4d(*motion)]
+            args = [
+                particle,
+                wp.array(rest[idx], dtype=wp.vec3d),
+                wp.vec3d(*track.center),
+                wp.vec3d(*track.axis),
+                wp.vec3d(*track.velocity),
+                wp.vec4d(*motion),
+            ]
             kernel = self.k.eval_pin_rigid64
         else:
-            args = [particle, wp.array(track.times, dtype=wp.float64),
-                    wp.array(track.key_positions(rest).reshape(-1, 3), dtype=wp.vec3d),
-                    wp.array(track.key_tangents(rest).reshape(-1, 3), dtype=wp.vec3d),
-                    int(track.interpolation != "linear")]
+            args = [
+                particle,
+                wp.array(track.times, dtype=wp.float64),
+                wp.array(track.key_positions(rest).reshape(-1, 3), dtype=wp.vec3d),
+                wp.array(track.key_tangents(rest).reshape(-1, 3), dtype=wp.vec3d),
+                int(track.interpolation != "linear"),
+            ]
             kernel = self.k.eval_pin_keyframes64
-        cmds = [wp.launch(kernel, dim=idx.size, inputs=[wp.float64(0.0), *args], outputs=[*pins], device=self.device,
-                          record_cmd=True)
-                for pins in (self.pin_half, self.pin_full)]
+        cmds = [
+            wp.launch(
+                kernel,
+                dim=idx.size,
+                inputs=[wp.float64(0.0), *args],
+                outputs=[*pins],
+                device=self.device,
+                record_cmd=True,
+            )
+            for pins in (self.pin_half, self.pin_full)
+        ]
         return cmds
 
     def _record(self):
@@ -260,27 +280,55 @@ class _Run:
         zero, w = wp.float64(0.0), wp.vec3d(0.0, 0.0, 0.0)
 
         def forces(xs, vs):
-            cmds = [wp.launch(k.eval_springs64, dim=c.springs.shape[0], inputs=[c, xs, vs], outputs=[self.f_spring],
-                              device=dev, record_cmd=True)]
+            cmds = [
+                wp.launch(
+                    k.eval_springs64,
+                    dim=c.springs.shape[0],
+                    inputs=[c, xs, vs],
+                    outputs=[self.f_spring],
+                    device=dev,
+                    record_cmd=True,
+                )
+            ]
             if self.has_wind:
-                cmds.append(wp.launch(k.eval_wind64, dim=c.tris.shape[0], inputs=[c, xs, vs, w], outputs=[self.f_tri],
-                                      device=dev, record_cmd=True))
+                cmds.append(
+                    wp.launch(
+                        k.eval_wind64,
+                        dim=c.tris.shape[0],
+                        inputs=[c, xs, vs, w],
+                        outputs=[self.f_tri],
+                        device=dev,
+                        record_cmd=True,
+                    )
+                )
             return cmds
 
         def stage(xs, vs, weight, first, pins, x_out, v_out):
             inputs = [c, self.x, self.v, vs, self.f_spring, self.f_tri, zero, wp.float64(weight), first, *pins]
             outputs = [self.acc_x, self.acc_v, x_out, v_out]
-            return forces(xs, vs) + [wp.launch(k.integrate_rk4_stage64, dim=self.n, inputs=inputs, outputs=outputs,
-                                               device=dev, record_cmd=True)]
+            return forces(xs, vs) + [
+                wp.launch(
+                    k.integrate_rk4_stage64, dim=self.n, inputs=inputs, outputs=outputs, device=dev, record_cmd=True
+                )
+            ]
 
         final = [c, self.va, self.f_spring, self.f_tri, zero, *self.pin_full, self.acc_x, self.acc_v]
         return [
-            stage(self.x, self.v, 1.0, 1, self.pin_half, self.xa, self.va),   # k1 -> s + h/2 k1
+            stage(self.x, self.v, 1.0, 1, self.pin_half, self.xa, self.va),  # k1 -> s + h/2 k1
             stage(self.xa, self.va, 2.0, 0, self.pin_half, self.xb, self.vb),  # k2 -> s + h/2 k2
             stage(self.xb, self.vb, 2.0, 0, self.pin_full, self.xa, self.va),  # k3 -> s + h k3
             # k4 -> s + h/6 (k1 + 2 k2 + 2 k3 + k4)
-            forces(self.xa, self.va) + [wp.launch(k.integrate_rk4_final64, dim=self.n, inputs=final,
-                                                  outputs=[self.x, self.v], device=dev, record_cmd=True)],
+            forces(self.xa, self.va)
+            + [
+                wp.launch(
+                    k.integrate_rk4_final64,
+                    dim=self.n,
+                    inputs=final,
+                    outputs=[self.x, self.v],
+                    device=dev,
+                    record_cmd=True,
+                )
+            ],
         ]
 
     def _pins_at(self, t_half: float, t_full: float) -> None:
@@ -296,8 +344,13 @@ class _Run:
         wp.copy(self.v, self.v0)
         if self.tracks:  # tracked pins start on their track
             self._pins_at(0.0, 0.0)
-            wp.launch(self.k.apply_pins64, dim=self.n, inputs=[self.cloth.pinned, *self.pin_full],
-                      outputs=[self.x, self.v], device=self.device)
+            wp.launch(
+                self.k.apply_pins64,
+                dim=self.n,
+                inputs=[self.cloth.pinned, *self.pin_full],
+                outputs=[self.x, self.v],
+                device=self.device,
+            )
         wp.copy(self.frames, self.x, dest_offset=0, count=self.n)
         stages = self.cmds
         for piece, n in zip(pieces, counts):
@@ -363,10 +416,22 @@ def _pin_tracks(model, control) -> tuple:
     return tracks
 
 
-def warp_reference(model, control=None, duration: float = 1.0, frame_dt: float = 1.0 / 60.0, x0=None, v0=None, *,
-                   tolerance: float = DEFAULT_TOLERANCE, safety: float = DEFAULT_SAFETY,
-                   max_halvings: int = DEFAULT_MAX_HALVINGS, dt: float | None = None, device=None,
-                   parallel: bool = False, require_accepted: bool = True) -> WarpReference:
+def warp_reference(
+    model,
+    control=None,
+    duration: float = 1.0,
+    frame_dt: float = 1.0 / 60.0,
+    x0=None,
+    v0=None,
+    *,
+    tolerance: float = DEFAULT_TOLERANCE,
+    safety: float = DEFAULT_SAFETY,
+    max_halvings: int = DEFAULT_MAX_HALVINGS,
+    dt: float | None = None,
+    device=None,
+    parallel: bool = False,
+    require_accepted: bool = True,
+) -> WarpReference:
     """The float64 RK4 reference trajectory of ``model`` under ``control`` (None: gravity only)
     from (``x0``, ``v0``) at t = 0 (default: the rest shape, at rest), sampled at t_k = k frame_dt.
 
@@ -382,8 +447,9 @@ def warp_reference(model, control=None, duration: float = 1.0, frame_dt: float =
     duration, frame_dt = float(duration), float(frame_dt)
     tolerance = require_positive("reference tolerance", tolerance)
     safety = require_positive("reference safety factor", safety)
-    require(safety <= 1.0, f"reference safety factor must be <= 1 (a fraction of RK4's stability limit), "
-                           f"got {safety!r}")
+    require(
+        safety <= 1.0, f"reference safety factor must be <= 1 (a fraction of RK4's stability limit), got {safety!r}"
+    )
     max_halvings = require_int("max halvings", max_halvings, 0)
     if dt is not None:
         dt = require_positive("reference dt", dt, "s")
@@ -433,19 +499,40 @@ def warp_reference(model, control=None, duration: float = 1.0, frame_dt: float =
         coarse, fine = fine, runners[0].run(pieces, counts(level))
     accepted = e <= tolerance * size
     if not accepted and require_accepted:
-        raise WarpclothError(f"the Warp reference did not converge: halving estimate {e / size:.3g} x size "
-                             f"after {level} halvings "
-                             f"(tolerance {tolerance:g}; estimates {', '.join(f'{s:.3g}' for s in estimates)}); "
-                             f"lower the safety factor or raise max_halvings")
+        raise WarpclothError(
+            f"the Warp reference did not converge: halving estimate {e / size:.3g} x size "
+            f"after {level} halvings "
+            f"(tolerance {tolerance:g}; estimates {', '.join(f'{s:.3g}' for s in estimates)}); "
+            f"lower the safety factor or raise max_halvings"
+        )
     fine_counts = counts(level)
     dt_fine = max((p.end - p.start) / n for p, n in zip(pieces, fine_counts))
-    return WarpReference(frames=fine, halving_estimate=e, relative_estimate=e / size, accepted=accepted, dt=dt_fine,
-                         steps=int(sum(fine_counts)), stability=limit, estimates=estimates,
-                         seconds=time.perf_counter() - t_start, piece_steps=tuple(int(c) for c in fine_counts))
+    return WarpReference(
+        frames=fine,
+        halving_estimate=e,
+        relative_estimate=e / size,
+        accepted=accepted,
+        dt=dt_fine,
+        steps=int(sum(fine_counts)),
+        stability=limit,
+        estimates=estimates,
+        seconds=time.perf_counter() - t_start,
+        piece_steps=tuple(int(c) for c in fine_counts),
+    )
 
 
-def warp_trajectory(model, control, duration: float, frame_dt: float, x0=None, v0=None, *, dt: float | None = None,
-                    piece_steps=None, device=None) -> np.ndarray:
+def warp_trajectory(
+    model,
+    control,
+    duration: float,
+    frame_dt: float,
+    x0=None,
+    v0=None,
+    *,
+    dt: float | None = None,
+    piece_steps=None,
+    device=None,
+) -> np.ndarray:
     """One float64 RK4 run of :func:`warp_reference`'s model on its time grid (cut at frames, wind
     switches and track keys), without a halving run: frames (frames + 1, N, 3). Each piece in
     equal steps of at most ``dt`` [s], or in ``piece_steps`` steps (a :class:`WarpReference`'s
@@ -459,8 +546,10 @@ def warp_trajectory(model, control, duration: float, frame_dt: float, x0=None, v
     pieces = _pieces(m64, tracks, float(duration), frames, float(frame_dt))
     if piece_steps is not None:
         counts = [int(c) for c in piece_steps]
-        require(len(counts) == len(pieces) and min(counts) >= 1,
-                f"piece_steps must give {len(pieces)} step counts >= 1 (one per piece of the time grid)")
+        require(
+            len(counts) == len(pieces) and min(counts) >= 1,
+            f"piece_steps must give {len(pieces)} step counts >= 1 (one per piece of the time grid)",
+        )
     else:
         require(dt is not None, "warp_trajectory needs dt or piece_steps")
         dt = require_positive("reference dt", dt, "s")
@@ -474,5 +563,13 @@ def reference_trajectory(model, control, duration: float, frame_dt: float, x0=No
     return warp_reference(model, control, duration, frame_dt, x0, v0, **options).frames
 
 
-__all__ = ["DEFAULT_TOLERANCE", "RK4_STABILITY_RADIUS", "StabilityLimit", "WarpReference", "reference_trajectory",
-           "stability_limit", "warp_reference", "warp_trajectory"]
+__all__ = [
+    "DEFAULT_TOLERANCE",
+    "RK4_STABILITY_RADIUS",
+    "StabilityLimit",
+    "WarpReference",
+    "reference_trajectory",
+    "stability_limit",
+    "warp_reference",
+    "warp_trajectory",
+]

@@ -355,7 +355,9 @@ def cheapest_tables(data: Data, tolerances) -> list[str]:
                         stretchy = " stretchy" if max(r["max_strain_rel"] or 0 for r in c.label[1:3]) > STRETCHY else ""
                         judged = data.judged(d, n, "point", tol)
                         only = f" ({judged[0]} only)" if len(judged) == 1 else ""
-                        cells.append(f"{config_label(c.label[1])}: {_g(c.cost)} ms (e {_pct(c.error, 2)}{only}){stretchy}")
+                        cells.append(
+                            f"{config_label(c.label[1])}: {_g(c.cost)} ms (e {_pct(c.error, 2)}{only}){stretchy}"
+                        )
                 body.append(cells)
             out += [f"### Cheapest configuration reaching pointwise e ≤ {_pct(tol)} on {d} (ms per 1/60 s frame)", ""]
             out += _table(["integrator"] + [f"{n}x{n}" for n in data.sizes], body)

@@ -34,8 +34,10 @@ def _line(bar: Progress, done: float, total: float, label: str, unit: str = "") 
     """The study's progress line: ``study [######      ]  50% 0:12 ETA 0:12 LABEL`` (work weighted by particles)."""
     frac = min(1.0, done / total) if total > 0 else 1.0
     eta = bar.eta(done, total)
-    return (f"study {bar.bar(frac, 24, ' ')} {100 * frac:3.0f}% {format_clock(bar.elapsed())} "
-            f"ETA {'?' if eta is None else format_clock(eta)} {label}")
+    return (
+        f"study {bar.bar(frac, 24, ' ')} {100 * frac:3.0f}% {format_clock(bar.elapsed())} "
+        f"ETA {'?' if eta is None else format_clock(eta)} {label}"
+    )
 
 
 def _group_weight(plan: StudyPlan, n) -> float:
@@ -98,13 +100,17 @@ class ParallelSettings:
         out = cls(workers=workers or 1, ray=ray, timing_workers=timing_workers or 1)
         cores = os.cpu_count() or 1
         if out.workers > 1 and any(not d.startswith("cuda") for d in devices) and out.workers > cores:
-            out.warnings.append(f"--workers {out.workers} is more than the {cores} CPU cores: the searches share cores (their "
-                                "results do not depend on it, but a trial that reaches a wall cap stops sooner: see the note "
-                                "column); the timings still run alone")
+            out.warnings.append(
+                f"--workers {out.workers} is more than the {cores} CPU cores: the searches share cores (their "
+                "results do not depend on it, but a trial that reaches a wall cap stops sooner: see the note "
+                "column); the timings still run alone"
+            )
         if out.timing_workers > len(devices):
-            out.warnings.append(f"--timing-workers {out.timing_workers} is more than the {len(devices)} device(s) "
-                                f"({', '.join(devices)}): timed runs share a device and their ms/step are affected "
-                                "(see the concurrent_runs column)")
+            out.warnings.append(
+                f"--timing-workers {out.timing_workers} is more than the {len(devices)} device(s) "
+                f"({', '.join(devices)}): timed runs share a device and their ms/step are affected "
+                "(see the concurrent_runs column)"
+            )
         return out
 
 
@@ -171,7 +177,9 @@ def run_parallel(study: Measurements, settings: ParallelSettings, progress=None,
         jobs = [Job(f"{phase}|{d}|{i}|{n}", (plan_dict, d, i, n, phase, known, run_id), device=d) for d, i, n in groups]
         # on Ray, at most timing_workers timed groups in flight; locally, that many processes
         at_a_time = workers if ray_pool is not None and phase == "timing" else None
-        for done in run_jobs(study_job, jobs, workers, init=init_worker, on_event=note, pool=ray_pool, at_a_time=at_a_time):
+        for done in run_jobs(
+            study_job, jobs, workers, init=init_worker, on_event=note, pool=ray_pool, at_a_time=at_a_time
+        ):
             _, d, i, n, _, _, _ = done.job.payload
             if done.row is None:
                 failed += 1
@@ -226,8 +234,18 @@ def prepare_out(out_dir: str) -> str:
     return os.path.join(out_dir, "results.csv")
 
 
-def run_study(plan: StudyPlan, out_dir: str, resume: bool = False, overwrite: bool = False, progress=None,
-              command: str = "", on_row=None, workers=None, ray=None, timing_workers=None) -> dict:
+def run_study(
+    plan: StudyPlan,
+    out_dir: str,
+    resume: bool = False,
+    overwrite: bool = False,
+    progress=None,
+    command: str = "",
+    on_row=None,
+    workers=None,
+    ray=None,
+    timing_workers=None,
+) -> dict:
     """Run ``plan`` into ``out_dir`` (results.csv, report.md, PNG plots). Returns a summary.
     ``workers`` / ``ray`` / ``timing_workers``: see :class:`ParallelSettings` (default serial)."""
     report = progress if progress is not None else sys.stderr
@@ -239,19 +257,29 @@ def run_study(plan: StudyPlan, out_dir: str, resume: bool = False, overwrite: bo
     if settings.ray is not None:
         from warpcloth.lab.parallel import event_printer, init_worker, open_pool
 
-        ray_pool = open_pool(study_job, ray=settings.ray, init=init_worker, on_event=event_printer(report, "warpcloth: study: "))
+        ray_pool = open_pool(
+            study_job, ray=settings.ray, init=init_worker, on_event=event_printer(report, "warpcloth: study: ")
+        )
     try:
-        return _run_study(plan, devices, settings, ray_pool, out_dir, resume, overwrite, progress, report, command, on_row)
+        return _run_study(
+            plan, devices, settings, ray_pool, out_dir, resume, overwrite, progress, report, command, on_row
+        )
     finally:
         if ray_pool is not None:
             ray_pool.close()
 
 
-def _run_study(plan, devices, settings, ray_pool, out_dir, resume, overwrite, progress, report, command, on_row) -> dict:
+def _run_study(
+    plan, devices, settings, ray_pool, out_dir, resume, overwrite, progress, report, command, on_row
+) -> dict:
     from warpcloth.lab.report import write_report
 
     csv_path = prepare_out(out_dir)
-    plan = replace(plan, devices=devices, reference_cache=plan.reference_cache or os.path.abspath(os.path.join(out_dir, ".references")))
+    plan = replace(
+        plan,
+        devices=devices,
+        reference_cache=plan.reference_cache or os.path.abspath(os.path.join(out_dir, ".references")),
+    )
     out = ResultsFile(csv_path, RESULTS, resume=resume, overwrite=overwrite, report=progress, keep_rows=True)
     t0 = time.perf_counter()
     failed = 0
@@ -270,8 +298,22 @@ def _run_study(plan, devices, settings, ray_pool, out_dir, resume, overwrite, pr
     finally:
         out.close()
     files = write_report(out_dir, read_rows(csv_path), plan, command=command, stream=progress)
-    return {"measured": study.measured, "reused": study.reused, "wall_s": time.perf_counter() - t0, "files": files,
-            "plan": asdict(plan), "failed": failed}
+    return {
+        "measured": study.measured,
+        "reused": study.reused,
+        "wall_s": time.perf_counter() - t0,
+        "files": files,
+        "plan": asdict(plan),
+        "failed": failed,
+    }
 
 
-__all__ = ["ParallelSettings", "available_devices", "prepare_out", "run_parallel", "run_serial", "run_study", "study_job"]
+__all__ = [
+    "ParallelSettings",
+    "available_devices",
+    "prepare_out",
+    "run_parallel",
+    "run_serial",
+    "run_study",
+    "study_job",
+]

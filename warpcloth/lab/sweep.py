@@ -29,19 +29,51 @@ from dataclasses import dataclass, field
 from warpcloth.errors import WarpclothError
 from warpcloth.io.progress import Progress, format_clock
 from warpcloth.io.results import ResultsFile, ResultsFormat
-from warpcloth.run.params import TimeStep, csv_columns, per_type_triple
 from warpcloth.lab.testlist import RunSpec, TestList, parse_test_list, resolved_params
+from warpcloth.run.params import TimeStep, csv_columns, per_type_triple
 
 #: Columns of the CSV, in order (docs/sweep.md describes each): the test id, the run parameters
 #: (their columns come from the declarations, :func:`warpcloth.run.params.csv_columns`), then what
 #: the run measured.
 COLUMNS = [
-    "test_id", *csv_columns(), "options", "particles", "springs", "dt_s", "max_dt_s", "unstable_dt_s",
-    "outcome", "steps", "sim_time_s", "wall_time_s", "compile_s", "ms_per_step", "steps_per_s",
-    "frames_per_wall_second", "realtime_factor", "realtime", "integration_ms_mean", "other_ms_mean",
-    "stable", "unstable_reason", "equilibrium_reached", "time_to_equilibrium_sim_s", "time_to_equilibrium_wall_s",
-    "max_strain_rel", "wall_cap_reached", "solver_iterations", "solver_converged", "solver_capped_steps", "solver", "error",
-    "host", "worker", "concurrent_runs", "warpcloth_version", "warp_version", "key",
+    "test_id",
+    *csv_columns(),
+    "options",
+    "particles",
+    "springs",
+    "dt_s",
+    "max_dt_s",
+    "unstable_dt_s",
+    "outcome",
+    "steps",
+    "sim_time_s",
+    "wall_time_s",
+    "compile_s",
+    "ms_per_step",
+    "steps_per_s",
+    "frames_per_wall_second",
+    "realtime_factor",
+    "realtime",
+    "integration_ms_mean",
+    "other_ms_mean",
+    "stable",
+    "unstable_reason",
+    "equilibrium_reached",
+    "time_to_equilibrium_sim_s",
+    "time_to_equilibrium_wall_s",
+    "max_strain_rel",
+    "wall_cap_reached",
+    "solver_iterations",
+    "solver_converged",
+    "solver_capped_steps",
+    "solver",
+    "error",
+    "host",
+    "worker",
+    "concurrent_runs",
+    "warpcloth_version",
+    "warp_version",
+    "key",
 ]
 
 OUTCOMES = ("equilibrium", "completed", "wall_cap", "unstable", "error")
@@ -52,11 +84,16 @@ def parameter_row(spec: RunSpec) -> dict:
     """The columns known before a run starts (the parameter columns from the declarations)."""
     import warp as wp
 
-    from warpcloth.version import __version__
     from warpcloth.sim.grid import expected_spring_counts
+    from warpcloth.version import __version__
 
-    row = {"test_id": spec.test_id, "options": " ".join(f"{k}={v}" for k, v in spec.options),
-           "warpcloth_version": __version__, "warp_version": wp.config.version, "key": spec.key}
+    row = {
+        "test_id": spec.test_id,
+        "options": " ".join(f"{k}={v}" for k, v in spec.options),
+        "warpcloth_version": __version__,
+        "warp_version": wp.config.version,
+        "key": spec.key,
+    }
     for p in resolved_params():
         value = spec.get(p.name)
         columns = p.csv_columns
@@ -89,17 +126,31 @@ def result_columns(result, stop_at_equilibrium: bool = True) -> dict:
     else:
         outcome = "completed"
     return {
-        "dt_s": result.dt, "particles": result.particles, "springs": result.springs, "outcome": outcome,
-        "steps": result.steps, "sim_time_s": result.sim_time, "wall_time_s": result.wall_time,
-        "compile_s": result.compile_time, "ms_per_step": result.ms_per_step, "steps_per_s": result.steps_per_sec,
-        "frames_per_wall_second": result.frames_per_sec, "realtime_factor": result.realtime_factor,
+        "dt_s": result.dt,
+        "particles": result.particles,
+        "springs": result.springs,
+        "outcome": outcome,
+        "steps": result.steps,
+        "sim_time_s": result.sim_time,
+        "wall_time_s": result.wall_time,
+        "compile_s": result.compile_time,
+        "ms_per_step": result.ms_per_step,
+        "steps_per_s": result.steps_per_sec,
+        "frames_per_wall_second": result.frames_per_sec,
+        "realtime_factor": result.realtime_factor,
         "realtime": result.realtime_factor >= 1.0,
-        "integration_ms_mean": result.integration_ms_mean, "other_ms_mean": result.other_ms_mean,
-        "stable": result.stable, "unstable_reason": result.unstable_reason,
-        "equilibrium_reached": result.equilibrium_reached, "time_to_equilibrium_sim_s": result.time_to_equilibrium,
-        "time_to_equilibrium_wall_s": result.time_to_equilibrium_wall, "max_strain_rel": result.max_strain,
-        "wall_cap_reached": result.wall_cap_reached, "solver_iterations": solver_iterations(result.solver),
-        "solver_converged": result.solver_converged, "solver_capped_steps": result.solver_capped_steps,
+        "integration_ms_mean": result.integration_ms_mean,
+        "other_ms_mean": result.other_ms_mean,
+        "stable": result.stable,
+        "unstable_reason": result.unstable_reason,
+        "equilibrium_reached": result.equilibrium_reached,
+        "time_to_equilibrium_sim_s": result.time_to_equilibrium,
+        "time_to_equilibrium_wall_s": result.time_to_equilibrium_wall,
+        "max_strain_rel": result.max_strain,
+        "wall_cap_reached": result.wall_cap_reached,
+        "solver_iterations": solver_iterations(result.solver),
+        "solver_converged": result.solver_converged,
+        "solver_capped_steps": result.solver_capped_steps,
         "solver": result.solver or None,
     }
 
@@ -107,7 +158,9 @@ def result_columns(result, stop_at_equilibrium: bool = True) -> dict:
 def solver_iterations(stats: dict):
     """The iteration count among an integrator's stats: the first numeric entry whose name
     contains ``iter`` (a name with ``mean`` first); None when the integrator has none."""
-    names = [k for k, v in stats.items() if "iter" in k.lower() and isinstance(v, (int, float)) and not isinstance(v, bool)]
+    names = [
+        k for k, v in stats.items() if "iter" in k.lower() and isinstance(v, (int, float)) and not isinstance(v, bool)
+    ]
     names.sort(key=lambda k: "mean" not in k.lower())
     return stats[names[0]] if names else None
 
@@ -129,9 +182,15 @@ class MaxDtCache:
                 scenario = get_scenario(spec.scenario)
                 # "max" is for this run: the found dt is verified over the run's own duration and schedule
                 self._results[key] = find_max_dt(
-                    scenario, spec.config(), precision=spec.maxdt_precision,
-                    duration=spec.maxdt_duration, dt_max=1.0 / spec.frame_rate, wall_cap=spec.wall_cap,
-                    on_trial=self.on_trial, verify_duration=spec.duration, stop_at_equilibrium=scenario.stop_at_equilibrium,
+                    scenario,
+                    spec.config(),
+                    precision=spec.maxdt_precision,
+                    duration=spec.maxdt_duration,
+                    dt_max=1.0 / spec.frame_rate,
+                    wall_cap=spec.wall_cap,
+                    on_trial=self.on_trial,
+                    verify_duration=spec.duration,
+                    stop_at_equilibrium=scenario.stop_at_equilibrium,
                 )
             except Exception as exc:  # recorded in every run that needs it
                 self._results[key] = exc
@@ -159,7 +218,9 @@ def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
         scenario = get_scenario(spec.scenario)
         harness = scenario.harness(spec.config(dt=dt))
         row["dt_s"] = harness.sim.dt
-        result = harness.run(spec.duration, fps=spec.frame_rate, stop_at_equilibrium=scenario.stop_at_equilibrium, wall_cap=spec.wall_cap)
+        result = harness.run(
+            spec.duration, fps=spec.frame_rate, stop_at_equilibrium=scenario.stop_at_equilibrium, wall_cap=spec.wall_cap
+        )
         row.update(result_columns(result, scenario.stop_at_equilibrium))
     except Exception as exc:
         row["outcome"] = "error"
@@ -180,8 +241,10 @@ CsvOutput = ResultsFile
 def _line(bar: Progress, done: int, total: int, status: str, unit: str = "") -> str:
     """The sweep's progress line: ``[####----] 3/8 | status | elapsed 0:12 | remaining ~0:20``."""
     eta = bar.eta(done, total)
-    return (f"{bar.bar(done / total if total else 1.0, 24, '-')} {done}/{total} | {status} | elapsed "
-            f"{format_clock(bar.elapsed())} | remaining {'?' if eta is None else '~' + format_clock(eta)}")
+    return (
+        f"{bar.bar(done / total if total else 1.0, 24, '-')} {done}/{total} | {status} | elapsed "
+        f"{format_clock(bar.elapsed())} | remaining {'?' if eta is None else '~' + format_clock(eta)}"
+    )
 
 
 # -- the sweep -------------------------------------------------------------------------------
@@ -201,9 +264,19 @@ class SweepSummary:
         return f"{self.written} runs written ({parts or 'none'}){skipped} in {format_clock(self.wall_time)}"
 
 
-def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: bool = False, progress=None,
-              max_runs: int | None = None, report=None, workers: int | None = None, devices: list[str] | None = None,
-              ray: str | None = None, max_retries: int = 2) -> SweepSummary:
+def run_sweep(
+    tests: str | TestList,
+    out: str,
+    resume: bool = False,
+    overwrite: bool = False,
+    progress=None,
+    max_runs: int | None = None,
+    report=None,
+    workers: int | None = None,
+    devices: list[str] | None = None,
+    ray: str | None = None,
+    max_retries: int = 2,
+) -> SweepSummary:
     """Run every run of a test list and write one CSV row each.
 
     Args:
@@ -274,8 +347,12 @@ def run_sweep(tests: str | TestList, out: str, resume: bool = False, overwrite: 
 
     def on_trial(t) -> None:  # a terminal only: one line per trial would flood a log
         if bar.tty:
-            bar.update(summary.written, len(todo), f"{current}: max-dt trial dt={t.dt:.4g} s "
-                       f"{'stable' if t.stable else 'unstable'}", force=True)
+            bar.update(
+                summary.written,
+                len(todo),
+                f"{current}: max-dt trial dt={t.dt:.4g} s {'stable' if t.stable else 'unstable'}",
+                force=True,
+            )
 
     try:
         if not plan.parallel:
@@ -339,15 +416,24 @@ class ParallelPlan:
             return None
         from warpcloth.lab.parallel import event_printer, init_worker, open_pool
 
-        return open_pool(parallel_run, self.workers, devices=self.devices, ray=self.ray, init=init_worker,
-                         max_retries=max_retries, on_event=event_printer(report))
+        return open_pool(
+            parallel_run,
+            self.workers,
+            devices=self.devices,
+            ray=self.ray,
+            init=init_worker,
+            max_retries=max_retries,
+            on_event=event_printer(report),
+        )
 
     @classmethod
     def check(cls, runs, workers=None, devices=None, ray=None) -> "ParallelPlan":
         """Validate the parallel settings against the runs; WarpclothError names the problem."""
         if ray is not None:
             if workers is not None or devices:
-                raise WarpclothError("--ray runs the sweep on the cluster's CPUs and GPUs: it takes neither --workers nor --devices")
+                raise WarpclothError(
+                    "--ray runs the sweep on the cluster's CPUs and GPUs: it takes neither --workers nor --devices"
+                )
             if not str(ray).strip():
                 raise WarpclothError("--ray: give 'auto', 'local' or a cluster address HOST:PORT")
             from warpcloth.lab.parallel import require_ray
@@ -365,8 +451,10 @@ class ParallelPlan:
             for d in devices:
                 d = str(d).strip()
                 if not d.startswith("cuda"):
-                    raise WarpclothError(f"--devices: {d!r} is not a CUDA device; --devices lists the GPUs (cuda:0,cuda:1) "
-                                         "that the CUDA runs are spread over")
+                    raise WarpclothError(
+                        f"--devices: {d!r} is not a CUDA device; --devices lists the GPUs (cuda:0,cuda:1) "
+                        "that the CUDA runs are spread over"
+                    )
                 try:
                     name = device_name(d)
                 except WarpclothError as exc:  # not present: the message names those that are
@@ -388,8 +476,10 @@ class ParallelPlan:
             else:
                 slots, what = os.cpu_count() or 1, f"the {os.cpu_count() or 1} CPU cores"
             if n > slots:
-                plan.warning = (f"--workers {n} is more than {what}: runs share a device at once and their timings are "
-                                "affected (see the concurrent_runs column)")
+                plan.warning = (
+                    f"--workers {n} is more than {what}: runs share a device at once and their timings are "
+                    "affected (see the concurrent_runs column)"
+                )
         return plan
 
 
@@ -416,5 +506,16 @@ def read_results(path: str) -> list[dict]:
     return RESULTS.read(path)
 
 
-__all__ = ["COLUMNS", "CsvOutput", "MaxDtCache", "ParallelPlan", "RESULTS", "SweepSummary", "execute_run", "format_row",
-           "parallel_run", "read_results", "run_sweep"]
+__all__ = [
+    "COLUMNS",
+    "CsvOutput",
+    "MaxDtCache",
+    "ParallelPlan",
+    "RESULTS",
+    "SweepSummary",
+    "execute_run",
+    "format_row",
+    "parallel_run",
+    "read_results",
+    "run_sweep",
+]

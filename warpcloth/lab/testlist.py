@@ -22,14 +22,13 @@ import difflib
 import itertools
 import math
 import re
-from dataclasses import dataclass, field
-
 import xml.parsers.expat as expat
+from dataclasses import dataclass, field
 
 from warpcloth.errors import WarpclothError, warn
 from warpcloth.run import params
-from warpcloth.scenarios import check_scenario
 from warpcloth.run.params import SPRING_TYPES, Param, TimeStep, canonical, per_type_triple, resolve_per_type  # noqa: F401  (SPRING_TYPES, TimeStep: importable from here)
+from warpcloth.scenarios import check_scenario
 
 ROOT_TAG = "test_list"
 TEST_TAG = "test"
@@ -39,8 +38,18 @@ TEST_TAG = "test"
 DEFAULT_MAX_RUNS = 10_000
 
 #: The test id: an attribute of ``test`` only, not a run parameter.
-TEST_ID = Param("id", str, "", "name of the test, carried into the CSV as test_id (default: its position, 1, 2, ...)",
-                "one name", "run", commands=("sweep",), columns=(), key="never")
+TEST_ID = Param(
+    "id",
+    str,
+    "",
+    "name of the test, carried into the CSV as test_id (default: its position, 1, 2, ...)",
+    "one name",
+    "run",
+    commands=("sweep",),
+    columns=(),
+    key="never",
+)
+
 
 def attributes() -> dict[str, Param]:
     """Every attribute of ``test`` by name: the test id and the run parameters (:data:`warpcloth.run.params.PARAMS`)."""
@@ -50,6 +59,7 @@ def attributes() -> dict[str, Param]:
 ATTRIBUTES: dict[str, Param] = attributes()  # as declared at import
 
 _UNSET = object()  # an attribute not given (None is a value: wall_cap="none")
+
 
 def resolved_params() -> tuple[Param, ...]:
     """Parameters a :class:`RunSpec` holds once resolved (per-type springs and size fold into others)."""
@@ -106,7 +116,11 @@ class RunSpec:
         parts = []
         for p in resolved_params():
             v = values.get(p.name)
-            if p.key == "never" or (p.key == "set" and v == p.default) or (p.key == "with_max" and not values["dt"].uses_max):
+            if (
+                p.key == "never"
+                or (p.key == "set" and v == p.default)
+                or (p.key == "with_max" and not values["dt"].uses_max)
+            ):
                 continue
             parts.append(f"{p.name}={canonical(v)}")
         parts.append("options=" + ",".join(f"{k}={canonical(v)}" for k, v in self.options))
@@ -116,7 +130,10 @@ class RunSpec:
     def search_key(self) -> tuple:
         """What the max-stable-dt search depends on (every parameter declared ``search``, and the
         run's duration, over which the found dt is verified)."""
-        return tuple((k, v) for k, v in self.values if params.BY_NAME[k].search) + (self.options, ("duration", self.duration))
+        return tuple((k, v) for k, v in self.values if params.BY_NAME[k].search) + (
+            self.options,
+            ("duration", self.duration),
+        )
 
     def config(self, dt: float | None = None, duration: float | None = None):
         """The :class:`~warpcloth.scenarios.ScenarioConfig` of this run."""
@@ -129,7 +146,9 @@ class RunSpec:
             if isinstance(v, tuple) and None in v:
                 values[kind] = {t: x for t, x in zip(SPRING_TYPES, v) if x is not None}
         kwargs = config_values(values)
-        kwargs.update(integrator_options=dict(self.options), dt=dt, duration=self.duration if duration is None else duration)
+        kwargs.update(
+            integrator_options=dict(self.options), dt=dt, duration=self.duration if duration is None else duration
+        )
         return get_scenario(self.scenario).config(**kwargs)
 
     def describe(self) -> str:
@@ -198,7 +217,9 @@ def _read_tree(path: str) -> tuple[_Source, _Element]:
         if len(stack) == 1 and tag != TEST_TAG:
             raise src.error(line, f"unknown element <{tag}> inside <{ROOT_TAG}>; only <{TEST_TAG}> is allowed")
         if len(stack) >= 2:
-            raise src.error(line, f"unknown element <{tag}> inside <{stack[-1].tag}>; give parameters as attributes of <{TEST_TAG}>")
+            raise src.error(
+                line, f"unknown element <{tag}> inside <{stack[-1].tag}>; give parameters as attributes of <{TEST_TAG}>"
+            )
         el = _Element(tag, dict(attrs), line, parser.CurrentByteIndex)
         (stack[-1].children if stack else root).append(el)
         stack.append(el)
@@ -210,11 +231,17 @@ def _read_tree(path: str) -> tuple[_Source, _Element]:
         if data.strip():
             where = stack[-1].tag if stack else "the document"
             lead = len(data) - len(data.lstrip())
-            raise src.error(parser.CurrentLineNumber + data[:lead].count("\n"), f"unexpected text {data.strip()[:40]!r} inside <{where}>; a test list holds only elements and attributes")
+            raise src.error(
+                parser.CurrentLineNumber + data[:lead].count("\n"),
+                f"unexpected text {data.strip()[:40]!r} inside <{where}>; a test list holds only elements and attributes",
+            )
 
     def doctype(name, *args):
-        raise src.error(parser.CurrentLineNumber, f"<!DOCTYPE {name} ...> is not allowed in a test list (no DTDs, entities "
-                                                  "or other declarations; only <test_list> and <test> elements)")
+        raise src.error(
+            parser.CurrentLineNumber,
+            f"<!DOCTYPE {name} ...> is not allowed in a test list (no DTDs, entities "
+            "or other declarations; only <test_list> and <test> elements)",
+        )
 
     parser.StartDoctypeDeclHandler = doctype
     parser.StartElementHandler = start
@@ -225,8 +252,11 @@ def _read_tree(path: str) -> tuple[_Source, _Element]:
     except expat.ExpatError as exc:
         raise src.error(exc.lineno, f"malformed XML: {expat.ErrorString(exc.code)} (column {exc.offset + 1})") from None
     except LookupError as exc:  # <?xml ... encoding="klingon"?>
-        raise src.error(1, f"the XML declaration names an encoding Python does not know ({str(exc)[:60]}); "
-                           "write the test list in UTF-8") from None
+        raise src.error(
+            1,
+            f"the XML declaration names an encoding Python does not know ({str(exc)[:60]}); "
+            "write the test list in UTF-8",
+        ) from None
     return src, root[0]
 
 
@@ -261,7 +291,9 @@ def parse_test_list(path: str, max_runs: int = DEFAULT_MAX_RUNS) -> TestList:
     unique: dict[str, RunSpec] = {}
     for run in runs:
         unique.setdefault(run.key, run)
-    return TestList(path=str(path), runs=list(unique.values()), tests=len(root.children), duplicates=len(runs) - len(unique))
+    return TestList(
+        path=str(path), runs=list(unique.values()), tests=len(root.children), duplicates=len(runs) - len(unique)
+    )
 
 
 def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
@@ -278,9 +310,13 @@ def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
         name = params.OLD_NAMES.get(raw_name, raw_name)
         if name != raw_name and raw_name not in src.noted:
             src.noted.add(raw_name)
-            warn(f"{src.path}:{line}: attribute {raw_name!r} is now spelled {name!r} (the old name is accepted for now)")
+            warn(
+                f"{src.path}:{line}: attribute {raw_name!r} is now spelled {name!r} (the old name is accepted for now)"
+            )
         if name in spelled:
-            raise src.error(line, f"{what}: {raw_name!r} and {spelled[name]!r} name the same parameter; give it once, as {name!r}")
+            raise src.error(
+                line, f"{what}: {raw_name!r} and {spelled[name]!r} name the same parameter; give it once, as {name!r}"
+            )
         spelled[name] = raw_name
         attr = declared.get(name)
         if attr is None and name not in options:
@@ -290,7 +326,9 @@ def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
             raise src.error(line, f"{what}: unknown attribute {raw_name!r}{hint}; allowed: {', '.join(known)}")
         tokens = raw.split() if attr is None or attr.multi else ([raw.strip()] if raw.strip() else [])
         if not tokens:
-            raise src.error(line, f"{what}: attribute {raw_name!r} is empty; give one or more values separated by spaces")
+            raise src.error(
+                line, f"{what}: attribute {raw_name!r} is empty; give one or more values separated by spaces"
+            )
         if attr is None:
             out[name] = tokens  # integrator option: checked against the test's integrators in _expand
             continue
@@ -310,12 +348,20 @@ def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
     return out
 
 
-def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: dict, own: dict,
-            room: int = DEFAULT_MAX_RUNS, max_runs: int = DEFAULT_MAX_RUNS) -> list[RunSpec]:
+def _expand(
+    src: _Source,
+    el: _Element,
+    root: _Element,
+    test_id: str,
+    defaults: dict,
+    own: dict,
+    room: int = DEFAULT_MAX_RUNS,
+    max_runs: int = DEFAULT_MAX_RUNS,
+) -> list[RunSpec]:
     """The runs of one ``test``: the product of its value lists, for each scenario."""
     from warpcloth.integrators import all_options, integrator_class, integrator_names
-    from warpcloth.sim.model import default_spring_params
     from warpcloth.scenarios import get_scenario
+    from warpcloth.sim.model import default_spring_params
 
     what = f"test {test_id!r}"
     values = {**defaults, **own}
@@ -324,10 +370,12 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         return src.attr_line(el, name) if name in own else src.attr_line(root, name)
 
     if "integrator" not in values:
-        raise src.error(el.line, f"{what}: attribute 'integrator' is required (one of {', '.join(integrator_names())}, or 'all')")
+        raise src.error(
+            el.line, f"{what}: attribute 'integrator' is required (one of {', '.join(integrator_names())}, or 'all')"
+        )
     integrators = []
     for name in values["integrator"]:
-        for n in (integrator_names() if name == "all" else [name]):
+        for n in integrator_names() if name == "all" else [name]:
             if n not in integrators:
                 integrators.append(n)
 
@@ -337,7 +385,10 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         raise src.error(line_of(other), f"{what}: give either 'size' or 'rows' and 'cols', not both")
     if ("rows" in values) != ("cols" in values):
         missing = "cols" if "rows" in values else "rows"
-        raise src.error(el.line, f"{what}: 'rows' needs 'cols' (and 'cols' needs 'rows'); '{missing}' is missing (or use size=\"N\")")
+        raise src.error(
+            el.line,
+            f"{what}: 'rows' needs 'cols' (and 'cols' needs 'rows'); '{missing}' is missing (or use size=\"N\")",
+        )
     if "size" in values:
         meshes = values["size"]
     elif "rows" in values:
@@ -353,7 +404,10 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         _, owners = registry[name]
         takers = [i for i in integrators if name in {o.name for o in integrator_class(i).options}]
         if not takers:
-            raise src.error(line_of(name), f"{what}: option {name!r} does not apply to integrator(s) {', '.join(integrators)} (it applies to {', '.join(owners)})")
+            raise src.error(
+                line_of(name),
+                f"{what}: option {name!r} does not apply to integrator(s) {', '.join(integrators)} (it applies to {', '.join(owners)})",
+            )
         parsed = []
         for tok in values[name]:
             for taker in takers:
@@ -375,16 +429,22 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
     for kind in ("grid", "mesh"):
         given = [p.name for p in params_of_kind(kind) if p.name in own]
         if given and kind not in kinds:
-            raise src.error(line_of(given[0]), f"{what}: {given[0]!r} applies to {kind} scenarios and none of the test's "
-                                               f"scenarios ({', '.join(dims['scenario'])}) is one")
+            raise src.error(
+                line_of(given[0]),
+                f"{what}: {given[0]!r} applies to {kind} scenarios and none of the test's "
+                f"scenarios ({', '.join(dims['scenario'])}) is one",
+            )
     names = list(dims)
     count = math.prod(len(v) for v in dims.values())  # without expanding
     if count > room:
         sizes = [str(len(v)) for v in dims.values() if len(v) > 1]
         factors = f" ({' x '.join(sizes)})" if len(sizes) > 1 else ""
         before = f" (after {max_runs - room} runs of the tests before it)" if room < max_runs else ""
-        raise src.error(el.line, f"{what}: expands to {count} runs{factors}{before}, more than the limit of "
-                                 f"{max_runs} runs; raise it with --max-runs N if you mean it")
+        raise src.error(
+            el.line,
+            f"{what}: expands to {count} runs{factors}{before}, more than the limit of "
+            f"{max_runs} runs; raise it with --max-runs N if you mean it",
+        )
     runs = []
     for combo in itertools.product(*dims.values()):
         explicit = dict(zip(names, combo))
@@ -417,10 +477,14 @@ def _expand(src: _Source, el: _Element, root: _Element, test_id: str, defaults: 
         # the effective per-type values; the default damping scales with the particle mass, which a
         # mesh scenario knows only once its mesh is built: there it stays as given (or None)
         particles = rows * cols if rows is not None and not is_mesh else None
-        springs = default_spring_params(mass / (particles or 1), resolve_per_type(c, "stiffness"), resolve_per_type(c, "damping"))
+        springs = default_spring_params(
+            mass / (particles or 1), resolve_per_type(c, "stiffness"), resolve_per_type(c, "damping")
+        )
         eff = [springs[k] for k in sorted(springs)]
         resolved["stiffness"] = tuple(p.stiffness for p in eff)
-        resolved["damping"] = tuple(p.damping for p in eff) if particles else per_type_triple(resolve_per_type(c, "damping"))
+        resolved["damping"] = (
+            tuple(p.damping for p in eff) if particles else per_type_triple(resolve_per_type(c, "damping"))
+        )
         resolved["integrator"] = integrator
         runs.append(RunSpec(test_id=test_id, line=el.line, values=tuple(resolved.items()), options=options))
     return runs

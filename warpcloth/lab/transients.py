@@ -33,11 +33,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
 from warpcloth.sim.colliders import Plane
 from warpcloth.sim.control import Control, WindSchedule
 from warpcloth.sim.material import Material, grid_spring_params
 from warpcloth.sim.model import BendModel
-from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 #: The study's cloth: a plain woven fabric in the range of docs/materials.md's presets (between
 #: polyester_light, 343 N/m, and cotton, 4070 N/m), isotropic so that the sheet and the flag

@@ -25,8 +25,17 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require_count, require_positive, warn
+from warpcloth.run.metrics import (
+    DEFAULT_INSTABILITY_STRAIN,
+    EnergyCriteria,
+    EnergyMonitor,
+    EquilibriumCriteria,
+    EquilibriumDetector,
+    FrameMetrics,
+    MetricsProbe,
+    wind_power_bound,
+)
 from warpcloth.version import __version__
-from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN, EnergyCriteria, EnergyMonitor, EquilibriumCriteria, EquilibriumDetector, FrameMetrics, MetricsProbe, wind_power_bound
 
 #: Most steps one run may take (a larger count is a typo in dt or duration, not an experiment).
 MAX_RUN_STEPS = 10**12
@@ -41,9 +50,9 @@ CHUNK_SECONDS = 0.2
 class Stopwatch:
     """Wall time of a block of launches on ``device``, synchronised at both ends::
 
-        with Stopwatch(device) as watch:
-            sim.simulate(n)
-        watch.seconds
+    with Stopwatch(device) as watch:
+        sim.simulate(n)
+    watch.seconds
     """
 
     def __init__(self, device=None):
@@ -104,8 +113,14 @@ class StepTiming:
         return steps * self.median_ms / 1000.0 <= 1.0 / fps
 
 
-def time_steps(sim, windows: int = 5, window_seconds: float = 0.1, batch: int | None = None,
-               steps: int | None = None, warm_up: bool = True) -> StepTiming:
+def time_steps(
+    sim,
+    windows: int = 5,
+    window_seconds: float = 0.1,
+    batch: int | None = None,
+    steps: int | None = None,
+    warm_up: bool = True,
+) -> StepTiming:
     """Time ``sim``'s steps: a warm-up (compile; its seconds in ``compile_s``), one untimed
     replay of each step count timed (first launches, graph capture), then ``windows`` timed
     windows.
@@ -137,7 +152,9 @@ def time_steps(sim, windows: int = 5, window_seconds: float = 0.1, batch: int | 
             with Stopwatch(device) as watch:
                 sim.simulate(n)
             ms.append(1000.0 * watch.seconds / n)
-        return StepTiming(dt=sim.dt, steps_per_window=steps // windows, ms_per_step=ms, compile_s=compile_s, steps_timed=steps)
+        return StepTiming(
+            dt=sim.dt, steps_per_window=steps // windows, ms_per_step=ms, compile_s=compile_s, steps_timed=steps
+        )
     if batch is None:
         batch = max(1, math.ceil((1.0 / 60.0) / sim.dt - 1e-9))
     sim.simulate(batch)  # first launches / graph capture: excluded
@@ -233,8 +250,10 @@ def _unstable_cause(sim, inside: list) -> str:
     if inside:
         k, what, count = inside[0]
         return f"{count} vertices started inside collider {k} ({what}): move the cloth out of it"
-    return (f"the likeliest cause is the time step: dt = {sim.dt:.3g} s for {sim.integrator.name} on this cloth; "
-            f"try a smaller --dt (warpcloth max-dt finds the largest stable one) or another integrator")
+    return (
+        f"the likeliest cause is the time step: dt = {sim.dt:.3g} s for {sim.integrator.name} on this cloth; "
+        f"try a smaller --dt (warpcloth max-dt finds the largest stable one) or another integrator"
+    )
 
 
 class RunHarness:
@@ -253,8 +272,14 @@ class RunHarness:
         energy: when growing energy counts as unstable (:class:`~warpcloth.run.metrics.EnergyCriteria`).
     """
 
-    def __init__(self, sim, scenario: str = "custom", instability_strain: float = DEFAULT_INSTABILITY_STRAIN,
-                 equilibrium: EquilibriumCriteria | None = None, energy: EnergyCriteria | None = None):
+    def __init__(
+        self,
+        sim,
+        scenario: str = "custom",
+        instability_strain: float = DEFAULT_INSTABILITY_STRAIN,
+        equilibrium: EquilibriumCriteria | None = None,
+        energy: EnergyCriteria | None = None,
+    ):
         if not callable(getattr(sim, "simulate", None)) or not hasattr(sim, "model"):
             raise WarpclothError(f"RunHarness needs a warpcloth.Simulator, got {sim!r:.80}")
         if equilibrium is not None and not isinstance(equilibrium, EquilibriumCriteria):
@@ -329,12 +354,24 @@ class RunHarness:
         m, dt = sim.model, sim.dt
         check_run_length(duration, fps, dt)
         if frames is not None and not callable(getattr(frames, "write_frame", None)):
-            raise WarpclothError(f"frames must be a frame sink with write_frame(points, sim_time) or None, got {frames!r:.80}")
+            raise WarpclothError(
+                f"frames must be a frame sink with write_frame(points, sim_time) or None, got {frames!r:.80}"
+            )
         result = RunResult(
-            scenario=self.scenario, integrator=sim.integrator.name, device=str(m.device), rows=m.rows, cols=m.cols,
-            particles=m.particle_count, springs=m.spring_count, dt=dt, fps=fps,
-            equilibrium_criterion="speed+force" if sim.integrator.force_based and sim.control.collision is None else "speed",
-            graph=sim.graph_enabled, instability_strain=self.instability_strain,
+            scenario=self.scenario,
+            integrator=sim.integrator.name,
+            device=str(m.device),
+            rows=m.rows,
+            cols=m.cols,
+            particles=m.particle_count,
+            springs=m.spring_count,
+            dt=dt,
+            fps=fps,
+            equilibrium_criterion="speed+force"
+            if sim.integrator.force_based and sim.control.collision is None
+            else "speed",
+            graph=sim.graph_enabled,
+            instability_strain=self.instability_strain,
         )
         if warm_up and not sim.warmed:  # once: a warm-up restarts the integrator's history
             result.compile_time = sim.warm_up()
@@ -355,9 +392,12 @@ class RunHarness:
 
         def energy_monitor(e_start: float) -> EnergyMonitor:
             return EnergyMonitor(
-                e_start, wind_power_bound(m, sim.control, self.instability_strain),
-                window_frames=max(math.ceil(self.energy_criteria.window_time * fps - 1e-9),
-                                  math.ceil(self.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9)),
+                e_start,
+                wind_power_bound(m, sim.control, self.instability_strain),
+                window_frames=max(
+                    math.ceil(self.energy_criteria.window_time * fps - 1e-9),
+                    math.ceil(self.energy_criteria.window_steps / max(1.0, steps_per_frame) - 1e-9),
+                ),
                 scale=m.total_mass * sim.control.gravity_magnitude * max(m.width, m.height, 1e-3),
                 criteria=self.energy_criteria,
             )
@@ -398,7 +438,9 @@ class RunHarness:
                 result.stable, result.unstable_reason = False, "non-finite state"
             elif metrics.max_strain > self.instability_strain:
                 result.stable = False
-                result.unstable_reason = f"spring strain {metrics.max_strain:.3g} beyond the limit {self.instability_strain:g}"
+                result.unstable_reason = (
+                    f"spring strain {metrics.max_strain:.3g} beyond the limit {self.instability_strain:g}"
+                )
             elif sim.sim_time < pins_move_until:
                 energy, energy_start = None, None
             elif energy is None:
@@ -460,8 +502,10 @@ class RunHarness:
         free[np.asarray(sim.model.pinned, dtype=np.int64)] = False
         found = starting_inside(colliders, sim.state.particle_q.numpy(), free, sim.sim_time)
         for k, what, count in found:
-            warn(f"{count} of {int(free.sum())} free cloth vertices start inside collider {k} ({what}): the first step "
-                 f"throws them out; move the cloth or the collider")
+            warn(
+                f"{count} of {int(free.sum())} free cloth vertices start inside collider {k} ({what}): the first step "
+                f"throws them out; move the cloth or the collider"
+            )
         return found
 
     def _advance(self, n: int, loop_start: float, wall_cap: float | None) -> bool:

@@ -32,10 +32,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from warpcloth.kernels import metrics as mk
-
 from warpcloth.errors import require_positive
 from warpcloth.integrators.forces import eval_forces
+from warpcloth.kernels import metrics as mk
 
 #: Default instability strain: a spring stretched past (1 + this) x its rest length is unstable.
 #: Measured (``python bench/instability_strain.py``, 4 s of sheet, 5 s of flag): rk4 at a half and
@@ -122,19 +121,40 @@ class MetricsProbe:
         else:
             self.force.zero_()
         if m.spring_count:
-            wp.launch(mk.reduce_spring_strain, dim=m.spring_count, inputs=[state.particle_q, m.spring_indices, m.spring_rest_length], outputs=[self.buffer], device=d)
+            wp.launch(
+                mk.reduce_spring_strain,
+                dim=m.spring_count,
+                inputs=[state.particle_q, m.spring_indices, m.spring_rest_length],
+                outputs=[self.buffer],
+                device=d,
+            )
         wp.launch(
             mk.reduce_particle_motion,
             dim=m.particle_count,
-            inputs=[state.particle_q, state.particle_qd, self.force, m.particle_mass, m.particle_inv_mass, float(self.control.gravity_magnitude)],
+            inputs=[
+                state.particle_q,
+                state.particle_qd,
+                self.force,
+                m.particle_mass,
+                m.particle_inv_mass,
+                float(self.control.gravity_magnitude),
+            ],
             outputs=[self.buffer],
             device=d,
         )
         patch_ratio = None
         if with_force and self.patch_count:
-            wp.launch(mk.reduce_patch_force, dim=self.patch_count, inputs=[self.force, self.patch_offsets, self.patch_members],
-                      outputs=[self.patch_force], device=d)
-            patch_ratio = np.linalg.norm(self.patch_force.numpy()[: self.patch_count].astype(np.float64), axis=1) / self.patch_weight
+            wp.launch(
+                mk.reduce_patch_force,
+                dim=self.patch_count,
+                inputs=[self.force, self.patch_offsets, self.patch_members],
+                outputs=[self.patch_force],
+                device=d,
+            )
+            patch_ratio = (
+                np.linalg.norm(self.patch_force.numpy()[: self.patch_count].astype(np.float64), axis=1)
+                / self.patch_weight
+            )
         b = self.buffer.numpy()
         finite = bool(b[mk.NON_FINITE] == 0.0 and np.all(np.isfinite(b)))
         return FrameMetrics(
@@ -159,13 +179,26 @@ class MetricsProbe:
         wp.launch(
             mk.reduce_energy,
             dim=m.particle_count + m.spring_count,
-            inputs=[state.particle_q, state.particle_qd, m.particle_mass, m.spring_indices, m.spring_rest_length, m.spring_stiffness, wp.vec3(*self.control.gravity)],
+            inputs=[
+                state.particle_q,
+                state.particle_qd,
+                m.particle_mass,
+                m.spring_indices,
+                m.spring_rest_length,
+                m.spring_stiffness,
+                wp.vec3(*self.control.gravity),
+            ],
             outputs=[self.energy_buffer],
             device=m.device,
         )
         if m.hinge_count:  # + dihedral bending, 1/2 k_e (theta - theta0)^2
-            wp.launch(mk.reduce_hinge_energy, dim=m.hinge_count, inputs=[state.particle_q, *m.hinge_arrays()[:3]],
-                      outputs=[self.energy_buffer], device=m.device)
+            wp.launch(
+                mk.reduce_hinge_energy,
+                dim=m.hinge_count,
+                inputs=[state.particle_q, *m.hinge_arrays()[:3]],
+                outputs=[self.energy_buffer],
+                device=m.device,
+            )
         e = self.energy_buffer.numpy()
         return float(e[mk.ENERGY_TOTAL]), float(e[mk.ENERGY_KINETIC])
 
@@ -237,7 +270,7 @@ def particle_aggregates(model, control) -> tuple[list[np.ndarray], np.ndarray, n
     starts = np.zeros(n + 1, dtype=np.int64)
     starts[1:] = np.cumsum(np.bincount(ends, minlength=n))
     flat = others[order].tolist()
-    adjacency = [flat[starts[i]:starts[i + 1]] for i in range(n)]
+    adjacency = [flat[starts[i] : starts[i + 1]] for i in range(n)]
     levels = [_grow_patches(adjacency, free, t) for t in PATCH_SIZES if t < free.sum()]
     levels.append(_grow_patches(adjacency, free, n))  # connected pieces
     g = max(control.gravity_magnitude, 1.0e-6)
@@ -326,7 +359,9 @@ class EnergyMonitor:
     every mode by sqrt(1 + (h omega)^4 / 4) per step, is caught this way.
     """
 
-    def __init__(self, e0: float, power_bound: float, window_frames: int, scale: float, criteria: EnergyCriteria | None = None):
+    def __init__(
+        self, e0: float, power_bound: float, window_frames: int, scale: float, criteria: EnergyCriteria | None = None
+    ):
         self.criteria = criteria or EnergyCriteria()
         self.e0 = float(e0)
         self.power_bound = float(power_bound)

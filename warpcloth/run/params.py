@@ -34,8 +34,8 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from warpcloth.errors import FLOAT32_MAX, WarpclothError
-from warpcloth.run.parse import collider_specs
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
+from warpcloth.run.parse import collider_specs
 
 SPRING_TYPES = ("structural", "shear", "bend")
 
@@ -129,23 +129,31 @@ def number_list(text: str):
     where the model is built)."""
     parts = text.split(",")
     if len(parts) > 1 and any(not p.strip() for p in parts):
-        raise argparse.ArgumentTypeError(f"{_shown(text)} has an empty item: give one number, or three separated by single commas (structural,shear,bend)")
+        raise argparse.ArgumentTypeError(
+            f"{_shown(text)} has an empty item: give one number, or three separated by single commas (structural,shear,bend)"
+        )
     try:
         values = [float(p) for p in parts]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers, got {_shown(text)}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected a number or three comma-separated numbers, got {_shown(text)}"
+        ) from None
     if len(values) == 1:
         return values[0]
     if len(values) == 3:
         return tuple(values)
-    raise argparse.ArgumentTypeError(f"expected a number or three comma-separated numbers (structural,shear,bend), got {_shown(text)}")
+    raise argparse.ArgumentTypeError(
+        f"expected a number or three comma-separated numbers (structural,shear,bend), got {_shown(text)}"
+    )
 
 
 def per_type(text: str):
     """``'1000'`` -> 1000.0; ``'1000,500,100'`` -> (1000.0, 500.0, 100.0) (structural, shear, bend)."""
     parts = text.split(",")
     if len(parts) not in (1, 3) or any(not p.strip() for p in parts):
-        raise ValueError(f"{_shown(text)}: give one number, or three separated by single commas (structural,shear,bend)")
+        raise ValueError(
+            f"{_shown(text)}: give one number, or three separated by single commas (structural,shear,bend)"
+        )
     values = tuple(non_negative(p) for p in parts)
     return values[0] if len(values) == 1 else values
 
@@ -359,7 +367,11 @@ class Param:
         if isinstance(value, bool) or not isinstance(value, (str, int, float, list)):
             raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
         if isinstance(value, list):
-            if takes != "per_type" or len(value) != 3 or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
+            if (
+                takes != "per_type"
+                or len(value) != 3
+                or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value)
+            ):
                 raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
             return self.parse(",".join(repr(float(v)) for v in value))
         if isinstance(value, str):
@@ -372,10 +384,22 @@ class Param:
 
 
 #: What a typed file's value of a parameter may be, by its parser (the rest take text).
-_TYPED = {number: "number", positive: "number", non_negative: "number", fraction: "number", grid_dim: "number",
-          per_type: "per_type", timestep: "number_or_text", wall_cap: "number_or_text"}
-_TYPED_WORDS = {"number": "a number", "per_type": "a number or 3 numbers [structural, shear, bend]",
-                "number_or_text": "a number or a string", "text": "a string"}
+_TYPED = {
+    number: "number",
+    positive: "number",
+    non_negative: "number",
+    fraction: "number",
+    grid_dim: "number",
+    per_type: "per_type",
+    timestep: "number_or_text",
+    wall_cap: "number_or_text",
+}
+_TYPED_WORDS = {
+    "number": "a number",
+    "per_type": "a number or 3 numbers [structural, shear, bend]",
+    "number_or_text": "a number or a string",
+    "text": "a string",
+}
 
 
 def _graph_config(value):
@@ -391,93 +415,421 @@ def _group_config(value):
 
 
 def _spring_params(kind: str, unit: str, default_doc: str) -> list[Param]:
-    base = Param(kind, per_type, unit, f"{'ks' if kind == 'stiffness' else 'kd'} of every spring type, or structural,shear,bend",
-                 "one number >= 0, or three separated by commas", "cloth", default_doc=default_doc,
-                 columns=tuple(f"{kind}_{t}" for t in SPRING_TYPES), metavar="K", cli_type=number_list)
+    base = Param(
+        kind,
+        per_type,
+        unit,
+        f"{'ks' if kind == 'stiffness' else 'kd'} of every spring type, or structural,shear,bend",
+        "one number >= 0, or three separated by commas",
+        "cloth",
+        default_doc=default_doc,
+        columns=tuple(f"{kind}_{t}" for t in SPRING_TYPES),
+        metavar="K",
+        cli_type=number_list,
+    )
     return [base] + [
-        Param(f"{kind}_{t}", non_negative, unit, f"{'ks' if kind == 'stiffness' else 'kd'} of {t} springs (overrides {kind})",
-              ">= 0", "cloth", default_doc=f"`{kind}`", folds_into=kind, metavar="K")
+        Param(
+            f"{kind}_{t}",
+            non_negative,
+            unit,
+            f"{'ks' if kind == 'stiffness' else 'kd'} of {t} springs (overrides {kind})",
+            ">= 0",
+            "cloth",
+            default_doc=f"`{kind}`",
+            folds_into=kind,
+            metavar="K",
+        )
         for t in SPRING_TYPES
     ]
 
 
 #: Every run parameter, in the order of the CSV columns and the run key.
 PARAMS: tuple[Param, ...] = (
-    Param("scenario", scenario, "", "scenario: a name ('warpcloth list') or a scenario file (.toml)",
-          "`sheet`, `flag`, `curtain`, `mesh`, `drape`, `tablecloth`, or a file `NAME.toml` (docs/meshes.md)", "run",
-          default_doc="`sheet flag` in a test list", sweep_default=("sheet", "flag"), positional=True, xml_aliases=("scenarios",),
-          config=None),
-    Param("integrator", integrator, "", "integrator name ('warpcloth list'); in a test list also 'all'",
-          "integrator names, or `all`", "integrator", default_doc="the scenario's (explicit_euler); required in a test list",
-          flag_aliases=("-i",), metavar="NAME", cli_type=str),
-    Param("device", device, "", "Warp device: cpu, cuda, cuda:N (a device that is not present is an error before any run)",
-          "`cpu`, `cuda`, `cuda:N`", "run", default="cpu", cli_type=str),
-    Param("size", size, "", "grid size: N (N x N) or ROWSxCOLS; excludes rows/cols", "`N` or `ROWSxCOLS`, at least 3 x 3",
-          "cloth", default_doc="the scenario's (sheet 32x32, flag 20x30)", folds_into="rows", applies="grid", metavar="N"),
-    Param("rows", grid_dim, "", "particles per column (with cols)", "integer >= 3", "cloth", default_doc="the scenario's",
-          applies="grid", metavar="N", from_scenario=True, cli_type=int),
-    Param("cols", grid_dim, "", "particles per row (with rows)", "integer >= 3", "cloth", default_doc="the scenario's",
-          applies="grid", metavar="N", from_scenario=True, cli_type=int),
-    Param("width", positive, "m", "cloth width", "> 0", "cloth", default_doc="the scenario's", applies="grid", from_scenario=True, cli_type=float),
-    Param("height", positive, "m", "cloth height", "> 0", "cloth", default_doc="the scenario's", applies="grid", from_scenario=True, cli_type=float),
-    Param("mass", positive, "kg", "total cloth mass, split evenly over the particles (seed 4.2.4)", "> 0", "cloth",
-          default_doc="the scenario's (sheet 0.2, flag 0.3)", from_scenario=True, cli_type=float),
+    Param(
+        "scenario",
+        scenario,
+        "",
+        "scenario: a name ('warpcloth list') or a scenario file (.toml)",
+        "`sheet`, `flag`, `curtain`, `mesh`, `drape`, `tablecloth`, or a file `NAME.toml` (docs/meshes.md)",
+        "run",
+        default_doc="`sheet flag` in a test list",
+        sweep_default=("sheet", "flag"),
+        positional=True,
+        xml_aliases=("scenarios",),
+        config=None,
+    ),
+    Param(
+        "integrator",
+        integrator,
+        "",
+        "integrator name ('warpcloth list'); in a test list also 'all'",
+        "integrator names, or `all`",
+        "integrator",
+        default_doc="the scenario's (explicit_euler); required in a test list",
+        flag_aliases=("-i",),
+        metavar="NAME",
+        cli_type=str,
+    ),
+    Param(
+        "device",
+        device,
+        "",
+        "Warp device: cpu, cuda, cuda:N (a device that is not present is an error before any run)",
+        "`cpu`, `cuda`, `cuda:N`",
+        "run",
+        default="cpu",
+        cli_type=str,
+    ),
+    Param(
+        "size",
+        size,
+        "",
+        "grid size: N (N x N) or ROWSxCOLS; excludes rows/cols",
+        "`N` or `ROWSxCOLS`, at least 3 x 3",
+        "cloth",
+        default_doc="the scenario's (sheet 32x32, flag 20x30)",
+        folds_into="rows",
+        applies="grid",
+        metavar="N",
+    ),
+    Param(
+        "rows",
+        grid_dim,
+        "",
+        "particles per column (with cols)",
+        "integer >= 3",
+        "cloth",
+        default_doc="the scenario's",
+        applies="grid",
+        metavar="N",
+        from_scenario=True,
+        cli_type=int,
+    ),
+    Param(
+        "cols",
+        grid_dim,
+        "",
+        "particles per row (with rows)",
+        "integer >= 3",
+        "cloth",
+        default_doc="the scenario's",
+        applies="grid",
+        metavar="N",
+        from_scenario=True,
+        cli_type=int,
+    ),
+    Param(
+        "width",
+        positive,
+        "m",
+        "cloth width",
+        "> 0",
+        "cloth",
+        default_doc="the scenario's",
+        applies="grid",
+        from_scenario=True,
+        cli_type=float,
+    ),
+    Param(
+        "height",
+        positive,
+        "m",
+        "cloth height",
+        "> 0",
+        "cloth",
+        default_doc="the scenario's",
+        applies="grid",
+        from_scenario=True,
+        cli_type=float,
+    ),
+    Param(
+        "mass",
+        positive,
+        "kg",
+        "total cloth mass, split evenly over the particles (seed 4.2.4)",
+        "> 0",
+        "cloth",
+        default_doc="the scenario's (sheet 0.2, flag 0.3)",
+        from_scenario=True,
+        cli_type=float,
+    ),
     *_spring_params("stiffness", "N/m", "1000 structural and shear, 200 bend"),
     *_spring_params("damping", "N s/m", "2 * 0.05 * sqrt(ks m), m the particle mass"),
-    Param("bend", choice("provot", "choi_ko", "none", "dihedral", what="bend model"), "",
-          "bend springs, or dihedral: no bend springs, dihedral-angle hinges of rigidity bend_rigidity",
-          "`provot`, `choi_ko`, `none`, `dihedral`", "cloth", default="provot", choices=("provot", "choi_ko", "none", "dihedral")),
-    Param("bend_rigidity", non_negative, "N m", "bending rigidity B of the dihedral hinges (bend dihedral only)", ">= 0", "cloth",
-          default_doc="31.4e-6 (cotton)", key="set", metavar="B", cli_type=float),
-    Param("drag", non_negative, "1/s", "linear air drag rate", ">= 0", "forces", default_doc="the scenario's (sheet 1, flag 0)", cli_type=float),
-    Param("collider", colliders, "", "add colliders: KIND:K=V,... (vectors as x/y/z), several joined by '+' or the flag "
-          "repeated, e.g. sphere:center=0/1/0,radius=0.3,thickness=0.005,friction=0.4 or mesh:path=table.obj "
-          "(docs/colliders.md)", "`plane`, `sphere`, `capsule`, `box`, `mesh` with settings", "forces", default_doc="none (the scenario's own)", key="set",
-          config="colliders", to_config=_colliders_config, repeat=True, metavar="KIND:K=V,...", cli_type=str),
-    Param("strain_limit", positive, "", "Provot's deformation constraint tau: after each step no structural or shear spring "
-          "stays beyond (1 + tau) L0 (force-based integrators only)", "> 0 (e.g. 0.1)", "integrator", default_doc="off",
-          key="set", metavar="TAU", cli_type=float),
-    Param("mesh", text_value, "", "the cloth's triangle mesh: .obj or .usd/.usda/.usdc/.usdz", "a file path", "mesh",
-          default_doc="the scenario's", key="set", applies="mesh", metavar="FILE", multi=True),
-    Param("prim", text_value, "", "the UsdGeom.Mesh prim of a USD mesh", "a prim path", "mesh",
-          default_doc="the first mesh", key="set", applies="mesh", metavar="PATH"),
-    Param("pin_group", names, "", "pin the vertex groups of the mesh (comma-separated; the flag may repeat)",
-          "group names", "mesh", default_doc="the scenario's", key="set", applies="mesh", to_config=_group_config,
-          repeat=True, join=",", metavar="NAME"),
-    Param("pin", text_value, "", "pin the vertices where a predicate holds, e.g. 'y > 0.95 * y.max()' (x, y, z in m)",
-          "a predicate (one per attribute: it holds spaces)", "mesh", default_doc="the scenario's", key="set", applies="mesh",
-          config="pin_where", multi=False, metavar="EXPR"),
-    Param("dt", timestep, "s", "time step: a value, the integrator's own stable default, or in a test list max / max*F "
-          "(a fraction of the largest stable dt)", "dt in s, `default`, `max`, `max*F`", "run", default=TimeStep("default"),
-          default_doc="`default` (the integrator's own)", cli_help="time step (default: the integrator's own, stable on the scenario; "
-          "find the largest stable one with warpcloth max-dt)", xml_aliases=("timestep",), columns=("dt_request",), search=False, config=None,
-          commands=("run", "sweep"), metavar="S", cli_type=float),
-    Param("duration", positive, "s", "simulated time: the flag's length, the sheet's upper bound (it ends at equilibrium)",
-          "> 0", "run", default_doc="the scenario's (10); in a test list sheet 60, flag 10",
-          sweep_default=lambda name: SWEEP_DURATION.get(name), search=False, commands=("run", "sweep"), from_scenario=True, cli_type=float),
-    Param("frame_rate", positive, "1/s", "frames per simulated second: metrics are sampled (equilibrium and stability "
-          "checked) once a frame, USD frames written", "> 0", "run", default_doc="60; 30 in a test list (the seed's real-time "
-          "threshold)", sweep_default=SWEEP_FRAME_RATE, flag_aliases=("--fps",), config="fps", cli_type=float),
-    Param("wall_cap", wall_cap, "s", "wall-clock cap of one run and of each max-dt trial ('none': no cap)", "> 0 or `none`",
-          "run", default_doc="none; 60 in a test list (the seed's one minute)", sweep_default=SWEEP_WALL_CAP,
-          xml_aliases=("cap",), config=None, cli_type=cli_wall_cap),  # search: a trial that reaches the cap counts as capped
-    Param("graph", choice("on", "off", "auto", what="graph mode"), "", "capture a frame's steps as a graph and replay it: "
-          "on, off, or auto (where supported); results are bit-identical, capture time is reported apart",
-          "`on`, `off`, `auto`", "run", default="auto", key="set",  search=False, config="use_graph", to_config=_graph_config, choices=("on", "off", "auto")),
-    Param("instability_strain", positive, "", "a spring strained past this makes the run unstable (docs/stability.md)",
-          "> 0", "run", default=DEFAULT_INSTABILITY_STRAIN, key="set", metavar="STRAIN", cli_type=float),
-    Param("maxdt_precision", fraction, "", "relative precision of the max-stable-dt search", "0 < p < 1", "search",
-          default=DEFAULT_MAXDT_PRECISION, commands=("max-dt", "sweep"), flag_aliases=("--precision",), key="with_max",
-          config=None, cli_type=float),
-    Param("maxdt_duration", positive, "s", "simulated time a max-dt trial must survive", "> 0", "search",
-          default=DEFAULT_MAXDT_DURATION, commands=("max-dt", "sweep"), flag_aliases=("--duration",), key="with_max",
-          config=None, cli_type=float),
-    Param("dt_min", positive, "s", "smallest dt the max-dt search tries", "> 0", "search", default_doc="1e-7",
-          commands=("max-dt",), columns=(), key="never", config=None, cli_type=float),
-    Param("dt_max", positive, "s", "largest dt the max-dt search tries", "> 0", "search", default_doc="0.1; one frame in a test list",
-          commands=("max-dt",), columns=(), key="never", config=None, cli_type=float),
-    Param("dt_start", positive, "s", "first dt the max-dt search tries", "> 0", "search", default_doc="the integrator's default dt",
-          commands=("max-dt",), columns=(), key="never", config=None, flag_aliases=("--start",), cli_type=float),
+    Param(
+        "bend",
+        choice("provot", "choi_ko", "none", "dihedral", what="bend model"),
+        "",
+        "bend springs, or dihedral: no bend springs, dihedral-angle hinges of rigidity bend_rigidity",
+        "`provot`, `choi_ko`, `none`, `dihedral`",
+        "cloth",
+        default="provot",
+        choices=("provot", "choi_ko", "none", "dihedral"),
+    ),
+    Param(
+        "bend_rigidity",
+        non_negative,
+        "N m",
+        "bending rigidity B of the dihedral hinges (bend dihedral only)",
+        ">= 0",
+        "cloth",
+        default_doc="31.4e-6 (cotton)",
+        key="set",
+        metavar="B",
+        cli_type=float,
+    ),
+    Param(
+        "drag",
+        non_negative,
+        "1/s",
+        "linear air drag rate",
+        ">= 0",
+        "forces",
+        default_doc="the scenario's (sheet 1, flag 0)",
+        cli_type=float,
+    ),
+    Param(
+        "collider",
+        colliders,
+        "",
+        "add colliders: KIND:K=V,... (vectors as x/y/z), several joined by '+' or the flag "
+        "repeated, e.g. sphere:center=0/1/0,radius=0.3,thickness=0.005,friction=0.4 or mesh:path=table.obj "
+        "(docs/colliders.md)",
+        "`plane`, `sphere`, `capsule`, `box`, `mesh` with settings",
+        "forces",
+        default_doc="none (the scenario's own)",
+        key="set",
+        config="colliders",
+        to_config=_colliders_config,
+        repeat=True,
+        metavar="KIND:K=V,...",
+        cli_type=str,
+    ),
+    Param(
+        "strain_limit",
+        positive,
+        "",
+        "Provot's deformation constraint tau: after each step no structural or shear spring "
+        "stays beyond (1 + tau) L0 (force-based integrators only)",
+        "> 0 (e.g. 0.1)",
+        "integrator",
+        default_doc="off",
+        key="set",
+        metavar="TAU",
+        cli_type=float,
+    ),
+    Param(
+        "mesh",
+        text_value,
+        "",
+        "the cloth's triangle mesh: .obj or .usd/.usda/.usdc/.usdz",
+        "a file path",
+        "mesh",
+        default_doc="the scenario's",
+        key="set",
+        applies="mesh",
+        metavar="FILE",
+        multi=True,
+    ),
+    Param(
+        "prim",
+        text_value,
+        "",
+        "the UsdGeom.Mesh prim of a USD mesh",
+        "a prim path",
+        "mesh",
+        default_doc="the first mesh",
+        key="set",
+        applies="mesh",
+        metavar="PATH",
+    ),
+    Param(
+        "pin_group",
+        names,
+        "",
+        "pin the vertex groups of the mesh (comma-separated; the flag may repeat)",
+        "group names",
+        "mesh",
+        default_doc="the scenario's",
+        key="set",
+        applies="mesh",
+        to_config=_group_config,
+        repeat=True,
+        join=",",
+        metavar="NAME",
+    ),
+    Param(
+        "pin",
+        text_value,
+        "",
+        "pin the vertices where a predicate holds, e.g. 'y > 0.95 * y.max()' (x, y, z in m)",
+        "a predicate (one per attribute: it holds spaces)",
+        "mesh",
+        default_doc="the scenario's",
+        key="set",
+        applies="mesh",
+        config="pin_where",
+        multi=False,
+        metavar="EXPR",
+    ),
+    Param(
+        "dt",
+        timestep,
+        "s",
+        "time step: a value, the integrator's own stable default, or in a test list max / max*F "
+        "(a fraction of the largest stable dt)",
+        "dt in s, `default`, `max`, `max*F`",
+        "run",
+        default=TimeStep("default"),
+        default_doc="`default` (the integrator's own)",
+        cli_help="time step (default: the integrator's own, stable on the scenario; "
+        "find the largest stable one with warpcloth max-dt)",
+        xml_aliases=("timestep",),
+        columns=("dt_request",),
+        search=False,
+        config=None,
+        commands=("run", "sweep"),
+        metavar="S",
+        cli_type=float,
+    ),
+    Param(
+        "duration",
+        positive,
+        "s",
+        "simulated time: the flag's length, the sheet's upper bound (it ends at equilibrium)",
+        "> 0",
+        "run",
+        default_doc="the scenario's (10); in a test list sheet 60, flag 10",
+        sweep_default=lambda name: SWEEP_DURATION.get(name),
+        search=False,
+        commands=("run", "sweep"),
+        from_scenario=True,
+        cli_type=float,
+    ),
+    Param(
+        "frame_rate",
+        positive,
+        "1/s",
+        "frames per simulated second: metrics are sampled (equilibrium and stability "
+        "checked) once a frame, USD frames written",
+        "> 0",
+        "run",
+        default_doc="60; 30 in a test list (the seed's real-time threshold)",
+        sweep_default=SWEEP_FRAME_RATE,
+        flag_aliases=("--fps",),
+        config="fps",
+        cli_type=float,
+    ),
+    Param(
+        "wall_cap",
+        wall_cap,
+        "s",
+        "wall-clock cap of one run and of each max-dt trial ('none': no cap)",
+        "> 0 or `none`",
+        "run",
+        default_doc="none; 60 in a test list (the seed's one minute)",
+        sweep_default=SWEEP_WALL_CAP,
+        xml_aliases=("cap",),
+        config=None,
+        cli_type=cli_wall_cap,
+    ),  # search: a trial that reaches the cap counts as capped
+    Param(
+        "graph",
+        choice("on", "off", "auto", what="graph mode"),
+        "",
+        "capture a frame's steps as a graph and replay it: "
+        "on, off, or auto (where supported); results are bit-identical, capture time is reported apart",
+        "`on`, `off`, `auto`",
+        "run",
+        default="auto",
+        key="set",
+        search=False,
+        config="use_graph",
+        to_config=_graph_config,
+        choices=("on", "off", "auto"),
+    ),
+    Param(
+        "instability_strain",
+        positive,
+        "",
+        "a spring strained past this makes the run unstable (docs/stability.md)",
+        "> 0",
+        "run",
+        default=DEFAULT_INSTABILITY_STRAIN,
+        key="set",
+        metavar="STRAIN",
+        cli_type=float,
+    ),
+    Param(
+        "maxdt_precision",
+        fraction,
+        "",
+        "relative precision of the max-stable-dt search",
+        "0 < p < 1",
+        "search",
+        default=DEFAULT_MAXDT_PRECISION,
+        commands=("max-dt", "sweep"),
+        flag_aliases=("--precision",),
+        key="with_max",
+        config=None,
+        cli_type=float,
+    ),
+    Param(
+        "maxdt_duration",
+        positive,
+        "s",
+        "simulated time a max-dt trial must survive",
+        "> 0",
+        "search",
+        default=DEFAULT_MAXDT_DURATION,
+        commands=("max-dt", "sweep"),
+        flag_aliases=("--duration",),
+        key="with_max",
+        config=None,
+        cli_type=float,
+    ),
+    Param(
+        "dt_min",
+        positive,
+        "s",
+        "smallest dt the max-dt search tries",
+        "> 0",
+        "search",
+        default_doc="1e-7",
+        commands=("max-dt",),
+        columns=(),
+        key="never",
+        config=None,
+        cli_type=float,
+    ),
+    Param(
+        "dt_max",
+        positive,
+        "s",
+        "largest dt the max-dt search tries",
+        "> 0",
+        "search",
+        default_doc="0.1; one frame in a test list",
+        commands=("max-dt",),
+        columns=(),
+        key="never",
+        config=None,
+        cli_type=float,
+    ),
+    Param(
+        "dt_start",
+        positive,
+        "s",
+        "first dt the max-dt search tries",
+        "> 0",
+        "search",
+        default_doc="the integrator's default dt",
+        commands=("max-dt",),
+        columns=(),
+        key="never",
+        config=None,
+        flag_aliases=("--start",),
+        cli_type=float,
+    ),
 )
 
 BY_NAME: dict[str, Param] = {p.name: p for p in PARAMS}
@@ -486,8 +838,12 @@ BY_NAME: dict[str, Param] = {p.name: p for p in PARAMS}
 OLD_NAMES: dict[str, str] = {alias: p.name for p in PARAMS for alias in p.xml_aliases}
 
 GROUP_TITLES = {
-    "integrator": "integrator", "cloth": "cloth", "mesh": "mesh scenarios (mesh, scenario files)",
-    "forces": "forces and colliders", "run": "run", "search": "max-dt search",
+    "integrator": "integrator",
+    "cloth": "cloth",
+    "mesh": "mesh scenarios (mesh, scenario files)",
+    "forces": "forces and colliders",
+    "run": "run",
+    "search": "max-dt search",
 }
 
 
@@ -513,8 +869,11 @@ def add_flags(parser: argparse.ArgumentParser, command: str, skip: tuple = (), e
     parameter's name and every default None (unset). ``exclusive`` maps a parameter name to
     ``[(flags, kwargs), ...]``: command-only flags that exclude it (``--num-frames``)."""
     chosen = [p for p in params_for(command) if p.name not in skip]
-    groups: dict[str, Any] = {g: parser.add_argument_group(title) for g, title in GROUP_TITLES.items()
-                              if any(p.group == g and not p.positional for p in chosen)}
+    groups: dict[str, Any] = {
+        g: parser.add_argument_group(title)
+        for g, title in GROUP_TITLES.items()
+        if any(p.group == g and not p.positional for p in chosen)
+    }
     for p in chosen:
         if p.positional:
             parser.add_argument(p.name, type=_argparse_type(p), help=p.help)
@@ -534,10 +893,20 @@ def add_flags(parser: argparse.ArgumentParser, command: str, skip: tuple = (), e
         else:
             default = ""
         aliases = list(p.flag_aliases)
-        kwargs = {"choices": list(p.choices)} if p.choices else {"type": p.cli_type or _argparse_type(p),
-                                                                 "metavar": p.metavar or p.name.upper()}
-        group.add_argument(p.flag, *aliases, dest=p.name, default=None, **kwargs,
-                           action="append" if p.repeat else "store", help=((p.cli_help or p.help) + unit + default).replace("%", "%%"))
+        kwargs = (
+            {"choices": list(p.choices)}
+            if p.choices
+            else {"type": p.cli_type or _argparse_type(p), "metavar": p.metavar or p.name.upper()}
+        )
+        group.add_argument(
+            p.flag,
+            *aliases,
+            dest=p.name,
+            default=None,
+            **kwargs,
+            action="append" if p.repeat else "store",
+            help=((p.cli_help or p.help) + unit + default).replace("%", "%%"),
+        )
 
 
 def cli_value(param: Param, args):
@@ -580,8 +949,11 @@ def check_applies(values: dict, is_mesh: bool, scenario_name: str, spell=lambda 
             continue
         if (p.applies == "grid") == is_mesh:
             mesh_names = ", ".join(spell(q) for q in PARAMS if q.applies == "mesh")
-            kind = "a mesh: its size comes from the mesh file" if is_mesh else \
-                f"a grid; {mesh_names} apply to the mesh scenario and scenario files"
+            kind = (
+                "a mesh: its size comes from the mesh file"
+                if is_mesh
+                else f"a grid; {mesh_names} apply to the mesh scenario and scenario files"
+            )
             raise WarpclothError(f"{spell(p)} does not apply to scenario {scenario_name!r}: its cloth is {kind}")
 
 
@@ -597,7 +969,12 @@ def config_values(values: dict) -> dict:
         out["rows"], out["cols"] = values["size"]
     for p in PARAMS:
         field_name = p.config_field
-        if field_name is None or p.name in ("stiffness", "damping") or field_name in out and out[field_name] is not None:
+        if (
+            field_name is None
+            or p.name in ("stiffness", "damping")
+            or field_name in out
+            and out[field_name] is not None
+        ):
             continue
         value = values.get(p.name)
         if value is None:
@@ -643,8 +1020,19 @@ def markdown_table() -> str:
     return "\n".join(rows)
 
 
-__all__ = ["BY_NAME", "OLD_NAMES", "PARAMS", "Param", "TimeStep", "add_flags", "canonical", "config_values", "csv_columns",
-           "markdown_table", "params_for"]
+__all__ = [
+    "BY_NAME",
+    "OLD_NAMES",
+    "PARAMS",
+    "Param",
+    "TimeStep",
+    "add_flags",
+    "canonical",
+    "config_values",
+    "csv_columns",
+    "markdown_table",
+    "params_for",
+]
 
 
 if __name__ == "__main__":  # python -m warpcloth.run.params: the docs table

@@ -34,7 +34,9 @@ class ColliderSpec:
         if self.kind != "mesh":
             return COLLIDER_TYPES[self.kind](**settings)
         if load_mesh_collider is None:
-            raise WarpclothError(f"collider {self.text!r}: a mesh collider is read by a mesh loader (warpcloth.io.meshio)")
+            raise WarpclothError(
+                f"collider {self.text!r}: a mesh collider is read by a mesh loader (warpcloth.io.meshio)"
+            )
         return load_mesh_collider(settings.pop("path"), settings.pop("prim", None), **settings)
 
 
@@ -73,15 +75,21 @@ def parse_collider_spec(text: str) -> ColliderSpec:
     kind = kind.strip()
     cls = COLLIDER_TYPES.get(kind)
     if cls is None:
-        raise WarpclothError(f"unknown collider kind {kind[:40]!r} in {_short(text)}; choose from {', '.join(COLLIDER_TYPES)}")
+        raise WarpclothError(
+            f"unknown collider kind {kind[:40]!r} in {_short(text)}; choose from {', '.join(COLLIDER_TYPES)}"
+        )
     text_fields = set(MESH_TEXT_FIELDS) if cls is MeshCollider else set()
-    fields = {f for f in cls.__dataclass_fields__ if f not in ("track", "vertices", "triangles", "source")} | text_fields
+    fields = {
+        f for f in cls.__dataclass_fields__ if f not in ("track", "vertices", "triangles", "source")
+    } | text_fields
     kwargs = {}
     for item in filter(None, (p.strip() for p in _split_outside_quotes(rest, lambda s, k: s[k] == ","))):
         key, eq, value = item.partition("=")
         key = key.strip()
         if not eq or key not in fields:
-            raise WarpclothError(f"collider {kind}: unknown or empty setting {item[:60]!r}; its settings are {', '.join(sorted(fields))}")
+            raise WarpclothError(
+                f"collider {kind}: unknown or empty setting {item[:60]!r}; its settings are {', '.join(sorted(fields))}"
+            )
         if key in kwargs:
             raise WarpclothError(f"collider {kind}: setting {key!r} is given twice in {_short(text)}")
         if key in text_fields:
@@ -91,7 +99,9 @@ def parse_collider_spec(text: str) -> ColliderSpec:
         try:
             numbers = [float(p) for p in parts]
         except ValueError:
-            raise WarpclothError(f"collider {kind}: {key} must be numbers (x/y/z for vectors), got {value[:60]!r}") from None
+            raise WarpclothError(
+                f"collider {kind}: {key} must be numbers (x/y/z for vectors), got {value[:60]!r}"
+            ) from None
         kwargs[key] = tuple(numbers) if len(numbers) > 1 else numbers[0]
     if cls is MeshCollider:
         if "path" not in kwargs:
@@ -100,8 +110,11 @@ def parse_collider_spec(text: str) -> ColliderSpec:
         if not path:
             raise WarpclothError("collider mesh: path is empty; give path=FILE (.obj or .usd)")
         if not os.path.isfile(path):
-            raise WarpclothError(f"mesh file {kwargs['path']!r} does not exist" if not os.path.exists(path)
-                                 else f"mesh file {kwargs['path']!r} is not a regular file")
+            raise WarpclothError(
+                f"mesh file {kwargs['path']!r} does not exist"
+                if not os.path.exists(path)
+                else f"mesh file {kwargs['path']!r} is not a regular file"
+            )
         MeshCollider.check_settings(**{k: v for k, v in kwargs.items() if k not in text_fields})
     else:
         cls(**kwargs)  # the shape's own checks, now
@@ -119,12 +132,12 @@ def _starts_collider(text: str, k: int) -> bool:
     (``a+b.obj``) does not split."""
     if text[k] != "+":
         return False
-    head = text[k + 1:].lstrip()
+    head = text[k + 1 :].lstrip()
     if not head or head[0] == "+":  # an empty collider: refused by the caller
         return True
     for kind in COLLIDER_TYPES:
         if head.startswith(kind):
-            after = head[len(kind):].lstrip()
+            after = head[len(kind) :].lstrip()
             if after == "" or after[0] in ":+":
                 return True
     return False

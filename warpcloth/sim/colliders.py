@@ -26,13 +26,16 @@ KINDS = ("plane", "sphere", "capsule", "box", "mesh")
 
 
 def _material(thickness, friction):
-    return require_non_negative("collider thickness", thickness, "m"), require_non_negative("collider friction mu", friction)
+    return require_non_negative("collider thickness", thickness, "m"), require_non_negative(
+        "collider friction mu", friction
+    )
 
 
 def _track(c):
     if c.track is not None and not isinstance(c.track, ColliderTrack):
-        raise WarpclothError(f"{c.kind} track must be a ColliderTrack (ColliderTrack.keyframes, .rigid or .driven), "
-                             f"got {c.track!r:.80}")
+        raise WarpclothError(
+            f"{c.kind} track must be a ColliderTrack (ColliderTrack.keyframes, .rigid or .driven), got {c.track!r:.80}"
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,12 +66,21 @@ class ColliderTrack(Track):
         return cls(kind="keyframes", times=t, offsets=v, tangents=tan, interpolation=interpolation)
 
     @classmethod
-    def rigid(cls, center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), angular_velocity: float = 0.0, swing_amplitude: float = 0.0,
-              swing_frequency: float = 0.0, swing_phase: float = 0.0, velocity=(0.0, 0.0, 0.0)) -> "ColliderTrack":
+    def rigid(
+        cls,
+        center=(0.0, 0.0, 0.0),
+        axis=(0.0, 0.0, 1.0),
+        angular_velocity: float = 0.0,
+        swing_amplitude: float = 0.0,
+        swing_frequency: float = 0.0,
+        swing_phase: float = 0.0,
+        velocity=(0.0, 0.0, 0.0),
+    ) -> "ColliderTrack":
         """A rigid motion: ``center`` c [m] on the rotation ``axis`` at t = 0, ``angular_velocity``
         omega [rad/s], a swing A [rad] at f [Hz] with phase phi [rad], translation ``velocity`` u [m/s]."""
-        motion = check_rigid("collider track", center, axis, angular_velocity, swing_amplitude, swing_frequency,
-                             swing_phase, velocity)
+        motion = check_rigid(
+            "collider track", center, axis, angular_velocity, swing_amplitude, swing_frequency, swing_phase, velocity
+        )
         return cls(**motion)
 
     @classmethod
@@ -76,15 +88,29 @@ class ColliderTrack(Track):
         """A track from a scenario file's ``track = { kind = "rigid", velocity = [0.5, 0, 0] }`` or
         ``{ kind = "keyframes", times = [...], offsets = [[...], ...], interpolation = "linear" }``."""
         if not isinstance(table, dict):
-            raise WarpclothError(f"collider track must be a table {{ kind = \"keyframes\" | \"rigid\", ... }}, got {table!r:.80}")
-        keys = {"keyframes": ("times", "offsets", "interpolation", "tangents"),
-                "rigid": ("center", "axis", "angular_velocity", "swing_amplitude", "swing_frequency", "swing_phase", "velocity")}
+            raise WarpclothError(
+                f'collider track must be a table {{ kind = "keyframes" | "rigid", ... }}, got {table!r:.80}'
+            )
+        keys = {
+            "keyframes": ("times", "offsets", "interpolation", "tangents"),
+            "rigid": (
+                "center",
+                "axis",
+                "angular_velocity",
+                "swing_amplitude",
+                "swing_frequency",
+                "swing_phase",
+                "velocity",
+            ),
+        }
         kind = table.get("kind")
         if kind not in keys:
             raise WarpclothError(f"collider track kind must be 'keyframes' or 'rigid', got {kind!r}")
         unknown = sorted(set(table) - {"kind", *keys[kind]})
         if unknown:
-            raise WarpclothError(f"collider track ({kind}): unknown key {unknown[0]!r} (allowed: {', '.join(keys[kind])})")
+            raise WarpclothError(
+                f"collider track ({kind}): unknown key {unknown[0]!r} (allowed: {', '.join(keys[kind])})"
+            )
         args = {k: v for k, v in table.items() if k != "kind"}
         if kind == "keyframes":
             for need in ("times", "offsets"):
@@ -111,7 +137,9 @@ class ColliderTrack(Track):
         the unit quaternion ``rotation`` (x, y, z, w; None: as given) about its centre (a
         sphere's or a box's centre, a capsule's midpoint, a plane's point, a mesh's box centre)
         and moved by ``offset`` [m]; ``velocity`` [m/s] of the offset there (``"hermite"`` only)."""
-        require(self.kind == "driven", f"collider track is {self.kind}, not driven: only ColliderTrack.driven takes poses")
+        require(
+            self.kind == "driven", f"collider track is {self.kind}, not driven: only ColliderTrack.driven takes poses"
+        )
         self.drive.set_pose(offset, rotation, velocity)
 
     def transform(self, t: float):
@@ -142,8 +170,14 @@ class ColliderTrack(Track):
             return [1, *self._rigid_args(), dummy[0], dummy[1], dummy[1], 0]
         zero = wp.vec3d(0.0, 0.0, 0.0)
         tangents = self._key_tangents(np.zeros((1, 3))).reshape(-1, 3)
-        return [0, zero, wp.vec3d(0.0, 0.0, 1.0), zero, wp.vec4d(0.0, 0.0, 0.0, 0.0),
-                *self._keyframe_args(self.offsets, tangents)]
+        return [
+            0,
+            zero,
+            wp.vec3d(0.0, 0.0, 1.0),
+            zero,
+            wp.vec4d(0.0, 0.0, 0.0, 0.0),
+            *self._keyframe_args(self.offsets, tangents),
+        ]
 
 
 class ColliderDrive(FrameDrive):
@@ -162,8 +196,15 @@ class ColliderDrive(FrameDrive):
         self.turn = None
 
     def set_pose(self, offset, rotation=None, velocity=None) -> None:
-        q = self.rotation if rotation is None else np.asarray(require_vector("driven collider rotation", rotation, 4), dtype=np.float64)
-        require(np.linalg.norm(q) > 0.0, f"driven collider rotation must be a non-zero quaternion (x, y, z, w), got {rotation!r}")
+        q = (
+            self.rotation
+            if rotation is None
+            else np.asarray(require_vector("driven collider rotation", rotation, 4), dtype=np.float64)
+        )
+        require(
+            np.linalg.norm(q) > 0.0,
+            f"driven collider rotation must be a non-zero quaternion (x, y, z, w), got {rotation!r}",
+        )
         self.set(require_vector("driven collider offset", offset, 3, "m"), None if velocity is None else [velocity])
         self._turn = q / np.linalg.norm(q)
 
@@ -211,8 +252,14 @@ def _quat_mul(a, b) -> np.ndarray:
     """The product a b of quaternions (x, y, z, w)."""
     ax, ay, az, aw = a
     bx, by, bz, bw = b
-    return np.array([aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz])
+    return np.array(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ]
+    )
 
 
 def _quat_conj(q) -> np.ndarray:
@@ -254,7 +301,12 @@ class Plane(_Posed):
         _track(self)
 
     def _moved(self, move, r):
-        return Plane(point=move(self.point), normal=tuple(r @ np.asarray(self.normal)), thickness=self.thickness, friction=self.friction)
+        return Plane(
+            point=move(self.point),
+            normal=tuple(r @ np.asarray(self.normal)),
+            thickness=self.thickness,
+            friction=self.friction,
+        )
 
 
 @dataclass(frozen=True)
@@ -294,7 +346,9 @@ class Capsule(_Posed):
         _track(self)
 
     def _moved(self, move, r):
-        return Capsule(a=move(self.a), b=move(self.b), radius=self.radius, thickness=self.thickness, friction=self.friction)
+        return Capsule(
+            a=move(self.a), b=move(self.b), radius=self.radius, thickness=self.thickness, friction=self.friction
+        )
 
 
 @dataclass(frozen=True)
@@ -313,17 +367,26 @@ class Box(_Posed):
         object.__setattr__(self, "center", require_vector("box center", self.center, 3, "m"))
         half = require_vector("box half_extents", self.half_extents, 3, "m")
         if not all(h > 0.0 for h in half):
-            raise WarpclothError(f"box half_extents must all be > 0 m (a degenerate box has no inside), got {self.half_extents!r}")
+            raise WarpclothError(
+                f"box half_extents must all be > 0 m (a degenerate box has no inside), got {self.half_extents!r}"
+            )
         object.__setattr__(self, "half_extents", half)
         q = np.asarray(require_vector("box rotation", self.rotation, 4), dtype=np.float64)
-        require(np.linalg.norm(q) > 0.0, f"box rotation must be a non-zero quaternion (x, y, z, w), got {self.rotation!r}")
+        require(
+            np.linalg.norm(q) > 0.0, f"box rotation must be a non-zero quaternion (x, y, z, w), got {self.rotation!r}"
+        )
         object.__setattr__(self, "rotation", tuple(q / np.linalg.norm(q)))
         _material(self.thickness, self.friction)
         _track(self)
 
     def _moved(self, move, r):
-        return Box(center=move(self.center), half_extents=self.half_extents, rotation=_matrix_quat(r @ _quat_matrix(self.rotation)),
-                   thickness=self.thickness, friction=self.friction)
+        return Box(
+            center=move(self.center),
+            half_extents=self.half_extents,
+            rotation=_matrix_quat(r @ _quat_matrix(self.rotation)),
+            thickness=self.thickness,
+            friction=self.friction,
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -347,8 +410,15 @@ class MeshCollider(_Posed):
         from warpcloth.sim.mesh import check_mesh
 
         what = f"mesh collider {self.source!r}" if self.source else "mesh collider"
-        if self.vertices is None or self.triangles is None or np.size(self.triangles) == 0 or np.size(self.vertices) == 0:
-            raise WarpclothError(f"{what} is empty (no {'vertices' if self.vertices is None or np.size(self.vertices) == 0 else 'triangles'}): give at least one triangle")
+        if (
+            self.vertices is None
+            or self.triangles is None
+            or np.size(self.triangles) == 0
+            or np.size(self.vertices) == 0
+        ):
+            raise WarpclothError(
+                f"{what} is empty (no {'vertices' if self.vertices is None or np.size(self.vertices) == 0 else 'triangles'}): give at least one triangle"
+            )
         v, t = check_mesh(self.vertices, self.triangles, what=what)
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "triangles", t)
@@ -358,8 +428,14 @@ class MeshCollider(_Posed):
 
     def _moved(self, move, r):
         shift = np.asarray(move((0.0, 0.0, 0.0)))  # T of y -> R y + T
-        return MeshCollider(vertices=shift + self.vertices @ r.T, triangles=self.triangles, thickness=self.thickness, friction=self.friction,
-                            reach=self.reach, source=self.source)
+        return MeshCollider(
+            vertices=shift + self.vertices @ r.T,
+            triangles=self.triangles,
+            thickness=self.thickness,
+            friction=self.friction,
+            reach=self.reach,
+            source=self.source,
+        )
 
     @staticmethod
     def check_settings(thickness: float = 0.0, friction: float = 0.0, reach: float = 0.05) -> None:
@@ -368,8 +444,10 @@ class MeshCollider(_Posed):
         require_positive("mesh collider reach", reach, "m")
 
     def __repr__(self):
-        return (f"MeshCollider({self.source or 'in memory'}: {len(self.vertices)} vertices, {len(self.triangles)} triangles, "
-                f"thickness={self.thickness}, friction={self.friction}, reach={self.reach})")
+        return (
+            f"MeshCollider({self.source or 'in memory'}: {len(self.vertices)} vertices, {len(self.triangles)} triangles, "
+            f"thickness={self.thickness}, friction={self.friction}, reach={self.reach})"
+        )
 
     @property
     def kind(self) -> str:
@@ -416,11 +494,13 @@ COLLIDER_TYPES = {"plane": Plane, "sphere": Sphere, "capsule": Capsule, "box": B
 def _quat_matrix(q) -> np.ndarray:
     """The rotation matrix of a unit quaternion (x, y, z, w)."""
     x, y, z, w = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def _matrix_quat(m: np.ndarray) -> tuple:
@@ -442,5 +522,16 @@ def _matrix_quat(m: np.ndarray) -> tuple:
     return tuple(float(c) for c in q / np.linalg.norm(q))
 
 
-__all__ = ["Box", "COLLIDER_TYPES", "Capsule", "ColliderDrive", "ColliderTrack", "KINDS", "MeshCollider", "Plane", "Sphere",
-           "describe", "signed_distance"]
+__all__ = [
+    "Box",
+    "COLLIDER_TYPES",
+    "Capsule",
+    "ColliderDrive",
+    "ColliderTrack",
+    "KINDS",
+    "MeshCollider",
+    "Plane",
+    "Sphere",
+    "describe",
+    "signed_distance",
+]

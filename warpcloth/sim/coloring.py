@@ -55,7 +55,12 @@ class Coloring:
         counts = np.bincount(colors) if colors.size else np.zeros(0, dtype=np.int64)
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]]) if counts.size else counts
         keep = counts > 0
-        return cls(colors=colors, order=order, starts=tuple(int(v) for v in starts[keep]), counts=tuple(int(v) for v in counts[keep]))
+        return cls(
+            colors=colors,
+            order=order,
+            starts=tuple(int(v) for v in starts[keep]),
+            counts=tuple(int(v) for v in counts[keep]),
+        )
 
     @property
     def color_count(self) -> int:
@@ -120,7 +125,9 @@ def color_springs(pairs: np.ndarray, particle_count: int, cols: int | None = Non
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     if np.any(pairs[:, 0] == pairs[:, 1]):
         s = int(np.flatnonzero(pairs[:, 0] == pairs[:, 1])[0])
-        raise WarpclothError(f"spring {s} joins particle {int(pairs[s, 0])} to itself; a distance constraint needs two particles")
+        raise WarpclothError(
+            f"spring {s} joins particle {int(pairs[s, 0])} to itself; a distance constraint needs two particles"
+        )
     colors = grid_spring_colors(pairs, cols) if cols else None
     if colors is None or not is_valid_coloring(pairs, colors, particle_count):
         colors = greedy_spring_colors(pairs, particle_count)

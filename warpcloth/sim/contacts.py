@@ -49,18 +49,29 @@ class ColliderSet:
     def __init__(self, colliders, device, time=None, step_dt=None, frame_times=None):
         for c in colliders:
             if not isinstance(c, tuple(COLLIDER_TYPES.values())):
-                raise WarpclothError(f"colliders must be Plane, Sphere, Capsule, Box or MeshCollider objects, got {c!r:.80}")
+                raise WarpclothError(
+                    f"colliders must be Plane, Sphere, Capsule, Box or MeshCollider objects, got {c!r:.80}"
+                )
         self.colliders = tuple(colliders)
         self.device = device
         order = sorted(self.colliders, key=lambda c: c.kind != "plane")  # planes first: the kernels' half-space tests
         self.plane_count = sum(c.kind == "plane" for c in order)
         with wp.ScopedDevice(device):
-            self.meshes = [wp.Mesh(points=wp.array(c.vertices, dtype=wp.vec3), indices=wp.array(c.triangles.reshape(-1).astype(np.int32), dtype=int))
-                           if c.kind == "mesh" else None for c in order]  # kept alive: the records hold their ids
+            self.meshes = [
+                wp.Mesh(
+                    points=wp.array(c.vertices, dtype=wp.vec3),
+                    indices=wp.array(c.triangles.reshape(-1).astype(np.int32), dtype=int),
+                )
+                if c.kind == "mesh"
+                else None
+                for c in order
+            ]  # kept alive: the records hold their ids
             records = [_record(c, m) for c, m in zip(order, self.meshes)]
             self.rest = wp.array(records, dtype=ck.Collider)
             self.params = wp.array(records, dtype=ck.Collider)
-            self._box = wp.zeros(2, dtype=wp.vec3)  # broad phase: the box around the non-plane colliders (kernels.collide.eval_collider_bounds)
+            self._box = wp.zeros(
+                2, dtype=wp.vec3
+            )  # broad phase: the box around the non-plane colliders (kernels.collide.eval_collider_bounds)
             self.time = time if time is not None else wp.zeros(1, dtype=wp.float64)
             self.step_dt = step_dt if step_dt is not None else wp.zeros(1, dtype=wp.float64)
             self.substep = wp.array([0, 1], dtype=int)  # (k, S): the position-based substep k of S
@@ -74,7 +85,9 @@ class ColliderSet:
                     continue
                 drive = c.track.drive
                 if id(drive) in seen:
-                    raise WarpclothError("a driven collider track moves one collider: give each its own ColliderTrack.driven()")
+                    raise WarpclothError(
+                        "a driven collider track moves one collider: give each its own ColliderTrack.driven()"
+                    )
                 seen.add(id(drive))
                 turn = drive.bind_turn(device, np.array(record.bound_center, dtype=np.float64))
                 self._moving.append((ck.eval_collider_driven_pose, k, [self.frame_times, *drive.bind(device), turn]))
@@ -90,8 +103,13 @@ class ColliderSet:
         the end of the current position-based substep, t + dt min(k + 1, S) / S (device
         launches only)."""
         for kernel, k, args in self._moving:
-            wp.launch(kernel, dim=1, inputs=[self.time, wp.float64(offset), self.step_dt, self.substep, int(substep), k, self.rest, *args],
-                      outputs=[self.params], device=self.device)
+            wp.launch(
+                kernel,
+                dim=1,
+                inputs=[self.time, wp.float64(offset), self.step_dt, self.substep, int(substep), k, self.rest, *args],
+                outputs=[self.params],
+                device=self.device,
+            )
         if self._moving:
             self._bound()
 
@@ -111,7 +129,13 @@ class ColliderSet:
         return self._box
 
     def _bound(self) -> None:
-        wp.launch(ck.eval_collider_bounds, dim=1, inputs=[self.params, self.plane_count], outputs=[self._box], device=self.device)
+        wp.launch(
+            ck.eval_collider_bounds,
+            dim=1,
+            inputs=[self.params, self.plane_count],
+            outputs=[self._box],
+            device=self.device,
+        )
         self._box_ready = True
 
     def _broad_phase(self) -> list:
@@ -123,9 +147,21 @@ class ColliderSet:
         (``position_weight``: how a velocity change within the step moves x, see the kernels)."""
         self.pose(float(dt))
         d = displacement if displacement is not None else state.particle_qd
-        wp.launch(ck.collide_velocity, dim=model.particle_count,
-                  inputs=[state.particle_q, state.particle_qd, model.particle_inv_mass, float(dt), float(position_weight), d,
-                          int(displacement is not None), *self._broad_phase()], device=model.device)
+        wp.launch(
+            ck.collide_velocity,
+            dim=model.particle_count,
+            inputs=[
+                state.particle_q,
+                state.particle_qd,
+                model.particle_inv_mass,
+                float(dt),
+                float(position_weight),
+                d,
+                int(displacement is not None),
+                *self._broad_phase(),
+            ],
+            device=model.device,
+        )
 
     def project_displacement(self, model, x, dp, normal_correction, friction: bool) -> None:
         """Inside a position-based solver: p = x + dp out of every collider (accumulating the
@@ -135,9 +171,21 @@ class ColliderSet:
         Moving colliders are posed at each substep's end: the friction pass, made once per
         substep, counts the substeps on the device (k of S, S counted in the step before; see
         :meth:`begin_step`), so no integrator needs to pass its substep times."""
-        wp.launch(ck.collide_displacement, dim=model.particle_count,
-                  inputs=[int(friction), x, dp, model.particle_inv_mass, normal_correction, *self._broad_phase(), self.step_dt, self.substep],
-                  device=model.device)
+        wp.launch(
+            ck.collide_displacement,
+            dim=model.particle_count,
+            inputs=[
+                int(friction),
+                x,
+                dp,
+                model.particle_inv_mass,
+                normal_correction,
+                *self._broad_phase(),
+                self.step_dt,
+                self.substep,
+            ],
+            device=model.device,
+        )
         if friction and self._moving:  # the substep ends: the next one's pose
             wp.launch(ck.next_collider_substep, dim=1, inputs=[self.substep], device=self.device)
             self.pose(substep=True)
@@ -177,7 +225,9 @@ def _record(c, mesh=None):
         r.bound_center = wp.vec3(*(0.5 * (a + b)))
     elif c.kind == "mesh":
         lo, hi = c.vertices.min(axis=0), c.vertices.max(axis=0)
-        half = 0.5 * (hi - lo) + c.thickness + c.reach  # a particle up to reach inside is still found (a flat mesh has no height)
+        half = (
+            0.5 * (hi - lo) + c.thickness + c.reach
+        )  # a particle up to reach inside is still found (a flat mesh has no height)
         r.a = r.bound_center = r.rest_center = wp.vec3(*(0.5 * (lo + hi)))
         r.b = wp.vec3(*(half * (1.0 + 1e-5) + 1e-6))  # float32 rounding never rejects a contact
         r.radius = float(c.reach)

@@ -12,8 +12,14 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warpcloth.errors import WarpclothError, require, require_non_negative, require_number, require_positive, require_vector
-
+from warpcloth.errors import (
+    WarpclothError,
+    require,
+    require_non_negative,
+    require_number,
+    require_positive,
+    require_vector,
+)
 from warpcloth.kernels import collide as ck
 from warpcloth.kernels import forces as fk
 from warpcloth.kernels import pins as pk
@@ -45,7 +51,10 @@ class WindSchedule:
         winds = tuple(require_vector(f"wind schedule wind {k}", w, 3, "m/s") for k, w in enumerate(self.winds))
         object.__setattr__(self, "starts", starts)
         object.__setattr__(self, "winds", winds)
-        require(all(b >= a for a, b in zip(self.starts, self.starts[1:])), f"wind schedule start times must be increasing, got {list(self.starts)}")
+        require(
+            all(b >= a for a, b in zip(self.starts, self.starts[1:])),
+            f"wind schedule start times must be increasing, got {list(self.starts)}",
+        )
         object.__setattr__(self, "period", require_non_negative("wind schedule period", self.period, "s"))
 
     @classmethod
@@ -93,9 +102,16 @@ class Control:
     refills its device copy (both properties); every other attribute is a plain one.
     """
 
-    def __init__(self, gravity=GRAVITY, drag_rate: float = 0.0, wind_coefficient: float = 0.0,
-                 wind_schedule: WindSchedule = NO_WIND, device: str | None = None, pin_tracks: tuple = (),
-                 colliders: tuple = ()):
+    def __init__(
+        self,
+        gravity=GRAVITY,
+        drag_rate: float = 0.0,
+        wind_coefficient: float = 0.0,
+        wind_schedule: WindSchedule = NO_WIND,
+        device: str | None = None,
+        pin_tracks: tuple = (),
+        colliders: tuple = (),
+    ):
         require_non_negative("drag", drag_rate, "1/s")
         require_non_negative("wind coefficient", wind_coefficient, "kg/(m^2 s)")
         self.gravity: tuple[float, float, float] = require_vector("gravity", gravity, 3, "m/s^2")
@@ -121,7 +137,9 @@ class Control:
             self._clock = wp.zeros(1, dtype=wp.int64)
             self.wind = wp.zeros(1, dtype=wp.vec3)
             """Current wind velocity W(time) [m/s], device array of shape (1,), vec3 (:meth:`update`)."""
-            self._step_dt = wp.zeros(1, dtype=wp.float64)  # the last step's dt: position-based steps pose moving colliders with it
+            self._step_dt = wp.zeros(
+                1, dtype=wp.float64
+            )  # the last step's dt: position-based steps pose moving colliders with it
             self.frame_times = wp.zeros(4, dtype=wp.float64)
             """The key times (t0 - 1, t0, t1, t1 + 1) [s] of the frame being driven from the host
             (:meth:`upload_drives`), device array of shape (4,), float64: read by driven pin
@@ -132,9 +150,11 @@ class Control:
         self.wind_schedule = wind_schedule
 
     def __repr__(self) -> str:
-        return (f"Control(gravity={self.gravity!r}, drag_rate={self.drag_rate!r}, wind_coefficient={self.wind_coefficient!r}, "
-                f"wind_schedule={self.wind_schedule!r}, device={self.device!r}, pin_tracks={self.pin_tracks!r}, "
-                f"colliders={self.colliders!r})")
+        return (
+            f"Control(gravity={self.gravity!r}, drag_rate={self.drag_rate!r}, wind_coefficient={self.wind_coefficient!r}, "
+            f"wind_schedule={self.wind_schedule!r}, device={self.device!r}, pin_tracks={self.pin_tracks!r}, "
+            f"colliders={self.colliders!r})"
+        )
 
     @property
     def colliders(self) -> tuple:
@@ -148,7 +168,11 @@ class Control:
     @colliders.setter
     def colliders(self, value) -> None:
         value = tuple(value)
-        collision = ColliderSet(value, self.device, time=self.time, step_dt=self._step_dt, frame_times=self.frame_times) if value else None
+        collision = (
+            ColliderSet(value, self.device, time=self.time, step_dt=self._step_dt, frame_times=self.frame_times)
+            if value
+            else None
+        )
         self._colliders, self._collision = value, collision
 
     @property
@@ -200,8 +224,14 @@ class Control:
         if any(d.pending for d in pins) or any(d.pending for d in others):
             key = (float(dt), int(steps))
             if self._frame_launch is None or self._frame_launch[0] != key:  # recorded once per frame length
-                cmd = wp.launch(pk.eval_frame_times, dim=1, inputs=[self.time, self._time_base, self._clock, wp.float64(dt), int(steps)],
-                                outputs=[self.frame_times], device=self.device, record_cmd=True)
+                cmd = wp.launch(
+                    pk.eval_frame_times,
+                    dim=1,
+                    inputs=[self.time, self._time_base, self._clock, wp.float64(dt), int(steps)],
+                    outputs=[self.frame_times],
+                    device=self.device,
+                    record_cmd=True,
+                )
                 self._frame_launch = (key, cmd)
             self._frame_launch[1].launch()
         t1 = t0 + steps * dt
@@ -254,10 +284,18 @@ class Control:
         if self.collision is not None:
             self.collision.begin_step()
         if self.has_wind:
-            wp.launch(fk.eval_wind_schedule, dim=1, inputs=[self.time, self._schedule_start, self._schedule_wind, wp.float64(self.wind_schedule.period)], outputs=[self.wind], device=self.device)
+            wp.launch(
+                fk.eval_wind_schedule,
+                dim=1,
+                inputs=[self.time, self._schedule_start, self._schedule_wind, wp.float64(self.wind_schedule.period)],
+                outputs=[self.wind],
+                device=self.device,
+            )
 
     def advance(self, dt: float) -> None:
         """t = t_base + n dt after the n-th step since :meth:`rebase`, on the device."""
-        wp.launch(fk.advance_time, dim=1, inputs=[self.time, self._time_base, self._clock, wp.float64(dt)], device=self.device)
+        wp.launch(
+            fk.advance_time, dim=1, inputs=[self.time, self._time_base, self._clock, wp.float64(dt)], device=self.device
+        )
         if self.collision is not None and self.collision.moving:
             wp.launch(ck.store_step, dim=1, inputs=[wp.float64(dt)], outputs=[self._step_dt], device=self.device)

@@ -26,12 +26,16 @@ def resolve_device(device=None) -> wp.Device:
         return device
     available = [str(d) for d in wp.get_devices()]
     if not isinstance(device, str):
-        raise WarpclothError(f"device must be a device name such as 'cpu' or 'cuda:0', got {device!r} (available: {', '.join(available)})")
+        raise WarpclothError(
+            f"device must be a device name such as 'cpu' or 'cuda:0', got {device!r} (available: {', '.join(available)})"
+        )
     name = device.strip()
     if name == "cuda":
         cuda = [d for d in available if d.startswith("cuda")]
         if not cuda:
-            raise WarpclothError(f"device {device!r} is not available: no CUDA device found (available: {', '.join(available)})")
+            raise WarpclothError(
+                f"device {device!r} is not available: no CUDA device found (available: {', '.join(available)})"
+            )
         name = cuda[0]
     if name not in available:
         raise WarpclothError(f"device {device!r} is not available (available: {', '.join(available)})")

@@ -10,11 +10,25 @@ from __future__ import annotations
 
 import numpy as np
 
-from warpcloth.errors import WarpclothError, require, require_int, require_non_negative, require_positive, require_vector
+from warpcloth.errors import (
+    WarpclothError,
+    require,
+    require_int,
+    require_non_negative,
+    require_positive,
+    require_vector,
+)
 from warpcloth.sim.device import require_memory, resolve_device
 from warpcloth.sim.hinges import DEFAULT_BEND_DAMPING_RATIO, DEFAULT_BEND_RIGIDITY, grid_hinges, hinge_damping_for_ratio
-from warpcloth.sim.model import (BendModel, ClothModel, SpringParams, SpringType, build_model, check_spring_params,
-                                 default_spring_params)
+from warpcloth.sim.model import (
+    BendModel,
+    ClothModel,
+    SpringParams,
+    SpringType,
+    build_model,
+    check_spring_params,
+    default_spring_params,
+)
 
 
 def expected_spring_counts(rows: int, cols: int, bend: str | BendModel = BendModel.PROVOT) -> dict[str, int]:
@@ -87,7 +101,9 @@ def grid_triangles(rows: int, cols: int) -> np.ndarray:
     return np.concatenate([t1, t2]).astype(np.int32)
 
 
-def grid_positions(rows: int, cols: int, width: float, height: float, origin=(0.0, 0.0, 0.0), plane: str = "vertical") -> np.ndarray:
+def grid_positions(
+    rows: int, cols: int, width: float, height: float, origin=(0.0, 0.0, 0.0), plane: str = "vertical"
+) -> np.ndarray:
     """Particle positions of the grid [m]: row 0 at the origin, columns along +x.
 
     ``plane="vertical"``: rows go down (-y), the cloth lies in the x-y plane (y up).
@@ -153,8 +169,10 @@ def build_grid_cloth(
         raise WarpclothError(f"bend must be one of {[b.value for b in BendModel]}, got {bend!r}") from None
     min_dim = 2 if bend in (BendModel.NONE, BendModel.DIHEDRAL) else 3
     if bend != BendModel.DIHEDRAL and (bend_rigidity is not None or bend_damping_ratio is not None):
-        raise WarpclothError(f"bend_rigidity and bend_damping_ratio are the dihedral model's (bend='dihedral'), not "
-                             f"{bend.value!r}'s: its bend springs take the bend stiffness and damping")
+        raise WarpclothError(
+            f"bend_rigidity and bend_damping_ratio are the dihedral model's (bend='dihedral'), not "
+            f"{bend.value!r}'s: its bend springs take the bend stiffness and damping"
+        )
     require(mass_mode in ("uniform", "area"), f"mass_mode must be 'uniform' or 'area', got {mass_mode!r}")
     rows = require_int("rows", rows, min_dim)
     cols = require_int("cols", cols, min_dim)
@@ -179,12 +197,27 @@ def build_grid_cloth(
     from dataclasses import replace
 
     uv = grid_uvs(rows, cols)[model.host.tris].reshape(-1, 2)
-    model = replace(model, rows=rows, cols=cols, width=width, height=height, bend=bend, total_mass=total_mass,
-                    host=replace(model.host, uv=uv))
+    model = replace(
+        model,
+        rows=rows,
+        cols=cols,
+        width=width,
+        height=height,
+        bend=bend,
+        total_mass=total_mass,
+        host=replace(model.host, uv=uv),
+    )
     if bend == BendModel.DIHEDRAL:
-        rigidity = DEFAULT_BEND_RIGIDITY if bend_rigidity is None else require_non_negative("bend_rigidity", bend_rigidity, "N m")
-        ratio = DEFAULT_BEND_DAMPING_RATIO if bend_damping_ratio is None else \
-            require_non_negative("bend_damping_ratio", bend_damping_ratio, "")
+        rigidity = (
+            DEFAULT_BEND_RIGIDITY
+            if bend_rigidity is None
+            else require_non_negative("bend_rigidity", bend_rigidity, "N m")
+        )
+        ratio = (
+            DEFAULT_BEND_DAMPING_RATIO
+            if bend_damping_ratio is None
+            else require_non_negative("bend_damping_ratio", bend_damping_ratio, "")
+        )
         hinges = grid_hinges(model.host["q"], rows, cols, rigidity)
         hinges = replace(hinges, damping=hinge_damping_for_ratio(model.host["q"], hinges, model.host["mass"], ratio))
         model = model.with_hinges(hinges)
@@ -205,6 +238,14 @@ def grid_uvs(rows: int, cols: int) -> np.ndarray:
 
 
 __all__ = [
-    "BYTES_PER_HINGE", "BYTES_PER_PARTICLE", "BYTES_PER_SPRING", "build_grid_cloth", "expected_spring_counts", "grid_memory_estimate",
-    "grid_positions", "grid_springs", "grid_triangles", "grid_uvs",
+    "BYTES_PER_HINGE",
+    "BYTES_PER_PARTICLE",
+    "BYTES_PER_SPRING",
+    "build_grid_cloth",
+    "expected_spring_counts",
+    "grid_memory_estimate",
+    "grid_positions",
+    "grid_springs",
+    "grid_triangles",
+    "grid_uvs",
 ]

@@ -129,8 +129,9 @@ def triangle_hinges(triangles) -> np.ndarray:
     key_s = key[order]
     counts = np.bincount(np.unique(key_s, return_inverse=True)[1])
     if counts.size and counts.max() > 2:
-        raise WarpclothError(f"{int(np.sum(counts > 2))} edge(s) are shared by more than two triangles; "
-                             "hinges need a manifold mesh")
+        raise WarpclothError(
+            f"{int(np.sum(counts > 2))} edge(s) are shared by more than two triangles; hinges need a manifold mesh"
+        )
     pair = np.flatnonzero(key_s[1:] == key_s[:-1])  # positions p with order[p], order[p + 1] one edge
     first, second = order[pair], order[pair + 1]
     return np.stack([a[first], b[first], o[first], o[second]], axis=1).astype(np.int32)
@@ -302,8 +303,16 @@ def build_hinges(x, indices, rigidity, weight=1.0, damping_time: float = 0.0) ->
     rigidity = np.broadcast_to(np.asarray(rigidity, dtype=np.float64), (h,)).copy()
     area_sum = area.sum(axis=1)
     stiffness = np.where(valid, weight * rigidity * length**2 / np.where(valid, area_sum, 1.0), 0.0)
-    return Hinges(indices=q, rest_angle=theta, rest_length=length, rest_area=area, weight=weight,
-                  rigidity=rigidity, stiffness=stiffness, damping=float(damping_time) * stiffness)
+    return Hinges(
+        indices=q,
+        rest_angle=theta,
+        rest_length=length,
+        rest_area=area,
+        weight=weight,
+        rigidity=rigidity,
+        stiffness=stiffness,
+        damping=float(damping_time) * stiffness,
+    )
 
 
 def hinge_damping_for_ratio(x, hinges: Hinges, mass, ratio: float) -> np.ndarray:
@@ -313,7 +322,9 @@ def hinge_damping_for_ratio(x, hinges: Hinges, mass, ratio: float) -> np.ndarray
     _, g, valid = hinge_angle_gradients(x, hinges.indices)
     inv_mass = 1.0 / np.asarray(mass, dtype=np.float64)
     wg = np.einsum("hb,hb->h", inv_mass[hinges.indices], np.einsum("hbi,hbi->hb", g, g))
-    return np.where(valid & (wg > 0.0), 2.0 * float(ratio) * np.sqrt(hinges.stiffness / np.where(wg > 0.0, wg, 1.0)), 0.0)
+    return np.where(
+        valid & (wg > 0.0), 2.0 * float(ratio) * np.sqrt(hinges.stiffness / np.where(wg > 0.0, wg, 1.0)), 0.0
+    )
 
 
 def hinge_row_sums(x, hinges: Hinges, particle_count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -330,8 +341,15 @@ def hinge_row_sums(x, hinges: Hinges, particle_count: int) -> tuple[np.ndarray, 
     return stiff, damp
 
 
-def grid_hinges(positions, rows: int, cols: int, bend_warp: float, bend_weft: float | None = None,
-                warp_angle: float = 0.0, damping_time: float = 0.0) -> Hinges:
+def grid_hinges(
+    positions,
+    rows: int,
+    cols: int,
+    bend_warp: float,
+    bend_weft: float | None = None,
+    warp_angle: float = 0.0,
+    damping_time: float = 0.0,
+) -> Hinges:
     """Symmetrised hinges of a rows x cols grid (:func:`grid_hinge_indices`, weight 1/2 each) with
     rest values from ``positions`` (N, 3) [m]. Warp runs along the columns (+c, grid +x) turned by
     ``warp_angle`` [rad]: a y-edge (across +c) gets m_w^2 = cos^2(warp_angle), an x-edge sin^2; so
@@ -345,8 +363,15 @@ def grid_hinges(positions, rows: int, cols: int, bend_warp: float, bend_weft: fl
     return build_hinges(positions, q, bend_rigidity(share, bend_warp, bend_weft), 0.5, damping_time)
 
 
-def mesh_hinges(positions, triangles, bend_warp: float, bend_weft: float | None = None, uv=None,
-                warp_angle: float = 0.0, damping_time: float = 0.0) -> Hinges:
+def mesh_hinges(
+    positions,
+    triangles,
+    bend_warp: float,
+    bend_weft: float | None = None,
+    uv=None,
+    warp_angle: float = 0.0,
+    damping_time: float = 0.0,
+) -> Hinges:
     """Hinges on the interior edges of a triangle mesh (:func:`triangle_hinges`, weight 1).
 
     The warp axis in triangle A of each hinge is the UV u axis (d x / d u, from per-vertex ``uv``

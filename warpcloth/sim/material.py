@@ -36,8 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from warpcloth.errors import WarpclothError, require, require_int, require_non_negative, require_positive, warn
-from warpcloth.sim.mesh import check_mesh, lumped_masses, mesh_topology, triangle_areas
 from warpcloth.sim.grid import grid_springs
+from warpcloth.sim.mesh import check_mesh, lumped_masses, mesh_topology, triangle_areas
 from warpcloth.sim.model import BendModel, SpringType
 
 #: Standard gravity [m/s^2] used for the bending length c = (B / (rho g))^(1/3).
@@ -93,8 +93,10 @@ class Material:
     note: str = ""
 
     def __post_init__(self):
-        require(isinstance(self.name, str) and self.name.strip() != "",
-                f"material name must be a non-empty string, got {self.name!r}")
+        require(
+            isinstance(self.name, str) and self.name.strip() != "",
+            f"material name must be a non-empty string, got {self.name!r}",
+        )
         what = f"material {self.name!r}:"
         checks = {
             "density": (require_positive, "kg/m^2"),
@@ -116,14 +118,20 @@ class Material:
         require(abs(angle) <= math.pi, f"{what} warp_angle must be in [-pi, pi] rad, got {self.warp_angle!r}")
         object.__setattr__(self, "warp_angle", angle)
         g, c11, c22 = self.shear, self.stretch_warp, self.stretch_weft
-        require(g * g < c11 * c22,
-                f"{what} shear must be < sqrt(stretch_warp * stretch_weft) = {math.sqrt(c11 * c22):.6g} N/m "
-                f"(with C12 = shear the membrane must be positive definite), got {g!r}")
+        require(
+            g * g < c11 * c22,
+            f"{what} shear must be < sqrt(stretch_warp * stretch_weft) = {math.sqrt(c11 * c22):.6g} N/m "
+            f"(with C12 = shear the membrane must be positive definite), got {g!r}",
+        )
         require(isinstance(self.source, str), f"{what} source must be a string, got {self.source!r}")
         require(isinstance(self.note, str), f"{what} note must be a string, got {self.note!r}")
         est = (self.estimated,) if isinstance(self.estimated, str) else tuple(self.estimated)
-        allowed = PHYSICAL_FIELDS + ("compression", "stretch_damping_ratio", "bend_damping_ratio",
-                                     "bend_damping_frequency")
+        allowed = PHYSICAL_FIELDS + (
+            "compression",
+            "stretch_damping_ratio",
+            "bend_damping_ratio",
+            "bend_damping_frequency",
+        )
         for e in est:
             require(e in allowed, f"{what} estimated names unknown field {e!r}; fields: {', '.join(allowed)}")
         object.__setattr__(self, "estimated", est)
@@ -214,16 +222,54 @@ PRESETS: dict[str, Material] = {
     m.name: m
     for m in (
         Material("cotton", 0.220, 4070.0, 4033.0, 52.4, 31.4e-6, 31.4e-6, source="W11:royal-target", note=_CEILING),
-        Material("denim", 0.324, 2028.0, 411.0, 26.7, 16.0e-6, 24.2e-6, source="W11:11oz-black-denim",
-                 note="warp := the file's v axis (assumed; the stiff, non-spandex direction)"),
-        Material("polyester", 0.128, 4055.0, 4004.0, 9.6, 12.9e-6, 7.8e-6, source="W11:white-dots-on-blk",
-                 note=_CEILING),
-        Material("polyester_light", 0.113, 343.0, 86.0, 7.2, 3.6e-6, 5.1e-6, source="W11:tango-red-jet-set",
-                 note="measured C12 = 109 N/m cannot be represented (Cauchy: C12 = shear)"),
-        Material("wool", 0.168, 2132.0, 1671.0, 26.2, 5.56e-6, 5.02e-6, source="F14",
-                 note="secant stretch from FAST E100; a student lab report"),
-        Material("silk", 0.060, 1000.0, 1000.0, 10.0, 1.5e-6, 1.5e-6, source="K80", estimated=_EST_ALL,
-                 note="estimated: B from the KES range of thin dress fabrics, S and G guesses; calibrate before use"),
+        Material(
+            "denim",
+            0.324,
+            2028.0,
+            411.0,
+            26.7,
+            16.0e-6,
+            24.2e-6,
+            source="W11:11oz-black-denim",
+            note="warp := the file's v axis (assumed; the stiff, non-spandex direction)",
+        ),
+        Material(
+            "polyester", 0.128, 4055.0, 4004.0, 9.6, 12.9e-6, 7.8e-6, source="W11:white-dots-on-blk", note=_CEILING
+        ),
+        Material(
+            "polyester_light",
+            0.113,
+            343.0,
+            86.0,
+            7.2,
+            3.6e-6,
+            5.1e-6,
+            source="W11:tango-red-jet-set",
+            note="measured C12 = 109 N/m cannot be represented (Cauchy: C12 = shear)",
+        ),
+        Material(
+            "wool",
+            0.168,
+            2132.0,
+            1671.0,
+            26.2,
+            5.56e-6,
+            5.02e-6,
+            source="F14",
+            note="secant stretch from FAST E100; a student lab report",
+        ),
+        Material(
+            "silk",
+            0.060,
+            1000.0,
+            1000.0,
+            10.0,
+            1.5e-6,
+            1.5e-6,
+            source="K80",
+            estimated=_EST_ALL,
+            note="estimated: B from the KES range of thin dress fabrics, S and G guesses; calibrate before use",
+        ),
     )
 }
 
@@ -335,8 +381,10 @@ class MaterialSprings:
 
 
 def _damping(mat: Material, ks, types, pairs, mass, stretch_damping: str) -> np.ndarray:
-    require(stretch_damping in STRETCH_DAMPING_MODES,
-            f"stretch_damping must be one of {', '.join(STRETCH_DAMPING_MODES)}, got {stretch_damping!r}")
+    require(
+        stretch_damping in STRETCH_DAMPING_MODES,
+        f"stretch_damping must be one of {', '.join(STRETCH_DAMPING_MODES)}, got {stretch_damping!r}",
+    )
     membrane = types != int(SpringType.BEND)
     if stretch_damping == "ratio":  # kd = 2 zeta_m sqrt(ks m_bar), m_bar the mean of the two masses
         m_bar = 0.5 * (mass[pairs[:, 0]] + mass[pairs[:, 1]])
@@ -422,8 +470,10 @@ def grid_spring_params(
 
     c11, c22, g, c1112, c1222 = _rotated_target(mat)
     if max(abs(c1112), abs(c1222)) > 1e-9 * max(c11, c22):
-        warn(f"material {mat.name!r}: warp_angle {mat.warp_angle:.6g} rad is off the grid axes; the grid cannot "
-             f"represent its shear-stretch coupling (C1112 = {c1112:.4g} N/m), which is left out")
+        warn(
+            f"material {mat.name!r}: warp_angle {mat.warp_angle:.6g} rad is off the grid axes; the grid cannot "
+            f"represent its shear-stretch coupling (C1112 = {c1112:.4g} N/m), which is left out"
+        )
     ks = np.zeros(len(types))
     structural = types == int(SpringType.STRUCTURAL)
     along_x = structural & (dr == 0)
@@ -463,8 +513,10 @@ def _clamp(ks: np.ndarray, mat: Material) -> int:
     low = ks < 0.0
     count = int(np.count_nonzero(low))
     if count:
-        warn(f"material {mat.name!r}: {count} membrane springs clamped at 0 N/m (bend springs stiffer than the "
-             f"membrane at this spacing): use --bend dihedral")
+        warn(
+            f"material {mat.name!r}: {count} membrane springs clamped at 0 N/m (bend springs stiffer than the "
+            f"membrane at this spacing): use --bend dihedral"
+        )
         ks[low] = 0.0
     return count
 
@@ -518,8 +570,10 @@ def mesh_spring_params(
     n = v.shape[0]
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     types = np.asarray(types, dtype=np.int32).reshape(-1)
-    require(types.shape[0] == pairs.shape[0],
-            f"types must have one value per spring ({pairs.shape[0]}), got {types.shape[0]}")
+    require(
+        types.shape[0] == pairs.shape[0],
+        f"types must have one value per spring ({pairs.shape[0]}), got {types.shape[0]}",
+    )
     if pairs.size:
         require(pairs.min() >= 0 and pairs.max() < n, f"spring particle indices must be in 0..{n - 1}")
     topo = mesh_topology(t, n)
@@ -528,8 +582,10 @@ def mesh_spring_params(
     missing = np.flatnonzero((edge_spring < 0) | (types[np.maximum(edge_spring, 0)] == int(SpringType.BEND)))
     if missing.size:
         e = topo.edges[missing[0]]
-        raise WarpclothError(f"mesh edge ({int(e[0])}, {int(e[1])}) has no structural or shear spring: the pairs "
-                             "must come from mesh_springs(vertices, triangles)")
+        raise WarpclothError(
+            f"mesh edge ({int(e[0])}, {int(e[1])}) has no structural or shear spring: the pairs "
+            "must come from mesh_springs(vertices, triangles)"
+        )
 
     faces, face_tris = _faces(topo, types, edge_spring, find, t)
     normal, frame_u, frame_v = _face_frames(v, t, face_tris, uv, mat.warp_angle)
@@ -584,13 +640,15 @@ def _faces(topo, types, edge_spring, find, t):
     for e in np.flatnonzero(shear_edge):
         t0, t1 = (int(x) for x in topo.edge_tris[e])
         if in_quad[t0] or in_quad[t1]:
-            raise WarpclothError(f"mesh triangle {t0 if in_quad[t0] else t1} has two shear edges: a triangle can be "
-                                 "in one quad only")
+            raise WarpclothError(
+                f"mesh triangle {t0 if in_quad[t0] else t1} has two shear edges: a triangle can be in one quad only"
+            )
         other = int(find(topo.opposite[e, 0], topo.opposite[e, 1]))
         if other < 0 or types[other] != int(SpringType.SHEAR):
             a, b = (int(x) for x in topo.opposite[e])
-            raise WarpclothError(f"quad of triangles {t0} and {t1}: its second diagonal ({a}, {b}) is not a shear "
-                                 "spring")
+            raise WarpclothError(
+                f"quad of triangles {t0} and {t1}: its second diagonal ({a}, {b}) is not a shear spring"
+            )
         sides = {int(edge_spring[h]) for h in np.concatenate([topo.half_edge[t0], topo.half_edge[t1]]) if h != e}
         faces.append(sorted(sides) + [int(edge_spring[e]), other])
         face_tris.append((t0, t1))
@@ -611,16 +669,19 @@ def _face_frames(v, t, face_tris, uv, warp_angle):
         uvc = np.asarray(uv, dtype=np.float64)
         if uvc.shape == (v.shape[0], 2):
             uvc = uvc[t]
-        require(uvc.shape == (t.shape[0], 3, 2),
-                f"uv must have shape (T, 3, 2) per corner or (N, 2) per vertex, got {uvc.shape}")
+        require(
+            uvc.shape == (t.shape[0], 3, 2),
+            f"uv must have shape (T, 3, 2) per corner or (N, 2) per vertex, got {uvc.shape}",
+        )
         require(bool(np.all(np.isfinite(uvc))), "uv must be finite numbers")
         du1, dv1 = (uvc[:, 1] - uvc[:, 0]).T
         du2, dv2 = (uvc[:, 2] - uvc[:, 0]).T
         det = du1 * dv2 - du2 * dv1
         bad = np.flatnonzero(np.abs(det) < 1e-14)
         if bad.size:
-            raise WarpclothError(f"uv of triangle {int(bad[0])} is degenerate (zero area): the warp direction is "
-                                 "undefined there")
+            raise WarpclothError(
+                f"uv of triangle {int(bad[0])} is degenerate (zero area): the warp direction is undefined there"
+            )
         tri_u = (e1 * dv2[:, None] - e2 * dv1[:, None]) / det[:, None]  # dX/du
         tri_v = (e2 * du1[:, None] - e1 * du2[:, None]) / det[:, None]  # dX/dv
     else:
@@ -692,13 +753,15 @@ def _bend_faces(v, topo, bend_pairs, tri_face):
         if at < opp_sorted.size and opp_sorted[at] == key:  # across an interior edge: its two triangles
             add(b, topo.edge_tris[interior[order[at]]], 1.0)
             continue
-        nbr, nbr_e = dst[ptr[u]:ptr[u + 1]], eid[ptr[u]:ptr[u + 1]]  # along a line u - mid - w
+        nbr, nbr_e = dst[ptr[u] : ptr[u + 1]], eid[ptr[u] : ptr[u + 1]]  # along a line u - mid - w
         lo, hi = np.minimum(nbr, w), np.maximum(nbr, w)
         pos = np.minimum(np.searchsorted(edge_keys, lo * n + hi), edge_keys.size - 1)
         ok = edge_keys[pos] == lo * n + hi
         if not ok.any():
-            raise WarpclothError(f"bend spring ({int(u)}, {int(w)}) is neither across an interior edge nor along two "
-                                 "mesh edges: the pairs must come from mesh_springs(vertices, triangles)")
+            raise WarpclothError(
+                f"bend spring ({int(u)}, {int(w)}) is neither across an interior edge nor along two "
+                "mesh edges: the pairs must come from mesh_springs(vertices, triangles)"
+            )
         k = int(np.argmin(np.linalg.norm(v[nbr[ok]] - 0.5 * (v[u] + v[w]), axis=1)))
         for edge in (int(nbr_e[ok][k]), int(pos[ok][k])):
             add(b, topo.edge_tris[edge] if topo.interior[edge] else [edge_tri[edge]], 0.5)
@@ -722,6 +785,13 @@ def _fit(m: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 
 
 __all__ = [
-    "GRAVITY", "Material", "MaterialSprings", "PRESETS", "STRETCH_DAMPING_MODES", "bend_spring_stiffness",
-    "grid_spring_params", "material", "mesh_spring_params",
+    "GRAVITY",
+    "Material",
+    "MaterialSprings",
+    "PRESETS",
+    "STRETCH_DAMPING_MODES",
+    "bend_spring_stiffness",
+    "grid_spring_params",
+    "material",
+    "mesh_spring_params",
 ]

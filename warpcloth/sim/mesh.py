@@ -38,8 +38,13 @@ import numpy as np
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive
 from warpcloth.sim.device import require_memory, resolve_device
 from warpcloth.sim.grid import BYTES_PER_PARTICLE, BYTES_PER_SPRING
-from warpcloth.sim.hinges import (DEFAULT_BEND_DAMPING_RATIO, DEFAULT_BEND_RIGIDITY, build_hinges, hinge_damping_for_ratio,
-                                  triangle_hinges)
+from warpcloth.sim.hinges import (
+    DEFAULT_BEND_DAMPING_RATIO,
+    DEFAULT_BEND_RIGIDITY,
+    build_hinges,
+    hinge_damping_for_ratio,
+    triangle_hinges,
+)
 from warpcloth.sim.model import BendModel, ClothModel, SpringParams, SpringType, build_model, default_spring_params
 from warpcloth.sim.selection import resolve_pins
 
@@ -102,12 +107,16 @@ def check_mesh(vertices, triangles, what: str = "mesh") -> tuple[np.ndarray, np.
     require(v.ndim == 2 and v.shape[1] == 3, f"{what}: vertices must have shape (N, 3), got {v.shape}")
     bad = np.flatnonzero(~np.all(np.isfinite(v), axis=1))
     if bad.size:
-        raise WarpclothError(f"{what}: vertex {int(bad[0])} is not finite ({v[bad[0]].tolist()}); vertices must be finite numbers")
+        raise WarpclothError(
+            f"{what}: vertex {int(bad[0])} is not finite ({v[bad[0]].tolist()}); vertices must be finite numbers"
+        )
     far = np.flatnonzero(np.any(np.abs(v) > MAX_COORDINATE, axis=1))
     if far.size:
         k = int(far[0])
-        raise WarpclothError(f"{what}: vertex {k} at ({', '.join(f'{c:.3g}' for c in v[k])}) m is out of range: coordinates must "
-                             f"be within +-{MAX_COORDINATE:.0e} m (float32 must hold squared distances)")
+        raise WarpclothError(
+            f"{what}: vertex {k} at ({', '.join(f'{c:.3g}' for c in v[k])}) m is out of range: coordinates must "
+            f"be within +-{MAX_COORDINATE:.0e} m (float32 must hold squared distances)"
+        )
     t = np.asarray(triangles)
     require(t.size > 0, f"{what} is empty: no triangles")
     require(t.ndim == 2 and t.shape[1] == 3, f"{what}: triangles must have shape (T, 3), got {t.shape}")
@@ -120,22 +129,30 @@ def check_mesh(vertices, triangles, what: str = "mesh") -> tuple[np.ndarray, np.
     out = np.flatnonzero(np.any((t < 0) | (t >= n), axis=1))
     if out.size:
         k = int(out[0])
-        raise WarpclothError(f"{what}: triangle {k} has vertex index {t[k].tolist()} out of range: vertices are 0..{n - 1}")
+        raise WarpclothError(
+            f"{what}: triangle {k} has vertex index {t[k].tolist()} out of range: vertices are 0..{n - 1}"
+        )
     rep = np.flatnonzero((t[:, 0] == t[:, 1]) | (t[:, 1] == t[:, 2]) | (t[:, 0] == t[:, 2]))
     if rep.size:
         k = int(rep[0])
-        raise WarpclothError(f"{what}: triangle {k} repeats a vertex ({t[k].tolist()}): a triangle needs three different vertices")
+        raise WarpclothError(
+            f"{what}: triangle {k} repeats a vertex ({t[k].tolist()}): a triangle needs three different vertices"
+        )
     area = triangle_areas(v, t)
     scale = float(np.sum(np.ptp(v, axis=0) ** 2))
     flat = np.flatnonzero(area <= DEGENERATE_AREA * max(scale, np.finfo(float).tiny))
     if flat.size:
         k = int(flat[0])
-        raise WarpclothError(f"{what}: triangle {k} ({t[k].tolist()}) is degenerate (zero area): remove it or fix its vertices")
+        raise WarpclothError(
+            f"{what}: triangle {k} ({t[k].tolist()}) is degenerate (zero area): remove it or fix its vertices"
+        )
     used = np.zeros(n, dtype=bool)
     used[t.ravel()] = True
     if not used.all():
         k = int(np.flatnonzero(~used)[0])
-        raise WarpclothError(f"{what}: vertex {k} belongs to no triangle (every vertex of a cloth must be in a triangle)")
+        raise WarpclothError(
+            f"{what}: vertex {k} belongs to no triangle (every vertex of a cloth must be in a triangle)"
+        )
     return v, t
 
 
@@ -200,7 +217,9 @@ def mesh_topology(triangles: np.ndarray, vertex_count: int) -> MeshTopology:
     same = two[opposite[two, 0] == opposite[two, 1]]
     if same.size:
         e = int(same[0])
-        raise WarpclothError(f"mesh: triangles {int(edge_tris[e, 0])} and {int(edge_tris[e, 1])} are the same triangle (vertices {[int(edges[e, 0]), int(edges[e, 1]), int(opposite[e, 0])]})")
+        raise WarpclothError(
+            f"mesh: triangles {int(edge_tris[e, 0])} and {int(edge_tris[e, 1])} are the same triangle (vertices {[int(edges[e, 0]), int(edges[e, 1]), int(opposite[e, 0])]})"
+        )
     return MeshTopology(edges, counts, half_edge.reshape(T, 3), opposite, edge_tris)
 
 
@@ -287,7 +306,9 @@ def _straight_bends(v, t, topo: MeshTopology, is_diag: np.ndarray) -> np.ndarray
 MASS_MODES = ("area", "uniform")
 
 
-def lumped_masses(vertices, triangles, total_mass: float | None = None, density: float | None = None, mode: str = "area") -> np.ndarray:
+def lumped_masses(
+    vertices, triangles, total_mass: float | None = None, density: float | None = None, mode: str = "area"
+) -> np.ndarray:
     """Particle masses [kg] (float64): ``mode="area"`` gives each vertex a third of the area of
     each adjacent triangle times the density; ``"uniform"`` splits the total evenly. Give the
     total mass [kg] or the areal density [kg/m^2] (default: 0.2 kg in all)."""
@@ -368,27 +389,41 @@ def build_mesh_cloth(
         groups = {**mesh.groups, **(groups or {})}
     v, t = check_mesh(vertices, triangles)
     device = resolve_device(device)
-    require_memory(f"a mesh cloth of {v.shape[0]:,} vertices and {t.shape[0]:,} triangles",
-                   mesh_memory_estimate(v.shape[0], t.shape[0]), device)
+    require_memory(
+        f"a mesh cloth of {v.shape[0]:,} vertices and {t.shape[0]:,} triangles",
+        mesh_memory_estimate(v.shape[0], t.shape[0]),
+        device,
+    )
     masses = lumped_masses(v, t, total_mass, density, mass_mode)
     if spring_params is None:
         spring_params = default_spring_params(float(masses.mean()), stiffness, damping)
     pinned = resolve_pins(v, pins, pin_groups, pin_where, groups)
     bend_model = _mesh_bend(bend)
     if bend_model != BendModel.DIHEDRAL and (bend_rigidity is not None or bend_damping_ratio is not None):
-        raise WarpclothError("bend_rigidity and bend_damping_ratio are the dihedral model's (bend='dihedral'), "
-                             "not the bend springs'")
+        raise WarpclothError(
+            "bend_rigidity and bend_damping_ratio are the dihedral model's (bend='dihedral'), not the bend springs'"
+        )
     pairs, types = mesh_springs(v, t, quads=quads, bend=bend_model in (BendModel.PROVOT, BendModel.CHOI_KO))
     model = build_model(v, pairs, types, masses, spring_params, pinned, t, device)
     from dataclasses import replace
 
-    host = replace(model.host, uv=corner_uvs(uv, t, v.shape[0]) if uv is not None else None,
-                   groups={k: np.asarray(g, dtype=np.int64) for k, g in (groups or {}).items()})
+    host = replace(
+        model.host,
+        uv=corner_uvs(uv, t, v.shape[0]) if uv is not None else None,
+        groups={k: np.asarray(g, dtype=np.int64) for k, g in (groups or {}).items()},
+    )
     model = replace(model, host=host)
     if bend_model == BendModel.DIHEDRAL:
-        rigidity = DEFAULT_BEND_RIGIDITY if bend_rigidity is None else require_non_negative("bend_rigidity", bend_rigidity, "N m")
-        ratio = DEFAULT_BEND_DAMPING_RATIO if bend_damping_ratio is None else \
-            require_non_negative("bend_damping_ratio", bend_damping_ratio, "")
+        rigidity = (
+            DEFAULT_BEND_RIGIDITY
+            if bend_rigidity is None
+            else require_non_negative("bend_rigidity", bend_rigidity, "N m")
+        )
+        ratio = (
+            DEFAULT_BEND_DAMPING_RATIO
+            if bend_damping_ratio is None
+            else require_non_negative("bend_damping_ratio", bend_damping_ratio, "")
+        )
         q = model.host["q"]
         hinges = build_hinges(q, triangle_hinges(t), rigidity, 1.0)
         hinges = replace(hinges, damping=hinge_damping_for_ratio(q, hinges, model.host["mass"], ratio))
@@ -403,7 +438,9 @@ def _mesh_bend(bend) -> BendModel:
     try:
         return BendModel(bend)
     except ValueError:
-        raise WarpclothError(f"bend must be True, False or one of {[b.value for b in BendModel]}, got {bend!r}") from None
+        raise WarpclothError(
+            f"bend must be True, False or one of {[b.value for b in BendModel]}, got {bend!r}"
+        ) from None
 
 
 def corner_uvs(uv, triangles: np.ndarray, vertex_count: int) -> np.ndarray:
@@ -419,6 +456,15 @@ def corner_uvs(uv, triangles: np.ndarray, vertex_count: int) -> np.ndarray:
 
 
 __all__ = [
-    "MASS_MODES", "MeshTopology", "TriangleMesh", "build_mesh_cloth", "check_mesh", "corner_uvs", "lumped_masses",
-    "mesh_memory_estimate", "mesh_springs", "mesh_topology", "triangle_areas",
+    "MASS_MODES",
+    "MeshTopology",
+    "TriangleMesh",
+    "build_mesh_cloth",
+    "check_mesh",
+    "corner_uvs",
+    "lumped_masses",
+    "mesh_memory_estimate",
+    "mesh_springs",
+    "mesh_topology",
+    "triangle_areas",
 ]

@@ -169,13 +169,22 @@ class ClothModel:
 
         host = replace(self.host, hinges=hinges)
         if hinges is None:
-            return replace(self, host=host, hinge_indices=None, hinge_rest_angle=None, hinge_stiffness=None,
-                           hinge_damping=None)
-        require(hinges.hinge_count == 0 or int(hinges.indices.max()) < self.particle_count,
-                f"hinge particle indices must be in 0..{self.particle_count - 1}")
+            return replace(
+                self, host=host, hinge_indices=None, hinge_rest_angle=None, hinge_stiffness=None, hinge_damping=None
+            )
+        require(
+            hinges.hinge_count == 0 or int(hinges.indices.max()) < self.particle_count,
+            f"hinge particle indices must be in 0..{self.particle_count - 1}",
+        )
         d = hinges.to_device(self.device)
-        return replace(self, host=host, hinge_indices=d.hinge_indices, hinge_rest_angle=d.hinge_rest_angle,
-                       hinge_stiffness=d.hinge_stiffness, hinge_damping=d.hinge_damping)
+        return replace(
+            self,
+            host=host,
+            hinge_indices=d.hinge_indices,
+            hinge_rest_angle=d.hinge_rest_angle,
+            hinge_stiffness=d.hinge_stiffness,
+            hinge_damping=d.hinge_damping,
+        )
 
     def particle_hinge_sums(self) -> tuple[np.ndarray, np.ndarray]:
         """Per particle, Gershgorin row sums of the hinges' stiffness and damping matrices at the
@@ -230,7 +239,12 @@ class ClothModel:
         ks = np.array([params[SpringType(t)].stiffness for t in self.spring_type], dtype=np.float32)
         kd = np.array([params[SpringType(t)].damping for t in self.spring_type], dtype=np.float32)
         with wp.ScopedDevice(self.device):
-            return replace(self, spring_stiffness=wp.array(ks, dtype=float), spring_damping=wp.array(kd, dtype=float), spring_params=dict(params))
+            return replace(
+                self,
+                spring_stiffness=wp.array(ks, dtype=float),
+                spring_damping=wp.array(kd, dtype=float),
+                spring_params=dict(params),
+            )
 
 
 def check_spring_params(params: dict[SpringType, SpringParams]) -> None:
@@ -246,8 +260,19 @@ def check_spring_params(params: dict[SpringType, SpringParams]) -> None:
         require_non_negative(f"{t.name.lower()} damping", params[t].damping, "N s/m")
 
 
-def build_model(positions, spring_pairs, spring_types, masses, spring_params=None, pins=(), triangles=None, device=None,
-                *, spring_stiffness=None, spring_damping=None) -> ClothModel:
+def build_model(
+    positions,
+    spring_pairs,
+    spring_types,
+    masses,
+    spring_params=None,
+    pins=(),
+    triangles=None,
+    device=None,
+    *,
+    spring_stiffness=None,
+    spring_damping=None,
+) -> ClothModel:
     """Build a mass-spring model from arrays (any topology; the grid and mesh builders use this).
 
     Args:
@@ -277,8 +302,10 @@ def build_model(positions, spring_pairs, spring_types, masses, spring_params=Non
         raise WarpclothError(f"particle masses must be > 0 kg, got {float(mass[mass <= 0][0])!r}")
     per_spring = spring_stiffness is not None or spring_damping is not None
     if spring_params is None:
-        require(spring_stiffness is not None and spring_damping is not None,
-                "build_model needs spring_params, or both spring_stiffness and spring_damping per spring")
+        require(
+            spring_stiffness is not None and spring_damping is not None,
+            "build_model needs spring_params, or both spring_stiffness and spring_damping per spring",
+        )
     elif spring_stiffness is not None and spring_damping is not None:
         raise WarpclothError("give per-type spring_params or per-spring spring_stiffness and spring_damping, not both")
     else:
@@ -306,9 +333,13 @@ def build_model(positions, spring_pairs, spring_types, masses, spring_params=Non
     else:
         kd = _per_spring("spring_damping", spring_damping, types.shape[0], "N s/m")
     if per_spring:  # per type, the largest value of that type's springs
-        spring_params = {t: SpringParams(float(ks[types == t].max(initial=0.0)), float(kd[types == t].max(initial=0.0)))
-                         for t in SpringType}
-    tris = np.zeros((0, 3), dtype=np.int32) if triangles is None else np.asarray(triangles, dtype=np.int32).reshape(-1, 3)
+        spring_params = {
+            t: SpringParams(float(ks[types == t].max(initial=0.0)), float(kd[types == t].max(initial=0.0)))
+            for t in SpringType
+        }
+    tris = (
+        np.zeros((0, 3), dtype=np.int32) if triangles is None else np.asarray(triangles, dtype=np.int32).reshape(-1, 3)
+    )
     device = resolve_device(device)
     with wp.ScopedDevice(device):
         return ClothModel(
@@ -340,8 +371,9 @@ def _per_spring(name: str, values, count: int, unit: str) -> np.ndarray:
         a = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError):
         raise WarpclothError(f"{name} must be numbers, one per spring ({count})") from None
-    require(a.ndim == 1 and a.shape[0] == count,
-            f"{name} must have one value per spring ({count}), got shape {a.shape}")
+    require(
+        a.ndim == 1 and a.shape[0] == count, f"{name} must have one value per spring ({count}), got shape {a.shape}"
+    )
     bad = np.flatnonzero(~(np.isfinite(a) & (a >= 0.0)))
     if bad.size:
         k = int(bad[0])

@@ -50,8 +50,9 @@ class PinTrack(Track):
         return self.values
 
     @classmethod
-    def keyframes(cls, particles, times, positions, interpolation: str = "linear", tangents=None,
-                  name: str = "track") -> "PinTrack":
+    def keyframes(
+        cls, particles, times, positions, interpolation: str = "linear", tangents=None, name: str = "track"
+    ) -> "PinTrack":
         """Keyframed pins.
 
         Args:
@@ -67,13 +68,29 @@ class PinTrack(Track):
         """
         idx = _particles(particles)
         t, v, tan = check_keyframes("pin track", times, positions, interpolation, tangents, idx.size)
-        return cls(particles=tuple(idx.tolist()), kind="keyframes", times=t, values=v, tangents=tan,
-                   interpolation=interpolation, name=name)
+        return cls(
+            particles=tuple(idx.tolist()),
+            kind="keyframes",
+            times=t,
+            values=v,
+            tangents=tan,
+            interpolation=interpolation,
+            name=name,
+        )
 
     @classmethod
-    def rigid(cls, particles, center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, 1.0), angular_velocity: float = 0.0,
-              swing_amplitude: float = 0.0, swing_frequency: float = 0.0, swing_phase: float = 0.0,
-              velocity=(0.0, 0.0, 0.0), name: str = "track") -> "PinTrack":
+    def rigid(
+        cls,
+        particles,
+        center=(0.0, 0.0, 0.0),
+        axis=(0.0, 0.0, 1.0),
+        angular_velocity: float = 0.0,
+        swing_amplitude: float = 0.0,
+        swing_frequency: float = 0.0,
+        swing_phase: float = 0.0,
+        velocity=(0.0, 0.0, 0.0),
+        name: str = "track",
+    ) -> "PinTrack":
         """Pins moving rigidly: p(t) = c + u t + R(axis, theta(t)) (p0 - c), with
         theta(t) = omega t + A sin(2 pi f t + phi) [rad] and p0 each particle's rest position.
 
@@ -83,8 +100,9 @@ class PinTrack(Track):
             swing_phase: phi [rad]; velocity: the translation velocity u [m/s].
         """
         idx = _particles(particles)
-        motion = check_rigid("pin track", center, axis, angular_velocity, swing_amplitude, swing_frequency, swing_phase,
-                             velocity)
+        motion = check_rigid(
+            "pin track", center, axis, angular_velocity, swing_amplitude, swing_frequency, swing_phase, velocity
+        )
         return cls(particles=tuple(idx.tolist()), name=name, **motion)
 
     @classmethod
@@ -109,7 +127,10 @@ class PinTrack(Track):
     def set(self, positions, velocities=None) -> None:
         """A driven track's target: ``positions`` (P, 3) [m] at the end of the next frame (a
         ``simulate()`` call), and with ``"hermite"`` the ``velocities`` (P, 3) [m/s] there."""
-        require(self.kind == "driven", f"pin track {self.name!r} is {self.kind}, not driven: only PinTrack.driven takes targets")
+        require(
+            self.kind == "driven",
+            f"pin track {self.name!r} is {self.kind}, not driven: only PinTrack.driven takes targets",
+        )
         self.drive.set(positions, velocities)
 
     # -- host evaluation (tests, reports) --------------------------------------------------------
@@ -176,16 +197,23 @@ class KinematicPins:
                 idx = np.asarray(track.particles, dtype=np.int64)
                 bad = idx[(idx < 0) | (idx >= n)]
                 if bad.size:
-                    raise WarpclothError(f"pin track {track.name!r}: particle {int(bad[0])} is out of range: particles are 0..{n - 1}")
+                    raise WarpclothError(
+                        f"pin track {track.name!r}: particle {int(bad[0])} is out of range: particles are 0..{n - 1}"
+                    )
                 free = idx[~pinned[idx]]
                 if free.size:
-                    raise WarpclothError(f"pin track {track.name!r}: particle {int(free[0])} is not pinned in the model; pin it (pins=...) to move it along a track")
+                    raise WarpclothError(
+                        f"pin track {track.name!r}: particle {int(free[0])} is not pinned in the model; pin it (pins=...) to move it along a track"
+                    )
                 for i in idx.tolist():
                     if i in owner:
                         raise WarpclothError(f"particle {i} is in two pin tracks ({owner[i]!r} and {track.name!r})")
                     owner[i] = track.name
-                kernels = (pk.apply_pin_rigid, pk.eval_pin_rigid_delta) if track.kind == "rigid" else \
-                    (pk.apply_pin_keyframes, pk.eval_pin_keyframes_delta)
+                kernels = (
+                    (pk.apply_pin_rigid, pk.eval_pin_rigid_delta)
+                    if track.kind == "rigid"
+                    else (pk.apply_pin_keyframes, pk.eval_pin_keyframes_delta)
+                )
                 if track.kind == "driven":
                     require(frame_times is not None, "driven pin tracks need the control's frame_times")
                     track.drive.start(rest[idx])
@@ -198,14 +226,25 @@ class KinematicPins:
     def apply(self, control, x, v, offset: float = 0.0) -> None:
         """x_i = track(t + offset), v_i = track'(t + offset) for every tracked pin (t = control.time)."""
         for kernel, _, count, args in self._bound:
-            wp.launch(kernel, dim=count, inputs=[control.time, wp.float64(offset), *args], outputs=[x, v], device=self.device)
+            wp.launch(
+                kernel, dim=count, inputs=[control.time, wp.float64(offset), *args], outputs=[x, v], device=self.device
+            )
 
     def apply_driven(self, control, x, v) -> None:
         """x_i = track(t), v_i = track'(t) for the driven tracks only (a new frame's keys start
         at t: the pins take its velocity, as a keyframes track's pins would at a key)."""
         if self._driven_launches is None or self._driven_launches[0] != (x.ptr, v.ptr, control.time.ptr):
-            cmds = [wp.launch(kernel, dim=count, inputs=[control.time, wp.float64(0.0), *args], outputs=[x, v], device=self.device,
-                              record_cmd=True) for _, (kernel, _, count, args) in self.drives]
+            cmds = [
+                wp.launch(
+                    kernel,
+                    dim=count,
+                    inputs=[control.time, wp.float64(0.0), *args],
+                    outputs=[x, v],
+                    device=self.device,
+                    record_cmd=True,
+                )
+                for _, (kernel, _, count, args) in self.drives
+            ]
             self._driven_launches = ((x.ptr, v.ptr, control.time.ptr), cmds)
         for cmd in self._driven_launches[1]:
             cmd.launch()
@@ -213,7 +252,13 @@ class KinematicPins:
     def delta(self, control, x, v, offset: float, scale: float, velocity_weight: float, out) -> None:
         """out_i = scale (track(t + offset) - x_i) - velocity_weight v_i for every tracked pin."""
         for _, kernel, count, args in self._bound:
-            wp.launch(kernel, dim=count, inputs=[control.time, wp.float64(offset), *args, x, v, float(scale), float(velocity_weight)], outputs=[out], device=self.device)
+            wp.launch(
+                kernel,
+                dim=count,
+                inputs=[control.time, wp.float64(offset), *args, x, v, float(scale), float(velocity_weight)],
+                outputs=[out],
+                device=self.device,
+            )
 
 
 def apply_pins(control, x, v, offset: float = 0.0) -> None:

@@ -17,10 +17,23 @@ import numpy as np
 
 from warpcloth.errors import FLOAT32_MAX, WarpclothError, require
 
-_ARITH = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
-          ast.Pow: operator.pow, ast.Mod: operator.mod}
+_ARITH = {
+    ast.Add: operator.add,
+    ast.Sub: operator.sub,
+    ast.Mult: operator.mul,
+    ast.Div: operator.truediv,
+    ast.Pow: operator.pow,
+    ast.Mod: operator.mod,
+}
 _LOGIC = {ast.BitAnd: np.logical_and, ast.BitOr: np.logical_or}
-_CMPOPS = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt, ast.GtE: operator.ge, ast.Eq: operator.eq, ast.NotEq: operator.ne}
+_CMPOPS = {
+    ast.Lt: operator.lt,
+    ast.LtE: operator.le,
+    ast.Gt: operator.gt,
+    ast.GtE: operator.ge,
+    ast.Eq: operator.eq,
+    ast.NotEq: operator.ne,
+}
 _REDUCTIONS = {"min": np.min, "max": np.max, "mean": np.mean}
 _FUNCTIONS = {"abs": (np.abs, abs), "sqrt": (np.sqrt, math.sqrt)}
 _NAMES = ("x", "y", "z")
@@ -62,7 +75,9 @@ def parse_predicate(text: str):
     Anything else is refused with a :class:`WarpclothError` of one short line; the string is
     parsed with :mod:`ast`, never ``eval``-ed.
     """
-    require(isinstance(text, str) and text.strip() != "", f"pin predicate must be a non-empty expression, got {text!r:.80}")
+    require(
+        isinstance(text, str) and text.strip() != "", f"pin predicate must be a non-empty expression, got {text!r:.80}"
+    )
     shown = _short(text.strip())
     if len(text) > MAX_PREDICATE_CHARS:
         raise WarpclothError(f"pin predicate {shown} is longer than {MAX_PREDICATE_CHARS} characters")
@@ -76,14 +91,18 @@ def parse_predicate(text: str):
         raise WarpclothError(f"pin predicate {shown} is nested more than {MAX_PREDICATE_DEPTH} deep")
 
     def bad(node, what=None):
-        return WarpclothError(f"pin predicate {shown}: {what or type(node).__name__} is not allowed (allowed: {_ALLOWED})")
+        return WarpclothError(
+            f"pin predicate {shown}: {what or type(node).__name__} is not allowed (allowed: {_ALLOWED})"
+        )
 
     def constant(value: float, node) -> float:
         part = ast.get_source_segment(text.strip(), node) or "a number"
         if isinstance(value, complex):
             raise WarpclothError(f"pin predicate {shown}: {_short(part, 30)} is not a real number")
         if not math.isfinite(value) or abs(value) > MAX_CONSTANT:
-            raise WarpclothError(f"pin predicate {shown}: {_short(part, 30)} is out of range (|value| <= {MAX_CONSTANT:.3g})")
+            raise WarpclothError(
+                f"pin predicate {shown}: {_short(part, 30)} is out of range (|value| <= {MAX_CONSTANT:.3g})"
+            )
         return float(value)
 
     # check: each node is a number ("num", its value when it is made of numbers alone) or a
@@ -99,7 +118,9 @@ def parse_predicate(text: str):
             try:
                 folded[node] = constant(float(node.value), node)
             except OverflowError:
-                raise WarpclothError(f"pin predicate {shown}: a number is out of range (|value| <= {MAX_CONSTANT:.3g})") from None
+                raise WarpclothError(
+                    f"pin predicate {shown}: a number is out of range (|value| <= {MAX_CONSTANT:.3g})"
+                ) from None
             return "num"
         if isinstance(node, ast.Name):
             if node.id not in _NAMES:
@@ -148,7 +169,13 @@ def parse_predicate(text: str):
             return "bool"
         if isinstance(node, ast.Call) and not node.keywords:
             f = node.func
-            if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id in _NAMES and f.attr in _REDUCTIONS and not node.args:
+            if (
+                isinstance(f, ast.Attribute)
+                and isinstance(f.value, ast.Name)
+                and f.value.id in _NAMES
+                and f.attr in _REDUCTIONS
+                and not node.args
+            ):
                 return "num"
             if isinstance(f, ast.Name) and f.id in _FUNCTIONS and len(node.args) == 1:
                 if check(node.args[0]) != "num":
@@ -177,7 +204,13 @@ def parse_predicate(text: str):
             return op(ev(node.left, env), ev(node.right, env))
         if isinstance(node, ast.UnaryOp):
             operand = ev(node.operand, env)
-            return -operand if isinstance(node.op, ast.USub) else +operand if isinstance(node.op, ast.UAdd) else np.logical_not(operand)
+            return (
+                -operand
+                if isinstance(node.op, ast.USub)
+                else +operand
+                if isinstance(node.op, ast.UAdd)
+                else np.logical_not(operand)
+            )
         if isinstance(node, ast.BoolOp):
             f = np.logical_and if isinstance(node.op, ast.And) else np.logical_or
             out = ev(node.values[0], env)
@@ -227,12 +260,17 @@ def select_vertices(positions, where) -> np.ndarray:
     except Exception as exc:
         raise WarpclothError(f"pin predicate {name} failed: {type(exc).__name__}: {str(exc)[:100]}") from None
     if mask.dtype == bool:
-        require(mask.shape == (p.shape[0],), f"pin predicate must return one bool per vertex ({p.shape[0]}), got shape {mask.shape}")
+        require(
+            mask.shape == (p.shape[0],),
+            f"pin predicate must return one bool per vertex ({p.shape[0]}), got shape {mask.shape}",
+        )
         idx = np.flatnonzero(mask)
     elif np.issubdtype(mask.dtype, np.integer):
         idx = np.unique(mask.astype(np.int64).ravel())
     else:
-        raise WarpclothError(f"pin predicate {name} must return a bool mask or integer indices, got {mask.dtype} values")
+        raise WarpclothError(
+            f"pin predicate {name} must return a bool mask or integer indices, got {mask.dtype} values"
+        )
     require(idx.size > 0, f"pin predicate {name} selects no vertex (the mesh spans {_span(p)})")
     return idx
 
@@ -252,7 +290,9 @@ def _indices(pins) -> np.ndarray:
     a = np.asarray(list(pins), dtype=object).reshape(-1)
     for v in a:
         ok = not isinstance(v, (bool, np.bool_)) and (
-            isinstance(v, (int, np.integer)) or (isinstance(v, (float, np.floating)) and math.isfinite(v) and float(v).is_integer()))
+            isinstance(v, (int, np.integer))
+            or (isinstance(v, (float, np.floating)) and math.isfinite(v) and float(v).is_integer())
+        )
         if not ok:
             raise WarpclothError(f"pins must hold integer vertex indices, got {v!r:.40}")
     return a.astype(np.int64) if a.size else np.zeros(0, dtype=np.int64)

@@ -35,14 +35,31 @@ from warpcloth.sim.model import SpringType
 
 #: Counter names of :meth:`SelfCollision.stats`, by their slot in the device counter array.
 COUNT_NAMES = {
-    "candidates_vertex_triangle": sk.CAND_VT, "candidates_edge_edge": sk.CAND_EE, "contacts": sk.CONTACTS,
-    "rebuilds": sk.REBUILDS, "overflow_candidates": sk.OVERFLOW_CANDIDATES, "overflow_contacts": sk.OVERFLOW_CONTACTS,
-    "truncated_queries": sk.TRUNCATED, "unresolved": sk.UNRESOLVED, "detects": sk.DETECTS,
-    "contacts_max": sk.CONTACTS_MAX, "candidates_max": sk.CANDIDATES_MAX, "fast": sk.FAST,
+    "candidates_vertex_triangle": sk.CAND_VT,
+    "candidates_edge_edge": sk.CAND_EE,
+    "contacts": sk.CONTACTS,
+    "rebuilds": sk.REBUILDS,
+    "overflow_candidates": sk.OVERFLOW_CANDIDATES,
+    "overflow_contacts": sk.OVERFLOW_CONTACTS,
+    "truncated_queries": sk.TRUNCATED,
+    "unresolved": sk.UNRESOLVED,
+    "detects": sk.DETECTS,
+    "contacts_max": sk.CONTACTS_MAX,
+    "candidates_max": sk.CANDIDATES_MAX,
+    "fast": sk.FAST,
 }
 #: The counters :meth:`SelfCollision.reset_stats` zeroes (those that accumulate over steps).
-CUMULATIVE = ("rebuilds", "overflow_candidates", "overflow_contacts", "truncated_queries", "unresolved", "detects",
-              "contacts_max", "candidates_max", "fast")
+CUMULATIVE = (
+    "rebuilds",
+    "overflow_candidates",
+    "overflow_contacts",
+    "truncated_queries",
+    "unresolved",
+    "detects",
+    "contacts_max",
+    "candidates_max",
+    "fast",
+)
 
 
 def exclusion_tables(triangles: np.ndarray, edges: np.ndarray, vertex_count: int, rings: int):
@@ -57,18 +74,22 @@ def exclusion_tables(triangles: np.ndarray, edges: np.ndarray, vertex_count: int
     tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     if rings <= 1:
-        return ((np.zeros(n + 1, np.int32), np.zeros(0, np.int32)),
-                (np.zeros(len(edges) + 1, np.int32), np.zeros(0, np.int32)))
+        return (
+            (np.zeros(n + 1, np.int32), np.zeros(0, np.int32)),
+            (np.zeros(len(edges) + 1, np.int32), np.zeros(0, np.int32)),
+        )
     ones_e = np.ones(len(edges))
     adj = sp.coo_matrix((ones_e, (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
     ring = (adj + adj.T + sp.identity(n, format="csr")).astype(bool).astype(np.int32)
     reach = sp.identity(n, format="csr", dtype=np.int32)
     for _ in range(rings - 1):
         reach = (reach @ ring).astype(bool).astype(np.int32)
-    vt_inc = sp.coo_matrix((np.ones(tris.size, np.int32), (tris.reshape(-1), np.repeat(np.arange(len(tris)), 3))),
-                           shape=(n, len(tris))).tocsr()
-    ev_inc = sp.coo_matrix((np.ones(edges.size, np.int32), (np.repeat(np.arange(len(edges)), 2), edges.reshape(-1))),
-                           shape=(len(edges), n)).tocsr()
+    vt_inc = sp.coo_matrix(
+        (np.ones(tris.size, np.int32), (tris.reshape(-1), np.repeat(np.arange(len(tris)), 3))), shape=(n, len(tris))
+    ).tocsr()
+    ev_inc = sp.coo_matrix(
+        (np.ones(edges.size, np.int32), (np.repeat(np.arange(len(edges)), 2), edges.reshape(-1))), shape=(len(edges), n)
+    ).tocsr()
     vt = (reach @ vt_inc).astype(bool).tocsr()
     ee = (ev_inc @ reach @ ev_inc.T).astype(bool).tocsr()
     out = []
@@ -104,18 +125,32 @@ class SelfCollision:
             (vertex-triangle candidates: per vertex, edge-edge: per edge, contacts: per vertex + edge).
     """
 
-    def __init__(self, model, thickness: float, friction: float = 0.0, stiffness: float | None = None,
-                 min_gap_fraction: float = 0.1, iterations: int = 2, skin: float | None = None,
-                 skin_max: float | None = None, exclude_rings: int = 2, edge_fraction: float = 1.0,
-                 candidates_per_vertex: int = 16, candidates_per_edge: int = 16, contacts_per_element: int = 8):
+    def __init__(
+        self,
+        model,
+        thickness: float,
+        friction: float = 0.0,
+        stiffness: float | None = None,
+        min_gap_fraction: float = 0.1,
+        iterations: int = 2,
+        skin: float | None = None,
+        skin_max: float | None = None,
+        exclude_rings: int = 2,
+        edge_fraction: float = 1.0,
+        candidates_per_vertex: int = 16,
+        candidates_per_edge: int = 16,
+        contacts_per_element: int = 8,
+    ):
         self.model = model
         self.thickness = require_positive("self-collision thickness", thickness, "m")
         self.friction = require_non_negative("self-collision friction mu", friction)
         self.edge_fraction = float(edge_fraction)
         require(0.0 < self.edge_fraction <= 1.0, f"edge_fraction must be in (0, 1], got {edge_fraction!r}")
         self.min_gap_fraction = float(min_gap_fraction)
-        require(0.0 < self.min_gap_fraction <= self.edge_fraction,
-                f"min_gap_fraction must be in (0, edge_fraction = {self.edge_fraction:g}], got {min_gap_fraction!r}")
+        require(
+            0.0 < self.min_gap_fraction <= self.edge_fraction,
+            f"min_gap_fraction must be in (0, edge_fraction = {self.edge_fraction:g}], got {min_gap_fraction!r}",
+        )
         self.iterations = require_count("self-collision iterations", iterations, 1)
         self.skin = require_positive("self-collision skin", 0.5 * self.thickness if skin is None else skin, "m")
         skin_max = 4.0 * self.thickness if skin_max is None else skin_max
@@ -206,10 +241,18 @@ class SelfCollision:
         n = self.model.particle_count
         wp.launch(sk.begin_self_contact_detect, dim=1, inputs=[c, s, self.motion_sums], device=d)
         wp.launch(sk.sum_self_contact_motion, dim=n, inputs=[x, v, self.x_build, self.motion_sums], device=d)
-        wp.launch(sk.eval_self_contact_motion, dim=n,
-                  inputs=[x, v, self.x_build, self.motion_sums, float(dt), self.splits, s], device=d)
-        wp.launch(sk.decide_self_contact_rebuild, dim=1,
-                  inputs=[c, s, self.thickness, self.edge_thickness, self.skin, self.skin_max, float(dt)], device=d)
+        wp.launch(
+            sk.eval_self_contact_motion,
+            dim=n,
+            inputs=[x, v, self.x_build, self.motion_sums, float(dt), self.splits, s],
+            device=d,
+        )
+        wp.launch(
+            sk.decide_self_contact_rebuild,
+            dim=1,
+            inputs=[c, s, self.thickness, self.edge_thickness, self.skin, self.skin_max, float(dt)],
+            device=d,
+        )
 
     def _build(self, x, edges: bool = True) -> None:
         """The hash and the candidate lists (every launch returns at once unless a rebuild is due);
@@ -217,47 +260,166 @@ class SelfCollision:
         m, d, n = self.model, self.device, self.model.particle_count
         c, s = self.counts, self.scalars
         inv_cell, mask = 1.0 / self.cell_size, self.bucket_count - 1
-        wp.launch(sk.clear_self_contact_cells, dim=max(self.bucket_count, n),
-                  inputs=[c, x, self.x_build, self.head_tri, self.head_edge], device=d)
-        wp.launch(sk.insert_self_contact_triangles, dim=m.tri_count,
-                  inputs=[c, x, self.tris, inv_cell, mask, self.head_tri, self.next_tri, s, self.tri_lo, self.tri_hi,
-                          self.tri_cell], device=d)
-        wp.launch(sk.find_vertex_triangle_candidates, dim=n,
-                  inputs=[c, s, x, self.tris, inv_cell, mask, self.head_tri, self.next_tri, self.tri_lo, self.tri_hi,
-                          self.tri_cell, self.vt_exclude_offsets, self.vt_exclude, self.vt_capacity, self.cand_vt,
-                          self.cand_vt_gap], device=d)
+        wp.launch(
+            sk.clear_self_contact_cells,
+            dim=max(self.bucket_count, n),
+            inputs=[c, x, self.x_build, self.head_tri, self.head_edge],
+            device=d,
+        )
+        wp.launch(
+            sk.insert_self_contact_triangles,
+            dim=m.tri_count,
+            inputs=[
+                c,
+                x,
+                self.tris,
+                inv_cell,
+                mask,
+                self.head_tri,
+                self.next_tri,
+                s,
+                self.tri_lo,
+                self.tri_hi,
+                self.tri_cell,
+            ],
+            device=d,
+        )
+        wp.launch(
+            sk.find_vertex_triangle_candidates,
+            dim=n,
+            inputs=[
+                c,
+                s,
+                x,
+                self.tris,
+                inv_cell,
+                mask,
+                self.head_tri,
+                self.next_tri,
+                self.tri_lo,
+                self.tri_hi,
+                self.tri_cell,
+                self.vt_exclude_offsets,
+                self.vt_exclude,
+                self.vt_capacity,
+                self.cand_vt,
+                self.cand_vt_gap,
+            ],
+            device=d,
+        )
         if not edges:
             return
-        wp.launch(sk.insert_self_contact_edges, dim=self.edge_count,
-                  inputs=[c, x, self.edges, inv_cell, mask, self.head_edge, self.next_edge, s, self.edge_lo,
-                          self.edge_hi, self.edge_cell], device=d)
-        wp.launch(sk.find_edge_edge_candidates, dim=self.edge_count,
-                  inputs=[c, s, x, self.edges, inv_cell, mask, self.head_edge, self.next_edge, self.edge_lo,
-                          self.edge_hi, self.edge_cell, self.ee_exclude_offsets, self.ee_exclude, self.ee_capacity,
-                          self.cand_ee, self.cand_ee_gap], device=d)
+        wp.launch(
+            sk.insert_self_contact_edges,
+            dim=self.edge_count,
+            inputs=[
+                c,
+                x,
+                self.edges,
+                inv_cell,
+                mask,
+                self.head_edge,
+                self.next_edge,
+                s,
+                self.edge_lo,
+                self.edge_hi,
+                self.edge_cell,
+            ],
+            device=d,
+        )
+        wp.launch(
+            sk.find_edge_edge_candidates,
+            dim=self.edge_count,
+            inputs=[
+                c,
+                s,
+                x,
+                self.edges,
+                inv_cell,
+                mask,
+                self.head_edge,
+                self.next_edge,
+                self.edge_lo,
+                self.edge_hi,
+                self.edge_cell,
+                self.ee_exclude_offsets,
+                self.ee_exclude,
+                self.ee_capacity,
+                self.cand_ee,
+                self.cand_ee_gap,
+            ],
+            device=d,
+        )
 
     def _narrow(self, x) -> None:
         """This step's contacts from the candidate lists."""
         n, d = self.model.particle_count, self.device
-        wp.launch(sk.eval_self_contacts, dim=n,
-                  inputs=[n, self.counts, self.scalars, x, self.tris, self.edges, self.cand_vt, self.cand_vt_gap,
-                          self.cand_ee, self.cand_ee_gap, self.contact_capacity, self.splits, self.contact_indices,
-                          self.contact_weights, self.contact_normals, self.contact_gaps, self.contact_thickness,
-                          self.thickness, self.edge_thickness], device=d)
-        wp.launch(sk.finish_self_contact_detect, dim=1,
-                  inputs=[self.counts, self.vt_capacity, self.ee_capacity, self.contact_capacity], device=d)
+        wp.launch(
+            sk.eval_self_contacts,
+            dim=n,
+            inputs=[
+                n,
+                self.counts,
+                self.scalars,
+                x,
+                self.tris,
+                self.edges,
+                self.cand_vt,
+                self.cand_vt_gap,
+                self.cand_ee,
+                self.cand_ee_gap,
+                self.contact_capacity,
+                self.splits,
+                self.contact_indices,
+                self.contact_weights,
+                self.contact_normals,
+                self.contact_gaps,
+                self.contact_thickness,
+                self.thickness,
+                self.edge_thickness,
+            ],
+            device=d,
+        )
+        wp.launch(
+            sk.finish_self_contact_detect,
+            dim=1,
+            inputs=[self.counts, self.vt_capacity, self.ee_capacity, self.contact_capacity],
+            device=d,
+        )
 
     def apply_forces(self, x: wp.array, v: wp.array, f: wp.array, dt: float) -> None:
         """Add the repulsion of every contact at ``x``, ``v`` to the forces ``f`` [N] (equal and opposite)."""
         n = self.model.particle_count
-        wp.launch(sk.eval_self_contact_forces, dim=n,
-                  inputs=[n, self.counts, x, v, self.model.particle_inv_mass, self.splits, self.contact_indices,
-                          self.contact_weights, self.contact_normals, self.contact_thickness, self.stiffness,
-                          float(dt)],
-                  outputs=[f], device=self.device)
+        wp.launch(
+            sk.eval_self_contact_forces,
+            dim=n,
+            inputs=[
+                n,
+                self.counts,
+                x,
+                v,
+                self.model.particle_inv_mass,
+                self.splits,
+                self.contact_indices,
+                self.contact_weights,
+                self.contact_normals,
+                self.contact_thickness,
+                self.stiffness,
+                float(dt),
+            ],
+            outputs=[f],
+            device=self.device,
+        )
 
-    def filter_velocities(self, x: wp.array, v: wp.array, dt: float, position_weight: float = 1.0,
-                          displacement: wp.array | None = None, repulsion: bool = True) -> None:
+    def filter_velocities(
+        self,
+        x: wp.array,
+        v: wp.array,
+        dt: float,
+        position_weight: float = 1.0,
+        displacement: wp.array | None = None,
+        repulsion: bool = True,
+    ) -> None:
         """After the step (``x``, ``v`` at its end): the velocity filter, in place. A velocity change
         dv moves x by ``position_weight`` dt dv (1 where x += dt v_new; 1/2 for the Runge-Kutta
         schemes, as for colliders); ``displacement`` (Verlet's x - x_prev) moves with x.
@@ -270,15 +432,52 @@ class SelfCollision:
         disp = displacement if displacement is not None else self._no_displacement
         k = self.stiffness if repulsion else 0.0
         for _ in range(self.iterations):
-            wp.launch(sk.filter_self_contact_velocities, dim=n,
-                      inputs=[n, self.counts, x, v, self.model.particle_inv_mass, self.splits, self.contact_indices,
-                              self.contact_weights, self.contact_normals, self.contact_gaps, self.contact_thickness,
-                              self.min_gap, self.friction, k, float(dt), dt_x], outputs=[self.dv], device=d)
-            wp.launch(sk.apply_self_contact_velocities, dim=n,
-                      inputs=[self.dv, dt_x, int(displacement is not None)], outputs=[x, v, disp], device=d)
-        wp.launch(sk.count_unresolved_self_contacts, dim=n,
-                  inputs=[n, self.counts, x, self.contact_indices, self.contact_weights, self.contact_normals,
-                          self.min_gap, self.model.particle_inv_mass], device=d)
+            wp.launch(
+                sk.filter_self_contact_velocities,
+                dim=n,
+                inputs=[
+                    n,
+                    self.counts,
+                    x,
+                    v,
+                    self.model.particle_inv_mass,
+                    self.splits,
+                    self.contact_indices,
+                    self.contact_weights,
+                    self.contact_normals,
+                    self.contact_gaps,
+                    self.contact_thickness,
+                    self.min_gap,
+                    self.friction,
+                    k,
+                    float(dt),
+                    dt_x,
+                ],
+                outputs=[self.dv],
+                device=d,
+            )
+            wp.launch(
+                sk.apply_self_contact_velocities,
+                dim=n,
+                inputs=[self.dv, dt_x, int(displacement is not None)],
+                outputs=[x, v, disp],
+                device=d,
+            )
+        wp.launch(
+            sk.count_unresolved_self_contacts,
+            dim=n,
+            inputs=[
+                n,
+                self.counts,
+                x,
+                self.contact_indices,
+                self.contact_weights,
+                self.contact_normals,
+                self.min_gap,
+                self.model.particle_inv_mass,
+            ],
+            device=d,
+        )
 
     # -- outside the step (host reads) --------------------------------------------------------------
     def invalidate(self) -> None:
@@ -294,8 +493,12 @@ class SelfCollision:
         c = self.counts.numpy()
         s = self.scalars.numpy()
         out = {name: int(c[k]) for name, k in COUNT_NAMES.items()}
-        out.update(radius=float(s[sk.R_BUILD]), skin=float(s[sk.SKIN]),
-                   capacity_candidates=self.vt_capacity + self.ee_capacity, capacity_contacts=self.contact_capacity)
+        out.update(
+            radius=float(s[sk.R_BUILD]),
+            skin=float(s[sk.SKIN]),
+            capacity_candidates=self.vt_capacity + self.ee_capacity,
+            capacity_contacts=self.contact_capacity,
+        )
         return out
 
     def reset_stats(self) -> None:
@@ -309,8 +512,12 @@ class SelfCollision:
         """This step's contacts as NumPy arrays: ``indices`` (C, 4), ``weights`` (C, 4),
         ``normals`` (C, 3), ``gaps`` (C,) [m] at detection."""
         k = int(self.counts.numpy()[sk.CONTACTS])
-        return {"indices": self.contact_indices.numpy()[:k], "weights": self.contact_weights.numpy()[:k],
-                "normals": self.contact_normals.numpy()[:k], "gaps": self.contact_gaps.numpy()[:k]}
+        return {
+            "indices": self.contact_indices.numpy()[:k],
+            "weights": self.contact_weights.numpy()[:k],
+            "normals": self.contact_normals.numpy()[:k],
+            "gaps": self.contact_gaps.numpy()[:k],
+        }
 
     def candidates(self) -> tuple[np.ndarray, np.ndarray]:
         """The Verlet list: (vertex, triangle) pairs (K, 2) and (edge, edge) pairs (L, 2)."""

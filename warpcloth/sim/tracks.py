@@ -41,6 +41,7 @@ def _finite(what: str, name: str, a: np.ndarray) -> np.ndarray:
 def _numbers(what: str, name: str, value) -> np.ndarray:
     """``value`` as a float64 array, or a :class:`WarpclothError` (text, booleans, tables and
     ragged lists are not numbers)."""
+
     def bad():
         return WarpclothError(f"{what} {name} must be numbers, got {value!r:.80}")
 
@@ -50,7 +51,9 @@ def _numbers(what: str, name: str, value) -> np.ndarray:
         a = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError, OverflowError):
         raise bad() from None
-    if isinstance(value, (list, tuple)) and any(isinstance(x, (bool, str)) for x in np.asarray(value, dtype=object).ravel()):
+    if isinstance(value, (list, tuple)) and any(
+        isinstance(x, (bool, str)) for x in np.asarray(value, dtype=object).ravel()
+    ):
         raise bad()
     return a
 
@@ -58,19 +61,24 @@ def _numbers(what: str, name: str, value) -> np.ndarray:
 def check_keyframes(what: str, times, positions, interpolation: str, tangents, points: int):
     """Checked keyframes (times (K,) float64, values (K, 3) or (K, P, 3) with P = ``points``,
     tangents shaped like the values or None); errors start with ``what`` ("pin track")."""
-    require(interpolation in INTERPOLATIONS,
-            f"{what} interpolation must be one of {', '.join(INTERPOLATIONS)}, got {interpolation!r}")
+    require(
+        interpolation in INTERPOLATIONS,
+        f"{what} interpolation must be one of {', '.join(INTERPOLATIONS)}, got {interpolation!r}",
+    )
     t = _finite(what, "times", _numbers(what, "times", times).reshape(-1))
     require(t.size >= 1, f"{what} needs at least one keyframe")
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         k = int(bad[0])
-        raise WarpclothError(f"{what} keyframes out of order: time {float(t[k + 1])!r} s (key {k + 1}) is not after "
-                             f"{float(t[k])!r} s (key {k}); key times must increase")
+        raise WarpclothError(
+            f"{what} keyframes out of order: time {float(t[k + 1])!r} s (key {k + 1}) is not after "
+            f"{float(t[k])!r} s (key {k}); key times must increase"
+        )
     v = _finite(what, "positions", _numbers(what, "positions", positions))
     shapes = [(t.size, 3), (t.size, points, 3)]
-    require(v.shape in shapes,
-            f"{what} positions must have shape (K, 3) offsets or (K, P, 3) = {shapes[1]}, got {v.shape}")
+    require(
+        v.shape in shapes, f"{what} positions must have shape (K, 3) offsets or (K, P, 3) = {shapes[1]}, got {v.shape}"
+    )
     tan = None
     if interpolation == "hermite":
         require(tangents is not None, f"{what} interpolation 'hermite' needs tangents (shaped like positions) [m/s]")
@@ -81,8 +89,9 @@ def check_keyframes(what: str, times, positions, interpolation: str, tangents, p
     return t, v, tan
 
 
-def check_rigid(what: str, center, axis, angular_velocity, swing_amplitude, swing_frequency, swing_phase,
-                velocity) -> dict:
+def check_rigid(
+    what: str, center, axis, angular_velocity, swing_amplitude, swing_frequency, swing_phase, velocity
+) -> dict:
     """The checked fields of a rigid motion (``kind="rigid"``, centre, unit axis, ...) for a
     :class:`Track` subclass's constructor; errors start with ``what``."""
     a = _finite(what, "axis", _numbers(what, "axis", axis).reshape(-1))
@@ -90,8 +99,12 @@ def check_rigid(what: str, center, axis, angular_velocity, swing_amplitude, swin
     c = _finite(what, "center", _numbers(what, "center", center).reshape(-1))
     u = _finite(what, "velocity", _numbers(what, "velocity", velocity).reshape(-1))
     require(c.size == 3 and u.size == 3, f"{what} center and velocity must be 3-vectors")
-    scalars = {"angular_velocity": angular_velocity, "swing_amplitude": swing_amplitude,
-               "swing_frequency": swing_frequency, "swing_phase": swing_phase}
+    scalars = {
+        "angular_velocity": angular_velocity,
+        "swing_amplitude": swing_amplitude,
+        "swing_frequency": swing_frequency,
+        "swing_phase": swing_phase,
+    }
     for name, value in scalars.items():
         try:
             one = np.ndim(_numbers(what, name, value)) == 0
@@ -102,9 +115,16 @@ def check_rigid(what: str, center, axis, angular_velocity, swing_amplitude, swin
     nums = np.array(list(scalars.values()), dtype=np.float64)
     nums = _finite(what, "motion", nums)
     require(nums[2] >= 0, f"{what} swing frequency must be >= 0 Hz, got {swing_frequency!r}")
-    return dict(kind="rigid", center=tuple(c), axis=tuple(a / np.linalg.norm(a)), velocity=tuple(u),
-                angular_velocity=float(nums[0]), swing_amplitude=float(nums[1]), swing_frequency=float(nums[2]),
-                swing_phase=float(nums[3]))
+    return dict(
+        kind="rigid",
+        center=tuple(c),
+        axis=tuple(a / np.linalg.norm(a)),
+        velocity=tuple(u),
+        angular_velocity=float(nums[0]),
+        swing_amplitude=float(nums[1]),
+        swing_frequency=float(nums[2]),
+        swing_phase=float(nums[3]),
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,17 +215,27 @@ class Track:
     # -- the kernels' track arguments (device arrays on the current device) -------------------
     def _rigid_args(self) -> list:
         """c, axis, u and (omega, A, f, phi) as the kernels take them."""
-        return [wp.vec3d(*self.center), wp.vec3d(*self.axis), wp.vec3d(*self.velocity),
-                wp.vec4d(self.angular_velocity, self.swing_amplitude, self.swing_frequency, self.swing_phase)]
+        return [
+            wp.vec3d(*self.center),
+            wp.vec3d(*self.axis),
+            wp.vec3d(*self.velocity),
+            wp.vec4d(self.angular_velocity, self.swing_amplitude, self.swing_frequency, self.swing_phase),
+        ]
 
     def _keyframe_args(self, positions: np.ndarray, tangents: np.ndarray) -> list:
         """Key times, key ``positions`` and ``tangents`` (each (K P, 3), float64) and whether
         the interpolation is cubic, as the kernels take them."""
-        return [wp.array(self.times, dtype=wp.float64), wp.array(positions, dtype=wp.vec3d),
-                wp.array(tangents, dtype=wp.vec3d), int(self.interpolation != "linear")]
+        return [
+            wp.array(self.times, dtype=wp.float64),
+            wp.array(positions, dtype=wp.vec3d),
+            wp.array(tangents, dtype=wp.vec3d),
+            int(self.interpolation != "linear"),
+        ]
 
 
-def interpolate(times: np.ndarray, pos: np.ndarray, tangents: np.ndarray | None, t: float) -> tuple[np.ndarray, np.ndarray]:
+def interpolate(
+    times: np.ndarray, pos: np.ndarray, tangents: np.ndarray | None, t: float
+) -> tuple[np.ndarray, np.ndarray]:
     """(positions (P, 3), velocities (P, 3)) at time t of keys ``pos`` (K, P, 3) at ``times`` (K,):
     linear (``tangents`` None) or cubic Hermite with ``tangents`` (K, P, 3) [m/s]; held before the
     first key and after the last (float64, on the host: the kernels' formulas)."""
@@ -258,8 +288,10 @@ class FrameDrive:
     """
 
     def __init__(self, what: str, points: int, interpolation: str = "linear"):
-        require(interpolation in ("linear", "hermite"),
-                f"{what} interpolation must be 'linear' or 'hermite', got {interpolation!r}")
+        require(
+            interpolation in ("linear", "hermite"),
+            f"{what} interpolation must be 'linear' or 'hermite', got {interpolation!r}",
+        )
         self.what = what
         self.points = int(points)
         self.interpolation = interpolation
@@ -284,16 +316,22 @@ class FrameDrive:
         """Where the points are at the end of the next frame: ``positions`` (P, 3) [m] (a 3-vector
         for one point) and, for ``"hermite"``, their ``velocities`` (P, 3) [m/s] there."""
         p = _finite(self.what, "target", np.array(positions, dtype=np.float64))
-        require(p.size == 3 * self.points and p.shape in ((self.points, 3), (3,)),
-                f"{self.what} target must have shape ({self.points}, 3), got {p.shape}")
+        require(
+            p.size == 3 * self.points and p.shape in ((self.points, 3), (3,)),
+            f"{self.what} target must have shape ({self.points}, 3), got {p.shape}",
+        )
         if self.interpolation == "hermite":
             require(velocities is not None, f"{self.what} is 'hermite': give the targets' velocities too [m/s]")
         v = np.zeros((self.points, 3))
         if velocities is not None:
-            require(self.interpolation == "hermite",
-                    f"{self.what} velocities need interpolation 'hermite' (linear moves at (p1 - p0) / frame time)")
+            require(
+                self.interpolation == "hermite",
+                f"{self.what} velocities need interpolation 'hermite' (linear moves at (p1 - p0) / frame time)",
+            )
             v = _finite(self.what, "velocities", np.array(velocities, dtype=np.float64))
-            require(v.size == 3 * self.points, f"{self.what} velocities must have shape ({self.points}, 3), got {v.shape}")
+            require(
+                v.size == 3 * self.points, f"{self.what} velocities must have shape ({self.points}, 3), got {v.shape}"
+            )
         self._pending = (p.reshape(self.points, 3), v.reshape(self.points, 3))
 
     def bind(self, device) -> list:
