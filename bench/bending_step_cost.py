@@ -56,9 +56,10 @@ def main() -> None:
     parser.add_argument("--device", default="cpu")
     args = parser.parse_args()
     print(
-        f"sheet {args.size}x{args.size} on {args.device}, ms/step (median of {args.windows} windows of {args.steps} steps)"
+        f"sheet {args.size}x{args.size} on {args.device}, ms/step (median of {args.windows} windows of {args.steps} "
+        "steps)"
     )
-    print(f"| integrator | provot | dihedral | ratio |")
+    print("| integrator | provot | dihedral | ratio |")
     print("|---|---|---|---|")
     for name in args.integrators:
         r = measure(name, args.size, args.steps, args.windows, args.device)

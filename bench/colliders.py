@@ -84,7 +84,6 @@ def minimal_plane(
 def kernel_alone(size, repeats, device):
     """ms of the contact launch alone on the resting cloth's state after a step's gravity, before
     its projection (x, v restored before each launch)."""
-    from warpcloth.kernels import collide as ck
 
     from warpcloth.sim.contacts import ColliderSet
 
@@ -128,7 +127,8 @@ def kernel_alone(size, repeats, device):
     base = statistics.median(times.pop("restore x, v only"))
     step = ms_per_step(simulator("contact", (), size, device), 200, device)
     print(
-        f"# the contact launch alone (median of {repeats} x 100, restore subtracted), against a no-collider step of {step:.3f} ms"
+        f"# the contact launch alone (median of {repeats} x 100, restore subtracted), against a no-collider step of "
+        f"{step:.3f} ms"
     )
     for name, r in times.items():
         ms = statistics.median(r) - base
@@ -193,7 +193,8 @@ def main(argv=None):
         for name, sim in cases.items():
             runs[name].append(ms_per_step(sim, a.steps, a.device))
     print(
-        f"# ms/step: median [min-max] of {a.repeats} windows of {a.steps} steps; cost: median [min-max] over the windows of "
+        f"# ms/step: median [min-max] of {a.repeats} windows of {a.steps} steps; cost: median [min-max] over the "
+        "windows of "
         f"(this case / the same window's no-collider case - 1) (paired, so machine noise cancels)"
     )
     for name, r in runs.items():

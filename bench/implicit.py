@@ -73,12 +73,14 @@ def main(argv=None) -> None:
 
     with wp.ScopedDevice(args.device):
         print(
-            f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores ({platform.processor() or platform.machine()}), "
+            f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores "
+            f"({platform.processor() or platform.machine()}), "
             f"device {wp.get_device()}, warp {wp.config.version}, implicit options {options or 'defaults'}, "
             f"{args.steps} steps per case, {args.repeats} repeat(s)"
         )
         print(
-            f"{'sheet':>9} {'matrix':>6} {'ms/step':>9} {'CG mean':>8} {'CG max':>7} {'explicit ms':>12} {'ratio to 12 explicit':>21}"
+            f"{'sheet':>9} {'matrix':>6} {'ms/step':>9} {'CG mean':>8} {'CG max':>7} {'explicit ms':>12} "
+            f"{'ratio to 12 explicit':>21}"
         )
         summary = []
         for n in args.sizes:
@@ -106,7 +108,8 @@ def main(argv=None) -> None:
                     ms[matrix].append(t)
                     ms_iter[matrix].append(t / max(st["cg_iterations_mean"], 1e-9))
                     print(
-                        f"{n:>4}x{n:<4} {matrix:>6} {t:9.2f} {st['cg_iterations_mean']:8.1f} {st['cg_iterations_max']:7d} {explicit_ms:12.3f} {t / (12.0 * explicit_ms):21.2f}",
+                        f"{n:>4}x{n:<4} {matrix:>6} {t:9.2f} {st['cg_iterations_mean']:8.1f} "
+                        f"{st['cg_iterations_max']:7d} {explicit_ms:12.3f} {t / (12.0 * explicit_ms):21.2f}",
                         flush=True,
                     )
             summary.append((n, ms, ms_iter))

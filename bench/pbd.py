@@ -44,7 +44,8 @@ def main(argv=None) -> None:
     with wp.ScopedDevice(args.device):
         device = str(wp.get_device())
         print(
-            f"# warp {wp.config.version}, device {device} ({wp.get_device().name}), dt = 1/60 s, {args.steps} timed steps"
+            f"# warp {wp.config.version}, device {device} ({wp.get_device().name}), dt = 1/60 s, {args.steps} timed "
+            "steps"
         )
         print(
             f"{'integrator':10s} {'sheet':>9s} {'springs':>8s} {'colours':>7s} {'iter':>4s} {'sub':>3s} {'ms/step':>9s}"
@@ -56,7 +57,8 @@ def main(argv=None) -> None:
                         name, size, device, args.steps, {"iterations": args.iterations, "substeps": substeps}
                     )
                     print(
-                        f"{name:10s} {f'{size}x{size}':>9s} {sim.model.spring_count:8d} {sim.integrator.coloring.color_count:7d} {args.iterations:4d} {substeps:3d} {ms:9.3f}"
+                        f"{name:10s} {f'{size}x{size}':>9s} {sim.model.spring_count:8d} "
+                        f"{sim.integrator.coloring.color_count:7d} {args.iterations:4d} {substeps:3d} {ms:9.3f}"
                     )
 
 

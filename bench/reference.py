@@ -112,7 +112,8 @@ def main(argv=None):
     wall = time.perf_counter() - t0
     moved = np.linalg.norm(eq.x - st.model.host["q"], axis=1).max()
     print(
-        f"static sheet {n}x{n}: residual {eq.residual:.3g} N in {wall * 1e3:.0f} ms; max displacement from rest {moved:.4g} m"
+        f"static sheet {n}x{n}: residual {eq.residual:.3g} N in {wall * 1e3:.0f} ms; max displacement from rest "
+        f"{moved:.4g} m"
     )
     for dt, drag in ((2.5e-4, 5.0),):
         run = Simulator(st.model, "explicit_euler", Control(drag_rate=drag), dt=dt)

@@ -153,10 +153,12 @@ def main(argv=None) -> None:
     wp.init()
     print(f"# bench/solvers.py {' '.join(argv if argv is not None else sys.argv[1:])}")
     print(
-        f"# {time.strftime('%Y-%m-%d %H:%M:%S %Z')}, {platform.machine()} {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, warp {wp.config.version}"
+        f"# {time.strftime('%Y-%m-%d %H:%M:%S %Z')}, {platform.machine()} {os.cpu_count()} CPUs, load average "
+        f"{os.getloadavg()[0]:.1f}, warp {wp.config.version}"
     )
     print(
-        f"# speed: peer workload, {args.size}x{args.size}, dt = 1/60 s, CG tol {args.cg_tol:g}, {args.steps} steps from rest per case"
+        f"# speed: peer workload, {args.size}x{args.size}, dt = 1/60 s, CG tol {args.cg_tol:g}, {args.steps} steps "
+        "from rest per case"
     )
     timed = cases(args.cg_tol)
     names = list(args.cases) + ([PEER] if args.peer else [])
@@ -174,7 +176,8 @@ def main(argv=None) -> None:
             it = r["stats"].get("cg_iterations_mean")
             extra = f", CG iterations mean {it:.1f}" if it is not None else ""
             print(
-                f"repeat {rep + 1} {name:26s} {r['ms']:9.1f} ms/step wall, {r['cpu_ms']:8.1f} ms CPU{extra}{'' if r['finite'] else ' NON-FINITE'}",
+                f"repeat {rep + 1} {name:26s} {r['ms']:9.1f} ms/step wall, {r['cpu_ms']:8.1f} ms "
+                f"CPU{extra}{'' if r['finite'] else ' NON-FINITE'}",
                 flush=True,
             )
 
@@ -219,7 +222,8 @@ def main(argv=None) -> None:
             sag = float((y0 - sim.state.particle_q.numpy()[:, 1]).max())
             speed = float(np.linalg.norm(sim.state.particle_qd.numpy(), axis=1).max())
             print(
-                f"{name:26s} sag {sag * 1e3:.4f} mm, error {100 * (sag - sag_ref) / sag_ref:+.2f} % (target within 2 %), max speed {speed:.2e} m/s"
+                f"{name:26s} sag {sag * 1e3:.4f} mm, error {100 * (sag - sag_ref) / sag_ref:+.2f} % (target within 2 "
+                f"%), max speed {speed:.2e} m/s"
             )
 
 

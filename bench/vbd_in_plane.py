@@ -33,7 +33,8 @@ def main():
                 along = fall(integrator, n, dt, (-G, 0.0, 0.0))
                 across = fall(integrator, n, dt, (0.0, -G, 0.0))
                 print(
-                    f"{integrator:15s} {n:3d}x{n:<3d} dt=1/{round(1 / dt):<4d} along the plane {along:7.4f}   across it {across:7.4f}"
+                    f"{integrator:15s} {n:3d}x{n:<3d} dt=1/{round(1 / dt):<4d} along the plane {along:7.4f}   across "
+                    f"it {across:7.4f}"
                 )
 
 

@@ -7,7 +7,8 @@ response loops over all of them per particle: each plane's exact half-space test
 particle is in the box around the other colliders, each one's cheap exact rejection (squared
 distances, a box's slabs, a mesh's bounding box) before its signed distance. The hot helpers are
 forced inline (``@wp.func(inline=True)``: out of line, Warp's CPU code passes each array
-argument by value at every call) and read only the record fields their kind needs. Each kind has a signed distance phi(x) and an outward unit normal n (pure
+argument by value at every call) and read only the record fields their kind needs. Each kind has a signed distance
+phi(x) and an outward unit normal n (pure
 ``@wp.func`` below). A collider moves rigidly with a velocity field v_c(y) = u + w x (y - o)
 (zero when static); the responses use the particle's velocity relative to it:
 

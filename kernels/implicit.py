@@ -266,7 +266,8 @@ def apply_contact_friction(
     # the constraint impulse J = -(b - A dv)_i (unfiltered A, b) of each particle, kept for the
     # next step's modes. SLIDE: where the solve's friction F reversed the tangential velocity
     # (v_r,t . F > 0 after it: F is against the sliding), friction stops the particle instead
-    # (Coulomb's cap; mode STOPPED: it sticks next step). STICK past the cone (|J_t| > mu J_n, J_n = max(0, J . n)): the tangential
+    # (Coulomb's cap; mode STOPPED: it sticks next step). STICK past the cone (|J_t| > mu J_n, J_n = max(0, J . n)): the
+    # tangential
     # impulse friction cannot give is taken back, dv_t -= (|J_t| - mu J_n) / m_t along J_t (it
     # slips; next step it slides), m_t the effective_mass along J_t.
     i = wp.tid()

@@ -1,5 +1,6 @@
 """Linear algebra on vec3 fields and 3 x 3 blocks, shared by the linear solvers: CSR block
-products (also in the split form that keeps a smooth vector's mass term), diagonal and block-diagonal (Jacobi) preconditioners, axpy, and dot products summed in a
+products (also in the split form that keeps a smooth vector's mass term), diagonal and block-diagonal (Jacobi)
+preconditioners, axpy, and dot products summed in a
 fixed order (per-element terms, sums over fixed chunks, then the chunks' sum by one thread; no
 atomics, so results are bit-identical run to run, between launches and graph replay). The
 preconditioned CG whose scalars live on the device (implicit Euler's solver on the CPU) is here

@@ -75,7 +75,8 @@ def smooth_jacobi_block(
     y: wp.array(dtype=wp.vec3),
     z: wp.array(dtype=wp.vec3),
 ):
-    # one damped block-Jacobi sweep, fused with its residual: z = alpha (x + omega D^-1 (b - A x)) + beta y  (z must not alias x)
+    # one damped block-Jacobi sweep, fused with its residual: z = alpha (x + omega D^-1 (b - A x)) + beta y  (z must not
+    # alias x)
     i = wp.tid()
     res = b[i]
     for e in range(offsets[i], offsets[i + 1]):

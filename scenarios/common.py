@@ -171,7 +171,8 @@ class Scenario:
         """Build and run; writes a USD file when ``usd_path`` is given.
 
         ``writers``: more frame writers, each a function ``(sim, config) -> writer`` called
-        once the :class:`~warpcloth.simulator.Simulator` is built; a writer has ``write_frame(points, sim_time)``, ``close()`` and
+        once the :class:`~warpcloth.simulator.Simulator` is built; a writer has ``write_frame(points, sim_time)``,
+        ``close()`` and
         ``abort()`` (:class:`~warpcloth.io.frames.FrameSinks`). Every writer is closed after the
         run, or aborted (its target left as it was) when the run fails.
         """

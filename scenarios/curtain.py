@@ -41,7 +41,8 @@ def _origin(config: ScenarioConfig) -> tuple:
 
 SCENARIO = Scenario(
     name="curtain",
-    description=f"a curtain whose rod slides {SLIDE} m sideways in {SLIDE_TIME} s and stops (kinematic pins); runs to equilibrium",
+    description=f"a curtain whose rod slides {SLIDE} m sideways in {SLIDE_TIME} s and stops (kinematic pins); runs to "
+    "equilibrium",
     defaults=ScenarioConfig(rows=24, cols=32, width=1.6, height=1.2, mass=0.4, duration=10.0),
     pins=_pins,
     control=_control,

@@ -63,7 +63,8 @@ def _control(config: ScenarioConfig, device: str) -> Control:
 
 SCENARIO = Scenario(
     name="mesh",
-    description="a cloth from a triangle mesh (--mesh FILE.obj|.usd, --pin-group, --pin); default the built-in cape; runs to equilibrium",
+    description="a cloth from a triangle mesh (--mesh FILE.obj|.usd, --pin-group, --pin); default the built-in cape; "
+    "runs to equilibrium",
     defaults=ScenarioConfig(rows=1, cols=CAPE_ROWS * CAPE_COLS, mass=0.3, duration=10.0, quads=True),
     pins=lambda rows, cols: [],
     control=_control,

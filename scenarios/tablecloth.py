@@ -32,7 +32,9 @@ def _origin(config: ScenarioConfig) -> tuple:
 
 SCENARIO = Scenario(
     name="tablecloth",
-    description="a cloth falls on a square table (box collider, friction) and hangs over its edges; runs to equilibrium",
+    description=(
+        "a cloth falls on a square table (box collider, friction) and hangs over its edges; runs to equilibrium"
+    ),
     defaults=ScenarioConfig(rows=24, cols=24, width=1.3, height=1.3, mass=0.3, duration=10.0),
     pins=_pins,
     control=_control,

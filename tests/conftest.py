@@ -21,10 +21,35 @@ def device():
 
 
 @pytest.fixture
+def count_allocations(monkeypatch):
+    """(start, stop): ``start()`` returns a list that collects the size of every CPU device
+    allocation until ``stop()``."""
+    from warp._src.context import CpuDefaultAllocator
+
+    created = []
+    original = CpuDefaultAllocator.allocate
+
+    def counting(self, size_in_bytes):
+        created.append(size_in_bytes)
+        return original(self, size_in_bytes)
+
+    def start():
+        created.clear()
+        monkeypatch.setattr(CpuDefaultAllocator, "allocate", counting)
+        return created
+
+    def stop():
+        monkeypatch.setattr(CpuDefaultAllocator, "allocate", original)
+
+    return start, stop
+
+
+@pytest.fixture
 def tmp_cwd(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     return tmp_path
 
 
 def pytest_report_header(config):
-    return f"warp {wp.config.version}, cuda available: {CUDA_AVAILABLE}, WARP cache: {os.environ.get('WARP_CACHE_PATH', 'default')}"
+    cache = os.environ.get("WARP_CACHE_PATH", "default")
+    return f"warp {wp.config.version}, cuda available: {CUDA_AVAILABLE}, WARP cache: {cache}"

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_contract import count_allocations  # noqa: F401  (the fixture)
 from test_implicit import dense_system
 from warpcloth.scenarios import flag, sheet
 

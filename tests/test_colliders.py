@@ -16,7 +16,6 @@ from warpcloth import (
     Sphere,
     WarpclothError,
     build_grid_cloth,
-    integrator_names,
 )
 from warpcloth.run.harness import RunHarness
 
@@ -226,7 +225,8 @@ def test_collider_flag_and_scenario_file(capsys, tmp_path):
     (tmp_path / "grid.obj").write_text("v 0 1 0\nv 1 1 0\nv 0 1 1\nv 1 1 1\nf 1 3 4 2\n")
     path = tmp_path / "s.toml"
     path.write_text(
-        '[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\ncenter = [0.5, 0.5, 0.5]\nradius = 0.3\nfriction = 0.2\n'
+        '[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\ncenter = [0.5, 0.5, 0.5]\nradius = 0.3\nfriction '
+        "= 0.2\n"
     )
     sim = get_scenario(str(path)).build()
     assert sim.control.colliders == (Sphere(center=(0.5, 0.5, 0.5), radius=0.3, friction=0.2),)

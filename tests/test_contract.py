@@ -121,29 +121,6 @@ def test_graph_replay_is_bit_identical_to_launches(name, device):
     assert np.abs(a.state.particle_q.numpy() - a.model.particle_q.numpy()).max() > 1e-4  # it moved
 
 
-@pytest.fixture
-def count_allocations(monkeypatch):
-    """A list that collects the size of every CPU device allocation while the fixture is live."""
-    from warp._src.context import CpuDefaultAllocator
-
-    created = []
-    original = CpuDefaultAllocator.allocate
-
-    def counting(self, size_in_bytes):
-        created.append(size_in_bytes)
-        return original(self, size_in_bytes)
-
-    def start():
-        created.clear()
-        monkeypatch.setattr(CpuDefaultAllocator, "allocate", counting)
-        return created
-
-    def stop():
-        monkeypatch.setattr(CpuDefaultAllocator, "allocate", original)
-
-    return start, stop
-
-
 @pytest.mark.parametrize("graph", [False, True], ids=["plain", "captured"])
 @pytest.mark.parametrize("name", NAMES)
 def test_step_allocates_no_memory(name, graph, count_allocations):

@@ -2,7 +2,6 @@
 (how many vertices, which collider), and an unstable run's summary always says why."""
 
 import numpy as np
-import pytest
 
 from warpcloth import Box, Capsule, Plane, Sphere
 from warpcloth.cli import main

@@ -227,7 +227,7 @@ def test_bench_csv_on_a_full_disk_is_one_line(tmp_path, small_disk, monkeypatch,
         bench,
         "bench_one",
         lambda name, size, device, graph, steps, seconds, scenario="sheet", windows=5: (
-            {c: 1 for c in bench.COLUMNS}
+            dict.fromkeys(bench.COLUMNS, 1)
             | {
                 "integrator": name,
                 "device": device,

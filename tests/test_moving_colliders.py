@@ -155,7 +155,8 @@ def test_tracks_from_a_scenario_file(tmp_path):
     assert plane.at(2.0).point == pytest.approx((1.0, 0.0, 0.0))
     assert mesh.at(2.0).vertices[:, 1] == pytest.approx([0.8] * 4)  # a mesh moves too
     path.write_text(
-        '[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\nradius = 0.3\ntrack = { kind = "rigid", speed = 1 }\n'
+        '[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\nradius = 0.3\ntrack = { kind = "rigid", speed = 1 '
+        "}\n"
     )
     with pytest.raises(WarpclothError, match=r"\[\[colliders\]\] #1: collider track \(rigid\): unknown key 'speed'"):
         get_scenario(str(path))

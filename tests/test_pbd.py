@@ -327,7 +327,7 @@ def test_grid_coloring_is_valid(bend, colors, rows, cols):
     assert c.color_count == colors and np.array_equal(c.colors, grid)
     assert is_valid_coloring(pairs, c.colors, rows * cols)
     assert np.array_equal(np.sort(c.order), np.arange(len(pairs)))
-    for k, (start, count) in enumerate(zip(c.starts, c.counts)):
+    for start, count in zip(c.starts, c.counts):
         members = pairs[c.order[start : start + count]]
         assert np.all(c.colors[c.order[start : start + count]] == c.colors[c.order[start]])
         assert np.unique(members).size == 2 * count  # no particle twice within a colour

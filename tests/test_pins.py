@@ -103,7 +103,8 @@ def test_swinging_rod_follows_the_analytic_path_with_bounded_strain(integrator):
     result = RunHarness(sim).run(1.0, fps=30)
     t = float(sim.control.time.numpy()[0])
     theta = amplitude * math.sin(2 * math.pi * frequency * t)
-    # analytic: a pin 0.1 m below the rod at x0 is at (x0, 1.5 - 0.1 cos theta, -0.1 sin theta)... rotating +theta about +x
+    # analytic: a pin 0.1 m below the rod at x0 is at (x0, 1.5 - 0.1 cos theta, -0.1 sin theta)... rotating +theta about
+    # +x
     x = sim.state.particle_q.numpy()[:cols]
     want = np.stack(
         [model.host["q"][:cols, 0], 1.5 - 0.1 * np.cos(theta) * np.ones(cols), -0.1 * np.sin(theta) * np.ones(cols)],

@@ -10,7 +10,6 @@ from warpcloth import Control, Simulator, WarpclothError, make_integrator
 def numpy_global_matrix(model, h):
     """S = M + h D + h^2 L, dense float64, pinned rows and columns replaced by identity."""
     host = model.host
-    n = model.particle_count
     ks = model.spring_stiffness.numpy().astype(np.float64)
     kd = model.spring_damping.numpy().astype(np.float64)
     S = np.diag(host["mass"].astype(np.float64))

@@ -86,7 +86,6 @@ def test_mesh_scenario_cape_with_group_and_predicate_pins(capsys):
     d = json.loads(out)
     assert d["scenario"] == "mesh" and d["particles"] == 320 and d["stable"]
     sim = mesh_scenario.build(mesh=cape, pin_where="y > 1.47", duration=0.3)
-    q = sim.model.host["q"]
     assert sim.model.pinned.tolist() == list(range(16))  # the neck row only (the next row is at y = 1.453 m)
     assert mesh_scenario.build().model.pinned.tolist() == list(range(32))  # built-in cape: its shoulders
     assert (
@@ -173,7 +172,8 @@ def test_scenario_file_runs_through_sweep(capsys, scenario_file, tmp_path, monke
         (("name =", "colour = 1\nname ="), "windy.toml: the top level: unknown key 'colour'"),
         (
             ("times = [0.0, 0.1, 0.2]", "times = [0.0, 0.2, 0.1]"),
-            "windy.toml: [[tracks]] #1: pin track keyframes out of order: time 0.1 s (key 2) is not after 0.2 s (key 1)",
+            "windy.toml: [[tracks]] #1: pin track keyframes out of order: "
+            "time 0.1 s (key 2) is not after 0.2 s (key 1)",
         ),
         (
             ('groups = ["shoulders"]', 'groups = ["hips"]'),
@@ -379,7 +379,8 @@ def test_scenario_file_stiffness_and_damping_are_used_and_flags_override(scenari
         (
             (
                 "[run]",
-                '[[colliders]]\nkind = "sphere"\nradius = 0.2\ntrack = { kind = "rigid", angular_velocity = "fast" }\n[run]',
+                '[[colliders]]\nkind = "sphere"\nradius = 0.2\ntrack = { kind = "rigid", angular_velocity = "fast" '
+                "}\n[run]",
             ),
             "windy.toml: [[colliders]] #1: collider track angular_velocity must be a number, got 'fast'",
         ),
@@ -492,7 +493,7 @@ def test_a_usd_mesh_naming_a_fifo_layer_is_refused_before_it_is_opened(capsys, t
 
     usd = _usd_mesh_with_fifo_layer(tmp_path, how)
     with unblocked_fifo(tmp_path / "pipe.usda") as fifo:
-        message = f"names './pipe.usda' ("
+        message = "names './pipe.usda' ("
         assert message in one_line_exit_2(capsys, "run", "mesh", "--mesh", usd)
         scenario_file.write_text(
             SCENARIO_TOML.replace('mesh = "cape.obj"', f'mesh = "{how}.usda"')

@@ -231,7 +231,8 @@ def test_graph_flag_off_is_bit_identical_to_on_and_capture_is_apart(capsys, tmp_
 
     xml = tmp_path / "t.xml"
     xml.write_text(
-        '<test_list size="4" scenario="sheet" duration="0.1" dt="1e-3"><test integrator="rk4" graph="off on"/></test_list>'
+        '<test_list size="4" scenario="sheet" duration="0.1" dt="1e-3"><test integrator="rk4" graph="off '
+        'on"/></test_list>'
     )
     runs = parse_test_list(str(xml)).runs
     assert [r.graph for r in runs] == ["off", "on"] and [r.config().use_graph for r in runs] == [False, True]

@@ -579,25 +579,6 @@ def test_overflow_is_counted_not_silent():
     assert s["contacts"] == 10 and s["overflow_contacts"] == full.stats()["contacts"] - 10
 
 
-@pytest.fixture
-def count_allocations(monkeypatch):
-    from warp._src.context import CpuDefaultAllocator
-
-    created = []
-    original = CpuDefaultAllocator.allocate
-
-    def counting(self, size_in_bytes):
-        created.append(size_in_bytes)
-        return original(self, size_in_bytes)
-
-    def start():
-        created.clear()
-        monkeypatch.setattr(CpuDefaultAllocator, "allocate", counting)
-        return created
-
-    return start, lambda: monkeypatch.setattr(CpuDefaultAllocator, "allocate", original)
-
-
 def test_a_detect_and_respond_cycle_allocates_nothing(count_allocations):
     model, q, vel = two_sheets(gap=0.006)
     control = Control(gravity=(0.0, 0.0, 0.0), device="cpu")

@@ -212,7 +212,8 @@ def test_sweep_max_dt_is_stable_over_the_runs_own_duration(tmp_path):
 
     xml = tmp_path / "flag.xml"
     xml.write_text(
-        '<test_list size="10" duration="3" wall_cap="30"><test id="f" scenario="flag" integrator="explicit_euler" dt="max"/></test_list>'
+        '<test_list size="10" duration="3" wall_cap="30"><test id="f" scenario="flag" integrator="explicit_euler" '
+        'dt="max"/></test_list>'
     )
     out = tmp_path / "flag.csv"
     run_sweep(str(xml), str(out))

@@ -3,12 +3,11 @@ grows without bound; and the default dt of a scheme from its stability region.""
 
 import math
 
-import numpy as np
 import pytest
 from helpers import displace, single_spring
 from warpcloth.scenarios import get_scenario, sheet
 
-from warpcloth import Control, Simulator, WarpclothError, make_integrator
+from warpcloth import Control, Simulator, WarpclothError
 from warpcloth.cli import main
 from warpcloth.integrators.base import runge_kutta_stable_dt
 from warpcloth.integrators.midpoint import rk2_amplification

@@ -301,7 +301,7 @@ def test_a_fit_through_two_sizes_prints_na_in_the_report():
 
 def synthetic_group(integrator, n, error, ms, floor=1e-6, k=1.0):
     """Rows of one configuration of ``integrator`` at n x n: floors, the two trials, a timing."""
-    base = {c: None for c in COLUMNS}
+    base = dict.fromkeys(COLUMNS)
     base.update(device="cpu", rows=n, cols=n, integrator=integrator, options=None, steps_per_frame=k, stable=True)
     out = [dict(base, measurement="max_stable_dt", scenario="study_sheet", dt_s=FRAME_DT / k)]
     for t in ("swing", "flag"):

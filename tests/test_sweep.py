@@ -147,7 +147,8 @@ def test_the_key_ignores_test_ids_and_order(tmp_path):
         write(
             tmp_path,
             """
-        <test_list><test id="x" integrator="rk4 verlet" size="5"/><test id="y" integrator="midpoint" dt="0.001"/></test_list>
+        <test_list><test id="x" integrator="rk4 verlet" size="5"/>
+        <test id="y" integrator="midpoint" dt="0.001"/></test_list>
     """,
             "a.xml",
         )
@@ -243,7 +244,8 @@ BAD = [
     ("unknown declaration", '<test_list>\n<!FOO bar>\n<test integrator="rk4"/></test_list>', 2, "malformed XML"),
     (
         "doctype",
-        '<?xml version="1.0"?>\n<!DOCTYPE test_list [<!ENTITY e SYSTEM "/etc/passwd">]>\n<test_list><test integrator="rk4">&e;</test></test_list>',
+        '<?xml version="1.0"?>\n<!DOCTYPE test_list [<!ENTITY e SYSTEM "/etc/passwd">]>\n<test_list><test '
+        'integrator="rk4">&e;</test></test_list>',
         2,
         "<!DOCTYPE test_list ...> is not allowed",
     ),
@@ -427,7 +429,8 @@ def test_interrupted_sweep_resumes_every_row_exactly_once(tmp_path, monkeypatch)
     path2 = write(
         tmp_path,
         """
-        <test_list><test id="renamed" integrator="verlet explicit_euler" size="5 4" dt="0.001" duration="0.1" wall_cap="30"/></test_list>
+        <test_list><test id="renamed" integrator="verlet explicit_euler" size="5 4" dt="0.001" duration="0.1"
+                         wall_cap="30"/></test_list>
     """,
         "reordered.xml",
     )
@@ -695,7 +698,8 @@ def test_max_runs_flag_raises_and_lowers_the_limit(tmp_path, monkeypatch, capsys
     assert main(["sweep", path, "-o", str(tmp_path / "a.csv"), "--max-runs", "6", "-q"]) == 2
     err = capsys.readouterr().err
     assert err.startswith(
-        f"warpcloth: error: {path}:3: test '2': expands to 3 runs (after 4 runs of the tests before it), more than the limit of 6"
+        f"warpcloth: error: {path}:3: test '2': expands to 3 runs (after 4 runs of the tests before it), more than the "
+        "limit of 6"
     )
     assert not (tmp_path / "a.csv").exists()
     assert main(["sweep", path, "-o", str(tmp_path / "a.csv"), "--max-runs", "7", "-q"]) == 0

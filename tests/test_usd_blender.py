@@ -13,7 +13,6 @@ import pytest
 from pxr import Usd, UsdGeom
 from warpcloth.scenarios import get_scenario
 
-from warpcloth import Control, Simulator, Sphere, build_grid_cloth
 from warpcloth.io.usd import UsdWriter
 
 

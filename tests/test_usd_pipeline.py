@@ -9,7 +9,6 @@ import pytest
 from pxr import Usd, UsdGeom
 
 from warpcloth.cli import main
-from warpcloth.errors import WarpclothError
 
 
 def _run(capsys, *argv):

@@ -142,7 +142,8 @@ class Simulator:
             raise WarpclothError(f"model must be a ClothModel, got {model!r:.80}")
         if model.particle_count != self.model.particle_count or str(model.device) != str(self.model.device):
             raise WarpclothError(
-                f"set_model needs the same particles on the same device ({self.model.particle_count} on {self.model.device}), "
+                f"set_model needs the same particles on the same device ({self.model.particle_count} on "
+                f"{self.model.device}), "
                 f"got {model.particle_count} on {model.device}"
             )
         self.model = model

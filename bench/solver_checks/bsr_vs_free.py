@@ -83,7 +83,8 @@ def products(size):
             (s.bsr_matvec if k == "bsr" else s.matvec)(xw, out, out, 1.0, 0.0)
             z = out.numpy().astype(np.float64)
             print(
-                f"{size}^2 x = {name:10s} {k:4s}: |A x - (A x)_64| / |(A x)_64| = {np.linalg.norm(z - ref) / np.linalg.norm(ref):.3e}",
+                f"{size}^2 x = {name:10s} {k:4s}: |A x - (A x)_64| / |(A x)_64| = "
+                f"{np.linalg.norm(z - ref) / np.linalg.norm(ref):.3e}",
                 flush=True,
             )
 
@@ -101,7 +102,8 @@ def dv_difference(size, tol, steps):
     d = np.linalg.norm(out["bsr"][0] - out["free"][0]) / np.linalg.norm(out["free"][0])
     low = out["bsr"][1] - out["free"][1]
     print(
-        f"{size}^2 tol {tol:g} after {steps} steps: |dv_bsr - dv_free| / |dv_free| = {d:.3e}; lowest point bsr - free {low:+.2e} m; "
+        f"{size}^2 tol {tol:g} after {steps} steps: |dv_bsr - dv_free| / |dv_free| = {d:.3e}; lowest point bsr - free "
+        f"{low:+.2e} m; "
         f"CG its bsr {out['bsr'][2]['cg_iterations_mean']:.0f} free {out['free'][2]['cg_iterations_mean']:.0f}",
         flush=True,
     )

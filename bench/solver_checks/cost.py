@@ -30,7 +30,8 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     a = ap.parse_args()
     print(
-        f"# {a.integrator} ms/step on the {'mesh twin of the ' if a.mesh else ''}scenario sheet, dt 1/60 s, {a.steps} steps x "
+        f"# {a.integrator} ms/step on the {'mesh twin of the ' if a.mesh else ''}scenario sheet, dt 1/60 s, {a.steps} "
+        "steps x "
         f"{a.repeats} repeats, cases alternating"
     )
     for n in a.sizes:
@@ -58,7 +59,8 @@ def main():
             t = np.array(t)
             r = t / ref
             print(
-                f"{a.integrator} {n}^2 [{case or 'defaults'}]: {np.median(t):.2f} [{t.min():.2f}-{t.max():.2f}] ms/step, "
+                f"{a.integrator} {n}^2 [{case or 'defaults'}]: {np.median(t):.2f} [{t.min():.2f}-{t.max():.2f}] "
+                "ms/step, "
                 f"/ first {np.median(r):.2f} [{r.min():.2f}-{r.max():.2f}]",
                 flush=True,
             )

@@ -67,7 +67,8 @@ def main():
         )
     for mu in a.mu:
         print(
-            f"8x8 on a 30 deg slope, mu {mu:g}: v / (N h g (sin - mu cos)) = {slope(a.integrator, 8, dt, opts, mu):.4f}",
+            f"8x8 on a 30 deg slope, mu {mu:g}: v / (N h g (sin - mu cos)) = "
+            f"{slope(a.integrator, 8, dt, opts, mu):.4f}",
             flush=True,
         )
 

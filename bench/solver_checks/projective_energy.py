@@ -2,7 +2,8 @@
 2 s at dt 1/60 s from rest: the largest gain of mechanical energy between two frames, in J and as a
 fraction of the energy the fall releases by 2 s (E0 - min E), per integrator / options.
 
-    python bench/solver_checks/projective_energy.py --sizes 16 32 --cases projective projective:pd_rigid_mode=0 implicit_euler
+    python bench/solver_checks/projective_energy.py --sizes 16 32 --cases projective projective:pd_rigid_mode=0
+    implicit_euler
 """
 
 import argparse
@@ -47,7 +48,8 @@ def main():
             d = np.diff(e)
             released = e[0] - e.min()
             print(
-                f"{case:45s} {n}^2: max gain {d.max():+.3e} J = {d.max() / released:+.2e} of the energy released ({released:.3e} J), "
+                f"{case:45s} {n}^2: max gain {d.max():+.3e} J = {d.max() / released:+.2e} of the energy released "
+                f"({released:.3e} J), "
                 f"at frame {d.argmax() + 1}",
                 flush=True,
             )

@@ -39,7 +39,8 @@ def main():
     rest = sim.model.host["q"].astype(np.float64)
     sag_ref = float(np.max(np.linalg.norm(eq.x - rest, axis=1)))
     print(
-        f"# sag against float64: {a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2 dt={a.dt:.4g}: "
+        f"# sag against float64: {a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2 "
+        f"dt={a.dt:.4g}: "
         f"float64 sag {sag_ref * 1e3:.4f} mm (residual {eq.residual:.2g} N)"
     )
     steps = int(round(a.every / a.dt))

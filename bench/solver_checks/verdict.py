@@ -2,7 +2,8 @@
 how far is its sag then from the float64 equilibrium? Issue 26 item 3. Also prints the per-particle
 force floor and the largest patch net force per weight at the stop.
 
-    python bench/solver_checks/verdict.py [--size 32] [--mesh] [--integrator vbd] [--opt vbd_rigid_mode=0] [--per-particle-only]
+    python bench/solver_checks/verdict.py [--size 32] [--mesh] [--integrator vbd] [--opt vbd_rigid_mode=0]
+    [--per-particle-only]
 """
 
 import argparse
@@ -43,10 +44,12 @@ def main():
     frame = harness.measure()
     verdict = "old verdict (per particle)" if a.per_particle_only else "verdict with patches"
     print(
-        f"{a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2, {verdict}: equilibrium {r.equilibrium_reached} "
+        f"{a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2, {verdict}: equilibrium "
+        f"{r.equilibrium_reached} "
         f"at {r.time_to_equilibrium} s (stopped at {r.sim_time:.2f} s, force floor {harness.probe.force_floor:.3g}); "
         f"sag {sag * 1e3:.4f} mm vs {sag_ref * 1e3:.4f} mm ({100 * (sag - sag_ref) / sag_ref:+.2f} %); final max speed "
-        f"{r.final_max_speed:.2e}, max |f|/mg {frame.max_force_per_weight:.3g}, max patch |f|/mg {frame.max_patch_force_per_weight:.3g}",
+        f"{r.final_max_speed:.2e}, max |f|/mg {frame.max_force_per_weight:.3g}, max patch |f|/mg "
+        f"{frame.max_patch_force_per_weight:.3g}",
         flush=True,
     )
 

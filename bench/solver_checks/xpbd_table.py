@@ -47,7 +47,8 @@ def main():
             sag = float(np.max(np.linalg.norm(x - rest, axis=1)))
             v = float(np.abs(sim.state.particle_qd.numpy()).max())
             print(
-                f"xpbd {n}^2 {c:7s}: sag error {100 * (sag - ref) / ref:+8.2f} %  ({sag * 1e3:.4f} vs {ref * 1e3:.4f} mm, "
+                f"xpbd {n}^2 {c:7s}: sag error {100 * (sag - ref) / ref:+8.2f} %  ({sag * 1e3:.4f} vs {ref * 1e3:.4f} "
+                "mm, "
                 f"max|v| {v:.1e})  {ms:7.2f} ms/step",
                 flush=True,
             )

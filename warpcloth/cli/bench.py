@@ -78,7 +78,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--windows",
         type=int,
         default=DEFAULT_WINDOWS,
-        help=f"timed windows per combination: the median and the [min-max] spread come from them (default {DEFAULT_WINDOWS})",
+        help="timed windows per combination: the median and the [min-max] spread come from them (default "
+        f"{DEFAULT_WINDOWS})",
     )
     p.add_argument(
         "--graph",
@@ -112,7 +113,8 @@ def run(args) -> int:
         names = [s.strip() for s in args.integrators.split(",") if s.strip()]
         require(
             bool(names),
-            f"--integrators {args.integrators!r} names no integrator; give comma-separated names from {', '.join(integrator_names())}",
+            f"--integrators {args.integrators!r} names no integrator; give comma-separated names from "
+            f"{', '.join(integrator_names())}",
         )
     for n in names:
         integrator_class(n)

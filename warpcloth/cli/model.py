@@ -109,7 +109,8 @@ def check_spacing(scenario, cfg) -> None:
         if n >= 2 and size > 0 and size / (n - 1) <= ulp:
             raise WarpclothError(
                 f"{flag} {size:g} m over {n} particles puts neighbours {size / (n - 1):.3g} m apart, below float32's "
-                f"resolution ({ulp:.3g} m) at the cloth's position, so they would coincide; use at least {4 * ulp * (n - 1):.2g} m"
+                f"resolution ({ulp:.3g} m) at the cloth's position, so they would coincide; use at least "
+                f"{4 * ulp * (n - 1):.2g} m"
             )
 
 

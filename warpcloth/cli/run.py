@@ -55,7 +55,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
         "--preview",
         default=None,
         metavar="PATH",
-        help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs warpcloth[plot]",
+        help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs "
+        "warpcloth[plot]",
     )
     p.add_argument("--fail-unstable", action="store_true", help="exit with status 3 when the run goes unstable")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
@@ -70,9 +71,10 @@ def summary(result) -> str:
         f"(+{result.compile_time:.2f} s compile"
         + (f", +{result.capture_time:.2f} s graph capture" if result.capture_time else "")
         + ")",
-        f"  {result.ms_per_step:.4f} ms/step, {result.steps_per_sec:,.0f} steps/s, real-time factor {result.realtime_factor:.2f}"
-        + (" (graph replay)" if result.graph else ""),
-        f"  stable: {'yes' if result.stable else 'NO (' + result.unstable_reason + ')'}, max strain {100 * result.max_strain:.2f} %",
+        f"  {result.ms_per_step:.4f} ms/step, {result.steps_per_sec:,.0f} steps/s, real-time factor "
+        f"{result.realtime_factor:.2f}" + (" (graph replay)" if result.graph else ""),
+        f"  stable: {'yes' if result.stable else 'NO (' + result.unstable_reason + ')'}, max strain "
+        f"{100 * result.max_strain:.2f} %",
     ]
     if result.scenario != "flag" or result.equilibrium_reached:
         eq = f"yes, at t={result.time_to_equilibrium:.2f} s" if result.equilibrium_reached else "not reached"

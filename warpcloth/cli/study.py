@@ -110,7 +110,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--estimate",
         action="store_true",
-        help="measure per-step costs (seconds to a minute) and print the plan's estimated time per phase; measures nothing else, writes nothing",
+        help="measure per-step costs (seconds to a minute) and print the plan's estimated time per phase; measures "
+        "nothing else, writes nothing",
     )
     p.add_argument(
         "--workers",

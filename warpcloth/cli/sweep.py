@@ -77,7 +77,7 @@ def run(args) -> int:
     tests = args.tests if args.tests is not None else example_path(args.example)
     devices = None
     if args.devices is not None:
-        devices = [d for d in args.devices.split(",")]
+        devices = args.devices.split(",")
         if any(not d.strip() for d in devices):
             raise WarpclothError(
                 f"--devices: {args.devices!r} is not a comma-separated list of CUDA devices (cuda:0,cuda:1)"

@@ -19,7 +19,8 @@ at bind and whose values a kernel refills; CG multiplies by it with
 order, in the split form (A x)_i = E_i x_i + sum_j A_ij (x_j - x_i) with E_i = m (1 + h c) I + the
 pinned springs' B_s formed from the mass: issue 26, the stored float32 A_ii = m I + sum B_s kept
 the mass only to ulp(sum B_s), ~1e-2 of it at 256^2 on the peers' sheet, and a smooth dv (the fall,
-the sag) cancelled as much; now bsr and free agree to 3e-7 of |dv|) or matrix-free (``matrix="free"``: a gather over each particle's springs). Both give the
+the sag) cancelled as much; now bsr and free agree to 3e-7 of |dv|) or matrix-free (``matrix="free"``: a gather over
+each particle's springs). Both give the
 same A. On the CPU the assembled product is the faster: 0.66 against 1.62 ms per product at
 128^2 in one profiling run (``warp.sparse.bsr_mv``, which works on scalar rows, was slower than
 both), and per step bsr / free was 0.98, 0.83 and 0.80 at 32^2, 64^2 and 128^2 (medians of 3,
@@ -120,15 +121,18 @@ class ImplicitEuler(Integrator):
             "preconditioner",
             str,
             "jacobi",
-            "CG preconditioner: jacobi (1 / diag A), block_jacobi (the inverse 3 x 3 diagonal blocks of A) or multigrid "
-            "(geometric V-cycle on grid models; assembles A as BSR; other models fall back to block_jacobi with a note on stderr)",
+            "CG preconditioner: jacobi (1 / diag A), block_jacobi (the inverse 3 x 3 diagonal blocks of A) or "
+            "multigrid "
+            "(geometric V-cycle on grid models; assembles A as BSR; other models fall back to block_jacobi with a note "
+            "on stderr)",
             choices=PRECONDITIONERS,
         ),
         Option(
             "cg_check_every",
             int,
             4,
-            "CPU: CG iterations run (as one captured chunk) between host convergence checks; iterations past convergence "
+            "CPU: CG iterations run (as one captured chunk) between host convergence checks; iterations past "
+            "convergence "
             "within a chunk change nothing (CUDA checks on the device)",
             _check_max_iter,
         ),
@@ -136,7 +140,8 @@ class ImplicitEuler(Integrator):
             "cg_restarts",
             int,
             1,
-            "CG restarts per step from the true residual b - A dv (residual replacement: float32 CG's recursive residual "
+            "CG restarts per step from the true residual b - A dv (residual replacement: float32 CG's recursive "
+            "residual "
             "drifts from the true one; each restart costs one product when already converged)",
             check=lambda v: None if v >= 0 else "must be an integer >= 0",
         ),
@@ -144,7 +149,8 @@ class ImplicitEuler(Integrator):
             "matrix",
             str,
             "bsr",
-            "system matrix CG applies: bsr (assembled 3 x 3 blocks, refilled each step; the faster on the CPU, see bench/implicit.py) "
+            "system matrix CG applies: bsr (assembled 3 x 3 blocks, refilled each step; the faster on the CPU, see "
+            "bench/implicit.py) "
             "or free (matrix-free, gathering over each particle's springs)",
             choices=MATRICES,
         ),
@@ -510,8 +516,10 @@ class ImplicitEuler(Integrator):
                 False,
                 above,
                 (
-                    f"{self.name}: cg_tol {_sci(self.cg_tol)} is below what float32 reaches on this model: the exact solution "
-                    f"rounded to float32 leaves |b - A dv| / |b| ~ {_sci(floor)} (estimated floor; use a tolerance above it); "
+                    f"{self.name}: cg_tol {_sci(self.cg_tol)} is below what float32 reaches on this model: the exact "
+                    "solution "
+                    f"rounded to float32 leaves |b - A dv| / |b| ~ {_sci(floor)} (estimated floor; use a tolerance "
+                    "above it); "
                     f"{above} of {solves} steps ended above the tolerance (worst true residual {_sci(worst)})"
                 ),
             )
@@ -522,7 +530,8 @@ class ImplicitEuler(Integrator):
                 (
                     f"{self.name}: CG hit its {self.cg_max_iter}-iteration cap in {capped} of {solves} steps "
                     f"(worst final relative residual {_sci(stats['cg_residual_max'])} > tolerance {_sci(self.cg_tol)}; "
-                    f"true |b - A dv| / |b| above it in {stats['cg_true_above_tol_steps']} steps, worst {_sci(worst)}); "
+                    f"true |b - A dv| / |b| above it in {stats['cg_true_above_tol_steps']} steps, worst "
+                    f"{_sci(worst)}); "
                     "the result does not meet the tolerance asked"
                 ),
             )
@@ -530,7 +539,8 @@ class ImplicitEuler(Integrator):
             False,
             above,
             (
-                f"{self.name}: the true residual |b - A dv| / |b| ended above the tolerance in {above} of {solves} steps "
+                f"{self.name}: the true residual |b - A dv| / |b| ended above the tolerance in {above} of {solves} "
+                "steps "
                 f"(worst {_sci(worst)} > tolerance {_sci(self.cg_tol)}; CG's own residual met it; raise cg_restarts); "
                 "the result does not meet the tolerance asked"
             ),

@@ -111,7 +111,7 @@ def prolongation(rows: int, cols: int, pinned=()) -> tuple[int, int, np.ndarray,
     cols, fine index, coarse index, weight) triplets, none for pinned fine particles."""
     rc, wr = interpolation_1d(rows)
     cc, wc = interpolation_1d(cols)
-    pinned = set(int(p) for p in pinned)
+    pinned = {int(p) for p in pinned}
     fi, ci, w = [], [], []
     for r in range(rows):
         for c in range(cols):

@@ -77,7 +77,8 @@ class ImplicitSystem:
         self.bsr = self.matrix == "bsr" or self.preconditioner == "multigrid"
 
         if self.bsr:
-            # pattern: diagonal blocks + (i, j) and (j, i) per spring (and per pair of vertices a hinge couples), built once
+            # pattern: diagonal blocks + (i, j) and (j, i) per spring (and per pair of vertices a hinge couples), built
+            # once
             if model.hinge_count:
                 pairs = np.concatenate([pairs, hinge_pairs(model.host.hinges.indices).astype(np.int64)])
             rows = np.concatenate([np.arange(n), pairs[:, 0], pairs[:, 1]]).astype(np.int32)

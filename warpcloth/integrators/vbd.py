@@ -78,6 +78,7 @@ import warp as wp
 from warpcloth.integrators.base import Option, scratch_like
 from warpcloth.integrators.increment import IncrementSolver, at_least_one
 from warpcloth.integrators.multigrid import MIN_COARSE_SIDE, GridMultigrid, grid_structure_reason
+from warpcloth.integrators.system import ImplicitSystem
 from warpcloth.kernels import increment as nk
 from warpcloth.kernels import vbd as vk
 from warpcloth.sim.coloring import VertexColoring, color_vertices
@@ -88,7 +89,6 @@ from warpcloth.sim.hinges import hinge_pairs
 #: suffice, and a two-level V-cycle on a 6 x 6 cloth left a tilted free fall's shape 1.5e-4 m off
 #: (2.6e-7 m without it).
 MIN_AGGREGATION_PARTICLES = (2 * MIN_COARSE_SIDE - 1) ** 2
-from warpcloth.integrators.system import ImplicitSystem
 
 
 def _spectral_radius(value) -> str | None:
@@ -130,7 +130,8 @@ class VBD(IncrementSolver):
             "vbd_multigrid_every",
             int,
             1,
-            "a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; models that are not grids: "
+            "a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; models that are "
+            "not grids: "
             "an aggregation hierarchy, see vbd_mesh_multigrid)",
             check=lambda v: None if v >= 0 else "must be an integer >= 0",
         ),
@@ -138,7 +139,8 @@ class VBD(IncrementSolver):
             "vbd_mesh_multigrid",
             int,
             1,
-            "models that are not grids: the multigrid correction on an aggregation hierarchy of the Hessian's graph (1) or none (0)",
+            "models that are not grids: the multigrid correction on an aggregation hierarchy of the Hessian's graph "
+            "(1) or none (0)",
             check=lambda v: None if v in (0, 1) else "must be 0 or 1",
         ),
         Option(
@@ -153,7 +155,8 @@ class VBD(IncrementSolver):
             "vbd_chebyshev_rho",
             float,
             0.0,
-            "spectral radius estimate for Chebyshev acceleration of the VBD iterations (Wang 2015), in [0, 1); 0 disables it",
+            "spectral radius estimate for Chebyshev acceleration of the VBD iterations (Wang 2015), in [0, 1); 0 "
+            "disables it",
             check=_spectral_radius,
         ),
     )

@@ -158,7 +158,7 @@ def _obj_index(text: str, count: int, where: str, what: str) -> int:
 def read_usd(path: str, prim: str | None = None) -> TriangleMesh:
     """Read a ``UsdGeom.Mesh`` (see the module docstring)."""
     try:
-        from pxr import Usd, UsdGeom
+        import pxr  # noqa: F401  (usd-core present?)
     except ImportError:  # pragma: no cover - usd-core is a dependency
         raise WarpclothError("reading USD meshes needs usd-core (pip install usd-core)") from None
     stage, layers = open_usd_stage(path)
@@ -296,7 +296,8 @@ def _read_usd_mesh(stage, path: str, prim: str | None) -> TriangleMesh:
     require(counts.size > 0, f"USD mesh {p.GetPath()} in {path!r} is empty: no faces")
     require(
         int(counts.sum()) == indices.size,
-        f"USD mesh {p.GetPath()}: faceVertexCounts sum to {int(counts.sum())} but there are {indices.size} faceVertexIndices",
+        f"USD mesh {p.GetPath()}: faceVertexCounts sum to {int(counts.sum())} but there are {indices.size} "
+        "faceVertexIndices",
     )
     if np.any(counts < 3):
         raise WarpclothError(

@@ -28,7 +28,7 @@ def provenance(sim, scenario: str, fps: float, argv=None, extra: dict | None = N
         "warp_version": str(wp.config.version),
         "scenario": scenario,
         "integrator": sim.integrator.name,
-        "integrator_options": {k: v for k, v in sim.integrator.option_values().items()},
+        "integrator_options": dict(sim.integrator.option_values()),
         "dt": float(sim.dt),
         "fps": float(fps),
         "rows": int(m.rows),

@@ -132,7 +132,8 @@ class ColliderPrims:
 
     Static colliders hold default values (no time samples); a collider on a track gets a time
     sample of its transform at every frame written. Each prim and the scope carry ``purpose``
-    (``"guide"`` by default: collision proxies that renderers skip; ``"render"``: drawn). Thickness and friction go to the prim's
+    (``"guide"`` by default: collision proxies that renderers skip; ``"render"``: drawn). Thickness and friction go to
+    the prim's
     ``customData`` (``warpcloth:thickness``, ``warpcloth:friction``); the prim is the surface itself,
     so a resting cloth floats ``thickness`` above it.
     """

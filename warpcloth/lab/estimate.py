@@ -196,7 +196,8 @@ def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1) -> str:
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     if load is not None:
         lines.append(
-            f"  load average {load:.1f} on {os.cpu_count()} cores while calibrating: other jobs' share is in the per-step costs"
+            f"  load average {load:.1f} on {os.cpu_count()} cores while calibrating: other jobs' share is in the "
+            "per-step costs"
         )
     lines.append(
         "  (a model from per-step costs measured now: see docs/study.md, 'Estimate'"

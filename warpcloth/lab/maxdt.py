@@ -276,7 +276,8 @@ def format_result(r: MaxDtResult) -> str:
     """The human-readable report of ``warpcloth max-dt``."""
     verified = f" (the found dt verified over {r.verified_duration:g} s)" if r.verified_duration else ""
     lines = [
-        f"{r.scenario}: {r.integrator} on {r.device}, {r.rows}x{r.cols}; stable = {r.duration:g} s simulated without going unstable"
+        f"{r.scenario}: {r.integrator} on {r.device}, {r.rows}x{r.cols}; stable = {r.duration:g} s simulated without "
+        "going unstable"
         f"{verified}"
     ]
     if r.no_stable_reason:

@@ -294,7 +294,10 @@ class Measurements:
         p = self.plan
         base = self.base("max_stable_dt", scenario, integrator, device, n)
         duration = p.maxdt_duration_at(n if n is not None else round(math.sqrt(base["particles"])))
-        key = f"max_stable_dt|{scenario}|{integrator}|{device}|{_size(n)}|dur={duration:.6g}|prec={p.maxdt_precision}|cap={p.maxdt_wall_cap}"
+        key = (
+            f"max_stable_dt|{scenario}|{integrator}|{device}|{_size(n)}|dur={duration:.6g}"
+            f"|prec={p.maxdt_precision}|cap={p.maxdt_wall_cap}"
+        )
 
         def run():
             from warpcloth.lab.maxdt import find_max_dt
@@ -431,7 +434,10 @@ class Measurements:
         transient whose start state the timed steps begin at; None: the rest shape)."""
         p = self.plan
         opt = _options_text(options or {})
-        key = f"timing|{scenario}|{integrator}|{opt}|{device}|{_size(n)}|{label}|dt={dt!r}|w={p.timing_windows}x{p.window_seconds}"
+        key = (
+            f"timing|{scenario}|{integrator}|{opt}|{device}|{_size(n)}|{label}|dt={dt!r}"
+            f"|w={p.timing_windows}x{p.window_seconds}"
+        )
 
         if self.defer_timing and key not in self.out.done:
             return {}
@@ -476,7 +482,10 @@ class Measurements:
         """A fixed-mesh scenario run from its start at dt = frame/k until at rest (or the caps):
         time to equilibrium and max strain. No float64 reference: no static error."""
         p = self.plan
-        key = f"static|{scenario}|{integrator}||{device}|mesh|k={k}|dur={p.equilibrium_duration}|cap={p.equilibrium_wall_cap}"
+        key = (
+            f"static|{scenario}|{integrator}||{device}|mesh|k={k}|dur={p.equilibrium_duration}"
+            f"|cap={p.equilibrium_wall_cap}"
+        )
 
         def run():
             sim = self.sim(scenario, None, device, integrator)

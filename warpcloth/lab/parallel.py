@@ -317,7 +317,8 @@ class LocalPool:
         if failed:
             what = f"{len(retry)} run(s) run again, {len(failed)} given up after {self.max_retries + 1} attempts"
         self._note(
-            f"worker {w.index} (pid {place.pid}) died ({how}); {what}; a new worker (pid {w.process.pid}) took its place"
+            f"worker {w.index} (pid {place.pid}) died ({how}); {what}; a new worker (pid {w.process.pid}) took its "
+            "place"
         )
         for job in failed:
             reported.add(job.key)
@@ -498,7 +499,8 @@ class RayPool:
                         message = " ".join(f"{type(exc).__name__}: {exc}".split())[:300]
                         if self.on_event is not None:
                             self.on_event(
-                                f"a Ray task of {len(unit.jobs)} run(s) failed after {self.max_retries} retries: {message[:120]}"
+                                f"a Ray task of {len(unit.jobs)} run(s) failed after {self.max_retries} retries: "
+                                f"{message[:120]}"
                             )
                         for job in unit.jobs:
                             if job.key not in reported:

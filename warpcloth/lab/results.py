@@ -69,7 +69,8 @@ COLUMNS = [
 
 #: Descriptions of the columns (docs/study.md is generated from the same text).
 COLUMN_DOCS = {
-    "measurement": "max_stable_dt, floor, trial (a configuration on a dynamic transient), static (one run to rest on the "
+    "measurement": "max_stable_dt, floor, trial (a configuration on a dynamic transient), static (one run to rest on "
+    "the "
     "contact transient), timing (a configuration's cost)",
     "scenario": "the cloth: study_sheet, study_flag, study_contact (or a scenario file's)",
     "transient": "swing, flag or contact",
@@ -88,12 +89,14 @@ COLUMN_DOCS = {
     "error_rel": "pointwise e = max over frames and particles |x - x_ref| / size (static: the rest shape's)",
     "centroid_error_rel": "max over frames |centre of mass - the reference's| / size",
     "patch_error_rel": "max over frames and 4 x 4 patches |patch mean - the reference's| / size",
-    "damping_rel": "numerical damping: 1 - (kinetic energy summed over the frames) / the reference's (< 0: energy gained)",
+    "damping_rel": "numerical damping: 1 - (kinetic energy summed over the frames) / the reference's (< 0: energy "
+    "gained)",
     "max_strain_rel": "largest strain of a structural spring in the run (stretch along warp or weft; > 0.1: stretchy); "
     "max_stable_dt: the largest of any spring at that dt",
     "ref_max_strain_rel": "the reference's largest strain",
     "stable": "the run stayed finite",
-    "floor_point_rel": "conditioning floor of e: float64 growth of a 1e-7 m perturbation of the start (2 seeds, max), / size",
+    "floor_point_rel": "conditioning floor of e: float64 growth of a 1e-7 m perturbation of the start (2 seeds, max), "
+    "/ size",
     "floor_centroid_rel": "floor of the centroid error",
     "floor_patch_rel": "floor of the patch error",
     "floor_damping_rel": "floor of |damping|",
@@ -126,7 +129,8 @@ COLUMN_DOCS = {
     "note": "why a value is missing, refused or bounded",
     "host": "machine the measurement ran on",
     "worker": "main (serial), local:N (a --workers process) or ray:PID (a Ray task)",
-    "concurrent_runs": "most measurement jobs running at once on that host while it ran (1: alone; timings are alone by default)",
+    "concurrent_runs": "most measurement jobs running at once on that host while it ran (1: alone; timings are alone "
+    "by default)",
     "warpcloth_version": "",
     "warp_version": "",
     "key": "identity of the measurement (resume)",

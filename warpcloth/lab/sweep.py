@@ -316,7 +316,7 @@ def run_sweep(
         raise
     todo = [r for r in test_list.runs if r.key not in output.done_keys]
     summary = SweepSummary(total=len(test_list.runs), skipped=len(test_list.runs) - len(todo))
-    summary.outcomes = {k: 0 for k in OUTCOMES}
+    summary.outcomes = dict.fromkeys(OUTCOMES, 0)
     bar = Progress(stream=progress, enabled=progress is not None, layout=_line, keep=True)
     current = ""
     if output.truncated and report is not None:

@@ -233,7 +233,8 @@ def _read_tree(path: str) -> tuple[_Source, _Element]:
             lead = len(data) - len(data.lstrip())
             raise src.error(
                 parser.CurrentLineNumber + data[:lead].count("\n"),
-                f"unexpected text {data.strip()[:40]!r} inside <{where}>; a test list holds only elements and attributes",
+                f"unexpected text {data.strip()[:40]!r} inside <{where}>; a test list holds only elements and "
+                "attributes",
             )
 
     def doctype(name, *args):
@@ -406,7 +407,8 @@ def _expand(
         if not takers:
             raise src.error(
                 line_of(name),
-                f"{what}: option {name!r} does not apply to integrator(s) {', '.join(integrators)} (it applies to {', '.join(owners)})",
+                f"{what}: option {name!r} does not apply to integrator(s) {', '.join(integrators)} (it applies to "
+                f"{', '.join(owners)})",
             )
         parsed = []
         for tok in values[name]:

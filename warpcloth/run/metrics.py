@@ -11,7 +11,8 @@ Definitions (shared by every integrator, see design.md):
   positions are stored in float32, so a particle cannot sit closer to equilibrium than one unit
   in the last place u of its coordinates, which leaves a net force up to sum_j ks_ij u on it. The
   floor is max_i sum_j ks_ij u / (m_i |g|) (reported as ``force_floor``); for stiff cloth it
-  exceeds any useful tolerance and the speed criterion decides. Position-based integrators have no net force from springs:
+  exceeds any useful tolerance and the speed criterion decides. Position-based integrators have no net force from
+  springs:
   for them only the speed criterion applies (:attr:`FrameMetrics.force_checked` is False).
   The time reported is the start of that window (when the cloth came to rest).
   The same test is also made on the net force of patches of particles (about 16, 256 and 4096 free

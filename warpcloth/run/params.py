@@ -130,7 +130,8 @@ def number_list(text: str):
     parts = text.split(",")
     if len(parts) > 1 and any(not p.strip() for p in parts):
         raise argparse.ArgumentTypeError(
-            f"{_shown(text)} has an empty item: give one number, or three separated by single commas (structural,shear,bend)"
+            f"{_shown(text)} has an empty item: give one number, or three separated by single commas "
+            "(structural,shear,bend)"
         )
     try:
         values = [float(p) for p in parts]

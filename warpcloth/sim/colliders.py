@@ -393,7 +393,8 @@ class Box(_Posed):
 class MeshCollider(_Posed):
     """A triangle mesh (``wp.Mesh``, queried with ``wp.mesh_query_point_sign_normal``):
     ``vertices`` (N, 3) [m], ``triangles`` (T, 3) vertex indices; it may move rigidly on a
-    ``track`` (the BVH stays in the mesh's own frame and each particle is taken into it). Inside and outside come from the
+    ``track`` (the BVH stays in the mesh's own frame and each particle is taken into it). Inside and outside come from
+    the
     nearest face's normal, so a closed mesh should have its triangles wound outward (counter-
     clockwise seen from outside); an open one pushes particles to its front side. A particle more
     than ``reach`` [m] inside is not found (it went through; keep reach above a step's motion)."""
@@ -417,7 +418,9 @@ class MeshCollider(_Posed):
             or np.size(self.vertices) == 0
         ):
             raise WarpclothError(
-                f"{what} is empty (no {'vertices' if self.vertices is None or np.size(self.vertices) == 0 else 'triangles'}): give at least one triangle"
+                f"{what} is empty (no "
+                f"{'vertices' if self.vertices is None or np.size(self.vertices) == 0 else 'triangles'}): give at "
+                "least one triangle"
             )
         v, t = check_mesh(self.vertices, self.triangles, what=what)
         object.__setattr__(self, "vertices", v)
@@ -445,7 +448,8 @@ class MeshCollider(_Posed):
 
     def __repr__(self):
         return (
-            f"MeshCollider({self.source or 'in memory'}: {len(self.vertices)} vertices, {len(self.triangles)} triangles, "
+            f"MeshCollider({self.source or 'in memory'}: {len(self.vertices)} vertices, {len(self.triangles)} "
+            "triangles, "
             f"thickness={self.thickness}, friction={self.friction}, reach={self.reach})"
         )
 

@@ -27,7 +27,8 @@ def resolve_device(device=None) -> wp.Device:
     available = [str(d) for d in wp.get_devices()]
     if not isinstance(device, str):
         raise WarpclothError(
-            f"device must be a device name such as 'cpu' or 'cuda:0', got {device!r} (available: {', '.join(available)})"
+            f"device must be a device name such as 'cpu' or 'cuda:0', got {device!r} (available: "
+            f"{', '.join(available)})"
         )
     name = device.strip()
     if name == "cuda":

@@ -218,7 +218,8 @@ def mesh_topology(triangles: np.ndarray, vertex_count: int) -> MeshTopology:
     if same.size:
         e = int(same[0])
         raise WarpclothError(
-            f"mesh: triangles {int(edge_tris[e, 0])} and {int(edge_tris[e, 1])} are the same triangle (vertices {[int(edges[e, 0]), int(edges[e, 1]), int(opposite[e, 0])]})"
+            f"mesh: triangles {int(edge_tris[e, 0])} and {int(edge_tris[e, 1])} are the same triangle (vertices "
+            f"{[int(edges[e, 0]), int(edges[e, 1]), int(opposite[e, 0])]})"
         )
     return MeshTopology(edges, counts, half_edge.reshape(T, 3), opposite, edge_tris)
 

@@ -252,7 +252,8 @@ def check_spring_params(params: dict[SpringType, SpringParams]) -> None:
     :class:`SpringParams` with ks, kd >= 0."""
     if not isinstance(params, dict) or not all(isinstance(p, SpringParams) for p in params.values()):
         raise WarpclothError(
-            f"spring_params must map each SpringType to SpringParams(stiffness, damping) (see default_spring_params), got {params!r:.80}"
+            "spring_params must map each SpringType to SpringParams(stiffness, damping) (see default_spring_params), "
+            f"got {params!r:.80}"
         )
     for t in SpringType:
         require(t in params, f"spring parameters for {t.name.lower()} springs are missing")
@@ -413,7 +414,7 @@ def default_spring_params(particle_mass: float, stiffness=None, damping=None) ->
             require(len(value) == 3, f"{what} per type must be 3 values (structural, shear, bend), got {list(value)!r}")
             return {t: require_non_negative(f"{what} of {t.name.lower()} springs", value[t], unit) for t in SpringType}
         v = require_non_negative(what, value, unit)
-        return {t: v for t in SpringType}
+        return dict.fromkeys(SpringType, v)
 
     ks = per_type(stiffness, DEFAULT_STIFFNESS, "stiffness", "N/m")
     for t in SpringType:

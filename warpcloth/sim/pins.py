@@ -203,7 +203,8 @@ class KinematicPins:
                 free = idx[~pinned[idx]]
                 if free.size:
                     raise WarpclothError(
-                        f"pin track {track.name!r}: particle {int(free[0])} is not pinned in the model; pin it (pins=...) to move it along a track"
+                        f"pin track {track.name!r}: particle {int(free[0])} is not pinned in the model; pin it "
+                        "(pins=...) to move it along a track"
                     )
                 for i in idx.tolist():
                     if i in owner:
