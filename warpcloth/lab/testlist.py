@@ -362,6 +362,7 @@ def _expand(
     """The runs of one ``test``: the product of its value lists, for each scenario."""
     from warpcloth.integrators import all_options, integrator_class, integrator_names
     from warpcloth.scenarios import get_scenario
+    from warpcloth.sim.material import MATERIAL_VALUES, material_with
     from warpcloth.sim.model import default_spring_params
 
     what = f"test {test_id!r}"
@@ -475,6 +476,31 @@ def _expand(
             if v is None and p.from_scenario and p.name not in ("rows", "cols"):
                 v = getattr(d, p.config_field)
             resolved[p.name] = v
+        material = resolved.get("material")
+        if material is not None and material != "none":  # the material gives the masses and springs
+            clash = next((n for n in PER_SPRING_NAMES if c.get(n) is not None), None)
+            if clash is not None:
+                raise src.error(
+                    line_of(clash),
+                    f"{what}: {clash!r} is a per-spring value and does not go with material {material!r} (its "
+                    "density and stiffnesses give the masses and springs); change the material's values or give "
+                    'material="none"',
+                )
+            try:  # bad values fail now, naming the line, not run by run
+                material_with(material, **{k: c.get(k) for k in MATERIAL_VALUES})
+            except WarpclothError as exc:
+                raise src.error(el.line, f"{what}: {exc}") from None
+            resolved["mass"] = resolved["stiffness"] = resolved["damping"] = None
+            resolved["integrator"] = integrator
+            runs.append(RunSpec(test_id=test_id, line=el.line, values=tuple(resolved.items()), options=options))
+            continue
+        clash = next((p.name for p in params.PARAMS if p.group == "material" and c.get(p.name) is not None), None)
+        if clash is not None and clash != "material":
+            raise src.error(
+                line_of(clash),
+                f"{what}: {clash!r} is a material's value and the run has no material: give material (a preset, "
+                "or custom with density, stretch, shear and bend_rigidity)",
+            )
         mass = resolved["mass"]
         # the effective per-type values; the default damping scales with the particle mass, which a
         # mesh scenario knows only once its mesh is built: there it stays as given (or None)
@@ -490,6 +516,12 @@ def _expand(
         resolved["integrator"] = integrator
         runs.append(RunSpec(test_id=test_id, line=el.line, values=tuple(resolved.items()), options=options))
     return runs
+
+
+#: The per-spring parameters a material replaces (its density and stiffnesses give them).
+PER_SPRING_NAMES = ("mass", "stiffness", "damping") + tuple(
+    f"{k}_{t}" for k in ("stiffness", "damping") for t in ("structural", "shear", "bend")
+)
 
 
 #: The parameters that apply to one kind of cloth only (``grid`` or ``mesh``).

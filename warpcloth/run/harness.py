@@ -216,6 +216,8 @@ class RunResult:
     #: step; None where not applicable (no iterative solver with a tolerance).
     solver_converged: bool | None = None
     solver_capped_steps: int = 0
+    #: What the scenario measured at the end (a textile test's reading, a fold count; Scenario.measure).
+    measurements: dict = field(default_factory=dict)
     warpcloth_version: str = __version__
     warp_version: str = wp.config.version
 

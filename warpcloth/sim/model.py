@@ -118,6 +118,8 @@ class ClothModel:
             length acts with phi ks (a material's compression factor, emulating sub-grid buckling;
             Choi & Ko 2002); ones unless given to :func:`build_model` (a factor of 1 leaves every
             kernel's result bit-identical).
+        material: the :class:`~warpcloth.sim.material.Material` the parameters came from, or None
+            (per-spring parameters).
     """
 
     rows: int
@@ -144,6 +146,7 @@ class ClothModel:
     hinge_stiffness: wp.array | None = None
     hinge_damping: wp.array | None = None
     spring_compression: wp.array | None = None
+    material: object = None
 
     def __post_init__(self):
         if self.spring_compression is None:  # every spring as stiff in compression as in tension
