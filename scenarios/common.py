@@ -138,6 +138,9 @@ class Scenario:
         tracks: function (config, model) -> kinematic pin tracks (:class:`~warpcloth.sim.pins.PinTrack`).
         measure: function (sim, config) -> dict of what the scenario measures at the end of a run
             (a textile test's reading, a fold count), put in ``RunResult.measurements``; None: nothing.
+        kind: ``"grid"`` or ``"mesh"``: which cloth parameters apply (``--size`` or ``--mesh``); None:
+            ``"mesh"`` where ``model`` is given. A ``model`` of kind ``"grid"`` builds its own cloth from
+            rows, cols, width and height (the Cusick disc).
     """
 
     name: str
@@ -151,6 +154,13 @@ class Scenario:
     model: Callable | None = None
     tracks: Callable | None = None
     measure: Callable | None = None
+    kind: str | None = None
+
+    @property
+    def is_mesh(self) -> bool:
+        """Whether the cloth is a mesh (its size from the mesh; grid parameters refused): ``kind``,
+        or by default whether the scenario builds its own ``model``."""
+        return self.kind == "mesh" if self.kind is not None else self.model is not None
 
     def config(self, **overrides) -> ScenarioConfig:
         """The default configuration with ``overrides`` (None values keep the default)."""

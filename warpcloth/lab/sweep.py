@@ -111,7 +111,7 @@ def get_scenario_kind(name: str) -> str:
     """``grid`` or ``mesh``: what kind of cloth scenario ``name`` builds."""
     from warpcloth.scenarios import get_scenario
 
-    return "grid" if get_scenario(name).model is None else "mesh"
+    return "mesh" if get_scenario(name).is_mesh else "grid"
 
 
 def result_columns(result, stop_at_equilibrium: bool = True) -> dict:

@@ -428,7 +428,7 @@ def _expand(
             dims[p.name] = values.get(p.name, [_UNSET])
     dims.update({f"option:{k}": v for k, v in option_lists.items()})
     dims["scenario"] = values.get("scenario", list(params.BY_NAME["scenario"].sweep_default))
-    kinds = {"mesh" if get_scenario(n).model is not None else "grid" for n in dims["scenario"]}
+    kinds = {"mesh" if get_scenario(n).is_mesh else "grid" for n in dims["scenario"]}
     for kind in ("grid", "mesh"):
         given = [p.name for p in params_of_kind(kind) if p.name in own]
         if given and kind not in kinds:
@@ -459,7 +459,7 @@ def _expand(
         options = tuple(sorted((k[7:], v) for k, v in c.items() if k.startswith("option:") and k[7:] in taken))
         scen = get_scenario(c["scenario"])
         d = scen.defaults
-        is_mesh = scen.model is not None
+        is_mesh = scen.is_mesh
         # a test may name grid and mesh scenarios together: each takes the parameters of its kind
         for p in params_of_kind("mesh" if not is_mesh else "grid"):
             c[p.name], explicit[p.name] = None, _UNSET

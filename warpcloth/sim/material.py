@@ -528,7 +528,7 @@ def grid_spring_params(
         bend = BendModel(bend)
     except ValueError:
         raise WarpclothError(f"bend must be one of {[b.value for b in BendModel]}, got {bend!r}") from None
-    minimum = 2 if bend == BendModel.NONE else 3
+    minimum = 2 if bend in (BendModel.NONE, BendModel.DIHEDRAL) else 3
     rows, cols = require_int("rows", rows, minimum), require_int("cols", cols, minimum)
     width, height = require_positive("width", width, "m"), require_positive("height", height, "m")
     gravity = require_positive("gravity", gravity, "m/s^2")
