@@ -27,10 +27,12 @@ from warpcloth.sim.hinges import DEFAULT_BEND_RIGIDITY
 from warpcloth.sim.material import GRAVITY, material
 
 #: The ledge's height [m] (the clamp line) and the default strip: 2 x 34 particles (32.5 segments
-#: over the overhang), 25 mm wide (ASTM), long enough for cotton's ASTM overhang.
+#: over the overhang), 3 mm wide, long enough for cotton's ASTM overhang. (ASTM's strip is 25 mm
+#: wide; B is per width, so a strip of two rows bends the same at any width, and cells about twice as
+#: wide as long keep every membrane spring of the mapping positive: C22 > G (hy / hx)^2.)
 LEDGE = 0.3
 COLS = 34
-STRIP_WIDTH = 0.025
+STRIP_WIDTH = 0.003
 ASTM_OVERHANG_RATIO = 2.0004  # L / c where the exact elastica's chord is 41.5 deg below the ledge
 COTTON_OVERHANG = ASTM_OVERHANG_RATIO * material("cotton").bending_length()
 

@@ -5,6 +5,8 @@
 
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
+from warpcloth.errors import WarpclothError
+from warpcloth.run.drape import fold_count
 from warpcloth.sim.colliders import Plane, Sphere
 from warpcloth.sim.control import Control
 
@@ -32,6 +34,21 @@ def _origin(config: ScenarioConfig) -> tuple:
     return (-0.5 * config.width, 2.0 * RADIUS + DROP, -0.5 * config.height)
 
 
+#: The height [m] of the level cut whose outline's peaks are the folds (Scenario.measure).
+FOLD_CUT = 0.5 * RADIUS
+
+
+def measure(sim, config: ScenarioConfig) -> dict:
+    """The folds of the cloth hanging around the sphere: peaks of its level cut at FOLD_CUT
+    (:func:`warpcloth.run.drape.fold_count`; a hanging corner counts as a fold)."""
+    x = sim.state.particle_q.numpy()
+    try:
+        folds = fold_count(x, sim.model.host["tris"], FOLD_CUT)
+    except WarpclothError:  # the cloth does not reach the cut
+        return {"folds": None, "fold_cut_m": FOLD_CUT}
+    return {"folds": folds, "fold_cut_m": FOLD_CUT}
+
+
 SCENARIO = Scenario(
     name="drape",
     description="a square cloth falls onto a sphere on the ground and drapes over it (colliders); runs to equilibrium",
@@ -41,6 +58,7 @@ SCENARIO = Scenario(
     origin=_origin,
     stop_at_equilibrium=True,
     plane="horizontal",
+    measure=measure,
 )
 
 

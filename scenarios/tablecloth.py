@@ -4,6 +4,8 @@ hangs over its edges; a run ends at equilibrium. Run it with ``warpcloth run tab
 
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
+from warpcloth.errors import WarpclothError
+from warpcloth.run.drape import fold_count
 from warpcloth.sim.colliders import Box, Plane
 from warpcloth.sim.control import Control
 
@@ -30,6 +32,21 @@ def _origin(config: ScenarioConfig) -> tuple:
     return (-0.5 * config.width, HEIGHT + 0.1, -0.5 * config.height)
 
 
+#: The height [m] of the level cut whose outline's peaks are the folds (Scenario.measure).
+FOLD_CUT = HEIGHT - 0.1
+
+
+def measure(sim, config: ScenarioConfig) -> dict:
+    """The folds of the cloth hanging around the table: peaks of its level cut at FOLD_CUT
+    (:func:`warpcloth.run.drape.fold_count`; a hanging corner counts as a fold)."""
+    x = sim.state.particle_q.numpy()
+    try:
+        folds = fold_count(x, sim.model.host["tris"], FOLD_CUT)
+    except WarpclothError:  # the cloth does not reach the cut
+        return {"folds": None, "fold_cut_m": FOLD_CUT}
+    return {"folds": folds, "fold_cut_m": FOLD_CUT}
+
+
 SCENARIO = Scenario(
     name="tablecloth",
     description=(
@@ -41,6 +58,7 @@ SCENARIO = Scenario(
     origin=_origin,
     stop_at_equilibrium=True,
     plane="horizontal",
+    measure=measure,
 )
 
 

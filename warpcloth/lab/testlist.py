@@ -494,8 +494,15 @@ def _expand(
             resolved["integrator"] = integrator
             runs.append(RunSpec(test_id=test_id, line=el.line, values=tuple(resolved.items()), options=options))
             continue
-        clash = next((p.name for p in params.PARAMS if p.group == "material" and c.get(p.name) is not None), None)
-        if clash is not None and clash != "material":
+        clash = next(
+            (
+                p.name
+                for p in params.PARAMS
+                if p.group == "material" and p.name != "material" and c.get(p.name) is not None
+            ),
+            None,
+        )
+        if clash is not None:
             raise src.error(
                 line_of(clash),
                 f"{what}: {clash!r} is a material's value and the run has no material: give material (a preset, "

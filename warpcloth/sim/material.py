@@ -587,7 +587,8 @@ def _clamp(ks: np.ndarray, mat: Material) -> int:
     if count:
         warn(
             f"material {mat.name!r}: {count} membrane springs clamped at 0 N/m (bend springs stiffer than the "
-            f"membrane at this spacing): use --bend dihedral"
+            f"membrane at this spacing: use --bend dihedral; or cells so long and thin that the shear diagonals "
+            f"alone are stiffer along them than the material)"
         )
         ks[low] = 0.0
     return count
