@@ -250,7 +250,7 @@ def test_calibrate_bending_length_on_a_coarse_strip_recovers_b():
 def test_calibrate_least_squares_finds_known_values_of_a_smooth_model(monkeypatch):
     """Two unknowns, two targets on a model whose answer is known: the solver, not the scenarios."""
 
-    def fake(mat, targets, size, integrator, device, options):
+    def fake(mat, targets, size, integrator, device, options, bend):
         bend = mat.bend_warp / PRESETS["wool"].bend_warp
         return {
             "bending_length": 0.015 * bend ** (1 / 3),

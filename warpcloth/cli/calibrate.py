@@ -75,6 +75,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--integrator", "-i", default=None, help="integrator of the runs (default the scenarios': implicit_euler)"
     )
+    p.add_argument(
+        "--bend",
+        choices=["dihedral", "provot", "choi_ko"],
+        default=None,
+        help="bending model of the runs (default the scenarios': dihedral; provot and choi_ko: bend springs)",
+    )
     p.add_argument("--device", default="cpu", help="Warp device (default cpu)")
     p.add_argument("--tolerance", type=float, default=1e-3, help="relative residual to stop at (default 0.001)")
     p.add_argument("--max-runs", type=int, default=40, help="the most scenario runs (default 40)")
@@ -114,6 +120,7 @@ def run(args) -> int:
         max_runs=args.max_runs,
         progress=progress,
         options=options,
+        bend=args.bend,
     )
     if args.json:
         print(json.dumps(result.to_dict()))

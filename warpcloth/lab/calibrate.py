@@ -137,6 +137,7 @@ def measure(
     integrator: str | None = None,
     device: str | None = None,
     options: dict | None = None,
+    bend: str | None = None,
 ) -> dict:
     """What ``mat`` gives for each target, each by a scenario run to rest at ``size`` (particles along
     the cantilever strip; points across the Cusick disc; None: the scenario's) with ``integrator``."""
@@ -151,9 +152,13 @@ def measure(
             overrides["integrator"] = integrator
         if options:
             overrides["integrator_options"] = dict(options)
+        if bend is not None:
+            overrides["bend"] = bend
         if name == "bending_length":
             cols = size or scenario.defaults.cols
             overrides.update(cols=cols, width=ASTM_OVERHANG_RATIO * target * (cols - 1) / (cols - 1.5))
+            if bend in ("provot", "choi_ko"):  # bend springs span two rows
+                overrides["rows"] = 3
         elif size is not None:
             overrides.update(rows=size, cols=size)
         result = scenario.run(scenario.config(**overrides))
@@ -180,6 +185,7 @@ def calibrate(
     max_runs: int = 40,
     progress=None,
     options: dict | None = None,
+    bend: str | None = None,
 ) -> Calibration:
     """Fit ``fit`` (unknowns, module docstring) of the material ``start`` (a preset's name or a
     :class:`~warpcloth.sim.material.Material`) so that the scenarios reproduce ``targets``
@@ -190,6 +196,8 @@ def calibrate(
         max_runs: the most simulation runs (each target is one run per evaluation).
         progress: called with each :class:`Evaluation` as it finishes (None: quiet).
         options: the integrator's options (e.g. ``{"preconditioner": "block_jacobi"}``).
+        bend: the scenarios' bending model (``dihedral``, their default, or ``provot``, ``choi_ko``:
+            bend springs by the approximate rule, which a fit corrects at this resolution).
 
     Raises:
         WarpclothError: bad targets or unknowns (one line), or fewer targets than unknowns.
@@ -231,7 +239,7 @@ def calibrate(
         if len(evaluations) * len(targets) >= max_runs:
             raise _OutOfRuns()
         t = time.perf_counter()
-        got = measure(apply(start, values), targets, size, integrator, device, options)
+        got = measure(apply(start, values), targets, size, integrator, device, options, bend)
         evaluations.append(Evaluation(dict(values), got, time.perf_counter() - t))
         if progress is not None:
             progress(evaluations[-1])
