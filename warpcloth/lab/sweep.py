@@ -67,6 +67,7 @@ COLUMNS = [
     "solver_converged",
     "solver_capped_steps",
     "solver",
+    "measurements",
     "error",
     "host",
     "worker",
@@ -152,6 +153,7 @@ def result_columns(result, stop_at_equilibrium: bool = True) -> dict:
         "solver_converged": result.solver_converged,
         "solver_capped_steps": result.solver_capped_steps,
         "solver": result.solver or None,
+        "measurements": result.measurements or None,
     }
 
 
