@@ -7,15 +7,16 @@ published range of DC for the fabric (:mod:`warpcloth.run.drape`, docs/materials
 The disc is the square grid of ``--size N`` points across its diameter (``width``, 30 cm) clipped
 to the circle: cells inside are quads, the points within half a cell of the rim are moved onto it
 and a cell with one corner beyond is a triangle, so the rim is an inscribed polygon (area error
-O(h^2)). Its dihedral bending uses the grid's symmetrised hinges (isotropic B at every bending
-direction), its membrane the material's quads. The disc's centre is 0.5 mm, 0.2 mm off the
-pedestal's axis: a specimen is never exactly centred, and this breaks the grid's symmetry, so the
-folds choose their places as they do in the laboratory (the node count depends on that path:
-Jeong & Phillips 1998). The points over the 18 cm pedestal are pinned (the standard clamps the
-specimen between two such discs); the pedestal is a cylinder (a mesh collider) with friction, under
-the rest. The default
-integrator is implicit Euler at dt = 1/240 s: at 1/60 s the rim's contact with the pedestal made
-some disc sizes unstable (12 and 20 points across).
+O(h^2)); the points within half a cell of the clamp's 9 cm edge are moved onto that circle too,
+so the clamp's edge is exact to O(h^2) as well. Its dihedral bending uses the grid's symmetrised
+hinges (isotropic B at every bending direction), its membrane the material's quads. The disc's
+centre is 0.5 mm, 0.2 mm off the pedestal's axis: a specimen is never exactly centred, and this
+breaks the grid's symmetry, so the folds choose their places as they do in the laboratory (the
+node count depends on that path: Jeong & Phillips 1998). The points over the 18 cm pedestal are
+pinned (the standard clamps the specimen between two such discs); the pedestal is a cylinder (a
+mesh collider) with friction, under the rest. The default integrator is implicit Euler at
+dt = 1/240 s: at 1/60 s the rim's contact with the pedestal made some disc sizes unstable (12 and
+20 points across).
 """
 
 from __future__ import annotations
@@ -73,8 +74,9 @@ PUBLISHED_DC = {
 }
 
 
-def disc_grid(n: int, radius: float):
-    """A disc of radius [m] from the n x n grid over its diameter (module docstring).
+def disc_grid(n: int, radius: float, rings=()):
+    """A disc of radius [m] from the n x n grid over its diameter (module docstring); the points
+    within half a cell of a circle of radius in ``rings`` [m] move onto it too (the clamp's edge).
 
     Returns:
         (points (N, 2) [m] in the plane, triangles (T, 3), index (n * n,) of each grid point in the
@@ -90,6 +92,9 @@ def disc_grid(n: int, radius: float):
     kept = r <= radius + 0.5 * h + 1e-12 * radius
     rim = kept & (r > radius - 0.5 * h)
     p[rim] *= (radius / r[rim])[:, None]
+    for ring in rings:
+        near = (np.abs(r - ring) < 0.5 * h) & (r > 0.0)
+        p[near] *= (ring / r[near])[:, None]
     idx = np.arange(n * n).reshape(n, n)
     loop = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], axis=-1).reshape(-1, 4)  # a c d b
     inside = kept[loop]
@@ -126,6 +131,12 @@ def disc_hinges(n: int, index: np.ndarray, positions, bend_warp: float, bend_wef
     return mapped[ok], bend_rigidity(share, bend_warp, bend_weft)
 
 
+def _clamp_radius() -> float:
+    """The clamp's edge in the disc's own frame: the pedestal's rim, about the disc's centre (the
+    disc is OFFSET off the pedestal's axis; a sub-millimetre offset leaves the clamp a circle)."""
+    return PEDESTAL_RADIUS
+
+
 def _side(config: ScenarioConfig) -> int:
     if config.rows != config.cols:
         raise WarpclothError(
@@ -137,11 +148,11 @@ def _side(config: ScenarioConfig) -> int:
 def _model(config: ScenarioConfig, device: str):
     n = _side(config)
     radius = 0.5 * config.width
-    pts, tris, index = disc_grid(n, radius)
+    pts, tris, index = disc_grid(n, radius, rings=(_clamp_radius(),))
     y = PEDESTAL_HEIGHT + GAP
     v = np.stack([pts[:, 0] + OFFSET[0], np.full(len(pts), y), pts[:, 1] + OFFSET[1]], axis=1)
     uv = np.stack([(pts[:, 0] + radius) / (2 * radius), 1.0 - (pts[:, 1] + radius) / (2 * radius)], axis=1)
-    clamp = np.flatnonzero(np.hypot(v[:, 0], v[:, 2]) <= PEDESTAL_RADIUS)  # between the standard's two discs
+    clamp = np.flatnonzero(np.hypot(pts[:, 0], pts[:, 1]) <= _clamp_radius() * (1 + 1e-9))  # the standard's discs
     dihedral = config.bend == "dihedral"
     mat = scenario_material(config)
     if mat is not None:
