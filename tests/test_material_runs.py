@@ -241,16 +241,16 @@ def test_cusick_disc_geometry_is_an_inscribed_polygon_with_flat_hinges():
 
 
 def test_cusick_scenario_drapes_a_coarse_disc_within_its_refinement_band():
+    """Cotton on a 16-point disc lands in the band of drape coefficients its finer discs give (24, 32
+    and 48 points: 71.3, 77.6, 76.2 %, bench/results/cusick-presets.txt), far from a flat disc (1) or
+    one hanging straight down (0)."""
     scenario = get_scenario("cusick")
-    dc = {}
-    for n in (12, 16):
-        result = scenario.run(scenario.config(rows=n, cols=n, duration=1.2, drag=5.0, device="cpu"))
-        assert result.stable
-        dc[n] = result.measurements["drape_coefficient"]
-        assert result.measurements["published_dc_low"] == 0.55
-    # a flat disc has DC 1, one hanging straight down 0: cotton at 12 and 16 points sits in between,
-    # within 0.1 of each other (the band of the coarse discs, docs/materials.md)
-    assert 0.3 < dc[12] < 0.95 and 0.3 < dc[16] < 0.95 and abs(dc[12] - dc[16]) < 0.1, dc
+    result = scenario.run(scenario.config(rows=16, cols=16, device="cpu"))
+    got = result.measurements
+    assert result.stable
+    assert 0.69 <= got["drape_coefficient"] <= 0.80, got  # measured 0.711
+    assert got["nodes"] >= 4 and (got["published_dc_low"], got["published_dc_high"]) == (0.55, 0.80)
+    assert got["within_published"]
 
 
 # -- calibration -------------------------------------------------------------------------------
