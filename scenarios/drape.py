@@ -39,7 +39,7 @@ def _origin(config: ScenarioConfig) -> tuple:
 
 
 #: The height [m] of the level cut whose outline's peaks are the folds (Scenario.measure).
-FOLD_CUT = 0.5 * RADIUS
+FOLD_CUT = RADIUS - 0.05  # 5 cm below the sphere's equator, where the skirt hangs free
 
 
 def measure(sim, config: ScenarioConfig) -> dict:

@@ -43,10 +43,11 @@ FOLD_CUT = HEIGHT - 0.1
 
 def measure(sim, config: ScenarioConfig) -> dict:
     """The folds of the cloth hanging around the table: peaks of its level cut at FOLD_CUT
-    (:func:`warpcloth.run.drape.fold_count`; a hanging corner counts as a fold)."""
+    (:func:`warpcloth.run.drape.fold_count` around the square table: distance max(|x|, |z|), so the
+    table's own corners are no peaks; a hanging corner's cone is a fold)."""
     x = sim.state.particle_q.numpy()
     try:
-        folds = fold_count(x, sim.model.host["tris"], FOLD_CUT)
+        folds = fold_count(x, sim.model.host["tris"], FOLD_CUT, norm="square")
     except WarpclothError:  # the cloth does not reach the cut
         return {"folds": None, "fold_cut_m": FOLD_CUT}
     return {"folds": folds, "fold_cut_m": FOLD_CUT}

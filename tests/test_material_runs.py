@@ -335,6 +335,21 @@ def test_fold_count_of_a_skirt_with_k_folds(k):
     assert fold_count(pts, tris, 0.15, center=(0.005, 0.0)) == k  # off-centre by a quarter of a fold's depth
 
 
+def test_fold_count_around_a_square_table_sees_no_fold_on_straight_sides():
+    """A square tube (a tablecloth's flat flaps, no folds): four peaks around its centre by distance
+    (its corners), none by the square distance max(|x|, |z|)."""
+    s = np.linspace(-1.0, 1.0, 41)[:-1]
+    side = [np.stack([np.full_like(s, 1.0), s], 1), np.stack([-s, np.full_like(s, 1.0)], 1)]
+    side += [np.stack([np.full_like(s, -1.0), -s], 1), np.stack([s, np.full_like(s, -1.0)], 1)]
+    ring = 0.4 * np.concatenate(side)  # 160 points around a 0.8 m square
+    n = len(ring)
+    pts = np.concatenate([np.stack([ring[:, 0], np.full(n, y), ring[:, 1]], 1) for y in (0.0, 0.3)])
+    k = np.arange(n)
+    tris = np.concatenate([np.stack([k, k + n, (k + 1) % n], 1), np.stack([(k + 1) % n, k + n, (k + 1) % n + n], 1)])
+    assert fold_count(pts, tris, 0.15) == 4
+    assert fold_count(pts, tris, 0.15, norm="square") == 0
+
+
 def test_fold_count_refuses_a_cut_the_cloth_does_not_reach():
     pts, tris = skirt(4)
     with pytest.raises(WarpclothError, match="does not cross the plane at height 0.5"):

@@ -208,11 +208,15 @@ def node_count(
     return int(np.count_nonzero((peaks >= n) & (peaks < 2 * n)))
 
 
-def skirt_outline(positions, triangles, height: float, up="y", center=(0.0, 0.0), bin_deg: float = 1.0):
+def skirt_outline(
+    positions, triangles, height: float, up="y", center=(0.0, 0.0), bin_deg: float = 1.0, norm: str = "circle"
+):
     """(angles [rad], R(phi) [m]): where the cloth crosses the horizontal plane at ``height`` [m] (a
     level cut of a hanging skirt), the farthest crossing from ``center`` per angular bin; bins with no
-    crossing take the nearest bins' values (periodic interpolation). Raises if the cloth does not
-    cross the plane."""
+    crossing take the nearest bins' values (periodic interpolation). ``norm="square"`` measures the
+    distance as max(|a|, |b|) (around a square table: its sides are then flat, not four bumps).
+    Raises if the cloth does not cross the plane."""
+    require(norm in ("circle", "square"), f"norm must be 'circle' or 'square', got {norm!r}")
     p = np.asarray(positions, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64)
     axes = _plane_axes(up)
@@ -230,7 +234,7 @@ def skirt_outline(positions, triangles, height: float, up="y", center=(0.0, 0.0)
     bins = int(round(360.0 / require_positive("bin_deg", bin_deg, "deg")))
     k_bin = np.minimum((np.mod(np.arctan2(b, a), 2.0 * math.pi) / (2.0 * math.pi) * bins).astype(np.int64), bins - 1)
     radius = np.full(bins, -1.0)
-    np.maximum.at(radius, k_bin, np.hypot(a, b))
+    np.maximum.at(radius, k_bin, np.hypot(a, b) if norm == "circle" else np.maximum(np.abs(a), np.abs(b)))
     have = np.flatnonzero(radius >= 0.0)
     angles = (np.arange(bins) + 0.5) * (2.0 * math.pi / bins)
     if have.size < bins:
@@ -239,12 +243,19 @@ def skirt_outline(positions, triangles, height: float, up="y", center=(0.0, 0.0)
 
 
 def fold_count(
-    positions, triangles, height: float, up="y", center=(0.0, 0.0), sigma_deg: float = 3.0, min_prominence=2e-3
+    positions,
+    triangles,
+    height: float,
+    up="y",
+    center=(0.0, 0.0),
+    sigma_deg: float = 3.0,
+    min_prominence=2e-3,
+    norm: str = "circle",
 ) -> int:
     """Folds of a hanging skirt: peaks of its level cut at ``height`` (:func:`skirt_outline`, 1 deg
     bins, smoothed by a circular Gaussian of ``sigma_deg``), counted as :func:`node_count` counts
     the Cusick nodes (a hanging corner is a fold too)."""
-    _, radius = skirt_outline(positions, triangles, height, up, center)
+    _, radius = skirt_outline(positions, triangles, height, up, center, norm=norm)
     bins = radius.size
     s = sigma_deg / (360.0 / bins)
     offsets = np.arange(-int(math.ceil(4 * s)), int(math.ceil(4 * s)) + 1)
