@@ -2,7 +2,7 @@
 and what they look like in the HTML player (docs/drape.png, docs/tablecloth.png).
 
     python bench/drape_look.py [--scenarios drape,tablecloth] [--frames 300] [--screenshots DIR]
-                               [--integrators xpbd,implicit_euler,...]
+                               [--integrators xpbd,implicit_euler,...] [--bend dihedral]
 
 Per scenario and integrator: the median wall time of one 1/60 s frame (``sim.simulate`` of a
 frame's steps, after a warm-up frame; p10-p90 spread over the frames), the folds at the end
@@ -35,7 +35,7 @@ CHROMIUM_FLAGS = [
 ]
 
 
-def timed_run(name: str, integrator: str | None, frames: int, html: str | None, device: str) -> dict:
+def timed_run(name: str, integrator: str | None, frames: int, html: str | None, device: str, bend=None) -> dict:
     import warp as wp
     from warpcloth.scenarios import get_scenario
 
@@ -43,7 +43,7 @@ def timed_run(name: str, integrator: str | None, frames: int, html: str | None, 
 
     wp.config.quiet = True
     scenario = get_scenario(name)
-    cfg = scenario.config(device=device, **({"integrator": integrator} if integrator else {}))
+    cfg = scenario.config(device=device, bend=bend, **({"integrator": integrator} if integrator else {}))
     sim = scenario.build(cfg)
     per_frame = max(1, int(round((1.0 / 60.0) / sim.dt)))
     writer = None
@@ -75,6 +75,7 @@ def timed_run(name: str, integrator: str | None, frames: int, html: str | None, 
     return {
         "scenario": name,
         "integrator": sim.integrator.name,
+        "bend": cfg.bend,
         "size": f"{sim.model.rows}x{sim.model.cols}",
         "dt": sim.dt,
         "steps_per_frame": per_frame,
@@ -108,17 +109,20 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=300)
     parser.add_argument("--screenshots", default=None, metavar="DIR")
     parser.add_argument("--device", default="cpu")
+    parser.add_argument("--bend", default=None, help="the bending model (default the scenario's: provot)")
     args = parser.parse_args()
-    print("| scenario | integrator | size | dt [s] | steps/frame | ms/frame median [p10, p90] | folds | max strain |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| scenario | integrator | bend | size | dt [s] | steps/frame | ms/frame median [p10, p90] | folds |", end="")
+    print(" max strain |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for name in args.scenarios.split(","):
         for integrator in args.integrators.split(",") if args.integrators else [None]:
             html = None
             if args.screenshots and integrator is None:
                 html = os.path.abspath(os.path.join(tempfile.gettempdir(), f"warpcloth-{name}.html"))
-            r = timed_run(name, integrator, args.frames, html, args.device)
+            r = timed_run(name, integrator, args.frames, html, args.device, args.bend)
             print(
-                f"| {r['scenario']} | {r['integrator']} | {r['size']} | {r['dt']:.3g} | {r['steps_per_frame']} | "
+                f"| {r['scenario']} | {r['integrator']} | {r['bend']} | {r['size']} | {r['dt']:.3g} | "
+                f"{r['steps_per_frame']} | "
                 f"{r['ms_median']:.1f} [{r['ms_p10']:.1f}, {r['ms_p90']:.1f}] | {r['folds']} | "
                 f"{100 * r['max_strain']:.1f} %{'' if r['finite'] else ' (not finite)'} |",
                 flush=True,

@@ -2,8 +2,9 @@
 hangs over its edges; a run ends at equilibrium and reports the folds of the overhang. Run it with
 ``warpcloth run tablecloth``.
 
-By default the cloth is cotton (``--material``, docs/materials.md) at 64 x 64 with dihedral
-bending, stepped by xpbd; ``--material none --bend provot --size 24 --integrator explicit_euler``
+By default the cloth is cotton (``--material``, docs/materials.md) at 64 x 64 with its Provot
+bend springs (the material's rule; ``--bend dihedral`` for hinges of its rigidity, 3x the cost),
+stepped by xpbd; ``--material none --bend provot --size 24 --integrator explicit_euler``
 is the scene of before (per-spring parameters).
 """
 
@@ -58,7 +59,8 @@ SCENARIO = Scenario(
     description=(
         "a cloth falls on a square table (box collider, friction) and hangs over its edges; runs to equilibrium"
     ),
-    # cotton at 64 x 64 with dihedral bending: folds, and xpbd keeps it interactive on a CPU (docs/materials.md)
+    # cotton at 64 x 64: folds; its Provot bend springs (the material's rule) and xpbd keep it interactive on a
+    # CPU (dihedral hinges cost 3x: --bend dihedral; docs/materials.md)
     defaults=ScenarioConfig(
         rows=64,
         cols=64,
@@ -68,7 +70,7 @@ SCENARIO = Scenario(
         duration=10.0,
         integrator="xpbd",
         material="cotton",
-        bend="dihedral",
+        bend="provot",
     ),
     pins=_pins,
     control=_control,
