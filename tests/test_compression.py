@@ -84,3 +84,13 @@ def test_build_model_checks_the_compression_factors():
         build_model(q, [[0, 1]], [0], [1.0, 1.0], spring_compression=[float("nan")], **common)
     model = build_model(q, [[0, 1]], [0], [1.0, 1.0], **common)
     assert model.spring_compression.numpy().tolist() == [1.0] and not model.has_compression
+
+
+def test_the_float64_reference_refuses_a_compression_factor():
+    from warpcloth.lab.reference import Float64Model
+
+    q = [[0.0, 0, 0], [1.0, 0, 0]]
+    common = dict(spring_stiffness=[1.0], spring_damping=[0.0], device="cpu")
+    with pytest.raises(WarpclothError, match="cannot judge a model with a compression factor below 1"):
+        Float64Model.from_model(build_model(q, [[0, 1]], [0], [1.0, 1.0], spring_compression=[0.5], **common))
+    Float64Model.from_model(build_model(q, [[0, 1]], [0], [1.0, 1.0], **common))  # phi = 1: as before
