@@ -57,6 +57,7 @@ class Projective(IncrementSolver):
     """Projective dynamics (Liu et al. 2013): local spring projection, global constant-matrix solve."""
 
     name: ClassVar[str] = "projective"
+    self_contact_in_solver: ClassVar[bool] = True
     options = (
         Option("pd_iterations", int, 10, "local/global iterations per time step (>= 1)", check=at_least_one),
         Option(
@@ -128,6 +129,8 @@ class Projective(IncrementSolver):
             ):  # every global solve: the first one only let the sheet gain energy again
                 self.translation_step()
             self.global_step()
+            if self.self_collision is not None:  # self-contacts as constraints on dx, then the colliders (they win)
+                self.self_collision.project_increment(x, self.dx)
             if contacts is not None:
                 self.solve_contacts(x, h, contacts)
         self.finish(state, control, h, contacts)
