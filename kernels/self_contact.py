@@ -97,6 +97,10 @@ SCALAR_SLOTS = 12
 #: an edge-edge contact whose closest point is within this parameter of an edge's end is left to that end's
 #: vertex-triangle contact (the vertex is at least as near the edge's triangles as the edge)
 END_PARAMETER = wp.constant(1.0e-4)
+#: a vertex's margin covers this many steps of its motion relative to the mean (1: the list holds for the
+#: step of its build while the vertex moves fast, and it is rebuilt at the next; a wider margin lists more
+#: pairs of fast parts, most of them far apart)
+MARGIN_STEPS = wp.constant(1.0)
 #: cells searched per axis at most by one query (a larger radius is counted in TRUNCATED)
 MAX_CELLS_PER_AXIS = wp.constant(8)
 
@@ -451,7 +455,7 @@ def clear_self_contact_cells(
         head_edge[i] = -1
     if i < x.shape[0]:
         x_build[i] = x[i]
-        m = 2.0 * dt * wp.length(v[i] - sums[1] / float(x.shape[0]))
+        m = MARGIN_STEPS * dt * wp.length(v[i] - sums[1] / float(x.shape[0]))
         if m > skin_max:
             m = skin_max
             wp.atomic_add(counts, FAST, 1)

@@ -354,8 +354,8 @@ class Simulator:
                 self._dt,
                 integrator.velocity_position_weight,
                 integrator.position_history(),
-                repulsion=not integrator.self_contact_in_solver,
-                inelastic=not integrator.self_contact_in_solver,
+                repulsion=integrator.self_contact_filter == "full",
+                inelastic=integrator.self_contact_filter != "gap",
                 colliders=self.control.collision,
             )
         if self.control.collision is not None and not self.integrator.collides_in_solver:
@@ -365,6 +365,11 @@ class Simulator:
                 self._dt,
                 self.integrator.position_history(),
                 self.integrator.velocity_position_weight,
+            )
+        edges = self.control.collision.edges(self.model) if self.control.collision is not None else None
+        if edges is not None:  # box and mesh edges against the cloth (after the solvers that hold them too)
+            edges.project(
+                self.state, self._dt, self.integrator.position_history(), self.integrator.velocity_position_weight
             )
         if self.strain_limiter is not None:
             self.strain_limiter.apply(self.state, self._dt)

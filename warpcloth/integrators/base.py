@@ -81,10 +81,12 @@ class Integrator:
     #: True when the integrator projects collision constraints inside its own solver loop; else
     #: the Simulator projects contacts after each step (:mod:`warpcloth.sim.colliders`).
     collides_in_solver: ClassVar[bool] = False
-    #: True when the scheme holds self-contacts inside its own step (:attr:`self_collision`: pbd, xpbd
-    #: and projective as constraints in their iterations, vbd and implicit_euler as the repulsion in
-    #: their solve); else the repulsion is the Simulator's velocity filter after the step.
-    self_contact_in_solver: ClassVar[bool] = False
+    #: What the Simulator's velocity filter after a step does with self-contacts
+    #: (:meth:`SelfCollision.filter_velocities <warpcloth.sim.self_collision.SelfCollision.filter_velocities>`):
+    #: ``"full"``: the repulsion, inelastic impulses and the min-gap pass (a scheme that does nothing
+    #: with them itself); ``"inelastic"``: no repulsion (the scheme has it in its solve: implicit_euler);
+    #: ``"gap"``: the min-gap pass only (the scheme holds them as constraints: pbd, xpbd, projective, vbd).
+    self_contact_filter: ClassVar[str] = "full"
     #: How a velocity change during a step moves x by the step's end, per unit dt (1 where
     #: x += dt v_new; 1/2 for Runge-Kutta schemes): friction corrects x with it.
     velocity_position_weight: ClassVar[float] = 1.0

@@ -108,7 +108,7 @@ class ImplicitEuler(Integrator):
 
     name = "implicit_euler"
     force_evals_per_step = 1
-    self_contact_in_solver = True
+    self_contact_filter = "inelastic"  # the repulsion is in the solve
     options = (
         Option("cg_tol", float, 1.0e-3, "CG relative residual tolerance |b - A dv| / |b|", _check_tol),
         Option("cg_max_iter", int, 1000, "CG iteration cap per step", _check_max_iter),

@@ -114,7 +114,7 @@ class VBD(IncrementSolver):
     """Vertex Block Descent (Chen et al. 2024): per-vertex 3 x 3 Newton, Gauss-Seidel by colour."""
 
     name: ClassVar[str] = "vbd"
-    self_contact_in_solver: ClassVar[bool] = True
+    self_contact_filter: ClassVar[str] = "gap"  # contacts are constraints of its iterations
     options = (
         # 4 with a multigrid correction before each sweep (grid models): the 128 x 128 sheet's sag
         # within 0.5 % of the float64 equilibrium after 0.5 s and the 128 x 128 flag stable for 3 s
@@ -200,6 +200,7 @@ class VBD(IncrementSolver):
         x = state.particle_q
         contacts = self.predict(state, control, h)
         sweep = self.color_sweep(x, h, contacts)
+        edges = control.collision.edges(m) if contacts is not None else None
         if contacts is None and self.vbd_rigid_mode:
             self.contact_state.zero_()  # none held (the rigid mode reads it; colliders may have been removed)
         accelerate = self.vbd_chebyshev_rho > 0.0
@@ -229,6 +230,8 @@ class VBD(IncrementSolver):
                 color.launch()
             if self.self_collision is not None:  # and as constraints on dx (the next sweep holds the colliders)
                 self.self_collision.project_increment(x, self.dx)
+            if edges is not None:  # box and mesh edges against the cloth's edges and triangles
+                edges.project_increment(x, self.dx)
             if self.vbd_rigid_mode >= 1 and contacts is None:
                 self.rigid_correction(x, h)
             if accelerate:

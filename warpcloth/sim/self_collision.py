@@ -156,8 +156,8 @@ class SelfCollision:
         skin_max: float | None = None,
         exclude_rings: int | None = None,
         edge_fraction: float = 1.0,
-        candidates_per_vertex: int = 32,
-        candidates_per_edge: int = 32,
+        candidates_per_vertex: int = 64,
+        candidates_per_edge: int = 64,
         contacts_per_element: int = 8,
     ):
         self.model = model
