@@ -83,16 +83,17 @@ COUNT_SLOTS = 14
 MOTION = wp.constant(0)  # max_i D_i = |x_i - x_build_i - u| + |v_i - w| dt this detect, u, w the mean motion [m]
 SPEED = wp.constant(1)  # max |v - w| this detect [m/s]
 R_BUILD = wp.constant(2)  # radius of the Verlet list without margins: h + skin [m]
-R_ACTIVE = wp.constant(3)  # a candidate whose gap may be below 1.25 h + 2 v_max dt is evaluated [m]
+R_ACTIVE = wp.constant(3)  # a candidate whose gap may be below 1.25 h + 3 |v|_max dt is evaluated [m]
 RHO_MAX = wp.constant(4)  # largest half diagonal of a triangle's box at the build [m]
 HALF_EDGE_MAX = wp.constant(5)  # largest half length of an edge at the build [m]
 SKIN = wp.constant(6)  # the skin of the current list [m]
 R_BUILD_EE = wp.constant(7)  # radius of the edge-edge list without margins: h_e + skin [m], h_e = edge_fraction h
-R_ACTIVE_EE = wp.constant(8)  # R_ACTIVE of the edge-edge candidates: 1.25 h_e + 2 v_max dt [m]
+R_ACTIVE_EE = wp.constant(8)  # R_ACTIVE of the edge-edge candidates: 1.25 h_e + 3 |v|_max dt [m]
 EXCESS = wp.constant(9)  # max_i (D_i - margin_i) this detect: the list is rebuilt when 2 EXCESS > skin [m]
 MARGIN_MAX = wp.constant(10)  # largest vertex margin at the build [m]
 INV_CELL = wp.constant(11)  # 1 / the hash's cell size at the build [1/m]
-SCALAR_SLOTS = 12
+SPEED_ABS = wp.constant(12)  # max |v| this detect [m/s]
+SCALAR_SLOTS = 13
 
 #: an edge-edge contact whose closest point is within this parameter of an edge's end is left to that end's
 #: vertex-triangle contact (the vertex is at least as near the edge's triangles as the edge)
@@ -365,6 +366,7 @@ def begin_self_contact_detect(counts: IntArray, scalars: FloatArray, sums: Vec3A
     scalars[MOTION] = 0.0
     scalars[SPEED] = 0.0
     scalars[EXCESS] = -1.0e30
+    scalars[SPEED_ABS] = 0.0
     sums[0] = wp.vec3(0.0)
     sums[1] = wp.vec3(0.0)
 
@@ -398,6 +400,7 @@ def eval_self_contact_motion(
     wp.atomic_max(scalars, MOTION, motion)
     wp.atomic_max(scalars, SPEED, speed)
     wp.atomic_max(scalars, EXCESS, motion - margin[i])
+    wp.atomic_max(scalars, SPEED_ABS, wp.length(v[i]))
     splits[i] = 0
 
 
@@ -412,8 +415,8 @@ def decide_self_contact_rebuild(
 ):
     # rebuild when never built or when a vertex moved more than half the skin beyond its own margin
     # since the build (2 max_i (D_i - margin_i) > skin: an unlisted pair may be within h)
-    scalars[R_ACTIVE] = 1.25 * thickness + 2.0 * scalars[SPEED] * dt
-    scalars[R_ACTIVE_EE] = 1.25 * edge_thickness + 2.0 * scalars[SPEED] * dt
+    scalars[R_ACTIVE] = 1.25 * thickness + 3.0 * scalars[SPEED_ABS] * dt
+    scalars[R_ACTIVE_EE] = 1.25 * edge_thickness + 3.0 * scalars[SPEED_ABS] * dt
     if counts[BUILT] != 0 and 2.0 * scalars[EXCESS] <= skin:
         counts[REBUILD] = 0
         return
@@ -697,8 +700,9 @@ def eval_self_contacts(
     edge_thickness: float,
 ):
     # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair whose
-    # gap d at x is below 1.25 h + 2 dt |sum W v| (it may come within h in this step: its own relative
-    # speed); per vertex, the number of its contacts (mass splitting). A pair whose gap at the build,
+    # gap d at x is below 1.25 h + dt (2 |sum W v| + max_k |v_k|) (it may come within h in this step: its
+    # own relative speed, and its fastest vertex's speed, which a collider may stop within the step while
+    # the other side goes on: a layer falling onto one that lands on the ground); per vertex, the number of its contacts (mass splitting). A pair whose gap at the build,
     # less twice the largest motion since, is not below R_ACTIVE (the same bound with the largest
     # speed) is not evaluated (its gap cannot have fallen below it)
     tid = wp.tid()
@@ -732,7 +736,10 @@ def eval_self_contacts(
             t = -w[3]
             if wp.min(s, t) <= END_PARAMETER or wp.max(s, t) >= 1.0 - END_PARAMETER:
                 d = 1.0e30
-        if d < 1.25 * h + 2.0 * dt * wp.length(weighted_sum(v, idx, w)):
+        speed = wp.max(
+            wp.max(wp.length(v[idx[0]]), wp.length(v[idx[1]])), wp.max(wp.length(v[idx[2]]), wp.length(v[idx[3]]))
+        )
+        if d < 1.25 * h + dt * (2.0 * wp.length(weighted_sum(v, idx, w)) + speed):
             slot = append_index(counts, CONTACTS, OVERFLOW_CONTACTS, capacity)
             if slot >= 0:
                 c_idx[slot] = idx
