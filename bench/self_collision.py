@@ -17,7 +17,6 @@ import argparse
 import statistics
 import time
 
-import numpy as np
 import warp as wp
 from warpcloth.scenarios import get_scenario
 
