@@ -98,8 +98,8 @@ def main():
         for t, on, off, ratios, st in rows:
             every += ratios
             print(
-                f"  t = {t:3.1f} s  off {spread(off)} ms  on {spread(on)} ms  self-collision {spread(ratios, '{:+.2f}')}"
-                f" x a step   (contacts {st['contacts']}, candidates {st['candidates_vertex_triangle']}"
+                f"  t = {t:3.1f} s  off {spread(off)} ms  on {spread(on)} ms  "
+                f"self-collision {spread(ratios, '{:+.2f}')} x a step   (contacts up to {st['contacts_max']}, candidates {st['candidates_vertex_triangle']}"
                 f"+{st['candidates_edge_edge']}, rebuilds {st['rebuilds']} of {st['detects']} steps)"
             )
         print(

@@ -702,9 +702,10 @@ def eval_self_contacts(
     # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair whose
     # gap d at x is below 1.25 h + dt (2 |sum W v| + max_k |v_k|) (it may come within h in this step: its
     # own relative speed, and its fastest vertex's speed, which a collider may stop within the step while
-    # the other side goes on: a layer falling onto one that lands on the ground); per vertex, the number of its contacts (mass splitting). A pair whose gap at the build,
-    # less twice the largest motion since, is not below R_ACTIVE (the same bound with the largest
-    # speed) is not evaluated (its gap cannot have fallen below it)
+    # the other side goes on: a layer falling onto one that lands on the ground); per vertex, the number
+    # of its contacts (mass splitting). A pair whose gap at the build, less twice the largest motion
+    # since, is not below R_ACTIVE (the same bound with the largest speed) is not evaluated (its gap
+    # cannot have fallen below it)
     tid = wp.tid()
     n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
     total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])
