@@ -99,8 +99,9 @@ def main():
             every += ratios
             print(
                 f"  t = {t:3.1f} s  off {spread(off)} ms  on {spread(on)} ms  "
-                f"self-collision {spread(ratios, '{:+.2f}')} x a step   (contacts up to {st['contacts_max']}, candidates {st['candidates_vertex_triangle']}"
-                f"+{st['candidates_edge_edge']}, rebuilds {st['rebuilds']} of {st['detects']} steps)"
+                f"self-collision {spread(ratios, '{:+.2f}')} x a step   (contacts up to {st['contacts_max']}, "
+                f"candidates {st['candidates_vertex_triangle']}+{st['candidates_edge_edge']}, "
+                f"rebuilds {st['rebuilds']} of {st['detects']} steps)"
             )
         print(
             f"  all snapshots: self-collision {spread(every, '{:+.2f}')} x an explicit_euler step "
