@@ -353,3 +353,28 @@ def test_bad_self_collision_flags_are_one_line_errors(flag, value, words, capsys
         code = exc.code
     err = capsys.readouterr().err.strip().splitlines()
     assert code != 0 and len(err) >= 1 and words in err[-1]
+
+
+def test_check_intersections_reads_a_usd_file(tmp_path, capsys):
+    from warpcloth.cli import main
+    from warpcloth.io.usd import UsdWriter
+
+    clean = str(tmp_path / "fold.usda")
+    get_scenario("fold").run(rows=8, cols=4, integrator="xpbd", duration=0.1, usd_path=clean)
+    assert main(["check-intersections", clean]) == 0
+    assert "7 frames: 0 with self-intersections" in capsys.readouterr().out  # t = 0 and 6 frames
+    model = build_grid_cloth(5, 5, 1.0, 1.0, 0.2, plane="horizontal", device="cpu")
+    q = model.host["q"].astype(np.float64)
+    folded = q.copy()
+    folded[q[:, 0] > 0.5, 1] = 0.1 * np.sin(20.0 * q[q[:, 0] > 0.5, 2])  # a wave across the sheet's own plane
+    folded[q[:, 0] > 0.5, 0] = 1.0 - q[q[:, 0] > 0.5, 0]  # folded over the other half
+    bad = str(tmp_path / "bad.usda")
+    with UsdWriter(bad, model, fps=60.0) as writer:
+        writer.write_frame(q, 0.0)
+        writer.write_frame(folded, 1 / 60)
+    assert main(["check-intersections", bad, "--json"]) == 1
+    out = capsys.readouterr().out
+    import json
+
+    report = json.loads(out)
+    assert report["frames"] == 2 and report["self_intersections"][0] == 0 and report["self_intersections"][1] > 0

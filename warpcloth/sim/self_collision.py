@@ -17,7 +17,9 @@ kernels only (no host work, no allocation), so they can sit inside a captured fr
 * :meth:`SelfCollision.apply_forces`: the same repulsion as a force k (h - d) n, equal and
   opposite, capped likewise, for schemes that want it in their force (then the filter's is off).
 
-How each integrator uses them: docs in ``/work/notes/self-contact-api.md`` (part 2 wires them in).
+The :class:`~warpcloth.simulator.Simulator` detects before each step and filters after it; how each
+integrator holds the contacts inside its own step (:meth:`project_increment`, :meth:`eval_vertex_terms`,
+implicit Euler's system): docs/self-collision.md.
 """
 
 from __future__ import annotations
