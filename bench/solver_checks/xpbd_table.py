@@ -48,8 +48,7 @@ def main():
             v = float(np.abs(sim.state.particle_qd.numpy()).max())
             print(
                 f"xpbd {n}^2 {c:7s}: sag error {100 * (sag - ref) / ref:+8.2f} %  ({sag * 1e3:.4f} vs {ref * 1e3:.4f} "
-                "mm, "
-                f"max|v| {v:.1e})  {ms:7.2f} ms/step",
+                f"mm, max|v| {v:.1e})  {ms:7.2f} ms/step",
                 flush=True,
             )
 
