@@ -7,9 +7,9 @@ After the per-vertex response of a step, for each collider feature near the clot
 * a collider edge (p, q) and a cloth edge (a, b), closest points P = a + s (b - a) and
   Q = p + t (q - p), gap d = |P - Q|: where d < thickness, P is moved out to the thickness along
   n = (P - Q) / d, its approaching normal velocity relative to the collider removed. Where P lies
-  behind the edge's outward bisector o ((P - Q) . o < 0), a box's nearest face holds it (P in the
-  box, where the cloth edge cuts across the box's edge, goes out through that face), and by a mesh's
-  edge P has passed through within 4 thicknesses and goes out along o;
+  behind the edge's outward bisector o ((P - Q) . o < 0), the collider's own surface holds it, by its
+  signed distance and normal at P (P in the collider, where the cloth edge cuts across its edge, goes
+  out through the nearest face);
 * a collider corner c and a cloth triangle (a, b, c), closest point P = sum w_i x_i: likewise.
 
 The point P moves by the least change of its vertices (weights W_i, inverse masses w_i): dx_i =
@@ -25,13 +25,14 @@ static ``wp.Bvh`` each; the cloth feature is taken into that frame, y0 = rest_ce
 """
 
 import warp as wp
-from warpcloth.kernels.collide import BOX, MESH, Collider, box_contact, surface_velocity
+from warpcloth.kernels.collide import BOX, MESH, Collider, box_contact, mesh_contact, surface_velocity
 from warpcloth.kernels.self_contact import closest_point_triangle, closest_points_edge_edge
 
 wp.set_module_options({"enable_backward": False})
 
 #: over-relaxation of the averaged corrections (a vertex between several contacts converges slowly otherwise)
-RELAX = wp.constant(1.5)
+RELAX = wp.constant(1.0)
+VELOCITY = wp.constant(1.0)
 #: a contact's closest cloth point is interior beyond this parameter (else the vertex's own contact holds it)
 INTERIOR = wp.constant(1.0e-4)
 
@@ -66,6 +67,12 @@ def box_corner_local(c: Collider, j: int):
 
 
 @wp.func
+def signs(v: wp.vec3):
+    # the componentwise sign of v (0 where 0): the sum of the unit face normals meeting at a box feature
+    return wp.vec3(wp.sign(v[0]), wp.sign(v[1]), wp.sign(v[2]))
+
+
+@wp.func
 def box_edge_corners(j: int):
     # the corner indices of box edge j (4 along each axis)
     axis = j // 4
@@ -88,37 +95,48 @@ def push(
     weight: float,
     inv_mass: wp.array(dtype=float),
     lam: float,
-    mu_v: float,
+    mu_v: wp.vec3,
     n: wp.vec3,
     dx: wp.array(dtype=wp.vec3),
     dv: wp.array(dtype=wp.vec3),
     count: wp.array(dtype=int),
 ):
-    # vertex i's share of a contact: dx_i = W_i w_i lam n, dv_i = W_i w_i mu_v n
+    # vertex i's share of a contact: dx_i = W_i w_i lam n, dv_i = W_i w_i mu_v
     w = inv_mass[i]
     if w > 0.0 and weight != 0.0:
         wp.atomic_add(dx, i, (weight * w * lam) * n)
-        wp.atomic_add(dv, i, (weight * w * mu_v) * n)
+        wp.atomic_add(dv, i, (weight * w) * mu_v)
         wp.atomic_add(count, i, 1)
 
 
 @wp.func
-def behind(
-    y: wp.vec3, d: float, reach: float, out: wp.vec3, thickness: float, box: int, origin: wp.vec3, half: wp.vec3
-):
+def contact_velocity_change(vp: wp.vec3, n: wp.vec3, mu: float, denom: float):
+    # the contact point's velocity change (relative to the collider) over sum W^2 w: its approaching
+    # normal part removed, its tangential part reduced by mu times that (Coulomb, at most to zero)
+    vn = wp.dot(vp, n)
+    dvn = wp.max(0.0, -vn)
+    vt = vp - vn * n
+    lt = wp.length(vt)
+    change = dvn * n
+    if lt > 0.0:
+        change = change - (wp.min(mu * dvn, lt) / lt) * vt
+    return change / denom
+
+
+@wp.func
+def behind(y: wp.vec3, d: float, reach: float, thickness: float, c: Collider, origin: wp.vec3):
     # a cloth point y behind a feature's outward direction o, d from it: (n, depth). Only near the feature
     # (d < reach + thickness, reach half the cloth feature's size: farther features leave it to the near
-    # ones). Beside a box's edge or corner the box's nearest face holds it (its signed distance and normal:
-    # a point in the box, where a cloth edge cuts across the box's edge, goes out through it); by a mesh's
-    # feature, within 4 thicknesses, it has passed through and goes out along o
+    # ones). There the collider's own surface holds it, by its signed distance and normal at y (in the
+    # collider's frame): a point in a box or a mesh, where a cloth edge cuts across one of its edges, goes
+    # out through the nearest face; one beside it, within the thickness, to the thickness
     if d >= reach + thickness:
-        return out, 0.0
-    if box != 0:
-        phi, n = box_contact(y, origin, wp.identity(n=3, dtype=float), half)
+        return wp.vec3(0.0), 0.0
+    if c.kind == BOX:
+        phi, n = box_contact(y, origin, wp.identity(n=3, dtype=float), c.b)
         return n, thickness - phi
-    if d < 4.0 * thickness:
-        return out, thickness + d
-    return out, 0.0
+    phi, n = mesh_contact(y, c.mesh, thickness, c.radius)
+    return n, thickness - phi
 
 
 @wp.func
@@ -133,9 +151,8 @@ def edge_response(
     q: wp.vec3,
     out: wp.vec3,
     thickness: float,
-    box: int,
+    c: Collider,
     origin: wp.vec3,
-    half: wp.vec3,
 ):
     # cloth edge (a, b) against collider edge (p, q) (outward o): (s, lam, mu_v, n) with lam, mu_v the
     # position and velocity multipliers of dx_i = W_i w_i lam n (0: no contact); velocities relative
@@ -143,7 +160,7 @@ def edge_response(
     st = closest_points_edge_edge(a, b, p, q)
     s = st[0]
     if s <= INTERIOR or s >= 1.0 - INTERIOR:
-        return s, 0.0, 0.0, wp.vec3(0.0)
+        return s, 0.0, wp.vec3(0.0), wp.vec3(0.0)
     y = a + s * (b - a)
     diff = y - (p + st[1] * (q - p))
     d = wp.length(diff)
@@ -153,14 +170,13 @@ def edge_response(
         n = diff / d
         depth = thickness - d
     else:
-        n, depth = behind(y, d, 0.5 * wp.length(b - a), out, thickness, box, origin, half)
+        n, depth = behind(y, d, 0.5 * wp.length(b - a), thickness, c, origin)
     if depth <= 0.0:
-        return s, 0.0, 0.0, n
+        return s, 0.0, wp.vec3(0.0), n
     denom = (1.0 - s) * (1.0 - s) * wa + s * s * wb
     if denom <= 0.0:
-        return s, 0.0, 0.0, n
-    vn = wp.dot((1.0 - s) * va + s * vb, n)
-    return s, depth / denom, wp.max(0.0, -vn) / denom, n
+        return s, 0.0, wp.vec3(0.0), n
+    return s, depth / denom, contact_velocity_change((1.0 - s) * va + s * vb, n, c.mu, denom), n
 
 
 @wp.func
@@ -177,14 +193,13 @@ def corner_response(
     wb: float,
     wc: float,
     thickness: float,
-    box: int,
+    col: Collider,
     origin: wp.vec3,
-    half: wp.vec3,
 ):
     # collider corner (outward o) against cloth triangle (a, b, c): (W, lam, mu_v, n) as edge_response
     q, w = closest_point_triangle(corner, a, b, c)
     if w[0] <= INTERIOR or w[1] <= INTERIOR or w[2] <= INTERIOR:
-        return w, 0.0, 0.0, wp.vec3(0.0)
+        return w, 0.0, wp.vec3(0.0), wp.vec3(0.0)
     diff = q - corner
     d = wp.length(diff)
     n = out
@@ -194,12 +209,11 @@ def corner_response(
         depth = thickness - d
     else:
         reach = 0.5 * wp.max(wp.max(wp.length(b - a), wp.length(c - b)), wp.length(a - c))
-        n, depth = behind(q, d, reach, out, thickness, box, origin, half)
+        n, depth = behind(q, d, reach, thickness, col, origin)
     denom = w[0] * w[0] * wa + w[1] * w[1] * wb + w[2] * w[2] * wc
     if depth <= 0.0 or denom <= 0.0:
-        return w, 0.0, 0.0, n
-    vn = wp.dot(w[0] * va + w[1] * vb + w[2] * vc, n)
-    return w, depth / denom, wp.max(0.0, -vn) / denom, n
+        return w, 0.0, wp.vec3(0.0), n
+    return w, depth / denom, contact_velocity_change(w[0] * va + w[1] * vb + w[2] * vc, n, col.mu, denom), n
 
 
 @wp.kernel
@@ -227,7 +241,7 @@ def collide_cloth_edges(
     b = x[ib]
     for k in range(first, colliders.shape[0]):
         c = colliders[k]
-        if c.kind != BOX and c.kind != MESH:
+        if (c.kind != BOX and c.kind != MESH) or c.moving != 0:
             continue
         # into the collider's own frame (a box: about its centre; a mesh: its rest frame)
         origin = c.a
@@ -248,17 +262,18 @@ def collide_cloth_edges(
                 c0, c1 = box_edge_corners(j)
                 p = origin + box_corner_local(c, c0)
                 q = origin + box_corner_local(c, c1)
-                out = wp.normalize(0.5 * (p + q) - origin)
-                s, lam, mu_v, n = edge_response(la, lb, lva, lvb, wa, wb, p, q, out, c.thickness, 1, origin, h)
+                out = wp.normalize(signs(0.5 * (p + q) - origin))  # the sum of its two faces' normals
+                s, lam, mu_v, n = edge_response(la, lb, lva, lvb, wa, wb, p, q, out, c.thickness, c, origin)
                 if lam > 0.0:
                     nw = c.rotation * n
-                    push(ia, 1.0 - s, inv_mass, lam, mu_v, nw, dx, dv, count)
-                    push(ib, s, inv_mass, lam, mu_v, nw, dx, dv, count)
+                    vw = c.rotation * mu_v
+                    push(ia, 1.0 - s, inv_mass, lam, vw, nw, dx, dv, count)
+                    push(ib, s, inv_mass, lam, vw, nw, dx, dv, count)
         else:
             bvh = meshes.edge_bvh[k]
             if bvh == wp.uint64(0):
                 continue
-            grow = wp.vec3(c.thickness)
+            grow = wp.vec3(c.thickness + 0.5 * wp.length(lb - la))  # as far as edge_response looks
             query = wp.bvh_query_aabb(bvh, wp.min(la, lb) - grow, wp.max(la, lb) + grow)
             j = int(0)
             while wp.bvh_query_next(query, j):
@@ -274,14 +289,14 @@ def collide_cloth_edges(
                     meshes.edge_q[g],
                     meshes.edge_out[g],
                     c.thickness,
-                    0,
+                    c,
                     origin,
-                    c.b,
                 )
                 if lam > 0.0:
                     nw = c.rotation * n
-                    push(ia, 1.0 - s, inv_mass, lam, mu_v, nw, dx, dv, count)
-                    push(ib, s, inv_mass, lam, mu_v, nw, dx, dv, count)
+                    vw = c.rotation * mu_v
+                    push(ia, 1.0 - s, inv_mass, lam, vw, nw, dx, dv, count)
+                    push(ib, s, inv_mass, lam, vw, nw, dx, dv, count)
 
 
 @wp.kernel
@@ -309,7 +324,7 @@ def collide_cloth_triangles(
         return
     for k in range(first, colliders.shape[0]):
         c = colliders[k]
-        if c.kind != BOX and c.kind != MESH:
+        if (c.kind != BOX and c.kind != MESH) or c.moving != 0:
             continue
         origin = c.a
         if c.kind == MESH:
@@ -322,8 +337,9 @@ def collide_cloth_triangles(
         va = rt * (v[i0] - vcol)
         vb = rt * (v[i1] - vcol)
         vc = rt * (v[i2] - vcol)
-        lo = wp.min(wp.min(a, b), cc) - wp.vec3(c.thickness)
-        hi = wp.max(wp.max(a, b), cc) + wp.vec3(c.thickness)
+        reach = c.thickness + 0.5 * wp.max(wp.max(wp.length(b - a), wp.length(cc - b)), wp.length(a - cc))
+        lo = wp.min(wp.min(a, b), cc) - wp.vec3(reach)  # as far as corner_response looks
+        hi = wp.max(wp.max(a, b), cc) + wp.vec3(reach)
         if c.kind == BOX:
             h = c.b
             d_lo = lo - origin
@@ -335,13 +351,14 @@ def collide_cloth_triangles(
             for j in range(8):
                 p = box_corner_local(c, j)
                 w, lam, mu_v, n = corner_response(
-                    origin + p, wp.normalize(p), a, b, cc, va, vb, vc, w0, w1, w2, c.thickness, 1, origin, h
+                    origin + p, wp.normalize(signs(p)), a, b, cc, va, vb, vc, w0, w1, w2, c.thickness, c, origin
                 )
                 if lam > 0.0:
                     nw = c.rotation * n
-                    push(i0, w[0], inv_mass, lam, mu_v, nw, dx, dv, count)
-                    push(i1, w[1], inv_mass, lam, mu_v, nw, dx, dv, count)
-                    push(i2, w[2], inv_mass, lam, mu_v, nw, dx, dv, count)
+                    vw = c.rotation * mu_v
+                    push(i0, w[0], inv_mass, lam, vw, nw, dx, dv, count)
+                    push(i1, w[1], inv_mass, lam, vw, nw, dx, dv, count)
+                    push(i2, w[2], inv_mass, lam, vw, nw, dx, dv, count)
         else:
             bvh = meshes.vertex_bvh[k]
             if bvh == wp.uint64(0):
@@ -363,15 +380,15 @@ def collide_cloth_triangles(
                     w1,
                     w2,
                     c.thickness,
-                    0,
+                    c,
                     origin,
-                    c.b,
                 )
                 if lam > 0.0:
                     nw = c.rotation * n
-                    push(i0, w[0], inv_mass, lam, mu_v, nw, dx, dv, count)
-                    push(i1, w[1], inv_mass, lam, mu_v, nw, dx, dv, count)
-                    push(i2, w[2], inv_mass, lam, mu_v, nw, dx, dv, count)
+                    vw = c.rotation * mu_v
+                    push(i0, w[0], inv_mass, lam, vw, nw, dx, dv, count)
+                    push(i1, w[1], inv_mass, lam, vw, nw, dx, dv, count)
+                    push(i2, w[2], inv_mass, lam, vw, nw, dx, dv, count)
 
 
 @wp.kernel
@@ -410,15 +427,15 @@ def apply_edge_contacts(
     v: wp.array(dtype=wp.vec3),
     displacement: wp.array(dtype=wp.vec3),
 ):
-    # x += dx / c, v += dv / c (c: the vertex's contacts; Verlet's displacement follows x and the
-    # velocity change); the accumulators to zero
+    # x += dx / c + dt_x dv / c, v += dv / c (c: the vertex's contacts; the velocity change moves x as the
+    # step would have, so friction does not creep; Verlet's displacement follows); the accumulators to zero
     i = wp.tid()
     c = count[i]
     if c == 0:
         return
     s = RELAX / float(c)
-    x[i] = x[i] + s * dx[i]
-    v[i] = v[i] + s * dv[i]
+    x[i] = x[i] + s * dx[i] + (dt_x * s) * dv[i]
+    v[i] = v[i] + (s * VELOCITY) * dv[i]
     if with_displacement != 0:
         displacement[i] = displacement[i] + s * dx[i] + (dt_x * s) * dv[i]
     dx[i] = wp.vec3(0.0)
