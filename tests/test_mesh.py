@@ -456,6 +456,23 @@ def test_a_usd_mesh_under_a_huge_scale_is_refused(tmp_path):
     assert build_mesh_cloth(v * 1e3, t).particle_count == v.shape[0]
 
 
+def test_a_usd_face_index_out_of_range_is_one_line_even_with_vertex_uvs(tmp_path):
+    # faceVertexIndices past the points indexed the vertex-interpolated st first: an IndexError traceback
+    from pxr import Sdf, Usd, UsdGeom
+
+    path = tmp_path / "bad.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Cloth")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)])
+    mesh.CreateFaceVertexCountsAttr([3, 3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 0, 2, 9])
+    st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex)
+    st.Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    stage.GetRootLayer().Save()
+    with pytest.raises(WarpclothError, match=r"faceVertexIndices\[5\] = 9 is out of range: its points are 0..3"):
+        load_mesh(str(path))
+
+
 def test_meshes_get_an_up_front_memory_estimate(tmp_path, monkeypatch):
     import warpcloth.sim.device as device
     from warpcloth.sim.grid import grid_memory_estimate

@@ -69,8 +69,9 @@ def load_mesh(path: str, prim: str | None = None) -> TriangleMesh:
     if mesh.loose.size:  # faces deleted in a DCC leave their vertices: dropped, said in one line
         first = 1 if ext == ".obj" else 0  # numbered as the file numbers them
         shown = ", ".join(str(int(k) + first) for k in mesh.loose[:5]) + (", ..." if mesh.loose.size > 5 else "")
+        count = f"{mesh.loose.size} vertices" if mesh.loose.size > 1 else "1 vertex"
         print(
-            f"note: mesh {path}: {mesh.loose.size} vertices in no face dropped ({shown}, numbered as in the file); "
+            f"note: mesh {path}: {count} in no face dropped ({shown}, numbered as in the file); "
             f"warpcloth and its outputs use the other {mesh.vertices.shape[0]}",
             file=sys.stderr,
         )
@@ -314,6 +315,12 @@ def _read_usd_mesh(stage, path: str, prim: str | None) -> TriangleMesh:
     if np.any(counts < 3):
         raise WarpclothError(
             f"USD mesh {p.GetPath()}: face {int(np.flatnonzero(counts < 3)[0])} has fewer than 3 vertices"
+        )
+    out = np.flatnonzero((indices < 0) | (indices >= local.shape[0]))
+    if out.size:  # before they index the points or a vertex primvar
+        raise WarpclothError(
+            f"USD mesh {p.GetPath()} in {path!r}: faceVertexIndices[{int(out[0])}] = {int(indices[out[0]])} is out of "
+            f"range: its points are 0..{local.shape[0] - 1}"
         )
     face_start = np.concatenate([[0], np.cumsum(counts)[:-1]])
     corner_of_tri, face_of_tri = [], []
