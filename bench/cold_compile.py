@@ -45,8 +45,7 @@ def main(argv=None) -> None:
     args = p.parse_args(argv)
     print(
         f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores "
-        f"({platform.processor() or platform.machine()}), "
-        f"warpcloth run sheet --json {' '.join(args.extra)}".rstrip()
+        f"({platform.processor() or platform.machine()}), warpcloth run sheet --json {' '.join(args.extra)}".rstrip()
     )
     print(f"{'repeat':>6} {'cache':>6} {'compile_time s':>15} {'process s':>10}")
     results = {"empty": ([], []), "filled": ([], [])}

@@ -194,8 +194,7 @@ def main(argv=None):
             runs[name].append(ms_per_step(sim, a.steps, a.device))
     print(
         f"# ms/step: median [min-max] of {a.repeats} windows of {a.steps} steps; cost: median [min-max] over the "
-        "windows of "
-        f"(this case / the same window's no-collider case - 1) (paired, so machine noise cancels)"
+        "windows of (this case / the same window's no-collider case - 1) (paired, so machine noise cancels)"
     )
     for name, r in runs.items():
         base = runs[name.split()[0] + " none"]

@@ -74,9 +74,8 @@ def main(argv=None) -> None:
     with wp.ScopedDevice(args.device):
         print(
             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} CPU cores "
-            f"({platform.processor() or platform.machine()}), "
-            f"device {wp.get_device()}, warp {wp.config.version}, implicit options {options or 'defaults'}, "
-            f"{args.steps} steps per case, {args.repeats} repeat(s)"
+            f"({platform.processor() or platform.machine()}), device {wp.get_device()}, warp {wp.config.version}, "
+            f"implicit options {options or 'defaults'}, {args.steps} steps per case, {args.repeats} repeat(s)"
         )
         print(
             f"{'sheet':>9} {'matrix':>6} {'ms/step':>9} {'CG mean':>8} {'CG max':>7} {'explicit ms':>12} "

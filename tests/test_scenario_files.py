@@ -172,8 +172,8 @@ def test_scenario_file_runs_through_sweep(capsys, scenario_file, tmp_path, monke
         (("name =", "colour = 1\nname ="), "windy.toml: the top level: unknown key 'colour'"),
         (
             ("times = [0.0, 0.1, 0.2]", "times = [0.0, 0.2, 0.1]"),
-            "windy.toml: [[tracks]] #1: pin track keyframes out of order: "
-            "time 0.1 s (key 2) is not after 0.2 s (key 1)",
+            "windy.toml: [[tracks]] #1: pin track keyframes out of order: time 0.1 s (key 2) is not after 0.2 s (key "
+            "1)",
         ),
         (
             ('groups = ["shoulders"]', 'groups = ["hips"]'),

@@ -698,8 +698,8 @@ def test_max_runs_flag_raises_and_lowers_the_limit(tmp_path, monkeypatch, capsys
     assert main(["sweep", path, "-o", str(tmp_path / "a.csv"), "--max-runs", "6", "-q"]) == 2
     err = capsys.readouterr().err
     assert err.startswith(
-        f"warpcloth: error: {path}:3: test '2': expands to 3 runs (after 4 runs of the tests before it), more than the "
-        "limit of 6"
+        f"warpcloth: error: {path}:3: test '2': expands to 3 runs (after 4 runs of the tests before it), more than "
+        "the limit of 6"
     )
     assert not (tmp_path / "a.csv").exists()
     assert main(["sweep", path, "-o", str(tmp_path / "a.csv"), "--max-runs", "7", "-q"]) == 0

@@ -143,8 +143,7 @@ class Simulator:
         if model.particle_count != self.model.particle_count or str(model.device) != str(self.model.device):
             raise WarpclothError(
                 f"set_model needs the same particles on the same device ({self.model.particle_count} on "
-                f"{self.model.device}), "
-                f"got {model.particle_count} on {model.device}"
+                f"{self.model.device}), got {model.particle_count} on {model.device}"
             )
         self.model = model
         self._bind_pin_tracks(self.control.pin_tracks)  # kinematic pins: checked and bound to the new model

@@ -103,8 +103,8 @@ def dv_difference(size, tol, steps):
     low = out["bsr"][1] - out["free"][1]
     print(
         f"{size}^2 tol {tol:g} after {steps} steps: |dv_bsr - dv_free| / |dv_free| = {d:.3e}; lowest point bsr - free "
-        f"{low:+.2e} m; "
-        f"CG its bsr {out['bsr'][2]['cg_iterations_mean']:.0f} free {out['free'][2]['cg_iterations_mean']:.0f}",
+        f"{low:+.2e} m; CG its bsr {out['bsr'][2]['cg_iterations_mean']:.0f} free "
+        f"{out['free'][2]['cg_iterations_mean']:.0f}",
         flush=True,
     )
 

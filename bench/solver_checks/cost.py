@@ -31,8 +31,7 @@ def main():
     a = ap.parse_args()
     print(
         f"# {a.integrator} ms/step on the {'mesh twin of the ' if a.mesh else ''}scenario sheet, dt 1/60 s, {a.steps} "
-        "steps x "
-        f"{a.repeats} repeats, cases alternating"
+        f"steps x {a.repeats} repeats, cases alternating"
     )
     for n in a.sizes:
         sims = []
@@ -60,8 +59,7 @@ def main():
             r = t / ref
             print(
                 f"{a.integrator} {n}^2 [{case or 'defaults'}]: {np.median(t):.2f} [{t.min():.2f}-{t.max():.2f}] "
-                "ms/step, "
-                f"/ first {np.median(r):.2f} [{r.min():.2f}-{r.max():.2f}]",
+                f"ms/step, / first {np.median(r):.2f} [{r.min():.2f}-{r.max():.2f}]",
                 flush=True,
             )
 

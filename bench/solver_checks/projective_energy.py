@@ -49,8 +49,7 @@ def main():
             released = e[0] - e.min()
             print(
                 f"{case:45s} {n}^2: max gain {d.max():+.3e} J = {d.max() / released:+.2e} of the energy released "
-                f"({released:.3e} J), "
-                f"at frame {d.argmax() + 1}",
+                f"({released:.3e} J), at frame {d.argmax() + 1}",
                 flush=True,
             )
 

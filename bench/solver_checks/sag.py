@@ -40,8 +40,7 @@ def main():
     sag_ref = float(np.max(np.linalg.norm(eq.x - rest, axis=1)))
     print(
         f"# sag against float64: {a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2 "
-        f"dt={a.dt:.4g}: "
-        f"float64 sag {sag_ref * 1e3:.4f} mm (residual {eq.residual:.2g} N)"
+        f"dt={a.dt:.4g}: float64 sag {sag_ref * 1e3:.4f} mm (residual {eq.residual:.2g} N)"
     )
     steps = int(round(a.every / a.dt))
     t, wall = 0.0, 0.0

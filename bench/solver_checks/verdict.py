@@ -45,11 +45,10 @@ def main():
     verdict = "old verdict (per particle)" if a.per_particle_only else "verdict with patches"
     print(
         f"{a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2, {verdict}: equilibrium "
-        f"{r.equilibrium_reached} "
-        f"at {r.time_to_equilibrium} s (stopped at {r.sim_time:.2f} s, force floor {harness.probe.force_floor:.3g}); "
-        f"sag {sag * 1e3:.4f} mm vs {sag_ref * 1e3:.4f} mm ({100 * (sag - sag_ref) / sag_ref:+.2f} %); final max speed "
-        f"{r.final_max_speed:.2e}, max |f|/mg {frame.max_force_per_weight:.3g}, max patch |f|/mg "
-        f"{frame.max_patch_force_per_weight:.3g}",
+        f"{r.equilibrium_reached} at {r.time_to_equilibrium} s (stopped at {r.sim_time:.2f} s, force floor "
+        f"{harness.probe.force_floor:.3g}); sag {sag * 1e3:.4f} mm vs {sag_ref * 1e3:.4f} mm "
+        f"({100 * (sag - sag_ref) / sag_ref:+.2f} %); final max speed {r.final_max_speed:.2e}, max |f|/mg "
+        f"{frame.max_force_per_weight:.3g}, max patch |f|/mg {frame.max_patch_force_per_weight:.3g}",
         flush=True,
     )
 

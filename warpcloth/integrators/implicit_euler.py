@@ -122,9 +122,8 @@ class ImplicitEuler(Integrator):
             str,
             "jacobi",
             "CG preconditioner: jacobi (1 / diag A), block_jacobi (the inverse 3 x 3 diagonal blocks of A) or "
-            "multigrid "
-            "(geometric V-cycle on grid models; assembles A as BSR; other models fall back to block_jacobi with a note "
-            "on stderr)",
+            "multigrid (geometric V-cycle on grid models; assembles A as BSR; other models fall back to block_jacobi "
+            "with a note on stderr)",
             choices=PRECONDITIONERS,
         ),
         Option(
@@ -132,8 +131,7 @@ class ImplicitEuler(Integrator):
             int,
             4,
             "CPU: CG iterations run (as one captured chunk) between host convergence checks; iterations past "
-            "convergence "
-            "within a chunk change nothing (CUDA checks on the device)",
+            "convergence within a chunk change nothing (CUDA checks on the device)",
             _check_max_iter,
         ),
         Option(
@@ -141,8 +139,7 @@ class ImplicitEuler(Integrator):
             int,
             1,
             "CG restarts per step from the true residual b - A dv (residual replacement: float32 CG's recursive "
-            "residual "
-            "drifts from the true one; each restart costs one product when already converged)",
+            "residual drifts from the true one; each restart costs one product when already converged)",
             check=lambda v: None if v >= 0 else "must be an integer >= 0",
         ),
         Option(
@@ -150,8 +147,7 @@ class ImplicitEuler(Integrator):
             str,
             "bsr",
             "system matrix CG applies: bsr (assembled 3 x 3 blocks, refilled each step; the faster on the CPU, see "
-            "bench/implicit.py) "
-            "or free (matrix-free, gathering over each particle's springs)",
+            "bench/implicit.py) or free (matrix-free, gathering over each particle's springs)",
             choices=MATRICES,
         ),
     )
@@ -517,10 +513,9 @@ class ImplicitEuler(Integrator):
                 above,
                 (
                     f"{self.name}: cg_tol {_sci(self.cg_tol)} is below what float32 reaches on this model: the exact "
-                    "solution "
-                    f"rounded to float32 leaves |b - A dv| / |b| ~ {_sci(floor)} (estimated floor; use a tolerance "
-                    "above it); "
-                    f"{above} of {solves} steps ended above the tolerance (worst true residual {_sci(worst)})"
+                    f"solution rounded to float32 leaves |b - A dv| / |b| ~ {_sci(floor)} (estimated floor; use a "
+                    f"tolerance above it); {above} of {solves} steps ended above the tolerance (worst true residual "
+                    f"{_sci(worst)})"
                 ),
             )
         if capped:
@@ -528,10 +523,9 @@ class ImplicitEuler(Integrator):
                 False,
                 above,
                 (
-                    f"{self.name}: CG hit its {self.cg_max_iter}-iteration cap in {capped} of {solves} steps "
-                    f"(worst final relative residual {_sci(stats['cg_residual_max'])} > tolerance {_sci(self.cg_tol)}; "
-                    f"true |b - A dv| / |b| above it in {stats['cg_true_above_tol_steps']} steps, worst "
-                    f"{_sci(worst)}); "
+                    f"{self.name}: CG hit its {self.cg_max_iter}-iteration cap in {capped} of {solves} steps (worst "
+                    f"final relative residual {_sci(stats['cg_residual_max'])} > tolerance {_sci(self.cg_tol)}; true "
+                    f"|b - A dv| / |b| above it in {stats['cg_true_above_tol_steps']} steps, worst {_sci(worst)}); "
                     "the result does not meet the tolerance asked"
                 ),
             )
@@ -540,9 +534,8 @@ class ImplicitEuler(Integrator):
             above,
             (
                 f"{self.name}: the true residual |b - A dv| / |b| ended above the tolerance in {above} of {solves} "
-                "steps "
-                f"(worst {_sci(worst)} > tolerance {_sci(self.cg_tol)}; CG's own residual met it; raise cg_restarts); "
-                "the result does not meet the tolerance asked"
+                f"steps (worst {_sci(worst)} > tolerance {_sci(self.cg_tol)}; CG's own residual met it; raise "
+                "cg_restarts); the result does not meet the tolerance asked"
             ),
         )
 

@@ -71,8 +71,7 @@ class Projective(IncrementSolver):
             int,
             1,
             "1: each global solve first solves its rigid translation exactly (a Galerkin step on T; without "
-            "colliders), then CG; "
-            "0: CG alone",
+            "colliders), then CG; 0: CG alone",
             check=lambda v: None if v in (0, 1) else "must be 0 or 1",
         ),
     )

@@ -130,9 +130,8 @@ class VBD(IncrementSolver):
             "vbd_multigrid_every",
             int,
             1,
-            "a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; models that are "
-            "not grids: "
-            "an aggregation hierarchy, see vbd_mesh_multigrid)",
+            "a multigrid V-cycle of the step's Hessian corrects dx before every k-th sweep (0: never; models that "
+            "are not grids: an aggregation hierarchy, see vbd_mesh_multigrid)",
             check=lambda v: None if v >= 0 else "must be an integer >= 0",
         ),
         Option(

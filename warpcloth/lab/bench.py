@@ -276,8 +276,8 @@ def plot(path: str, rows: list[dict]) -> bool:
         import matplotlib.pyplot as plt
     except ImportError:
         print(
-            "bench: --plot needs matplotlib (pip install 'warpcloth[plot]', from a clone pip install -e '.[plot]'); no "
-            "plot written",
+            "bench: --plot needs matplotlib (pip install 'warpcloth[plot]', from a clone pip install -e '.[plot]'); "
+            "no plot written",
             file=sys.stderr,
         )
         return False
@@ -300,8 +300,7 @@ def plot(path: str, rows: list[dict]) -> bool:
 def format_table(rows: list[dict]) -> str:
     head = (
         f"{'integrator':15s} {'device':7s} {'graph':5s} {'size':>9s} {'particles':>9s} {'ms/step':>10s} "
-        f"{'[min-max]':>19s} "
-        f"{'wall s/sim s':>12s} {'RT factor':>9s} {'x floor':>8s} {'CUDA x':>7s}"
+        f"{'[min-max]':>19s} {'wall s/sim s':>12s} {'RT factor':>9s} {'x floor':>8s} {'CUDA x':>7s}"
     )
     lines = [head, "-" * len(head)]
     for r in rows:
@@ -313,10 +312,9 @@ def format_table(rows: list[dict]) -> str:
 
         lines.append(
             f"{r['integrator']:15s} {r['device']:7s} {('yes' if r['graph'] else 'no'):5s} "
-            f"{str(r['rows']) + 'x' + str(r['cols']):>9s} "
-            f"{r['particles']:>9d} {r['ms_per_step_median']:>10.4f} "
+            f"{str(r['rows']) + 'x' + str(r['cols']):>9s} {r['particles']:>9d} {r['ms_per_step_median']:>10.4f} "
             f"{'[' + format(r['ms_per_step_min'], '.4g') + '-' + format(r['ms_per_step_max'], '.4g') + ']':>19s} "
-            f"{r['wall_s_per_sim_s']:>12.4g} {r['realtime_factor']:>9.3f} "
-            f"{fmt(r['floor_multiple'], '>8.2f')} {fmt(r['speedup_vs_cpu'], '>7.1f')}"
+            f"{r['wall_s_per_sim_s']:>12.4g} {r['realtime_factor']:>9.3f} {fmt(r['floor_multiple'], '>8.2f')} "
+            f"{fmt(r['speedup_vs_cpu'], '>7.1f')}"
         )
     return "\n".join(lines)

@@ -277,8 +277,7 @@ def format_result(r: MaxDtResult) -> str:
     verified = f" (the found dt verified over {r.verified_duration:g} s)" if r.verified_duration else ""
     lines = [
         f"{r.scenario}: {r.integrator} on {r.device}, {r.rows}x{r.cols}; stable = {r.duration:g} s simulated without "
-        "going unstable"
-        f"{verified}"
+        f"going unstable{verified}"
     ]
     if r.no_stable_reason:
         lines.append(f"  no stable dt exists: {r.no_stable_reason}")

@@ -26,11 +26,9 @@ from warpcloth.lab.transients import DYNAMIC, STUDY_MATERIAL, TRANSIENTS
 
 PLOTS = {
     "work_precision.png": "Work-precision per size: ms per 1/60 s frame against pointwise e (the worse of the swing "
-    "and "
-    "the flag), every configuration a point, each integrator's Pareto front a line",
+    "and the flag), every configuration a point, each integrator's Pareto front a line",
     "budget.png": "The cheapest measured configuration reaching e <= 1 % and <= 5 % per integrator, ms per 1/60 s "
-    "frame "
-    "against particles, with the budget and the whole frame",
+    "frame against particles, with the budget and the whole frame",
     "error_vs_dt.png": "Pointwise e against dt at the smallest size, each integrator at its default options (the slope "
     "is the order)",
     "max_dt.png": "Max stable dt of the swing's sheet per integrator against particles (bounded at one 60 FPS frame)",
@@ -331,14 +329,11 @@ def floor_table(data: Data) -> list[str]:
         out += [
             "",
             f"A floor is the float64 growth of a {1e-7:g} m random perturbation of the start (2 seeds, the max over "
-            "the "
-            f"window); a verdict at tolerance t is refused where a floor exceeds {FLOOR_FRACTION:g} t or the Warp "
-            "reference's "
-            "halving estimate exceeds 1e-5 of the size. Contact: the equilibrium solved again from itself moved by "
-            "1e-7 m. "
-            "The float32 noise is rk4's least e over its configurations (down to 1/8 of its max stable dt): the "
-            "rounding "
-            "of float32 coordinates, grown by the same conditioning over many steps, which no float32 run beats.",
+            f"the window); a verdict at tolerance t is refused where a floor exceeds {FLOOR_FRACTION:g} t or the Warp "
+            "reference's halving estimate exceeds 1e-5 of the size. Contact: the equilibrium solved again from "
+            "itself moved by 1e-7 m. The float32 noise is rk4's least e over its configurations (down to 1/8 of its "
+            "max stable dt): the rounding of float32 coordinates, grown by the same conditioning over many steps, "
+            "which no float32 run beats.",
             "",
         ]
     return out
@@ -372,11 +367,10 @@ def cheapest_tables(data: Data, tolerances) -> list[str]:
             out += _table(["integrator"] + [f"{n}x{n}" for n in data.sizes], body)
             out += [""]
     out += [
-        "e is the worse of the swing and the flag (“swing only”: the flag's verdict refused there, its floor above 10 "
-        "% of "
-        "the tolerance); “none measured”: no configuration of the grid reached it (the best "
-        "e measured is given); “refused”: the conditioning floor or the reference says the tolerance cannot be judged "
-        "at that size; “stretchy”: the run's largest strain exceeds 10 %.",
+        "e is the worse of the swing and the flag (“swing only”: the flag's verdict refused there, its floor above "
+        "10 % of the tolerance); “none measured”: no configuration of the grid reached it (the best e measured is "
+        "given); “refused”: the conditioning floor or the reference says the tolerance cannot be judged at that "
+        "size; “stretchy”: the run's largest strain exceeds 10 %.",
         "",
     ]
     return out
@@ -420,8 +414,8 @@ def budget_tables(data: Data, tolerances, budget_ms: float) -> list[str]:
         out += [
             "",
             "The size is in particles; the fit (cost = a N^p over the cheapest configurations) is given only through "
-            "≥ 3 sizes and never beyond 2x the measured range (n/a otherwise). Sizes whose verdict is refused are left "
-            "out.",
+            "≥ 3 sizes and never beyond 2x the measured range (n/a otherwise). Sizes whose verdict is refused are "
+            "left out.",
             "",
         ]
     return out
@@ -445,8 +439,7 @@ def metrics_table(data: Data, tol: float) -> list[str]:
                     cells += [
                         f"{_pct(sw['damping_rel'], 2)} / {_pct(fl['damping_rel'], 2)}",
                         f"{_pct(sw['max_strain_rel'], 2)} / {_pct(fl['max_strain_rel'], 2)} (ref "
-                        f"{_pct(sw['ref_max_strain_rel'], 2)} / "
-                        f"{_pct(fl['ref_max_strain_rel'], 2)})",
+                        f"{_pct(sw['ref_max_strain_rel'], 2)} / {_pct(fl['ref_max_strain_rel'], 2)})",
                         f"{_pct(sw['patch_error_rel'], 2)} / {_pct(fl['patch_error_rel'], 2)}",
                     ]
                 body.append(cells)
@@ -559,8 +552,8 @@ def stability_table(data: Data) -> list[str]:
         out += _table(["integrator"] + [f"{n}x{n}" for n in data.sizes], body)
         out += [
             "",
-            "“≥”: stable up to the search's bound, one 60 FPS frame. "
-            "Trials as long as the swing's window at each size.",
+            "“≥”: stable up to the search's bound, one 60 FPS frame. Trials as long as the swing's window at each "
+            "size.",
             "",
         ]
     return out
@@ -820,35 +813,26 @@ def method_lines(plan) -> list[str]:
         f"- Profile `{plan.profile}`: integrators {', '.join(plan.integrators)}; n x n cloths at n = "
         f"{', '.join(map(str, plan.all_sizes))}, every size measured for accuracy.",
         f"- **One cloth at every size**: the material `{m.name}` ({m.density:g} kg/m², stretch {m.stretch_warp:g} N/m "
-        "warp and weft, "
-        f"shear {m.shear:g} N/m, bending {m.bend_warp:g} N m), mapped by `warpcloth.sim.material.grid_spring_params`: "
-        "the "
-        "membrane stiffness is constant under refinement (on a square grid ks = 750 N/m structural, 250 N/m shear at "
-        "every n), "
-        "masses are the density times the vertex area. Bending: Provot bend springs with the material's approximate "
-        "rule "
-        "(ks = 9 B / (κ² h⁴)), which is not size-independent (0.0013 N/m at 16x16, 6.9 N/m at 128x128): bending is not "
-        "what "
-        "this study compares (a dihedral model is being integrated separately).",
+        f"warp and weft, shear {m.shear:g} N/m, bending {m.bend_warp:g} N m), mapped by "
+        "`warpcloth.sim.material.grid_spring_params`: the membrane stiffness is constant under refinement (on a "
+        "square grid ks = 750 N/m structural, 250 N/m shear at every n), masses are the density times the vertex "
+        "area. Bending: Provot bend springs with the material's approximate rule (ks = 9 B / (κ² h⁴)), which is not "
+        "size-independent (0.0013 N/m at 16x16, 6.9 N/m at 128x128): bending is not what this study compares (a "
+        "dihedral model is being integrated separately).",
         "- **Transients**: "
         + "; ".join(f"`{k}`: {t.description}" for k, t in TRANSIENTS.items())
         + f". Windows: {windows} (the 1 s swing is not accepted from 64x64: docs/study.md, “Windows”).",
         "- **References**: SciPy DOP853 (rtol 1e-10) up to 12x12; above, the float64 Warp RK4 at half its stability "
-        "limit with "
-        "a run at half the step, accepted when the halving estimate is ≤ 1e-5 of the size. Contact: the float64 "
-        "equilibrium "
-        "with the frictionless contact (Newton on a penalty continuation, penetration ≤ 1e-9 of the size).",
+        "limit with a run at half the step, accepted when the halving estimate is ≤ 1e-5 of the size. Contact: the "
+        "float64 equilibrium with the frictionless contact (Newton on a penalty continuation, penetration ≤ 1e-9 of "
+        "the size).",
         "- **Metrics** (each with its floor): pointwise e = max over frames (1/60 s apart; every other one at dt = "
-        "1/30 s) and "
-        "particles of |x − x_ref| / size; the centre of mass and the 4 x 4 patch means (same form); damping = 1 − Σ "
-        "kinetic "
-        f"energy / the reference's; stretch = the largest strain of a structural spring (> {_pct(STRETCHY)}: "
-        "stretchy); "
-        "float32 noise: rk4's error at its smallest dt (1/8 of its max stable dt); at rest: the rest shape and "
-        "the sag against the equilibrium.",
+        "1/30 s) and particles of |x − x_ref| / size; the centre of mass and the 4 x 4 patch means (same form); "
+        "damping = 1 − Σ kinetic energy / the reference's; stretch = the largest strain of a structural spring (> "
+        f"{_pct(STRETCHY)}: stretchy); float32 noise: rk4's error at its smallest dt (1/8 of its max stable dt); at "
+        "rest: the rest shape and the sag against the equilibrium.",
         "- **Floors**: the float64 growth of a 1e-7 m random perturbation of the start (2 seeds, max over the "
-        "window), per "
-        f"metric; a verdict at tolerance t is refused where the floor exceeds {FLOOR_FRACTION:g} t.",
+        f"window), per metric; a verdict at tolerance t is refused where the floor exceeds {FLOOR_FRACTION:g} t.",
         "- **Configurations** (level `"
         + plan.level
         + "`): explicit schemes at fractions "
@@ -864,23 +848,17 @@ def method_lines(plan) -> list[str]:
         + f". A configuration predicted to take more than {plan.run_wall_cap:g} s per run is not run "
         "(its row says so).",
         f"- **Cost**: ms per 1/60 s frame = median ms/step x steps per frame, {plan.timing_windows} timed windows of "
-        "at least "
-        f"{plan.window_seconds:g} s on the swing's sheet from the swing's start (compile and graph capture excluded); "
-        "wall s per "
-        "simulated s beside it in results.csv.",
+        f"at least {plan.window_seconds:g} s on the swing's sheet from the swing's start (compile and graph capture "
+        "excluded); wall s per simulated s beside it in results.csv.",
         f"- **Budget**: {plan.budget_ms:g} ms per 60 FPS frame (--budget-ms) and the whole frame (16.7 ms): per "
-        "integrator and "
-        "tolerance the largest measured size whose cheapest accurate configuration fits. Power laws only through ≥ 3 "
-        "sizes, "
-        "never beyond 2x the measured range.",
+        "integrator and tolerance the largest measured size whose cheapest accurate configuration fits. Power laws "
+        "only through ≥ 3 sizes, never beyond 2x the measured range.",
         f"- Max stable dt: `warpcloth.lab.maxdt.find_max_dt`, trials as long as the swing's window, precision "
         f"{plan.maxdt_precision:g}, up to one 60 FPS frame, wall cap {plan.maxdt_wall_cap} s per trial.",
         f"- Contact runs (up to {plan.contact_max_size}x{plan.contact_max_size}: above, the float64 equilibrium's "
-        "sparse "
-        f"direct solve takes over 10 min of CPU): to rest, at most {plan.equilibrium_duration:g} s simulated, "
-        f"{plan.equilibrium_wall_cap} s wall; each integrator at its default options at 1/60 s and 1/240 s, the "
-        "explicit "
-        "schemes at their max stable dt.",
+        f"sparse direct solve takes over 10 min of CPU): to rest, at most {plan.equilibrium_duration:g} s simulated, "
+        f"{plan.equilibrium_wall_cap} s wall; each integrator at its default options at 1/60 s and 1/240 s, "
+        "the explicit schemes at their max stable dt.",
     ]
 
 
@@ -890,23 +868,19 @@ CHANGES = [
     "Accuracy is measured at every size, 16x16 to 128x128, against float64 Warp RK4 references with their halving "
     "estimates; before, only at 8x8 and 12x12, and “cheapest” at 16–128 was at the max stable dt with accuracy not "
     "measured (it named vbd cheapest at 32–128). A line now names its metric and tolerance, or is not written.",
-    "The swing pins the sheet's whole top row (tension dominated, well-posed); the two-corner sheet buckles along its "
-    "free "
-    "edge and was ill-posed from 32x32. Windows shrink with the size where the 1 s swing is ill-conditioned.",
-    "Each transient x size has its conditioning floor per metric, printed beside the verdicts; a verdict above 10 % of "
-    "the "
-    "floor's tolerance is refused.",
+    "The swing pins the sheet's whole top row (tension dominated, well-posed); the two-corner sheet buckles along "
+    "its free edge and was ill-posed from 32x32. Windows shrink with the size where the 1 s swing is "
+    "ill-conditioned.",
+    "Each transient x size has its conditioning floor per metric, printed beside the verdicts; a verdict above 10 % "
+    "of the floor's tolerance is refused.",
     "Integrators are judged over their knobs (preconditioner and CG tolerance, iterations x substeps, vbd and "
-    "projective "
-    "iterations, explicit dt fractions) and at dt = 1/30 and 1/60 s: every configuration is a point of a "
-    "work-precision "
-    "diagram, the answer is the measured Pareto front. The max-accurate-dt search (a stall rule that gave false "
-    "negatives, such as “vbd: no accurate dt” on the 8x8 flag while its own errors reached 0.84 %, and an assumed "
-    "monotone e(dt)) is gone, and so is --match-accuracy (its iterations x substeps are part of the grid).",
-    "The frontier is a budget (2 ms and the whole frame per 60 FPS frame) answered by the largest measured size; power "
-    "laws "
-    "need ≥ 3 sizes and are never extrapolated beyond 2x (the old one went through 2 points, with a residual of 1e-15 "
-    "decades, and was extrapolated 48x).",
+    "projective iterations, explicit dt fractions) and at dt = 1/30 and 1/60 s: every configuration is a point of a "
+    "work-precision diagram, the answer is the measured Pareto front. The max-accurate-dt search (a stall rule that "
+    "gave false negatives, such as “vbd: no accurate dt” on the 8x8 flag while its own errors reached 0.84 %, and an "
+    "assumed monotone e(dt)) is gone, and so is --match-accuracy (its iterations x substeps are part of the grid).",
+    "The frontier is a budget (2 ms and the whole frame per 60 FPS frame) answered by the largest measured size; "
+    "power laws need ≥ 3 sizes and are never extrapolated beyond 2x (the old one went through 2 points, with a "
+    "residual of 1e-15 decades, and was extrapolated 48x).",
     "A contact transient: the rest shape on a frictionless plane against the float64 equilibrium with the contact.",
 ]
 
@@ -962,8 +936,7 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
                 "",
                 f"The plan has {len(missing)} device x integrator x size groups without a timing row in results.csv "
                 "(the study was interrupted, or no configuration ran finite; `--resume` continues an interrupted "
-                "one): "
-                f"{', '.join(missing)}.",
+                f"one): {', '.join(missing)}.",
                 "",
             ]
     if data.rows:

@@ -70,8 +70,7 @@ COLUMNS = [
 #: Descriptions of the columns (docs/study.md is generated from the same text).
 COLUMN_DOCS = {
     "measurement": "max_stable_dt, floor, trial (a configuration on a dynamic transient), static (one run to rest on "
-    "the "
-    "contact transient), timing (a configuration's cost)",
+    "the contact transient), timing (a configuration's cost)",
     "scenario": "the cloth: study_sheet, study_flag, study_contact (or a scenario file's)",
     "transient": "swing, flag or contact",
     "integrator": "integrator name",

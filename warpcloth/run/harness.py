@@ -544,9 +544,8 @@ def check_run_length(duration: float, fps: float, dt: float) -> None:
         raise WarpclothError(f"dt ({dt:.4g} s) is longer than the duration ({duration:.4g} s): choose dt <= duration")
     if dt * fps > MAX_FRAMES_PER_STEP:
         raise WarpclothError(
-            f"fps ({fps:.4g} 1/s) asks for a frame every {1.0 / fps:.3g} s, {dt * fps:.3g} frames per step of {dt:.3g} "
-            "s "
-            f"(at most {MAX_FRAMES_PER_STEP:g}): choose fps <= {MAX_FRAMES_PER_STEP / dt:.4g}"
+            f"fps ({fps:.4g} 1/s) asks for a frame every {1.0 / fps:.3g} s, {dt * fps:.3g} frames per step of "
+            f"{dt:.3g} s (at most {MAX_FRAMES_PER_STEP:g}): choose fps <= {MAX_FRAMES_PER_STEP / dt:.4g}"
         )
     steps = duration / dt
     if steps > MAX_RUN_STEPS:

@@ -449,8 +449,7 @@ class MeshCollider(_Posed):
     def __repr__(self):
         return (
             f"MeshCollider({self.source or 'in memory'}: {len(self.vertices)} vertices, {len(self.triangles)} "
-            "triangles, "
-            f"thickness={self.thickness}, friction={self.friction}, reach={self.reach})"
+            f"triangles, thickness={self.thickness}, friction={self.friction}, reach={self.reach})"
         )
 
     @property

@@ -152,9 +152,8 @@ class Control:
     def __repr__(self) -> str:
         return (
             f"Control(gravity={self.gravity!r}, drag_rate={self.drag_rate!r}, "
-            f"wind_coefficient={self.wind_coefficient!r}, "
-            f"wind_schedule={self.wind_schedule!r}, device={self.device!r}, pin_tracks={self.pin_tracks!r}, "
-            f"colliders={self.colliders!r})"
+            f"wind_coefficient={self.wind_coefficient!r}, wind_schedule={self.wind_schedule!r}, "
+            f"device={self.device!r}, pin_tracks={self.pin_tracks!r}, colliders={self.colliders!r})"
         )
 
     @property
