@@ -41,7 +41,7 @@ say warpcloth run flag --rows 16 --cols 16 --num-frames 3 --html flag.html
 say warpcloth run flag --preview flag.gif --usd flag.usdz --usd-color strain --size 8 --num-frames 3
 say warpcloth sweep --example quick --out quick2.csv
 say python -m warpcloth bench --sizes 8 --steps 20 --json --quiet
-say warpcloth study --profile quick --integrators xpbd --sizes 8 --accuracy-sizes 8 --out study-quick
+say warpcloth study --profile quick --integrators xpbd --sizes 8 --out study-quick
 
 # the docs' own example commands (docs/driving.md, docs/meshes.md, docs/colliders.md)
 say python -m warpcloth.examples.drive --num-frames 3 --size 8 --usd drive.usda

@@ -360,6 +360,11 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     mesh_path = os.path.join(os.path.dirname(path), os.path.expanduser(mesh_path))
     prim = c.param("prim")
     mesh = load_mesh(mesh_path, prim)
+    # indices in the file number the mesh file's vertices; a mesh read without its loose vertices renumbers them
+    tracks = [
+        dict(t, indices=mesh.file_indices(t["indices"], f"{where}: tracks[{k}].indices")) if "indices" in t else t
+        for k, t in enumerate(tracks)
+    ]
     mass_mode = c.text("mass_mode", "area")
     if mass_mode not in MASS_MODES:
         raise c.fail("mass_mode", f"must be one of {', '.join(MASS_MODES)}, got {_shown(mass_mode)}")
@@ -379,6 +384,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     # the pins, the tracks, the forces and the colliders checked now, so a bad file fails before any run
     p = _Keys(where, pins, "pins")
     pin_indices, pin_groups, pin_where = p.indices("indices"), p.names("groups"), _predicate(p, "where")
+    pin_indices = mesh.file_indices(pin_indices, f"{where}: pins.indices")
     for k, t in enumerate(tracks):
         _track(t, mesh.vertices, mesh.groups, f"{where}: [[tracks]] #{k + 1}")
     f = _Keys(where, forces, "forces")
