@@ -41,6 +41,7 @@ SCENARIO = Scenario(
     origin=_origin,
     stop_at_equilibrium=True,
     plane="horizontal",
+    self_collision=True,
 )
 
 

@@ -66,6 +66,9 @@ is optional but ``cloth.mesh``; unknown keys are refused, naming the file and th
     frame_rate = 60                      # 1/s (old spelling: fps)
     device = "cpu"
     strain_limit = 0.1
+    self_collision = true                # or "on" / "off" (default off); its settings:
+    self_collision_thickness = 0.004     # m
+    self_collision_friction = 0.3
 
 Command-line flags override the file (``--integrator``, ``--dt``, ``--mesh``, ``--pin-group``...).
 Needs Python 3.11 (``tomllib``) or the ``tomli`` package.
@@ -111,10 +114,12 @@ TRACK_KEYS = PIN_KEYS | {
 }
 FORCE_KEYS = {"gravity", "drag", "wind", "gusts", "wind_coefficient"}
 GUST_KEYS = {"wind", "on", "off", "base"}
-#: [run] takes the run parameters of warpcloth.run.params that set up a run (``fps`` is the old
-#: spelling of ``frame_rate``) and the integrator's options as a table.
+#: [run] takes the run parameters of warpcloth.run.params that set up a run (self-collision among
+#: them; ``fps`` is the old spelling of ``frame_rate``) and the integrator's options as a table.
 RUN_PARAMS = tuple(
-    p.name for p in params_for("run") if p.group in ("run", "integrator") and (p.config_field or p.name == "dt")
+    p.name
+    for p in params_for("run")
+    if p.group in ("run", "integrator", "self_collision") and (p.config_field or p.name == "dt")
 )
 RUN_KEYS = {"integrator_options", "fps", *RUN_PARAMS}
 #: The largest scenario file read [bytes] (a scenario file is a page of settings; keyframes of a
