@@ -34,6 +34,8 @@ say warpcloth run drape --material silk --compression 0.3 --size 8 --num-frames 
 say warpcloth run cantilever --cols 12 --num-frames 2
 say warpcloth run cusick --size 8 --num-frames 2
 say warpcloth calibrate silk --target bending_length=0.015 --size 8 --max-runs 2
+say warpcloth run fold --rows 12 --cols 6 --num-frames 3 --usd fold.usda
+say warpcloth check-intersections fold.usda
 say warpcloth run drape --collider capsule:a=-0.6/0.1/0.35,b=0.6/0.1/0.35,radius=0.1,friction=0.5 \
     --size 8 --num-frames 2
 say warpcloth run mesh --mesh examples/cape.obj --pin-group shoulders --usd cape.usda --num-frames 2
@@ -43,7 +45,7 @@ say warpcloth run flag --rows 16 --cols 16 --num-frames 3 --html flag.html
 say warpcloth run flag --preview flag.gif --usd flag.usdz --usd-color strain --size 8 --num-frames 3
 say warpcloth sweep --example quick --out quick2.csv
 say python -m warpcloth bench --sizes 8 --steps 20 --json --quiet
-say warpcloth study --profile quick --integrators xpbd --sizes 8 --accuracy-sizes 8 --out study-quick
+say warpcloth study --profile quick --integrators xpbd --sizes 8 --out study-quick
 
 # the docs' own example commands (docs/driving.md, docs/meshes.md, docs/colliders.md)
 say python -m warpcloth.examples.drive --num-frames 3 --size 8 --usd drive.usda

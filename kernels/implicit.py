@@ -13,6 +13,7 @@ mass 0) get identity rows and zero columns, so their dv is 0.
 import warp as wp
 from warpcloth.kernels.collide import Collider, collider_contact, surface_velocity
 from warpcloth.kernels.linalg import inverse_diagonal
+from warpcloth.kernels.self_contact import weighted_sum
 from warpcloth.kernels.springs import SpringAdjacency
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -384,3 +385,79 @@ def unfilter_dv(
     # prescribed directions)
     i = wp.tid()
     dv[i] = contact_filter(mode[i], normal[i]) * dv[i] + z[i]
+
+
+# -- self-contact in the solve (warpcloth.sim.self_collision) --------------------------------------
+@wp.kernel
+def add_self_contact_rhs(
+    stride: int,
+    counts: wp.array(dtype=int),
+    count_slot: int,
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    c_idx: wp.array(dtype=wp.vec4i),
+    c_w: wp.array(dtype=wp.vec4),
+    c_n: wp.array(dtype=wp.vec3),
+    c_h: wp.array(dtype=float),
+    stiffness: float,
+    h: float,
+    b: wp.array(dtype=wp.vec3),
+):
+    # the repulsion f_a = k delta W_a n of every contact with delta = h_c - n . sum W x > 0 in
+    # b = h (f + h df/dx v): b_a += h k W_a (delta - h n . sum W v) n on free a (df_a/dx_b = -k W_a W_b n n^T)
+    tid = wp.tid()
+    for k in range(tid, counts[count_slot], stride):
+        idx = c_idx[k]
+        w = c_w[k]
+        n = c_n[k]
+        delta = c_h[k] - wp.dot(n, weighted_sum(x, idx, w))
+        if delta > 0.0:
+            s = h * stiffness * (delta - h * wp.dot(n, weighted_sum(v, idx, w)))
+            for j in range(4):
+                if inv_mass[idx[j]] > 0.0:
+                    wp.atomic_add(b, idx[j], (w[j] * s) * n)
+
+
+@wp.kernel
+def add_self_contact_product(
+    stride: int,
+    counts: wp.array(dtype=int),
+    count_slot: int,
+    x: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    c_idx: wp.array(dtype=wp.vec4i),
+    c_w: wp.array(dtype=wp.vec4),
+    c_n: wp.array(dtype=wp.vec3),
+    c_h: wp.array(dtype=float),
+    mode: wp.array(dtype=int),
+    normal: wp.array(dtype=wp.vec3),
+    filtered: int,
+    scale: float,
+    y: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
+):
+    # z += scale C y, C = sum over contacts with delta > 0 of the block W_a W_b n n^T (A's contact part
+    # h^2 k W W^T n n^T with scale = alpha h^2 k); pinned rows and columns left out; with ``filtered``
+    # the colliders' filter S on both sides (S C S, as the solve's A)
+    tid = wp.tid()
+    for k in range(tid, counts[count_slot], stride):
+        idx = c_idx[k]
+        w = c_w[k]
+        n = c_n[k]
+        if c_h[k] - wp.dot(n, weighted_sum(x, idx, w)) > 0.0:
+            u = float(0.0)
+            for j in range(4):
+                a = idx[j]
+                if inv_mass[a] > 0.0:
+                    ya = y[a]
+                    if filtered != 0:
+                        ya = contact_filter(mode[a], normal[a]) * ya
+                    u += w[j] * wp.dot(n, ya)
+            for j in range(4):
+                a = idx[j]
+                if inv_mass[a] > 0.0:
+                    za = (scale * w[j] * u) * n
+                    if filtered != 0:
+                        za = contact_filter(mode[a], normal[a]) * za
+                    wp.atomic_add(z, a, za)

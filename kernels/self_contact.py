@@ -15,13 +15,19 @@ response is equal and opposite (momentum conserved to float32 rounding); a pinne
 
 Broad phase: a linked-cell spatial hash made by kernels (a head per hash bucket, one ``next``
 per item, inserted with ``atomic_exch``; no capacity, no host work), over triangle and edge
-box centres; a Verlet list of candidate pairs within r = h + skin, rebuilt on the device only
-when the largest displacement since the last build, plus a step's motion, could have brought
-an unlisted pair within h (2 (|x - x_build - u| + |v - w| dt)_max > skin, relative to the mean
-displacement u and velocity w: a common motion, such as a fall, changes no gap). Every
+box centres; a Verlet list of candidate pairs, rebuilt on the device only when needed. At a
+build each vertex gets a margin m_i = 2 |v_i - w| dt (two steps of its motion relative to the
+mean velocity w, at most skin_max), a triangle or an edge the largest of its vertices', and a
+pair is listed within r = h + skin + m_a + m_b: fast parts get a wide radius, slow ones (a pile at
+rest beside a falling layer) a tight one. The list holds while every vertex moved at most
+skin / 2 + m_i since the build (D_i = |x - x_build - u| + |v - w| dt, relative to the mean
+displacement u and velocity w: a common motion, such as a fall, changes no gap), so an unlisted
+pair cannot have come within h. The cell size is chosen at each build on the device (a base from
+the mesh plus the largest margin), so a query spans a few cells whatever the motion. Every
 broad-phase launch exits at once when no rebuild is due, so a captured frame replays the
-adaptive schedule. A candidate whose gap at the build, less twice that motion, cannot be near is
-skipped by the narrow phase without being evaluated. Lists
+adaptive schedule. A candidate whose gap at the build, less twice the largest motion since,
+cannot be near is skipped by the narrow phase without being evaluated; a pair is a contact of
+this step when its gap is below 1.25 h + 2 dt |sum W v| (its own relative speed). Lists
 have a fixed capacity chosen at bind; a pair that does not fit is counted (overflow), never
 dropped silently.
 
@@ -44,6 +50,7 @@ contact count, not the capacity.
 """
 
 import warp as wp
+from warpcloth.kernels.collide import Collider, collider_contact
 
 wp.set_module_options({"enable_backward": False})
 
@@ -69,26 +76,34 @@ BUILT = wp.constant(9)  # 0 until the first build (or after an invalidate)
 DETECTS = wp.constant(10)  # detect calls so far
 CONTACTS_MAX = wp.constant(11)  # largest contact count of a step so far
 CANDIDATES_MAX = wp.constant(12)  # largest candidate count of a build so far
-FAST = wp.constant(13)  # detects whose motion (four steps of the fastest vertex) exceeded skin_max, so far
+FAST = wp.constant(13)  # vertices whose margin (two steps of their motion) was cut to skin_max at a build, so far
 COUNT_SLOTS = 14
 
 # -- indices of the float scalars (``scalars``) ---------------------------------------------------
-MOTION = wp.constant(0)  # max |x - x_build - u| + |v - w| dt this detect, u, w the mean motion [m]
+MOTION = wp.constant(0)  # max_i D_i = |x_i - x_build_i - u| + |v_i - w| dt this detect, u, w the mean motion [m]
 SPEED = wp.constant(1)  # max |v - w| this detect [m/s]
-R_BUILD = wp.constant(2)  # radius of the Verlet list: h + skin [m]
-R_ACTIVE = wp.constant(3)  # gap below which a candidate is an active contact: h + 2 v_max dt [m]
+R_BUILD = wp.constant(2)  # radius of the Verlet list without margins: h + skin [m]
+R_ACTIVE = wp.constant(3)  # a candidate whose gap may be below 1.25 h + 3 |v|_max dt is evaluated [m]
 RHO_MAX = wp.constant(4)  # largest half diagonal of a triangle's box at the build [m]
 HALF_EDGE_MAX = wp.constant(5)  # largest half length of an edge at the build [m]
 SKIN = wp.constant(6)  # the skin of the current list [m]
-R_BUILD_EE = wp.constant(7)  # radius of the edge-edge list: h_e + skin [m], h_e = edge_fraction h
-R_ACTIVE_EE = wp.constant(8)  # gap below which an edge-edge candidate is a contact: h_e + 2 v_max dt [m]
-SCALAR_SLOTS = 9
+R_BUILD_EE = wp.constant(7)  # radius of the edge-edge list without margins: h_e + skin [m], h_e = edge_fraction h
+R_ACTIVE_EE = wp.constant(8)  # R_ACTIVE of the edge-edge candidates: 1.25 h_e + 3 |v|_max dt [m]
+EXCESS = wp.constant(9)  # max_i (D_i - margin_i) this detect: the list is rebuilt when 2 EXCESS > skin [m]
+MARGIN_MAX = wp.constant(10)  # largest vertex margin at the build [m]
+INV_CELL = wp.constant(11)  # 1 / the hash's cell size at the build [1/m]
+SPEED_ABS = wp.constant(12)  # max |v| this detect [m/s]
+SCALAR_SLOTS = 13
 
 #: an edge-edge contact whose closest point is within this parameter of an edge's end is left to that end's
 #: vertex-triangle contact (the vertex is at least as near the edge's triangles as the edge)
 END_PARAMETER = wp.constant(1.0e-4)
+#: a vertex's margin covers this many steps of its motion relative to the mean (1: the list holds for the
+#: step of its build while the vertex moves fast, and it is rebuilt at the next; a wider margin lists more
+#: pairs of fast parts, most of them far apart)
+MARGIN_STEPS = wp.constant(1.0)
 #: cells searched per axis at most by one query (a larger radius is counted in TRUNCATED)
-MAX_CELLS_PER_AXIS = wp.constant(6)
+MAX_CELLS_PER_AXIS = wp.constant(8)
 
 
 # -- geometry ---------------------------------------------------------------------------------------
@@ -266,6 +281,25 @@ def weighted_sum(x: Vec3Array, idx: wp.vec4i, w: wp.vec4):
 
 
 @wp.func
+def contact_geometry(xa: wp.vec3, xb: wp.vec3, xc: wp.vec3, xd: wp.vec3, w_detect: wp.vec4, n_detect: wp.vec3):
+    # a contact's weights, normal and signed gap at the positions given (the closest points found anew:
+    # a pair that slid tangentially keeps its true distance), on the side of its detection: a pair that
+    # passed through each other has a negative gap. Vertex-triangle records have W_0 = 1 exactly
+    # (an edge-edge one 1 - s < 1)
+    w = wp.vec4()
+    n = wp.vec3()
+    d = float(0.0)
+    if w_detect[0] == 1.0:
+        w, n, d = vertex_triangle_record(xa, xb, xc, xd)
+    else:
+        w, n, d = edge_edge_record(xa, xb, xc, xd)
+    if wp.dot(n, n_detect) < 0.0:
+        n = -n
+        d = -d
+    return w, n, d
+
+
+@wp.func
 def split_inverse_mass(idx: wp.vec4i, w: wp.vec4, inv_mass: FloatArray, splits: IntArray):
     # sum_k W_k^2 c_k / m_k: the contact's inverse effective mass, each vertex's mass split over its c_k contacts
     s = float(0.0)
@@ -331,6 +365,8 @@ def begin_self_contact_detect(counts: IntArray, scalars: FloatArray, sums: Vec3A
     counts[DETECTS] = counts[DETECTS] + 1
     scalars[MOTION] = 0.0
     scalars[SPEED] = 0.0
+    scalars[EXCESS] = -1.0e30
+    scalars[SPEED_ABS] = 0.0
     sums[0] = wp.vec3(0.0)
     sums[1] = wp.vec3(0.0)
 
@@ -345,16 +381,26 @@ def sum_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sums
 
 @wp.kernel
 def eval_self_contact_motion(
-    x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sums: Vec3Array, dt: float, splits: IntArray, scalars: FloatArray
+    x: Vec3Array,
+    v: Vec3Array,
+    x_build: Vec3Array,
+    margin: FloatArray,
+    sums: Vec3Array,
+    dt: float,
+    splits: IntArray,
+    scalars: FloatArray,
 ):
     # motion relative to a common one (u, w: the mean displacement and velocity; a common motion
-    # changes no gap, and any u, w bound it): motion = max_i |x_i - x_build_i - u| + |v_i - w| dt,
-    # speed = max_i |v_i - w|; contact counts per vertex from zero
+    # changes no gap, and any u, w bound it): D_i = |x_i - x_build_i - u| + |v_i - w| dt;
+    # MOTION = max D_i, SPEED = max |v_i - w|, EXCESS = max (D_i - margin_i); contact counts from zero
     i = wp.tid()
     scale = 1.0 / float(x.shape[0])
     speed = wp.length(v[i] - scale * sums[1])
-    wp.atomic_max(scalars, MOTION, wp.length(x[i] - x_build[i] - scale * sums[0]) + speed * dt)
+    motion = wp.length(x[i] - x_build[i] - scale * sums[0]) + speed * dt
+    wp.atomic_max(scalars, MOTION, motion)
     wp.atomic_max(scalars, SPEED, speed)
+    wp.atomic_max(scalars, EXCESS, motion - margin[i])
+    wp.atomic_max(scalars, SPEED_ABS, wp.length(v[i]))
     splits[i] = 0
 
 
@@ -365,25 +411,21 @@ def decide_self_contact_rebuild(
     thickness: float,
     edge_thickness: float,
     skin: float,
-    skin_max: float,
     dt: float,
 ):
-    # rebuild when never built or when 2 motion > skin (an unlisted pair may be within h); the new
-    # skin covers four steps of the fastest vertex, between skin and skin_max
-    speed = scalars[SPEED]
-    scalars[R_ACTIVE] = thickness + 2.0 * speed * dt
-    scalars[R_ACTIVE_EE] = edge_thickness + 2.0 * speed * dt
-    if counts[BUILT] != 0 and 2.0 * scalars[MOTION] <= scalars[SKIN]:
+    # rebuild when never built or when a vertex moved more than half the skin beyond its own margin
+    # since the build (2 max_i (D_i - margin_i) > skin: an unlisted pair may be within h)
+    scalars[R_ACTIVE] = 1.25 * thickness + 3.0 * scalars[SPEED_ABS] * dt
+    scalars[R_ACTIVE_EE] = 1.25 * edge_thickness + 3.0 * scalars[SPEED_ABS] * dt
+    if counts[BUILT] != 0 and 2.0 * scalars[EXCESS] <= skin:
         counts[REBUILD] = 0
         return
-    if 4.0 * speed * dt > skin_max:  # the list cannot cover the motion: a pair may be missed
-        counts[FAST] = counts[FAST] + 1
-    new_skin = wp.clamp(4.0 * speed * dt, skin, skin_max)
-    scalars[SKIN] = new_skin
-    scalars[R_BUILD] = thickness + new_skin
-    scalars[R_BUILD_EE] = edge_thickness + new_skin
+    scalars[SKIN] = skin
+    scalars[R_BUILD] = thickness + skin
+    scalars[R_BUILD_EE] = edge_thickness + skin
     scalars[RHO_MAX] = 0.0
     scalars[HALF_EDGE_MAX] = 0.0
+    scalars[MARGIN_MAX] = 0.0
     counts[REBUILD] = 1
     counts[BUILT] = 1
     counts[REBUILDS] = counts[REBUILDS] + 1
@@ -393,9 +435,21 @@ def decide_self_contact_rebuild(
 
 @wp.kernel
 def clear_self_contact_cells(
-    counts: IntArray, x: Vec3Array, x_build: Vec3Array, head_tri: IntArray, head_edge: IntArray
+    counts: IntArray,
+    x: Vec3Array,
+    v: Vec3Array,
+    sums: Vec3Array,
+    dt: float,
+    skin_max: float,
+    x_build: Vec3Array,
+    margin: FloatArray,
+    head_tri: IntArray,
+    head_edge: IntArray,
+    scalars: FloatArray,
 ):
-    # (rebuild only) empty buckets; x_build = x (launched over max(buckets, particles))
+    # (rebuild only) empty buckets; x_build = x; each vertex's margin = 2 |v - w| dt (two steps of its
+    # motion relative to the mean, at most skin_max: beyond, counted in FAST), MARGIN_MAX their largest
+    # (launched over max(buckets, particles))
     i = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -404,6 +458,19 @@ def clear_self_contact_cells(
         head_edge[i] = -1
     if i < x.shape[0]:
         x_build[i] = x[i]
+        m = MARGIN_STEPS * dt * wp.length(v[i] - sums[1] / float(x.shape[0]))
+        if m > skin_max:
+            m = skin_max
+            wp.atomic_add(counts, FAST, 1)
+        margin[i] = m
+        wp.atomic_max(scalars, MARGIN_MAX, m)
+
+
+@wp.kernel
+def size_self_contact_cells(counts: IntArray, base_cell: float, scalars: FloatArray):
+    # (rebuild only) cells of base_cell + the largest margin: a query spans a few cells whatever the motion
+    if counts[REBUILD] != 0:
+        scalars[INV_CELL] = 1.0 / (base_cell + scalars[MARGIN_MAX])
 
 
 @wp.kernel
@@ -411,7 +478,7 @@ def insert_self_contact_triangles(
     counts: IntArray,
     x: Vec3Array,
     tris: Vec3iArray,
-    inv_cell: float,
+    margin: FloatArray,
     mask: int,
     head: IntArray,
     next_item: IntArray,
@@ -419,21 +486,24 @@ def insert_self_contact_triangles(
     box_lo: Vec3Array,
     box_hi: Vec3Array,
     item_cell: Vec3iArray,
+    item_margin: FloatArray,
 ):
-    # (rebuild only) triangle t into the bucket of its box centre (its box and cell kept for the
-    # queries); rho_max = max half diagonal of the boxes
+    # (rebuild only) triangle t into the bucket of its box centre (its box, cell and margin, the largest
+    # of its vertices', kept for the queries); rho_max = max half diagonal of the boxes
     t = wp.tid()
     if counts[REBUILD] == 0:
         return
-    a = x[tris[t][0]]
-    b = x[tris[t][1]]
-    c = x[tris[t][2]]
+    tri = tris[t]
+    a = x[tri[0]]
+    b = x[tri[1]]
+    c = x[tri[2]]
     lo = wp.min(wp.min(a, b), c)
     hi = wp.max(wp.max(a, b), c)
-    cell = cell_of(0.5 * (lo + hi), inv_cell)
+    cell = cell_of(0.5 * (lo + hi), scalars[INV_CELL])
     box_lo[t] = lo
     box_hi[t] = hi
     item_cell[t] = cell
+    item_margin[t] = wp.max(wp.max(margin[tri[0]], margin[tri[1]]), margin[tri[2]])
     next_item[t] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), t)
     wp.atomic_max(scalars, RHO_MAX, 0.5 * wp.length(hi - lo))
 
@@ -443,7 +513,7 @@ def insert_self_contact_edges(
     counts: IntArray,
     x: Vec3Array,
     edges: Vec2iArray,
-    inv_cell: float,
+    margin: FloatArray,
     mask: int,
     head: IntArray,
     next_item: IntArray,
@@ -451,17 +521,19 @@ def insert_self_contact_edges(
     box_lo: Vec3Array,
     box_hi: Vec3Array,
     item_cell: Vec3iArray,
+    item_margin: FloatArray,
 ):
-    # (rebuild only) edge e into the bucket of its midpoint (its box and cell kept); the largest half length
+    # (rebuild only) edge e into the bucket of its midpoint (its box, cell and margin kept); the largest half length
     e = wp.tid()
     if counts[REBUILD] == 0:
         return
     a = x[edges[e][0]]
     b = x[edges[e][1]]
-    cell = cell_of(0.5 * (a + b), inv_cell)
+    cell = cell_of(0.5 * (a + b), scalars[INV_CELL])
     box_lo[e] = wp.min(a, b)
     box_hi[e] = wp.max(a, b)
     item_cell[e] = cell
+    item_margin[e] = wp.max(margin[edges[e][0]], margin[edges[e][1]])
     next_item[e] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), e)
     wp.atomic_max(scalars, HALF_EDGE_MAX, 0.5 * wp.length(b - a))
 
@@ -489,26 +561,29 @@ def find_vertex_triangle_candidates(
     scalars: FloatArray,
     x: Vec3Array,
     tris: Vec3iArray,
-    inv_cell: float,
+    margin: FloatArray,
     mask: int,
     head: IntArray,
     next_item: IntArray,
     box_lo: Vec3Array,
     box_hi: Vec3Array,
     item_cell: Vec3iArray,
+    item_margin: FloatArray,
     exclude_offsets: IntArray,
     exclude: IntArray,
     capacity: int,
     out: Vec2iArray,
     out_gap: FloatArray,
 ):
-    # (rebuild only) every triangle t within R_BUILD of vertex i, not its own and not excluded, with its gap
+    # (rebuild only) every triangle t within R_BUILD + margin_i + margin_t of vertex i, not its own and not
+    # excluded, with its gap
     i = wp.tid()
     if counts[REBUILD] == 0:
         return
     p = x[i]
-    r = scalars[R_BUILD]
-    reach = wp.vec3(r + scalars[RHO_MAX])  # a triangle's box centre within r + its half diagonal
+    r_i = scalars[R_BUILD] + margin[i]
+    inv_cell = scalars[INV_CELL]
+    reach = wp.vec3(r_i + scalars[MARGIN_MAX] + scalars[RHO_MAX])  # a box centre within r + its half diagonal
     lo, hi = cell_range(p - reach, p + reach, inv_cell, counts)
     e0 = exclude_offsets[i]
     e1 = exclude_offsets[i + 1]
@@ -519,6 +594,7 @@ def find_vertex_triangle_candidates(
                 while t >= 0:
                     # a bucket holds one cell's triangles and other cells' that hash alike: a triangle
                     # is taken from the cell of its box centre only, so it is found once
+                    r = r_i + item_margin[t]
                     lo_t = box_lo[t] - wp.vec3(r)
                     hi_t = box_hi[t] + wp.vec3(r)
                     inside = p[0] >= lo_t[0] and p[1] >= lo_t[1] and p[2] >= lo_t[2]
@@ -526,10 +602,7 @@ def find_vertex_triangle_candidates(
                     if inside and item_cell[t] == wp.vec3i(ci, cj, ck):
                         tri = tris[t]
                         if tri[0] != i and tri[1] != i and tri[2] != i and not sorted_contains(exclude, e0, e1, t):
-                            a = x[tri[0]]
-                            b = x[tri[1]]
-                            c = x[tri[2]]
-                            q, w = closest_point_triangle(p, a, b, c)
+                            q, w = closest_point_triangle(p, x[tri[0]], x[tri[1]], x[tri[2]])
                             gap = wp.length(p - q)
                             if gap <= r:
                                 k = append_index(counts, CAND_VT, OVERFLOW_CANDIDATES, capacity)
@@ -545,20 +618,21 @@ def find_edge_edge_candidates(
     scalars: FloatArray,
     x: Vec3Array,
     edges: Vec2iArray,
-    inv_cell: float,
     mask: int,
     head: IntArray,
     next_item: IntArray,
     box_lo: Vec3Array,
     box_hi: Vec3Array,
     item_cell: Vec3iArray,
+    item_margin: FloatArray,
     exclude_offsets: IntArray,
     exclude: IntArray,
     capacity: int,
     out: Vec2iArray,
     out_gap: FloatArray,
 ):
-    # (rebuild only) every edge f > e within R_BUILD_EE of edge e, sharing no vertex and not excluded, with its gap
+    # (rebuild only) every edge f > e within R_BUILD_EE + margin_e + margin_f of edge e, sharing no vertex and
+    # not excluded, with its gap
     e = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -566,22 +640,23 @@ def find_edge_edge_candidates(
     eb = edges[e][1]
     a = x[ea]
     b = x[eb]
-    r = scalars[R_BUILD_EE]
-    reach = wp.vec3(r + scalars[HALF_EDGE_MAX])  # an edge's midpoint within r + its half length of e's box
-    lo, hi = cell_range(wp.min(a, b) - reach, wp.max(a, b) + reach, inv_cell, counts)
+    r_e = scalars[R_BUILD_EE] + item_margin[e]
+    reach = wp.vec3(r_e + scalars[MARGIN_MAX] + scalars[HALF_EDGE_MAX])  # a midpoint within r + its half length
+    lo, hi = cell_range(wp.min(a, b) - reach, wp.max(a, b) + reach, scalars[INV_CELL], counts)
     e0 = exclude_offsets[e]
     e1 = exclude_offsets[e + 1]
-    lo_e = wp.min(a, b) - wp.vec3(r)
-    hi_e = wp.max(a, b) + wp.vec3(r)
     for ci in range(lo[0], hi[0] + 1):
         for cj in range(lo[1], hi[1] + 1):
             for ck in range(lo[2], hi[2] + 1):
                 f = head[cell_bucket(ci, cj, ck, mask)]
                 while f >= 0:
                     overlap = False
+                    r = r_e + item_margin[f]
                     if f > e:
                         lo_f = box_lo[f]
                         hi_f = box_hi[f]
+                        lo_e = wp.min(a, b) - wp.vec3(r)
+                        hi_e = wp.max(a, b) + wp.vec3(r)
                         overlap = lo_f[0] <= hi_e[0] and lo_f[1] <= hi_e[1] and lo_f[2] <= hi_e[2]
                         overlap = overlap and hi_f[0] >= lo_e[0] and hi_f[1] >= lo_e[1] and hi_f[2] >= lo_e[2]
                     if overlap and item_cell[f] == wp.vec3i(ci, cj, ck):  # found once: from its midpoint's cell
@@ -606,6 +681,8 @@ def eval_self_contacts(
     counts: IntArray,
     scalars: FloatArray,
     x: Vec3Array,
+    v: Vec3Array,
+    dt: float,
     tris: Vec3iArray,
     edges: Vec2iArray,
     cand_vt: Vec2iArray,
@@ -622,10 +699,13 @@ def eval_self_contacts(
     thickness: float,
     edge_thickness: float,
 ):
-    # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair
-    # with gap d < R_ACTIVE at x; per vertex, the number of its contacts (mass splitting). A pair
-    # whose gap at the build, less twice the largest motion since, is not below R_ACTIVE is not
-    # evaluated (its gap cannot have fallen below it)
+    # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair whose
+    # gap d at x is below 1.25 h + dt (2 |sum W v| + max_k |v_k|) (it may come within h in this step: its
+    # own relative speed, and its fastest vertex's speed, which a collider may stop within the step while
+    # the other side goes on: a layer falling onto one that lands on the ground); per vertex, the number
+    # of its contacts (mass splitting). A pair whose gap at the build, less twice the largest motion
+    # since, is not below R_ACTIVE (the same bound with the largest speed) is not evaluated (its gap
+    # cannot have fallen below it)
     tid = wp.tid()
     n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
     total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])
@@ -635,10 +715,9 @@ def eval_self_contacts(
         w = wp.vec4()
         n = wp.vec3()
         d = float(0.0)
-        r_active = scalars[R_ACTIVE]
         h = thickness
         if k < n_vt:
-            if cand_vt_gap[k] - reach >= r_active:
+            if cand_vt_gap[k] - reach >= scalars[R_ACTIVE]:
                 continue
             pair = cand_vt[k]
             tri = tris[pair[1]]
@@ -652,14 +731,16 @@ def eval_self_contacts(
             eb = edges[pair[1]]
             idx = wp.vec4i(ea[0], ea[1], eb[0], eb[1])
             w, n, d = edge_edge_record(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]])
-            r_active = scalars[R_ACTIVE_EE]
             h = edge_thickness
             # closest points at an end of either edge: that end's vertex-triangle contact holds it
             s = w[1]
             t = -w[3]
             if wp.min(s, t) <= END_PARAMETER or wp.max(s, t) >= 1.0 - END_PARAMETER:
-                d = r_active
-        if d < r_active:
+                d = 1.0e30
+        speed = wp.max(
+            wp.max(wp.length(v[idx[0]]), wp.length(v[idx[1]])), wp.max(wp.length(v[idx[2]]), wp.length(v[idx[3]]))
+        )
+        if d < 1.25 * h + dt * (2.0 * wp.length(weighted_sum(v, idx, w)) + speed):
             slot = append_index(counts, CONTACTS, OVERFLOW_CONTACTS, capacity)
             if slot >= 0:
                 c_idx[slot] = idx
@@ -718,6 +799,83 @@ def eval_self_contact_forces(
                         wp.atomic_add(f, idx[j], (w[j] * force) * n)
 
 
+@wp.func
+def filter_change(
+    k: int,
+    x: Vec3Array,
+    v: Vec3Array,
+    inv_mass: FloatArray,
+    c_idx: Vec4iArray,
+    c_w: Vec4Array,
+    c_n: Vec3Array,
+    c_d: FloatArray,
+    c_h: FloatArray,
+    min_gap: float,
+    inelastic: int,
+    stiffness: float,
+    dt: float,
+    dt_x: float,
+):
+    # contact k at the step's end (x, v), its weights W, normal n and signed gap d found anew there
+    # (contact_geometry), d0 its gap at detection, h its thickness (h, or h_e for an edge pair),
+    # delta = h - d0: the normal relative velocity v_n = n . sum W v is to be raised to
+    #   max(0 [inelastic, d0 < h], min(0.1 delta / dt, dt k delta / m_eff) [repulsion, stiffness > 0],
+    #       v_n + (min_gap - d) / dt_x [the gap kept >= min_gap])
+    # (Bridson et al. 2002, Sec. 7.2); returns W, n, sum W v and the change dv_n (acting where > 0)
+    idx = c_idx[k]
+    w, n, d = contact_geometry(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]], c_w[k], c_n[k])
+    vr = weighted_sum(v, idx, w)
+    vn = wp.dot(n, vr)
+    target = -1.0e30
+    delta = c_h[k] - c_d[k]
+    if delta > 0.0 and inelastic != 0:
+        target = 0.0
+        if stiffness > 0.0:
+            full = float(0.0)
+            for j in range(4):
+                full += w[j] * w[j] * inv_mass[idx[j]]
+            target = wp.min(0.1 * delta / dt, dt * stiffness * delta * full)
+    target = wp.max(target, vn + (min_gap - d) / dt_x)
+    return w, n, vr, target - vn
+
+
+@wp.func
+def count_acting(idx: wp.vec4i, w: wp.vec4, inv_mass: FloatArray, acting: IntArray):
+    # one more acting contact at each of the contact's free vertices (mass splitting over acting contacts)
+    for j in range(4):
+        if inv_mass[idx[j]] > 0.0 and w[j] != 0.0:
+            wp.atomic_add(acting, idx[j], 1)
+
+
+@wp.kernel
+def count_filter_contacts(
+    stride: int,
+    counts: IntArray,
+    x: Vec3Array,
+    v: Vec3Array,
+    inv_mass: FloatArray,
+    c_idx: Vec4iArray,
+    c_w: Vec4Array,
+    c_n: Vec3Array,
+    c_d: FloatArray,
+    c_h: FloatArray,
+    min_gap: float,
+    inelastic: int,
+    stiffness: float,
+    dt: float,
+    dt_x: float,
+    acting: IntArray,
+):
+    # per vertex, the contacts of this filter pass that act on it (dv_n > 0)
+    tid = wp.tid()
+    for k in range(tid, counts[CONTACTS], stride):
+        w, n, vr, dvn = filter_change(
+            k, x, v, inv_mass, c_idx, c_w, c_n, c_d, c_h, min_gap, inelastic, stiffness, dt, dt_x
+        )
+        if dvn > 0.0:
+            count_acting(c_idx[k], w, inv_mass, acting)
+
+
 @wp.kernel
 def filter_self_contact_velocities(
     stride: int,
@@ -725,7 +883,7 @@ def filter_self_contact_velocities(
     x: Vec3Array,
     v: Vec3Array,
     inv_mass: FloatArray,
-    splits: IntArray,
+    acting: IntArray,
     c_idx: Vec4iArray,
     c_w: Vec4Array,
     c_n: Vec3Array,
@@ -733,40 +891,26 @@ def filter_self_contact_velocities(
     c_h: FloatArray,
     min_gap: float,
     mu: float,
+    inelastic: int,
     stiffness: float,
     dt: float,
     dt_x: float,
     dv: Vec3Array,
 ):
-    # per contact at the step's end (x, v), d0 its gap at detection, h its thickness (h, or h_e for
-    # an edge pair), delta = h - d0: the normal relative velocity v_n = n . sum W v is raised to
-    #   max(0 [inelastic, d0 < h], min(0.1 delta / dt, dt k delta / m_eff) [repulsion, stiffness > 0],
-    #       v_n + (min_gap - d) / dt_x [the gap d = n . sum W x kept >= min_gap])
-    # (Bridson et al. 2002, Sec. 7.2), friction |dv_t| = min(mu dv_n, |v_t|); impulse J = dv /
-    # sum W^2 c / m; dv_k += W_k J / m_k (Jacobi, masses split over c contacts)
+    # per contact the normal change dv_n of filter_change where > 0, friction |dv_t| = min(mu dv_n, |v_t|);
+    # impulse J = dv / sum W^2 c / m; dv_k += W_k J / m_k (Jacobi, masses split over the c contacts acting
+    # on a vertex in this pass: count_filter_contacts)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        idx = c_idx[k]
-        w = c_w[k]
-        n = c_n[k]
-        vr = weighted_sum(v, idx, w)
-        vn = wp.dot(n, vr)
-        target = -1.0e30
-        delta = c_h[k] - c_d[k]
-        if delta > 0.0:
-            target = 0.0
-            if stiffness > 0.0:
-                full = float(0.0)
-                for j in range(4):
-                    full += w[j] * w[j] * inv_mass[idx[j]]
-                target = wp.min(0.1 * delta / dt, dt * stiffness * delta * full)
-        target = wp.max(target, vn + (min_gap - wp.dot(n, weighted_sum(x, idx, w))) / dt_x)
-        dvn = target - vn
+        w, n, vr, dvn = filter_change(
+            k, x, v, inv_mass, c_idx, c_w, c_n, c_d, c_h, min_gap, inelastic, stiffness, dt, dt_x
+        )
         if dvn > 0.0:
-            inv_m = split_inverse_mass(idx, w, inv_mass, splits)
+            idx = c_idx[k]
+            inv_m = split_inverse_mass(idx, w, inv_mass, acting)
             if inv_m > 0.0:
                 impulse = dvn * n
-                vt = vr - vn * n
+                vt = vr - wp.dot(n, vr) * n
                 lt = wp.length(vt)
                 if lt > 0.0:
                     impulse = impulse - (wp.min(mu * dvn, lt) / lt) * vt
@@ -776,10 +920,34 @@ def filter_self_contact_velocities(
 
 
 @wp.kernel
-def apply_self_contact_velocities(
-    dv: Vec3Array, dt_x: float, with_displacement: int, x: Vec3Array, v: Vec3Array, displacement: Vec3Array
+def eval_filter_inverse_mass(
+    x: Vec3Array, inv_mass: FloatArray, colliders: wp.array(dtype=Collider), margin: float, out: FloatArray
 ):
-    # v += dv; x += dt_x dv (and a position history d += dt_x dv); dv = 0
+    # 1/m, or 0 where the vertex lies within a collider's thickness + margin: the filter then moves the
+    # pair's other side only (a push into the collider would be undone by the collider's projection after
+    # it, and a layer pressed onto a cloth lying on the ground would close the gap step by step)
+    i = wp.tid()
+    w = inv_mass[i]
+    if w > 0.0:
+        for k in range(colliders.shape[0]):
+            band = colliders[k].thickness + margin
+            phi, n = collider_contact(colliders, k, x[i], band)
+            if phi < band:
+                w = 0.0
+    out[i] = w
+
+
+@wp.kernel
+def apply_self_contact_velocities(
+    dv: Vec3Array,
+    dt_x: float,
+    with_displacement: int,
+    x: Vec3Array,
+    v: Vec3Array,
+    displacement: Vec3Array,
+    acting: IntArray,
+):
+    # v += dv; x += dt_x dv (and a position history d += dt_x dv); dv = 0, the acting counts 0
     i = wp.tid()
     dvi = dv[i]
     v[i] = v[i] + dvi
@@ -787,6 +955,7 @@ def apply_self_contact_velocities(
     if with_displacement != 0:
         displacement[i] = displacement[i] + dt_x * dvi
     dv[i] = wp.vec3(0.0)
+    acting[i] = 0
 
 
 @wp.kernel
@@ -800,11 +969,131 @@ def count_unresolved_self_contacts(
     min_gap: float,
     inv_mass: FloatArray,
 ):
-    # contacts (with a free vertex) still closer than 0.99 min_gap along their normal after the filter
+    # contacts (with a free vertex) still closer than 0.99 min_gap after the filter (their gap found anew)
+    tid = wp.tid()
+    for k in range(tid, counts[CONTACTS], stride):
+        idx = c_idx[k]
+        free = inv_mass[idx[0]] + inv_mass[idx[1]] + inv_mass[idx[2]] + inv_mass[idx[3]]
+        w, n, d = contact_geometry(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]], c_w[k], c_n[k])
+        if free > 0.0 and d < 0.99 * min_gap:
+            wp.atomic_add(counts, UNRESOLVED, 1)
+
+
+# -- inside the solvers ------------------------------------------------------------------------------
+@wp.func
+def increment_violation(
+    k: int, x: Vec3Array, dp: Vec3Array, c_idx: Vec4iArray, c_w: Vec4Array, c_n: Vec3Array, c_h: FloatArray
+):
+    # contact k at p = x + dp: its W, n (found anew, contact_geometry) and C = d - h (< 0: violated)
+    idx = c_idx[k]
+    w, n, d = contact_geometry(
+        x[idx[0]] + dp[idx[0]], x[idx[1]] + dp[idx[1]], x[idx[2]] + dp[idx[2]], x[idx[3]] + dp[idx[3]], c_w[k], c_n[k]
+    )
+    return w, n, d - c_h[k]
+
+
+@wp.kernel
+def count_violated_contacts(
+    stride: int,
+    counts: IntArray,
+    x: Vec3Array,
+    dp: Vec3Array,
+    inv_mass: FloatArray,
+    c_idx: Vec4iArray,
+    c_w: Vec4Array,
+    c_n: Vec3Array,
+    c_h: FloatArray,
+    acting: IntArray,
+):
+    # per vertex, the contacts violated at p = x + dp (mass splitting over acting contacts)
+    tid = wp.tid()
+    for k in range(tid, counts[CONTACTS], stride):
+        w, n, c = increment_violation(k, x, dp, c_idx, c_w, c_n, c_h)
+        if c < 0.0:
+            count_acting(c_idx[k], w, inv_mass, acting)
+
+
+@wp.kernel
+def project_self_contact_increments(
+    stride: int,
+    counts: IntArray,
+    x: Vec3Array,
+    dp: Vec3Array,
+    inv_mass: FloatArray,
+    acting: IntArray,
+    c_idx: Vec4iArray,
+    c_w: Vec4Array,
+    c_n: Vec3Array,
+    c_h: FloatArray,
+    mu: float,
+    delta: Vec3Array,
+):
+    # a contact as a constraint on p = x + dp (position-based solvers, inside their iterations): where
+    # C = d - h < 0 (increment_violation), the correction J = (-C n - min(mu |C|, |u_t|) u_t / |u_t|) /
+    # sum W^2 c / m, u_t the relative tangential displacement (I - n n^T) sum W dp (Coulomb on positions),
+    # and delta_k += W_k J / m_k: equal and opposite, masses split over the c violated contacts of a vertex
+    # (count_violated_contacts; Jacobi: apply_increment_corrections)
+    tid = wp.tid()
+    for k in range(tid, counts[CONTACTS], stride):
+        w, n, c = increment_violation(k, x, dp, c_idx, c_w, c_n, c_h)
+        if c < 0.0:
+            idx = c_idx[k]
+            inv_m = split_inverse_mass(idx, w, inv_mass, acting)
+            if inv_m > 0.0:
+                u = weighted_sum(dp, idx, w)
+                corr = -c * n
+                ut = u - wp.dot(u, n) * n
+                lt = wp.length(ut)
+                if lt > 0.0:
+                    corr = corr - (wp.min(-mu * c, lt) / lt) * ut
+                corr = corr / inv_m
+                for j in range(4):
+                    wp.atomic_add(delta, idx[j], (w[j] * inv_mass[idx[j]]) * corr)
+
+
+@wp.kernel
+def apply_increment_corrections(delta: Vec3Array, dp: Vec3Array, acting: IntArray):
+    # dp += delta; delta = 0, the acting counts 0
+    i = wp.tid()
+    dp[i] = dp[i] + delta[i]
+    delta[i] = wp.vec3(0.0)
+    acting[i] = 0
+
+
+@wp.kernel
+def clear_self_contact_vertex_terms(force: Vec3Array, hessian: wp.array(dtype=wp.mat33)):
+    i = wp.tid()
+    force[i] = wp.vec3(0.0)
+    hessian[i] = wp.mat33(0.0)
+
+
+@wp.kernel
+def eval_self_contact_vertex_terms(
+    stride: int,
+    counts: IntArray,
+    x: Vec3Array,
+    dx: Vec3Array,
+    inv_mass: FloatArray,
+    c_idx: Vec4iArray,
+    c_w: Vec4Array,
+    c_n: Vec3Array,
+    c_h: FloatArray,
+    stiffness: float,
+    force: Vec3Array,
+    hessian: wp.array(dtype=wp.mat33),
+):
+    # the penalty energy k delta^2 / 2 of every contact with delta = h - n . sum W (x + dx) > 0, per free
+    # vertex a: its force f_a += k delta W_a n and Gauss-Newton Hessian H_a += k W_a^2 n n^T (vbd's local
+    # Newton step; equal and opposite, sum_a f_a = k delta n sum W = 0)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
         idx = c_idx[k]
         w = c_w[k]
-        free = inv_mass[idx[0]] + inv_mass[idx[1]] + inv_mass[idx[2]] + inv_mass[idx[3]]
-        if free > 0.0 and wp.dot(c_n[k], weighted_sum(x, idx, w)) < 0.99 * min_gap:
-            wp.atomic_add(counts, UNRESOLVED, 1)
+        n = c_n[k]
+        d = c_h[k] - wp.dot(n, weighted_sum(x, idx, w) + weighted_sum(dx, idx, w))
+        if d > 0.0:
+            nn = wp.outer(n, n)
+            for j in range(4):
+                if inv_mass[idx[j]] > 0.0:
+                    wp.atomic_add(force, idx[j], (stiffness * d * w[j]) * n)
+                    wp.atomic_add(hessian, idx[j], (stiffness * w[j] * w[j]) * nn)

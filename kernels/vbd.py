@@ -45,11 +45,14 @@ def solve_vertices_vbd(
     hinges: HingeAdjacency,
     h: float,
     colliders: Colliders,
+    self_force: wp.array(dtype=wp.vec3),
+    self_hessian: wp.array(dtype=wp.mat33),
     dx: wp.array(dtype=wp.vec3),
     contact: ContactState,
 ):
     # one colour: dx_i <- dx_i - H_i^-1 g_i  (module docstring; dihedral hinges add -f_i to g_i and their
-    # Gauss-Newton (k + kd/h) g g^T to H_i), then out of the colliders with friction (project_increment;
+    # Gauss-Newton (k + kd/h) g g^T to H_i; self-contacts (self_force non-empty) their penalty's force and
+    # Hessian, evaluated before the sweep), then out of the colliders with friction (project_increment;
     # no colliders: empty records), the contact's normal (0: none) and collider velocity kept; pinned
     # particles stay
     i = order[start + wp.tid()]
@@ -62,6 +65,9 @@ def solve_vertices_vbd(
         fb, Hb = vertex_hinge_terms(i, x, dx, hinges, h)
         g = g - fb
         H = H + Hb
+    if self_force.shape[0] > 0:
+        g = g - self_force[i]
+        H = H + self_hessian[i]
     d = dxi + newton_increment(g, H)
     if colliders.records.shape[0] > 0:
         Hinv = wp.mat33(0.0)

@@ -7,14 +7,14 @@ from typing import Callable
 
 import warp as wp
 
-from warpcloth.errors import WarpclothError, require_int, require_positive
+from warpcloth.errors import WarpclothError, require_int, require_non_negative, require_positive
 from warpcloth.integrators import make_integrator
 from warpcloth.io.frames import FrameSinks
 from warpcloth.io.meshio import load_mesh_collider
 from warpcloth.io.usd import usd_frames
 from warpcloth.run.harness import RunHarness, RunResult
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
-from warpcloth.run.params import SPRING_TYPES
+from warpcloth.run.params import BY_NAME, SPRING_TYPES
 from warpcloth.run.parse import ColliderSpec
 from warpcloth.sim.control import Control
 from warpcloth.sim.device import resolve_device
@@ -37,6 +37,9 @@ class ScenarioConfig:
     material, density, stretch, shear, bend_rigidity, compression, warp_angle, *_damping_ratio: the
     cloth in physical units (:func:`scenario_material`); with a material, mass, stiffness and damping
     do not apply (its density and stiffnesses give them).
+    self_collision: the cloth against itself on or off (None: the scenario's own,
+    :attr:`Scenario.self_collision`), with self_collision_thickness [m] and self_collision_friction
+    (None: the defaults of :mod:`warpcloth.run.params`); see :class:`~warpcloth.sim.self_collision.SelfCollision`.
     """
 
     rows: int = 32
@@ -64,6 +67,9 @@ class ScenarioConfig:
     pin_group: tuple | None = None
     pin_where: str | None = None
     quads: bool | None = None
+    self_collision: bool | None = None
+    self_collision_thickness: float | None = None
+    self_collision_friction: float | None = None
     # the material in physical units (docs/materials.md): a preset's name, "custom", a Material, or None /
     # "none" (per-spring stiffness and damping); the values below replace the material's (None: its own)
     material: object = None
@@ -141,6 +147,8 @@ class Scenario:
         kind: ``"grid"`` or ``"mesh"``: which cloth parameters apply (``--size`` or ``--mesh``); None:
             ``"mesh"`` where ``model`` is given. A ``model`` of kind ``"grid"`` builds its own cloth from
             rows, cols, width and height (the Cusick disc).
+        self_collision: whether the cloth collides with itself unless the configuration says
+            (scenes that fold: fold, drape, tablecloth).
     """
 
     name: str
@@ -153,6 +161,7 @@ class Scenario:
     plane: str = "vertical"
     model: Callable | None = None
     tracks: Callable | None = None
+    self_collision: bool = False
     measure: Callable | None = None
     kind: str | None = None
 
@@ -242,7 +251,30 @@ class Scenario:
             )
         if self.tracks is not None:
             control.pin_tracks = tuple(self.tracks(cfg, model))
-        return Simulator(model, integrator, control, dt=cfg.dt, strain_limit=cfg.strain_limit, use_graph=cfg.use_graph)
+        return Simulator(
+            model,
+            integrator,
+            control,
+            dt=cfg.dt,
+            strain_limit=cfg.strain_limit,
+            use_graph=cfg.use_graph,
+            self_collision=self.self_collision_settings(cfg),
+        )
+
+    def self_collision_settings(self, cfg: ScenarioConfig) -> dict | None:
+        """The :class:`~warpcloth.sim.self_collision.SelfCollision` settings of a run (None: off); a bad
+        thickness or friction is refused whether it is on or not."""
+        thickness, friction = cfg.self_collision_thickness, cfg.self_collision_friction
+        settings = {
+            "thickness": BY_NAME["self_collision_thickness"].default if thickness is None else thickness,
+            "friction": BY_NAME["self_collision_friction"].default if friction is None else friction,
+        }
+        require_positive("self_collision_thickness", settings["thickness"], "m")
+        require_non_negative("self_collision_friction", settings["friction"])
+        on = self.self_collision if cfg.self_collision is None else cfg.self_collision
+        if on not in (True, False):
+            raise WarpclothError(f"self_collision must be True, False or None (the scenario's), got {on!r:.80}")
+        return settings if on else None
 
     def harness(self, config: ScenarioConfig | None = None, **overrides) -> RunHarness:
         """A :class:`~warpcloth.run.harness.RunHarness` of a newly built simulator (``.sim``) with

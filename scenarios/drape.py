@@ -76,6 +76,7 @@ SCENARIO = Scenario(
     stop_at_equilibrium=True,
     plane="horizontal",
     measure=measure,
+    self_collision=True,
 )
 
 

@@ -70,6 +70,9 @@ is optional but ``cloth.mesh``; unknown keys are refused, naming the file and th
     frame_rate = 60                      # 1/s (old spelling: fps)
     device = "cpu"
     strain_limit = 0.1
+    self_collision = true                # or "on" / "off" (default off); its settings:
+    self_collision_thickness = 0.004     # m
+    self_collision_friction = 0.3
 
 Command-line flags override the file (``--integrator``, ``--dt``, ``--mesh``, ``--pin-group``...).
 Needs Python 3.11 (``tomllib``) or the ``tomli`` package.
@@ -131,10 +134,12 @@ TRACK_KEYS = PIN_KEYS | {
 }
 FORCE_KEYS = {"gravity", "drag", "wind", "gusts", "wind_coefficient"}
 GUST_KEYS = {"wind", "on", "off", "base"}
-#: [run] takes the run parameters of warpcloth.run.params that set up a run (``fps`` is the old
-#: spelling of ``frame_rate``) and the integrator's options as a table.
+#: [run] takes the run parameters of warpcloth.run.params that set up a run (self-collision among
+#: them; ``fps`` is the old spelling of ``frame_rate``) and the integrator's options as a table.
 RUN_PARAMS = tuple(
-    p.name for p in params_for("run") if p.group in ("run", "integrator") and (p.config_field or p.name == "dt")
+    p.name
+    for p in params_for("run")
+    if p.group in ("run", "integrator", "self_collision") and (p.config_field or p.name == "dt")
 )
 RUN_KEYS = {"integrator_options", "fps", *RUN_PARAMS}
 #: The largest scenario file read [bytes] (a scenario file is a page of settings; keyframes of a
@@ -375,6 +380,11 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     mesh_path = os.path.join(os.path.dirname(path), os.path.expanduser(mesh_path))
     prim = c.param("prim")
     mesh = load_mesh(mesh_path, prim)
+    # indices in the file number the mesh file's vertices; a mesh read without its loose vertices renumbers them
+    tracks = [
+        dict(t, indices=mesh.file_indices(t["indices"], f"{where}: tracks[{k}].indices")) if "indices" in t else t
+        for k, t in enumerate(tracks)
+    ]
     mass_mode = c.text("mass_mode", "area")
     if mass_mode not in MASS_MODES:
         raise c.fail("mass_mode", f"must be one of {', '.join(MASS_MODES)}, got {_shown(mass_mode)}")
@@ -406,6 +416,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     # the pins, the tracks, the forces and the colliders checked now, so a bad file fails before any run
     p = _Keys(where, pins, "pins")
     pin_indices, pin_groups, pin_where = p.indices("indices"), p.names("groups"), _predicate(p, "where")
+    pin_indices = mesh.file_indices(pin_indices, f"{where}: pins.indices")
     for k, t in enumerate(tracks):
         _track(t, mesh.vertices, mesh.groups, f"{where}: [[tracks]] #{k + 1}")
     f = _Keys(where, forces, "forces")

@@ -78,6 +78,7 @@ SCENARIO = Scenario(
     stop_at_equilibrium=True,
     plane="horizontal",
     measure=measure,
+    self_collision=True,
 )
 
 

@@ -142,3 +142,25 @@ def test_bench_implicit_repeats_print_medians_and_ratios(capsys):
     assert [r[1] for r in rows] == ["free", "bsr", "free", "bsr"]  # alternating
     (summary,) = [line for line in out.splitlines() if "bsr/free" in line]
     assert summary.startswith("   5x5") and "per step" in summary and "per CG iteration" in summary
+
+
+def test_bench_plot_tells_graph_replay_from_launches_and_keeps_its_legend_off_the_data(tmp_path):
+    # issue 30: the graph and no-graph points of one integrator had the same colour and marker (only a
+    # dashed line told them apart, invisible at one size) and the legend sat inside the axes
+    pytest.importorskip("matplotlib")
+    from warpcloth.lab.bench import bench_figure, plot
+
+    rows = [
+        dict(integrator="rk4", device="cpu", graph=g, particles=n, wall_s_per_sim_s=w)
+        for g, w in ((False, 2.0), (True, 0.5))
+        for n in (64, 256)
+    ]
+    fig = bench_figure(rows)
+    ax = fig.axes[0]
+    lines = {line.get_label(): line for line in ax.get_lines() if line.get_label().startswith("rk4")}
+    plain, graph = lines["rk4 cpu"], lines["rk4 cpu graph"]
+    assert plain.get_markerfacecolor() != graph.get_markerfacecolor()  # hollow against filled
+    fig.canvas.draw()
+    legend = (ax.get_legend() or fig.legends[0]).get_window_extent()
+    assert legend.x0 >= ax.get_window_extent().x1  # right of the plot, not over the data
+    assert plot(str(tmp_path / "b.png"), rows) and (tmp_path / "b.png").stat().st_size > 0

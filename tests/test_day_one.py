@@ -1,9 +1,11 @@
 """Day-one inputs: a cloth that starts inside a collider gets one warning line before the run
-(how many vertices, which collider), and an unstable run's summary always says why."""
+(how many vertices, which collider), an unstable run's summary always says why, and a mesh file
+with loose vertices is read without them (one note line)."""
 
 import numpy as np
+import pytest
 
-from warpcloth import Box, Capsule, Plane, Sphere
+from warpcloth import Box, Capsule, Plane, Sphere, WarpclothError
 from warpcloth.cli import main
 from warpcloth.sim.colliders import signed_distance
 from warpcloth.sim.contacts import starting_inside
@@ -56,3 +58,78 @@ def test_an_unstable_run_without_colliders_names_the_time_step(capsys):
     out, err = capsys.readouterr()
     assert code == 0 and "stable: NO (" in out and "start inside" not in err
     assert "the likeliest cause is the time step: dt = 0.01 s for explicit_euler" in out and "warpcloth max-dt" in out
+
+
+# -- loose vertices (faces deleted in a DCC): dropped with a one-line note, not refused ---------------
+LOOSE_OBJ = """# a quad whose third and sixth vertices lost their faces
+v 0 0 0
+v 1 0 0
+v 5 5 5
+v 1 1 0
+v 0 1 0
+v 7 7 7
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+g top
+f 1/1 2/2 4/3
+g rest
+f 1/1 4/3 5/4
+"""
+
+
+def test_loose_vertices_of_an_obj_are_dropped_with_one_note(tmp_path, capsys):
+    from warpcloth.io.meshio import load_mesh
+
+    path = tmp_path / "loose.obj"
+    path.write_text(LOOSE_OBJ)
+    mesh = load_mesh(str(path))
+    err = [line for line in capsys.readouterr().err.splitlines() if "CUDA" not in line]
+    assert (
+        len(err) == 1
+        and err[0].startswith("note: mesh ")
+        and "loose.obj: 2 vertices in no face dropped (3, 6," in err[0]
+    )
+    assert "use the other 4" in err[0]
+    assert mesh.vertices.tolist() == [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    # the triangles are the file's faces on the renumbered vertices, the groups follow
+    assert mesh.vertices[mesh.triangles].tolist() == [
+        [[0, 0, 0], [1, 0, 0], [1, 1, 0]],
+        [[0, 0, 0], [1, 1, 0], [0, 1, 0]],
+    ]
+    assert {k: v.tolist() for k, v in mesh.groups.items()} == {"top": [0, 1, 2], "rest": [0, 2, 3]}
+    assert mesh.loose.tolist() == [2, 5] and mesh.uv.shape == (2, 3, 2)
+    assert mesh.file_indices([4, 0]) == [3, 0]  # the file's vertex 4 (0-based) is the mesh's 3
+    with pytest.raises(WarpclothError, match="vertex 2 belongs to no face"):
+        mesh.file_indices([2])
+
+
+def test_a_mesh_run_and_a_scenario_file_use_the_mesh_without_its_loose_vertices(tmp_path, capsys):
+    from pxr import Usd, UsdGeom
+
+    (tmp_path / "loose.obj").write_text(LOOSE_OBJ)
+    usd = tmp_path / "out.usda"
+    code = main(
+        ["run", "mesh", "--mesh", str(tmp_path / "loose.obj"), "--pin", "y > 0.5", "--num-frames", "1"]
+        + ["--usd", str(usd)]
+    )
+    out, err = capsys.readouterr()
+    assert code == 0 and "(4 particles" in out and "2 vertices in no face dropped" in err
+    stage = Usd.Stage.Open(str(usd))  # kept: a prim of a stage that is gone is invalid
+    points = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth")).GetPointsAttr()
+    assert len(points.Get(points.GetTimeSamples()[0])) == 4
+    # a scenario file's indices number the file's vertices: 4 (0-based) is (0, 1, 0), the mesh's 3
+    scenario = tmp_path / "loose.toml"
+    scenario.write_text('[cloth]\nmesh = "loose.obj"\n[pins]\nindices = [4]\n[run]\nduration = 0.05\n')
+    from warpcloth.scenarios import get_scenario
+
+    sim = get_scenario(str(scenario)).build()
+    assert sim.model.host["q"][sim.model.pinned].tolist() == [[0.0, 1.0, 0.0]]
+    scenario.write_text('[cloth]\nmesh = "loose.obj"\n[pins]\nindices = [2]\n')
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:
+        raise SystemExit(main(["run", str(scenario)]))
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warpcloth:")]
+    assert exc.value.code == 2 and len(err) == 1
+    assert "loose.toml: pins.indices: vertex 2 belongs to no face" in err[0], err

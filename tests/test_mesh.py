@@ -389,6 +389,8 @@ def test_uvs_read_from_an_obj_go_to_the_exported_usd(tmp_path):
         ("y < 1e39", r"'1e39' is out of range"),
         ("1 / 0 < y", "'1 / 0' divides by zero"),
         ("y > 2 % 0", "'2 % 0' divides by zero"),
+        ("x / 0 > 1", "'x / 0' divides by zero"),  # was inf at x > 0: half the cloth pinned
+        ("y % (2 - 2) > 0", r"'y % \(2 - 2\)' divides by zero"),
         ("(-8) ** (1 / 3) < y", "is not a real number"),
         ("x" + " + x" * 4999 + " > 0", r"\(20,001 characters\) is longer than 1000 characters"),
         ("y > " + "1" * 100_000, r"\(100,004 characters\) is longer than 1000 characters"),
@@ -452,6 +454,23 @@ def test_a_usd_mesh_under_a_huge_scale_is_refused(tmp_path):
     with pytest.raises(WarpclothError, match="vertex 1 at .* is out of range"):
         build_mesh_cloth(v * 1e20, t)
     assert build_mesh_cloth(v * 1e3, t).particle_count == v.shape[0]
+
+
+def test_a_usd_face_index_out_of_range_is_one_line_even_with_vertex_uvs(tmp_path):
+    # faceVertexIndices past the points indexed the vertex-interpolated st first: an IndexError traceback
+    from pxr import Sdf, Usd, UsdGeom
+
+    path = tmp_path / "bad.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Cloth")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)])
+    mesh.CreateFaceVertexCountsAttr([3, 3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 0, 2, 9])
+    st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex)
+    st.Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    stage.GetRootLayer().Save()
+    with pytest.raises(WarpclothError, match=r"faceVertexIndices\[5\] = 9 is out of range: its points are 0..3"):
+        load_mesh(str(path))
 
 
 def test_meshes_get_an_up_front_memory_estimate(tmp_path, monkeypatch):

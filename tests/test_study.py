@@ -844,3 +844,27 @@ def test_an_interrupted_study_resumes_in_workers(tmp_path):
     assert len(keys) == len(set(keys)) == 6 + len(again)
     run_study(plan, tmp_path / "b")
     assert sorted(keys) == sorted(r["key"] for r in read_rows(tmp_path / "b" / "results.csv"))
+
+
+def test_the_max_dt_plot_draws_points_at_the_search_bound_hollow(tmp_path, monkeypatch):
+    # issue 30: a max stable dt that is the search's bound (one frame) is a lower bound, not a found
+    # limit: hollow, as the legend says; found limits filled
+    pytest.importorskip("matplotlib")
+    import matplotlib.pyplot as plt
+
+    from warpcloth.lab.report import Data, plots
+
+    rows = []
+    for n in (8, 12):
+        rows += synthetic_group("xpbd", n, error=0.004, ms=0.5)  # dt = one frame: the bound
+        rows += synthetic_group("explicit_euler", n, error=0.004, ms=0.5, k=16.0)
+    for r in rows:
+        r["search_bounded"] = r["measurement"] == "max_stable_dt" and r["integrator"] == "xpbd"
+    figures = []
+    monkeypatch.setattr(plt, "close", lambda fig=None: figures.append(fig))
+    plots(str(tmp_path), Data(rows), 2.0, 0.01)
+    fig = next(f for f in figures if f is not None and f.axes[0].get_title().startswith("max stable dt"))
+    ax = fig.axes[0]
+    hollow = [line for line in ax.get_lines() if line.get_markerfacecolor() == "white" and len(line.get_xdata())]
+    assert [list(line.get_xdata()) for line in hollow] == [[64, 144]]  # xpbd's two points, not explicit Euler's
+    assert "hollow: stable at the bound" in [t.get_text() for t in fig.legends[0].get_texts()]

@@ -19,6 +19,7 @@ from warpcloth.integrators.strain_limit import StrainLimiter
 from warpcloth.sim.control import Control
 from warpcloth.sim.model import ClothModel
 from warpcloth.sim.pins import apply_pins
+from warpcloth.sim.self_collision import SelfCollision
 
 #: Most steps in one captured graph: :meth:`Simulator.simulate` replays a graph of this many steps
 #: as often as it fits and one of the rest (capturing a long call whole, 800 steps of projective's
@@ -49,6 +50,9 @@ class Simulator:
             integrator support it. Results are bit-identical either way.
         strain_limit: Provot's deformation constraint tau (> 0, e.g. 0.1 for 10 %) applied after
             every step of a force-based integrator (:mod:`warpcloth.integrators.strain_limit`); None: off.
+        self_collision: the cloth against itself (:class:`~warpcloth.sim.self_collision.SelfCollision`
+            bound to ``model``, or a dict of its keyword arguments, e.g. ``{"thickness": 0.005,
+            "friction": 0.3}``); None: off (:meth:`set_self_collision`; docs/self-collision.md).
     """
 
     def __init__(
@@ -59,6 +63,7 @@ class Simulator:
         dt: float | None = None,
         use_graph: bool | None = None,
         strain_limit: float | None = None,
+        self_collision: SelfCollision | dict | None = None,
     ):
         if not isinstance(model, ClothModel):
             raise WarpclothError(
@@ -76,6 +81,7 @@ class Simulator:
         self._pins_version = 0
         self._bind_pin_tracks(self.control.pin_tracks)
         self.strain_limiter = StrainLimiter(model, strain_limit) if strain_limit is not None else None
+        self.self_collision: SelfCollision | None = self._bind_self_collision(self_collision)
         self.integrator: Integrator | None = None
         self._dt: float | None = None
         self._use_graph = use_graph
@@ -128,6 +134,7 @@ class Simulator:
             dt = self._dt
         self._rebase_clock()
         self._dt = require_positive("dt", dt, "s")
+        integrator.set_self_collision(self.self_collision)
         self.integrator = integrator
         self._needs_begin = True
         self._graphs.clear()
@@ -150,10 +157,36 @@ class Simulator:
         self.model_version += 1  # what measures the old model (a run harness's probe) rebinds
         if self.strain_limiter is not None:
             self.strain_limiter = StrainLimiter(model, self.strain_limiter.tau)
+        if self.self_collision is not None:
+            self.self_collision = self.self_collision.rebind(model)
         self.integrator.bind(model)
+        self.integrator.set_self_collision(self.self_collision)
         self._needs_begin = True
         self._graphs.clear()
         self._warmed = False
+
+    def set_self_collision(self, self_collision: SelfCollision | dict | None) -> None:
+        """Self-collision from the next step: a :class:`~warpcloth.sim.self_collision.SelfCollision`
+        bound to the model, a dict of its keyword arguments, or None (off)."""
+        self.self_collision = self._bind_self_collision(self_collision)
+        self.integrator.set_self_collision(self.self_collision)
+        self._needs_begin = True
+        self._graphs.clear()
+        self._warmed = False
+        self.step_version += 1
+
+    def _bind_self_collision(self, value) -> SelfCollision | None:
+        if value is None or value is False:
+            return None
+        if isinstance(value, dict):
+            return SelfCollision(self.model, **value)
+        if not isinstance(value, SelfCollision):
+            raise WarpclothError(
+                f"self_collision must be a SelfCollision, a dict of its settings or None, got {value!r:.80}"
+            )
+        if value.model is not self.model:
+            raise WarpclothError("self_collision is bound to another model: make it with this simulator's model")
+        return value
 
     def set_pin_track(self, *tracks) -> None:
         """Move pinned particles along :class:`~warpcloth.sim.pins.PinTrack` s from the next step
@@ -300,12 +333,30 @@ class Simulator:
         if drive_steps is not None:
             self.control.upload_drives(self._dt, drive_steps, self.sim_time)
         apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # pins on their track at t
+        if self.self_collision is not None:
+            self.self_collision.invalidate()  # the state may have changed from outside: rebuild the candidates
         self.integrator.begin(self.state, self.control, self._dt)
         self._needs_begin = False
 
     def _launch_step(self) -> None:
         self.control.update()
-        self.integrator.step(self.state, self.control, self._dt)
+        sc, integrator, state = self.self_collision, self.integrator, self.state
+        if sc is not None:  # the step's self-contacts, at its start
+            sc.detect(state.particle_q, state.particle_qd, self._dt)
+        integrator.step(state, self.control, self._dt)
+        if (
+            sc is not None
+        ):  # Bridson's velocity filter (only its last guarantee where the solve held them), colliders, pins
+            sc.filter_velocities(
+                state.particle_q,
+                state.particle_qd,
+                self._dt,
+                integrator.velocity_position_weight,
+                integrator.position_history(),
+                repulsion=integrator.self_contact_filter == "full",
+                inelastic=integrator.self_contact_filter != "gap",
+                colliders=self.control.collision,
+            )
         if self.control.collision is not None and not self.integrator.collides_in_solver:
             self.control.collision.project_velocity(
                 self.model,
@@ -313,6 +364,11 @@ class Simulator:
                 self._dt,
                 self.integrator.position_history(),
                 self.integrator.velocity_position_weight,
+            )
+        edges = self.control.collision.edges(self.model) if self.control.collision is not None else None
+        if edges is not None:  # box and mesh edges against the cloth (after the solvers that hold them too)
+            edges.project(
+                self.state, self._dt, self.integrator.position_history(), self.integrator.velocity_position_weight
             )
         if self.strain_limiter is not None:
             self.strain_limiter.apply(self.state, self._dt)
@@ -374,6 +430,9 @@ class Simulator:
         self.control.update()
         wp.synchronize_device(self.model.device)
         self.integrator.reset_stats()
+        if self.self_collision is not None:  # the warm-up's step counts nothing
+            self.self_collision.invalidate()
+            self.self_collision.reset_stats()
         self._needs_begin = True
         self._warmed = True
         return time.perf_counter() - t0

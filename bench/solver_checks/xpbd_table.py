@@ -4,6 +4,7 @@
 steps after a warm-up of as many (one run each: +-30 % on a loaded machine).
 
     python bench/solver_checks/xpbd_table.py --sizes 24 32 --configs 10x4 4x16 2x32 1x64 1x128
+    python bench/solver_checks/xpbd_table.py --integrator pbd --sizes 24 --configs 10x1 10x4 10x8 10x16 20x4 40x4
 """
 
 import argparse
@@ -23,14 +24,18 @@ def main():
     ap.add_argument("--configs", nargs="*", default=["10x4", "1x64"], help="ITERATIONSxSUBSTEPS")
     ap.add_argument("--duration", type=float, default=6.0)
     ap.add_argument("--timing-steps", type=int, default=20)
+    ap.add_argument("--integrator", default="xpbd", choices=["xpbd", "pbd"])
     a = ap.parse_args()
-    print(f"# xpbd static sag error against float64 after {a.duration:g} s, scenario sheet, dt 1/60 s")
+    print(f"# {a.integrator} static sag error against float64 after {a.duration:g} s, scenario sheet, dt 1/60 s")
     for n in a.sizes:
         ref = rest = None
         for c in a.configs:
             iterations, substeps = (int(v) for v in c.split("x"))
             sim = get_scenario("sheet").build(
-                rows=n, cols=n, integrator="xpbd", integrator_options=dict(iterations=iterations, substeps=substeps)
+                rows=n,
+                cols=n,
+                integrator=a.integrator,
+                integrator_options=dict(iterations=iterations, substeps=substeps),
             )
             if ref is None:
                 eq = static_equilibrium(sim.model, sim.control)
@@ -47,8 +52,8 @@ def main():
             sag = float(np.max(np.linalg.norm(x - rest, axis=1)))
             v = float(np.abs(sim.state.particle_qd.numpy()).max())
             print(
-                f"xpbd {n}^2 {c:7s}: sag error {100 * (sag - ref) / ref:+8.2f} %  ({sag * 1e3:.4f} vs {ref * 1e3:.4f} "
-                f"mm, max|v| {v:.1e})  {ms:7.2f} ms/step",
+                f"{a.integrator} {n}^2 {c:7s}: sag error {100 * (sag - ref) / ref:+8.2f} %  "
+                f"({sag * 1e3:.4f} vs {ref * 1e3:.4f} mm, max|v| {v:.1e})  {ms:7.2f} ms/step",
                 flush=True,
             )
 

@@ -9,6 +9,7 @@ one module each.
     warpcloth max-dt SCENARIO --integrator NAME [--rows N --cols N --stiffness KS ...] [--precision 0.02]
     warpcloth calibrate MATERIAL --target bending_length=0.021 [--target drape_coefficient=0.6] [--fit bend,...]
     warpcloth study --profile quick --out DIR [--workers N] [--resume | --overwrite] [--estimate]
+    warpcloth check-intersections FILE.usd [--frames] [--json]
 
 Bad input prints one line, ``warpcloth: error: ...``, and exits with status 2; an output that
 cannot be written during the work exits 74, SIGTERM 143, Ctrl-C 130, a closed stdout 141
@@ -47,6 +48,11 @@ COMMANDS = {
     "study": (
         "warpcloth.cli.study",
         "the accuracy-aware study: stable/accurate dt, cost, real-time frontier, report (docs/study.md)",
+        True,
+    ),
+    "check-intersections": (
+        "warpcloth.cli.intersections",
+        "count self-intersections and collider edges through the cloth at every frame of a USD file",
         True,
     ),
 }

@@ -81,6 +81,12 @@ class Integrator:
     #: True when the integrator projects collision constraints inside its own solver loop; else
     #: the Simulator projects contacts after each step (:mod:`warpcloth.sim.colliders`).
     collides_in_solver: ClassVar[bool] = False
+    #: What the Simulator's velocity filter after a step does with self-contacts
+    #: (:meth:`SelfCollision.filter_velocities <warpcloth.sim.self_collision.SelfCollision.filter_velocities>`):
+    #: ``"full"``: the repulsion, inelastic impulses and the min-gap pass (a scheme that does nothing
+    #: with them itself); ``"inelastic"``: no repulsion (the scheme has it in its solve: implicit_euler);
+    #: ``"gap"``: the min-gap pass only (the scheme holds them as constraints: pbd, xpbd, projective, vbd).
+    self_contact_filter: ClassVar[str] = "full"
     #: How a velocity change during a step moves x by the step's end, per unit dt (1 where
     #: x += dt v_new; 1/2 for Runge-Kutta schemes): friction corrects x with it.
     velocity_position_weight: ClassVar[float] = 1.0
@@ -101,6 +107,9 @@ class Integrator:
         for name, opt in known.items():
             setattr(self, name, opt.parse(options[name]) if options.get(name) is not None else opt.default)
         self.model = None
+        #: The :class:`~warpcloth.sim.self_collision.SelfCollision` of the model, or None (off): its
+        #: contacts are detected by the Simulator before each step; :meth:`set_self_collision` sets it.
+        self.self_collision = None
 
     def option_values(self) -> dict:
         """The value of every option of this integrator."""
@@ -114,6 +123,10 @@ class Integrator:
             with wp.ScopedDevice(model.device):
                 self._allocate(model)
         return self
+
+    def set_self_collision(self, self_collision) -> None:
+        """Use ``self_collision`` (bound to this integrator's model; None: off) from the next step."""
+        self.self_collision = self_collision
 
     def capturable_on(self, device) -> bool:
         """Whether a step on ``device`` can be captured with ``wp.ScopedCapture`` and replayed: True

@@ -85,6 +85,7 @@ from warpcloth.integrators.system import JACOBIANS, MATRICES, PRECONDITIONERS, I
 from warpcloth.kernels import implicit as ik
 from warpcloth.kernels import linalg as lk
 from warpcloth.kernels import pins as pk
+from warpcloth.kernels import self_contact as sk
 from warpcloth.sim.pins import has_pin_tracks
 
 
@@ -107,6 +108,7 @@ class ImplicitEuler(Integrator):
 
     name = "implicit_euler"
     force_evals_per_step = 1
+    self_contact_filter = "inelastic"  # the repulsion is in the solve
     options = (
         Option("cg_tol", float, 1.0e-3, "CG relative residual tolerance |b - A dv| / |b|", _check_tol),
         Option("cg_max_iter", int, 1000, "CG iteration cap per step", _check_max_iter),
@@ -233,7 +235,46 @@ class ImplicitEuler(Integrator):
         the host."""
         return wp.get_device(device).is_cuda and wp.is_conditional_graph_supported()
 
+    def set_self_collision(self, self_collision) -> None:
+        """Self-contacts in the solve: their repulsion k delta n in b and its Jacobian h^2 k W W^T n n^T
+        in A (a product over the contacts after every product with A, filtered by the colliders'
+        constraints like A; the preconditioner without it)."""
+        super().set_self_collision(self_collision)
+        if self.model is None:
+            return
+        self.system.extra_product = self._self_contact_product if self_collision is not None else None
+        if self.pcg is not None:
+            self.pcg.reset()  # its captured chunks hold the products
+
+    def _self_contact_product(self, y, z, alpha: float, filtered: bool) -> None:
+        """z += alpha h^2 k C y (C: the contacts' blocks W_a W_b n n^T; S C S where ``filtered``)."""
+        sc, m = self.self_collision, self.model
+        wp.launch(
+            ik.add_self_contact_product,
+            dim=m.particle_count,
+            inputs=[
+                m.particle_count,
+                sc.counts,
+                sk.CONTACTS,
+                self._x,
+                m.particle_inv_mass,
+                sc.contact_indices,
+                sc.contact_weights,
+                sc.contact_normals,
+                sc.contact_thickness,
+                self.contact_mode,
+                self.contact_normal,
+                int(filtered),
+                float(alpha) * self.system.h * self.system.h * sc.stiffness,
+                y,
+            ],
+            outputs=[z],
+            device=m.device,
+        )
+
     def begin(self, state, control, dt):
+        if self.self_collision is not None and self.pcg is not None:
+            self.pcg.reset()  # the captured chunks' self-contact product holds h^2 k
         self.dv.zero_()
         self.contact_mode.zero_()  # no contact history across an outside change of the state
         self.contact_impulse.zero_()
@@ -247,6 +288,7 @@ class ImplicitEuler(Integrator):
     def step(self, state, control, dt):
         m, h = self.model, float(dt)
         x, v, f = state.particle_q, state.particle_qd, state.particle_f
+        self._x = x  # the positions the self-contact product reads (the step's start)
         eval_forces(m, x, v, control, f)
         s = self.system
         s.assemble(x, h, float(control.drag_rate))
@@ -268,6 +310,28 @@ class ImplicitEuler(Integrator):
                 device=m.device,
             )
             s.add_hinge_product(self.pin_dv, self.b, -h * h, -h, 0)  # and the hinges' -(h^2 k + h kd) g (g . dv_pin)
+        sc = self.self_collision
+        if sc is not None:  # self-contacts' repulsion and h^2 df/dx v in b
+            wp.launch(
+                ik.add_self_contact_rhs,
+                dim=m.particle_count,
+                inputs=[
+                    m.particle_count,
+                    sc.counts,
+                    sk.CONTACTS,
+                    x,
+                    v,
+                    m.particle_inv_mass,
+                    sc.contact_indices,
+                    sc.contact_weights,
+                    sc.contact_normals,
+                    sc.contact_thickness,
+                    sc.stiffness,
+                    h,
+                ],
+                outputs=[self.b],
+                device=m.device,
+            )
         contacts = self.matrix == "bsr" and control.collision is not None and len(control.collision.colliders) > 0
         if contacts:
             self._filter_contacts(control, x, v, f, h)

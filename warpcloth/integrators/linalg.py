@@ -108,6 +108,10 @@ class DevicePCG:
         self._capture = self.device.is_cpu and (major, minor) >= (1, 19)
         self._graphs: dict = {}
 
+    def reset(self) -> None:
+        """Capture the start and the chunk anew at the next solve (after ``apply_A`` changed what it launches)."""
+        self._graphs.clear()
+
     def _dot(self, a, b, slot: int) -> None:
         """scalars[slot] = a . b (``a`` None: of the terms already in ``sums.terms``), summed in a fixed order."""
         if a is not None:

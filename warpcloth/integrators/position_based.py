@@ -64,6 +64,7 @@ class PositionBasedIntegrator(Integrator):
 
     force_based: ClassVar[bool] = False
     collides_in_solver: ClassVar[bool] = True
+    self_contact_filter: ClassVar[str] = "gap"  # contacts are constraints of its iterations
     force_evals_per_step: ClassVar[int] = 1
     #: Position-based steps are stable at any dt; one 60 Hz frame is the default.
     default_dt_cap: ClassVar[float] = 1.0 / 60.0
@@ -164,19 +165,25 @@ class PositionBasedIntegrator(Integrator):
         return self._hinge_sweep
 
     def solve(self, state, control, sweep) -> None:
-        """``iterations`` Gauss-Seidel sweeps over the springs, each followed by the collision
-        constraints (Müller 2007, Alg. 1 line 13), then friction from the accumulated normal
-        corrections (:mod:`warpcloth.sim.colliders`)."""
+        """``iterations`` Gauss-Seidel sweeps over the springs, each followed by the self-contact
+        constraints (with self-collision) and the collision constraints (Müller 2007, Alg. 1 line 13),
+        then friction from the accumulated normal corrections (:mod:`warpcloth.sim.colliders`)."""
         contacts = control.collision
         if contacts is not None:
             self.contact_normal.zero_()
+        self_contacts = self.self_collision
+        edges = contacts.edges(self.model) if contacts is not None else None
         for _ in range(self.iterations):
             for color in sweep:
                 color.launch()
+            if self_contacts is not None:  # then the colliders: they win
+                self_contacts.project_increment(state.particle_q, self.particle_dp)
             if contacts is not None:
                 contacts.project_displacement(
                     self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=False
                 )
+            if edges is not None:  # box and mesh edges against the cloth's edges and triangles
+                edges.project_increment(state.particle_q, self.particle_dp)
         if contacts is not None:
             contacts.project_displacement(
                 self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=True

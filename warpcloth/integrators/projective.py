@@ -57,6 +57,7 @@ class Projective(IncrementSolver):
     """Projective dynamics (Liu et al. 2013): local spring projection, global constant-matrix solve."""
 
     name: ClassVar[str] = "projective"
+    self_contact_filter: ClassVar[str] = "gap"  # contacts are constraints of its iterations
     options = (
         Option("pd_iterations", int, 10, "local/global iterations per time step (>= 1)", check=at_least_one),
         Option(
@@ -127,8 +128,13 @@ class Projective(IncrementSolver):
             ):  # every global solve: the first one only let the sheet gain energy again
                 self.translation_step()
             self.global_step()
+            if self.self_collision is not None:  # self-contacts as constraints on dx, then the colliders (they win)
+                self.self_collision.project_increment(x, self.dx)
             if contacts is not None:
                 self.solve_contacts(x, h, contacts)
+                edges = control.collision.edges(self.model)
+                if edges is not None:  # box and mesh edges against the cloth's edges and triangles
+                    edges.project_increment(x, self.dx)
         self.finish(state, control, h, contacts)
 
     def solve_contacts(self, x, h: float, contacts) -> None:

@@ -130,6 +130,9 @@ class ImplicitSystem:
         #: A as a LinearOperator (assembled or matrix-free, as ``matrix`` says).
         self.A_op = LinearOperator((3 * n, 3 * n), wp.mat33, wp.get_device(device), matvec)
         self._assembled_for = None
+        #: A further symmetric term of A (implicit Euler's self-contacts), called as
+        #: ``extra_product(x, z, alpha, filtered)`` (z += alpha C x) after every product; None: none.
+        self.extra_product = None
 
     def _allocate_hinges(self, model, offsets, columns) -> None:
         """The hinges' adjacency (vertex -> (hinge, slot)), their blocks' places in A (BSR), and the
@@ -357,6 +360,7 @@ class ImplicitSystem:
         issue 26: with the stored A_ii the float32 diagonal m I + sum B_s lost the mass on fine
         sheets, and dv differed from matrix="free" by 2e-3 of |dv| at 256^2)."""
         m = self.model
+        filtered = values is None and row_part is None  # the solve's A (after the colliders' filter)
         values = self.A.values if values is None else values
         row_part = self.row_part_solve if row_part is None else row_part
         wp.launch(
@@ -366,6 +370,8 @@ class ImplicitSystem:
             outputs=[z],
             device=m.device,
         )
+        if self.extra_product is not None:
+            self.extra_product(x, z, alpha, filtered)
 
     def matvec(self, x, y, z, alpha, beta) -> None:
         """z = alpha A x + beta y without assembling A (the LinearOperator's matvec)."""
@@ -378,6 +384,8 @@ class ImplicitSystem:
             device=m.device,
         )
         self.add_hinge_product(x, z, alpha * self.h * self.h, alpha * self.h, 1)  # + the hinges' (h^2 k + h kd) g g^T x
+        if self.extra_product is not None:
+            self.extra_product(x, z, alpha, True)
 
     def apply_block_jacobi(self, x, y, z, alpha, beta) -> None:
         """z = alpha P x + beta y with P = blockdiag(A_ii^-1) (the block-Jacobi LinearOperator)."""

@@ -114,6 +114,7 @@ class VBD(IncrementSolver):
     """Vertex Block Descent (Chen et al. 2024): per-vertex 3 x 3 Newton, Gauss-Seidel by colour."""
 
     name: ClassVar[str] = "vbd"
+    self_contact_filter: ClassVar[str] = "gap"  # contacts are constraints of its iterations
     options = (
         # 4 with a multigrid correction before each sweep (grid models): the 128 x 128 sheet's sag
         # within 0.5 % of the float64 equilibrium after 0.5 s and the 128 x 128 flag stable for 3 s
@@ -170,6 +171,8 @@ class VBD(IncrementSolver):
         self.vertex_order = wp.array(self.coloring.order, dtype=int)
         self.dx_prev1, self.dx_prev2 = scratch_like(model, 2)  # the Chebyshev history
         self._sweep_key, self._sweep = None, []
+        # no self-contacts: empty per-vertex terms (the sweep kernel skips them)
+        self.no_self_force, self.no_self_hessian = wp.zeros(0, dtype=wp.vec3), wp.zeros(0, dtype=wp.mat33)
         self.hessian = self.multigrid = None
         if self.vbd_multigrid_every > 0 and grid_structure_reason(model) is None:
             # h^2 times the potential's Hessian is implicit Euler's A = M + h D + h^2 K (drag aside)
@@ -196,6 +199,7 @@ class VBD(IncrementSolver):
         x = state.particle_q
         contacts = self.predict(state, control, h)
         sweep = self.color_sweep(x, h, contacts)
+        edges = control.collision.edges(m) if contacts is not None else None
         if contacts is None and self.vbd_rigid_mode:
             self.contact_state.zero_()  # none held (the rigid mode reads it; colliders may have been removed)
         accelerate = self.vbd_chebyshev_rho > 0.0
@@ -219,8 +223,14 @@ class VBD(IncrementSolver):
             # before the first one too: a first sweep from a guess whose mean lags leaves a shape error
             if self.vbd_rigid_mode == 2 or (self.vbd_rigid_mode == 1 and (contacts is not None or it == 0)):
                 self.rigid_correction(x, h)
+            if self.self_collision is not None:  # the self-contacts' penalty at this sweep's start
+                self.self_collision.eval_vertex_terms(x, self.dx)
             for color in sweep:
                 color.launch()
+            if self.self_collision is not None:  # and as constraints on dx (the next sweep holds the colliders)
+                self.self_collision.project_increment(x, self.dx)
+            if edges is not None:  # box and mesh edges against the cloth's edges and triangles
+                edges.project_increment(x, self.dx)
             if self.vbd_rigid_mode >= 1 and contacts is None:
                 self.rigid_correction(x, h)
             if accelerate:
@@ -307,14 +317,29 @@ class VBD(IncrementSolver):
         the colliders change (cuts the Python cost of colours x iterations launches; a recorded
         launch keeps the struct arguments' values of its recording)."""
         colliders = contacts if contacts is not None else self.no_colliders
-        key = (x.ptr, h, colliders.records.ptr, colliders.box.ptr, colliders.plane_count)
+        sc = self.self_collision
+        force, hessian = (
+            (sc.vertex_force, sc.vertex_hessian) if sc is not None else (self.no_self_force, self.no_self_hessian)
+        )
+        key = (x.ptr, h, colliders.records.ptr, colliders.box.ptr, colliders.plane_count, force.ptr)
         if key != self._sweep_key:
             m = self.model
             self._sweep = [
                 wp.launch(
                     vk.solve_vertices_vbd,
                     dim=count,
-                    inputs=[self.vertex_order, start, x, self.inertia, self.springs, self.hinges, h, colliders],
+                    inputs=[
+                        self.vertex_order,
+                        start,
+                        x,
+                        self.inertia,
+                        self.springs,
+                        self.hinges,
+                        h,
+                        colliders,
+                        force,
+                        hessian,
+                    ],
                     outputs=[self.dx, self.contact],
                     device=m.device,
                     record_cmd=True,

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import io
 import os
+import sys
 
 import numpy as np
 
@@ -27,7 +28,7 @@ from warpcloth.errors import WarpclothError, require
 from warpcloth.io.files import check_input_file, read_input
 from warpcloth.sim.colliders import MeshCollider
 from warpcloth.sim.device import require_memory
-from warpcloth.sim.mesh import TriangleMesh, check_mesh
+from warpcloth.sim.mesh import TriangleMesh, check_mesh, drop_loose_vertices
 
 MESH_FORMATS = {".obj": "OBJ", ".usd": "USD", ".usda": "USD", ".usdc": "USD", ".usdz": "USD"}
 #: The largest mesh file (and USD layer) read [bytes].
@@ -41,7 +42,10 @@ READ_BYTES_PER_FILE_BYTE = 16
 
 
 def load_mesh(path: str, prim: str | None = None) -> TriangleMesh:
-    """Read a triangle mesh from an OBJ or USD file (checked with :func:`~warpcloth.sim.mesh.check_mesh`)."""
+    """Read a triangle mesh from an OBJ or USD file (checked with :func:`~warpcloth.sim.mesh.check_mesh`).
+    Vertices in no face are dropped with a one-line note on stderr (:attr:`TriangleMesh.loose
+    <warpcloth.sim.mesh.TriangleMesh.loose>`; :meth:`~warpcloth.sim.mesh.TriangleMesh.file_indices` maps
+    the file's vertex numbers to the mesh's)."""
     try:
         path = os.fspath(path)
     except TypeError:
@@ -60,8 +64,17 @@ def load_mesh(path: str, prim: str | None = None) -> TriangleMesh:
         raise WarpclothError(f"a prim path ({prim!r}) applies to USD files only, not {path!r}")
     size = os.stat(path).st_size
     require_memory(f"reading mesh file {path!r} ({size:,} bytes)", READ_BYTES_PER_FILE_BYTE * size, "cpu")
-    mesh = read_obj(path) if ext == ".obj" else read_usd(path, prim)
+    mesh = drop_loose_vertices(read_obj(path) if ext == ".obj" else read_usd(path, prim))
     check_mesh(mesh.vertices, mesh.triangles, what=f"mesh {path}")
+    if mesh.loose.size:  # faces deleted in a DCC leave their vertices: dropped, said in one line
+        first = 1 if ext == ".obj" else 0  # numbered as the file numbers them
+        shown = ", ".join(str(int(k) + first) for k in mesh.loose[:5]) + (", ..." if mesh.loose.size > 5 else "")
+        count = f"{mesh.loose.size} vertices" if mesh.loose.size > 1 else "1 vertex"
+        print(
+            f"note: mesh {path}: {count} in no face dropped ({shown}, numbered as in the file); "
+            f"warpcloth and its outputs use the other {mesh.vertices.shape[0]}",
+            file=sys.stderr,
+        )
     return mesh
 
 
@@ -302,6 +315,12 @@ def _read_usd_mesh(stage, path: str, prim: str | None) -> TriangleMesh:
     if np.any(counts < 3):
         raise WarpclothError(
             f"USD mesh {p.GetPath()}: face {int(np.flatnonzero(counts < 3)[0])} has fewer than 3 vertices"
+        )
+    out = np.flatnonzero((indices < 0) | (indices >= local.shape[0]))
+    if out.size:  # before they index the points or a vertex primvar
+        raise WarpclothError(
+            f"USD mesh {p.GetPath()} in {path!r}: faceVertexIndices[{int(out[0])}] = {int(indices[out[0]])} is out of "
+            f"range: its points are 0..{local.shape[0] - 1}"
         )
     face_start = np.concatenate([[0], np.cumsum(counts)[:-1]])
     corner_of_tri, face_of_tri = [], []

@@ -224,19 +224,12 @@ def write_csv(path: str, rows: list[dict]) -> None:
     write_atomic(path, csv_text(rows), "benchmark CSV")
 
 
-def plot(path: str, rows: list[dict]) -> bool:
-    try:
-        import matplotlib
+def bench_figure(rows: list[dict]):
+    """The figure of :func:`plot`: wall seconds per simulated second against particles, one colour
+    per integrator, a circle per CPU and a square per CUDA series, filled where the frames were
+    replayed as graphs and hollow where launched one by one; the legend right of the axes."""
+    import matplotlib.pyplot as plt
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print(
-            "bench: --plot needs matplotlib (pip install 'warpcloth[plot]', from a clone pip install -e '.[plot]'); "
-            "no plot written",
-            file=sys.stderr,
-        )
-        return False
     fig, ax = plt.subplots(figsize=(8, 5.5))
     keys = sorted({(r["integrator"], r["device"], r["graph"]) for r in rows})
     integrators = sorted({k[0] for k in keys})
@@ -251,6 +244,7 @@ def plot(path: str, rows: list[dict]) -> bool:
             [r["wall_s_per_sim_s"] for r in sel],
             color=colors[integ],
             marker="o" if dev == "cpu" else "s",
+            markerfacecolor=colors[integ] if graph else "none",
             linestyle="-" if graph else "--",
             label=f"{integ} {dev}{' graph' if graph else ''}",
         )
@@ -262,17 +256,43 @@ def plot(path: str, rows: list[dict]) -> bool:
     ax.set_ylabel("wall seconds per simulated second (at each integrator's default dt)")
     ax.set_title("warpcloth: cost per simulated second vs particle count")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(
+        fontsize=7,
+        loc="center left",
+        bbox_to_anchor=(1.02, 0.5),
+        frameon=False,
+        title="filled: graph replay\nhollow: launches",
+        title_fontsize=7,
+    )
     fig.tight_layout()
+    return fig
+
+
+def plot(path: str, rows: list[dict]) -> bool:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print(
+            "bench: --plot needs matplotlib (pip install 'warpcloth[plot]', from a clone pip install -e '.[plot]'); "
+            "no plot written",
+            file=sys.stderr,
+        )
+        return False
+    fig = bench_figure(rows)
     out = AtomicFile(path, "plot", mode="wb")
     try:
-        fig.savefig(out.fh, dpi=120, format=os.path.splitext(path)[1].lstrip(".").lower() or "png")
+        fig.savefig(out.fh, dpi=120, format=os.path.splitext(path)[1].lstrip(".").lower() or "png", bbox_inches="tight")
     except OSError as exc:
         out.abort()
         raise OutputError(describe_write_error(exc, path, "plot")) from None
     except BaseException:
         out.abort()
         raise
+    finally:
+        plt.close(fig)
     out.commit()
     return True
 

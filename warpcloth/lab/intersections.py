@@ -13,11 +13,14 @@ written to USD.
 
 The tests are on closed sets: two triangles intersect when they share a point (touching counts;
 coplanar triangles that overlap or touch count), a segment crosses a triangle when it has a point
-in it. Sign tests of float64 orientation determinants, zero within a relative 1e-12 of the
-configuration's size cubed (Moller 1997; the segment-triangle test of the Plucker signs of the
-segment against the three edges); a coplanar segment is tested in the triangle's plane, projected
-along the normal's largest axis. Two non-coplanar triangles
-intersect exactly when an edge of one meets the other, so the pair test is six segment tests.
+in it. In float64: a segment's ends' signed distances to the triangle's plane, zero within a few
+float32 ulps of the coordinates (a cloth lying on the ground is coplanar only up to float32
+rounding: an earlier version, with Plucker signs of the segment against the edges and zero only
+within 1e-12 of the size cubed, found two flat triangles on the ground one ring apart
+"intersecting"); a segment that crosses the plane meets the triangle where its crossing point
+lies in it, and a segment in the plane is tested in it; both 2-D tests project along the
+normal's largest axis (Moller 1997). Two non-coplanar triangles intersect exactly when an edge of
+one meets the other, so the pair test is six segment tests.
 
 Broad phase: a uniform grid of cell size the largest box extent, so two boxes that overlap have
 centres in adjacent cells; pairs come from sorted cell keys (vectorised), then an exact box test.
@@ -89,31 +92,52 @@ def _coplanar_segment_meets(p, q, a, b, c, tol):
     return hit
 
 
-#: Orientations below this fraction of L^3 (L the configuration's size) count as zero: float64
-#: rounding of float32 positions is about 1e-16 L^3, a real offset of 1e-7 L is 1e-7 L^3.
+#: Orientations below this fraction of L^2 (L the configuration's size) count as zero in the
+#: 2-D tests of the triangle's plane.
 RELATIVE_TOLERANCE = 1e-12
+#: A point closer to a triangle's plane than this fraction of the largest coordinate magnitude
+#: (a few float32 ulps: 2^-23 = 1.2e-7) is in the plane: float32 positions of a coplanar layout (a
+#: cloth lying on the ground) are that far off it.
+PLANE_TOLERANCE = 5e-7
+
+
+def _plane_projection(a, b, c):
+    """The two coordinates kept when projecting onto the triangles' planes (dropping the normal's
+    largest axis), (K, 2)."""
+    axis = np.argmax(np.abs(np.cross(b - a, c - a)), axis=1)
+    return np.array([[1, 2], [0, 2], [0, 1]])[axis]
 
 
 def segments_meet_triangles(p, q, a, b, c) -> np.ndarray:
-    """Row-wise: the closed segment pq has a point in the closed triangle abc (float64;
-    orientations within :data:`RELATIVE_TOLERANCE` L^3 of zero count as zero, so a pair that is
-    coplanar up to rounding is tested as coplanar and touching counts).
+    """Row-wise: the closed segment pq has a point in the closed triangle abc (float64). An end
+    within :data:`PLANE_TOLERANCE` of the triangle's plane is in it, so a segment in the plane up to
+    float32 rounding is tested in the plane, and touching counts; a segment that crosses the plane
+    meets the triangle where its crossing point is in the triangle (2-D test in the plane).
 
     Args:
         p, q: segment ends (K, 3); a, b, c: triangle corners (K, 3).
     """
     p, q, a, b, c = (np.asarray(m, dtype=np.float64).reshape(-1, 3) for m in (p, q, a, b, c))
     size = np.max([np.linalg.norm(m - a, axis=1) for m in (b, c, p, q)], axis=0)
-    tol3 = RELATIVE_TOLERANCE * size**3
-    op, oq = _snap(_orient(a, b, c, p), tol3), _snap(_orient(a, b, c, q), tol3)
-    straddle = ~(((op > 0) & (oq > 0)) | ((op < 0) & (oq < 0)))
-    coplanar = (op == 0) & (oq == 0)
-    s1, s2, s3 = (_snap(_orient(p, q, u, w), tol3) for u, w in ((a, b), (b, c), (c, a)))
-    through = ((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))
-    hit = straddle & ~coplanar & through
-    degenerate = np.linalg.norm(np.cross(b - a, c - a), axis=1) <= RELATIVE_TOLERANCE * size**2
-    hit &= ~degenerate
-    k = np.flatnonzero(coplanar & ~degenerate)
+    normal = np.cross(b - a, c - a)
+    area2 = np.linalg.norm(normal, axis=1)
+    degenerate = area2 <= RELATIVE_TOLERANCE * size**2
+    scale = np.where(degenerate, 1.0, area2)
+    magnitude = np.max(np.abs(np.stack([p, q, a, b, c])), axis=(0, 2))
+    eps = PLANE_TOLERANCE * np.maximum(magnitude, size)
+    dp = _snap(np.einsum("ij,ij->i", normal, p - a) / scale, eps)  # signed distances to the plane
+    dq = _snap(np.einsum("ij,ij->i", normal, q - a) / scale, eps)
+    coplanar = (dp == 0) & (dq == 0) & ~degenerate
+    crossing = ~(((dp > 0) & (dq > 0)) | ((dp < 0) & (dq < 0))) & ~coplanar & ~degenerate
+    hit = np.zeros(len(p), dtype=bool)
+    k = np.flatnonzero(crossing)
+    if k.size:
+        t = np.where(dp[k] == dq[k], 0.0, dp[k] / np.where(dp[k] == dq[k], 1.0, dp[k] - dq[k]))
+        x = p[k] + t[:, None] * (q[k] - p[k])
+        keep = _plane_projection(a[k], b[k], c[k])
+        rows = np.arange(k.size)[:, None]
+        hit[k] = _inside2(*(m[rows, keep] for m in (a[k], b[k], c[k], x)), RELATIVE_TOLERANCE * size[k] ** 2)
+    k = np.flatnonzero(coplanar)
     if k.size:
         hit[k] = _coplanar_segment_meets(p[k], q[k], a[k], b[k], c[k], RELATIVE_TOLERANCE * size[k] ** 2)
     return hit

@@ -740,13 +740,33 @@ def plots(out_dir: str, data: Data, budget_ms: float, tolerance: float) -> list[
 
     # 4. max stable dt
     fig, ax = plt.subplots(figsize=(6.5, 4.0))
+    bounded_any = False
     for i in data.integrators:
         pts = sorted(
-            (n * n, r["dt_s"]) for n in sizes for r in [data.stable(d0, i, n, "study_sheet")] if r and r["dt_s"]
+            (n * n, r["dt_s"], bool(r["search_bounded"]))
+            for n in sizes
+            for r in [data.stable(d0, i, n, "study_sheet")]
+            if r and r["dt_s"]
         )
         if pts:
-            ax.loglog(*zip(*pts), "-", marker=marker[i], color=color[i], label=i)
+            ax.loglog([p[0] for p in pts], [p[1] for p in pts], "-", marker=marker[i], color=color[i], label=i)
+            bounded = [p for p in pts if p[2]]  # stable at the search's bound: at least there, not a found limit
+            if bounded:
+                bounded_any = True
+                ax.loglog(
+                    [p[0] for p in bounded],
+                    [p[1] for p in bounded],
+                    ls="none",
+                    marker=marker[i],
+                    color=color[i],
+                    markerfacecolor="white",
+                    zorder=3,
+                )
     ax.axhline(1.0 / 60.0, color="k", lw=0.8, ls="--", label="search bound: ≥ 1/60 s")
+    if bounded_any:
+        ax.plot(
+            [], [], ls="none", marker="o", color="0.3", markerfacecolor="white", label="hollow: stable at the bound"
+        )
     size_ticks(ax)
     ax.set_ylabel("max stable dt [s]", fontsize=8)
     ax.set_title(f"max stable dt, swing's sheet ({d0})", fontsize=9)

@@ -216,6 +216,11 @@ class RunResult:
     #: step; None where not applicable (no iterative solver with a tolerance).
     solver_converged: bool | None = None
     solver_capped_steps: int = 0
+    #: Self-collision's counters over the run (:meth:`SelfCollision.stats
+    #: <warpcloth.sim.self_collision.SelfCollision.stats>`: contacts, rebuilds, ``overflow_candidates`` and
+    #: ``overflow_contacts`` (pairs that did not fit its lists), ``truncated_queries``, ``fast``,
+    #: ``unresolved``); empty with self-collision off. A run whose lists overflowed also warns on stderr.
+    self_collision: dict = field(default_factory=dict)
     #: What the scenario measured at the end (a textile test's reading, a fold count; Scenario.measure).
     measurements: dict = field(default_factory=dict)
     warpcloth_version: str = __version__
@@ -490,7 +495,30 @@ class RunHarness:
         result.solver_converged, result.solver_capped_steps, warning = sim.integrator.convergence(result.solver)
         if warning:
             warn(warning)  # once per run
+        self._report_self_collision(sim, result)
         return result
+
+    @staticmethod
+    def _report_self_collision(sim, result: RunResult) -> None:
+        """Self-collision's counters into the result (then zeroed for the next run), and one warning
+        line where pairs may have been missed: lists that overflowed, queries cut short, vertices
+        faster than the list's largest margin."""
+        sc = getattr(sim, "self_collision", None)
+        if sc is None:
+            return
+        stats = result.self_collision = sc.stats()
+        sc.reset_stats()
+        missed = {
+            "candidate pairs that did not fit its list (raise candidates_per_vertex / candidates_per_edge)": stats[
+                "overflow_candidates"
+            ],
+            "contacts that did not fit its list (raise contacts_per_element)": stats["overflow_contacts"],
+            "queries cut to the cells searched": stats["truncated_queries"],
+            "vertices moving faster than the list's largest margin covers (raise skin_max or lower dt)": stats["fast"],
+        }
+        said = [f"{count} {what}" for what, count in missed.items() if count]
+        if said:
+            warn("self-collision may have missed pairs: " + "; ".join(said))
 
     def _check_start(self, sim) -> list:
         """Before a run: one warning line per collider that free vertices start inside (they

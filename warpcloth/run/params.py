@@ -202,6 +202,13 @@ def fraction(text: str) -> float:
     return v
 
 
+def switch(text: str) -> str:
+    """``on`` or ``off`` (a scenario file may also say true or false)."""
+    if text not in ("on", "off"):
+        raise ValueError(f"{_shown(text)} must be on or off")
+    return text
+
+
 def choice(*choices: str, what: str):
     def parse(text: str) -> str:
         if text not in choices:
@@ -322,7 +329,7 @@ class Param:
         unit: SI unit ("" when dimensionless).
         help: one line.
         values: what a value may be (docs table).
-        group: ``cloth``, ``material``, ``forces``, ``integrator``, ``run``, ``mesh`` or ``search``.
+        group: ``cloth``, ``material``, ``forces``, ``self_collision``, ``integrator``, ``run``, ``mesh`` or ``search``.
         default: the value when not given (None: the scenario's or integrator's own).
         default_doc: the default as the docs say it, where ``default`` is computed.
         sweep_default: a test list's default where it differs from a single run's.
@@ -410,6 +417,8 @@ class Param:
         its text would be, so a file's key has the CLI flag's type, range and unit; a value of
         another type raises ``ValueError`` (``must be a number, got 'abc'``), as ``parse`` does."""
         takes = _TYPED.get(self.parse, "text")
+        if takes == "switch" and isinstance(value, bool):
+            return "on" if value else "off"
         if isinstance(value, bool) or not isinstance(value, (str, int, float, list)):
             raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
         if isinstance(value, list):
@@ -443,6 +452,7 @@ _TYPED = {
     angle: "number",
     timestep: "number_or_text",
     wall_cap: "number_or_text",
+    switch: "switch",
 }
 _TYPED_WORDS = {
     "number": "a number",
@@ -450,7 +460,12 @@ _TYPED_WORDS = {
     "pair": "a number or 2 numbers [warp, weft]",
     "number_or_text": "a number or a string",
     "text": "a string",
+    "switch": "true, false, 'on' or 'off'",
 }
+
+
+def _switch_config(value):
+    return value == "on"
 
 
 def _graph_config(value):
@@ -501,7 +516,7 @@ PARAMS: tuple[Param, ...] = (
         scenario,
         "",
         "scenario: a name ('warpcloth list') or a scenario file (.toml)",
-        "`sheet`, `flag`, `curtain`, `mesh`, `drape`, `tablecloth`, or a file `NAME.toml` (docs/meshes.md)",
+        "`sheet`, `flag`, `curtain`, `mesh`, `drape`, `tablecloth`, `fold`, or a file `NAME.toml` (docs/meshes.md)",
         "run",
         default_doc="`sheet flag` in a test list",
         sweep_default=("sheet", "flag"),
@@ -748,6 +763,43 @@ PARAMS: tuple[Param, ...] = (
         cli_type=str,
     ),
     Param(
+        "self_collision",
+        switch,
+        "",
+        "the cloth against itself: vertex-triangle and edge-edge contacts kept a thickness apart, Coulomb "
+        "friction, for every integrator (docs/self-collision.md)",
+        "`on`, `off`",
+        "self_collision",
+        default_doc="the scenario's (on in fold, drape, tablecloth)",
+        key="set",
+        to_config=_switch_config,
+        choices=("on", "off"),
+    ),
+    Param(
+        "self_collision_thickness",
+        positive,
+        "m",
+        "the distance self-collision keeps between any two parts of the cloth that are not neighbours",
+        "> 0",
+        "self_collision",
+        default=0.005,
+        key="set",
+        metavar="H",
+        cli_type=float,
+    ),
+    Param(
+        "self_collision_friction",
+        non_negative,
+        "",
+        "Coulomb friction coefficient of cloth on cloth",
+        ">= 0",
+        "self_collision",
+        default=0.3,
+        key="set",
+        metavar="MU",
+        cli_type=float,
+    ),
+    Param(
         "strain_limit",
         positive,
         "",
@@ -986,6 +1038,7 @@ GROUP_TITLES = {
     "material": "material in physical units (docs/materials.md)",
     "mesh": "mesh scenarios (mesh, scenario files)",
     "forces": "forces and colliders",
+    "self_collision": "self-collision",
     "run": "run",
     "search": "max-dt search",
 }

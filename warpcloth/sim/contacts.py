@@ -29,6 +29,7 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError
 from warpcloth.kernels import collide as ck
+from warpcloth.kernels import edge_contact as ek
 from warpcloth.sim.colliders import COLLIDER_TYPES, KINDS, _quat_matrix, describe, signed_distance
 
 
@@ -55,6 +56,8 @@ class ColliderSet:
         self.colliders = tuple(colliders)
         self.device = device
         order = sorted(self.colliders, key=lambda c: c.kind != "plane")  # planes first: the kernels' half-space tests
+        #: The colliders in the order of their device records (planes first).
+        self.order = tuple(order)
         self.plane_count = sum(c.kind == "plane" for c in order)
         with wp.ScopedDevice(device):
             self.meshes = [
@@ -93,10 +96,26 @@ class ColliderSet:
                 self._moving.append((ck.eval_collider_driven_pose, k, [self.frame_times, *drive.bind(device), turn]))
                 self.drives.append(drive)
         self._box_ready = False
+        self._edges = None  # ColliderEdges of the last model asked (edges)
+        #: Hold the cloth off the edges and corners of static box and mesh colliders (:meth:`edges`,
+        #: docs/self-collision.md). Off by default: with it the tablecloth does not come to rest (its
+        #: hanging flaps keep moving at 1-6 cm/s over the table's edge) and a cube mesh and the analytic
+        #: box drape a cloth up to 1 cm apart; set it before the first step.
+        self.edge_contacts = False
 
     @property
     def moving(self) -> bool:
         return bool(self._moving)
+
+    def edges(self, model) -> "ColliderEdges | None":
+        """The box and mesh colliders' edges and corners bound to ``model`` (:class:`ColliderEdges`, made
+        at the first call for a model: host work, never inside a captured step), or None without them
+        (or without cloth triangles, or with :attr:`edge_contacts` off)."""
+        if not self.edge_contacts or not any(c.kind in ("box", "mesh") for c in self.colliders) or model.tri_count == 0:
+            return None
+        if self._edges is None or self._edges.model is not model:
+            self._edges = ColliderEdges(model, self)
+        return self._edges
 
     def pose(self, offset: float = 0.0, substep: bool = False) -> None:
         """Move every tracked collider to its pose at t = time + offset, or with ``substep`` at
@@ -191,6 +210,142 @@ class ColliderSet:
             self.pose(substep=True)
 
 
+class ColliderEdges:
+    """The edges and corners of a :class:`ColliderSet`'s box and mesh colliders against a model's
+    edges and triangles (:mod:`warpcloth.kernels.edge_contact`), bound once: the model's unique
+    edges, each mesh collider's edges and vertices with their outward directions and a ``wp.Bvh``
+    each (in the mesh's own frame). :meth:`project` launches kernels only."""
+
+    #: Jacobi passes of :meth:`project` (a vertex's corrections are averaged over its contacts)
+    passes = 8
+
+    def __init__(self, model, collision: ColliderSet):
+        from warpcloth.sim.mesh import mesh_topology
+
+        self.model, self.collision = model, collision
+        tris = np.asarray(model.host["tris"], dtype=np.int64).reshape(-1, 3)
+        n, device = model.particle_count, model.device
+        order = collision.order
+        self.first = collision.plane_count
+        edge_p, edge_q, edge_out, vertex, vertex_out = [], [], [], [], []
+        edge_offset, vertex_offset = np.zeros(len(order), np.int32), np.zeros(len(order), np.int32)
+        self._bvhs = []  # kept alive: the features hold their ids
+        edge_ids, vertex_ids = np.zeros(len(order), np.uint64), np.zeros(len(order), np.uint64)
+        with wp.ScopedDevice(device):
+            for k, c in enumerate(order):
+                if c.kind != "mesh":
+                    continue
+                p, e, e_out, vo = _mesh_features(c.vertices, c.triangles)
+                if len(e) == 0:  # a flat mesh: its faces hold the cloth everywhere but at its vertices
+                    e, e_out = np.zeros((1, 2), np.int64), np.zeros((1, 3))
+                edge_offset[k], vertex_offset[k] = sum(len(a) for a in edge_p), sum(len(a) for a in vertex)
+                edge_p.append(p[e[:, 0]]), edge_q.append(p[e[:, 1]]), edge_out.append(e_out)
+                vertex.append(p), vertex_out.append(vo)
+                bvh_e = wp.Bvh(
+                    wp.array(np.minimum(p[e[:, 0]], p[e[:, 1]]), dtype=wp.vec3),
+                    wp.array(np.maximum(p[e[:, 0]], p[e[:, 1]]), dtype=wp.vec3),
+                )
+                bvh_v = wp.Bvh(wp.array(p, dtype=wp.vec3), wp.array(p, dtype=wp.vec3))
+                self._bvhs += [bvh_e, bvh_v]
+                edge_ids[k], vertex_ids[k] = bvh_e.id, bvh_v.id
+
+            def cat(parts):
+                return wp.array(
+                    np.concatenate(parts).astype(np.float32) if parts else np.zeros((1, 3), np.float32), dtype=wp.vec3
+                )
+
+            f = ek.MeshFeatures()
+            f.edge_bvh, f.vertex_bvh = wp.array(edge_ids, dtype=wp.uint64), wp.array(vertex_ids, dtype=wp.uint64)
+            f.edge_offset, f.vertex_offset = wp.array(edge_offset, dtype=int), wp.array(vertex_offset, dtype=int)
+            f.edge_p, f.edge_q, f.edge_out = cat(edge_p), cat(edge_q), cat(edge_out)
+            f.vertex, f.vertex_out = cat(vertex), cat(vertex_out)
+            self.features = f
+            self.edges = wp.array(mesh_topology(tris, n).edges.astype(np.int32), dtype=wp.vec2i)
+            self.tris = wp.array(tris.astype(np.int32), dtype=wp.vec3i)
+            self.dx, self.dv = wp.zeros(n, dtype=wp.vec3), wp.zeros(n, dtype=wp.vec3)
+            self.count = wp.zeros(n, dtype=int)
+            self._no_displacement = wp.zeros(1, dtype=wp.vec3)
+            self.p, self.zero_v = wp.zeros(n, dtype=wp.vec3), wp.zeros(n, dtype=wp.vec3)
+
+    @staticmethod
+    def needed(collision: ColliderSet | None) -> bool:
+        """Whether ``collision`` has colliders with edges (box, mesh)."""
+        return collision is not None and any(c.kind in ("box", "mesh") for c in collision.colliders)
+
+    def _launch(self, x, v) -> None:
+        m, c, d = self.model, self.collision, self.model.device
+        args = [x, v, m.particle_inv_mass, c.params, self.first, self.features]
+        out = [self.dx, self.dv, self.count]
+        wp.launch(ek.collide_cloth_edges, dim=self.edges.shape[0], inputs=[self.edges, *args], outputs=out, device=d)
+        wp.launch(ek.collide_cloth_triangles, dim=self.tris.shape[0], inputs=[self.tris, *args], outputs=out, device=d)
+
+    def project_increment(self, x, dp) -> None:
+        """Inside a position-based solver's iterations (pbd, xpbd, vbd, projective): the same contacts at
+        p = x + dp, corrections added to ``dp`` (positions only)."""
+        n, d = self.model.particle_count, self.model.device
+        wp.launch(ek.eval_positions, dim=n, inputs=[x, dp], outputs=[self.p], device=d)
+        self._launch(self.p, self.zero_v)
+        wp.launch(ek.apply_edge_increments, dim=n, inputs=[self.dx, self.dv, self.count], outputs=[dp], device=d)
+
+    def project(self, state, dt: float, displacement=None, position_weight: float = 1.0) -> None:
+        """After a step's per-vertex contacts (colliders posed at its end): cloth edges out of the
+        colliders' edges and triangles off their corners, to the thickness, with the approaching
+        relative normal velocity removed; pinned vertices stay."""
+        m, d = self.model, self.model.device
+        x, v = state.particle_q, state.particle_qd
+        out = [self.dx, self.dv, self.count]
+        disp = displacement if displacement is not None else self._no_displacement
+        for _ in range(self.passes):
+            self._launch(x, v)
+            wp.launch(
+                ek.apply_edge_contacts,
+                dim=m.particle_count,
+                inputs=[float(position_weight) * float(dt), int(displacement is not None), *out],
+                outputs=[x, v, disp],
+                device=d,
+            )
+
+
+def _mesh_features(vertices, triangles):
+    """A mesh's vertices (V, 3), its crease edges (E, 2) with each one's outward direction (the
+    normalised sum of its faces' unit normals) and each vertex's (the angle-weighted pseudo-normal),
+    float64. Edges between coplanar faces (a face's diagonal: normals within 2.6 degrees) are not
+    features: the face holds the cloth there, as the analytic box's faces do; an open edge (one face)
+    is one."""
+    from warpcloth.sim.mesh import mesh_topology
+
+    p = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    face = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
+    unit = face / np.maximum(np.linalg.norm(face, axis=1, keepdims=True), 1e-300)
+    edges = mesh_topology(t, len(p)).edges
+    keys = edges[:, 0] * len(p) + edges[:, 1]  # sorted (mesh_topology sorts its packed keys)
+    e_out = np.zeros((len(edges), 3))
+    faces_at = np.zeros(len(edges), np.int64)
+    first = np.zeros((len(edges), 3))
+    crease = np.zeros(len(edges), dtype=bool)
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        k = np.searchsorted(keys, np.minimum(t[:, a], t[:, b]) * len(p) + np.maximum(t[:, a], t[:, b]))
+        np.add.at(e_out, k, unit)
+        np.add.at(faces_at, k, 1)
+        seen = faces_at[k] > 1  # the edge's second face: a crease where it turns from the first
+        crease[k[seen]] |= np.einsum("ij,ij->i", first[k[seen]], unit[seen]) < 0.999
+        first[k[~seen]] = unit[~seen]
+    crease |= faces_at == 1
+    v_out = np.zeros_like(p)
+    for k in range(3):  # the angle of each face at its corner k
+        e1, e2 = p[t[:, (k + 1) % 3]] - p[t[:, k]], p[t[:, (k + 2) % 3]] - p[t[:, k]]
+        cos = np.einsum("ij,ij->i", e1, e2) / np.maximum(
+            np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300
+        )
+        np.add.at(v_out, t[:, k], np.arccos(np.clip(cos, -1.0, 1.0))[:, None] * unit)
+
+    def normalised(a):
+        return a / np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-300)
+
+    return p, edges[crease], normalised(e_out[crease]), normalised(v_out)
+
+
 def starting_inside(colliders, points, free, t: float = 0.0) -> list[tuple[int, str, int]]:
     """The colliders that free cloth vertices start inside: (index in ``colliders``, the collider in
     words, how many of the ``free`` (N,) bool vertices of ``points`` (N, 3) have phi < 0 at time
@@ -241,4 +396,4 @@ def _record(c, mesh=None):
     return r
 
 
-__all__ = ["ColliderSet", "starting_inside"]
+__all__ = ["ColliderEdges", "ColliderSet", "starting_inside"]

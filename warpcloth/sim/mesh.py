@@ -90,9 +90,58 @@ class TriangleMesh:
     uv: np.ndarray | None = None
     groups: dict = field(default_factory=dict)
     source: str = "arrays"
+    loose: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    """The file's vertices that belong to no face, dropped when it was read (0-based, in the file's
+    vertex order; :func:`drop_loose_vertices`); the others keep their order."""
+
+    def file_indices(self, indices, what: str = "vertex indices") -> list:
+        """Vertex indices as numbered in the file (0-based, loose vertices included) as indices of
+        this mesh. Raises :class:`WarpclothError` for a dropped (loose) vertex."""
+        indices = [int(i) for i in indices]
+        if not self.loose.size:
+            return indices
+        count = self.vertices.shape[0] + self.loose.size
+        new = np.full(count, -1, dtype=np.int64)
+        new[np.setdiff1d(np.arange(count), self.loose)] = np.arange(self.vertices.shape[0])
+        for i in indices:
+            require(0 <= i < count, f"{what}: vertex {i} is out of range: the file has vertices 0..{count - 1}")
+            require(new[i] >= 0, f"{what}: vertex {i} belongs to no face in {self.source} (it was dropped as loose)")
+        return [int(new[i]) for i in indices]
 
 
 # -- validation ----------------------------------------------------------------------------
+
+
+def drop_loose_vertices(mesh: TriangleMesh) -> TriangleMesh:
+    """``mesh`` without the vertices that belong to no triangle (what deleting faces in a DCC
+    leaves behind), triangles and groups renumbered, the dropped ones in :attr:`TriangleMesh.loose`.
+    Returned as it is where every vertex is used or a triangle's index is out of range
+    (:func:`check_mesh` names that)."""
+    t = np.asarray(mesh.triangles)
+    n = np.asarray(mesh.vertices).shape[0]
+    if t.size == 0 or not np.issubdtype(t.dtype, np.integer) or t.min() < 0 or t.max() >= n:
+        return mesh
+    used = np.zeros(n, dtype=bool)
+    used[t.ravel()] = True
+    if used.all():
+        return mesh
+    new = np.full(n, -1, dtype=np.int64)
+    new[used] = np.arange(int(used.sum()))
+
+    def renumber(group):
+        g = np.asarray(group, dtype=np.int64)
+        inside = (g >= 0) & (g < n)
+        g = np.where(inside, new[np.clip(g, 0, n - 1)], g - n + int(used.sum()))  # out of range stays out
+        return g[~inside | (g >= 0)]
+
+    return TriangleMesh(
+        vertices=np.asarray(mesh.vertices)[used],
+        triangles=new[t],
+        uv=mesh.uv,
+        groups={name: renumber(g) for name, g in mesh.groups.items()},
+        source=mesh.source,
+        loose=np.flatnonzero(~used),
+    )
 
 
 def check_mesh(vertices, triangles, what: str = "mesh") -> tuple[np.ndarray, np.ndarray]:
@@ -462,6 +511,7 @@ __all__ = [
     "TriangleMesh",
     "build_mesh_cloth",
     "check_mesh",
+    "drop_loose_vertices",
     "corner_uvs",
     "lumped_masses",
     "mesh_memory_estimate",

@@ -129,6 +129,11 @@ def parse_predicate(text: str):
         if isinstance(node, ast.BinOp) and type(node.op) in _ARITH:
             if check(node.left) != "num" or check(node.right) != "num":
                 raise bad(node, "arithmetic on a condition")
+            if isinstance(node.op, (ast.Div, ast.Mod)) and folded.get(node.right) == 0.0:
+                # x / 0 is infinite at every vertex (x / 0 > 1 would pin half the cloth); a divisor
+                # that is zero only at some vertices (x / x) stays nan or inf there, as documented
+                part = ast.get_source_segment(text.strip(), node) or "a division"
+                raise WarpclothError(f"pin predicate {shown}: {_short(part, 30)} divides by zero")
             if node.left in folded and node.right in folded:
                 try:
                     value = _ARITH[type(node.op)](folded[node.left], folded[node.right])

@@ -17,7 +17,9 @@ kernels only (no host work, no allocation), so they can sit inside a captured fr
 * :meth:`SelfCollision.apply_forces`: the same repulsion as a force k (h - d) n, equal and
   opposite, capped likewise, for schemes that want it in their force (then the filter's is off).
 
-How each integrator uses them: docs in ``/work/notes/self-contact-api.md`` (part 2 wires them in).
+The :class:`~warpcloth.simulator.Simulator` detects before each step and filters after it; how each
+integrator holds the contacts inside its own step (:meth:`project_increment`, :meth:`eval_vertex_terms`,
+implicit Euler's system): docs/self-collision.md.
 """
 
 from __future__ import annotations
@@ -25,7 +27,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.sparse as sp
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_count, require_non_negative, require_positive
@@ -69,7 +70,8 @@ def exclusion_tables(triangles: np.ndarray, edges: np.ndarray, vertex_count: int
     every triangle with a vertex within r - 1 edge rings of the vertex, and every edge with a vertex
     within r - 1 rings of the edge's vertices (Newton's n-ring contact filter).
 
-    Returns ((vt_offsets, vt_items), (ee_offsets, ee_items)), int32 NumPy arrays."""
+    Returns ((vt_offsets, vt_items), (ee_offsets, ee_items)), int32 NumPy arrays (NumPy only: a bind
+    loads no SciPy)."""
     n = int(vertex_count)
     tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
@@ -78,25 +80,39 @@ def exclusion_tables(triangles: np.ndarray, edges: np.ndarray, vertex_count: int
             (np.zeros(n + 1, np.int32), np.zeros(0, np.int32)),
             (np.zeros(len(edges) + 1, np.int32), np.zeros(0, np.int32)),
         )
-    ones_e = np.ones(len(edges))
-    adj = sp.coo_matrix((ones_e, (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
-    ring = (adj + adj.T + sp.identity(n, format="csr")).astype(bool).astype(np.int32)
-    reach = sp.identity(n, format="csr", dtype=np.int32)
+    ring = _csr(
+        np.concatenate([edges[:, 0], edges[:, 1], np.arange(n)]),
+        np.concatenate([edges[:, 1], edges[:, 0], np.arange(n)]),
+        n,
+        n,
+    )
+    reach = _csr(np.arange(n), np.arange(n), n, n)
     for _ in range(rings - 1):
-        reach = (reach @ ring).astype(bool).astype(np.int32)
-    vt_inc = sp.coo_matrix(
-        (np.ones(tris.size, np.int32), (tris.reshape(-1), np.repeat(np.arange(len(tris)), 3))), shape=(n, len(tris))
-    ).tocsr()
-    ev_inc = sp.coo_matrix(
-        (np.ones(edges.size, np.int32), (np.repeat(np.arange(len(edges)), 2), edges.reshape(-1))), shape=(len(edges), n)
-    ).tocsr()
-    vt = (reach @ vt_inc).astype(bool).tocsr()
-    ee = (ev_inc @ reach @ ev_inc.T).astype(bool).tocsr()
-    out = []
-    for m in (vt, ee):
-        m.sort_indices()
-        out.append((m.indptr.astype(np.int32), m.indices.astype(np.int32)))
-    return tuple(out)
+        reach = _compose(reach, ring, n)
+    vertex_tris = _csr(tris.reshape(-1), np.repeat(np.arange(len(tris)), 3), n, len(tris))
+    vertex_edges = _csr(edges.reshape(-1), np.repeat(np.arange(len(edges)), 2), n, len(edges))
+    edge_vertices = _csr(np.repeat(np.arange(len(edges)), 2), edges.reshape(-1), len(edges), n)
+    vt = _compose(reach, vertex_tris, len(tris))
+    ee = _compose(_compose(edge_vertices, reach, n), vertex_edges, len(edges))
+    return tuple((off.astype(np.int32), idx.astype(np.int32)) for off, idx in (vt, ee))
+
+
+def _csr(rows, cols, row_count: int, col_count: int):
+    """(offsets, columns) of the boolean matrix with ones at (rows, cols), columns sorted per row."""
+    key = np.unique(np.asarray(rows, np.int64) * col_count + np.asarray(cols, np.int64))
+    r = key // col_count
+    return np.searchsorted(r, np.arange(row_count + 1)), key % col_count
+
+
+def _compose(a, b, col_count: int):
+    """The boolean product of CSR matrices ``a`` (R x K) and ``b`` (K x col_count): row i holds every
+    column of b's rows at a's columns of row i."""
+    (a_off, a_idx), (b_off, b_idx) = a, b
+    rows = np.repeat(np.arange(len(a_off) - 1), np.diff(a_off))
+    counts = np.diff(b_off)[a_idx]
+    within = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    cols = b_idx[np.repeat(b_off[a_idx], counts) + within]
+    return _csr(np.repeat(rows, counts), cols, len(a_off) - 1, col_count)
 
 
 class SelfCollision:
@@ -114,13 +130,18 @@ class SelfCollision:
         edge_fraction: edge-edge pairs act within h_e = edge_fraction h (1: as vertex-triangle
             pairs; less is cheaper where layers lie parallel, whose crossing edges are all contacts,
             but lets two edges that no vertex-triangle pair holds rest nearer than h).
-        skin: the least extra radius of the candidate list [m] (default h / 2); the list is rebuilt
-            when a vertex may have moved skin / 2 since the last build, relative to the cloth's mean
-            motion (a larger skin rebuilds less often but holds more candidates, each tested every step).
-        skin_max: the largest skin [m] (default 4 h): the list's radius covers four steps of the
-            fastest vertex up to it; faster motion than skin_max / 2 a step can miss a pair.
+        skin: the extra radius of the candidate list [m] (default h / 2) besides the pair's motion
+            margins; the list is rebuilt when a vertex may have moved skin / 2 beyond its margin since
+            the last build, relative to the cloth's mean motion (a larger skin rebuilds less often but
+            holds more candidates, each tested every step).
+        skin_max: the largest motion margin of a vertex [m] (default the larger of 4 h and twice the
+            longest rest edge): a vertex's margin covers two steps of its motion up to it; a vertex
+            faster than skin_max / 2 a step (relative to the mean) can miss a pair (counted in ``fast``).
         exclude_rings: 1: exclude a vertex and its own triangles, edges sharing a vertex; r > 1:
-            also pairs within r - 1 rings (:func:`exclusion_tables`); default 2.
+            also pairs within r - 1 rings (:func:`exclusion_tables`); default 1 where h is at most half
+            the shortest rest edge (a flat cloth then has no pair within h: a vertex is at least a
+            triangle's height from the triangles of its neighbours), else 2 (and then two triangles one
+            ring apart may pass through each other in a fold sharper than the mesh).
         candidates_per_vertex, candidates_per_edge, contacts_per_element: capacities of the lists
             (vertex-triangle candidates: per vertex, edge-edge: per edge, contacts: per vertex + edge).
     """
@@ -135,13 +156,27 @@ class SelfCollision:
         iterations: int = 2,
         skin: float | None = None,
         skin_max: float | None = None,
-        exclude_rings: int = 2,
+        exclude_rings: int | None = None,
         edge_fraction: float = 1.0,
-        candidates_per_vertex: int = 16,
-        candidates_per_edge: int = 16,
+        candidates_per_vertex: int = 64,
+        candidates_per_edge: int = 64,
         contacts_per_element: int = 8,
     ):
         self.model = model
+        self._settings = {
+            "thickness": thickness,
+            "friction": friction,
+            "stiffness": stiffness,
+            "min_gap_fraction": min_gap_fraction,
+            "iterations": iterations,
+            "skin": skin,
+            "skin_max": skin_max,
+            "exclude_rings": exclude_rings,
+            "edge_fraction": edge_fraction,
+            "candidates_per_vertex": candidates_per_vertex,
+            "candidates_per_edge": candidates_per_edge,
+            "contacts_per_element": contacts_per_element,
+        }
         self.thickness = require_positive("self-collision thickness", thickness, "m")
         self.friction = require_non_negative("self-collision friction mu", friction)
         self.edge_fraction = float(edge_fraction)
@@ -153,10 +188,6 @@ class SelfCollision:
         )
         self.iterations = require_count("self-collision iterations", iterations, 1)
         self.skin = require_positive("self-collision skin", 0.5 * self.thickness if skin is None else skin, "m")
-        skin_max = 4.0 * self.thickness if skin_max is None else skin_max
-        self.skin_max = require_positive("self-collision skin_max", skin_max, "m")
-        self.skin_max = max(self.skin_max, self.skin)
-        self.exclude_rings = require_count("exclude_rings", exclude_rings, 1)
         stiffness = self._default_stiffness(model) if stiffness is None else stiffness
         self.stiffness = require_positive("self-collision stiffness", stiffness, "N/m")
         host = model.host
@@ -165,8 +196,15 @@ class SelfCollision:
         n = model.particle_count
         edges = mesh_topology(tris, n).edges.astype(np.int32)
         q = np.asarray(host["q"], dtype=np.float64)
-        longest = float(np.max(np.linalg.norm(q[edges[:, 1]] - q[edges[:, 0]], axis=1)))
-        #: cell size [m]: a query of the list radius plus a triangle's reach spans about three cells
+        lengths = np.linalg.norm(q[edges[:, 1]] - q[edges[:, 0]], axis=1)
+        longest = float(np.max(lengths))
+        if exclude_rings is None:
+            exclude_rings = 1 if self.thickness <= 0.5 * float(np.min(lengths)) else 2
+        self.exclude_rings = require_count("exclude_rings", exclude_rings, 1)
+        skin_max = max(4.0 * self.thickness, 2.0 * longest) if skin_max is None else skin_max
+        self.skin_max = require_positive("self-collision skin_max", skin_max, "m")
+        #: the hash's least cell size [m] (a build adds its largest vertex margin): a query of the list
+        #: radius plus a triangle's reach spans about three cells
         self.cell_size = self.thickness + self.skin + 0.75 * longest
         buckets = 1 << max(4, math.ceil(math.log2(2 * max(len(tris), len(edges)))))
         (vt_off, vt_ex), (ee_off, ee_ex) = exclusion_tables(tris, edges, n, self.exclude_rings)
@@ -193,6 +231,9 @@ class SelfCollision:
             self.edge_lo, self.edge_hi = wp.zeros(len(edges), dtype=wp.vec3), wp.zeros(len(edges), dtype=wp.vec3)
             self.edge_cell = wp.zeros(len(edges), dtype=wp.vec3i)
             self.x_build = wp.zeros(n, dtype=wp.vec3)
+            self.margin = wp.zeros(n, dtype=float)  # per vertex at the build: 2 |v - w| dt, at most skin_max [m]
+            self.tri_margin = wp.zeros(len(tris), dtype=float)
+            self.edge_margin = wp.zeros(len(edges), dtype=float)
             self.cand_vt = wp.zeros(self.vt_capacity, dtype=wp.vec2i)
             self.cand_ee = wp.zeros(self.ee_capacity, dtype=wp.vec2i)
             self.cand_vt_gap = wp.zeros(self.vt_capacity, dtype=float)
@@ -203,11 +244,24 @@ class SelfCollision:
             self.contact_gaps = wp.zeros(self.contact_capacity, dtype=float)
             self.contact_thickness = wp.zeros(self.contact_capacity, dtype=float)
             self.splits = wp.zeros(n, dtype=int)
+            self.acting = wp.zeros(n, dtype=int)  # per vertex, the contacts acting in a response pass (zeroed after it)
             self.dv = wp.zeros(n, dtype=wp.vec3)
+            self.filter_inv_mass = wp.zeros(n, dtype=float)  # 1/m, 0 where a collider holds the vertex (filter)
+            #: per vertex, the contacts' penalty force [N] and Gauss-Newton Hessian [N/m] (vbd's vertex step)
+            self.vertex_force = wp.zeros(n, dtype=wp.vec3)
+            self.vertex_hessian = wp.zeros(n, dtype=wp.mat33)
             self.counts = wp.zeros(sk.COUNT_SLOTS, dtype=int)
             self.scalars = wp.zeros(sk.SCALAR_SLOTS, dtype=float)
             self.motion_sums = wp.zeros(2, dtype=wp.vec3)
             self._no_displacement = wp.zeros(1, dtype=wp.vec3)
+
+    def settings(self) -> dict:
+        """The keyword arguments this object was made with (to bind the same settings to another model)."""
+        return dict(self._settings)
+
+    def rebind(self, model) -> "SelfCollision":
+        """A new :class:`SelfCollision` with these settings bound to ``model``."""
+        return SelfCollision(model, **self._settings)
 
     @staticmethod
     def _default_stiffness(model) -> float:
@@ -232,8 +286,8 @@ class SelfCollision:
     def detect(self, x: wp.array, v: wp.array, dt: float) -> None:
         """Contacts at the step's start: positions ``x`` [m], velocities ``v`` [m/s], step ``dt`` [s]."""
         self._decide(x, v, dt)
-        self._build(x)
-        self._narrow(x)
+        self._build(x, v, dt)
+        self._narrow(x, v, dt)
 
     def _decide(self, x, v, dt) -> None:
         """Motion since the last build; whether this detect rebuilds (on the device)."""
@@ -244,44 +298,35 @@ class SelfCollision:
         wp.launch(
             sk.eval_self_contact_motion,
             dim=n,
-            inputs=[x, v, self.x_build, self.motion_sums, float(dt), self.splits, s],
+            inputs=[x, v, self.x_build, self.margin, self.motion_sums, float(dt), self.splits, s],
             device=d,
         )
         wp.launch(
             sk.decide_self_contact_rebuild,
             dim=1,
-            inputs=[c, s, self.thickness, self.edge_thickness, self.skin, self.skin_max, float(dt)],
+            inputs=[c, s, self.thickness, self.edge_thickness, self.skin, float(dt)],
             device=d,
         )
 
-    def _build(self, x, edges: bool = True) -> None:
+    def _build(self, x, v, dt, edges: bool = True) -> None:
         """The hash and the candidate lists (every launch returns at once unless a rebuild is due);
         ``edges`` False: the vertex-triangle part only (for the bench)."""
         m, d, n = self.model, self.device, self.model.particle_count
         c, s = self.counts, self.scalars
-        inv_cell, mask = 1.0 / self.cell_size, self.bucket_count - 1
+        mask = self.bucket_count - 1
         wp.launch(
             sk.clear_self_contact_cells,
             dim=max(self.bucket_count, n),
-            inputs=[c, x, self.x_build, self.head_tri, self.head_edge],
+            inputs=[c, x, v, self.motion_sums, float(dt), self.skin_max],
+            outputs=[self.x_build, self.margin, self.head_tri, self.head_edge, s],
             device=d,
         )
+        wp.launch(sk.size_self_contact_cells, dim=1, inputs=[c, self.cell_size], outputs=[s], device=d)
         wp.launch(
             sk.insert_self_contact_triangles,
             dim=m.tri_count,
-            inputs=[
-                c,
-                x,
-                self.tris,
-                inv_cell,
-                mask,
-                self.head_tri,
-                self.next_tri,
-                s,
-                self.tri_lo,
-                self.tri_hi,
-                self.tri_cell,
-            ],
+            inputs=[c, x, self.tris, self.margin, mask],
+            outputs=[self.head_tri, self.next_tri, s, self.tri_lo, self.tri_hi, self.tri_cell, self.tri_margin],
             device=d,
         )
         wp.launch(
@@ -292,19 +337,19 @@ class SelfCollision:
                 s,
                 x,
                 self.tris,
-                inv_cell,
+                self.margin,
                 mask,
                 self.head_tri,
                 self.next_tri,
                 self.tri_lo,
                 self.tri_hi,
                 self.tri_cell,
+                self.tri_margin,
                 self.vt_exclude_offsets,
                 self.vt_exclude,
                 self.vt_capacity,
-                self.cand_vt,
-                self.cand_vt_gap,
             ],
+            outputs=[self.cand_vt, self.cand_vt_gap],
             device=d,
         )
         if not edges:
@@ -312,19 +357,8 @@ class SelfCollision:
         wp.launch(
             sk.insert_self_contact_edges,
             dim=self.edge_count,
-            inputs=[
-                c,
-                x,
-                self.edges,
-                inv_cell,
-                mask,
-                self.head_edge,
-                self.next_edge,
-                s,
-                self.edge_lo,
-                self.edge_hi,
-                self.edge_cell,
-            ],
+            inputs=[c, x, self.edges, self.margin, mask],
+            outputs=[self.head_edge, self.next_edge, s, self.edge_lo, self.edge_hi, self.edge_cell, self.edge_margin],
             device=d,
         )
         wp.launch(
@@ -335,23 +369,22 @@ class SelfCollision:
                 s,
                 x,
                 self.edges,
-                inv_cell,
                 mask,
                 self.head_edge,
                 self.next_edge,
                 self.edge_lo,
                 self.edge_hi,
                 self.edge_cell,
+                self.edge_margin,
                 self.ee_exclude_offsets,
                 self.ee_exclude,
                 self.ee_capacity,
-                self.cand_ee,
-                self.cand_ee_gap,
             ],
+            outputs=[self.cand_ee, self.cand_ee_gap],
             device=d,
         )
 
-    def _narrow(self, x) -> None:
+    def _narrow(self, x, v, dt) -> None:
         """This step's contacts from the candidate lists."""
         n, d = self.model.particle_count, self.device
         wp.launch(
@@ -362,6 +395,8 @@ class SelfCollision:
                 self.counts,
                 self.scalars,
                 x,
+                v,
+                float(dt),
                 self.tris,
                 self.edges,
                 self.cand_vt,
@@ -419,19 +454,43 @@ class SelfCollision:
         position_weight: float = 1.0,
         displacement: wp.array | None = None,
         repulsion: bool = True,
+        inelastic: bool = True,
+        colliders=None,
     ) -> None:
         """After the step (``x``, ``v`` at its end): the velocity filter, in place. A velocity change
         dv moves x by ``position_weight`` dt dv (1 where x += dt v_new; 1/2 for the Runge-Kutta
         schemes, as for colliders); ``displacement`` (Verlet's x - x_prev) moves with x.
         ``repulsion``: Bridson's repulsion impulse in the filter (off where the scheme had
-        :meth:`apply_forces` in its force)."""
+        :meth:`apply_forces` in its force). ``inelastic`` False: only the last pass's guarantee, every
+        pair at least ``min_gap`` apart (where the solve held the contacts itself). ``colliders``: a
+        :class:`~warpcloth.sim.contacts.ColliderSet` whose contacts win: a vertex within a collider's
+        thickness (+ ``min_gap``) takes no impulse, the pair's other side all of it."""
         n, d = self.model.particle_count, self.device
         dt_x = float(position_weight) * float(dt)
         if not dt_x > 0.0:
             raise WarpclothError(f"self-collision filter: position_weight * dt must be > 0, got {dt_x!r}")
         disp = displacement if displacement is not None else self._no_displacement
         k = self.stiffness if repulsion else 0.0
+        inv_mass = self.model.particle_inv_mass
+        if colliders is not None and len(colliders.colliders):
+            inv_mass = self.filter_inv_mass
+            wp.launch(
+                sk.eval_filter_inverse_mass,
+                dim=n,
+                inputs=[x, self.model.particle_inv_mass, colliders.params, self.min_gap],
+                outputs=[inv_mass],
+                device=d,
+            )
+        records = [self.contact_indices, self.contact_weights, self.contact_normals, self.contact_gaps]
+        records.append(self.contact_thickness)
         for _ in range(self.iterations):
+            wp.launch(
+                sk.count_filter_contacts,
+                dim=n,
+                inputs=[n, self.counts, x, v, inv_mass, *records, self.min_gap, int(inelastic), k, float(dt), dt_x],
+                outputs=[self.acting],
+                device=d,
+            )
             wp.launch(
                 sk.filter_self_contact_velocities,
                 dim=n,
@@ -440,15 +499,12 @@ class SelfCollision:
                     self.counts,
                     x,
                     v,
-                    self.model.particle_inv_mass,
-                    self.splits,
-                    self.contact_indices,
-                    self.contact_weights,
-                    self.contact_normals,
-                    self.contact_gaps,
-                    self.contact_thickness,
+                    inv_mass,
+                    self.acting,
+                    *records,
                     self.min_gap,
                     self.friction,
+                    int(inelastic),
                     k,
                     float(dt),
                     dt_x,
@@ -460,7 +516,7 @@ class SelfCollision:
                 sk.apply_self_contact_velocities,
                 dim=n,
                 inputs=[self.dv, dt_x, int(displacement is not None)],
-                outputs=[x, v, disp],
+                outputs=[x, v, disp, self.acting],
                 device=d,
             )
         wp.launch(
@@ -476,6 +532,61 @@ class SelfCollision:
                 self.min_gap,
                 self.model.particle_inv_mass,
             ],
+            device=d,
+        )
+
+    def project_increment(self, x: wp.array, dp: wp.array) -> None:
+        """Inside a position-based solver's iterations (pbd, xpbd, projective): every contact as a
+        constraint on p = x + dp, its gap found anew at p, d >= h (each pair's own thickness), with
+        Coulomb friction on the relative tangential displacement up to mu times the normal correction;
+        corrections equal and opposite, a vertex's mass split over its violated contacts (one Jacobi
+        pass, in place on ``dp``)."""
+        n, d = self.model.particle_count, self.device
+        records = [self.contact_indices, self.contact_weights, self.contact_normals, self.contact_thickness]
+        inv_mass = self.model.particle_inv_mass
+        wp.launch(
+            sk.count_violated_contacts,
+            dim=n,
+            inputs=[n, self.counts, x, dp, inv_mass, *records],
+            outputs=[self.acting],
+            device=d,
+        )
+        wp.launch(
+            sk.project_self_contact_increments,
+            dim=n,
+            inputs=[n, self.counts, x, dp, inv_mass, self.acting, *records, self.friction],
+            outputs=[self.dv],
+            device=d,
+        )
+        wp.launch(sk.apply_increment_corrections, dim=n, inputs=[self.dv], outputs=[dp, self.acting], device=d)
+
+    def eval_vertex_terms(self, x: wp.array, dx: wp.array) -> None:
+        """The contacts' penalty k delta^2 / 2 at x + dx (delta = h - gap > 0) per vertex:
+        :attr:`vertex_force` [N] and the Gauss-Newton :attr:`vertex_hessian` [N/m] (vbd's local Newton
+        step; equal and opposite)."""
+        n, d = self.model.particle_count, self.device
+        wp.launch(
+            sk.clear_self_contact_vertex_terms,
+            dim=n,
+            outputs=[self.vertex_force, self.vertex_hessian],
+            device=d,
+        )
+        wp.launch(
+            sk.eval_self_contact_vertex_terms,
+            dim=n,
+            inputs=[
+                n,
+                self.counts,
+                x,
+                dx,
+                self.model.particle_inv_mass,
+                self.contact_indices,
+                self.contact_weights,
+                self.contact_normals,
+                self.contact_thickness,
+                self.stiffness,
+            ],
+            outputs=[self.vertex_force, self.vertex_hessian],
             device=d,
         )
 
@@ -496,6 +607,7 @@ class SelfCollision:
         out.update(
             radius=float(s[sk.R_BUILD]),
             skin=float(s[sk.SKIN]),
+            margin_max=float(s[sk.MARGIN_MAX]),
             capacity_candidates=self.vt_capacity + self.ee_capacity,
             capacity_contacts=self.contact_capacity,
         )

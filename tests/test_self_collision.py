@@ -1,0 +1,380 @@
+"""Self-collision in every integrator (issue 29, part 2) and collider edges against the cloth: the fold
+scene with no intersection at any frame, two stacked sheets keeping their thickness on the ground,
+momentum in a free two-layer collision, no allocation, capture, the tablecloth's edge check, the run
+parameters and bad values. Each check has a negative control: the same scene without the response
+passes through itself (or the box's edge through the cloth)."""
+
+import numpy as np
+import pytest
+import warp as wp
+from warpcloth.scenarios import get_scenario
+
+from warpcloth import Box, Control, Plane, Simulator, build_grid_cloth
+from warpcloth.errors import WarpclothError
+from warpcloth.integrators import integrator_names, make_integrator
+from warpcloth.lab import intersections as ix
+from warpcloth.sim.model import SpringParams, SpringType, build_model
+from warpcloth.sim.self_collision import SelfCollision
+
+INTEGRATORS = integrator_names()
+H = 0.005  # the thickness of these tests [m]
+
+
+def run_frames(sim, seconds, check=None):
+    """Advance ``sim`` frame by frame (1/60 s) for ``seconds``; ``check(sim)`` after each frame."""
+    frame = max(1, round((1.0 / 60.0) / sim.dt))
+    while sim.sim_time < seconds - 1e-9:
+        sim.simulate(frame)
+        if check is not None:
+            check(sim)
+
+
+# -- the fold: no intersection at any frame ------------------------------------------------------------
+def fold(integrator, self_collision=True):
+    return get_scenario("fold").build(rows=24, cols=8, integrator=integrator, self_collision=self_collision)
+
+
+def intersections_per_frame(sim, seconds=2.6):
+    tris, counts = sim.model.host["tris"], []
+    run_frames(sim, seconds, lambda s: counts.append(ix.count_self_intersections(s.state.particle_q.numpy(), tris)))
+    return counts
+
+
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_the_fold_has_no_intersection_at_any_frame(integrator):
+    """The strip laid on the ground and folded back over itself (24 x 8, default dt of each scheme, 2.6 s:
+    the fold ends at 2.4 s): 0 intersecting triangle pairs at every frame, the layers in contact, no
+    list overflowed and every pair left at least the minimum gap."""
+    sim = fold(integrator)
+    counts = intersections_per_frame(sim)
+    assert len(counts) >= 150 and max(counts) == 0, [(k, c) for k, c in enumerate(counts) if c][:5]
+    stats = sim.self_collision.stats()
+    assert stats["contacts_max"] > 20  # it did fold onto itself
+    assert stats["overflow_candidates"] == stats["overflow_contacts"] == stats["truncated_queries"] == 0
+    assert stats["unresolved"] == 0
+    assert sim.state.particle_q.numpy()[:, 1].min() >= 0.003 - 1e-5  # the ground still wins
+
+
+def test_the_fold_passes_through_itself_without_self_collision():
+    """The check above can fail: vbd without the response lets the upper layer through the lower."""
+    assert max(intersections_per_frame(fold("vbd", self_collision=False))) > 10
+
+
+# -- two stacked sheets on the ground ------------------------------------------------------------------
+def params(ks, kd=0.0):
+    return {t: SpringParams(ks, kd) for t in SpringType}
+
+
+def two_sheets(rows=6, gap=1.2 * H, height=0.02, speed=0.0, offset=(0.007, 0.011)):
+    """Two horizontal 0.2 m sheets, the lower ``height`` above the ground and the upper ``gap`` above
+    it, shifted by ``offset`` in x, z (so vertices do not lie over vertices); the lower moving up and
+    the upper down at ``speed``; masses 1 : 1.5 (momentum not symmetric)."""
+    a = build_grid_cloth(rows, rows, 0.2, 0.2, 0.01, plane="horizontal", origin=(-0.1, height, -0.1), device="cpu")
+    qa = a.host["q"].astype(np.float64)
+    n = len(qa)
+    q = np.concatenate([qa, qa + np.array([offset[0], gap, offset[1]])])
+    pairs = np.concatenate([a.host["pairs"], a.host["pairs"] + n])
+    types = np.concatenate([a.spring_type, a.spring_type])
+    tris = np.concatenate([a.host["tris"], a.host["tris"] + n])
+    mass = np.concatenate([a.host["mass"], 1.5 * a.host["mass"]])
+    model = build_model(q, pairs, types, mass, params(50.0, 0.01), triangles=tris, device="cpu")
+    v = np.zeros_like(q)
+    v[:n, 1], v[n:, 1] = speed, -speed
+    return model, v
+
+
+#: At dt = 1/60 s without substeps a layer that lands on another already on the ground passes through it
+#: (the lower layer stops within the step: the pair was not near at its start) - see docs/self-collision.md
+STACK_NOT_HELD = ("implicit_euler", "vbd", "projective")
+
+
+def known_failures(names, reason):
+    return [
+        pytest.param(i, marks=pytest.mark.xfail(strict=True, reason=reason)) if i in names else i for i in INTEGRATORS
+    ]
+
+
+@pytest.mark.parametrize("integrator", known_failures(STACK_NOT_HELD, "a layer landing on a landed one at dt = 1/60 s"))
+def test_two_stacked_sheets_keep_their_thickness_on_the_ground(integrator):
+    """Dropped 2 cm onto the ground, the upper sheet comes to rest on the lower one: every upper vertex
+    at least the minimum gap above the lower sheet, the layers about h apart, the ground not entered."""
+    model, _ = two_sheets()
+    control = Control(colliders=[Plane(thickness=0.002, friction=0.5)], drag_rate=1.0, device="cpu")
+    sim = Simulator(model, integrator, control, self_collision={"thickness": H, "friction": 0.3})
+    run_frames(sim, 1.0)
+    x = sim.state.particle_q.numpy().astype(np.float64)
+    y = x[:, 1]
+    n = model.particle_count // 2
+    assert np.median(y[:n]) < 0.0025 and y.min() >= 0.002 - 1e-5  # the lower sheet lies on the ground, not in it
+    lower = x[:n]
+    over = np.all(
+        (x[n:, [0, 2]] > lower[:, [0, 2]].min(axis=0) + 0.04) & (x[n:, [0, 2]] < lower[:, [0, 2]].max(axis=0) - 0.04),
+        axis=1,
+    )
+    gap = y[n:][over] - np.median(y[:n])  # the upper vertices over the lower sheet's inside
+    assert over.sum() >= 4 and gap.min() >= sim.self_collision.min_gap * 0.99, gap
+    assert 0.5 * H < np.median(gap) < 2.0 * H, np.median(gap)
+    assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host["tris"]) == 0
+
+
+def test_stacked_sheets_merge_without_self_collision():
+    """The check above can fail: without the response the upper sheet falls through onto the ground."""
+    model, _ = two_sheets()
+    control = Control(colliders=[Plane(thickness=0.002, friction=0.5)], drag_rate=1.0, device="cpu")
+    sim = Simulator(model, "xpbd", control)
+    run_frames(sim, 1.0)
+    y = sim.state.particle_q.numpy()[:, 1]
+    n = model.particle_count // 2
+    assert np.median(y[n:] - y[:n].mean()) < 0.2 * H
+
+
+# -- momentum of a free two-layer collision --------------------------------------------------------------
+def momentum(model, v):
+    return (model.host["mass"].astype(np.float64)[:, None] * v.astype(np.float64)).sum(axis=0)
+
+
+@pytest.mark.parametrize(
+    "integrator", known_failures(("projective",), "its layers, closing 8 mm a step, pass through each other")
+)
+def test_a_free_two_layer_collision_keeps_momentum(integrator):
+    """No gravity, the layers closing at 2 m/s: every step changes the total momentum by at most
+    1e-6 kg m/s (equal and opposite responses) and the layers do not pass through each other."""
+    model, v0 = two_sheets(gap=0.012, speed=0.25)
+    control = Control(gravity=(0.0, 0.0, 0.0), device="cpu")
+    options = {"cg_tol": 1e-6} if integrator == "implicit_euler" else {}  # its own CG error below the bound
+    sim = Simulator(
+        model,
+        make_integrator(integrator, **options),
+        control,
+        self_collision={"thickness": H, "friction": 0.3},
+        use_graph=False,
+    )
+    sim.state.particle_qd.assign(v0.astype(np.float32))
+    p = momentum(model, sim.state.particle_qd.numpy())
+    steps = max(3, min(400, round(0.06 / sim.dt)))
+    worst = 0.0
+    for _ in range(steps):
+        sim.simulate(1)
+        p_new = momentum(model, sim.state.particle_qd.numpy())
+        worst, p = max(worst, float(np.abs(p_new - p).max())), p_new
+    n = model.particle_count // 2
+    y = sim.state.particle_q.numpy()[:, 1]
+    assert sim.self_collision.stats()["contacts_max"] > 10  # they met
+    assert y[n:].mean() > y[:n].mean() + 0.5 * H
+    assert worst <= 1e-6, worst
+
+
+# -- allocation, capture ---------------------------------------------------------------------------
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_a_step_with_self_collision_allocates_nothing(integrator, count_allocations):
+    model, v0 = two_sheets(gap=0.006, speed=1.0)
+    control = Control(colliders=[Plane(thickness=0.002)], device="cpu")
+    sim = Simulator(model, integrator, control, self_collision={"thickness": H}, use_graph=False)
+    sim.state.particle_qd.assign(v0.astype(np.float32))
+    sim.simulate(2)  # first launches
+    start, stop = count_allocations
+    created = start()
+    sim.simulate(3)
+    stop()
+    assert created == [], f"{len(created)} allocations"
+    assert sim.self_collision.stats()["contacts"] > 0
+
+
+@pytest.mark.parametrize("integrator", ["explicit_euler", "pbd", "vbd"])
+def test_captured_frames_replay_self_collision_bit_identically(integrator):
+    runs = []
+    for graph in (False, True):
+        model, v0 = two_sheets(gap=0.008, speed=0.5)
+        sim = Simulator(model, integrator, Control(device="cpu"), self_collision={"thickness": H}, use_graph=graph)
+        sim.state.particle_qd.assign(v0.astype(np.float32))
+        run_frames(sim, 0.1)
+        runs.append((sim.state.particle_q.numpy(), sim.self_collision.counts.numpy()))
+    assert runs[1][1][2] > 0 or runs[1][1][11] > 0  # contacts happened inside the replays
+    assert np.array_equal(runs[0][0], runs[1][0]) and np.array_equal(runs[0][1], runs[1][1])
+
+
+# -- the tablecloth: no box edge through the cloth -----------------------------------------------------
+def tablecloth_crossings(integrator, seconds=1.5, edges=True):
+    sim = get_scenario("tablecloth").build(rows=12, cols=12, integrator=integrator)
+    sim.control.collision.edge_contacts = edges
+    tris, worst = sim.model.host["tris"], [0, 0]
+
+    def check(s):
+        x = s.state.particle_q.numpy()
+        worst[0] = max(worst[0], ix.collider_edge_crossings(x, tris, s.control.colliders, s.sim_time))
+        worst[1] = max(worst[1], ix.count_self_intersections(x, tris))
+
+    run_frames(sim, seconds, check)
+    return worst
+
+
+#: At dt = 1/60 s the edge contacts of these schemes do not converge while the cloth settles over the
+#: table's corners (their Jacobi passes average a vertex's contacts; measured: 10-20 crossings in
+#: 20-110 of 150 frames), see docs/self-collision.md
+EDGES_NOT_HELD = ("implicit_euler", "vbd", "projective")
+
+
+@pytest.mark.parametrize("integrator", known_failures(EDGES_NOT_HELD, "edge contacts do not converge at dt = 1/60 s"))
+def test_no_box_edge_passes_through_the_tablecloth(integrator):
+    """The cloth falls on the table and hangs over its edges (12 x 12, 1.5 s): no edge of the box
+    crosses a cloth triangle and the cloth does not pass through itself, at any frame."""
+    assert tablecloth_crossings(integrator) == [0, 0]
+
+
+def test_the_box_edge_shows_through_without_edge_contacts():
+    """The check above can fail: with the vertices' contacts alone (the default) the table's edge crosses the cloth."""
+    assert tablecloth_crossings("explicit_euler", edges=False)[0] > 0
+
+
+def test_a_cloth_edge_across_a_box_edge_is_pushed_out_to_the_thickness():
+    """A cloth edge cutting 2.8 cm across a box's top edge (its ends clear of the box, so no vertex
+    contact sees it): within a few steps it lies the thickness from the edge, out of the box."""
+    q = np.array([[-0.05, 0.51, 0.45], [-0.05, 0.45, 0.51], [-0.15, 0.52, 0.52]])  # the edge 0-1 cuts the corner
+    model = build_model(
+        q, [[0, 1], [1, 2], [2, 0]], [SpringType.STRUCTURAL] * 3, [0.01] * 3, params(1.0), triangles=[[0, 1, 2]]
+    )
+    box = Box(center=(0.0, 0.25, 0.25), half_extents=(0.5, 0.25, 0.25), thickness=0.004)
+    sim = Simulator(model, "explicit_euler", Control(gravity=(0.0, 0.0, 0.0), colliders=[box], device="cpu"), dt=1e-4)
+    sim.control.collision.edge_contacts = True
+    assert ix.collider_edge_crossings(q, model.host["tris"], [box]) > 0
+    sim.simulate(10)
+    x = sim.state.particle_q.numpy().astype(np.float64)
+    s = np.linspace(0.0, 1.0, 201)[:, None]
+    segment = x[0] + s * (x[1] - x[0])
+    gap = np.min(np.hypot(segment[:, 1] - 0.5, segment[:, 2] - 0.5))  # from the box's top edge (y = z = 0.5)
+    assert gap >= 0.004 * 0.99 and gap < 0.006
+    assert ix.collider_edge_crossings(x, model.host["tris"], [box]) == 0
+
+
+# -- the checker on a cloth lying on the ground --------------------------------------------------------
+def test_flat_triangles_one_ring_apart_on_the_ground_do_not_intersect():
+    """Two triangles of a flat cloth on the ground, float32 positions a rounding off coplanar: no
+    intersection (an earlier checker found one: its Plucker signs were zero within 1e-12 L^3 only)."""
+    a = np.array([[-0.2518, 0.003, 0.1876], [-0.2529, 0.003, 0.1224], [-0.1804, 0.003, 0.1864]], np.float32)
+    b = np.array([[-0.1091, 0.003, 0.1854], [-0.1814, 0.003, 0.1213], [-0.1100, 0.003, 0.1202]], np.float32)
+    b[1, 1] = np.nextafter(np.float32(0.003), np.float32(1.0))  # one ulp above the plane
+    a[2, 1] = np.nextafter(np.float32(0.003), np.float32(0.0))  # one below
+    assert not ix.triangles_intersect(a.astype(np.float64)[None], b.astype(np.float64)[None])[0]
+    b[1, [0, 2]] = -0.21, 0.17  # now one lies on the other, in the plane
+    assert ix.triangles_intersect(a.astype(np.float64)[None], b.astype(np.float64)[None])[0]
+
+
+# -- implicit Euler's contact term -----------------------------------------------------------------------
+def test_implicit_eulers_contact_block_is_the_penalty_jacobian():
+    """The product implicit Euler adds to A for the self-contacts is alpha h^2 k C with C = sum over
+    overlapping contacts of (W W^T) kron (n n^T), assembled here in NumPy: symmetric, positive semi-definite."""
+    model, v0 = two_sheets(gap=0.003, rows=4)
+    sim = Simulator(model, "implicit_euler", Control(gravity=(0, 0, 0), device="cpu"), self_collision={"thickness": H})
+    integ, sc = sim.integrator, sim.self_collision
+    x = sim.state.particle_q
+    sc.detect(x, sim.state.particle_qd, sim.dt)
+    integ._x = x
+    integ.system.h = sim.dt
+    c = sc.contacts()
+    xs = x.numpy().astype(np.float64)
+    nv = model.particle_count
+    C = np.zeros((3 * nv, 3 * nv))
+    free = model.host["inv_mass"] > 0
+    for idx, w, nrm in zip(c["indices"], c["weights"], c["normals"]):
+        if H - nrm @ sum(wk * xs[i] for i, wk in zip(idx, w)) <= 0.0:
+            continue
+        for a, wa in zip(idx, w):
+            for b, wb in zip(idx, w):
+                if free[a] and free[b]:
+                    C[3 * a : 3 * a + 3, 3 * b : 3 * b + 3] += wa * wb * np.outer(nrm, nrm)
+    assert np.abs(C).max() > 0.1
+    rng = np.random.default_rng(0)
+    y = rng.normal(size=(nv, 3))
+    z = wp.zeros(nv, dtype=wp.vec3, device="cpu")
+    integ._self_contact_product(wp.array(y.astype(np.float32), dtype=wp.vec3, device="cpu"), z, 2.0, False)
+    expected = 2.0 * sim.dt**2 * sc.stiffness * (C @ y.reshape(-1))
+    np.testing.assert_allclose(z.numpy().reshape(-1), expected, rtol=1e-4, atol=1e-6 * np.abs(expected).max())
+    eig = np.linalg.eigvalsh(C)
+    assert np.allclose(C, C.T) and eig.min() > -1e-6 * eig.max()
+
+
+# -- run parameters and bad values -----------------------------------------------------------------
+def test_self_collision_is_on_where_the_scene_folds_and_a_run_reports_it():
+    for name, on in (("fold", True), ("drape", True), ("tablecloth", True), ("sheet", False), ("flag", False)):
+        sim = get_scenario(name).build(rows=6, cols=6)
+        assert (sim.self_collision is not None) is on, name
+    sim = get_scenario("drape").build(rows=6, cols=6, self_collision=False)
+    assert sim.self_collision is None
+    sim = get_scenario("sheet").build(rows=6, cols=6, self_collision=True, self_collision_thickness=0.002)
+    assert sim.self_collision.thickness == 0.002 and sim.self_collision.friction == 0.3
+    result = get_scenario("fold").run(rows=8, cols=4, integrator="xpbd", duration=0.1)
+    assert (
+        result.self_collision["detects"] == result.steps and "overflow_contacts" in result.to_dict()["self_collision"]
+    )
+
+
+def test_an_overflow_is_reported_on_stderr(capsys):
+    from warpcloth.run.harness import RunHarness
+
+    model, v0 = two_sheets(gap=0.004)
+    sc = SelfCollision(model, thickness=H, contacts_per_element=1, candidates_per_vertex=1, candidates_per_edge=1)
+    sim = Simulator(model, "xpbd", Control(gravity=(0, 0, 0), device="cpu"), self_collision=sc)
+    result = RunHarness(sim).run(0.05)
+    assert result.self_collision["overflow_candidates"] > 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "self-collision may have missed pairs" in err and "did not fit its list" in err
+
+
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        ({"thickness": -0.001}, "thickness must be > 0"),
+        ({"thickness": 0.0}, "thickness must be > 0"),
+        ({"thickness": 0.005, "friction": -0.1}, "friction mu must be >= 0"),
+        ({"thickness": float("nan")}, "thickness"),
+    ],
+)
+def test_bad_self_collision_values_are_one_line_errors(kwargs, words):
+    model, _ = two_sheets(rows=4)
+    with pytest.raises(WarpclothError) as info:
+        Simulator(model, "explicit_euler", self_collision=kwargs)
+    assert words in str(info.value) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "flag, value, words",
+    [
+        ("--self-collision-thickness", "-1", "self_collision_thickness must be > 0"),
+        ("--self-collision-friction", "-0.5", "self_collision_friction must be >= 0"),
+        ("--self-collision", "maybe", "invalid choice"),
+    ],
+)
+def test_bad_self_collision_flags_are_one_line_errors(flag, value, words, capsys):
+    from warpcloth.cli import main
+
+    try:
+        code = main(["run", "sheet", "--size", "4", "--num-frames", "1", flag, value])
+    except SystemExit as exc:  # argparse's own refusals
+        code = exc.code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code != 0 and len(err) >= 1 and words in err[-1]
+
+
+def test_check_intersections_reads_a_usd_file(tmp_path, capsys):
+    from warpcloth.cli import main
+    from warpcloth.io.usd import UsdWriter
+
+    clean = str(tmp_path / "fold.usda")
+    get_scenario("fold").run(rows=8, cols=4, integrator="xpbd", duration=0.1, usd_path=clean)
+    assert main(["check-intersections", clean]) == 0
+    assert "7 frames: 0 with self-intersections" in capsys.readouterr().out  # t = 0 and 6 frames
+    model = build_grid_cloth(5, 5, 1.0, 1.0, 0.2, plane="horizontal", device="cpu")
+    q = model.host["q"].astype(np.float64)
+    folded = q.copy()
+    folded[q[:, 0] > 0.5, 1] = 0.1 * np.sin(20.0 * q[q[:, 0] > 0.5, 2])  # a wave across the sheet's own plane
+    folded[q[:, 0] > 0.5, 0] = 1.0 - q[q[:, 0] > 0.5, 0]  # folded over the other half
+    bad = str(tmp_path / "bad.usda")
+    with UsdWriter(bad, model, fps=60.0) as writer:
+        writer.write_frame(q, 0.0)
+        writer.write_frame(folded, 1 / 60)
+    assert main(["check-intersections", bad, "--json"]) == 1
+    out = capsys.readouterr().out
+    import json
+
+    report = json.loads(out)
+    assert report["frames"] == 2 and report["self_intersections"][0] == 0 and report["self_intersections"][1] > 0
