@@ -30,6 +30,10 @@ say warpcloth bench --scenario examples/cape.toml --integrators xpbd,implicit_eu
 say warpcloth run curtain --size 8 --num-frames 2
 say warpcloth run drape --size 8 --num-frames 2
 say warpcloth run tablecloth --integrator xpbd --size 8 --num-frames 2
+say warpcloth run drape --material silk --compression 0.3 --size 8 --num-frames 2
+say warpcloth run cantilever --cols 12 --num-frames 2
+say warpcloth run cusick --size 8 --num-frames 2
+say warpcloth calibrate silk --target bending_length=0.015 --size 8 --max-runs 2
 say warpcloth run fold --rows 12 --cols 6 --num-frames 3 --usd fold.usda
 say warpcloth check-intersections fold.usda
 say warpcloth run drape --collider capsule:a=-0.6/0.1/0.35,b=0.6/0.1/0.35,radius=0.1,friction=0.5 \

@@ -56,6 +56,7 @@ def measure(n: int, repeats: int, device) -> dict:
         rest = wp.array(np.linalg.norm(q0[pairs[:, 1]] - q0[pairs[:, 0]], axis=1).astype(np.float32), dtype=float)
         ks = wp.full(len(pairs), 100.0, dtype=float)
         kd = wp.full(len(pairs), 0.1, dtype=float)
+        ones = wp.ones(len(pairs), dtype=float)
         d = hinges.to_device(device)
         theta = wp.zeros(hinges.hinge_count, dtype=float)
         grad = wp.zeros((hinges.hinge_count, 4), dtype=wp.vec3)
@@ -73,7 +74,9 @@ def measure(n: int, repeats: int, device) -> dict:
         "colors": int(colors.max()) + 1,
         "grid_hinges_s": build_s,
         "greedy_hinge_colors_s": color_s,
-        "eval_springs_ms": timed(launch(eval_springs, len(pairs), x, v, springs, rest, ks, kd, f), repeats, device),
+        "eval_springs_ms": timed(
+            launch(eval_springs, len(pairs), x, v, springs, rest, ks, kd, ones, f), repeats, device
+        ),
         "eval_hinge_forces_ms": timed(launch(bending.eval_hinge_forces, count, x, v, *hinge_in, f), repeats, device),
         "eval_hinge_gradients_ms": timed(
             launch(bending.eval_hinge_gradients, count, x, d.hinge_indices, theta, grad), repeats, device

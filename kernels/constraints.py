@@ -23,20 +23,21 @@ substeps a free particle floated and a hanging mass's extension was off by 5e-4 
 """
 
 import warp as wp
+from warpcloth.kernels.springs import compressed_stiffness
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
 
 
 @wp.func
-def distance_correction_pbd(d: wp.vec3, wi: float, wj: float, rest: float, stiffness: float):
-    # C = |d| - L0, d = p_j - p_i, n = d/|d|
+def distance_correction_pbd(d: wp.vec3, wi: float, wj: float, rest: float, stiffness: float, phi: float):
+    # C = |d| - L0, d = p_j - p_i, n = d/|d|, k = stiffness (phi stiffness where C < 0: compression factor)
     # dp_i = +k w_i/(w_i + w_j) C n,  dp_j = -k w_j/(w_i + w_j) C n   (Müller et al. 2007, section 3.3)
     length = wp.length(d)
     w = wi + wj
     if length == 0.0 or w == 0.0:
         return wp.vec3(0.0), wp.vec3(0.0)
-    s = stiffness * (length - rest) / (length * w)
+    s = compressed_stiffness(length, rest, stiffness, phi) * (length - rest) / (length * w)
     return (s * wi) * d, (-s * wj) * d
 
 
@@ -50,10 +51,11 @@ def distance_correction_xpbd(
     rest: float,
     ks: float,
     kd: float,
+    phi: float,
     lam: float,
     h: float,
 ):
-    # C = |d| - L0, d = p_j - p_i, n = d/|d|, dp = p - x (the displacement of this substep)
+    # C = |d| - L0, d = p_j - p_i, n = d/|d|, dp = p - x (the displacement of this substep); ks -> phi ks where C < 0
     # dlam = -(ks h^2 C + kd h gradC.(p - x) + lam) / ((ks h^2 + kd h)(w_i + w_j) + 1)
     # (Macklin et al. 2016, eq. 18 and 26, times 1/alpha_tilde = ks h^2, gamma = kd/(ks h));
     # dp_i = -w_i n dlam, dp_j = +w_j n dlam   (gradC = (-n, n))
@@ -64,6 +66,7 @@ def distance_correction_xpbd(
     n = d / length
     c = length - rest
     c_dot_h = wp.dot(n, dpj - dpi)
+    ks = compressed_stiffness(length, rest, ks, phi)
     dlam = -(ks * h * h * c + kd * h * c_dot_h + lam) / ((ks * h * h + kd * h) * w + 1.0)
     return (-wi * dlam) * n, (wj * dlam) * n, dlam
 
@@ -96,6 +99,7 @@ def solve_springs_pbd(
     spring_rest_length: wp.array(dtype=float),
     spring_type: wp.array(dtype=wp.int32),
     type_stiffness: wp.vec3,
+    spring_compression: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
     x: wp.array(dtype=wp.vec3),
     dp: wp.array(dtype=wp.vec3),
@@ -107,7 +111,12 @@ def solve_springs_pbd(
     j = ij[1]
     d = (x[j] - x[i]) + (dp[j] - dp[i])
     ci, cj = distance_correction_pbd(
-        d, particle_inv_mass[i], particle_inv_mass[j], spring_rest_length[s], type_stiffness[spring_type[s]]
+        d,
+        particle_inv_mass[i],
+        particle_inv_mass[j],
+        spring_rest_length[s],
+        type_stiffness[spring_type[s]],
+        spring_compression[s],
     )
     dp[i] = dp[i] + ci
     dp[j] = dp[j] + cj
@@ -121,6 +130,7 @@ def solve_springs_xpbd(
     spring_rest_length: wp.array(dtype=float),
     spring_stiffness: wp.array(dtype=float),
     spring_damping: wp.array(dtype=float),
+    spring_compression: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
     x: wp.array(dtype=wp.vec3),
     h: float,
@@ -144,6 +154,7 @@ def solve_springs_xpbd(
         spring_rest_length[s],
         spring_stiffness[s],
         spring_damping[s],
+        spring_compression[s],
         lam[s],
         h,
     )

@@ -15,12 +15,20 @@ def eval_springs(
     spring_rest_length: wp.array(dtype=float),
     spring_stiffness: wp.array(dtype=float),
     spring_damping: wp.array(dtype=float),
+    spring_compression: wp.array(dtype=float),
     f: wp.array(dtype=wp.vec3),
 ):
     s = wp.tid()
     ij = spring_indices[s]
     fi = spring_force(
-        x[ij[0]], x[ij[1]], v[ij[0]], v[ij[1]], spring_rest_length[s], spring_stiffness[s], spring_damping[s]
+        x[ij[0]],
+        x[ij[1]],
+        v[ij[0]],
+        v[ij[1]],
+        spring_rest_length[s],
+        spring_stiffness[s],
+        spring_damping[s],
+        spring_compression[s],
     )
     wp.atomic_add(f, ij[0], fi)
     wp.atomic_sub(f, ij[1], fi)

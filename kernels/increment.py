@@ -86,7 +86,13 @@ def vertex_gradient_hessian(
         s = springs.spring[a]
         j = springs.other[a]
         f, K = spring_gradient_hessian(
-            x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s], springs.damping[s], h
+            x[j] - xi,
+            dx[j] - dxi,
+            springs.rest_length[s],
+            springs.stiffness[s],
+            springs.damping[s],
+            springs.compression[s],
+            h,
         )
         g = g - f
         H = H + K
@@ -351,7 +357,13 @@ def rigid_mode_terms(
         if wp.ddot(Pd, Pd) > 0.0:
             s = springs.spring[a]
             f, K = spring_gradient_hessian(
-                x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s], springs.damping[s], h
+                x[j] - xi,
+                dx[j] - dxi,
+                springs.rest_length[s],
+                springs.stiffness[s],
+                springs.damping[s],
+                springs.compression[s],
+                h,
             )
             bi = bi + (0.5 * h2) * (Pd * f)
             Ai = Ai + (0.5 * h2) * (wp.transpose(Pd) * K * Pd)

@@ -2,6 +2,7 @@
 
 import warp as wp
 from warpcloth.kernels.bending import hinge_energy
+from warpcloth.kernels.springs import compressed_stiffness
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
@@ -91,10 +92,11 @@ def reduce_energy(
     spring_indices: wp.array(dtype=wp.vec2i),
     spring_rest_length: wp.array(dtype=float),
     spring_stiffness: wp.array(dtype=float),
+    spring_compression: wp.array(dtype=float),
     gravity: wp.vec3,
     energy: wp.array(dtype=wp.float64),
 ):
-    # E = sum 1/2 m |v|^2 - m g.x  (particles, tid < n)  +  sum 1/2 ks (L - L0)^2  (springs);
+    # E = sum 1/2 m |v|^2 - m g.x  (particles, tid < n)  +  sum 1/2 k (L - L0)^2  (springs; k = phi ks if L < L0);
     # the kinetic part alone goes to ENERGY_KINETIC
     tid = wp.tid()
     n = x.shape[0]
@@ -106,8 +108,10 @@ def reduce_energy(
     s = tid - n
     if s >= 0 and s < spring_indices.shape[0]:
         ij = spring_indices[s]
-        stretch = wp.length(x[ij[1]] - x[ij[0]]) - spring_rest_length[s]
-        wp.atomic_add(energy, ENERGY_TOTAL, wp.float64(0.5 * spring_stiffness[s] * stretch * stretch))
+        length = wp.length(x[ij[1]] - x[ij[0]])
+        stretch = length - spring_rest_length[s]
+        k = compressed_stiffness(length, spring_rest_length[s], spring_stiffness[s], spring_compression[s])
+        wp.atomic_add(energy, ENERGY_TOTAL, wp.float64(0.5 * k * stretch * stretch))
 
 
 @wp.kernel

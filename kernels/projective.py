@@ -30,22 +30,24 @@ from warpcloth.kernels.increment import (
     project_increment,
     vertex_gradient_hessian,
 )
-from warpcloth.kernels.springs import SpringAdjacency
+from warpcloth.kernels.springs import SpringAdjacency, compressed_stiffness
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
 wp.set_module_options({"enable_backward": False})
 
 
 @wp.func
-def spring_increment_residual(e: wp.vec3, ddx: wp.vec3, rest: float, ks: float, kd: float, h: float):
-    # h^2 ks (e - d), d = L0 e / |e| (the spring projected to its rest length) = h^2 ks (|e| - L0) n, and
+def spring_increment_residual(e: wp.vec3, ddx: wp.vec3, rest: float, ks: float, kd: float, phi: float, h: float):
+    # h^2 k (e - d), d = L0 e / |e| (the spring projected to its rest length) = h^2 k (|e| - L0) n (k = ks, or
+    # phi ks where |e| < L0: the projection d moved back towards e by 1 - phi), and
     # the damping along the spring, h kd ((dx_j - dx_i) . n) n (as the force-based integrators'): S's
     # isotropic h D only approximates its Jacobian, so a rigid rotation is not damped
     length = wp.length(e)
     if length == 0.0:
         return wp.vec3(0.0)
     n = e / length
-    return (h * h) * (ks * (length - rest) / length * e) + (h * kd * wp.dot(ddx, n)) * n
+    k = compressed_stiffness(length, rest, ks, phi)
+    return (h * h) * (k * (length - rest) / length * e) + (h * kd * wp.dot(ddx, n)) * n
 
 
 @wp.kernel
@@ -114,7 +116,13 @@ def eval_local_residual(
         j = springs.other[a]
         ddx = dx[j] - dxi
         res = res + spring_increment_residual(
-            (x[j] - xi) + ddx, ddx, springs.rest_length[s], springs.stiffness[s], springs.damping[s], h
+            (x[j] - xi) + ddx,
+            ddx,
+            springs.rest_length[s],
+            springs.stiffness[s],
+            springs.damping[s],
+            springs.compression[s],
+            h,
         )
     if contact.state[i] == 1:
         res = res + (h * h) * contact.force[i]

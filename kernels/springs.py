@@ -21,22 +21,32 @@ class SpringAdjacency:
     rest_length: wp.array(dtype=float)  # L0 per spring [m], shape (spring_count,)
     stiffness: wp.array(dtype=float)  # ks per spring [N/m]
     damping: wp.array(dtype=float)  # kd per spring [N s/m]
+    compression: wp.array(dtype=float)  # phi per spring: ks in tension, phi ks in compression
 
 
 @wp.func
-def spring_force(xi: wp.vec3, xj: wp.vec3, vi: wp.vec3, vj: wp.vec3, rest: float, ks: float, kd: float):
-    # f_i = ks (L - L0) n + kd ((v_j - v_i) . n) n,  n = (x_j - x_i) / L   (seed eq. 2.7-2.8)
+def compressed_stiffness(length: float, rest: float, ks: float, phi: float):
+    # ks where L >= L0, phi ks where L < L0 (compression factor; Choi & Ko 2002); phi = 1 gives ks bit for bit
+    if length < rest:
+        return phi * ks
+    return ks
+
+
+@wp.func
+def spring_force(xi: wp.vec3, xj: wp.vec3, vi: wp.vec3, vj: wp.vec3, rest: float, ks: float, kd: float, phi: float):
+    # f_i = k (L - L0) n + kd ((v_j - v_i) . n) n,  n = (x_j - x_i) / L,  k = ks (phi ks if L < L0)  (seed eq. 2.7-2.8)
     d = xj - xi
     length = wp.length(d)
     if length == 0.0:
         return wp.vec3(0.0)
     n = d / length
-    return (ks * (length - rest) + kd * wp.dot(vj - vi, n)) * n
+    return (compressed_stiffness(length, rest, ks, phi) * (length - rest) + kd * wp.dot(vj - vi, n)) * n
 
 
 @wp.func
-def spring_stiffness_block(xi: wp.vec3, xj: wp.vec3, rest: float, ks: float):
-    """K = df_i/dx_j = ks [n n^T + max(0, 1 - L0/L) (I - n n^T)] [N/m] (design.md).
+def spring_stiffness_block(xi: wp.vec3, xj: wp.vec3, rest: float, ks: float, phi: float):
+    """K = df_i/dx_j = k [n n^T + max(0, 1 - L0/L) (I - n n^T)] [N/m] (design.md), k = ks, or phi ks
+    for a compressed spring (L < L0; then the geometric term is clamped to 0 anyway).
 
     The exact geometric term (1 - L0/L)(I - n n^T) is negative for a compressed spring
     (L < L0) and can make A indefinite; clamping it at 0 keeps K positive semi-definite, so
@@ -50,7 +60,7 @@ def spring_stiffness_block(xi: wp.vec3, xj: wp.vec3, rest: float, ks: float):
     n = d / length
     nnt = wp.outer(n, n)
     geometric = wp.max(0.0, 1.0 - rest / length)
-    return ks * (nnt + geometric * (wp.identity(n=3, dtype=float) - nnt))
+    return compressed_stiffness(length, rest, ks, phi) * (nnt + geometric * (wp.identity(n=3, dtype=float) - nnt))
 
 
 @wp.func
@@ -65,8 +75,8 @@ def spring_damping_block(xi: wp.vec3, xj: wp.vec3, kd: float):
 
 
 @wp.func
-def spring_gradient_hessian(xij: wp.vec3, dxij: wp.vec3, rest: float, ks: float, kd: float, h: float):
-    # force on i from spring (i, j): f = ks (L - L0) n + kd / h (n.(dx_j - dx_i)) n ;
+def spring_gradient_hessian(xij: wp.vec3, dxij: wp.vec3, rest: float, ks: float, kd: float, phi: float, h: float):
+    # force on i from spring (i, j): f = k (L - L0) n + kd / h (n.(dx_j - dx_i)) n  (k = ks, phi ks if L < L0);
     # its Hessian block w.r.t. x_i: K (clamped) + kd / h n n^T   (d = x_j - x_i + dx_j - dx_i)
     d = xij + dxij
     length = wp.length(d)
@@ -74,6 +84,6 @@ def spring_gradient_hessian(xij: wp.vec3, dxij: wp.vec3, rest: float, ks: float,
         return wp.vec3(0.0), wp.mat33(0.0)
     n = d / length
     nnt = wp.outer(n, n)
-    force = ks * (length - rest) * n + (kd / h) * wp.dot(n, dxij) * n
-    hessian = spring_stiffness_block(wp.vec3(0.0), d, rest, ks) + (kd / h) * nnt
+    force = compressed_stiffness(length, rest, ks, phi) * (length - rest) * n + (kd / h) * wp.dot(n, dxij) * n
+    hessian = spring_stiffness_block(wp.vec3(0.0), d, rest, ks, phi) + (kd / h) * nnt
     return force, hessian

@@ -29,16 +29,17 @@ def eval_spring_jacobians(
     spring_rest_length: wp.array(dtype=float),
     spring_stiffness: wp.array(dtype=float),
     spring_damping: wp.array(dtype=float),
+    spring_compression: wp.array(dtype=float),
     h: float,
     spring_K: wp.array(dtype=wp.mat33),
     spring_B: wp.array(dtype=wp.mat33),
 ):
-    # K_s = ks [n n^T + max(0, 1 - L0/L)(I - n n^T)],  B_s = h^2 K_s + h kd n n^T   (full Jacobian)
+    # K_s = k [n n^T + max(0, 1 - L0/L)(I - n n^T)] (k = ks, phi ks if L < L0),  B_s = h^2 K_s + h kd n n^T  (full)
     s = wp.tid()
     ij = spring_indices[s]
     xi = x[ij[0]]
     xj = x[ij[1]]
-    K = spring_stiffness_block(xi, xj, spring_rest_length[s], spring_stiffness[s])
+    K = spring_stiffness_block(xi, xj, spring_rest_length[s], spring_stiffness[s], spring_compression[s])
     spring_K[s] = K
     spring_B[s] = (h * h) * K + h * spring_damping_block(xi, xj, spring_damping[s])
 

@@ -147,7 +147,13 @@ def eval_increment_residual(
         s = springs.spring[a]
         j = springs.other[a]
         f, K = spring_gradient_hessian(
-            x[j] - xi, dx[j] - dxi, springs.rest_length[s], springs.stiffness[s], springs.damping[s], h
+            x[j] - xi,
+            dx[j] - dxi,
+            springs.rest_length[s],
+            springs.stiffness[s],
+            springs.damping[s],
+            springs.compression[s],
+            h,
         )
         force = force + f
     if hinges.indices.shape[0] > 0:

@@ -13,7 +13,7 @@ from warpcloth.scenarios.common import Scenario, ScenarioConfig
 
 from warpcloth.errors import WarpclothError
 
-_BUILT_IN = ("sheet", "flag", "curtain", "mesh", "drape", "tablecloth", "fold")
+_BUILT_IN = ("sheet", "flag", "curtain", "mesh", "drape", "tablecloth", "fold", "cantilever", "cusick")
 _REGISTERED: dict[str, Scenario] = {}
 
 

@@ -19,6 +19,7 @@ from warpcloth.run.parse import ColliderSpec
 from warpcloth.sim.control import Control
 from warpcloth.sim.device import resolve_device
 from warpcloth.sim.grid import build_grid_cloth
+from warpcloth.sim.material import MATERIAL_VALUES, material_grid_cloth, material_with
 from warpcloth.sim.model import BendModel, default_spring_params
 from warpcloth.simulator import Simulator
 
@@ -33,6 +34,9 @@ class ScenarioConfig:
     mesh, prim, pin_group, pin_where, quads: the cloth of a mesh scenario (a mesh file and its USD
     prim path, the vertex groups and the predicate to pin, quad detection; see
     :func:`warpcloth.build_mesh_cloth`); grid scenarios ignore them.
+    material, density, stretch, shear, bend_rigidity, compression, warp_angle, *_damping_ratio: the
+    cloth in physical units (:func:`scenario_material`); with a material, mass, stiffness and damping
+    do not apply (its density and stiffnesses give them).
     self_collision: the cloth against itself on or off (None: the scenario's own,
     :attr:`Scenario.self_collision`), with self_collision_thickness [m] and self_collision_friction
     (None: the defaults of :mod:`warpcloth.run.params`); see :class:`~warpcloth.sim.self_collision.SelfCollision`.
@@ -66,6 +70,61 @@ class ScenarioConfig:
     self_collision: bool | None = None
     self_collision_thickness: float | None = None
     self_collision_friction: float | None = None
+    # the material in physical units (docs/materials.md): a preset's name, "custom", a Material, or None /
+    # "none" (per-spring stiffness and damping); the values below replace the material's (None: its own)
+    material: object = None
+    density: float | None = None  # rho [kg/m^2]
+    stretch: float | tuple | None = None  # C11 (and C22) [N/m]
+    shear: float | None = None  # G [N/m]
+    compression: float | None = None  # phi in [0, 1]
+    warp_angle: float | None = None  # [rad]
+    stretch_damping_ratio: float | None = None
+    bend_damping_ratio: float | None = None
+
+
+#: ScenarioConfig fields that set a material's values (warpcloth.sim.material.MATERIAL_VALUES).
+MATERIAL_FIELDS = tuple(MATERIAL_VALUES)
+#: ScenarioConfig fields of the per-spring model, which a material replaces.
+PER_SPRING_FIELDS = ("mass", "stiffness", "damping")
+
+
+def scenario_material(cfg: ScenarioConfig):
+    """The :class:`~warpcloth.sim.material.Material` of a configuration (its ``material`` with the
+    values given), or None for per-spring parameters."""
+    return material_with(cfg.material, **{k: getattr(cfg, k) for k in MATERIAL_FIELDS})
+
+
+def check_material_overrides(scenario: "Scenario", given: dict) -> None:
+    """Refuse per-spring values (mass, stiffness, damping) on a cloth made of a material, and a
+    material's values on a per-spring cloth, naming what to give instead."""
+    base = given.get("material", scenario.defaults.material)
+    has_material = base is not None and not (isinstance(base, str) and base.strip().lower() == "none")
+    if has_material:
+        clash = next((k for k in PER_SPRING_FIELDS if k in given), None)
+        if clash is not None:
+            name = base if isinstance(base, str) else base.name
+            where = "" if "material" in given else f"scenario {scenario.name!r} is made of "
+            raise WarpclothError(
+                f"{clash} is a per-spring value and {where}material {name!r}, whose density and stiffnesses "
+                f"give the masses and springs; change the material's values (density, stretch, shear, ...) or "
+                f"give material none"
+            )
+    else:
+        clash = next((k for k in MATERIAL_FIELDS if k != "bend_rigidity" and k in given), None)
+        if clash is not None:
+            raise WarpclothError(
+                f"{clash} is a material's value and scenario {scenario.name!r} has no material: give a material "
+                "(a preset, or custom with density, stretch, shear and bend_rigidity)"
+            )
+
+
+def check_rigidity(value) -> None:
+    """A per-spring cloth's dihedral rigidity is one number (warp,weft pairs need a material)."""
+    if isinstance(value, (tuple, list)):
+        raise WarpclothError(
+            f"bend_rigidity {','.join(f'{v:g}' for v in value)}: two rigidities (warp,weft) need a material; "
+            "give one number"
+        )
 
 
 @dataclass(frozen=True)
@@ -83,6 +142,11 @@ class Scenario:
         model: function (config, device) -> :class:`~warpcloth.sim.model.ClothModel` for a scenario
             that is not a Provot grid (a mesh); None: the grid of ``pins``, ``origin``, ``plane``.
         tracks: function (config, model) -> kinematic pin tracks (:class:`~warpcloth.sim.pins.PinTrack`).
+        measure: function (sim, config) -> dict of what the scenario measures at the end of a run
+            (a textile test's reading, a fold count), put in ``RunResult.measurements``; None: nothing.
+        kind: ``"grid"`` or ``"mesh"``: which cloth parameters apply (``--size`` or ``--mesh``); None:
+            ``"mesh"`` where ``model`` is given. A ``model`` of kind ``"grid"`` builds its own cloth from
+            rows, cols, width and height (the Cusick disc).
         self_collision: whether the cloth collides with itself unless the configuration says
             (scenes that fold: fold, drape, tablecloth).
     """
@@ -98,6 +162,14 @@ class Scenario:
     model: Callable | None = None
     tracks: Callable | None = None
     self_collision: bool = False
+    measure: Callable | None = None
+    kind: str | None = None
+
+    @property
+    def is_mesh(self) -> bool:
+        """Whether the cloth is a mesh (its size from the mesh; grid parameters refused): ``kind``,
+        or by default whether the scenario builds its own ``model``."""
+        return self.kind == "mesh" if self.kind is not None else self.model is not None
 
     def config(self, **overrides) -> ScenarioConfig:
         """The default configuration with ``overrides`` (None values keep the default)."""
@@ -105,6 +177,7 @@ class Scenario:
         if unknown:
             raise WarpclothError(f"unknown scenario parameter {sorted(unknown)[0]!r}")
         given = {k: v for k, v in overrides.items() if v is not None}
+        check_material_overrides(self, given)
         for kind in ("stiffness", "damping"):  # a partial {type: value} keeps the default's other types
             base = getattr(self.defaults, kind)
             if isinstance(given.get(kind), dict) and base is not None and not isinstance(base, dict):
@@ -135,6 +208,23 @@ class Scenario:
         rows = require_int("rows", cfg.rows, min_dim)
         cols = require_int("cols", cfg.cols, min_dim)
         integrator = make_integrator(cfg.integrator, **cfg.integrator_options)
+        mat = scenario_material(cfg)
+        if mat is not None:
+            with wp.ScopedDevice(device):
+                model = material_grid_cloth(
+                    mat,
+                    rows,
+                    cols,
+                    cfg.width,
+                    cfg.height,
+                    pins=self.pins(rows, cols),
+                    origin=self.origin(cfg),
+                    plane=self.plane,
+                    bend=bend,
+                    device=device,
+                )
+                return self._simulator(cfg, model, integrator, device)
+        check_rigidity(cfg.bend_rigidity)
         params = default_spring_params(cfg.mass / (rows * cols), cfg.stiffness, cfg.damping)
         with wp.ScopedDevice(device):
             model = build_grid_cloth(
@@ -230,4 +320,6 @@ class Scenario:
             sinks.abort()
             raise
         sinks.close()
+        if self.measure is not None and result.stable:
+            result.measurements = dict(self.measure(sim, cfg))
         return result

@@ -17,6 +17,10 @@ is optional but ``cloth.mesh``; unknown keys are refused, naming the file and th
     mass_mode = "area"                   # or "uniform"
     stiffness = [1000, 1000, 200]        # N/m: one number or structural, shear, bend
     damping = 0.05                       # N s/m (default scales with the particle mass)
+    # or a material in physical units (docs/materials.md) instead of mass, stiffness and damping:
+    # material = "cotton"                # a preset, or "custom" with density, stretch, shear, bend_rigidity
+    # stretch = [2028, 411]              # N/m, warp and weft (also density, shear, compression, warp_angle,
+    # bend_rigidity = 16e-6              # N m    stretch_damping_ratio, bend_damping_ratio)
 
     [pins]                               # pinned vertices: the union of
     groups = ["shoulders"]
@@ -82,19 +86,35 @@ import re
 from dataclasses import replace
 
 import numpy as np
-from warpcloth.scenarios.common import Scenario, ScenarioConfig
+from warpcloth.scenarios.common import Scenario, ScenarioConfig, check_rigidity, scenario_material
 
 from warpcloth.errors import WarpclothError, require, require_vector, warn
 from warpcloth.io.files import check_input_file, read_input
 from warpcloth.io.meshio import load_mesh, load_mesh_collider
 from warpcloth.run.params import BY_NAME, config_values, non_negative, params_for, positive
 from warpcloth.sim.control import GRAVITY, Control, WindSchedule
+from warpcloth.sim.material import material_mesh_cloth
 from warpcloth.sim.mesh import MASS_MODES, build_mesh_cloth, lumped_masses
 from warpcloth.sim.pins import PinTrack
 from warpcloth.sim.selection import parse_predicate, resolve_pins
 
 TOP_KEYS = {"name", "description", "stop_at_equilibrium", "cloth", "pins", "tracks", "colliders", "forces", "run"}
-CLOTH_KEYS = {"mesh", "prim", "quads", "bend", "mass", "density", "mass_mode", "stiffness", "damping"}
+#: [cloth] takes the material's run parameters (warpcloth.run.params, group "material"; density is the
+#: material's with a material, else the areal density the masses come from) and bend_rigidity.
+MATERIAL_KEYS = tuple(p.name for p in params_for("run") if p.group == "material")
+CLOTH_KEYS = {
+    "mesh",
+    "prim",
+    "quads",
+    "bend",
+    "mass",
+    "density",
+    "mass_mode",
+    "stiffness",
+    "damping",
+    "bend_rigidity",
+    *MATERIAL_KEYS,
+}
 PIN_KEYS = {"groups", "where", "indices"}
 TRACK_KEYS = PIN_KEYS | {
     "name",
@@ -371,6 +391,17 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     require("mass" not in cloth or "density" not in cloth, f"{where}: give cloth.mass or cloth.density, not both")
     mass = c.param("mass")
     density = c.number("density", positive)
+    material = c.param("material")
+    material_values = {k: c.param(k) for k in MATERIAL_KEYS if k not in ("material", "density")}
+    if material is not None and material != "none":
+        clash = next((k for k in ("mass", "mass_mode", "stiffness", "damping") if k in cloth), None)
+        if clash is not None:
+            raise c.fail(clash, f"does not go with cloth.material {material!r} (its density and stiffnesses give them)")
+        material_values["density"], density = density, None
+    else:
+        clash = next((k for k, v in material_values.items() if v is not None), None)
+        if clash is not None:
+            raise c.fail(clash, "is a material's value: give cloth.material (a preset, or custom)")
     if density is not None:
         mass = float(lumped_masses(mesh.vertices, mesh.triangles, density=density, mode=mass_mode).sum())
     bend = cloth.get("bend", True)
@@ -380,6 +411,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         bend = c.param("bend")
     quads = c.boolean("quads", False)
     stiffness, damping = c.param("stiffness"), c.param("damping")
+    bend_rigidity = c.param("bend_rigidity")
 
     # the pins, the tracks, the forces and the colliders checked now, so a bad file fails before any run
     p = _Keys(where, pins, "pins")
@@ -417,6 +449,19 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
             for k, t in enumerate(tracks)
             for p in _track(t, m.vertices, m.groups, f"{where}: [[tracks]] #{k + 1}").particles
         ]
+        mat = scenario_material(config)
+        if mat is not None:
+            return material_mesh_cloth(
+                mat,
+                m,
+                pins=pin_indices + tracked,
+                pin_groups=config.pin_group or (),
+                pin_where=config.pin_where,
+                quads=bool(config.quads),
+                bend=config.bend,
+                device=device,
+            )
+        check_rigidity(config.bend_rigidity)
         return build_mesh_cloth(
             m,
             total_mass=config.mass,
@@ -497,6 +542,9 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         pin_group=pin_groups or None,
         pin_where=pin_where,
         quads=quads,
+        bend_rigidity=bend_rigidity,
+        material=material,
+        **material_values,
     )
     defaults = replace(defaults, dt=dt.value if dt is not None and dt.kind == "value" else None, **config_values(given))
     scenario = Scenario(
@@ -514,6 +562,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         from warpcloth.integrators import make_integrator
 
         make_integrator(defaults.integrator, **defaults.integrator_options)
+        scenario_material(defaults)
         resolve_pins(mesh.vertices, pin_indices, defaults.pin_group or (), defaults.pin_where, mesh.groups)
     except WarpclothError as exc:
         raise WarpclothError(f"{where}: {exc}") from None

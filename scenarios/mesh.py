@@ -11,11 +11,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from warpcloth.scenarios.common import Scenario, ScenarioConfig
+from warpcloth.scenarios.common import Scenario, ScenarioConfig, check_rigidity, scenario_material
 
 from warpcloth.io.meshio import load_mesh
 from warpcloth.sim.control import Control
 from warpcloth.sim.grid import grid_triangles
+from warpcloth.sim.material import material_mesh_cloth
 from warpcloth.sim.mesh import TriangleMesh, build_mesh_cloth
 
 CAPE_ROWS, CAPE_COLS = 20, 16
@@ -43,6 +44,18 @@ def _model(config: ScenarioConfig, device: str):
     groups, where = config.pin_group, config.pin_where
     if not config.mesh and groups is None and where is None:
         groups = ("shoulders",)
+    mat = scenario_material(config)
+    if mat is not None:
+        return material_mesh_cloth(
+            mat,
+            mesh,
+            pin_groups=groups or (),
+            pin_where=where,
+            quads=bool(config.quads),
+            bend=config.bend,
+            device=device,
+        )
+    check_rigidity(config.bend_rigidity)
     return build_mesh_cloth(
         mesh,
         total_mass=config.mass,

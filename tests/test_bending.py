@@ -597,6 +597,7 @@ def test_strip_cantilever_with_springs_and_hinges_sags_like_the_linear_predictio
                 model.spring_rest_length,
                 model.spring_stiffness,
                 model.spring_damping,
+                model.spring_compression,
                 f,
             )
             if with_hinges:

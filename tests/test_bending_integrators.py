@@ -1,6 +1,6 @@
 """Dihedral bending (``bend="dihedral"``) in every integrator: the model, the implicit system against a
 dense float64 backward Euler, the explicit default dt, a flat cloth falling flat, and the cantilever
-strip against the inextensible elastica (warpcloth/lab/elastica.py)."""
+strip against the inextensible elastica (warpcloth/sim/elastica.py)."""
 
 from __future__ import annotations
 
@@ -264,7 +264,7 @@ CANTILEVER = {
 
 @pytest.mark.parametrize("name", list(CANTILEVER))
 def test_cantilever_strip_rests_at_the_elastica(name):
-    """The tip drop at rest within 2 % of the inextensible elastica's (warpcloth/lab/elastica.py) with
+    """The tip drop at rest within 2 % of the inextensible elastica's (warpcloth/sim/elastica.py) with
     32 particles along the strip. Without hinges the strip hangs (drop ~ the overhang); a rigidity 10 %
     off moves the drop by 4 % (half: +22 %, twice: -32 %)."""
     options, dt, duration = CANTILEVER[name]

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import free_particles, parse_collider
+from helpers import PER_SPRING_SCENE, free_particles, parse_collider
 
 from warpcloth import (
     Box,
@@ -164,7 +164,7 @@ def test_parse_collider():
 def test_the_drape_settles_on_the_sphere(integrator):
     from warpcloth.scenarios import drape
 
-    sim = drape.build(rows=12, cols=12, integrator=integrator)
+    sim = drape.build(rows=12, cols=12, integrator=integrator, **PER_SPRING_SCENE)
     # the skirt's swing decays with the drag's 1/s: measured 10.9 s (explicit_euler), 10.6 (verlet),
     # 6.6 (pbd), 7.9 (xpbd); explicit Euler's moved between 10.5 and 12.5 s with the contact
     # kernel's rounding, so the cap leaves it room
@@ -181,7 +181,7 @@ def test_the_drape_settles_on_the_sphere(integrator):
 def test_the_tablecloth_hangs_over_the_edges():
     from warpcloth.scenarios import tablecloth as t
 
-    sim = t.build(rows=14, cols=14)
+    sim = t.build(rows=14, cols=14, integrator="explicit_euler", **PER_SPRING_SCENE)
     r = RunHarness(sim).run(10.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached
     x = sim.state.particle_q.numpy().astype(np.float64)

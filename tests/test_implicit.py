@@ -93,7 +93,7 @@ def perturbed_sheet(rows=5, cols=6, seed=0, **overrides):
 
 
 # -- Jacobian blocks ---------------------------------------------------------------------------
-def _kernel_blocks(xi, xj, rest, ks, kd, h=1.0):
+def _kernel_blocks(xi, xj, rest, ks, kd, h=1.0, phi=1.0):
     x = wp.array(np.stack([xi, xj]).astype(np.float32), dtype=wp.vec3)
     K = wp.zeros(1, dtype=wp.mat33)
     B = wp.zeros(1, dtype=wp.mat33)
@@ -106,6 +106,7 @@ def _kernel_blocks(xi, xj, rest, ks, kd, h=1.0):
             wp.array([rest], dtype=float),
             wp.array([ks], dtype=float),
             wp.array([kd], dtype=float),
+            wp.array([phi], dtype=float),
             h,
         ],
         outputs=[K, B],

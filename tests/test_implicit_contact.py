@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import deepest_in_drape, drape_sphere_depth
+from helpers import PER_SPRING_SCENE, deepest_in_drape, drape_sphere_depth
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
 from warpcloth.run.harness import RunHarness
@@ -75,7 +75,7 @@ def test_a_sliding_ground_drags_a_cloth_to_its_speed():
 def test_the_16x16_drape_never_goes_inside_and_rests_on_top():
     from warpcloth.scenarios import drape
 
-    sim = drape.build(rows=16, cols=16, integrator="implicit_euler")
+    sim = drape.build(rows=16, cols=16, integrator="implicit_euler", **PER_SPRING_SCENE)
     deepest, x = deepest_in_drape(sim, 240)  # 4 s: it lands at 0.17 s and drapes
     assert -1e-3 < deepest < DEPTH_TOL  # touching, never inside
     rho = np.linalg.norm(x[:, [0, 2]], axis=1)
@@ -94,7 +94,11 @@ def test_the_16x16_drape_reaches_equilibrium(preconditioner):
     from warpcloth.scenarios import drape
 
     sim = drape.build(
-        rows=16, cols=16, integrator="implicit_euler", integrator_options={"preconditioner": preconditioner}
+        rows=16,
+        cols=16,
+        integrator="implicit_euler",
+        integrator_options={"preconditioner": preconditioner},
+        **PER_SPRING_SCENE,
     )
     r = RunHarness(sim).run(8.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached, (r.unstable_reason, r.final_max_speed)
@@ -112,7 +116,7 @@ def test_the_default_drape_and_the_tablecloth_reach_equilibrium():
     from warpcloth.scenarios import drape
     from warpcloth.scenarios import tablecloth as t
 
-    sim = drape.build(integrator="implicit_euler")
+    sim = drape.build(rows=24, cols=24, integrator="implicit_euler", **PER_SPRING_SCENE)
     r = RunHarness(sim).run(8.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached and r.time_to_equilibrium < 6.0, (
         r.final_max_speed,
@@ -121,7 +125,7 @@ def test_the_default_drape_and_the_tablecloth_reach_equilibrium():
     x = sim.state.particle_q.numpy().astype(np.float64)
     assert drape_sphere_depth(x).max() < DEPTH_TOL and x[:, 1].min() > drape.THICKNESS - DEPTH_TOL
 
-    sim = t.build(integrator="implicit_euler")
+    sim = t.build(rows=24, cols=24, integrator="implicit_euler", **PER_SPRING_SCENE)
     r = RunHarness(sim).run(8.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached and r.time_to_equilibrium < 4.0, (
         r.final_max_speed,

@@ -1,5 +1,5 @@
 """A material in physical units (warpcloth.sim.material), the cantilever elastica
-(warpcloth.lab.elastica) and the Cusick drape measurements (warpcloth.lab.drape): hand-computed
+(warpcloth.sim.elastica) and the Cusick drape measurements (warpcloth.run.drape): hand-computed
 spring values, the uniform-strain energy identity, masses, size independence, errors, the
 elastica's limits and the drape coefficient and node count of known shapes."""
 
@@ -500,7 +500,7 @@ def test_membrane_energy_density_rotates_with_the_warp():
 
 
 def test_elastica_small_load_limit():
-    from warpcloth.lab.elastica import linear_tip_drop, tip_deflection
+    from warpcloth.sim.elastica import linear_tip_drop, tip_deflection
 
     w = 0.15 * 9.81
     for length, rigidity in [(0.1, 1e-2), (0.05, 1e-3)]:  # lambda = 0.147, 0.18
@@ -513,7 +513,7 @@ def test_elastica_small_load_limit():
 
 
 def test_elastica_shape_is_inextensible_and_clamped():
-    from warpcloth.lab.elastica import cantilever_elastica
+    from warpcloth.sim.elastica import cantilever_elastica
 
     s, theta, x, y = cantilever_elastica(0.08, 2e-5, 2.0, n=401)
     assert s[0] == 0.0 and s[-1] == pytest.approx(0.08)
@@ -527,7 +527,7 @@ def test_elastica_shape_is_inextensible_and_clamped():
 
 
 def test_elastica_41_5_degree_relation_and_inverse():
-    from warpcloth.lab import elastica as el
+    from warpcloth.sim import elastica as el
 
     lam = el.lambda_for_chord_angle()
     assert lam == pytest.approx(8.004, abs=0.01)
@@ -571,7 +571,7 @@ def polygon_area(p):
 
 
 def test_flat_disc_has_drape_coefficient_one():
-    from warpcloth.lab.drape import cusick_drape
+    from warpcloth.run.drape import cusick_drape
 
     v, t = ring_disc(0.15)
     r = cusick_drape(v, t)
@@ -584,7 +584,7 @@ def test_flat_disc_has_drape_coefficient_one():
 
 
 def test_disc_of_the_pedestal_size_has_drape_coefficient_zero():
-    from warpcloth.lab.drape import cusick_drape
+    from warpcloth.run.drape import cusick_drape
 
     v, t = ring_disc(0.09)
     assert cusick_drape(v, t).coefficient == pytest.approx(0.0, abs=0.01)
@@ -592,7 +592,7 @@ def test_disc_of_the_pedestal_size_has_drape_coefficient_zero():
 
 @pytest.mark.parametrize("lobes", [7, 5])
 def test_node_count_of_a_lobed_outline(lobes):
-    from warpcloth.lab.drape import cusick_drape, drape_coefficient
+    from warpcloth.run.drape import cusick_drape, drape_coefficient
 
     v, t = ring_disc(0.12, lobes=lobes, amplitude=0.15, phase=0.3)
     r = cusick_drape(v, t)
@@ -604,7 +604,7 @@ def test_node_count_of_a_lobed_outline(lobes):
 
 
 def test_projected_area_of_a_tilted_square_and_errors():
-    from warpcloth.lab.drape import projected_area
+    from warpcloth.run.drape import projected_area
 
     v = np.array([[0, 0, 0], [0.1, 0.05, 0], [0.1, 0.05, 0.1], [0, 0, 0.1]], dtype=float)  # tilted about z
     assert projected_area(v, [[0, 1, 2], [0, 2, 3]], pixel=1e-4) == pytest.approx(0.01, rel=5e-3)

@@ -7,6 +7,7 @@ one module each.
     warpcloth sweep TESTS.xml --out RESULTS.csv [--resume | --overwrite] [--max-runs N]
                     [--workers N] [--devices cuda:0,cuda:1] [--ray auto|ADDRESS]
     warpcloth max-dt SCENARIO --integrator NAME [--rows N --cols N --stiffness KS ...] [--precision 0.02]
+    warpcloth calibrate MATERIAL --target bending_length=0.021 [--target drape_coefficient=0.6] [--fit bend,...]
     warpcloth study --profile quick --out DIR [--workers N] [--resume | --overwrite] [--estimate]
     warpcloth check-intersections FILE.usd [--frames] [--json]
 
@@ -31,10 +32,19 @@ from warpcloth.cli.parse import EXIT_USAGE, Parser, add_verbose, guarded  # noqa
 #: common ``--quiet`` is added: ``sweep`` has its own).
 COMMANDS = {
     "run": ("warpcloth.cli.run", "run a scenario and print a summary", True),
-    "list": ("warpcloth.cli.listing", "list scenarios and integrators (--examples: the shipped XML test lists)", True),
+    "list": (
+        "warpcloth.cli.listing",
+        "list scenarios, integrators and material presets (--examples: the shipped XML test lists)",
+        True,
+    ),
     "bench": ("warpcloth.cli.bench", "benchmark integrators x sizes x devices on the sheet (bench/devices.py)", True),
     "sweep": ("warpcloth.cli.sweep", "run an XML test list, one CSV row per run (docs/sweep.md)", False),
     "max-dt": ("warpcloth.cli.maxdt", "find the largest stable time step of an integrator on a scenario", True),
+    "calibrate": (
+        "warpcloth.cli.calibrate",
+        "fit a material's bending rigidity (stretch, compression) to measured bending length / drape coefficient",
+        True,
+    ),
     "study": (
         "warpcloth.cli.study",
         "the accuracy-aware study: stable/accurate dt, cost, real-time frontier, report (docs/study.md)",

@@ -121,7 +121,7 @@ def run(args) -> int:
     from warpcloth.scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)  # unknown name or bad file: one line
-    if scenario.model is not None:  # a mesh: its own particles, no grid sizes
+    if scenario.is_mesh:  # a mesh: its own particles, no grid sizes
         require(
             args.sizes is None, f"--sizes does not apply to the mesh scenario {args.scenario!r} (it has its own mesh)"
         )

@@ -1,4 +1,4 @@
-"""``warpcloth list``: the scenarios and integrators, or (``--examples``) the examples shipped with
+"""``warpcloth list``: the scenarios, integrators and material presets, or (``--examples``) the examples shipped with
 warpcloth: XML test lists, meshes, scenario files and example scripts, with their paths."""
 
 from __future__ import annotations
@@ -73,7 +73,34 @@ def run(args) -> int:
             .splitlines()
         )
         print(f"  {name:16s} {doc[0] if doc else ''}")
+    print("materials (--material NAME; docs/materials.md):")
+    for line in material_lines():
+        print("  " + line)
     return 0
 
 
-__all__ = ["add_arguments", "example_names", "example_path", "examples_dir", "run"]
+def material_lines() -> list[str]:
+    """One line per material preset: density, stretch, shear, bending rigidity and length, source."""
+    from warpcloth.sim.material import PRESETS
+
+    lines = []
+    for name, m in PRESETS.items():
+        stretch = (
+            f"{m.stretch_warp:g}" if m.stretch_warp == m.stretch_weft else f"{m.stretch_warp:g}/{m.stretch_weft:g}"
+        )
+        bend = (
+            f"{m.bend_warp * 1e6:.3g}"
+            if m.bend_warp == m.bend_weft
+            else f"{m.bend_warp * 1e6:.3g}/{m.bend_weft * 1e6:.3g}"
+        )
+        estimated = ", estimated" if m.estimated else ""
+        cw, cf = (100 * m.bending_length(d) for d in ("warp", "weft"))
+        length = f"{cw:.2f}" if m.bend_warp == m.bend_weft else f"{cw:.2f}/{cf:.2f}"
+        lines.append(
+            f"{name:16s} {1000 * m.density:.0f} g/m^2, stretch {stretch} N/m, shear {m.shear:g} N/m, "
+            f"bending {bend} uN m (bending length {length} cm) [{m.source}{estimated}]"
+        )
+    return lines
+
+
+__all__ = ["add_arguments", "example_names", "example_path", "examples_dir", "material_lines", "run"]

@@ -74,7 +74,7 @@ def config_from_args(scenario, args, command: str = "run"):
     integrator_class(integrator)  # unknown name -> clear error
     if values.get("size") is not None and (values.get("rows") is not None or values.get("cols") is not None):
         raise WarpclothError("give either --size or --rows and --cols, not both")
-    check_applies(values, scenario.model is not None, scenario.name)
+    check_applies(values, scenario.is_mesh, scenario.name)
     if values.get("device") is None:  # the scenario's (a scenario file's [run] device), else the CLI's default
         values["device"] = scenario.defaults.device or BY_NAME["device"].default
     kwargs = config_values(values)

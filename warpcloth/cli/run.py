@@ -97,6 +97,11 @@ def summary(result) -> str:
             "  solver: "
             + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.solver.items())
         )
+    if result.measurements:
+        lines.append(
+            "  measured: "
+            + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.measurements.items())
+        )
     return "\n".join(lines)
 
 

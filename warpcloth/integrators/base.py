@@ -288,6 +288,7 @@ def spring_adjacency(model) -> SpringAdjacency:
     springs.rest_length = model.spring_rest_length
     springs.stiffness = model.spring_stiffness
     springs.damping = model.spring_damping
+    springs.compression = model.spring_compression
     return springs
 
 

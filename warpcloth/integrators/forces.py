@@ -25,7 +25,15 @@ def eval_forces(model, x: wp.array, v: wp.array, control: Control, f: wp.array) 
         wp.launch(
             fk.eval_springs,
             dim=model.spring_count,
-            inputs=[x, v, model.spring_indices, model.spring_rest_length, model.spring_stiffness, model.spring_damping],
+            inputs=[
+                x,
+                v,
+                model.spring_indices,
+                model.spring_rest_length,
+                model.spring_stiffness,
+                model.spring_damping,
+                model.spring_compression,
+            ],
             outputs=[f],
             device=device,
         )

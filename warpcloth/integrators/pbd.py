@@ -102,6 +102,7 @@ class PBD(PositionBasedIntegrator):
             m.spring_rest_length,
             self.spring_type,
             self.type_stiffness(),
+            m.spring_compression,
             m.particle_inv_mass,
             state.particle_q,
         ]

@@ -269,7 +269,15 @@ class ImplicitSystem:
             wp.launch(
                 sk.eval_spring_jacobians,
                 dim=m.spring_count,
-                inputs=[x, m.spring_indices, m.spring_rest_length, m.spring_stiffness, m.spring_damping, h],
+                inputs=[
+                    x,
+                    m.spring_indices,
+                    m.spring_rest_length,
+                    m.spring_stiffness,
+                    m.spring_damping,
+                    m.spring_compression,
+                    h,
+                ],
                 outputs=[self.spring_K, self.spring_B],
                 device=m.device,
             )

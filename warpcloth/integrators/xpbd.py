@@ -74,6 +74,7 @@ class XPBD(PositionBasedIntegrator):
             m.spring_rest_length,
             m.spring_stiffness,
             m.spring_damping,
+            m.spring_compression,
             m.particle_inv_mass,
             state.particle_q,
             h,

@@ -1,6 +1,6 @@
 """The cantilever bending test as a simulation (Peirce 1930; ASTM D1388): a strip clamped horizontally
 at one end sags under its weight; at rest its tip drop is compared with the inextensible elastica's
-(:mod:`warpcloth.lab.elastica`). docs/materials.md, "Dihedral bending".
+(:mod:`warpcloth.sim.elastica`). docs/materials.md, "Dihedral bending".
 
 The strip is a 2 x ``cols`` grid in the horizontal x-z plane with dihedral hinges (``bend="dihedral"``)
 of rigidity B, masses by vertex area (rho times the area: the tip column carries half a column's
@@ -20,8 +20,8 @@ import math
 import numpy as np
 
 from warpcloth.errors import require_int, require_positive
-from warpcloth.lab.elastica import tip_deflection
 from warpcloth.sim.control import Control
+from warpcloth.sim.elastica import tip_deflection
 from warpcloth.sim.grid import build_grid_cloth
 from warpcloth.sim.model import default_spring_params
 from warpcloth.simulator import Simulator

@@ -78,6 +78,11 @@ class Float64Model:
                 "the float64 reference has springs only, no dihedral bending: it cannot judge a "
                 "bend='dihedral' model (use provot, choi_ko or none)"
             )
+        if getattr(model, "has_compression", False):
+            raise WarpclothError(
+                "the float64 reference has springs as stiff in compression as in tension: it cannot judge a "
+                "model with a compression factor below 1 (give the material compression 1)"
+            )
         control = control if control is not None else Control(device="cpu")
         h = model.host
         n = int(h["q"].shape[0])

@@ -67,6 +67,7 @@ COLUMNS = [
     "solver_converged",
     "solver_capped_steps",
     "solver",
+    "measurements",
     "error",
     "host",
     "worker",
@@ -111,7 +112,7 @@ def get_scenario_kind(name: str) -> str:
     """``grid`` or ``mesh``: what kind of cloth scenario ``name`` builds."""
     from warpcloth.scenarios import get_scenario
 
-    return "grid" if get_scenario(name).model is None else "mesh"
+    return "mesh" if get_scenario(name).is_mesh else "grid"
 
 
 def result_columns(result, stop_at_equilibrium: bool = True) -> dict:
@@ -152,6 +153,7 @@ def result_columns(result, stop_at_equilibrium: bool = True) -> dict:
         "solver_converged": result.solver_converged,
         "solver_capped_steps": result.solver_capped_steps,
         "solver": result.solver or None,
+        "measurements": result.measurements or None,
     }
 
 

@@ -362,6 +362,7 @@ def _expand(
     """The runs of one ``test``: the product of its value lists, for each scenario."""
     from warpcloth.integrators import all_options, integrator_class, integrator_names
     from warpcloth.scenarios import get_scenario
+    from warpcloth.sim.material import MATERIAL_VALUES, material_with
     from warpcloth.sim.model import default_spring_params
 
     what = f"test {test_id!r}"
@@ -427,7 +428,7 @@ def _expand(
             dims[p.name] = values.get(p.name, [_UNSET])
     dims.update({f"option:{k}": v for k, v in option_lists.items()})
     dims["scenario"] = values.get("scenario", list(params.BY_NAME["scenario"].sweep_default))
-    kinds = {"mesh" if get_scenario(n).model is not None else "grid" for n in dims["scenario"]}
+    kinds = {"mesh" if get_scenario(n).is_mesh else "grid" for n in dims["scenario"]}
     for kind in ("grid", "mesh"):
         given = [p.name for p in params_of_kind(kind) if p.name in own]
         if given and kind not in kinds:
@@ -458,7 +459,7 @@ def _expand(
         options = tuple(sorted((k[7:], v) for k, v in c.items() if k.startswith("option:") and k[7:] in taken))
         scen = get_scenario(c["scenario"])
         d = scen.defaults
-        is_mesh = scen.model is not None
+        is_mesh = scen.is_mesh
         # a test may name grid and mesh scenarios together: each takes the parameters of its kind
         for p in params_of_kind("mesh" if not is_mesh else "grid"):
             c[p.name], explicit[p.name] = None, _UNSET
@@ -475,6 +476,38 @@ def _expand(
             if v is None and p.from_scenario and p.name not in ("rows", "cols"):
                 v = getattr(d, p.config_field)
             resolved[p.name] = v
+        material = resolved.get("material")
+        if material is not None and material != "none":  # the material gives the masses and springs
+            clash = next((n for n in PER_SPRING_NAMES if c.get(n) is not None), None)
+            if clash is not None:
+                raise src.error(
+                    line_of(clash),
+                    f"{what}: {clash!r} is a per-spring value and does not go with material {material!r} (its "
+                    "density and stiffnesses give the masses and springs); change the material's values or give "
+                    'material="none"',
+                )
+            try:  # bad values fail now, naming the line, not run by run
+                material_with(material, **{k: c.get(k) for k in MATERIAL_VALUES})
+            except WarpclothError as exc:
+                raise src.error(el.line, f"{what}: {exc}") from None
+            resolved["mass"] = resolved["stiffness"] = resolved["damping"] = None
+            resolved["integrator"] = integrator
+            runs.append(RunSpec(test_id=test_id, line=el.line, values=tuple(resolved.items()), options=options))
+            continue
+        clash = next(
+            (
+                p.name
+                for p in params.PARAMS
+                if p.group == "material" and p.name != "material" and c.get(p.name) is not None
+            ),
+            None,
+        )
+        if clash is not None:
+            raise src.error(
+                line_of(clash),
+                f"{what}: {clash!r} is a material's value and the run has no material: give material (a preset, "
+                "or custom with density, stretch, shear and bend_rigidity)",
+            )
         mass = resolved["mass"]
         # the effective per-type values; the default damping scales with the particle mass, which a
         # mesh scenario knows only once its mesh is built: there it stays as given (or None)
@@ -490,6 +523,12 @@ def _expand(
         resolved["integrator"] = integrator
         runs.append(RunSpec(test_id=test_id, line=el.line, values=tuple(resolved.items()), options=options))
     return runs
+
+
+#: The per-spring parameters a material replaces (its density and stiffnesses give them).
+PER_SPRING_NAMES = ("mass", "stiffness", "damping") + tuple(
+    f"{k}_{t}" for k in ("stiffness", "damping") for t in ("structural", "shear", "bend")
+)
 
 
 #: The parameters that apply to one kind of cloth only (``grid`` or ``mesh``).

@@ -221,6 +221,8 @@ class RunResult:
     #: ``overflow_contacts`` (pairs that did not fit its lists), ``truncated_queries``, ``fast``,
     #: ``unresolved``); empty with self-collision off. A run whose lists overflowed also warns on stderr.
     self_collision: dict = field(default_factory=dict)
+    #: What the scenario measured at the end (a textile test's reading, a fold count; Scenario.measure).
+    measurements: dict = field(default_factory=dict)
     warpcloth_version: str = __version__
     warp_version: str = wp.config.version
 

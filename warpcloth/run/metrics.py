@@ -187,6 +187,7 @@ class MetricsProbe:
                 m.spring_indices,
                 m.spring_rest_length,
                 m.spring_stiffness,
+                m.spring_compression,
                 wp.vec3(*self.control.gravity),
             ],
             outputs=[self.energy_buffer],

@@ -268,6 +268,51 @@ def text_value(text: str) -> str:
     return text
 
 
+def _one_or_two(text: str, parse) -> float | tuple:
+    parts = text.split(",")
+    if len(parts) not in (1, 2) or any(not p.strip() for p in parts):
+        raise ValueError(f"{_shown(text)}: give one number, or two separated by a comma (warp,weft)")
+    values = tuple(parse(p) for p in parts)
+    return values[0] if len(values) == 1 else values
+
+
+def positive_pair(text: str) -> float | tuple:
+    """``'4000'`` -> 4000.0; ``'2028,411'`` -> (2028.0, 411.0) (warp, weft); each > 0."""
+    return _one_or_two(text, positive)
+
+
+def non_negative_pair(text: str) -> float | tuple:
+    """``'3e-5'`` -> 3e-05; ``'16e-6,24e-6'`` -> (1.6e-05, 2.4e-05) (warp, weft); each >= 0."""
+    return _one_or_two(text, non_negative)
+
+
+def unit_interval(text: str) -> float:
+    v = number(text)
+    if not 0.0 <= v <= 1.0:
+        raise ValueError(f"{_shown(text)} must be in [0, 1]")
+    return v
+
+
+def angle(text: str) -> float:
+    v = number(text)
+    if not abs(v) <= math.pi:
+        raise ValueError(f"{_shown(text)} must be in [-pi, pi] rad")
+    return v
+
+
+def material_name(text: str) -> str:
+    """A material preset (:data:`warpcloth.sim.material.PRESETS`), ``custom`` or ``none``."""
+    from warpcloth.sim.material import PRESETS
+
+    name = text.strip().lower()
+    if name not in (*PRESETS, "custom", "none"):
+        raise ValueError(
+            f"unknown material {_shown(text)}; choose a preset ({', '.join(PRESETS)}), custom (density, stretch, "
+            "shear and bend_rigidity given) or none (per-spring stiffness and damping)"
+        )
+    return name
+
+
 # -- the declaration ----------------------------------------------------------------------
 _SAME = object()
 
@@ -284,7 +329,7 @@ class Param:
         unit: SI unit ("" when dimensionless).
         help: one line.
         values: what a value may be (docs table).
-        group: ``cloth``, ``forces``, ``self_collision``, ``integrator``, ``run``, ``mesh`` or ``search``.
+        group: ``cloth``, ``material``, ``forces``, ``self_collision``, ``integrator``, ``run``, ``mesh`` or ``search``.
         default: the value when not given (None: the scenario's or integrator's own).
         default_doc: the default as the docs say it, where ``default`` is computed.
         sweep_default: a test list's default where it differs from a single run's.
@@ -378,14 +423,14 @@ class Param:
             raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
         if isinstance(value, list):
             if (
-                takes != "per_type"
-                or len(value) != 3
+                takes not in ("per_type", "pair")
+                or len(value) != {"per_type": 3, "pair": 2}[takes]
                 or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value)
             ):
                 raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
             return self.parse(",".join(repr(float(v)) for v in value))
         if isinstance(value, str):
-            if takes in ("number", "per_type"):
+            if takes in ("number", "per_type", "pair"):
                 raise ValueError(f"must be {_TYPED_WORDS[takes]}, got {_shown(value)}")
             return self.parse(value)
         if takes == "text":
@@ -401,6 +446,10 @@ _TYPED = {
     fraction: "number",
     grid_dim: "number",
     per_type: "per_type",
+    positive_pair: "pair",
+    non_negative_pair: "pair",
+    unit_interval: "number",
+    angle: "number",
     timestep: "number_or_text",
     wall_cap: "number_or_text",
     switch: "switch",
@@ -408,6 +457,7 @@ _TYPED = {
 _TYPED_WORDS = {
     "number": "a number",
     "per_type": "a number or 3 numbers [structural, shear, bend]",
+    "pair": "a number or 2 numbers [warp, weft]",
     "number_or_text": "a number or a string",
     "text": "a string",
     "switch": "true, false, 'on' or 'off'",
@@ -583,15 +633,107 @@ PARAMS: tuple[Param, ...] = (
     ),
     Param(
         "bend_rigidity",
-        non_negative,
+        non_negative_pair,
         "N m",
-        "bending rigidity B of the dihedral hinges (bend dihedral only)",
-        ">= 0",
+        "bending rigidity B of the dihedral hinges (bend dihedral only); with a material its B, "
+        "one number or warp,weft",
+        ">= 0, or two (warp,weft) with a material",
         "cloth",
-        default_doc="31.4e-6 (cotton)",
+        default_doc="31.4e-6 (cotton); the material's",
         key="set",
         metavar="B",
-        cli_type=float,
+    ),
+    # -- the material in physical units (docs/materials.md): the preset, then its values
+    Param(
+        "material",
+        material_name,
+        "",
+        "the cloth's material: a preset, custom (give density, stretch, shear, bend_rigidity) or none "
+        "(per-spring stiffness and damping); 'warpcloth list' shows the presets",
+        "`cotton`, `denim`, `polyester`, `polyester_light`, `wool`, `silk`, `custom`, `none`",
+        "material",
+        default_doc="the scenario's (drape, tablecloth, cantilever, cusick: cotton; the others none)",
+        key="set",
+        from_scenario=True,
+        metavar="NAME",
+    ),
+    Param(
+        "density",
+        positive,
+        "kg/m^2",
+        "areal density rho of the material",
+        "> 0",
+        "material",
+        default_doc="the material's",
+        key="set",
+        metavar="RHO",
+    ),
+    Param(
+        "stretch",
+        positive_pair,
+        "N/m",
+        "membrane stiffness of the material (Young's modulus x thickness): one number or warp,weft",
+        "> 0, or two (warp,weft)",
+        "material",
+        default_doc="the material's",
+        key="set",
+        metavar="C",
+    ),
+    Param(
+        "shear",
+        positive,
+        "N/m",
+        "in-plane shear stiffness G of the material (G^2 < stretch_warp * stretch_weft)",
+        "> 0",
+        "material",
+        default_doc="the material's",
+        key="set",
+        metavar="G",
+    ),
+    Param(
+        "compression",
+        unit_interval,
+        "",
+        "compression factor phi: a membrane spring shorter than its rest length acts with phi ks "
+        "(buckling finer than the mesh; 1 = as stiff as in tension)",
+        "0 to 1",
+        "material",
+        default_doc="the material's (1)",
+        key="set",
+        metavar="PHI",
+    ),
+    Param(
+        "warp_angle",
+        angle,
+        "rad",
+        "angle of the material's warp from the grid's columns (the mesh's UV u axis)",
+        "-pi to pi",
+        "material",
+        default_doc="0",
+        key="set",
+        metavar="RAD",
+    ),
+    Param(
+        "stretch_damping_ratio",
+        non_negative,
+        "",
+        "damping ratio of each membrane spring of the material",
+        ">= 0",
+        "material",
+        default_doc="the material's (0.05)",
+        key="set",
+        metavar="ZETA",
+    ),
+    Param(
+        "bend_damping_ratio",
+        non_negative,
+        "",
+        "damping ratio of the material's bending modes at 5 Hz (Rayleigh)",
+        ">= 0",
+        "material",
+        default_doc="the material's (0.02)",
+        key="set",
+        metavar="ZETA",
     ),
     Param(
         "drag",
@@ -893,6 +1035,7 @@ OLD_NAMES: dict[str, str] = {alias: p.name for p in PARAMS for alias in p.xml_al
 GROUP_TITLES = {
     "integrator": "integrator",
     "cloth": "cloth",
+    "material": "material in physical units (docs/materials.md)",
     "mesh": "mesh scenarios (mesh, scenario files)",
     "forces": "forces and colliders",
     "self_collision": "self-collision",

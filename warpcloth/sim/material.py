@@ -35,10 +35,31 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from warpcloth.errors import WarpclothError, require, require_int, require_non_negative, require_positive, warn
-from warpcloth.sim.grid import grid_springs
-from warpcloth.sim.mesh import check_mesh, lumped_masses, mesh_topology, triangle_areas
-from warpcloth.sim.model import BendModel, SpringType
+from warpcloth.errors import (
+    WarpclothError,
+    require,
+    require_int,
+    require_non_negative,
+    require_positive,
+    require_vector,
+    warn,
+)
+from warpcloth.sim.device import require_memory, resolve_device
+from warpcloth.sim.grid import grid_memory_estimate, grid_positions, grid_springs, grid_triangles, grid_uvs
+from warpcloth.sim.hinges import grid_hinges, mesh_hinges
+from warpcloth.sim.mesh import (
+    TriangleMesh,
+    _mesh_bend,
+    check_mesh,
+    corner_uvs,
+    lumped_masses,
+    mesh_memory_estimate,
+    mesh_springs,
+    mesh_topology,
+    triangle_areas,
+)
+from warpcloth.sim.model import BendModel, ClothModel, SpringType, build_model
+from warpcloth.sim.selection import resolve_pins
 
 #: Standard gravity [m/s^2] used for the bending length c = (B / (rho g))^(1/3).
 GRAVITY = 9.81
@@ -284,6 +305,57 @@ def material(name) -> Material:
     return PRESETS[key]
 
 
+#: The values a material may be given by (a run's parameters): name -> the Material fields it sets.
+MATERIAL_VALUES = {
+    "density": ("density",),
+    "stretch": ("stretch_warp", "stretch_weft"),
+    "shear": ("shear",),
+    "bend_rigidity": ("bend_warp", "bend_weft"),
+    "compression": ("compression",),
+    "warp_angle": ("warp_angle",),
+    "stretch_damping_ratio": ("stretch_damping_ratio",),
+    "bend_damping_ratio": ("bend_damping_ratio",),
+}
+
+
+def material_with(base, **values) -> Material | None:
+    """The material of a run: ``base`` (a preset's name, a :class:`Material`, ``"custom"``, or
+    None / ``"none"`` for per-spring parameters) with ``values`` (:data:`MATERIAL_VALUES`; None:
+    not given) replacing its fields. ``stretch`` and ``bend_rigidity`` are one number (warp and
+    weft) or a (warp, weft) pair. ``custom`` needs density, stretch, shear and bend_rigidity. A
+    changed preset is named ``"<preset>*"``. Bad values raise a one-line :class:`WarpclothError`."""
+    unknown = sorted(set(values) - set(MATERIAL_VALUES))
+    if unknown:
+        raise WarpclothError(f"unknown material value {unknown[0]!r}; the values are {', '.join(MATERIAL_VALUES)}")
+    given = {k: v for k, v in values.items() if v is not None}
+    if base is None or (isinstance(base, str) and base.strip().lower() == "none"):
+        names = [k for k in given if k != "bend_rigidity"]
+        if names:
+            raise WarpclothError(
+                f"{names[0]} is a material's value: give a material (a preset, or custom with density, stretch, "
+                "shear and bend_rigidity)"
+            )
+        return None
+    fields = {}
+    for key, value in given.items():
+        targets = MATERIAL_VALUES[key]
+        pair = tuple(value) if isinstance(value, (tuple, list)) else (value,) * len(targets)
+        require(
+            len(pair) == len(targets),
+            f"material {key} must be one number or two (warp, weft), got {value!r}",
+        )
+        fields.update(zip(targets, pair))
+    if isinstance(base, str) and base.strip().lower() == "custom":
+        missing = [k for k in ("density", "stretch", "shear", "bend_rigidity") if k not in given]
+        require(
+            not missing,
+            f"a custom material needs density, stretch, shear and bend_rigidity; {', '.join(missing)} missing",
+        )
+        return Material("custom", **fields)
+    mat = material(base)
+    return mat.replace(name=f"{mat.name}*", source="", estimated=(), note="", **fields) if fields else mat
+
+
 # -- tensor helpers (5 components of a fully symmetric 2-D 4th-order tensor) -------------------
 
 #: Frobenius weights of (C1111, C2222, C1122, C1112, C1222): multiplicities 1, 1, 6, 4, 4.
@@ -456,7 +528,7 @@ def grid_spring_params(
         bend = BendModel(bend)
     except ValueError:
         raise WarpclothError(f"bend must be one of {[b.value for b in BendModel]}, got {bend!r}") from None
-    minimum = 2 if bend == BendModel.NONE else 3
+    minimum = 2 if bend in (BendModel.NONE, BendModel.DIHEDRAL) else 3
     rows, cols = require_int("rows", rows, minimum), require_int("cols", cols, minimum)
     width, height = require_positive("width", width, "m"), require_positive("height", height, "m")
     gravity = require_positive("gravity", gravity, "m/s^2")
@@ -515,7 +587,8 @@ def _clamp(ks: np.ndarray, mat: Material) -> int:
     if count:
         warn(
             f"material {mat.name!r}: {count} membrane springs clamped at 0 N/m (bend springs stiffer than the "
-            f"membrane at this spacing): use --bend dihedral"
+            f"membrane at this spacing: use --bend dihedral; or cells so long and thin that the shear diagonals "
+            f"alone are stiffer along them than the material)"
         )
         ks[low] = 0.0
     return count
@@ -784,14 +857,155 @@ def _fit(m: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return np.maximum(coef, 0.0)
 
 
+# -- cloth models of a material -------------------------------------------------------------------
+
+
+def material_grid_cloth(
+    mat,
+    rows: int,
+    cols: int,
+    width: float = 1.0,
+    height: float = 1.0,
+    pins=(),
+    origin=(0.0, 0.0, 0.0),
+    plane: str = "vertical",
+    bend: str | BendModel = BendModel.PROVOT,
+    device: str | None = None,
+) -> ClothModel:
+    """A rows x cols grid cloth (as :func:`~warpcloth.sim.grid.build_grid_cloth`) made of ``mat`` (a
+    :class:`Material` or a preset's name): per-spring ks, kd and compression factors and masses by
+    vertex area from :func:`grid_spring_params`; with ``bend="dihedral"`` hinges of the material's
+    B_warp / B_weft along its warp (:func:`~warpcloth.sim.hinges.grid_hinges`) with the Rayleigh
+    damping kd_e = beta_b k_e (:meth:`Material.bend_damping_time`): the same at every mesh size."""
+    mat = material(mat)
+    try:
+        bend = BendModel(bend)
+    except ValueError:
+        raise WarpclothError(f"bend must be one of {[b.value for b in BendModel]}, got {bend!r}") from None
+    width = require_positive("width", width, "m")
+    height = require_positive("height", height, "m")
+    origin = require_vector("origin", origin, 3, "m")
+    device = resolve_device(device)
+    springs = grid_spring_params(mat, rows, cols, width, height, bend=bend)  # checks rows, cols
+    require_memory(f"a {rows} x {cols} cloth", grid_memory_estimate(rows, cols, bend), device)
+    q = grid_positions(rows, cols, width, height, origin, plane)
+    model = build_model(
+        q,
+        springs.pairs,
+        springs.types,
+        springs.mass,
+        None,
+        pins,
+        grid_triangles(rows, cols),
+        device,
+        spring_stiffness=springs.stiffness,
+        spring_damping=springs.damping,
+        spring_compression=springs.compression,
+    )
+    uv = grid_uvs(rows, cols)[model.host.tris].reshape(-1, 2)
+    model = dataclasses.replace(
+        model,
+        rows=rows,
+        cols=cols,
+        width=width,
+        height=height,
+        bend=bend,
+        total_mass=float(springs.mass.sum()),
+        host=dataclasses.replace(model.host, uv=uv),
+        material=mat,
+    )
+    if bend == BendModel.DIHEDRAL:
+        hinges = grid_hinges(
+            model.host["q"], rows, cols, mat.bend_warp, mat.bend_weft, mat.warp_angle, mat.bend_damping_time()
+        )
+        model = model.with_hinges(hinges)
+    return model
+
+
+def material_mesh_cloth(
+    mat,
+    vertices,
+    triangles=None,
+    pins=(),
+    pin_groups=(),
+    pin_where=None,
+    groups: dict | None = None,
+    uv=None,
+    quads: bool = False,
+    bend: bool | str = True,
+    device: str | None = None,
+) -> ClothModel:
+    """A cloth from a triangle mesh (as :func:`~warpcloth.sim.mesh.build_mesh_cloth`, same
+    arguments) made of ``mat``: per-spring ks, kd and compression factors from
+    :func:`mesh_spring_params` (warp = the UV u axis where the mesh has UVs, else global +x), masses
+    rho times the vertex area, and with ``bend="dihedral"`` hinges of the material's B_warp /
+    B_weft (:func:`~warpcloth.sim.hinges.mesh_hinges`) with Rayleigh damping beta_b k_e."""
+    mat = material(mat)
+    if isinstance(vertices, TriangleMesh):
+        mesh = vertices
+        vertices, triangles = mesh.vertices, mesh.triangles
+        uv = mesh.uv if uv is None else uv
+        groups = {**mesh.groups, **(groups or {})}
+    v, t = check_mesh(vertices, triangles)
+    device = resolve_device(device)
+    require_memory(
+        f"a mesh cloth of {v.shape[0]:,} vertices and {t.shape[0]:,} triangles",
+        mesh_memory_estimate(v.shape[0], t.shape[0]),
+        device,
+    )
+    pinned = resolve_pins(v, pins, pin_groups, pin_where, groups)
+    bend_model = _mesh_bend(bend)
+    pairs, types = mesh_springs(v, t, quads=quads, bend=bend_model in (BendModel.PROVOT, BendModel.CHOI_KO))
+    springs = mesh_spring_params(mat, v, t, pairs, types, uv=uv)
+    model = build_model(
+        v,
+        pairs,
+        types,
+        springs.mass,
+        None,
+        pinned,
+        t,
+        device,
+        spring_stiffness=springs.stiffness,
+        spring_damping=springs.damping,
+        spring_compression=springs.compression,
+    )
+    host = dataclasses.replace(
+        model.host,
+        uv=corner_uvs(uv, t, v.shape[0]) if uv is not None else None,
+        groups={k: np.asarray(g, dtype=np.int64) for k, g in (groups or {}).items()},
+    )
+    model = dataclasses.replace(model, host=host, material=mat)
+    if bend_model == BendModel.DIHEDRAL:
+        vertex_uv = None
+        if uv is not None:  # per vertex (at a UV seam, from one of its triangles)
+            vertex_uv = np.zeros((v.shape[0], 2))
+            vertex_uv[t.ravel()] = corner_uvs(uv, t, v.shape[0]).astype(np.float64)
+        hinges = mesh_hinges(
+            model.host["q"],
+            t,
+            mat.bend_warp,
+            mat.bend_weft,
+            uv=vertex_uv,
+            warp_angle=mat.warp_angle,
+            damping_time=mat.bend_damping_time(),
+        )
+        model = dataclasses.replace(model.with_hinges(hinges), bend=BendModel.DIHEDRAL)
+    return model
+
+
 __all__ = [
     "GRAVITY",
     "Material",
+    "MATERIAL_VALUES",
     "MaterialSprings",
     "PRESETS",
     "STRETCH_DAMPING_MODES",
     "bend_spring_stiffness",
     "grid_spring_params",
     "material",
+    "material_grid_cloth",
+    "material_mesh_cloth",
+    "material_with",
     "mesh_spring_params",
 ]

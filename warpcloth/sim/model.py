@@ -114,6 +114,12 @@ class ClothModel:
         hinge_rest_angle: theta0 [rad] per hinge.
         hinge_stiffness: k_e [N m / rad^2] per hinge.
         hinge_damping: kd_e [N m s / rad^2] per hinge.
+        spring_compression: phi per spring, shape (spring_count,): a spring shorter than its rest
+            length acts with phi ks (a material's compression factor, emulating sub-grid buckling;
+            Choi & Ko 2002); ones unless given to :func:`build_model` (a factor of 1 leaves every
+            kernel's result bit-identical).
+        material: the :class:`~warpcloth.sim.material.Material` the parameters came from, or None
+            (per-spring parameters).
     """
 
     rows: int
@@ -139,6 +145,18 @@ class ClothModel:
     hinge_rest_angle: wp.array | None = None
     hinge_stiffness: wp.array | None = None
     hinge_damping: wp.array | None = None
+    spring_compression: wp.array | None = None
+    material: object = None
+
+    def __post_init__(self):
+        if self.spring_compression is None:  # every spring as stiff in compression as in tension
+            count = int(self.spring_indices.shape[0])
+            object.__setattr__(self, "spring_compression", wp.ones(count, dtype=float, device=self.device))
+
+    @property
+    def has_compression(self) -> bool:
+        """Whether some spring is softer in compression (phi < 1)."""
+        return bool(self.spring_count) and bool(np.any(self.spring_compression.numpy() < 1.0))
 
     @property
     def particle_count(self) -> int:
@@ -273,6 +291,7 @@ def build_model(
     *,
     spring_stiffness=None,
     spring_damping=None,
+    spring_compression=None,
 ) -> ClothModel:
     """Build a mass-spring model from arrays (any topology; the grid and mesh builders use this).
 
@@ -289,6 +308,8 @@ def build_model(
         spring_stiffness: optional (S,) ks [N/m] per spring (e.g. from a material,
             :mod:`warpcloth.sim.material`), used instead of the per-type stiffness.
         spring_damping: optional (S,) kd [N s/m] per spring, used instead of the per-type damping.
+        spring_compression: optional (S,) factors phi in [0, 1]: a spring shorter than its rest
+            length acts with phi ks (default 1: as stiff in compression as in tension).
 
     With per-spring arrays the model's ``spring_params`` records, per type, the largest ks and
     kd of that type's springs (0 for a type without springs), so that
@@ -333,6 +354,12 @@ def build_model(
         kd = np.array([spring_params[t].damping for t in SpringType], dtype=np.float32)[types]
     else:
         kd = _per_spring("spring_damping", spring_damping, types.shape[0], "N s/m")
+    if spring_compression is not None:
+        phi = _per_spring("spring_compression", spring_compression, types.shape[0], "")
+        bad = np.flatnonzero(phi > 1.0)
+        if bad.size:
+            k = int(bad[0])
+            raise WarpclothError(f"spring_compression of spring {k} must be in [0, 1], got {float(phi[k])!r}")
     if per_spring:  # per type, the largest value of that type's springs
         spring_params = {
             t: SpringParams(float(ks[types == t].max(initial=0.0)), float(kd[types == t].max(initial=0.0)))
@@ -362,6 +389,7 @@ def build_model(
             tri_indices=wp.array(tris, dtype=wp.vec3i),
             spring_params=dict(spring_params),
             bend=BendModel.NONE,
+            spring_compression=None if spring_compression is None else wp.array(phi, dtype=float),
             host=HostArrays(q=q, pairs=pairs, rest=rest, mass=mass, inv_mass=inv_mass, tris=tris),
         )
 

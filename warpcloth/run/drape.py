@@ -208,6 +208,63 @@ def node_count(
     return int(np.count_nonzero((peaks >= n) & (peaks < 2 * n)))
 
 
+def skirt_outline(
+    positions, triangles, height: float, up="y", center=(0.0, 0.0), bin_deg: float = 1.0, norm: str = "circle"
+):
+    """(angles [rad], R(phi) [m]): where the cloth crosses the horizontal plane at ``height`` [m] (a
+    level cut of a hanging skirt), the farthest crossing from ``center`` per angular bin; bins with no
+    crossing take the nearest bins' values (periodic interpolation). ``norm="square"`` measures the
+    distance as max(|a|, |b|) (around a square table: its sides are then flat, not four bumps).
+    Raises if the cloth does not cross the plane."""
+    require(norm in ("circle", "square"), f"norm must be 'circle' or 'square', got {norm!r}")
+    p = np.asarray(positions, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64)
+    axes = _plane_axes(up)
+    k = [a for a in range(3) if a not in axes][0]
+    d = p[:, k] - float(height)
+    edges = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    da, db = d[edges[:, 0]], d[edges[:, 1]]
+    cross = (da * db < 0.0) | ((da == 0.0) & (db != 0.0))
+    require(bool(cross.any()), f"the cloth does not cross the plane at height {height!r} m")
+    e = edges[cross]
+    s = (da[cross] / (da[cross] - db[cross]))[:, None]
+    q = p[e[:, 0]] + s * (p[e[:, 1]] - p[e[:, 0]])
+    a = q[:, axes[0]] - float(center[0])
+    b = q[:, axes[1]] - float(center[1])
+    bins = int(round(360.0 / require_positive("bin_deg", bin_deg, "deg")))
+    k_bin = np.minimum((np.mod(np.arctan2(b, a), 2.0 * math.pi) / (2.0 * math.pi) * bins).astype(np.int64), bins - 1)
+    radius = np.full(bins, -1.0)
+    np.maximum.at(radius, k_bin, np.hypot(a, b) if norm == "circle" else np.maximum(np.abs(a), np.abs(b)))
+    have = np.flatnonzero(radius >= 0.0)
+    angles = (np.arange(bins) + 0.5) * (2.0 * math.pi / bins)
+    if have.size < bins:
+        radius = np.interp(np.arange(bins), have, radius[have], period=bins)
+    return angles, radius
+
+
+def fold_count(
+    positions,
+    triangles,
+    height: float,
+    up="y",
+    center=(0.0, 0.0),
+    sigma_deg: float = 3.0,
+    min_prominence=2e-3,
+    norm: str = "circle",
+) -> int:
+    """Folds of a hanging skirt: peaks of its level cut at ``height`` (:func:`skirt_outline`, 1 deg
+    bins, smoothed by a circular Gaussian of ``sigma_deg``), counted as :func:`node_count` counts
+    the Cusick nodes (a hanging corner is a fold too)."""
+    _, radius = skirt_outline(positions, triangles, height, up, center, norm=norm)
+    bins = radius.size
+    s = sigma_deg / (360.0 / bins)
+    offsets = np.arange(-int(math.ceil(4 * s)), int(math.ceil(4 * s)) + 1)
+    kernel = np.exp(-0.5 * (offsets / s) ** 2)
+    kernel /= kernel.sum()
+    smooth = sum(w * np.roll(radius, -o) for o, w in zip(offsets, kernel))
+    return node_count(smooth, bin_deg=360.0 / bins, min_prominence=min_prominence)
+
+
 def drape_coefficient(
     projected: float, specimen_radius: float = SPECIMEN_RADIUS, pedestal_radius: float = PEDESTAL_RADIUS
 ) -> float:
@@ -248,9 +305,11 @@ __all__ = [
     "Shadow",
     "cusick_drape",
     "drape_coefficient",
+    "fold_count",
     "node_count",
     "polar_profile",
     "project",
     "projected_area",
     "shadow",
+    "skirt_outline",
 ]
