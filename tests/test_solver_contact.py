@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import deepest_in_drape, drape_sphere_depth, free_particles
+from helpers import PER_SPRING_SCENE, deepest_in_drape, drape_sphere_depth, free_particles
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
 from warpcloth.run.harness import RunHarness
@@ -99,7 +99,7 @@ def test_pins_win_over_contacts(integrator):
 def test_the_16x16_drape_reaches_equilibrium_on_the_sphere(integrator, cap):
     from warpcloth.scenarios import drape
 
-    sim = drape.build(rows=16, cols=16, integrator=integrator)
+    sim = drape.build(rows=16, cols=16, integrator=integrator, **PER_SPRING_SCENE)
     deepest, x = deepest_in_drape(sim, 90)  # 1.5 s: it lands at 0.17 s and drapes
     assert -1e-3 < deepest < DEPTH_TOL  # touching, never inside
     r = RunHarness(sim).run(cap - 1.5, stop_at_equilibrium=True)
@@ -120,7 +120,7 @@ def test_the_16x16_drape_reaches_equilibrium_on_the_sphere(integrator, cap):
 def test_the_tablecloth_reaches_equilibrium(integrator, cap):
     from warpcloth.scenarios import tablecloth as t
 
-    sim = t.build(integrator=integrator)
+    sim = t.build(rows=24, cols=24, integrator=integrator, **PER_SPRING_SCENE)
     r = RunHarness(sim).run(cap, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached, (r.final_max_speed, r.time_to_equilibrium)
     x = sim.state.particle_q.numpy().astype(np.float64)
