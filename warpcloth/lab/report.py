@@ -935,8 +935,9 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
                 "## Not measured",
                 "",
                 f"The plan has {len(missing)} device x integrator x size groups without a timing row in results.csv "
-                "(the study was interrupted, or no configuration ran finite; `--resume` continues an interrupted "
-                f"one): {', '.join(missing)}.",
+                "(the study was interrupted, or no configuration ran stably on any transient within the caps per run "
+                "and per frame, as their trial rows say; `--resume` continues an interrupted one): "
+                f"{', '.join(missing)}.",
                 "",
             ]
     if data.rows:
