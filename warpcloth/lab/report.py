@@ -817,8 +817,8 @@ def method_lines(plan) -> list[str]:
         "`warpcloth.sim.material.grid_spring_params`: the membrane stiffness is constant under refinement (on a "
         "square grid ks = 750 N/m structural, 250 N/m shear at every n), masses are the density times the vertex "
         "area. Bending: Provot bend springs with the material's approximate rule (ks = 9 B / (κ² h⁴)), which is not "
-        "size-independent (0.0013 N/m at 16x16, 6.9 N/m at 128x128): bending is not what this study compares (a "
-        "dihedral model is being integrated separately).",
+        "size-independent (0.0013 N/m at 16x16, 6.9 N/m at 128x128): bending is not what this study compares (the "
+        "size-independent `--bend dihedral` is not used here).",
         "- **Transients**: "
         + "; ".join(f"`{k}`: {t.description}" for k, t in TRANSIENTS.items())
         + f". Windows: {windows} (the 1 s swing is not accepted from 64x64: docs/study.md, “Windows”).",
