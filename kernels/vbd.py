@@ -226,3 +226,29 @@ def mask_contacts(
                 hit = 1
     if hit != 0:
         delta[i] = wp.vec3(0.0)
+
+
+@wp.kernel
+def push_out_increment(
+    x: wp.array(dtype=wp.vec3), inv_mass: wp.array(dtype=float), colliders: Colliders, dx: wp.array(dtype=wp.vec3)
+):
+    # x + dx out of every collider it is within the thickness of, along the normal (no friction; the
+    # contact states of the last sweep kept); pinned particles stay
+    i = wp.tid()
+    if inv_mass[i] == 0.0:
+        return
+    xi = x[i]
+    d = dx[i]
+    records = colliders.records
+    for k in range(colliders.plane_count):
+        phi, n = plane_contact(xi + d, records[k].a, records[k].b)
+        depth = records[k].thickness - phi
+        if depth > 0.0:
+            d = d + depth * n
+    if in_box(xi + d, colliders.box):
+        for k in range(colliders.plane_count, records.shape[0]):
+            phi, n = shape_contact(records, k, xi + d, contact_band(records, k))
+            depth = records[k].thickness - phi
+            if depth > 0.0:
+                d = d + depth * n
+    dx[i] = d
