@@ -85,7 +85,7 @@ def two_sheets(rows=6, gap=1.2 * H, height=0.02, speed=0.0, offset=(0.007, 0.011
 
 #: At dt = 1/60 s without substeps a layer that lands on another already on the ground passes through it
 #: (the lower layer stops within the step: the pair was not near at its start) - see docs/self-collision.md
-STACK_NOT_HELD = ("implicit_euler", "vbd", "projective")
+STACK_NOT_HELD = ("implicit_euler", "projective")
 
 
 def known_failures(names, reason):
