@@ -25,7 +25,8 @@ TINY = """
   <test id="t" integrator="explicit_euler verlet" dt="max max*0.5" maxdt_duration="0.5"/>
 </test_list>
 """
-# 8 independent runs of a few seconds each (long enough that a kill or an interrupt lands mid-sweep on a quiet machine) (a fixed dt: no groups)
+# 8 independent runs of a few seconds each, long enough that a kill or an interrupt lands mid-sweep on a
+# quiet machine (a fixed dt: no groups)
 SLOW = """
 <test_list size="8" duration="10" dt="2e-4" wall_cap="60">
   <test id="s" integrator="explicit_euler verlet" scenario="sheet flag" mass="0.2 0.25"/>
