@@ -160,12 +160,6 @@ def add_increment(delta: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3)):
 
 
 @wp.kernel
-def zero_sums(sums: wp.array(dtype=float)):
-    # sums[k] = 0 (the line search's dot products, before they accumulate)
-    sums[wp.tid()] = 0.0
-
-
-@wp.kernel
 def correction_dots(
     delta: wp.array(dtype=wp.vec3),
     r: wp.array(dtype=wp.vec3),
@@ -194,6 +188,29 @@ def add_scaled_increment(delta: wp.array(dtype=wp.vec3), sums: wp.array(dtype=fl
     dx[i] = dx[i] + alpha * delta[i]
 
 
+@wp.func
+def push_out(xi: wp.vec3, d: wp.vec3, colliders: Colliders):
+    # x_i + d out of every collider it is within the thickness of, along the normal, no friction (planes
+    # first, the others when x_i + d is in the box around them, as project_increment); returns d and
+    # whether any collider held it
+    records = colliders.records
+    hit = int(0)
+    for k in range(colliders.plane_count):
+        phi, n = plane_contact(xi + d, records[k].a, records[k].b)
+        depth = records[k].thickness - phi
+        if depth > 0.0:
+            d = d + depth * n
+            hit = 1
+    if in_box(xi + d, colliders.box):
+        for k in range(colliders.plane_count, records.shape[0]):
+            phi, n = shape_contact(records, k, xi + d, contact_band(records, k))
+            depth = records[k].thickness - phi
+            if depth > 0.0:
+                d = d + depth * n
+                hit = 1
+    return d, hit
+
+
 @wp.kernel
 def mask_contacts(
     x: wp.array(dtype=wp.vec3),
@@ -212,18 +229,7 @@ def mask_contacts(
     if contact.state[i] != 0:
         delta[i] = wp.vec3(0.0)
         return
-    p = x[i] + dx[i] + delta[i]
-    records = colliders.records
-    hit = int(0)
-    for k in range(colliders.plane_count):
-        phi, n = plane_contact(p, records[k].a, records[k].b)
-        if phi < records[k].thickness:
-            hit = 1
-    if hit == 0 and in_box(p, colliders.box):
-        for k in range(colliders.plane_count, records.shape[0]):
-            phi, n = shape_contact(records, k, p, contact_band(records, k))
-            if phi < records[k].thickness:
-                hit = 1
+    pushed, hit = push_out(x[i] + dx[i], delta[i], colliders)
     if hit != 0:
         delta[i] = wp.vec3(0.0)
 
@@ -237,18 +243,5 @@ def push_out_increment(
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
-    xi = x[i]
-    d = dx[i]
-    records = colliders.records
-    for k in range(colliders.plane_count):
-        phi, n = plane_contact(xi + d, records[k].a, records[k].b)
-        depth = records[k].thickness - phi
-        if depth > 0.0:
-            d = d + depth * n
-    if in_box(xi + d, colliders.box):
-        for k in range(colliders.plane_count, records.shape[0]):
-            phi, n = shape_contact(records, k, xi + d, contact_band(records, k))
-            depth = records[k].thickness - phi
-            if depth > 0.0:
-                d = d + depth * n
+    d, hit = push_out(x[i], dx[i], colliders)
     dx[i] = d

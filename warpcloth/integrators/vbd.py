@@ -309,7 +309,7 @@ class VBD(IncrementSolver):
                 outputs=[self.delta_image],
                 device=m.device,
             )
-            wp.launch(vk.zero_sums, dim=2, outputs=[self.line_sums], device=m.device)
+            self.line_sums.zero_()
             wp.launch(
                 vk.correction_dots,
                 dim=m.particle_count,
