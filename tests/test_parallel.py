@@ -25,11 +25,11 @@ TINY = """
   <test id="t" integrator="explicit_euler verlet" dt="max max*0.5" maxdt_duration="0.5"/>
 </test_list>
 """
-# 8 independent runs of a few seconds each, long enough that a kill or an interrupt lands mid-sweep on a
-# quiet machine (a fixed dt: no groups)
+# 8 independent runs of about 2 s each (flags: a sheet ends at equilibrium, within a second on a fast machine), long
+# enough that a kill or an interrupt lands mid-sweep and the driver sees it before the last row (a fixed dt: no groups)
 SLOW = """
-<test_list size="8" duration="10" dt="2e-4" wall_cap="60">
-  <test id="s" integrator="explicit_euler verlet" scenario="sheet flag" mass="0.2 0.25"/>
+<test_list size="8" duration="10" dt="5e-5" wall_cap="60">
+  <test id="s" integrator="explicit_euler verlet" scenario="flag" mass="0.2 0.25" drag="0 0.1"/>
 </test_list>
 """
 #: Columns that depend on the machine, the clock or the placement, not on the run.
