@@ -4,13 +4,15 @@ N x N with self-collision on and off, from the same states, against the step wit
 The fold (``warpcloth run fold``: a strip lowered onto the ground and folded back over itself) is
 run with self-collision on to each snapshot time (0.6 s: hanging, 1.2 s: laid on the ground, 1.8 s:
 folding, 2.4 s: folded, 3.0 s: at rest in layers). From each snapshot, ``--repeats`` times
-alternately: ``--steps`` steps with self-collision (detect, filter; the candidate list rebuilt at the
-first and whenever the cloth moved, as in a run) and the same steps by a second simulator of the same
+alternately: ``--steps`` steps with self-collision (detect at the start of each collision interval
+of at most ``--interval`` s, filter at its end; the candidate list rebuilt at the first and whenever
+the cloth moved, as in a run) and the same steps by a second simulator of the same
 fold without it, each timed as a captured graph replayed once (CPU capture, Warp >= 1.19), both
 started from the snapshot's state. The cost is the median over the
 repeats of (on - off) / off of the same repeat, with its min-max (machine noise falls on both).
 
     python bench/self_collision.py [--sizes 32 64 128] [--steps 60] [--repeats 5] [--device cpu] [--until 3.0]
+                                   [--interval 0.001]
 """
 
 import argparse
@@ -21,6 +23,7 @@ import warp as wp
 from warpcloth.scenarios import get_scenario
 
 from warpcloth.run.harness import Stopwatch
+from warpcloth.run.params import BY_NAME
 
 SNAPSHOTS = (0.6, 1.2, 1.8, 2.4, 3.0)
 
@@ -32,9 +35,11 @@ def timed(sim, steps, device):
     return watch.seconds
 
 
-def measure(size, steps, repeats, device, until=3.0):
+def measure(size, steps, repeats, device, until=3.0, interval=None):
     fold = get_scenario("fold")
-    sim = fold.build(rows=size, cols=size, device=device, use_graph=True)  # self-collision on
+    sim = fold.build(
+        rows=size, cols=size, device=device, use_graph=True, self_collision_interval=interval
+    )  # self-collision on
     plain = fold.build(rows=size, cols=size, device=device, use_graph=True, self_collision=False)
     sc = sim.self_collision
     frame = max(1, round((1.0 / 60.0) / sim.dt))
@@ -81,19 +86,25 @@ def main():
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--until", type=float, default=3.0, help="the last snapshot time [s] (128 x 128 runs long)")
+    ap.add_argument(
+        "--interval",
+        type=float,
+        default=BY_NAME["self_collision_interval"].default,
+        help="the self-collision interval [s] (0: every step)",
+    )
     args = ap.parse_args()
     wp.init()
     print(
         f"# python bench/self_collision.py --sizes {' '.join(map(str, args.sizes))} --steps {args.steps} "
-        f"--repeats {args.repeats} --device {args.device} --until {args.until}"
+        f"--repeats {args.repeats} --device {args.device} --until {args.until} --interval {args.interval}"
     )
     print(f"# warp {wp.config.version}; ms per explicit_euler step: median [min-max] of {args.repeats} repeats")
     for size in args.sizes:
         t0 = time.perf_counter()
-        sim, rows = measure(size, args.steps, args.repeats, args.device, args.until)
+        sim, rows = measure(size, args.steps, args.repeats, args.device, args.until, args.interval)
         print(
             f"fold {size}x{size} ({sim.model.particle_count} vertices, dt {sim.dt:.3g} s, thickness "
-            f"{sim.self_collision.thickness} m)"
+            f"{sim.self_collision.thickness} m, {sim._interval_steps()} steps per collision interval)"
         )
         every = []
         for t, on, off, ratios, st in rows:
@@ -102,7 +113,7 @@ def main():
                 f"  t = {t:3.1f} s  off {spread(off)} ms  on {spread(on)} ms  "
                 f"self-collision {spread(ratios, '{:+.2f}')} x a step   (contacts up to {st['contacts_max']}, "
                 f"candidates {st['candidates_vertex_triangle']}+{st['candidates_edge_edge']}, "
-                f"rebuilds {st['rebuilds']} of {st['detects']} steps)"
+                f"rebuilds {st['rebuilds']} of {st['detects']} detects in {args.steps} steps)"
             )
         print(
             f"  all snapshots: self-collision {spread(every, '{:+.2f}')} x an explicit_euler step "

@@ -389,11 +389,14 @@ def eval_self_contact_motion(
     dt: float,
     splits: IntArray,
     scalars: FloatArray,
+    x_start: Vec3Array,
 ):
     # motion relative to a common one (u, w: the mean displacement and velocity; a common motion
     # changes no gap, and any u, w bound it): D_i = |x_i - x_build_i - u| + |v_i - w| dt;
-    # MOTION = max D_i, SPEED = max |v_i - w|, EXCESS = max (D_i - margin_i); contact counts from zero
+    # MOTION = max D_i, SPEED = max |v_i - w|, EXCESS = max (D_i - margin_i); contact counts from zero;
+    # x_start = x (the collision interval's start)
     i = wp.tid()
+    x_start[i] = x[i]
     scale = 1.0 / float(x.shape[0])
     speed = wp.length(v[i] - scale * sums[1])
     motion = wp.length(x[i] - x_build[i] - scale * sums[0]) + speed * dt
@@ -941,21 +944,36 @@ def eval_filter_inverse_mass(
 def apply_self_contact_velocities(
     dv: Vec3Array,
     dt_x: float,
+    dt_d: float,
     with_displacement: int,
+    with_average: int,
     x: Vec3Array,
     v: Vec3Array,
     displacement: Vec3Array,
+    v_average: Vec3Array,
     acting: IntArray,
 ):
-    # v += dv; x += dt_x dv (and a position history d += dt_x dv); dv = 0, the acting counts 0
+    # v += dv; x += dt_x dv (and a last step's displacement d += dt_d dv, an interval's mean velocity
+    # += dv); dv = 0, the acting counts 0
     i = wp.tid()
     dvi = dv[i]
     v[i] = v[i] + dvi
+    if with_average != 0:
+        v_average[i] = v_average[i] + dvi
     x[i] = x[i] + dt_x * dvi
     if with_displacement != 0:
-        displacement[i] = displacement[i] + dt_x * dvi
+        displacement[i] = displacement[i] + dt_d * dvi
     dv[i] = wp.vec3(0.0)
     acting[i] = 0
+
+
+@wp.kernel
+def eval_interval_velocity(x: Vec3Array, x_start: Vec3Array, interval: float, v_average: Vec3Array):
+    # the collision interval's mean velocity (x - x_start) / interval: what the filter acts on where the
+    # interval is longer than a step (Bridson et al. 2002, Sec. 7.1: a step's end velocity may swing
+    # with the scheme's fastest mode while its motion does not)
+    i = wp.tid()
+    v_average[i] = (x[i] - x_start[i]) / interval
 
 
 @wp.kernel

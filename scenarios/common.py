@@ -38,8 +38,9 @@ class ScenarioConfig:
     cloth in physical units (:func:`scenario_material`); with a material, mass, stiffness and damping
     do not apply (its density and stiffnesses give them).
     self_collision: the cloth against itself on or off (None: the scenario's own,
-    :attr:`Scenario.self_collision`), with self_collision_thickness [m] and self_collision_friction
-    (None: the defaults of :mod:`warpcloth.run.params`); see :class:`~warpcloth.sim.self_collision.SelfCollision`.
+    :attr:`Scenario.self_collision`), with self_collision_thickness [m], self_collision_friction and
+    self_collision_interval [s] (None: the defaults of :mod:`warpcloth.run.params`); see
+    :class:`~warpcloth.sim.self_collision.SelfCollision`.
     """
 
     rows: int = 32
@@ -70,6 +71,7 @@ class ScenarioConfig:
     self_collision: bool | None = None
     self_collision_thickness: float | None = None
     self_collision_friction: float | None = None
+    self_collision_interval: float | None = None
     # the material in physical units (docs/materials.md): a preset's name, "custom", a Material, or None /
     # "none" (per-spring stiffness and damping); the values below replace the material's (None: its own)
     material: object = None
@@ -265,12 +267,15 @@ class Scenario:
         """The :class:`~warpcloth.sim.self_collision.SelfCollision` settings of a run (None: off); a bad
         thickness or friction is refused whether it is on or not."""
         thickness, friction = cfg.self_collision_thickness, cfg.self_collision_friction
+        interval = cfg.self_collision_interval
         settings = {
             "thickness": BY_NAME["self_collision_thickness"].default if thickness is None else thickness,
             "friction": BY_NAME["self_collision_friction"].default if friction is None else friction,
+            "interval": BY_NAME["self_collision_interval"].default if interval is None else interval,
         }
         require_positive("self_collision_thickness", settings["thickness"], "m")
         require_non_negative("self_collision_friction", settings["friction"])
+        require_non_negative("self_collision_interval", settings["interval"], "s")
         on = self.self_collision if cfg.self_collision is None else cfg.self_collision
         if on not in (True, False):
             raise WarpclothError(f"self_collision must be True, False or None (the scenario's), got {on!r:.80}")

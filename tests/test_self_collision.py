@@ -164,6 +164,59 @@ def test_a_free_two_layer_collision_keeps_momentum(integrator):
     assert worst <= 1e-6, worst
 
 
+# -- the collision interval of the explicit schemes ---------------------------------------------------
+@pytest.mark.parametrize("integrator", ["explicit_euler", "midpoint", "rk4", "verlet", "pbd", "implicit_euler"])
+def test_the_explicit_schemes_find_contacts_once_per_collision_interval(integrator):
+    """interval 1 ms at dt 0.1 ms: 10 steps per interval for the schemes that only filter, so 25 steps
+    are intervals of 10, 10 and 5 (the graph chunks: a multiple of the interval); every step for a
+    scheme that holds the contacts in its solve."""
+    model, v0 = two_sheets(gap=0.008, speed=0.5)
+    sim = Simulator(
+        model,
+        make_integrator(integrator),
+        Control(device="cpu"),
+        dt=1e-4,
+        self_collision={"thickness": H, "interval": 1e-3},
+        use_graph=False,
+    )
+    filters_only = sim.integrator.self_contact_filter == "full"
+    assert sim._interval_steps() == (10 if filters_only else 1)
+    assert sim._chunks(25) == ([10, 10, 5] if filters_only else [16, 9])
+    sim.state.particle_qd.assign(v0.astype(np.float32))
+    sim.simulate(25)
+    assert sim.self_collision.stats()["detects"] == (3 if filters_only else 25)
+
+
+@pytest.mark.parametrize("interval", [0.0, 1e-3, 4e-3])
+def test_a_free_two_layer_collision_keeps_momentum_over_collision_intervals(interval):
+    """explicit Euler at dt 0.1 ms, self-collision every step, every 10 and every 40 steps: the filter
+    at an interval's end changes the total momentum by at most 1e-6 kg m/s, the layers meet and stay
+    apart (the filter holds pairs found at the interval's start), and a longer interval detects less."""
+    model, v0 = two_sheets(gap=0.012, speed=0.25)
+    sim = Simulator(
+        model,
+        "explicit_euler",
+        Control(gravity=(0.0, 0.0, 0.0), device="cpu"),
+        dt=1e-4,
+        self_collision={"thickness": H, "friction": 0.3, "interval": interval},
+        use_graph=False,
+    )
+    sim.state.particle_qd.assign(v0.astype(np.float32))
+    k = sim._interval_steps()
+    p, worst = momentum(model, sim.state.particle_qd.numpy()), 0.0
+    for _ in range(600 // k):
+        sim.simulate(k)
+        p_new = momentum(model, sim.state.particle_qd.numpy())
+        worst, p = max(worst, float(np.abs(p_new - p).max())), p_new
+    n = model.particle_count // 2
+    y = sim.state.particle_q.numpy()[:, 1]
+    stats = sim.self_collision.stats()
+    assert stats["contacts_max"] > 10 and stats["detects"] == 600 // k
+    assert y[n:].mean() > y[:n].mean() + 0.5 * H
+    assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host["tris"]) == 0
+    assert worst <= 1e-6, worst
+
+
 # -- allocation, capture ---------------------------------------------------------------------------
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 def test_a_step_with_self_collision_allocates_nothing(integrator, count_allocations):
@@ -326,6 +379,7 @@ def test_an_overflow_is_reported_on_stderr(capsys):
         ({"thickness": -0.001}, "thickness must be > 0"),
         ({"thickness": 0.0}, "thickness must be > 0"),
         ({"thickness": 0.005, "friction": -0.1}, "friction mu must be >= 0"),
+        ({"thickness": 0.005, "interval": -0.001}, "interval must be >= 0"),
         ({"thickness": float("nan")}, "thickness"),
     ],
 )
@@ -341,6 +395,7 @@ def test_bad_self_collision_values_are_one_line_errors(kwargs, words):
     [
         ("--self-collision-thickness", "-1", "self_collision_thickness must be > 0"),
         ("--self-collision-friction", "-0.5", "self_collision_friction must be >= 0"),
+        ("--self-collision-interval", "-0.001", "self_collision_interval must be >= 0"),
         ("--self-collision", "maybe", "invalid choice"),
     ],
 )

@@ -338,15 +338,44 @@ class Simulator:
         self.integrator.begin(self.state, self.control, self._dt)
         self._needs_begin = False
 
-    def _launch_step(self) -> None:
+    def _interval_steps(self) -> int:
+        """Steps per self-collision interval (1 without self-collision or for a scheme that holds the
+        contacts in its solve; :meth:`SelfCollision.interval_steps
+        <warpcloth.sim.self_collision.SelfCollision.interval_steps>`)."""
+        sc = self.self_collision
+        return 1 if sc is None else sc.interval_steps(self._dt, self.integrator.self_contact_filter)
+
+    def _chunks(self, steps: int) -> list[int]:
+        """A call of ``steps`` steps as the step counts of its captured graphs: whole chunks of
+        :data:`GRAPH_CHUNK` steps (a multiple of the self-collision interval where that is longer
+        than a step) and the rest. Plain launches follow the same chunks, so both stay bit-identical."""
+        k = self._interval_steps()
+        chunk = min(steps, GRAPH_CHUNK if k == 1 else k * max(1, GRAPH_CHUNK // k))
+        full, rest = divmod(steps, chunk)
+        return [chunk] * full + ([rest] if rest else [])
+
+    def _schedule(self, steps: int) -> list[tuple[int, int]]:
+        """Per step of a chunk of ``steps`` steps, its self-collision work ``(detect, filter)``: the
+        steps of the collision interval it starts (contacts found for them) and of the one it ends
+        (the velocity filter over them), else 0; the chunk's intervals are as even as whole steps
+        allow, none longer than :meth:`_interval_steps` (every step (1, 1) where that is 1)."""
+        k = self._interval_steps()
+        count = -(-steps // k)
+        plan = []
+        for i in range(count):
+            m = (i + 1) * steps // count - i * steps // count
+            plan += [(m if j == 0 else 0, m if j == m - 1 else 0) for j in range(m)]
+        return plan
+
+    def _launch_step(self, detect: int = 1, filter: int = 1) -> None:
         self.control.update()
         sc, integrator, state = self.self_collision, self.integrator, self.state
-        if sc is not None:  # the step's self-contacts, at its start
-            sc.detect(state.particle_q, state.particle_qd, self._dt)
+        if sc is not None and detect:  # the self-contacts of the collision interval of `detect` steps, at its start
+            sc.detect(state.particle_q, state.particle_qd, detect * self._dt)
         integrator.step(state, self.control, self._dt)
-        if (
-            sc is not None
-        ):  # Bridson's velocity filter (only its last guarantee where the solve held them), colliders, pins
+        if sc is not None and filter:
+            # Bridson's velocity filter over the interval's `filter` steps (only its last guarantee where
+            # the solve held the contacts); then colliders, pins
             sc.filter_velocities(
                 state.particle_q,
                 state.particle_qd,
@@ -356,6 +385,7 @@ class Simulator:
                 repulsion=integrator.self_contact_filter == "full",
                 inelastic=integrator.self_contact_filter != "gap",
                 colliders=self.control.collision,
+                steps=filter,
             )
         if self.control.collision is not None and not self.integrator.collides_in_solver:
             self.control.collision.project_velocity(
@@ -383,17 +413,13 @@ class Simulator:
             return
         self._drive(steps)
         if not self.graph_enabled:
-            for _ in range(steps):
-                self._launch_step()
-                self._count_steps(1)
+            for chunk in self._chunks(steps):
+                for detect, filter in self._schedule(chunk):
+                    self._launch_step(detect, filter)
+                    self._count_steps(1)
             return
-        chunk = min(steps, GRAPH_CHUNK)
-        full, rest = divmod(steps, chunk)
-        graph = self._graph(chunk)
-        for _ in range(full):
-            wp.capture_launch(graph)
-        if rest:
-            wp.capture_launch(self._graph(rest))
+        for chunk in self._chunks(steps):
+            wp.capture_launch(self._graph(chunk))
         self._count_steps(steps)
 
     def _graph(self, steps: int):
@@ -409,8 +435,8 @@ class Simulator:
                 self._graphs.clear()
             t0 = time.perf_counter()
             with wp.ScopedCapture(device=self.model.device) as capture:
-                for _ in range(steps):
-                    self._launch_step()
+                for detect, filter in self._schedule(steps):
+                    self._launch_step(detect, filter)
             graph = self._graphs[key] = capture.graph
             self.capture_time += time.perf_counter() - t0
         return graph

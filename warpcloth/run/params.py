@@ -800,6 +800,20 @@ PARAMS: tuple[Param, ...] = (
         cli_type=float,
     ),
     Param(
+        "self_collision_interval",
+        non_negative,
+        "s",
+        "the collision time step of the explicit schemes (explicit_euler, midpoint, rk4, verlet): contacts "
+        "found at its start, the velocity filter at its end over whole steps (Bridson et al. 2002); the "
+        "schemes that hold contacts in their solve find them every step",
+        ">= 0 (0: every step)",
+        "self_collision",
+        default=0.001,
+        key="set",
+        metavar="S",
+        cli_type=float,
+    ),
+    Param(
         "strain_limit",
         positive,
         "",

@@ -130,10 +130,11 @@ class SelfCollision:
         edge_fraction: edge-edge pairs act within h_e = edge_fraction h (1: as vertex-triangle
             pairs; less is cheaper where layers lie parallel, whose crossing edges are all contacts,
             but lets two edges that no vertex-triangle pair holds rest nearer than h).
-        skin: the extra radius of the candidate list [m] (default h / 2) besides the pair's motion
+        skin: the extra radius of the candidate list [m] (default h) besides the pair's motion
             margins; the list is rebuilt when a vertex may have moved skin / 2 beyond its margin since
             the last build, relative to the cloth's mean motion (a larger skin rebuilds less often but
-            holds more candidates, each tested every step).
+            holds more candidates, each tested every step; in the fold at 32 x 32 and 64 x 64, h costs
+            1.6-1.9x an explicit step, h / 2 2.1-2.4x, 2 h 2.4-2.9x: bench/self_collision.py).
         skin_max: the largest motion margin of a vertex [m] (default the larger of 4 h and twice the
             longest rest edge): a vertex's margin covers two steps of its motion up to it; a vertex
             faster than skin_max / 2 a step (relative to the mean) can miss a pair (counted in ``fast``).
@@ -144,6 +145,13 @@ class SelfCollision:
             ring apart may pass through each other in a fold sharper than the mesh).
         candidates_per_vertex, candidates_per_edge, contacts_per_element: capacities of the lists
             (vertex-triangle candidates: per vertex, edge-edge: per edge, contacts: per vertex + edge).
+        interval: the collision time step [s] of the schemes that only filter (explicit Euler, midpoint,
+            RK4, Verlet: their ``self_contact_filter`` is ``"full"``): contacts are found at the start
+            of an interval of whole steps no longer than this and the velocity filter acts at its end,
+            on the interval's motion (Bridson, Fedkiw & Anderson 2002, Sec. 7: the collision step may
+            exceed the internal dynamics' step); 0: every step. Intervals restart with each
+            :meth:`Simulator.simulate <warpcloth.simulator.Simulator.simulate>` call (a frame). Schemes
+            that hold the contacts in their solve find them every step.
     """
 
     def __init__(
@@ -161,6 +169,7 @@ class SelfCollision:
         candidates_per_vertex: int = 64,
         candidates_per_edge: int = 64,
         contacts_per_element: int = 8,
+        interval: float = 0.001,
     ):
         self.model = model
         self._settings = {
@@ -176,6 +185,7 @@ class SelfCollision:
             "candidates_per_vertex": candidates_per_vertex,
             "candidates_per_edge": candidates_per_edge,
             "contacts_per_element": contacts_per_element,
+            "interval": interval,
         }
         self.thickness = require_positive("self-collision thickness", thickness, "m")
         self.friction = require_non_negative("self-collision friction mu", friction)
@@ -187,7 +197,8 @@ class SelfCollision:
             f"min_gap_fraction must be in (0, edge_fraction = {self.edge_fraction:g}], got {min_gap_fraction!r}",
         )
         self.iterations = require_count("self-collision iterations", iterations, 1)
-        self.skin = require_positive("self-collision skin", 0.5 * self.thickness if skin is None else skin, "m")
+        self.interval = require_non_negative("self-collision interval", interval, "s")
+        self.skin = require_positive("self-collision skin", self.thickness if skin is None else skin, "m")
         stiffness = self._default_stiffness(model) if stiffness is None else stiffness
         self.stiffness = require_positive("self-collision stiffness", stiffness, "N/m")
         host = model.host
@@ -246,6 +257,8 @@ class SelfCollision:
             self.splits = wp.zeros(n, dtype=int)
             self.acting = wp.zeros(n, dtype=int)  # per vertex, the contacts acting in a response pass (zeroed after it)
             self.dv = wp.zeros(n, dtype=wp.vec3)
+            self.x_start = wp.zeros(n, dtype=wp.vec3)  # x at the collision interval's start (detect)
+            self.v_average = wp.zeros(n, dtype=wp.vec3)  # the interval's mean velocity (its filter)
             self.filter_inv_mass = wp.zeros(n, dtype=float)  # 1/m, 0 where a collider holds the vertex (filter)
             #: per vertex, the contacts' penalty force [N] and Gauss-Newton Hessian [N/m] (vbd's vertex step)
             self.vertex_force = wp.zeros(n, dtype=wp.vec3)
@@ -282,6 +295,14 @@ class SelfCollision:
         """The least gap [m] the filter leaves a contact with (``min_gap_fraction`` h)."""
         return self.min_gap_fraction * self.thickness
 
+    def interval_steps(self, dt: float, filter_kind: str) -> int:
+        """Steps of ``dt`` [s] per collision interval for an integrator whose ``self_contact_filter``
+        is ``filter_kind``: the most whole steps within :attr:`interval` (at least 1) where it is
+        ``"full"``, else 1."""
+        if filter_kind != "full" or self.interval <= 0.0:
+            return 1
+        return max(1, int(math.floor(self.interval / float(dt) * (1.0 + 1.0e-9))))
+
     # -- per step (kernel launches only) ------------------------------------------------------
     def detect(self, x: wp.array, v: wp.array, dt: float) -> None:
         """Contacts at the step's start: positions ``x`` [m], velocities ``v`` [m/s], step ``dt`` [s]."""
@@ -298,7 +319,7 @@ class SelfCollision:
         wp.launch(
             sk.eval_self_contact_motion,
             dim=n,
-            inputs=[x, v, self.x_build, self.margin, self.motion_sums, float(dt), self.splits, s],
+            inputs=[x, v, self.x_build, self.margin, self.motion_sums, float(dt), self.splits, s, self.x_start],
             device=d,
         )
         wp.launch(
@@ -456,19 +477,32 @@ class SelfCollision:
         repulsion: bool = True,
         inelastic: bool = True,
         colliders=None,
+        steps: int = 1,
     ) -> None:
         """After the step (``x``, ``v`` at its end): the velocity filter, in place. A velocity change
         dv moves x by ``position_weight`` dt dv (1 where x += dt v_new; 1/2 for the Runge-Kutta
-        schemes, as for colliders); ``displacement`` (Verlet's x - x_prev) moves with x.
+        schemes, as for colliders); ``displacement`` (Verlet's x - x_prev) moves by as much.
+        ``steps``: the collision interval's steps of ``dt`` since the contacts were found (its
+        repulsion acts over ``steps`` dt, and dv moves x by (``steps`` - 1 + ``position_weight``) dt dv,
+        as if it had acted from the interval's start).
         ``repulsion``: Bridson's repulsion impulse in the filter (off where the scheme had
         :meth:`apply_forces` in its force). ``inelastic`` False: only the last pass's guarantee, every
         pair at least ``min_gap`` apart (where the solve held the contacts itself). ``colliders``: a
         :class:`~warpcloth.sim.contacts.ColliderSet` whose contacts win: a vertex within a collider's
         thickness (+ ``min_gap``) takes no impulse, the pair's other side all of it."""
         n, d = self.model.particle_count, self.device
-        dt_x = float(position_weight) * float(dt)
-        if not dt_x > 0.0:
-            raise WarpclothError(f"self-collision filter: position_weight * dt must be > 0, got {dt_x!r}")
+        steps = require_count("self-collision filter steps", steps, 1)
+        dt_d = float(position_weight) * float(dt)
+        if not dt_d > 0.0:
+            raise WarpclothError(f"self-collision filter: position_weight * dt must be > 0, got {dt_d!r}")
+        dt_x = dt_d + (steps - 1) * float(dt)
+        dt = steps * float(dt)
+        v_out, average = v, steps > 1
+        if average:  # the filter acts on the interval's motion, the end velocity changes by as much
+            wp.launch(
+                sk.eval_interval_velocity, dim=n, inputs=[x, self.x_start, dt], outputs=[self.v_average], device=d
+            )
+            v = self.v_average
         disp = displacement if displacement is not None else self._no_displacement
         k = self.stiffness if repulsion else 0.0
         inv_mass = self.model.particle_inv_mass
@@ -515,8 +549,8 @@ class SelfCollision:
             wp.launch(
                 sk.apply_self_contact_velocities,
                 dim=n,
-                inputs=[self.dv, dt_x, int(displacement is not None)],
-                outputs=[x, v, disp, self.acting],
+                inputs=[self.dv, dt_x, dt_d, int(displacement is not None), int(average)],
+                outputs=[x, v_out, disp, self.v_average, self.acting],
                 device=d,
             )
         wp.launch(
