@@ -418,8 +418,10 @@ class Simulator:
                     self._launch_step(detect, filter)
                     self._count_steps(1)
             return
-        for chunk in self._chunks(steps):
-            wp.capture_launch(self._graph(chunk))
+        chunks = self._chunks(steps)
+        graphs = {n: self._graph(n) for n in dict.fromkeys(chunks)}  # at most two counts, looked up once
+        for chunk in chunks:
+            wp.capture_launch(graphs[chunk])
         self._count_steps(steps)
 
     def _graph(self, steps: int):
