@@ -163,7 +163,7 @@ def alternatives(size, thickness, repeats, device):
     def ours():
         sc.invalidate()
         sc._decide(x, v0, 1e-4)
-        sc._build(x, edges=False)
+        sc._build(x, v0, 1e-4, edges=False)
 
     def refit_alone():
         wp.launch(_boxes, t, [x, tris, r, lo, hi, centres], device=device)
@@ -171,7 +171,7 @@ def alternatives(size, thickness, repeats, device):
 
     def gated():  # what a step without a rebuild pays for the broad phase: its launches return at once
         sc._decide(x, v0, 1e-4)  # no motion since the build: no rebuild due
-        sc._build(x, edges=False)
+        sc._build(x, v0, 1e-4, edges=False)
 
     cases = {
         "wp.HashGrid build + query": hashgrid,
