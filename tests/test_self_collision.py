@@ -187,6 +187,30 @@ def test_the_explicit_schemes_find_contacts_once_per_collision_interval(integrat
     assert sim.self_collision.stats()["detects"] == (3 if filters_only else 25)
 
 
+def test_collision_intervals_do_not_depend_on_how_a_run_is_split_into_calls(monkeypatch):
+    """The run layer advances a frame in chunks of ~0.2 s of wall time: they are whole graphs
+    (multiples of the interval), so a fast and a slow machine run the same intervals, bit for bit."""
+    import warpcloth.run.harness as harness
+
+    runs = []
+    for seconds in (1e-9, 10.0):  # chunks of one graph, chunks of whole frames
+        monkeypatch.setattr(harness, "CHUNK_SECONDS", seconds)
+        model, v0 = two_sheets(gap=0.008, speed=0.5)
+        sim = Simulator(
+            model,
+            "explicit_euler",
+            Control(device="cpu"),
+            dt=1e-4,
+            self_collision={"thickness": H, "interval": 7e-4},
+            use_graph=False,
+        )
+        assert sim._interval_steps() == 7 and sim.chunk_steps() == 14
+        sim.state.particle_qd.assign(v0.astype(np.float32))
+        harness.RunHarness(sim).run(0.1, fps=60.0, warm_up=False)
+        runs.append((sim.state.particle_q.numpy(), sim.self_collision.stats()["detects"]))
+    assert runs[0][1] == runs[1][1] and np.array_equal(runs[0][0], runs[1][0])
+
+
 @pytest.mark.parametrize("interval", [0.0, 1e-3, 4e-3])
 def test_a_free_two_layer_collision_keeps_momentum_over_collision_intervals(interval):
     """explicit Euler at dt 0.1 ms, self-collision every step, every 10 and every 40 steps: the filter

@@ -345,12 +345,18 @@ class Simulator:
         sc = self.self_collision
         return 1 if sc is None else sc.interval_steps(self._dt, self.integrator.self_contact_filter)
 
+    def chunk_steps(self) -> int:
+        """Steps of one captured graph: :data:`GRAPH_CHUNK`, or a multiple of the self-collision
+        interval where that is longer than a step. :meth:`simulate` calls of multiples of it give the
+        same collision intervals however a run is split into calls (the run layer's chunks are)."""
+        k = self._interval_steps()
+        return GRAPH_CHUNK if k == 1 else k * max(1, GRAPH_CHUNK // k)
+
     def _chunks(self, steps: int) -> list[int]:
         """A call of ``steps`` steps as the step counts of its captured graphs: whole chunks of
-        :data:`GRAPH_CHUNK` steps (a multiple of the self-collision interval where that is longer
-        than a step) and the rest. Plain launches follow the same chunks, so both stay bit-identical."""
-        k = self._interval_steps()
-        chunk = min(steps, GRAPH_CHUNK if k == 1 else k * max(1, GRAPH_CHUNK // k))
+        :meth:`chunk_steps` steps and the rest. Plain launches follow the same chunks, so both stay
+        bit-identical."""
+        chunk = min(steps, self.chunk_steps())
         full, rest = divmod(steps, chunk)
         return [chunk] * full + ([rest] if rest else [])
 

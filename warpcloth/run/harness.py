@@ -555,7 +555,9 @@ class RunHarness:
                 sim.simulate(1)
             step_seconds = self._step_seconds[sim.step_version] = max(watch.seconds, 1e-7)
             done = 2
-        chunk = max(1, int(CHUNK_SECONDS / step_seconds))
+        # whole graphs of steps, so that self-collision intervals do not depend on the machine's speed
+        granule = sim.chunk_steps()
+        chunk = max(granule, int(CHUNK_SECONDS / step_seconds) // granule * granule)
         while done < n:
             if wall_cap is not None and done and time.perf_counter() - loop_start >= wall_cap:
                 return True
