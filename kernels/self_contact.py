@@ -898,14 +898,17 @@ def filter_self_contact_velocities(
     stiffness: float,
     dt: float,
     dt_x: float,
+    v_slip: Vec3Array,
     dv: Vec3Array,
 ):
-    # per contact the normal change dv_n of filter_change where > 0, friction |dv_t| = min(mu dv_n, |v_t|);
+    # per contact the normal change dv_n of filter_change where > 0, friction |dv_t| = min(mu dv_n, |v_t|)
+    # against the tangential relative velocity of v_slip (v; over a collision interval the end velocity,
+    # which the step goes on with: friction on the interval's mean could reverse it);
     # impulse J = dv / sum W^2 c / m; dv_k += W_k J / m_k (Jacobi, masses split over the c contacts acting
     # on a vertex in this pass: count_filter_contacts)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        w, n, vr, dvn = filter_change(
+        w, n, _vr, dvn = filter_change(
             k, x, v, inv_mass, c_idx, c_w, c_n, c_d, c_h, min_gap, inelastic, stiffness, dt, dt_x
         )
         if dvn > 0.0:
@@ -913,7 +916,8 @@ def filter_self_contact_velocities(
             inv_m = split_inverse_mass(idx, w, inv_mass, acting)
             if inv_m > 0.0:
                 impulse = dvn * n
-                vt = vr - wp.dot(n, vr) * n
+                vs = weighted_sum(v_slip, idx, w)
+                vt = vs - wp.dot(n, vs) * n
                 lt = wp.length(vt)
                 if lt > 0.0:
                     impulse = impulse - (wp.min(mu * dvn, lt) / lt) * vt

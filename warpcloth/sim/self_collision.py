@@ -153,7 +153,7 @@ class SelfCollision:
             :meth:`Simulator.simulate <warpcloth.simulator.Simulator.simulate>` call (a frame). Schemes
             that hold the contacts in their solve find them every step. Its filter makes twice
             ``iterations`` passes (the interval's corrections are larger). Default 0: an interval of
-            1 ms made self-collision in the 64 x 64 fold 2.5x cheaper but one of its runs went unstable
+            1 ms made self-collision in the 64 x 64 fold 2.5x cheaper, but midpoint and rk4 went unstable there
             (docs/self-collision.md).
     """
 
@@ -545,6 +545,7 @@ class SelfCollision:
                     k,
                     float(dt),
                     dt_x,
+                    v_out,
                 ],
                 outputs=[self.dv],
                 device=d,
