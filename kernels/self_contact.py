@@ -824,7 +824,8 @@ def filter_change(
     # delta = h - d0: the normal relative velocity v_n = n . sum W v is to be raised to
     #   max(0 [inelastic, d0 < h], min(0.1 delta / dt, dt k delta / m_eff) [repulsion, stiffness > 0],
     #       v_n + (min_gap - d) / dt_x [the gap kept >= min_gap])
-    # (Bridson et al. 2002, Sec. 7.2); returns W, n, sum W v and the change dv_n (acting where > 0)
+    # (Bridson et al. 2002, Sec. 7.2); returns W, n, sum W v, the change dv_n (acting where > 0) and the
+    # velocity target without the gap's term (-1e30: none)
     idx = c_idx[k]
     w, n, d = contact_geometry(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]], c_w[k], c_n[k])
     vr = weighted_sum(v, idx, w)
@@ -838,8 +839,9 @@ def filter_change(
             for j in range(4):
                 full += w[j] * w[j] * inv_mass[idx[j]]
             target = wp.min(0.1 * delta / dt, dt * stiffness * delta * full)
+    velocity_target = target
     target = wp.max(target, vn + (min_gap - d) / dt_x)
-    return w, n, vr, target - vn
+    return w, n, vr, target - vn, velocity_target
 
 
 @wp.func
@@ -872,7 +874,7 @@ def count_filter_contacts(
     # per vertex, the contacts of this filter pass that act on it (dv_n > 0)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        w, n, vr, dvn = filter_change(
+        w, n, vr, dvn, _tv = filter_change(
             k, x, v, inv_mass, c_idx, c_w, c_n, c_d, c_h, min_gap, inelastic, stiffness, dt, dt_x
         )
         if dvn > 0.0:
@@ -899,7 +901,9 @@ def filter_self_contact_velocities(
     dt: float,
     dt_x: float,
     v_slip: Vec3Array,
+    interval: int,
     dv: Vec3Array,
+    dv_end: Vec3Array,
 ):
     # per contact the normal change dv_n of filter_change where > 0, friction |dv_t| = min(mu dv_n, |v_t|)
     # against the tangential relative velocity of v_slip (v; over a collision interval the end velocity,
@@ -908,22 +912,32 @@ def filter_self_contact_velocities(
     # on a vertex in this pass: count_filter_contacts)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        w, n, _vr, dvn = filter_change(
+        w, n, _vr, dvn, tv = filter_change(
             k, x, v, inv_mass, c_idx, c_w, c_n, c_d, c_h, min_gap, inelastic, stiffness, dt, dt_x
         )
         if dvn > 0.0:
             idx = c_idx[k]
             inv_m = split_inverse_mass(idx, w, inv_mass, acting)
             if inv_m > 0.0:
-                impulse = dvn * n
                 vs = weighted_sum(v_slip, idx, w)
-                vt = vs - wp.dot(n, vs) * n
+                vn_end = wp.dot(n, vs)
+                # over an interval the end velocity takes only what its own normal velocity lacks of the
+                # inelastic and repulsion target (the gap's term moves x alone); every step the same change
+                dvn_end = dvn
+                if interval != 0:
+                    dvn_end = wp.max(0.0, tv - vn_end)
+                vt = vs - vn_end * n
                 lt = wp.length(vt)
+                friction = wp.vec3(0.0)
                 if lt > 0.0:
-                    impulse = impulse - (wp.min(mu * dvn, lt) / lt) * vt
-                impulse = impulse / inv_m
+                    friction = (wp.min(mu * dvn_end, lt) / lt) * vt
+                impulse = (dvn * n - friction) / inv_m
                 for j in range(4):
                     wp.atomic_add(dv, idx[j], (w[j] * inv_mass[idx[j]]) * impulse)
+                if interval != 0:
+                    impulse_end = (dvn_end * n - friction) / inv_m
+                    for j in range(4):
+                        wp.atomic_add(dv_end, idx[j], (w[j] * inv_mass[idx[j]]) * impulse_end)
 
 
 @wp.kernel
@@ -955,18 +969,23 @@ def apply_self_contact_velocities(
     v: Vec3Array,
     displacement: Vec3Array,
     v_average: Vec3Array,
+    dv_end: Vec3Array,
     acting: IntArray,
 ):
-    # v += dv; x += dt_x dv (and a last step's displacement d += dt_d dv, an interval's mean velocity
-    # += dv); dv = 0, the acting counts 0
+    # x += dt_x dv; v += dv (and a last step's displacement d += dt_d dv); over an interval the mean
+    # velocity += dv, and the velocity the step goes on with (v, d) takes dv_end instead; dv = dv_end = 0,
+    # the acting counts 0
     i = wp.tid()
     dvi = dv[i]
-    v[i] = v[i] + dvi
+    dv_on = dvi
     if with_average != 0:
         v_average[i] = v_average[i] + dvi
+        dv_on = dv_end[i]
+        dv_end[i] = wp.vec3(0.0)
+    v[i] = v[i] + dv_on
     x[i] = x[i] + dt_x * dvi
     if with_displacement != 0:
-        displacement[i] = displacement[i] + dt_d * dvi
+        displacement[i] = displacement[i] + dt_d * dv_on
     dv[i] = wp.vec3(0.0)
     acting[i] = 0
 

@@ -152,9 +152,8 @@ class SelfCollision:
             exceed the internal dynamics' step); 0: every step. Intervals restart with each
             :meth:`Simulator.simulate <warpcloth.simulator.Simulator.simulate>` call (a frame). Schemes
             that hold the contacts in their solve find them every step. Its filter makes twice
-            ``iterations`` passes (the interval's corrections are larger). Default 0: an interval of
-            1 ms made self-collision in the 64 x 64 fold 2.5x cheaper, but midpoint and rk4 went unstable there
-            (docs/self-collision.md).
+            ``iterations`` passes (the interval's corrections are larger), and the velocity the
+            step goes on with takes only what its own normal velocity lacks (docs/self-collision.md).
     """
 
     def __init__(
@@ -172,7 +171,7 @@ class SelfCollision:
         candidates_per_vertex: int = 64,
         candidates_per_edge: int = 64,
         contacts_per_element: int = 8,
-        interval: float = 0.0,
+        interval: float = 0.001,
     ):
         self.model = model
         self._settings = {
@@ -262,6 +261,7 @@ class SelfCollision:
             self.dv = wp.zeros(n, dtype=wp.vec3)
             self.x_start = wp.zeros(n, dtype=wp.vec3)  # x at the collision interval's start (detect)
             self.v_average = wp.zeros(n, dtype=wp.vec3)  # the interval's mean velocity (its filter)
+            self.dv_end = wp.zeros(n, dtype=wp.vec3)  # the end velocity's change over an interval
             self.filter_inv_mass = wp.zeros(n, dtype=float)  # 1/m, 0 where a collider holds the vertex (filter)
             #: per vertex, the contacts' penalty force [N] and Gauss-Newton Hessian [N/m] (vbd's vertex step)
             self.vertex_force = wp.zeros(n, dtype=wp.vec3)
@@ -546,15 +546,16 @@ class SelfCollision:
                     float(dt),
                     dt_x,
                     v_out,
+                    int(average),
                 ],
-                outputs=[self.dv],
+                outputs=[self.dv, self.dv_end],
                 device=d,
             )
             wp.launch(
                 sk.apply_self_contact_velocities,
                 dim=n,
                 inputs=[self.dv, dt_x, dt_d, int(displacement is not None), int(average)],
-                outputs=[x, v_out, disp, self.v_average, self.acting],
+                outputs=[x, v_out, disp, self.v_average, self.dv_end, self.acting],
                 device=d,
             )
         wp.launch(
