@@ -373,14 +373,14 @@ class Simulator:
             plan += [(m if j == 0 else 0, m if j == m - 1 else 0) for j in range(m)]
         return plan
 
-    def _launch_step(self, detect: int = 1, filter: int = 1) -> None:
+    def _launch_step(self, detect_steps: int = 1, filter_steps: int = 1) -> None:
         self.control.update()
         sc, integrator, state = self.self_collision, self.integrator, self.state
-        if sc is not None and detect:  # the self-contacts of the collision interval of `detect` steps, at its start
-            sc.detect(state.particle_q, state.particle_qd, detect * self._dt)
+        if sc is not None and detect_steps:  # the self-contacts of the collision interval starting here
+            sc.detect(state.particle_q, state.particle_qd, detect_steps * self._dt)
         integrator.step(state, self.control, self._dt)
-        if sc is not None and filter:
-            # Bridson's velocity filter over the interval's `filter` steps (only its last guarantee where
+        if sc is not None and filter_steps:
+            # Bridson's velocity filter over the interval's `filter_steps` steps (only its last guarantee where
             # the solve held the contacts); then colliders, pins
             sc.filter_velocities(
                 state.particle_q,
@@ -391,7 +391,7 @@ class Simulator:
                 repulsion=integrator.self_contact_filter == "full",
                 inelastic=integrator.self_contact_filter != "gap",
                 colliders=self.control.collision,
-                steps=filter,
+                steps=filter_steps,
             )
         if self.control.collision is not None and not self.integrator.collides_in_solver:
             self.control.collision.project_velocity(
@@ -420,8 +420,8 @@ class Simulator:
         self._drive(steps)
         if not self.graph_enabled:
             for chunk in self._chunks(steps):
-                for detect, filter in self._schedule(chunk):
-                    self._launch_step(detect, filter)
+                for detect_steps, filter_steps in self._schedule(chunk):
+                    self._launch_step(detect_steps, filter_steps)
                     self._count_steps(1)
             return
         chunks = self._chunks(steps)
@@ -443,8 +443,8 @@ class Simulator:
                 self._graphs.clear()
             t0 = time.perf_counter()
             with wp.ScopedCapture(device=self.model.device) as capture:
-                for detect, filter in self._schedule(steps):
-                    self._launch_step(detect, filter)
+                for detect_steps, filter_steps in self._schedule(steps):
+                    self._launch_step(detect_steps, filter_steps)
             graph = self._graphs[key] = capture.graph
             self.capture_time += time.perf_counter() - t0
         return graph
