@@ -236,7 +236,11 @@ def test_a_free_two_layer_collision_keeps_momentum_over_collision_intervals(inte
     y = sim.state.particle_q.numpy()[:, 1]
     stats = sim.self_collision.stats()
     assert stats["contacts_max"] > 10 and stats["detects"] == 600 // k
-    assert y[n:].mean() > y[:n].mean() + 0.5 * H
+    assert stats["unresolved"] == 0  # every filter left every pair at least the minimum gap apart
+    # the inelastic collision leaves the layers a thickness apart at any interval (measured: 1.015 h every
+    # step, 1.017 h at 1 ms, 1.020 h at 4 ms; with x corrected over one step's dt instead of the
+    # interval's, 1.086 h and 0.924 h)
+    assert 0.95 * H < y[n:].mean() - y[:n].mean() < 1.05 * H
     assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host["tris"]) == 0
     assert worst <= 1e-6, worst
 
