@@ -15,7 +15,9 @@ horizontal cloth, alone: its cost against the same cloth with no collider.
 ``--kernel`` also times the contact launch alone on the resting cloth's state (restored before
 each launch), for the ground alone and for all four, against a minimal kernel that does only
 what any contact response must (one plane held in a vec4, Coulomb friction with a constant mu, no
-loop, no record): the floor of the ground's cost on this backend.
+loop, no record): the floor of the ground's cost on this backend; and against a minimal kernel
+for the four colliders (their values in registers, an axis-aligned box, a squared-distance rejection
+per round collider, the same response): the floor of the all-four case.
 """
 
 import argparse
@@ -81,6 +83,93 @@ def minimal_plane(
         v[i] = (vn + dvn) * n + (1.0 - s) * vt
 
 
+@wp.func
+def minimal_response(xi: wp.vec3, vi: wp.vec3, phi: float, n: wp.vec3, thickness: float, mu: float, dt: float):
+    # out of a collider to its thickness along n, approaching v removed, tangential v reduced by mu dv_n
+    depth = thickness - phi
+    if depth <= 0.0:
+        return xi, vi, 0
+    vn = wp.dot(vi, n)
+    dvn = wp.max(0.0, -vn)
+    vt = vi - vn * n
+    lt2 = wp.dot(vt, vt)
+    s = float(1.0)
+    if mu * dvn * mu * dvn < lt2:
+        s = mu * dvn / wp.sqrt(lt2)
+    return xi + depth * n - (dt * s) * vt, (vn + dvn) * n + (1.0 - s) * vt, 1
+
+
+@wp.kernel(enable_backward=False)
+def minimal_four(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    plane: wp.vec4,
+    sphere: wp.vec4,
+    capsule_a: wp.vec3,
+    capsule_b: wp.vec4,
+    box_center: wp.vec3,
+    box_half: wp.vec3,
+    bound_lo: wp.vec3,
+    bound_hi: wp.vec3,
+    thickness: float,
+    mu: float,
+    dt: float,
+):
+    # the four colliders of CONTACT with nothing general: values in registers, no records, no loop over
+    # kinds, an axis-aligned box; the plane, then the others where x is in the box around them (as any
+    # broad phase must), each exact (signed distance and normal) with the response above
+    i = wp.tid()
+    xi = x[i]
+    vi = v[i]
+    n = wp.vec3(plane[0], plane[1], plane[2])
+    xi, vi, hit = minimal_response(xi, vi, wp.dot(xi, n) - plane[3], n, thickness, mu, dt)
+    if xi[0] >= bound_lo[0] and xi[1] >= bound_lo[1] and xi[2] >= bound_lo[2]:
+        if xi[0] <= bound_hi[0] and xi[1] <= bound_hi[1] and xi[2] <= bound_hi[2]:
+            c = wp.vec3(sphere[0], sphere[1], sphere[2])
+            d = xi - c
+            reach = sphere[3] + thickness
+            if wp.dot(d, d) < reach * reach:  # squared first: no root for the far particles
+                r = wp.length(d)
+                if r > 0.0:
+                    xi, vi, got = minimal_response(xi, vi, r - sphere[3], d / r, thickness, mu, dt)
+                    hit = hit + got
+            ab = wp.vec3(capsule_b[0], capsule_b[1], capsule_b[2]) - capsule_a
+            t = wp.clamp(wp.dot(xi - capsule_a, ab) / wp.dot(ab, ab), 0.0, 1.0)
+            d = xi - (capsule_a + t * ab)
+            reach = capsule_b[3] + thickness
+            if wp.dot(d, d) < reach * reach:
+                r = wp.length(d)
+                if r > 0.0:
+                    xi, vi, got = minimal_response(xi, vi, r - capsule_b[3], d / r, thickness, mu, dt)
+                    hit = hit + got
+            q = xi - box_center
+            e = wp.vec3(wp.abs(q[0]) - box_half[0], wp.abs(q[1]) - box_half[1], wp.abs(q[2]) - box_half[2])
+            if wp.max(wp.max(e[0], e[1]), e[2]) < thickness:
+                outside = wp.vec3(wp.max(e[0], 0.0), wp.max(e[1], 0.0), wp.max(e[2], 0.0))
+                lo = wp.length(outside)
+                nb = wp.vec3(0.0)
+                phi = float(0.0)
+                if lo > 0.0:
+                    phi = lo
+                    nb = (
+                        wp.vec3(wp.sign(q[0]) * outside[0], wp.sign(q[1]) * outside[1], wp.sign(q[2]) * outside[2]) / lo
+                    )
+                else:
+                    k = int(0)
+                    if e[1] > e[k]:
+                        k = 1
+                    if e[2] > e[k]:
+                        k = 2
+                    phi = e[k]
+                    nb[k] = wp.sign(q[k])
+                xi, vi, got = minimal_response(xi, vi, phi, nb, thickness, mu, dt)
+                hit = hit + got
+    if hit != 0 and inv_mass[i] != 0.0:
+        x[i] = xi
+        v[i] = vi
+
+
 def kernel_alone(size, repeats, device):
     """ms of the contact launch alone on the resting cloth's state after a step's gravity, before
     its projection (x, v restored before each launch)."""
@@ -108,6 +197,29 @@ def kernel_alone(size, repeats, device):
             device=device,
         ),
     }
+    sphere, capsule, box = CONTACT[1], CONTACT[2], CONTACT[3]
+    bound = sets["all four"].box.numpy()  # the real kernel's box around the non-plane colliders
+    cases["minimal four-collider kernel"] = lambda: wp.launch(
+        minimal_four,
+        n,
+        inputs=[
+            x,
+            v,
+            m.particle_inv_mass,
+            wp.vec4(0.0, 1.0, 0.0, 0.0),
+            wp.vec4(*sphere.center, sphere.radius),
+            wp.vec3(*capsule.a),
+            wp.vec4(*capsule.b, capsule.radius),
+            wp.vec3(*box.center),
+            wp.vec3(*box.half_extents),
+            wp.vec3(*bound[0]),
+            wp.vec3(*bound[1]),
+            THICKNESS,
+            0.3,
+            dt,
+        ],
+        device=device,
+    )
     for name, cs in sets.items():
         cases[f"collide_velocity, {name}"] = (lambda cs: lambda: cs.project_velocity(m, sim.state, dt))(cs)
     state_x, state_v = sim.state.particle_q, sim.state.particle_qd

@@ -67,6 +67,14 @@ def box_corner_local(c: Collider, j: int):
 
 
 @wp.func
+def boxes_overlap(lo_a: wp.vec3, hi_a: wp.vec3, lo_b: wp.vec3, hi_b: wp.vec3):
+    # whether two axis-aligned boxes meet (closed)
+    if lo_a[0] > hi_b[0] or lo_a[1] > hi_b[1] or lo_a[2] > hi_b[2]:
+        return False
+    return not (hi_a[0] < lo_b[0] or hi_a[1] < lo_b[1] or hi_a[2] < lo_b[2])
+
+
+@wp.func
 def signs(v: wp.vec3):
     # the componentwise sign of v (0 where 0): the sum of the unit face normals meeting at a box feature
     return wp.vec3(wp.sign(v[0]), wp.sign(v[1]), wp.sign(v[2]))
@@ -258,10 +266,15 @@ def collide_cloth_edges(
             h = c.b
             if wp.abs(mid[0]) > h[0] + reach or wp.abs(mid[1]) > h[1] + reach or wp.abs(mid[2]) > h[2] + reach:
                 continue
+            grow = wp.vec3(reach)  # as far as edge_response looks (behind: half the cloth edge + thickness)
+            lo_e = wp.min(la, lb) - grow
+            hi_e = wp.max(la, lb) + grow
             for j in range(12):
                 c0, c1 = box_edge_corners(j)
                 p = origin + box_corner_local(c, c0)
                 q = origin + box_corner_local(c, c1)
+                if not boxes_overlap(wp.min(p, q), wp.max(p, q), lo_e, hi_e):  # most cloth edges: none near
+                    continue
                 out = wp.normalize(signs(0.5 * (p + q) - origin))  # the sum of its two faces' normals
                 s, lam, mu_v, n = edge_response(la, lb, lva, lvb, wa, wb, p, q, out, c.thickness, c, origin)
                 if lam > 0.0:
@@ -350,6 +363,8 @@ def collide_cloth_triangles(
                 continue
             for j in range(8):
                 p = box_corner_local(c, j)
+                if not boxes_overlap(origin + p, origin + p, lo, hi):
+                    continue
                 w, lam, mu_v, n = corner_response(
                     origin + p, wp.normalize(signs(p)), a, b, cc, va, vb, vc, w0, w1, w2, c.thickness, c, origin
                 )

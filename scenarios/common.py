@@ -41,6 +41,8 @@ class ScenarioConfig:
     :attr:`Scenario.self_collision`), with self_collision_thickness [m], self_collision_friction and
     self_collision_interval [s] (None: the defaults of :mod:`warpcloth.run.params`); see
     :class:`~warpcloth.sim.self_collision.SelfCollision`.
+    collider_edges: hold the cloth off the edges and corners of box and mesh colliders too
+    (:attr:`ColliderSet.edge_contacts <warpcloth.sim.contacts.ColliderSet.edge_contacts>`; off by default).
     """
 
     rows: int = 32
@@ -72,6 +74,9 @@ class ScenarioConfig:
     self_collision_thickness: float | None = None
     self_collision_friction: float | None = None
     self_collision_interval: float | None = None
+    collider_edges: bool = (
+        False  # box and mesh colliders' edges and corners against the cloth (ColliderSet.edge_contacts)
+    )
     # the material in physical units (docs/materials.md): a preset's name, "custom", a Material, or None /
     # "none" (per-spring stiffness and damping); the values below replace the material's (None: its own)
     material: object = None
@@ -251,6 +256,10 @@ class Scenario:
             control.colliders = tuple(control.colliders) + tuple(
                 c.collider(load_mesh_collider) if isinstance(c, ColliderSpec) else c for c in cfg.colliders
             )
+        if cfg.collider_edges not in (True, False):
+            raise WarpclothError(f"collider_edges must be True or False, got {cfg.collider_edges!r:.80}")
+        if cfg.collider_edges and control.collision is not None:
+            control.collision.edge_contacts = True
         if self.tracks is not None:
             control.pin_tracks = tuple(self.tracks(cfg, model))
         return Simulator(

@@ -276,8 +276,8 @@ def test_captured_frames_replay_self_collision_bit_identically(integrator):
 
 # -- the tablecloth: no box edge through the cloth -----------------------------------------------------
 def tablecloth_crossings(integrator, seconds=1.5, edges=True):
-    sim = get_scenario("tablecloth").build(rows=12, cols=12, integrator=integrator)
-    sim.control.collision.edge_contacts = edges
+    sim = get_scenario("tablecloth").build(rows=12, cols=12, integrator=integrator, collider_edges=edges)
+    assert sim.control.collision.edge_contacts is edges  # the run parameter (--collider-edges) reaches the colliders
     tris, worst = sim.model.host["tris"], [0, 0]
 
     def check(s):

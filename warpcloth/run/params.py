@@ -763,6 +763,19 @@ PARAMS: tuple[Param, ...] = (
         cli_type=str,
     ),
     Param(
+        "collider_edges",
+        switch,
+        "",
+        "box and mesh colliders' edges and corners against the cloth's edges and triangles, so that no "
+        "collider edge passes between cloth vertices (docs/self-collision.md; the tablecloth's table edge)",
+        "`on`, `off`",
+        "forces",
+        default="off",
+        key="set",
+        to_config=_switch_config,
+        choices=("on", "off"),
+    ),
+    Param(
         "self_collision",
         switch,
         "",
