@@ -56,33 +56,6 @@ def simulator(config, colliders, size, device):
     return Simulator(model, "explicit_euler", Control(colliders=colliders, device=device))
 
 
-@wp.kernel(enable_backward=False)
-def minimal_plane(
-    x: wp.array(dtype=wp.vec3),
-    v: wp.array(dtype=wp.vec3),
-    inv_mass: wp.array(dtype=float),
-    plane: wp.vec4,
-    mu: float,
-    dt: float,
-):
-    # x onto the plane n.x >= w, approaching v removed, tangential v reduced by mu dv_n (Coulomb)
-    i = wp.tid()
-    xi = x[i]
-    n = wp.vec3(plane[0], plane[1], plane[2])
-    phi = wp.dot(xi, n) - plane[3]
-    if phi < 0.0 and inv_mass[i] != 0.0:
-        vr = v[i]
-        vn = wp.dot(vr, n)
-        dvn = wp.max(0.0, -vn)
-        vt = vr - vn * n
-        lt2 = wp.dot(vt, vt)
-        s = float(1.0)
-        if mu * dvn * mu * dvn < lt2:
-            s = mu * dvn / wp.sqrt(lt2)
-        x[i] = xi - phi * n - (dt * s) * vt
-        v[i] = (vn + dvn) * n + (1.0 - s) * vt
-
-
 @wp.func
 def minimal_response(xi: wp.vec3, vi: wp.vec3, phi: float, n: wp.vec3, thickness: float, mu: float, dt: float):
     # out of a collider to its thickness along n, approaching v removed, tangential v reduced by mu dv_n
@@ -97,6 +70,25 @@ def minimal_response(xi: wp.vec3, vi: wp.vec3, phi: float, n: wp.vec3, thickness
     if mu * dvn * mu * dvn < lt2:
         s = mu * dvn / wp.sqrt(lt2)
     return xi + depth * n - (dt * s) * vt, (vn + dvn) * n + (1.0 - s) * vt, 1
+
+
+@wp.kernel(enable_backward=False)
+def minimal_plane(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    plane: wp.vec4,
+    mu: float,
+    dt: float,
+):
+    # x onto the plane n.x >= w, approaching v removed, tangential v reduced by mu dv_n (Coulomb)
+    i = wp.tid()
+    xi = x[i]
+    n = wp.vec3(plane[0], plane[1], plane[2])
+    xi, vi, hit = minimal_response(xi, v[i], wp.dot(xi, n) - plane[3], n, 0.0, mu, dt)
+    if hit != 0 and inv_mass[i] != 0.0:
+        x[i] = xi
+        v[i] = vi
 
 
 @wp.kernel(enable_backward=False)

@@ -767,7 +767,8 @@ PARAMS: tuple[Param, ...] = (
         switch,
         "",
         "box and mesh colliders' edges and corners against the cloth's edges and triangles, so that no "
-        "collider edge passes between cloth vertices (docs/self-collision.md; the tablecloth's table edge)",
+        "collider edge passes between cloth vertices (the tablecloth's table edge); experimental: where it "
+        "fails is in docs/self-collision.md",
         "`on`, `off`",
         "forces",
         default="off",
