@@ -102,6 +102,9 @@ END_PARAMETER = wp.constant(1.0e-4)
 #: step of its build while the vertex moves fast, and it is rebuilt at the next; a wider margin lists more
 #: pairs of fast parts, most of them far apart)
 MARGIN_STEPS = wp.constant(1.0)
+#: a contact's normal found anew is turned to its detection side only where it points against it by more
+#: than this cosine (a pair found side by side, its normal nearly across the detection's, keeps its own)
+SIDE_COS = wp.constant(0.5)
 #: cells searched per axis at most by one query (a larger radius is counted in TRUNCATED)
 MAX_CELLS_PER_AXIS = wp.constant(8)
 
@@ -293,7 +296,7 @@ def contact_geometry(xa: wp.vec3, xb: wp.vec3, xc: wp.vec3, xd: wp.vec3, w_detec
         w, n, d = vertex_triangle_record(xa, xb, xc, xd)
     else:
         w, n, d = edge_edge_record(xa, xb, xc, xd)
-    if wp.dot(n, n_detect) < 0.0:
+    if wp.dot(n, n_detect) < -SIDE_COS:
         n = -n
         d = -d
     return w, n, d
@@ -703,9 +706,11 @@ def eval_self_contacts(
     edge_thickness: float,
 ):
     # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair whose
-    # gap d at x is below 1.25 h + dt (2 |sum W v| + max_k |v_k|) (it may come within h in this step: its
-    # own relative speed, and its fastest vertex's speed, which a collider may stop within the step while
-    # the other side goes on: a layer falling onto one that lands on the ground); per vertex, the number
+    # gap d at x is below 1.25 h + dt (2 |sum W v| + max_k |v_k . n|) (it may come within h in this step:
+    # its own relative speed, and its fastest vertex's speed along the pair's normal, which a collider may
+    # stop within the step while the other side goes on: a layer falling onto one that lands on the
+    # ground; across the normal that speed closes no gap, so a falling sheet's side-by-side pairs are not
+    # contacts for it); per vertex, the number
     # of its contacts (mass splitting). A pair whose gap at the build, less twice the largest motion
     # since, is not below R_ACTIVE (the same bound with the largest speed) is not evaluated (its gap
     # cannot have fallen below it)
@@ -741,7 +746,8 @@ def eval_self_contacts(
             if wp.min(s, t) <= END_PARAMETER or wp.max(s, t) >= 1.0 - END_PARAMETER:
                 d = 1.0e30
         speed = wp.max(
-            wp.max(wp.length(v[idx[0]]), wp.length(v[idx[1]])), wp.max(wp.length(v[idx[2]]), wp.length(v[idx[3]]))
+            wp.max(wp.abs(wp.dot(v[idx[0]], n)), wp.abs(wp.dot(v[idx[1]], n))),
+            wp.max(wp.abs(wp.dot(v[idx[2]], n)), wp.abs(wp.dot(v[idx[3]], n))),
         )
         if d < 1.25 * h + dt * (2.0 * wp.length(weighted_sum(v, idx, w)) + speed):
             slot = append_index(counts, CONTACTS, OVERFLOW_CONTACTS, capacity)
