@@ -710,10 +710,9 @@ def eval_self_contacts(
     # its own relative speed, and its fastest vertex's speed along the pair's normal, which a collider may
     # stop within the step while the other side goes on: a layer falling onto one that lands on the
     # ground; across the normal that speed closes no gap, so a falling sheet's side-by-side pairs are not
-    # contacts for it); per vertex, the number
-    # of its contacts (mass splitting). A pair whose gap at the build, less twice the largest motion
-    # since, is not below R_ACTIVE (the same bound with the largest speed) is not evaluated (its gap
-    # cannot have fallen below it)
+    # contacts for it); per vertex, the number of its contacts (mass splitting). A pair whose gap at the
+    # build, less twice the largest motion since, is not below R_ACTIVE (the same bound with the largest
+    # speed) is not evaluated (its gap cannot have fallen below it)
     tid = wp.tid()
     n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
     total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])

@@ -74,9 +74,8 @@ class ScenarioConfig:
     self_collision_thickness: float | None = None
     self_collision_friction: float | None = None
     self_collision_interval: float | None = None
-    collider_edges: bool = (
-        False  # box and mesh colliders' edges and corners against the cloth (ColliderSet.edge_contacts)
-    )
+    # box and mesh colliders' edges and corners against the cloth (ColliderSet.edge_contacts)
+    collider_edges: bool = False
     # the material in physical units (docs/materials.md): a preset's name, "custom", a Material, or None /
     # "none" (per-spring stiffness and damping); the values below replace the material's (None: its own)
     material: object = None

@@ -135,9 +135,12 @@ class SelfCollision:
             the last build, relative to the cloth's mean motion (a larger skin rebuilds less often but
             holds more candidates, each tested every step; in the fold at 32 x 32 and 64 x 64, h costs
             1.6-1.9x an explicit step, h / 2 2.1-2.4x, 2 h 2.4-2.9x: bench/self_collision.py).
-        skin_max: the largest motion margin of a vertex [m] (default the larger of 4 h and twice the
-            longest rest edge): a vertex's margin covers two steps of its motion up to it; a vertex
-            faster than skin_max / 2 a step (relative to the mean) can miss a pair (counted in ``fast``).
+        skin_max: the largest motion margin of a vertex [m] (default the larger of 2 h and the longest
+            rest edge): a vertex's margin covers a step of its motion up to it; a vertex faster than
+            skin_max a step (relative to the mean) can miss a pair (counted in ``fast``). Twice that
+            (4 h or two edges) overflowed the default 64 x 64 drape's list at its landing (1.4 million
+            candidates did not fit) and left 11 triangle pairs through each other; 2 h alone (below a
+            coarse strip's edges) let pbd's 24 x 8 fold pass through itself.
         exclude_rings: 1: exclude a vertex and its own triangles, edges sharing a vertex; r > 1:
             also pairs within r - 1 rings (:func:`exclusion_tables`); default 1 where h is at most half
             the shortest rest edge (a flat cloth then has no pair within h: a vertex is at least a
@@ -214,7 +217,7 @@ class SelfCollision:
         if exclude_rings is None:
             exclude_rings = 1 if self.thickness <= 0.5 * float(np.min(lengths)) else 2
         self.exclude_rings = require_count("exclude_rings", exclude_rings, 1)
-        skin_max = max(4.0 * self.thickness, 2.0 * longest) if skin_max is None else skin_max
+        skin_max = max(2.0 * self.thickness, longest) if skin_max is None else skin_max
         self.skin_max = require_positive("self-collision skin_max", skin_max, "m")
         #: the hash's least cell size [m] (a build adds its largest vertex margin): a query of the list
         #: radius plus a triangle's reach spans about three cells
