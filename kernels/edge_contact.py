@@ -26,7 +26,7 @@ static ``wp.Bvh`` each; the cloth feature is taken into that frame, y0 = rest_ce
 
 import warp as wp
 from warpcloth.kernels.collide import BOX, MESH, Collider, box_contact, mesh_contact, surface_velocity
-from warpcloth.kernels.self_contact import closest_point_triangle, closest_points_edge_edge
+from warpcloth.kernels.self_contact import boxes_overlap, closest_point_triangle, closest_points_edge_edge
 
 wp.set_module_options({"enable_backward": False})
 
@@ -64,14 +64,6 @@ def box_corner_local(c: Collider, j: int):
     if (j & 1) != 0:
         p[2] = h[2]
     return p
-
-
-@wp.func
-def boxes_overlap(lo_a: wp.vec3, hi_a: wp.vec3, lo_b: wp.vec3, hi_b: wp.vec3):
-    # whether two axis-aligned boxes meet (closed)
-    if lo_a[0] > hi_b[0] or lo_a[1] > hi_b[1] or lo_a[2] > hi_b[2]:
-        return False
-    return not (hi_a[0] < lo_b[0] or hi_a[1] < lo_b[1] or hi_a[2] < lo_b[2])
 
 
 @wp.func

@@ -111,6 +111,14 @@ MAX_CELLS_PER_AXIS = wp.constant(8)
 
 # -- geometry ---------------------------------------------------------------------------------------
 @wp.func
+def boxes_overlap(lo_a: wp.vec3, hi_a: wp.vec3, lo_b: wp.vec3, hi_b: wp.vec3):
+    # whether two axis-aligned boxes meet (closed; a point is the box [p, p])
+    if lo_a[0] > hi_b[0] or lo_a[1] > hi_b[1] or lo_a[2] > hi_b[2]:
+        return False
+    return not (hi_a[0] < lo_b[0] or hi_a[1] < lo_b[1] or hi_a[2] < lo_b[2])
+
+
+@wp.func
 def segment_parameter(p: wp.vec3, a: wp.vec3, b: wp.vec3):
     # t in [0, 1] of the point a + t (b - a) nearest p
     ab = b - a
@@ -603,9 +611,7 @@ def find_vertex_triangle_candidates(
                     r = r_i + item_margin[t]
                     lo_t = box_lo[t] - wp.vec3(r)
                     hi_t = box_hi[t] + wp.vec3(r)
-                    inside = p[0] >= lo_t[0] and p[1] >= lo_t[1] and p[2] >= lo_t[2]
-                    inside = inside and p[0] <= hi_t[0] and p[1] <= hi_t[1] and p[2] <= hi_t[2]
-                    if inside and item_cell[t] == wp.vec3i(ci, cj, ck):
+                    if boxes_overlap(p, p, lo_t, hi_t) and item_cell[t] == wp.vec3i(ci, cj, ck):
                         tri = tris[t]
                         if tri[0] != i and tri[1] != i and tri[2] != i and not sorted_contains(exclude, e0, e1, t):
                             q, w = closest_point_triangle(p, x[tri[0]], x[tri[1]], x[tri[2]])
@@ -663,8 +669,7 @@ def find_edge_edge_candidates(
                         hi_f = box_hi[f]
                         lo_e = wp.min(a, b) - wp.vec3(r)
                         hi_e = wp.max(a, b) + wp.vec3(r)
-                        overlap = lo_f[0] <= hi_e[0] and lo_f[1] <= hi_e[1] and lo_f[2] <= hi_e[2]
-                        overlap = overlap and hi_f[0] >= lo_e[0] and hi_f[1] >= lo_e[1] and hi_f[2] >= lo_e[2]
+                        overlap = boxes_overlap(lo_f, hi_f, lo_e, hi_e)
                     if overlap and item_cell[f] == wp.vec3i(ci, cj, ck):  # found once: from its midpoint's cell
                         fc = edges[f][0]
                         fd = edges[f][1]
