@@ -318,6 +318,11 @@ def test_no_box_edge_passes_through_the_tablecloth(integrator):
     assert tablecloth_crossings(integrator) == [0, 0]
 
 
+def test_collider_edges_takes_a_bool_and_names_a_bad_value():
+    with pytest.raises(WarpclothError, match="collider_edges must be True or False, got 'on'"):
+        get_scenario("tablecloth").build(rows=4, cols=4, collider_edges="on")
+
+
 def test_the_box_edge_shows_through_without_edge_contacts():
     """The check above can fail: with the vertices' contacts alone (the default) the table's edge crosses the cloth."""
     assert tablecloth_crossings("explicit_euler", edges=False)[0] > 0
