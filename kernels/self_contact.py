@@ -502,8 +502,9 @@ def insert_self_contact_triangles(
     item_cell: Vec3iArray,
     item_margin: FloatArray,
 ):
-    # (rebuild only) triangle t into the bucket of its box centre (its box, cell and margin, the largest
-    # of its vertices', kept for the queries); rho_max = max half diagonal of the boxes
+    # (rebuild only) triangle t into the bucket of its box centre (its box grown by its margin, the
+    # largest of its vertices', its cell and margin, kept for the queries); rho_max = max half diagonal
+    # of the boxes
     t = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -514,10 +515,11 @@ def insert_self_contact_triangles(
     lo = wp.min(wp.min(a, b), c)
     hi = wp.max(wp.max(a, b), c)
     cell = cell_of(0.5 * (lo + hi), scalars[INV_CELL])
-    box_lo[t] = lo
-    box_hi[t] = hi
+    m = wp.max(wp.max(margin[tri[0]], margin[tri[1]]), margin[tri[2]])
+    box_lo[t] = lo - wp.vec3(m)
+    box_hi[t] = hi + wp.vec3(m)
     item_cell[t] = cell
-    item_margin[t] = wp.max(wp.max(margin[tri[0]], margin[tri[1]]), margin[tri[2]])
+    item_margin[t] = m
     next_item[t] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), t)
     wp.atomic_max(scalars, RHO_MAX, 0.5 * wp.length(hi - lo))
 
@@ -537,17 +539,19 @@ def insert_self_contact_edges(
     item_cell: Vec3iArray,
     item_margin: FloatArray,
 ):
-    # (rebuild only) edge e into the bucket of its midpoint (its box, cell and margin kept); the largest half length
+    # (rebuild only) edge e into the bucket of its midpoint (its box grown by its margin, its cell and
+    # margin kept); the largest half length
     e = wp.tid()
     if counts[REBUILD] == 0:
         return
     a = x[edges[e][0]]
     b = x[edges[e][1]]
     cell = cell_of(0.5 * (a + b), scalars[INV_CELL])
-    box_lo[e] = wp.min(a, b)
-    box_hi[e] = wp.max(a, b)
+    m = wp.max(margin[edges[e][0]], margin[edges[e][1]])
+    box_lo[e] = wp.min(a, b) - wp.vec3(m)
+    box_hi[e] = wp.max(a, b) + wp.vec3(m)
     item_cell[e] = cell
-    item_margin[e] = wp.max(margin[edges[e][0]], margin[edges[e][1]])
+    item_margin[e] = m
     next_item[e] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), e)
     wp.atomic_max(scalars, HALF_EDGE_MAX, 0.5 * wp.length(b - a))
 
@@ -601,6 +605,8 @@ def find_vertex_triangle_candidates(
     lo, hi = cell_range(p - reach, p + reach, inv_cell, counts)
     e0 = exclude_offsets[i]
     e1 = exclude_offsets[i + 1]
+    lo_p = p - wp.vec3(r_i)  # the vertex's box grown by its own radius (the triangles' hold their margins)
+    hi_p = p + wp.vec3(r_i)
     for ci in range(lo[0], hi[0] + 1):
         for cj in range(lo[1], hi[1] + 1):
             for ck in range(lo[2], hi[2] + 1):
@@ -608,19 +614,17 @@ def find_vertex_triangle_candidates(
                 while t >= 0:
                     # a bucket holds one cell's triangles and other cells' that hash alike: a triangle
                     # is taken from the cell of its box centre only, so it is found once
-                    r = r_i + item_margin[t]
-                    lo_t = box_lo[t] - wp.vec3(r)
-                    hi_t = box_hi[t] + wp.vec3(r)
-                    if boxes_overlap(p, p, lo_t, hi_t) and item_cell[t] == wp.vec3i(ci, cj, ck):
-                        tri = tris[t]
-                        if tri[0] != i and tri[1] != i and tri[2] != i and not sorted_contains(exclude, e0, e1, t):
-                            q, w = closest_point_triangle(p, x[tri[0]], x[tri[1]], x[tri[2]])
-                            gap = wp.length(p - q)
-                            if gap <= r:
-                                k = append_index(counts, CAND_VT, OVERFLOW_CANDIDATES, capacity)
-                                if k >= 0:
-                                    out[k] = wp.vec2i(i, t)
-                                    out_gap[k] = gap
+                    if boxes_overlap(lo_p, hi_p, box_lo[t], box_hi[t]):
+                        if item_cell[t] == wp.vec3i(ci, cj, ck):
+                            tri = tris[t]
+                            if tri[0] != i and tri[1] != i and tri[2] != i and not sorted_contains(exclude, e0, e1, t):
+                                q, w = closest_point_triangle(p, x[tri[0]], x[tri[1]], x[tri[2]])
+                                gap = wp.length(p - q)
+                                if gap <= r_i + item_margin[t]:
+                                    k = append_index(counts, CAND_VT, OVERFLOW_CANDIDATES, capacity)
+                                    if k >= 0:
+                                        out[k] = wp.vec2i(i, t)
+                                        out_gap[k] = gap
                     t = next_item[t]
 
 
@@ -640,11 +644,14 @@ def find_edge_edge_candidates(
     exclude_offsets: IntArray,
     exclude: IntArray,
     capacity: int,
+    ordered: int,
     out: Vec2iArray,
     out_gap: FloatArray,
 ):
     # (rebuild only) every edge f > e within R_BUILD_EE + margin_e + margin_f of edge e, sharing no vertex and
-    # not excluded, with its gap
+    # not excluded, with its gap. ``ordered`` != 0: each bucket's list runs in decreasing edge order (the
+    # insertion ran its threads in order: Warp's CPU backend), so a bucket's walk stops at the first f <= e
+    # (half the visits); else (CUDA: any order) it walks the whole list
     e = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -657,32 +664,32 @@ def find_edge_edge_candidates(
     lo, hi = cell_range(wp.min(a, b) - reach, wp.max(a, b) + reach, scalars[INV_CELL], counts)
     e0 = exclude_offsets[e]
     e1 = exclude_offsets[e + 1]
+    lo_e = wp.min(a, b) - wp.vec3(r_e)  # the edge's box grown by its own radius (the others' hold their margins)
+    hi_e = wp.max(a, b) + wp.vec3(r_e)
     for ci in range(lo[0], hi[0] + 1):
         for cj in range(lo[1], hi[1] + 1):
             for ck in range(lo[2], hi[2] + 1):
                 f = head[cell_bucket(ci, cj, ck, mask)]
                 while f >= 0:
-                    overlap = False
-                    r = r_e + item_margin[f]
+                    if ordered != 0 and f <= e:
+                        break
+                    # (nested tests: Warp evaluates both sides of an `and`) found once: from its midpoint's cell
                     if f > e:
-                        lo_f = box_lo[f]
-                        hi_f = box_hi[f]
-                        lo_e = wp.min(a, b) - wp.vec3(r)
-                        hi_e = wp.max(a, b) + wp.vec3(r)
-                        overlap = boxes_overlap(lo_f, hi_f, lo_e, hi_e)
-                    if overlap and item_cell[f] == wp.vec3i(ci, cj, ck):  # found once: from its midpoint's cell
-                        fc = edges[f][0]
-                        fd = edges[f][1]
-                        if fc != ea and fc != eb and fd != ea and fd != eb and not sorted_contains(exclude, e0, e1, f):
-                            c = x[fc]
-                            d = x[fd]
-                            st = closest_points_edge_edge(a, b, c, d)
-                            gap = wp.length((a + st[0] * (b - a)) - (c + st[1] * (d - c)))
-                            if gap <= r:
-                                k = append_index(counts, CAND_EE, OVERFLOW_CANDIDATES, capacity)
-                                if k >= 0:
-                                    out[k] = wp.vec2i(e, f)
-                                    out_gap[k] = gap
+                        if boxes_overlap(box_lo[f], box_hi[f], lo_e, hi_e):
+                            if item_cell[f] == wp.vec3i(ci, cj, ck):
+                                fc = edges[f][0]
+                                fd = edges[f][1]
+                                if fc != ea and fc != eb and fd != ea and fd != eb:
+                                    if not sorted_contains(exclude, e0, e1, f):
+                                        c = x[fc]
+                                        d = x[fd]
+                                        st = closest_points_edge_edge(a, b, c, d)
+                                        gap = wp.length((a + st[0] * (b - a)) - (c + st[1] * (d - c)))
+                                        if gap <= r_e + item_margin[f]:
+                                            k = append_index(counts, CAND_EE, OVERFLOW_CANDIDATES, capacity)
+                                            if k >= 0:
+                                                out[k] = wp.vec2i(e, f)
+                                                out_gap[k] = gap
                     f = next_item[f]
 
 

@@ -231,6 +231,10 @@ class SelfCollision:
         self.bucket_count = buckets
         device = model.device
         self.device = device
+        # Warp's CPU backend runs a launch's threads one after another in thread order, so the edge insertion
+        # leaves each bucket's list in decreasing edge order and the edge-edge search stops a bucket's walk at
+        # its own index (tests/test_self_contact.py checks the lists against brute force); on CUDA any order
+        self._ordered_buckets = wp.get_device(device).is_cpu
         with wp.ScopedDevice(device):
             self.tris = wp.array(tris, dtype=wp.vec3i)
             self.edges = wp.array(edges, dtype=wp.vec2i)
@@ -406,6 +410,7 @@ class SelfCollision:
                 self.ee_exclude_offsets,
                 self.ee_exclude,
                 self.ee_capacity,
+                int(self._ordered_buckets),
             ],
             outputs=[self.cand_ee, self.cand_ee_gap],
             device=d,
