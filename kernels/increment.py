@@ -20,6 +20,7 @@ from warpcloth.kernels.collide import (
     shape_contact,
     surface_velocity,
 )
+from warpcloth.kernels.self_contact import CONTACTS, weighted_sum
 from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -373,6 +374,46 @@ def rigid_mode_terms(
         Ai = Ai + h2 * Hh
     b[i] = bi
     A[i] = Ai
+
+
+@wp.kernel
+def add_self_contact_rigid_terms(
+    stride: int,
+    counts: wp.array(dtype=int),
+    x: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    contact: ContactState,
+    c_idx: wp.array(dtype=wp.vec4i),
+    c_w: wp.array(dtype=wp.vec4),
+    c_n: wp.array(dtype=wp.vec3),
+    c_h: wp.array(dtype=float),
+    stiffness: float,
+    h: float,
+    b: wp.array(dtype=wp.vec3),
+    A: wp.array(dtype=wp.mat33),
+):
+    # after rigid_mode_terms: the self-contacts' part of the rigid translation's Galerkin problem (grid-stride
+    # over the contacts). A contact's penalty k delta^2 / 2, delta = h_c - n . sum W (x + dx) > 0 (as the
+    # sweeps see it, :func:`warpcloth.kernels.self_contact.eval_self_contact_vertex_terms`), pushes vertex a
+    # by k delta W_a n: T^T r += h^2 k delta Q n and T^T A T += h^2 k (Q n)(Q n)^T, Q = sum_a W_a P_a (each
+    # P_a symmetric). Q = 0 where all four vertices move alike (sum W = 0: equal and opposite); a contact
+    # with a pinned, sticking or sliding vertex pushes the translation (without it, a free sheet lying on a
+    # pinned one was translated back into it every sweep and fell through: tests/test_self_collision.py).
+    # Added to the slot of the contact's first vertex: the solve sums every slot
+    tid = wp.tid()
+    for k in range(tid, counts[CONTACTS], stride):
+        idx = c_idx[k]
+        w = c_w[k]
+        n = c_n[k]
+        d = c_h[k] - wp.dot(n, weighted_sum(x, idx, w) + weighted_sum(dx, idx, w))
+        if d > 0.0:
+            Q = wp.mat33(0.0)
+            for j in range(4):
+                Q = Q + w[j] * rigid_mode_projector(idx[j], inv_mass, contact)
+            qn = Q * n
+            wp.atomic_add(b, idx[0], (h * h * stiffness * d) * qn)
+            wp.atomic_add(A, idx[0], (h * h * stiffness) * wp.outer(qn, qn))
 
 
 @wp.kernel

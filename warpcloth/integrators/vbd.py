@@ -246,6 +246,11 @@ class VBD(IncrementSolver):
                 edges.project_increment(x, self.dx)
             if self.vbd_rigid_mode >= 1 and contacts is None:
                 self.rigid_correction(x, h)
+                if self.self_collision is not None:
+                    # the translation sees the contacts' penalty, not their constraints: those again (equal and
+                    # opposite, so the momentum the translation made exact stays; without, a free sheet went
+                    # into the pinned one it lay on)
+                    self.self_collision.project_increment(x, self.dx)
             if accelerate:
                 wp.launch(
                     vk.apply_chebyshev,
@@ -332,7 +337,8 @@ class VBD(IncrementSolver):
         (T^T A T)^-1 T^T r, r = -h^2 grad G at dx (colliders' forces of the last sweep included),
         A = h^2 times the potential's Hessian at dx, T's columns P_i e_k (P_i: I free, the tangent
         projector sliding without friction, 0 pinned, sticking or with friction;
-        :func:`~warpcloth.kernels.increment.rigid_mode_terms`). Springs between free particles do
+        :func:`~warpcloth.kernels.increment.rigid_mode_terms`; with self-collision the contacts' penalty
+        too, :func:`~warpcloth.kernels.increment.add_self_contact_rigid_terms`). Springs between free particles do
         not resist a translation, so on a free cloth T^T A T = M I and afterwards sum m dx = sum m dy
         exactly: the step's momentum change is h F_ext, as backward Euler's. Zero where r is zero.
 
@@ -349,6 +355,17 @@ class VBD(IncrementSolver):
             outputs=[rigid.b, rigid.A],
             device=m.device,
         )
+        sc = self.self_collision
+        if sc is not None:  # the self-contacts' penalty, as the sweeps see it (pinned, sticking and sliding parties)
+            n = m.particle_count
+            contacts = [sc.contact_indices, sc.contact_weights, sc.contact_normals, sc.contact_thickness]
+            wp.launch(
+                nk.add_self_contact_rigid_terms,
+                dim=n,
+                inputs=[n, sc.counts, x, self.dx, m.particle_inv_mass, self.contact, *contacts, sc.stiffness, h],
+                outputs=[rigid.b, rigid.A],
+                device=m.device,
+            )
         rigid.solve()
         wp.launch(
             nk.apply_rigid_mode,
