@@ -607,10 +607,10 @@ class SelfCollision:
         )
         wp.launch(sk.apply_increment_corrections, dim=n, inputs=[self.dv], outputs=[dp, self.acting], device=d)
 
-    def eval_vertex_terms(self, x: wp.array, dx: wp.array) -> None:
+    def eval_vertex_terms(self, x: wp.array, dx: wp.array, stiffness: float | None = None) -> None:
         """The contacts' penalty k delta^2 / 2 at x + dx (delta = h - gap > 0) per vertex:
         :attr:`vertex_force` [N] and the Gauss-Newton :attr:`vertex_hessian` [N/m] (vbd's local Newton
-        step; equal and opposite)."""
+        step; equal and opposite); k = ``stiffness`` [N/m], default :attr:`stiffness`."""
         n, d = self.model.particle_count, self.device
         wp.launch(
             sk.clear_self_contact_vertex_terms,
@@ -631,7 +631,7 @@ class SelfCollision:
                 self.contact_weights,
                 self.contact_normals,
                 self.contact_thickness,
-                self.stiffness,
+                self.stiffness if stiffness is None else float(stiffness),
             ],
             outputs=[self.vertex_force, self.vertex_hessian],
             device=d,
