@@ -20,7 +20,7 @@ from warpcloth.kernels.collide import (
     shape_contact,
     surface_velocity,
 )
-from warpcloth.kernels.self_contact import CONTACTS, weighted_sum
+from warpcloth.kernels.self_contact import CONTACTS, penalty_depth
 from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -406,7 +406,7 @@ def add_self_contact_rigid_terms(
         idx = c_idx[k]
         w = c_w[k]
         n = c_n[k]
-        d = c_h[k] - wp.dot(n, weighted_sum(x, idx, w) + weighted_sum(dx, idx, w))
+        d = penalty_depth(x, dx, idx, w, n, c_h[k])
         if d > 0.0:
             Q = wp.mat33(0.0)
             for j in range(4):

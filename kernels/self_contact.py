@@ -292,6 +292,13 @@ def weighted_sum(x: Vec3Array, idx: wp.vec4i, w: wp.vec4):
 
 
 @wp.func
+def penalty_depth(x: Vec3Array, dx: Vec3Array, idx: wp.vec4i, w: wp.vec4, n: wp.vec3, h: float):
+    # delta = h - n . sum W (x + dx): how far a contact's record (W, n, thickness h) is within its thickness
+    # at x + dx, the depth of vbd's penalty k delta^2 / 2 (> 0: acting)
+    return h - wp.dot(n, weighted_sum(x, idx, w) + weighted_sum(dx, idx, w))
+
+
+@wp.func
 def contact_geometry(xa: wp.vec3, xb: wp.vec3, xc: wp.vec3, xd: wp.vec3, w_detect: wp.vec4, n_detect: wp.vec3):
     # a contact's weights, normal and signed gap at the positions given (the closest points found anew:
     # a pair that slid tangentially keeps its true distance), on the side of its detection: a pair that
@@ -1148,7 +1155,7 @@ def eval_self_contact_vertex_terms(
         idx = c_idx[k]
         w = c_w[k]
         n = c_n[k]
-        d = c_h[k] - wp.dot(n, weighted_sum(x, idx, w) + weighted_sum(dx, idx, w))
+        d = penalty_depth(x, dx, idx, w, n, c_h[k])
         if d > 0.0:
             nn = wp.outer(n, n)
             for j in range(4):
