@@ -150,6 +150,7 @@ def test_vertex_coloring_check_and_greedy_fallback():
         ({"vbd_chebyshev_rho": 1.0}, "vbd_chebyshev_rho must be in"),
         ({"vbd_chebyshev_rho": -0.1}, "vbd_chebyshev_rho must be in"),
         ({"vbd_contact_scale": 0.0}, "vbd_contact_scale must be > 0"),
+        ({"vbd_contact_scale": float("inf")}, "vbd_contact_scale must be > 0 and finite"),
     ],
 )
 def test_bad_options(options, message):

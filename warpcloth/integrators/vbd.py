@@ -70,6 +70,7 @@ slide for good), so a cloth on a slope with friction still slides too slowly.
 
 from __future__ import annotations
 
+import math
 from typing import ClassVar
 
 import numpy as np
@@ -159,7 +160,7 @@ class VBD(IncrementSolver):
             "self-collision: the contacts' penalty stiffness in the vertices' Newton steps, times the self-collision "
             "stiffness (by default a quarter of the stiffest structural spring, for the explicit schemes' stability: "
             "4 makes it as stiff as that spring)",
-            check=lambda v: None if v > 0.0 else "must be > 0",
+            check=lambda v: None if 0.0 < v < math.inf else "must be > 0 and finite",
         ),
         Option(
             "vbd_chebyshev_rho",
@@ -375,7 +376,7 @@ class VBD(IncrementSolver):
         sc = self.self_collision
         if sc is not None:  # the self-contacts' penalty, as the sweeps see it (pinned, sticking and sliding parties)
             n = m.particle_count
-            contacts = [sc.contact_indices, sc.contact_weights, sc.contact_normals, sc.contact_thickness]
+            records = [sc.contact_indices, sc.contact_weights, sc.contact_normals, sc.contact_thickness]
             wp.launch(
                 nk.add_self_contact_rigid_terms,
                 dim=n,
@@ -386,7 +387,7 @@ class VBD(IncrementSolver):
                     self.dx,
                     m.particle_inv_mass,
                     self.contact,
-                    *contacts,
+                    *records,
                     self._contact_stiffness(),
                     h,
                 ],
