@@ -70,8 +70,10 @@ def record_cg_stats(
     # stats = [solves, sum iterations, max iterations, sum residual, max residual, capped solves],
     # residual = |r| / |b| = tol sqrt(r.r / atol^2) with atol = tol |b|; a solve is capped when it
     # ended above its tolerance (CG stops early only when r.r <= atol^2, as warp's cg tests it;
-    # a NaN residual counts as capped)
-    it = wp.float64(iterations[0])
+    # a NaN residual counts as capped); a solve's iterations are its passes' (stats[11]: the
+    # earlier passes' of this step, from add_cg_iterations), as on the CPU
+    it = wp.float64(iterations[0]) + stats[11]
+    stats[11] = wp.float64(0.0)
     res = wp.float64(tol * wp.sqrt(residual_sq[0] / wp.max(tolerance_sq[0], 1.0e-30)))
     stats[0] = stats[0] + wp.float64(1.0)
     stats[1] = stats[1] + it
@@ -107,8 +109,9 @@ def record_true_residual(partial: wp.array(dtype=wp.vec3d), tol: float, stats: w
 
 @wp.kernel
 def add_cg_iterations(iterations: wp.array(dtype=int), stats: wp.array(dtype=wp.float64)):
-    # a restarted solve's earlier pass: its iterations into the sum (CUDA; record_cg_stats adds the last pass)
-    stats[1] = stats[1] + wp.float64(iterations[0])
+    # a restarted solve's earlier pass: its iterations held for the step (CUDA; record_cg_stats adds
+    # the last pass and counts the step's total in the sum and the max)
+    stats[11] = stats[11] + wp.float64(iterations[0])
 
 
 # -- contacts seen by the solve (Baraff & Witkin's filter, with sticking) ----------------------

@@ -225,7 +225,7 @@ class ImplicitEuler(Integrator):
         self.residual_terms = wp.zeros(n, dtype=wp.vec3d)
         self.residual_chunk = max(1, -(-n // 128))
         self.residual_partial = wp.zeros(-(-n // self.residual_chunk), dtype=wp.vec3d)
-        self._stats = wp.zeros(11, dtype=wp.float64)
+        self._stats = wp.zeros(12, dtype=wp.float64)  # kernels.implicit.record_cg_stats: slot 11 a step's passes
         self.reset_stats()
 
     # -- stepping ------------------------------------------------------------------------
