@@ -40,7 +40,7 @@ def reduce_spring_strain(
     if wp.isfinite(strain):
         wp.atomic_max(metrics, MAX_STRAIN, strain)
     else:
-        metrics[NON_FINITE] = 1.0
+        wp.atomic_max(metrics, NON_FINITE, 1.0)  # deterministic mode refuses a store beside atomics
 
 
 @wp.kernel
@@ -56,7 +56,7 @@ def reduce_particle_motion(
     # max |v| and max |f| / (m |g|) over free particles
     i = wp.tid()
     if not (wp.isfinite(x[i]) and wp.isfinite(v[i])):
-        metrics[NON_FINITE] = 1.0
+        wp.atomic_max(metrics, NON_FINITE, 1.0)  # deterministic mode refuses a store beside atomics
         return
     if particle_inv_mass[i] == 0.0:
         return
@@ -66,7 +66,7 @@ def reduce_particle_motion(
     if wp.isfinite(fw):
         wp.atomic_max(metrics, MAX_FORCE_PER_WEIGHT, fw)
     else:
-        metrics[NON_FINITE] = 1.0
+        wp.atomic_max(metrics, NON_FINITE, 1.0)  # deterministic mode refuses a store beside atomics
 
 
 @wp.kernel

@@ -54,6 +54,11 @@ from warpcloth.kernels.collide import Collider, collider_contact
 
 wp.set_module_options({"enable_backward": False})
 
+#: Outside Warp's deterministic mode (warpcloth.sim.device.set_deterministic): its kernels read the
+#: scalars they update with atomics, and its hash buckets are linked lists in thread order, which
+#: the mode cannot reorder; a self-colliding run on CUDA is reproducible to rounding only.
+NOT_DETERMINISTIC = "self-collision's candidate lists and contacts are built in the GPU's thread order"
+
 Vec3Array = wp.array(dtype=wp.vec3)
 FloatArray = wp.array(dtype=float)
 IntArray = wp.array(dtype=int)

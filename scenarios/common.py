@@ -43,6 +43,8 @@ class ScenarioConfig:
     :class:`~warpcloth.sim.self_collision.SelfCollision`.
     collider_edges: hold the cloth off the edges and corners of box and mesh colliders too
     (:attr:`ColliderSet.edge_contacts <warpcloth.sim.contacts.ColliderSet.edge_contacts>`; off by default).
+    deterministic: bit-reproducible atomics on CUDA, process-wide (None: as they are; see
+    :func:`~warpcloth.sim.device.set_deterministic`).
     """
 
     rows: int = 32
@@ -65,6 +67,7 @@ class ScenarioConfig:
     instability_strain: float = DEFAULT_INSTABILITY_STRAIN
     colliders: tuple = ()
     use_graph: bool | None = None  # graph capture: True, False, or None (wherever supported)
+    deterministic: bool | None = None  # CUDA atomics in a fixed order (set_deterministic); None: as they are
     mesh: str | None = None
     prim: str | None = None
     pin_group: tuple | None = None
@@ -269,6 +272,7 @@ class Scenario:
             strain_limit=cfg.strain_limit,
             use_graph=cfg.use_graph,
             self_collision=self.self_collision_settings(cfg),
+            deterministic=cfg.deterministic,
         )
 
     def self_collision_settings(self, cfg: ScenarioConfig) -> dict | None:

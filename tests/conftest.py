@@ -1,5 +1,6 @@
 """Shared fixtures: tests run on the CPU device; CUDA-parametrised cases skip without a GPU."""
 
+import contextlib
 import os
 
 import pytest
@@ -18,6 +19,23 @@ DEVICES = ["cpu", pytest.param("cuda:0", marks=pytest.mark.skipif(not CUDA_AVAIL
 @pytest.fixture
 def device():
     return "cpu"
+
+
+@contextlib.contextmanager
+def reproducible(device):
+    """Runs inside are bit-reproducible on ``device``: on CUDA, Warp's deterministic atomics
+    (:func:`warpcloth.sim.device.set_deterministic`), Warp's default again afterwards; the CPU
+    runs a launch's threads in order and is bit-reproducible as it is."""
+    from warpcloth.sim.device import set_deterministic
+
+    cuda = str(device).startswith("cuda")
+    if cuda:
+        set_deterministic(True)
+    try:
+        yield
+    finally:
+        if cuda:
+            set_deterministic(False)
 
 
 @pytest.fixture

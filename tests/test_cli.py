@@ -123,6 +123,7 @@ def test_list(capsys):
         (["run", "sheet", "--num-frames", "5", "--fps", "0"], "fps must be > 0"),
         (["run", "sheet", "--stiffness", "1e39"], "must fit in float32"),
         (["run", "sheet", "--rows", "abc"], "invalid int value: 'abc'"),
+        (["run", "sheet", "--deterministic", "maybe"], "maybe"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(capsys, argv, message):

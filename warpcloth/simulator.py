@@ -13,10 +13,11 @@ import time
 
 import warp as wp
 
-from warpcloth.errors import WarpclothError, require, require_count, require_positive
+from warpcloth.errors import WarpclothError, require, require_count, require_positive, warn
 from warpcloth.integrators import Integrator, make_integrator
 from warpcloth.integrators.strain_limit import StrainLimiter
 from warpcloth.sim.control import Control
+from warpcloth.sim.device import set_deterministic
 from warpcloth.sim.model import ClothModel
 from warpcloth.sim.pins import apply_pins
 from warpcloth.sim.self_collision import SelfCollision
@@ -47,12 +48,18 @@ class Simulator:
         dt: time step [s]; default the integrator's :meth:`~Integrator.default_dt`.
         use_graph: capture a frame's steps once with ``wp.ScopedCapture`` and replay it (CUDA
             graphs; Warp's API capture on the CPU). None: wherever the device and the
-            integrator support it. Results are bit-identical either way.
+            integrator support it. Results are bit-identical either way on the CPU; on CUDA with
+            ``deterministic`` (otherwise the order of the GPU's atomic sums differs from launch to
+            launch, and so do the last bits).
         strain_limit: Provot's deformation constraint tau (> 0, e.g. 0.1 for 10 %) applied after
             every step of a force-based integrator (:mod:`warpcloth.integrators.strain_limit`); None: off.
         self_collision: the cloth against itself (:class:`~warpcloth.sim.self_collision.SelfCollision`
             bound to ``model``, or a dict of its keyword arguments, e.g. ``{"thickness": 0.005,
             "friction": 0.3}``); None: off (:meth:`set_self_collision`; docs/self-collision.md).
+        deterministic: on a CUDA model, True makes every kernel's atomic sums run in a fixed order
+            so that runs are bit-reproducible, False restores Warp's default; process-wide
+            (:func:`~warpcloth.sim.device.set_deterministic`). None leaves it as it is; ignored on
+            the CPU, which is bit-reproducible anyway.
     """
 
     def __init__(
@@ -64,6 +71,7 @@ class Simulator:
         use_graph: bool | None = None,
         strain_limit: float | None = None,
         self_collision: SelfCollision | dict | None = None,
+        deterministic: bool | None = None,
     ):
         if not isinstance(model, ClothModel):
             raise WarpclothError(
@@ -71,6 +79,17 @@ class Simulator:
             )
         if control is not None and not isinstance(control, Control):
             raise WarpclothError(f"control must be a warpcloth.Control or None, got {control!r:.80}")
+        if deterministic is not None:
+            require(
+                isinstance(deterministic, bool), f"deterministic must be True, False or None, got {deterministic!r:.80}"
+            )
+            if wp.get_device(model.device).is_cuda:
+                set_deterministic(deterministic)
+                if deterministic and self_collision is not None:
+                    warn(
+                        "deterministic: self-collision's kernels are not covered "
+                        "(its lists are built in the GPU's thread order): this run is reproducible to rounding only"
+                    )
         self.model = model
         self.control = control if control is not None else Control(device=model.device)
         require(
@@ -252,7 +271,8 @@ class Simulator:
     @property
     def use_graph(self) -> bool | None:
         """Graph capture: True (always; an error where unsupported), False (plain launches) or
-        None (wherever the device and the integrator support it). Results are bit-identical."""
+        None (wherever the device and the integrator support it). Results are bit-identical (on
+        CUDA with ``deterministic``)."""
         return self._use_graph
 
     @use_graph.setter

@@ -960,7 +960,8 @@ PARAMS: tuple[Param, ...] = (
         choice("on", "off", "auto", what="graph mode"),
         "",
         "capture a frame's steps as a graph and replay it: "
-        "on, off, or auto (where supported); results are bit-identical, capture time is reported apart",
+        "on, off, or auto (where supported); results are the same as plain launches' (bit-identical on the "
+        "CPU, and on CUDA with --deterministic on), capture time is reported apart",
         "`on`, `off`, `auto`",
         "run",
         default="auto",
@@ -969,6 +970,20 @@ PARAMS: tuple[Param, ...] = (
         config="use_graph",
         to_config=_graph_config,
         choices=("on", "off", "auto"),
+    ),
+    Param(
+        "deterministic",
+        switch,
+        "",
+        "bit-reproducible runs on CUDA: Warp's deterministic atomics (RUN_TO_RUN) for every kernel, process-wide; "
+        "slower (docs/architecture.md, Reproducibility); the CPU is bit-reproducible either way",
+        "`on`, `off`",
+        "run",
+        default="off",
+        key="set",
+        search=False,
+        to_config=_switch_config,
+        choices=("on", "off"),
     ),
     Param(
         "instability_strain",

@@ -118,3 +118,61 @@ def init_warp(verbose: bool = False) -> None:
         finally:
             os.dup2(saved, 2)
             os.close(saved)
+
+
+# -- reproducible atomics on CUDA ---------------------------------------------------------------
+#: The Python packages whose Warp kernels a step launches: warpcloth's own and the Warp library's
+#: (warp.sparse, warp.optim.linear, warp.utils live under warp._src).
+_KERNEL_PACKAGES = ("warpcloth", "warp")
+
+
+def _kernel_modules() -> list:
+    """The Warp modules (``wp.Kernel.module``) of every kernel defined in an imported module of
+    :data:`_KERNEL_PACKAGES`, but those whose module says ``NOT_DETERMINISTIC`` (why)."""
+    modules = {}
+    for name, pymod in list(sys.modules.items()):
+        if pymod is None or name.split(".")[0] not in _KERNEL_PACKAGES:
+            continue
+        if isinstance(getattr(pymod, "NOT_DETERMINISTIC", None), str):
+            continue
+        for value in list(vars(pymod).values()):
+            if isinstance(value, wp.Kernel):
+                modules[value.module.name] = value.module
+    return list(modules.values())
+
+
+def set_deterministic(enabled: bool) -> None:
+    """Bit-reproducible results on CUDA (True) or Warp's default atomics (False), process-wide.
+
+    On a GPU, forces are summed into each particle with floating-point atomics whose order changes
+    from launch to launch, so two runs of the same scene (or a captured graph and plain launches)
+    agree only to rounding, which grows over the steps. True sets Warp's
+    ``DeterministicMode.RUN_TO_RUN`` (Warp >= 1.15: those sums are recorded, sorted and reduced in
+    a fixed order) for every kernel module loaded now and created later, so repeated runs on the
+    same GPU model are bit-identical; it costs speed (measured: docs/architecture.md,
+    "Reproducibility"). Self-collision's kernels stay outside it (``NOT_DETERMINISTIC`` in
+    :mod:`warpcloth.kernels.self_contact`): with self-collision on, a CUDA run is reproducible to
+    rounding only. The CPU backend runs a launch's threads in order and is bit-reproducible
+    either way; changing the setting recompiles the modules it touches once (then cached)."""
+    if not isinstance(enabled, bool):
+        raise WarpclothError(f"deterministic must be True or False, got {enabled!r:.80}")
+    mode_type = getattr(wp, "DeterministicMode", None)
+    if mode_type is None:
+        if enabled:
+            raise WarpclothError(
+                f"deterministic runs need Warp >= 1.15 (its DeterministicMode); this is Warp {wp.config.version}"
+            )
+        return
+    mode = mode_type.RUN_TO_RUN if enabled else mode_type.NOT_GUARANTEED
+    if wp.config.deterministic == mode:
+        return
+    wp.config.deterministic = mode
+    for module in _kernel_modules():
+        if module.options.get("deterministic") != mode:
+            wp.set_module_options({"deterministic": mode}, module=module)
+
+
+def deterministic() -> bool:
+    """Whether :func:`set_deterministic` is on (Warp's ``config.deterministic`` is not NOT_GUARANTEED)."""
+    mode_type = getattr(wp, "DeterministicMode", None)
+    return mode_type is not None and wp.config.deterministic != mode_type.NOT_GUARANTEED
