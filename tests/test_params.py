@@ -222,6 +222,22 @@ def test_time_steps_times_exactly_the_steps_asked():
         time_steps(sim, windows=5, steps=3)
 
 
+def test_time_steps_keeps_to_its_windows_when_a_frame_of_steps_outlasts_them():
+    """A frame of many steps (dt = 1e-5 s: 1667 steps a 60 Hz frame) is not a window's minimum:
+    ``bench --seconds 0.5`` timed five whole frames of the 256 x 256 sheet (24.6 s on the CPU)."""
+    from warpcloth.scenarios import get_scenario
+
+    from warpcloth.run.harness import time_steps
+
+    sim = get_scenario("sheet").build(rows=4, cols=4, device="cpu", dt=1e-5)
+    chunk = sim.chunk_steps()
+    t = time_steps(sim, windows=3, window_seconds=1e-7)
+    assert t.steps_per_window == chunk and len(t.ms_per_step) == 3  # whole chunks, at least one
+    assert sim.steps < 1667  # not one frame
+    whole = time_steps(sim, windows=1, window_seconds=0.2, warm_up=False)
+    assert whole.steps_per_window % 1667 == 0  # frames that fit are timed whole, as before
+
+
 def test_grid_or_mesh_attributes_no_scenario_of_the_test_takes_are_refused(tmp_path):
     path = write(tmp_path, '<test_list>\n<test integrator="rk4" scenario="mesh"\n size="5 7"/></test_list>')
     with pytest.raises(

@@ -168,7 +168,10 @@ def test_scenario_file_runs_through_sweep(capsys, scenario_file, tmp_path, monke
 @pytest.mark.parametrize(
     "change,message",
     [
-        (("[run]", "[run]\nspeed = 3"), "windy.toml: [run]: unknown key 'speed' (allowed: deterministic, device, dt, duration"),
+        (
+            ("[run]", "[run]\nspeed = 3"),
+            "windy.toml: [run]: unknown key 'speed' (allowed: deterministic, device, dt, duration",
+        ),
         (("name =", "colour = 1\nname ="), "windy.toml: the top level: unknown key 'colour'"),
         (
             ("times = [0.0, 0.1, 0.2]", "times = [0.0, 0.2, 0.1]"),

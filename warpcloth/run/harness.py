@@ -128,8 +128,9 @@ def time_steps(
     Args:
         windows: timed windows (>= 1); the median and the spread come from them.
         window_seconds: each window replays whole batches until it lasts about this long.
-        batch: steps per replay (default one 60 Hz frame of steps, at least 1), so a captured
-            graph is replayed as it is in a run.
+        batch: steps per replay (default one 60 Hz frame of steps, at least 1, so a captured
+            graph is replayed as it is in a run; where a frame's steps outlast a window, as many
+            whole graph chunks as fit in it, at least one).
         steps: instead of ``window_seconds``: time exactly this many steps in all, split evenly
             over the windows (each window one replay of its share; at most ``steps`` windows).
         warm_up: compile first (skip when the caller already did).
@@ -157,6 +158,13 @@ def time_steps(
         )
     if batch is None:
         batch = max(1, math.ceil((1.0 / 60.0) / sim.dt - 1e-9))
+        chunk = min(batch, sim.chunk_steps())
+        if chunk < batch:  # a frame of many steps: does it fit in a window? (one chunk timed to see)
+            sim.simulate(chunk)  # first launches / graph capture: excluded
+            with Stopwatch(device) as watch:
+                sim.simulate(chunk)
+            fit = int(window_seconds / max(watch.seconds / chunk, 1e-9))
+            batch = batch if fit >= batch else max(chunk, fit // chunk * chunk)
     sim.simulate(batch)  # first launches / graph capture: excluded
     with Stopwatch(device) as watch:
         sim.simulate(batch)
