@@ -868,3 +868,14 @@ def test_the_max_dt_plot_draws_points_at_the_search_bound_hollow(tmp_path, monke
     hollow = [line for line in ax.get_lines() if line.get_markerfacecolor() == "white" and len(line.get_xdata())]
     assert [list(line.get_xdata()) for line in hollow] == [[64, 144]]  # xpbd's two points, not explicit Euler's
     assert "hollow: stable at the bound" in [t.get_text() for t in fig.legends[0].get_texts()]
+
+
+def test_an_interrupted_estimate_names_no_results_file():
+    """SIGTERM during `study --estimate` (on the H200, its calibration outlasted a timeout) printed
+    'finished measurements are in None/results.csv, continue with --resume': an estimate writes none."""
+    import argparse
+
+    from warpcloth.cli.study import interrupted_hint
+
+    assert interrupted_hint(argparse.Namespace(estimate=True, out=None)) == ""
+    assert "study-x/results.csv" in interrupted_hint(argparse.Namespace(estimate=False, out="study-x"))

@@ -221,7 +221,10 @@ def _argv(args) -> list:
 
 
 def interrupted_hint(args) -> str:
-    """What the line after Ctrl-C or SIGTERM adds: where the finished measurements are."""
+    """What the line after Ctrl-C or SIGTERM adds: where the finished measurements are (nothing for
+    ``--estimate``, which writes none)."""
+    if getattr(args, "estimate", False) or not getattr(args, "out", None):
+        return ""
     return f"; finished measurements are in {args.out}/results.csv, continue with --resume"
 
 

@@ -976,7 +976,7 @@ PARAMS: tuple[Param, ...] = (
         switch,
         "",
         "bit-reproducible runs on CUDA: Warp's deterministic atomics (RUN_TO_RUN) for every kernel, process-wide; "
-        "slower (docs/architecture.md, Reproducibility); the CPU is bit-reproducible either way",
+        "slower for the explicit schemes (docs/gpu.md); the CPU is bit-reproducible either way",
         "`on`, `off`",
         "run",
         default="off",

@@ -149,7 +149,7 @@ def set_deterministic(enabled: bool) -> None:
     agree only to rounding, which grows over the steps. True sets Warp's
     ``DeterministicMode.RUN_TO_RUN`` (Warp >= 1.15: those sums are recorded, sorted and reduced in
     a fixed order) for every kernel module loaded now and created later, so repeated runs on the
-    same GPU model are bit-identical; it costs speed (measured: docs/architecture.md,
+    same GPU model are bit-identical; it costs speed (measured: docs/gpu.md,
     "Reproducibility"). Self-collision's kernels stay outside it (``NOT_DETERMINISTIC`` in
     :mod:`warpcloth.kernels.self_contact`): with self-collision on, a CUDA run is reproducible to
     rounding only. The CPU backend runs a launch's threads in order and is bit-reproducible
