@@ -182,14 +182,23 @@ class ColliderSet:
             device=model.device,
         )
 
-    def project_displacement(self, model, x, dp, normal_correction, friction: bool) -> None:
+    @property
+    def has_friction(self) -> bool:
+        """Whether any collider has a friction coefficient above 0."""
+        return any(float(c.friction) > 0.0 for c in self.colliders)
+
+    def project_displacement(
+        self, model, x, dp, normal_correction, friction: bool, end_substep: bool | None = None
+    ) -> None:
         """Inside a position-based solver: p = x + dp out of every collider (accumulating the
         normal corrections), or the friction pass after the iterations, relative to the
         colliders' motion over the substep.
 
         Moving colliders are posed at each substep's end: the friction pass, made once per
         substep, counts the substeps on the device (k of S, S counted in the step before; see
-        :meth:`begin_step`), so no integrator needs to pass its substep times."""
+        :meth:`begin_step`), so no integrator needs to pass its substep times. ``end_substep``
+        False keeps the substep's pose after the friction pass (the solver projects again, then
+        calls :meth:`end_substep`); None: the friction pass ends it."""
         wp.launch(
             ck.collide_displacement,
             dim=model.particle_count,
@@ -205,7 +214,12 @@ class ColliderSet:
             ],
             device=model.device,
         )
-        if friction and self._moving:  # the substep ends: the next one's pose
+        if friction if end_substep is None else end_substep:
+            self.end_substep()
+
+    def end_substep(self) -> None:
+        """A position-based substep ends: moving colliders take the next one's pose."""
+        if self._moving:
             wp.launch(ck.next_collider_substep, dim=1, inputs=[self.substep], device=self.device)
             self.pose(substep=True)
 
