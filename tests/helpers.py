@@ -195,3 +195,18 @@ class unblocked_fifo:
 #: The drape and tablecloth of before issue 28 (per-spring parameters, Provot bend springs): the
 #: contact tests keep that scene (their measured times and tolerances are its own).
 PER_SPRING_SCENE = {"material": "none", "bend": "provot"}
+
+
+def assert_replay_matches_launches(a, b) -> None:
+    """``a`` by plain launches and ``b`` by captured frame graphs, 7, 7, 3 and 7 steps (replays of a
+    cached graph and a second step count): the same state to the bit (on CUDA inside
+    ``conftest.reproducible``)."""
+    a.use_graph, b.use_graph = False, True
+    assert not a.graph_enabled and b.graph_enabled
+    for n in (7, 7, 3, 7):
+        a.simulate(n)
+        b.simulate(n)
+    assert a.steps == b.steps == 24
+    assert np.array_equal(a.state.particle_q.numpy(), b.state.particle_q.numpy())
+    assert np.array_equal(a.state.particle_qd.numpy(), b.state.particle_qd.numpy())
+    assert np.array_equal(a.control.time.numpy(), b.control.time.numpy())
