@@ -172,43 +172,35 @@ class PositionBasedIntegrator(Integrator):
         contacts = control.collision
         if contacts is not None:
             self.contact_normal.zero_()
-        self_contacts = self.self_collision
         edges = contacts.edges(self.model) if contacts is not None else None
         for _ in range(self.iterations):
-            for color in sweep:
-                color.launch()
-            if self_contacts is not None:  # then the colliders: they win
-                self_contacts.project_increment(state.particle_q, self.particle_dp)
-            if contacts is not None:
-                contacts.project_displacement(
-                    self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=False
-                )
-            if edges is not None:  # box and mesh edges against the cloth's edges and triangles
-                edges.project_increment(state.particle_q, self.particle_dp)
-        if contacts is not None:
-            relax = contacts.has_friction
-            contacts.project_displacement(
-                self.model,
-                state.particle_q,
-                self.particle_dp,
-                self.contact_normal,
-                friction=True,
-                end_substep=not relax,
-            )
-        if contacts is not None and relax:
+            self._iterate(state, sweep, contacts, edges)
+        if contacts is None:
+            return
+        relax = contacts.has_friction
+        contacts.project_displacement(
+            self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=True, end_substep=not relax
+        )
+        if relax:
             # friction held the vertices it stuck and let their neighbours go: one more sweep over the
             # springs, then the contacts again (normal only), so that a substep does not end on springs
             # that friction alone stretched (pbd's drape landing: peak strain 0.56 -> 0.35)
-            for color in sweep:
-                color.launch()
-            if self_contacts is not None:
-                self_contacts.project_increment(state.particle_q, self.particle_dp)
+            self._iterate(state, sweep, contacts, edges)
+            contacts.end_substep()
+
+    def _iterate(self, state, sweep, contacts, edges) -> None:
+        """One iteration: the sweep over the springs, then the self-contacts, then the colliders (they
+        win, friction aside) and their box and mesh edges against the cloth's edges and triangles."""
+        for color in sweep:
+            color.launch()
+        if self.self_collision is not None:
+            self.self_collision.project_increment(state.particle_q, self.particle_dp)
+        if contacts is not None:
             contacts.project_displacement(
                 self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=False
             )
-            if edges is not None:
-                edges.project_increment(state.particle_q, self.particle_dp)
-            contacts.end_substep()
+        if edges is not None:
+            edges.project_increment(state.particle_q, self.particle_dp)
 
     def update(self, state, h: float, control=None, end: float | None = None) -> None:
         """v = dp / h;  x += dp; kinematic pins x = track(t + end), v = track'(t + end)."""
