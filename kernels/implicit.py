@@ -151,6 +151,7 @@ def eval_contact_modes(
     particle_mass: wp.array(dtype=float),
     inv_mass: wp.array(dtype=float),
     colliders: wp.array(dtype=Collider),
+    gravity: wp.vec3,
     h: float,
     entered: wp.array(dtype=int),
     impulse: wp.array(dtype=wp.vec3),
@@ -167,9 +168,13 @@ def eval_contact_modes(
     # set flip every other step), or last step's solve moved it inside (entered). It STICKs if it
     # stuck last step and the friction cone held the solve's impulse (|J_t| <= mu J_n), if friction
     # stopped it last step (STOPPED), or, as a new contact, if friction can cancel the tangential
-    # momentum it would have, |p| = |m v_r,t + h f_t| < mu J_n with J_n the larger of
-    # m max(0, -v_r . n) and -h f . n (a landing particle, whose approach the projection already
-    # stopped, has v_r,t = 0 to rounding); the next solve tells whether the cone held. A sliding
+    # momentum it would have, |p| = |m v_r,t + h m g_t| < mu J_n with J_n the larger of
+    # m max(0, -v_r . n) and its weight's -h m g . n (a landing particle, whose approach the
+    # projection already stopped, has v_r,t = 0 to rounding); the next solve tells whether the cone
+    # held. Not the explicit force f: in a stiff cloth its springs' part is ~1000 times the weight
+    # and the implicit solve balances it; sized by it, a new contact of the fold pressed by the
+    # hand got a friction impulse 300 times its own momentum, which the solve passed on to its
+    # neighbours (4-7 m/s; tests/test_implicit_contact.py). A sliding
     # contact slides on until friction stops it (the explicit f_t is no guide there: in the stiff
     # drape it is ~1000 times the weight, balanced by the implicit response). Else it SLIDEs, with
     # the kinetic friction impulse F = mu J_n against p (new), v_r,t (sliding) or, just released
@@ -208,9 +213,9 @@ def eval_contact_modes(
             t = wp.vec3(0.0)
             if lt > 0.0:
                 t = vt / lt
-            jn = wp.max(wp.max(jn_prev, m * wp.max(0.0, -vrn)), -h * wp.dot(f[i], n))
+            jn = wp.max(wp.max(jn_prev, m * wp.max(0.0, -vrn)), -h * m * wp.dot(gravity, n))
             # tangential momentum a new contact would have after the step without friction
-            p = m * vt + h * (f[i] - wp.dot(f[i], n) * n)
+            p = m * vt + h * m * (gravity - wp.dot(gravity, n) * n)
             lp = wp.length(p)
             cancellable = previous == STOPPED or (previous == 0 and lp < c.mu * jn)
             if held or cancellable:

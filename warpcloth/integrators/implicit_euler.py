@@ -384,6 +384,7 @@ class ImplicitEuler(Integrator):
                 m.particle_mass,
                 m.particle_inv_mass,
                 control.collision.params,
+                wp.vec3(*control.gravity),
                 h,
                 self.contact_entered,
                 self.contact_impulse,
