@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 from helpers import PER_SPRING_SCENE, deepest_in_drape, drape_sphere_depth
+from warpcloth.scenarios import get_scenario
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
 from warpcloth.run.harness import RunHarness
@@ -179,8 +180,6 @@ def test_a_pressed_contacts_friction_is_sized_by_its_own_momentum_not_the_spring
     passed on to its neighbours (they left at 4-7 m/s); the run went unstable at 0.25 s (strain 3.3).
     Sized by the particle's approach momentum and its weight it stays stable through the landing (its
     peak, 0.35 at 0.1 s, is the strip's buckling under the hand before the friction matters)."""
-    from warpcloth.scenarios import get_scenario
-
     r = get_scenario("fold").harness(integrator="implicit_euler").run(0.5)
     assert r.stable, (r.unstable_reason, r.max_strain)
     assert r.max_strain < 0.4
