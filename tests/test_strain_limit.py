@@ -152,3 +152,17 @@ def test_limit_applies_only_to_force_based_integrators():
     sim = sheet.build(rows=4, cols=4, strain_limit=TAU)
     with pytest.raises(WarpclothError, match="force-based"):
         sim.set_integrator(PositionBased())
+
+
+def test_nearest_pin_paths_on_a_small_graph():
+    """A chain 0-1-2-3 (rest 1, 2, 1; the 1-2 spring listed twice, once at 5), pins 0 and 3, and a
+    particle 4 with no spring: each particle's nearest pin along the springs and the path's rest length."""
+    from warpcloth.integrators.strain_limit import nearest_pin_paths
+
+    pairs = np.array([[0, 1], [2, 1], [1, 2], [3, 2]])
+    rest = np.array([1.0, 2.0, 5.0, 1.0])
+    source, dist = nearest_pin_paths(pairs, rest, 5, [0, 3])
+    assert source.tolist() == [0, 0, 3, 3, -1]
+    assert dist[:4].tolist() == [0.0, 1.0, 1.0, 0.0] and np.isinf(dist[4])
+    source, dist = nearest_pin_paths(pairs, rest, 5, [])
+    assert source.tolist() == [-1] * 5 and np.all(np.isinf(dist))
