@@ -29,6 +29,13 @@ def run_frames(sim, seconds, check=None):
             check(sim)
 
 
+def known_failures(names, reason):
+    """INTEGRATORS with those in ``names`` marked as strict expected failures (``reason``)."""
+    return [
+        pytest.param(i, marks=pytest.mark.xfail(strict=True, reason=reason)) if i in names else i for i in INTEGRATORS
+    ]
+
+
 # -- the fold: no intersection at any frame ------------------------------------------------------------
 def fold(integrator, self_collision=True):
     return get_scenario("fold").build(rows=24, cols=8, integrator=integrator, self_collision=self_collision)
@@ -40,7 +47,18 @@ def intersections_per_frame(sim, seconds=2.6):
     return counts
 
 
-@pytest.mark.parametrize("integrator", INTEGRATORS)
+#: implicit_euler's fold back (the upper layer coming down onto the laid one at up to 1 m/s, dt = 1/60 s): its
+#: 0 crossings here held for this exact start only. Moved 0.1 mm at random (4 seeds), 3 of 4 runs had 33-43
+#: frames with crossings (up to 31 pairs) with strain_cap 0, and 4 of 4 with the default cap 0.1 (27-39 frames),
+#: which first binds under the hand at 0.1 s and so gives another start; the default 48 x 16 fold has them too
+#: (docs/self-collision.md). The layer lands as in test_two_stacked_sheets_keep_their_thickness_on_the_ground.
+FOLD_NOT_HELD = ("implicit_euler",)
+
+
+@pytest.mark.parametrize(
+    "integrator",
+    known_failures(FOLD_NOT_HELD, "a layer folded back onto a landed one at dt = 1/60 s (start-sensitive)"),
+)
 def test_the_fold_has_no_intersection_at_any_frame(integrator):
     """The strip laid on the ground and folded back over itself (24 x 8, default dt of each scheme, 2.6 s:
     the fold ends at 2.4 s): 0 intersecting triangle pairs at every frame, the layers in contact, no
@@ -86,12 +104,6 @@ def two_sheets(rows=6, gap=1.2 * H, height=0.02, speed=0.0, offset=(0.007, 0.011
 #: At dt = 1/60 s without substeps a layer that lands on another already on the ground passes through it
 #: (the lower layer stops within the step: the pair was not near at its start) - see docs/self-collision.md
 STACK_NOT_HELD = ("implicit_euler", "projective")
-
-
-def known_failures(names, reason):
-    return [
-        pytest.param(i, marks=pytest.mark.xfail(strict=True, reason=reason)) if i in names else i for i in INTEGRATORS
-    ]
 
 
 @pytest.mark.parametrize("integrator", known_failures(STACK_NOT_HELD, "a layer landing on a landed one at dt = 1/60 s"))

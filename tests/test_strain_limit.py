@@ -30,7 +30,8 @@ def limited_strains(sim):
     "integrator, dt, steps", [("implicit_euler", 1.0 / 60.0, 60), ("explicit_euler", None, 200), ("verlet", None, 200)]
 )
 def test_no_structural_or_shear_spring_ends_a_step_beyond_tau_and_pins_stay_put(integrator, dt, steps):
-    unlimited = sheet.build(rows=10, cols=10, integrator=integrator, dt=dt, stiffness=SOFT)
+    bare = {"strain_cap": 0.0} if integrator == "implicit_euler" else {}  # implicit_euler's own limit off
+    unlimited = sheet.build(rows=10, cols=10, integrator=integrator, dt=dt, stiffness=SOFT, integrator_options=bare)
     unlimited.simulate(steps)
     assert limited_strains(unlimited).max() > 2 * TAU  # without the limit the cloth overstretches
 
@@ -152,6 +153,39 @@ def test_limit_applies_only_to_force_based_integrators():
     sim = sheet.build(rows=4, cols=4, strain_limit=TAU)
     with pytest.raises(WarpclothError, match="force-based"):
         sim.set_integrator(PositionBased())
+
+
+def test_implicit_euler_limits_at_its_strain_cap_unless_the_user_limits_or_turns_it_off(capsys):
+    """implicit_euler's own limit (``strain_cap``, 0.1 by default) acts where the user gives no
+    strain_limit; the user's replaces it; 0 turns it off; the other integrators have none."""
+    assert sheet.build(rows=4, cols=4, integrator="explicit_euler").active_limiter is None
+
+    def run(**kw):
+        sim = sheet.build(rows=10, cols=10, integrator="implicit_euler", dt=1.0 / 60.0, stiffness=SOFT, **kw)
+        worst = 0.0
+        for _ in range(60):
+            sim.step()
+            worst = max(worst, limited_strains(sim).max())
+        return sim, worst
+
+    sim, worst = run()
+    assert sim.strain_limiter is None and sim.integrator_limiter.tau == pytest.approx(0.1)
+    assert TAU - 0.01 < worst <= TAU + TOL + 2e-6  # the soft sheet would stretch ~40 %: the cap held it
+    sim, worst = run(integrator_options={"strain_cap": 0.25})
+    assert 0.24 < worst <= 0.25 + TOL + 2e-6
+    sim, worst = run(strain_limit=0.05)
+    assert sim.integrator_limiter is None and sim.active_limiter.tau == 0.05 and worst <= 0.05 + TOL + 2e-6
+    sim, worst = run(integrator_options={"strain_cap": 0.0})
+    assert sim.active_limiter is None and worst > 2 * TAU
+    sim.set_integrator("explicit_euler", dt=1e-4)  # switching integrators drops implicit_euler's cap
+    assert sim.active_limiter is None
+    sim.set_integrator("implicit_euler", dt=1.0 / 60.0)  # and a fresh implicit_euler brings it back
+    assert sim.active_limiter.tau == pytest.approx(0.1)
+    sim.integrator.strain_cap = 0.2  # an option set between steps counts from the next one
+    sim.step()
+    assert sim.active_limiter.tau == pytest.approx(0.2)
+    assert cli_main(["run", "sheet", "--rows", "4", "--cols", "4", "-i", "implicit_euler", "--strain-cap", "-1"]) == 2
+    assert "strain_cap" in capsys.readouterr().err
 
 
 def test_nearest_pin_paths_on_a_small_graph():

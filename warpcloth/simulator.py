@@ -52,7 +52,9 @@ class Simulator:
             ``deterministic`` (otherwise the order of the GPU's atomic sums differs from launch to
             launch, and so do the last bits).
         strain_limit: Provot's deformation constraint tau (> 0, e.g. 0.1 for 10 %) applied after
-            every step of a force-based integrator (:mod:`warpcloth.integrators.strain_limit`); None: off.
+            every step of a force-based integrator (:mod:`warpcloth.integrators.strain_limit`); None: the
+            integrator's own, if it has one (implicit_euler's ``strain_cap`` option, 0.1 by default;
+            :attr:`integrator_limiter`), else off.
         self_collision: the cloth against itself (:class:`~warpcloth.sim.self_collision.SelfCollision`
             bound to ``model``, or a dict of its keyword arguments, e.g. ``{"thickness": 0.005,
             "friction": 0.3}``); None: off (:meth:`set_self_collision`; docs/self-collision.md).
@@ -100,6 +102,9 @@ class Simulator:
         self._pins_version = 0
         self._bind_pin_tracks(self.control.pin_tracks)
         self.strain_limiter = StrainLimiter(model, strain_limit) if strain_limit is not None else None
+        #: The integrator's own strain limit where the user gives none (implicit_euler's ``strain_cap``;
+        #: :meth:`~warpcloth.integrators.base.Integrator.default_strain_limit`), else None.
+        self.integrator_limiter: StrainLimiter | None = None
         self.self_collision: SelfCollision | None = self._bind_self_collision(self_collision)
         self.integrator: Integrator | None = None
         self._dt: float | None = None
@@ -155,6 +160,7 @@ class Simulator:
         self._dt = require_positive("dt", dt, "s")
         integrator.set_self_collision(self.self_collision)
         self.integrator = integrator
+        self._bind_integrator_limiter()
         self._needs_begin = True
         self._graphs.clear()
         self._warmed = False
@@ -176,6 +182,7 @@ class Simulator:
         self.model_version += 1  # what measures the old model (a run harness's probe) rebinds
         if self.strain_limiter is not None:
             self.strain_limiter = StrainLimiter(model, self.strain_limiter.tau)
+        self._bind_integrator_limiter()
         if self.self_collision is not None:
             self.self_collision = self.self_collision.rebind(model)
         self.integrator.bind(model)
@@ -183,6 +190,21 @@ class Simulator:
         self._needs_begin = True
         self._graphs.clear()
         self._warmed = False
+
+    def _bind_integrator_limiter(self) -> None:
+        """The integrator's own strain limit on the current model, where the user gave none (kept
+        where its tau and model are unchanged)."""
+        tau = self.integrator.default_strain_limit() if self.strain_limiter is None else None
+        limiter = self.integrator_limiter
+        if tau is None:
+            self.integrator_limiter = None
+        elif limiter is None or limiter.tau != tau or limiter.model is not self.model:
+            self.integrator_limiter = StrainLimiter(self.model, tau)
+
+    @property
+    def active_limiter(self) -> StrainLimiter | None:
+        """The strain limit applied after each step: the user's, else the integrator's, else None."""
+        return self.strain_limiter if self.strain_limiter is not None else self.integrator_limiter
 
     def set_self_collision(self, self_collision: SelfCollision | dict | None) -> None:
         """Self-collision from the next step: a :class:`~warpcloth.sim.self_collision.SelfCollision`
@@ -287,7 +309,7 @@ class Simulator:
     def graph_enabled(self) -> bool:
         """Whether frames are captured and replayed (see ``use_graph``)."""
         supported = graph_capture_supported(self.model.device) and self.integrator.capturable_on(self.model.device)
-        if self.strain_limiter is not None and wp.get_device(self.model.device).is_cuda:
+        if self.active_limiter is not None and wp.get_device(self.model.device).is_cuda:
             supported = supported and wp.is_conditional_graph_supported()  # its pass loop is capture_while
         if self._use_graph is None:
             return supported
@@ -339,6 +361,7 @@ class Simulator:
     def _drive(self, steps: int) -> None:
         """Before a frame of ``steps`` steps: the integrator's start if due (:meth:`_begin`) and
         the driven tracks' keys for the frame (their targets set since the last frame)."""
+        self._bind_integrator_limiter()  # its strain cap may have been set since (a new limiter only then)
         if self._needs_begin:
             self._begin(steps)
         elif self.control.upload_drives(self._dt, steps, self.sim_time):
@@ -426,8 +449,9 @@ class Simulator:
             edges.project(
                 self.state, self._dt, self.integrator.position_history(), self.integrator.velocity_position_weight
             )
-        if self.strain_limiter is not None:
-            self.strain_limiter.apply(self.state, self._dt)
+        limiter = self.active_limiter
+        if limiter is not None:  # last: the passes above may stretch (a landing vertex pushed out of a collider)
+            limiter.apply(self.state, self._dt)
         self.control.advance(self._dt)
         apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # x = track(t + dt), v = track'(t + dt)
 

@@ -128,6 +128,12 @@ class Integrator:
         """Use ``self_collision`` (bound to this integrator's model; None: off) from the next step."""
         self.self_collision = self_collision
 
+    def default_strain_limit(self) -> float | None:
+        """Provot's deformation constraint tau the :class:`~warpcloth.simulator.Simulator` applies
+        after each step of this integrator where the user sets no ``strain_limit`` (None: none;
+        implicit_euler's ``strain_cap`` option)."""
+        return None
+
     def capturable_on(self, device) -> bool:
         """Whether a step on ``device`` can be captured with ``wp.ScopedCapture`` and replayed: True
         where a step is kernel launches only, with no host synchronisation (override where not)."""
