@@ -247,6 +247,20 @@ def test_configurations_cover_the_knobs_cheapest_first():
     ] == [17]
 
 
+def test_the_study_measures_implicit_euler_without_its_strain_cap():
+    """Its cap (0.1 by default) would bind in the swing and the flag: the study's runs keep it off, as in
+    every measurement so far, and a grid's options still win."""
+    from warpcloth.lab.configs import study_options
+    from warpcloth.lab.measure import Measurements
+    from warpcloth.lab.plan import make_plan
+
+    assert study_options("implicit_euler", {"cg_tol": 1e-4}) == {"strain_cap": 0.0, "cg_tol": 1e-4}
+    assert study_options("vbd") == {}
+    m = Measurements(make_plan("quick", integrators=["implicit_euler"], sizes=[4]), out=None)
+    sim = m.sim("study_sheet", 4, "cpu", "implicit_euler", {"cg_tol": 1e-4})
+    assert sim.integrator.strain_cap == 0.0 and sim.integrator.cg_tol == 1e-4 and sim.active_limiter is None
+
+
 def test_pareto_front_and_cheapest_on_synthetic_points():
     from warpcloth.lab.frontier import Point, cheapest, pareto_front
 

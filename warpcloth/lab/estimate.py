@@ -9,7 +9,7 @@ import os
 from dataclasses import dataclass
 
 from warpcloth.lab.accuracy import FRAME_DT, SCIPY_MAX_SIZE
-from warpcloth.lab.configs import EXPLICIT, configurations, static_configurations, steps_for, work
+from warpcloth.lab.configs import EXPLICIT, configurations, static_configurations, steps_for, study_options, work
 from warpcloth.lab.plan import StudyPlan
 from warpcloth.lab.transients import DYNAMIC, TRANSIENTS
 
@@ -78,7 +78,7 @@ def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
         sim = sheet.build(rows=n, cols=n, device=device, integrator="explicit_euler", dt=FRAME_DT)
         out[("omega", n)] = _omega(n, device)
         for i in plan.integrators:
-            sim.set_integrator(make_integrator(i), dt=FRAME_DT)
+            sim.set_integrator(make_integrator(i, **study_options(i)), dt=FRAME_DT)
             k0 = steps_for(min(make_integrator(i).default_dt(sim.model, sim.control.drag_rate), FRAME_DT))
             out[(i, n)] = (k0, ms_per_step(sim, FRAME_DT / k0))
             if stream is not None:

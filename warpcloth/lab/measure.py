@@ -32,7 +32,7 @@ import time
 import numpy as np
 
 from warpcloth.lab.accuracy import FRAME_DT, ContactProblem, Reference, TransientProblem, steps_per_frame_at_most
-from warpcloth.lab.configs import Config, configurations, static_configurations
+from warpcloth.lab.configs import Config, configurations, static_configurations, study_options
 from warpcloth.lab.plan import StudyPlan
 from warpcloth.lab.results import MESH_NOTE
 from warpcloth.lab.transients import DYNAMIC, TRANSIENTS
@@ -160,10 +160,14 @@ class Measurements:
         if sim is None:
             size = {} if n is None else {"rows": n, "cols": n}  # n None: a fixed-mesh scenario
             sim = self._sims[key] = self._scenario(scenario).build(
-                **size, device=self.device_map.get(device, device), integrator=integrator, dt=FRAME_DT
+                **size,
+                device=self.device_map.get(device, device),
+                integrator=integrator,
+                integrator_options=study_options(integrator),
+                dt=FRAME_DT,
             )
             self._counts[key] = (sim.model.particle_count, sim.model.spring_count)
-        sim.set_integrator(make_integrator(integrator, **(options or {})), dt=FRAME_DT)
+        sim.set_integrator(make_integrator(integrator, **study_options(integrator, options)), dt=FRAME_DT)
         sim.reset()
         return sim
 
