@@ -158,6 +158,9 @@ class Scenario:
             rows, cols, width and height (the Cusick disc).
         self_collision: whether the cloth collides with itself unless the configuration says
             (scenes that fold: fold, drape, tablecloth).
+        integrator_defaults: per integrator, option values this scene runs it with unless the
+            configuration's ``integrator_options`` say otherwise (the solver work a scene needs, e.g.
+            pbd's substeps on the drape; the integrator's own defaults elsewhere).
     """
 
     name: str
@@ -173,6 +176,7 @@ class Scenario:
     self_collision: bool = False
     measure: Callable | None = None
     kind: str | None = None
+    integrator_defaults: dict = field(default_factory=dict)
 
     @property
     def is_mesh(self) -> bool:
@@ -202,6 +206,10 @@ class Scenario:
         if not isinstance(cfg.integrator_options, dict):
             raise WarpclothError(
                 f"integrator_options must be a dict of option names and values, got {cfg.integrator_options!r:.80}"
+            )
+        if isinstance(cfg.integrator, str):  # the scene's own settings for this integrator, then the user's
+            cfg = replace(
+                cfg, integrator_options={**self.integrator_defaults.get(cfg.integrator, {}), **cfg.integrator_options}
             )
         if self.model is not None:  # a mesh: the scenario builds its own model
             integrator = make_integrator(cfg.integrator, **cfg.integrator_options)

@@ -239,3 +239,20 @@ def test_graph_flag_off_is_bit_identical_to_on_and_capture_is_apart(capsys, tmp_
     with pytest.raises(SystemExit) as exit_:
         main(["run", "sheet", "--graph", "maybe"])
     assert exit_.value.code == 2 and "invalid choice: 'maybe'" in capsys.readouterr().err
+
+
+def test_a_scene_runs_an_integrator_with_its_own_settings_unless_the_user_gives_them():
+    """The fold runs projective with 20 local/global iterations and the drape pbd with 8 substeps (the
+    work those scenes need: docs/self-collision.md); the user's options win; other integrators and
+    scenes keep the integrators' defaults."""
+    fold, drape, plain = get_scenario("fold"), get_scenario("drape"), get_scenario("sheet")
+    assert fold.build(integrator="projective", rows=6, cols=4).integrator.pd_iterations == 20
+    assert (
+        fold.build(
+            integrator="projective", rows=6, cols=4, integrator_options={"pd_iterations": 3}
+        ).integrator.pd_iterations
+        == 3
+    )
+    assert drape.build(integrator="pbd", rows=6, cols=6).integrator.substeps == 8
+    assert drape.build(integrator="xpbd", rows=6, cols=6).integrator.substeps == 4
+    assert plain.build(integrator="projective", rows=6, cols=6).integrator.pd_iterations == 10

@@ -62,9 +62,10 @@ FOLD_NOT_HELD = ("implicit_euler",)
 def test_the_fold_has_no_intersection_at_any_frame(integrator):
     """The strip laid on the ground and folded back over itself (24 x 8, default dt of each scheme, 2.6 s:
     the fold ends at 2.4 s): 0 intersecting triangle pairs at every frame, the layers in contact, no
-    list overflowed and every pair left at least the minimum gap."""
+    list overflowed and every pair left at least the minimum gap. projective runs 3.2 s: with the
+    fold's 20 iterations (its scene setting) the strip lays down further and the layers meet at 2.7 s."""
     sim = fold(integrator)
-    counts = intersections_per_frame(sim)
+    counts = intersections_per_frame(sim, 3.2 if integrator == "projective" else 2.6)
     assert len(counts) >= 150 and max(counts) == 0, [(k, c) for k, c in enumerate(counts) if c][:5]
     stats = sim.self_collision.stats()
     assert stats["contacts_max"] > 20  # it did fold onto itself
@@ -338,8 +339,9 @@ def test_pbd_friction_does_not_leave_the_drape_stretched():
     touches the sphere at 5-8 m/s: the friction pass after the iterations held the rim's vertices
     on the sphere and let their neighbours go, and the substep ended there, on springs friction alone
     had stretched (peak strain 0.53 at 0.42 s, 0.56 at 0.43 s: unstable). With one sweep over the
-    springs (and the contacts again) after friction the landing peaks at 0.35."""
-    r = get_scenario("drape").harness(integrator="pbd").run(0.45)
+    springs (and the contacts again) after friction the landing peaks at 0.35. At pbd's default 4
+    substeps, where the sweep was needed (the drape's own setting is 8)."""
+    r = get_scenario("drape").harness(integrator="pbd", integrator_options={"substeps": 4}).run(0.45)
     assert r.stable, (r.unstable_reason, r.max_strain)
     assert r.max_strain < 0.45
 
