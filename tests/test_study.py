@@ -247,9 +247,10 @@ def test_configurations_cover_the_knobs_cheapest_first():
     ] == [17]
 
 
-def test_the_study_measures_implicit_euler_without_its_strain_cap():
+def test_the_study_measures_implicit_euler_without_its_strain_cap(monkeypatch):
     """Its cap (0.1 by default) would bind in the swing and the flag: the study's runs keep it off, as in
-    every measurement so far, and a grid's options still win."""
+    every measurement so far, its max-dt search too, and a grid's options still win."""
+    import warpcloth.lab.maxdt
     from warpcloth.lab.configs import study_options
     from warpcloth.lab.measure import Measurements
     from warpcloth.lab.plan import make_plan
@@ -259,6 +260,17 @@ def test_the_study_measures_implicit_euler_without_its_strain_cap():
     m = Measurements(make_plan("quick", integrators=["implicit_euler"], sizes=[4]), out=None)
     sim = m.sim("study_sheet", 4, "cpu", "implicit_euler", {"cg_tol": 1e-4})
     assert sim.integrator.strain_cap == 0.0 and sim.integrator.cg_tol == 1e-4 and sim.active_limiter is None
+    seen = []
+
+    def find_max_dt(scenario, config, **kw):
+        seen.append(config)
+        raise RuntimeError("enough")
+
+    monkeypatch.setattr(warpcloth.lab.maxdt, "find_max_dt", find_max_dt)
+    m.out = type("Out", (), {"done": {}})()
+    with pytest.raises(RuntimeError, match="enough"):
+        m.max_stable_dt("study_sheet", "implicit_euler", "cpu", 4)
+    assert seen[0].integrator_options == {"strain_cap": 0.0}
 
 
 def test_pareto_front_and_cheapest_on_synthetic_points():

@@ -167,7 +167,9 @@ class Measurements:
                 dt=FRAME_DT,
             )
             self._counts[key] = (sim.model.particle_count, sim.model.spring_count)
-        sim.set_integrator(make_integrator(integrator, **study_options(integrator, options)), dt=FRAME_DT)
+        # the scene's own settings for it (Scenario.integrator_defaults), as Scenario.build gives the max-dt search
+        scene = self._scenario(scenario).integrator_defaults.get(integrator, {})
+        sim.set_integrator(make_integrator(integrator, **{**scene, **study_options(integrator, options)}), dt=FRAME_DT)
         sim.reset()
         return sim
 
@@ -310,7 +312,12 @@ class Measurements:
             size = {} if n is None else {"rows": n, "cols": n}
             r = find_max_dt(
                 sc,
-                sc.config(**size, integrator=integrator, device=self.device_map.get(device, device)),
+                sc.config(
+                    **size,
+                    integrator=integrator,
+                    integrator_options=study_options(integrator),
+                    device=self.device_map.get(device, device),
+                ),
                 precision=p.maxdt_precision,
                 duration=duration,
                 dt_max=FRAME_DT,
