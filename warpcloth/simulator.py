@@ -200,6 +200,9 @@ class Simulator:
             self.integrator_limiter = None
         elif limiter is None or limiter.tau != tau or limiter.model is not self.model:
             self.integrator_limiter = StrainLimiter(self.model, tau)
+        if self.integrator_limiter is not limiter:  # a captured frame holds the old one's arrays
+            self._graphs.clear()
+            self.step_version += 1
 
     @property
     def active_limiter(self) -> StrainLimiter | None:
@@ -450,7 +453,8 @@ class Simulator:
                 self.state, self._dt, self.integrator.position_history(), self.integrator.velocity_position_weight
             )
         limiter = self.active_limiter
-        if limiter is not None:  # last: the passes above may stretch (a landing vertex pushed out of a collider)
+        if limiter is not None:  # last: the passes above may stretch (a landing vertex pushed out of a collider);
+            # it knows no contacts, so it may move a vertex back into a collider or a layer (the next step meets it)
             limiter.apply(self.state, self._dt)
         self.control.advance(self._dt)
         apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # x = track(t + dt), v = track'(t + dt)
