@@ -29,7 +29,8 @@ class ScenarioConfig:
     """Parameters of a scenario run; ``None`` means the scenario's or integrator's default.
 
     stiffness / damping: one number for every spring type, or three (structural, shear, bend).
-    strain_limit: Provot's deformation constraint tau (None: off), see :class:`Simulator`.
+    strain_limit: Provot's deformation constraint tau (None: the integrator's own, implicit_euler's
+        ``strain_cap``, else off), see :class:`Simulator`.
     instability_strain: a spring stretched past (1 + this) x its rest length makes the run unstable.
     mesh, prim, pin_group, pin_where, quads: the cloth of a mesh scenario (a mesh file and its USD
     prim path, the vertex groups and the predicate to pin, quad detection; see

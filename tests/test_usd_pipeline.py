@@ -53,7 +53,7 @@ def test_provenance_round_trips(capsys, tmp_path):
     assert info["dt"] == pytest.approx(1 / 60) and info["fps"] == 60.0 and info["rows"] == 5 and info["cols"] == 6
     assert info["ks"] == {"structural": 800.0, "shear": 600.0, "bend": 100.0}
     assert set(info["kd"]) == {"structural", "shear", "bend"} and info["mass"] == pytest.approx(0.25)
-    assert info["strain_limit"] == "none"
+    assert info["strain_limit"] == "none" and info["strain_limit_applied"] == 0.1  # implicit_euler's strain cap
     assert info["command_line"] == "warpcloth " + " ".join(argv)
     assert info["date"].endswith("+00:00")
     assert stage.GetTimeCodesPerSecond() == 60.0

@@ -41,6 +41,8 @@ def provenance(sim, scenario: str, fps: float, argv=None, extra: dict | None = N
         "kd": {t.name.lower(): float(p.damping) for t, p in m.spring_params.items()},
         "bend": str(getattr(m.bend, "value", m.bend)),
         "strain_limit": None if sim.strain_limiter is None else float(sim.strain_limiter.tau),
+        # the limit applied: the user's, or the integrator's own (implicit_euler's strain_cap)
+        "strain_limit_applied": None if sim.active_limiter is None else float(sim.active_limiter.tau),
         "device": str(m.device),
         "date": datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat(),
         "command_line": command_line(argv, prefix),

@@ -835,7 +835,7 @@ PARAMS: tuple[Param, ...] = (
         "stays beyond (1 + tau) L0 (force-based integrators only)",
         "> 0 (e.g. 0.1)",
         "integrator",
-        default_doc="off",
+        default_doc="off (implicit_euler: its --strain-cap, 0.1)",
         key="set",
         metavar="TAU",
         cli_type=float,
