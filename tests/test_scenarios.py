@@ -256,3 +256,11 @@ def test_a_scene_runs_an_integrator_with_its_own_settings_unless_the_user_gives_
     assert drape.build(integrator="pbd", rows=6, cols=6).integrator.substeps == 8
     assert drape.build(integrator="xpbd", rows=6, cols=6).integrator.substeps == 4
     assert plain.build(integrator="projective", rows=6, cols=6).integrator.pd_iterations == 10
+    from warpcloth.scenarios import scenario_names
+
+    from warpcloth.integrators import integrator_names, make_integrator
+
+    for scenario in map(get_scenario, scenario_names()):  # every scene's settings: known integrators, options
+        for name, options in scenario.integrator_defaults.items():
+            assert name in integrator_names(), (scenario.name, name)
+            make_integrator(name, **options)

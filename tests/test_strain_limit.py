@@ -181,6 +181,9 @@ def test_implicit_euler_limits_at_its_strain_cap_unless_the_user_limits_or_turns
     assert sim.active_limiter is None
     sim.set_integrator("implicit_euler", dt=1.0 / 60.0)  # and a fresh implicit_euler brings it back
     assert sim.active_limiter.tau == pytest.approx(0.1)
+    model = sim.model.with_spring_params(sim.model.spring_params)  # a new model (the same values): rebound to it
+    sim.set_model(model)
+    assert sim.active_limiter.model is model
     sim.integrator.strain_cap = 0.2  # an option set between steps counts from the next one
     sim.step()
     assert sim.active_limiter.tau == pytest.approx(0.2)
@@ -198,5 +201,7 @@ def test_nearest_pin_paths_on_a_small_graph():
     source, dist = nearest_pin_paths(pairs, rest, 5, [0, 3])
     assert source.tolist() == [0, 0, 3, 3, -1]
     assert dist[:4].tolist() == [0.0, 1.0, 1.0, 0.0] and np.isinf(dist[4])
+    source, dist = nearest_pin_paths(pairs, rest, 5, [0])  # 0 -> 1 -> 2 over the duplicate's shorter rest
+    assert source.tolist() == [0, 0, 0, 0, -1] and dist[:4].tolist() == [0.0, 1.0, 3.0, 4.0]
     source, dist = nearest_pin_paths(pairs, rest, 5, [])
     assert source.tolist() == [-1] * 5 and np.all(np.isinf(dist))
