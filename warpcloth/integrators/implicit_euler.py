@@ -55,7 +55,7 @@ positions. With ``matrix="free"`` only that projection acts.
 
 Strain cap (``strain_cap``, default 0.1): after each step the :class:`~warpcloth.simulator.Simulator`
 applies Provot's limit (:mod:`warpcloth.integrators.strain_limit`) at tau = ``strain_cap`` where the
-user gives no ``strain_limit``, as production implicit cloth pairs the solve with a strain limit. One
+user gives no ``strain_limit`` (Provot's remedy for springs stretched past what cloth allows). One
 Newton step linearises each spring about the step's start: across a spring at its rest length it has
 no stiffness, so a vertex falling past a neighbour that a collider stopped moves on by h v. In the
 default drape (64 x 64, dt 1/60 s, landing at 1.6 m/s, springs 1.6 cm) the collider's projection

@@ -37,9 +37,10 @@ def nearest_pin_paths(pairs: np.ndarray, rest: np.ndarray, particle_count: int, 
     """Multi-source Dijkstra over the springs: for each particle, the nearest pin (-1 if none is
     connected) and the rest length g of the shortest spring path to it [m] (inf if none).
 
-    ``scipy.sparse.csgraph.dijkstra`` (0.018 s at 256 x 256 where a Python heap took 0.89 s: every
-    implicit_euler simulator builds a limiter for its strain cap); a spring listed twice counts
-    with its shorter rest length."""
+    ``scipy.sparse.csgraph.dijkstra``: at 256 x 256 the search took 0.015-0.018 s where a Python
+    heap took 0.65-0.89 s (single runs; every implicit_euler simulator builds a limiter for its
+    strain cap, whose spring colouring, ~0.3 s there, is the rest of its build). A spring listed
+    twice counts with its shorter rest length."""
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import dijkstra
 
