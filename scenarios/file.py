@@ -530,7 +530,6 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         cols=int(mesh.vertices.shape[0]),
         mass=0.2 if mass is None else mass,
         integrator="explicit_euler",
-        integrator_options=dict(options),
         duration=10.0,
         fps=60.0,
         stiffness=stiffness,
@@ -547,6 +546,9 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         **material_values,
     )
     defaults = replace(defaults, dt=dt.value if dt is not None and dt.kind == "value" else None, **config_values(given))
+    # the file's options are its integrator's scene settings: a flag for one of them wins, and another
+    # integrator chosen by a flag runs with its own (in the configuration, the CLI's options replaced them)
+    integrator_defaults = {defaults.integrator: dict(options)} if options else {}
     scenario = Scenario(
         name=top.text("name", os.path.splitext(where)[0]),
         description=top.text("description", f"scenario file {where}"),
@@ -557,11 +559,12 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         stop_at_equilibrium=top.boolean("stop_at_equilibrium", True),
         model=model,
         tracks=pin_tracks,
+        integrator_defaults=integrator_defaults,
     )
     try:  # the integrator, its options and the pins, checked now
         from warpcloth.integrators import make_integrator
 
-        make_integrator(defaults.integrator, **defaults.integrator_options)
+        make_integrator(defaults.integrator, **dict(options))
         scenario_material(defaults)
         resolve_pins(mesh.vertices, pin_indices, defaults.pin_group or (), defaults.pin_where, mesh.groups)
     except WarpclothError as exc:

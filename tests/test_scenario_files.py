@@ -141,6 +141,9 @@ def test_scenario_file_runs_through_run(capsys, scenario_file):
     d = json.loads(out)
     assert d["scenario"] == "windy-cape" and d["integrator"] == "xpbd" and d["dt"] == 0.005 and d["stable"]
     assert d["particles"] == 320
+    assert d["solver"]["iterations"] == 8  # the file's integrator options (they were dropped on this path)
+    code, out, err = run_cli(capsys, "run", str(scenario_file), "--substeps", "2", "--duration", "0.02", "--json")
+    assert code == 0 and json.loads(out)["solver"]["iterations"] == 8 and json.loads(out)["solver"]["substeps"] == 2
     sim = get_scenario(str(scenario_file)).build()
     assert sim.control.has_wind and sim.control.drag_rate == 0.5
     assert sim.model.pinned.tolist() == list(range(32))  # the predicate's top row and the tracked shoulders
