@@ -29,10 +29,10 @@ def run_frames(sim, seconds, check=None):
             check(sim)
 
 
-def known_failures(names, reason):
-    """INTEGRATORS with those in ``names`` marked as strict expected failures (``reason``)."""
+def known_failures(names, reason, strict=True):
+    """INTEGRATORS with those in ``names`` marked as expected failures (``reason``; ``strict``: a pass fails)."""
     return [
-        pytest.param(i, marks=pytest.mark.xfail(strict=True, reason=reason)) if i in names else i for i in INTEGRATORS
+        pytest.param(i, marks=pytest.mark.xfail(strict=strict, reason=reason)) if i in names else i for i in INTEGRATORS
     ]
 
 
@@ -57,7 +57,10 @@ FOLD_NOT_HELD = ("implicit_euler",)
 
 @pytest.mark.parametrize(
     "integrator",
-    known_failures(FOLD_NOT_HELD, "a layer folded back onto a landed one at dt = 1/60 s (start-sensitive)"),
+    # not strict: which start crosses is a matter of rounding (another Warp or LLVM may pass it)
+    known_failures(
+        FOLD_NOT_HELD, "a layer folded back onto a landed one at dt = 1/60 s (start-sensitive)", strict=False
+    ),
 )
 def test_the_fold_has_no_intersection_at_any_frame(integrator):
     """The strip laid on the ground and folded back over itself (24 x 8, default dt of each scheme, 2.6 s:
