@@ -179,6 +179,11 @@ class Scenario:
     kind: str | None = None
     integrator_defaults: dict = field(default_factory=dict)
 
+    def integrator_options(self, integrator: str, options: dict | None = None) -> dict:
+        """The options this scene runs ``integrator`` with: its :attr:`integrator_defaults` for it,
+        then ``options`` (the user's) over them."""
+        return {**self.integrator_defaults.get(integrator, {}), **(options or {})}
+
     @property
     def is_mesh(self) -> bool:
         """Whether the cloth is a mesh (its size from the mesh; grid parameters refused): ``kind``,
@@ -208,10 +213,8 @@ class Scenario:
             raise WarpclothError(
                 f"integrator_options must be a dict of option names and values, got {cfg.integrator_options!r:.80}"
             )
-        if isinstance(cfg.integrator, str):  # the scene's own settings for this integrator, then the user's
-            cfg = replace(
-                cfg, integrator_options={**self.integrator_defaults.get(cfg.integrator, {}), **cfg.integrator_options}
-            )
+        if isinstance(cfg.integrator, str):
+            cfg = replace(cfg, integrator_options=self.integrator_options(cfg.integrator, cfg.integrator_options))
         if self.model is not None:  # a mesh: the scenario builds its own model
             integrator = make_integrator(cfg.integrator, **cfg.integrator_options)
             with wp.ScopedDevice(device):

@@ -564,7 +564,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
     try:  # the integrator, its options and the pins, checked now
         from warpcloth.integrators import make_integrator
 
-        make_integrator(defaults.integrator, **dict(options))
+        make_integrator(defaults.integrator, **options)
         scenario_material(defaults)
         resolve_pins(mesh.vertices, pin_indices, defaults.pin_group or (), defaults.pin_where, mesh.groups)
     except WarpclothError as exc:

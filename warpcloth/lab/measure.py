@@ -167,9 +167,9 @@ class Measurements:
                 dt=FRAME_DT,
             )
             self._counts[key] = (sim.model.particle_count, sim.model.spring_count)
-        # the scene's own settings for it (Scenario.integrator_defaults), as Scenario.build gives the max-dt search
-        scene = self._scenario(scenario).integrator_defaults.get(integrator, {})
-        sim.set_integrator(make_integrator(integrator, **{**scene, **study_options(integrator, options)}), dt=FRAME_DT)
+        # under the scene's own settings for it, as Scenario.build gives the max-dt search
+        opts = self._scenario(scenario).integrator_options(integrator, study_options(integrator, options))
+        sim.set_integrator(make_integrator(integrator, **opts), dt=FRAME_DT)
         sim.reset()
         return sim
 
