@@ -163,6 +163,14 @@ class VBD(IncrementSolver):
             check=lambda v: None if 0.0 < v < math.inf else "must be > 0 and finite",
         ),
         Option(
+            "vbd_correction_strain",
+            float,
+            0.0,
+            "with colliders: the multigrid correction goes no further than stretches a spring this far past its rest "
+            "length (or further than it already is), e.g. 0.1; 0: no limit (the tablecloth scene runs 0.1)",
+            check=lambda v: None if 0.0 <= v < math.inf else "must be >= 0 and finite",
+        ),
+        Option(
             "vbd_chebyshev_rho",
             float,
             0.0,
@@ -205,6 +213,7 @@ class VBD(IncrementSolver):
             self.multigrid.l1_smoother = True
             self.residual, self.delta, self.delta_image = scratch_like(model, 3)
             self.line_sums = wp.zeros(2, dtype=float, device=model.device)
+            self.stretch_cap = wp.ones(1, dtype=float, device=model.device)  # the correction's largest step
 
     def step(self, state, control, dt):
         m, h = self.model, float(dt)
@@ -332,10 +341,19 @@ class VBD(IncrementSolver):
                 outputs=[self.line_sums],
                 device=m.device,
             )
+            if self.vbd_correction_strain > 0.0:  # without it the cap stays 1
+                self.stretch_cap.fill_(1.0)
+                wp.launch(
+                    vk.correction_stretch_cap,
+                    dim=m.spring_count,
+                    inputs=[x, self.dx, self.delta, m.spring_indices, m.spring_rest_length, self.vbd_correction_strain],
+                    outputs=[self.stretch_cap],
+                    device=m.device,
+                )
             wp.launch(
                 vk.add_scaled_increment,
                 dim=m.particle_count,
-                inputs=[self.delta, self.line_sums],
+                inputs=[self.delta, self.line_sums, self.stretch_cap],
                 outputs=[self.dx],
                 device=m.device,
             )
