@@ -73,7 +73,10 @@ def _control(config: ScenarioConfig, device: str) -> Control:
     if drag is None:
         drag = 2.0 * first_mode(overhang(config), rigidity, weight) if rigidity else 1.0
     ledge = Box(
-        center=(-0.05, 0.5 * LEDGE, 0.0), half_extents=(0.05, 0.5 * LEDGE, max(0.03, config.height)), thickness=0.0
+        center=(-0.05, 0.5 * LEDGE, 0.0),
+        half_extents=(0.05, 0.5 * LEDGE, max(0.03, config.height)),
+        thickness=0.0,
+        edge_radius=0.0,  # the sharp ledge the strip leaves (the elastica's clamp), not rounded
     )
     return Control(drag_rate=drag, colliders=(ledge,), device=device)
 

@@ -210,3 +210,18 @@ def assert_replay_matches_launches(a, b) -> None:
     assert np.array_equal(a.state.particle_q.numpy(), b.state.particle_q.numpy())
     assert np.array_equal(a.state.particle_qd.numpy(), b.state.particle_qd.numpy())
     assert np.array_equal(a.control.time.numpy(), b.control.time.numpy())
+
+
+def box_edge_radius(sim) -> float:
+    """R [m] of the first box collider of ``sim`` as its kernels use it (its thickness plus the rounding
+    the simulator bound for its cloth: the particles keep R from the box's edges, docs/colliders.md)."""
+    colliders = sim.control.colliders
+    k = next(k for k, c in enumerate(colliders) if c.kind == "box")
+    return float(colliders[k].thickness) + sim.control.collision.roundings()[k]
+
+
+def sharp_boxes(sim) -> None:
+    """Give ``sim``'s box colliders sharp edges (edge_radius 0: their particles at the thickness only)."""
+    from dataclasses import replace
+
+    sim.control.colliders = tuple(replace(c, edge_radius=0.0) if c.kind == "box" else c for c in sim.control.colliders)

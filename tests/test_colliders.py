@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import PER_SPRING_SCENE, free_particles, parse_collider
+from helpers import PER_SPRING_SCENE, free_particles, parse_collider, sharp_boxes
 
 from warpcloth import (
     Box,
@@ -185,6 +185,9 @@ def test_the_tablecloth_hangs_over_the_edges():
     from warpcloth.scenarios import tablecloth as t
 
     sim = t.build(rows=14, cols=14, integrator="explicit_euler", **PER_SPRING_SCENE)
+    # the table sharp: at 14 x 14 its edges rounded for the cloth (8.5 cm) would tent the cloth over the top
+    # (docs/colliders.md); the rounded default is test_self_collision.py's tablecloth
+    sharp_boxes(sim)
     r = RunHarness(sim).run(10.0, stop_at_equilibrium=True)
     assert r.stable and r.equilibrium_reached
     x = sim.state.particle_q.numpy().astype(np.float64)
@@ -235,4 +238,67 @@ def test_collider_flag_and_scenario_file(capsys, tmp_path):
     assert sim.control.colliders == (Sphere(center=(0.5, 0.5, 0.5), radius=0.3, friction=0.2),)
     path.write_text('[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "sphere"\nradius = 0.3\ncolour = 1\n')
     with pytest.raises(WarpclothError, match=r"\[\[colliders\]\] #1: unknown key 'colour'"):
+        get_scenario(str(path))
+
+
+# -- a box's rounded edges (docs/colliders.md) -----------------------------------------------------------
+def test_a_box_holds_particles_its_edge_radius_from_its_edges_and_corners_and_the_thickness_from_its_faces():
+    """Free particles (no gravity) 1 cm from a box's top edge and from its corner, and one 2 mm over
+    its top face: the first two end 3 cm from the edge and the corner (edge_radius), the third at the
+    4 mm thickness; a particle 5 cm in from the edge, at the thickness, stays where it is."""
+    box = Box(center=(0.0, 0.0, 0.0), half_extents=(0.4, 0.2, 0.4), thickness=0.004, edge_radius=0.03)
+    edge = np.array([0.4, 0.2, 0.0])
+    corner = np.array([0.4, 0.2, 0.4])
+    start = [
+        edge + [0.007, 0.007, 0.0],
+        corner + [0.006, 0.006, 0.006],
+        [0.0, 0.202, 0.0],
+        [0.35, 0.204 + 1e-4, 0.0],
+        corner + [-0.01, 0.01, -0.01],  # over the top by the corner: in both top edges' capsules (a crease)
+    ]
+    sim = Simulator(free_particles(start), "explicit_euler", Control(gravity=(0, 0, 0), colliders=(box,), device="cpu"))
+    sim.simulate(5)
+    x = sim.state.particle_q.numpy().astype(np.float64)
+    assert np.linalg.norm(x[0] - edge) == pytest.approx(0.03, abs=1e-6)
+    np.testing.assert_allclose((x[0] - edge)[:2] / np.linalg.norm(x[0] - edge), [2**-0.5, 2**-0.5], atol=1e-5)
+    assert np.linalg.norm(x[1] - corner) == pytest.approx(0.03, abs=1e-6)
+    assert x[2, 1] == pytest.approx(0.204, abs=1e-6)
+    np.testing.assert_allclose(x[3], start[3], atol=1e-6)
+    u = np.abs(x[4]) - box.half_extents  # out of all three capsules at the corner, and it stays there
+    edges = [np.linalg.norm(np.where(np.arange(3) == i, np.maximum(u, 0.0), u)) for i in range(3)]
+    assert min(edges) >= 0.03 - 1e-6
+    sim.simulate(5)
+    np.testing.assert_allclose(sim.state.particle_q.numpy()[4], x[4], atol=1e-7)
+    assert sim.control.collision.roundings() == pytest.approx([0.026])  # the radius beyond the thickness
+
+
+def test_a_box_rounds_its_edges_by_the_cloth_it_holds_unless_told():
+    """edge_radius None: 1.2 times the cloth's largest triangle circumradius at rest (a grid's: half
+    its diagonal), bound when the simulator first steps; 0 keeps the box sharp; a negative value is
+    a one-line error."""
+    from warpcloth.sim.colliders import auto_edge_radius
+
+    model = build_grid_cloth(11, 11, 1.0, 1.0, 0.1, plane="horizontal", origin=(-0.5, 1.0, -0.5), device="cpu")
+    spacing = 0.1
+    assert auto_edge_radius(model.host["q"], model.host["tris"]) == pytest.approx(1.2 * spacing / 2**0.5)
+    boxes = (Box(center=(0, 0.5, 0), half_extents=(0.2, 0.2, 0.2), thickness=0.004), Box(edge_radius=0.0), Plane())
+    sim = Simulator(model, "explicit_euler", Control(colliders=boxes, device="cpu"))
+    sim.simulate(1)
+    assert sim.control.collision.roundings() == pytest.approx([1.2 * spacing / 2**0.5 - 0.004, 0.0, 0.0])
+    with pytest.raises(WarpclothError, match="box edge_radius must be >= 0"):
+        Box(edge_radius=-0.01)
+
+
+def test_a_box_edge_radius_from_the_command_line_and_a_scenario_file(tmp_path):
+    box = parse_collider("box:center=0/0.5/0,half_extents=0.2/0.2/0.2,edge_radius=0.02")
+    assert box.edge_radius == 0.02
+    from warpcloth.scenarios import get_scenario
+
+    (tmp_path / "grid.obj").write_text("v 0 1 0\nv 1 1 0\nv 0 1 1\nv 1 1 1\nf 1 3 4 2\n")
+    path = tmp_path / "s.toml"
+    table = '[cloth]\nmesh = "grid.obj"\n[[colliders]]\nkind = "box"\nhalf_extents = [0.2, 0.2, 0.2]\nedge_radius = '
+    path.write_text(table + "0.05\n")
+    assert get_scenario(str(path)).build().control.colliders[0].edge_radius == 0.05
+    path.write_text(table + "-1\n")
+    with pytest.raises(WarpclothError, match=r"\[\[colliders\]\] #1: box edge_radius must be >= 0 m, got -1"):
         get_scenario(str(path))

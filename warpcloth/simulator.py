@@ -365,6 +365,8 @@ class Simulator:
         """Before a frame of ``steps`` steps: the integrator's start if due (:meth:`_begin`) and
         the driven tracks' keys for the frame (their targets set since the last frame)."""
         self._bind_integrator_limiter()  # its strain cap may have been set since (a new limiter only then)
+        if self.control.collision is not None:  # the boxes' edge radius from this model (once per model)
+            self.control.collision.bind_model(self.model)
         if self._needs_begin:
             self._begin(steps)
         elif self.control.upload_drives(self._dt, steps, self.sim_time):

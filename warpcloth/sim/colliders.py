@@ -354,7 +354,16 @@ class Capsule(_Posed):
 @dataclass(frozen=True)
 class Box(_Posed):
     """An oriented box: ``center``, ``half_extents`` (all > 0) and a rotation quaternion
-    (x, y, z, w), normalised."""
+    (x, y, z, w), normalised.
+
+    ``edge_radius`` [m]: the distance the cloth's particles keep from the box's 12 edges and 8
+    corners (the faces keep ``thickness``): the contact surface is the box grown by ``thickness``
+    with capsules of this radius along its edges. A point of a triangle is never farther than the
+    triangle's circumradius from all three of its vertices, so while every cloth triangle's
+    circumradius is below R, an edge R or more from every particle cannot pass through the cloth.
+    None (the default): :func:`auto_edge_radius` of the cloth the box is bound to (its largest
+    circumradius at rest, 20 % to spare for stretch), the thickness where that is larger; 0: the
+    sharp box (particles alone, at the thickness). docs/colliders.md."""
 
     center: tuple = (0.0, 0.0, 0.0)
     half_extents: tuple = (0.5, 0.5, 0.5)
@@ -362,6 +371,7 @@ class Box(_Posed):
     thickness: float = 0.0
     friction: float = 0.0
     track: ColliderTrack | None = None
+    edge_radius: float | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "center", require_vector("box center", self.center, 3, "m"))
@@ -377,6 +387,8 @@ class Box(_Posed):
         )
         object.__setattr__(self, "rotation", tuple(q / np.linalg.norm(q)))
         _material(self.thickness, self.friction)
+        if self.edge_radius is not None:
+            object.__setattr__(self, "edge_radius", require_non_negative("box edge_radius", self.edge_radius, "m"))
         _track(self)
 
     def _moved(self, move, r):
@@ -386,7 +398,36 @@ class Box(_Posed):
             rotation=_matrix_quat(r @ _quat_matrix(self.rotation)),
             thickness=self.thickness,
             friction=self.friction,
+            edge_radius=self.edge_radius,
         )
+
+    def rounding(self, auto_radius: float) -> float:
+        """The box's edges' radius beyond its thickness [m] (the kernels' ``rounding``): its
+        ``edge_radius``, or ``auto_radius`` where that is None, less the thickness; >= 0."""
+        radius = auto_radius if self.edge_radius is None else self.edge_radius
+        return max(float(radius) - float(self.thickness), 0.0)
+
+
+#: Box.edge_radius None: the cloth's largest triangle circumradius at rest times this (the stretch it may take)
+AUTO_EDGE_STRETCH = 1.2
+
+
+def auto_edge_radius(points, triangles) -> float:
+    """:data:`AUTO_EDGE_STRETCH` times the largest "reach" of ``triangles`` (T, 3) over ``points``
+    (N, 3) [m]: a triangle's circumradius abc / (4 area), or its longest edge / sqrt(2) where that is
+    smaller (an obtuse triangle lies in the circle on its longest edge, so each of its points is
+    within that of two vertices); 0 without triangles. The grid's right triangles: half the diagonal."""
+    tris = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if tris.size == 0:
+        return 0.0
+    x = np.asarray(points, dtype=np.float64)
+    p, q, r = x[tris[:, 0]], x[tris[:, 1]], x[tris[:, 2]]
+    a, b, c = (np.linalg.norm(u, axis=1) for u in (q - r, r - p, p - q))
+    area2 = np.linalg.norm(np.cross(q - p, r - p), axis=1)  # twice the area
+    longest = np.maximum(np.maximum(a, b), c)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        circum = np.where(area2 > 0.0, a * b * c / (2.0 * area2), np.inf)
+    return AUTO_EDGE_STRETCH * float(np.minimum(circum, longest / np.sqrt(2.0)).max())
 
 
 @dataclass(frozen=True, eq=False)

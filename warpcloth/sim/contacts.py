@@ -30,7 +30,14 @@ import warp as wp
 from warpcloth.errors import WarpclothError
 from warpcloth.kernels import collide as ck
 from warpcloth.kernels import edge_contact as ek
-from warpcloth.sim.colliders import COLLIDER_TYPES, KINDS, _quat_matrix, describe, signed_distance
+from warpcloth.sim.colliders import (
+    COLLIDER_TYPES,
+    KINDS,
+    _quat_matrix,
+    auto_edge_radius,
+    describe,
+    signed_distance,
+)
 
 
 class ColliderSet:
@@ -96,12 +103,38 @@ class ColliderSet:
                 self._moving.append((ck.eval_collider_driven_pose, k, [self.frame_times, *drive.bind(device), turn]))
                 self.drives.append(drive)
         self._box_ready = False
+        self._rounded_for = None  # the model whose triangles set the boxes' automatic edge radius (bind_model)
         self._edges = None  # ColliderEdges of the last model asked (edges)
         #: Hold the cloth off the edges and corners of static box and mesh colliders (:meth:`edges`,
         #: docs/self-collision.md). Off by default: with it the tablecloth does not come to rest (its
         #: hanging flaps keep moving at 1-6 cm/s over the table's edge) and a cube mesh and the analytic
         #: box drape a cloth up to 1 cm apart; set it before the first step.
         self.edge_contacts = False
+
+    def bind_model(self, model) -> None:
+        """Round the boxes' edges for ``model``'s cloth (:attr:`Box.edge_radius
+        <warpcloth.sim.colliders.Box.edge_radius>` None: from its longest triangle edge at rest):
+        host work at a model's first frame, nothing after; the records are rewritten in place, so a
+        captured step reads the new radius."""
+        if self._rounded_for is model or not any(c.kind == "box" for c in self.order):
+            self._rounded_for = model
+            return
+        auto = auto_edge_radius(model.host["q"], model.host["tris"])
+        rest = self.rest.numpy()
+        posed = self.params.numpy()
+        for k, c in enumerate(self.order):
+            if c.kind == "box":
+                rest[k]["rounding"] = posed[k]["rounding"] = c.rounding(auto)
+        self.rest.assign(rest)
+        self.params.assign(posed)
+        self._bound()  # the broad phase's box grows with the rounding
+        self._rounded_for = model
+
+    def roundings(self) -> list:
+        """Each collider's rounding [m] as the kernels use it (0 but for boxes), in ``colliders`` order."""
+        values = self.rest.numpy()["rounding"]
+        where = {id(c): k for k, c in enumerate(self.order)}
+        return [float(values[where[id(c)]]) for c in self.colliders]
 
     @property
     def moving(self) -> bool:
@@ -405,6 +438,7 @@ def _record(c, mesh=None):
         r.a = r.bound_center = wp.vec3(*c.center)
         r.b = wp.vec3(*c.half_extents)
         r.rotation = wp.mat33(_quat_matrix(c.rotation).astype(np.float32))
+        r.rounding = c.rounding(0.0) if c.edge_radius is not None else 0.0  # automatic: bind_model
     r.velocity = r.omega = r.origin = wp.vec3(0.0, 0.0, 0.0)
     r.moving = 0
     return r
