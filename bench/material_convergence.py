@@ -54,6 +54,7 @@ def edge_scenario():
             half_extents=(0.5, 0.5 * TABLE_HEIGHT, 0.7),
             thickness=TABLE_THICKNESS,
             friction=0.5,
+            edge_radius=0.0,  # sharp at every mesh size (the default rounds it by the cloth's spacing)
         )
         return Control(drag_rate=1.0, colliders=(table,), device=device)
 

@@ -18,6 +18,7 @@ from warpcloth import (
     build_grid_cloth,
 )
 from warpcloth.run.harness import RunHarness
+from warpcloth.sim.colliders import box_edge_distance
 
 G = 9.81
 INTEGRATORS = ["explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd", "vbd", "projective"]
@@ -264,9 +265,7 @@ def test_a_box_holds_particles_its_edge_radius_from_its_edges_and_corners_and_th
     assert np.linalg.norm(x[1] - corner) == pytest.approx(0.03, abs=1e-6)
     assert x[2, 1] == pytest.approx(0.204, abs=1e-6)
     np.testing.assert_allclose(x[3], start[3], atol=1e-6)
-    u = np.abs(x[4]) - box.half_extents  # out of all three capsules at the corner, and it stays there
-    edges = [np.linalg.norm(np.where(np.arange(3) == i, np.maximum(u, 0.0), u)) for i in range(3)]
-    assert min(edges) >= 0.03 - 1e-6
+    assert box_edge_distance(box, x[4:5])[0] >= 0.03 - 1e-6  # out of all three capsules at the corner, and it stays
     sim.simulate(5)
     np.testing.assert_allclose(sim.state.particle_q.numpy()[4], x[4], atol=1e-7)
     assert sim.control.collision.roundings() == pytest.approx([0.026])  # the radius beyond the thickness
@@ -302,3 +301,39 @@ def test_a_box_edge_radius_from_the_command_line_and_a_scenario_file(tmp_path):
     path.write_text(table + "-1\n")
     with pytest.raises(WarpclothError, match=r"\[\[colliders\]\] #1: box edge_radius must be >= 0 m, got -1"):
         get_scenario(str(path))
+
+
+@pytest.mark.parametrize("integrator", ["explicit_euler", "implicit_euler", "xpbd"])
+@pytest.mark.parametrize("thickness", [0.0, 0.004])
+def test_a_particle_sliding_to_a_rounded_edge_stays_its_radius_from_it(integrator, thickness):
+    """A particle slides at 0.3 m/s over a box's top toward its edge (no friction): it never comes
+    nearer the edge than edge_radius (a box of thickness 0 too, whose resting particles sit at phi <= 0:
+    before, those took the sharp box's response and came within 3 mm of the edge, or onto it)."""
+    half = (0.4, 0.2, 0.4)
+    box = Box(center=(0.0, 0.0, 0.0), half_extents=half, thickness=thickness, edge_radius=0.03)
+    sim = Simulator(free_particles([[0.3, 0.2 + thickness, 0.0]]), integrator, Control(colliders=(box,), device="cpu"))
+    sim.state.particle_qd.assign(np.array([[0.3, 0.0, 0.0]], dtype=np.float32))
+    nearest = np.inf
+    for _ in range(60):
+        sim.simulate(max(1, round(1.0 / 60.0 / sim.dt)))
+        nearest = min(nearest, float(box_edge_distance(box, sim.state.particle_q.numpy())[0]))
+    assert nearest > 0.03 - 2e-4, nearest
+
+
+def test_a_thin_box_pushes_a_particle_out_past_both_of_its_edges():
+    """A particle 2 mm off the side of a 1 cm plate, at mid-height, within R of both of the side's
+    edges: one step takes it out of both capsules and the plate (each projection round sees the
+    edge across the mid-plane), and it stays put."""
+    half = (0.2, 0.005, 0.2)
+    box = Box(center=(0.0, 0.0, 0.0), half_extents=half, thickness=0.004, edge_radius=0.0175)
+    sim = Simulator(
+        free_particles([[0.202, 0.0, 0.0]]),
+        "explicit_euler",
+        Control(gravity=(0, 0, 0), colliders=(box,), device="cpu"),
+    )
+    sim.simulate(1)
+    x = sim.state.particle_q.numpy().astype(np.float64)
+    assert box_edge_distance(box, x)[0] >= 0.0175 - 1e-6
+    assert np.linalg.norm(x[0] - [0.202, 0.0, 0.0]) < 0.025  # out, not around the plate (nearest way: 1.5 cm)
+    sim.simulate(5)
+    np.testing.assert_allclose(sim.state.particle_q.numpy()[0], x[0], atol=1e-6)

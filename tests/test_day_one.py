@@ -5,7 +5,7 @@ with loose vertices is read without them (one note line)."""
 import numpy as np
 import pytest
 
-from warpcloth import Box, Capsule, Plane, Sphere, WarpclothError
+from warpcloth import Box, Capsule, Control, Plane, Sphere, WarpclothError
 from warpcloth.cli import main
 from warpcloth.sim.colliders import signed_distance
 from warpcloth.sim.contacts import starting_inside
@@ -133,3 +133,24 @@ def test_a_mesh_run_and_a_scenario_file_use_the_mesh_without_its_loose_vertices(
     err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warpcloth:")]
     assert exc.value.code == 2 and len(err) == 1
     assert "loose.toml: pins.indices: vertex 2 belongs to no face" in err[0], err
+
+
+def test_a_cloth_starting_within_a_boxs_rounded_edge_is_warned_of(capsys):
+    """A 9 x 9 cloth (10 cm spacing: the box's automatic edge radius 8.5 cm) laid 5 mm over a box
+    whose edge runs under it: one warning names the box and the radius; the same cloth 20 cm up: none."""
+    from warpcloth import Simulator, build_grid_cloth
+    from warpcloth.run.harness import RunHarness
+
+    box = Box(center=(0.0, 0.0, 0.0), half_extents=(0.25, 0.1, 0.25))
+    for height, warned in ((0.105, True), (0.3, False)):
+        model = build_grid_cloth(9, 9, 0.8, 0.8, 0.1, plane="horizontal", origin=(-0.4, height, -0.4), device="cpu")
+        sim = Simulator(model, "explicit_euler", Control(colliders=(box,), device="cpu"))
+        RunHarness(sim).run(0.01)
+        err = capsys.readouterr().err
+        lines = [line for line in err.splitlines() if "start within the rounded edges" in line]
+        if warned:
+            assert (
+                len(lines) == 1 and "of collider 0 (box at (0, 0, 0)" in lines[0] and "edge radius 0.0849 m" in lines[0]
+            )
+        else:
+            assert lines == []

@@ -207,3 +207,19 @@ def test_a_step_with_contacts_allocates_nothing(monkeypatch, integrator, use_gra
     monkeypatch.setattr(CpuDefaultAllocator, "allocate", original)
     assert created == []
     assert sim.integrator.contact_state.numpy().any()  # it did touch
+
+
+def test_vbd_correction_strain_0_ignores_the_stretch_cap():
+    """vbd_correction_strain 0 is off whatever the cap array holds (an option set to 0 after a capped
+    correction left it below 1, and the correction stayed scaled by it): two 12 x 12 tablecloths under
+    vbd through their landing, one with its cap array zeroed, step bit-identically."""
+    from warpcloth.scenarios import tablecloth as t
+
+    runs = []
+    for stale in (False, True):
+        sim = t.build(rows=12, cols=12, integrator="vbd", integrator_options={"vbd_correction_strain": 0.0})
+        if stale:
+            sim.integrator.stretch_cap.fill_(0.0)
+        sim.simulate(15)
+        runs.append(sim.state.particle_q.numpy())
+    np.testing.assert_array_equal(runs[0], runs[1])

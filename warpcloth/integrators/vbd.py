@@ -341,7 +341,7 @@ class VBD(IncrementSolver):
                 outputs=[self.line_sums],
                 device=m.device,
             )
-            if self.vbd_correction_strain > 0.0:  # without it the cap stays 1
+            if self.vbd_correction_strain > 0.0:  # without it add_scaled_increment ignores the cap
                 self.stretch_cap.fill_(1.0)
                 wp.launch(
                     vk.correction_stretch_cap,
@@ -353,7 +353,7 @@ class VBD(IncrementSolver):
             wp.launch(
                 vk.add_scaled_increment,
                 dim=m.particle_count,
-                inputs=[self.delta, self.line_sums, self.stretch_cap],
+                inputs=[self.delta, self.line_sums, self.stretch_cap, int(self.vbd_correction_strain > 0.0)],
                 outputs=[self.dx],
                 device=m.device,
             )

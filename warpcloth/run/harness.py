@@ -544,7 +544,29 @@ class RunHarness:
                 f"{count} of {int(free.sum())} free cloth vertices start inside collider {k} ({what}): the first step "
                 f"throws them out; move the cloth or the collider"
             )
+        self._check_rounded_edges(sim, free, {k for k, _, _ in found})
         return found
+
+    def _check_rounded_edges(self, sim, free, inside: set) -> None:
+        """One warning line per box whose rounded edges (Box.edge_radius, docs/colliders.md) free
+        vertices start within: the first step pushes them out to the radius at once."""
+        from warpcloth.sim.colliders import box_edge_distance, describe, signed_distance
+
+        contacts = sim.control.collision
+        contacts.bind_model(sim.model)  # the boxes' radius for this cloth (once per model)
+        x = sim.state.particle_q.numpy().astype(np.float64)[free]
+        for k, (c, rounding) in enumerate(zip(sim.control.colliders, contacts.roundings())):
+            if c.kind != "box" or rounding <= 0.0 or k in inside:
+                continue
+            posed = c.at(sim.sim_time) if c.track is not None else c
+            radius = float(c.thickness) + rounding
+            near = (box_edge_distance(posed, x) < radius) & (signed_distance(posed, x) >= 0.0)
+            if count := int(np.count_nonzero(near)):
+                warn(
+                    f"{count} of {int(free.sum())} free cloth vertices start within the rounded edges of collider {k} "
+                    f"({describe(posed)}, edge radius {radius:.3g} m): the first step pushes them out to it at once; "
+                    f"move the cloth, or give the box a smaller edge_radius (0: sharp)"
+                )
 
     def _advance(self, n: int, loop_start: float, wall_cap: float | None) -> bool:
         """Advance ``n`` steps in chunks of about :data:`CHUNK_SECONDS` of wall time, checking
