@@ -59,7 +59,10 @@ class Collider:
     origin: wp.vec3  # o [m]
     rest_center: wp.vec3  # a MESH's box centre in the mesh's own frame (its BVH's), where a = its posed centre [m]
     moving: int  # 1: on a track (velocity, omega, origin set by eval_collider_pose); 0: static, v_c = 0
-    rounding: float  # a BOX's edges and corners held at thickness + rounding, its faces at thickness [m]
+    rounding: float  # a BOX's edges and corners (a MESH's convex creases) held at thickness + rounding [m]
+    crease_bvh: wp.uint64  # a MESH's convex creases and open edges: a wp.Bvh of their boxes (0: none)
+    crease_a: wp.array(dtype=wp.vec3)  # their ends, in the mesh's own frame [m]
+    crease_b: wp.array(dtype=wp.vec3)
 
 
 @wp.struct
@@ -244,6 +247,78 @@ def posed_mesh_contact(
 
 
 @wp.func
+def nearest_crease(bvh: wp.uint64, a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), y: wp.vec3, radius: float):
+    # (distance, y less its nearest point) of the nearest crease segment within `radius` of y (1e30: none)
+    best = float(1.0e30)
+    w_best = wp.vec3(0.0)
+    query = wp.bvh_query_aabb(bvh, y - wp.vec3(radius), y + wp.vec3(radius))
+    e = int(0)
+    while wp.bvh_query_next(query, e):
+        ab = b[e] - a[e]
+        t = wp.clamp(wp.dot(y - a[e], ab) / wp.max(wp.dot(ab, ab), 1.0e-20), 0.0, 1.0)
+        w = y - (a[e] + t * ab)
+        d = wp.length(w)
+        if d < best:
+            best = d
+            w_best = w
+    return best, w_best
+
+
+@wp.func
+def out_of_creases(bvh: wp.uint64, a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), y: wp.vec3, radius: float):
+    # y pushed out of the capsule of `radius` of each crease segment whose box meets y's (one after another)
+    query = wp.bvh_query_aabb(bvh, y - wp.vec3(radius), y + wp.vec3(radius))
+    e = int(0)
+    while wp.bvh_query_next(query, e):
+        ab = b[e] - a[e]
+        t = wp.clamp(wp.dot(y - a[e], ab) / wp.max(wp.dot(ab, ab), 1.0e-20), 0.0, 1.0)
+        w = y - (a[e] + t * ab)
+        d = wp.length(w)
+        if d < radius and d > 0.0:
+            y = y + (radius - d) / d * w
+    return y
+
+
+@wp.func
+def rounded_mesh_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, phi: float, n: wp.vec3):
+    # a mesh's (phi, n) with capsules of radius R = thickness + rounding about its convex creases (as
+    # rounded_box_contact): where no capsule holds x, the mesh's own (or the nearer capsule's distance
+    # where that is smaller and x is free); where one does, three rounds of a push out of each capsule
+    # near it and then out of the surface's shell, in the mesh's own frame, and phi = thickness - |move|
+    rounding = colliders[k].rounding
+    thickness = colliders[k].thickness
+    if rounding <= 0.0 or colliders[k].crease_bvh == wp.uint64(0) or (phi <= 0.0 and thickness > 0.0):
+        return phi, n
+    rotation = wp.identity(n=3, dtype=float)
+    y0 = x
+    if colliders[k].moving != 0:
+        rotation = colliders[k].rotation
+        y0 = colliders[k].rest_center + wp.transpose(rotation) * (x - colliders[k].a)
+    radius = thickness + rounding
+    bvh = colliders[k].crease_bvh
+    ca = colliders[k].crease_a
+    cb = colliders[k].crease_b
+    d, w = nearest_crease(bvh, ca, cb, y0, radius)
+    if d >= radius:
+        if phi >= thickness and d - rounding < phi and d < 1.0e29:
+            return d - rounding, rotation * (w / d)
+        return phi, n
+    mesh = colliders[k].mesh
+    reach = wp.max(colliders[k].radius, rounding)
+    y = y0
+    for _round in range(3):
+        y = out_of_creases(bvh, ca, cb, y, radius)
+        ph, nn = mesh_contact(y, mesh, thickness, reach)
+        if ph < thickness:
+            y = y + (thickness - ph) * nn
+    move = y - y0
+    length = wp.length(move)
+    if length == 0.0:
+        return phi, n
+    return thickness - length, rotation * (move / length)
+
+
+@wp.func
 def half_size(c: Collider):
     # half extents of the collider's axis-aligned bounding box, grown by its thickness
     if c.kind == SPHERE:
@@ -327,8 +402,8 @@ def shape_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, band:
     c = colliders[k].a
     h = colliders[k].b
     rotation = colliders[k].rotation
-    if kind == MESH:  # its box (b: half size grown by the thickness), then the BVH
-        return posed_mesh_contact(
+    if kind == MESH:  # its box (b: half size grown by the thickness and rounding), then the BVH
+        phi, n = posed_mesh_contact(
             x,
             c,
             rotation,
@@ -336,9 +411,12 @@ def shape_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, band:
             colliders[k].rest_center,
             colliders[k].mesh,
             colliders[k].thickness,
-            colliders[k].radius,
+            wp.max(colliders[k].radius, colliders[k].rounding),  # its reach, or its creases' capsules' if larger
             colliders[k].moving,
         )
+        if phi == NOT_NEAR:
+            return phi, n
+        return rounded_mesh_contact(colliders, k, x, phi, n)
     p = wp.transpose(rotation) * (x - c)
     rounding = colliders[k].rounding
     reach = reach + rounding

@@ -229,7 +229,10 @@ def pedestal(radius: float = PEDESTAL_RADIUS, height: float = PEDESTAL_HEIGHT, s
 
 def _control(config: ScenarioConfig, device: str) -> Control:
     v, t = pedestal(PEDESTAL_RADIUS - THICKNESS, PEDESTAL_HEIGHT - THICKNESS)
-    table = MeshCollider(vertices=v, triangles=t, thickness=THICKNESS, friction=FRICTION, source="pedestal")
+    # sharp: the standard's pedestal and clamp edge, where the pinned disc leaves them (not rounded for the cloth)
+    table = MeshCollider(
+        vertices=v, triangles=t, thickness=THICKNESS, friction=FRICTION, source="pedestal", edge_radius=0.0
+    )
     return Control(drag_rate=DRAG if config.drag is None else config.drag, colliders=(table,), device=device)
 
 

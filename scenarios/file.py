@@ -598,7 +598,7 @@ def _colliders(tables, where: str, path: str = "") -> tuple:
             raise WarpclothError(f"{what}: kind must be one of {', '.join(COLLIDER_TYPES)}, got {_shown(kind)}")
         settings = {key: value for key, value in t.items() if key != "kind"}
         if cls is MeshCollider:
-            _check_keys(settings, {"path", "prim", "thickness", "friction", "reach", "track"}, what)
+            _check_keys(settings, {"path", "prim", "thickness", "friction", "reach", "track", "edge_radius"}, what)
         else:
             _check_keys(settings, set(cls.__dataclass_fields__), what)
         for key, value in settings.items():

@@ -67,6 +67,10 @@ def test_a_particle_rests_on_the_pole_of_a_mesh_sphere(integrator):
 
 @pytest.mark.parametrize("integrator", ["explicit_euler", "implicit_euler", "pbd"])
 def test_a_cube_mesh_holds_a_cloth_as_the_box_does(integrator):
+    """Both sharp (edge_radius 0; rounded, the two resolve a particle in two edges' capsules at a
+    corner in different orders, both out of every capsule, and this coarse drape amplifies that)."""
+    edge_radius = 0.0
+
     def run(collider):
         model = build_grid_cloth(10, 10, 0.8, 0.8, 0.1, plane="horizontal", origin=(-0.4, 0.45, -0.4), device="cpu")
         sim = Simulator(
@@ -87,10 +91,17 @@ def test_a_cube_mesh_holds_a_cloth_as_the_box_does(integrator):
             lowest_centre = min(lowest_centre, x[np.argsort(np.linalg.norm(x[:, [0, 2]], axis=1))[:4], 1].min())
         return x, deepest, lowest_centre
 
-    x_mesh, deep_mesh, centre_mesh = run(cube((0.0, 0.2, 0.0), (0.25, 0.2, 0.25), thickness=0.005, friction=0.3))
-    # the box sharp as the mesh is (a Box rounds its edges for the cloth by default; a mesh does not)
+    x_mesh, deep_mesh, centre_mesh = run(
+        cube((0.0, 0.2, 0.0), (0.25, 0.2, 0.25), thickness=0.005, friction=0.3, edge_radius=edge_radius)
+    )
     x_box, deep_box, _ = run(
-        Box(center=(0.0, 0.2, 0.0), half_extents=(0.25, 0.2, 0.25), thickness=0.005, friction=0.3, edge_radius=0.0)
+        Box(
+            center=(0.0, 0.2, 0.0),
+            half_extents=(0.25, 0.2, 0.25),
+            thickness=0.005,
+            friction=0.3,
+            edge_radius=edge_radius,
+        )
     )
     assert deep_mesh < 1e-5 and deep_box < 1e-5  # never inside (by more than float32 rounding)
     assert centre_mesh == pytest.approx(
@@ -252,10 +263,10 @@ def test_a_moving_turning_cube_mesh_pushes_a_cloth_as_the_box_does(integrator):
             deepest = max(deepest, depth.max())
         return sim.state.particle_q.numpy().astype(np.float64), deepest
 
-    x_mesh, deep_mesh = run(cube(centre, half, thickness=0.005, friction=0.3, track=track))
+    x_mesh, deep_mesh = run(cube(centre, half, thickness=0.005, friction=0.3, track=track, edge_radius=0.0))
     x_box, deep_box = run(
         Box(center=tuple(centre), half_extents=tuple(half), thickness=0.005, friction=0.3, track=track, edge_radius=0.0)
-    )  # sharp, as the mesh
+    )  # both sharp
     assert deep_mesh < 1e-4 and deep_box < 1e-4  # never inside the moving box (beyond a step's rounding)
     assert (
         np.abs(x_box - x_mesh).max() < 3e-3
@@ -274,3 +285,61 @@ def test_a_particle_rests_on_a_flat_mesh_floor(thickness):
     )
     sim.simulate(400)  # lands at 0.2 s
     assert sim.state.particle_q.numpy()[0, 1] == pytest.approx(thickness, abs=1e-6)
+
+
+def test_a_cube_mesh_rounds_its_edges_as_the_box_does():
+    """Free particles around a cube, outside it, away from its corners: one step of a cube mesh with
+    edge_radius 7.5 cm puts each where the analytic box with the same radius does (its 12 edges are the
+    mesh's sharp convex creases; its faces' diagonals are not)."""
+    from warpcloth.sim.colliders import box_edge_distance, signed_distance
+
+    centre, half = np.array([0.0, 0.2, 0.0]), np.array([0.25, 0.2, 0.25])
+    box = Box(center=tuple(centre), half_extents=tuple(half), thickness=0.005, edge_radius=0.075)
+    x = centre + np.random.default_rng(1).uniform(-1.0, 1.0, (4000, 3)) * (half + 0.08)
+    x = x[
+        (signed_distance(box, x) > 0.0) & (np.linalg.norm(np.abs(x - centre) - half, axis=1) > 0.12)
+    ]  # 12 cm from a corner
+    ends = []
+    for collider in (cube(centre, half, thickness=0.005, edge_radius=0.075), box):
+        sim = Simulator(
+            free_particles(x), "explicit_euler", Control(gravity=(0, 0, 0), colliders=(collider,), device="cpu")
+        )
+        sim.simulate(1)
+        ends.append(sim.state.particle_q.numpy().astype(np.float64))
+    held = np.linalg.norm(ends[1] - x, axis=1) > 1e-6
+    assert held.sum() > 200 and (box_edge_distance(box, x[held]) < 0.075).sum() > 100  # the capsules held many
+    np.testing.assert_allclose(ends[0], ends[1], atol=1e-5)
+
+
+@pytest.mark.parametrize("edge_radius,clean", [(None, True), (0.0, False)])
+def test_no_cube_mesh_edge_passes_through_a_cloth_draped_over_it(edge_radius, clean):
+    """A 10 x 10 cloth dropped over a cube mesh (explicit Euler, 1 s): with the edges rounded for the
+    cloth (the default) no cube edge crosses a cloth triangle at any frame; sharp, one does."""
+    from warpcloth.lab import intersections as ix
+
+    model = build_grid_cloth(10, 10, 0.8, 0.8, 0.1, plane="horizontal", origin=(-0.4, 0.45, -0.4), device="cpu")
+    mesh = cube((0.0, 0.2, 0.0), (0.25, 0.2, 0.25), thickness=0.005, friction=0.3, edge_radius=edge_radius)
+    sim = Simulator(model, "explicit_euler", Control(drag_rate=0.5, colliders=(mesh,), device="cpu"))
+    worst = 0
+    for _ in range(60):
+        sim.simulate(max(1, round(1.0 / 60.0 / sim.dt)))
+        worst = max(worst, ix.collider_edge_crossings(sim.state.particle_q.numpy(), model.host["tris"], [mesh]))
+    assert (worst == 0) is clean, worst
+
+
+def test_only_a_meshs_sharp_convex_creases_and_open_edges_are_rounded():
+    """A cube's 12 edges (not its faces' diagonals); a flat quad's 4 open edges; the valley of an L-shaped
+    step (a concave crease) and a fine mesh sphere's blunt edges (a few degrees) none."""
+    from warpcloth.sim.contacts import _convex_edges
+
+    assert len(_convex_edges(CUBE_V, CUBE_T)) == 12
+    quad = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], float)
+    assert len(_convex_edges(quad, [[0, 2, 1], [0, 3, 2]])) == 4
+    v, t = mesh_sphere(2000, radius=0.3)
+    assert len(_convex_edges(v, t)) == 0
+    # a step: floor at y = 0 (x < 0), wall x = 0 up to y = 1, top at y = 1 (x > 0), as one open strip
+    # (z in [0, 1]): the floor-wall edge is a valley, the wall-top edge a convex crease
+    p = np.array([[-1, 0, 0], [-1, 0, 1], [0, 0, 0], [0, 0, 1], [0, 1, 0], [0, 1, 1], [1, 1, 0], [1, 1, 1]], float)
+    tris = [[0, 1, 3], [0, 3, 2], [2, 3, 5], [2, 5, 4], [4, 5, 7], [4, 7, 6]]
+    edges = {tuple(e) for e in _convex_edges(p, tris).tolist()}
+    assert (4, 5) in edges and (2, 3) not in edges

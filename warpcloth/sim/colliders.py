@@ -404,8 +404,12 @@ class Box(_Posed):
     def rounding(self, auto_radius: float) -> float:
         """The box's edges' radius beyond its thickness [m] (the kernels' ``rounding``): its
         ``edge_radius``, or ``auto_radius`` where that is None, less the thickness; >= 0."""
-        radius = auto_radius if self.edge_radius is None else self.edge_radius
-        return max(float(radius) - float(self.thickness), 0.0)
+        return _rounding(self, auto_radius)
+
+
+def _rounding(c, auto_radius: float) -> float:
+    radius = auto_radius if c.edge_radius is None else c.edge_radius
+    return max(float(radius) - float(c.thickness), 0.0)
 
 
 #: Box.edge_radius None: the cloth's largest triangle circumradius at rest times this (the stretch it may take)
@@ -434,11 +438,12 @@ def auto_edge_radius(points, triangles) -> float:
 class MeshCollider(_Posed):
     """A triangle mesh (``wp.Mesh``, queried with ``wp.mesh_query_point_sign_normal``):
     ``vertices`` (N, 3) [m], ``triangles`` (T, 3) vertex indices; it may move rigidly on a
-    ``track`` (the BVH stays in the mesh's own frame and each particle is taken into it). Inside and outside come from
-    the
-    nearest face's normal, so a closed mesh should have its triangles wound outward (counter-
-    clockwise seen from outside); an open one pushes particles to its front side. A particle more
-    than ``reach`` [m] inside is not found (it went through; keep reach above a step's motion)."""
+    ``track`` (the BVH stays in the mesh's own frame and each particle is taken into it). Inside and
+    outside come from the nearest face's normal, so a closed mesh should have its triangles wound
+    outward (counter-clockwise seen from outside); an open one pushes particles to its front side. A
+    particle more than ``reach`` [m] inside is not found (it went through; keep reach above a step's
+    motion). ``edge_radius`` [m]: as a :class:`Box`'s, about the mesh's convex creases and open
+    edges (None: from the cloth; 0: sharp)."""
 
     vertices: np.ndarray = None
     triangles: np.ndarray = None
@@ -447,6 +452,7 @@ class MeshCollider(_Posed):
     reach: float = 0.05
     track: ColliderTrack | None = None
     source: str = ""
+    edge_radius: float | None = None
 
     def __post_init__(self):
         from warpcloth.sim.mesh import check_mesh
@@ -468,7 +474,15 @@ class MeshCollider(_Posed):
         object.__setattr__(self, "triangles", t)
         _material(self.thickness, self.friction)
         require_positive("mesh collider reach", self.reach, "m")
+        if self.edge_radius is not None:
+            object.__setattr__(
+                self, "edge_radius", require_non_negative("mesh collider edge_radius", self.edge_radius, "m")
+            )
         _track(self)
+
+    def rounding(self, auto_radius: float) -> float:
+        """The radius about its convex creases beyond its thickness [m] (as :meth:`Box.rounding`)."""
+        return _rounding(self, auto_radius)
 
     def _moved(self, move, r):
         shift = np.asarray(move((0.0, 0.0, 0.0)))  # T of y -> R y + T
@@ -479,13 +493,18 @@ class MeshCollider(_Posed):
             friction=self.friction,
             reach=self.reach,
             source=self.source,
+            edge_radius=self.edge_radius,
         )
 
     @staticmethod
-    def check_settings(thickness: float = 0.0, friction: float = 0.0, reach: float = 0.05) -> None:
+    def check_settings(
+        thickness: float = 0.0, friction: float = 0.0, reach: float = 0.05, edge_radius: float | None = None
+    ) -> None:
         """Check a mesh collider's settings before its mesh is read (a text description's)."""
         _material(thickness, friction)
         require_positive("mesh collider reach", reach, "m")
+        if edge_radius is not None:
+            require_non_negative("mesh collider edge_radius", edge_radius, "m")
 
     def __repr__(self):
         return (
