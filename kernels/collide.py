@@ -247,6 +247,16 @@ def posed_mesh_contact(
 
 
 @wp.func
+def segment_parameter(p: wp.vec3, a: wp.vec3, b: wp.vec3):
+    # t in [0, 1] of the point a + t (b - a) nearest p
+    ab = b - a
+    l2 = wp.dot(ab, ab)
+    if l2 <= 0.0:
+        return 0.0
+    return wp.clamp(wp.dot(p - a, ab) / l2, 0.0, 1.0)
+
+
+@wp.func
 def nearest_crease(bvh: wp.uint64, a: wp.array(dtype=wp.vec3), b: wp.array(dtype=wp.vec3), y: wp.vec3, radius: float):
     # (distance, y less its nearest point) of the nearest crease segment within `radius` of y (1e30: none)
     best = float(1.0e30)
@@ -254,9 +264,7 @@ def nearest_crease(bvh: wp.uint64, a: wp.array(dtype=wp.vec3), b: wp.array(dtype
     query = wp.bvh_query_aabb(bvh, y - wp.vec3(radius), y + wp.vec3(radius))
     e = int(0)
     while wp.bvh_query_next(query, e):
-        ab = b[e] - a[e]
-        t = wp.clamp(wp.dot(y - a[e], ab) / wp.max(wp.dot(ab, ab), 1.0e-20), 0.0, 1.0)
-        w = y - (a[e] + t * ab)
+        w = y - (a[e] + segment_parameter(y, a[e], b[e]) * (b[e] - a[e]))
         d = wp.length(w)
         if d < best:
             best = d
@@ -270,9 +278,7 @@ def out_of_creases(bvh: wp.uint64, a: wp.array(dtype=wp.vec3), b: wp.array(dtype
     query = wp.bvh_query_aabb(bvh, y - wp.vec3(radius), y + wp.vec3(radius))
     e = int(0)
     while wp.bvh_query_next(query, e):
-        ab = b[e] - a[e]
-        t = wp.clamp(wp.dot(y - a[e], ab) / wp.max(wp.dot(ab, ab), 1.0e-20), 0.0, 1.0)
-        w = y - (a[e] + t * ab)
+        w = y - (a[e] + segment_parameter(y, a[e], b[e]) * (b[e] - a[e]))
         d = wp.length(w)
         if d < radius and d > 0.0:
             y = y + (radius - d) / d * w

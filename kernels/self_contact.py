@@ -50,7 +50,7 @@ contact count, not the capacity.
 """
 
 import warp as wp
-from warpcloth.kernels.collide import Collider, collider_contact
+from warpcloth.kernels.collide import Collider, collider_contact, segment_parameter
 
 wp.set_module_options({"enable_backward": False})
 
@@ -121,16 +121,6 @@ def boxes_overlap(lo_a: wp.vec3, hi_a: wp.vec3, lo_b: wp.vec3, hi_b: wp.vec3):
     if lo_a[0] > hi_b[0] or lo_a[1] > hi_b[1] or lo_a[2] > hi_b[2]:
         return False
     return not (hi_a[0] < lo_b[0] or hi_a[1] < lo_b[1] or hi_a[2] < lo_b[2])
-
-
-@wp.func
-def segment_parameter(p: wp.vec3, a: wp.vec3, b: wp.vec3):
-    # t in [0, 1] of the point a + t (b - a) nearest p
-    ab = b - a
-    l2 = wp.dot(ab, ab)
-    if l2 <= 0.0:
-        return 0.0
-    return wp.clamp(wp.dot(p - a, ab) / l2, 0.0, 1.0)
 
 
 @wp.func
