@@ -329,7 +329,8 @@ def test_no_cube_mesh_edge_passes_through_a_cloth_draped_over_it(edge_radius, cl
 
 def test_only_a_meshs_sharp_convex_creases_and_open_edges_are_rounded():
     """A cube's 12 edges (not its faces' diagonals); a flat quad's 4 open edges; the valley of an L-shaped
-    step (a concave crease) and a fine mesh sphere's blunt edges (a few degrees) none."""
+    step (a concave crease) and a fine mesh sphere's blunt edges (a few degrees) none; vertices copied at
+    one place (a triangle soup) count once."""
     from warpcloth.sim.contacts import _convex_edges
 
     assert len(_convex_edges(CUBE_V, CUBE_T)) == 12
@@ -343,3 +344,7 @@ def test_only_a_meshs_sharp_convex_creases_and_open_edges_are_rounded():
     tris = [[0, 1, 3], [0, 3, 2], [2, 3, 5], [2, 5, 4], [4, 5, 7], [4, 7, 6]]
     edges = {tuple(e) for e in _convex_edges(p, tris).tolist()}
     assert (4, 5) in edges and (2, 3) not in edges
+    # a triangle soup (each triangle its own three vertices) and a UV sphere's seam of copies: the same edges
+    soup = CUBE_V[CUBE_T].reshape(-1, 3)
+    assert len(_convex_edges(soup, np.arange(len(soup)).reshape(-1, 3))) == 12
+    assert len(_convex_edges(v[t].reshape(-1, 3), np.arange(t.size).reshape(-1, 3))) == 0

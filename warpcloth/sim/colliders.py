@@ -509,7 +509,8 @@ class MeshCollider(_Posed):
     def __repr__(self):
         return (
             f"MeshCollider({self.source or 'in memory'}: {len(self.vertices)} vertices, {len(self.triangles)} "
-            f"triangles, thickness={self.thickness}, friction={self.friction}, reach={self.reach})"
+            f"triangles, thickness={self.thickness}, friction={self.friction}, reach={self.reach}, "
+            f"edge_radius={self.edge_radius})"
         )
 
     @property

@@ -114,8 +114,8 @@ class ColliderSet:
         self.edge_contacts = False
 
     def bind_model(self, model) -> None:
-        """Round the boxes' edges for ``model``'s cloth (:attr:`Box.edge_radius
-        <warpcloth.sim.colliders.Box.edge_radius>` None: from its longest triangle edge at rest):
+        """Round the boxes' edges and the meshes' sharp creases for ``model``'s cloth (``edge_radius``
+        None: :func:`~warpcloth.sim.colliders.auto_edge_radius` of its triangles at rest):
         host work at a model's first frame, nothing after; the records are rewritten in place, so a
         captured step reads the new radius."""
         rounded = [k for k, c in enumerate(self.order) if c.kind == "box" or self.creases[k] is not None]
@@ -137,7 +137,8 @@ class ColliderSet:
         self._rounded_for = model
 
     def roundings(self) -> list:
-        """Each collider's rounding [m] as the kernels use it (0 but for boxes), in ``colliders`` order."""
+        """Each collider's rounding [m] as the kernels use it (boxes, and meshes with sharp creases; 0 for the
+        others), in ``colliders`` order."""
         values = self.rest.numpy()["rounding"]
         where = {id(c): k for k, c in enumerate(self.order)}
         return [float(values[where[id(c)]]) for c in self.colliders]
@@ -425,9 +426,16 @@ def _convex_edges(vertices, triangles) -> np.ndarray:
     valley) is not one, nor a tessellated curve's blunt edge: over an edge turning by theta, a cloth
     edge of length s resting on both faces dips (s / 2) tan(theta / 2) below their shells, 1.3 mm for
     a 2 cm cloth edge at 15 degrees, within a thickness of a few mm; capsules along every edge of a
-    mesh sphere would instead hold the cloth off it by their radius."""
+    mesh sphere would instead hold the cloth off it by their radius. Copies of a vertex at one place
+    (within 1e-7 of the mesh's size) are one vertex. Convex and concave are told by the faces'
+    winding, which must be consistent (outward, as the mesh query's inside and outside need too)."""
     p = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    # vertices at one place count as one (a UV seam's or a triangle soup's copies: else every seam is two
+    # open edges, rounded into a ridge); the edges come back as indices of the first copy
+    scale = max(float(np.ptp(p, axis=0).max()), 1e-300)
+    _, first, merged = np.unique(np.round(p / (1e-7 * scale)), axis=0, return_index=True, return_inverse=True)
+    t = first[merged.reshape(-1)][t]
     face = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
     unit = face / np.maximum(np.linalg.norm(face, axis=1, keepdims=True), 1e-300)
     i = np.concatenate([t[:, 0], t[:, 1], t[:, 2]])
