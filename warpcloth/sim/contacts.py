@@ -503,13 +503,13 @@ def _record(c, mesh=None, creases=None):
         r.mesh = mesh.id
         if creases is not None:
             r.crease_bvh, r.crease_a, r.crease_b = creases[0].id, creases[1], creases[2]
-            r.rounding = c.rounding(0.0) if c.edge_radius is not None else 0.0  # automatic: bind_model
+            r.rounding = c.rounding(0.0)  # edge_radius None: 0 until bind_model
         r.b = _mesh_half(c, r.rounding)
     else:
         r.a = r.bound_center = wp.vec3(*c.center)
         r.b = wp.vec3(*c.half_extents)
         r.rotation = wp.mat33(_quat_matrix(c.rotation).astype(np.float32))
-        r.rounding = c.rounding(0.0) if c.edge_radius is not None else 0.0  # automatic: bind_model
+        r.rounding = c.rounding(0.0)  # edge_radius None: 0 until bind_model
     r.velocity = r.omega = r.origin = wp.vec3(0.0, 0.0, 0.0)
     r.moving = 0
     return r
