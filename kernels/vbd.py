@@ -191,15 +191,15 @@ def correction_stretch_cap(
     # a = the spring's vector at x + dx, b = its change along delta: no spring stretched past the cap by
     # the correction; one already past it may lengthen by 1 % (CAP_SLACK). Held where it was, one such
     # spring stopped every correction for the rest of the tablecloth's run; left free, the landing blew
-    # up (both measured). The quadratic model's A is the step's
-    # start's: a spring at its rest length has no stiffness across its axis there, so a correction that
-    # turns it (a kink where the masked correction drops to zero at a held particle) looks free to the
-    # model and stretches it by d^2 / 2 L0 (the 64 x 64 tablecloth caught on its table's rounded edges:
-    # 106 %)
+    # up (both measured). The quadratic model's A is the step's start's: a spring at its rest length
+    # has no stiffness across its axis there, so a correction that turns it (a kink where the masked
+    # correction drops to zero at a held particle) looks free to the model and stretches it by
+    # d^2 / 2 L0 (the 64 x 64 tablecloth caught on its table's rounded edges: 106 %). a is the start's
+    # difference plus the increments' (not a difference of the rounded x + dx)
     k = wp.tid()
     i = springs[k][0]
     j = springs[k][1]
-    a = (x[j] + dx[j]) - (x[i] + dx[i])
+    a = (x[j] - x[i]) + (dx[j] - dx[i])
     b = delta[j] - delta[i]
     bb = wp.dot(b, b)
     aa = wp.dot(a, a)
