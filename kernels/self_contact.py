@@ -82,7 +82,11 @@ DETECTS = wp.constant(10)  # detect calls so far
 CONTACTS_MAX = wp.constant(11)  # largest contact count of a step so far
 CANDIDATES_MAX = wp.constant(12)  # largest candidate count of a build so far
 FAST = wp.constant(13)  # vertices whose margin (two steps of their motion) was cut to skin_max at a build, so far
-COUNT_SLOTS = 14
+CCD_HITS = wp.constant(14)  # continuous collisions recorded in this pass (kernels/ccd.py)
+CCD_COLLISIONS = wp.constant(15)  # continuous collisions found by a step's first pass, so far
+CCD_ROLLBACKS = wp.constant(16)  # vertices the fail-safe moved back to their step's start, so far
+CCD_UNRESOLVED = wp.constant(17)  # continuous collisions left after the fail-safe, so far
+COUNT_SLOTS = 18
 
 # -- indices of the float scalars (``scalars``) ---------------------------------------------------
 MOTION = wp.constant(0)  # max_i D_i = |x_i - x_build_i - u| + |v_i - w| dt this detect, u, w the mean motion [m]

@@ -460,6 +460,16 @@ class Simulator:
             limiter.apply(self.state, self._dt)
         self.control.advance(self._dt)
         apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # x = track(t + dt), v = track'(t + dt)
+        if sc is not None and filter_steps:  # last (pins at their end, moving none): no pair crossed on the way
+            sc.prevent_crossings(
+                state.particle_q,
+                state.particle_qd,
+                self._dt,
+                integrator.velocity_position_weight,
+                integrator.position_history(),
+                colliders=self.control.collision,
+                steps=filter_steps,
+            )
 
     def simulate(self, steps: int) -> None:
         """Advance ``steps`` time steps (replaying a captured graph of them where enabled: one of

@@ -30,6 +30,7 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_count, require_non_negative, require_positive
+from warpcloth.kernels import ccd
 from warpcloth.kernels import self_contact as sk
 from warpcloth.sim.mesh import mesh_topology
 from warpcloth.sim.model import SpringType
@@ -48,6 +49,9 @@ COUNT_NAMES = {
     "contacts_max": sk.CONTACTS_MAX,
     "candidates_max": sk.CANDIDATES_MAX,
     "fast": sk.FAST,
+    "ccd_collisions": sk.CCD_COLLISIONS,
+    "ccd_rollbacks": sk.CCD_ROLLBACKS,
+    "ccd_unresolved": sk.CCD_UNRESOLVED,
 }
 #: The counters :meth:`SelfCollision.reset_stats` zeroes (those that accumulate over steps).
 CUMULATIVE = (
@@ -60,6 +64,9 @@ CUMULATIVE = (
     "contacts_max",
     "candidates_max",
     "fast",
+    "ccd_collisions",
+    "ccd_rollbacks",
+    "ccd_unresolved",
 )
 
 
@@ -157,6 +164,11 @@ class SelfCollision:
             that hold the contacts in their solve find them every step. Its filter makes twice
             ``iterations`` passes (the interval's corrections are larger), and the velocity the
             step goes on with takes only what its own normal velocity lacks (docs/self-collision.md).
+        ccd_passes: Jacobi passes of the continuous collision response that ends each step (each
+            collision interval): every listed pair is followed along its motion from the start to the
+            end positions, and a pair that met on the way is pushed apart, equal and opposite, to the
+            minimum gap along the collision's normal (:meth:`prevent_crossings`); pairs the passes
+            leave crossing have their free vertices moved back to the step's start (two rounds). 0: off.
     """
 
     def __init__(
@@ -175,6 +187,7 @@ class SelfCollision:
         candidates_per_edge: int = 64,
         contacts_per_element: int = 8,
         interval: float = 0.001,
+        ccd_passes: int = 8,
     ):
         self.model = model
         self._settings = {
@@ -191,6 +204,7 @@ class SelfCollision:
             "candidates_per_edge": candidates_per_edge,
             "contacts_per_element": contacts_per_element,
             "interval": interval,
+            "ccd_passes": ccd_passes,
         }
         self.thickness = require_positive("self-collision thickness", thickness, "m")
         self.friction = require_non_negative("self-collision friction mu", friction)
@@ -203,6 +217,7 @@ class SelfCollision:
         )
         self.iterations = require_count("self-collision iterations", iterations, 1)
         self.interval = require_non_negative("self-collision interval", interval, "s")
+        self.ccd_passes = require_count("self-collision ccd_passes", ccd_passes, 0)
         self.skin = require_positive("self-collision skin", self.thickness if skin is None else skin, "m")
         stiffness = self._default_stiffness(model) if stiffness is None else stiffness
         self.stiffness = require_positive("self-collision stiffness", stiffness, "N/m")
@@ -277,6 +292,16 @@ class SelfCollision:
             self.scalars = wp.zeros(sk.SCALAR_SLOTS, dtype=float)
             self.motion_sums = wp.zeros(2, dtype=wp.vec3)
             self._no_displacement = wp.zeros(1, dtype=wp.vec3)
+            # the continuous collision response: this pass's collisions (pair, W, n, depth), per vertex
+            # whether its pairs are tested in the next pass, whether it was in a collision, the fail-safe's marks
+            self.hit_indices = wp.zeros(self.contact_capacity, dtype=wp.vec4i)
+            self.hit_weights = wp.zeros(self.contact_capacity, dtype=wp.vec4)
+            self.hit_normals = wp.zeros(self.contact_capacity, dtype=wp.vec3)
+            self.hit_depths = wp.zeros(self.contact_capacity, dtype=float)
+            self.ccd_moved = wp.zeros(n, dtype=int)
+            self.ccd_touched = wp.zeros(n, dtype=int)
+            self.ccd_rollback = wp.zeros(n, dtype=int)
+            self.ccd_held = wp.zeros(n, dtype=wp.vec3)  # a holding collider's outward normal at the vertex, else 0
 
     def settings(self) -> dict:
         """The keyword arguments this object was made with (to bind the same settings to another model)."""
@@ -566,21 +591,100 @@ class SelfCollision:
                 outputs=[x, v_out, disp, self.v_average, self.dv_end, self.acting],
                 device=d,
             )
+        if self.ccd_passes == 0:  # else after the continuous response, the step's last word
+            self._count_unresolved(x)
+
+    def _count_unresolved(self, x: wp.array) -> None:
+        n = self.model.particle_count
+        records = [self.contact_indices, self.contact_weights, self.contact_normals]
         wp.launch(
             sk.count_unresolved_self_contacts,
             dim=n,
-            inputs=[
-                n,
-                self.counts,
-                x,
-                self.contact_indices,
-                self.contact_weights,
-                self.contact_normals,
-                self.min_gap,
-                self.model.particle_inv_mass,
-            ],
-            device=d,
+            inputs=[n, self.counts, x, *records, self.min_gap, self.model.particle_inv_mass],
+            device=self.device,
         )
+
+    #: rounds of the continuous response's fail-safe (free vertices of a crossing pair back to the step's start)
+    CCD_ROLLBACK_ROUNDS = 2
+
+    @property
+    def ccd_tolerance(self) -> float:
+        """eta [m]: a pair collides where its four points lie in one plane with the vertex within eta of
+        the triangle (the edges within eta of each other): a hundredth of the minimum gap."""
+        return 0.01 * self.min_gap
+
+    def prevent_crossings(
+        self,
+        x: wp.array,
+        v: wp.array,
+        dt: float,
+        position_weight: float = 1.0,
+        displacement: wp.array | None = None,
+        colliders=None,
+        steps: int = 1,
+    ) -> None:
+        """The last word of a step (of a collision interval of ``steps`` steps of ``dt``): every listed
+        pair follows the straight motion from the positions at the last :meth:`detect` to ``x``; a pair
+        that met on the way (continuous collision detection: the roots of the coplanarity cubic in
+        [0, 1]) is pushed apart along the collision's normal, equal and opposite, so that the pair ends
+        on its start's side at least :attr:`min_gap` apart along it (:attr:`ccd_passes` Jacobi passes,
+        each testing only the pairs of vertices that moved or collided in the pass before); a push dx
+        changes v by dx / dt_x (dt_x as :meth:`filter_velocities`'s). Pairs still crossing after the
+        passes have their free vertices moved back to the step's start (the fail-safe; momentum is
+        not kept), :attr:`CCD_ROLLBACK_ROUNDS` rounds; what is left is counted (``ccd_unresolved``).
+        A vertex within a collider's thickness (``colliders``) or pinned is not moved."""
+        if self.ccd_passes == 0:
+            return
+        n, d = self.model.particle_count, self.device
+        steps = require_count("self-collision ccd steps", steps, 1)
+        dt_d = float(position_weight) * float(dt)
+        if not dt_d > 0.0:
+            raise WarpclothError(f"self-collision ccd: position_weight * dt must be > 0, got {dt_d!r}")
+        dt_x = dt_d + (steps - 1) * float(dt)
+        disp = displacement if displacement is not None else self._no_displacement
+        inv_mass = self.model.particle_inv_mass
+        if colliders is not None and len(colliders.colliders):
+            wp.launch(
+                ccd.eval_ccd_held, dim=n, inputs=[x, colliders.params, self.min_gap], outputs=[self.ccd_held], device=d
+            )
+        else:
+            self.ccd_held.zero_()
+        hits = [self.hit_indices, self.hit_weights, self.hit_normals, self.hit_depths]
+        marks = [self.acting, self.ccd_rollback, self.ccd_touched]
+        find_inputs = [n, self.counts, self.scalars, self.x_start, x, self.ccd_moved, inv_mass, self.ccd_held]
+        find_inputs += [self.tris, self.edges]
+        find_inputs += [self.cand_vt, self.cand_vt_gap, self.cand_ee, self.cand_ee_gap, self.ccd_tolerance]
+        apply_inputs = [float(dt_x), dt_d, int(displacement is not None), self.dv, x, v, disp, self.ccd_moved]
+
+        def find(mode: int, first: int = 0) -> None:
+            wp.launch(ccd.begin_ccd_pass, dim=1, inputs=[self.counts], device=d)
+            wp.launch(
+                ccd.find_ccd_collisions,
+                dim=n,
+                inputs=[*find_inputs, self.min_gap, mode, first, self.contact_capacity, *hits, *marks],
+                device=d,
+            )
+
+        def apply() -> None:
+            wp.launch(ccd.apply_ccd_corrections, dim=n, inputs=[*apply_inputs, *marks, self.counts], device=d)
+
+        wp.launch(ccd.mark_all_moved, dim=n, inputs=[self.ccd_moved], device=d)
+        for k in range(self.ccd_passes):
+            find(int(ccd.MODE_PUSH), int(k == 0))
+            wp.launch(
+                ccd.push_ccd_collisions,
+                dim=n,
+                inputs=[n, self.counts, self.contact_capacity, inv_mass, self.ccd_held, self.acting, *hits, self.dv],
+                device=d,
+            )
+            apply()
+        for _ in range(self.CCD_ROLLBACK_ROUNDS):
+            find(int(ccd.MODE_ROLLBACK))
+            wp.launch(ccd.roll_back_vertices, dim=n, inputs=[self.x_start, x, self.ccd_rollback, self.dv], device=d)
+            apply()
+        find(int(ccd.MODE_COUNT))
+        wp.launch(ccd.clear_ccd_marks, dim=n, inputs=[self.ccd_touched], device=d)
+        self._count_unresolved(x)
 
     def project_increment(self, x: wp.array, dp: wp.array) -> None:
         """Inside a position-based solver's iterations (pbd, xpbd, projective): every contact as a

@@ -1,0 +1,509 @@
+"""Continuous collision of the cloth against itself over a step's motion (Provot 1997; Bridson, Fedkiw &
+Anderson 2002, Sec. 6-7): each listed vertex-triangle and edge-edge pair moves linearly from its positions
+at the step's start to those at its end; the four points lie in one plane at the real roots in [0, 1] of a
+cubic, and the pair collides at the first such root where the vertex lies on the triangle (the edges on
+each other) within a tolerance. :class:`~warpcloth.sim.self_collision.SelfCollision` answers a collision by
+a push of the pair's end positions along the collision's normal, equal and opposite (Jacobi passes, masses
+split over the pushes at a vertex) and, for a pair those passes left crossing, by moving its free vertices
+back to the step's start (a fail-safe that keeps no momentum).
+
+Every difference is taken relative to one vertex of the pair (a, or the first edge's first end), so the
+cubic's coefficients are of the pair's size, not of its positions' (float32 positions of 1-2 m have ulps
+of 1e-7 m; a 1 cm pair's relative coordinates have ulps of 1e-9 m).
+"""
+
+import warp as wp
+from warpcloth.kernels.collide import Collider, collider_contact
+from warpcloth.kernels.self_contact import (
+    CAND_EE,
+    CAND_VT,
+    CCD_COLLISIONS,
+    CCD_HITS,
+    CCD_ROLLBACKS,
+    CCD_UNRESOLVED,
+    MOTION,
+    FloatArray,
+    IntArray,
+    Vec2iArray,
+    Vec3Array,
+    Vec3iArray,
+    Vec4Array,
+    Vec4iArray,
+    any_perpendicular,
+    closest_point_triangle,
+    closest_points_edge_edge,
+)
+
+NOT_DETERMINISTIC = "the continuous response's collision lists are built in the GPU's thread order"
+
+#: the pushes' over-relaxation (Jacobi passes with each vertex's mass split over its c pushes reach at
+#: least 1/c of a pair's depth a pass; 1.5 left no pair of the 24 x 8 fold under the minimum gap in 8
+#: passes where 1 left one)
+OVER_RELAXATION = wp.constant(1.5)
+
+#: bisection steps for a root of the coplanarity cubic on one monotone piece of [0, 1] (2^-30 of the step)
+BISECTIONS = wp.constant(30)
+
+MODE_PUSH = wp.constant(0)  # record each collision for a push
+MODE_ROLLBACK = wp.constant(1)  # mark the free vertices of each collision for the fail-safe
+MODE_COUNT = wp.constant(2)  # count the collisions left
+
+
+@wp.func
+def coplanarity_cubic(e1: wp.vec3, d1: wp.vec3, e2: wp.vec3, d2: wp.vec3, e3: wp.vec3, d3: wp.vec3):
+    # (c0, c1, c2, c3) of f(t) = ((e1 + t d1) x (e2 + t d2)) . (e3 + t d3) = c0 + c1 t + c2 t^2 + c3 t^3:
+    # zero where o, e1, e2, e3 (each moving linearly in t) lie in one plane
+    k0 = wp.cross(e1, e2)
+    k1 = wp.cross(e1, d2) + wp.cross(d1, e2)
+    k2 = wp.cross(d1, d2)
+    return wp.vec4(wp.dot(k0, e3), wp.dot(k0, d3) + wp.dot(k1, e3), wp.dot(k1, d3) + wp.dot(k2, e3), wp.dot(k2, d3))
+
+
+@wp.func
+def cubic_value(q: wp.vec4, t: float):
+    return q[0] + t * (q[1] + t * (q[2] + t * q[3]))
+
+
+@wp.func
+def unit_or_one(r: float):
+    # r where it lies inside (0, 1), else 1 (a piece of no length at the end)
+    if r > 0.0 and r < 1.0:
+        return r
+    return 1.0
+
+
+@wp.func
+def cubic_stationary(q: wp.vec4):
+    # the cubic's stationary points (roots of c1 + 2 c2 t + 3 c3 t^2) in (0, 1), ascending, 1 where none
+    a = 3.0 * q[3]
+    b = 2.0 * q[2]
+    c = q[1]
+    r0 = float(1.0)
+    r1 = float(1.0)
+    if wp.abs(a) <= 1.0e-7 * (wp.abs(b) + wp.abs(c)):  # (nearly) a quadratic: one stationary point
+        if b != 0.0:
+            r0 = unit_or_one(-c / b)
+        return r0, r1
+    disc = b * b - 4.0 * a * c
+    if disc < 0.0:
+        return r0, r1
+    root = wp.sqrt(disc)
+    half = -0.5 * (b + wp.sign(b) * root)  # the root of larger magnitude without cancellation
+    if b == 0.0:
+        half = -0.5 * root
+    if half != 0.0:
+        r0 = unit_or_one(half / a)
+        r1 = unit_or_one(c / half)
+    else:
+        r0 = unit_or_one(0.0)
+    if r1 < r0:
+        return r1, r0
+    return r0, r1
+
+
+@wp.func
+def piece_root(q: wp.vec4, lo: float, hi: float, flo: float, fhi: float, last: int):
+    # the root of the cubic on the monotone piece [lo, hi] (its values flo, fhi), or 2 where it has none;
+    # a root at hi belongs to the next piece, but for the last
+    if hi <= lo:
+        return 2.0
+    if flo == 0.0:
+        return lo
+    if (flo < 0.0 and fhi > 0.0) or (flo > 0.0 and fhi < 0.0):
+        a = lo
+        b = hi
+        fa = flo
+        for _k in range(BISECTIONS):
+            mid = 0.5 * (a + b)
+            fm = cubic_value(q, mid)
+            if (fm < 0.0) == (fa < 0.0) and fm != 0.0:
+                a = mid
+                fa = fm
+            else:
+                b = mid
+        return 0.5 * (a + b)
+    if last != 0 and fhi == 0.0:
+        return hi
+    return 2.0
+
+
+@wp.func
+def unit_roots(q: wp.vec4):
+    # the cubic's real roots in [0, 1], one per monotone piece, ascending (2: none)
+    s0, s1 = cubic_stationary(q)
+    f0 = cubic_value(q, 0.0)
+    fs0 = cubic_value(q, s0)
+    fs1 = cubic_value(q, s1)
+    f1 = cubic_value(q, 1.0)
+    return wp.vec3(
+        piece_root(q, 0.0, s0, f0, fs0, 0), piece_root(q, s0, s1, fs0, fs1, 0), piece_root(q, s1, 1.0, fs1, f1, 1)
+    )
+
+
+@wp.func
+def vertex_triangle_ccd(
+    p0: wp.vec3,
+    a0: wp.vec3,
+    b0: wp.vec3,
+    c0: wp.vec3,
+    p1: wp.vec3,
+    a1: wp.vec3,
+    b1: wp.vec3,
+    c1: wp.vec3,
+    eta: float,
+    end_gap: float,
+):
+    # the first t in [0, 1] where vertex p comes within eta of triangle abc (all four moving linearly from
+    # their 0 to their 1 positions) with the four in one plane: (hit, t, W = (1, -w0, -w1, -w2) at t, the
+    # triangle's unit normal at t, r0 = sum W x at the start, r1 = at the end)
+    e1 = b0 - a0
+    e2 = c0 - a0
+    e3 = p0 - a0
+    d1 = (b1 - a1) - e1
+    d2 = (c1 - a1) - e2
+    d3 = (p1 - a1) - e3
+    roots = unit_roots(coplanarity_cubic(e1, d1, e2, d2, e3, d3))
+    for r in range(3):
+        t = roots[r]
+        if t <= 1.0:
+            bt = e1 + t * d1
+            ct = e2 + t * d2
+            pt = e3 + t * d3
+            q, w = closest_point_triangle(pt, wp.vec3(0.0), bt, ct)
+            if wp.length(pt - q) <= eta:
+                n = wp.cross(bt, ct)
+                ln = wp.length(n)
+                if ln > 0.0:
+                    n = n / ln
+                else:
+                    n = any_perpendicular(bt)
+                r0 = e3 - w[1] * e1 - w[2] * e2
+                r1 = (e3 + d3) - w[1] * (e1 + d1) - w[2] * (e2 + d2)
+                return 1, t, wp.vec4(1.0, -w[0], -w[1], -w[2]), n, r0, r1
+    # no crossing of the plane, but the end within end_gap (t = 1: a vertex a collider laid into the
+    # triangle's plane, or one left nearer than the minimum gap)
+    b1r = e1 + d1
+    c1r = e2 + d2
+    p1r = e3 + d3
+    q1, w1 = closest_point_triangle(p1r, wp.vec3(0.0), b1r, c1r)
+    if wp.length(p1r - q1) <= end_gap:
+        r0 = e3 - w1[1] * e1 - w1[2] * e2
+        n = wp.cross(b1r, c1r)
+        ln = wp.length(n)
+        if ln > 0.0:
+            n = n / ln
+        else:
+            n = any_perpendicular(b1r)
+        return 1, 1.0, wp.vec4(1.0, -w1[0], -w1[1], -w1[2]), n, r0, p1r - q1
+    return 0, 2.0, wp.vec4(0.0), wp.vec3(0.0), wp.vec3(0.0), wp.vec3(0.0)
+
+
+@wp.func
+def edge_edge_ccd(
+    a0: wp.vec3,
+    b0: wp.vec3,
+    c0: wp.vec3,
+    d0: wp.vec3,
+    a1: wp.vec3,
+    b1: wp.vec3,
+    c1: wp.vec3,
+    d1: wp.vec3,
+    eta: float,
+    end_gap: float,
+):
+    # the first t in [0, 1] where edges ab and cd come within eta of each other in one plane: (hit, t,
+    # W = (1 - s, s, u - 1, -u) of their closest points at t, the edges' unit normal at t, r0, r1)
+    e1 = b0 - a0
+    e2 = c0 - a0
+    e3 = d0 - a0
+    g1 = (b1 - a1) - e1
+    g2 = (c1 - a1) - e2
+    g3 = (d1 - a1) - e3
+    roots = unit_roots(coplanarity_cubic(e1, g1, e2, g2, e3, g3))
+    for r in range(3):
+        t = roots[r]
+        if t <= 1.0:
+            bt = e1 + t * g1
+            ct = e2 + t * g2
+            dt = e3 + t * g3
+            su = closest_points_edge_edge(wp.vec3(0.0), bt, ct, dt)
+            s = su[0]
+            u = su[1]
+            if wp.length(s * bt - (ct + u * (dt - ct))) <= eta:
+                n = wp.cross(bt, dt - ct)
+                ln = wp.length(n)
+                if ln > 0.0:
+                    n = n / ln
+                else:
+                    n = any_perpendicular(bt)
+                r0 = s * e1 - (e2 + u * (e3 - e2))
+                r1 = s * (e1 + g1) - ((e2 + g2) + u * ((e3 + g3) - (e2 + g2)))
+                return 1, t, wp.vec4(1.0 - s, s, u - 1.0, -u), n, r0, r1
+    # the end within end_gap without a crossing of the plane
+    b1r = e1 + g1
+    c1r = e2 + g2
+    d1r = e3 + g3
+    su1 = closest_points_edge_edge(wp.vec3(0.0), b1r, c1r, d1r)
+    s1 = su1[0]
+    u1 = su1[1]
+    r1 = s1 * b1r - (c1r + u1 * (d1r - c1r))
+    if wp.length(r1) <= end_gap:
+        n = wp.cross(b1r, d1r - c1r)
+        ln = wp.length(n)
+        if ln > 0.0:
+            n = n / ln
+        else:
+            n = any_perpendicular(b1r)
+        r0 = s1 * e1 - (e2 + u1 * (e3 - e2))
+        return 1, 1.0, wp.vec4(1.0 - s1, s1, u1 - 1.0, -u1), n, r0, r1
+    return 0, 2.0, wp.vec4(0.0), wp.vec3(0.0), wp.vec3(0.0), wp.vec3(0.0)
+
+
+@wp.func
+def max_relative_motion(x0: Vec3Array, x1: Vec3Array, idx: wp.vec4i):
+    # max_k |d_k - d_0|, d_k = x1_k - x0_k: how far the pair's vertices moved relative to its first one
+    d0 = x1[idx[0]] - x0[idx[0]]
+    m = float(0.0)
+    for k in range(1, 4):
+        m = wp.max(m, wp.length((x1[idx[k]] - x0[idx[k]]) - d0))
+    return m
+
+
+@wp.func
+def pushable(inv_mass: FloatArray, held: Vec3Array, i: int, direction: wp.vec3):
+    # 1/m of vertex i for a push along direction, 0 where it is pinned or where a collider holds it
+    # (held: the collider's outward normal there, else 0) and the push goes into that collider
+    if wp.dot(direction, held[i]) < 0.0:
+        return 0.0
+    return inv_mass[i]
+
+
+@wp.kernel
+def eval_ccd_held(x: Vec3Array, colliders: wp.array(dtype=Collider), margin: float, held: Vec3Array):
+    # per vertex the outward normal of a collider whose thickness + margin it lies within (the last such
+    # collider's), else 0: a push of the continuous response may move it out of that collider, not in
+    i = wp.tid()
+    held[i] = wp.vec3(0.0)
+    for k in range(colliders.shape[0]):
+        band = colliders[k].thickness + margin
+        phi, n = collider_contact(colliders, k, x[i], band)
+        if phi < band:
+            held[i] = n
+
+
+@wp.kernel
+def begin_ccd_pass(counts: IntArray):
+    counts[CCD_HITS] = 0
+
+
+@wp.kernel
+def mark_all_moved(moved: IntArray):
+    moved[wp.tid()] = 1
+
+
+@wp.kernel
+def find_ccd_collisions(
+    stride: int,
+    counts: IntArray,
+    scalars: FloatArray,
+    x0: Vec3Array,
+    x1: Vec3Array,
+    moved: IntArray,
+    inv_mass: FloatArray,
+    held: Vec3Array,
+    tris: Vec3iArray,
+    edges: Vec2iArray,
+    cand_vt: Vec2iArray,
+    cand_vt_gap: FloatArray,
+    cand_ee: Vec2iArray,
+    cand_ee_gap: FloatArray,
+    eta: float,
+    min_gap: float,
+    mode: int,
+    first: int,
+    capacity: int,
+    hit_idx: Vec4iArray,
+    hit_w: Vec4Array,
+    hit_n: Vec3Array,
+    hit_depth: FloatArray,
+    acting: IntArray,
+    rollback: IntArray,
+    touched: IntArray,
+):
+    # grid-stride over the candidate pairs: those with a vertex that moved in the last pass (every pair in
+    # the first) and whose gap at the step's start (at least the build's gap less twice the motion since)
+    # exceeds what their relative motion in the step can close are skipped; the rest are tested along the
+    # motion x0 -> x1. A collision at t with weights W and normal n, oriented so that the start's
+    # n . sum W x0 > 0, is (MODE_PUSH) recorded with the depth min_gap - n . sum W x1 that a push along n
+    # removes, and counted at its free vertices (mass splitting); (MODE_ROLLBACK) its free vertices marked;
+    # (MODE_COUNT) counted as unresolved
+    tid = wp.tid()
+    n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
+    total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])
+    reach = 2.0 * scalars[MOTION]
+    for k in range(tid, total, stride):
+        idx = wp.vec4i()
+        gap = float(0.0)
+        if k < n_vt:
+            pair = cand_vt[k]
+            tri = tris[pair[1]]
+            idx = wp.vec4i(pair[0], tri[0], tri[1], tri[2])
+            gap = cand_vt_gap[k]
+        else:
+            pair = cand_ee[k - n_vt]
+            ea = edges[pair[0]]
+            eb = edges[pair[1]]
+            idx = wp.vec4i(ea[0], ea[1], eb[0], eb[1])
+            gap = cand_ee_gap[k - n_vt]
+        if moved[idx[0]] + moved[idx[1]] + moved[idx[2]] + moved[idx[3]] == 0:
+            continue
+        if gap - reach > 2.0 * max_relative_motion(x0, x1, idx) + min_gap:
+            continue
+        end_gap = eta
+        if mode == MODE_PUSH:  # the pushes also leave every pair at least min_gap apart at the end
+            end_gap = min_gap
+        hit = int(0)
+        t = float(0.0)
+        w = wp.vec4()
+        n = wp.vec3()
+        r0 = wp.vec3()
+        r1 = wp.vec3()
+        if k < n_vt:
+            hit, t, w, n, r0, r1 = vertex_triangle_ccd(
+                x0[idx[0]],
+                x0[idx[1]],
+                x0[idx[2]],
+                x0[idx[3]],
+                x1[idx[0]],
+                x1[idx[1]],
+                x1[idx[2]],
+                x1[idx[3]],
+                eta,
+                end_gap,
+            )
+        else:
+            hit, t, w, n, r0, r1 = edge_edge_ccd(
+                x0[idx[0]],
+                x0[idx[1]],
+                x0[idx[2]],
+                x0[idx[3]],
+                x1[idx[0]],
+                x1[idx[1]],
+                x1[idx[2]],
+                x1[idx[3]],
+                eta,
+                end_gap,
+            )
+        if hit == 0:
+            continue
+        for j in range(4):  # tested again in the next pass, moved or not
+            touched[idx[j]] = 1
+        if first != 0 and mode == MODE_PUSH:
+            wp.atomic_add(counts, CCD_COLLISIONS, 1)
+        if mode == MODE_COUNT:
+            wp.atomic_add(counts, CCD_UNRESOLVED, 1)
+            continue
+        if mode == MODE_ROLLBACK:
+            for j in range(4):
+                if inv_mass[idx[j]] > 0.0 and w[j] != 0.0:
+                    rollback[idx[j]] = 1
+            continue
+        g0 = wp.dot(n, r0)
+        g1 = wp.dot(n, r1)
+        if g0 < 0.0 or (g0 == 0.0 and g1 > 0.0):  # the normal from the start's side
+            n = -n
+            g1 = -g1
+        slot = wp.atomic_add(counts, CCD_HITS, 1)
+        if slot < capacity:
+            hit_idx[slot] = idx
+            hit_w[slot] = w
+            hit_n[slot] = n
+            hit_depth[slot] = min_gap - g1
+            for j in range(4):
+                if w[j] != 0.0 and pushable(inv_mass, held, idx[j], w[j] * n) > 0.0:
+                    wp.atomic_add(acting, idx[j], 1)
+
+
+@wp.kernel
+def push_ccd_collisions(
+    stride: int,
+    counts: IntArray,
+    capacity: int,
+    inv_mass: FloatArray,
+    held: Vec3Array,
+    acting: IntArray,
+    hit_idx: Vec4iArray,
+    hit_w: Vec4Array,
+    hit_n: Vec3Array,
+    hit_depth: FloatArray,
+    dx: Vec3Array,
+):
+    # each recorded collision's push: dx_k += W_k (depth / sum_j W_j^2 c_j / m_j) n / m_k, equal and
+    # opposite (c_j: the pushes acting on vertex j in this pass; 1/m_j = 0 where the push would move j into
+    # a collider that holds it or j is pinned)
+    tid = wp.tid()
+    for k in range(tid, wp.min(counts[CCD_HITS], capacity), stride):
+        idx = hit_idx[k]
+        w = hit_w[k]
+        depth = hit_depth[k]
+        if depth <= 0.0:
+            continue
+        n = hit_n[k]
+        m = wp.vec4()
+        s = float(0.0)
+        for j in range(4):
+            m[j] = pushable(inv_mass, held, idx[j], w[j] * n)
+            s += w[j] * w[j] * m[j] * float(wp.max(acting[idx[j]], 1))
+        if s > 0.0:
+            impulse = (OVER_RELAXATION * depth / s) * n
+            for j in range(4):
+                wp.atomic_add(dx, idx[j], (w[j] * m[j]) * impulse)
+
+
+@wp.kernel
+def roll_back_vertices(x0: Vec3Array, x1: Vec3Array, rollback: IntArray, dx: Vec3Array):
+    # the fail-safe: a marked vertex goes back to its step's start
+    i = wp.tid()
+    if rollback[i] != 0:
+        dx[i] = x0[i] - x1[i]
+
+
+@wp.kernel
+def apply_ccd_corrections(
+    dt_x: float,
+    dt_d: float,
+    with_displacement: int,
+    dx: Vec3Array,
+    x: Vec3Array,
+    v: Vec3Array,
+    displacement: Vec3Array,
+    moved: IntArray,
+    acting: IntArray,
+    rollback: IntArray,
+    touched: IntArray,
+    counts: IntArray,
+):
+    # x += dx, v += dx / dt_x (the velocity that moves x by as much over the step, as the filter's),
+    # a last step's displacement by dt_d / dt_x of it; moved: whether the vertex moved or was in a
+    # collision of this pass (the next pass tests its pairs); dx, acting and the marks back to zero
+    # (rolled-back vertices counted)
+    i = wp.tid()
+    d = dx[i]
+    moved[i] = touched[i]
+    touched[i] = 0
+    if d[0] != 0.0 or d[1] != 0.0 or d[2] != 0.0:
+        moved[i] = 1
+        x[i] = x[i] + d
+        v[i] = v[i] + d / dt_x
+        if with_displacement != 0:
+            displacement[i] = displacement[i] + (dt_d / dt_x) * d
+    if rollback[i] != 0:
+        wp.atomic_add(counts, CCD_ROLLBACKS, 1)
+    dx[i] = wp.vec3(0.0)
+    acting[i] = 0
+    rollback[i] = 0
+
+
+@wp.kernel
+def clear_ccd_marks(touched: IntArray):
+    touched[wp.tid()] = 0

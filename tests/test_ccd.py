@@ -1,0 +1,175 @@
+"""Continuous collision of the cloth against itself (kernels/ccd.py): the coplanarity cubic's roots, the
+vertex-triangle and edge-edge tests along a straight motion against hand-made cases with known times,
+and the response at the end of a step: a vertex shot through a pinned triangle in one step stays on its
+side, equal and opposite where both sides are free."""
+
+import numpy as np
+import pytest
+import warp as wp
+from warpcloth.kernels import ccd
+
+from warpcloth.errors import WarpclothError
+from warpcloth.lab import intersections as ix
+from warpcloth.sim.model import SpringParams, SpringType, build_model
+from warpcloth.sim.self_collision import SelfCollision
+
+ETA = 1.0e-6
+
+
+@wp.kernel
+def _roots(q: wp.array(dtype=wp.vec4), out: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    out[i] = ccd.unit_roots(q[i])
+
+
+@wp.kernel
+def _vertex_triangle(x0: wp.array(dtype=wp.vec3), x1: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
+    hit, t, w, n, r0, r1 = ccd.vertex_triangle_ccd(x0[0], x0[1], x0[2], x0[3], x1[0], x1[1], x1[2], x1[3], ETA, ETA)
+    out[0] = float(hit)
+    out[1] = t
+    out[2] = wp.dot(n, r0)
+    out[3] = wp.dot(n, r1)
+
+
+@wp.kernel
+def _edge_edge(x0: wp.array(dtype=wp.vec3), x1: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
+    hit, t, w, n, r0, r1 = ccd.edge_edge_ccd(x0[0], x0[1], x0[2], x0[3], x1[0], x1[1], x1[2], x1[3], ETA, ETA)
+    out[0] = float(hit)
+    out[1] = t
+    out[2] = w[1]
+    out[3] = -w[3]
+
+
+def _run(kernel, x0, x1):
+    out = wp.zeros(4, dtype=float, device="cpu")
+    a0 = wp.array(np.asarray(x0, np.float32), dtype=wp.vec3, device="cpu")
+    a1 = wp.array(np.asarray(x1, np.float32), dtype=wp.vec3, device="cpu")
+    wp.launch(kernel, dim=1, inputs=[a0, a1, out], device="cpu")
+    return out.numpy()
+
+
+def test_the_cubic_roots_in_the_unit_interval_are_found_in_order():
+    """Three roots in [0, 1]; one of three; a quadratic's two (the cubic's leading coefficient 0)."""
+    cases = [np.poly1d([0.2, 0.5, 0.9], r=True), np.poly1d([-0.5, 0.3, 3.0], r=True), np.poly1d([0.25, 0.75], r=True)]
+    q = np.array([np.pad(c.coeffs[::-1], (0, 4 - len(c.coeffs))) for c in cases], np.float32)
+    out = wp.zeros(len(cases), dtype=wp.vec3, device="cpu")
+    wp.launch(_roots, dim=len(cases), inputs=[wp.array(q, dtype=wp.vec4, device="cpu"), out], device="cpu")
+    roots = out.numpy()
+    np.testing.assert_allclose(roots[0], [0.2, 0.5, 0.9], atol=1e-6)
+    assert abs(roots[1][roots[1] <= 1.0][0] - 0.3) < 1e-6 and (roots[1] <= 1.0).sum() == 1
+    np.testing.assert_allclose(np.sort(roots[2][roots[2] <= 1.0]), [0.25, 0.75], atol=1e-6)
+
+
+TRIANGLE = [(0.0, 0.0, 0.0), (0.02, 0.0, 0.0), (0.0, 0.0, 0.02)]
+
+
+@pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (1.3, 0.7, -0.4)])
+def test_a_vertex_through_a_triangle_collides_at_the_time_it_crosses(offset):
+    """A vertex 1 cm above a 2 cm triangle moving 4 cm down in the step (the triangle 0.5 cm up) meets it at
+    t = 1 / 4.5, at positions near 1.5 m (relative coordinates: no loss to the positions' ulps); the start's
+    side has a positive gap along the normal, the end's a negative one."""
+    o = np.array(offset)
+    x0 = np.array([(0.005, 0.01, 0.005), *TRIANGLE]) + o
+    x1 = x0 + np.array([(0.0, -0.04, 0.0)] + [(0.0, 0.005, 0.0)] * 3)
+    hit, t, g0, g1 = _run(_vertex_triangle, x0, x1)
+    assert hit == 1 and abs(t - 1.0 / 4.5) < 1e-5
+    assert g0 * g1 < 0.0
+
+
+def test_a_vertex_beside_a_triangle_and_one_that_stops_short_do_not_collide():
+    x0 = np.array([(0.03, 0.01, 0.03), *TRIANGLE])
+    assert _run(_vertex_triangle, x0, x0 + np.array([(0.0, -0.04, 0.0)] + [(0.0, 0.0, 0.0)] * 3))[0] == 0  # beside
+    x0 = np.array([(0.005, 0.01, 0.005), *TRIANGLE])
+    assert _run(_vertex_triangle, x0, x0 + np.array([(0.0, -0.009, 0.0)] + [(0.0, 0.0, 0.0)] * 3))[0] == 0  # short
+
+
+def test_a_triangle_turning_through_a_still_vertex_collides():
+    """The triangle rotates about its x edge through the vertex (the four points coplanar where the
+    triangle's far corner has come up 1 cm): a root of the cubic that no endpoint shows."""
+    p = (0.004, 0.004, 0.004)
+    x0 = np.array([p, *TRIANGLE])
+    x1 = np.array([p, TRIANGLE[0], TRIANGLE[1], (0.0, 0.02, 0.0)])  # the third corner swung up 90 degrees
+    hit, t, _, _ = _run(_vertex_triangle, x0, x1)
+    # at t the corner is (0, 0.02 t, 0.02 (1 - t)): the plane through the x axis and it holds p where t = 1/2
+    assert hit == 1 and abs(t - 0.5) < 1e-5
+
+
+def test_two_crossing_edges_collide_and_parallel_ones_do_not():
+    """An edge along x moving 2 cm down through a still edge along z 0.5 cm below meets it at t = 1/4,
+    at the middle of both."""
+    x0 = np.array([(-0.01, 0.005, 0.0), (0.01, 0.005, 0.0), (0.0, 0.0, -0.01), (0.0, 0.0, 0.01)])
+    x1 = x0 + np.array([(0.0, -0.02, 0.0)] * 2 + [(0.0, 0.0, 0.0)] * 2)
+    hit, t, s, u = _run(_edge_edge, x0, x1)
+    assert hit == 1 and abs(t - 0.25) < 1e-5 and abs(s - 0.5) < 1e-5 and abs(u - 0.5) < 1e-5
+    beside = x0 + np.array([(0.0, 0.0, 0.02)] * 2 + [(0.0, 0.0, 0.0)] * 2)  # the moving edge 1 cm past the still one
+    beside[2:] = [(0.0, 0.0, -0.01), (0.0, 0.0, 0.005)]
+    assert _run(_edge_edge, beside, beside + np.array([(0.0, -0.02, 0.0)] * 2 + [(0.0, 0.0, 0.0)] * 2))[0] == 0
+
+
+# -- the response at a step's end ------------------------------------------------------------------------
+def triangle_and_vertex(pinned: bool):
+    """A 5 cm triangle (pinned, or free and 4 times heavier than the vertex) at y = 0.3 m and a vertex
+    1 cm above it, with a SelfCollision (h = 5 mm) bound to them."""
+    q = np.array([(0.01, 0.31, 0.01), (0.0, 0.3, 0.0), (0.05, 0.3, 0.0), (0.0, 0.3, 0.05), (0.3, 0.5, 0.3)])
+    pairs = np.array([[1, 2], [2, 3], [3, 1], [0, 4]])  # the vertex tied to a far fifth one (a model needs springs)
+    types = np.array([int(SpringType.STRUCTURAL)] * 4)
+    mass = np.array([0.01, 0.04, 0.04, 0.04, 0.01])
+    params = {t: SpringParams(1.0, 0.0) for t in SpringType}
+    model = build_model(
+        q, pairs, types, mass, params, pins=[1, 2, 3] if pinned else [], triangles=np.array([[1, 2, 3]]), device="cpu"
+    )
+    return model, SelfCollision(model, thickness=0.005, friction=0.0, stiffness=10.0)
+
+
+@pytest.mark.parametrize("pinned", [True, False])
+@pytest.mark.parametrize("motion", [(0.0, -0.04, 0.0), (0.03, -0.04, 0.03)])
+def test_a_vertex_moved_through_a_triangle_ends_the_step_on_its_side(pinned, motion):
+    """Positions at the step's start (detect), then the vertex moved 4 cm down through the triangle (straight
+    down, or out past its long side): prevent_crossings leaves it on its start's side at least the minimum
+    gap from the triangle, x and v changed alike (dx = dt dv), and, the triangle free, momentum unchanged."""
+    model, sc = triangle_and_vertex(pinned)
+    dt = 1.0 / 60.0
+    q0 = model.host["q"].astype(np.float32)
+    v = np.zeros_like(q0)
+    v[0] = np.array(motion) / dt
+    x = wp.array(q0, dtype=wp.vec3, device="cpu")
+    vel = wp.array(v, dtype=wp.vec3, device="cpu")
+    sc.detect(x, vel, dt)
+    x1 = q0 + dt * v
+    x.assign(x1)
+    sc.prevent_crossings(x, vel, dt)
+    xe, ve = x.numpy(), vel.numpy()
+    a, b, c = xe[1:4].astype(np.float64)
+    normal = np.cross(b - a, c - a)
+    normal *= np.sign(np.dot(normal, (0.0, 1.0, 0.0))) / np.linalg.norm(normal)  # up, the start's side
+    assert np.dot(xe[0] - a, normal) >= 0.99 * sc.min_gap  # above the triangle's plane
+    np.testing.assert_allclose(xe - x1, dt * (ve - v), atol=1e-6)
+    stats = sc.stats()
+    assert stats["ccd_collisions"] >= 1 and stats["ccd_unresolved"] == 0 and stats["ccd_rollbacks"] == 0, stats
+    if pinned:
+        np.testing.assert_array_equal(xe[1:4], q0[1:4])
+    else:
+        dp = (model.host["mass"][:, None] * (ve - v)).sum(axis=0)
+        assert np.abs(dp).max() <= 1e-7, dp
+    assert ix.count_self_intersections(xe, model.host["tris"]) == 0
+
+
+def test_without_the_continuous_response_the_vertex_stays_through():
+    """The negative control: ccd_passes 0 leaves the vertex of the test above where the motion put it."""
+    model, _ = triangle_and_vertex(True)
+    sc = SelfCollision(model, thickness=0.005, ccd_passes=0)
+    q0 = model.host["q"].astype(np.float32)
+    x = wp.array(q0, dtype=wp.vec3, device="cpu")
+    vel = wp.zeros(len(q0), dtype=wp.vec3, device="cpu")
+    sc.detect(x, vel, 1.0 / 60.0)
+    x1 = q0.copy()
+    x1[0, 1] -= 0.04
+    x.assign(x1)
+    sc.prevent_crossings(x, vel, 1.0 / 60.0)
+    np.testing.assert_array_equal(x.numpy(), x1)
+
+
+def test_ccd_passes_must_be_a_count():
+    model, _ = triangle_and_vertex(True)
+    with pytest.raises(WarpclothError, match="ccd_passes"):
+        SelfCollision(model, thickness=0.005, ccd_passes=-1)
