@@ -105,9 +105,11 @@ def two_sheets(rows=6, gap=1.2 * H, height=0.02, speed=0.0, offset=(0.007, 0.011
     return model, v
 
 
-#: At dt = 1/60 s without substeps a layer that lands on another already on the ground passes through it
-#: (the lower layer stops within the step: the pair was not near at its start) - see docs/self-collision.md
-STACK_NOT_HELD = ("projective",)
+#: At dt = 1/60 s a layer that lands on another already on the ground passed through it for implicit_euler and
+#: projective until the continuous response (the lower layer stops within the step, the upper goes on) and, for
+#: projective, until a vertex on a collider took none of a self-contact's push (the colliders' projection put
+#: the upper layer back into the lower's plane, 0.4 mm above it)
+STACK_NOT_HELD: tuple[str, ...] = ()
 
 
 @pytest.mark.parametrize("integrator", known_failures(STACK_NOT_HELD, "a layer landing on a landed one at dt = 1/60 s"))
@@ -181,7 +183,12 @@ def momentum(model, v):
 
 
 @pytest.mark.parametrize(
-    "integrator", known_failures(("projective",), "its layers, closing 8 mm a step, pass through each other")
+    "integrator",
+    known_failures(
+        ("projective",),
+        "its layers, closing 8 mm a step, crumple (up to 7 cm in y within 0.1 s) so that the upper one's mean "
+        "ends 2.2 mm above the lower's, though no triangle passes through another",
+    ),
 )
 def test_a_free_two_layer_collision_keeps_momentum(integrator):
     """No gravity, the layers closing at 2 m/s: every step changes the total momentum by at most
@@ -207,8 +214,9 @@ def test_a_free_two_layer_collision_keeps_momentum(integrator):
     n = model.particle_count // 2
     y = sim.state.particle_q.numpy()[:, 1]
     assert sim.self_collision.stats()["contacts_max"] > 10  # they met
-    assert y[n:].mean() > y[:n].mean() + 0.5 * H
     assert worst <= 1e-6, worst
+    assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host["tris"]) == 0
+    assert y[n:].mean() > y[:n].mean() + 0.5 * H
 
 
 # -- the collision interval of the explicit schemes ---------------------------------------------------

@@ -686,15 +686,29 @@ class SelfCollision:
         wp.launch(ccd.clear_ccd_marks, dim=n, inputs=[self.ccd_touched], device=d)
         self._count_unresolved(x)
 
-    def project_increment(self, x: wp.array, dp: wp.array) -> None:
+    def held_inverse_mass(self, x: wp.array, colliders) -> wp.array:
+        """Per vertex 1/m, 0 where it lies within a collider's thickness + the minimum gap at ``x`` (a
+        :class:`~warpcloth.sim.contacts.ColliderSet`): for :meth:`project_increment`, so that a layer on
+        the ground is not pressed into it by the one above (the colliders' projection after it would put
+        the upper layer back into the lower's plane). Device launches only; the array is this object's."""
+        wp.launch(
+            sk.eval_filter_inverse_mass,
+            dim=self.model.particle_count,
+            inputs=[x, self.model.particle_inv_mass, colliders.params, self.min_gap],
+            outputs=[self.filter_inv_mass],
+            device=self.device,
+        )
+        return self.filter_inv_mass
+
+    def project_increment(self, x: wp.array, dp: wp.array, inv_mass: wp.array | None = None) -> None:
         """Inside a position-based solver's iterations (pbd, xpbd, projective): every contact as a
         constraint on p = x + dp, its gap found anew at p, d >= h (each pair's own thickness), with
         Coulomb friction on the relative tangential displacement up to mu times the normal correction;
         corrections equal and opposite, a vertex's mass split over its violated contacts (one Jacobi
-        pass, in place on ``dp``)."""
+        pass, in place on ``dp``). ``inv_mass``: the vertices' 1/m (default the model's; 0 moves none)."""
         n, d = self.model.particle_count, self.device
         records = [self.contact_indices, self.contact_weights, self.contact_normals, self.contact_thickness]
-        inv_mass = self.model.particle_inv_mass
+        inv_mass = self.model.particle_inv_mass if inv_mass is None else inv_mass
         wp.launch(
             sk.count_violated_contacts,
             dim=n,
