@@ -12,7 +12,7 @@ started from the snapshot's state. The cost is the median over the
 repeats of (on - off) / off of the same repeat, with its min-max (machine noise falls on both).
 
     python bench/self_collision.py [--sizes 32 64 128] [--steps 60] [--repeats 5] [--device cpu] [--until 3.0]
-                                   [--interval 0.001]
+                                   [--interval 0.001] [--ccd-passes K]
 """
 
 import argparse
@@ -24,6 +24,7 @@ from warpcloth.scenarios import get_scenario
 
 from warpcloth.run.harness import Stopwatch
 from warpcloth.run.params import BY_NAME
+from warpcloth.sim.self_collision import SelfCollision
 
 SNAPSHOTS = (0.6, 1.2, 1.8, 2.4, 3.0)
 
@@ -35,11 +36,14 @@ def timed(sim, steps, device):
     return watch.seconds
 
 
-def measure(size, steps, repeats, device, until=3.0, interval=None):
+def measure(size, steps, repeats, device, until=3.0, interval=None, ccd_passes=None):
     fold = get_scenario("fold")
     sim = fold.build(
         rows=size, cols=size, device=device, use_graph=True, self_collision_interval=interval
     )  # self-collision on
+    if ccd_passes is not None:  # the continuous response's passes (0: off)
+        settings = {**sim.self_collision.settings(), "ccd_passes": ccd_passes}
+        sim.set_self_collision(SelfCollision(sim.model, **settings))
     plain = fold.build(rows=size, cols=size, device=device, use_graph=True, self_collision=False)
     sc = sim.self_collision
     frame = max(1, round((1.0 / 60.0) / sim.dt))
@@ -92,16 +96,20 @@ def main():
         default=BY_NAME["self_collision_interval"].default,
         help="the self-collision interval [s] (0: every step)",
     )
+    ap.add_argument(
+        "--ccd-passes", type=int, default=None, help="the continuous response's passes (0: off; default the library's)"
+    )
     args = ap.parse_args()
     wp.init()
+    ccd = "" if args.ccd_passes is None else f" --ccd-passes {args.ccd_passes}"
     print(
         f"# python bench/self_collision.py --sizes {' '.join(map(str, args.sizes))} --steps {args.steps} "
-        f"--repeats {args.repeats} --device {args.device} --until {args.until} --interval {args.interval}"
+        f"--repeats {args.repeats} --device {args.device} --until {args.until} --interval {args.interval}{ccd}"
     )
     print(f"# warp {wp.config.version}; ms per explicit_euler step: median [min-max] of {args.repeats} repeats")
     for size in args.sizes:
         t0 = time.perf_counter()
-        sim, rows = measure(size, args.steps, args.repeats, args.device, args.until, args.interval)
+        sim, rows = measure(size, args.steps, args.repeats, args.device, args.until, args.interval, args.ccd_passes)
         print(
             f"fold {size}x{size} ({sim.model.particle_count} vertices, dt {sim.dt:.3g} s, thickness "
             f"{sim.self_collision.thickness} m, {sim._interval_steps()} steps per collision interval)"
@@ -113,7 +121,8 @@ def main():
                 f"  t = {t:3.1f} s  off {spread(off)} ms  on {spread(on)} ms  "
                 f"self-collision {spread(ratios, '{:+.2f}')} x a step   (contacts up to {st['contacts_max']}, "
                 f"candidates {st['candidates_vertex_triangle']}+{st['candidates_edge_edge']}, "
-                f"rebuilds {st['rebuilds']} of {st['detects']} detects in {args.steps} steps)"
+                f"rebuilds {st['rebuilds']} of {st['detects']} detects in {args.steps} steps, "
+                f"continuous collisions {st['ccd_collisions']})"
             )
         print(
             f"  all snapshots: self-collision {spread(every, '{:+.2f}')} x an explicit_euler step "

@@ -17,11 +17,12 @@ from warpcloth.kernels.collide import Collider, collider_contact
 from warpcloth.kernels.self_contact import (
     CAND_EE,
     CAND_VT,
+    CCD_ACTIVE,
+    CCD_CHANGED,
     CCD_COLLISIONS,
     CCD_HITS,
     CCD_ROLLBACKS,
     CCD_UNRESOLVED,
-    MOTION,
     FloatArray,
     IntArray,
     Vec2iArray,
@@ -30,6 +31,7 @@ from warpcloth.kernels.self_contact import (
     Vec4Array,
     Vec4iArray,
     any_perpendicular,
+    boxes_overlap,
     closest_point_triangle,
     closest_points_edge_edge,
 )
@@ -260,13 +262,54 @@ def edge_edge_ccd(
 
 
 @wp.func
-def max_relative_motion(x0: Vec3Array, x1: Vec3Array, idx: wp.vec4i):
-    # max_k |d_k - d_0|, d_k = x1_k - x0_k: how far the pair's vertices moved relative to its first one
-    d0 = x1[idx[0]] - x0[idx[0]]
-    m = float(0.0)
+def swept_boxes_apart(x0: Vec3Array, x1: Vec3Array, idx: wp.vec4i, first: int, margin: float):
+    # whether the boxes swept by the pair's two sides (the first `first` vertices: 1 for a vertex-triangle
+    # pair's vertex, 2 for an edge-edge pair's first edge; the others), relative to the pair's first vertex
+    # (a common motion moves no box), lie more than margin apart: they cannot meet within margin on the way
+    o0 = x0[idx[0]]
+    o1 = x1[idx[0]]
+    lo_a = wp.vec3(0.0)
+    hi_a = wp.vec3(0.0)
+    if first == 2:
+        a0 = x0[idx[1]] - o0
+        a1 = x1[idx[1]] - o1
+        lo_a = wp.min(lo_a, wp.min(a0, a1))
+        hi_a = wp.max(hi_a, wp.max(a0, a1))
+    b0 = x0[idx[3]] - o0
+    b1 = x1[idx[3]] - o1
+    c0 = x0[idx[2]] - o0
+    c1 = x1[idx[2]] - o1
+    lo_b = wp.min(wp.min(b0, b1), wp.min(c0, c1))
+    hi_b = wp.max(wp.max(b0, b1), wp.max(c0, c1))
+    if first == 1:
+        d0 = x0[idx[1]] - o0
+        d1 = x1[idx[1]] - o1
+        lo_b = wp.min(lo_b, wp.min(d0, d1))
+        hi_b = wp.max(hi_b, wp.max(d0, d1))
+    pad = wp.vec3(margin)
+    return not boxes_overlap(lo_a - pad, hi_a + pad, lo_b, hi_b)
+
+
+@wp.func
+def cannot_close(x0: Vec3Array, x1: Vec3Array, idx: wp.vec4i, vertex_triangle: int, margin: float):
+    # whether the pair's distance at the start, less twice its vertices' largest motion relative to its first
+    # one's (the distance is 1-Lipschitz in each side), exceeds margin: it cannot come within margin
+    o0 = x0[idx[0]]
+    o1 = x1[idx[0]]
+    motion = float(0.0)
     for k in range(1, 4):
-        m = wp.max(m, wp.length((x1[idx[k]] - x0[idx[k]]) - d0))
-    return m
+        motion = wp.max(motion, wp.length((x1[idx[k]] - o1) - (x0[idx[k]] - o0)))
+    a = x0[idx[1]] - o0
+    b = x0[idx[2]] - o0
+    c = x0[idx[3]] - o0
+    d = float(0.0)
+    if vertex_triangle != 0:
+        q, _w = closest_point_triangle(wp.vec3(0.0), a, b, c)
+        d = wp.length(q)
+    else:
+        st = closest_points_edge_edge(wp.vec3(0.0), a, b, c)
+        d = wp.length(st[0] * a - (b + st[1] * (c - b)))
+    return d - 2.0 * motion > margin
 
 
 @wp.func
@@ -292,8 +335,14 @@ def eval_ccd_held(x: Vec3Array, colliders: wp.array(dtype=Collider), margin: flo
 
 
 @wp.kernel
-def begin_ccd_pass(counts: IntArray):
+def begin_ccd_pass(counts: IntArray, first: int):
+    # a pass starts: no collision recorded; it tests pairs only where the last pass changed a vertex (the
+    # first: every pair)
     counts[CCD_HITS] = 0
+    if first != 0:
+        counts[CCD_CHANGED] = 1
+    counts[CCD_ACTIVE] = counts[CCD_CHANGED]
+    counts[CCD_CHANGED] = 0
 
 
 @wp.kernel
@@ -305,7 +354,6 @@ def mark_all_moved(moved: IntArray):
 def find_ccd_collisions(
     stride: int,
     counts: IntArray,
-    scalars: FloatArray,
     x0: Vec3Array,
     x1: Vec3Array,
     moved: IntArray,
@@ -314,9 +362,7 @@ def find_ccd_collisions(
     tris: Vec3iArray,
     edges: Vec2iArray,
     cand_vt: Vec2iArray,
-    cand_vt_gap: FloatArray,
     cand_ee: Vec2iArray,
-    cand_ee_gap: FloatArray,
     eta: float,
     min_gap: float,
     mode: int,
@@ -330,34 +376,37 @@ def find_ccd_collisions(
     rollback: IntArray,
     touched: IntArray,
 ):
-    # grid-stride over the candidate pairs: those with a vertex that moved in the last pass (every pair in
-    # the first) and whose gap at the step's start (at least the build's gap less twice the motion since)
-    # exceeds what their relative motion in the step can close are skipped; the rest are tested along the
+    # grid-stride over the candidate pairs: those with no vertex that moved or collided in the last pass
+    # (every pair in the first) and those whose two sides' swept boxes lie more than min_gap apart are
+    # skipped; the rest are tested along the
     # motion x0 -> x1. A collision at t with weights W and normal n, oriented so that the start's
     # n . sum W x0 > 0, is (MODE_PUSH) recorded with the depth min_gap - n . sum W x1 that a push along n
     # removes, and counted at its free vertices (mass splitting); (MODE_ROLLBACK) its free vertices marked;
     # (MODE_COUNT) counted as unresolved
     tid = wp.tid()
+    if counts[CCD_ACTIVE] == 0:  # the last pass moved nothing and found nothing: nothing changed
+        return
     n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
     total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])
-    reach = 2.0 * scalars[MOTION]
     for k in range(tid, total, stride):
         idx = wp.vec4i()
-        gap = float(0.0)
         if k < n_vt:
             pair = cand_vt[k]
             tri = tris[pair[1]]
             idx = wp.vec4i(pair[0], tri[0], tri[1], tri[2])
-            gap = cand_vt_gap[k]
         else:
             pair = cand_ee[k - n_vt]
             ea = edges[pair[0]]
             eb = edges[pair[1]]
             idx = wp.vec4i(ea[0], ea[1], eb[0], eb[1])
-            gap = cand_ee_gap[k - n_vt]
         if moved[idx[0]] + moved[idx[1]] + moved[idx[2]] + moved[idx[3]] == 0:
             continue
-        if gap - reach > 2.0 * max_relative_motion(x0, x1, idx) + min_gap:
+        first_side = 1
+        if k >= n_vt:
+            first_side = 2
+        if swept_boxes_apart(x0, x1, idx, first_side, min_gap):
+            continue
+        if cannot_close(x0, x1, idx, 2 - first_side, min_gap):
             continue
         end_gap = eta
         if mode == MODE_PUSH:  # the pushes also leave every pair at least min_gap apart at the end
@@ -461,15 +510,18 @@ def push_ccd_collisions(
 
 
 @wp.kernel
-def roll_back_vertices(x0: Vec3Array, x1: Vec3Array, rollback: IntArray, dx: Vec3Array):
-    # the fail-safe: a marked vertex goes back to its step's start
-    i = wp.tid()
-    if rollback[i] != 0:
-        dx[i] = x0[i] - x1[i]
+def roll_back_vertices(stride: int, counts: IntArray, x0: Vec3Array, x1: Vec3Array, rollback: IntArray, dx: Vec3Array):
+    # the fail-safe (grid-stride over the vertices): a marked vertex goes back to its step's start
+    if counts[CCD_ACTIVE] == 0:
+        return
+    for i in range(wp.tid(), x0.shape[0], stride):
+        if rollback[i] != 0:
+            dx[i] = x0[i] - x1[i]
 
 
 @wp.kernel
 def apply_ccd_corrections(
+    stride: int,
     dt_x: float,
     dt_d: float,
     with_displacement: int,
@@ -486,22 +538,27 @@ def apply_ccd_corrections(
     # x += dx, v += dx / dt_x (the velocity that moves x by as much over the step, as the filter's),
     # a last step's displacement by dt_d / dt_x of it; moved: whether the vertex moved or was in a
     # collision of this pass (the next pass tests its pairs); dx, acting and the marks back to zero
-    # (rolled-back vertices counted)
-    i = wp.tid()
-    d = dx[i]
-    moved[i] = touched[i]
-    touched[i] = 0
-    if d[0] != 0.0 or d[1] != 0.0 or d[2] != 0.0:
-        moved[i] = 1
-        x[i] = x[i] + d
-        v[i] = v[i] + d / dt_x
-        if with_displacement != 0:
-            displacement[i] = displacement[i] + (dt_d / dt_x) * d
-    if rollback[i] != 0:
-        wp.atomic_add(counts, CCD_ROLLBACKS, 1)
-    dx[i] = wp.vec3(0.0)
-    acting[i] = 0
-    rollback[i] = 0
+    # (rolled-back vertices counted); grid-stride over the vertices; nothing to do where the pass tested
+    # nothing (every mark already 0)
+    if counts[CCD_ACTIVE] == 0:
+        return
+    for i in range(wp.tid(), x.shape[0], stride):
+        d = dx[i]
+        moved[i] = touched[i]
+        touched[i] = 0
+        if d[0] != 0.0 or d[1] != 0.0 or d[2] != 0.0:
+            moved[i] = 1
+            x[i] = x[i] + d
+            v[i] = v[i] + d / dt_x
+            if with_displacement != 0:
+                displacement[i] = displacement[i] + (dt_d / dt_x) * d
+        if rollback[i] != 0:
+            wp.atomic_add(counts, CCD_ROLLBACKS, 1)
+        if moved[i] != 0:
+            wp.atomic_add(counts, CCD_CHANGED, 1)
+        dx[i] = wp.vec3(0.0)
+        acting[i] = 0
+        rollback[i] = 0
 
 
 @wp.kernel

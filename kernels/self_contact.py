@@ -86,7 +86,9 @@ CCD_HITS = wp.constant(14)  # continuous collisions recorded in this pass (kerne
 CCD_COLLISIONS = wp.constant(15)  # continuous collisions found by a step's first pass, so far
 CCD_ROLLBACKS = wp.constant(16)  # vertices the fail-safe moved back to their step's start, so far
 CCD_UNRESOLVED = wp.constant(17)  # continuous collisions left after the fail-safe, so far
-COUNT_SLOTS = 18
+CCD_ACTIVE = wp.constant(18)  # vertices the last continuous pass moved or found in a collision (0: this pass has none)
+CCD_CHANGED = wp.constant(19)  # the same, counted by this pass
+COUNT_SLOTS = 20
 
 # -- indices of the float scalars (``scalars``) ---------------------------------------------------
 MOTION = wp.constant(0)  # max_i D_i = |x_i - x_build_i - u| + |v_i - w| dt this detect, u, w the mean motion [m]
