@@ -15,7 +15,7 @@ from warpcloth.errors import WarpclothError
 from warpcloth.integrators import integrator_names, make_integrator
 from warpcloth.lab import intersections as ix
 from warpcloth.sim.model import SpringParams, SpringType, build_model
-from warpcloth.sim.self_collision import SelfCollision
+from warpcloth.sim.self_collision import COUNT_NAMES, SelfCollision
 
 INTEGRATORS = integrator_names()
 H = 0.005  # the thickness of these tests [m]
@@ -512,6 +512,24 @@ def test_an_overflow_is_reported_on_stderr(capsys):
     assert result.self_collision["overflow_candidates"] > 0
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "self-collision may have missed pairs" in err and "did not fit its list" in err
+
+
+def test_pairs_left_crossing_by_the_continuous_response_are_reported_on_stderr(capsys):
+    """A run whose continuous response left pairs crossing says so, once, apart from the missed-pairs line."""
+    from types import SimpleNamespace
+
+    from warpcloth.run.harness import RunHarness, RunResult
+
+    model, _ = two_sheets()
+    sc = SelfCollision(model, thickness=H)
+    counts = sc.counts.numpy()
+    counts[COUNT_NAMES["ccd_unresolved"]] = 3
+    sc.counts.assign(counts)
+    result = RunResult.__new__(RunResult)
+    RunHarness._report_self_collision(SimpleNamespace(self_collision=sc), result)
+    assert result.self_collision["ccd_unresolved"] == 3 and sc.stats()["ccd_unresolved"] == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "3 pairs crossed within a step and stayed crossed" in err
 
 
 @pytest.mark.parametrize(

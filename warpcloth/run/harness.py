@@ -227,7 +227,9 @@ class RunResult:
     #: Self-collision's counters over the run (:meth:`SelfCollision.stats
     #: <warpcloth.sim.self_collision.SelfCollision.stats>`: contacts, rebuilds, ``overflow_candidates`` and
     #: ``overflow_contacts`` (pairs that did not fit its lists), ``truncated_queries``, ``fast``,
-    #: ``unresolved``); empty with self-collision off. A run whose lists overflowed also warns on stderr.
+    #: ``unresolved``, and the continuous response's ``ccd_collisions``, ``ccd_rollbacks``, ``ccd_unresolved``);
+    #: empty with self-collision off. A run whose lists overflowed, or that left pairs crossing, also warns on
+    #: stderr.
     self_collision: dict = field(default_factory=dict)
     #: What the scenario measured at the end (a textile test's reading, a fold count; Scenario.measure).
     measurements: dict = field(default_factory=dict)
@@ -510,7 +512,8 @@ class RunHarness:
     def _report_self_collision(sim, result: RunResult) -> None:
         """Self-collision's counters into the result (then zeroed for the next run), and one warning
         line where pairs may have been missed: lists that overflowed, queries cut short, vertices
-        faster than the list's largest margin."""
+        faster than the list's largest margin; another where pairs stayed crossed after the continuous
+        response."""
         sc = getattr(sim, "self_collision", None)
         if sc is None:
             return
@@ -527,6 +530,11 @@ class RunHarness:
         said = [f"{count} {what}" for what, count in missed.items() if count]
         if said:
             warn("self-collision may have missed pairs: " + "; ".join(said))
+        if stats["ccd_unresolved"]:
+            warn(
+                f"self-collision: {stats['ccd_unresolved']} pairs crossed within a step and stayed crossed "
+                "after the continuous response (lower dt, or raise ccd_passes)"
+            )
 
     def _check_start(self, sim) -> list:
         """Before a run: one warning line per collider that free vertices start inside (they
