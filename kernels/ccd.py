@@ -38,9 +38,9 @@ from warpcloth.kernels.self_contact import (
 
 NOT_DETERMINISTIC = "the continuous response's collision lists are built in the GPU's thread order"
 
-#: the pushes' over-relaxation (Jacobi passes with each vertex's mass split over its c pushes reach at
+#: the pushes' over-relaxation where a vertex's mass is split over c > 1 pushes (Jacobi passes then reach at
 #: least 1/c of a pair's depth a pass; 1.5 left no pair of the 24 x 8 fold under the minimum gap in 8
-#: passes where 1 left one)
+#: passes where 1 left one); a pair whose vertices have no other push takes its depth exactly
 OVER_RELAXATION = wp.constant(1.5)
 
 #: bisection steps for a root of the coplanarity cubic on one monotone piece of [0, 1] (2^-30 of the step)
@@ -106,7 +106,7 @@ def cubic_stationary(q: wp.vec4):
 @wp.func
 def piece_root(q: wp.vec4, lo: float, hi: float, flo: float, fhi: float, last: int):
     # the root of the cubic on the monotone piece [lo, hi] (its values flo, fhi), or 2 where it has none;
-    # a root at hi belongs to the next piece, but for the last
+    # a root at hi belongs to the next piece, but for the last one ending at 1
     if hi <= lo:
         return 2.0
     if flo == 0.0:
@@ -138,7 +138,9 @@ def unit_roots(q: wp.vec4):
     fs1 = cubic_value(q, s1)
     f1 = cubic_value(q, 1.0)
     return wp.vec3(
-        piece_root(q, 0.0, s0, f0, fs0, 0), piece_root(q, s0, s1, fs0, fs1, 0), piece_root(q, s1, 1.0, fs1, f1, 1)
+        piece_root(q, 0.0, s0, f0, fs0, int(s0 >= 1.0)),
+        piece_root(q, s0, s1, fs0, fs1, int(s1 >= 1.0)),
+        piece_root(q, s1, 1.0, fs1, f1, 1),
     )
 
 
@@ -445,6 +447,8 @@ def find_ccd_collisions(
             )
         if hit == 0:
             continue
+        if t == 0.0 and mode != MODE_PUSH:  # touching at the start: moving back to the start cannot help
+            continue
         for j in range(4):  # tested again in the next pass, moved or not
             touched[idx[j]] = 1
         if first != 0 and mode == MODE_PUSH:
@@ -459,15 +463,22 @@ def find_ccd_collisions(
             continue
         g0 = wp.dot(n, r0)
         g1 = wp.dot(n, r1)
-        if g0 < 0.0 or (g0 == 0.0 and g1 > 0.0):  # the normal from the start's side
+        if wp.abs(g0) <= eta:  # touching at the start: no side to keep, the end's
+            if g1 < 0.0:
+                n = -n
+                g1 = -g1
+        elif g0 < 0.0:  # the normal from the start's side
             n = -n
             g1 = -g1
+        depth = min_gap - g1
+        if depth <= 0.0:
+            continue
         slot = wp.atomic_add(counts, CCD_HITS, 1)
         if slot < capacity:
             hit_idx[slot] = idx
             hit_w[slot] = w
             hit_n[slot] = n
-            hit_depth[slot] = min_gap - g1
+            hit_depth[slot] = depth
             for j in range(4):
                 if w[j] != 0.0 and pushable(inv_mass, held, idx[j], w[j] * n) > 0.0:
                     wp.atomic_add(acting, idx[j], 1)
@@ -500,11 +511,17 @@ def push_ccd_collisions(
         n = hit_n[k]
         m = wp.vec4()
         s = float(0.0)
+        shared = int(0)
         for j in range(4):
             m[j] = pushable(inv_mass, held, idx[j], w[j] * n)
             s += w[j] * w[j] * m[j] * float(wp.max(acting[idx[j]], 1))
+            if m[j] > 0.0 and acting[idx[j]] > 1:
+                shared = 1
         if s > 0.0:
-            impulse = (OVER_RELAXATION * depth / s) * n
+            relax = 1.0
+            if shared != 0:  # a vertex's mass split over several pushes: over-relaxed
+                relax = OVER_RELAXATION
+            impulse = (relax * depth / s) * n
             for j in range(4):
                 wp.atomic_add(dx, idx[j], (w[j] * m[j]) * impulse)
 
@@ -522,7 +539,7 @@ def roll_back_vertices(stride: int, counts: IntArray, x0: Vec3Array, x1: Vec3Arr
 @wp.kernel
 def apply_ccd_corrections(
     stride: int,
-    dt_x: float,
+    dt_v: float,
     dt_d: float,
     with_displacement: int,
     dx: Vec3Array,
@@ -535,8 +552,8 @@ def apply_ccd_corrections(
     touched: IntArray,
     counts: IntArray,
 ):
-    # x += dx, v += dx / dt_x (the velocity that moves x by as much over the step, as the filter's),
-    # a last step's displacement by dt_d / dt_x of it; moved: whether the vertex moved or was in a
+    # x += dx, v += dx / dt_v (dt_v the collision interval: the velocity that moves x by as much over it),
+    # a last step's displacement by dt_d / dt_v of it; moved: whether the vertex moved or was in a
     # collision of this pass (the next pass tests its pairs); dx, acting and the marks back to zero
     # (rolled-back vertices counted); grid-stride over the vertices; nothing to do where the pass tested
     # nothing (every mark already 0)
@@ -549,11 +566,11 @@ def apply_ccd_corrections(
         if d[0] != 0.0 or d[1] != 0.0 or d[2] != 0.0:
             moved[i] = 1
             x[i] = x[i] + d
-            v[i] = v[i] + d / dt_x
+            v[i] = v[i] + d / dt_v
             if with_displacement != 0:
-                displacement[i] = displacement[i] + (dt_d / dt_x) * d
-        if rollback[i] != 0:
-            wp.atomic_add(counts, CCD_ROLLBACKS, 1)
+                displacement[i] = displacement[i] + (dt_d / dt_v) * d
+            if rollback[i] != 0:
+                wp.atomic_add(counts, CCD_ROLLBACKS, 1)
         if moved[i] != 0:
             wp.atomic_add(counts, CCD_CHANGED, 1)
         dx[i] = wp.vec3(0.0)

@@ -8,6 +8,7 @@ import pytest
 import warp as wp
 from warpcloth.kernels import ccd
 
+from warpcloth import Control, Plane
 from warpcloth.errors import WarpclothError
 from warpcloth.lab import intersections as ix
 from warpcloth.sim.model import SpringParams, SpringType, build_model
@@ -121,13 +122,9 @@ def triangle_and_vertex(pinned: bool):
     return model, SelfCollision(model, thickness=0.005, friction=0.0, stiffness=10.0)
 
 
-@pytest.mark.parametrize("pinned", [True, False])
-@pytest.mark.parametrize("motion", [(0.0, -0.04, 0.0), (0.03, -0.04, 0.03)])
-def test_a_vertex_moved_through_a_triangle_ends_the_step_on_its_side(pinned, motion):
-    """Positions at the step's start (detect), then the vertex moved 4 cm down through the triangle (straight
-    down, or out past its long side): prevent_crossings leaves it on its start's side at least the minimum
-    gap from the triangle, x and v changed alike (dx = dt dv), and, the triangle free, momentum unchanged."""
-    model, sc = triangle_and_vertex(pinned)
+def moved_through(model, sc, motion, position_weight=1.0, colliders=None):
+    """Positions at the step's start (detect), then the vertex moved by ``motion`` [m] in the step with the
+    velocity that does so; prevent_crossings. Returns (x at the start, x moved, x after, v before, v after)."""
     dt = 1.0 / 60.0
     q0 = model.host["q"].astype(np.float32)
     v = np.zeros_like(q0)
@@ -137,12 +134,29 @@ def test_a_vertex_moved_through_a_triangle_ends_the_step_on_its_side(pinned, mot
     sc.detect(x, vel, dt)
     x1 = q0 + dt * v
     x.assign(x1)
-    sc.prevent_crossings(x, vel, dt)
-    xe, ve = x.numpy(), vel.numpy()
+    sc.prevent_crossings(x, vel, dt, position_weight, colliders=colliders)
+    return q0, x1, x.numpy(), v, vel.numpy()
+
+
+@pytest.mark.parametrize("pinned", [True, False])
+@pytest.mark.parametrize("motion", [(0.0, -0.04, 0.0), (0.03, -0.04, 0.03)])
+@pytest.mark.parametrize("position_weight", [1.0, 0.5])
+def test_a_vertex_moved_through_a_triangle_ends_the_step_on_its_side(pinned, motion, position_weight):
+    """The vertex moved 4 cm down through the triangle in one step (straight down, or out past its long
+    side): prevent_crossings leaves it on its start's side, at least the minimum gap from the triangle's
+    plane and less than twice that (not thrown past it: a lone pair takes its depth exactly; the free
+    triangle tilts under its push), still moving down (no bounce, whatever the
+    scheme's position weight: 1/2 once bounced it back at 1.3 times its speed), x and v changed alike
+    (dx = dt dv), and, the triangle free, momentum unchanged."""
+    model, sc = triangle_and_vertex(pinned)
+    dt = 1.0 / 60.0
+    q0, x1, xe, v, ve = moved_through(model, sc, motion, position_weight)
     a, b, c = xe[1:4].astype(np.float64)
     normal = np.cross(b - a, c - a)
     normal *= np.sign(np.dot(normal, (0.0, 1.0, 0.0))) / np.linalg.norm(normal)  # up, the start's side
-    assert np.dot(xe[0] - a, normal) >= 0.99 * sc.min_gap  # above the triangle's plane
+    gap = np.dot(xe[0] - a, normal)
+    assert 0.99 * sc.min_gap <= gap <= 2.0 * sc.min_gap, gap  # above the triangle's plane, not thrown past it
+    assert ve[0, 1] < 0.0, ve[0]
     np.testing.assert_allclose(xe - x1, dt * (ve - v), atol=1e-6)
     stats = sc.stats()
     assert stats["ccd_collisions"] >= 1 and stats["ccd_unresolved"] == 0 and stats["ccd_rollbacks"] == 0, stats
@@ -152,6 +166,55 @@ def test_a_vertex_moved_through_a_triangle_ends_the_step_on_its_side(pinned, mot
         dp = (model.host["mass"][:, None] * (ve - v)).sum(axis=0)
         assert np.abs(dp).max() <= 1e-7, dp
     assert ix.count_self_intersections(xe, model.host["tris"]) == 0
+
+
+def test_a_vertex_that_no_push_can_move_goes_back_to_the_steps_start():
+    """The fail-safe: the triangle pinned and the vertex held by a collider above it (a plane facing down,
+    which a push up would enter): the vertex goes back to its start, with the velocity of no motion."""
+    model, sc = triangle_and_vertex(True)
+    ceiling = Control(colliders=[Plane(point=(0.0, 0.2705, 0.0), normal=(0.0, -1.0, 0.0))], device="cpu").collision
+    q0, _x1, xe, _v, ve = moved_through(model, sc, (0.0, -0.04, 0.0), colliders=ceiling)
+    np.testing.assert_allclose(xe[0], q0[0], atol=1e-7)
+    np.testing.assert_allclose(ve[0], 0.0, atol=1e-5)
+    stats = sc.stats()
+    assert stats["ccd_rollbacks"] == 1 and stats["ccd_unresolved"] == 0, stats
+
+
+def test_two_edges_crossing_in_a_step_end_apart():
+    """A free edge (a two-vertex strip's) shot 3 cm down through a pinned triangle's edge beside it, its ends
+    outside the triangle (so no vertex-triangle pair sees it): the edges end apart on their start's side."""
+    q = np.array([(0.04, 0.31, -0.02), (0.04, 0.31, 0.02), (0.0, 0.3, 0.0), (0.05, 0.3, 0.0), (0.0, 0.3, -0.05)])
+    # the triangle (2, 3, 4) lies at z <= 0 with its edge 2-3 along x; the free edge 0-1 crosses over it at x = 4 cm
+    pairs = np.array([[0, 1], [2, 3], [3, 4], [4, 2]])
+    types = np.array([int(SpringType.STRUCTURAL)] * 4)
+    mass = np.array([0.01, 0.01, 0.04, 0.04, 0.04])
+    params = {t: SpringParams(1.0, 0.0) for t in SpringType}
+    tris = np.array([[2, 3, 4], [0, 1, 1]])[:1]
+    model = build_model(q, pairs, types, mass, params, pins=[2, 3, 4], triangles=tris, device="cpu")
+    # the free edge needs a triangle to be an edge of the mesh: a thin one with a far third vertex
+    model = build_model(
+        np.vstack([q, [(0.04, 0.5, 0.0)]]),
+        np.vstack([pairs, [[0, 5], [1, 5]]]),
+        np.array([int(SpringType.STRUCTURAL)] * 6),
+        np.append(mass, 0.01),
+        params,
+        pins=[2, 3, 4],
+        triangles=np.array([[2, 3, 4], [0, 1, 5]]),
+        device="cpu",
+    )
+    sc = SelfCollision(model, thickness=0.005, friction=0.0, stiffness=10.0)
+    dt = 1.0 / 60.0
+    q0 = model.host["q"].astype(np.float32)
+    v = np.zeros_like(q0)
+    v[[0, 1, 5], 1] = -0.03 / dt
+    x = wp.array(q0, dtype=wp.vec3, device="cpu")
+    vel = wp.array(v, dtype=wp.vec3, device="cpu")
+    sc.detect(x, vel, dt)
+    x.assign(q0 + dt * v)
+    sc.prevent_crossings(x, vel, dt)
+    xe = x.numpy()
+    assert xe[0, 1] > 0.3 and xe[1, 1] > 0.3, xe[:2]  # the free edge above the triangle's edge (y = 0.3)
+    assert sc.stats()["ccd_collisions"] >= 1
 
 
 def test_without_the_continuous_response_the_vertex_stays_through():

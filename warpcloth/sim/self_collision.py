@@ -35,10 +35,10 @@ from warpcloth.kernels import self_contact as sk
 from warpcloth.sim.mesh import mesh_topology
 from warpcloth.sim.model import SpringType
 
-#: Counter names of :meth:`SelfCollision.stats`, by their slot in the device counter array.
 #: threads of the continuous response's grid-stride kernels on the CPU (a launch's cost grows with its threads)
 CPU_LANES = 64
 
+#: Counter names of :meth:`SelfCollision.stats`, by their slot in the device counter array.
 COUNT_NAMES = {
     "candidates_vertex_triangle": sk.CAND_VT,
     "candidates_edge_edge": sk.CAND_EE,
@@ -632,7 +632,9 @@ class SelfCollision:
         [0, 1]) is pushed apart along the collision's normal, equal and opposite, so that the pair ends
         on its start's side at least :attr:`min_gap` apart along it (:attr:`ccd_passes` Jacobi passes,
         each testing only the pairs of vertices that moved or collided in the pass before); a push dx
-        changes v by dx / dt_x (dt_x as :meth:`filter_velocities`'s). Pairs still crossing after the
+        changes v by dx / (``steps`` dt), the velocity that moves x by as much over the interval (the
+        filter's dx / dt_x, with dt_x = dt / 2 for the Runge-Kutta schemes, bounced a lone vertex back at
+        1.3 times its speed). Pairs still crossing after the
         passes have their free vertices moved back to the step's start (the fail-safe; momentum is
         not kept), :attr:`CCD_ROLLBACK_ROUNDS` rounds; what is left is counted (``ccd_unresolved``).
         A vertex within a collider's thickness (``colliders``) or pinned is not moved."""
@@ -643,7 +645,7 @@ class SelfCollision:
         dt_d = float(position_weight) * float(dt)
         if not dt_d > 0.0:
             raise WarpclothError(f"self-collision ccd: position_weight * dt must be > 0, got {dt_d!r}")
-        dt_x = dt_d + (steps - 1) * float(dt)
+        dt_v = steps * float(dt)
         disp = displacement if displacement is not None else self._no_displacement
         inv_mass = self.model.particle_inv_mass
         if colliders is not None and len(colliders.colliders):
@@ -659,7 +661,7 @@ class SelfCollision:
         lanes = n if wp.get_device(d).is_cuda else min(n, CPU_LANES)
         find_inputs = [lanes, self.counts, self.x_start, x, self.ccd_moved, inv_mass, self.ccd_held]
         find_inputs += [self.tris, self.edges, self.cand_vt, self.cand_ee, self.ccd_tolerance]
-        apply_inputs = [lanes, float(dt_x), dt_d, int(displacement is not None), self.dv, x, v, disp, self.ccd_moved]
+        apply_inputs = [lanes, dt_v, dt_d, int(displacement is not None), self.dv, x, v, disp, self.ccd_moved]
 
         def find(mode: int, first: int = 0) -> None:
             wp.launch(ccd.begin_ccd_pass, dim=1, inputs=[self.counts, first], device=d)
