@@ -15,9 +15,13 @@ kernels only (no host work, no allocation), so they can sit inside a captured fr
   with v as the step would have moved it (Bridson, Fedkiw & Anderson 2002, Sec. 7.2). An explicit
   scheme needs only ``detect`` and this;
 * :meth:`SelfCollision.apply_forces`: the same repulsion as a force k (h - d) n, equal and
-  opposite, capped likewise, for schemes that want it in their force (then the filter's is off).
+  opposite, capped likewise, for schemes that want it in their force (then the filter's is off);
+* :meth:`SelfCollision.prevent_crossings`, the last word of a step: every listed pair followed along
+  its straight motion from the detect's positions (continuous collision detection,
+  :mod:`warpcloth.kernels.ccd`), a pair that met on the way pushed apart, equal and opposite.
 
-The :class:`~warpcloth.simulator.Simulator` detects before each step and filters after it; how each
+The :class:`~warpcloth.simulator.Simulator` detects before each step, filters after it and ends it with the
+continuous response; how each
 integrator holds the contacts inside its own step (:meth:`project_increment`, :meth:`eval_vertex_terms`,
 implicit Euler's system): docs/self-collision.md.
 """
@@ -785,8 +789,9 @@ class SelfCollision:
         """Counters (reads the device): this step's candidates and contacts, and since the last
         :meth:`reset_stats`: rebuilds, overflows (pairs that did not fit), truncated queries, contacts
         left closer than the minimum gap, detects, the largest lists, ``fast`` (rebuilds whose
-        vertices moved more than the list's largest skin covers: a pair may have been missed); the
-        list's radius [m]."""
+        vertices moved more than the list's largest skin covers: a pair may have been missed), the
+        continuous response's ``ccd_collisions`` (pairs its first pass pushed), ``ccd_rollbacks`` and
+        ``ccd_unresolved`` (pairs left crossing); the list's radius [m]."""
         c = self.counts.numpy()
         s = self.scalars.numpy()
         out = {name: int(c[k]) for name, k in COUNT_NAMES.items()}
