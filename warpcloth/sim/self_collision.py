@@ -641,7 +641,8 @@ class SelfCollision:
         1.3 times its speed). Pairs still crossing after the
         passes have their free vertices moved back to the step's start (the fail-safe; momentum is
         not kept), :attr:`CCD_ROLLBACK_ROUNDS` rounds; what is left is counted (``ccd_unresolved``).
-        A vertex within a collider's thickness (``colliders``) or pinned is not moved."""
+        A pinned vertex is not pushed, nor one within a collider's thickness (``colliders``, a
+        :class:`~warpcloth.sim.contacts.ColliderSet`) where the push would move it into that collider."""
         if self.ccd_passes == 0:
             return
         n, d = self.model.particle_count, self.device
