@@ -203,6 +203,46 @@ def vertex_triangle_ccd(
 
 
 @wp.func
+def to_double(u: wp.vec3):
+    return wp.vec3d(wp.float64(u[0]), wp.float64(u[1]), wp.float64(u[2]))
+
+
+@wp.func
+def closest_points_near_parallel(a: wp.vec3, b: wp.vec3, c: wp.vec3, d: wp.vec3):
+    # (s, u, distance) of the closest points a + s (b - a), c + u (d - c) of two segments in float64
+    # (Ericson 2005, 5.1.9, with no parallel fallback but an exactly parallel one): for edges parallel to
+    # within ~1e-3 rad, where float32 cannot resolve where they cross (sin^2 of their angle is below its
+    # rounding of a e - b^2) and closest_points_edge_edge takes the middle of their overlap
+    p1 = to_double(a)
+    p2 = to_double(c)
+    d1 = to_double(b) - p1
+    d2 = to_double(d) - p2
+    r = p1 - p2
+    aa = wp.dot(d1, d1)
+    e = wp.dot(d2, d2)
+    f = wp.dot(d2, r)
+    cc = wp.dot(d1, r)
+    bb = wp.dot(d1, d2)
+    zero = wp.float64(0.0)
+    one = wp.float64(1.0)
+    if aa <= wp.float64(1.0e-30) or e <= wp.float64(1.0e-30):
+        return 0.0, 0.0, 1.0e30
+    denom = aa * e - bb * bb
+    sd = zero
+    if denom > zero:
+        sd = wp.clamp((bb * f - cc * e) / denom, zero, one)
+    ud = (bb * sd + f) / e
+    if ud < zero:
+        ud = zero
+        sd = wp.clamp(-cc / aa, zero, one)
+    elif ud > one:
+        ud = one
+        sd = wp.clamp((bb - cc) / aa, zero, one)
+    gap = wp.length((p1 + sd * d1) - (p2 + ud * d2))
+    return float(sd), float(ud), float(gap)
+
+
+@wp.func
 def edge_edge_ccd(
     a0: wp.vec3,
     b0: wp.vec3,
@@ -233,7 +273,11 @@ def edge_edge_ccd(
             su = closest_points_edge_edge(wp.vec3(0.0), bt, ct, dt)
             s = su[0]
             u = su[1]
-            if wp.length(s * bt - (ct + u * (dt - ct))) <= eta:
+            gap = wp.length(s * bt - (ct + u * (dt - ct)))
+            side = dt - ct
+            if gap > eta and wp.length_sq(wp.cross(bt, side)) < 1.0e-5 * wp.length_sq(bt) * wp.length_sq(side):
+                s, u, gap = closest_points_near_parallel(wp.vec3(0.0), bt, ct, dt)  # where they cross
+            if gap <= eta:
                 n = wp.cross(bt, dt - ct)
                 ln = wp.length(n)
                 if ln > 0.0:

@@ -107,6 +107,22 @@ def test_two_crossing_edges_collide_and_parallel_ones_do_not():
     assert _run(_edge_edge, beside, beside + np.array([(0.0, -0.02, 0.0)] * 2 + [(0.0, 0.0, 0.0)] * 2))[0] == 0
 
 
+@pytest.mark.parametrize("angle", [1.0e-4, 5.0e-4, 9.0e-4, 2.0e-3])
+def test_nearly_parallel_edges_that_cross_collide(angle):
+    """Two 2 cm edges in one plane at t = 1/2, crossing at an angle of 1e-4 to 2e-3 rad: below ~1e-3 rad
+    float32 cannot resolve where they cross (its closest points fall in the overlap's middle, up to 1e-5 m
+    off), so the crossing is found in float64 (a review's trial missed 5e-4 and 9e-4 rad)."""
+    p = np.array([0.008, 0.0, 0.0])
+    direction = np.array([np.cos(angle), 0.0, np.sin(angle)])
+    x0 = np.array([(-0.01, 0.005, 0.0), (0.01, 0.005, 0.0), p - 0.018 * direction, p + 0.002 * direction])
+    x1 = x0 - np.array([(0.0, 0.01, 0.0)] * 2 + [(0.0, 0.0, 0.0)] * 2)
+    hit, t, s, u = _run(_edge_edge, x0, x1)
+    assert hit == 1 and abs(t - 0.5) < 1e-5, (hit, t)
+    xt = x0 + t * (x1 - x0)
+    gap = np.linalg.norm(xt[0] + s * (xt[1] - xt[0]) - (xt[2] + u * (xt[3] - xt[2])))
+    assert gap <= ETA, (s, u, gap)  # its closest points where the edges meet (x = 8 mm), within the tolerance
+
+
 # -- the response at a step's end ------------------------------------------------------------------------
 def triangle_and_vertex(pinned: bool):
     """A 5 cm triangle (pinned, or free and 4 times heavier than the vertex) at y = 0.3 m and a vertex
