@@ -145,6 +145,15 @@ def unit_roots(q: wp.vec4):
 
 
 @wp.func
+def unit_normal(n: wp.vec3, edge: wp.vec3):
+    # n normalised, or a unit vector perpendicular to edge where n is zero (a degenerate triangle, parallel edges)
+    ln = wp.length(n)
+    if ln > 0.0:
+        return n / ln
+    return any_perpendicular(edge)
+
+
+@wp.func
 def vertex_triangle_ccd(
     p0: wp.vec3,
     a0: wp.vec3,
@@ -175,12 +184,7 @@ def vertex_triangle_ccd(
             pt = e3 + t * d3
             q, w = closest_point_triangle(pt, wp.vec3(0.0), bt, ct)
             if wp.length(pt - q) <= eta:
-                n = wp.cross(bt, ct)
-                ln = wp.length(n)
-                if ln > 0.0:
-                    n = n / ln
-                else:
-                    n = any_perpendicular(bt)
+                n = unit_normal(wp.cross(bt, ct), bt)
                 r0 = e3 - w[1] * e1 - w[2] * e2
                 r1 = (e3 + d3) - w[1] * (e1 + d1) - w[2] * (e2 + d2)
                 return 1, t, wp.vec4(1.0, -w[0], -w[1], -w[2]), n, r0, r1
@@ -192,12 +196,7 @@ def vertex_triangle_ccd(
     q1, w1 = closest_point_triangle(p1r, wp.vec3(0.0), b1r, c1r)
     if wp.length(p1r - q1) <= end_gap:
         r0 = e3 - w1[1] * e1 - w1[2] * e2
-        n = wp.cross(b1r, c1r)
-        ln = wp.length(n)
-        if ln > 0.0:
-            n = n / ln
-        else:
-            n = any_perpendicular(b1r)
+        n = unit_normal(wp.cross(b1r, c1r), b1r)
         return 1, 1.0, wp.vec4(1.0, -w1[0], -w1[1], -w1[2]), n, r0, p1r - q1
     return 0, 2.0, wp.vec4(0.0), wp.vec3(0.0), wp.vec3(0.0), wp.vec3(0.0)
 
@@ -278,12 +277,7 @@ def edge_edge_ccd(
             if gap > eta and wp.length_sq(wp.cross(bt, side)) < 1.0e-5 * wp.length_sq(bt) * wp.length_sq(side):
                 s, u, gap = closest_points_near_parallel(wp.vec3(0.0), bt, ct, dt)  # where they cross
             if gap <= eta:
-                n = wp.cross(bt, dt - ct)
-                ln = wp.length(n)
-                if ln > 0.0:
-                    n = n / ln
-                else:
-                    n = any_perpendicular(bt)
+                n = unit_normal(wp.cross(bt, dt - ct), bt)
                 r0 = s * e1 - (e2 + u * (e3 - e2))
                 r1 = s * (e1 + g1) - ((e2 + g2) + u * ((e3 + g3) - (e2 + g2)))
                 return 1, t, wp.vec4(1.0 - s, s, u - 1.0, -u), n, r0, r1
@@ -296,12 +290,7 @@ def edge_edge_ccd(
     u1 = su1[1]
     r1 = s1 * b1r - (c1r + u1 * (d1r - c1r))
     if wp.length(r1) <= end_gap:
-        n = wp.cross(b1r, d1r - c1r)
-        ln = wp.length(n)
-        if ln > 0.0:
-            n = n / ln
-        else:
-            n = any_perpendicular(b1r)
+        n = unit_normal(wp.cross(b1r, d1r - c1r), b1r)
         r0 = s1 * e1 - (e2 + u1 * (e3 - e2))
         return 1, 1.0, wp.vec4(1.0 - s1, s1, u1 - 1.0, -u1), n, r0, r1
     return 0, 2.0, wp.vec4(0.0), wp.vec3(0.0), wp.vec3(0.0), wp.vec3(0.0)
@@ -389,11 +378,6 @@ def begin_ccd_pass(counts: IntArray, first: int):
         counts[CCD_CHANGED] = 1
     counts[CCD_ACTIVE] = counts[CCD_CHANGED]
     counts[CCD_CHANGED] = 0
-
-
-@wp.kernel
-def mark_all_moved(moved: IntArray):
-    moved[wp.tid()] = 1
 
 
 @wp.kernel
@@ -620,8 +604,3 @@ def apply_ccd_corrections(
         dx[i] = wp.vec3(0.0)
         acting[i] = 0
         rollback[i] = 0
-
-
-@wp.kernel
-def clear_ccd_marks(touched: IntArray):
-    touched[wp.tid()] = 0

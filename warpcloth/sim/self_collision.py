@@ -550,14 +550,7 @@ class SelfCollision:
         k = self.stiffness if repulsion else 0.0
         inv_mass = self.model.particle_inv_mass
         if colliders is not None and len(colliders.colliders):
-            inv_mass = self.filter_inv_mass
-            wp.launch(
-                sk.eval_filter_inverse_mass,
-                dim=n,
-                inputs=[x, self.model.particle_inv_mass, colliders.params, self.min_gap],
-                outputs=[inv_mass],
-                device=d,
-            )
+            inv_mass = self.held_inverse_mass(x, colliders)
         records = [self.contact_indices, self.contact_weights, self.contact_normals, self.contact_gaps]
         records.append(self.contact_thickness)
         for _ in range(self.iterations * (2 if steps > 1 else 1)):  # an interval's corrections are larger
@@ -680,7 +673,7 @@ class SelfCollision:
         def apply() -> None:
             wp.launch(ccd.apply_ccd_corrections, dim=lanes, inputs=[*apply_inputs, *marks, self.counts], device=d)
 
-        wp.launch(ccd.mark_all_moved, dim=n, inputs=[self.ccd_moved], device=d)
+        self.ccd_moved.fill_(1)  # the first pass tests every pair
         for k in range(self.ccd_passes):
             find(int(ccd.MODE_PUSH), int(k == 0))
             wp.launch(
@@ -709,14 +702,15 @@ class SelfCollision:
             )
             apply()
         find(int(ccd.MODE_COUNT))
-        wp.launch(ccd.clear_ccd_marks, dim=n, inputs=[self.ccd_touched], device=d)
+        self.ccd_touched.zero_()
         self._count_unresolved(x)
 
     def held_inverse_mass(self, x: wp.array, colliders) -> wp.array:
         """Per vertex 1/m, 0 where it lies within a collider's thickness + the minimum gap at ``x`` (a
-        :class:`~warpcloth.sim.contacts.ColliderSet`): for :meth:`project_increment`, so that a layer on
-        the ground is not pressed into it by the one above (the colliders' projection after it would put
-        the upper layer back into the lower's plane). Device launches only; the array is this object's."""
+        :class:`~warpcloth.sim.contacts.ColliderSet`): the filter's masses, and for :meth:`project_increment`,
+        so that a layer on the ground is not pressed into it by the one above (the colliders' projection after
+        it would put the upper layer back into the lower's plane). Device launches only; the array is this
+        object's."""
         wp.launch(
             sk.eval_filter_inverse_mass,
             dim=self.model.particle_count,
