@@ -232,14 +232,17 @@ def csr_matvec_dot(
     columns: wp.array(dtype=int),
     values: wp.array(dtype=float),
     p: wp.array(dtype=wp.vec3),
+    weight: wp.array(dtype=float),
     Ap: wp.array(dtype=wp.vec3),
     dot_terms: wp.array(dtype=float),
 ):
-    # Ap = S p (scalar CSR on vec3: the same matrix for x, y and z);  dot_terms = p.Ap
+    # Ap = (S + W) p (scalar CSR on vec3: the same matrix for x, y and z; W the self-contacts' diagonal
+    # weights, 0 without them);  dot_terms = p.Ap
     i = wp.tid()
     acc = wp.vec3(0.0)
     for e in range(row_offsets[i], row_offsets[i + 1]):
         acc = acc + values[e] * p[columns[e]]
+    acc = acc + weight[i] * p[i]
     Ap[i] = acc
     dot_terms[i] = wp.dot(p[i], acc)
 
@@ -309,17 +312,23 @@ def translation_terms(
     columns: wp.array(dtype=int),
     values: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
+    weight: wp.array(dtype=float),
+    target: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
     b: wp.array(dtype=wp.vec3),
     A: wp.array(dtype=wp.mat33),
 ):
     # the global system's Galerkin problem on the rigid translation T (free particles move by t):
-    # T^T r = sum r_i, T^T S T = sum_i sum_(j free) S_ij (times I: S is scalar); pinned rows 0
+    # T^T r = sum r_i, T^T S T = sum_i sum_(j free) S_ij (times I: S is scalar); pinned rows 0. The
+    # self-contacts' linear terms W (target - dx) are taken out of r, and W out of T^T S T: the contacts
+    # are equal and opposite, translation-invariant (their true terms sum to 0 at any dx), which the
+    # diagonal W with fixed targets is not (add_self_contact_terms)
     i = wp.tid()
     if particle_inv_mass[i] == 0.0:
         b[i] = wp.vec3(0.0)
         A[i] = wp.mat33(0.0)
         return
-    b[i] = r[i]
+    b[i] = r[i] - weight[i] * (target[i] - dx[i])
     A[i] = free_row_sum(i, row_offsets, columns, values, particle_inv_mass) * wp.identity(n=3, dtype=float)
 
 
@@ -330,6 +339,7 @@ def apply_translation(
     columns: wp.array(dtype=int),
     values: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
+    weight: wp.array(dtype=float),
     inv_diag: wp.array(dtype=float),
     dx: wp.array(dtype=wp.vec3),
     r: wp.array(dtype=wp.vec3),
@@ -337,15 +347,55 @@ def apply_translation(
     p: wp.array(dtype=wp.vec3),
     dot_terms: wp.array(dtype=float),
 ):
-    # dx += t, r -= S T t = (sum_(j free) S_ij) t on the free particles; CG's start again: z = P^-1 r, p = z, r.z
+    # dx += t, r -= (S + W) T t = (sum_(j free) S_ij + W_i) t on the free particles (the linear system CG
+    # goes on with); CG's start again: z = P^-1 r, p = z, r.z
     i = wp.tid()
     if particle_inv_mass[i] == 0.0:
         return
     t = translation[0]
     dx[i] = dx[i] + t
-    res = r[i] - free_row_sum(i, row_offsets, columns, values, particle_inv_mass) * t
+    res = r[i] - (free_row_sum(i, row_offsets, columns, values, particle_inv_mass) + weight[i]) * t
     zi = inv_diag[i] * res
     r[i] = res
     z[i] = zi
     p[i] = zi
     dot_terms[i] = wp.dot(res, zi)
+
+
+# -- self-contacts in the global system (issue 29) ----------------------------------------------------
+@wp.kernel
+def add_self_contact_terms(
+    dx: wp.array(dtype=wp.vec3),
+    target: wp.array(dtype=wp.vec3),
+    inertia: Inertia,
+    contact_state: wp.array(dtype=int),
+    weight_per_mass: float,
+    inv_diag: wp.array(dtype=float),
+    weight: wp.array(dtype=float),
+    precond: wp.array(dtype=float),
+    r: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
+    p: wp.array(dtype=wp.vec3),
+    dot_terms: wp.array(dtype=float),
+):
+    # after the local step: a vertex the self-contacts' projection moved (target != dx) is drawn to its
+    # projected position by a projective constraint of weight W_i = weight_per_mass m_i: r_i += W_i
+    # (target_i - dx_i), S_ii += W_i (W proportional to m, so sum_i W_i (target_i - dx_i) = 0: the
+    # projection's corrections are equal and opposite in momentum); the Jacobi preconditioner 1 / (S_ii +
+    # W_i) and CG's start again
+    i = wp.tid()
+    w = float(0.0)
+    if inertia.inv_mass[i] != 0.0 and contact_state[i] != 2:
+        d = target[i] - dx[i]
+        if wp.length_sq(d) > 0.0:
+            w = weight_per_mass * inertia.mass[i]
+            r[i] = r[i] + w * d
+    weight[i] = w
+    inv = inv_diag[i]
+    if w > 0.0:
+        inv = 1.0 / (1.0 / inv + w)
+    precond[i] = inv
+    zi = inv * r[i]
+    z[i] = zi
+    p[i] = zi
+    dot_terms[i] = wp.dot(r[i], zi)

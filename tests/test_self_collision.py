@@ -182,14 +182,10 @@ def momentum(model, v):
     return (model.host["mass"].astype(np.float64)[:, None] * v.astype(np.float64)).sum(axis=0)
 
 
-@pytest.mark.parametrize(
-    "integrator",
-    known_failures(
-        ("projective",),
-        "its layers, closing 8 mm a step, crumple (up to 7 cm in y within 0.1 s) so that the upper one's mean "
-        "ends 2.2 mm above the lower's, though no triangle passes through another",
-    ),
-)
+#: projective's layers crumpled (up to 7 cm in y within 0.1 s; the upper one's mean ended 2.2 mm above the
+#: lower's) until its global solve held the self-contacts as projective constraints (add_self_contact_terms):
+#: with them 9 mm, as pbd's (the layers' uncovered margins go on moving)
+@pytest.mark.parametrize("integrator", INTEGRATORS)
 def test_a_free_two_layer_collision_keeps_momentum(integrator):
     """No gravity, the layers closing at 2 m/s: every step changes the total momentum by at most
     1e-6 kg m/s (equal and opposite responses) and the layers do not pass through each other."""
@@ -217,6 +213,9 @@ def test_a_free_two_layer_collision_keeps_momentum(integrator):
     assert worst <= 1e-6, worst
     assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host["tris"]) == 0
     assert y[n:].mean() > y[:n].mean() + 0.5 * H
+    # the layers stay flat but for their uncovered margins, which go on moving (measured 0.06 s: 7.9-11 mm in
+    # y per layer for every integrator; projective's crumpled layers 65 mm)
+    assert np.ptp(y[:n]) < 0.015 and np.ptp(y[n:]) < 0.015, (np.ptp(y[:n]), np.ptp(y[n:]))
 
 
 # -- the collision interval of the explicit schemes ---------------------------------------------------
