@@ -528,7 +528,9 @@ def push_ccd_collisions(
 ):
     # each recorded collision's push: dx_k += W_k (depth / sum_j W_j^2 c_j / m_j) n / m_k, equal and
     # opposite (c_j: the pushes acting on vertex j in this pass; 1/m_j = 0 where the push would move j into
-    # a collider that holds it or j is pinned)
+    # a collider that holds it or j is pinned; then the sum is at least max_k |W_k| c_k / m_k / 2 over the others,
+    # so that a free vertex of small weight is not thrown at depth / W: what the passes leave, the fail-safe
+    # takes back)
     tid = wp.tid()
     for k in range(tid, wp.min(counts[CCD_HITS], capacity), stride):
         idx = hit_idx[k]
@@ -540,11 +542,21 @@ def push_ccd_collisions(
         m = wp.vec4()
         s = float(0.0)
         shared = int(0)
+        stuck = int(0)
+        share = float(0.0)
         for j in range(4):
             m[j] = pushable(inv_mass, held, idx[j], w[j] * n)
-            s += w[j] * w[j] * m[j] * float(wp.max(acting[idx[j]], 1))
+            c = float(wp.max(acting[idx[j]], 1))
+            s += w[j] * w[j] * m[j] * c
             if m[j] > 0.0 and acting[idx[j]] > 1:
                 shared = 1
+            if w[j] != 0.0:
+                if m[j] == 0.0:
+                    stuck = 1
+                else:
+                    share = wp.max(share, wp.abs(w[j]) * m[j] * c)
+        if stuck != 0:  # as the filter's held_capped_inverse_mass: no vertex pushed more than twice the depth
+            s = wp.max(s, 0.5 * share)
         if s > 0.0:
             relax = 1.0
             if shared != 0:  # a vertex's mass split over several pushes: over-relaxed
