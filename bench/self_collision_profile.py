@@ -1,7 +1,8 @@
 """Where a self-collision run's time goes, kernel by kernel (issue 29): the fold at N x N run for
 ``--seconds`` with every ``wp.launch`` timed on the host (plain launches, not a captured graph, so
 the figures carry Python's launch overhead, a few microseconds each; on the CPU a launch returns when
-its kernel is done; the first step, which loads the modules, is not timed). Prints ms per step of each kernel, largest first, and the self-collision counters.
+its kernel is done; the first step, which loads the modules, is not timed). Prints ms per step of each
+kernel, largest first, and the self-collision counters.
 
     python bench/self_collision_profile.py [--size 64] [--seconds 3.0] [--integrator explicit_euler]
                                            [--self-collision on|off] [--top 30]

@@ -529,8 +529,9 @@ def push_ccd_collisions(
     # each recorded collision's push: dx_k += W_k (depth / sum_j W_j^2 c_j / m_j) n / m_k, equal and
     # opposite (c_j: the pushes acting on vertex j in this pass; 1/m_j = 0 where the push would move j into
     # a collider that holds it or j is pinned; then the sum is at least max_k |W_k| c_k / m_k / 2 over the others,
-    # so that a free vertex of small weight is not thrown at depth / W: what the passes leave, the fail-safe
-    # takes back)
+    # so that a free vertex of small weight is not thrown at depth / W: twice the depth at most, 3 times where
+    # over-relaxed. What the passes leave crossing, the fail-safe moves back, but for a pair whose held vertex
+    # is a moving pin (the fail-safe moves free vertices only): counted in ccd_unresolved, and the run warns)
     tid = wp.tid()
     for k in range(tid, wp.min(counts[CCD_HITS], capacity), stride):
         idx = hit_idx[k]
@@ -555,7 +556,7 @@ def push_ccd_collisions(
                     stuck = 1
                 else:
                     share = wp.max(share, wp.abs(w[j]) * m[j] * c)
-        if stuck != 0:  # as the filter's held_capped_inverse_mass: no vertex pushed more than twice the depth
+        if stuck != 0:  # as the filter's held_capped_inverse_mass
             s = wp.max(s, 0.5 * share)
         if s > 0.0:
             relax = 1.0

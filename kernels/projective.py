@@ -380,9 +380,9 @@ def add_self_contact_terms(
 ):
     # after the local step: a vertex the self-contacts' projection moved (target != dx) is drawn to its
     # projected position by a projective constraint of weight W_i = weight_per_mass m_i: r_i += W_i
-    # (target_i - dx_i), S_ii += W_i (W proportional to m, so sum_i W_i (target_i - dx_i) = 0: the
-    # projection's corrections are equal and opposite in momentum); the Jacobi preconditioner 1 / (S_ii +
-    # W_i) and CG's start again
+    # (target_i - dx_i), S_ii += W_i (W proportional to m, so sum_i W_i (target_i - dx_i) = 0 where no vertex is
+    # held: the projection's corrections are equal and opposite in momentum; the translation steps take these
+    # terms out of r anyway, translation_terms); the Jacobi preconditioner 1 / (S_ii + W_i) and CG's start again
     i = wp.tid()
     w = float(0.0)
     if inertia.inv_mass[i] != 0.0 and contact_state[i] != 2:

@@ -335,7 +335,9 @@ def held_capped_inverse_mass(idx: wp.vec4i, w: wp.vec4, inv_mass: FloatArray, sp
     # (the 64 x 64 fold: an edge pair 97 % at a vertex on the ground, its free end W = 0.029, took 24 m/s in
     # one filter pass and went through the layer below). Capped: max(inv_m, max_k |W_k| c_k / m_k / 2) over
     # the free vertices, so that no vertex takes more than twice the contact's own change (split over its c_k
-    # contacts); where a free vertex has W >= 1/2 the cap is never reached (sum W^2 >= W^2 >= W / 2)
+    # contacts). The cap is never reached where c / m is the same at every free vertex and the one of largest
+    # |W| has |W| >= 1/2 (sum W^2 >= W^2 >= |W| / 2), nor in a vertex-triangle contact of uniform c / m; where
+    # c / m differs it may scale the impulse down (to 0.9 in a review's example), never a vertex's change up
     held = int(0)
     share = float(0.0)
     for k in range(4):

@@ -128,6 +128,8 @@ def test_sheet_settles_on_the_static_equilibrium():
     [
         ({"pd_iterations": 0}, "pd_iterations must be an integer >= 1"),
         ({"pd_cg_iterations": 0}, "pd_cg_iterations must be an integer >= 1"),
+        ({"pd_contact_weight": 0.0}, "pd_contact_weight must be finite and > 0"),
+        ({"pd_contact_weight": float("inf")}, "pd_contact_weight must be finite and > 0"),
     ],
 )
 def test_bad_options(options, message):
