@@ -32,6 +32,7 @@ from warpcloth.kernels.self_contact import (
     Vec4iArray,
     any_perpendicular,
     boxes_overlap,
+    capped_for_held,
     closest_point_triangle,
     closest_points_edge_edge,
 )
@@ -541,23 +542,16 @@ def push_ccd_collisions(
             continue
         n = hit_n[k]
         m = wp.vec4()
+        c = wp.vec4()
         s = float(0.0)
         shared = int(0)
-        stuck = int(0)
-        share = float(0.0)
         for j in range(4):
             m[j] = pushable(inv_mass, held, idx[j], w[j] * n)
-            c = float(wp.max(acting[idx[j]], 1))
-            s += w[j] * w[j] * m[j] * c
+            c[j] = float(wp.max(acting[idx[j]], 1))
+            s += w[j] * w[j] * m[j] * c[j]
             if m[j] > 0.0 and acting[idx[j]] > 1:
                 shared = 1
-            if w[j] != 0.0:
-                if m[j] == 0.0:
-                    stuck = 1
-                else:
-                    share = wp.max(share, wp.abs(w[j]) * m[j] * c)
-        if stuck != 0:  # as the filter's held_capped_inverse_mass
-            s = wp.max(s, 0.5 * share)
+        s = capped_for_held(w, m, c, s)  # as the filter's
         if s > 0.0:
             relax = 1.0
             if shared != 0:  # a vertex's mass split over several pushes: over-relaxed

@@ -329,26 +329,38 @@ def split_inverse_mass(idx: wp.vec4i, w: wp.vec4, inv_mass: FloatArray, splits: 
 
 
 @wp.func
-def held_capped_inverse_mass(idx: wp.vec4i, w: wp.vec4, inv_mass: FloatArray, splits: IntArray, inv_m: float):
+def capped_for_held(w: wp.vec4, inv_m4: wp.vec4, c4: wp.vec4, inv_m: float):
     # a contact with a held vertex (1/m = 0 and W != 0: pinned, or on a collider in the filter) moves only its
     # free ones, and where their weights are small the impulse dv_n / sum W^2 c / m threw them at ~ dv_n / W
     # (the 64 x 64 fold: an edge pair 97 % at a vertex on the ground, its free end W = 0.029, took 24 m/s in
     # one filter pass and went through the layer below). Capped: max(inv_m, max_k |W_k| c_k / m_k / 2) over
-    # the free vertices, so that no vertex takes more than twice the contact's own change (split over its c_k
-    # contacts). The cap is never reached where c / m is the same at every free vertex and the one of largest
-    # |W| has |W| >= 1/2 (sum W^2 >= W^2 >= |W| / 2), nor in a vertex-triangle contact of uniform c / m; where
-    # c / m differs it may scale the impulse down (to 0.9 in a review's example), never a vertex's change up
+    # the free vertices (inv_m4: their 1/m, c4: their contact counts), so that no vertex takes more than twice
+    # the contact's own change (split over its c_k contacts). The cap is never reached where c / m is the same
+    # at every free vertex and the one of largest |W| has |W| >= 1/2 (sum W^2 >= W^2 >= |W| / 2), nor in a
+    # vertex-triangle contact of uniform c / m; where c / m differs it may scale the impulse down (to 0.9 in a
+    # review's example), never a vertex's change up
     held = int(0)
     share = float(0.0)
     for k in range(4):
         if w[k] != 0.0:
-            if inv_mass[idx[k]] == 0.0:
+            if inv_m4[k] == 0.0:
                 held = 1
             else:
-                share = wp.max(share, wp.abs(w[k]) * inv_mass[idx[k]] * float(wp.max(splits[idx[k]], 1)))
+                share = wp.max(share, wp.abs(w[k]) * inv_m4[k] * c4[k])
     if held != 0:
         return wp.max(inv_m, 0.5 * share)
     return inv_m
+
+
+@wp.func
+def held_capped_inverse_mass(idx: wp.vec4i, w: wp.vec4, inv_mass: FloatArray, splits: IntArray):
+    # split_inverse_mass, capped where the contact has a held vertex (capped_for_held)
+    inv_m4 = wp.vec4()
+    c4 = wp.vec4()
+    for k in range(4):
+        inv_m4[k] = inv_mass[idx[k]]
+        c4[k] = float(wp.max(splits[idx[k]], 1))
+    return capped_for_held(w, inv_m4, c4, split_inverse_mass(idx, w, inv_mass, splits))
 
 
 # -- the spatial hash -------------------------------------------------------------------------------
@@ -965,7 +977,7 @@ def filter_self_contact_velocities(
         )
         if dvn > 0.0:
             idx = c_idx[k]
-            inv_m = held_capped_inverse_mass(idx, w, inv_mass, acting, split_inverse_mass(idx, w, inv_mass, acting))
+            inv_m = held_capped_inverse_mass(idx, w, inv_mass, acting)
             if inv_m > 0.0:
                 vs = weighted_sum(v_slip, idx, w)
                 vn_end = wp.dot(n, vs)
@@ -1127,7 +1139,7 @@ def project_self_contact_increments(
         w, n, c = increment_violation(k, x, dp, c_idx, c_w, c_n, c_h)
         if c < 0.0:
             idx = c_idx[k]
-            inv_m = held_capped_inverse_mass(idx, w, inv_mass, acting, split_inverse_mass(idx, w, inv_mass, acting))
+            inv_m = held_capped_inverse_mass(idx, w, inv_mass, acting)
             if inv_m > 0.0:
                 u = weighted_sum(dp, idx, w)
                 corr = -c * n

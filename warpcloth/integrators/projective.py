@@ -232,10 +232,9 @@ class Projective(IncrementSolver):
         see the contacts that the projection after it enforced, and the two fought: two free layers closing
         8 mm a step crumpled by up to 7 cm in y in 0.1 s, worse with more iterations (10 cm at 40); with it
         each layer's y range is 5.7 mm at 0.06 s (13 mm at weight 0.01, 7 mm at 0.03 and 0.3, 9 mm at 1).
-        The default 0.1: a stiffer weight fights
-        the pins and the ground where the fold's hand presses a layer into another (the fold's peak
-        strain 0.29 for one frame at weight 1, 1.21 at 10; 0.051 at 0.1, as without the contacts in the
-        solve)."""
+        The default 0.1: a stiffer weight fights the pins and the ground where the fold's hand presses a
+        layer into another (the fold's peak strain 0.29 for one frame at weight 1, 1.21 at 10; 0.051 at 0.1,
+        as without the contacts in the solve)."""
         m = self.model
         wp.copy(self.contact_target, self.dx)
         self.self_collision.project_increment(x, self.contact_target, held)
