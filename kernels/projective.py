@@ -50,6 +50,24 @@ def spring_increment_residual(e: wp.vec3, ddx: wp.vec3, rest: float, ks: float, 
     return (h * h) * (k * (length - rest) / length * e) + (h * kd * wp.dot(ddx, n)) * n
 
 
+@wp.func
+def restart_cg(
+    i: int,
+    res: wp.vec3,
+    inv: float,
+    r: wp.array(dtype=wp.vec3),
+    z: wp.array(dtype=wp.vec3),
+    p: wp.array(dtype=wp.vec3),
+    dot_terms: wp.array(dtype=float),
+):
+    # r_i = res and CG's start from it: z = P^-1 r (inv: P^-1 at i), p = z, dot_terms = r.z
+    zi = inv * res
+    r[i] = res
+    z[i] = zi
+    p[i] = zi
+    dot_terms[i] = wp.dot(res, zi)
+
+
 @wp.kernel
 def assemble_global_matrix(
     springs: SpringAdjacency,
@@ -126,11 +144,7 @@ def eval_local_residual(
         )
     if contact.state[i] == 1:
         res = res + (h * h) * contact.force[i]
-    zi = inv_diag[i] * res
-    r[i] = res
-    z[i] = zi
-    p[i] = zi
-    dot_terms[i] = wp.dot(res, zi)
+    restart_cg(i, res, inv_diag[i], r, z, p, dot_terms)
 
 
 @wp.kernel
@@ -173,11 +187,7 @@ def add_hinge_residual(
         return
     f, H = vertex_hinge_terms(i, x, dx, hinges, h)
     res = r[i] + (h * h) * f
-    zi = inv_diag[i] * res
-    r[i] = res
-    z[i] = zi
-    p[i] = zi
-    dot_terms[i] = wp.dot(res, zi)
+    restart_cg(i, res, inv_diag[i], r, z, p, dot_terms)
 
 
 @wp.kernel
@@ -355,11 +365,7 @@ def apply_translation(
     t = translation[0]
     dx[i] = dx[i] + t
     res = r[i] - (free_row_sum(i, row_offsets, columns, values, particle_inv_mass) + weight[i]) * t
-    zi = inv_diag[i] * res
-    r[i] = res
-    z[i] = zi
-    p[i] = zi
-    dot_terms[i] = wp.dot(res, zi)
+    restart_cg(i, res, inv_diag[i], r, z, p, dot_terms)
 
 
 # -- self-contacts in the global system (issue 29) ----------------------------------------------------
@@ -395,7 +401,4 @@ def add_self_contact_terms(
     if w > 0.0:
         inv = 1.0 / (1.0 / inv + w)
     precond[i] = inv
-    zi = inv * r[i]
-    z[i] = zi
-    p[i] = zi
-    dot_terms[i] = wp.dot(r[i], zi)
+    restart_cg(i, r[i], inv, r, z, p, dot_terms)
