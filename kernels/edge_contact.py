@@ -90,6 +90,17 @@ def box_edge_corners(j: int):
 
 
 @wp.func
+def face_planes_met(lo: wp.vec3, hi: wp.vec3, h: wp.vec3):
+    # how many axes i of a box (half extents h, its own frame about its centre) have a face plane x_i = +-h_i
+    # within [lo_i, hi_i]: a box edge can meet the box [lo, hi] only where 2 do, a corner only where 3 do
+    met = int(0)
+    for i in range(3):
+        if (lo[i] <= h[i] and hi[i] >= h[i]) or (lo[i] <= -h[i] and hi[i] >= -h[i]):
+            met += 1
+    return met
+
+
+@wp.func
 def push(
     i: int,
     weight: float,
@@ -216,8 +227,9 @@ def corner_response(
     return w, depth / denom, contact_velocity_change(w[0] * va + w[1] * vb + w[2] * vc, n, col.mu, denom), n
 
 
-@wp.kernel
-def collide_cloth_edges(
+@wp.func(inline=True)
+def collide_cloth_edge(
+    e: int,
     edges: wp.array(dtype=wp.vec2i),
     x: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
@@ -229,8 +241,7 @@ def collide_cloth_edges(
     dv: wp.array(dtype=wp.vec3),
     count: wp.array(dtype=int),
 ):
-    # every cloth edge against the edges of every box and mesh collider (records from ``first``)
-    e = wp.tid()
+    # cloth edge e against the edges of every box and mesh collider (records from ``first``)
     ia = edges[e][0]
     ib = edges[e][1]
     wa = inv_mass[ia]
@@ -249,18 +260,23 @@ def collide_cloth_edges(
             origin = c.rest_center
         la = origin + wp.transpose(c.rotation) * (a - c.a)
         lb = origin + wp.transpose(c.rotation) * (b - c.a)
+        mid = 0.5 * (la + lb) - origin
+        reach = 0.5 * wp.length(lb - la) + c.thickness
+        h = c.b
+        grow = wp.vec3(reach)  # as far as edge_response looks (behind: half the cloth edge + thickness)
+        lo_e = wp.min(la, lb) - grow
+        hi_e = wp.max(la, lb) + grow
+        # most cloth edges are far from the box, or over one face only (a cloth on a table): no box edge's box
+        # meets theirs, nothing more to do (before the velocities)
+        if c.kind == BOX:
+            if wp.abs(mid[0]) > h[0] + reach or wp.abs(mid[1]) > h[1] + reach or wp.abs(mid[2]) > h[2] + reach:
+                continue
+            if face_planes_met(lo_e - origin, hi_e - origin, h) < 2:
+                continue
         vc = surface_velocity(colliders, k, 0.5 * (a + b))
         lva = wp.transpose(c.rotation) * (v[ia] - vc)
         lvb = wp.transpose(c.rotation) * (v[ib] - vc)
         if c.kind == BOX:
-            mid = 0.5 * (la + lb) - origin
-            reach = 0.5 * wp.length(lb - la) + c.thickness
-            h = c.b
-            if wp.abs(mid[0]) > h[0] + reach or wp.abs(mid[1]) > h[1] + reach or wp.abs(mid[2]) > h[2] + reach:
-                continue
-            grow = wp.vec3(reach)  # as far as edge_response looks (behind: half the cloth edge + thickness)
-            lo_e = wp.min(la, lb) - grow
-            hi_e = wp.max(la, lb) + grow
             for j in range(12):
                 c0, c1 = box_edge_corners(j)
                 p = origin + box_corner_local(c, c0)
@@ -304,8 +320,9 @@ def collide_cloth_edges(
                     push(ib, s, inv_mass, lam, vw, nw, dx, dv, count)
 
 
-@wp.kernel
-def collide_cloth_triangles(
+@wp.func(inline=True)
+def collide_cloth_triangle(
+    t: int,
     tris: wp.array(dtype=wp.vec3i),
     x: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
@@ -317,8 +334,7 @@ def collide_cloth_triangles(
     dv: wp.array(dtype=wp.vec3),
     count: wp.array(dtype=int),
 ):
-    # every cloth triangle against the corners of every box and the vertices of every mesh collider
-    t = wp.tid()
+    # cloth triangle t against the corners of every box and the vertices of every mesh collider
     i0 = tris[t][0]
     i1 = tris[t][1]
     i2 = tris[t][2]
@@ -338,21 +354,20 @@ def collide_cloth_triangles(
         a = origin + rt * (x[i0] - c.a)
         b = origin + rt * (x[i1] - c.a)
         cc = origin + rt * (x[i2] - c.a)
+        reach = c.thickness + 0.5 * wp.max(wp.max(wp.length(b - a), wp.length(cc - b)), wp.length(a - cc))
+        lo = wp.min(wp.min(a, b), cc) - wp.vec3(reach)  # as far as corner_response looks
+        hi = wp.max(wp.max(a, b), cc) + wp.vec3(reach)
+        h = c.b
+        d_lo = lo - origin
+        d_hi = hi - origin
+        if c.kind == BOX:  # most triangles are far from every corner: nothing more to do (before the velocities)
+            if face_planes_met(d_lo, d_hi, h) < 3:
+                continue
         vcol = surface_velocity(colliders, k, x[i0])
         va = rt * (v[i0] - vcol)
         vb = rt * (v[i1] - vcol)
         vc = rt * (v[i2] - vcol)
-        reach = c.thickness + 0.5 * wp.max(wp.max(wp.length(b - a), wp.length(cc - b)), wp.length(a - cc))
-        lo = wp.min(wp.min(a, b), cc) - wp.vec3(reach)  # as far as corner_response looks
-        hi = wp.max(wp.max(a, b), cc) + wp.vec3(reach)
         if c.kind == BOX:
-            h = c.b
-            d_lo = lo - origin
-            d_hi = hi - origin
-            if d_lo[0] > h[0] or d_lo[1] > h[1] or d_lo[2] > h[2]:
-                continue
-            if d_hi[0] < -h[0] or d_hi[1] < -h[1] or d_hi[2] < -h[2]:
-                continue
             for j in range(8):
                 p = box_corner_local(c, j)
                 if not boxes_overlap(origin + p, origin + p, lo, hi):
@@ -399,6 +414,40 @@ def collide_cloth_triangles(
 
 
 @wp.kernel
+def collide_cloth_features(
+    stride: int,
+    active: wp.array(dtype=int),
+    read: int,
+    write: int,
+    first_pass: int,
+    edges: wp.array(dtype=wp.vec2i),
+    tris: wp.array(dtype=wp.vec3i),
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    colliders: wp.array(dtype=Collider),
+    first: int,
+    meshes: MeshFeatures,
+    dx: wp.array(dtype=wp.vec3),
+    dv: wp.array(dtype=wp.vec3),
+    count: wp.array(dtype=int),
+):
+    # one pass (grid-stride over ``stride`` threads): every cloth edge against the box and mesh colliders'
+    # edges, every cloth triangle against their corners and vertices. active[read]: the vertices the pass
+    # before moved (0: nothing to do, the pass returns at once; not read by a ``first_pass``); active[write],
+    # which this pass's apply counts into, from zero
+    tid = wp.tid()
+    if tid == 0:
+        active[write] = 0
+    if first_pass == 0 and active[read] == 0:
+        return
+    for e in range(tid, edges.shape[0], stride):
+        collide_cloth_edge(e, edges, x, v, inv_mass, colliders, first, meshes, dx, dv, count)
+    for t in range(tid, tris.shape[0], stride):
+        collide_cloth_triangle(t, tris, x, v, inv_mass, colliders, first, meshes, dx, dv, count)
+
+
+@wp.kernel
 def eval_positions(x: wp.array(dtype=wp.vec3), dp: wp.array(dtype=wp.vec3), p: wp.array(dtype=wp.vec3)):
     # p = x + dp (a position-based solver's predicted positions)
     i = wp.tid()
@@ -425,26 +474,34 @@ def apply_edge_increments(
 
 @wp.kernel
 def apply_edge_contacts(
+    stride: int,
     dt_x: float,
     with_displacement: int,
     dx: wp.array(dtype=wp.vec3),
     dv: wp.array(dtype=wp.vec3),
     count: wp.array(dtype=int),
+    active: wp.array(dtype=int),
+    read: int,
+    write: int,
+    first_pass: int,
     x: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
     displacement: wp.array(dtype=wp.vec3),
 ):
-    # x += dx / c + dt_x dv / c, v += dv / c (c: the vertex's contacts; the velocity change moves x as the
-    # step would have, so friction does not creep; Verlet's displacement follows); the accumulators to zero
-    i = wp.tid()
-    c = count[i]
-    if c == 0:
+    # (grid-stride over the vertices) x += dx / c + dt_x dv / c, v += dv / c (c: the vertex's contacts; the
+    # velocity change moves x as the step would have, so friction does not creep; Verlet's displacement
+    # follows); the accumulators to zero; active[write] counts the vertices moved (collide_cloth_features)
+    if first_pass == 0 and active[read] == 0:
         return
-    s = RELAX / float(c)
-    x[i] = x[i] + s * dx[i] + (dt_x * s) * dv[i]
-    v[i] = v[i] + (s * VELOCITY) * dv[i]
-    if with_displacement != 0:
-        displacement[i] = displacement[i] + s * dx[i] + (dt_x * s) * dv[i]
-    dx[i] = wp.vec3(0.0)
-    dv[i] = wp.vec3(0.0)
-    count[i] = 0
+    for i in range(wp.tid(), x.shape[0], stride):
+        c = count[i]
+        if c != 0:
+            s = RELAX / float(c)
+            x[i] = x[i] + s * dx[i] + (dt_x * s) * dv[i]
+            v[i] = v[i] + (s * VELOCITY) * dv[i]
+            if with_displacement != 0:
+                displacement[i] = displacement[i] + s * dx[i] + (dt_x * s) * dv[i]
+            dx[i] = wp.vec3(0.0)
+            dv[i] = wp.vec3(0.0)
+            count[i] = 0
+            wp.atomic_add(active, write, 1)

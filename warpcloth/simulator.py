@@ -458,6 +458,14 @@ class Simulator:
         if limiter is not None:  # last: the passes above may stretch (a landing vertex pushed out of a collider);
             # it knows no contacts, so it may move a vertex back into a collider or a layer (the next step meets it)
             limiter.apply(self.state, self._dt)
+            if edges is not None:  # but not a cloth triangle back over a collider's edge: those once more
+                edges.project(
+                    self.state,
+                    self._dt,
+                    self.integrator.position_history(),
+                    self.integrator.velocity_position_weight,
+                    passes=edges.passes_after_limit,
+                )
         self.control.advance(self._dt)
         apply_pins(self.control, self.state.particle_q, self.state.particle_qd)  # x = track(t + dt), v = track'(t + dt)
         if sc is not None and filter_steps:  # last (pins at their end, moving none): no pair crossed on the way
