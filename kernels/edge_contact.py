@@ -90,12 +90,15 @@ def box_edge_corners(j: int):
 
 
 @wp.func
-def face_planes_met(lo: wp.vec3, hi: wp.vec3, h: wp.vec3):
-    # how many axes i of a box (half extents h, its own frame about its centre) have a face plane x_i = +-h_i
-    # within [lo_i, hi_i]: a box edge can meet the box [lo, hi] only where 2 do, a corner only where 3 do
+def face_planes_met(lo: wp.vec3, hi: wp.vec3, origin: wp.vec3, h: wp.vec3):
+    # how many axes i of a box (centre ``origin``, half extents h, in its own frame) have a face plane
+    # x_i = origin_i +- h_i within [lo_i, hi_i]: a box edge can meet the box [lo, hi] only where 2 do, a corner
+    # only where 3 do (the planes are the same floats as the corners' coordinates, origin + box_corner_local)
     met = int(0)
     for i in range(3):
-        if (lo[i] <= h[i] and hi[i] >= h[i]) or (lo[i] <= -h[i] and hi[i] >= -h[i]):
+        p = origin[i] + h[i]
+        q = origin[i] + (-h[i])
+        if (lo[i] <= p and hi[i] >= p) or (lo[i] <= q and hi[i] >= q):
             met += 1
     return met
 
@@ -271,7 +274,7 @@ def collide_cloth_edge(
         if c.kind == BOX:
             if wp.abs(mid[0]) > h[0] + reach or wp.abs(mid[1]) > h[1] + reach or wp.abs(mid[2]) > h[2] + reach:
                 continue
-            if face_planes_met(lo_e - origin, hi_e - origin, h) < 2:
+            if face_planes_met(lo_e, hi_e, origin, h) < 2:
                 continue
         vc = surface_velocity(colliders, k, 0.5 * (a + b))
         lva = wp.transpose(c.rotation) * (v[ia] - vc)
@@ -358,10 +361,8 @@ def collide_cloth_triangle(
         lo = wp.min(wp.min(a, b), cc) - wp.vec3(reach)  # as far as corner_response looks
         hi = wp.max(wp.max(a, b), cc) + wp.vec3(reach)
         h = c.b
-        d_lo = lo - origin
-        d_hi = hi - origin
         if c.kind == BOX:  # most triangles are far from every corner: nothing more to do (before the velocities)
-            if face_planes_met(d_lo, d_hi, h) < 3:
+            if face_planes_met(lo, hi, origin, h) < 3:
                 continue
         vcol = surface_velocity(colliders, k, x[i0])
         va = rt * (v[i0] - vcol)

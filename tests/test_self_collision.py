@@ -495,6 +495,29 @@ def test_the_edge_passes_stop_after_one_that_moves_no_vertex(offset):
         np.testing.assert_array_equal(x32, q.astype(np.float32))
 
 
+@pytest.mark.parametrize("moved_before", [0, 3])
+def test_an_edge_pass_after_one_that_moved_nothing_does_nothing(moved_before):
+    """The early exit itself (the test above cannot see it: a skipped pass would change nothing): pass 1 of
+    ColliderEdges.project on the cloth edge across the box's edge, which is in contact, reads how many vertices
+    pass 0 moved (active[1]) and zeroes the count of its own (active[0]); 0 moved: it records no contact; 3: it
+    records the contact's pushes."""
+    q = np.array([[-0.05, 0.51, 0.45], [-0.05, 0.45, 0.51], [-0.15, 0.52, 0.52]])
+    model = build_model(
+        q, [[0, 1], [1, 2], [2, 0]], [SpringType.STRUCTURAL] * 3, [0.01] * 3, params(1.0), triangles=[[0, 1, 2]]
+    )
+    box = Box(center=(0.0, 0.25, 0.25), half_extents=(0.5, 0.25, 0.25), thickness=0.004, edge_radius=0.0)
+    sim = Simulator(model, "explicit_euler", Control(gravity=(0.0, 0.0, 0.0), colliders=[box], device="cpu"))
+    sim.control.collision.edge_contacts = True
+    edges = sim.control.collision.edges(model)
+    edges.active.assign(np.array([7, moved_before], dtype=np.int32))
+    edges._launch(sim.state.particle_q, sim.state.particle_qd, 1)
+    assert edges.active.numpy()[0] == 0  # this pass's count starts from zero either way
+    if moved_before == 0:
+        assert not edges.count.numpy().any() and not edges.dx.numpy().any() and not edges.dv.numpy().any()
+    else:
+        assert edges.count.numpy()[:2].all() and np.abs(edges.dx.numpy()[:2]).max() > 0.0
+
+
 # -- the checker on a cloth lying on the ground --------------------------------------------------------
 def test_flat_triangles_one_ring_apart_on_the_ground_do_not_intersect():
     """Two triangles of a flat cloth on the ground, float32 positions a rounding off coplanar: no

@@ -351,7 +351,9 @@ class Simulator:
         """Every host value a captured frame bakes in besides dt and the integrator (those clear
         the cache): a change to any of them captures a new graph."""
         c = self.control
+        edges = c.collision.edges(self.model) if c.collision is not None else None
         return (
+            (edges.passes, edges.passes_after_limit) if edges is not None else None,
             tuple(c.gravity),
             c.drag_rate,
             c.wind_coefficient,
@@ -455,10 +457,11 @@ class Simulator:
                 self.state, self._dt, self.integrator.position_history(), self.integrator.velocity_position_weight
             )
         limiter = self.active_limiter
-        if limiter is not None:  # last: the passes above may stretch (a landing vertex pushed out of a collider);
-            # it knows no contacts, so it may move a vertex back into a collider or a layer (the next step meets it)
+        if limiter is not None:  # after them: the passes above may stretch (a landing vertex pushed out of a
+            # collider); it knows no contacts, so it may move a vertex back into a collider or a layer (the next step
+            # meets it), but not a cloth triangle back over a collider's edge: the edge passes once more
             limiter.apply(self.state, self._dt)
-            if edges is not None:  # but not a cloth triangle back over a collider's edge: those once more
+            if edges is not None:
                 edges.project(
                     self.state,
                     self._dt,
