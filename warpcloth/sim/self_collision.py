@@ -162,6 +162,9 @@ class SelfCollision:
             ring apart may pass through each other in a fold sharper than the mesh).
         candidates_per_vertex, candidates_per_edge, contacts_per_element: capacities of the lists
             (vertex-triangle candidates: per vertex, edge-edge: per edge, contacts: per vertex + edge).
+            128 candidates: the default 64 x 64 drape's landing needs up to 78 a vertex and 64 an edge
+            under pbd, xpbd and vbd (at 64 each, 2,000-160,000 candidates did not fit over a run, and the
+            run warned; 12 bytes a candidate: 25 MB at 64 x 64, 100 MB at 128 x 128).
         interval: the collision time step [s] of the schemes that only filter (explicit Euler, midpoint,
             RK4, Verlet: their ``self_contact_filter`` is ``"full"``): contacts are found at the start
             of an interval of whole steps no longer than this and the velocity filter acts at its end,
@@ -190,8 +193,8 @@ class SelfCollision:
         skin_max: float | None = None,
         exclude_rings: int | None = None,
         edge_fraction: float = 1.0,
-        candidates_per_vertex: int = 64,
-        candidates_per_edge: int = 64,
+        candidates_per_vertex: int = 128,
+        candidates_per_edge: int = 128,
         contacts_per_element: int = 8,
         interval: float = 0.001,
         ccd_passes: int = 8,
