@@ -297,8 +297,7 @@ def collide_cloth_edge(
             bvh = meshes.edge_bvh[k]
             if bvh == wp.uint64(0):
                 continue
-            grow = wp.vec3(c.thickness + 0.5 * wp.length(lb - la))  # as far as edge_response looks
-            query = wp.bvh_query_aabb(bvh, wp.min(la, lb) - grow, wp.max(la, lb) + grow)
+            query = wp.bvh_query_aabb(bvh, lo_e, hi_e)  # as far as edge_response looks
             j = int(0)
             while wp.bvh_query_next(query, j):
                 g = meshes.edge_offset[k] + j
