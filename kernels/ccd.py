@@ -371,6 +371,14 @@ def eval_ccd_held(x: Vec3Array, colliders: wp.array(dtype=Collider), margin: flo
 
 
 @wp.kernel
+def merge_ccd_held(extra: Vec3Array, held: Vec3Array):
+    # a vertex no collider holds takes the direction of ``extra`` (a collider edge's push this step), if any
+    i = wp.tid()
+    if wp.length_sq(held[i]) == 0.0:
+        held[i] = extra[i]
+
+
+@wp.kernel
 def begin_ccd_pass(counts: IntArray, first: int):
     # a pass starts: no collision recorded; it tests pairs only where the last pass changed a vertex (the
     # first: every pair)

@@ -487,16 +487,20 @@ def apply_edge_contacts(
     x: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
     displacement: wp.array(dtype=wp.vec3),
+    held: wp.array(dtype=wp.vec3),
 ):
     # (grid-stride over the vertices) x += dx / c + dt_x dv / c, v += dv / c (c: the vertex's contacts; the
     # velocity change moves x as the step would have, so friction does not creep; Verlet's displacement
-    # follows); the accumulators to zero; active[write] counts the vertices moved (collide_cloth_features)
+    # follows); the accumulators to zero; active[write] counts the vertices moved (collide_cloth_features);
+    # held: the direction a vertex was pushed out in, for the self-collision's continuous response after
     if first_pass == 0 and active[read] == 0:
         return
     for i in range(wp.tid(), x.shape[0], stride):
         c = count[i]
         if c != 0:
             s = RELAX / float(c)
+            if wp.length_sq(dx[i]) > 0.0:
+                held[i] = wp.normalize(dx[i])
             x[i] = x[i] + s * dx[i] + (dt_x * s) * dv[i]
             v[i] = v[i] + (s * VELOCITY) * dv[i]
             if with_displacement != 0:

@@ -88,7 +88,8 @@ CCD_ROLLBACKS = wp.constant(16)  # vertices the fail-safe moved back to their st
 CCD_UNRESOLVED = wp.constant(17)  # continuous collisions left after the fail-safe, so far
 CCD_ACTIVE = wp.constant(18)  # vertices the last continuous pass moved or found in a collision (0: this pass has none)
 CCD_CHANGED = wp.constant(19)  # the same, counted by this pass
-COUNT_SLOTS = 20
+SWEPT_REBUILDS = wp.constant(20)  # rebuilds over a step's swept motion, before its continuous response, so far
+COUNT_SLOTS = 21
 
 # -- indices of the float scalars (``scalars``) ---------------------------------------------------
 MOTION = wp.constant(0)  # max_i D_i = |x_i - x_build_i - u| + |v_i - w| dt this detect, u, w the mean motion [m]
@@ -104,7 +105,10 @@ EXCESS = wp.constant(9)  # max_i (D_i - margin_i) this detect: the list is rebui
 MARGIN_MAX = wp.constant(10)  # largest vertex margin at the build [m]
 INV_CELL = wp.constant(11)  # 1 / the hash's cell size at the build [1/m]
 SPEED_ABS = wp.constant(12)  # max |v| this detect [m/s]
-SCALAR_SLOTS = 13
+SWEPT_EXCESS = wp.constant(
+    13
+)  # max_i (|x_i - x_build_i - u| - margin_i) at a step's end, before its continuous response [m]
+SCALAR_SLOTS = 14
 
 #: an edge-edge contact whose closest point is within this parameter of an edge's end is left to that end's
 #: vertex-triangle contact (the vertex is at least as near the edge's triangles as the edge)
@@ -461,6 +465,22 @@ def eval_self_contact_motion(
     splits[i] = 0
 
 
+@wp.func
+def begin_rebuild(counts: IntArray, scalars: FloatArray, thickness: float, edge_thickness: float, skin: float):
+    # this detect (or swept check) rebuilds the list: its radii, maxima and lengths from zero
+    scalars[SKIN] = skin
+    scalars[R_BUILD] = thickness + skin
+    scalars[R_BUILD_EE] = edge_thickness + skin
+    scalars[RHO_MAX] = 0.0
+    scalars[HALF_EDGE_MAX] = 0.0
+    scalars[MARGIN_MAX] = 0.0
+    counts[REBUILD] = 1
+    counts[BUILT] = 1
+    counts[REBUILDS] = counts[REBUILDS] + 1
+    counts[CAND_VT] = 0
+    counts[CAND_EE] = 0
+
+
 @wp.kernel
 def decide_self_contact_rebuild(
     counts: IntArray,
@@ -477,17 +497,53 @@ def decide_self_contact_rebuild(
     if counts[BUILT] != 0 and 2.0 * scalars[EXCESS] <= skin:
         counts[REBUILD] = 0
         return
-    scalars[SKIN] = skin
-    scalars[R_BUILD] = thickness + skin
-    scalars[R_BUILD_EE] = edge_thickness + skin
-    scalars[RHO_MAX] = 0.0
-    scalars[HALF_EDGE_MAX] = 0.0
-    scalars[MARGIN_MAX] = 0.0
-    counts[REBUILD] = 1
-    counts[BUILT] = 1
-    counts[REBUILDS] = counts[REBUILDS] + 1
-    counts[CAND_VT] = 0
-    counts[CAND_EE] = 0
+    begin_rebuild(counts, scalars, thickness, edge_thickness, skin)
+
+
+# -- the list over a step's swept motion (before the continuous response) ---------------------------
+@wp.kernel
+def begin_swept_check(scalars: FloatArray, sums: Vec3Array):
+    scalars[SWEPT_EXCESS] = -1.0e30
+    sums[0] = wp.vec3(0.0)
+    sums[1] = wp.vec3(0.0)
+
+
+@wp.kernel
+def sum_swept_motion(x: Vec3Array, x_start: Vec3Array, x_build: Vec3Array, sums: Vec3Array):
+    # sums of the end's displacements since the build and of the step's (interval's) displacements
+    i = wp.tid()
+    wp.atomic_add(sums, 0, x[i] - x_build[i])
+    wp.atomic_add(sums, 1, x[i] - x_start[i])
+
+
+@wp.kernel
+def eval_swept_motion(
+    x: Vec3Array,
+    x_start: Vec3Array,
+    x_build: Vec3Array,
+    margin: FloatArray,
+    sums: Vec3Array,
+    scalars: FloatArray,
+    swept: Vec3Array,
+):
+    # the end's excess over each vertex's margin, relative to the mean displacement u since the build:
+    # SWEPT_EXCESS = max_i (|x_i - x_build_i - u| - margin_i); swept = x - x_start (the step's motion)
+    i = wp.tid()
+    u = sums[0] / float(x.shape[0])
+    wp.atomic_max(scalars, SWEPT_EXCESS, wp.length(x[i] - x_build[i] - u) - margin[i])
+    swept[i] = x[i] - x_start[i]
+
+
+@wp.kernel
+def decide_swept_rebuild(counts: IntArray, scalars: FloatArray, thickness: float, edge_thickness: float, skin: float):
+    # the detect covered the step's start; the list covers the straight motion to the end as well where the end
+    # is within skin / 2 of every margin (|d_i(t)| relative to the build is convex along the motion, so at most
+    # its value at an end); else rebuild over the swept motion
+    if 2.0 * scalars[SWEPT_EXCESS] <= skin:
+        counts[REBUILD] = 0
+        return
+    begin_rebuild(counts, scalars, thickness, edge_thickness, skin)
+    counts[SWEPT_REBUILDS] = counts[SWEPT_REBUILDS] + 1
 
 
 @wp.kernel

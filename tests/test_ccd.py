@@ -318,3 +318,43 @@ def test_a_continuous_collision_next_to_a_pin_does_not_throw_the_free_vertex():
     assert end[4, 1] <= x0[4, 1] + 1e-6, end[4]  # not thrown above its start
     assert ix.count_self_intersections(end, model.host["tris"]) == 0
     assert sc.stats()["ccd_unresolved"] == 0
+
+
+@pytest.mark.parametrize("swept_check", [True, False])
+def test_a_motion_the_detect_did_not_predict_is_still_followed(swept_check):
+    """The vertex 3 cm above the pinned triangle, still at the detect (so its margin is 0 and the list, of
+    radius h + skin = 1 cm, holds no pair of it), is moved 4 cm down through the triangle in the step (as a
+    solve, a collider's or an edge's projection may move it): the list is rebuilt over the step's swept motion
+    before the continuous response, which then leaves the vertex on its side. The negative control: without
+    that rebuild (the check replaced by a no-op) the vertex stays through."""
+    model, sc = triangle_and_vertex(True)
+    if not swept_check:
+        sc._cover_swept = lambda x: None
+    dt = 1.0 / 60.0
+    x0 = model.host["q"].astype(np.float32)
+    x0[0, 1] = 0.33
+    x = wp.array(x0, dtype=wp.vec3, device="cpu")
+    vel = wp.zeros(len(x0), dtype=wp.vec3, device="cpu")
+    sc.detect(x, vel, dt)
+    assert len(sc.candidates()[0]) == 0  # the detect listed no pair
+    x1 = x0.copy()
+    x1[0, 1] -= 0.04
+    x.assign(x1)
+    sc.prevent_crossings(x, vel, dt)
+    xe = x.numpy()
+    stats = sc.stats()
+    if swept_check:
+        assert stats["swept_rebuilds"] == 1 and stats["ccd_collisions"] >= 1, stats
+        assert xe[0, 1] >= 0.3 + 0.99 * sc.min_gap, xe[0]  # above the triangle's plane (y = 0.3)
+        assert ix.count_self_intersections(xe, model.host["tris"]) == 0
+    else:
+        assert stats["swept_rebuilds"] == 0 and stats["ccd_collisions"] == 0, stats
+        np.testing.assert_array_equal(xe, x1)
+
+
+def test_a_motion_the_detect_predicted_does_not_rebuild_the_list():
+    """The vertex moved 4 cm by its own velocity at the detect: its margin covers the motion, no rebuild."""
+    model, sc = triangle_and_vertex(True)
+    moved_through(model, sc, (0.0, -0.04, 0.0))
+    stats = sc.stats()
+    assert stats["swept_rebuilds"] == 0 and stats["rebuilds"] == 1 and stats["ccd_collisions"] >= 1, stats

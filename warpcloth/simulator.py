@@ -453,6 +453,7 @@ class Simulator:
             )
         edges = self.control.collision.edges(self.model) if self.control.collision is not None else None
         if edges is not None:  # box and mesh edges against the cloth (after the solvers that hold them too)
+            edges.begin_step()
             edges.project(
                 self.state, self._dt, self.integrator.position_history(), self.integrator.velocity_position_weight
             )
@@ -480,6 +481,7 @@ class Simulator:
                 integrator.position_history(),
                 colliders=self.control.collision,
                 steps=filter_steps,
+                held=edges.held if edges is not None else None,
             )
 
     def simulate(self, steps: int) -> None:

@@ -327,6 +327,9 @@ class ColliderEdges:
             self.active = wp.zeros(2, dtype=int)  # vertices moved by a pass, by the next (collide_cloth_features)
             self._no_displacement = wp.zeros(1, dtype=wp.vec3)
             self.p, self.zero_v = wp.zeros(n, dtype=wp.vec3), wp.zeros(n, dtype=wp.vec3)
+            #: per vertex, the direction the projections of this step last pushed it out in (else 0): the
+            #: self-collision's continuous response after them pushes it no further into the collider's edge
+            self.held = wp.zeros(n, dtype=wp.vec3)
 
     @staticmethod
     def needed(collision: ColliderSet | None) -> bool:
@@ -380,9 +383,13 @@ class ColliderEdges:
                 dim=lanes,
                 inputs=[lanes, float(position_weight) * float(dt), int(displacement is not None), *out, self.active]
                 + [k % 2, (k + 1) % 2, int(k == 0)],
-                outputs=[x, v, disp],
+                outputs=[x, v, disp, self.held],
                 device=d,
             )
+
+    def begin_step(self) -> None:
+        """A step's projections start: no vertex pushed out yet (:attr:`held`)."""
+        self.held.zero_()
 
 
 def _mesh_features(vertices, triangles):

@@ -59,6 +59,7 @@ COUNT_NAMES = {
     "ccd_collisions": sk.CCD_COLLISIONS,
     "ccd_rollbacks": sk.CCD_ROLLBACKS,
     "ccd_unresolved": sk.CCD_UNRESOLVED,
+    "swept_rebuilds": sk.SWEPT_REBUILDS,
 }
 #: The counters :meth:`SelfCollision.reset_stats` zeroes (those that accumulate over steps).
 CUMULATIVE = (
@@ -74,6 +75,7 @@ CUMULATIVE = (
     "ccd_collisions",
     "ccd_rollbacks",
     "ccd_unresolved",
+    "swept_rebuilds",
 )
 
 
@@ -294,6 +296,7 @@ class SelfCollision:
             self.x_start = wp.zeros(n, dtype=wp.vec3)  # x at the collision interval's start (detect)
             self.v_average = wp.zeros(n, dtype=wp.vec3)  # the interval's mean velocity (its filter)
             self.dv_end = wp.zeros(n, dtype=wp.vec3)  # the end velocity's change over an interval
+            self.swept = wp.zeros(n, dtype=wp.vec3)  # x - x_start at the continuous response (its list's margins)
             self.filter_inv_mass = wp.zeros(n, dtype=float)  # 1/m, 0 where a collider holds the vertex (filter)
             #: per vertex, the contacts' penalty force [N] and Gauss-Newton Hessian [N/m] (vbd's vertex step)
             self.vertex_force = wp.zeros(n, dtype=wp.vec3)
@@ -625,6 +628,7 @@ class SelfCollision:
         displacement: wp.array | None = None,
         colliders=None,
         steps: int = 1,
+        held: wp.array | None = None,
     ) -> None:
         """The last word of a step (of a collision interval of ``steps`` steps of ``dt``): every listed
         pair follows the straight motion from the positions at the last :meth:`detect` to ``x``; a pair
@@ -655,6 +659,8 @@ class SelfCollision:
             )
         else:
             self.ccd_held.zero_()
+        if held is not None:  # where no collider holds a vertex, the edge contacts' push direction does
+            wp.launch(ccd.merge_ccd_held, dim=n, inputs=[held], outputs=[self.ccd_held], device=d)
         hits = [self.hit_indices, self.hit_weights, self.hit_normals, self.hit_depths]
         marks = [self.acting, self.ccd_rollback, self.ccd_touched]
         # the passes' kernels loop over their pairs and vertices (grid-stride): a pass that has nothing to do
@@ -676,6 +682,7 @@ class SelfCollision:
         def apply() -> None:
             wp.launch(ccd.apply_ccd_corrections, dim=lanes, inputs=[*apply_inputs, *marks, self.counts], device=d)
 
+        self._cover_swept(x)
         self.ccd_moved.fill_(1)  # the first pass tests every pair
         for k in range(self.ccd_passes):
             find(int(ccd.MODE_PUSH), int(k == 0))
@@ -707,6 +714,38 @@ class SelfCollision:
         find(int(ccd.MODE_COUNT))
         self.ccd_touched.zero_()
         self._count_unresolved(x)
+
+    def _cover_swept(self, x: wp.array) -> None:
+        """Before the continuous response: the list covers the straight motion from the interval's start
+        (:attr:`x_start`) to ``x`` where the detect's test holds at its end too (every vertex within skin / 2
+        of its margin, relative to the mean displacement since the build); else (the solve, a collider's
+        or an edge's projection, a strain limit moved a vertex beyond what its velocity at the detect
+        predicted) the list is rebuilt at the start positions with each vertex's margin its motion to the
+        end (relative to the mean; at most ``skin_max``, beyond counted in ``fast``), so the response sees
+        every pair that may have met on the way (``swept_rebuilds``). Launches only."""
+        n, d, s = self.model.particle_count, self.device, self.scalars
+        wp.launch(sk.begin_swept_check, dim=1, inputs=[s, self.motion_sums], device=d)
+        wp.launch(sk.sum_swept_motion, dim=n, inputs=[x, self.x_start, self.x_build, self.motion_sums], device=d)
+        wp.launch(
+            sk.eval_swept_motion,
+            dim=n,
+            inputs=[x, self.x_start, self.x_build, self.margin, self.motion_sums, s, self.swept],
+            device=d,
+        )
+        wp.launch(
+            sk.decide_swept_rebuild,
+            dim=1,
+            inputs=[self.counts, s, self.thickness, self.edge_thickness, self.skin],
+            device=d,
+        )
+        # the build's margins are MARGIN_STEPS dt |v - w|: here v = the swept motion over dt = 1
+        self._build(self.x_start, self.swept, 1.0)
+        wp.launch(
+            sk.finish_self_contact_detect,
+            dim=1,
+            inputs=[self.counts, self.vt_capacity, self.ee_capacity, self.contact_capacity],
+            device=d,
+        )
 
     def held_inverse_mass(self, x: wp.array, colliders) -> wp.array:
         """Per vertex 1/m, 0 where it lies within a collider's thickness + the minimum gap at ``x`` (a
