@@ -437,6 +437,21 @@ def test_edge_contacts_hold_a_sharp_box_out_of_the_tablecloth(integrator):
     assert tablecloth_crossings(integrator, edges=True, sharp=True) == [0, 0]
 
 
+def test_the_sharp_box_tablecloth_replays_captured_frames_bit_identically():
+    """vbd's sharp-box tablecloth with the edge contacts on, 0.5 s of plain launches and of captured frames:
+    the same positions and counters; the lists were rebuilt over a step's swept motion inside the replays."""
+    runs = []
+    for graph in (False, True):
+        sim = get_scenario("tablecloth").build(rows=12, cols=12, integrator="vbd", collider_edges=True, use_graph=graph)
+        sharp_boxes(sim)
+        sim.control.collision.edge_contacts = True
+        run_frames(sim, 0.5)
+        assert sim.graph_enabled is graph
+        runs.append((sim.state.particle_q.numpy(), sim.self_collision.counts.numpy()))
+    assert runs[1][1][COUNT_NAMES["swept_rebuilds"]] > 0
+    assert np.array_equal(runs[0][0], runs[1][0]) and np.array_equal(runs[0][1], runs[1][1])
+
+
 def test_collider_edges_takes_a_bool_and_names_a_bad_value():
     with pytest.raises(WarpclothError, match="collider_edges must be True or False, got 'on'"):
         get_scenario("tablecloth").build(rows=4, cols=4, collider_edges="on")
@@ -460,6 +475,27 @@ def test_a_cloth_edge_across_a_box_edge_is_pushed_out_to_the_thickness():
     gap = np.min(np.hypot(segment[:, 1] - 0.5, segment[:, 2] - 0.5))  # from the box's top edge (y = z = 0.5)
     assert gap >= 0.004 * 0.99 and gap < 0.006
     assert ix.collider_edge_crossings(x, model.host["tris"], [box]) == 0
+
+
+def test_the_edge_projection_records_the_direction_it_pushed_each_vertex_out_in():
+    """ColliderEdges.held (the continuous self-collision response pushes no vertex back against it): after one
+    step of the cloth edge across the box's top edge, its two vertices hold unit directions away from the box
+    (up and out: +y, +z), the third vertex, which no contact moved, none; begin_step clears them."""
+    q = np.array([[-0.05, 0.51, 0.45], [-0.05, 0.45, 0.51], [-0.15, 0.52, 0.52]])
+    model = build_model(
+        q, [[0, 1], [1, 2], [2, 0]], [SpringType.STRUCTURAL] * 3, [0.01] * 3, params(1.0), triangles=[[0, 1, 2]]
+    )
+    box = Box(center=(0.0, 0.25, 0.25), half_extents=(0.5, 0.25, 0.25), thickness=0.004, edge_radius=0.0)
+    sim = Simulator(model, "explicit_euler", Control(gravity=(0.0, 0.0, 0.0), colliders=[box], device="cpu"), dt=1e-4)
+    sim.control.collision.edge_contacts = True
+    sim.simulate(1)
+    edges = sim.control.collision.edges(model)
+    held = edges.held.numpy()
+    np.testing.assert_allclose(np.linalg.norm(held[:2], axis=1), 1.0, atol=1e-5)
+    assert np.all(held[:2, 1] > 0.3) and np.all(held[:2, 2] > 0.3), held
+    np.testing.assert_array_equal(held[2], 0.0)
+    edges.begin_step()
+    assert not edges.held.numpy().any()
 
 
 @pytest.mark.parametrize("offset", [0.0, 0.2])
