@@ -642,7 +642,11 @@ class SelfCollision:
         passes have their free vertices moved back to the step's start (the fail-safe; momentum is
         not kept), :attr:`CCD_ROLLBACK_ROUNDS` rounds; what is left is counted (``ccd_unresolved``).
         A pinned vertex is not pushed, nor one within a collider's thickness (``colliders``, a
-        :class:`~warpcloth.sim.contacts.ColliderSet`) where the push would move it into that collider."""
+        :class:`~warpcloth.sim.contacts.ColliderSet`) where the push would move it into that collider, nor,
+        where no collider holds it, one against its direction in ``held`` (per vertex a unit vector or 0:
+        :attr:`ColliderEdges.held <warpcloth.sim.contacts.ColliderEdges.held>`, the direction the collider
+        edge contacts pushed it out in this step). First the list is made to cover the interval's motion
+        (:meth:`_cover_swept`)."""
         if self.ccd_passes == 0:
             return
         n, d = self.model.particle_count, self.device
