@@ -8,7 +8,7 @@ kernel, largest first, and the self-collision counters.
                                            [--self-collision on|off] [--top 30] [--start 0.0]
 
 ``--start``: run to this time untimed first (a later phase of the fold: 2.4 s folded); the counters
-then count from there.
+then count from there, to ``--seconds`` (an end time, not a duration).
 """
 
 import argparse

@@ -22,7 +22,7 @@ CHECK = SelfCollision._cover_swept
 
 
 def run(scene: str, size: int, integrator: str, seconds: float, check: bool) -> tuple[float, dict]:
-    SelfCollision._cover_swept = CHECK if check else (lambda self, x: None)
+    SelfCollision._cover_swept = CHECK if check else (lambda self, x, skip_capped=False: None)
     try:
         sim = get_scenario(scene).build(rows=size, cols=size, integrator=integrator, self_collision=True)
         frame = max(1, round((1.0 / 60.0) / sim.dt))

@@ -22,7 +22,9 @@ from warpcloth.kernels.self_contact import (
     CCD_COLLISIONS,
     CCD_HITS,
     CCD_ROLLBACKS,
+    CCD_SAVED,
     CCD_UNRESOLVED,
+    REBUILD,
     FloatArray,
     IntArray,
     Vec2iArray,
@@ -376,6 +378,30 @@ def merge_ccd_held(extra: Vec3Array, held: Vec3Array):
     i = wp.tid()
     if wp.length_sq(held[i]) == 0.0:
         held[i] = extra[i]
+
+
+@wp.kernel
+def begin_ccd_round(counts: IntArray, moved: IntArray):
+    # a later round of passes: every pair is tested again where the list was just rebuilt over the motion so
+    # far (the round before's pushes moved a vertex beyond it); else the round does nothing (its passes return
+    # at once) and the marks of the round before are kept for the fail-safe after it (end_ccd_round)
+    i = wp.tid()
+    rebuilt = counts[REBUILD]
+    if rebuilt != 0:
+        moved[i] = 1
+    if i == 0:
+        if rebuilt != 0:
+            counts[CCD_CHANGED] = 1
+        else:
+            counts[CCD_SAVED] = counts[CCD_CHANGED]
+            counts[CCD_CHANGED] = 0
+
+
+@wp.kernel
+def end_ccd_round(counts: IntArray):
+    # a round that did not run leaves CCD_CHANGED as the round before left it
+    if counts[REBUILD] == 0:
+        counts[CCD_CHANGED] = counts[CCD_SAVED]
 
 
 @wp.kernel

@@ -89,7 +89,8 @@ CCD_UNRESOLVED = wp.constant(17)  # continuous collisions left after the fail-sa
 CCD_ACTIVE = wp.constant(18)  # vertices the last continuous pass moved or found in a collision (0: this pass has none)
 CCD_CHANGED = wp.constant(19)  # the same, counted by this pass
 SWEPT_REBUILDS = wp.constant(20)  # rebuilds over a step's swept motion, before its continuous response, so far
-COUNT_SLOTS = 21
+CCD_SAVED = wp.constant(21)  # CCD_CHANGED kept over a later round of the continuous response that does not run
+COUNT_SLOTS = 22
 
 # -- indices of the float scalars (``scalars``) ---------------------------------------------------
 MOTION = wp.constant(0)  # max_i D_i = |x_i - x_build_i - u| + |v_i - w| dt this detect, u, w the mean motion [m]
@@ -524,14 +525,20 @@ def eval_swept_motion(
     margin: FloatArray,
     sums: Vec3Array,
     scalars: FloatArray,
+    skin_max: float,
+    skip_capped: int,
     swept: Vec3Array,
 ):
     # the end's excess over each vertex's margin, relative to the mean displacement u since the build:
-    # SWEPT_EXCESS = max_i (|x_i - x_build_i - u| - margin_i); swept = x - x_start (the step's motion)
+    # SWEPT_EXCESS = max_i (|x_i - x_build_i - u| - margin_i); swept = x - x_start (the step's motion).
+    # skip_capped: not over vertices whose margin is skin_max (counted in FAST at its build; a rebuild
+    # cannot cover them either: the check after the continuous response's first round)
     i = wp.tid()
+    swept[i] = x[i] - x_start[i]
+    if skip_capped != 0 and margin[i] >= skin_max:
+        return
     u = sums[0] / float(x.shape[0])
     wp.atomic_max(scalars, SWEPT_EXCESS, wp.length(x[i] - x_build[i] - u) - margin[i])
-    swept[i] = x[i] - x_start[i]
 
 
 @wp.kernel

@@ -329,7 +329,7 @@ def test_a_motion_the_detect_did_not_predict_is_still_followed(swept_check):
     that rebuild (the check replaced by a no-op) the vertex stays through."""
     model, sc = triangle_and_vertex(True)
     if not swept_check:
-        sc._cover_swept = lambda x: None
+        sc._cover_swept = lambda x, skip_capped=False: None
     dt = 1.0 / 60.0
     x0 = model.host["q"].astype(np.float32)
     x0[0, 1] = 0.33
@@ -358,3 +358,58 @@ def test_a_motion_the_detect_predicted_does_not_rebuild_the_list():
     moved_through(model, sc, (0.0, -0.04, 0.0))
     stats = sc.stats()
     assert stats["swept_rebuilds"] == 0 and stats["rebuilds"] == 1 and stats["ccd_collisions"] >= 1, stats
+
+
+def two_layers_and_a_pinned_vertex():
+    """Two free 5 cm triangles 4 cm apart (B at y = 0.3 m, C below it) and a pinned vertex 1 cm above B, with
+    a SelfCollision (h = 5 mm) bound to them (a review's case)."""
+    q = np.array(
+        [
+            (0.012, 0.31, 0.012),  # the pinned vertex
+            (0.0, 0.3, 0.0),
+            (0.05, 0.3, 0.0),
+            (0.0, 0.3, 0.05),  # B
+            (0.003, 0.26, 0.002),
+            (0.053, 0.26, 0.002),
+            (0.003, 0.26, 0.052),  # C
+            (0.3, 0.5, 0.3),  # pinned, tied to the vertex (a model needs springs)
+        ]
+    )
+    pairs = np.array([[1, 2], [2, 3], [3, 1], [4, 5], [5, 6], [6, 4], [0, 7]])
+    model = build_model(
+        q,
+        pairs,
+        np.array([int(SpringType.STRUCTURAL)] * len(pairs)),
+        np.full(8, 0.01),
+        {t: SpringParams(1.0, 0.0) for t in SpringType},
+        pins=[0, 7],
+        triangles=np.array([[1, 2, 3], [4, 5, 6]]),
+        device="cpu",
+    )
+    return model, SelfCollision(model, thickness=0.005, friction=0.0, stiffness=10.0)
+
+
+@pytest.mark.parametrize("rounds", [2, 1])
+def test_a_push_that_drives_one_layer_through_another_is_followed_too(rounds):
+    """The pinned vertex moved 7 cm down through both layers in one step, still at the detect: the list
+    rebuilt over that motion holds the vertex's pairs, not B-C (4 cm apart, neither moving); the pushes drive
+    B down through C. A second round, after the list is rebuilt over the motion so far, holds B-C and parts
+    them: no intersection. The negative control: one round leaves B through C, uncounted."""
+    model, sc = two_layers_and_a_pinned_vertex()
+    sc.CCD_ROUNDS = rounds
+    dt = 1.0 / 60.0
+    x0 = model.host["q"].astype(np.float32)
+    x = wp.array(x0, dtype=wp.vec3, device="cpu")
+    sc.detect(x, wp.zeros(len(x0), dtype=wp.vec3, device="cpu"), dt)
+    x1 = x0.copy()
+    x1[0, 1] -= 0.07
+    x.assign(x1)
+    sc.prevent_crossings(x, wp.zeros(len(x0), dtype=wp.vec3, device="cpu"), dt)
+    xe = x.numpy()
+    stats = sc.stats()
+    assert stats["ccd_unresolved"] == 0 and stats["ccd_rollbacks"] == 0, stats
+    crossings = ix.count_self_intersections(xe, model.host["tris"])
+    if rounds == 2:
+        assert stats["swept_rebuilds"] == 2 and crossings == 0, (stats, crossings)
+    else:
+        assert stats["swept_rebuilds"] == 1 and crossings == 1, (stats, crossings)

@@ -442,7 +442,9 @@ def test_the_sharp_box_tablecloth_replays_captured_frames_bit_identically():
     the same positions and counters; the lists were rebuilt over a step's swept motion inside the replays."""
     runs = []
     for graph in (False, True):
-        sim = get_scenario("tablecloth").build(rows=12, cols=12, integrator="vbd", collider_edges=True, use_graph=graph)
+        sim = get_scenario("tablecloth").build(
+            rows=12, cols=12, integrator="vbd", collider_edges=True, use_graph=graph, device="cpu"
+        )
         sharp_boxes(sim)
         sim.control.collision.edge_contacts = True
         run_frames(sim, 0.5)
@@ -480,7 +482,8 @@ def test_a_cloth_edge_across_a_box_edge_is_pushed_out_to_the_thickness():
 def test_the_edge_projection_records_the_direction_it_pushed_each_vertex_out_in():
     """ColliderEdges.held (the continuous self-collision response pushes no vertex back against it): after one
     step of the cloth edge across the box's top edge, its two vertices hold unit directions away from the box
-    (up and out: +y, +z), the third vertex, which no contact moved, none; begin_step clears them."""
+    (up and out: +y, +z), the third vertex, which no contact moved, none; a step 20 cm clear of the box
+    clears them (begin_step, at the start of each step's projections)."""
     q = np.array([[-0.05, 0.51, 0.45], [-0.05, 0.45, 0.51], [-0.15, 0.52, 0.52]])
     model = build_model(
         q, [[0, 1], [1, 2], [2, 0]], [SpringType.STRUCTURAL] * 3, [0.01] * 3, params(1.0), triangles=[[0, 1, 2]]
@@ -494,6 +497,10 @@ def test_the_edge_projection_records_the_direction_it_pushed_each_vertex_out_in(
     np.testing.assert_allclose(np.linalg.norm(held[:2], axis=1), 1.0, atol=1e-5)
     assert np.all(held[:2, 1] > 0.3) and np.all(held[:2, 2] > 0.3), held
     np.testing.assert_array_equal(held[2], 0.0)
+    sim.state.particle_q.assign(sim.state.particle_q.numpy() + np.array([0.0, 0.2, 0.0], np.float32))
+    sim.simulate(1)  # 20 cm clear of the box: the step clears them, and no projection sets them again
+    assert not edges.held.numpy().any(), edges.held.numpy()
+    edges.held.fill_(1.0)
     edges.begin_step()
     assert not edges.held.numpy().any()
 

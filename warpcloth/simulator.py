@@ -453,7 +453,8 @@ class Simulator:
             )
         edges = self.control.collision.edges(self.model) if self.control.collision is not None else None
         if edges is not None:  # box and mesh edges against the cloth (after the solvers that hold them too)
-            edges.begin_step()
+            if detect_steps:  # a collision interval starts: the continuous response after it sees its pushes
+                edges.begin_step()
             edges.project(
                 self.state, self._dt, self.integrator.position_history(), self.integrator.velocity_position_weight
             )

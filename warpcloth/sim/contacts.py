@@ -327,8 +327,9 @@ class ColliderEdges:
             self.active = wp.zeros(2, dtype=int)  # vertices moved by a pass, by the next (collide_cloth_features)
             self._no_displacement = wp.zeros(1, dtype=wp.vec3)
             self.p, self.zero_v = wp.zeros(n, dtype=wp.vec3), wp.zeros(n, dtype=wp.vec3)
-            #: per vertex, the direction the projections of this step last pushed it out in (else 0): the
-            #: self-collision's continuous response after them pushes it no further into the collider's edge
+            #: per vertex, the direction the projections after the steps of this collision interval last pushed
+            #: it out in (else 0; not those inside a solver's iterations): the self-collision's continuous
+            #: response after them pushes it no further against it
             self.held = wp.zeros(n, dtype=wp.vec3)
 
     @staticmethod
@@ -388,7 +389,8 @@ class ColliderEdges:
             )
 
     def begin_step(self) -> None:
-        """A step's projections start: no vertex pushed out yet (:attr:`held`)."""
+        """A collision interval's projections start (each step where the self-collision's intervals are one
+        step): no vertex pushed out yet (:attr:`held`)."""
         self.held.zero_()
 
 

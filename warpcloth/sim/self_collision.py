@@ -610,6 +610,12 @@ class SelfCollision:
             device=self.device,
         )
 
+    #: rounds of the continuous response's passes: before each, the list is made to cover the motion so far
+    #: (:meth:`_cover_swept`); a later round runs only where that rebuilt the list (the pushes of the round
+    #: before moved a vertex beyond it: a vertex shot through two layers pushes the first through the second,
+    #: a pair the first list did not hold), its first pass testing every pair
+    CCD_ROUNDS = 2
+
     #: rounds of the continuous response's fail-safe (free vertices of a crossing pair back to the step's start)
     CCD_ROLLBACK_ROUNDS = 2
 
@@ -686,26 +692,32 @@ class SelfCollision:
         def apply() -> None:
             wp.launch(ccd.apply_ccd_corrections, dim=lanes, inputs=[*apply_inputs, *marks, self.counts], device=d)
 
-        self._cover_swept(x)
-        self.ccd_moved.fill_(1)  # the first pass tests every pair
-        for k in range(self.ccd_passes):
-            find(int(ccd.MODE_PUSH), int(k == 0))
-            wp.launch(
-                ccd.push_ccd_collisions,
-                dim=lanes,
-                inputs=[
-                    lanes,
-                    self.counts,
-                    self.contact_capacity,
-                    inv_mass,
-                    self.ccd_held,
-                    self.acting,
-                    *hits,
-                    self.dv,
-                ],
-                device=d,
-            )
-            apply()
+        for r in range(self.CCD_ROUNDS):
+            self._cover_swept(x, r > 0)  # the list covers the motion so far (the round before's pushes included)
+            if r == 0:
+                self.ccd_moved.fill_(1)  # the first pass tests every pair
+            else:
+                wp.launch(ccd.begin_ccd_round, dim=n, inputs=[self.counts], outputs=[self.ccd_moved], device=d)
+            for k in range(self.ccd_passes):
+                find(int(ccd.MODE_PUSH), int(r == 0 and k == 0))
+                wp.launch(
+                    ccd.push_ccd_collisions,
+                    dim=lanes,
+                    inputs=[
+                        lanes,
+                        self.counts,
+                        self.contact_capacity,
+                        inv_mass,
+                        self.ccd_held,
+                        self.acting,
+                        *hits,
+                        self.dv,
+                    ],
+                    device=d,
+                )
+                apply()
+            if r > 0:
+                wp.launch(ccd.end_ccd_round, dim=1, inputs=[self.counts], device=d)
         for _ in range(self.CCD_ROLLBACK_ROUNDS):
             find(int(ccd.MODE_ROLLBACK))
             wp.launch(
@@ -719,21 +731,24 @@ class SelfCollision:
         self.ccd_touched.zero_()
         self._count_unresolved(x)
 
-    def _cover_swept(self, x: wp.array) -> None:
+    def _cover_swept(self, x: wp.array, skip_capped: bool = False) -> None:
         """Before the continuous response: the list covers the straight motion from the interval's start
         (:attr:`x_start`) to ``x`` where the detect's test holds at its end too (every vertex within skin / 2
         of its margin, relative to the mean displacement since the build); else (the solve, a collider's
         or an edge's projection, a strain limit moved a vertex beyond what its velocity at the detect
         predicted) the list is rebuilt at the start positions with each vertex's margin its motion to the
         end (relative to the mean; at most ``skin_max``, beyond counted in ``fast``), so the response sees
-        every pair that may have met on the way (``swept_rebuilds``). Launches only."""
+        every pair that may have met on the way (``swept_rebuilds``). ``skip_capped``: vertices whose margin
+        is ``skin_max`` are left out of the test (after the response's first round: a rebuild would cap them
+        again). Launches only."""
         n, d, s = self.model.particle_count, self.device, self.scalars
         wp.launch(sk.begin_swept_check, dim=1, inputs=[s, self.motion_sums], device=d)
         wp.launch(sk.sum_swept_motion, dim=n, inputs=[x, self.x_start, self.x_build, self.motion_sums], device=d)
         wp.launch(
             sk.eval_swept_motion,
             dim=n,
-            inputs=[x, self.x_start, self.x_build, self.margin, self.motion_sums, s, self.swept],
+            inputs=[x, self.x_start, self.x_build, self.margin, self.motion_sums, s, self.skin_max, int(skip_capped)]
+            + [self.swept],
             device=d,
         )
         wp.launch(
@@ -742,7 +757,8 @@ class SelfCollision:
             inputs=[self.counts, s, self.thickness, self.edge_thickness, self.skin],
             device=d,
         )
-        # the build's margins are MARGIN_STEPS dt |v - w|: here v = the swept motion over dt = 1
+        # the build's margins are MARGIN_STEPS dt |v - w|: here v = the swept motion over dt = 1 (MARGIN_STEPS 1:
+        # the motion itself; more would widen these margins alike)
         self._build(self.x_start, self.swept, 1.0)
         wp.launch(
             sk.finish_self_contact_detect,
@@ -832,7 +848,9 @@ class SelfCollision:
         left closer than the minimum gap, detects, the largest lists, ``fast`` (rebuilds whose
         vertices moved more than the list's largest skin covers: a pair may have been missed), the
         continuous response's ``ccd_collisions`` (pairs its first pass pushed), ``ccd_rollbacks`` and
-        ``ccd_unresolved`` (pairs left crossing); the list's radius [m]."""
+        ``ccd_unresolved`` (pairs left crossing), ``swept_rebuilds`` (lists rebuilt over an interval's motion
+        before or between the continuous response's rounds, also counted in ``rebuilds``); the list's radius
+        [m]."""
         c = self.counts.numpy()
         s = self.scalars.numpy()
         out = {name: int(c[k]) for name, k in COUNT_NAMES.items()}
