@@ -736,8 +736,8 @@ class SelfCollision:
         (:attr:`x_start`) to ``x`` where the detect's test holds at its end too (every vertex within skin / 2
         of its margin, relative to the mean displacement since the build); else (the solve, a collider's
         or an edge's projection, a strain limit moved a vertex beyond what its velocity at the detect
-        predicted) the list is rebuilt at the end positions with each vertex's margin its motion from the
-        start (relative to the mean; at most ``skin_max``, beyond counted in ``fast``), so the response sees
+        predicted) the list is rebuilt at the start positions with each vertex's margin its motion to the
+        end (relative to the mean; at most ``skin_max``, beyond counted in ``fast``), so the response sees
         every pair that may have met on the way (``swept_rebuilds``). ``skip_capped``: vertices whose margin
         is ``skin_max`` are left out of the test (after the response's first round: a rebuild would cap them
         again). Launches only."""
@@ -757,12 +757,9 @@ class SelfCollision:
             inputs=[self.counts, s, self.thickness, self.edge_thickness, self.skin],
             device=d,
         )
-        # built at the end positions (a straight motion is as far from its end as from its start): the next
-        # detect then finds the list built where its step starts, with margins of about its step's motion, as
-        # its own rebuild would have made it (built at the start, the next detect rebuilt it again wherever
-        # the cloth moved more than half the skin a step). The build's margins are MARGIN_STEPS dt |v - w|:
-        # here v = the swept motion over dt = 1 (MARGIN_STEPS 1: the motion itself)
-        self._build(x, self.swept, 1.0)
+        # the build's margins are MARGIN_STEPS dt |v - w|: here v = the swept motion over dt = 1 (MARGIN_STEPS 1:
+        # the motion itself; more would widen these margins alike)
+        self._build(self.x_start, self.swept, 1.0)
         wp.launch(
             sk.finish_self_contact_detect,
             dim=1,
