@@ -485,11 +485,15 @@ class SelfCollision:
             ],
             device=d,
         )
+        self._finish()
+
+    def _finish(self) -> None:
+        """The lists' lengths capped at their capacities, the largest so far (after a detect or a rebuild)."""
         wp.launch(
             sk.finish_self_contact_detect,
             dim=1,
             inputs=[self.counts, self.vt_capacity, self.ee_capacity, self.contact_capacity],
-            device=d,
+            device=self.device,
         )
 
     def apply_forces(self, x: wp.array, v: wp.array, f: wp.array, dt: float) -> None:
@@ -760,12 +764,7 @@ class SelfCollision:
         # the build's margins are MARGIN_STEPS dt |v - w|: here v = the swept motion over dt = 1 (MARGIN_STEPS 1:
         # the motion itself; more would widen these margins alike)
         self._build(self.x_start, self.swept, 1.0)
-        wp.launch(
-            sk.finish_self_contact_detect,
-            dim=1,
-            inputs=[self.counts, self.vt_capacity, self.ee_capacity, self.contact_capacity],
-            device=d,
-        )
+        self._finish()
 
     def held_inverse_mass(self, x: wp.array, colliders) -> wp.array:
         """Per vertex 1/m, 0 where it lies within a collider's thickness + the minimum gap at ``x`` (a
