@@ -66,6 +66,7 @@ Vec2iArray = wp.array(dtype=wp.vec2i)
 Vec3iArray = wp.array(dtype=wp.vec3i)
 Vec4iArray = wp.array(dtype=wp.vec4i)
 Vec4Array = wp.array(dtype=wp.vec4)
+Vec2Array = wp.array(dtype=wp.vec2)
 
 # -- indices of the integer counters (``counts``) -------------------------------------------------
 CAND_VT = wp.constant(0)  # vertex-triangle candidates in the Verlet list
@@ -121,6 +122,9 @@ MARGIN_STEPS = wp.constant(1.0)
 #: a contact's normal found anew is turned to its detection side only where it points against it by more
 #: than this cosine (a pair found side by side, its normal nearly across the detection's, keeps its own)
 SIDE_COS = wp.constant(0.5)
+#: the narrow phase's bound per pair is raised by this [m] (1 um: float32 gaps of positions near 1-2 m are
+#: rounded at ~1e-7 m; the bound then never skips a pair that the full test would take)
+NARROW_SLACK = wp.constant(1.0e-6)
 #: cells searched per axis at most by one query (a larger radius is counted in TRUNCATED)
 MAX_CELLS_PER_AXIS = wp.constant(8)
 
@@ -449,16 +453,18 @@ def eval_self_contact_motion(
     splits: IntArray,
     scalars: FloatArray,
     x_start: Vec3Array,
+    motion_speed: Vec2Array,
 ):
     # motion relative to a common one (u, w: the mean displacement and velocity; a common motion
     # changes no gap, and any u, w bound it): D_i = |x_i - x_build_i - u| + |v_i - w| dt;
     # MOTION = max D_i, SPEED = max |v_i - w|, EXCESS = max (D_i - margin_i); contact counts from zero;
-    # x_start = x (the collision interval's start)
+    # x_start = x (the collision interval's start); motion_speed_i = (D_i, |v_i|) (the narrow phase's bound per pair)
     i = wp.tid()
     x_start[i] = x[i]
     scale = 1.0 / float(x.shape[0])
     speed = wp.length(v[i] - scale * sums[1])
     motion = wp.length(x[i] - x_build[i] - scale * sums[0]) + speed * dt
+    motion_speed[i] = wp.vec2(motion, wp.length(v[i]))
     wp.atomic_max(scalars, MOTION, motion)
     wp.atomic_max(scalars, SPEED, speed)
     wp.atomic_max(scalars, EXCESS, motion - margin[i])
@@ -566,10 +572,11 @@ def clear_self_contact_cells(
     head_tri: IntArray,
     head_edge: IntArray,
     scalars: FloatArray,
+    motion_speed: Vec2Array,
 ):
-    # (rebuild only) empty buckets; x_build = x; each vertex's margin = 2 |v - w| dt (two steps of its
-    # motion relative to the mean, at most skin_max: beyond, counted in FAST), MARGIN_MAX their largest
-    # (launched over max(buckets, particles))
+    # (rebuild only) empty buckets; x_build = x; each vertex's margin = MARGIN_STEPS |v - w| dt (its
+    # motion relative to the mean, at most skin_max: beyond, counted in FAST), MARGIN_MAX their largest;
+    # motion_speed_i's D_i since this build (x = x_build: |v - w| dt) (launched over max(buckets, particles))
     i = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -578,7 +585,9 @@ def clear_self_contact_cells(
         head_edge[i] = -1
     if i < x.shape[0]:
         x_build[i] = x[i]
-        m = MARGIN_STEPS * dt * wp.length(v[i] - sums[1] / float(x.shape[0]))
+        relative = dt * wp.length(v[i] - sums[1] / float(x.shape[0]))
+        motion_speed[i] = wp.vec2(relative, motion_speed[i][1])
+        m = MARGIN_STEPS * relative
         if m > skin_max:
             m = skin_max
             wp.atomic_add(counts, FAST, 1)
@@ -822,6 +831,7 @@ def eval_self_contacts(
     c_h: FloatArray,
     thickness: float,
     edge_thickness: float,
+    motion_speed: Vec2Array,
 ):
     # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair whose
     # gap d at x is below 1.25 h + dt (2 |sum W v| + max_k |v_k . n|) (it may come within h in this step:
@@ -830,7 +840,11 @@ def eval_self_contacts(
     # ground; across the normal that speed closes no gap, so a falling sheet's side-by-side pairs are not
     # contacts for it); per vertex, the number of its contacts (mass splitting). A pair whose gap at the
     # build, less twice the largest motion since, is not below R_ACTIVE (the same bound with the largest
-    # speed) is not evaluated (its gap cannot have fallen below it)
+    # speed) is not evaluated (its gap cannot have fallen below it); nor one whose gap at the build, less twice
+    # its own sides' largest motions D since, is not below its own bound 1.25 h + dt (2 (s_a + s_b) +
+    # max(s_a, s_b)) (s: a side's largest |v|, so |sum W v| <= s_a + s_b; motion_speed), nor one whose gap at
+    # x is not below it (its velocities are then not read): the same contacts, fewer evaluated (a folded
+    # strip at rest beside its fast edges)
     tid = wp.tid()
     n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
     total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])
@@ -841,27 +855,47 @@ def eval_self_contacts(
         n = wp.vec3()
         d = float(0.0)
         h = thickness
+        gap_build = float(0.0)
+        first_side = 1  # vertices of the first side: (p) against (a, b, c), or (a, b) against (c, d)
         if k < n_vt:
-            if cand_vt_gap[k] - reach >= scalars[R_ACTIVE]:
+            gap_build = cand_vt_gap[k]
+            if gap_build - reach >= scalars[R_ACTIVE]:
                 continue
             pair = cand_vt[k]
             tri = tris[pair[1]]
             idx = wp.vec4i(pair[0], tri[0], tri[1], tri[2])
-            w, n, d = vertex_triangle_record(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]])
         else:
-            if cand_ee_gap[k - n_vt] - reach >= scalars[R_ACTIVE_EE]:
+            gap_build = cand_ee_gap[k - n_vt]
+            if gap_build - reach >= scalars[R_ACTIVE_EE]:
                 continue
             pair = cand_ee[k - n_vt]
             ea = edges[pair[0]]
             eb = edges[pair[1]]
             idx = wp.vec4i(ea[0], ea[1], eb[0], eb[1])
-            w, n, d = edge_edge_record(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]])
             h = edge_thickness
+            first_side = 2
+        side_a = wp.vec2(0.0)
+        side_b = wp.vec2(0.0)
+        for j in range(4):
+            ms = motion_speed[idx[j]]
+            if j < first_side:
+                side_a = wp.max(side_a, ms)
+            else:
+                side_b = wp.max(side_b, ms)
+        bound = 1.25 * h + dt * (2.0 * (side_a[1] + side_b[1]) + wp.max(side_a[1], side_b[1])) + NARROW_SLACK
+        if gap_build - 2.0 * (side_a[0] + side_b[0]) >= bound:
+            continue
+        if first_side == 1:
+            w, n, d = vertex_triangle_record(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]])
+        else:
+            w, n, d = edge_edge_record(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]])
             # closest points at an end of either edge: that end's vertex-triangle contact holds it
             s = w[1]
             t = -w[3]
             if wp.min(s, t) <= END_PARAMETER or wp.max(s, t) >= 1.0 - END_PARAMETER:
                 d = 1.0e30
+        if d >= bound:
+            continue
         speed = wp.max(
             wp.max(wp.abs(wp.dot(v[idx[0]], n)), wp.abs(wp.dot(v[idx[1]], n))),
             wp.max(wp.abs(wp.dot(v[idx[2]], n)), wp.abs(wp.dot(v[idx[3]], n))),
@@ -993,14 +1027,21 @@ def count_filter_contacts(
     dt: float,
     dt_x: float,
     acting: IntArray,
+    f_w: Vec4Array,
+    f_n: Vec3Array,
+    f_change: Vec2Array,
 ):
-    # per vertex, the contacts of this filter pass that act on it (dv_n > 0)
+    # per vertex, the contacts of this filter pass that act on it (dv_n > 0); per contact its filter_change
+    # (dv_n and the velocity target; W and n where dv_n > 0) for the pass's filter_self_contact_velocities
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        w, n, vr, dvn, _tv = filter_change(
+        w, n, vr, dvn, tv = filter_change(
             k, x, v, inv_mass, c_idx, c_w, c_n, c_d, c_h, min_gap, inelastic, stiffness, dt, dt_x
         )
+        f_change[k] = wp.vec2(dvn, tv)
         if dvn > 0.0:
+            f_w[k] = w
+            f_n[k] = n
             count_acting(c_idx[k], w, inv_mass, acting)
 
 
@@ -1008,37 +1049,32 @@ def count_filter_contacts(
 def filter_self_contact_velocities(
     stride: int,
     counts: IntArray,
-    x: Vec3Array,
-    v: Vec3Array,
     inv_mass: FloatArray,
     acting: IntArray,
     c_idx: Vec4iArray,
-    c_w: Vec4Array,
-    c_n: Vec3Array,
-    c_d: FloatArray,
-    c_h: FloatArray,
-    min_gap: float,
+    f_w: Vec4Array,
+    f_n: Vec3Array,
+    f_change: Vec2Array,
     mu: float,
-    inelastic: int,
-    stiffness: float,
-    dt: float,
-    dt_x: float,
     v_slip: Vec3Array,
     interval: int,
     dv: Vec3Array,
     dv_end: Vec3Array,
 ):
-    # per contact the normal change dv_n of filter_change where > 0, friction |dv_t| = min(mu dv_n, |v_t|)
+    # per contact the normal change dv_n of filter_change where > 0 (found by this pass's count_filter_contacts,
+    # from the same x and v), friction |dv_t| = min(mu dv_n, |v_t|)
     # against the tangential relative velocity of v_slip (v; over a collision interval the end velocity,
     # which the step goes on with: friction on the interval's mean could reverse it);
     # impulse J = dv / sum W^2 c / m; dv_k += W_k J / m_k (Jacobi, masses split over the c contacts acting
     # on a vertex in this pass: count_filter_contacts)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        w, n, _vr, dvn, tv = filter_change(
-            k, x, v, inv_mass, c_idx, c_w, c_n, c_d, c_h, min_gap, inelastic, stiffness, dt, dt_x
-        )
+        change = f_change[k]
+        dvn = change[0]
         if dvn > 0.0:
+            tv = change[1]
+            w = f_w[k]
+            n = f_n[k]
             idx = c_idx[k]
             inv_m = held_capped_inverse_mass(idx, w, inv_mass, acting)
             if inv_m > 0.0:

@@ -278,7 +278,10 @@ class SelfCollision:
             self.edge_lo, self.edge_hi = wp.zeros(len(edges), dtype=wp.vec3), wp.zeros(len(edges), dtype=wp.vec3)
             self.edge_cell = wp.zeros(len(edges), dtype=wp.vec3i)
             self.x_build = wp.zeros(n, dtype=wp.vec3)
-            self.margin = wp.zeros(n, dtype=float)  # per vertex at the build: 2 |v - w| dt, at most skin_max [m]
+            self.margin = wp.zeros(n, dtype=float)  # per vertex at the build: |v - w| dt, at most skin_max [m]
+            #: per vertex (D [m], |v| [m/s]): its motion since the build (relative to the mean, with a step of its
+            #: velocity) and its speed, at the last detect (the narrow phase's bound per pair)
+            self.motion_speed = wp.zeros(n, dtype=wp.vec2)
             self.tri_margin = wp.zeros(len(tris), dtype=float)
             self.edge_margin = wp.zeros(len(edges), dtype=float)
             self.cand_vt = wp.zeros(self.vt_capacity, dtype=wp.vec2i)
@@ -291,6 +294,10 @@ class SelfCollision:
             self.contact_gaps = wp.zeros(self.contact_capacity, dtype=float)
             self.contact_thickness = wp.zeros(self.contact_capacity, dtype=float)
             self.splits = wp.zeros(n, dtype=int)
+            # a filter pass's per-contact change (W, n, (dv_n, velocity target)): found by its count, used by its filter
+            self.filter_weights = wp.zeros(self.contact_capacity, dtype=wp.vec4)
+            self.filter_normals = wp.zeros(self.contact_capacity, dtype=wp.vec3)
+            self.filter_changes = wp.zeros(self.contact_capacity, dtype=wp.vec2)
             self.acting = wp.zeros(n, dtype=int)  # per vertex, the contacts acting in a response pass (zeroed after it)
             self.dv = wp.zeros(n, dtype=wp.vec3)
             self.x_start = wp.zeros(n, dtype=wp.vec3)  # x at the collision interval's start (detect)
@@ -367,7 +374,8 @@ class SelfCollision:
         wp.launch(
             sk.eval_self_contact_motion,
             dim=n,
-            inputs=[x, v, self.x_build, self.margin, self.motion_sums, float(dt), self.splits, s, self.x_start],
+            inputs=[x, v, self.x_build, self.margin, self.motion_sums, float(dt), self.splits, s, self.x_start]
+            + [self.motion_speed],
             device=d,
         )
         wp.launch(
@@ -387,7 +395,7 @@ class SelfCollision:
             sk.clear_self_contact_cells,
             dim=max(self.bucket_count, n),
             inputs=[c, x, v, self.motion_sums, float(dt), self.skin_max],
-            outputs=[self.x_build, self.margin, self.head_tri, self.head_edge, s],
+            outputs=[self.x_build, self.margin, self.head_tri, self.head_edge, s, self.motion_speed],
             device=d,
         )
         wp.launch(sk.size_self_contact_cells, dim=1, inputs=[c, self.cell_size], outputs=[s], device=d)
@@ -482,6 +490,7 @@ class SelfCollision:
                 self.contact_thickness,
                 self.thickness,
                 self.edge_thickness,
+                self.motion_speed,
             ],
             device=d,
         )
@@ -563,12 +572,13 @@ class SelfCollision:
             inv_mass = self.held_inverse_mass(x, colliders)
         records = [self.contact_indices, self.contact_weights, self.contact_normals, self.contact_gaps]
         records.append(self.contact_thickness)
+        changes = [self.filter_weights, self.filter_normals, self.filter_changes]
         for _ in range(self.iterations * (2 if steps > 1 else 1)):  # an interval's corrections are larger
             wp.launch(
                 sk.count_filter_contacts,
                 dim=n,
                 inputs=[n, self.counts, x, v, inv_mass, *records, self.min_gap, int(inelastic), k, float(dt), dt_x],
-                outputs=[self.acting],
+                outputs=[self.acting, *changes],
                 device=d,
             )
             wp.launch(
@@ -577,17 +587,11 @@ class SelfCollision:
                 inputs=[
                     n,
                     self.counts,
-                    x,
-                    v,
                     inv_mass,
                     self.acting,
-                    *records,
-                    self.min_gap,
+                    self.contact_indices,
+                    *changes,
                     self.friction,
-                    int(inelastic),
-                    k,
-                    float(dt),
-                    dt_x,
                     v_out,
                     int(average),
                 ],
