@@ -16,7 +16,7 @@ response is equal and opposite (momentum conserved to float32 rounding); a pinne
 Broad phase: a linked-cell spatial hash made by kernels (a head per hash bucket, one ``next``
 per item, inserted with ``atomic_exch``; no capacity, no host work), over triangle and edge
 box centres; a Verlet list of candidate pairs, rebuilt on the device only when needed. At a
-build each vertex gets a margin m_i = 2 |v_i - w| dt (two steps of its motion relative to the
+build each vertex gets a margin m_i = |v_i - w| dt (a step of its motion relative to the
 mean velocity w, at most skin_max), a triangle or an edge the largest of its vertices', and a
 pair is listed within r = h + skin + m_a + m_b: fast parts get a wide radius, slow ones (a pile at
 rest beside a falling layer) a tight one. The list holds while every vertex moved at most
@@ -25,9 +25,10 @@ displacement u and velocity w: a common motion, such as a fall, changes no gap),
 pair cannot have come within h. The cell size is chosen at each build on the device (a base from
 the mesh plus the largest margin), so a query spans a few cells whatever the motion. Every
 broad-phase launch exits at once when no rebuild is due, so a captured frame replays the
-adaptive schedule. A candidate whose gap at the build, less twice the largest motion since,
-cannot be near is skipped by the narrow phase without being evaluated; a pair is a contact of
-this step when its gap is below 1.25 h + 2 dt |sum W v| (its own relative speed). Lists
+adaptive schedule. A candidate whose gap at the build, less twice the largest motion of its own
+vertices since, cannot be near (against a bound from its own vertices' speeds) is skipped by the
+narrow phase without being evaluated; a pair is a contact of this step when its gap is below
+1.25 h + dt (2 |sum W v| + max_k |v_k . n|) (its own relative speed). Lists
 have a fixed capacity chosen at bind; a pair that does not fit is counted (overflow), never
 dropped silently.
 
@@ -122,8 +123,9 @@ MARGIN_STEPS = wp.constant(1.0)
 #: a contact's normal found anew is turned to its detection side only where it points against it by more
 #: than this cosine (a pair found side by side, its normal nearly across the detection's, keeps its own)
 SIDE_COS = wp.constant(0.5)
-#: the narrow phase's bound per pair is raised by this [m] (1 um: float32 gaps of positions near 1-2 m are
-#: rounded at ~1e-7 m; the bound then never skips a pair that the full test would take)
+#: the narrow phase's bound per pair is raised by this times (1 m + the pair's largest coordinate) [m/m]: its
+#: gaps at the build and at x are float32 distances of positions rounded at ~6e-8 of their size, so the bound
+#: never skips a pair that the full test would take
 NARROW_SLACK = wp.constant(1.0e-6)
 #: cells searched per axis at most by one query (a larger radius is counted in TRUNCATED)
 MAX_CELLS_PER_AXIS = wp.constant(8)
@@ -453,18 +455,20 @@ def eval_self_contact_motion(
     splits: IntArray,
     scalars: FloatArray,
     x_start: Vec3Array,
-    motion_speed: Vec2Array,
+    motion_speed: Vec3Array,
 ):
     # motion relative to a common one (u, w: the mean displacement and velocity; a common motion
     # changes no gap, and any u, w bound it): D_i = |x_i - x_build_i - u| + |v_i - w| dt;
     # MOTION = max D_i, SPEED = max |v_i - w|, EXCESS = max (D_i - margin_i); contact counts from zero;
-    # x_start = x (the collision interval's start); motion_speed_i = (D_i, |v_i|) (the narrow phase's bound per pair)
+    # x_start = x (the collision interval's start); motion_speed_i = (|x_i - x_build_i - u|, |v_i - w|, |v_i|)
+    # (the narrow phase's bound per pair)
     i = wp.tid()
     x_start[i] = x[i]
     scale = 1.0 / float(x.shape[0])
     speed = wp.length(v[i] - scale * sums[1])
-    motion = wp.length(x[i] - x_build[i] - scale * sums[0]) + speed * dt
-    motion_speed[i] = wp.vec2(motion, wp.length(v[i]))
+    moved = wp.length(x[i] - x_build[i] - scale * sums[0])
+    motion = moved + speed * dt
+    motion_speed[i] = wp.vec3(moved, speed, wp.length(v[i]))
     wp.atomic_max(scalars, MOTION, motion)
     wp.atomic_max(scalars, SPEED, speed)
     wp.atomic_max(scalars, EXCESS, motion - margin[i])
@@ -572,11 +576,11 @@ def clear_self_contact_cells(
     head_tri: IntArray,
     head_edge: IntArray,
     scalars: FloatArray,
-    motion_speed: Vec2Array,
+    motion_speed: Vec3Array,
 ):
     # (rebuild only) empty buckets; x_build = x; each vertex's margin = MARGIN_STEPS |v - w| dt (its
     # motion relative to the mean, at most skin_max: beyond, counted in FAST), MARGIN_MAX their largest;
-    # motion_speed_i's D_i since this build (x = x_build: |v - w| dt) (launched over max(buckets, particles))
+    # motion_speed_i's displacement since this build 0 (x = x_build) (launched over max(buckets, particles))
     i = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -585,9 +589,9 @@ def clear_self_contact_cells(
         head_edge[i] = -1
     if i < x.shape[0]:
         x_build[i] = x[i]
-        relative = dt * wp.length(v[i] - sums[1] / float(x.shape[0]))
-        motion_speed[i] = wp.vec2(relative, motion_speed[i][1])
-        m = MARGIN_STEPS * relative
+        ms = motion_speed[i]
+        motion_speed[i] = wp.vec3(0.0, ms[1], ms[2])
+        m = MARGIN_STEPS * dt * wp.length(v[i] - sums[1] / float(x.shape[0]))
         if m > skin_max:
             m = skin_max
             wp.atomic_add(counts, FAST, 1)
@@ -831,7 +835,7 @@ def eval_self_contacts(
     c_h: FloatArray,
     thickness: float,
     edge_thickness: float,
-    motion_speed: Vec2Array,
+    motion_speed: Vec3Array,
 ):
     # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair whose
     # gap d at x is below 1.25 h + dt (2 |sum W v| + max_k |v_k . n|) (it may come within h in this step:
@@ -840,11 +844,12 @@ def eval_self_contacts(
     # ground; across the normal that speed closes no gap, so a falling sheet's side-by-side pairs are not
     # contacts for it); per vertex, the number of its contacts (mass splitting). A pair whose gap at the
     # build, less twice the largest motion since, is not below R_ACTIVE (the same bound with the largest
-    # speed) is not evaluated (its gap cannot have fallen below it); nor one whose gap at the build, less twice
-    # its own sides' largest motions D since, is not below its own bound 1.25 h + dt (2 (s_a + s_b) +
-    # max(s_a, s_b)) (s: a side's largest |v|, so |sum W v| <= s_a + s_b; motion_speed), nor one whose gap at
-    # x is not below it (its velocities are then not read): the same contacts, fewer evaluated (a folded
-    # strip at rest beside its fast edges)
+    # speed) is not evaluated (its gap cannot have fallen below it); nor one whose gap at the build, less its
+    # sides' largest displacements D_a + D_b since (relative to the mean: the gap of two convex hulls moves by
+    # at most as much), is not below its own bound 1.25 h + dt (2 (r_a + r_b) + max(s_a, s_b)) (motion_speed:
+    # r a side's largest |v - w|, so |sum W v| = |sum W (v - w)| <= r_a + r_b as sum W = 0; s its largest
+    # |v|), nor one whose gap at x is not below it (its velocities are then not read): the same contacts,
+    # fewer evaluated (a folded strip at rest beside its fast edges)
     tid = wp.tid()
     n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
     total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])
@@ -874,16 +879,19 @@ def eval_self_contacts(
             idx = wp.vec4i(ea[0], ea[1], eb[0], eb[1])
             h = edge_thickness
             first_side = 2
-        side_a = wp.vec2(0.0)
-        side_b = wp.vec2(0.0)
+        side_a = wp.vec3(0.0)
+        side_b = wp.vec3(0.0)
         for j in range(4):
             ms = motion_speed[idx[j]]
             if j < first_side:
                 side_a = wp.max(side_a, ms)
             else:
                 side_b = wp.max(side_b, ms)
-        bound = 1.25 * h + dt * (2.0 * (side_a[1] + side_b[1]) + wp.max(side_a[1], side_b[1])) + NARROW_SLACK
-        if gap_build - 2.0 * (side_a[0] + side_b[0]) >= bound:
+        xp = x[idx[0]]
+        size = wp.max(wp.max(wp.abs(xp[0]), wp.abs(xp[1])), wp.abs(xp[2]))
+        bound = 1.25 * h + dt * (2.0 * (side_a[1] + side_b[1]) + wp.max(side_a[2], side_b[2]))
+        bound = bound + NARROW_SLACK * (1.0 + size)
+        if gap_build - (side_a[0] + side_b[0]) >= bound:
             continue
         if first_side == 1:
             w, n, d = vertex_triangle_record(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]])

@@ -279,9 +279,9 @@ class SelfCollision:
             self.edge_cell = wp.zeros(len(edges), dtype=wp.vec3i)
             self.x_build = wp.zeros(n, dtype=wp.vec3)
             self.margin = wp.zeros(n, dtype=float)  # per vertex at the build: |v - w| dt, at most skin_max [m]
-            #: per vertex (D [m], |v| [m/s]): its motion since the build (relative to the mean, with a step of its
-            #: velocity) and its speed, at the last detect (the narrow phase's bound per pair)
-            self.motion_speed = wp.zeros(n, dtype=wp.vec2)
+            #: per vertex (|x - x_build - u| [m], |v - w| [m/s], |v| [m/s]): its displacement since the build and
+            #: its velocity relative to the mean (u, w), and its speed, at the last detect (the narrow phase's bound)
+            self.motion_speed = wp.zeros(n, dtype=wp.vec3)
             self.tri_margin = wp.zeros(len(tris), dtype=float)
             self.edge_margin = wp.zeros(len(edges), dtype=float)
             self.cand_vt = wp.zeros(self.vt_capacity, dtype=wp.vec2i)
