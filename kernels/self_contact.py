@@ -25,9 +25,9 @@ displacement u and velocity w: a common motion, such as a fall, changes no gap),
 pair cannot have come within h. The cell size is chosen at each build on the device (a base from
 the mesh plus the largest margin), so a query spans a few cells whatever the motion. Every
 broad-phase launch exits at once when no rebuild is due, so a captured frame replays the
-adaptive schedule. A candidate whose gap at the build, less twice the largest motion of its own
-vertices since, cannot be near (against a bound from its own vertices' speeds) is skipped by the
-narrow phase without being evaluated; a pair is a contact of this step when its gap is below
+adaptive schedule. A candidate whose gap at the build, less its own vertices' largest
+displacements since, cannot be near (against a bound from its own vertices' speeds) is skipped by
+the narrow phase without being evaluated; a pair is a contact of this step when its gap is below
 1.25 h + dt (2 |sum W v| + max_k |v_k . n|) (its own relative speed). Lists
 have a fixed capacity chosen at bind; a pair that does not fit is counted (overflow), never
 dropped silently.
