@@ -24,6 +24,7 @@ from warpcloth.kernels.self_contact import (
     CCD_ROLLBACKS,
     CCD_SAVED,
     CCD_UNRESOLVED,
+    NARROW_SLACK,
     REBUILD,
     FloatArray,
     IntArray,
@@ -428,6 +429,10 @@ def find_ccd_collisions(
     edges: Vec2iArray,
     cand_vt: Vec2iArray,
     cand_ee: Vec2iArray,
+    cand_vt_gap: FloatArray,
+    cand_ee_gap: FloatArray,
+    motion_speed: Vec3Array,
+    swept_length: FloatArray,
     eta: float,
     min_gap: float,
     mode: int,
@@ -447,7 +452,11 @@ def find_ccd_collisions(
     # motion x0 -> x1. A collision at t with weights W and normal n, oriented so that the start's
     # n . sum W x0 > 0, is (MODE_PUSH) recorded with the depth min_gap - n . sum W x1 that a push along n
     # removes, and counted at its free vertices (mass splitting); (MODE_ROLLBACK) its free vertices marked;
-    # (MODE_COUNT) counted as unresolved
+    # (MODE_COUNT) counted as unresolved. In the step's first pass (first != 0) a pair is skipped first by a bound
+    # that reads no position: its gap at the list's build, less its sides' largest displacements since the build
+    # to the step's start (motion_speed[0]: the gap of two convex hulls moves by at most as much) and their
+    # largest straight motions over the step (swept_length, both relative to a common motion), above min_gap:
+    # it stays min_gap apart all the way (no collision, no end closer than min_gap)
     tid = wp.tid()
     if counts[CCD_ACTIVE] == 0:  # the last pass moved nothing and found nothing: nothing changed
         return
@@ -469,6 +478,24 @@ def find_ccd_collisions(
         first_side = 1
         if k >= n_vt:
             first_side = 2
+        if first != 0:
+            gap = float(0.0)
+            if k < n_vt:
+                gap = cand_vt_gap[k]
+            else:
+                gap = cand_ee_gap[k - n_vt]
+            reach_a = float(0.0)
+            reach_b = float(0.0)
+            for j in range(4):
+                r = motion_speed[idx[j]][0] + swept_length[idx[j]]
+                if j < first_side:
+                    reach_a = wp.max(reach_a, r)
+                else:
+                    reach_b = wp.max(reach_b, r)
+            xp = x0[idx[0]]
+            size = wp.max(wp.max(wp.abs(xp[0]), wp.abs(xp[1])), wp.abs(xp[2]))
+            if gap - (reach_a + reach_b) > min_gap + NARROW_SLACK * (1.0 + size):
+                continue
         if swept_boxes_apart(x0, x1, idx, first_side, min_gap):
             continue
         if cannot_close(x0, x1, idx, 2 - first_side, min_gap):

@@ -538,6 +538,7 @@ def eval_swept_motion(
     skin_max: float,
     skip_capped: int,
     swept: Vec3Array,
+    swept_length: FloatArray,
 ):
     # the end's excess over each vertex's margin, relative to the mean displacement u since the build:
     # SWEPT_EXCESS = max_i (|x_i - x_build_i - u| - margin_i); swept = x - x_start (the step's motion).
@@ -545,6 +546,7 @@ def eval_swept_motion(
     # cannot cover them either: the check after the continuous response's first round)
     i = wp.tid()
     swept[i] = x[i] - x_start[i]
+    swept_length[i] = wp.length(swept[i] - sums[1] / float(x.shape[0]))  # relative to the mean (the CCD's bound)
     if skip_capped != 0 and margin[i] >= skin_max:
         return
     u = sums[0] / float(x.shape[0])

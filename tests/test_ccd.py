@@ -360,6 +360,32 @@ def test_a_motion_the_detect_predicted_does_not_rebuild_the_list():
     assert stats["swept_rebuilds"] == 0 and stats["rebuilds"] == 1 and stats["ccd_collisions"] >= 1, stats
 
 
+def test_the_first_pass_follows_a_pair_that_closed_since_the_list_was_built():
+    """The continuous response's first pass skips a pair by a bound that reads no position: its gap at the list's
+    build less its sides' displacements since (to the step's start) and their motion over the step. The vertex,
+    1 cm above the pinned triangle at the build, is 2 mm above it at the step's start (the list kept: a 3 cm skin)
+    and goes 3 mm through it in the step: the pass still sees the pair (the gap at the build less the step's
+    motion alone, 5 mm, would have skipped it) and leaves the vertex on its side."""
+    model, _ = triangle_and_vertex(True)
+    sc = SelfCollision(model, thickness=0.005, friction=0.0, stiffness=10.0, skin=0.03)
+    dt = 1.0 / 60.0
+    q = model.host["q"].astype(np.float32)
+    x = wp.array(q, dtype=wp.vec3, device="cpu")
+    vel = wp.zeros(len(q), dtype=wp.vec3, device="cpu")
+    sc.detect(x, vel, dt)  # the build: the pair 1 cm apart
+    q[0, 1] = 0.302
+    x.assign(q)
+    sc.detect(x, vel, dt)  # the step's start: 2 mm apart, the list kept
+    q[0, 1] = 0.297
+    x.assign(q)
+    sc.prevent_crossings(x, vel, dt)
+    xe = x.numpy()
+    stats = sc.stats()
+    assert stats["rebuilds"] == 1 and stats["swept_rebuilds"] == 0 and stats["ccd_collisions"] >= 1, stats
+    assert xe[0, 1] >= 0.3 + 0.99 * sc.min_gap, xe[0]
+    assert ix.count_self_intersections(xe, model.host["tris"]) == 0
+
+
 def two_layers_and_a_pinned_vertex():
     """Two free 5 cm triangles 4 cm apart (B at y = 0.3 m, C below it) and a pinned vertex 1 cm above B, with
     a SelfCollision (h = 5 mm) bound to them (a review's case)."""

@@ -304,6 +304,7 @@ class SelfCollision:
             self.v_average = wp.zeros(n, dtype=wp.vec3)  # the interval's mean velocity (its filter)
             self.dv_end = wp.zeros(n, dtype=wp.vec3)  # the end velocity's change over an interval
             self.swept = wp.zeros(n, dtype=wp.vec3)  # x - x_start at the continuous response (its list's margins)
+            self.swept_length = wp.zeros(n, dtype=float)  # |x - x_start - its mean| there (the first pass's bound)
             self.filter_inv_mass = wp.zeros(n, dtype=float)  # 1/m, 0 where a collider holds the vertex (filter)
             #: per vertex, the contacts' penalty force [N] and Gauss-Newton Hessian [N/m] (vbd's vertex step)
             self.vertex_force = wp.zeros(n, dtype=wp.vec3)
@@ -685,7 +686,8 @@ class SelfCollision:
         # returns at once, which on the CPU costs per thread launched (measured: 30 us a launch of 4096)
         lanes = n if wp.get_device(d).is_cuda else min(n, CPU_LANES)
         find_inputs = [lanes, self.counts, self.x_start, x, self.ccd_moved, inv_mass, self.ccd_held]
-        find_inputs += [self.tris, self.edges, self.cand_vt, self.cand_ee, self.ccd_tolerance]
+        find_inputs += [self.tris, self.edges, self.cand_vt, self.cand_ee, self.cand_vt_gap, self.cand_ee_gap]
+        find_inputs += [self.motion_speed, self.swept_length, self.ccd_tolerance]
         apply_inputs = [lanes, dt_v, dt_d, int(displacement is not None), self.dv, x, v, disp, self.ccd_moved]
 
         def find(mode: int, first: int = 0) -> None:
@@ -756,7 +758,7 @@ class SelfCollision:
             sk.eval_swept_motion,
             dim=n,
             inputs=[x, self.x_start, self.x_build, self.margin, self.motion_sums, s, self.skin_max, int(skip_capped)]
-            + [self.swept],
+            + [self.swept, self.swept_length],
             device=d,
         )
         wp.launch(
