@@ -36,6 +36,22 @@ def timed(sim, steps, device):
     return watch.seconds
 
 
+def snapshot(sim):
+    """The state of ``sim`` now, as a function that puts any simulator of the same scene into it (the
+    integrator, the pins and the candidate list start from it)."""
+    saved = [wp.clone(a) for a in (sim.state.particle_q, sim.state.particle_qd, sim.control.time)]
+    saved_time, saved_steps = sim.sim_time, sim.steps
+
+    def start(s):
+        for dst, src in zip((s.state.particle_q, s.state.particle_qd, s.control.time), saved):
+            wp.copy(dst, src)
+        s.sim_time, s.steps = saved_time, saved_steps
+        s._rebase_clock()
+        s._needs_begin = True
+
+    return start
+
+
 def measure(size, steps, repeats, device, until=3.0, interval=None, ccd_passes=None):
     fold = get_scenario("fold")
     sim = fold.build(
@@ -51,18 +67,7 @@ def measure(size, steps, repeats, device, until=3.0, interval=None, ccd_passes=N
     for t in (t for t in SNAPSHOTS if t <= until + 1e-9):
         while sim.sim_time < t - 1e-9:
             sim.simulate(frame)
-        arrays = (sim.state.particle_q, sim.state.particle_qd, sim.control.time)
-        saved = [wp.clone(a) for a in arrays]
-        saved_time, saved_steps = sim.sim_time, sim.steps
-
-        def start(s):
-            """``s`` at the snapshot (the integrator, the pins and the candidate list start from it)."""
-            for dst, src in zip((s.state.particle_q, s.state.particle_qd, s.control.time), saved):
-                wp.copy(dst, src)
-            s.sim_time, s.steps = saved_time, saved_steps
-            s._rebase_clock()
-            s._needs_begin = True
-
+        start = snapshot(sim)
         on, off, stats = [], [], None
         for r in range(repeats + 1):  # the first repeat captures the graphs (not counted)
             for s in (sim, plain):

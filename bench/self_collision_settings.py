@@ -15,6 +15,7 @@ import argparse
 import statistics
 
 import warp as wp
+from self_collision import snapshot  # bench/self_collision.py (this script's folder leads sys.path)
 from warpcloth.scenarios import get_scenario
 
 from warpcloth.run.harness import Stopwatch
@@ -58,16 +59,7 @@ def main() -> None:
     for t in sorted(args.snapshots):
         while base.sim_time < t - 1e-9:
             base.simulate(frame)
-        saved = [wp.clone(a) for a in (base.state.particle_q, base.state.particle_qd, base.control.time)]
-        saved_time, saved_steps = base.sim_time, base.steps
-
-        def start(sim):
-            for dst, src in zip((sim.state.particle_q, sim.state.particle_qd, sim.control.time), saved):
-                wp.copy(dst, src)
-            sim.sim_time, sim.steps = saved_time, saved_steps
-            sim._rebase_clock()
-            sim._needs_begin = True
-
+        start = snapshot(base)
         times = {value: [] for value in args.values}
         stats = {}
         for r in range(args.repeats + 1):  # the first replays capture the graphs (not counted)

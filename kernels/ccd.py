@@ -24,7 +24,6 @@ from warpcloth.kernels.self_contact import (
     CCD_ROLLBACKS,
     CCD_SAVED,
     CCD_UNRESOLVED,
-    NARROW_SLACK,
     REBUILD,
     FloatArray,
     IntArray,
@@ -38,6 +37,7 @@ from warpcloth.kernels.self_contact import (
     capped_for_held,
     closest_point_triangle,
     closest_points_edge_edge,
+    rounding_slack,
 )
 
 NOT_DETERMINISTIC = "the continuous response's collision lists are built in the GPU's thread order"
@@ -492,9 +492,7 @@ def find_ccd_collisions(
                     reach_a = wp.max(reach_a, r)
                 else:
                     reach_b = wp.max(reach_b, r)
-            xp = x0[idx[0]]
-            size = wp.max(wp.max(wp.abs(xp[0]), wp.abs(xp[1])), wp.abs(xp[2]))
-            if gap - (reach_a + reach_b) > min_gap + NARROW_SLACK * (1.0 + size):
+            if gap - (reach_a + reach_b) > min_gap + rounding_slack(x0[idx[0]]):
                 continue
         if swept_boxes_apart(x0, x1, idx, first_side, min_gap):
             continue

@@ -133,6 +133,13 @@ MAX_CELLS_PER_AXIS = wp.constant(8)
 
 # -- geometry ---------------------------------------------------------------------------------------
 @wp.func
+def rounding_slack(p: wp.vec3):
+    # NARROW_SLACK (1 m + the largest coordinate of p) [m]: what a bound per pair near p is raised by
+    size = wp.max(wp.max(wp.abs(p[0]), wp.abs(p[1])), wp.abs(p[2]))
+    return NARROW_SLACK * (1.0 + size)
+
+
+@wp.func
 def boxes_overlap(lo_a: wp.vec3, hi_a: wp.vec3, lo_b: wp.vec3, hi_b: wp.vec3):
     # whether two axis-aligned boxes meet (closed; a point is the box [p, p])
     if lo_a[0] > hi_b[0] or lo_a[1] > hi_b[1] or lo_a[2] > hi_b[2]:
@@ -889,10 +896,8 @@ def eval_self_contacts(
                 side_a = wp.max(side_a, ms)
             else:
                 side_b = wp.max(side_b, ms)
-        xp = x[idx[0]]
-        size = wp.max(wp.max(wp.abs(xp[0]), wp.abs(xp[1])), wp.abs(xp[2]))
         bound = 1.25 * h + dt * (2.0 * (side_a[1] + side_b[1]) + wp.max(side_a[2], side_b[2]))
-        bound = bound + NARROW_SLACK * (1.0 + size)
+        bound = bound + rounding_slack(x[idx[0]])
         if gap_build - (side_a[0] + side_b[0]) >= bound:
             continue
         if first_side == 1:
