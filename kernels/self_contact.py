@@ -99,8 +99,6 @@ MOTION = wp.constant(0)  # max_i D_i = |x_i - x_build_i - u| + |v_i - w| dt this
 SPEED = wp.constant(1)  # max |v - w| this detect [m/s]
 R_BUILD = wp.constant(2)  # radius of the Verlet list without margins: h + skin [m]
 R_ACTIVE = wp.constant(3)  # a candidate whose gap may be below 1.25 h + 3 |v|_max dt is evaluated [m]
-RHO_MAX = wp.constant(4)  # largest half diagonal of a triangle's box at the build [m]
-HALF_EDGE_MAX = wp.constant(5)  # largest half length of an edge at the build [m]
 SKIN = wp.constant(6)  # the skin of the current list [m]
 R_BUILD_EE = wp.constant(7)  # radius of the edge-edge list without margins: h_e + skin [m], h_e = edge_fraction h
 R_ACTIVE_EE = wp.constant(8)  # R_ACTIVE of the edge-edge candidates: 1.25 h_e + 3 |v|_max dt [m]
@@ -111,7 +109,11 @@ SPEED_ABS = wp.constant(12)  # max |v| this detect [m/s]
 SWEPT_EXCESS = wp.constant(
     13
 )  # max_i (|x_i - x_build_i - u| - margin_i) at a step's end, before its continuous response [m]
-SCALAR_SLOTS = 14
+#: per axis (three slots from here), the largest half extent of a triangle's box grown by its margin at the
+#: build [m]: a box that meets a query's has its centre within the query's box grown by as much
+TRI_HALF = wp.constant(14)
+EDGE_HALF = wp.constant(17)  # the same for the edges' boxes [m]
+SCALAR_SLOTS = 20
 
 #: an edge-edge contact whose closest point is within this parameter of an edge's end is left to that end's
 #: vertex-triangle contact (the vertex is at least as near the edge's triangles as the edge)
@@ -489,8 +491,9 @@ def begin_rebuild(counts: IntArray, scalars: FloatArray, thickness: float, edge_
     scalars[SKIN] = skin
     scalars[R_BUILD] = thickness + skin
     scalars[R_BUILD_EE] = edge_thickness + skin
-    scalars[RHO_MAX] = 0.0
-    scalars[HALF_EDGE_MAX] = 0.0
+    for k in range(3):
+        scalars[TRI_HALF + k] = 0.0
+        scalars[EDGE_HALF + k] = 0.0
     scalars[MARGIN_MAX] = 0.0
     counts[REBUILD] = 1
     counts[BUILT] = 1
@@ -631,8 +634,8 @@ def insert_self_contact_triangles(
     item_margin: FloatArray,
 ):
     # (rebuild only) triangle t into the bucket of its box centre (its box grown by its margin, the
-    # largest of its vertices', its cell and margin, kept for the queries); rho_max = max half diagonal
-    # of the boxes
+    # largest of its vertices', its cell and margin, kept for the queries); TRI_HALF: the grown boxes'
+    # largest half extent per axis
     t = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -649,7 +652,8 @@ def insert_self_contact_triangles(
     item_cell[t] = cell
     item_margin[t] = m
     next_item[t] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), t)
-    wp.atomic_max(scalars, RHO_MAX, 0.5 * wp.length(hi - lo))
+    for k in range(3):
+        wp.atomic_max(scalars, TRI_HALF + k, 0.5 * (hi[k] - lo[k]) + m)
 
 
 @wp.kernel
@@ -668,7 +672,7 @@ def insert_self_contact_edges(
     item_margin: FloatArray,
 ):
     # (rebuild only) edge e into the bucket of its midpoint (its box grown by its margin, its cell and
-    # margin kept); the largest half length
+    # margin kept); EDGE_HALF: the grown boxes' largest half extent per axis
     e = wp.tid()
     if counts[REBUILD] == 0:
         return
@@ -681,7 +685,16 @@ def insert_self_contact_edges(
     item_cell[e] = cell
     item_margin[e] = m
     next_item[e] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), e)
-    wp.atomic_max(scalars, HALF_EDGE_MAX, 0.5 * wp.length(b - a))
+    for k in range(3):
+        wp.atomic_max(scalars, EDGE_HALF + k, 0.5 * wp.abs(b[k] - a[k]) + m)
+
+
+@wp.func
+def half_extents(scalars: FloatArray, slot: int, radius: float, p: wp.vec3):
+    # a query's reach per axis: its radius + the inserted boxes' largest half extent on the axis (their centres'
+    # cells: a box that meets the query's box has its centre within as much of it), + float32 rounding near p
+    slack = radius + rounding_slack(p)
+    return wp.vec3(scalars[slot] + slack, scalars[slot + 1] + slack, scalars[slot + 2] + slack)
 
 
 @wp.func
@@ -729,7 +742,7 @@ def find_vertex_triangle_candidates(
     p = x[i]
     r_i = scalars[R_BUILD] + margin[i]
     inv_cell = scalars[INV_CELL]
-    reach = wp.vec3(r_i + scalars[MARGIN_MAX] + scalars[RHO_MAX])  # a box centre within r + its half diagonal
+    reach = half_extents(scalars, TRI_HALF, r_i, p)  # a box centre within r + its half extent, per axis
     lo, hi = cell_range(p - reach, p + reach, inv_cell, counts)
     e0 = exclude_offsets[i]
     e1 = exclude_offsets[i + 1]
@@ -788,7 +801,7 @@ def find_edge_edge_candidates(
     a = x[ea]
     b = x[eb]
     r_e = scalars[R_BUILD_EE] + item_margin[e]
-    reach = wp.vec3(r_e + scalars[MARGIN_MAX] + scalars[HALF_EDGE_MAX])  # a midpoint within r + its half length
+    reach = half_extents(scalars, EDGE_HALF, r_e, a)  # a midpoint within r + its half extent, per axis
     lo, hi = cell_range(wp.min(a, b) - reach, wp.max(a, b) + reach, scalars[INV_CELL], counts)
     e0 = exclude_offsets[e]
     e1 = exclude_offsets[e + 1]

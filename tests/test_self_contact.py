@@ -216,17 +216,16 @@ def test_closest_points_against_float64_references():
 
 
 # -- the broad phase against brute force ---------------------------------------------------------
-def test_verlet_list_holds_every_pair_within_its_radius():
-    model = build_grid_cloth(10, 10, 1.0, 1.0, 0.2, plane="horizontal", device="cpu")
-    h = 0.03
-    q = folded_positions(model, 0.04, noise=0.01, seed=1)
+def _check_list_against_all_pairs(model, q, vel, h):
+    # every pair within the list's radius plus both sides' margins is listed once, none beyond it
     sc = SelfCollision(model, thickness=h, exclude_rings=2)
     x = wp.array(q.astype(np.float32), dtype=wp.vec3, device="cpu")
-    sc.detect(x, wp.zeros_like(x), 1e-3)
+    sc.detect(x, wp.array(vel.astype(np.float32), dtype=wp.vec3, device="cpu"), 1e-3)
     stats = sc.stats()
     r = stats["radius"]
     assert r == pytest.approx(2.0 * h, rel=1e-6)  # h + the default skin h
     assert stats["overflow_candidates"] == 0 and stats["truncated_queries"] == 0
+    m = sc.margin.numpy().astype(np.float64)
     vt, ee = sc.candidates()
     q = q.astype(np.float32).astype(np.float64)
     t = model.host["tris"].astype(np.int64)
@@ -235,26 +234,46 @@ def test_verlet_list_holds_every_pair_within_its_radius():
     vi, ti = np.meshgrid(np.arange(len(q)), np.arange(len(t)), indexing="ij")
     vi, ti = vi.ravel(), ti.ravel()
     dist = _point_triangle_distance(q[vi], q[t[ti, 0]], q[t[ti, 1]], q[t[ti, 2]])
+    radius = r + m[vi] + m[t[ti]].max(axis=1)
     own = np.any(t[ti] == vi[:, None], axis=1)
     excluded = np.array([tt in set(vx[vo[v] : vo[v + 1]]) for v, tt in zip(vi, ti)])
     listed = {(int(a), int(b)) for a, b in vt}
     assert len(listed) == len(vt)  # no pair twice
-    must = {
-        (int(a), int(b)) for a, b, dd, o, e in zip(vi, ti, dist, own, excluded) if dd < 0.999 * r and not o and not e
-    }
-    never = {(int(a), int(b)) for a, b, dd, o, e in zip(vi, ti, dist, own, excluded) if dd > 1.001 * r or o or e}
+    pairs = list(zip(vi, ti, dist / radius, own, excluded))
+    must = {(int(a), int(b)) for a, b, dd, o, e in pairs if dd < 0.999 and not o and not e}
+    never = {(int(a), int(b)) for a, b, dd, o, e in pairs if dd > 1.001 or o or e}
     assert must and must <= listed and not (listed & never)
     ei, fi = np.triu_indices(len(edges), 1)
     dist = _edge_edge_distance(q[edges[ei, 0]], q[edges[ei, 1]], q[edges[fi, 0]], q[edges[fi, 1]])
+    radius = r + m[edges[ei]].max(axis=1) + m[edges[fi]].max(axis=1)
     share = np.any(edges[ei][:, :, None] == edges[fi][:, None, :], axis=(1, 2))
     excluded = np.array([f in set(ex[eo[e] : eo[e + 1]]) for e, f in zip(ei, fi)])
     listed = {(int(a), int(b)) for a, b in ee}
     assert len(listed) == len(ee)
-    must = {
-        (int(a), int(b)) for a, b, dd, s, e in zip(ei, fi, dist, share, excluded) if dd < 0.999 * r and not s and not e
-    }
-    never = {(int(a), int(b)) for a, b, dd, s, e in zip(ei, fi, dist, share, excluded) if dd > 1.001 * r or s or e}
+    pairs = list(zip(ei, fi, dist / radius, share, excluded))
+    must = {(int(a), int(b)) for a, b, dd, s, e in pairs if dd < 0.999 and not s and not e}
+    never = {(int(a), int(b)) for a, b, dd, s, e in pairs if dd > 1.001 or s or e}
     assert must and must <= listed and not (listed & never)
+    return m
+
+
+def test_verlet_list_holds_every_pair_within_its_radius():
+    model = build_grid_cloth(10, 10, 1.0, 1.0, 0.2, plane="horizontal", device="cpu")
+    q = folded_positions(model, 0.04, noise=0.01, seed=1)
+    _check_list_against_all_pairs(model, q, np.zeros_like(q), 0.03)
+
+
+def test_verlet_list_of_a_stretched_moving_mesh_holds_every_pair():
+    # edges 3.5x longer one way than the other (a query reaches per axis by the boxes' largest half extent on
+    # it, margins included) and random velocities (margins up to 10 cm, per vertex), the cloth placed anew
+    # against the hash's cells each time
+    model = build_grid_cloth(6, 20, 1.0, 1.0, 0.2, plane="horizontal", device="cpu")
+    rng = np.random.default_rng(2)
+    for k in range(12):
+        q = folded_positions(model, 0.04, noise=0.01, seed=k) + rng.uniform(-0.5, 0.5, 3)
+        vel = rng.normal(0.0, 40.0, q.shape) * rng.uniform(0.0, 1.0, (len(q), 1))
+        m = _check_list_against_all_pairs(model, q, vel, 0.03)
+        assert m.max() > 0.05
 
 
 @wp.kernel
