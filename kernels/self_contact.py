@@ -99,21 +99,21 @@ MOTION = wp.constant(0)  # max_i D_i = |x_i - x_build_i - u| + |v_i - w| dt this
 SPEED = wp.constant(1)  # max |v - w| this detect [m/s]
 R_BUILD = wp.constant(2)  # radius of the Verlet list without margins: h + skin [m]
 R_ACTIVE = wp.constant(3)  # a candidate whose gap may be below 1.25 h + 3 |v|_max dt is evaluated [m]
-SKIN = wp.constant(6)  # the skin of the current list [m]
-R_BUILD_EE = wp.constant(7)  # radius of the edge-edge list without margins: h_e + skin [m], h_e = edge_fraction h
-R_ACTIVE_EE = wp.constant(8)  # R_ACTIVE of the edge-edge candidates: 1.25 h_e + 3 |v|_max dt [m]
-EXCESS = wp.constant(9)  # max_i (D_i - margin_i) this detect: the list is rebuilt when 2 EXCESS > skin [m]
-MARGIN_MAX = wp.constant(10)  # largest vertex margin at the build [m]
-INV_CELL = wp.constant(11)  # 1 / the hash's cell size at the build [1/m]
-SPEED_ABS = wp.constant(12)  # max |v| this detect [m/s]
+SKIN = wp.constant(4)  # the skin of the current list [m]
+R_BUILD_EE = wp.constant(5)  # radius of the edge-edge list without margins: h_e + skin [m], h_e = edge_fraction h
+R_ACTIVE_EE = wp.constant(6)  # R_ACTIVE of the edge-edge candidates: 1.25 h_e + 3 |v|_max dt [m]
+EXCESS = wp.constant(7)  # max_i (D_i - margin_i) this detect: the list is rebuilt when 2 EXCESS > skin [m]
+MARGIN_MAX = wp.constant(8)  # largest vertex margin at the build [m]
+INV_CELL = wp.constant(9)  # 1 / the hash's cell size at the build [1/m]
+SPEED_ABS = wp.constant(10)  # max |v| this detect [m/s]
 SWEPT_EXCESS = wp.constant(
-    13
+    11
 )  # max_i (|x_i - x_build_i - u| - margin_i) at a step's end, before its continuous response [m]
 #: per axis (three slots from here), the largest half extent of a triangle's box grown by its margin at the
 #: build [m]: a box that meets a query's has its centre within the query's box grown by as much
-TRI_HALF = wp.constant(14)
-EDGE_HALF = wp.constant(17)  # the same for the edges' boxes [m]
-SCALAR_SLOTS = 20
+TRI_HALF = wp.constant(12)
+EDGE_HALF = wp.constant(15)  # the same for the edges' boxes [m]
+SCALAR_SLOTS = 18
 
 #: an edge-edge contact whose closest point is within this parameter of an edge's end is left to that end's
 #: vertex-triangle contact (the vertex is at least as near the edge's triangles as the edge)
