@@ -1,19 +1,22 @@
 """How far the self-collision rebuild's searches are from the least work of their kind (issue 29): in the
 fold at N x N, from the states of the default run at ``--times``, the candidate list is built once, then
 its two searches (vertex-triangle and edge-edge, ``kernels/self_contact.py``) are timed against two
-minimal kernels that walk the same hash cells in the same order:
+minimal kernels that walk the same hash cells in the same order (CPU only: its buckets are ordered, and
+an edge's walk stops at its own index as the search's does there):
 
 - *walk*: every item of the query's cells is visited (its index and the bucket's next, the cell test
   that finds it once), nothing else;
-- *boxes*: the same, plus the box test (the candidates' boxes that meet the query's are counted);
+- *boxes*: the same, plus the box test placed as in the searches, before the cell test (the candidates'
+  boxes that meet the query's are counted);
 
 the searches do these and the exclusion test, the exact distance and the record of the pairs that the
 boxes let through. Each kernel runs ``--repeats`` times, alternated; medians [min-max] in ms a build.
 
 With the rebuilds a run makes at that state (counted over ``--steps`` steps from it, as in a run) and
-the step's own cost without self-collision (timed the same way, a captured graph), each kernel's time
-is also given as a share of a step: a rebuild of this design costs at least the *boxes* figure at every
-rebuild, whatever the rest of self-collision costs.
+the step's own cost without self-collision (as many steps of a second simulator of the fold, a captured
+graph, from the snapshot's positions and velocities on its own clock), each kernel's time is also given as a share of a
+step: a search of this hash costs at least the *walk* figure at every rebuild, whatever the rest of
+self-collision costs.
 
     python bench/self_collision_floor.py [--size 64] [--times 0.6 1.2 1.8 2.4] [--repeats 7] [--steps 480]
 """
@@ -49,7 +52,8 @@ def walk_edges(
     visits: IntArray,
     overlaps: IntArray,
 ):
-    # the edge-edge search's walk (the same window, cells and order, the same stop at f <= e), counting
+    # the edge-edge search's walk (the same window, cells and order, the same stop at f <= e as on the CPU),
+    # counting
     e = wp.tid()
     a = x[edges[e][0]]
     b = x[edges[e][1]]

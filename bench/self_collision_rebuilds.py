@@ -16,6 +16,9 @@ at every interval's start are kept (float64). Then each rule is replayed over th
   other box grown by its own motion since its reference: the list's guarantee holds without a factor 2);
   reported as the share of edges with a requeried vertex, each interval.
 
+Each rule is replayed alone: a run also rebuilds over a step's swept motion where the solve or a projection
+moved a vertex beyond its margin (``swept_rebuilds``), which these counts leave out.
+
     python bench/self_collision_rebuilds.py [--size 64] [--start 0.5 1.5 2.3] [--intervals 300]
 """
 
