@@ -264,7 +264,7 @@ def test_verlet_list_holds_every_pair_within_its_radius():
 
 
 def test_verlet_list_of_a_stretched_moving_mesh_holds_every_pair():
-    # edges 3.5x longer one way than the other (a query reaches per axis by the boxes' largest half extent on
+    # edges nearly 4x longer one way than the other (a query reaches per axis by the boxes' largest half extent on
     # it, margins included) and random velocities (margins up to 10 cm, per vertex), the cloth placed anew
     # against the hash's cells each time
     model = build_grid_cloth(6, 20, 1.0, 1.0, 0.2, plane="horizontal", device="cpu")
