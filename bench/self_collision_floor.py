@@ -35,6 +35,41 @@ Vec3Array = wp.array(dtype=wp.vec3)
 IntArray = wp.array(dtype=int)
 
 
+@wp.func
+def walk_cells(
+    lo: wp.vec3i,
+    hi: wp.vec3i,
+    mask: int,
+    head: IntArray,
+    next_item: IntArray,
+    box_lo: Vec3Array,
+    box_hi: Vec3Array,
+    item_cell: wp.array(dtype=wp.vec3i),
+    lo_q: wp.vec3,
+    hi_q: wp.vec3,
+    after: int,
+    test_boxes: int,
+):
+    # a search's walk of the cells lo..hi, each bucket's items down to the first <= after (the edge-edge search's
+    # stop on the CPU; -1: every item), counting (items visited, items of the cell [whose box meets the query's])
+    seen = int(0)
+    met = int(0)
+    for ci in range(lo[0], hi[0] + 1):
+        for cj in range(lo[1], hi[1] + 1):
+            for ck in range(lo[2], hi[2] + 1):
+                f = head[sk.cell_bucket(ci, cj, ck, mask)]
+                while f > after:
+                    seen += 1
+                    if test_boxes != 0:
+                        if sk.boxes_overlap(box_lo[f], box_hi[f], lo_q, hi_q):
+                            if item_cell[f] == wp.vec3i(ci, cj, ck):
+                                met += 1
+                    elif item_cell[f] == wp.vec3i(ci, cj, ck):
+                        met += 1
+                    f = next_item[f]
+    return wp.vec2i(seen, met)
+
+
 @wp.kernel
 def walk_edges(
     scalars: wp.array(dtype=float),
@@ -52,8 +87,7 @@ def walk_edges(
     visits: IntArray,
     overlaps: IntArray,
 ):
-    # the edge-edge search's walk (the same window, cells and order, the same stop at f <= e as on the CPU),
-    # counting
+    # the edge-edge search's walk (the same window, cells and order, the same stop at f <= e as on the CPU)
     e = wp.tid()
     a = x[edges[e][0]]
     b = x[edges[e][1]]
@@ -62,23 +96,9 @@ def walk_edges(
     lo, hi = sk.cell_range(wp.min(a, b) - reach, wp.max(a, b) + reach, scalars[sk.INV_CELL], counts)
     lo_e = wp.min(a, b) - wp.vec3(r_e)
     hi_e = wp.max(a, b) + wp.vec3(r_e)
-    seen = int(0)
-    met = int(0)
-    for ci in range(lo[0], hi[0] + 1):
-        for cj in range(lo[1], hi[1] + 1):
-            for ck in range(lo[2], hi[2] + 1):
-                f = head[sk.cell_bucket(ci, cj, ck, mask)]
-                while f > e:
-                    seen += 1
-                    if test_boxes != 0:
-                        if sk.boxes_overlap(box_lo[f], box_hi[f], lo_e, hi_e):
-                            if item_cell[f] == wp.vec3i(ci, cj, ck):
-                                met += 1
-                    elif item_cell[f] == wp.vec3i(ci, cj, ck):
-                        met += 1
-                    f = next_item[f]
-    visits[e] = seen
-    overlaps[e] = met
+    n = walk_cells(lo, hi, mask, head, next_item, box_lo, box_hi, item_cell, lo_e, hi_e, e, test_boxes)
+    visits[e] = n[0]
+    overlaps[e] = n[1]
 
 
 @wp.kernel
@@ -97,7 +117,7 @@ def walk_triangles(
     visits: IntArray,
     overlaps: IntArray,
 ):
-    # the vertex-triangle search's walk, counting
+    # the vertex-triangle search's walk (every item of each bucket), counting
     i = wp.tid()
     p = x[i]
     r_i = scalars[sk.R_BUILD] + margin[i]
@@ -105,23 +125,9 @@ def walk_triangles(
     lo, hi = sk.cell_range(p - reach, p + reach, scalars[sk.INV_CELL], counts)
     lo_p = p - wp.vec3(r_i)
     hi_p = p + wp.vec3(r_i)
-    seen = int(0)
-    met = int(0)
-    for ci in range(lo[0], hi[0] + 1):
-        for cj in range(lo[1], hi[1] + 1):
-            for ck in range(lo[2], hi[2] + 1):
-                t = head[sk.cell_bucket(ci, cj, ck, mask)]
-                while t >= 0:
-                    seen += 1
-                    if test_boxes != 0:
-                        if sk.boxes_overlap(lo_p, hi_p, box_lo[t], box_hi[t]):
-                            if item_cell[t] == wp.vec3i(ci, cj, ck):
-                                met += 1
-                    elif item_cell[t] == wp.vec3i(ci, cj, ck):
-                        met += 1
-                    t = next_item[t]
-    visits[i] = seen
-    overlaps[i] = met
+    n = walk_cells(lo, hi, mask, head, next_item, box_lo, box_hi, item_cell, lo_p, hi_p, -1, test_boxes)
+    visits[i] = n[0]
+    overlaps[i] = n[1]
 
 
 def launches(sc, x):
