@@ -15,7 +15,7 @@ say warpcloth list --examples
 say warpcloth run sheet --size 8 --num-frames 2
 say warpcloth run flag --integrator rk4 --size 8 --num-frames 2 --usd flag.usda
 say warpcloth run sheet --rows 16 --cols 16 --dt 5e-5 --stiffness 2000 --damping 0.05 --mass 0.3 --num-frames 2 --json
-say python -m warpcloth.scenarios.flag --integrator verlet --size 8 --num-frames 2 --stage-path flag.usda
+say python -m warpcloth run flag --integrator verlet --size 8 --num-frames 2 --stage-path flag.usda
 say warpcloth run flag --integrator implicit_euler --cg-tol 1e-3 --jacobian approx --size 8 --num-frames 2
 say warpcloth run sheet --integrator xpbd --iterations 20 --substeps 8 --size 8 --num-frames 2
 say warpcloth run sheet --integrator vbd --vbd-iterations 10 --size 8 --num-frames 2

@@ -148,9 +148,9 @@ def test_missing_cuda_device_error(capsys):
 
 
 def test_console_script_and_module_entry_points(tmp_path):
-    """As a user runs them: the installed script, and python -m for a scenario."""
+    """As a user runs them: python -m warpcloth and python -m warpcloth.cli."""
     out = subprocess.run(
-        [sys.executable, "-m", "warpcloth.scenarios.flag", "--rows", "4", "--cols", "5", "--num-frames", "3", "--json"],
+        [sys.executable, "-m", "warpcloth", "run", "flag", "--rows", "4", "--cols", "5", "--num-frames", "3", "--json"],
         capture_output=True,
         text=True,
         check=True,
@@ -225,7 +225,7 @@ def test_errors_are_exactly_one_stderr_line_from_the_console(argv):
 def test_bench_script_and_scenario_module_use_the_same_error_format():
     for cmd in (
         [sys.executable, str(REPO / "bench" / "devices.py"), "--sizes", "2"],
-        [sys.executable, "-m", "warpcloth.scenarios.sheet", "--rows", "1"],
+        [sys.executable, "-m", "warpcloth", "run", "sheet", "--rows", "1"],
     ):
         p = subprocess.run(cmd, capture_output=True, text=True)
         assert (

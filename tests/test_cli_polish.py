@@ -129,7 +129,7 @@ def test_examples_ship_with_the_package(capsys):
         ("scenario file:", "cape"),
     }
     for (kind, name), path in files.items():
-        shipped = REPO / "examples" / os.path.basename(path)
+        shipped = REPO / "warpcloth" / "examples" / os.path.basename(path)
         assert os.path.isfile(path) and Path(path).read_bytes() == shipped.read_bytes()
         if kind == "test list:":
             assert path == example_path(name)
@@ -143,7 +143,7 @@ def test_examples_ship_with_the_package(capsys):
     assert code == 2 and "--example" in err
     # the package data declares them (a wheel holds them; checked by building one: see the report)
     text = (REPO / "pyproject.toml").read_text()
-    assert '"warpcloth.examples" = ["*.xml", "*.obj", "*.toml"]' in text and '"warpcloth.examples" = "examples"' in text
+    assert '"warpcloth.examples" = ["*.xml", "*.obj", "*.toml"]' in text
 
 
 def test_bench_json_and_out_dash(capsys):

@@ -13,12 +13,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-ROOTS = {
-    "warpcloth": REPO / "warpcloth",
-    "warpcloth.kernels": REPO / "kernels",
-    "warpcloth.scenarios": REPO / "scenarios",
-    "warpcloth.examples": REPO / "examples",
-}
+ROOTS = {"warpcloth": REPO / "warpcloth"}
 
 #: Lowest first: (rank, layer, module prefixes). A layer imports its own rank or lower ranks;
 #: two layers of one rank do not import each other.
@@ -57,8 +52,6 @@ def modules() -> dict[str, Path]:
         for path in folder.rglob("*.py"):
             rel = path.relative_to(folder).with_suffix("")
             parts = [p for p in rel.parts if p != "__init__"]
-            if package == "warpcloth" and parts and parts[0] in ("kernels", "scenarios", "examples"):
-                continue
             out[".".join([package, *parts])] = path
     return out
 

@@ -53,7 +53,7 @@ def test_curtain_rod_slides_stops_and_the_curtain_settles():
 
 def test_cape_example_is_the_built_in_cape(tmp_path):
     out = subprocess.run(
-        [sys.executable, str(REPO / "examples" / "make_cape.py"), str(tmp_path / "cape.obj")],
+        [sys.executable, str(REPO / "warpcloth" / "examples" / "make_cape.py"), str(tmp_path / "cape.obj")],
         capture_output=True,
         text=True,
         check=True,
@@ -61,7 +61,7 @@ def test_cape_example_is_the_built_in_cape(tmp_path):
     assert out.returncode == 0
     written, shipped, built = (
         load_mesh(str(tmp_path / "cape.obj")),
-        load_mesh(str(REPO / "examples" / "cape.obj")),
+        load_mesh(str(REPO / "warpcloth" / "examples" / "cape.obj")),
         mesh_scenario.make_cape(),
     )
     np.testing.assert_allclose(written.vertices, built.vertices, atol=1e-8)
@@ -78,7 +78,7 @@ def test_cape_example_is_the_built_in_cape(tmp_path):
 
 
 def test_mesh_scenario_cape_with_group_and_predicate_pins(capsys):
-    cape = str(REPO / "examples" / "cape.obj")
+    cape = str(REPO / "warpcloth" / "examples" / "cape.obj")
     code, out, err = run_cli(
         capsys, "run", "mesh", "--mesh", cape, "--pin-group", "shoulders", "--duration", "0.3", "--json"
     )
@@ -129,7 +129,7 @@ duration = 0.3
 def scenario_file(tmp_path):
     import shutil
 
-    shutil.copy(REPO / "examples" / "cape.obj", tmp_path / "cape.obj")
+    shutil.copy(REPO / "warpcloth" / "examples" / "cape.obj", tmp_path / "cape.obj")
     path = tmp_path / "windy.toml"
     path.write_text(SCENARIO_TOML)
     return path
@@ -301,7 +301,7 @@ def test_scenario_file_and_mesh_scenario_through_bench(capsys, scenario_file, tm
 
 
 def test_the_shipped_example_scenario_file_runs(capsys):
-    code, out, err = run_cli(capsys, "run", str(REPO / "examples" / "cape.toml"), "--duration", "0.05", "--json")
+    code, out, err = run_cli(capsys, "run", str(REPO / "warpcloth" / "examples" / "cape.toml"), "--duration", "0.05", "--json")
     assert code == 0, err
     d = json.loads(out)
     assert d["scenario"] == "swaying-cape" and d["particles"] == 320 and d["stable"]

@@ -608,13 +608,13 @@ def test_max_dt_bad_arguments(capsys):
 
 # -- shipped examples and docs --------------------------------------------------------------
 def test_quick_example_parses():
-    tl = parse_test_list(str(REPO / "examples" / "quick.xml"))
+    tl = parse_test_list(str(REPO / "warpcloth" / "examples" / "quick.xml"))
     assert len(tl.runs) >= 8
     assert {r.integrator for r in tl.runs} >= {"explicit_euler", "midpoint", "rk4", "verlet"}
 
 
 def test_seed_plan_parses_once_its_integrators_exist():
-    path = str(REPO / "examples" / "seed_plan.xml")
+    path = str(REPO / "warpcloth" / "examples" / "seed_plan.xml")
     text = Path(path).read_text()
     missing = [n for n in ("implicit_euler", "pbd", "xpbd") if n not in integrators.integrator_names()]
     if missing:  # integrators of other issues not merged yet: the error names the first one missing
@@ -713,7 +713,7 @@ def test_sweep_column_is_frames_per_wall_second_and_seed_plan_note_is_gone():
     assert "fps" not in sweep.COLUMNS and "frames_per_wall_second" in sweep.COLUMNS
     doc = (REPO / "docs" / "sweep.md").read_text()
     assert "`frames_per_wall_second`" in doc and "called this column `fps`" in doc
-    plan = (REPO / "examples" / "seed_plan.xml").read_text()
+    plan = (REPO / "warpcloth" / "examples" / "seed_plan.xml").read_text()
     assert "rejected" not in plan and "until they are merged" not in plan
 
 

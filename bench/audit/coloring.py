@@ -9,7 +9,7 @@ from warpcloth.sim.coloring import color_vertices, greedy_vertex_colors, is_vali
 from warpcloth.sim.grid import grid_triangles
 
 cases = {}
-m = load_mesh(str(__import__("pathlib").Path(__file__).resolve().parents[2] / "examples" / "cape.obj"))
+m = load_mesh(str(__import__("pathlib").Path(__file__).resolve().parents[2] / "warpcloth" / "examples" / "cape.obj"))
 cases["cape quads"] = build_mesh_cloth(m, quads=True, device="cpu")
 cases["cape dihedral"] = build_mesh_cloth(m, bend="dihedral", device="cpu")
 for n in (32, 96):

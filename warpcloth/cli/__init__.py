@@ -57,10 +57,9 @@ COMMANDS = {
     ),
 }
 
-#: Names kept importable from ``warpcloth.cli`` (``from warpcloth.cli import scenario_main``: the
-#: scenarios' ``__main__`` blocks), each loaded from its module on first use.
+#: Names kept importable from ``warpcloth.cli``, each loaded from its module on first use.
 _FORWARDED = {
-    **dict.fromkeys(("scenario_main", "add_run_arguments", "summary", "EXIT_UNSTABLE"), "warpcloth.cli.run"),
+    **dict.fromkeys(("add_run_arguments", "summary", "EXIT_UNSTABLE"), "warpcloth.cli.run"),
     **dict.fromkeys(
         ("config_from_args", "add_model_arguments", "integrator_options_from_args", "param_values"),
         "warpcloth.cli.model",

@@ -1,5 +1,4 @@
-"""``warpcloth run SCENARIO`` and ``python -m warpcloth.scenarios.X`` (:func:`scenario_main`): a
-scenario run with its outputs (USD, HTML player, preview), its progress and its summary."""
+"""``warpcloth run SCENARIO`` (also ``python -m warpcloth run SCENARIO``): a scenario run with its outputs (USD, HTML player, preview), its progress and its summary."""
 
 from __future__ import annotations
 
@@ -20,7 +19,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
-    """Flags of a scenario run (shared by ``warpcloth run`` and ``python -m warpcloth.scenarios.X``)."""
+    """Flags of a scenario run (``warpcloth run``)."""
     num_frames = (("--num-frames",), dict(type=int, default=None, help="run this many frames instead of --duration"))
     add_model_arguments(p, "run", exclusive={"duration": [num_frames]})
     out = p.add_argument_group("outputs")
@@ -118,7 +117,7 @@ def output_writers(scenario_name: str, args) -> list:
     argv = getattr(args, "argv", None)
     paths, writers = [], []
 
-    prefix = getattr(args, "command_prefix", ("warpcloth",))
+    prefix = ("warpcloth",)
 
     def frames(cfg):  # frames a run of cfg writes at most (the first one too)
         return math.ceil(cfg.duration * cfg.fps - 1e-9) + 1
@@ -225,15 +224,4 @@ def run(args) -> int:
     return run_scenario(args.scenario, args)
 
 
-def scenario_main(name: str, argv=None) -> None:
-    """Entry point of ``python -m warpcloth.scenarios.<name>`` (Warp-example style flags)."""
-    parser = Parser(prog=f"python -m warpcloth.scenarios.{name}", description=f"Run the {name} scenario.")
-    add_run_arguments(parser)
-    add_verbose(parser)
-    args = parser.parse_args(argv)
-    args.argv = list(sys.argv[1:] if argv is None else argv)
-    args.command_prefix = ("python", "-m", f"warpcloth.scenarios.{name}")
-    sys.exit(guarded(args, lambda: run_scenario(name, args)))
-
-
-__all__ = ["EXIT_UNSTABLE", "add_arguments", "add_run_arguments", "run", "run_scenario", "scenario_main", "summary"]
+__all__ = ["EXIT_UNSTABLE", "add_arguments", "add_run_arguments", "run", "run_scenario", "summary"]

@@ -88,9 +88,3 @@ SCENARIO = Scenario(
 def build(**overrides):
     """A Simulator of the tablecloth with the defaults and ``overrides`` (see ScenarioConfig)."""
     return SCENARIO.build(**overrides)
-
-
-if __name__ == "__main__":
-    from warpcloth.cli import scenario_main
-
-    scenario_main("tablecloth")

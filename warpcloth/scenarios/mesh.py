@@ -90,9 +90,3 @@ SCENARIO = Scenario(
 def build(**overrides):
     """A Simulator of the mesh scenario with the defaults and ``overrides`` (see ScenarioConfig)."""
     return SCENARIO.build(**overrides)
-
-
-if __name__ == "__main__":
-    from warpcloth.cli import scenario_main
-
-    scenario_main("mesh")

@@ -287,9 +287,3 @@ SCENARIO = Scenario(
 def build(**overrides):
     """A Simulator of the Cusick test with the defaults and ``overrides`` (see ScenarioConfig)."""
     return SCENARIO.build(**overrides)
-
-
-if __name__ == "__main__":
-    from warpcloth.cli import scenario_main
-
-    scenario_main("cusick")

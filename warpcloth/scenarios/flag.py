@@ -47,9 +47,3 @@ SCENARIO = Scenario(
 def build(**overrides):
     """A Simulator of the flag with the defaults and ``overrides`` (see ScenarioConfig)."""
     return SCENARIO.build(**overrides)
-
-
-if __name__ == "__main__":
-    from warpcloth.cli import scenario_main
-
-    scenario_main("flag")
