@@ -2,83 +2,26 @@
 
     (M - h df/dv - h^2 df/dx) dv = h (f + h df/dx v) ;  v <- v + dv ;  x <- x + h v
 
-One Newton step of backward Euler per time step (dihedral hinges, ``bend="dihedral"``, add their
-Gauss-Newton blocks (h^2 k_e + h kd_e) g g^T to A and -h^2 k_e g (g . v) to b:
-:class:`~warpcloth.integrators.system.ImplicitSystem`). df/dx is the full spring Jacobian with the
-compression clamp of design.md (it keeps the matrix symmetric positive definite, see
-:func:`warpcloth.kernels.springs.spring_stiffness_block`), df/dv the spring damping and air
-drag Jacobian; wind is treated explicitly. With ``jacobian="approx"`` df/dx is the seed's
-approximated Hessian (eq. 2.23: H_ij = k_ij I, H_ii = -sum_j k_ij I, and likewise k -> kd for
-df/dv), which is constant, so the matrix is assembled once per time step size, not every step.
+One Newton step of backward Euler per step h [s] (stable for stiff springs at large h). df/dx is
+the spring Jacobian with the compression clamp that keeps A SPD (:mod:`warpcloth.kernels.springs`), or
+with ``jacobian="approx"`` the seed's constant eq. 2.23 (assembled once per dt); df/dv the spring
+damping and air drag Jacobian; wind is explicit; hinges add Gauss-Newton blocks (:mod:`~warpcloth.integrators.system`);
+pinned particles have identity rows and zero columns (dv = 0).
 
-With B_s = h^2 K_s + h D_s per spring (refilled by one kernel each step), A is applied either
-assembled (``matrix="bsr"``, the default: a ``warp.sparse`` BSR matrix of 3x3 blocks whose
-pattern, one diagonal block per particle and one block per spring and direction, is built once
-at bind and whose values a kernel refills; CG multiplies by it with
-:func:`~warpcloth.kernels.linalg.block_gemv_split`, one 3 x 3 product per stored block in storage
-order, in the split form (A x)_i = E_i x_i + sum_j A_ij (x_j - x_i) with E_i = m (1 + h c) I + the
-pinned springs' B_s formed from the mass: issue 26, the stored float32 A_ii = m I + sum B_s kept
-the mass only to ulp(sum B_s), ~1e-2 of it at 256^2 on the peers' sheet, and a smooth dv (the fall,
-the sag) cancelled as much; now bsr and free agree to 3e-7 of |dv|) or matrix-free (``matrix="free"``: a gather over
-each particle's springs). Both give the
-same A. On the CPU the assembled product is the faster: 0.66 against 1.62 ms per product at
-128^2 in one profiling run (``warp.sparse.bsr_mv``, which works on scalar rows, was slower than
-both), and per step bsr / free was 0.98, 0.83 and 0.80 at 32^2, 64^2 and 128^2 (medians of 3,
-``python bench/implicit.py --sizes 32 64 128 --steps 10 --repeats 3``,
-bench/results/implicit-cpu.txt). Pinned particles have identity rows and zero columns (dv = 0).
+A is applied assembled (``matrix="bsr"``, the default, in the split form (A x)_i = E_i x_i +
+sum_j A_ij (x_j - x_i), E_i = m (1 + h c) I + the pinned springs' B_s, so a smooth dv keeps its mass
+term in float32) or matrix-free (``matrix="free"``); both give the same A. The solve is preconditioned
+CG (``preconditioner``: ``jacobi``, the seed's and the default; ``block_jacobi``; ``multigrid``, a
+grid's V-cycle that falls back to block_jacobi elsewhere): ``warp.optim.linear.cg`` with device-side
+convergence on CUDA, :class:`~warpcloth.integrators.linalg.DevicePCG` in captured chunks of
+``cg_check_every`` on the CPU; warm-started from the previous dv, restarted ``cg_restarts`` times from
+the true residual b - A dv, which the statistics judge (:meth:`ImplicitEuler.convergence`).
 
-The solve: on CUDA, ``warp.optim.linear.cg`` with its convergence checked on the device
-(``check_every=0``, a conditional graph node), so a frame can be captured. On the CPU,
-:class:`~warpcloth.integrators.linalg.DevicePCG`: the same preconditioned CG with its scalars in a device array and the
-iterations run in chunks of ``cg_check_every`` (default 4), each chunk captured once and
-replayed (Warp >= 1.19), with one host read of a "done" flag between chunks; iterations past
-convergence within a chunk change nothing. Warp's cg on the CPU paid Python launches and a host
-check every iteration (Jacobi at 32^2, tolerance 1e-5: 48 ms/step before, 18.5 after, one
-loaded run). Both are warm-started from the previous dv.
-
-Preconditioners (``preconditioner``): ``jacobi`` (1 / diag A, the default), ``block_jacobi``
-(A's inverse 3 x 3 diagonal blocks; on the sheet, whose blocks are nearly diagonal, it takes as
-many iterations as Jacobi, and fewer where the blocks couple the axes: tests/test_preconditioner.py)
-and ``multigrid`` (a geometric V-cycle for grid models, :mod:`warpcloth.integrators.multigrid`:
-CG iterations nearly independent of the sheet size, 14.4 at 128^2 where Jacobi takes ~300;
-docs/solvers.md). Multigrid assembles A as BSR for its Galerkin products; a model that is not a
-grid falls back to block_jacobi with a note on stderr. Multigrid is now the faster at every size
-measured (docs/solvers.md, bench/results/solvers-cpu*.txt); the default stays ``jacobi`` because
-it is the seed's method and works on every model without a note.
-
-Contacts (``matrix="bsr"``, colliders present): the solve sees them (Baraff & Witkin 1998,
-sec. 5.3): a sliding contact gets the filter S = I - n n^T, a prescribed normal dv (it stops
-approaching) and kinetic friction as a known impulse; a sticking one (static friction holds it)
-S = 0 and moves with the collider; the mode keeps history through the constraint's impulse
-(:meth:`ImplicitEuler._filter_contacts`). The collider projection after the step still corrects
-positions. With ``matrix="free"`` only that projection acts.
-
-Strain cap (``strain_cap``, default 0.1): after each step the :class:`~warpcloth.simulator.Simulator`
-applies Provot's limit (:mod:`warpcloth.integrators.strain_limit`) at tau = ``strain_cap`` where the
-user gives no ``strain_limit`` (Provot's remedy for springs stretched past what cloth allows). One
-Newton step linearises each spring about the step's start: across a spring at its rest length it has
-no stiffness, so a vertex falling past a neighbour that a collider stopped moves on by h v. In the
-default drape (64 x 64, dt 1/60 s, landing at 1.6 m/s, springs 1.6 cm) the collider's projection
-pushed a landed vertex 1 cm out along the sphere's tilted normal while its neighbour stayed (strain
-0.55), the next solve stretched it to 1.23, and the run went unstable at 0.18 s; the tablecloth
-likewise at 0.17 s. With the cap both land and settle. ``strain_cap=0`` gives the bare scheme (the
-tests that compare one step with dense backward Euler use it).
-
-True residual (issue 26): float32 CG's recursively updated residual drifts from b - A dv (32 x 32
-sheet, tolerance 1e-5: it said 4-9e-6 where b - A dv, recomputed in float64, was 4-8e-4; at the
-default 1e-3 it said 0.94-0.97e-3 for a true 1.03-1.13e-3). So each solve is restarted
-``cg_restarts`` times (default 1) from the true residual (a restart from a converged dv costs one
-product), and at its end the true |b - A dv| / |b| and a float32 floor estimate |A delta| / |b|
-(delta a random rounding of dv to float32; within 3 % of the exact solution's rounded residual)
-are recomputed on the device into the statistics (no host read). solver_converged and
-solver_capped_steps judge the true residual; a tolerance below the floor is named in the warning.
-
-Statistics: on CUDA a kernel accumulates iterations, residuals and the count of steps that ended
-at the iteration cap above the tolerance, so a step never syncs with the host;
-:meth:`ImplicitEuler.stats` reads them once, at the end of a run. On the CPU they are accumulated
-in Python from the chunk reads (the true residuals are recorded on the device on both). A run with
-a capped step, or a step whose true residual missed the tolerance, reports
-``solver_converged = False`` and warns once (:meth:`ImplicitEuler.convergence`).
+Contacts (``matrix="bsr"``) enter the solve as Baraff & Witkin's filter (sec. 5.3): S = I - n n^T with
+kinetic friction for a sliding contact, S = 0 for a sticking one. ``strain_cap`` (default 0.1) applies
+Provot's limit after each step where no ``strain_limit`` is given: one Newton step has no stiffness
+across a spring at its rest length, so a landing cloth could stretch without bound. Measurements
+behind these choices: docs/solvers.md, "implicit_euler --preconditioner jacobi|block_jacobi|multigrid".
 """
 
 from __future__ import annotations

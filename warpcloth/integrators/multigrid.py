@@ -5,20 +5,18 @@ Levels coarsen the particle grid 2x per direction (coarse nodes on the even rows
 the prolongation P_l is bilinear interpolation (3 x 3 blocks w I, applied with scalar weights),
 zero on pinned particles, and the coarse operators are Galerkin products A_(l+1) = P_l^T A_l P_l,
 recomputed each step by one gather kernel per level over a list of (fine block, weight P_fI P_gJ)
-terms per coarse block built once at bind (the patterns are fixed; ``warp.sparse.bsr_mm`` with a
-reused topology was over ten times slower for the same products on the CPU in a one-off
-measurement at 128^2, not a committed bench). The smoother is block Jacobi, ``smoothing_steps``
-sweeps before and the same after the coarse correction, each sweep one kernel that forms its
-residual; the coarsest level takes ``coarse_steps`` sweeps from zero. Damped (omega 0.7) for CG;
-l1 (``l1_smoother``, convergent for any SPD matrix) for vbd's correction. With equal pre- and
-post-smoothing by the same symmetric smoother, the V-cycle is a fixed symmetric positive
-definite linear operator, so it is a valid preconditioner for CG.
+terms per coarse block built once at bind (the patterns are fixed, and this was far faster on the
+CPU than ``warp.sparse.bsr_mm``). The smoother is block Jacobi, ``smoothing_steps`` sweeps before
+and the same after the coarse correction, each sweep one kernel that forms its residual; the
+coarsest level takes ``coarse_steps`` sweeps from zero. Damped (omega 0.7) for CG; l1
+(``l1_smoother``, convergent for any SPD matrix) for vbd's correction. With equal pre- and
+post-smoothing by the same symmetric smoother, the V-cycle is a fixed symmetric positive definite
+linear operator, so it is a valid preconditioner for CG.
 
-Cost on the CPU: a V-cycle at 128^2 is ~35 small launches. With ``warp.sparse.bsr_mv`` (scalar
-rows) and Python launches it took 128 ms of bsr_mv kernels and ~880 launches per implicit step
-(one profiling run); with :func:`~warpcloth.kernels.linalg.block_gemv` and the V-cycle captured
-once and replayed (``wp.capture_launch``, Warp >= 1.19 on the CPU) the whole step took 89 ms
-instead of 423 ms in the same profiling script.
+A V-cycle at 128^2 is ~35 small launches; it multiplies with
+:func:`~warpcloth.kernels.linalg.block_gemv` and is captured once and replayed
+(``wp.capture_launch``, Warp >= 1.19 on the CPU), so Python launch overhead does not dominate
+(measured cost: docs/solvers.md, "implicit_euler --preconditioner jacobi|block_jacobi|multigrid").
 """
 
 from __future__ import annotations

@@ -6,23 +6,16 @@ Each of the ``substeps`` substeps of length h = dt / substeps runs Algorithm 1:
     repeat n times, colour by colour:  p_i += k' w_i/(w_i + w_j) C n,  p_j -= k' w_j/(w_i + w_j) C n
     v = (p - x) / h ;  x = p
 
-(p is carried as the increment dp = p - x, so float32 keeps h v and the corrections whatever
-the substep: see :mod:`warpcloth.kernels.constraints`)
+with C = |p_j - p_i| - L0, n = (p_j - p_i)/|p_j - p_i| for every spring (bend springs too) and the
+iteration-count correction k' = 1 - (1 - k)^(1/n) (section 3.3), so that a lone constraint keeps the
+fraction (1 - k) of its error whatever n is. ``substeps=1`` is the paper's algorithm; more substeps
+(Macklin et al. 2019) make an unconverged solve stiffer. p is carried as the increment dp = p - x,
+so float32 keeps h v (:mod:`warpcloth.kernels.constraints`).
 
-with C = |p_j - p_i| - L0, n = (p_j - p_i)/|p_j - p_i| for every spring (bend springs too) and
-the iteration-count correction k' = 1 - (1 - k)^(1/n) (section 3.3), so that after n iterations
-a lone constraint keeps the fraction (1 - k) of its error whatever n is. ``substeps=1`` is the
-paper's algorithm; more substeps (Macklin et al. 2019) make an unconverged solve stiffer. The
-stiffness k in [0, 1] is per substep and not a material constant: it does not map to ks (use
-``xpbd`` for that).
-
-**The cloth's stiffness depends on the iteration and substep counts** (and on the mesh size): the
-k' correction holds for a lone constraint, not for a network of them, so more iterations or more
-substeps give a stiffer cloth. Static sag of the scenario sheet at dt = 1/60 s against the float64
-equilibrium of the model's ks (``python bench/solver_checks/xpbd_table.py --integrator pbd``):
-24 x 24: 10 x 1 +4007 %, 10 x 4 (the defaults) +197 %, 10 x 8 -25 %, 10 x 16 -81 %, 20 x 4 +47 %,
-40 x 4 -29 %; 32 x 32: 10 x 4 +431 %, 10 x 8 +36 %, 40 x 4 +32 % (iterations x substeps).
-Changing either changes the material, not only the accuracy.
+The stiffness k in [0, 1] is per substep, not a material constant (use ``xpbd`` for ks): **the
+cloth's stiffness depends on the iteration and substep counts** and on the mesh size, because k'
+holds for a lone constraint, not a network. Changing either changes the material, not only the
+accuracy (sag table: docs/solvers.md, "pbd: its stiffness depends on iterations and substeps").
 
 Dihedral hinges (``bend="dihedral"``) are constraints C = theta - theta0 with ``pbd_bend_stiffness``
 (dp_b = -k' w_b C g_b / sum w |g|^2, :func:`warpcloth.kernels.bending.solve_hinges_pbd`), swept by their

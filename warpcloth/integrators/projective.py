@@ -7,36 +7,21 @@
                                                              warm-started at the previous dx)
     v = dx / h ;  x += dx
 
-L = sum_s ks A_s^T A_s is the (scalar) Laplacian of the spring graph weighted by ks, the same for
-x, y and z and constant for a fixed dt and topology, so S = M + h D + h^2 L is assembled once per
-dt (a scalar CSR matrix, :mod:`warpcloth.kernels.projective`), not every step. Converged, a step
-is backward Euler of the spring energy (Liu et al.'s claim; tests/test_projective.py).
+L = sum_s ks A_s^T A_s [N/m] is the Laplacian of the spring graph weighted by ks, the same for x, y
+and z and constant for a fixed dt and topology, so S = M + h D + h^2 L is assembled once per dt (a
+scalar CSR matrix, :mod:`warpcloth.kernels.projective`). Converged, a step is backward Euler.
 
-Damping: the spring's kd acts along the spring, kd ((v_j - v_i) . n) n with v = dx / h and n
-the current direction, implicit, as in the force-based integrators; the matrix carries the
-isotropic D = sum_s kd A_s^T A_s (constant) as its approximation, and the residual the axial
-form, so the iterations converge to axial damping (an earlier version solved with the isotropic D
-itself: it also damped rigid rotation, 15.5 % error on the sheet's swing against 0.28 % now,
-bench/results/projective-damping.txt). Gravity, air drag and wind are external forces, explicit. The initial guess
-x + h v makes a rest state of the stepping the exact static equilibrium whatever the iteration
-counts (at rest the residual is the net force times h^2). Pinned particles have identity rows
-and zero columns: their dx is 0.
+Damping: the residual carries the spring's kd along the spring, kd ((v_j - v_i) . n) n with
+v = dx / h, and S its isotropic D = sum_s kd A_s^T A_s as an approximate Jacobian, so the iteration
+converges to axial damping and a rigid rotation is not damped. Gravity, drag and wind are explicit;
+from x + h v a rest state is the exact static equilibrium; pinned rows are identity (dx = 0).
+Dihedral hinges add h^2 sum_e k_e c c^T + h sum_e kd_e c c^T to S and their true forces to the
+residual; S's isotropic h^2 L makes bending converge slowly at large dt (docs/materials.md).
 
-Dihedral hinges (``bend="dihedral"``): S gains the constant h^2 sum_e k_e c c^T + h sum_e kd_e c c^T (c the
-rest coefficients, g_a = c_a n at a flat rest; new CSR entries for the pairs only hinges couple) and the
-residual the hinges' true forces (their damping at the dx / h rate, as the springs'). With stiff membrane
-springs S's isotropic h^2 L also stiffens the out-of-plane direction, so bending converges slowly at large
-dt (docs/materials.md, the cantilever).
-
-Rigid translation (``pd_rigid_mode``, default 1; issue 26): before each global CG, without
-colliders, the Galerkin step on the rigid translation T solves the cloth's mean motion exactly
-(S is scalar: T^T S T is the sum of its free rows, no product needed). The fixed 10 Jacobi-PCG
-iterations alone bent a freely falling 16 x 16 cloth (kd 0) by 2.9 mm in 0.5 s (32 x 32: 34 mm;
-the uniform residual M h^2 g meets a smaller diagonal at the edges), and the undamped 32 x 32
-sheet gained up to 2.5e-3 of the energy its fall released in one frame; with it 1.6e-8 m and
-9.8e-6 (float noise, as implicit Euler's), bench/solver_checks/projective_probe.py and
-projective_energy.py. In the first global solve of a step only, the bend went but the energy gain
-came back (5.5e-3).
+Rigid translation (``pd_rigid_mode``, default 1): before each global CG, without colliders, the
+Galerkin step on the translation solves the cloth's mean motion exactly (T^T S T is the sum of S's
+free rows): a few Jacobi-PCG iterations alone bent a falling cloth and gained energy (docs/solvers.md,
+"projective", measures this and the damping form).
 """
 
 from __future__ import annotations

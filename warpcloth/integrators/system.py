@@ -5,24 +5,20 @@
 
 df/dx the spring Jacobian (full, with the compression clamp that keeps A symmetric positive
 definite, or the seed's constant approximation eq. 2.23), df/dv the spring damping, c the linear
-air drag rate (kernels: :mod:`warpcloth.kernels.system`). With B_s = h^2 K_s + h D_s per spring,
-A is applied assembled (``matrix="bsr"``: a ``warp.sparse`` BSR matrix of 3 x 3 blocks whose
-pattern, one diagonal block per particle and one block per spring and direction, is built once,
-its values refilled by a kernel) or matrix-free (``matrix="free"``: a gather over each particle's
-springs); both give the same A. Pinned particles have identity rows and zero columns.
+air drag rate [1/s] (kernels: :mod:`warpcloth.kernels.system`). With B_s = h^2 K_s + h D_s per
+spring, A is applied assembled (``matrix="bsr"``: a ``warp.sparse`` BSR matrix of 3 x 3 blocks, its
+pattern built once, its values refilled by a kernel) or matrix-free (``matrix="free"``: a gather over
+each particle's springs); both give the same A. Pinned particles have identity rows and zero columns.
 
-Preconditioners: ``jacobi`` (1 / diag A, refilled by the assembly), ``block_jacobi`` (A's inverse
-3 x 3 diagonal blocks) and ``multigrid`` (a geometric V-cycle for grid models,
-:class:`~warpcloth.integrators.multigrid.GridMultigrid`; it needs A assembled, so it assembles
-the BSR matrix whatever ``matrix`` says).
+Preconditioners: ``jacobi`` (1 / diag A), ``block_jacobi`` (A's inverse 3 x 3 diagonal blocks) and
+``multigrid`` (:class:`~warpcloth.integrators.multigrid.GridMultigrid`; it needs A assembled, so it
+assembles the BSR matrix whatever ``matrix`` says).
 
 Dihedral hinges (``bend="dihedral"``, :mod:`warpcloth.kernels.bending`) add their Gauss-Newton
-blocks: df_a/dx_b = -k_e g_a g_b^T, df_a/dv_b = -kd_e g_a g_b^T (g = d theta / dx, rank 1, PSD), so
-A_ab += (h^2 k_e + h kd_e) g_a g_b^T over the 4 x 4 vertex pairs of each hinge (the pattern grows by
-:func:`~warpcloth.sim.hinges.hinge_pairs`; a row gather through a vertex -> hinge adjacency, no
-atomics), and the Jacobi / block-Jacobi diagonal is taken after them. ``jacobian="approx"`` uses the
-constant (h^2 k_e + h kd_e) c_a c_b I instead, c the rest coefficients (g_a = c_a n at a flat rest,
-:func:`~warpcloth.sim.hinges.hinge_rest_coefficients`).
+blocks A_ab += (h^2 k_e + h kd_e) g_a g_b^T over the 4 x 4 vertex pairs of each hinge (g = d theta / dx,
+rank 1, PSD; the pattern grows by :func:`~warpcloth.sim.hinges.hinge_pairs`, a row gather, no atomics),
+before the Jacobi / block-Jacobi diagonal is taken; ``jacobian="approx"`` uses the constant
+(h^2 k_e + h kd_e) c_a c_b I, c the rest coefficients (:func:`~warpcloth.sim.hinges.hinge_rest_coefficients`).
 """
 
 from __future__ import annotations

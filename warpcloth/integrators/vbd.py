@@ -1,71 +1,27 @@
-"""Vertex Block Descent, Chen, Liu, Yang & Yuksel 2024 ("Vertex Block Descent", SIGGRAPH), on
-the mass-spring energy.
+"""Vertex Block Descent, Chen, Liu, Yang & Yuksel 2024 (SIGGRAPH), on the mass-spring energy.
 
     dy = h v + h^2 f_ext / m ;  dx = h v              (initial guess x + h v)
     repeat vbd_iterations times:
         [every vbd_multigrid_every-th iteration: dx <- dx + V(-h^2 grad G(dx))]
         colour by colour (Gauss-Seidel over vertex colours):
         dx_i <- dx_i - H_i^-1 g_i      (3 x 3 Newton step on vertex i's local energy)
-        dx <- dx + P t                 (rigid translation correction, vbd_rigid_mode: after every
-                                        sweep and before the first; with colliders before every
-                                        sweep instead)
+        dx <- dx + P t                 (rigid translation correction, vbd_rigid_mode)
         [Chebyshev: dx <- omega_n (dx - dx^(n-2)) + dx^(n-2)]
     v = dx / h ;  x += dx
 
-g_i and H_i are the gradient and Hessian of the incremental potential m/(2h^2)|dx - dy|^2 +
-springs in dx_i (see :mod:`warpcloth.kernels.vbd`): inertia, the spring forces with their
-clamped (positive semi-definite) Hessian, and the spring damping kd along the spring taken
-implicitly (the paper's kd / h term). Gravity, air drag and wind are external forces,
-evaluated once at the start of the step (explicit). The particles are coloured so that no two
-of one colour share a spring (:func:`warpcloth.sim.coloring.color_vertices`: 9 colours on a grid).
-Dihedral hinges (``bend="dihedral"``) add each vertex's hinge force and Gauss-Newton block
-(k + kd/h) g_i g_i^T (:func:`warpcloth.kernels.bending.hinge_vertex_force_hessian`) to g_i and H_i, and
-their vertex pairs to the colouring graph; a vertex step stalls where k |g|^2 >> m / h^2 (docs/materials.md).
-The initial guess is the paper's "previous velocity" one, x + h v. At rest it is dx = 0, so a
-rest state of the stepping is the exact static equilibrium whatever the number of iterations.
-Measured on the 16 x 16 and 32 x 32 sheets at dt = 1/60 s with 10 iterations: starting from
-dy instead left the 32 x 32 sheet resting 0.35 m below the equilibrium (an unconverged solve
-from dy acts as a softer material), and the paper's adaptive guess (h v + h^2 a~, a~ the
-external acceleration along the previous one) did not settle (speeds ~1 m/s after 10 s).
-Converged (many iterations), a step is nonlinear backward Euler of the same energy. Positions
-are carried as the increment dx, so float32 keeps h v whatever |x|.
+g_i and H_i are the gradient and Hessian of the incremental potential m/(2h^2)|dx - dy|^2 + springs
+in dx_i (:mod:`warpcloth.kernels.vbd`): inertia, the spring forces with their clamped (PSD) Hessian,
+and the spring damping kd along the spring taken implicitly (the paper's kd / h term); gravity, drag
+and wind are explicit. Vertices are coloured so that no two of one colour share a spring or a hinge
+(:func:`warpcloth.sim.coloring.color_vertices`). Converged, a step is nonlinear backward Euler; from
+the guess x + h v a rest state is the exact static equilibrium whatever the iteration count.
 
-Multigrid correction (``vbd_multigrid_every``, default before every sweep): local
-sweeps resolve the long, stiff modes of a large sheet at ~1e-4 per sweep at 128^2 (h^2 ks / m ~
-9e4), so with sweeps alone the 128 x 128 sheet was still -68 % off the float64 equilibrium's sag
-after 10 s with 20 sweeps per step (and a step without convergence acts like a heavy, barely
-damped material). Before a sweep, one V-cycle V of h^2 times the step's Hessian (implicit
-Euler's A = M + h D + h^2 K at the step's start, :mod:`warpcloth.integrators.multigrid`, l1
-block-Jacobi smoothing) is applied to the whole potential's negative gradient and added to dx.
-It is zero where the gradient is zero, so the converged solution is unchanged
-(tests/test_vbd.py); with 4 iterations the 128 x 128 sheet's sag is within 0.5 % after 0.5 s
-and the 256 x 256 flag runs stable (docs/solvers.md). Chebyshev acceleration with a spectral
-radius near the sweeps' (rho 0.99 and above) blew up within the first second at 64 x 64.
-
-Models that are not grids (``vbd_mesh_multigrid``, default 1; issue 26): the same correction
-on an aggregation hierarchy of the Hessian's graph (:func:`~warpcloth.integrators.multigrid.aggregation_prolongation`,
-piecewise-constant P, Galerkin levels down to <= 16 nodes; models of fewer than 7 x 7 particles get none).
-The 32 x 32 sheet as a build_mesh_cloth model: sag -0.97, -0.07, +0.00 % at 0.5, 1, 2 s (rigid
-correction alone -5.7, +1.1, +0.6 %); 64 x 64: +0.67, +0.22, -0.01 % at 1, 1.5, 3 s (alone -7.8,
-+6.1, +0.14 %); cost as the grid's geometric multigrid (21 vs 26 ms/step at 64^2). The built-in
-cape (``warpcloth run mesh``), which went unstable (energy growing) without it, settles.
-
-Rigid translation correction (``vbd_rigid_mode``, default 1; issue 26): neither the sweeps nor
-the V-cycle move the cloth as a whole. A vertex's Newton step meets its stiff in-plane springs
-with its neighbours held, and the V-cycle's coarsest level (10 l1 sweeps) leaves the constant
-mode at ~4 % (V(M 1) = 0.035-0.05 instead of 1 on a free 16 x 16 cloth): an unpinned cloth fell
-along its plane at 16 % of g t^2/2 in 0.5 s, slid down a frictionless slope at 0.6 % of g sin,
-and a truncated solve's residual did not sum to zero, so it made momentum (0.03 kg m/s on a free
-stretched 16 x 16 cloth; a V-cycle at an even size, whose coarse grid is not mirror-symmetric,
-0.03 kg m/s per application). After each sweep the Galerkin problem of the translation mode (3
-unknowns, :meth:`VBD.rigid_correction`) is solved exactly, and once before the first sweep (a first
-sweep from a guess whose mean lags the fall leaves a shape error the later sweeps resolve slowly: a
-free tilted 6 x 6 cloth with dihedral hinges bent 1.9e-3 rad in 0.4 s without it, 1.6e-5 with
-it): free fall and the frictionless slope
-are backward Euler's to 1e-7 and momentum is kept to ~1e-8 kg m/s. It is zero where the gradient
-is zero, so a rest state is still the exact equilibrium. Contacts with friction are held in the
-mode (its 3 unknowns cannot see the contacts' Coulomb cones as a whole; moving them let the drape
-slide for good), so a cloth on a slope with friction still slides too slowly.
+Local sweeps alone resolve a large sheet's long, stiff modes very slowly and never move the cloth
+as a whole, so two corrections that are zero where the gradient is zero (the converged answer is
+unchanged) are applied: a multigrid V-cycle of h^2 times implicit Euler's A
+(``vbd_multigrid_every``; on non-grid models an aggregation hierarchy, ``vbd_mesh_multigrid``) and
+the exact Galerkin step of the rigid translation (``vbd_rigid_mode``, after every sweep and once
+before the first). Measurements behind each: docs/solvers.md, "vbd".
 """
 
 from __future__ import annotations

@@ -5,10 +5,10 @@
 carried as an increment: the displacement d = x - x_prev is kept, and a step is
 d <- d + a dt^2, x <- x + d, v = d / dt, equal to the update above in exact arithmetic. The
 two-position form rounds x_new - x to a multiple of ulp(x), so in float32 a velocity change
-a dt^2 below half an ulp (~6e-8 m at 1.5 m) was lost every step: a particle at y = 1.5 m did not
-fall at all at dt = 7.5e-5 s. :meth:`Verlet.begin` starts the history from the current (x, v)
-with the second-order Taylor value d = dt v - dt^2/2 a, so the scheme keeps its second order
-from the first step; it runs after a bind, a switch or a change of dt.
+a dt^2 below half an ulp (~6e-8 m at 1.5 m) is lost every step (docs/stability.md, "Float32").
+:meth:`Verlet.begin` starts the history from the current (x, v) with the second-order Taylor value
+d = dt v - dt^2/2 a, so the scheme keeps its second order from the first step; it runs after a bind,
+a switch or a change of dt.
 """
 
 import warp as wp

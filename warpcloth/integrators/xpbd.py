@@ -9,34 +9,19 @@ Each of the ``substeps`` substeps of length h = dt / substeps runs
         lambda += dlambda ;  p_i -= w_i n dlambda ;  p_j += w_j n dlambda
     v = (p - x) / h ;  x = p
 
-(p is carried as the increment dp = p - x, so float32 keeps h v and the corrections whatever
-the substep: see :mod:`warpcloth.kernels.constraints`)
-
 for every spring (bend springs too), with C = |p_j - p_i| - L0, compliance alpha = 1/ks,
-alpha~ = alpha / h^2 and damping gamma = alpha kd / h: the spring's own ks [N/m] and
-kd [N s/m]. A spring with ks = 0 exerts nothing, as it would as a force. The kernels use the
-equivalent form multiplied through by ks h^2, so no division by ks occurs.
+alpha~ = alpha / h^2 and damping gamma = alpha kd / h: the spring's own ks [N/m] and kd [N s/m]
+(the kernels multiply through by ks h^2, so ks = 0 exerts nothing and nothing divides by ks).
+p is carried as the increment dp = p - x, so float32 keeps h v (:mod:`warpcloth.kernels.constraints`).
 
-The material is the force-based integrators' only where a substep's solve converges; the
-default 10 iterations x 4 substeps is far from converged on fine sheets, and an unconverged
-solve acts as a softer material: its rest state is where the truncated iteration from the
-prediction x + h^2 g returns to x (lambda restarts at 0 every substep), not the static
-equilibrium. Measured (issue 26, ``python bench/solver_checks/xpbd_table.py``,
-bench/results/solver-checks/xpbd-table.txt; scenario sheet, dt 1/60 s, static sag against the
-float64 equilibrium of the same ks): 10 x 4 +273 % (24^2), +505 % (32^2), +1896 % (64^2); 1 x 64
-+17, +28, +104 %; 1 x 128 +4.9, +8.2, +29 % (~3x the default's cost at 64^2). The error falls
-roughly as substeps^-1.8 and grows with the resolution (h^2 ks / m ~ N^2), so no iteration and
-substep choice at <= 2x the default's cost reaches 5 % at 64^2. Tried on the research branch and
-rejected: warm-starting the multipliers from the previous substep makes the rest state exact but
-went unstable at 10 x 4 (also scaled by 0.8-0.95) and at 64^2 with 1 x 64 (the multipliers of the
-unconverged smooth modes lag the state: a delay instability); over-relaxation (omega 1.5-1.9)
-brought +273 % to +80 % at best (32^2: unstable at 1.9). For the spring material's statics use
-vbd, implicit_euler or projective.
+The material is the force-based integrators' only where a substep's solve converges: the default
+10 iterations x 4 substeps is far from converged on fine sheets, and an unconverged solve acts as a
+softer material (sag figures, and the variants tried: docs/solvers.md, "xpbd: its defaults are not
+the spring material"). For the spring material's statics use vbd, implicit_euler or projective.
 
 Dihedral hinges (``bend="dihedral"``) are constraints C = theta - theta0, gradC = g, with compliance
 1 / k_e and damping kd_e (:func:`warpcloth.kernels.bending.solve_hinges_xpbd`), swept by their own
-colouring after the springs, lambda per hinge. The rest shape depends on the substep: an unconverged
-solve is softer by ~ (h omega_e)^2 (the cantilever strip, docs/materials.md).
+colouring after the springs, lambda per hinge; the rest shape depends on the substep (docs/materials.md).
 """
 
 from __future__ import annotations
