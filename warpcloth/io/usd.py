@@ -3,27 +3,22 @@
 One ``UsdGeomMesh`` (topology written once; points and extent time-sampled per frame), pinned
 particles marked by a ``pinned`` vertex primvar and a ``UsdGeomPoints`` prim, the stage's
 ``timeCodesPerSecond`` equal to the frame rate, Y up, metres. The file is written to a temporary
-file beside the target (``.warpcloth-<pid>-<token>.usda``, see :mod:`warpcloth.io.files`) and
-renamed over it when closed, so a reader never sees half a file; on any failure (disk full, an
-interrupt) the temporary is removed and the target is left as it was.
+beside the target (:mod:`warpcloth.io.files`) and renamed over it when closed, so a reader never
+sees half a file; on any failure the temporary is removed and the target is left as it was.
 
-**Bounded memory.** A USD layer keeps every time sample in memory until it is saved. A long or
-large run therefore writes its frames in chunks of ``clip_frames`` frames (by default as many as
-fit in :data:`CLIP_BYTES`, ~64 MiB of samples: 650 frames of a 64 x 64 cloth) to *value clips*:
-each chunk's samples move out of the stage into ``<target>.clips/clip_NNNNN.usdc`` and the
-target's ``/World`` prim gets the clip metadata (asset paths, active clip per time, a manifest),
-so any USD reader sees one animated stage. A run shorter than one chunk stays a single file. The
-clip folder is written under a temporary name and moved into place with the target.
+**Bounded memory.** A USD layer keeps every time sample in memory until it is saved, so a long or
+large run writes its frames in chunks of ``clip_frames`` frames (by default as many as fit in
+:data:`CLIP_BYTES`, ~64 MiB of samples) to *value clips* under ``<target>.clips/`` with clip
+metadata on ``/World``, so any USD reader sees one animated stage; a run shorter than one chunk
+stays a single file.
 
-Pipeline extras: the layer's ``customLayerData`` holds the run's provenance under ``warpcloth``
-(:mod:`warpcloth.io.provenance`); ``/World/Pins`` (only where the cloth has pins: no prim is
-written empty, an empty point cloud crashed Blender 5.0's Cycles) carries an extent and is written
-once (no time samples) while the pins do not move; the colliders under ``/World/Colliders`` have
-``purpose = "guide"`` by default, so renderers show the cloth and not its collision proxies
-(``colliders_purpose="render"`` draws them too); ``color="strain"`` writes a vertex ``primvars:displayColor``
-per frame, spring strain from blue (0) to red (``strain_scale``, default 10 %); a ``.usdz``
-target is a ``.usdc`` stage packaged with ``UsdUtils.CreateNewUsdzPackage`` (one package:
-no value clips, so a .usdz keeps its samples in memory until it is written).
+Pipeline extras: the run's provenance in ``customLayerData`` (:mod:`warpcloth.io.provenance`);
+``/World/Pins`` only where the cloth has pins (an empty point cloud crashed Blender 5.0's Cycles),
+written once while they do not move; colliders under ``/World/Colliders`` with ``purpose =
+"guide"`` by default (``colliders_purpose="render"`` draws them); ``color="strain"`` writes a vertex
+``primvars:displayColor`` per frame from blue (0) to red (``strain_scale``, default 10 %); a
+``.usdz`` target is a ``.usdc`` stage packaged with ``UsdUtils.CreateNewUsdzPackage`` (no value
+clips: its samples stay in memory until it is written). docs/colliders.md, "USD".
 """
 
 from __future__ import annotations

@@ -1,32 +1,27 @@
 """Collision kernels: particles against planes, spheres, capsules, oriented boxes and static
-triangle meshes, each with a thickness (cloth offset) and a Coulomb friction coefficient mu.
+triangle meshes, each with a thickness (cloth offset) [m] and a Coulomb friction coefficient mu.
 Pinned particles (inverse mass 0) are left alone: pins win over contacts.
 
 Every collider is one :class:`Collider` record in one array, planes first, and one launch per
-response loops over all of them per particle: each plane's exact half-space test, then, when the
-particle is in the box around the other colliders, each one's cheap exact rejection (squared
-distances, a box's slabs, a mesh's bounding box) before its signed distance. The hot helpers are
-forced inline (``@wp.func(inline=True)``: out of line, Warp's CPU code passes each array
-argument by value at every call) and read only the record fields their kind needs. Each kind has a signed distance
-phi(x) and an outward unit normal n (pure
-``@wp.func`` below). A collider moves rigidly with a velocity field v_c(y) = u + w x (y - o)
-(zero when static); the responses use the particle's velocity relative to it:
+response loops over all of them per particle, with cheap exact rejections before each signed
+distance phi(x) and outward unit normal n (pure ``@wp.func``; the hot helpers are forced inline
+because Warp's CPU code passes array arguments by value to a function that is not). A collider
+moves rigidly with a velocity field v_c(y) = u + w x (y - o) (zero when static); the responses use
+the particle's velocity relative to it:
 
-* after a force-based step (velocity level): a particle with phi < thickness is moved out along
-  n by the depth, its approaching relative normal velocity is removed (dv_n = max(0, -(v - v_c).n)),
-  and its relative tangential velocity is reduced by mu dv_n, at most to zero (Coulomb); the
-  tangential change is applied to the position too, as the step would have (x += dt dv_t where
-  x += dt v_new; dt/2 dv_t for the Runge-Kutta schemes, whose x feels a step's acceleration with
-  weight 1/2), so a sticking particle does not creep. Verlet's displacement d is set to v dt.
-* inside the position-based solver loop: the predicted displacement dp is moved out along n
-  (normal corrections accumulated per substep), and after the iterations the tangential part of
-  dp relative to the collider's motion v_c h is cancelled up to mu times the accumulated normal
-  correction (static/kinetic friction of Macklin et al. 2014).
+* after a force-based step (velocity level): a particle with phi < thickness is moved out along n
+  by the depth, its approaching relative normal velocity removed (dv_n = max(0, -(v - v_c).n)) and
+  its relative tangential velocity reduced by mu dv_n, at most to zero (Coulomb); the tangential
+  change is applied to the position too (x += dt dv_t; dt/2 dv_t for the Runge-Kutta schemes), so a
+  sticking particle does not creep. Verlet's displacement d is set to v dt.
+* inside the position-based solver loop: the predicted displacement dp is moved out along n, and
+  after the iterations the tangential part of dp relative to v_c h is cancelled up to mu times the
+  accumulated normal correction (Macklin et al. 2014).
 
 Poses: :func:`eval_collider_pose` moves a collider's rest record along its track (keyframed
-translation offsets, or a rigid motion c + u t + R(axis, theta(t))(y - c)), in float64 from the
-float64 simulated time, rounding to float32 once; :func:`eval_collider_driven_pose` does the same
-for a pose the host sets each frame (offset keys and a turn about the collider's centre).
+offsets, or a rigid motion c + u t + R(axis, theta(t))(y - c)) in float64 from the float64 time,
+rounding to float32 once; :func:`eval_collider_driven_pose` does the same for a pose the host sets
+each frame. Details: docs/colliders.md.
 """
 
 import warp as wp

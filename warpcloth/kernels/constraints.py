@@ -18,8 +18,8 @@ per colour per iteration.
 **Increments, not positions.** The predicted positions are carried as the displacement
 dp = p - x of the (sub)step: the constraint sees p_j - p_i = (x_j - x_i) + (dp_j - dp_i), the
 corrections add to dp, and the update is v = dp / h, x += dp. Forming p = x + h v and
-v = (p - x) / h in float32 rounds h v to a multiple of ulp(x) (~1.2e-7 m at 1.5 m): with many
-substeps a free particle floated and a hanging mass's extension was off by 5e-4 relative.
+v = (p - x) / h in float32 rounds h v to a multiple of ulp(x) (~1.2e-7 m at 1.5 m), which many
+substeps accumulate (docs/stability.md, "Float32: increments, not rounded differences").
 """
 
 import warp as wp

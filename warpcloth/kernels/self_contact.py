@@ -7,47 +7,19 @@ n and the gap d = n . sum_k W_k x_k at detection:
 * vertex p over triangle (a, b, c), closest point q = w0 a + w1 b + w2 c: vertices (p, a, b, c),
   W = (1, -w0, -w1, -w2), n = (p - q) / |p - q|;
 * edge (a, b) near edge (c, d), closest points a + s (b - a) and c + t (d - c): vertices
-  (a, b, c, d), W = (1 - s, s, t - 1, -t), n from the second closest point to the first.
+  (a, b, c, d), W = (1 - s, s, t - 1, -t), n from the second closest point to the first (a pair
+  whose closest point is an edge's end is left to that vertex's vertex-triangle contact).
 
 An impulse J along n changes v_k by W_k J n / m_k, so sum_k m_k dv_k = J n sum_k W_k = 0: every
-response is equal and opposite (momentum conserved to float32 rounding); a pinned vertex
-(1/m = 0) takes none of it (pins win).
-
-Broad phase: a linked-cell spatial hash made by kernels (a head per hash bucket, one ``next``
-per item, inserted with ``atomic_exch``; no capacity, no host work), over triangle and edge
-box centres; a Verlet list of candidate pairs, rebuilt on the device only when needed. At a
-build each vertex gets a margin m_i = |v_i - w| dt (a step of its motion relative to the
-mean velocity w, at most skin_max), a triangle or an edge the largest of its vertices', and a
-pair is listed within r = h + skin + m_a + m_b: fast parts get a wide radius, slow ones (a pile at
-rest beside a falling layer) a tight one. The list holds while every vertex moved at most
-skin / 2 + m_i since the build (D_i = |x - x_build - u| + |v - w| dt, relative to the mean
-displacement u and velocity w: a common motion, such as a fall, changes no gap), so an unlisted
-pair cannot have come within h. The cell size is chosen at each build on the device (a base from
-the mesh plus the largest margin), so a query spans a few cells whatever the motion. Every
-broad-phase launch exits at once when no rebuild is due, so a captured frame replays the
-adaptive schedule. A candidate whose gap at the build, less its own vertices' largest
-displacements since, cannot be near (against a bound from its own vertices' speeds) is skipped by
-the narrow phase without being evaluated; a pair is a contact of this step when its gap is below
-1.25 h + dt (2 |sum W v| + max_k |v_k . n|) (its own relative speed). Lists
-have a fixed capacity chosen at bind; a pair that does not fit is counted (overflow), never
-dropped silently.
-
-An edge-edge pair whose closest point is at an end of either edge is not a contact: that end's
-vertex-triangle contact holds it (the vertex is at least as near the edge's triangles). Edge
-pairs may act within a smaller thickness h_e = edge_fraction h than vertex-triangle pairs (two
-parallel layers have many crossing edges, each a contact, that their vertex-triangle contacts
-already hold apart).
-
-Response (Bridson et al. 2002, Sec. 7.2), a velocity filter after the step: an inelastic impulse
-on pairs closer than h that approach, the repulsion impulse min(dt k (h - d), m (0.1 (h - d)/dt -
-v_n)), an impulse that brings every pair's end-of-step gap back to at least a fraction of h, and
-Coulomb friction |dv_t| <= mu dv_n. The filter is Jacobi over the contacts with mass splitting
-(each contact sees a vertex in c contacts with mass m / c), so that shared vertices are not
-over-corrected, iterated a fixed number of times. The repulsion is also a force (for schemes that
-want it in their force, with the filter's repulsion off).
-
-Contacts are handled in grid-stride loops over a launch of fixed dimension, so their cost is the
-contact count, not the capacity.
+response is equal and opposite (momentum conserved to float32 rounding); a pinned vertex (1/m = 0)
+takes none of it. Broad phase: a spatial hash made by kernels and a Verlet list of candidate pairs
+within h + skin + per-vertex motion margins, rebuilt on the device only when motion since the build
+asks for it, so a captured frame replays the adaptive schedule; lists have fixed capacities and an
+overflow is counted, never silent. Response (Bridson et al. 2002, Sec. 7.2): a velocity filter of
+inelastic impulses, the repulsion impulse min(dt k (h - d), m (0.1 (h - d)/dt - v_n)), a minimum-gap
+impulse and Coulomb friction |dv_t| <= mu dv_n, Jacobi over the contacts with mass splitting; the
+repulsion is also available as a force. Contacts run in grid-stride loops, so their cost is the
+contact count, not the capacity. The margins, bounds and settings: docs/self-collision.md, "How it works".
 """
 
 import warp as wp

@@ -6,8 +6,8 @@ The strip is a 2 x ``cols`` grid in the horizontal x-z plane with dihedral hinge
 of rigidity B, masses by vertex area (rho times the area: the tip column carries half a column's
 load), clamped by pinning its first two columns. The clamp sits midway between the two pinned
 columns, where the pinned segment's zero slope is defined, so the overhang is L = (cols - 1.5) h:
-measured so, the discrete strip's static drop is the elastica's to O(h^2) (-0.05 % at 32 particles,
-cotton at L = 5 cm); measured from the second column it is off by O(h) (+3.7 %, +1.9 % at 62).
+measured so, the discrete strip's static drop is the elastica's to O(h^2) (from the second column it
+would be off by O(h); docs/materials.md, "The cantilever test").
 Membrane springs (ks = 1000 N/m, the default damping ratio) keep the strain ~ 1e-3. Air drag
 c = 2 omega_1 (omega_1 = 3.516 sqrt(B / (rho L^4)), the small-load strip's first mode) brings it to
 rest in about 0.5 s without moving the static answer.

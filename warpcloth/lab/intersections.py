@@ -1,29 +1,23 @@
 """Intersection checker in float64 NumPy: does a cloth pass through itself, or a collider's edge
 through the cloth? Independent of the simulator's kernels (no Warp), for tests and for frames
-written to USD.
+written to USD (docs/self-collision.md, "The checker").
 
 * :func:`self_intersections`: the pairs of cloth triangles that intersect, topological
   neighbours (triangles that share a vertex) excluded;
 * :func:`collider_edge_crossings`: the (collider edge, cloth triangle) pairs that cross, for box
-  colliders (their 12 edges) and triangle-mesh colliders (their unique edges); planes, spheres and
-  capsules have no edges;
+  colliders (their 12 edges) and triangle-mesh colliders (their unique edges);
 * :func:`check_frames` and :func:`check_usd`: both counts at every frame (a USD file as
   :class:`~warpcloth.io.usd.UsdWriter` writes it: ``/World/Cloth`` points, time-sampled, and
   ``/World/Colliders``).
 
-The tests are on closed sets: two triangles intersect when they share a point (touching counts;
-coplanar triangles that overlap or touch count), a segment crosses a triangle when it has a point
-in it. In float64: a segment's ends' signed distances to the triangle's plane, zero within a few
-float32 ulps of the coordinates (a cloth lying on the ground is coplanar only up to float32
-rounding: an earlier version, with Plucker signs of the segment against the edges and zero only
-within 1e-12 of the size cubed, found two flat triangles on the ground one ring apart
-"intersecting"); a segment that crosses the plane meets the triangle where its crossing point
-lies in it, and a segment in the plane is tested in it; both 2-D tests project along the
-normal's largest axis (Moller 1997). Two non-coplanar triangles intersect exactly when an edge of
-one meets the other, so the pair test is six segment tests.
-
-Broad phase: a uniform grid of cell size the largest box extent, so two boxes that overlap have
-centres in adjacent cells; pairs come from sorted cell keys (vectorised), then an exact box test.
+The tests are on closed sets: two triangles intersect when they share a point (touching and
+coplanar overlap count), a segment crosses a triangle when it has a point in it. A segment's ends'
+signed distances to the triangle's plane count as zero within a few float32 ulps of the coordinates,
+because a cloth lying on the ground is coplanar only up to float32 rounding; a crossing point is
+tested in the triangle, a segment in the plane in 2-D, both along the normal's largest axis
+(Moller 1997). Two non-coplanar triangles intersect exactly when an edge of one meets the other,
+so the pair test is six segment tests. Broad phase: a uniform grid of cell size the largest box
+extent, pairs from sorted cell keys (vectorised), then an exact box test.
 """
 
 from __future__ import annotations

@@ -6,25 +6,20 @@ copy into its row. :func:`run_jobs` yields a :class:`Done` per job as it complet
 completion order; the caller (the only writer of its results file) writes each one.
 
 * **Local** (:class:`LocalPool`): long-lived worker processes of the ``spawn`` context (Warp and
-  ``fork`` do not mix), each importing and compiling once and then running job after job. Each
-  worker talks to the driver over its own pipe (no shared queue whose lock a killed worker
-  could hold). A worker that dies (SIGKILL, a crash) is replaced; the jobs it had not reported
-  run again on the replacement, at most ``max_retries`` more times each, then come back as
-  failed (``Done.error``).
-* **Ray** (:class:`RayPool`): one Ray task per group of jobs, asking ``num_gpus=1`` for a CUDA
-  job and ``num_cpus=1`` for a CPU job; a task whose worker dies (killed, node lost) is retried
-  by Ray (``max_retries``); a group's rows come back together when its task ends.
-* **Groups**: jobs with the same ``group`` run one after another on one worker (one task on
-  Ray), in order, so that what they share (a per-process cache, e.g. the sweep's max-dt search)
-  is computed once. ``group=None`` jobs are independent.
-* Each job is reported once: a key the driver has seen is never yielded again.
-* ``Done.concurrent`` is the most jobs that were running at once on the job's host while it ran
-  (local: busy workers, counted by the driver; Ray: the driver's tasks in flight, capped by the
-  slots of the node the task ran on: its CPUs for a CPU job, its GPUs for a CUDA job).
+  ``fork`` do not mix), each importing and compiling once, each on its own pipe (no shared queue
+  whose lock a killed worker could hold). A worker that dies is replaced; its unreported jobs run
+  again, at most ``max_retries`` more times each, then come back as failed (``Done.error``).
+* **Ray** (:class:`RayPool`): one Ray task per group of jobs, asking ``num_gpus=1`` for a CUDA job
+  and ``num_cpus=1`` for a CPU job; Ray retries a task whose worker dies (``max_retries``).
+* **Groups**: jobs with the same ``group`` run in order on one worker (one task on Ray), so that
+  what they share (a per-process cache, e.g. the sweep's max-dt search) is computed once.
+* Each job is reported once. ``Done.concurrent`` is the most jobs running at once on the job's host
+  while it ran (local: busy workers; Ray: the driver's tasks in flight, capped by the node's CPUs
+  for a CPU job, its GPUs for a CUDA job).
 
-The study (warpcloth.lab.study) and the sweep (warpcloth.lab.sweep) both run their jobs through
-:func:`run_jobs` (pools from :func:`open_pool`, workers started by :func:`init_worker`); neither
-this module nor its workers write files.
+The study and the sweep run their jobs through :func:`run_jobs` (pools from :func:`open_pool`,
+workers started by :func:`init_worker`); neither this module nor its workers write files
+(docs/study.md, "In parallel").
 """
 
 from __future__ import annotations

@@ -5,30 +5,21 @@ float64 Warp RK4 at a safety factor of its stability limit, accepted when the ha
 is <= 1e-5 of the cloth size).
 
 The model is the one :class:`~warpcloth.lab.reference.Float64Model` reads from a ClothModel and a
-Control (the float32 parameters converted exactly):
+Control (the float32 parameters converted exactly): springs ks (L - L0) n + kd ((v_j - v_i) . n) n,
+gravity m g, linear drag -m c v (c [1/s]), wind c_w A (n . (W(t) - v_mean)) n a third on each vertex
+of a triangle, pinned particles at x0 and v0. Unlike the SciPy reference, pinned particles on a pin
+track of ``control.pin_tracks`` take the track's position and velocity, evaluated in float64 on the
+device at every RK stage time (t + h/2, t + h).
 
-- spring (i, j): ``f_i = ks (L - L0) n + kd ((v_j - v_i) . n) n``, ``f_j = -f_i``;
-- gravity ``m g`` and linear drag ``-m c v`` (``c = Control.drag_rate`` [1/s], the form of
-  ``kernels/forces.py:eval_particle_forces``);
-- wind on each triangle ``f = c_w A (n . (W(t) - v_mean)) n``, a third on each vertex, W(t) the
-  piecewise-constant :class:`~warpcloth.forces.WindSchedule` (its host values, float64);
-- pinned particles (in ``model.pinned`` or of inverse mass 0) keep x0 and v0, as in the float32
-  integrators and the SciPy reference; pinned particles on a pin track of ``control.pin_tracks``
-  take the track's position and velocity, evaluated in float64 on the device at every RK stage
-  time (t + h/2, t + h), with kernels/pins.py's ``track_keyframes`` / ``track_rigid``. (The
-  SciPy reference does not support tracks: there they keep x0.)
+Time stepping: the window [0, duration] is cut at every frame time k frame_dt, every switch of the
+wind schedule (:func:`~warpcloth.lab.reference.wind_switch_times`) and every key time of a keyframed
+pin track, so no RK4 step crosses a discontinuity; a piece of length l takes n = ceil(l / h_max)
+equal steps, the halving run 2n, h_max = safety x the linear stability limit of RK4
+(:func:`stability_limit`).
 
-Time stepping: the window [0, duration] is cut at every frame time k frame_dt, every switch of
-the wind schedule (:func:`~warpcloth.lab.reference.wind_switch_times`) and every key time of a
-keyframed pin track, so no RK4 step crosses a discontinuity of W(t) or of a track's velocity and
-no frame is stepped past; a piece of length l takes n = ceil(l / h_max) equal steps, the halving
-run 2n. ``h_max = safety x h_limit``, the linear stability limit of RK4 (:func:`stability_limit`).
-
-Per RK4 stage, one kernel evaluates every spring once (one more every triangle's wind, with
-wind), and one per particle gathers its springs' and triangles' forces in a fixed order (no
-atomics: bit-reproducible on every device) fused with the stage update. No host
-synchronisation inside the loop (frames are device-to-device copies; launches are recorded
-once and replayed).
+Per RK4 stage, one kernel evaluates every spring (and triangle's wind) once and one per particle
+gathers them in a fixed order (no atomics: bit-reproducible on every device) fused with the stage
+update; no host synchronisation inside the loop (docs/reference.md).
 """
 
 from __future__ import annotations

@@ -2,25 +2,22 @@
 
 **One cloth at every size.** The sheet and the flag are the same material at every n x n:
 :data:`STUDY_MATERIAL` mapped onto the grid by :func:`warpcloth.sim.material.grid_spring_params`
-(membrane springs keep the material's membrane energy under every uniform strain, so the
-membrane stiffness does not change under refinement; masses rho x vertex area). Bending: Provot
-skip-one springs with the material's approximate rule ks = 9 B / (kappa_ref^2 h^4), which is
-*not* size-independent (it grows as h^-4; docs/materials.md). At these sizes it stays below
-1 % of the membrane springs' ks (0.4 N/m at 128 x 128 against 750 N/m), so the cloths' response is
-the membrane's.
+(membrane springs keep the material's membrane energy under every uniform strain, so the membrane
+stiffness does not change under refinement; masses rho x vertex area). Bending: Provot skip-one
+springs with the material's approximate rule ks = 9 B / (kappa_ref^2 h^4), which is *not*
+size-independent (it grows as h^-4; docs/materials.md) but stays below 1 % of the membrane
+springs' ks at the study's sizes, so the cloths' response is the membrane's.
 
 **Transients** (:data:`TRANSIENTS`):
 
 * ``swing``: the sheet with its whole top row pinned, released from horizontal (tension
-  dominated: design.md measured it well-posed where the two-corner sheet buckles);
+  dominated: well-posed where the two-corner sheet buckles);
 * ``flag``: the flag from rest in its wind, over a window whose conditioning floor is small;
 * ``contact``: the sheet (top row pinned), tilted 30 degrees forward, swings back onto a
-  frictionless plane inclined 20 degrees from the vertical (its lower 0.6 m comes to lie on it) and
-  settles; its rest shape is compared with the float64 static equilibrium with the contact
+  frictionless plane inclined 20 degrees from the vertical and settles; its rest shape is compared
+  with the float64 static equilibrium with the contact
   (:func:`warpcloth.lab.reference.contact_equilibrium`), unique because the plane is frictionless
-  and convex and the sheet is held by its top row. (A sphere touches a grid at a few particles,
-  and which ones is not unique: at 16 x 16 two float64 equilibria from two starts differed by
-  0.4 % of the size.)
+  and convex and the sheet is held by its top row (a sphere's contact set is not unique).
 
 The windows depend on the size (:meth:`warpcloth.lab.plan.StudyPlan.window_frames`): the 1 s
 swing is ill-conditioned from 64 x 64 (docs/study.md, "Windows").

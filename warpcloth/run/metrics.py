@@ -1,29 +1,26 @@
 """Run metrics: stability, equilibrium and strain, reduced on the device and read once per frame.
 
-Definitions (shared by every integrator, see design.md):
+Definitions (shared by every integrator, see design.md and docs/stability.md):
 
 * **unstable**: a non-finite position, velocity or force; a spring stretched past
   ``instability_strain`` (:data:`DEFAULT_INSTABILITY_STRAIN`); or mechanical energy growing
   beyond what the external forces can supply (:class:`EnergyMonitor`).
 * **equilibrium**: over a window of ``window`` seconds of simulated time, at every sampled frame,
-  every free particle's speed is below ``speed_tol`` and its net force per unit weight
+  every free particle's speed is below ``speed_tol`` [m/s] and its net force per unit weight
   |f| / (m |g|) below ``force_tol`` -- or below the float32 force floor, if that is larger:
-  positions are stored in float32, so a particle cannot sit closer to equilibrium than one unit
-  in the last place u of its coordinates, which leaves a net force up to sum_j ks_ij u on it. The
-  floor is max_i sum_j ks_ij u / (m_i |g|) (reported as ``force_floor``); for stiff cloth it
-  exceeds any useful tolerance and the speed criterion decides. Position-based integrators have no net force from
-  springs:
-  for them only the speed criterion applies (:attr:`FrameMetrics.force_checked` is False).
-  The time reported is the start of that window (when the cloth came to rest).
-  The same test is also made on the net force of patches of particles (about 16, 256 and 4096 free
-  particles, grown over the springs, and each connected piece as a whole,
-  :func:`particle_aggregates`): |sum_(i in a) f_i| / (sum m_i |g|) below ``force_tol`` or the
-  patch's own float32 floor, sum over the springs crossing its boundary of ks u / its weight.
-  Springs inside a patch add +f and -f to its sum, so their float32 rounding cancels there and
-  a patch's floor falls with its size: the per-particle floor of a stiff cloth (2.2 on the
-  32 x 32 sheet) left the speed alone to decide, and a solver that stalled at 24-33 % of the
-  sheet's sag with speeds below the tolerance was declared at equilibrium (issue 26). Not
-  applied where the force is not checked (position-based schemes, colliders).
+  a particle cannot sit closer to equilibrium than one ulp u of its coordinates, which leaves a
+  net force up to sum_j ks_ij u on it, so the floor is max_i sum_j ks_ij u / (m_i |g|) (reported
+  as ``force_floor``). Position-based integrators have no net spring force: for them only the
+  speed criterion applies (:attr:`FrameMetrics.force_checked` is False). The time reported is the
+  start of that window (when the cloth came to rest).
+
+The same force test is made on patches of particles (about 16, 256 and 4096 free particles grown
+over the springs, and each connected piece, :func:`particle_aggregates`): |sum_(i in a) f_i| /
+(sum m_i |g|) below ``force_tol`` or the patch's own floor (the ks u of the springs crossing its
+boundary per unit weight). Springs inside a patch cancel there, so a patch's floor falls with its
+size and a stiff cloth's verdict does not rest on speed alone (why, measured: docs/solvers.md,
+"The equilibrium verdict"). Not applied where the force is not checked (position-based schemes,
+colliders).
 """
 
 from __future__ import annotations

@@ -16,14 +16,10 @@ check and help. From :data:`PARAMS` come:
 
 Adding a parameter is one :class:`Param` here plus its use (a ScenarioConfig field, a Simulator
 argument). Integrator options are declared by the integrators themselves
-(:class:`~warpcloth.integrators.Option`) and reach the CLI, XML and CSV the same way.
-
-Old spellings stay accepted one release, with a note on stderr: XML ``timestep`` (now ``dt``),
-``cap`` (``wall_cap``), ``scenarios`` (``scenario``); the CSV's ``timestep`` is now ``dt_request``,
-``cap`` ``wall_cap``, ``ks``/``ks_shear``/``ks_bend`` ``stiffness_structural``/``_shear``/``_bend``
-(``kd``: ``damping_...``). CLI ``--fps`` stays an alias of ``--frame-rate``; ``max-dt``'s
-``--precision``, ``--duration`` and ``--start`` of ``--maxdt-precision``, ``--maxdt-duration``,
-``--dt-start``.
+(:class:`~warpcloth.integrators.Option`) and reach the CLI, XML and CSV the same way. Old spellings
+(XML ``timestep``, ``cap``, ``scenarios``; the CSV's ``timestep``, ``cap``, ``ks``/``kd`` columns; CLI
+``--fps`` and max-dt's ``--precision``, ``--duration``, ``--start``) stay accepted one release, with a
+note on stderr: docs/sweep.md, "Old spellings".
 """
 
 from __future__ import annotations

@@ -14,11 +14,9 @@ colouring is verified before use.
 
 Particles (Vertex Block Descent) of a grid take (r mod 3, c mod 3); of any other mesh, Warp's
 ``wp.utils.graph_coloring_assign`` (MCS), with the greedy colouring as the fallback (an older
-Warp, or more colours than greedy's bound, max degree + 1). Measured on meshes of 320 to 9,248
-vertices (``python bench/coloring.py``, bench/results/coloring.txt), MCS gives the greedy colour
-count (4 each) in at most 1.2 ms where greedy took up to 128 ms (Warp's GREEDY: 8-9 colours).
-Springs keep the greedy edge colouring: MCS on the springs' line graph took 3.6 times as long at
-54,000 springs (373 against 103 ms) and gave one colour more on a sphere (14 against 13).
+Warp, or more colours than greedy's bound, max degree + 1): as few colours as greedy, and much
+faster. Springs keep the greedy edge colouring, which beat MCS on the springs' line graph in time
+and colours (both measured: docs/solvers.md, "Graph colouring").
 """
 
 from __future__ import annotations

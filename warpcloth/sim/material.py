@@ -7,24 +7,20 @@ membrane energy per area for a small strain eps (x = warp, y = weft) is
 
     W = 1/2 (C11 e11^2 + 2 C12 e11 e22 + C22 e22^2 + 4 C66 e12^2),   C12 = C66 (Cauchy relation),
 
-because a lattice of central springs cannot carry any other Poisson coupling (docs/materials.md).
+because a lattice of central springs cannot carry any other Poisson coupling.
 
-:func:`grid_spring_params` and :func:`mesh_spring_params` turn a material into per-spring ks
-[N/m], kd [N s/m], compression factors and per-particle masses [kg] such that the spring lattice
-stores the material's membrane energy under any uniform strain (exactly on a grid, boundaries
-included; by a per-face least-squares fit on a triangle mesh). Rule (a spring of rest length L,
-direction n stores 1/2 ks L^2 (n.eps.n)^2):
+:func:`grid_spring_params` and :func:`mesh_spring_params` turn a material into per-spring ks [N/m],
+kd [N s/m], compression factors and per-particle masses [kg] such that the spring lattice stores the
+material's membrane energy under any uniform strain (exactly on a grid; by a per-face least-squares
+fit on a triangle mesh). A spring of rest length L, direction n stores 1/2 ks L^2 (n.eps.n)^2, so
 
-    C_lattice = sum_springs ks L^2 n(x)n(x)n(x)n(x) / area   =  C (fully symmetric part).
+    C_lattice = sum_springs ks L^2 n(x)n(x)n(x)n(x) / area   =  C (fully symmetric part),
 
-2-D spring constants and membrane stiffness share a unit [N/m], so on a square grid ks does not
-change with the spacing: the same material gives the same membrane response at every mesh size.
-
-Provot skip-one bend springs cannot give a bending rigidity (their energy is quartic in the
-curvature, docs/materials.md); under a material they get the approximate rule
-ks = 9 B / (kappa_ref^2 h^4), kappa_ref = 1 / c_b, c_b = (B / (rho g))^(1/3), exact only at that one
-curvature and growing as h^-4: **not size-independent**. Their membrane side effect is subtracted
-from the membrane springs, so the uniform-strain response stays exact.
+and on a square grid ks does not change with the spacing: the same material gives the same membrane
+response at every mesh size. Provot skip-one bend springs cannot give a bending rigidity; under a
+material they get ks = 9 B / (kappa_ref^2 h^4), kappa_ref = 1 / c_b, c_b = (B / (rho g))^(1/3), exact
+only at that curvature and growing as h^-4 (**not size-independent**), their membrane side effect
+subtracted from the membrane springs ("Provot bend springs are not size-independent").
 """
 
 from __future__ import annotations

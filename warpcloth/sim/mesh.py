@@ -4,28 +4,23 @@
 :class:`~warpcloth.sim.model.ClothModel` (through :func:`~warpcloth.sim.model.build_model`):
 
 - **structural** springs on the unique edges;
-- **bend** springs across each interior edge, between the two vertices opposite it (the usual
-  mass-spring bending of triangle meshes; one per interior edge, an edge shared by more than
-  two triangles gets none);
-- with ``quads=True``, triangle pairs that form a quad are found and treated as quads
-  (rule below): the shared diagonal and the other diagonal become **shear** springs, and the
-  bend springs are the 2-ring straight lines. A triangulated Provot grid then gives exactly
-  the springs of :func:`~warpcloth.sim.grid.build_grid_cloth`.
+- **bend** springs across each interior edge, between the two vertices opposite it (one per
+  interior edge; an edge shared by more than two triangles gets none);
+- with ``quads=True``, triangle pairs that form a quad (rule below) get the shared diagonal and the
+  other diagonal as **shear** springs, and the bend springs are the 2-ring straight lines: a
+  triangulated Provot grid gives exactly the springs of :func:`~warpcloth.sim.grid.build_grid_cloth`.
 
 Quad rule (``quads=True``): an interior edge that is the strictly longest edge of both of its
 triangles (longer than each other edge by a factor 1 + 1e-6) is the diagonal of a quad. Each
-triangle has at most one longest edge, so each triangle belongs to at most one quad, and such a
-quad is convex (the angles at the diagonal's ends are below 90 degrees in each triangle).
-The remaining edges are structural. A bend spring joins u and w, two structural neighbours
-of a vertex v, when the edges v-u and v-w are not two sides of one face (a quad or a leftover
-triangle) and the angle u-v-w at rest is at least 150 degrees (a straight line through v).
+triangle has at most one longest edge, so it belongs to at most one quad, and such a quad is convex.
+The remaining edges are structural. A bend spring joins u and w, two structural neighbours of a
+vertex v, when the edges v-u and v-w are not two sides of one face (a quad or a leftover triangle)
+and the angle u-v-w at rest is at least 150 degrees (a straight line through v).
 
-Masses: a total mass [kg] or an areal density [kg/m^2], lumped by vertex area (a third of the
-area of each adjacent triangle) or split uniformly over the vertices (seed 4.2.4).
-
-Pins: vertex indices, named vertex groups, or a predicate on the rest positions: a Python
-callable ``f(positions (N, 3)) -> bool mask`` or a string such as ``"y > 0.99 * y.max()"``
-(:mod:`warpcloth.sim.selection`), parsed with :mod:`ast` against a whitelist, never ``eval``-ed.
+Masses: a total mass [kg] or an areal density [kg/m^2], lumped by vertex area (a third of each
+adjacent triangle's area) or split uniformly (seed 4.2.4). Pins: vertex indices, named vertex groups,
+or a predicate on the rest positions (:mod:`warpcloth.sim.selection`, never ``eval``-ed).
+docs/meshes.md.
 """
 
 from __future__ import annotations

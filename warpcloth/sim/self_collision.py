@@ -3,27 +3,25 @@ Coulomb friction coefficient mu, on the device (kernels in :mod:`warpcloth.kerne
 
 A :class:`SelfCollision` is bound to a :class:`~warpcloth.sim.model.ClothModel` once: it makes
 the unique edges, the neighbour exclusion tables, the spatial hash, the Verlet list of candidate
-pairs and the contact list (fixed capacities), and every counter. Its three methods launch
-kernels only (no host work, no allocation), so they can sit inside a captured frame:
+pairs and the contact list (fixed capacities), and every counter. Its methods launch kernels only
+(no host work, no allocation), so they can sit inside a captured frame:
 
-* :meth:`SelfCollision.detect` at the step's start (x, v): rebuild the candidate list on the
-  device when motion since the last build asks for it, then the contacts (gap < h + 2 v_max dt)
-  with their weights, normals and gaps;
-* :meth:`SelfCollision.filter_velocities` after the step (x, v at its end): inelastic impulses on
-  approaching pairs within h, Bridson's repulsion impulse min(dt k (h - d), m (0.1 (h - d)/dt - v_n)),
-  impulses that leave every pair at least ``min_gap_fraction`` h apart, Coulomb friction; x moves
-  with v as the step would have moved it (Bridson, Fedkiw & Anderson 2002, Sec. 7.2). An explicit
-  scheme needs only ``detect`` and this;
-* :meth:`SelfCollision.apply_forces`: the same repulsion as a force k (h - d) n, equal and
-  opposite, capped likewise, for schemes that want it in their force (then the filter's is off);
+* :meth:`SelfCollision.detect` at the step's start (x, v): rebuild the candidate list when motion
+  since the last build asks for it, then the contacts (gap < h + 2 v_max dt);
+* :meth:`SelfCollision.filter_velocities` after the step: inelastic impulses on approaching pairs
+  within h, Bridson's repulsion impulse min(dt k (h - d), m (0.1 (h - d)/dt - v_n)), impulses that
+  leave every pair at least ``min_gap_fraction`` h apart, Coulomb friction; x moves with v as the
+  step would have moved it (Bridson, Fedkiw & Anderson 2002, Sec. 7.2). An explicit scheme needs
+  only ``detect`` and this;
+* :meth:`SelfCollision.apply_forces`: the same repulsion as a force k (h - d) n, equal and opposite,
+  for schemes that want it in their force (then the filter's is off);
 * :meth:`SelfCollision.prevent_crossings`, the last word of a step: every listed pair followed along
-  its straight motion from the detect's positions (continuous collision detection,
-  :mod:`warpcloth.kernels.ccd`), a pair that met on the way pushed apart, equal and opposite.
+  its straight motion (continuous collision detection, :mod:`warpcloth.kernels.ccd`), a pair that met
+  on the way pushed apart, equal and opposite.
 
-The :class:`~warpcloth.simulator.Simulator` detects before each step, filters after it and ends it with the
-continuous response; how each
-integrator holds the contacts inside its own step (:meth:`project_increment`, :meth:`eval_vertex_terms`,
-implicit Euler's system): docs/self-collision.md.
+The :class:`~warpcloth.simulator.Simulator` detects before each step, filters after it and ends it
+with the continuous response; how each integrator holds the contacts inside its own step
+(:meth:`project_increment`, :meth:`eval_vertex_terms`, implicit Euler's system): docs/self-collision.md.
 """
 
 from __future__ import annotations
