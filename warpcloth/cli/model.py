@@ -1,5 +1,5 @@
-"""The flags of a model and its integrator, shared by ``warpcloth run``, ``warpcloth max-dt`` and
-``python -m warpcloth.scenarios.X``: the run parameters (:mod:`warpcloth.run.params`), the
+"""The flags of a model and its integrator, shared by ``warpcloth run`` and ``warpcloth max-dt``:
+the run parameters (:mod:`warpcloth.run.params`), the
 integrators' options (:class:`~warpcloth.integrators.Option`), and the ScenarioConfig they give
 (:func:`config_from_args`), with the checks that name a flag rather than fail later."""
 

@@ -1,5 +1,5 @@
 """The argument parser every warpcloth command line uses (``warpcloth``, ``bench/devices.py``,
-``python -m warpcloth.scenarios.X``): errors are one line, ``warpcloth: error: ...``, exit 2;
+``python -m warpcloth``): errors are one line, ``warpcloth: error: ...``, exit 2;
 :func:`guarded` runs a command with the exit codes of every other failure; :func:`add_verbose`
 the flags every subcommand takes.
 

@@ -1,8 +1,8 @@
 """Scenarios: data + a builder each (installed as ``warpcloth.scenarios``), in a registry.
 
 Each built-in scenario module defines a :class:`~warpcloth.scenarios.common.Scenario` named
-``SCENARIO`` and is runnable as ``python -m warpcloth.scenarios.<name>``. Users add scenarios
-without touching this package: a TOML file (:mod:`warpcloth.scenarios.file`; pass its path
+``SCENARIO`` and runs as ``warpcloth run <name>`` (or ``python -m warpcloth run <name>``). Users add
+scenarios without touching this package: a TOML file (:mod:`warpcloth.scenarios.file`; pass its path
 wherever a scenario name goes: ``warpcloth run my.toml``, ``scenarios="my.toml"`` in a sweep),
 or a :class:`Scenario` object given to :func:`register` from Python.
 """

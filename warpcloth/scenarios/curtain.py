@@ -3,8 +3,8 @@
 
 The top row is pinned and follows the rod: a Catmull-Rom track of two keys, so the rod starts
 and stops at rest (position x0 + SLIDE s(t), s the smoothstep 3u^2 - 2u^3 of u = t / SLIDE_TIME).
-A run ends at equilibrium. Run it with ``python -m warpcloth.scenarios.curtain`` or
-``warpcloth run curtain``.
+A run ends at equilibrium. Run it with ``warpcloth run curtain`` (or
+``python -m warpcloth run curtain``).
 """
 
 from warpcloth.scenarios.common import Scenario, ScenarioConfig

@@ -15,8 +15,8 @@ breaks the grid's symmetry, so the folds choose their places as they do in the l
 node count depends on that path: Jeong & Phillips 1998). The points over the 18 cm pedestal are
 pinned (the standard clamps the specimen between two such discs); the pedestal is a cylinder (a
 mesh collider) with friction, under the rest. The default integrator is implicit Euler at
-dt = 1/240 s: at 1/60 s the rim's contact with the pedestal made some disc sizes unstable (12 and
-20 points across).
+dt = 1/240 s, because the rim's contact with the pedestal made some disc sizes unstable at 1/60 s
+(docs/materials.md, "The cusick scenario").
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """Drape: a square cloth, held flat, falls onto a sphere resting on the ground and drapes over it
 (colliders, :mod:`warpcloth.sim.colliders`); a run ends at equilibrium and reports the folds of the
-hanging skirt. Run it with ``python -m warpcloth.scenarios.drape`` or ``warpcloth run drape``.
+hanging skirt. Run it with ``warpcloth run drape`` (or ``python -m warpcloth run drape``).
 
 By default the cloth is cotton (``--material``, docs/materials.md) at 64 x 64 with its Provot
-bend springs (the material's rule; ``--bend dihedral`` for hinges of its rigidity, 3x the cost),
+bend springs (the material's rule; ``--bend dihedral`` for hinges of its rigidity, at a higher cost),
 stepped by xpbd; ``--material none --bend provot --size 24 --integrator explicit_euler``
 is the scene of before (per-spring parameters).
 """

@@ -4,78 +4,22 @@ The file names a mesh, its pins and pin tracks, the forces and the run's paramet
 is optional but ``cloth.mesh``; unknown keys are refused, naming the file and the table)::
 
     name = "cape"                        # default: the file's stem
-    description = "a cape on a walking character"
-    stop_at_equilibrium = true           # default true
 
     [cloth]
     mesh = "cape.obj"                    # .obj or .usd*, relative to this file
-    prim = "/World/Cape"                 # USD only (default: the first mesh)
-    quads = true                         # quad detection: shear and straight-line bend springs
-    bend = true                          # or "provot", "none" (as --bend)
-    mass = 0.3                           # kg in all, or
-    # density = 0.2                      # kg/m^2
-    mass_mode = "area"                   # or "uniform"
-    stiffness = [1000, 1000, 200]        # N/m: one number or structural, shear, bend
-    damping = 0.05                       # N s/m (default scales with the particle mass)
-    # or a material in physical units (docs/materials.md) instead of mass, stiffness and damping:
-    # material = "cotton"                # a preset, or "custom" with density, stretch, shear, bend_rigidity
-    # stretch = [2028, 411]              # N/m, warp and weft (also density, shear, compression, warp_angle,
-    # bend_rigidity = 16e-6              # N m    stretch_damping_ratio, bend_damping_ratio)
+    material = "cotton"                  # or mass [kg], stiffness [N/m], damping [N s/m]
 
-    [pins]                               # pinned vertices: the union of
-    groups = ["shoulders"]
-    where = "y > 0.95 * y.max()"         # a predicate (see warpcloth.sim.selection.parse_predicate)
-    indices = [0, 1]
-
-    [[tracks]]                           # kinematic pins (pinned automatically)
-    groups = ["shoulders"]               # or where = ..., indices = [...]
-    kind = "keyframes"
-    times = [0.0, 1.0, 2.0]              # s, increasing
-    offsets = [[0, 0, 0], [0.3, 0, 0], [0.3, 0.1, 0]]   # m, added to the rest positions
-    interpolation = "catmull_rom"        # linear | catmull_rom | hermite (with tangents)
-
-    [[tracks]]
-    indices = [5]
-    kind = "rigid"
-    center = [0, 1.5, 0]
-    axis = [1, 0, 0]
-    swing_amplitude = 0.5                # rad; also angular_velocity, swing_frequency, swing_phase, velocity
-
-    [[colliders]]                        # warpcloth.sim.colliders: plane, sphere, capsule, box
-    kind = "sphere"
-    center = [0, 1.0, 0.3]
-    radius = 0.25
-    thickness = 0.005                    # m
-    friction = 0.4                       # Coulomb mu
-    track = { kind = "keyframes", times = [0, 2], offsets = [[0, 0, 0], [0.5, 0, 0]] }   # optional; or
-    # track = { kind = "rigid", velocity = [0.2, 0, 0], center = [0, 1, 0.3], axis = [0, 1, 0], angular_velocity = 1.0 }
-
-    [[colliders]]                        # a static triangle mesh (OBJ or USD, relative to this file)
-    kind = "mesh"
-    path = "table.obj"
-    thickness = 0.005
-
-    [forces]
-    gravity = [0, -9.81, 0]
-    drag = 1.0                           # 1/s
-    wind = [4, 0, 1]                     # m/s, constant; or
-    # gusts = { wind = [8, 0, 3], on = 1.5, off = 1.0, base = [2, 0, -1] }
-    wind_coefficient = 0.6
+    [pins]
+    groups = ["shoulders"]               # and/or where = "y > 0.95 * y.max()", indices = [...]
 
     [run]
     integrator = "xpbd"
-    integrator_options = { iterations = 20 }
-    dt = 0.004
-    duration = 5.0
-    frame_rate = 60                      # 1/s (old spelling: fps)
-    device = "cpu"
-    strain_limit = 0.1
-    self_collision = true                # or "on" / "off" (default off); its settings:
-    self_collision_thickness = 0.004     # m
-    self_collision_friction = 0.3
+    dt = 0.004                           # s
 
-Command-line flags override the file (``--integrator``, ``--dt``, ``--mesh``, ``--pin-group``...).
-Needs Python 3.11 (``tomllib``) or the ``tomli`` package.
+Tables ``[cloth]``, ``[pins]``, ``[[tracks]]``, ``[[colliders]]``, ``[forces]`` and ``[run]``; every
+key with its unit and default: docs/meshes.md, "Scenario files: every key". Command-line flags
+override the file (``--integrator``, ``--dt``, ``--mesh``, ``--pin-group``...). Needs Python 3.11
+(``tomllib``) or the ``tomli`` package.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Flag in gusting wind (seed 4.1): the left edge pinned to a pole, gravity plus wind gusts
 switched on and off at pre-determined times. It never reaches equilibrium.
 
-Run it with ``python -m warpcloth.scenarios.flag [--integrator verlet ...]``.
+Run it with ``warpcloth run flag [--integrator verlet ...]``.
 """
 
 from warpcloth.scenarios.common import Scenario, ScenarioConfig

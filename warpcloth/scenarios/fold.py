@@ -1,7 +1,7 @@
 """Fold: a strip held by its top edge is lowered onto the ground, laid down, then folded back over
 itself (kinematic pins, :class:`~warpcloth.sim.pins.PinTrack`), so that it lies in layers and piles
 up where it folds; self-collision is on (docs/self-collision.md). A run ends at equilibrium. Run it
-with ``python -m warpcloth.scenarios.fold`` or ``warpcloth run fold``.
+with ``warpcloth run fold`` (or ``python -m warpcloth run fold``).
 
 The top row follows a Catmull-Rom track through the keys of :data:`HAND` (offsets scaled by the
 strip's height over 1.5 m): down and forward until the strip lies on the ground, then up, back over

@@ -1,7 +1,7 @@
 """Sheet on a washing line (seed 4.1): top-left and top-right particles pinned, gravity only.
 
 The sheet hangs in the vertical x-y plane and sags under its weight; a run ends at equilibrium
-or at its duration. Run it with ``python -m warpcloth.scenarios.sheet [--integrator rk4 ...]``.
+or at its duration. Run it with ``warpcloth run sheet [--integrator rk4 ...]``.
 """
 
 from warpcloth.scenarios.common import Scenario, ScenarioConfig

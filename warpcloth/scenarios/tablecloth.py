@@ -3,7 +3,7 @@ hangs over its edges; a run ends at equilibrium and reports the folds of the ove
 ``warpcloth run tablecloth``.
 
 By default the cloth is cotton (``--material``, docs/materials.md) at 64 x 64 with its Provot
-bend springs (the material's rule; ``--bend dihedral`` for hinges of its rigidity, 3x the cost),
+bend springs (the material's rule; ``--bend dihedral`` for hinges of its rigidity, at a higher cost),
 stepped by xpbd; ``--material none --bend provot --size 24 --integrator explicit_euler``
 is the scene of before (per-spring parameters).
 """
