@@ -4,6 +4,7 @@ stale temporaries are removed, SIGTERM cleans up. CPU only; no wall-clock assert
 
 import errno
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -11,6 +12,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import warpcloth.lab.sweep as sweep
@@ -453,3 +455,97 @@ def test_input_files_are_regular_files_of_bounded_size_read_without_blocking(tmp
     assert fifo.opened == 0
     with pytest.raises(fileio.WarpclothError, match="input must be a file name, got 123"):
         fileio.check_input_file(123, "input")
+
+
+# -- folders (an OBJ sequence) and write_obj: the same safety as single files -------------------
+FRAMES = re.compile(r"^f\d+\.txt$")
+
+
+def _fill(folder, texts):
+    for k, text in enumerate(texts):
+        fileio.write_atomic(folder.file(f"f{k}.txt"), text)
+
+
+@pytest.mark.parametrize("exchange", [True, False], ids=["swap", "aside-and-back"])
+def test_atomic_folder_replaces_an_older_folder_only_on_commit(tmp_path, monkeypatch, exchange):
+    target = tmp_path / "out"
+    with fileio.AtomicFolder(str(target), "test folder", FRAMES) as f:
+        _fill(f, ["a", "b"])
+        assert not target.exists() and os.path.isdir(f.tmp)
+    assert sorted(p.name for p in target.iterdir()) == ["f0.txt", "f1.txt"]
+    if not exchange:  # a system without renameat2's swap: the old folder goes aside, then away
+        monkeypatch.setattr(fileio, "_exchange", lambda a, b: False)
+    f = fileio.AtomicFolder(str(target), "test folder", FRAMES)
+    _fill(f, ["new"])
+    assert (target / "f1.txt").read_text() == "b"  # untouched until commit
+    assert f.commit() == str(target) and f.commit() == str(target)
+    assert sorted(p.name for p in target.iterdir()) == ["f0.txt"] and (target / "f0.txt").read_text() == "new"
+    assert no_temporaries(tmp_path) == [] and sorted(os.listdir(tmp_path)) == ["out"]
+
+
+def test_atomic_folder_abort_and_failed_commit_leave_the_target(tmp_path):
+    target = tmp_path / "out"
+    target.mkdir()
+    (target / "f0.txt").write_text("old")
+    with pytest.raises(RuntimeError):
+        with fileio.AtomicFolder(str(target), "test folder", FRAMES) as f:
+            _fill(f, ["new"])
+            raise RuntimeError("the run failed")
+    assert [p.name for p in target.iterdir()] == ["f0.txt"] and (target / "f0.txt").read_text() == "old"
+    f = fileio.AtomicFolder(str(target), "test folder", FRAMES)
+    _fill(f, ["new"])
+    (target / "mine.txt").write_text("a user's file, put there during the run")
+    with pytest.raises(fileio.WarpclothError, match="holding other files"):
+        f.commit()
+    assert (target / "f0.txt").read_text() == "old" and (target / "mine.txt").exists()
+    assert no_temporaries(tmp_path) == []
+    with pytest.raises(fileio.WarpclothError, match="not a file name this folder holds"):
+        fileio.AtomicFolder(str(tmp_path / "x"), "test folder", FRAMES).file("../f0.txt")
+
+
+def test_check_output_folder_refuses_links_files_and_foreign_folders(tmp_path):
+    (tmp_path / "real").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "real")
+    (tmp_path / "file").write_text("x")
+    ok = tmp_path / "ours"
+    ok.mkdir()
+    (ok / "f3.txt").write_text("an earlier output")
+    assert fileio.check_output_folder(str(ok), "test folder", FRAMES) == str(ok)
+    assert fileio.check_output_folder(str(tmp_path / "new"), "test folder", FRAMES) == str(tmp_path / "new")
+    (ok / "sub").mkdir()
+    for path, why in [
+        (tmp_path / "link", "is a link; warpcloth does not write through links"),
+        (tmp_path / "file", "exists and is not a folder"),
+        (ok, "is a folder holding other files ('sub')"),
+        (tmp_path / "none" / "x", "does not exist"),
+        ("", "path is empty"),
+    ]:
+        with pytest.raises(fileio.WarpclothError, match=re.escape(why)):
+            fileio.check_output_folder(str(path), "test folder", FRAMES)
+    assert no_temporaries(tmp_path) == []
+
+
+def test_a_stale_temporary_folder_is_swept(tmp_path):
+    dead = _dead_pid()
+    stale = tmp_path / f".warpcloth-{dead}-0a1b2c3d"
+    stale.mkdir()
+    (stale / "frame_0000.obj").write_text("partial")
+    assert fileio.sweep_stale_temporaries(str(tmp_path)) == [str(stale)]
+    assert not stale.exists()
+
+
+def test_write_obj_is_atomic_and_never_writes_through_a_link(tmp_path):
+    from warpcloth.io.meshio import read_obj, write_obj
+
+    v = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    t = np.array([[0, 1, 2]])
+    precious = tmp_path / "precious.txt"
+    precious.write_text("not a mesh")
+    link = tmp_path / "m.obj"
+    link.symlink_to(precious)
+    write_obj(str(link), v, t)
+    assert precious.read_text() == "not a mesh" and not link.is_symlink()
+    np.testing.assert_array_equal(read_obj(str(link)).vertices, v)
+    with pytest.raises(fileio.OutputError, match="unchanged"):
+        write_obj(str(tmp_path / "none" / "m.obj"), v, t)
+    assert no_temporaries(tmp_path) == []

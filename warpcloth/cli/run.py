@@ -6,10 +6,18 @@ import argparse
 import math
 import os
 import sys
+from dataclasses import dataclass
+from typing import Callable
 
 from warpcloth.cli.model import DefaultDtExplained, add_model_arguments, check_spacing, config_from_args
 from warpcloth.cli.parse import Parser, add_verbose, guarded
 from warpcloth.errors import WarpclothError
+from warpcloth.io.files import sweep_stale_temporaries
+from warpcloth.io.meshio import ObjSequenceWriter, check_obj_sequence_path
+from warpcloth.io.player import HtmlWriter, check_html_path
+from warpcloth.io.preview import PreviewWriter, check_preview_path
+from warpcloth.io.provenance import provenance
+from warpcloth.io.usd import UsdWriter, check_usd_path, clip_folder_of
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -23,40 +31,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     num_frames = (("--num-frames",), dict(type=int, default=None, help="run this many frames instead of --duration"))
     add_model_arguments(p, "run", exclusive={"duration": [num_frames]})
     out = p.add_argument_group("outputs")
-    out.add_argument(
-        "--usd",
-        "--stage-path",
-        dest="usd",
-        default=None,
-        metavar="PATH",
-        help="write the animation to this USD file (.usd/.usda/.usdc, or .usdz: a package)",
-    )
-    out.add_argument(
-        "--usd-color",
-        choices=["none", "strain"],
-        default="none",
-        help="strain: a per-frame primvars:displayColor of spring strain, blue 0 to red 10%% (default none)",
-    )
-    out.add_argument(
-        "--usd-colliders",
-        choices=["guide", "render"],
-        default="guide",
-        help="UsdGeom purpose of the collider prims: guide (shown in viewports, not rendered) or render "
-        "(default guide)",
-    )
-    out.add_argument(
-        "--html",
-        default=None,
-        metavar="PATH",
-        help="write a self-contained HTML player of the animation (WebGL, no network)",
-    )
-    out.add_argument(
-        "--preview",
-        default=None,
-        metavar="PATH",
-        help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs "
-        "warpcloth[plot]",
-    )
+    for o in OUTPUTS:
+        out.add_argument(*o.flags, dest=o.dest, default=None, metavar=o.metavar, help=o.help)
+        for flags, kwargs in o.options:
+            out.add_argument(*flags, **kwargs)
     p.add_argument("--fail-unstable", action="store_true", help="exit with status 3 when the run goes unstable")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
 
@@ -108,84 +86,187 @@ def summary(result) -> str:
 EXIT_UNSTABLE = 3
 
 
-def output_writers(scenario_name: str, args) -> list:
-    """Check every output path of a run (before any work) and return the writer factories
-    ``(sim, cfg) -> writer`` that :meth:`Scenario.run` calls once the model is built."""
-    from warpcloth.io.files import sweep_stale_temporaries
-    from warpcloth.io.provenance import provenance
+# -- the outputs of a run: one table ---------------------------------------------------------
+class OutputRun:
+    """What an output's sink factory may read of the run: the scenario's name, the flags
+    (``option``), the provenance record and the most frames a run of a config writes."""
 
-    argv = getattr(args, "argv", None)
-    paths, writers = [], []
+    def __init__(self, scenario: str, args):
+        self.scenario = scenario
+        self.args = args
 
-    prefix = ("warpcloth",)
+    def option(self, name: str, default=None):
+        return getattr(self.args, name, default)
 
-    def frames(cfg):  # frames a run of cfg writes at most (the first one too)
+    def info(self, sim, cfg) -> dict:
+        return provenance(sim, self.scenario, cfg.fps, self.option("argv"), prefix=("warpcloth",))
+
+    @staticmethod
+    def frames(cfg) -> int:
+        """Frames a run of ``cfg`` writes at most (the first one too)."""
         return math.ceil(cfg.duration * cfg.fps - 1e-9) + 1
 
-    def info(sim, cfg):
-        return provenance(sim, scenario_name, cfg.fps, argv, prefix=prefix)
 
-    if getattr(args, "preview", None) is not None:  # "" is an error (the path check), not "no preview"
-        from warpcloth.io.preview import check_preview_path
+@dataclass(frozen=True)
+class Output:
+    """One output of ``warpcloth run``; :data:`OUTPUTS` lists them, and the flags, the path
+    checks, the writers and the summary's lines all come from that table.
 
-        check_preview_path(args.preview)  # also: matplotlib installed
-        paths.append(args.preview)
-    if args.usd is not None:
-        from warpcloth.io.usd import usd_frames
+    Attributes:
+        flags: the option strings; the first names it (``--obj-sequence`` -> ``args.obj_sequence``).
+        help: the flag's help.
+        check: ``check(path)``, run before any work: raises a WarpclothError naming the path.
+        sink: ``sink(path, run, sim, cfg)`` -> a frame sink with ``write_frame(points, sim_time)``,
+            ``close()`` (returns the path written) and ``abort()`` (the target left as it was);
+            ``run`` is the :class:`OutputRun`, called once the simulator is built.
+        report: whether the summary says ``wrote PATH (N bytes, K frames)``.
+        metavar: the flag's argument in ``--help``.
+        options: more flags of this output, ``((flags...), argparse keyword arguments)``.
+        note: ``note(path)`` -> text after the summary's line (USD: where its value clips went).
+        sample: a target name the sink contract test writes (tests/test_sinks.py).
+    """
 
-        writers.append(
-            usd_frames(
-                args.usd, getattr(args, "usd_color", "none"), info, colliders=getattr(args, "usd_colliders", "guide")
-            )
-        )  # the path is checked now
-        paths.append(args.usd)
-    if getattr(args, "html", None) is not None:
-        from warpcloth.io.player import HtmlWriter, check_html_path
+    flags: tuple
+    help: str
+    check: Callable
+    sink: Callable
+    report: bool = True
+    metavar: str = "PATH"
+    options: tuple = ()
+    note: Callable | None = None
+    sample: str = "out"
 
-        check_html_path(args.html)
-        paths.append(args.html)
-        writers.append(
-            lambda sim, cfg: HtmlWriter(
-                args.html,
-                sim.model,
-                cfg.fps,
-                title=f"warpcloth {scenario_name}: {sim.integrator.name}, "
-                f"{sim.model.rows}x{sim.model.cols}, dt={sim.dt:.3g} s",
-                info=info(sim, cfg),
-                expected_frames=frames(cfg),
-                colliders=sim.control.colliders,
-            )
-        )
-    if getattr(args, "preview", None) is not None:
-        from warpcloth.io.preview import PreviewWriter
-
-        writers.append(
-            lambda sim, cfg: PreviewWriter(
-                args.preview,
-                sim.model,
-                cfg.fps,
-                title=f"{scenario_name}, {sim.integrator.name}",
-                expected_frames=frames(cfg),
-                colliders=sim.control.colliders,
-            )
-        )
-    if len({os.path.abspath(p) for p in paths}) < len(paths):
-        raise WarpclothError("two outputs name the same file: " + ", ".join(paths))
-    for folder in sorted({os.path.dirname(os.path.abspath(p)) for p in paths}):
-        sweep_stale_temporaries(folder, sys.stderr)
-    return writers
+    @property
+    def dest(self) -> str:
+        return self.flags[0].lstrip("-").replace("-", "_")
 
 
-def _clips_note(path: str, usd: str | None) -> str:
+def _clips_note(path: str) -> str:
     """For a USD file whose samples went to value clips: where they are (the file alone opens empty)."""
-    if path != usd:
-        return ""
-    from warpcloth.io.usd import clip_folder_of
-
     folder, count = clip_folder_of(path)
     if folder is None:
         return ""
     return f"; its samples are in {folder}{os.sep} ({count} clip{'s' * (count != 1)}): copy the folder with the file"
+
+
+def _bytes(path: str) -> int:
+    """The size of a file, or of a folder's files."""
+    if os.path.isdir(path):
+        return sum(e.stat().st_size for e in os.scandir(path) if e.is_file(follow_symlinks=False))
+    return os.path.getsize(path)
+
+
+#: The outputs of ``warpcloth run``, in the order their writers receive frames and the summary lists them.
+OUTPUTS = (
+    Output(
+        flags=("--usd", "--stage-path"),
+        help="write the animation to this USD file (.usd/.usda/.usdc, or .usdz: a package)",
+        check=check_usd_path,
+        sink=lambda path, run, sim, cfg: UsdWriter(
+            path,
+            sim.model,
+            cfg.fps,
+            provenance=run.info(sim, cfg),
+            color=run.option("usd_color", "none"),
+            colliders=sim.control.colliders,
+            colliders_purpose=run.option("usd_colliders", "guide"),
+        ),
+        options=(
+            (
+                ("--usd-color",),
+                dict(
+                    choices=["none", "strain"],
+                    default="none",
+                    help="strain: a per-frame primvars:displayColor of spring strain, blue 0 to red 10%% "
+                    "(default none)",
+                ),
+            ),
+            (
+                ("--usd-colliders",),
+                dict(
+                    choices=["guide", "render"],
+                    default="guide",
+                    help="UsdGeom purpose of the collider prims: guide (shown in viewports, not rendered) or "
+                    "render (default guide)",
+                ),
+            ),
+        ),
+        note=_clips_note,
+        sample="out.usda",
+    ),
+    Output(
+        flags=("--html",),
+        help="write a self-contained HTML player of the animation (WebGL, no network)",
+        check=check_html_path,
+        sink=lambda path, run, sim, cfg: HtmlWriter(
+            path,
+            sim.model,
+            cfg.fps,
+            title=f"warpcloth {run.scenario}: {sim.integrator.name}, {sim.model.rows}x{sim.model.cols}, "
+            f"dt={sim.dt:.3g} s",
+            info=run.info(sim, cfg),
+            expected_frames=run.frames(cfg),
+            colliders=sim.control.colliders,
+        ),
+        sample="out.html",
+    ),
+    Output(
+        flags=("--preview",),
+        help="write a picture: .png (the last frame) or .gif (the animation, frames skipped to fit); needs "
+        "warpcloth[plot]",
+        check=check_preview_path,  # also: matplotlib installed
+        sink=lambda path, run, sim, cfg: PreviewWriter(
+            path,
+            sim.model,
+            cfg.fps,
+            title=f"{run.scenario}, {sim.integrator.name}",
+            expected_frames=run.frames(cfg),
+            colliders=sim.control.colliders,
+        ),
+        sample="out.png",
+    ),
+    Output(
+        flags=("--obj-sequence",),
+        help="write one OBJ file per frame into this folder, frame_0000.obj, frame_0001.obj, ... (built beside "
+        "it and renamed into place; an existing folder is replaced only if it holds nothing but frame_NNNN.obj)",
+        check=check_obj_sequence_path,
+        sink=lambda path, run, sim, cfg: ObjSequenceWriter(path, sim.model),
+        metavar="DIR",
+        sample="frames",
+    ),
+)
+
+
+def output_writers(scenario_name: str, args) -> list:
+    """Check every output path of a run (before any work) and return the writer factories
+    ``(sim, cfg) -> writer`` that :meth:`Scenario.run` calls once the model is built: one per
+    entry of :data:`OUTPUTS` whose flag is given, in the table's order."""
+    run = OutputRun(scenario_name, args)
+    chosen = [(o, getattr(args, o.dest, None)) for o in OUTPUTS]
+    chosen = [(o, path) for o, path in chosen if path is not None]  # "" is an error (the path check), not "none"
+    for o, path in chosen:
+        o.check(path)
+    paths = [path for _, path in chosen]
+    if len({os.path.abspath(p) for p in paths}) < len(paths):
+        raise WarpclothError("two outputs name the same file: " + ", ".join(paths))
+    for folder in sorted({os.path.dirname(os.path.abspath(p)) for p in paths}):
+        sweep_stale_temporaries(folder, sys.stderr)
+    return [_factory(o, path, run) for o, path in chosen]
+
+
+def _factory(o: Output, path: str, run: OutputRun):
+    return lambda sim, cfg: o.sink(path, run, sim, cfg)
+
+
+def written_outputs(args, frames: int) -> list[str]:
+    """The summary's lines for the outputs the table reports: ``wrote PATH (N bytes, K frames)``."""
+    lines = []
+    for o in OUTPUTS:
+        path = getattr(args, o.dest, None)
+        if o.report and path:
+            note = o.note(path) if o.note is not None else ""
+            lines.append(f"  wrote {path} ({_bytes(path):,} bytes, {frames} frames){note}")
+    return lines
 
 
 def run_scenario(scenario_name: str, args) -> int:
@@ -208,11 +289,8 @@ def run_scenario(scenario_name: str, args) -> int:
     elif not quiet:
         print(summary(result))
         written = result.frames + (1 if result.stable else 0)  # the first frame, not the unstable last one
-        for path in (args.usd, getattr(args, "html", None), getattr(args, "preview", None)):
-            if path:
-                print(
-                    f"  wrote {path} ({os.path.getsize(path):,} bytes, {written} frames)" + _clips_note(path, args.usd)
-                )
+        for line in written_outputs(args, written):
+            print(line)
     if getattr(args, "fail_unstable", False) and not result.stable:
         if not args.json:
             print(f"warpcloth: the run went unstable ({result.unstable_reason}); exit {EXIT_UNSTABLE}", file=sys.stderr)
@@ -224,4 +302,14 @@ def run(args) -> int:
     return run_scenario(args.scenario, args)
 
 
-__all__ = ["EXIT_UNSTABLE", "add_arguments", "add_run_arguments", "run", "run_scenario", "summary"]
+__all__ = [
+    "EXIT_UNSTABLE",
+    "OUTPUTS",
+    "Output",
+    "OutputRun",
+    "add_arguments",
+    "add_run_arguments",
+    "run",
+    "run_scenario",
+    "summary",
+]

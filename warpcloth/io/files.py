@@ -21,6 +21,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import errno
 import hashlib
 import os
@@ -208,24 +209,9 @@ def read_input(path, what: str = "input file", max_bytes: int | None = None) -> 
     return b"".join(chunks)
 
 
-def check_output_path(path: str, what: str = "output", extensions: tuple | None = None) -> str:
-    """Check, before any work, that ``path`` can be written atomically; returns it.
-
-    Raises:
-        WarpclothError: one line naming the path and why it cannot be written.
-    """
-    try:
-        p = os.fspath(path)
-    except TypeError:
-        raise WarpclothError(f"{what} path must be a file name, got {path!r:.80}") from None
-    if not p:
-        raise WarpclothError(f"{what} path is empty")
-    if extensions is not None and os.path.splitext(p)[1].lower() not in extensions:
-        raise WarpclothError(f"{what} path {p!r} must end in one of {', '.join(extensions)}")
-    full = os.path.abspath(p)
-    folder, name = os.path.split(full)
-    if os.path.isdir(full):
-        raise WarpclothError(f"{what} path {p!r} is a folder, not a file")
+def _check_name_and_parent(p: str, full: str, what: str) -> None:
+    """The name fits the file system (each part, the whole path) and its parent is an existing folder."""
+    folder = os.path.dirname(full)
     probe = folder
     while probe and not os.path.isdir(probe):
         parent = os.path.dirname(probe)
@@ -244,6 +230,27 @@ def check_output_path(path: str, what: str = "output", extensions: tuple | None 
         raise WarpclothError(f"{what} path {p!r}: {folder!r} is not a folder")
     if not os.path.isdir(folder):
         raise WarpclothError(f"{what} path {p!r}: folder {folder!r} does not exist")
+
+
+def check_output_path(path: str, what: str = "output", extensions: tuple | None = None) -> str:
+    """Check, before any work, that ``path`` can be written atomically; returns it.
+
+    Raises:
+        WarpclothError: one line naming the path and why it cannot be written.
+    """
+    try:
+        p = os.fspath(path)
+    except TypeError:
+        raise WarpclothError(f"{what} path must be a file name, got {path!r:.80}") from None
+    if not p:
+        raise WarpclothError(f"{what} path is empty")
+    if extensions is not None and os.path.splitext(p)[1].lower() not in extensions:
+        raise WarpclothError(f"{what} path {p!r} must end in one of {', '.join(extensions)}")
+    full = os.path.abspath(p)
+    folder, name = os.path.split(full)
+    if os.path.isdir(full):
+        raise WarpclothError(f"{what} path {p!r} is a folder, not a file")
+    _check_name_and_parent(p, full, what)
     if os.path.lexists(full):
         if not os.path.isfile(full):
             raise WarpclothError(f"{what} path {p!r} exists and is not a regular file")
@@ -397,6 +404,171 @@ def write_atomic(path: str, data: str | bytes, what: str = "output") -> str:
     return f.commit(needed=len(raw))
 
 
+# -- folders: outputs of many files (an OBJ sequence), built beside the target and renamed in --
+
+
+def _foreign_entries(full: str, names) -> list[str]:
+    """Entries of the existing folder ``full`` that are not regular files matching ``names``."""
+    out = []
+    with os.scandir(full) as entries:
+        for e in entries:
+            if not (names.match(e.name) and e.is_file(follow_symlinks=False)):
+                out.append(e.name)
+    return sorted(out)
+
+
+def check_output_folder(path, what: str, names: re.Pattern) -> str:
+    """Check, before any work, that the folder ``path`` can be written atomically (see
+    :class:`AtomicFolder`); returns it. An existing ``path`` must be a real folder (not a link)
+    holding only regular files whose names match ``names`` (a previous output of the same kind):
+    replacing it must never delete anything else.
+
+    Raises:
+        WarpclothError: one line naming the path and why it cannot be written.
+    """
+    p = _file_name(path, what)
+    full = os.path.abspath(p)
+    if os.path.islink(full):
+        raise WarpclothError(f"{what} path {p!r} is a link; warpcloth does not write through links")
+    _check_name_and_parent(p, full, what)
+    if os.path.lexists(full):
+        if not os.path.isdir(full):
+            raise WarpclothError(f"{what} path {p!r} exists and is not a folder")
+        try:
+            foreign = _foreign_entries(full, names)
+        except OSError as exc:
+            raise WarpclothError(f"{what} path {p!r}: cannot list the folder: {exc.strerror or exc}") from None
+        if foreign:
+            raise WarpclothError(
+                f"{what} path {p!r} is a folder holding other files ({', '.join(repr(n) for n in foreign[:3])}"
+                f"{', ...' if len(foreign) > 3 else ''}); warpcloth replaces only a folder of its own output: "
+                "name a new or empty folder"
+            )
+    folder = os.path.dirname(full)
+    tmp = temp_path(full, ext="")
+    try:
+        os.mkdir(tmp, 0o700)
+    except OSError as exc:
+        raise WarpclothError(
+            f"{what} path {p!r}: folder {folder!r} is not writable (creating a folder there failed: "
+            f"{exc.strerror or exc})"
+        ) from None
+    try:
+        os.rmdir(tmp)
+    except OSError:
+        pass
+    return p
+
+
+#: renameat2(2) flag: swap two paths in one step (Linux 3.15+, glibc 2.28+).
+_RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def _exchange(a: str, b: str) -> bool:
+    """Swap the paths ``a`` and ``b`` in one step where the system can (renameat2 RENAME_EXCHANGE);
+    False where it cannot (no such call, or a file system without it)."""
+    try:
+        renameat2 = ctypes.CDLL(None, use_errno=True).renameat2
+    except (OSError, AttributeError):
+        return False
+    renameat2.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    if renameat2(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP):
+        return False
+    raise OSError(err, os.strerror(err), b)
+
+
+def _replace_folder(tmp: str, target: str) -> None:
+    """Put the folder ``tmp`` at ``target``: a rename where ``target`` is absent, else a swap in
+    one step (or, without one, the old folder renamed aside first and put back if the second
+    rename fails); the old folder is removed afterwards."""
+    if not os.path.lexists(target):
+        os.rename(tmp, target)
+        return
+    if _exchange(tmp, target):
+        shutil.rmtree(tmp, ignore_errors=True)  # tmp now holds the old folder
+        return
+    old = temp_path(target, ext="")
+    os.rename(target, old)
+    try:
+        os.rename(tmp, target)
+    except BaseException:
+        os.rename(old, target)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
+
+
+class AtomicFolder:
+    """A temporary folder beside ``path`` (``.warpcloth-<pid>-<token>``, swept like a temporary
+    file when its process dies) that a writer fills through :meth:`file`; :meth:`commit` puts it
+    at ``path`` (replacing an older output there, checked by :func:`check_output_folder` with
+    ``names``); :meth:`abort` removes it and leaves ``path`` as it was. A link at ``path`` is
+    refused, never followed."""
+
+    def __init__(self, path, what: str, names: re.Pattern):
+        self.path = os.fspath(path)
+        self.what = what
+        self.names = names
+        self.tmp = temp_path(self.path, ext="")
+        try:
+            os.mkdir(self.tmp, 0o755)
+        except OSError as exc:
+            raise OutputError(describe_write_error(exc, self.path, what)) from None
+        self.done = False
+        self.committed = False
+
+    def file(self, name: str) -> str:
+        """The path of the file ``name`` (one of ``names``) inside the folder being built."""
+        if not self.names.match(name) or os.sep in name or (os.altsep and os.altsep in name):
+            raise WarpclothError(f"{self.what}: {name!r} is not a file name this folder holds")
+        return os.path.join(self.tmp, name)
+
+    def commit(self) -> str:
+        """Put the folder at ``path``; returns ``path``. On failure the folder is removed and
+        ``path`` left as it was (:class:`OutputError`)."""
+        if self.committed:
+            return self.path
+        if self.done:
+            raise WarpclothError(f"the {self.what} {self.path} was aborted")
+        try:
+            check_output_folder(self.path, self.what, self.names)  # again: a link or a foreign file since
+            for name in os.listdir(self.tmp):
+                fd = os.open(os.path.join(self.tmp, name), os.O_RDONLY)
+                try:
+                    os.fsync(fd)
+                finally:
+                    os.close(fd)
+            fsync_dir(self.tmp)
+            _replace_folder(self.tmp, self.path)
+        except OSError as exc:
+            self.abort()
+            raise OutputError(describe_write_error(exc, self.path, self.what)) from None
+        except BaseException:
+            self.abort()
+            raise
+        self.done = self.committed = True
+        fsync_dir(os.path.dirname(os.path.abspath(self.path)))
+        return self.path
+
+    def abort(self) -> None:
+        if self.done:
+            return
+        shutil.rmtree(self.tmp, ignore_errors=True)
+        self.done = True
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            self.commit()
+        else:
+            self.abort()
+
+
 class WriterLock:
     """An exclusive lock on ``target`` for as long as a writer works on it: ``flock`` on a lock
     file beside it (``.NAME.lock``), holding the writer's pid. A second writer gets a
@@ -473,11 +645,13 @@ class WriterLock:
 
 __all__ = [
     "AtomicFile",
+    "AtomicFolder",
     "EXIT_IO",
     "OutputError",
     "TEMP_PREFIX",
     "WriterLock",
     "check_input_file",
+    "check_output_folder",
     "check_output_path",
     "describe_write_error",
     "fsync_dir",

@@ -20,12 +20,13 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import sys
 
 import numpy as np
 
 from warpcloth.errors import WarpclothError, require
-from warpcloth.io.files import check_input_file, read_input
+from warpcloth.io.files import AtomicFolder, check_input_file, check_output_folder, read_input, write_atomic
 from warpcloth.sim.colliders import MeshCollider
 from warpcloth.sim.device import require_memory
 from warpcloth.sim.mesh import TriangleMesh, check_mesh, drop_loose_vertices
@@ -383,14 +384,56 @@ def write_obj(path: str, vertices, triangles, uv=None, groups: dict | None = Non
     if not taken.all():
         lines.append("g cloth")
         lines += [face(row) for row in t[~taken]]
-    with open(path, "w", encoding="utf-8") as f:
-        f.write("\n".join(lines) + "\n")
+    write_atomic(path, "\n".join(lines) + "\n", "OBJ mesh")  # a temporary renamed over path: never through a link
+
+
+#: File names of an OBJ sequence, frame k: ``frame_0000.obj`` ... (more digits past 9999 frames).
+OBJ_FRAME_NAME = "frame_{:04d}.obj"
+OBJ_FRAME_NAMES = re.compile(r"^frame_\d{4,}\.obj$")
+
+
+def check_obj_sequence_path(path: str) -> str:
+    """Validate an OBJ-sequence folder before a run (:func:`~warpcloth.io.files.check_output_folder`):
+    absent, empty, or an earlier sequence (only ``frame_NNNN.obj`` files), never a link."""
+    return check_output_folder(path, "OBJ sequence", OBJ_FRAME_NAMES)
+
+
+class ObjSequenceWriter:
+    """A frame sink writing one OBJ per frame (:func:`write_obj`: the cloth's triangles and its
+    mesh groups), ``frame_0000.obj``, ``frame_0001.obj``, ... in the folder ``path``, for tools
+    that read mesh sequences rather than USD. The folder is built beside ``path`` and renamed into
+    place on :meth:`close` (:class:`~warpcloth.io.files.AtomicFolder`); :meth:`abort` leaves
+    ``path`` as it was. A frame with a non-finite position (an unstable run's last) is skipped."""
+
+    def __init__(self, path: str, model):
+        self.path = os.fspath(path)
+        self.tris = np.asarray(model.host["tris"], dtype=np.int64).reshape(-1, 3)
+        self.groups = dict(model.host.groups or {})
+        self.frames = 0
+        self.folder = AtomicFolder(self.path, "OBJ sequence", OBJ_FRAME_NAMES)
+
+    def write_frame(self, points, sim_time: float | None = None) -> None:
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if not np.all(np.isfinite(p)):
+            return
+        write_obj(self.folder.file(OBJ_FRAME_NAME.format(self.frames)), p, self.tris, groups=self.groups)
+        self.frames += 1
+
+    def close(self) -> str:
+        return self.folder.commit()
+
+    def abort(self) -> None:
+        self.folder.abort()
 
 
 __all__ = [
     "load_mesh_collider",
     "MAX_MESH_FILE_BYTES",
     "MESH_FORMATS",
+    "OBJ_FRAME_NAME",
+    "OBJ_FRAME_NAMES",
+    "ObjSequenceWriter",
+    "check_obj_sequence_path",
     "load_mesh",
     "open_usd_stage",
     "read_obj",
