@@ -22,10 +22,10 @@ import pytest
 import warp as wp
 from conftest import DEVICES, reproducible
 from helpers import assert_replay_matches_launches, spring_params
-from warpcloth.scenarios import flag
 
 from warpcloth import Control, Plane, Simulator, SpringParams, SpringType, build_grid_cloth, make_integrator
-from warpcloth.integrators import integrator_names
+from warpcloth.integrators import Integrator, integrator_class, integrator_names
+from warpcloth.scenarios import flag
 from warpcloth.sim.model import DEFAULT_STIFFNESS, build_model
 from warpcloth.simulator import graph_capture_supported
 
@@ -60,25 +60,19 @@ def hanging_mass(ks: float, mass: float, kd: float):
     )
 
 
-def expected_extension(integrator, mass: float, ks: float, dt: float) -> float:
-    if integrator.name == "pbd":
-        k, h = integrator.pbd_stiffness, dt / integrator.substeps
-        return (1.0 - k) / k * G * h * h if k > 0 else float("inf")
-    return mass * G / ks
-
-
 @pytest.mark.parametrize("name", NAMES)
 def test_hanging_mass_rests_at_its_schemes_extension(name):
     """m g / k = 0.0196 m at y ~ 1.5 m (float32 spacing 1.2e-7 m there) to 2e-5 m after 12 s, at
     each integrator's default dt (a missing factor of dt or a wrong sign is off by far more)."""
     ks, mass = 50.0, 0.1
-    options = {"pbd_stiffness": 0.5} if name == "pbd" else {}
+    # pbd's default stiffness 1 projects a substep's fall away entirely: a half-stiff spring hangs
+    options = {"pbd_stiffness": 0.5} if "pbd_stiffness" in integrator_class(name).option_defaults() else {}
     integrator = make_integrator(name, **options)
     sim = Simulator(hanging_mass(ks, mass, kd=0.5), integrator, Control(drag_rate=2.0, device="cpu"))
     sim.simulate(max(1, round(12.0 / sim.dt)))
     y = sim.state.particle_q.numpy()[:, 1].astype(np.float64)
     extension = (y[0] - y[1]) - 0.5
-    want = expected_extension(integrator, mass, ks, sim.dt)
+    want = integrator.rest_extension(mass, ks, G, sim.dt)
     assert abs(extension - want) < 2e-5, (
         f"{name}: extension {extension:.7f} m, expected {want:.7f} m (dt {sim.dt:.3g} s)"
     )
@@ -148,20 +142,27 @@ def test_the_allocation_counter_sees_an_allocation(count_allocations):
 
 def discrete_free_fall(integrator, steps: int, h: float) -> float:
     """The distance a rigid body falls from rest in ``steps`` steps of ``h`` per unit acceleration,
-    in the scheme's own discretisation: symplectic and backward Euler x_n = h^2 n (n + 1) / 2
-    (explicit_euler; implicit_euler, vbd, projective), the same per substep for the position-based
-    schemes (velocity damping 0: their default), and exact, (n h)^2 / 2, for midpoint, rk4 and
-    verlet (primed with d = h v - h^2 a / 2)."""
-    if integrator.name in ("midpoint", "rk4", "verlet"):
+    in the scheme's own discretisation (:attr:`~warpcloth.integrators.Integrator.free_fall`):
+    ``"euler"``, symplectic and backward Euler x_n = h^2 n (n + 1) / 2 (explicit_euler; implicit_euler,
+    vbd, projective), the same per substep for the position-based schemes (velocity damping 0: their
+    default); ``"exact"``, (n h)^2 / 2, for midpoint, rk4 and verlet (primed with d = h v - h^2 a / 2)."""
+    kinds = ("euler", "exact")
+    assert integrator.free_fall in kinds, f"{integrator.name}: free_fall {integrator.free_fall!r} is not one of {kinds}"
+    if integrator.free_fall == "exact":
         return 0.5 * (steps * h) ** 2
     substeps = getattr(integrator, "substeps", 1)
     n, hs = steps * substeps, h / substeps
     return hs * hs * n * (n + 1) / 2
 
 
-#: Tolerance of the free fall and the slope: the explicit and position-based schemes move a
-#: free cloth's centroid exactly (its internal forces cancel), the implicit solvers by a solve.
-EXACT = ("explicit_euler", "midpoint", "rk4", "verlet", "pbd", "xpbd")
+def test_the_contract_holds_every_scheme_to_1e3_unless_it_says_otherwise():
+    """A scheme's free motion is held to 1e-3 unless its class declares a looser tolerance itself:
+    the explicit and position-based schemes move a free cloth's centroid exactly (its internal forces
+    cancel), the solvers implicit_euler, vbd and projective by a solve (2 %)."""
+    assert Integrator.free_motion_rtol == 1e-3 and Integrator.free_fall == "euler"
+    loose = {n for n in NAMES if integrator_class(n).free_motion_rtol != 1e-3}
+    assert {"implicit_euler", "vbd", "projective"} <= loose
+    assert not loose & {"explicit_euler", "midpoint", "rk4", "verlet", "pbd", "xpbd"}
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -178,7 +179,7 @@ def test_free_cloth_falls_along_its_plane_by_its_schemes_discrete_free_fall(name
     sim.simulate(steps)
     moved = x0[0] - sim.state.particle_q.numpy().astype(np.float64).mean(axis=0)[0]
     want = G * discrete_free_fall(integrator, steps, sim.dt)
-    rel = 1e-3 if name in EXACT else 0.02
+    rel = integrator.free_motion_rtol
     assert moved == pytest.approx(want, rel=rel), (
         f"{name}: fell {moved:.6f} m along its plane, expected {want:.6f} m (dt {sim.dt:.3g} s)"
     )
@@ -199,23 +200,24 @@ def test_free_cloth_slides_down_a_frictionless_slope_at_g_sin(name, options):
         colliders=(Plane(thickness=0.005, friction=0.0),),
         device="cpu",
     )
-    sim = Simulator(model, make_integrator(name, **options), control)
+    integrator = make_integrator(name, **options)
+    sim = Simulator(model, integrator, control)
     steps = max(1, round(0.5 / sim.dt))
     sim.simulate(steps)
     v = sim.state.particle_qd.numpy().astype(np.float64)
     y = sim.state.particle_q.numpy()[:, 1]
     assert np.abs(y - 0.005).max() < 1e-4, f"{name}: left the surface by {np.abs(y - 0.005).max():.3g} m"
     want = steps * sim.dt * G * math.sin(theta)
-    rel = 1e-3 if name in EXACT else 0.02
+    rel = integrator.free_motion_rtol
     assert v[:, 0].mean() == pytest.approx(want, rel=rel), (
         f"{name}: slides at {v[:, 0].mean():.5f} m/s, expected {want:.5f} m/s"
     )
 
 
-#: midpoint (RK2) has no stable dt without damping (its default dt needs kd or drag): it amplifies
-#: every undamped mode by sqrt(1 + (h omega)^4 / 4) a step, and at the damped cloth's default dt
-#: (2.4e-4 s) this cloth blew up within 0.1 s; at 2e-5 s it stays bounded for the test's 1 s.
-UNDAMPED_DT = {"midpoint": 2.0e-5}
+#: The dt of a scheme with no stable dt on the undamped cloth (:meth:`Integrator.no_stable_dt_reason`):
+#: midpoint (RK2) amplifies every undamped mode by sqrt(1 + (h omega)^4 / 4) a step, and at the damped
+#: cloth's default dt (2.4e-4 s) this cloth blew up within 0.1 s; at 2e-5 s it stays bounded for 1 s.
+UNDAMPED_DT = 2.0e-5
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -225,9 +227,9 @@ def test_free_cloth_keeps_its_momentum(name):
     default dt (the total |m v| of the oscillation is ~1e-2 kg m/s; vbd made 0.03 kg m/s)."""
     params = {t: SpringParams(DEFAULT_STIFFNESS[t], 0.0) for t in SpringType}
     model = build_grid_cloth(16, 16, 1.0, 1.0, 0.2, spring_params=params, plane="horizontal", device="cpu")
-    sim = Simulator(
-        model, name, Control(gravity=(0.0, 0.0, 0.0), drag_rate=0.0, device="cpu"), dt=UNDAMPED_DT.get(name)
-    )
+    integrator = make_integrator(name)
+    dt = UNDAMPED_DT if integrator.no_stable_dt_reason(model) else None
+    sim = Simulator(model, integrator, Control(gravity=(0.0, 0.0, 0.0), drag_rate=0.0, device="cpu"), dt=dt)
     q = sim.state.particle_q.numpy()
     c = q.mean(axis=0)
     sim.state.particle_q.assign(((q - c) * 1.05 + c).astype(np.float32))

@@ -20,18 +20,19 @@ def add_model_arguments(p: argparse.ArgumentParser, command: str = "max-dt", exc
 
 def add_integrator_options(p: argparse.ArgumentParser) -> None:
     """One flag per integrator option, declared by the integrators themselves."""
-    from warpcloth.integrators import all_options
+    from warpcloth.integrators import all_options, option_help, option_owners
 
     group = p.add_argument_group("integrator options")
-    for name, (opt, owners) in all_options().items():
-        kwargs = {"choices": list(opt.choices)} if opt.choices else {}
+    for name, (opt, _) in all_options().items():
+        choices = [o.choices for o in option_owners(name).values()]
+        kwargs = {"choices": list(dict.fromkeys(c for cs in choices for c in cs))} if all(choices) else {}
         group.add_argument(
             opt.flag,
             dest="opt_" + name,
             type=str,
             default=None,
             metavar=opt.type.__name__.upper(),
-            help=f"{opt.help} [{', '.join(owners)}; default {opt.default}]",
+            help=option_help(name),
             **kwargs,
         )
 
@@ -40,7 +41,7 @@ def integrator_options_from_args(integrator: str, args) -> dict:
     """Options given on the command line for ``integrator``; an option it does not take is an error."""
     from warpcloth.integrators import all_options, integrator_class
 
-    taken = {o.name for o in integrator_class(integrator).options}
+    taken = {o.name: o for o in integrator_class(integrator).options}
     out = {}
     for name, (opt, owners) in all_options().items():
         value = getattr(args, "opt_" + name, None)
@@ -50,7 +51,7 @@ def integrator_options_from_args(integrator: str, args) -> dict:
             raise WarpclothError(
                 f"{opt.flag} does not apply to integrator {integrator!r} (it applies to {', '.join(owners)})"
             )
-        out[name] = opt.parse(value)
+        out[name] = taken[name].parse(value)  # the integrator's own declaration (its check and type)
     return out
 
 

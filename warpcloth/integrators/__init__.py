@@ -6,6 +6,8 @@ register themselves with :func:`register`.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators.base import Integrator, Option, explicit_euler_dt_bound, stable_dt_estimate
 from warpcloth.integrators.explicit_euler import ExplicitEuler
@@ -27,6 +29,26 @@ def register(cls: type[Integrator]) -> type[Integrator]:
     return cls
 
 
+def unregister(name: str) -> type[Integrator]:
+    """Remove the integrator registered under ``name`` and return its class (an unknown name is an error)."""
+    cls = integrator_class(name)
+    del _REGISTRY[name]
+    return cls
+
+
+@contextmanager
+def registered(cls: type[Integrator]):
+    """``cls`` registered for the ``with`` block, then removed (for a scheme tried out in a test or a
+    notebook); yields ``cls``. A name already registered is an error: the block would replace it."""
+    if cls.name in _REGISTRY:
+        raise WarpclothError(f"integrator {cls.name!r} is already registered")
+    register(cls)
+    try:
+        yield cls
+    finally:
+        unregister(cls.name)
+
+
 for _cls in (ExplicitEuler, Midpoint, RK4, Verlet, ImplicitEuler, PBD, XPBD, VBD, Projective):
     register(_cls)
 
@@ -44,12 +66,30 @@ def integrator_class(name: str) -> type[Integrator]:
 
 
 def all_options() -> dict[str, tuple[Option, list[str]]]:
-    """Every integrator option by name, with the integrators that take it."""
+    """Every integrator option by name, with the integrators that take it (the first one's
+    declaration; :func:`option_owners` gives each owner's own)."""
     out: dict[str, tuple[Option, list[str]]] = {}
     for name, cls in _REGISTRY.items():
         for opt in cls.options:
             out.setdefault(opt.name, (opt, []))[1].append(name)
     return out
+
+
+def option_owners(option: str) -> dict[str, Option]:
+    """Each registered integrator that takes ``option``, with its own declaration of it (schemes may
+    share an option's name with different defaults: pbd's and xpbd's ``substeps``)."""
+    return {name: o for name, cls in _REGISTRY.items() for o in cls.options if o.name == option}
+
+
+def option_help(option: str) -> str:
+    """The help line of the flag ``option`` becomes: one declaration's help with its owners and default,
+    ``"... [pbd, xpbd; default 4]"``; where owners declare it differently, each owner's default,
+    ``"... [pbd: 4, mine: 2]"``."""
+    owners = option_owners(option)
+    first = next(iter(owners.values()))
+    if all(o == first for o in owners.values()):
+        return f"{first.help} [{', '.join(owners)}; default {first.default}]"
+    return f"{first.help} [{', '.join(f'{n}: {o.default}' for n, o in owners.items())}]"
 
 
 def make_integrator(name: str, **options) -> Integrator:
@@ -66,5 +106,9 @@ __all__ = [
     "integrator_class",
     "integrator_names",
     "make_integrator",
+    "option_help",
+    "option_owners",
     "register",
+    "registered",
+    "unregister",
 ]

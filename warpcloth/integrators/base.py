@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Callable, ClassVar
 
 import numpy as np
@@ -97,6 +98,53 @@ class Integrator:
 
     #: User-settable options; each becomes an attribute of the instance.
     options: ClassVar[tuple[Option, ...]] = ()
+
+    # -- what the study and the contract read: a scheme that declares nothing gets these ----------
+    #: True for a conditionally stable scheme without a solve (explicit_euler, midpoint, rk4, verlet):
+    #: the study steps it at fractions of its measured max stable dt and runs it to rest at that dt
+    #: (:mod:`warpcloth.lab.configs`), and its max-dt search costs more trials
+    #: (:mod:`warpcloth.lab.estimate`). False: the study's steps are taken as they are (a step above
+    #: the max stable dt runs, and is recorded unstable).
+    explicit: ClassVar[bool] = False
+    #: The study's configurations per level, ``{"full" | "quick": ({option: values}, steps)}``: every
+    #: combination of option values x steps is one (:func:`warpcloth.lab.configs.configurations`).
+    #: ``steps`` are k per 1/60 s frame, dt = (1/60 s) / k (``Fraction(1, 2)``: 1/30 s), or for an
+    #: :attr:`explicit` scheme the f of dt = max stable dt / f. Default: the default options at dt
+    #: 1/30 s to 1/480 s.
+    study_grid: ClassVar[dict] = {
+        "full": ({}, (Fraction(1, 2), 1, 2, 4, 8)),
+        "quick": ({}, (Fraction(1, 2), 1, 4)),
+    }
+    #: Options every study run of the scheme takes, outside its grid (a configuration's key does not
+    #: name them): implicit_euler's ``strain_cap`` 0 (:func:`warpcloth.lab.configs.study_options`).
+    study_fixed_options: ClassVar[dict] = {}
+    #: The scheme's own discrete free fall from rest per unit acceleration, which the contract
+    #: (tests/test_contract.py) holds a free cloth's centroid to: ``"euler"``: h^2 n (n + 1) / 2 after
+    #: n steps of h (symplectic and backward Euler; per substep where the scheme has ``substeps``);
+    #: ``"exact"``: (n h)^2 / 2 (midpoint, rk4, verlet).
+    free_fall: ClassVar[str] = "euler"
+    #: Relative tolerance of the contract on a free cloth's centroid motion (its free fall and its
+    #: slide down a frictionless slope): 1e-3 where the internal forces cancel exactly in the centroid;
+    #: 0.02 for a solver whose iterate leaves a residual in it (implicit_euler, vbd, projective).
+    free_motion_rtol: ClassVar[float] = 1e-3
+
+    @classmethod
+    def option_defaults(cls) -> dict:
+        """Every option's default, by name."""
+        return {o.name: o.default for o in cls.options}
+
+    @classmethod
+    def relative_work(cls, options: dict) -> float:
+        """Cost of one step with ``options`` (every option given) relative to one with the defaults:
+        what the study prunes configurations by before it measures them
+        (:func:`warpcloth.lab.configs.work`), not a measurement. 1.0: options do not change the cost."""
+        return 1.0
+
+    def rest_extension(self, mass: float, stiffness: float, gravity: float, dt: float) -> float:
+        """The extension [m] at rest of one spring of ``stiffness`` [N/m] holding ``mass`` [kg] under
+        ``gravity`` [m/s^2] at steps of ``dt`` [s]: m g / k for a scheme whose springs have a stiffness
+        in N/m (the contract's hanging mass, tests/test_contract.py)."""
+        return mass * gravity / stiffness
 
     def __init__(self, **options):
         known = {o.name: o for o in self.options}
@@ -318,7 +366,13 @@ def hinge_adjacency_of(model) -> HingeAdjacency:
     return adj
 
 
+#: The study's grid of an :attr:`Integrator.explicit` scheme: no knobs but dt, at fractions 1, 1/2,
+#: 1/4, 1/8 of its max stable dt (``quick``: 1, 1/2, 1/4).
+EXPLICIT_STUDY_GRID = {"full": ({}, (1, 2, 4, 8)), "quick": ({}, (1, 2, 4))}
+
+
 __all__ = [
+    "EXPLICIT_STUDY_GRID",
     "Integrator",
     "Option",
     "explicit_euler_dt_bound",

@@ -5,13 +5,15 @@ a = f(x, v) / m ;  v <- v + dt a ;  x <- x + dt v
 
 import warp as wp
 
-from warpcloth.integrators.base import Integrator
+from warpcloth.integrators.base import EXPLICIT_STUDY_GRID, Integrator
 from warpcloth.integrators.forces import eval_forces
 from warpcloth.kernels import integrate as ik
 
 
 class ExplicitEuler(Integrator):
     name = "explicit_euler"
+    explicit = True
+    study_grid = EXPLICIT_STUDY_GRID
     force_evals_per_step = 1
     default_dt_factor = 0.9
 

@@ -11,7 +11,13 @@ damping nor drag has no stable dt.
 
 import warp as wp
 
-from warpcloth.integrators.base import Integrator, model_spectrum, runge_kutta_stable_dt, scratch_like
+from warpcloth.integrators.base import (
+    EXPLICIT_STUDY_GRID,
+    Integrator,
+    model_spectrum,
+    runge_kutta_stable_dt,
+    scratch_like,
+)
 from warpcloth.integrators.forces import eval_forces
 from warpcloth.kernels import integrate as ik
 from warpcloth.sim.pins import apply_pins
@@ -24,6 +30,9 @@ def rk2_amplification(z):
 
 class Midpoint(Integrator):
     name = "midpoint"
+    explicit = True
+    study_grid = EXPLICIT_STUDY_GRID
+    free_fall = "exact"
     velocity_position_weight = 0.5  # x_new = x + dt v + dt^2/2 a: an acceleration moves x with weight 1/2
     force_evals_per_step = 2
     default_dt_factor = 0.8

@@ -51,6 +51,14 @@ class PBD(PositionBasedIntegrator):
     """Position based dynamics (Müller et al. 2007), distance constraints with stiffness in [0, 1]."""
 
     name: ClassVar[str] = "pbd"
+
+    def rest_extension(self, mass: float, stiffness: float, gravity: float, dt: float) -> float:
+        """pbd's stiffness k is a dimensionless fraction of a constraint projected per iteration, not
+        N/m: a hanging mass rests where the projection undoes a substep's fall, (1 - k) / k g h^2 with
+        h = dt / substeps (Müller et al. 2007); ``mass`` and ``stiffness`` do not enter (inf at k = 0)."""
+        k, h = self.pbd_stiffness, dt / self.substeps
+        return (1.0 - k) / k * gravity * h * h if k > 0 else float("inf")
+
     options = (
         ITERATIONS,
         SUBSTEPS,

@@ -7,6 +7,7 @@ judged by particle speeds alone (``force_based = False``; see :mod:`warpcloth.ru
 
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import ClassVar
 
 import numpy as np
@@ -68,6 +69,17 @@ class PositionBasedIntegrator(Integrator):
     force_evals_per_step: ClassVar[int] = 1
     #: Position-based steps are stable at any dt; one 60 Hz frame is the default.
     default_dt_cap: ClassVar[float] = 1.0 / 60.0
+    #: pbd's and xpbd's study grid: substeps x iterations at dt 1/30 s, 1/60 s and 1/240 s.
+    study_grid: ClassVar[dict] = {
+        "full": ({"substeps": (1, 4, 16, 64, 256), "iterations": (1, 5, 20)}, (Fraction(1, 2), 1, 4)),
+        "quick": ({"substeps": (1, 16), "iterations": (1, 10)}, (Fraction(1, 2), 1)),
+    }
+
+    @classmethod
+    def relative_work(cls, options: dict) -> float:
+        """Substeps x iterations (one constraint sweep each) against the defaults'."""
+        defaults = cls.option_defaults()
+        return options["substeps"] * options["iterations"] / (defaults["substeps"] * defaults["iterations"])
 
     coloring: SpringColoring
 

@@ -26,6 +26,7 @@ free rows): a few Jacobi-PCG iterations alone bent a falling cloth and gained en
 
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import ClassVar
 
 import numpy as np
@@ -42,6 +43,22 @@ class Projective(IncrementSolver):
     """Projective dynamics (Liu et al. 2013): local spring projection, global constant-matrix solve."""
 
     name: ClassVar[str] = "projective"
+    study_grid: ClassVar[dict] = {
+        "full": ({"pd_iterations": (1, 5, 20), "pd_cg_iterations": (5, 20)}, (Fraction(1, 2), 1, 2, 4, 8)),
+        "quick": ({"pd_iterations": (1, 20), "pd_cg_iterations": (5, 20)}, (Fraction(1, 2), 1, 4)),
+    }
+    free_motion_rtol: ClassVar[float] = 0.02  # the centroid moves by a fixed number of CG iterations
+
+    @classmethod
+    def relative_work(cls, options: dict) -> float:
+        """Local/global iterations x (a local step and a global one's CG iterations, ~2 + cg)
+        against the defaults'."""
+        defaults = cls.option_defaults()
+        per = lambda it, cg: it * (2.0 + cg)  # noqa: E731 (local step + CG iterations)
+        return per(options["pd_iterations"], options["pd_cg_iterations"]) / per(
+            defaults["pd_iterations"], defaults["pd_cg_iterations"]
+        )
+
     self_contact_filter: ClassVar[str] = "gap"  # contacts are constraints of its iterations
     options = (
         Option("pd_iterations", int, 10, "local/global iterations per time step (>= 1)", check=at_least_one),

@@ -6,7 +6,7 @@ s <- s + dt/6 (k1 + 2 k2 + 2 k3 + k4),   s = (x, v)
 
 import warp as wp
 
-from warpcloth.integrators.base import Integrator, scratch_like
+from warpcloth.integrators.base import EXPLICIT_STUDY_GRID, Integrator, scratch_like
 from warpcloth.integrators.forces import eval_forces
 from warpcloth.kernels import integrate as ik
 from warpcloth.sim.pins import apply_pins
@@ -14,6 +14,9 @@ from warpcloth.sim.pins import apply_pins
 
 class RK4(Integrator):
     name = "rk4"
+    explicit = True
+    study_grid = EXPLICIT_STUDY_GRID
+    free_fall = "exact"
     velocity_position_weight = 0.5  # x_new = x + dt v + dt^2/2 a: an acceleration moves x with weight 1/2
     force_evals_per_step = 4
     default_dt_factor = 1.0

@@ -27,6 +27,7 @@ before the first). Measurements behind each: docs/solvers.md, "vbd".
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 from typing import ClassVar
 
 import numpy as np
@@ -72,6 +73,17 @@ class VBD(IncrementSolver):
     """Vertex Block Descent (Chen et al. 2024): per-vertex 3 x 3 Newton, Gauss-Seidel by colour."""
 
     name: ClassVar[str] = "vbd"
+    study_grid: ClassVar[dict] = {
+        "full": ({"vbd_iterations": (1, 2, 4, 10, 20)}, (Fraction(1, 2), 1, 2, 4, 8)),
+        "quick": ({"vbd_iterations": (1, 4, 20)}, (Fraction(1, 2), 1, 4)),
+    }
+    free_motion_rtol: ClassVar[float] = 0.02  # the centroid moves by Gauss-Seidel sweeps and a correction
+
+    @classmethod
+    def relative_work(cls, options: dict) -> float:
+        """Sweeps per step against the default's."""
+        return options["vbd_iterations"] / cls.option_defaults()["vbd_iterations"]
+
     self_contact_filter: ClassVar[str] = "gap"  # contacts are constraints of its iterations
     options = (
         # 4 with a multigrid correction before each sweep (grid models): the 128 x 128 sheet's sag

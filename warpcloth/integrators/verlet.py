@@ -13,13 +13,16 @@ a switch or a change of dt.
 
 import warp as wp
 
-from warpcloth.integrators.base import Integrator, scratch_like
+from warpcloth.integrators.base import EXPLICIT_STUDY_GRID, Integrator, scratch_like
 from warpcloth.integrators.forces import eval_forces
 from warpcloth.kernels import integrate as ik
 
 
 class Verlet(Integrator):
     name = "verlet"
+    explicit = True
+    study_grid = EXPLICIT_STUDY_GRID
+    free_fall = "exact"  # primed with d = h v - h^2 a / 2
     force_evals_per_step = 1
     default_dt_factor = 0.9
 

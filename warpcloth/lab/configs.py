@@ -2,7 +2,7 @@
 each integrator's options x its time step, a :class:`Config` each, from :func:`configurations`.
 
 A step is dt = (1/60 s) / k, k a whole number of steps per 60 FPS frame or k = 1/2 (dt =
-1/30 s). Per integrator (the grids of :data:`GRIDS`, per plan level ``full`` / ``quick``):
+1/30 s). Per integrator (its ``study_grid``, per plan level ``full`` / ``quick``):
 
 * explicit schemes (explicit_euler, midpoint, verlet, rk4): no knobs but dt, at fractions 1, 1/2,
   1/4, 1/8 of their max stable dt (rounded down to (1/60 s)/k);
@@ -21,45 +21,15 @@ import math
 from dataclasses import dataclass
 from fractions import Fraction
 
+from warpcloth.integrators import integrator_class
+from warpcloth.integrators.multigrid import MIN_COARSE_SIDE
 from warpcloth.lab.accuracy import FRAME_DT
-
-EXPLICIT = ("explicit_euler", "midpoint", "verlet", "rk4")
-
-#: Per integrator and level: (option grids {name: values}, steps per frame k or, for the explicit
-#: schemes, fractions of the max stable dt). Every combination is one configuration.
-GRIDS = {
-    "full": {
-        "explicit": ({}, (1, 2, 4, 8)),
-        "implicit_euler": (
-            {"preconditioner": ("jacobi", "multigrid"), "cg_tol": (1e-2, 1e-3, 1e-5)},
-            (Fraction(1, 2), 1, 2, 4, 8, 16),
-        ),
-        "pbd": ({"substeps": (1, 4, 16, 64, 256), "iterations": (1, 5, 20)}, (Fraction(1, 2), 1, 4)),
-        "xpbd": ({"substeps": (1, 4, 16, 64, 256), "iterations": (1, 5, 20)}, (Fraction(1, 2), 1, 4)),
-        "vbd": ({"vbd_iterations": (1, 2, 4, 10, 20)}, (Fraction(1, 2), 1, 2, 4, 8)),
-        "projective": ({"pd_iterations": (1, 5, 20), "pd_cg_iterations": (5, 20)}, (Fraction(1, 2), 1, 2, 4, 8)),
-    },
-    "quick": {
-        "explicit": ({}, (1, 2, 4)),
-        "implicit_euler": ({"preconditioner": ("jacobi", "multigrid"), "cg_tol": (1e-2, 1e-4)}, (Fraction(1, 2), 1, 4)),
-        "pbd": ({"substeps": (1, 16), "iterations": (1, 10)}, (Fraction(1, 2), 1)),
-        "xpbd": ({"substeps": (1, 16), "iterations": (1, 10)}, (Fraction(1, 2), 1)),
-        "vbd": ({"vbd_iterations": (1, 4, 20)}, (Fraction(1, 2), 1, 4)),
-        "projective": ({"pd_iterations": (1, 20), "pd_cg_iterations": (5, 20)}, (Fraction(1, 2), 1, 4)),
-    },
-}
-
-#: Options the study holds fixed outside the grids (a configuration's key does not name them).
-#: implicit_euler's strain cap (default 0.1, for scenes that land on colliders) is off: it would bind in
-#: the swing and the flag (structural and shear strain up to 0.20 at dt 1/30 s and 0.40 at 1/60 s on the
-#: 32 x 32 sheet without it), so a run with it is another configuration than the ones measured so far;
-#: the study measures the bare scheme (a grid over the cap would be its own axis).
-FIXED_OPTIONS = {"implicit_euler": {"strain_cap": 0.0}}
 
 
 def study_options(integrator: str, options: dict | None = None) -> dict:
-    """The options a study run of ``integrator`` gets: :data:`FIXED_OPTIONS`, then ``options``."""
-    return {**FIXED_OPTIONS.get(integrator, {}), **(options or {})}
+    """The options a study run of ``integrator`` gets: its
+    :attr:`~warpcloth.integrators.Integrator.study_fixed_options`, then ``options``."""
+    return {**integrator_class(integrator).study_fixed_options, **(options or {})}
 
 
 @dataclass(frozen=True)
@@ -95,25 +65,12 @@ class Config:
 
 
 def work(integrator: str, options: dict) -> float:
-    """Relative cost of one step of ``integrator`` with ``options`` against its defaults (1): the
-    iterations x substeps of the position-based schemes, vbd's and projective's iterations; for
-    pruning configurations, not a measurement."""
-    from warpcloth.integrators import integrator_class
-
-    defaults = {o.name: o.default for o in integrator_class(integrator).options}
-    o = {**defaults, **options}
-    if integrator in ("pbd", "xpbd"):
-        return o["substeps"] * o["iterations"] / (defaults["substeps"] * defaults["iterations"])
-    if integrator == "vbd":
-        return o["vbd_iterations"] / defaults["vbd_iterations"]
-    if integrator == "projective":
-        per = lambda it, cg: it * (2.0 + cg)  # noqa: E731 (local step + CG iterations)
-        return per(o["pd_iterations"], o["pd_cg_iterations"]) / per(
-            defaults["pd_iterations"], defaults["pd_cg_iterations"]
-        )
-    if integrator == "implicit_euler":
-        return max(1.0, math.log10(1e-3 / o["cg_tol"]) / 3.0 + 1.0) if o["cg_tol"] < 1e-3 else 1.0
-    return 1.0
+    """Relative cost of one step of ``integrator`` with ``options`` against its defaults (1), as the
+    scheme declares it (:meth:`~warpcloth.integrators.Integrator.relative_work`: the iterations x
+    substeps of the position-based schemes, vbd's and projective's iterations); for pruning
+    configurations, not a measurement."""
+    cls = integrator_class(integrator)
+    return cls.relative_work({**cls.option_defaults(), **options})
 
 
 def steps_for(dt: float) -> int:
@@ -124,17 +81,16 @@ def steps_for(dt: float) -> int:
 
 
 def configurations(integrator: str, stable_dt: float | None, level: str = "full", n: int | None = None) -> list[Config]:
-    """Every configuration of ``integrator`` at ``level`` (:data:`GRIDS`), cheapest (by
+    """Every configuration of ``integrator`` at ``level`` (its
+    :attr:`~warpcloth.integrators.Integrator.study_grid`), cheapest (by
     :meth:`Config.work`) first. ``stable_dt``: the max stable dt [s] (None: not stable at any
     dt searched), from which the explicit schemes' steps are fractions; the others take their
     steps as they are (a step above their max stable dt runs, and is recorded unstable). ``n``:
     the grid's side; below the multigrid's smallest grid, no multigrid preconditioner (it would
     fall back to block Jacobi)."""
-    from warpcloth.integrators.multigrid import MIN_COARSE_SIDE
-
-    grids = GRIDS[level]
-    explicit = integrator in EXPLICIT
-    options, steps = grids["explicit" if explicit else integrator]
+    cls = integrator_class(integrator)
+    explicit = cls.explicit
+    options, steps = cls.study_grid[level]
     if n is not None and n < 2 * MIN_COARSE_SIDE - 1 and "preconditioner" in options:
         options = {**options, "preconditioner": tuple(p for p in options["preconditioner"] if p != "multigrid")}
     if explicit:
@@ -155,9 +111,9 @@ def static_configurations(integrator: str, stable_dt: float | None) -> list[Conf
     """The configurations of ``integrator`` run to rest on the contact transient, at its default
     options: at 1/60 s and 1/240 s, or for an explicit scheme at its max stable dt alone (its
     steps are small already: a run to rest is thousands of them)."""
-    if integrator in EXPLICIT:
+    if integrator_class(integrator).explicit:
         return [] if stable_dt is None else [Config(integrator, (), Fraction(steps_for(stable_dt)))]
     return [Config(integrator, (), Fraction(1)), Config(integrator, (), Fraction(4))]
 
 
-__all__ = ["Config", "EXPLICIT", "GRIDS", "configurations", "static_configurations", "steps_for", "work"]
+__all__ = ["Config", "configurations", "static_configurations", "steps_for", "study_options", "work"]

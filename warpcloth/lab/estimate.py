@@ -8,8 +8,9 @@ import math
 import os
 from dataclasses import dataclass
 
+from warpcloth.integrators import integrator_class
 from warpcloth.lab.accuracy import FRAME_DT, SCIPY_MAX_SIZE
-from warpcloth.lab.configs import EXPLICIT, configurations, static_configurations, steps_for, study_options, work
+from warpcloth.lab.configs import configurations, static_configurations, steps_for, study_options, work
 from warpcloth.lab.plan import StudyPlan
 from warpcloth.lab.transients import DYNAMIC, TRANSIENTS
 
@@ -130,7 +131,7 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
             counts["ref"] += 1
         for i in plan.integrators:
             k0, ms = costs[(i, n)]
-            explicit = i in EXPLICIT
+            explicit = integrator_class(i).explicit
             dt0 = FRAME_DT / k0
             trial = plan.maxdt_duration_at(n) / (1.5 * dt0 if explicit else dt0) * ms / 1000.0
             trial = min(trial, plan.maxdt_wall_cap) if plan.maxdt_wall_cap else trial

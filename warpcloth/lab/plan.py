@@ -24,7 +24,7 @@ class StudyPlan:
 
     ``windows``: per dynamic transient, ((n_min, frames), ...): the window from size n_min up, in
     1/60 s frames (even: dt = 1/30 s runs compare every other frame); ``level``: the
-    configuration grids (``full`` / ``quick``, :data:`~warpcloth.lab.configs.GRIDS`);
+    configuration grids (``full`` / ``quick``, each integrator's ``study_grid``);
     ``run_wall_cap``: a configuration predicted to take longer than this [s] per run, or
     ``max_frame_ms`` per 1/60 s frame (15x the whole frame by default: no budget question reaches
     it), is not run (a row

@@ -16,6 +16,7 @@ import math
 import os
 import sys
 
+from warpcloth.integrators import integrator_class
 from warpcloth.io.files import AtomicFile, write_atomic
 from warpcloth.io.provenance import machine
 from warpcloth.lab.accuracy import FLOOR_FRACTION, STRETCHY, TOLERANCES, refused
@@ -802,13 +803,15 @@ def sharing_lines(rows: list) -> list:
 
 def method_lines(plan) -> list[str]:
     m = STUDY_MATERIAL
-    from warpcloth.lab.configs import GRIDS
-
     windows = "; ".join(
         f"{t}: " + ", ".join(f"{fr / 60:.3g} s from {n}x{n}" if n else f"{fr / 60:.3g} s" for n, fr in sorted(w))
         for t, w in plan.windows
     )
-    grids = GRIDS[plan.level]
+    classes = {i: integrator_class(i) for i in plan.integrators}
+    explicit = {}  # the explicit schemes by their fractions of the max stable dt
+    for i, cls in classes.items():
+        if cls.explicit:
+            explicit.setdefault(cls.study_grid[plan.level][1], []).append(i)
     return [
         f"- Profile `{plan.profile}`: integrators {', '.join(plan.integrators)}; n x n cloths at n = "
         f"{', '.join(map(str, plan.all_sizes))}, every size measured for accuracy.",
@@ -835,15 +838,22 @@ def method_lines(plan) -> list[str]:
         f"window), per metric; a verdict at tolerance t is refused where the floor exceeds {FLOOR_FRACTION:g} t.",
         "- **Configurations** (level `"
         + plan.level
-        + "`): explicit schemes at fractions "
-        + ", ".join(f"1/{f}" for f in grids["explicit"][1])
-        + " of their max stable dt; "
+        + "`): "
         + "; ".join(
-            f"{i}: "
-            + " x ".join(f"{k} {{{', '.join(map(str, v))}}}" for k, v in sorted(grids[i][0].items()))
-            + f" x dt 1/60 s / k, k {{{', '.join(str(k) for k in grids[i][1])}}}"
-            for i in grids
-            if i != "explicit"
+            [
+                f"{', '.join(names)} at fractions " + ", ".join(f"1/{f}" for f in fractions) + " of their max stable dt"
+                for fractions, names in explicit.items()
+            ]
+            + [
+                f"{i}: "
+                + " x ".join(
+                    f"{k} {{{', '.join(map(str, v))}}}" for k, v in sorted(cls.study_grid[plan.level][0].items())
+                )
+                + (" x " if cls.study_grid[plan.level][0] else "")
+                + f"dt 1/60 s / k, k {{{', '.join(str(k) for k in cls.study_grid[plan.level][1])}}}"
+                for i, cls in classes.items()
+                if not cls.explicit
+            ]
         )
         + f". A configuration predicted to take more than {plan.run_wall_cap:g} s per run is not run "
         "(its row says so).",
