@@ -29,17 +29,8 @@ LAYERS = [
     (7, "lab", ("warpcloth.lab",)),
     (8, "cli", ("warpcloth.cli", "warpcloth.__main__")),
 ]
-#: The package face: ``warpcloth`` itself and the forwarding modules kept for one release. Users
-#: import it; nothing inside the package does.
-FACE = (
-    "warpcloth",
-    "warpcloth.harness",
-    "warpcloth.model",
-    "warpcloth.colliders",
-    "warpcloth.usd",
-    "warpcloth.meshio",
-    "warpcloth.forces",
-)
+#: The package face: ``warpcloth`` itself. Users import it; nothing inside the package does.
+FACE = ("warpcloth",)
 
 #: The optional extras (``warpcloth[plot]``, ``warpcloth[cluster]``): imported inside the
 #: functions that use them, so that everything else works without them.

@@ -11,7 +11,7 @@ Control (the float32 parameters converted exactly):
 - gravity ``m g`` and linear drag ``-m c v`` (``c = Control.drag_rate`` [1/s], the form of
   ``kernels/forces.py:eval_particle_forces``);
 - wind on each triangle ``f = c_w A (n . (W(t) - v_mean)) n``, a third on each vertex, W(t) the
-  piecewise-constant :class:`~warpcloth.forces.WindSchedule` (its host values, float64);
+  piecewise-constant :class:`~warpcloth.sim.control.WindSchedule` (its host values, float64);
 - pinned particles (in ``model.pinned`` or of inverse mass 0) keep x0 and v0, as in the float32
   integrators and the SciPy reference; pinned particles on a pin track of ``control.pin_tracks``
   take the track's position and velocity, evaluated in float64 on the device at every RK stage
