@@ -186,7 +186,7 @@ def run(args) -> int:
     rows, floors = [], {}
     for k, (device, size, name, graph) in enumerate(combos):
         if args.roofline and (device, size) not in floors:
-            floors[(device, size)] = roofline_ms(lab_bench._build(args.scenario, size, device).model)
+            floors[(device, size)] = roofline_ms(lab_bench.build_sim(args.scenario, size, device).model)
         what = f"{name} {args.scenario if size is None else f'{size}x{size}'} on {device}{' (graph)' if graph else ''}"
         if progress.tty:
             progress.update(k, len(combos), note=what, force=True)

@@ -9,7 +9,7 @@ import json
 
 from warpcloth.cli.model import add_integrator_options, integrator_options_from_args
 from warpcloth.errors import WarpclothError
-from warpcloth.run.params import BY_NAME, PARAMS, _argparse_type, add_flags, cli_value
+from warpcloth.run.params import BY_NAME, PARAMS, add_flags, argparse_type, cli_value
 
 
 def _target(text: str) -> tuple[str, float]:
@@ -44,7 +44,7 @@ MATERIAL_FLAGS = tuple(p.name for p in PARAMS if p.group == "material" and p.nam
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "material",
-        type=_argparse_type(BY_NAME["material"]),
+        type=argparse_type(BY_NAME["material"]),
         help="the material to start from: a preset ('warpcloth list'), or custom with --density, --stretch, --shear "
         "and --bend-rigidity",
     )

@@ -94,11 +94,11 @@ class ColliderPoses:
         self.rotations: list[tuple] = []
 
     def add(self, t: float) -> None:
-        from warpcloth.sim.colliders import _matrix_quat
+        from warpcloth.sim.colliders import matrix_quat
 
         r, shift = self.collider.track.pose(float(t))
         self.translations.append(shift)
-        self.rotations.append(_matrix_quat(r))
+        self.rotations.append(matrix_quat(r))
 
     def record(self) -> dict:
         """``translation``: uint16 x y z a frame within [``translationMin``, ``translationMax``]

@@ -225,10 +225,10 @@ class ColliderPrims:
     def _mesh_pose(c, sim_time: float):
         """(translate, orient (w, x, y, z)) of a mesh on a track at ``sim_time``: its points stay as
         given and the track's transform y -> R y + T moves them."""
-        from warpcloth.sim.colliders import _matrix_quat
+        from warpcloth.sim.colliders import matrix_quat
 
         r, shift = c.track.pose(float(sim_time))
-        x, y, z, w = _matrix_quat(r)
+        x, y, z, w = matrix_quat(r)
         return shift, (w, x, y, z)
 
     def _set(self, c, ops, code, pose=None) -> None:

@@ -131,7 +131,7 @@ def roofline_ms(model, repeats: int = 50) -> float:
     return 1000.0 * float(np.median(times))
 
 
-def _build(scenario: str, size: int | None, device: str, **kwargs):
+def build_sim(scenario: str, size: int | None, device: str, **kwargs):
     """A Simulator of ``scenario``: a size x size grid, or the scenario's own mesh (``size`` None)."""
     from warpcloth.scenarios import get_scenario
 
@@ -157,7 +157,7 @@ def bench_one(
     from warpcloth.run.harness import time_steps
     from warpcloth.version import __version__
 
-    sim = _build(scenario, size, device, integrator=integrator)
+    sim = build_sim(scenario, size, device, integrator=integrator)
     sim.use_graph = graph
     if graph and not sim.graph_enabled:
         raise WarpclothError(f"graph capture unavailable for {integrator} on {device}")

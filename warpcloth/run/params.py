@@ -1093,7 +1093,7 @@ def params_for(command: str) -> list[Param]:
 
 
 # -- CLI ------------------------------------------------------------------------------------
-def _argparse_type(param: Param):
+def argparse_type(param: Param):
     def convert(text: str):
         try:
             return param.parse(text)
@@ -1116,7 +1116,7 @@ def add_flags(parser: argparse.ArgumentParser, command: str, skip: tuple = (), e
     }
     for p in chosen:
         if p.positional:
-            parser.add_argument(p.name, type=_argparse_type(p), help=p.help)
+            parser.add_argument(p.name, type=argparse_type(p), help=p.help)
             continue
         group = groups[p.group]
         if exclusive and p.name in exclusive:
@@ -1136,7 +1136,7 @@ def add_flags(parser: argparse.ArgumentParser, command: str, skip: tuple = (), e
         kwargs = (
             {"choices": list(p.choices)}
             if p.choices
-            else {"type": p.cli_type or _argparse_type(p), "metavar": p.metavar or p.name.upper()}
+            else {"type": p.cli_type or argparse_type(p), "metavar": p.metavar or p.name.upper()}
         )
         group.add_argument(
             p.flag,
@@ -1272,6 +1272,7 @@ __all__ = [
     "csv_columns",
     "markdown_table",
     "params_for",
+    "argparse_type",
 ]
 
 

@@ -33,9 +33,9 @@ from warpcloth.kernels import edge_contact as ek
 from warpcloth.sim.colliders import (
     COLLIDER_TYPES,
     KINDS,
-    _quat_matrix,
     auto_edge_radius,
     describe,
+    quat_matrix,
     signed_distance,
 )
 
@@ -542,7 +542,7 @@ def _record(c, mesh=None, creases=None):
     else:
         r.a = r.bound_center = wp.vec3(*c.center)
         r.b = wp.vec3(*c.half_extents)
-        r.rotation = wp.mat33(_quat_matrix(c.rotation).astype(np.float32))
+        r.rotation = wp.mat33(quat_matrix(c.rotation).astype(np.float32))
         r.rounding = c.rounding(0.0)  # edge_radius None: 0 until bind_model
     r.velocity = r.omega = r.origin = wp.vec3(0.0, 0.0, 0.0)
     r.moving = 0
