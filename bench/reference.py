@@ -19,7 +19,7 @@ import warp as wp
 from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator
-from warpcloth.lab import (
+from warpcloth.lab.reference import (
     cloth_size,
     convergence_check,
     reference_trajectory,

@@ -117,7 +117,7 @@ def test_new_flags_from_declarations_work_on_the_cli(tmp_path, capsys):
 def test_per_type_cli_flags_reach_the_model():
     from warpcloth.scenarios import get_scenario
 
-    from warpcloth.cli import config_from_args
+    from warpcloth.cli.model import config_from_args
     from warpcloth.sim.model import SpringType
 
     parser = build_parser()

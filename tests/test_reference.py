@@ -14,7 +14,7 @@ from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator, SpringType, WarpclothError, WindSchedule, build_grid_cloth
 from warpcloth.integrators.forces import eval_forces
-from warpcloth.lab import (
+from warpcloth.lab.reference import (
     Float64Model,
     cloth_size,
     convergence_check,

@@ -310,7 +310,8 @@ def test_the_shipped_example_scenario_file_runs(capsys):
 # -- issue 31: every key of a scenario file honoured or refused --------------------------------
 def _model_ks(path, *argv):
     """The per-type stiffness of the model a run of the file builds, with ``argv`` flags."""
-    from warpcloth.cli import build_parser, config_from_args
+    from warpcloth.cli import build_parser
+    from warpcloth.cli.model import config_from_args
 
     args = build_parser().parse_args(["run", str(path), *argv])
     scenario = get_scenario(str(path))
