@@ -8,8 +8,14 @@ import os
 import sys
 
 from warpcloth.cli.model import DefaultDtExplained, add_model_arguments, check_spacing, config_from_args
-from warpcloth.cli.parse import Parser, add_verbose, guarded
 from warpcloth.errors import WarpclothError
+from warpcloth.io.files import sweep_stale_temporaries
+from warpcloth.io.player import HtmlWriter, check_html_path
+from warpcloth.io.preview import PreviewWriter, check_preview_path
+from warpcloth.io.progress import RunProgress
+from warpcloth.io.provenance import provenance
+from warpcloth.io.usd import clip_folder_of, usd_frames
+from warpcloth.scenarios import get_scenario
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -111,8 +117,6 @@ EXIT_UNSTABLE = 3
 def output_writers(scenario_name: str, args) -> list:
     """Check every output path of a run (before any work) and return the writer factories
     ``(sim, cfg) -> writer`` that :meth:`Scenario.run` calls once the model is built."""
-    from warpcloth.io.files import sweep_stale_temporaries
-    from warpcloth.io.provenance import provenance
 
     argv = getattr(args, "argv", None)
     paths, writers = [], []
@@ -126,13 +130,9 @@ def output_writers(scenario_name: str, args) -> list:
         return provenance(sim, scenario_name, cfg.fps, argv, prefix=prefix)
 
     if getattr(args, "preview", None) is not None:  # "" is an error (the path check), not "no preview"
-        from warpcloth.io.preview import check_preview_path
-
         check_preview_path(args.preview)  # also: matplotlib installed
         paths.append(args.preview)
     if args.usd is not None:
-        from warpcloth.io.usd import usd_frames
-
         writers.append(
             usd_frames(
                 args.usd, getattr(args, "usd_color", "none"), info, colliders=getattr(args, "usd_colliders", "guide")
@@ -140,8 +140,6 @@ def output_writers(scenario_name: str, args) -> list:
         )  # the path is checked now
         paths.append(args.usd)
     if getattr(args, "html", None) is not None:
-        from warpcloth.io.player import HtmlWriter, check_html_path
-
         check_html_path(args.html)
         paths.append(args.html)
         writers.append(
@@ -157,8 +155,6 @@ def output_writers(scenario_name: str, args) -> list:
             )
         )
     if getattr(args, "preview", None) is not None:
-        from warpcloth.io.preview import PreviewWriter
-
         writers.append(
             lambda sim, cfg: PreviewWriter(
                 args.preview,
@@ -180,7 +176,6 @@ def _clips_note(path: str, usd: str | None) -> str:
     """For a USD file whose samples went to value clips: where they are (the file alone opens empty)."""
     if path != usd:
         return ""
-    from warpcloth.io.usd import clip_folder_of
 
     folder, count = clip_folder_of(path)
     if folder is None:
@@ -190,15 +185,12 @@ def _clips_note(path: str, usd: str | None) -> str:
 
 def run_scenario(scenario_name: str, args) -> int:
     """Run the scenario ``scenario_name`` with the flags ``args``; the exit status."""
-    from warpcloth.scenarios import get_scenario
 
     scenario = get_scenario(scenario_name)
     cfg = config_from_args(scenario, args)
     check_spacing(scenario, cfg)
     writers = output_writers(scenario_name, args)
     if not getattr(args, "quiet", False):
-        from warpcloth.io.progress import RunProgress
-
         writers.insert(0, lambda sim, cfg: RunProgress(cfg.duration, label=f"run {scenario_name}"))
     with DefaultDtExplained(args):
         result = scenario.run(cfg, wall_cap=args.wall_cap, writers=writers)

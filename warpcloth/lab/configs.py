@@ -21,6 +21,8 @@ import math
 from dataclasses import dataclass
 from fractions import Fraction
 
+from warpcloth.integrators import integrator_class
+from warpcloth.integrators.multigrid import MIN_COARSE_SIDE
 from warpcloth.lab.accuracy import FRAME_DT
 
 EXPLICIT = ("explicit_euler", "midpoint", "verlet", "rk4")
@@ -98,7 +100,6 @@ def work(integrator: str, options: dict) -> float:
     """Relative cost of one step of ``integrator`` with ``options`` against its defaults (1): the
     iterations x substeps of the position-based schemes, vbd's and projective's iterations; for
     pruning configurations, not a measurement."""
-    from warpcloth.integrators import integrator_class
 
     defaults = {o.name: o.default for o in integrator_class(integrator).options}
     o = {**defaults, **options}
@@ -130,7 +131,6 @@ def configurations(integrator: str, stable_dt: float | None, level: str = "full"
     steps as they are (a step above their max stable dt runs, and is recorded unstable). ``n``:
     the grid's side; below the multigrid's smallest grid, no multigrid preconditioner (it would
     fall back to block Jacobi)."""
-    from warpcloth.integrators.multigrid import MIN_COARSE_SIDE
 
     grids = GRIDS[level]
     explicit = integrator in EXPLICIT

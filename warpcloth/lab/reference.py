@@ -36,6 +36,7 @@ from scipy.integrate import solve_ivp
 from scipy.sparse.linalg import MatrixRankWarning, spsolve
 
 from warpcloth.errors import WarpclothError, require, require_positive
+from warpcloth.sim.colliders import Plane, Sphere
 from warpcloth.sim.control import Control, WindSchedule
 
 
@@ -410,7 +411,6 @@ class _Penalty:
     particle, phi = max(0, penetration) of the collider's surface offset by its thickness."""
 
     def __init__(self, colliders, kappa: float):
-        from warpcloth.sim.colliders import Plane, Sphere
 
         self.kappa = float(kappa)
         self.spheres, self.planes = [], []

@@ -42,6 +42,7 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_int, require_positive
+from warpcloth.kernels import reference64
 from warpcloth.lab.reference import Float64Model, cloth_size, frame_count, initial_state, wind_switch_times
 from warpcloth.sim.pins import KinematicPins, PinTrack
 
@@ -56,7 +57,6 @@ DEFAULT_MAX_HALVINGS = 3
 
 
 def _kernels():
-    from warpcloth.kernels import reference64
 
     return reference64
 

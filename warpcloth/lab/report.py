@@ -19,6 +19,7 @@ import sys
 from warpcloth.io.files import AtomicFile, write_atomic
 from warpcloth.io.provenance import machine
 from warpcloth.lab.accuracy import FLOOR_FRACTION, STRETCHY, TOLERANCES, refused
+from warpcloth.lab.configs import GRIDS
 from warpcloth.lab.frontier import Point, budget_frontier, cheapest, pareto_front
 from warpcloth.lab.plan import DEFAULT_BUDGET_MS, WHOLE_FRAME_MS
 from warpcloth.lab.results import COLUMN_DOCS, COLUMNS, MESH_NOTE
@@ -802,7 +803,6 @@ def sharing_lines(rows: list) -> list:
 
 def method_lines(plan) -> list[str]:
     m = STUDY_MATERIAL
-    from warpcloth.lab.configs import GRIDS
 
     windows = "; ".join(
         f"{t}: " + ", ".join(f"{fr / 60:.3g} s from {n}x{n}" if n else f"{fr / 60:.3g} s" for n, fr in sorted(w))

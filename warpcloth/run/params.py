@@ -34,8 +34,11 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from warpcloth.errors import FLOAT32_MAX, WarpclothError
+from warpcloth.integrators import integrator_names
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 from warpcloth.run.parse import collider_specs
+from warpcloth.sim.device import device_name
+from warpcloth.sim.material import PRESETS
 
 SPRING_TYPES = ("structural", "shear", "bend")
 
@@ -219,7 +222,6 @@ def choice(*choices: str, what: str):
 
 
 def integrator(text: str) -> str:
-    from warpcloth.integrators import integrator_names
 
     names = integrator_names()
     if text != "all" and text not in names:
@@ -234,7 +236,6 @@ def scenario(text: str) -> str:
 
 
 def device(text: str) -> str:
-    from warpcloth.sim.device import device_name
 
     try:
         return device_name(text)
@@ -302,7 +303,6 @@ def angle(text: str) -> float:
 
 def material_name(text: str) -> str:
     """A material preset (:data:`warpcloth.sim.material.PRESETS`), ``custom`` or ``none``."""
-    from warpcloth.sim.material import PRESETS
 
     name = text.strip().lower()
     if name not in (*PRESETS, "custom", "none"):

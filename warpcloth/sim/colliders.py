@@ -19,6 +19,7 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive, require_vector
+from warpcloth.sim.mesh import check_mesh
 from warpcloth.sim.tracks import FrameDrive, HostWrite, Track, check_keyframes, check_rigid
 
 #: Collider kinds in the order of their kernel launches (the kernels' ``kind`` argument).
@@ -455,7 +456,6 @@ class MeshCollider(_Posed):
     edge_radius: float | None = None
 
     def __post_init__(self):
-        from warpcloth.sim.mesh import check_mesh
 
         what = f"mesh collider {self.source!r}" if self.source else "mesh collider"
         if (

@@ -38,6 +38,7 @@ from warpcloth.sim.colliders import (
     quat_matrix,
     signed_distance,
 )
+from warpcloth.sim.mesh import mesh_topology
 
 
 class ColliderSet:
@@ -280,7 +281,6 @@ class ColliderEdges:
     passes_after_limit = 8
 
     def __init__(self, model, collision: ColliderSet):
-        from warpcloth.sim.mesh import mesh_topology
 
         self.model, self.collision = model, collision
         tris = np.asarray(model.host["tris"], dtype=np.int64).reshape(-1, 3)
@@ -400,7 +400,6 @@ def _mesh_features(vertices, triangles):
     float64. Edges between coplanar faces (a face's diagonal: normals within 2.6 degrees) are not
     features: the face holds the cloth there, as the analytic box's faces do; an open edge (one face)
     is one."""
-    from warpcloth.sim.mesh import mesh_topology
 
     p = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
