@@ -16,7 +16,6 @@ import time
 
 import numpy as np
 import warp as wp
-from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator
 from warpcloth.lab.reference import (
@@ -28,6 +27,7 @@ from warpcloth.lab.reference import (
     swing_from_horizontal,
     trajectory_error,
 )
+from warpcloth.scenarios import flag, sheet
 
 
 def _run(model, integrator, dt, control, x0, duration, frame_dt):

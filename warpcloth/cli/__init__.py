@@ -58,6 +58,7 @@ COMMANDS = {
     ),
 }
 
+
 def _module(command: str):
     return importlib.import_module(COMMANDS[command][0])
 
