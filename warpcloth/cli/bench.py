@@ -51,7 +51,6 @@ MAX_BENCH_SECONDS = 86400.0
 
 def _seconds(text: str) -> float:
     """``--seconds``: a finite number of wall seconds > 0, at most :data:`MAX_BENCH_SECONDS`."""
-
     try:
         value = positive(text)
     except ValueError as exc:
@@ -109,7 +108,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-
     if args.integrators is None:
         names = integrator_names()
     else:

@@ -16,7 +16,6 @@ from warpcloth.sim.material import material_with
 
 
 def _target(text: str) -> tuple[str, float]:
-
     name, sep, value = text.partition("=")
     if not sep or name.strip() not in TARGETS:
         raise argparse.ArgumentTypeError(
@@ -30,7 +29,6 @@ def _target(text: str) -> tuple[str, float]:
 
 
 def _unknowns(text: str) -> tuple:
-
     names = tuple(s.strip() for s in text.split(","))
     bad = [n for n in names if n not in UNKNOWNS]
     if bad:
@@ -91,7 +89,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-
     integrator_class(args.integrator or "implicit_euler")  # an unknown name: one line
     options = integrator_options_from_args(args.integrator or "implicit_euler", args)
     values = {name: cli_value(BY_NAME[name], args) for name in MATERIAL_FLAGS}

@@ -24,7 +24,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-
     report = check_usd(check_input_file(args.file, "USD file"), cloth=args.cloth, colliders=args.colliders)
     if args.json:
         print(

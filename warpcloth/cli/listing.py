@@ -25,7 +25,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def examples_dir() -> str:
     """The folder of the XML test lists shipped in the package (``warpcloth.examples``)."""
-
     return os.path.dirname(os.path.abspath(examples.__file__))
 
 
@@ -43,7 +42,6 @@ def example_path(name: str) -> str:
 
 
 def _print_examples() -> None:
-
     for kind, path in example_files():
         name = os.path.splitext(os.path.basename(path))[0]
         print(f"{kind + ':':15s}{name:12s} {path}")
@@ -56,7 +54,6 @@ def _print_examples() -> None:
 
 
 def run(args) -> int:
-
     if getattr(args, "examples", False):
         if not args.quiet:
             _print_examples()
@@ -82,7 +79,6 @@ def run(args) -> int:
 
 def material_lines() -> list[str]:
     """One line per material preset: density, stretch, shear, bending rigidity and length, source."""
-
     lines = []
     for name, m in PRESETS.items():
         stretch = (

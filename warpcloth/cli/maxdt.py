@@ -23,7 +23,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-
     scenario = get_scenario(args.scenario)
     cfg = config_from_args(scenario, args, "max-dt")
     check_spacing(scenario, cfg)

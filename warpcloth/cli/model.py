@@ -21,7 +21,6 @@ def add_model_arguments(p: argparse.ArgumentParser, command: str = "max-dt", exc
 
 def add_integrator_options(p: argparse.ArgumentParser) -> None:
     """One flag per integrator option, declared by the integrators themselves."""
-
     group = p.add_argument_group("integrator options")
     for name, (opt, owners) in all_options().items():
         kwargs = {"choices": list(opt.choices)} if opt.choices else {}
@@ -38,7 +37,6 @@ def add_integrator_options(p: argparse.ArgumentParser) -> None:
 
 def integrator_options_from_args(integrator: str, args) -> dict:
     """Options given on the command line for ``integrator``; an option it does not take is an error."""
-
     taken = {o.name for o in integrator_class(integrator).options}
     out = {}
     for name, (opt, owners) in all_options().items():
@@ -60,7 +58,6 @@ def param_values(args, command: str) -> dict:
 
 def config_from_args(scenario, args, command: str = "run"):
     """A ScenarioConfig from parsed flags (unset flags keep the scenario defaults)."""
-
     values = param_values(args, command)
     if values.get("integrator") is not None and not values["integrator"].strip():
         raise WarpclothError(f"--integrator is empty; choose one of {', '.join(integrator_names())}")

@@ -117,7 +117,6 @@ EXIT_UNSTABLE = 3
 def output_writers(scenario_name: str, args) -> list:
     """Check every output path of a run (before any work) and return the writer factories
     ``(sim, cfg) -> writer`` that :meth:`Scenario.run` calls once the model is built."""
-
     argv = getattr(args, "argv", None)
     paths, writers = [], []
 
@@ -185,7 +184,6 @@ def _clips_note(path: str, usd: str | None) -> str:
 
 def run_scenario(scenario_name: str, args) -> int:
     """Run the scenario ``scenario_name`` with the flags ``args``; the exit status."""
-
     scenario = get_scenario(scenario_name)
     cfg = config_from_args(scenario, args)
     check_spacing(scenario, cfg)

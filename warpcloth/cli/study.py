@@ -53,7 +53,6 @@ def _count():
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-
     p.add_argument(
         "--profile",
         default="quick",
@@ -147,7 +146,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-
     plan = make_plan(
         args.profile,
         integrators=args.integrators,

@@ -22,7 +22,6 @@ def _workers(text: str) -> int:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-
     p.add_argument("tests", metavar="TESTS.xml", nargs="?", default=None, help="the test list")
     p.add_argument(
         "--example",
@@ -69,7 +68,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-
     if (args.tests is None) == (args.example is None):
         raise WarpclothError(
             "give a test list (TESTS.xml) or --example NAME, not " + ("both" if args.tests else "neither")

@@ -95,7 +95,6 @@ class ColliderPoses:
         self.rotations: list[tuple] = []
 
     def add(self, t: float) -> None:
-
         r, shift = self.collider.track.pose(float(t))
         self.translations.append(shift)
         self.rotations.append(matrix_quat(r))

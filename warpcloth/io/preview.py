@@ -52,7 +52,6 @@ def collider_triangles(c, lo, hi, resolution: int = 16) -> np.ndarray:
     """(T, 3, 3) triangles [m] that draw collider ``c`` (as it is, static): a sphere or capsule
     of ``resolution`` segments round, a box's 12, a mesh's own (at most 4,000), a plane as a
     square around the box ``lo``..``hi`` (the cloth's bounds)."""
-
     if c.kind == "box":
         corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
         points = np.asarray(c.center) + (corners * np.asarray(c.half_extents)) @ quat_matrix(c.rotation).T

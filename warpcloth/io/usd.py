@@ -227,7 +227,6 @@ class ColliderPrims:
     def _mesh_pose(c, sim_time: float):
         """(translate, orient (w, x, y, z)) of a mesh on a track at ``sim_time``: its points stay as
         given and the track's transform y -> R y + T moves them."""
-
         r, shift = c.track.pose(float(sim_time))
         x, y, z, w = matrix_quat(r)
         return shift, (w, x, y, z)

@@ -414,7 +414,6 @@ class ContactProblem:
     sag against it."""
 
     def __init__(self, sim, transient, x_eq: np.ndarray | None = None):
-
         self.transient = transient
         self.size = cloth_size(sim.model)
         self.x0 = transient.start(sim.model)
@@ -440,7 +439,6 @@ class ContactProblem:
     def floor(self, sim, seeds=(0, 1)) -> dict:
         """The floor of the static metrics: the equilibrium solved again from itself moved by
         :data:`PERTURBATION` (2 seeds): a unique equilibrium comes back to within the solver's tolerance."""
-
         out = {}
         for seed in seeds:
             eq = contact_equilibrium(

@@ -88,7 +88,6 @@ def default_devices() -> list[str]:
 
 def roofline_ms(model, repeats: int = 50) -> float:
     """Median time [ms] of the speed-of-light force pass on ``model``'s device."""
-
     h = model.host
     order = np.argsort(h["pairs"][:, 0], kind="stable")
     pairs = h["pairs"][order]
@@ -137,7 +136,6 @@ def roofline_ms(model, repeats: int = 50) -> float:
 
 def build_sim(scenario: str, size: int | None, device: str, **kwargs):
     """A Simulator of ``scenario``: a size x size grid, or the scenario's own mesh (``size`` None)."""
-
     grid = {} if size is None else {"rows": size, "cols": size}
     return get_scenario(scenario).build(device=device, **grid, **kwargs)
 
@@ -156,7 +154,6 @@ def bench_one(
     mesh scenario's own mesh (``size`` None), with :func:`warpcloth.run.harness.time_steps`:
     ``windows`` timed windows of about ``seconds / windows`` each (or ``steps`` steps in all),
     warm-up and first replay excluded. Returns a CSV row (without cross-row columns)."""
-
     sim = build_sim(scenario, size, device, integrator=integrator)
     sim.use_graph = graph
     if graph and not sim.graph_enabled:

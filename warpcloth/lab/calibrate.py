@@ -109,7 +109,6 @@ class Calibration:
 
 
 def _presets():
-
     return PRESETS
 
 
@@ -142,7 +141,6 @@ def measure(
 ) -> dict:
     """What ``mat`` gives for each target, each by a scenario run to rest at ``size`` (particles along
     the cantilever strip; points across the Cusick disc; None: the scenario's) with ``integrator``."""
-
     out = {}
     for name, target in targets.items():
         scenario = get_scenario(TARGETS[name][1])

@@ -100,7 +100,6 @@ def work(integrator: str, options: dict) -> float:
     """Relative cost of one step of ``integrator`` with ``options`` against its defaults (1): the
     iterations x substeps of the position-based schemes, vbd's and projective's iterations; for
     pruning configurations, not a measurement."""
-
     defaults = {o.name: o.default for o in integrator_class(integrator).options}
     o = {**defaults, **options}
     if integrator in ("pbd", "xpbd"):
@@ -131,7 +130,6 @@ def configurations(integrator: str, stable_dt: float | None, level: str = "full"
     steps as they are (a step above their max stable dt runs, and is recorded unstable). ``n``:
     the grid's side; below the multigrid's smallest grid, no multigrid preconditioner (it would
     fall back to block Jacobi)."""
-
     grids = GRIDS[level]
     explicit = integrator in EXPLICIT
     options, steps = grids["explicit" if explicit else integrator]

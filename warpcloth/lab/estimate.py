@@ -52,7 +52,6 @@ class PhaseEstimate:
 
 def _omega(n: int, device: str) -> float:
     """The study sheet's highest frequency [rad/s] at n x n (Lanczos, as the reference)."""
-
     tr = TRANSIENTS["swing"]
     sim = tr.scenario.build(rows=n, cols=n, device="cpu", integrator="explicit_euler")
     return stability_limit(Float64Model.from_model(sim.model, sim.control), tr.start(sim.model)).rho
@@ -63,7 +62,6 @@ def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
     ``device`` at the integrator's default options and dt (one frame at most), and each size's
     highest frequency: ``{(integrator, n): (k0, ms), ("omega", n): rad/s}``. A few steps each after
     a warm-up; seconds to a minute in all."""
-
     out = {}
     sheet = TRANSIENTS["swing"].scenario
 

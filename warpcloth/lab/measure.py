@@ -147,14 +147,12 @@ class Measurements:
             self.on_row(row)
 
     def _scenario(self, scenario: str):
-
         for tr in TRANSIENTS.values():
             if tr.scenario.name == scenario:
                 return tr.scenario
         return get_scenario(scenario)
 
     def sim(self, scenario: str, n: int, device: str, integrator: str, options: dict | None = None):
-
         key = (scenario, n, device)
         sim = self._sims.get(key)
         if sim is None:
@@ -306,7 +304,6 @@ class Measurements:
         )
 
         def run():
-
             sc = self._scenario(scenario)
             size = {} if n is None else {"rows": n, "cols": n}
             r = find_max_dt(

@@ -537,7 +537,6 @@ class RayPool:
 def init_worker(place) -> None:
     """The ``init`` of the sweep's and the study's workers: run once in each worker process (local
     or Ray) before its first job: Warp initialised quietly."""
-
     init_warp(False)
 
 

@@ -71,7 +71,6 @@ class StudyPlan:
 
     def maxdt_duration_at(self, n: int) -> float:
         """The stability trial's simulated duration [s] at size ``n``: the swing's window there."""
-
         return self.window_frames("swing", n) * FRAME_DT
 
     @property
@@ -121,7 +120,6 @@ def make_plan(
     budget_ms=None,
 ) -> StudyPlan:
     """A :class:`StudyPlan` from a profile and explicit overrides (checked; one-line errors)."""
-
     if profile not in PROFILES:
         raise WarpclothError(f"unknown profile {profile!r}; choose one of {', '.join(PROFILES)}")
     names = integrator_names()
@@ -176,7 +174,6 @@ def check_memory(sizes, devices) -> None:
     """Refuse, before the first run, a size whose n x n cloth a device cannot hold (the grid's
     up-front estimate, :func:`~warpcloth.sim.grid.grid_memory_estimate`); a device that is not
     present is left to the study (it is reported and skipped there)."""
-
     for device in devices:
         try:
             resolve_device(device)

@@ -411,7 +411,6 @@ class _Penalty:
     particle, phi = max(0, penetration) of the collider's surface offset by its thickness."""
 
     def __init__(self, colliders, kappa: float):
-
         self.kappa = float(kappa)
         self.spheres, self.planes = [], []
         for c in colliders:

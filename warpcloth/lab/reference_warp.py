@@ -57,7 +57,6 @@ DEFAULT_MAX_HALVINGS = 3
 
 
 def _kernels():
-
     return reference64
 
 

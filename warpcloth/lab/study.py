@@ -98,7 +98,6 @@ class ParallelSettings:
     @classmethod
     def check(cls, devices: list, workers=None, ray=None, timing_workers=None) -> "ParallelSettings":
         """Validated settings for a study on ``devices``; WarpclothError names the bad value."""
-
         check_count("--workers", workers)
         check_count("--timing-workers", timing_workers)
         if ray is not None:
@@ -146,7 +145,6 @@ def study_job(payload, place) -> dict:
     """One device x integrator x size group in a worker (``phase`` ``search``: everything but
     the timings; ``timing``: the timings, the searches' rows given). ``known`` holds the rows
     already in the driver's file (resume, the search phase's). Returns ``{"rows": [...]}``."""
-
     plan_dict, device, integrator, n, phase, known, run_id = payload
     tag = json.dumps(plan_dict, sort_keys=True, default=list)
     study = _WORKER_STUDIES.get(tag)
@@ -170,7 +168,6 @@ def run_parallel(study: Measurements, settings: ParallelSettings, progress=None,
     """Run ``study``'s plan through worker processes or Ray (see :class:`ParallelSettings`;
     ``ray_pool``: a connected pool, see :func:`run_study`); the driver (this process) writes
     every row. Returns the number of groups that failed."""
-
     p = study.plan
     groups = plan_groups(p)
     total = max(2 * sum(_group_weight(p, n) for _, _, n in groups), 1e-9)
@@ -211,7 +208,6 @@ def run_parallel(study: Measurements, settings: ParallelSettings, progress=None,
 # -- the driver ------------------------------------------------------------------------------
 def available_devices(devices: list, stream=None) -> list:
     """The devices of ``devices`` that are present; each missing one is skipped with one line."""
-
     out = []
     for d in devices:
         try:
@@ -278,7 +274,6 @@ def run_study(
 def _run_study(
     plan, devices, settings, ray_pool, out_dir, resume, overwrite, progress, report, command, on_row
 ) -> dict:
-
     csv_path = prepare_out(out_dir)
     plan = replace(
         plan,

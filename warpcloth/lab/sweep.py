@@ -113,7 +113,6 @@ def parameter_row(spec: RunSpec) -> dict:
 
 def get_scenario_kind(name: str) -> str:
     """``grid`` or ``mesh``: what kind of cloth scenario ``name`` builds."""
-
     return "mesh" if get_scenario(name).is_mesh else "grid"
 
 
@@ -177,7 +176,6 @@ class MaxDtCache:
         self.on_trial = on_trial
 
     def get(self, spec: RunSpec):
-
         key = spec.search_key
         if key not in self._results:
             try:
@@ -204,7 +202,6 @@ class MaxDtCache:
 
 def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
     """Run ``spec`` and return its CSV row; never raises on a failing run (outcome ``error``)."""
-
     row = parameter_row(spec)
     try:
         dt = None

@@ -149,7 +149,6 @@ class RunSpec:
 
     def config(self, dt: float | None = None, duration: float | None = None):
         """The :class:`~warpcloth.scenarios.ScenarioConfig` of this run."""
-
         values = dict(self.values)
         for kind in ("stiffness", "damping"):  # a partial per-type value: the builder fills the rest
             v = values.get(kind)
@@ -209,7 +208,6 @@ MAX_TEST_LIST_BYTES = 16 * 2**20
 
 
 def _read_tree(path: str) -> tuple[_Source, _Element]:
-
     try:  # a regular file of bounded size, never a FIFO or a file of /proc, /dev
         data = read_input(path, "file", MAX_TEST_LIST_BYTES)
     except WarpclothError as exc:
@@ -309,7 +307,6 @@ def parse_test_list(path: str, max_runs: int = DEFAULT_MAX_RUNS) -> TestList:
 def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
     """Every attribute of ``el`` as a list of parsed values (old spellings mapped to their
     parameter, with a note); integrator options stay text."""
-
     options = all_options()
     declared = attributes()
     out: dict[str, list] = {}
@@ -368,7 +365,6 @@ def _expand(
     max_runs: int = DEFAULT_MAX_RUNS,
 ) -> list[RunSpec]:
     """The runs of one ``test``: the product of its value lists, for each scenario."""
-
     what = f"test {test_id!r}"
     values = {**defaults, **own}
 

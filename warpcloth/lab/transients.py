@@ -75,7 +75,6 @@ def material_grid_model(cfg: ScenarioConfig, device, origin, pins, mat: Material
     """A ClothModel of ``mat`` on cfg.rows x cfg.cols particles over cfg.width x cfg.height [m]
     in the vertical plane, particle [0, 0] at ``origin``, ``pins`` pinned (Provot bend springs
     with the material's approximate rule)."""
-
     rows, cols = int(cfg.rows), int(cfg.cols)
     q = grid_positions(rows, cols, cfg.width, cfg.height, origin, "vertical")
     springs = grid_spring_params(mat, rows, cols, cfg.width, cfg.height, bend=BendModel.PROVOT)
@@ -124,7 +123,6 @@ def _sheet_control(cfg, device) -> Control:
 
 
 def _flag_control(cfg, device) -> Control:
-
     return Control(
         drag_rate=0.0 if cfg.drag is None else cfg.drag,
         wind_coefficient=WIND_COEFFICIENT,

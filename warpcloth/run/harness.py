@@ -541,7 +541,6 @@ class RunHarness:
     def _check_start(self, sim) -> list:
         """Before a run: one warning line per collider that free vertices start inside (they
         are thrown out at the first step); returns those colliders (the unstable cause)."""
-
         colliders = sim.control.colliders
         if not colliders:
             return []
@@ -559,7 +558,6 @@ class RunHarness:
     def _check_rounded_edges(self, sim, free, inside: set) -> None:
         """One warning line per box whose rounded edges (Box.edge_radius, docs/colliders.md) free
         vertices start within: the first step pushes them out to the radius at once."""
-
         contacts = sim.control.collision
         contacts.bind_model(sim.model)  # the boxes' radius for this cloth (once per model)
         x = sim.state.particle_q.numpy().astype(np.float64)[free]

@@ -222,7 +222,6 @@ def choice(*choices: str, what: str):
 
 
 def integrator(text: str) -> str:
-
     names = integrator_names()
     if text != "all" and text not in names:
         raise ValueError(f"unknown integrator {_shown(text)}; choose from {', '.join(names)} (or 'all' in a test list)")
@@ -236,7 +235,6 @@ def scenario(text: str) -> str:
 
 
 def device(text: str) -> str:
-
     try:
         return device_name(text)
     except WarpclothError as exc:
@@ -303,7 +301,6 @@ def angle(text: str) -> float:
 
 def material_name(text: str) -> str:
     """A material preset (:data:`warpcloth.sim.material.PRESETS`), ``custom`` or ``none``."""
-
     name = text.strip().lower()
     if name not in (*PRESETS, "custom", "none"):
         raise ValueError(

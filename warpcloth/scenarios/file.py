@@ -583,7 +583,6 @@ def _colliders(tables, where: str, path: str = "") -> tuple:
     optionally a pose ``track = { kind = "rigid" | "keyframes", ... }`` (ColliderTrack); or
     ``kind = "mesh"`` with ``path`` (relative to the scenario file ``path``), ``prim``, ``thickness``,
     ``friction``, ``reach`` (a static MeshCollider)."""
-
     require(
         isinstance(tables, list), f"{where}: colliders must be an array of tables ([[colliders]]), got {_shown(tables)}"
     )

@@ -456,7 +456,6 @@ class MeshCollider(_Posed):
     edge_radius: float | None = None
 
     def __post_init__(self):
-
         what = f"mesh collider {self.source!r}" if self.source else "mesh collider"
         if (
             self.vertices is None

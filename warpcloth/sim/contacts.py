@@ -281,7 +281,6 @@ class ColliderEdges:
     passes_after_limit = 8
 
     def __init__(self, model, collision: ColliderSet):
-
         self.model, self.collision = model, collision
         tris = np.asarray(model.host["tris"], dtype=np.int64).reshape(-1, 3)
         n, device = model.particle_count, model.device
@@ -400,7 +399,6 @@ def _mesh_features(vertices, triangles):
     float64. Edges between coplanar faces (a face's diagonal: normals within 2.6 degrees) are not
     features: the face holds the cloth there, as the analytic box's faces do; an open edge (one face)
     is one."""
-
     p = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     face = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])

@@ -209,7 +209,6 @@ class ClothModel:
         """Per particle, Gershgorin row sums of the hinges' stiffness and damping matrices at the
         rest shape, sum_e k_e |g_i| sum_b |g_b| [N/m] and the same with kd_e [N s/m] (float64, host;
         zeros without hinges): what a particle's row of sum_e k_e g g^T adds to 2 sum_j ks_ij."""
-
         if not self.hinge_count:
             z = np.zeros(self.particle_count)
             return z, z.copy()
@@ -243,7 +242,6 @@ class ClothModel:
 
     def state(self):
         """A new :class:`~warpcloth.sim.state.State` at the rest configuration with zero velocity."""
-
         return State.from_model(self)
 
     def with_spring_params(self, params: dict[SpringType, SpringParams]) -> "ClothModel":
