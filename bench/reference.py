@@ -16,10 +16,9 @@ import time
 
 import numpy as np
 import warp as wp
-from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator
-from warpcloth.lab import (
+from warpcloth.lab.reference import (
     cloth_size,
     convergence_check,
     reference_trajectory,
@@ -28,6 +27,7 @@ from warpcloth.lab import (
     swing_from_horizontal,
     trajectory_error,
 )
+from warpcloth.scenarios import flag, sheet
 
 
 def _run(model, integrator, dt, control, x0, duration, frame_dt):

@@ -261,9 +261,9 @@ def test_bench_does_not_import_cli():
 
 # -- issue 31: every input honoured or refused -------------------------------------------------
 def _colliders(*argv):
+    from warpcloth.cli import build_parser
+    from warpcloth.cli.model import config_from_args
     from warpcloth.scenarios import get_scenario
-
-    from warpcloth.cli import build_parser, config_from_args
 
     args = build_parser().parse_args(["run", "sheet", *argv])
     return config_from_args(get_scenario("sheet"), args).colliders

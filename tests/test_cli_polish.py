@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from warpcloth.cli import example_path, main
+from warpcloth.cli import main
+from warpcloth.cli.listing import example_path
 from warpcloth.io import progress as progress_module
 from warpcloth.io.progress import Progress
 

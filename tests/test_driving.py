@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from warpcloth import Box, Control, Plane, Simulator, Sphere, WarpclothError, build_grid_cloth, integrator_names
-from warpcloth.sim.colliders import ColliderTrack, _quat_matrix
+from warpcloth.sim.colliders import ColliderTrack, quat_matrix
 from warpcloth.sim.pins import PinTrack
 
 N, FRAMES, FRAME = 12, 9, 1.0 / 60.0
@@ -154,9 +154,9 @@ def test_a_driven_box_turns_to_its_target_pose():
     sim.simulate(4)
     record = sim.control.collision.params.numpy()[0]
     assert np.allclose(record["a"], (0.6, -0.3, 0.0), atol=1e-6)
-    assert np.allclose(record["rotation"], _quat_matrix(q), atol=1e-6)
+    assert np.allclose(record["rotation"], quat_matrix(q), atol=1e-6)
     r, c, d = box.track.transform(sim.sim_time)  # the host's view (writers, players) agrees
-    assert np.allclose(r, _quat_matrix(q), atol=1e-9) and np.allclose(c + d, (0.6, -0.3, 0.0))
+    assert np.allclose(r, quat_matrix(q), atol=1e-9) and np.allclose(c + d, (0.6, -0.3, 0.0))
     assert np.allclose(box.at(sim.sim_time).center, (0.6, -0.3, 0.0))
 
 

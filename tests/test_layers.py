@@ -29,17 +29,8 @@ LAYERS = [
     (7, "lab", ("warpcloth.lab",)),
     (8, "cli", ("warpcloth.cli", "warpcloth.__main__")),
 ]
-#: The package face: ``warpcloth`` itself and the forwarding modules kept for one release. Users
-#: import it; nothing inside the package does.
-FACE = (
-    "warpcloth",
-    "warpcloth.harness",
-    "warpcloth.model",
-    "warpcloth.colliders",
-    "warpcloth.usd",
-    "warpcloth.meshio",
-    "warpcloth.forces",
-)
+#: The package face: ``warpcloth`` itself. Users import it; nothing inside the package does.
+FACE = ("warpcloth",)
 
 #: The optional extras (``warpcloth[plot]``, ``warpcloth[cluster]``): imported inside the
 #: functions that use them, so that everything else works without them.
@@ -195,6 +186,131 @@ def test_stepping_loads_no_lab_cli_or_optional_library(entry):
         "assert not bad, bad"
     )
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
+
+
+#: The only imports of warpcloth modules made inside functions, (module, function) -> why. Everything
+#: else is imported at module level, where the import graph shows it: lazy only where
+#: ``import warpcloth`` and the command line's top level (``warpcloth --version``) stay free of Warp.
+#: Third-party optional libraries (OPTIONAL, pxr, SciPy) are not counted here.
+LAZY_IMPORTS = {
+    (
+        "warpcloth",
+        "__getattr__",
+    ): "the package face loads a name's module on first use: `import warpcloth` imports no Warp",
+    ("warpcloth.cli", "_module"): "the command line imports the chosen subcommand's module only (`--version` none)",
+    (
+        "warpcloth.cli.parse",
+        "guarded",
+    ): "Warp starts when a command runs, not when the parser is built (--version, --help)",
+}
+MAX_LAZY_IMPORTS = 10
+
+
+def _is_dynamic_import(node) -> bool:
+    f = node.func if isinstance(node, ast.Call) else None
+    return (isinstance(f, ast.Attribute) and f.attr == "import_module") or (
+        isinstance(f, ast.Name) and f.id in ("import_module", "__import__")
+    )
+
+
+def lazy_imports(path: Path) -> list[tuple[str, int]]:
+    """(enclosing function, line) of every import of a warpcloth module inside a function of ``path``
+    (relative imports included), and of every ``importlib.import_module`` / ``__import__`` call there:
+    the module those load is chosen at run time, so they count whatever they name."""
+    found = []
+
+    def visit(nodes, function):
+        for node in nodes:
+            if _is_main_block(node):
+                continue
+            inner = node.name if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) else function
+            if function is not None:
+                if isinstance(node, ast.Import) and any(a.name.split(".")[0] == "warpcloth" for a in node.names):
+                    found.append((function, node.lineno))
+                elif isinstance(node, ast.ImportFrom) and (
+                    node.level or (node.module or "").split(".")[0] == "warpcloth"
+                ):
+                    found.append((function, node.lineno))
+                elif _is_dynamic_import(node):
+                    found.append((function, node.lineno))
+            visit(ast.iter_child_nodes(node), inner)
+
+    visit(ast.parse(path.read_text()).body, None)
+    return found
+
+
+def test_warpcloth_modules_are_imported_inside_functions_only_where_listed():
+    found = [(m, fn, line) for m, path in modules().items() for fn, line in lazy_imports(path)]
+    unlisted = [f"{m}:{line} in {fn}()" for m, fn, line in found if (m, fn) not in LAZY_IMPORTS]
+    assert not unlisted, "import these at module level (or list them in LAZY_IMPORTS, with why):\n" + "\n".join(
+        unlisted
+    )
+    stale = set(LAZY_IMPORTS) - {(m, fn) for m, fn, _ in found}
+    assert not stale, f"LAZY_IMPORTS lists imports that are gone: {sorted(stale)}"
+    assert len(found) <= MAX_LAZY_IMPORTS, found
+
+
+def test_the_lazy_import_count_sees_imports_in_nested_functions_and_import_module(tmp_path):
+    """Negative control: a function-level import, a relative one, one in a nested function and an
+    import_module call are counted; module-level imports, other libraries and __main__ blocks are not."""
+    bad = tmp_path / "mod.py"
+    bad.write_text(
+        "import importlib\nfrom warpcloth.errors import WarpclothError\n\n"
+        "def f():\n    import numpy\n    from warpcloth.sim import model\n    from . import grid\n\n"
+        "class C:\n    def g(self):\n        def h():\n            import warpcloth.lab.study\n"
+        "        return importlib.import_module('warpcloth.cli')\n\n"
+        "if __name__ == '__main__':\n    def k():\n        from warpcloth import cli\n"
+    )
+    assert lazy_imports(bad) == [("f", 6), ("f", 7), ("h", 12), ("g", 13)]
+
+
+def private_imports(name: str, path: Path, known) -> list[str]:
+    """Private names (``_x``, not dunders) of another warpcloth module that ``path`` imports
+    (``from warpcloth.m import _x``) or reads from a module it imported (``m._x``)."""
+    tree = ast.parse(path.read_text())
+    base = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    found, aliases = [], {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            mod = (
+                ".".join(base[: len(base) - node.level + 1] + [node.module or ""]).strip(".")
+                if node.level
+                else node.module
+            )
+            if (mod or "").split(".")[0] != "warpcloth":
+                continue
+            for a in node.names:
+                if f"{mod}.{a.name}" in known:
+                    aliases[a.asname or a.name] = f"{mod}.{a.name}"
+                elif a.name.startswith("_") and not a.name.startswith("__"):
+                    found.append(f"{name}:{node.lineno} imports {mod}.{a.name}")
+        elif isinstance(node, ast.Import):
+            aliases.update({a.asname: a.name for a in node.names if a.asname and a.name.split(".")[0] == "warpcloth"})
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases:
+            if node.attr.startswith("_") and not node.attr.startswith("__") and aliases[node.value.id] != name:
+                found.append(f"{name}:{node.lineno} uses {aliases[node.value.id]}.{node.attr}")
+    return found
+
+
+def test_no_private_name_is_imported_across_modules():
+    mods = modules()
+    bad = [line for m, path in mods.items() for line in private_imports(m, path, mods)]
+    assert not bad, "make the name public where it is defined (a name other modules use is its API):\n" + "\n".join(bad)
+
+
+def test_the_private_check_sees_an_imported_and_an_attribute_private_name(tmp_path):
+    """Negative control: ``from warpcloth.sim.colliders import _x`` and ``bench._y`` are found;
+    public names and dunders are not."""
+    bad = tmp_path / "intersections.py"
+    bad.write_text(
+        "from warpcloth.sim.colliders import _x, Plane, __all__\nfrom warpcloth.lab import bench\n\n"
+        "def f():\n    return bench._y(Plane), bench.run, bench.__name__\n"
+    )
+    assert private_imports("warpcloth.lab.intersections", bad, modules()) == [
+        "warpcloth.lab.intersections:1 imports warpcloth.sim.colliders._x",
+        "warpcloth.lab.intersections:5 uses warpcloth.lab.bench._y",
+    ]
 
 
 #: Kernel files of one scheme each; the other files of kernels/ hold what schemes share (springs,

@@ -10,7 +10,7 @@ import pytest
 from helpers import free_particles
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, WarpclothError, build_grid_cloth
-from warpcloth.sim.colliders import ColliderTrack, _quat_matrix
+from warpcloth.sim.colliders import ColliderTrack, quat_matrix
 
 G = 9.81
 INTEGRATORS = ["explicit_euler", "midpoint", "rk4", "verlet", "implicit_euler", "pbd", "xpbd", "vbd", "projective"]
@@ -112,7 +112,7 @@ def test_the_pose_equals_the_track_at_every_step_time(integrator):
         np.testing.assert_allclose(a[0], capsule.a, atol=2e-7)
         np.testing.assert_allclose(b[0], capsule.b, atol=2e-7)
         np.testing.assert_allclose(a[1], box.center, atol=3e-7)
-        np.testing.assert_allclose(rot[1], _quat_matrix(box.rotation), atol=3e-7)
+        np.testing.assert_allclose(rot[1], quat_matrix(box.rotation), atol=3e-7)
     assert sim.sim_time == pytest.approx(90 * dt)
     assert not np.allclose(colliders[1].at(sim.sim_time).center, colliders[1].center)  # it did move
 

@@ -115,9 +115,8 @@ def test_new_flags_from_declarations_work_on_the_cli(tmp_path, capsys):
 
 
 def test_per_type_cli_flags_reach_the_model():
+    from warpcloth.cli.model import config_from_args
     from warpcloth.scenarios import get_scenario
-
-    from warpcloth.cli import config_from_args
     from warpcloth.sim.model import SpringType
 
     parser = build_parser()
@@ -206,9 +205,8 @@ def test_the_max_dt_search_key_holds_the_wall_cap_and_the_duration(tmp_path):
 
 
 def test_time_steps_times_exactly_the_steps_asked():
-    from warpcloth.scenarios import get_scenario
-
     from warpcloth.run.harness import time_steps
+    from warpcloth.scenarios import get_scenario
 
     sim = get_scenario("sheet").build(rows=4, cols=4, device="cpu", use_graph=False)
     for steps, windows in ((13, 5), (100, 5), (7, 7)):
@@ -225,9 +223,8 @@ def test_time_steps_times_exactly_the_steps_asked():
 def test_time_steps_keeps_to_its_windows_when_a_frame_of_steps_outlasts_them():
     """A frame of many steps (dt = 1e-5 s: 1667 steps a 60 Hz frame) is not a window's minimum:
     ``bench --seconds 0.5`` timed five whole frames of the 256 x 256 sheet (24.6 s on the CPU)."""
-    from warpcloth.scenarios import get_scenario
-
     from warpcloth.run.harness import time_steps
+    from warpcloth.scenarios import get_scenario
 
     sim = get_scenario("sheet").build(rows=4, cols=4, device="cpu", dt=1e-5)
     chunk = sim.chunk_steps()

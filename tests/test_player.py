@@ -18,7 +18,7 @@ from warpcloth.cli import main
 from warpcloth.io.frames import FrameSinks, nice_scale, strain_colors, vertex_strain
 from warpcloth.io.player import PLANE_PATCH, HtmlWriter, quantise, read_player_data
 from warpcloth.run.harness import RunHarness
-from warpcloth.sim.colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere, _quat_matrix
+from warpcloth.sim.colliders import Box, Capsule, ColliderTrack, MeshCollider, Plane, Sphere, quat_matrix
 
 
 def _run(capsys, *argv):
@@ -237,7 +237,7 @@ def test_static_colliders_in_the_page(flag_page, tmp_path):
 
 
 def _rotate(q, v):
-    return _quat_matrix(q) @ np.asarray(v, dtype=np.float64)
+    return quat_matrix(q) @ np.asarray(v, dtype=np.float64)
 
 
 def test_moving_colliders_posed_at_every_frame(flag_page, tmp_path):
@@ -274,8 +274,8 @@ def test_moving_colliders_posed_at_every_frame(flag_page, tmp_path):
                 ), (k, t)
             elif c.kind == "box":
                 assert np.allclose(pose(rec["center"]), want.center, atol=1e-4), (k, t)
-                rot = _quat_matrix(q) @ _quat_matrix(rec["rotation"])
-                assert np.allclose(rot, _quat_matrix(want.rotation), atol=1e-4), (k, t)
+                rot = quat_matrix(q) @ quat_matrix(rec["rotation"])
+                assert np.allclose(rot, quat_matrix(want.rotation), atol=1e-4), (k, t)
             else:
                 assert np.allclose(pose(rec["point"]), want.point, atol=1e-4), (k, t)
                 assert np.allclose(_rotate(q, rec["normal"]), want.normal, atol=1e-4), (k, t)

@@ -10,11 +10,10 @@ import numpy as np
 import pytest
 import warp as wp
 from helpers import single_spring, spring_params
-from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator, SpringType, WarpclothError, WindSchedule, build_grid_cloth
 from warpcloth.integrators.forces import eval_forces
-from warpcloth.lab import (
+from warpcloth.lab.reference import (
     Float64Model,
     cloth_size,
     convergence_check,
@@ -26,6 +25,7 @@ from warpcloth.lab import (
     trajectory_error,
     wind_switch_times,
 )
+from warpcloth.scenarios import flag, sheet
 from warpcloth.sim.model import SpringParams, build_model
 
 NO_GRAVITY = (0.0, 0.0, 0.0)

@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from warpcloth.scenarios import Scenario, curtain, get_scenario, register, scenario_names
-from warpcloth.scenarios import mesh as mesh_scenario
 
 from warpcloth import WarpclothError
 from warpcloth.cli import main
 from warpcloth.io.meshio import load_mesh
 from warpcloth.run.harness import RunHarness
+from warpcloth.scenarios import Scenario, curtain, get_scenario, register, scenario_names
+from warpcloth.scenarios import mesh as mesh_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -301,7 +301,9 @@ def test_scenario_file_and_mesh_scenario_through_bench(capsys, scenario_file, tm
 
 
 def test_the_shipped_example_scenario_file_runs(capsys):
-    code, out, err = run_cli(capsys, "run", str(REPO / "warpcloth" / "examples" / "cape.toml"), "--duration", "0.05", "--json")
+    code, out, err = run_cli(
+        capsys, "run", str(REPO / "warpcloth" / "examples" / "cape.toml"), "--duration", "0.05", "--json"
+    )
     assert code == 0, err
     d = json.loads(out)
     assert d["scenario"] == "swaying-cape" and d["particles"] == 320 and d["stable"]
@@ -310,7 +312,8 @@ def test_the_shipped_example_scenario_file_runs(capsys):
 # -- issue 31: every key of a scenario file honoured or refused --------------------------------
 def _model_ks(path, *argv):
     """The per-type stiffness of the model a run of the file builds, with ``argv`` flags."""
-    from warpcloth.cli import build_parser, config_from_args
+    from warpcloth.cli import build_parser
+    from warpcloth.cli.model import config_from_args
 
     args = build_parser().parse_args(["run", str(path), *argv])
     scenario = get_scenario(str(path))

@@ -12,7 +12,7 @@ from pxr import Usd, UsdGeom
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, build_grid_cloth
 from warpcloth.io.usd import UsdWriter
 from warpcloth.run.harness import RunHarness
-from warpcloth.sim.colliders import ColliderTrack, MeshCollider, _quat_matrix
+from warpcloth.sim.colliders import ColliderTrack, MeshCollider, quat_matrix
 
 FPS = 30.0
 SPIN = ColliderTrack.rigid(center=(0.3, 0.2, 0.0), axis=(0.0, 1.0, 0.0), angular_velocity=1.5, velocity=(0.1, 0.0, 0.0))
@@ -62,7 +62,7 @@ def check_prim(stage, k, c, code):
     elif c.kind == "box":
         assert UsdGeom.Cube(prim).GetSizeAttr().Get() == 2.0
         corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
-        expected = c.center + (corners * c.half_extents) @ _quat_matrix(c.rotation).T
+        expected = c.center + (corners * c.half_extents) @ quat_matrix(c.rotation).T
         np.testing.assert_allclose(apply(m, corners), expected, atol=1e-6)
     elif c.kind == "mesh":  # its points as given, moved by the prim's transform onto the collider's
         points = np.array(UsdGeom.Mesh(prim).GetPointsAttr().Get(), dtype=np.float64)
@@ -123,9 +123,9 @@ def test_cli_and_run_export_the_scenarios_colliders(tmp_path):
     """`warpcloth run drape --usd` and `Scenario.run(usd_path=path)` write the scenario's colliders
     (the drape's sphere and ground) beside the cloth."""
     from pxr import Usd
-    from warpcloth.scenarios import get_scenario
 
     from warpcloth.cli import main
+    from warpcloth.scenarios import get_scenario
 
     out = tmp_path / "drape.usda"
     assert main(["run", "drape", "--rows", "5", "--cols", "5", "--duration", "0.05", "--usd", str(out), "-q"]) == 0

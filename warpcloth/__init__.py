@@ -9,16 +9,11 @@ The same kernels run on the CPU and on a CUDA GPU. Typical use::
     print(result.to_json())
 
 The names below load their modules on first use (``import warpcloth`` imports no Warp: the
-``warpcloth --version`` line and the CLI's start stay fast). Warp's quiet configuration (no banner,
-no module-load lines on stdout, which warpcloth keeps for results; ``WARPCLOTH_WARP_VERBOSE=1``
-keeps Warp's own) is applied as soon as Warp is imported, by anyone, before it initialises.
+``warpcloth --version`` line and the CLI's start stay fast). Warp is quieted where warpcloth starts
+it (:mod:`warpcloth.sim.device`); importing this package changes nothing of Warp's.
 """
 
 import importlib
-import importlib.abc
-import importlib.machinery
-import os
-import sys
 
 from warpcloth.version import __version__
 
@@ -37,41 +32,6 @@ _FACE = {
     **dict.fromkeys(("RunHarness", "RunResult"), "warpcloth.run.harness"),
     "State": "warpcloth.sim.state",
 }
-
-
-def _quiet(wp) -> None:
-    """Warp's log level to warnings and no banner (unless WARPCLOTH_WARP_VERBOSE is set)."""
-    if os.environ.get("WARPCLOTH_WARP_VERBOSE"):
-        return
-    if hasattr(wp, "LOG_WARNING"):
-        wp.config.log_level = wp.LOG_WARNING
-    wp.config.quiet = True
-
-
-class _QuietOnImport(importlib.abc.MetaPathFinder):
-    """Applies :func:`_quiet` right after ``warp`` is imported (then leaves ``sys.meta_path``)."""
-
-    def find_spec(self, fullname, path, target=None):
-        if fullname != "warp":
-            return None
-        sys.meta_path[:] = [f for f in sys.meta_path if f is not self]
-        spec = importlib.machinery.PathFinder.find_spec(fullname, path)
-        if spec is None or spec.loader is None:
-            return spec
-        run = spec.loader.exec_module
-
-        def exec_module(module):
-            run(module)
-            _quiet(module)
-
-        spec.loader.exec_module = exec_module
-        return spec
-
-
-if "warp" in sys.modules:
-    _quiet(sys.modules["warp"])
-elif not any(isinstance(f, _QuietOnImport) for f in sys.meta_path):
-    sys.meta_path.insert(0, _QuietOnImport())
 
 
 def __getattr__(name):

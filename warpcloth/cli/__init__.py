@@ -27,6 +27,7 @@ import importlib
 import sys
 
 from warpcloth.cli.parse import EXIT_USAGE, Parser, add_verbose, guarded  # noqa: F401  (EXIT_USAGE: importable from cli)
+from warpcloth.version import __version__
 
 #: The subcommands, in the order ``--help`` lists them: name -> (module, help line, whether the
 #: common ``--quiet`` is added: ``sweep`` has its own).
@@ -57,22 +58,6 @@ COMMANDS = {
     ),
 }
 
-#: Names kept importable from ``warpcloth.cli``, each loaded from its module on first use.
-_FORWARDED = {
-    **dict.fromkeys(("add_run_arguments", "summary", "EXIT_UNSTABLE"), "warpcloth.cli.run"),
-    **dict.fromkeys(
-        ("config_from_args", "add_model_arguments", "integrator_options_from_args", "param_values"),
-        "warpcloth.cli.model",
-    ),
-    **dict.fromkeys(("example_path", "example_names", "examples_dir"), "warpcloth.cli.listing"),
-}
-
-
-def __getattr__(name):
-    if name in _FORWARDED:
-        return getattr(importlib.import_module(_FORWARDED[name]), name)
-    raise AttributeError(f"module 'warpcloth.cli' has no attribute {name!r}")
-
 
 def _module(command: str):
     return importlib.import_module(COMMANDS[command][0])
@@ -81,8 +66,6 @@ def _module(command: str):
 def build_parser(commands=None) -> Parser:
     """The ``warpcloth`` parser. ``commands``: the subcommands whose flags are added (None: every
     one; the others are listed, with their help line, without importing their modules)."""
-    from warpcloth.version import __version__
-
     parser = Parser(
         prog="warpcloth", description="Mass-spring cloth simulator and integrator laboratory on NVIDIA Warp."
     )
@@ -114,7 +97,7 @@ def main(argv=None) -> int:
     return guarded(args, lambda: module.run(args), hint)
 
 
-__all__ = ["COMMANDS", "EXIT_USAGE", "build_parser", "main", *_FORWARDED]
+__all__ = ["COMMANDS", "EXIT_USAGE", "build_parser", "main"]
 
 
 if __name__ == "__main__":

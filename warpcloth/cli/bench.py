@@ -12,8 +12,10 @@ import warp as wp
 
 from warpcloth.cli.parse import Parser, guarded
 from warpcloth.errors import WarpclothError, require
+from warpcloth.integrators import integrator_class, integrator_names, make_integrator
 from warpcloth.io.files import check_output_path, sweep_stale_temporaries
-from warpcloth.io.progress import format_seconds
+from warpcloth.io.preview import require_matplotlib
+from warpcloth.io.progress import Progress, format_seconds
 from warpcloth.lab import bench as lab_bench
 from warpcloth.lab.bench import (
     DEFAULT_WINDOWS,
@@ -25,6 +27,11 @@ from warpcloth.lab.bench import (
     roofline_ms,
     write_csv,
 )
+from warpcloth.run.harness import MAX_RUN_STEPS
+from warpcloth.run.params import positive
+from warpcloth.scenarios import get_scenario
+from warpcloth.sim.device import device_name as resolve_device
+from warpcloth.simulator import graph_capture_supported
 
 
 def build_parser(prog: str = "bench/devices.py") -> argparse.ArgumentParser:
@@ -44,8 +51,6 @@ MAX_BENCH_SECONDS = 86400.0
 
 def _seconds(text: str) -> float:
     """``--seconds``: a finite number of wall seconds > 0, at most :data:`MAX_BENCH_SECONDS`."""
-    from warpcloth.run.params import positive
-
     try:
         value = positive(text)
     except ValueError as exc:
@@ -103,10 +108,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from warpcloth.integrators import integrator_class, integrator_names, make_integrator
-    from warpcloth.sim.device import device_name as resolve_device
-    from warpcloth.simulator import graph_capture_supported
-
     if args.integrators is None:
         names = integrator_names()
     else:
@@ -118,7 +119,6 @@ def run(args) -> int:
         )
     for n in names:
         integrator_class(n)
-    from warpcloth.scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)  # unknown name or bad file: one line
     if scenario.is_mesh:  # a mesh: its own particles, no grid sizes
@@ -128,7 +128,6 @@ def run(args) -> int:
         sizes = [None]
     else:
         sizes = parse_sizes("32,64,128" if args.sizes is None else args.sizes)
-    from warpcloth.run.harness import MAX_RUN_STEPS
 
     require(args.steps is None or args.steps >= 1, f"--steps must be >= 1, got {args.steps}")
     require(
@@ -164,13 +163,9 @@ def run(args) -> int:
         f"--out and --plot are the same file {args.out!r}",
     )
     if args.plot:
-        from warpcloth.io.preview import require_matplotlib
-
         require_matplotlib("--plot")  # before the benchmark, not after it
     for path in {os.path.dirname(os.path.abspath(p)) for p in (args.out, args.plot) if p and p != "-"}:
         sweep_stale_temporaries(path, sys.stderr)
-
-    from warpcloth.io.progress import Progress
 
     quiet = getattr(args, "quiet", False)
     modes = {"both": [False, True], "on": [True], "off": [False]}[args.graph]
@@ -186,7 +181,7 @@ def run(args) -> int:
     rows, floors = [], {}
     for k, (device, size, name, graph) in enumerate(combos):
         if args.roofline and (device, size) not in floors:
-            floors[(device, size)] = roofline_ms(lab_bench._build(args.scenario, size, device).model)
+            floors[(device, size)] = roofline_ms(lab_bench.build_sim(args.scenario, size, device).model)
         what = f"{name} {args.scenario if size is None else f'{size}x{size}'} on {device}{' (graph)' if graph else ''}"
         if progress.tty:
             progress.update(k, len(combos), note=what, force=True)

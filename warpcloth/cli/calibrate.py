@@ -9,12 +9,13 @@ import json
 
 from warpcloth.cli.model import add_integrator_options, integrator_options_from_args
 from warpcloth.errors import WarpclothError
-from warpcloth.run.params import BY_NAME, PARAMS, _argparse_type, add_flags, cli_value
+from warpcloth.integrators import integrator_class
+from warpcloth.lab.calibrate import TARGETS, UNKNOWNS, calibrate
+from warpcloth.run.params import BY_NAME, PARAMS, add_flags, argparse_type, cli_value
+from warpcloth.sim.material import material_with
 
 
 def _target(text: str) -> tuple[str, float]:
-    from warpcloth.lab.calibrate import TARGETS
-
     name, sep, value = text.partition("=")
     if not sep or name.strip() not in TARGETS:
         raise argparse.ArgumentTypeError(
@@ -28,8 +29,6 @@ def _target(text: str) -> tuple[str, float]:
 
 
 def _unknowns(text: str) -> tuple:
-    from warpcloth.lab.calibrate import UNKNOWNS
-
     names = tuple(s.strip() for s in text.split(","))
     bad = [n for n in names if n not in UNKNOWNS]
     if bad:
@@ -44,7 +43,7 @@ MATERIAL_FLAGS = tuple(p.name for p in PARAMS if p.group == "material" and p.nam
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "material",
-        type=_argparse_type(BY_NAME["material"]),
+        type=argparse_type(BY_NAME["material"]),
         help="the material to start from: a preset ('warpcloth list'), or custom with --density, --stretch, --shear "
         "and --bend-rigidity",
     )
@@ -90,10 +89,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from warpcloth.integrators import integrator_class
-    from warpcloth.lab.calibrate import calibrate
-    from warpcloth.sim.material import material_with
-
     integrator_class(args.integrator or "implicit_euler")  # an unknown name: one line
     options = integrator_options_from_args(args.integrator or "implicit_euler", args)
     values = {name: cli_value(BY_NAME[name], args) for name in MATERIAL_FLAGS}

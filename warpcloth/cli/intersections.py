@@ -8,6 +8,9 @@ from __future__ import annotations
 import argparse
 import json
 
+from warpcloth.io.files import check_input_file
+from warpcloth.lab.intersections import check_usd
+
 #: The exit status of a file with an intersection or a crossing in some frame.
 EXIT_INTERSECTING = 1
 
@@ -21,9 +24,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from warpcloth.io.files import check_input_file
-    from warpcloth.lab.intersections import check_usd
-
     report = check_usd(check_input_file(args.file, "USD file"), cloth=args.cloth, colliders=args.colliders)
     if args.json:
         print(

@@ -7,7 +7,12 @@ import argparse
 import os
 import sys
 
+from warpcloth import examples
 from warpcloth.errors import WarpclothError
+from warpcloth.examples.__main__ import example_files
+from warpcloth.integrators import integrator_class, integrator_names
+from warpcloth.scenarios import get_scenario, scenario_names
+from warpcloth.sim.material import PRESETS
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -20,8 +25,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def examples_dir() -> str:
     """The folder of the XML test lists shipped in the package (``warpcloth.examples``)."""
-    from warpcloth import examples
-
     return os.path.dirname(os.path.abspath(examples.__file__))
 
 
@@ -39,8 +42,6 @@ def example_path(name: str) -> str:
 
 
 def _print_examples() -> None:
-    from warpcloth.examples.__main__ import example_files
-
     for kind, path in example_files():
         name = os.path.splitext(os.path.basename(path))[0]
         print(f"{kind + ':':15s}{name:12s} {path}")
@@ -53,9 +54,6 @@ def _print_examples() -> None:
 
 
 def run(args) -> int:
-    from warpcloth.integrators import integrator_class, integrator_names
-    from warpcloth.scenarios import get_scenario, scenario_names
-
     if getattr(args, "examples", False):
         if not args.quiet:
             _print_examples()
@@ -81,8 +79,6 @@ def run(args) -> int:
 
 def material_lines() -> list[str]:
     """One line per material preset: density, stretch, shear, bending rigidity and length, source."""
-    from warpcloth.sim.material import PRESETS
-
     lines = []
     for name, m in PRESETS.items():
         stretch = (

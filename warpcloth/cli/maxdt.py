@@ -8,7 +8,10 @@ import json
 import math
 
 from warpcloth.cli.model import DefaultDtExplained, add_model_arguments, check_spacing, config_from_args
+from warpcloth.io.progress import Progress
+from warpcloth.lab.maxdt import DEFAULT_DT_MAX, DEFAULT_DT_MIN, find_max_dt, format_result
 from warpcloth.run.params import BY_NAME
+from warpcloth.scenarios import get_scenario
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -20,15 +23,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from warpcloth.lab.maxdt import DEFAULT_DT_MAX, DEFAULT_DT_MIN, find_max_dt, format_result
-    from warpcloth.scenarios import get_scenario
-
     scenario = get_scenario(args.scenario)
     cfg = config_from_args(scenario, args, "max-dt")
     check_spacing(scenario, cfg)
     precision = args.maxdt_precision if args.maxdt_precision is not None else BY_NAME["maxdt_precision"].default
     duration = args.maxdt_duration if args.maxdt_duration is not None else BY_NAME["maxdt_duration"].default
-    from warpcloth.io.progress import Progress
 
     progress = Progress(f"max-dt {args.scenario} {cfg.integrator}", enabled=not args.quiet)
     trials = []

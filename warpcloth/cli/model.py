@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 
 from warpcloth.errors import WarpclothError, require_positive
+from warpcloth.integrators import all_options, integrator_class, integrator_names, option_help, option_owners
 from warpcloth.run.params import BY_NAME, add_flags, check_applies, cli_value, config_values, params_for
 
 
@@ -20,8 +21,6 @@ def add_model_arguments(p: argparse.ArgumentParser, command: str = "max-dt", exc
 
 def add_integrator_options(p: argparse.ArgumentParser) -> None:
     """One flag per integrator option, declared by the integrators themselves."""
-    from warpcloth.integrators import all_options, option_help, option_owners
-
     group = p.add_argument_group("integrator options")
     for name, (opt, _) in all_options().items():
         choices = [o.choices for o in option_owners(name).values()]
@@ -39,8 +38,6 @@ def add_integrator_options(p: argparse.ArgumentParser) -> None:
 
 def integrator_options_from_args(integrator: str, args) -> dict:
     """Options given on the command line for ``integrator``; an option it does not take is an error."""
-    from warpcloth.integrators import all_options, integrator_class
-
     taken = {o.name: o for o in integrator_class(integrator).options}
     out = {}
     for name, (opt, owners) in all_options().items():
@@ -62,8 +59,6 @@ def param_values(args, command: str) -> dict:
 
 def config_from_args(scenario, args, command: str = "run"):
     """A ScenarioConfig from parsed flags (unset flags keep the scenario defaults)."""
-    from warpcloth.integrators import integrator_class, integrator_names
-
     values = param_values(args, command)
     if values.get("integrator") is not None and not values["integrator"].strip():
         raise WarpclothError(f"--integrator is empty; choose one of {', '.join(integrator_names())}")

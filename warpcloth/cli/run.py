@@ -1,4 +1,5 @@
-"""``warpcloth run SCENARIO`` (also ``python -m warpcloth run SCENARIO``): a scenario run with its outputs (USD, HTML player, preview), its progress and its summary."""
+"""``warpcloth run SCENARIO`` (also ``python -m warpcloth run SCENARIO``): a scenario run with its
+outputs (one table, :data:`OUTPUTS`), its progress and its summary."""
 
 from __future__ import annotations
 
@@ -10,14 +11,15 @@ from dataclasses import dataclass
 from typing import Callable
 
 from warpcloth.cli.model import DefaultDtExplained, add_model_arguments, check_spacing, config_from_args
-from warpcloth.cli.parse import Parser, add_verbose, guarded
 from warpcloth.errors import WarpclothError
 from warpcloth.io.files import sweep_stale_temporaries
 from warpcloth.io.meshio import ObjSequenceWriter, check_obj_sequence_path
 from warpcloth.io.player import HtmlWriter, check_html_path
 from warpcloth.io.preview import PreviewWriter, check_preview_path
 from warpcloth.io.provenance import provenance
+from warpcloth.io.progress import RunProgress
 from warpcloth.io.usd import UsdWriter, check_usd_path, clip_folder_of
+from warpcloth.scenarios import get_scenario
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -271,15 +273,11 @@ def written_outputs(args, frames: int) -> list[str]:
 
 def run_scenario(scenario_name: str, args) -> int:
     """Run the scenario ``scenario_name`` with the flags ``args``; the exit status."""
-    from warpcloth.scenarios import get_scenario
-
     scenario = get_scenario(scenario_name)
     cfg = config_from_args(scenario, args)
     check_spacing(scenario, cfg)
     writers = output_writers(scenario_name, args)
     if not getattr(args, "quiet", False):
-        from warpcloth.io.progress import RunProgress
-
         writers.insert(0, lambda sim, cfg: RunProgress(cfg.duration, label=f"run {scenario_name}"))
     with DefaultDtExplained(args):
         result = scenario.run(cfg, wall_cap=args.wall_cap, writers=writers)

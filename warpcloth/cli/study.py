@@ -9,6 +9,9 @@ import sys
 
 from warpcloth.errors import WarpclothError
 from warpcloth.lab.accuracy import DEFAULT_TOLERANCE
+from warpcloth.lab.estimate import calibrate, estimate_plan, format_estimate
+from warpcloth.lab.plan import PROFILES, make_plan
+from warpcloth.lab.study import available_devices, run_study
 
 
 def _list(kind: str):
@@ -50,8 +53,6 @@ def _count():
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from warpcloth.lab.plan import PROFILES
-
     p.add_argument(
         "--profile",
         default="quick",
@@ -145,10 +146,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from warpcloth.lab.estimate import calibrate, estimate_plan, format_estimate
-    from warpcloth.lab.plan import make_plan
-    from warpcloth.lab.study import available_devices, run_study
-
     plan = make_plan(
         args.profile,
         integrators=args.integrators,

@@ -7,6 +7,8 @@ import sys
 
 from warpcloth.cli.listing import example_path
 from warpcloth.errors import WarpclothError
+from warpcloth.lab.sweep import run_sweep
+from warpcloth.lab.testlist import DEFAULT_MAX_RUNS
 
 
 def _workers(text: str) -> int:
@@ -20,8 +22,6 @@ def _workers(text: str) -> int:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    from warpcloth.lab.testlist import DEFAULT_MAX_RUNS
-
     p.add_argument("tests", metavar="TESTS.xml", nargs="?", default=None, help="the test list")
     p.add_argument(
         "--example",
@@ -68,8 +68,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from warpcloth.lab.sweep import run_sweep
-
     if (args.tests is None) == (args.example is None):
         raise WarpclothError(
             "give a test list (TESTS.xml) or --example NAME, not " + ("both" if args.tests else "neither")

@@ -10,6 +10,7 @@ import argparse
 import numpy as np
 import warp as wp
 
+from warpcloth.io.usd import UsdWriter
 from warpcloth.sim.colliders import ColliderTrack, Sphere
 from warpcloth.sim.control import Control
 from warpcloth.sim.device import init_warp
@@ -33,8 +34,6 @@ class Example:
         self.frame = 0
         self.usd = None
         if stage_path:
-            from warpcloth.io.usd import UsdWriter
-
             self.usd = UsdWriter(stage_path, self.model, fps=1.0 / frame_dt, colliders=self.control.colliders)
 
     def step(self) -> None:

@@ -34,7 +34,7 @@ from warpcloth.integrators.position_based import (
     SUBSTEPS,
     VELOCITY_DAMPING,
     PositionBasedIntegrator,
-    _unit_interval,
+    in_unit_interval,
 )
 from warpcloth.kernels import bending as bk
 from warpcloth.kernels import constraints as ck
@@ -67,14 +67,14 @@ class PBD(PositionBasedIntegrator):
             float,
             1.0,
             "PBD stiffness k of structural and shear constraints, in [0, 1]",
-            check=_unit_interval,
+            check=in_unit_interval,
         ),
         Option(
             "pbd_bend_stiffness",
             float,
             1.0,
             "PBD stiffness k of bend constraints (bend springs, or the dihedral hinges' C = theta - theta0), in [0, 1]",
-            check=_unit_interval,
+            check=in_unit_interval,
         ),
         VELOCITY_DAMPING,
     )

@@ -31,7 +31,7 @@ def _at_least_one(value) -> str | None:
     return None if value <= MAX_COUNT else f"must be at most {MAX_COUNT} (one step would take minutes)"
 
 
-def _unit_interval(value) -> str | None:
+def in_unit_interval(value) -> str | None:
     return None if 0.0 <= value <= 1.0 else "must be in [0, 1]"
 
 
@@ -52,7 +52,7 @@ VELOCITY_DAMPING = Option(
     0.0,
     "velocity damping per time step dt, v <- (1 - k_damp) v (Müller 2007's simple global form; "
     "(1 - k_damp)^(1/substeps) per substep), in [0, 1]",
-    check=_unit_interval,
+    check=in_unit_interval,
 )
 
 

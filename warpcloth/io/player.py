@@ -32,6 +32,7 @@ import numpy as np
 from warpcloth.errors import WarpclothError
 from warpcloth.io.files import check_output_path, write_atomic
 from warpcloth.io.frames import nice_scale, spring_arrays, vertex_strain
+from warpcloth.sim.colliders import matrix_quat
 
 HTML_EXTENSIONS = (".html", ".htm")
 #: Where the page template lives (package data).
@@ -94,11 +95,9 @@ class ColliderPoses:
         self.rotations: list[tuple] = []
 
     def add(self, t: float) -> None:
-        from warpcloth.sim.colliders import _matrix_quat
-
         r, shift = self.collider.track.pose(float(t))
         self.translations.append(shift)
-        self.rotations.append(_matrix_quat(r))
+        self.rotations.append(matrix_quat(r))
 
     def record(self) -> dict:
         """``translation``: uint16 x y z a frame within [``translationMin``, ``translationMax``]

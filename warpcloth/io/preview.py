@@ -17,6 +17,8 @@ import numpy as np
 
 from warpcloth.errors import WarpclothError
 from warpcloth.io.files import AtomicFile, OutputError, check_output_path, describe_write_error
+from warpcloth.io.player import check_frame_memory
+from warpcloth.sim.colliders import quat_matrix
 
 PREVIEW_EXTENSIONS = (".png", ".gif")
 #: Most frames in a GIF preview (a 640 x 480 frame is 30-80 kB: a few MB in all).
@@ -50,11 +52,9 @@ def collider_triangles(c, lo, hi, resolution: int = 16) -> np.ndarray:
     """(T, 3, 3) triangles [m] that draw collider ``c`` (as it is, static): a sphere or capsule
     of ``resolution`` segments round, a box's 12, a mesh's own (at most 4,000), a plane as a
     square around the box ``lo``..``hi`` (the cloth's bounds)."""
-    from warpcloth.sim.colliders import _quat_matrix
-
     if c.kind == "box":
         corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
-        points = np.asarray(c.center) + (corners * np.asarray(c.half_extents)) @ _quat_matrix(c.rotation).T
+        points = np.asarray(c.center) + (corners * np.asarray(c.half_extents)) @ quat_matrix(c.rotation).T
         faces = [
             (0, 1, 3),
             (0, 3, 2),
@@ -112,8 +112,6 @@ class PreviewWriter:
         self.path = check_preview_path(path)
         self.gif = os.path.splitext(self.path)[1].lower() == ".gif"
         if self.gif:
-            from warpcloth.io.player import check_frame_memory
-
             check_frame_memory(model, expected_frames, "the GIF preview")
         self.fps = float(fps)
         self.title = title

@@ -9,6 +9,8 @@ import datetime
 import shlex
 import sys
 
+from warpcloth.version import __version__
+
 
 def command_line(argv=None, prefix=("warpcloth",)) -> str:
     """The command as typed (``warpcloth run ...``), quoted for a shell."""
@@ -19,8 +21,6 @@ def command_line(argv=None, prefix=("warpcloth",)) -> str:
 def provenance(sim, scenario: str, fps: float, argv=None, extra: dict | None = None, prefix=("warpcloth",)) -> dict:
     """A JSON-able dict about the run of ``sim`` (a :class:`~warpcloth.simulator.Simulator`)."""
     import warp as wp
-
-    from warpcloth.version import __version__
 
     m = sim.model
     info = {

@@ -37,6 +37,8 @@ from warpcloth.io.files import (
     remove_temporary,
     temp_path,
 )
+from warpcloth.io.frames import spring_arrays, strain_colors, vertex_strain
+from warpcloth.sim.colliders import matrix_quat
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
 #: Colourings of ``primvars:displayColor`` (``--usd-color``).
@@ -220,10 +222,8 @@ class ColliderPrims:
     def _mesh_pose(c, sim_time: float):
         """(translate, orient (w, x, y, z)) of a mesh on a track at ``sim_time``: its points stay as
         given and the track's transform y -> R y + T moves them."""
-        from warpcloth.sim.colliders import _matrix_quat
-
         r, shift = c.track.pose(float(sim_time))
-        x, y, z, w = _matrix_quat(r)
+        x, y, z, w = matrix_quat(r)
         return shift, (w, x, y, z)
 
     def _set(self, c, ops, code, pose=None) -> None:
@@ -359,8 +359,6 @@ class UsdWriter:
         self._pins_moving = False
         self.color_attr = None
         if self.color == "strain":
-            from warpcloth.io.frames import spring_arrays
-
             self._springs = spring_arrays(model)
             pv = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar(
                 "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex
@@ -406,8 +404,6 @@ class UsdWriter:
             self._write_pins(np.ascontiguousarray(p[self._pin_idx]), code)
         self.colliders.write(code / self.fps if sim_time is None else float(sim_time), code)
         if self.color_attr is not None:
-            from warpcloth.io.frames import strain_colors, vertex_strain
-
             rgb = strain_colors(vertex_strain(p, *self._springs), self.strain_scale)
             self.color_attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(rgb)), code)
         self.frames += 1

@@ -14,35 +14,6 @@
   (the float64 Warp RK4 above 12 x 12);
 * :mod:`warpcloth.lab.parallel`: local worker processes and Ray tasks for sweeps and studies.
 
-Nothing in :mod:`warpcloth`'s physics imports this package. The reference's names are
-importable from here (``from warpcloth.lab import static_equilibrium``); they load SciPy on
-first use only, so a sweep does not pay for it.
+Nothing in :mod:`warpcloth`'s physics imports this package. The reference's names are imported
+from their module (``from warpcloth.lab.reference import static_equilibrium``).
 """
-
-_REFERENCE = (
-    "ContactEquilibrium",
-    "Convergence",
-    "Equilibrium",
-    "Float64Model",
-    "cloth_size",
-    "contact_equilibrium",
-    "convergence_check",
-    "reference_forces",
-    "reference_trajectory",
-    "simulate_frames",
-    "static_equilibrium",
-    "swing_from_horizontal",
-    "trajectory_error",
-    "wind_switch_times",
-)
-
-
-def __getattr__(name):
-    if name in _REFERENCE:
-        from warpcloth.lab import reference
-
-        return getattr(reference, name)
-    raise AttributeError(f"module 'warpcloth.lab' has no attribute {name!r}")
-
-
-__all__ = list(_REFERENCE)

@@ -31,13 +31,16 @@ import numpy as np
 from warpcloth.errors import WarpclothError, require
 from warpcloth.lab.reference import (
     cloth_size,
+    contact_equilibrium,
     reference_trajectory,
     simulate_frames,
     static_equilibrium,
     swing_from_horizontal,
     trajectory_error,
 )
+from warpcloth.lab.reference_warp import warp_reference, warp_trajectory
 from warpcloth.run.harness import RunHarness
+from warpcloth.sim.model import SpringType
 
 #: The frame of every accuracy run [s]: trial dts are FRAME_DT / k.
 FRAME_DT = 1.0 / 60.0
@@ -213,7 +216,6 @@ def reference_for(model, control, frames: int, x0, rtol: float = 1e-10, atol: fl
             True,
             "DOP853",
         )
-    from warpcloth.lab.reference_warp import warp_reference
 
     r = warp_reference(model, control, frames * FRAME_DT, FRAME_DT, x0=x0, max_halvings=1, require_accepted=False)
     return Reference(r.frames, r.relative_estimate, r.accepted, "Warp RK4", r.dt, r.piece_steps, tuple(r.estimates))
@@ -256,7 +258,6 @@ class _Shape:
             ]
         else:
             self.patches = [np.arange(model.particle_count)]
-        from warpcloth.sim.model import SpringType
 
         pairs = h["pairs"].astype(np.int64).reshape(-1, 2)
         # stretch along the warp and the weft: structural springs (a shear spring's strain is the
@@ -398,8 +399,6 @@ class TransientProblem:
             if self.ref.method == "DOP853":
                 traj = reference_trajectory(sim.model, sim.control, self.frames * FRAME_DT, FRAME_DT, x0=x0)
             else:
-                from warpcloth.lab.reference_warp import warp_trajectory
-
                 traj = warp_trajectory(
                     sim.model, sim.control, self.frames * FRAME_DT, FRAME_DT, x0=x0, piece_steps=self.ref.piece_steps
                 )
@@ -415,8 +414,6 @@ class ContactProblem:
     sag against it."""
 
     def __init__(self, sim, transient, x_eq: np.ndarray | None = None):
-        from warpcloth.lab.reference import contact_equilibrium
-
         self.transient = transient
         self.size = cloth_size(sim.model)
         self.x0 = transient.start(sim.model)
@@ -442,8 +439,6 @@ class ContactProblem:
     def floor(self, sim, seeds=(0, 1)) -> dict:
         """The floor of the static metrics: the equilibrium solved again from itself moved by
         :data:`PERTURBATION` (2 seeds): a unique equilibrium comes back to within the solver's tolerance."""
-        from warpcloth.lab.reference import contact_equilibrium
-
         out = {}
         for seed in seeds:
             eq = contact_equilibrium(

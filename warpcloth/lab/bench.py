@@ -23,6 +23,12 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError, require
 from warpcloth.io.files import AtomicFile, OutputError, csv_cell, describe_write_error, write_atomic
+from warpcloth.io.provenance import machine
+from warpcloth.kernels import roofline as rk
+from warpcloth.run.harness import time_steps
+from warpcloth.scenarios import get_scenario
+from warpcloth.simulator import graph_capture_supported
+from warpcloth.version import __version__
 
 #: Columns of the benchmark CSV: the study's naming (units in the names, booleans true/false).
 COLUMNS = [
@@ -82,8 +88,6 @@ def default_devices() -> list[str]:
 
 def roofline_ms(model, repeats: int = 50) -> float:
     """Median time [ms] of the speed-of-light force pass on ``model``'s device."""
-    from warpcloth.kernels import roofline as rk
-
     h = model.host
     order = np.argsort(h["pairs"][:, 0], kind="stable")
     pairs = h["pairs"][order]
@@ -104,7 +108,6 @@ def roofline_ms(model, repeats: int = 50) -> float:
         wp.launch(rk.roofline_stream, dim=model.particle_count, inputs=args)
         wp.synchronize_device(d)
         # capture a batch of launches so launch overhead does not count (where capture works)
-        from warpcloth.simulator import graph_capture_supported
 
         batch = 20
         if graph_capture_supported(d):
@@ -131,10 +134,8 @@ def roofline_ms(model, repeats: int = 50) -> float:
     return 1000.0 * float(np.median(times))
 
 
-def _build(scenario: str, size: int | None, device: str, **kwargs):
+def build_sim(scenario: str, size: int | None, device: str, **kwargs):
     """A Simulator of ``scenario``: a size x size grid, or the scenario's own mesh (``size`` None)."""
-    from warpcloth.scenarios import get_scenario
-
     grid = {} if size is None else {"rows": size, "cols": size}
     return get_scenario(scenario).build(device=device, **grid, **kwargs)
 
@@ -153,11 +154,7 @@ def bench_one(
     mesh scenario's own mesh (``size`` None), with :func:`warpcloth.run.harness.time_steps`:
     ``windows`` timed windows of about ``seconds / windows`` each (or ``steps`` steps in all),
     warm-up and first replay excluded. Returns a CSV row (without cross-row columns)."""
-    from warpcloth.io.provenance import machine
-    from warpcloth.run.harness import time_steps
-    from warpcloth.version import __version__
-
-    sim = _build(scenario, size, device, integrator=integrator)
+    sim = build_sim(scenario, size, device, integrator=integrator)
     sim.use_graph = graph
     if graph and not sim.graph_enabled:
         raise WarpclothError(f"graph capture unavailable for {integrator} on {device}")

@@ -23,7 +23,9 @@ import time
 from dataclasses import dataclass, field
 
 from warpcloth.errors import WarpclothError, require, require_int, require_positive
-from warpcloth.sim.material import Material, material
+from warpcloth.scenarios import get_scenario
+from warpcloth.scenarios.cantilever import ASTM_OVERHANG_RATIO
+from warpcloth.sim.material import PRESETS, Material, material
 
 #: What each target means and its scenario.
 TARGETS = {
@@ -107,8 +109,6 @@ class Calibration:
 
 
 def _presets():
-    from warpcloth.sim.material import PRESETS
-
     return PRESETS
 
 
@@ -141,9 +141,6 @@ def measure(
 ) -> dict:
     """What ``mat`` gives for each target, each by a scenario run to rest at ``size`` (particles along
     the cantilever strip; points across the Cusick disc; None: the scenario's) with ``integrator``."""
-    from warpcloth.scenarios import get_scenario
-    from warpcloth.scenarios.cantilever import ASTM_OVERHANG_RATIO
-
     out = {}
     for name, target in targets.items():
         scenario = get_scenario(TARGETS[name][1])

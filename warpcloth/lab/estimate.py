@@ -8,11 +8,14 @@ import math
 import os
 from dataclasses import dataclass
 
-from warpcloth.integrators import integrator_class
+from warpcloth.integrators import integrator_class, make_integrator
 from warpcloth.lab.accuracy import FRAME_DT, SCIPY_MAX_SIZE
 from warpcloth.lab.configs import configurations, static_configurations, steps_for, study_options, work
 from warpcloth.lab.plan import StudyPlan
+from warpcloth.lab.reference import Float64Model
+from warpcloth.lab.reference_warp import stability_limit
 from warpcloth.lab.transients import DYNAMIC, TRANSIENTS
+from warpcloth.run.harness import time_steps
 
 #: SciPy DOP853 (<= 12 x 12): seconds per particle per simulated second (measured on the
 #: project's 2-core CPU: 5.1 s for an 8 x 8 sheet's 1 s swing, 15 s at 12 x 12).
@@ -49,9 +52,6 @@ class PhaseEstimate:
 
 def _omega(n: int, device: str) -> float:
     """The study sheet's highest frequency [rad/s] at n x n (Lanczos, as the reference)."""
-    from warpcloth.lab.reference import Float64Model
-    from warpcloth.lab.reference_warp import stability_limit
-
     tr = TRANSIENTS["swing"]
     sim = tr.scenario.build(rows=n, cols=n, device="cpu", integrator="explicit_euler")
     return stability_limit(Float64Model.from_model(sim.model, sim.control), tr.start(sim.model)).rho
@@ -62,9 +62,6 @@ def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
     ``device`` at the integrator's default options and dt (one frame at most), and each size's
     highest frequency: ``{(integrator, n): (k0, ms), ("omega", n): rad/s}``. A few steps each after
     a warm-up; seconds to a minute in all."""
-    from warpcloth.integrators import make_integrator
-    from warpcloth.run.harness import time_steps
-
     out = {}
     sheet = TRANSIENTS["swing"].scenario
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from warpcloth.errors import WarpclothError
-from warpcloth.sim.colliders import _quat_matrix
+from warpcloth.sim.colliders import quat_matrix
 from warpcloth.sim.mesh import mesh_topology
 
 
@@ -255,7 +255,7 @@ def collider_segments(collider, time: float = 0.0) -> np.ndarray:
     without edges: plane, sphere, capsule)."""
     c = collider.at(time) if getattr(collider, "track", None) is not None else collider
     if c.kind == "box":
-        return box_segments(c.center, c.half_extents, _quat_matrix(c.rotation))
+        return box_segments(c.center, c.half_extents, quat_matrix(c.rotation))
     if c.kind == "mesh":
         return mesh_segments(c.vertices, c.triangles)
     return np.zeros((0, 2, 3))

@@ -20,6 +20,7 @@ import time
 from dataclasses import dataclass, field
 
 from warpcloth.errors import require, require_positive
+from warpcloth.integrators import explicit_euler_dt_bound
 from warpcloth.run.harness import Stopwatch
 
 DEFAULT_PRECISION = 0.02
@@ -173,8 +174,6 @@ def find_max_dt(
             run (issue 26). Stability is assumed monotonic in dt below the boundary.
         stop_at_equilibrium: the verification trials end at equilibrium, as the run does.
     """
-    from warpcloth.integrators import explicit_euler_dt_bound
-
     precision = require_positive("precision", precision)
     require(precision < 1.0, f"precision must be < 1 (relative, e.g. 0.02), got {precision!r}")
     duration = require_positive("duration", duration, "s")

@@ -31,12 +31,16 @@ import time
 
 import numpy as np
 
+from warpcloth.integrators import make_integrator
 from warpcloth.lab.accuracy import FRAME_DT, ContactProblem, Reference, TransientProblem, steps_per_frame_at_most
 from warpcloth.lab.configs import Config, configurations, static_configurations, study_options
+from warpcloth.lab.maxdt import find_max_dt
 from warpcloth.lab.plan import StudyPlan
 from warpcloth.lab.results import MESH_NOTE
 from warpcloth.lab.transients import DYNAMIC, TRANSIENTS
-from warpcloth.run.harness import RunHarness
+from warpcloth.run.harness import RunHarness, time_steps
+from warpcloth.scenarios import get_scenario
+from warpcloth.version import __version__
 
 
 class _Deferred(Exception):
@@ -103,8 +107,6 @@ class Measurements:
     def __init__(self, plan: StudyPlan, out, on_row=None):
         import warp as wp
 
-        from warpcloth.version import __version__
-
         self.plan = plan
         self.out = out
         self.on_row = on_row  # called with each new row (tests: interrupt after N)
@@ -145,16 +147,12 @@ class Measurements:
             self.on_row(row)
 
     def _scenario(self, scenario: str):
-        from warpcloth.scenarios import get_scenario
-
         for tr in TRANSIENTS.values():
             if tr.scenario.name == scenario:
                 return tr.scenario
         return get_scenario(scenario)
 
     def sim(self, scenario: str, n: int, device: str, integrator: str, options: dict | None = None):
-        from warpcloth.integrators import make_integrator
-
         key = (scenario, n, device)
         sim = self._sims.get(key)
         if sim is None:
@@ -306,8 +304,6 @@ class Measurements:
         )
 
         def run():
-            from warpcloth.lab.maxdt import find_max_dt
-
             sc = self._scenario(scenario)
             size = {} if n is None else {"rows": n, "cols": n}
             r = find_max_dt(
@@ -455,8 +451,6 @@ class Measurements:
 
         def run():
             import warp as wp
-
-            from warpcloth.run.harness import time_steps
 
             sim = self.sim(scenario, n, device, integrator, options)
             sim.set_dt(dt)

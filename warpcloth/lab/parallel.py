@@ -34,6 +34,7 @@ from multiprocessing.connection import wait as wait_any
 from typing import Callable, Hashable, Iterable, Iterator
 
 from warpcloth.errors import WarpclothError
+from warpcloth.sim.device import init_warp
 
 
 @dataclass(frozen=True)
@@ -531,8 +532,6 @@ class RayPool:
 def init_worker(place) -> None:
     """The ``init`` of the sweep's and the study's workers: run once in each worker process (local
     or Ray) before its first job: Warp initialised quietly."""
-    from warpcloth.sim.device import init_warp
-
     init_warp(False)
 
 

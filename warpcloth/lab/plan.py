@@ -7,7 +7,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from warpcloth.errors import WarpclothError, require
-from warpcloth.lab.accuracy import DEFAULT_TOLERANCE, TOLERANCES, check_tolerance
+from warpcloth.integrators import integrator_names
+from warpcloth.lab.accuracy import DEFAULT_TOLERANCE, FRAME_DT, TOLERANCES, check_tolerance
+from warpcloth.scenarios import get_scenario
+from warpcloth.sim.device import require_memory, resolve_device
+from warpcloth.sim.grid import grid_memory_estimate
 
 #: The study's grid transients (lab/transients.py): swing and flag frame by frame, contact at rest.
 SCENARIOS = ("swing", "flag", "contact")
@@ -67,8 +71,6 @@ class StudyPlan:
 
     def maxdt_duration_at(self, n: int) -> float:
         """The stability trial's simulated duration [s] at size ``n``: the swing's window there."""
-        from warpcloth.lab.accuracy import FRAME_DT
-
         return self.window_frames("swing", n) * FRAME_DT
 
     @property
@@ -118,8 +120,6 @@ def make_plan(
     budget_ms=None,
 ) -> StudyPlan:
     """A :class:`StudyPlan` from a profile and explicit overrides (checked; one-line errors)."""
-    from warpcloth.integrators import integrator_names
-
     if profile not in PROFILES:
         raise WarpclothError(f"unknown profile {profile!r}; choose one of {', '.join(PROFILES)}")
     names = integrator_names()
@@ -174,9 +174,6 @@ def check_memory(sizes, devices) -> None:
     """Refuse, before the first run, a size whose n x n cloth a device cannot hold (the grid's
     up-front estimate, :func:`~warpcloth.sim.grid.grid_memory_estimate`); a device that is not
     present is left to the study (it is reported and skipped there)."""
-    from warpcloth.sim.device import require_memory, resolve_device
-    from warpcloth.sim.grid import grid_memory_estimate
-
     for device in devices:
         try:
             resolve_device(device)
@@ -193,7 +190,6 @@ def check_scenarios(scenarios) -> tuple[bool, list]:
     refused before any work."""
     if scenarios is None:
         return True, []
-    from warpcloth.scenarios import get_scenario
 
     items = list(dict.fromkeys(scenarios))
     require(bool(items), "the scenario list is empty: give e.g. --scenarios sheet,flag,examples/cape.toml")

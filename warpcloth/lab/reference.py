@@ -36,6 +36,7 @@ from scipy.integrate import solve_ivp
 from scipy.sparse.linalg import MatrixRankWarning, spsolve
 
 from warpcloth.errors import WarpclothError, require, require_positive
+from warpcloth.sim.colliders import Plane, Sphere
 from warpcloth.sim.control import Control, WindSchedule
 
 
@@ -227,7 +228,7 @@ def wind_switch_times(schedule: WindSchedule, t0: float, t1: float) -> list[floa
 
 
 # -- trajectories ----------------------------------------------------------------------------
-def _frame_count(duration: float, frame_dt: float) -> int:
+def frame_count(duration: float, frame_dt: float) -> int:
     duration = require_positive("duration", duration, "s")
     frame_dt = require_positive("frame dt", frame_dt, "s")
     frames = int(round(duration / frame_dt))
@@ -238,7 +239,7 @@ def _frame_count(duration: float, frame_dt: float) -> int:
     return frames
 
 
-def _initial_state(m64: Float64Model, x0, v0) -> tuple[np.ndarray, np.ndarray]:
+def initial_state(m64: Float64Model, x0, v0) -> tuple[np.ndarray, np.ndarray]:
     n = m64.particle_count
     x = m64.q0.copy() if x0 is None else np.array(x0, dtype=np.float64).reshape(-1, 3)
     v = np.zeros((n, 3)) if v0 is None else np.array(v0, dtype=np.float64).reshape(-1, 3)
@@ -265,9 +266,9 @@ def reference_trajectory(
     velocities [m/s]) runs piecewise between the switch times of the wind schedule, restarted at
     each. Pinned particles keep x0 and v0. Raises :class:`WarpclothError` if the integration fails.
     """
-    frames = _frame_count(duration, frame_dt)
+    frames = frame_count(duration, frame_dt)
     m64 = Float64Model.from_model(model, control)
-    x, v = _initial_state(m64, x0, v0)
+    x, v = initial_state(m64, x0, v0)
     free = m64.free
     nf = int(free.sum())
     m_free = m64.mass[free][:, None]
@@ -351,7 +352,7 @@ def simulate_frames(sim, duration: float, frame_dt: float) -> np.ndarray:
     """Run a :class:`~warpcloth.simulator.Simulator` from its current state and sample its
     positions at every frame, (frames + 1, N, 3) float64, comparable with
     :func:`reference_trajectory`. ``frame_dt`` must be a whole number of steps ``sim.dt``."""
-    frames = _frame_count(duration, frame_dt)
+    frames = frame_count(duration, frame_dt)
     steps = int(round(frame_dt / sim.dt))
     require(
         steps >= 1 and abs(steps * sim.dt - frame_dt) <= 1e-9 * frame_dt,
@@ -401,7 +402,7 @@ def static_equilibrium(
     returns the positions and the residual (check it).
     """
     m64 = Float64Model.from_model(model, control)
-    x, _ = _initial_state(m64, x0, None)
+    x, _ = initial_state(m64, x0, None)
     return _minimize(m64, x, None, tol, max_iter)
 
 
@@ -410,8 +411,6 @@ class _Penalty:
     particle, phi = max(0, penetration) of the collider's surface offset by its thickness."""
 
     def __init__(self, colliders, kappa: float):
-        from warpcloth.sim.colliders import Plane, Sphere
-
         self.kappa = float(kappa)
         self.spheres, self.planes = [], []
         for c in colliders:
@@ -565,7 +564,7 @@ def contact_equilibrium(
     WarpclothError when the continuation does not reach the penetration tolerance.
     """
     m64 = Float64Model.from_model(model, control)
-    x, _ = _initial_state(m64, x0, None)
+    x, _ = initial_state(m64, x0, None)
     colliders = tuple(control.colliders if colliders is None and control is not None else colliders or ())
     size = cloth_size(model)
     if x0 is None:  # the rest shape with every free particle inside a collider moved out onto its surface

@@ -33,7 +33,8 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_int, require_positive
-from warpcloth.lab.reference import Float64Model, _frame_count, _initial_state, cloth_size, wind_switch_times
+from warpcloth.kernels import reference64
+from warpcloth.lab.reference import Float64Model, cloth_size, frame_count, initial_state, wind_switch_times
 from warpcloth.sim.pins import KinematicPins, PinTrack
 
 #: RK4's stability region contains the half-disc |z| <= 2.61, Re z <= 0 (its boundary comes
@@ -47,8 +48,6 @@ DEFAULT_MAX_HALVINGS = 3
 
 
 def _kernels():
-    from warpcloth.kernels import reference64
-
     return reference64
 
 
@@ -434,7 +433,7 @@ def warp_reference(
     on one thread each). Raises :class:`WarpclothError` on bad input, and when no halving is
     accepted if ``require_accepted`` (else returns the last with ``accepted`` False).
     """
-    frames = _frame_count(duration, frame_dt)
+    frames = frame_count(duration, frame_dt)
     duration, frame_dt = float(duration), float(frame_dt)
     tolerance = require_positive("reference tolerance", tolerance)
     safety = require_positive("reference safety factor", safety)
@@ -445,7 +444,7 @@ def warp_reference(
     if dt is not None:
         dt = require_positive("reference dt", dt, "s")
     m64 = Float64Model.from_model(model, control)
-    x, v = _initial_state(m64, x0, v0)
+    x, v = initial_state(m64, x0, v0)
     tracks = _pin_tracks(model, control)
     device = model.device if device is None else wp.get_device(device)
     size = cloth_size(model)
@@ -529,9 +528,9 @@ def warp_trajectory(
     equal steps of at most ``dt`` [s], or in ``piece_steps`` steps (a :class:`WarpReference`'s
     ``piece_steps``: the same steps as its finest run). For runs beside an accepted reference (the
     conditioning floor's perturbed starts, :func:`warpcloth.lab.accuracy.conditioning_floor`)."""
-    frames = _frame_count(duration, frame_dt)
+    frames = frame_count(duration, frame_dt)
     m64 = Float64Model.from_model(model, control)
-    x, v = _initial_state(m64, x0, v0)
+    x, v = initial_state(m64, x0, v0)
     tracks = _pin_tracks(model, control)
     device = model.device if device is None else wp.get_device(device)
     pieces = _pieces(m64, tracks, float(duration), frames, float(frame_dt))

@@ -26,8 +26,20 @@ from warpcloth.io.files import check_output_path
 from warpcloth.io.progress import Progress, format_clock
 from warpcloth.io.results import ResultsFile
 from warpcloth.lab.measure import Measurements
+from warpcloth.lab.parallel import (
+    Job,
+    check_count,
+    event_printer,
+    init_worker,
+    is_cuda,
+    open_pool,
+    require_ray,
+    run_jobs,
+)
 from warpcloth.lab.plan import StudyPlan, group_label, plan_groups
+from warpcloth.lab.report import write_report
 from warpcloth.lab.results import RESULTS, read_rows
+from warpcloth.sim.device import device_name as resolve_device
 
 
 def _line(bar: Progress, done: float, total: float, label: str, unit: str = "") -> str:
@@ -86,8 +98,6 @@ class ParallelSettings:
     @classmethod
     def check(cls, devices: list, workers=None, ray=None, timing_workers=None) -> "ParallelSettings":
         """Validated settings for a study on ``devices``; WarpclothError names the bad value."""
-        from warpcloth.lab.parallel import check_count, require_ray
-
         check_count("--workers", workers)
         check_count("--timing-workers", timing_workers)
         if ray is not None:
@@ -135,8 +145,6 @@ def study_job(payload, place) -> dict:
     """One device x integrator x size group in a worker (``phase`` ``search``: everything but
     the timings; ``timing``: the timings, the searches' rows given). ``known`` holds the rows
     already in the driver's file (resume, the search phase's). Returns ``{"rows": [...]}``."""
-    from warpcloth.lab.parallel import is_cuda
-
     plan_dict, device, integrator, n, phase, known, run_id = payload
     tag = json.dumps(plan_dict, sort_keys=True, default=list)
     study = _WORKER_STUDIES.get(tag)
@@ -160,8 +168,6 @@ def run_parallel(study: Measurements, settings: ParallelSettings, progress=None,
     """Run ``study``'s plan through worker processes or Ray (see :class:`ParallelSettings`;
     ``ray_pool``: a connected pool, see :func:`run_study`); the driver (this process) writes
     every row. Returns the number of groups that failed."""
-    from warpcloth.lab.parallel import Job, event_printer, init_worker, run_jobs
-
     p = study.plan
     groups = plan_groups(p)
     total = max(2 * sum(_group_weight(p, n) for _, _, n in groups), 1e-9)
@@ -202,8 +208,6 @@ def run_parallel(study: Measurements, settings: ParallelSettings, progress=None,
 # -- the driver ------------------------------------------------------------------------------
 def available_devices(devices: list, stream=None) -> list:
     """The devices of ``devices`` that are present; each missing one is skipped with one line."""
-    from warpcloth.sim.device import device_name as resolve_device
-
     out = []
     for d in devices:
         try:
@@ -255,8 +259,6 @@ def run_study(
     prepare_out(out_dir)  # checked before connecting to a cluster; nothing written yet
     ray_pool = None
     if settings.ray is not None:
-        from warpcloth.lab.parallel import event_printer, init_worker, open_pool
-
         ray_pool = open_pool(
             study_job, ray=settings.ray, init=init_worker, on_event=event_printer(report, "warpcloth: study: ")
         )
@@ -272,8 +274,6 @@ def run_study(
 def _run_study(
     plan, devices, settings, ray_pool, out_dir, resume, overwrite, progress, report, command, on_row
 ) -> dict:
-    from warpcloth.lab.report import write_report
-
     csv_path = prepare_out(out_dir)
     plan = replace(
         plan,

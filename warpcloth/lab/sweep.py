@@ -29,8 +29,14 @@ from dataclasses import dataclass, field
 from warpcloth.errors import WarpclothError
 from warpcloth.io.progress import Progress, format_clock
 from warpcloth.io.results import ResultsFile, ResultsFormat
+from warpcloth.lab.maxdt import find_max_dt
+from warpcloth.lab.parallel import Job, check_count, event_printer, init_worker, open_pool, require_ray, run_jobs
 from warpcloth.lab.testlist import RunSpec, TestList, parse_test_list, resolved_params
 from warpcloth.run.params import TimeStep, csv_columns, per_type_triple
+from warpcloth.scenarios import get_scenario
+from warpcloth.sim.device import device_name
+from warpcloth.sim.grid import expected_spring_counts
+from warpcloth.version import __version__
 
 #: Columns of the CSV, in order (docs/sweep.md describes each): the test id, the run parameters
 #: (their columns come from the declarations, :func:`warpcloth.run.params.csv_columns`), then what
@@ -85,9 +91,6 @@ def parameter_row(spec: RunSpec) -> dict:
     """The columns known before a run starts (the parameter columns from the declarations)."""
     import warp as wp
 
-    from warpcloth.sim.grid import expected_spring_counts
-    from warpcloth.version import __version__
-
     row = {
         "test_id": spec.test_id,
         "options": " ".join(f"{k}={v}" for k, v in spec.options),
@@ -110,8 +113,6 @@ def parameter_row(spec: RunSpec) -> dict:
 
 def get_scenario_kind(name: str) -> str:
     """``grid`` or ``mesh``: what kind of cloth scenario ``name`` builds."""
-    from warpcloth.scenarios import get_scenario
-
     return "mesh" if get_scenario(name).is_mesh else "grid"
 
 
@@ -175,9 +176,6 @@ class MaxDtCache:
         self.on_trial = on_trial
 
     def get(self, spec: RunSpec):
-        from warpcloth.lab.maxdt import find_max_dt
-        from warpcloth.scenarios import get_scenario
-
         key = spec.search_key
         if key not in self._results:
             try:
@@ -204,8 +202,6 @@ class MaxDtCache:
 
 def execute_run(spec: RunSpec, cache: MaxDtCache) -> dict:
     """Run ``spec`` and return its CSV row; never raises on a failing run (outcome ``error``)."""
-    from warpcloth.scenarios import get_scenario
-
     row = parameter_row(spec)
     try:
         dt = None
@@ -367,8 +363,6 @@ def run_sweep(
                 row.update(host=host, worker="main", concurrent_runs=1)
                 record(row)
         elif todo:
-            from warpcloth.lab.parallel import Job, run_jobs
-
             jobs = [Job(spec.key, spec, spec.device, spec.search_key if spec.dt.uses_max else None) for spec in todo]
             for done in run_jobs(parallel_run, jobs, pool=pool):
                 spec = done.job.payload
@@ -416,7 +410,6 @@ class ParallelPlan:
         WarpclothError says why it could not be."""
         if not self.parallel:
             return None
-        from warpcloth.lab.parallel import event_printer, init_worker, open_pool
 
         return open_pool(
             parallel_run,
@@ -438,17 +431,13 @@ class ParallelPlan:
                 )
             if not str(ray).strip():
                 raise WarpclothError("--ray: give 'auto', 'local' or a cluster address HOST:PORT")
-            from warpcloth.lab.parallel import require_ray
 
             require_ray()
             return cls(ray=str(ray).strip())
-        from warpcloth.lab.parallel import check_count
 
         check_count("--workers", workers)
         names = None
         if devices is not None:
-            from warpcloth.sim.device import device_name
-
             names = []
             for d in devices:
                 d = str(d).strip()

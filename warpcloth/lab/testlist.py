@@ -26,9 +26,21 @@ import xml.parsers.expat as expat
 from dataclasses import dataclass, field
 
 from warpcloth.errors import WarpclothError, warn
+from warpcloth.integrators import all_options, integrator_class, integrator_names
+from warpcloth.io.files import read_input
 from warpcloth.run import params
-from warpcloth.run.params import SPRING_TYPES, Param, TimeStep, canonical, per_type_triple, resolve_per_type  # noqa: F401  (SPRING_TYPES, TimeStep: importable from here)
-from warpcloth.scenarios import check_scenario
+from warpcloth.run.params import (  # noqa: F401  (SPRING_TYPES, TimeStep: importable from here)
+    SPRING_TYPES,
+    Param,
+    TimeStep,
+    canonical,
+    config_values,
+    per_type_triple,
+    resolve_per_type,
+)
+from warpcloth.scenarios import check_scenario, get_scenario
+from warpcloth.sim.material import MATERIAL_VALUES, material_with
+from warpcloth.sim.model import default_spring_params
 
 ROOT_TAG = "test_list"
 TEST_TAG = "test"
@@ -137,9 +149,6 @@ class RunSpec:
 
     def config(self, dt: float | None = None, duration: float | None = None):
         """The :class:`~warpcloth.scenarios.ScenarioConfig` of this run."""
-        from warpcloth.run.params import config_values
-        from warpcloth.scenarios import get_scenario
-
         values = dict(self.values)
         for kind in ("stiffness", "damping"):  # a partial per-type value: the builder fills the rest
             v = values.get(kind)
@@ -199,8 +208,6 @@ MAX_TEST_LIST_BYTES = 16 * 2**20
 
 
 def _read_tree(path: str) -> tuple[_Source, _Element]:
-    from warpcloth.io.files import read_input
-
     try:  # a regular file of bounded size, never a FIFO or a file of /proc, /dev
         data = read_input(path, "file", MAX_TEST_LIST_BYTES)
     except WarpclothError as exc:
@@ -300,8 +307,6 @@ def parse_test_list(path: str, max_runs: int = DEFAULT_MAX_RUNS) -> TestList:
 def _parse_attributes(src: _Source, el: _Element, what: str) -> dict[str, list]:
     """Every attribute of ``el`` as a list of parsed values (old spellings mapped to their
     parameter, with a note); integrator options stay text."""
-    from warpcloth.integrators import all_options
-
     options = all_options()
     declared = attributes()
     out: dict[str, list] = {}
@@ -360,11 +365,6 @@ def _expand(
     max_runs: int = DEFAULT_MAX_RUNS,
 ) -> list[RunSpec]:
     """The runs of one ``test``: the product of its value lists, for each scenario."""
-    from warpcloth.integrators import all_options, integrator_class, integrator_names
-    from warpcloth.scenarios import get_scenario
-    from warpcloth.sim.material import MATERIAL_VALUES, material_with
-    from warpcloth.sim.model import default_spring_params
-
     what = f"test {test_id!r}"
     values = {**defaults, **own}
 

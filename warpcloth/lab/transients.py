@@ -31,10 +31,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
+from warpcloth.scenarios.flag import GUST, GUST_OFF, GUST_ON, LULL, WIND_COEFFICIENT
 from warpcloth.sim.colliders import Plane
 from warpcloth.sim.control import Control, WindSchedule
+from warpcloth.sim.grid import grid_positions, grid_triangles, grid_uvs
 from warpcloth.sim.material import Material, grid_spring_params
-from warpcloth.sim.model import BendModel
+from warpcloth.sim.model import BendModel, build_model
 
 #: The study's cloth: a plain woven fabric in the range of docs/materials.md's presets (between
 #: polyester_light, 343 N/m, and cotton, 4070 N/m), isotropic so that the sheet and the flag
@@ -70,9 +72,6 @@ def material_grid_model(cfg: ScenarioConfig, device, origin, pins, mat: Material
     """A ClothModel of ``mat`` on cfg.rows x cfg.cols particles over cfg.width x cfg.height [m]
     in the vertical plane, particle [0, 0] at ``origin``, ``pins`` pinned (Provot bend springs
     with the material's approximate rule)."""
-    from warpcloth.sim.grid import grid_positions, grid_triangles, grid_uvs
-    from warpcloth.sim.model import build_model
-
     rows, cols = int(cfg.rows), int(cfg.cols)
     q = grid_positions(rows, cols, cfg.width, cfg.height, origin, "vertical")
     springs = grid_spring_params(mat, rows, cols, cfg.width, cfg.height, bend=BendModel.PROVOT)
@@ -121,8 +120,6 @@ def _sheet_control(cfg, device) -> Control:
 
 
 def _flag_control(cfg, device) -> Control:
-    from warpcloth.scenarios.flag import GUST, GUST_OFF, GUST_ON, LULL, WIND_COEFFICIENT
-
     return Control(
         drag_rate=0.0 if cfg.drag is None else cfg.drag,
         wind_coefficient=WIND_COEFFICIENT,

@@ -35,6 +35,8 @@ from warpcloth.run.metrics import (
     MetricsProbe,
     wind_power_bound,
 )
+from warpcloth.sim.colliders import box_edge_distance, describe, signed_distance
+from warpcloth.sim.contacts import starting_inside
 from warpcloth.version import __version__
 
 #: Most steps one run may take (a larger count is a typo in dt or duration, not an experiment).
@@ -539,8 +541,6 @@ class RunHarness:
     def _check_start(self, sim) -> list:
         """Before a run: one warning line per collider that free vertices start inside (they
         are thrown out at the first step); returns those colliders (the unstable cause)."""
-        from warpcloth.sim.contacts import starting_inside
-
         colliders = sim.control.colliders
         if not colliders:
             return []
@@ -558,8 +558,6 @@ class RunHarness:
     def _check_rounded_edges(self, sim, free, inside: set) -> None:
         """One warning line per box whose rounded edges (Box.edge_radius, docs/colliders.md) free
         vertices start within: the first step pushes them out to the radius at once."""
-        from warpcloth.sim.colliders import box_edge_distance, describe, signed_distance
-
         contacts = sim.control.collision
         contacts.bind_model(sim.model)  # the boxes' radius for this cloth (once per model)
         x = sim.state.particle_q.numpy().astype(np.float64)[free]

@@ -30,8 +30,11 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from warpcloth.errors import FLOAT32_MAX, WarpclothError
+from warpcloth.integrators import integrator_names
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 from warpcloth.run.parse import collider_specs
+from warpcloth.sim.device import device_name
+from warpcloth.sim.material import PRESETS
 
 SPRING_TYPES = ("structural", "shear", "bend")
 
@@ -215,8 +218,6 @@ def choice(*choices: str, what: str):
 
 
 def integrator(text: str) -> str:
-    from warpcloth.integrators import integrator_names
-
     names = integrator_names()
     if text != "all" and text not in names:
         raise ValueError(f"unknown integrator {_shown(text)}; choose from {', '.join(names)} (or 'all' in a test list)")
@@ -230,8 +231,6 @@ def scenario(text: str) -> str:
 
 
 def device(text: str) -> str:
-    from warpcloth.sim.device import device_name
-
     try:
         return device_name(text)
     except WarpclothError as exc:
@@ -298,8 +297,6 @@ def angle(text: str) -> float:
 
 def material_name(text: str) -> str:
     """A material preset (:data:`warpcloth.sim.material.PRESETS`), ``custom`` or ``none``."""
-    from warpcloth.sim.material import PRESETS
-
     name = text.strip().lower()
     if name not in (*PRESETS, "custom", "none"):
         raise ValueError(
@@ -1089,7 +1086,7 @@ def params_for(command: str) -> list[Param]:
 
 
 # -- CLI ------------------------------------------------------------------------------------
-def _argparse_type(param: Param):
+def argparse_type(param: Param):
     def convert(text: str):
         try:
             return param.parse(text)
@@ -1112,7 +1109,7 @@ def add_flags(parser: argparse.ArgumentParser, command: str, skip: tuple = (), e
     }
     for p in chosen:
         if p.positional:
-            parser.add_argument(p.name, type=_argparse_type(p), help=p.help)
+            parser.add_argument(p.name, type=argparse_type(p), help=p.help)
             continue
         group = groups[p.group]
         if exclusive and p.name in exclusive:
@@ -1132,7 +1129,7 @@ def add_flags(parser: argparse.ArgumentParser, command: str, skip: tuple = (), e
         kwargs = (
             {"choices": list(p.choices)}
             if p.choices
-            else {"type": p.cli_type or _argparse_type(p), "metavar": p.metavar or p.name.upper()}
+            else {"type": p.cli_type or argparse_type(p), "metavar": p.metavar or p.name.upper()}
         )
         group.add_argument(
             p.flag,
@@ -1268,6 +1265,7 @@ __all__ = [
     "csv_columns",
     "markdown_table",
     "params_for",
+    "argparse_type",
 ]
 
 

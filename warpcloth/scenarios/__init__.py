@@ -9,11 +9,15 @@ or a :class:`Scenario` object given to :func:`register` from Python.
 
 from __future__ import annotations
 
-from warpcloth.scenarios.common import Scenario, ScenarioConfig
-
 from warpcloth.errors import WarpclothError
+from warpcloth.scenarios import cantilever, curtain, cusick, drape, flag, fold, mesh, sheet, tablecloth
+from warpcloth.scenarios.common import Scenario, ScenarioConfig
+from warpcloth.scenarios.file import is_scenario_file, load_scenario
 
-_BUILT_IN = ("sheet", "flag", "curtain", "mesh", "drape", "tablecloth", "fold", "cantilever", "cusick")
+#: The built-in scenarios by name, in the order ``warpcloth list`` shows them.
+_BUILT_IN = {
+    m.SCENARIO.name: m.SCENARIO for m in (sheet, flag, curtain, mesh, drape, tablecloth, fold, cantilever, cusick)
+}
 _REGISTERED: dict[str, Scenario] = {}
 
 
@@ -46,8 +50,6 @@ def check_scenario(text: str) -> str:
 
 def get_scenario(name: str) -> Scenario:
     """The scenario called ``name``, or the one described by the TOML file at ``name``."""
-    from warpcloth.scenarios.file import is_scenario_file, load_scenario
-
     if is_scenario_file(name):
         return load_scenario(name)
     if name in _REGISTERED:
@@ -56,9 +58,7 @@ def get_scenario(name: str) -> Scenario:
         raise WarpclothError(
             f"unknown scenario {name!r}; choose from {', '.join(scenario_names())}, or give a scenario file (.toml)"
         )
-    import importlib
-
-    return importlib.import_module(f"{__name__}.{name}").SCENARIO
+    return _BUILT_IN[name]
 
 
 __all__ = ["Scenario", "ScenarioConfig", "check_scenario", "get_scenario", "register", "scenario_names"]

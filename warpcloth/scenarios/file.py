@@ -30,12 +30,14 @@ import re
 from dataclasses import replace
 
 import numpy as np
-from warpcloth.scenarios.common import Scenario, ScenarioConfig, check_rigidity, scenario_material
 
 from warpcloth.errors import WarpclothError, require, require_vector, warn
+from warpcloth.integrators import make_integrator
 from warpcloth.io.files import check_input_file, read_input
 from warpcloth.io.meshio import load_mesh, load_mesh_collider
 from warpcloth.run.params import BY_NAME, config_values, non_negative, params_for, positive
+from warpcloth.scenarios.common import Scenario, ScenarioConfig, check_rigidity, scenario_material
+from warpcloth.sim.colliders import COLLIDER_TYPES, ColliderTrack, MeshCollider
 from warpcloth.sim.control import GRAVITY, Control, WindSchedule
 from warpcloth.sim.material import material_mesh_cloth
 from warpcloth.sim.mesh import MASS_MODES, build_mesh_cloth, lumped_masses
@@ -506,8 +508,6 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         integrator_defaults=integrator_defaults,
     )
     try:  # the integrator, its options and the pins, checked now
-        from warpcloth.integrators import make_integrator
-
         make_integrator(defaults.integrator, **options)
         scenario_material(defaults)
         resolve_pins(mesh.vertices, pin_indices, defaults.pin_group or (), defaults.pin_where, mesh.groups)
@@ -527,8 +527,6 @@ def _colliders(tables, where: str, path: str = "") -> tuple:
     optionally a pose ``track = { kind = "rigid" | "keyframes", ... }`` (ColliderTrack); or
     ``kind = "mesh"`` with ``path`` (relative to the scenario file ``path``), ``prim``, ``thickness``,
     ``friction``, ``reach`` (a static MeshCollider)."""
-    from warpcloth.sim.colliders import COLLIDER_TYPES, ColliderTrack, MeshCollider
-
     require(
         isinstance(tables, list), f"{where}: colliders must be an array of tables ([[colliders]]), got {_shown(tables)}"
     )

@@ -19,6 +19,7 @@ import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive, require_vector
+from warpcloth.sim.mesh import check_mesh
 from warpcloth.sim.tracks import FrameDrive, HostWrite, Track, check_keyframes, check_rigid
 
 #: Collider kinds in the order of their kernel launches (the kernels' ``kind`` argument).
@@ -239,7 +240,7 @@ class ColliderDrive(FrameDrive):
         """(R (3, 3), centre c, offset d) at time t [s] within the last frame: y -> c + d + R (y - c)."""
         d, _ = self.evaluate(t)
         q0, axis, angle = self._turn_keys
-        r = _quat_matrix(q0)
+        r = quat_matrix(q0)
         if angle != 0.0:
             t0, t1 = self._turn_frame
             theta = angle * min(max((float(t) - t0) / (t1 - t0), 0.0), 1.0)
@@ -395,7 +396,7 @@ class Box(_Posed):
         return Box(
             center=move(self.center),
             half_extents=self.half_extents,
-            rotation=_matrix_quat(r @ _quat_matrix(self.rotation)),
+            rotation=matrix_quat(r @ quat_matrix(self.rotation)),
             thickness=self.thickness,
             friction=self.friction,
             edge_radius=self.edge_radius,
@@ -455,8 +456,6 @@ class MeshCollider(_Posed):
     edge_radius: float | None = None
 
     def __post_init__(self):
-        from warpcloth.sim.mesh import check_mesh
-
         what = f"mesh collider {self.source!r}" if self.source else "mesh collider"
         if (
             self.vertices is None
@@ -532,7 +531,7 @@ def signed_distance(c, points) -> np.ndarray | None:
         t = np.clip((x - a) @ ab / max(float(ab @ ab), 1e-20), 0.0, 1.0)
         return np.linalg.norm(x - (a + t[:, None] * ab), axis=1) - c.radius
     if c.kind == "box":
-        p = (x - np.asarray(c.center)) @ _quat_matrix(c.rotation)  # R^T (x - c), row-wise
+        p = (x - np.asarray(c.center)) @ quat_matrix(c.rotation)  # R^T (x - c), row-wise
         q = np.abs(p) - np.asarray(c.half_extents)
         return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
     return None
@@ -542,7 +541,7 @@ def box_edge_distance(c, points) -> np.ndarray:
     """The distance [m] of ``points`` (P, 3) from the nearest of box ``c``'s 12 edges (segments), on
     the host in float64."""
     x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    u = np.abs((x - np.asarray(c.center)) @ _quat_matrix(c.rotation)) - np.asarray(c.half_extents)
+    u = np.abs((x - np.asarray(c.center)) @ quat_matrix(c.rotation)) - np.asarray(c.half_extents)
     along = [np.where(np.arange(3) == i, np.maximum(u, 0.0), u) for i in range(3)]  # to the edges along axis i
     return np.min([np.linalg.norm(w, axis=1) for w in along], axis=0)
 
@@ -564,7 +563,7 @@ def describe(c) -> str:
 COLLIDER_TYPES = {"plane": Plane, "sphere": Sphere, "capsule": Capsule, "box": Box, "mesh": MeshCollider}
 
 
-def _quat_matrix(q) -> np.ndarray:
+def quat_matrix(q) -> np.ndarray:
     """The rotation matrix of a unit quaternion (x, y, z, w)."""
     x, y, z, w = q
     return np.array(
@@ -576,7 +575,7 @@ def _quat_matrix(q) -> np.ndarray:
     )
 
 
-def _matrix_quat(m: np.ndarray) -> tuple:
+def matrix_quat(m: np.ndarray) -> tuple:
     """A unit quaternion (x, y, z, w) of a rotation matrix (Shepperd's method)."""
     t = np.trace(m)
     if t > 0:
@@ -607,4 +606,6 @@ __all__ = [
     "Sphere",
     "describe",
     "signed_distance",
+    "matrix_quat",
+    "quat_matrix",
 ]

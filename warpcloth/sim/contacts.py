@@ -33,11 +33,12 @@ from warpcloth.kernels import edge_contact as ek
 from warpcloth.sim.colliders import (
     COLLIDER_TYPES,
     KINDS,
-    _quat_matrix,
     auto_edge_radius,
     describe,
+    quat_matrix,
     signed_distance,
 )
+from warpcloth.sim.mesh import mesh_topology
 
 
 class ColliderSet:
@@ -280,8 +281,6 @@ class ColliderEdges:
     passes_after_limit = 8
 
     def __init__(self, model, collision: ColliderSet):
-        from warpcloth.sim.mesh import mesh_topology
-
         self.model, self.collision = model, collision
         tris = np.asarray(model.host["tris"], dtype=np.int64).reshape(-1, 3)
         n, device = model.particle_count, model.device
@@ -400,8 +399,6 @@ def _mesh_features(vertices, triangles):
     float64. Edges between coplanar faces (a face's diagonal: normals within 2.6 degrees) are not
     features: the face holds the cloth there, as the analytic box's faces do; an open edge (one face)
     is one."""
-    from warpcloth.sim.mesh import mesh_topology
-
     p = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     face = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
@@ -542,7 +539,7 @@ def _record(c, mesh=None, creases=None):
     else:
         r.a = r.bound_center = wp.vec3(*c.center)
         r.b = wp.vec3(*c.half_extents)
-        r.rotation = wp.mat33(_quat_matrix(c.rotation).astype(np.float32))
+        r.rotation = wp.mat33(quat_matrix(c.rotation).astype(np.float32))
         r.rounding = c.rounding(0.0)  # edge_radius None: 0 until bind_model
     r.velocity = r.omega = r.origin = wp.vec3(0.0, 0.0, 0.0)
     r.moving = 0

@@ -16,6 +16,13 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError
 
+# Warp logs a banner when it starts and a line for every module it loads, on stdout, which warpcloth
+# keeps for results (``--json``). warpcloth starts Warp here (every builder resolves its device in
+# this module), so Warp's documented log level is set here, before Warp initialises or loads a
+# module: warnings and errors only, unless WARPCLOTH_WARP_VERBOSE is set (or ``--verbose``).
+if not os.environ.get("WARPCLOTH_WARP_VERBOSE"):
+    wp.config.log_level = wp.LOG_WARNING
+
 
 def resolve_device(device=None) -> wp.Device:
     """The ``wp.Device`` named by ``device`` (None: Warp's current device; ``"cuda"``: the first

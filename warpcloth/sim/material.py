@@ -45,10 +45,10 @@ from warpcloth.sim.grid import grid_memory_estimate, grid_positions, grid_spring
 from warpcloth.sim.hinges import grid_hinges, mesh_hinges
 from warpcloth.sim.mesh import (
     TriangleMesh,
-    _mesh_bend,
     check_mesh,
     corner_uvs,
     lumped_masses,
+    mesh_bend,
     mesh_memory_estimate,
     mesh_springs,
     mesh_topology,
@@ -950,7 +950,7 @@ def material_mesh_cloth(
         device,
     )
     pinned = resolve_pins(v, pins, pin_groups, pin_where, groups)
-    bend_model = _mesh_bend(bend)
+    bend_model = mesh_bend(bend)
     pairs, types = mesh_springs(v, t, quads=quads, bend=bend_model in (BendModel.PROVOT, BendModel.CHOI_KO))
     springs = mesh_spring_params(mat, v, t, pairs, types, uv=uv)
     model = build_model(

@@ -443,7 +443,7 @@ def build_mesh_cloth(
     if spring_params is None:
         spring_params = default_spring_params(float(masses.mean()), stiffness, damping)
     pinned = resolve_pins(v, pins, pin_groups, pin_where, groups)
-    bend_model = _mesh_bend(bend)
+    bend_model = mesh_bend(bend)
     if bend_model != BendModel.DIHEDRAL and (bend_rigidity is not None or bend_damping_ratio is not None):
         raise WarpclothError(
             "bend_rigidity and bend_damping_ratio are the dihedral model's (bend='dihedral'), not the bend springs'"
@@ -476,7 +476,7 @@ def build_mesh_cloth(
     return model
 
 
-def _mesh_bend(bend) -> BendModel:
+def mesh_bend(bend) -> BendModel:
     """A mesh's ``bend`` argument (a bool or a :class:`BendModel` name) as a BendModel."""
     if isinstance(bend, (bool, np.bool_)):
         return BendModel.PROVOT if bend else BendModel.NONE
@@ -513,4 +513,5 @@ __all__ = [
     "mesh_springs",
     "mesh_topology",
     "triangle_areas",
+    "mesh_bend",
 ]

@@ -18,7 +18,8 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_indices, require_non_negative
 from warpcloth.sim.device import resolve_device
-from warpcloth.sim.hinges import Hinges
+from warpcloth.sim.hinges import Hinges, hinge_row_sums
+from warpcloth.sim.state import State
 
 
 class SpringType(enum.IntEnum):
@@ -208,8 +209,6 @@ class ClothModel:
         """Per particle, Gershgorin row sums of the hinges' stiffness and damping matrices at the
         rest shape, sum_e k_e |g_i| sum_b |g_b| [N/m] and the same with kd_e [N s/m] (float64, host;
         zeros without hinges): what a particle's row of sum_e k_e g g^T adds to 2 sum_j ks_ij."""
-        from warpcloth.sim.hinges import hinge_row_sums
-
         if not self.hinge_count:
             z = np.zeros(self.particle_count)
             return z, z.copy()
@@ -243,8 +242,6 @@ class ClothModel:
 
     def state(self):
         """A new :class:`~warpcloth.sim.state.State` at the rest configuration with zero velocity."""
-        from warpcloth.sim.state import State
-
         return State.from_model(self)
 
     def with_spring_params(self, params: dict[SpringType, SpringParams]) -> "ClothModel":
