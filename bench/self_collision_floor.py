@@ -143,18 +143,13 @@ def launches(sc, x):
         wp.launch(
             sk.find_vertex_triangle_candidates,
             dim=n,
-            inputs=[sc.counts, sc.scalars, x, sc.tris, sc.margin, mask, sc.head_tri, sc.next_tri, sc.tri_lo]
-            + [sc.tri_hi, sc.tri_cell, sc.tri_margin, sc.vt_exclude_offsets, sc.vt_exclude, sc.vt_capacity],
-            outputs=[sc.cand_vt, sc.cand_vt_gap],
+            inputs=[sc.counts, sc.scalars, x, sc.topology, sc.broad_phase],
             device=d,
         )
         wp.launch(
             sk.find_edge_edge_candidates,
             dim=sc.edge_count,
-            inputs=[sc.counts, sc.scalars, x, sc.edges, mask, sc.head_edge, sc.next_edge, sc.edge_lo, sc.edge_hi]
-            + [sc.edge_cell, sc.edge_margin, sc.ee_exclude_offsets, sc.ee_exclude, sc.ee_capacity]
-            + [int(sc._ordered_buckets)],
-            outputs=[sc.cand_ee, sc.cand_ee_gap],
+            inputs=[sc.counts, sc.scalars, x, sc.topology, sc.broad_phase],
             device=d,
         )
 

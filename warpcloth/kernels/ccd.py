@@ -27,9 +27,10 @@ from warpcloth.kernels.self_contact import (
     REBUILD,
     FloatArray,
     IntArray,
-    Vec2iArray,
+    SelfContactGrid,
+    SelfContactMesh,
+    SelfContactSettings,
     Vec3Array,
-    Vec3iArray,
     Vec4Array,
     Vec4iArray,
     any_perpendicular,
@@ -53,6 +54,28 @@ BISECTIONS = wp.constant(30)
 MODE_PUSH = wp.constant(0)  # record each collision for a push
 MODE_ROLLBACK = wp.constant(1)  # mark the free vertices of each collision for the fail-safe
 MODE_COUNT = wp.constant(2)  # count the collisions left
+
+
+@wp.struct
+class CcdState:
+    """The continuous response's arrays, bound once (warpcloth.sim.self_collision): per vertex whether its pairs
+    are tested in the next pass (``moved``), whether it was in a collision of this pass (``touched``), the
+    fail-safe's mark, the pushes acting on it, a holding collider's outward normal (``held``, else 0) and its
+    straight motion over the step relative to the mean (``swept_length``); this pass's collisions (pair, W, n,
+    depth; capacity ``capacity``); the coplanarity tolerance eta [m]."""
+
+    moved: IntArray
+    touched: IntArray
+    rollback: IntArray
+    acting: IntArray
+    held: Vec3Array
+    swept_length: FloatArray
+    hit_idx: Vec4iArray
+    hit_w: Vec4Array
+    hit_n: Vec3Array
+    hit_depth: FloatArray
+    capacity: int
+    eta: float
 
 
 @wp.func
@@ -422,29 +445,13 @@ def find_ccd_collisions(
     counts: IntArray,
     x0: Vec3Array,
     x1: Vec3Array,
-    moved: IntArray,
     inv_mass: FloatArray,
-    held: Vec3Array,
-    tris: Vec3iArray,
-    edges: Vec2iArray,
-    cand_vt: Vec2iArray,
-    cand_ee: Vec2iArray,
-    cand_vt_gap: FloatArray,
-    cand_ee_gap: FloatArray,
-    motion_speed: Vec3Array,
-    swept_length: FloatArray,
-    eta: float,
-    min_gap: float,
+    mesh: SelfContactMesh,
+    grid: SelfContactGrid,
+    settings: SelfContactSettings,
+    ccd: CcdState,
     mode: int,
     first: int,
-    capacity: int,
-    hit_idx: Vec4iArray,
-    hit_w: Vec4Array,
-    hit_n: Vec3Array,
-    hit_depth: FloatArray,
-    acting: IntArray,
-    rollback: IntArray,
-    touched: IntArray,
 ):
     # grid-stride over the candidate pairs: those with no vertex that moved or collided in the last pass
     # (every pair in the first) and those whose two sides' swept boxes lie more than min_gap apart are
@@ -460,20 +467,20 @@ def find_ccd_collisions(
     tid = wp.tid()
     if counts[CCD_ACTIVE] == 0:  # the last pass moved nothing and found nothing: nothing changed
         return
-    n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
-    total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])
+    n_vt = wp.min(counts[CAND_VT], grid.cand_vt.shape[0])
+    total = n_vt + wp.min(counts[CAND_EE], grid.cand_ee.shape[0])
     for k in range(tid, total, stride):
         idx = wp.vec4i()
         if k < n_vt:
-            pair = cand_vt[k]
-            tri = tris[pair[1]]
+            pair = grid.cand_vt[k]
+            tri = mesh.tris[pair[1]]
             idx = wp.vec4i(pair[0], tri[0], tri[1], tri[2])
         else:
-            pair = cand_ee[k - n_vt]
-            ea = edges[pair[0]]
-            eb = edges[pair[1]]
+            pair = grid.cand_ee[k - n_vt]
+            ea = mesh.edges[pair[0]]
+            eb = mesh.edges[pair[1]]
             idx = wp.vec4i(ea[0], ea[1], eb[0], eb[1])
-        if moved[idx[0]] + moved[idx[1]] + moved[idx[2]] + moved[idx[3]] == 0:
+        if ccd.moved[idx[0]] + ccd.moved[idx[1]] + ccd.moved[idx[2]] + ccd.moved[idx[3]] == 0:
             continue
         first_side = 1
         if k >= n_vt:
@@ -481,26 +488,26 @@ def find_ccd_collisions(
         if first != 0:
             gap = float(0.0)
             if k < n_vt:
-                gap = cand_vt_gap[k]
+                gap = grid.cand_vt_gap[k]
             else:
-                gap = cand_ee_gap[k - n_vt]
+                gap = grid.cand_ee_gap[k - n_vt]
             reach_a = float(0.0)
             reach_b = float(0.0)
             for j in range(4):
-                r = motion_speed[idx[j]][0] + swept_length[idx[j]]
+                r = grid.motion_speed[idx[j]][0] + ccd.swept_length[idx[j]]
                 if j < first_side:
                     reach_a = wp.max(reach_a, r)
                 else:
                     reach_b = wp.max(reach_b, r)
-            if gap - (reach_a + reach_b) > min_gap + rounding_slack(x0[idx[0]]):
+            if gap - (reach_a + reach_b) > settings.min_gap + rounding_slack(x0[idx[0]]):
                 continue
-        if swept_boxes_apart(x0, x1, idx, first_side, min_gap):
+        if swept_boxes_apart(x0, x1, idx, first_side, settings.min_gap):
             continue
-        if cannot_close(x0, x1, idx, 2 - first_side, min_gap):
+        if cannot_close(x0, x1, idx, 2 - first_side, settings.min_gap):
             continue
-        end_gap = eta
+        end_gap = ccd.eta
         if mode == MODE_PUSH:  # the pushes also leave every pair at least min_gap apart at the end
-            end_gap = min_gap
+            end_gap = settings.min_gap
         hit = int(0)
         t = float(0.0)
         w = wp.vec4()
@@ -517,7 +524,7 @@ def find_ccd_collisions(
                 x1[idx[1]],
                 x1[idx[2]],
                 x1[idx[3]],
-                eta,
+                ccd.eta,
                 end_gap,
             )
         else:
@@ -530,7 +537,7 @@ def find_ccd_collisions(
                 x1[idx[1]],
                 x1[idx[2]],
                 x1[idx[3]],
-                eta,
+                ccd.eta,
                 end_gap,
             )
         if hit == 0:
@@ -538,7 +545,7 @@ def find_ccd_collisions(
         if t == 0.0 and mode != MODE_PUSH:  # touching at the start: moving back to the start cannot help
             continue
         for j in range(4):  # tested again in the next pass, moved or not
-            touched[idx[j]] = 1
+            ccd.touched[idx[j]] = 1
         if first != 0 and mode == MODE_PUSH:
             wp.atomic_add(counts, CCD_COLLISIONS, 1)
         if mode == MODE_COUNT:
@@ -547,45 +554,33 @@ def find_ccd_collisions(
         if mode == MODE_ROLLBACK:
             for j in range(4):
                 if inv_mass[idx[j]] > 0.0 and w[j] != 0.0:
-                    rollback[idx[j]] = 1
+                    ccd.rollback[idx[j]] = 1
             continue
         g0 = wp.dot(n, r0)
         g1 = wp.dot(n, r1)
-        if wp.abs(g0) <= eta:  # touching at the start: no side to keep, the end's
+        if wp.abs(g0) <= ccd.eta:  # touching at the start: no side to keep, the end's
             if g1 < 0.0:
                 n = -n
                 g1 = -g1
         elif g0 < 0.0:  # the normal from the start's side
             n = -n
             g1 = -g1
-        depth = min_gap - g1
+        depth = settings.min_gap - g1
         if depth <= 0.0:
             continue
         slot = wp.atomic_add(counts, CCD_HITS, 1)
-        if slot < capacity:
-            hit_idx[slot] = idx
-            hit_w[slot] = w
-            hit_n[slot] = n
-            hit_depth[slot] = depth
+        if slot < ccd.capacity:
+            ccd.hit_idx[slot] = idx
+            ccd.hit_w[slot] = w
+            ccd.hit_n[slot] = n
+            ccd.hit_depth[slot] = depth
             for j in range(4):
-                if w[j] != 0.0 and pushable(inv_mass, held, idx[j], w[j] * n) > 0.0:
-                    wp.atomic_add(acting, idx[j], 1)
+                if w[j] != 0.0 and pushable(inv_mass, ccd.held, idx[j], w[j] * n) > 0.0:
+                    wp.atomic_add(ccd.acting, idx[j], 1)
 
 
 @wp.kernel
-def push_ccd_collisions(
-    stride: int,
-    counts: IntArray,
-    capacity: int,
-    inv_mass: FloatArray,
-    held: Vec3Array,
-    acting: IntArray,
-    hit_idx: Vec4iArray,
-    hit_w: Vec4Array,
-    hit_n: Vec3Array,
-    hit_depth: FloatArray,
-    dx: Vec3Array,
-):
+def push_ccd_collisions(stride: int, counts: IntArray, inv_mass: FloatArray, ccd: CcdState, dx: Vec3Array):
     # each recorded collision's push: dx_k += W_k (depth / sum_j W_j^2 c_j / m_j) n / m_k, equal and
     # opposite (c_j: the pushes acting on vertex j in this pass; 1/m_j = 0 where the push would move j into
     # a collider that holds it or j is pinned; then the sum is at least max_k |W_k| c_k / m_k / 2 over the others,
@@ -593,22 +588,22 @@ def push_ccd_collisions(
     # over-relaxed. What the passes leave crossing, the fail-safe moves back, but for a pair whose held vertex
     # is a moving pin (the fail-safe moves free vertices only): counted in ccd_unresolved, and the run warns)
     tid = wp.tid()
-    for k in range(tid, wp.min(counts[CCD_HITS], capacity), stride):
-        idx = hit_idx[k]
-        w = hit_w[k]
-        depth = hit_depth[k]
+    for k in range(tid, wp.min(counts[CCD_HITS], ccd.capacity), stride):
+        idx = ccd.hit_idx[k]
+        w = ccd.hit_w[k]
+        depth = ccd.hit_depth[k]
         if depth <= 0.0:
             continue
-        n = hit_n[k]
+        n = ccd.hit_n[k]
         m = wp.vec4()
         c = wp.vec4()
         s = float(0.0)
         shared = int(0)
         for j in range(4):
-            m[j] = pushable(inv_mass, held, idx[j], w[j] * n)
-            c[j] = float(wp.max(acting[idx[j]], 1))
+            m[j] = pushable(inv_mass, ccd.held, idx[j], w[j] * n)
+            c[j] = float(wp.max(ccd.acting[idx[j]], 1))
             s += w[j] * w[j] * m[j] * c[j]
-            if m[j] > 0.0 and acting[idx[j]] > 1:
+            if m[j] > 0.0 and ccd.acting[idx[j]] > 1:
                 shared = 1
         s = capped_for_held(w, m, c, s)  # as the filter's
         if s > 0.0:
@@ -640,10 +635,7 @@ def apply_ccd_corrections(
     x: Vec3Array,
     v: Vec3Array,
     displacement: Vec3Array,
-    moved: IntArray,
-    acting: IntArray,
-    rollback: IntArray,
-    touched: IntArray,
+    ccd: CcdState,
     counts: IntArray,
 ):
     # x += dx, v += dx / dt_v (dt_v the collision interval: the velocity that moves x by as much over it),
@@ -655,18 +647,18 @@ def apply_ccd_corrections(
         return
     for i in range(wp.tid(), x.shape[0], stride):
         d = dx[i]
-        moved[i] = touched[i]
-        touched[i] = 0
+        ccd.moved[i] = ccd.touched[i]
+        ccd.touched[i] = 0
         if d[0] != 0.0 or d[1] != 0.0 or d[2] != 0.0:
-            moved[i] = 1
+            ccd.moved[i] = 1
             x[i] = x[i] + d
             v[i] = v[i] + d / dt_v
             if with_displacement != 0:
                 displacement[i] = displacement[i] + (dt_d / dt_v) * d
-            if rollback[i] != 0:
+            if ccd.rollback[i] != 0:
                 wp.atomic_add(counts, CCD_ROLLBACKS, 1)
-        if moved[i] != 0:
+        if ccd.moved[i] != 0:
             wp.atomic_add(counts, CCD_CHANGED, 1)
         dx[i] = wp.vec3(0.0)
-        acting[i] = 0
-        rollback[i] = 0
+        ccd.acting[i] = 0
+        ccd.rollback[i] = 0

@@ -105,6 +105,97 @@ NARROW_SLACK = wp.constant(1.0e-6)
 MAX_CELLS_PER_AXIS = wp.constant(8)
 
 
+# -- what a SelfCollision binds (warpcloth.sim.self_collision): arrays and scalars fixed after its bind ---------
+# A struct is passed by value, so a captured frame holds its arrays' pointers and its scalars as they were at
+# capture: what changes between steps lives in the arrays (``counts``, ``scalars``), never in a struct's scalar.
+@wp.struct
+class SelfContactMesh:
+    """The cloth's topology: triangles, unique edges and the neighbour exclusion tables (CSR, sorted rows)."""
+
+    tris: Vec3iArray
+    edges: Vec2iArray
+    vt_exclude_offsets: IntArray  # per vertex, its row of vt_exclude (the triangles it does not collide with)
+    vt_exclude: IntArray
+    ee_exclude_offsets: IntArray  # per edge, its row of ee_exclude (the edges it does not collide with)
+    ee_exclude: IntArray
+
+
+@wp.struct
+class SelfContactGrid:
+    """The broad phase: the spatial hash (``mask`` + 1 buckets; per triangle and edge its next item in the
+    bucket, its box grown by its margin, its cell and margin at the build), per vertex its position and margin
+    at the build and its motion since (``motion_speed``), and the Verlet lists of candidate pairs with their
+    gaps at the build (capacities ``vt_capacity``, ``ee_capacity``). ``ordered`` != 0: each bucket's list
+    runs in decreasing item order (Warp's CPU backend)."""
+
+    mask: int
+    ordered: int
+    head_tri: IntArray
+    next_tri: IntArray
+    tri_lo: Vec3Array
+    tri_hi: Vec3Array
+    tri_cell: Vec3iArray
+    tri_margin: FloatArray
+    head_edge: IntArray
+    next_edge: IntArray
+    edge_lo: Vec3Array
+    edge_hi: Vec3Array
+    edge_cell: Vec3iArray
+    edge_margin: FloatArray
+    x_build: Vec3Array
+    margin: FloatArray
+    motion_speed: Vec3Array
+    cand_vt: Vec2iArray
+    cand_vt_gap: FloatArray
+    cand_ee: Vec2iArray
+    cand_ee_gap: FloatArray
+    vt_capacity: int
+    ee_capacity: int
+
+
+@wp.struct
+class SelfContactList:
+    """This step's contacts (capacity ``capacity``): per contact its vertices, weights W, normal n, gap d at
+    detection and thickness h; per vertex the number of its contacts (``splits``: mass splitting)."""
+
+    idx: Vec4iArray
+    w: Vec4Array
+    n: Vec3Array
+    d: FloatArray
+    h: FloatArray
+    splits: IntArray
+    capacity: int
+
+
+@wp.struct
+class SelfContactFilter:
+    """A response pass's work arrays: per contact its change (W, n, (dv_n, velocity target)) found by the
+    pass's count; per vertex the contacts acting on it, the velocity change dv, over a collision interval the
+    end velocity's change dv_end and the interval's mean velocity."""
+
+    f_w: Vec4Array
+    f_n: Vec3Array
+    f_change: Vec2Array
+    acting: IntArray
+    dv: Vec3Array
+    dv_end: Vec3Array
+    v_average: Vec3Array
+
+
+@wp.struct
+class SelfContactSettings:
+    """The bound settings [m]: thickness h, edge pairs' h_e, the list's skin and largest vertex margin, the
+    hash's least cell size, the filter's minimum gap; Coulomb mu of cloth on cloth."""
+
+    thickness: float
+    edge_thickness: float
+    skin: float
+    skin_max: float
+    cell_size: float
+    min_gap: float
+    friction: float
+
+
 # -- geometry ---------------------------------------------------------------------------------------
 @wp.func
 def rounding_slack(p: wp.vec3):
@@ -429,14 +520,12 @@ def sum_self_contact_motion(x: Vec3Array, v: Vec3Array, x_build: Vec3Array, sums
 def eval_self_contact_motion(
     x: Vec3Array,
     v: Vec3Array,
-    x_build: Vec3Array,
-    margin: FloatArray,
+    grid: SelfContactGrid,
     sums: Vec3Array,
     dt: float,
-    splits: IntArray,
+    contacts: SelfContactList,
     scalars: FloatArray,
     x_start: Vec3Array,
-    motion_speed: Vec3Array,
 ):
     # motion relative to a common one (u, w: the mean displacement and velocity; a common motion
     # changes no gap, and any u, w bound it): D_i = |x_i - x_build_i - u| + |v_i - w| dt;
@@ -447,22 +536,22 @@ def eval_self_contact_motion(
     x_start[i] = x[i]
     scale = 1.0 / float(x.shape[0])
     speed = wp.length(v[i] - scale * sums[1])
-    moved = wp.length(x[i] - x_build[i] - scale * sums[0])
+    moved = wp.length(x[i] - grid.x_build[i] - scale * sums[0])
     motion = moved + speed * dt
-    motion_speed[i] = wp.vec3(moved, speed, wp.length(v[i]))
+    grid.motion_speed[i] = wp.vec3(moved, speed, wp.length(v[i]))
     wp.atomic_max(scalars, MOTION, motion)
     wp.atomic_max(scalars, SPEED, speed)
-    wp.atomic_max(scalars, EXCESS, motion - margin[i])
+    wp.atomic_max(scalars, EXCESS, motion - grid.margin[i])
     wp.atomic_max(scalars, SPEED_ABS, wp.length(v[i]))
-    splits[i] = 0
+    contacts.splits[i] = 0
 
 
 @wp.func
-def begin_rebuild(counts: IntArray, scalars: FloatArray, thickness: float, edge_thickness: float, skin: float):
+def begin_rebuild(counts: IntArray, scalars: FloatArray, settings: SelfContactSettings):
     # this detect (or swept check) rebuilds the list: its radii, maxima and lengths from zero
-    scalars[SKIN] = skin
-    scalars[R_BUILD] = thickness + skin
-    scalars[R_BUILD_EE] = edge_thickness + skin
+    scalars[SKIN] = settings.skin
+    scalars[R_BUILD] = settings.thickness + settings.skin
+    scalars[R_BUILD_EE] = settings.edge_thickness + settings.skin
     for k in range(3):
         scalars[TRI_HALF + k] = 0.0
         scalars[EDGE_HALF + k] = 0.0
@@ -475,22 +564,15 @@ def begin_rebuild(counts: IntArray, scalars: FloatArray, thickness: float, edge_
 
 
 @wp.kernel
-def decide_self_contact_rebuild(
-    counts: IntArray,
-    scalars: FloatArray,
-    thickness: float,
-    edge_thickness: float,
-    skin: float,
-    dt: float,
-):
+def decide_self_contact_rebuild(counts: IntArray, scalars: FloatArray, settings: SelfContactSettings, dt: float):
     # rebuild when never built or when a vertex moved more than half the skin beyond its own margin
     # since the build (2 max_i (D_i - margin_i) > skin: an unlisted pair may be within h)
-    scalars[R_ACTIVE] = 1.25 * thickness + 3.0 * scalars[SPEED_ABS] * dt
-    scalars[R_ACTIVE_EE] = 1.25 * edge_thickness + 3.0 * scalars[SPEED_ABS] * dt
-    if counts[BUILT] != 0 and 2.0 * scalars[EXCESS] <= skin:
+    scalars[R_ACTIVE] = 1.25 * settings.thickness + 3.0 * scalars[SPEED_ABS] * dt
+    scalars[R_ACTIVE_EE] = 1.25 * settings.edge_thickness + 3.0 * scalars[SPEED_ABS] * dt
+    if counts[BUILT] != 0 and 2.0 * scalars[EXCESS] <= settings.skin:
         counts[REBUILD] = 0
         return
-    begin_rebuild(counts, scalars, thickness, edge_thickness, skin)
+    begin_rebuild(counts, scalars, settings)
 
 
 # -- the list over a step's swept motion (before the continuous response) ---------------------------
@@ -513,11 +595,10 @@ def sum_swept_motion(x: Vec3Array, x_start: Vec3Array, x_build: Vec3Array, sums:
 def eval_swept_motion(
     x: Vec3Array,
     x_start: Vec3Array,
-    x_build: Vec3Array,
-    margin: FloatArray,
+    grid: SelfContactGrid,
     sums: Vec3Array,
     scalars: FloatArray,
-    skin_max: float,
+    settings: SelfContactSettings,
     skip_capped: int,
     swept: Vec3Array,
     swept_length: FloatArray,
@@ -529,21 +610,21 @@ def eval_swept_motion(
     i = wp.tid()
     swept[i] = x[i] - x_start[i]
     swept_length[i] = wp.length(swept[i] - sums[1] / float(x.shape[0]))  # relative to the mean (the CCD's bound)
-    if skip_capped != 0 and margin[i] >= skin_max:
+    if skip_capped != 0 and grid.margin[i] >= settings.skin_max:
         return
     u = sums[0] / float(x.shape[0])
-    wp.atomic_max(scalars, SWEPT_EXCESS, wp.length(x[i] - x_build[i] - u) - margin[i])
+    wp.atomic_max(scalars, SWEPT_EXCESS, wp.length(x[i] - grid.x_build[i] - u) - grid.margin[i])
 
 
 @wp.kernel
-def decide_swept_rebuild(counts: IntArray, scalars: FloatArray, thickness: float, edge_thickness: float, skin: float):
+def decide_swept_rebuild(counts: IntArray, scalars: FloatArray, settings: SelfContactSettings):
     # the detect covered the step's start; the list covers the straight motion to the end as well where the end
     # is within skin / 2 of every margin (|d_i(t)| relative to the build is convex along the motion, so at most
     # its value at an end); else rebuild over the swept motion
-    if 2.0 * scalars[SWEPT_EXCESS] <= skin:
+    if 2.0 * scalars[SWEPT_EXCESS] <= settings.skin:
         counts[REBUILD] = 0
         return
-    begin_rebuild(counts, scalars, thickness, edge_thickness, skin)
+    begin_rebuild(counts, scalars, settings)
     counts[SWEPT_REBUILDS] = counts[SWEPT_REBUILDS] + 1
 
 
@@ -554,13 +635,9 @@ def clear_self_contact_cells(
     v: Vec3Array,
     sums: Vec3Array,
     dt: float,
-    skin_max: float,
-    x_build: Vec3Array,
-    margin: FloatArray,
-    head_tri: IntArray,
-    head_edge: IntArray,
+    settings: SelfContactSettings,
+    grid: SelfContactGrid,
     scalars: FloatArray,
-    motion_speed: Vec3Array,
 ):
     # (rebuild only) empty buckets; x_build = x; each vertex's margin = MARGIN_STEPS |v - w| dt (its
     # motion relative to the mean, at most skin_max: beyond, counted in FAST), MARGIN_MAX their largest;
@@ -568,42 +645,32 @@ def clear_self_contact_cells(
     i = wp.tid()
     if counts[REBUILD] == 0:
         return
-    if i < head_tri.shape[0]:
-        head_tri[i] = -1
-        head_edge[i] = -1
+    if i < grid.head_tri.shape[0]:
+        grid.head_tri[i] = -1
+        grid.head_edge[i] = -1
     if i < x.shape[0]:
-        x_build[i] = x[i]
-        ms = motion_speed[i]
-        motion_speed[i] = wp.vec3(0.0, ms[1], ms[2])
+        grid.x_build[i] = x[i]
+        ms = grid.motion_speed[i]
+        grid.motion_speed[i] = wp.vec3(0.0, ms[1], ms[2])
         m = MARGIN_STEPS * dt * wp.length(v[i] - sums[1] / float(x.shape[0]))
-        if m > skin_max:
-            m = skin_max
+        if m > settings.skin_max:
+            m = settings.skin_max
             wp.atomic_add(counts, FAST, 1)
-        margin[i] = m
+        grid.margin[i] = m
         wp.atomic_max(scalars, MARGIN_MAX, m)
 
 
 @wp.kernel
-def size_self_contact_cells(counts: IntArray, base_cell: float, scalars: FloatArray):
-    # (rebuild only) cells of base_cell + the largest margin: a query spans a few cells whatever the motion
+def size_self_contact_cells(counts: IntArray, settings: SelfContactSettings, scalars: FloatArray):
+    # (rebuild only) cells of the least cell size + the largest margin: a query spans a few cells whatever the
+    # motion
     if counts[REBUILD] != 0:
-        scalars[INV_CELL] = 1.0 / (base_cell + scalars[MARGIN_MAX])
+        scalars[INV_CELL] = 1.0 / (settings.cell_size + scalars[MARGIN_MAX])
 
 
 @wp.kernel
 def insert_self_contact_triangles(
-    counts: IntArray,
-    x: Vec3Array,
-    tris: Vec3iArray,
-    margin: FloatArray,
-    mask: int,
-    head: IntArray,
-    next_item: IntArray,
-    scalars: FloatArray,
-    box_lo: Vec3Array,
-    box_hi: Vec3Array,
-    item_cell: Vec3iArray,
-    item_margin: FloatArray,
+    counts: IntArray, x: Vec3Array, mesh: SelfContactMesh, grid: SelfContactGrid, scalars: FloatArray
 ):
     # (rebuild only) triangle t into the bucket of its box centre (its box grown by its margin, the
     # largest of its vertices', its cell and margin, kept for the queries); TRI_HALF: the grown boxes'
@@ -611,52 +678,41 @@ def insert_self_contact_triangles(
     t = wp.tid()
     if counts[REBUILD] == 0:
         return
-    tri = tris[t]
+    tri = mesh.tris[t]
     a = x[tri[0]]
     b = x[tri[1]]
     c = x[tri[2]]
     lo = wp.min(wp.min(a, b), c)
     hi = wp.max(wp.max(a, b), c)
     cell = cell_of(0.5 * (lo + hi), scalars[INV_CELL])
-    m = wp.max(wp.max(margin[tri[0]], margin[tri[1]]), margin[tri[2]])
-    box_lo[t] = lo - wp.vec3(m)
-    box_hi[t] = hi + wp.vec3(m)
-    item_cell[t] = cell
-    item_margin[t] = m
-    next_item[t] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), t)
+    m = wp.max(wp.max(grid.margin[tri[0]], grid.margin[tri[1]]), grid.margin[tri[2]])
+    grid.tri_lo[t] = lo - wp.vec3(m)
+    grid.tri_hi[t] = hi + wp.vec3(m)
+    grid.tri_cell[t] = cell
+    grid.tri_margin[t] = m
+    grid.next_tri[t] = wp.atomic_exch(grid.head_tri, cell_bucket(cell[0], cell[1], cell[2], grid.mask), t)
     for k in range(3):
         wp.atomic_max(scalars, TRI_HALF + k, 0.5 * (hi[k] - lo[k]) + m)
 
 
 @wp.kernel
 def insert_self_contact_edges(
-    counts: IntArray,
-    x: Vec3Array,
-    edges: Vec2iArray,
-    margin: FloatArray,
-    mask: int,
-    head: IntArray,
-    next_item: IntArray,
-    scalars: FloatArray,
-    box_lo: Vec3Array,
-    box_hi: Vec3Array,
-    item_cell: Vec3iArray,
-    item_margin: FloatArray,
+    counts: IntArray, x: Vec3Array, mesh: SelfContactMesh, grid: SelfContactGrid, scalars: FloatArray
 ):
     # (rebuild only) edge e into the bucket of its midpoint (its box grown by its margin, its cell and
     # margin kept); EDGE_HALF: the grown boxes' largest half extent per axis
     e = wp.tid()
     if counts[REBUILD] == 0:
         return
-    a = x[edges[e][0]]
-    b = x[edges[e][1]]
+    a = x[mesh.edges[e][0]]
+    b = x[mesh.edges[e][1]]
     cell = cell_of(0.5 * (a + b), scalars[INV_CELL])
-    m = wp.max(margin[edges[e][0]], margin[edges[e][1]])
-    box_lo[e] = wp.min(a, b) - wp.vec3(m)
-    box_hi[e] = wp.max(a, b) + wp.vec3(m)
-    item_cell[e] = cell
-    item_margin[e] = m
-    next_item[e] = wp.atomic_exch(head, cell_bucket(cell[0], cell[1], cell[2], mask), e)
+    m = wp.max(grid.margin[mesh.edges[e][0]], grid.margin[mesh.edges[e][1]])
+    grid.edge_lo[e] = wp.min(a, b) - wp.vec3(m)
+    grid.edge_hi[e] = wp.max(a, b) + wp.vec3(m)
+    grid.edge_cell[e] = cell
+    grid.edge_margin[e] = m
+    grid.next_edge[e] = wp.atomic_exch(grid.head_edge, cell_bucket(cell[0], cell[1], cell[2], grid.mask), e)
     for k in range(3):
         wp.atomic_max(scalars, EDGE_HALF + k, 0.5 * wp.abs(b[k] - a[k]) + m)
 
@@ -688,23 +744,7 @@ def cell_range(lo_p: wp.vec3, hi_p: wp.vec3, inv_cell: float, counts: IntArray):
 
 @wp.kernel
 def find_vertex_triangle_candidates(
-    counts: IntArray,
-    scalars: FloatArray,
-    x: Vec3Array,
-    tris: Vec3iArray,
-    margin: FloatArray,
-    mask: int,
-    head: IntArray,
-    next_item: IntArray,
-    box_lo: Vec3Array,
-    box_hi: Vec3Array,
-    item_cell: Vec3iArray,
-    item_margin: FloatArray,
-    exclude_offsets: IntArray,
-    exclude: IntArray,
-    capacity: int,
-    out: Vec2iArray,
-    out_gap: FloatArray,
+    counts: IntArray, scalars: FloatArray, x: Vec3Array, mesh: SelfContactMesh, grid: SelfContactGrid
 ):
     # (rebuild only) every triangle t within R_BUILD + margin_i + margin_t of vertex i, not its own and not
     # excluded, with its gap
@@ -712,54 +752,39 @@ def find_vertex_triangle_candidates(
     if counts[REBUILD] == 0:
         return
     p = x[i]
-    r_i = scalars[R_BUILD] + margin[i]
+    r_i = scalars[R_BUILD] + grid.margin[i]
     inv_cell = scalars[INV_CELL]
     reach = half_extents(scalars, TRI_HALF, r_i, p)  # a box centre within r + its half extent, per axis
     lo, hi = cell_range(p - reach, p + reach, inv_cell, counts)
-    e0 = exclude_offsets[i]
-    e1 = exclude_offsets[i + 1]
+    e0 = mesh.vt_exclude_offsets[i]
+    e1 = mesh.vt_exclude_offsets[i + 1]
     lo_p = p - wp.vec3(r_i)  # the vertex's box grown by its own radius (the triangles' hold their margins)
     hi_p = p + wp.vec3(r_i)
     for ci in range(lo[0], hi[0] + 1):
         for cj in range(lo[1], hi[1] + 1):
             for ck in range(lo[2], hi[2] + 1):
-                t = head[cell_bucket(ci, cj, ck, mask)]
+                t = grid.head_tri[cell_bucket(ci, cj, ck, grid.mask)]
                 while t >= 0:
                     # a bucket holds one cell's triangles and other cells' that hash alike: a triangle
                     # is taken from the cell of its box centre only, so it is found once
-                    if boxes_overlap(lo_p, hi_p, box_lo[t], box_hi[t]):
-                        if item_cell[t] == wp.vec3i(ci, cj, ck):
-                            tri = tris[t]
-                            if tri[0] != i and tri[1] != i and tri[2] != i and not sorted_contains(exclude, e0, e1, t):
+                    if boxes_overlap(lo_p, hi_p, grid.tri_lo[t], grid.tri_hi[t]):
+                        if grid.tri_cell[t] == wp.vec3i(ci, cj, ck):
+                            tri = mesh.tris[t]
+                            excluded = sorted_contains(mesh.vt_exclude, e0, e1, t)
+                            if tri[0] != i and tri[1] != i and tri[2] != i and not excluded:
                                 q, w = closest_point_triangle(p, x[tri[0]], x[tri[1]], x[tri[2]])
                                 gap = wp.length(p - q)
-                                if gap <= r_i + item_margin[t]:
-                                    k = append_index(counts, CAND_VT, OVERFLOW_CANDIDATES, capacity)
+                                if gap <= r_i + grid.tri_margin[t]:
+                                    k = append_index(counts, CAND_VT, OVERFLOW_CANDIDATES, grid.vt_capacity)
                                     if k >= 0:
-                                        out[k] = wp.vec2i(i, t)
-                                        out_gap[k] = gap
-                    t = next_item[t]
+                                        grid.cand_vt[k] = wp.vec2i(i, t)
+                                        grid.cand_vt_gap[k] = gap
+                    t = grid.next_tri[t]
 
 
 @wp.kernel
 def find_edge_edge_candidates(
-    counts: IntArray,
-    scalars: FloatArray,
-    x: Vec3Array,
-    edges: Vec2iArray,
-    mask: int,
-    head: IntArray,
-    next_item: IntArray,
-    box_lo: Vec3Array,
-    box_hi: Vec3Array,
-    item_cell: Vec3iArray,
-    item_margin: FloatArray,
-    exclude_offsets: IntArray,
-    exclude: IntArray,
-    capacity: int,
-    ordered: int,
-    out: Vec2iArray,
-    out_gap: FloatArray,
+    counts: IntArray, scalars: FloatArray, x: Vec3Array, mesh: SelfContactMesh, grid: SelfContactGrid
 ):
     # (rebuild only) every edge f > e within R_BUILD_EE + margin_e + margin_f of edge e, sharing no vertex and
     # not excluded, with its gap. ``ordered`` != 0: each bucket's list runs in decreasing edge order (the
@@ -768,42 +793,42 @@ def find_edge_edge_candidates(
     e = wp.tid()
     if counts[REBUILD] == 0:
         return
-    ea = edges[e][0]
-    eb = edges[e][1]
+    ea = mesh.edges[e][0]
+    eb = mesh.edges[e][1]
     a = x[ea]
     b = x[eb]
-    r_e = scalars[R_BUILD_EE] + item_margin[e]
+    r_e = scalars[R_BUILD_EE] + grid.edge_margin[e]
     reach = half_extents(scalars, EDGE_HALF, r_e, a)  # a midpoint within r + its half extent, per axis
     lo, hi = cell_range(wp.min(a, b) - reach, wp.max(a, b) + reach, scalars[INV_CELL], counts)
-    e0 = exclude_offsets[e]
-    e1 = exclude_offsets[e + 1]
+    e0 = mesh.ee_exclude_offsets[e]
+    e1 = mesh.ee_exclude_offsets[e + 1]
     lo_e = wp.min(a, b) - wp.vec3(r_e)  # the edge's box grown by its own radius (the others' hold their margins)
     hi_e = wp.max(a, b) + wp.vec3(r_e)
     for ci in range(lo[0], hi[0] + 1):
         for cj in range(lo[1], hi[1] + 1):
             for ck in range(lo[2], hi[2] + 1):
-                f = head[cell_bucket(ci, cj, ck, mask)]
+                f = grid.head_edge[cell_bucket(ci, cj, ck, grid.mask)]
                 while f >= 0:
-                    if ordered != 0 and f <= e:
+                    if grid.ordered != 0 and f <= e:
                         break
                     # (nested tests: Warp evaluates both sides of an `and`) found once: from its midpoint's cell
                     if f > e:
-                        if boxes_overlap(box_lo[f], box_hi[f], lo_e, hi_e):
-                            if item_cell[f] == wp.vec3i(ci, cj, ck):
-                                fc = edges[f][0]
-                                fd = edges[f][1]
+                        if boxes_overlap(grid.edge_lo[f], grid.edge_hi[f], lo_e, hi_e):
+                            if grid.edge_cell[f] == wp.vec3i(ci, cj, ck):
+                                fc = mesh.edges[f][0]
+                                fd = mesh.edges[f][1]
                                 if fc != ea and fc != eb and fd != ea and fd != eb:
-                                    if not sorted_contains(exclude, e0, e1, f):
+                                    if not sorted_contains(mesh.ee_exclude, e0, e1, f):
                                         c = x[fc]
                                         d = x[fd]
                                         st = closest_points_edge_edge(a, b, c, d)
                                         gap = wp.length((a + st[0] * (b - a)) - (c + st[1] * (d - c)))
-                                        if gap <= r_e + item_margin[f]:
-                                            k = append_index(counts, CAND_EE, OVERFLOW_CANDIDATES, capacity)
+                                        if gap <= r_e + grid.edge_margin[f]:
+                                            k = append_index(counts, CAND_EE, OVERFLOW_CANDIDATES, grid.ee_capacity)
                                             if k >= 0:
-                                                out[k] = wp.vec2i(e, f)
-                                                out_gap[k] = gap
-                    f = next_item[f]
+                                                grid.cand_ee[k] = wp.vec2i(e, f)
+                                                grid.cand_ee_gap[k] = gap
+                    f = grid.next_edge[f]
 
 
 @wp.kernel
@@ -814,22 +839,10 @@ def eval_self_contacts(
     x: Vec3Array,
     v: Vec3Array,
     dt: float,
-    tris: Vec3iArray,
-    edges: Vec2iArray,
-    cand_vt: Vec2iArray,
-    cand_vt_gap: FloatArray,
-    cand_ee: Vec2iArray,
-    cand_ee_gap: FloatArray,
-    capacity: int,
-    splits: IntArray,
-    c_idx: Vec4iArray,
-    c_w: Vec4Array,
-    c_n: Vec3Array,
-    c_d: FloatArray,
-    c_h: FloatArray,
-    thickness: float,
-    edge_thickness: float,
-    motion_speed: Vec3Array,
+    mesh: SelfContactMesh,
+    grid: SelfContactGrid,
+    contacts: SelfContactList,
+    settings: SelfContactSettings,
 ):
     # narrow phase (grid-stride over the candidates): a record (vertices, W, n, d) for every pair whose
     # gap d at x is below 1.25 h + dt (2 |sum W v| + max_k |v_k . n|) (it may come within h in this step:
@@ -845,38 +858,38 @@ def eval_self_contacts(
     # |v|), nor one whose gap at x is not below it (its velocities are then not read): the same contacts,
     # fewer evaluated (a folded strip at rest beside its fast edges)
     tid = wp.tid()
-    n_vt = wp.min(counts[CAND_VT], cand_vt.shape[0])
-    total = n_vt + wp.min(counts[CAND_EE], cand_ee.shape[0])
+    n_vt = wp.min(counts[CAND_VT], grid.cand_vt.shape[0])
+    total = n_vt + wp.min(counts[CAND_EE], grid.cand_ee.shape[0])
     reach = 2.0 * scalars[MOTION]
     for k in range(tid, total, stride):
         idx = wp.vec4i()
         w = wp.vec4()
         n = wp.vec3()
         d = float(0.0)
-        h = thickness
+        h = settings.thickness
         gap_build = float(0.0)
         first_side = 1  # vertices of the first side: (p) against (a, b, c), or (a, b) against (c, d)
         if k < n_vt:
-            gap_build = cand_vt_gap[k]
+            gap_build = grid.cand_vt_gap[k]
             if gap_build - reach >= scalars[R_ACTIVE]:
                 continue
-            pair = cand_vt[k]
-            tri = tris[pair[1]]
+            pair = grid.cand_vt[k]
+            tri = mesh.tris[pair[1]]
             idx = wp.vec4i(pair[0], tri[0], tri[1], tri[2])
         else:
-            gap_build = cand_ee_gap[k - n_vt]
+            gap_build = grid.cand_ee_gap[k - n_vt]
             if gap_build - reach >= scalars[R_ACTIVE_EE]:
                 continue
-            pair = cand_ee[k - n_vt]
-            ea = edges[pair[0]]
-            eb = edges[pair[1]]
+            pair = grid.cand_ee[k - n_vt]
+            ea = mesh.edges[pair[0]]
+            eb = mesh.edges[pair[1]]
             idx = wp.vec4i(ea[0], ea[1], eb[0], eb[1])
-            h = edge_thickness
+            h = settings.edge_thickness
             first_side = 2
         side_a = wp.vec3(0.0)
         side_b = wp.vec3(0.0)
         for j in range(4):
-            ms = motion_speed[idx[j]]
+            ms = grid.motion_speed[idx[j]]
             if j < first_side:
                 side_a = wp.max(side_a, ms)
             else:
@@ -901,26 +914,26 @@ def eval_self_contacts(
             wp.max(wp.abs(wp.dot(v[idx[2]], n)), wp.abs(wp.dot(v[idx[3]], n))),
         )
         if d < 1.25 * h + dt * (2.0 * wp.length(weighted_sum(v, idx, w)) + speed):
-            slot = append_index(counts, CONTACTS, OVERFLOW_CONTACTS, capacity)
+            slot = append_index(counts, CONTACTS, OVERFLOW_CONTACTS, contacts.capacity)
             if slot >= 0:
-                c_idx[slot] = idx
-                c_w[slot] = w
-                c_n[slot] = n
-                c_d[slot] = d
-                c_h[slot] = h
+                contacts.idx[slot] = idx
+                contacts.w[slot] = w
+                contacts.n[slot] = n
+                contacts.d[slot] = d
+                contacts.h[slot] = h
                 for j in range(4):
-                    wp.atomic_add(splits, idx[j], 1)
+                    wp.atomic_add(contacts.splits, idx[j], 1)
 
 
 @wp.kernel
-def finish_self_contact_detect(counts: IntArray, vt_capacity: int, ee_capacity: int, capacity: int):
+def finish_self_contact_detect(counts: IntArray, grid: SelfContactGrid, contacts: SelfContactList):
     # list lengths capped at their capacities (a full list counted on, for the overflow count);
     # the largest so far
     if counts[REBUILD] != 0:
-        counts[CAND_VT] = wp.min(counts[CAND_VT], vt_capacity)
-        counts[CAND_EE] = wp.min(counts[CAND_EE], ee_capacity)
+        counts[CAND_VT] = wp.min(counts[CAND_VT], grid.vt_capacity)
+        counts[CAND_EE] = wp.min(counts[CAND_EE], grid.ee_capacity)
         counts[CANDIDATES_MAX] = wp.max(counts[CANDIDATES_MAX], counts[CAND_VT] + counts[CAND_EE])
-    counts[CONTACTS] = wp.min(counts[CONTACTS], capacity)
+    counts[CONTACTS] = wp.min(counts[CONTACTS], contacts.capacity)
     counts[CONTACTS_MAX] = wp.max(counts[CONTACTS_MAX], counts[CONTACTS])
 
 
@@ -932,11 +945,7 @@ def eval_self_contact_forces(
     x: Vec3Array,
     v: Vec3Array,
     inv_mass: FloatArray,
-    splits: IntArray,
-    c_idx: Vec4iArray,
-    c_w: Vec4Array,
-    c_n: Vec3Array,
-    c_h: FloatArray,
+    contacts: SelfContactList,
     stiffness: float,
     dt: float,
     f: Vec3Array,
@@ -945,12 +954,12 @@ def eval_self_contact_forces(
     # (Bridson et al. 2002, Sec. 7.2), d = n . sum W x at x, v_n = n . sum W v, h the contact's thickness
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        idx = c_idx[k]
-        w = c_w[k]
-        n = c_n[k]
-        overlap = c_h[k] - wp.dot(n, weighted_sum(x, idx, w))
+        idx = contacts.idx[k]
+        w = contacts.w[k]
+        n = contacts.n[k]
+        overlap = contacts.h[k] - wp.dot(n, weighted_sum(x, idx, w))
         if overlap > 0.0:
-            inv_m = split_inverse_mass(idx, w, inv_mass, splits)
+            inv_m = split_inverse_mass(idx, w, inv_mass, contacts.splits)
             if inv_m > 0.0:
                 vn = wp.dot(n, weighted_sum(v, idx, w))
                 force = wp.min(stiffness * overlap, (0.1 * overlap / dt - vn) / (inv_m * dt))
@@ -965,11 +974,7 @@ def filter_change(
     x: Vec3Array,
     v: Vec3Array,
     inv_mass: FloatArray,
-    c_idx: Vec4iArray,
-    c_w: Vec4Array,
-    c_n: Vec3Array,
-    c_d: FloatArray,
-    c_h: FloatArray,
+    contacts: SelfContactList,
     min_gap: float,
     inelastic: int,
     stiffness: float,
@@ -983,12 +988,12 @@ def filter_change(
     #       v_n + (min_gap - d) / dt_x [the gap kept >= min_gap])
     # (Bridson et al. 2002, Sec. 7.2); returns W, n, sum W v, the change dv_n (acting where > 0) and the
     # velocity target without the gap's term (-1e30: none)
-    idx = c_idx[k]
-    w, n, d = contact_geometry(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]], c_w[k], c_n[k])
+    idx = contacts.idx[k]
+    w, n, d = contact_geometry(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]], contacts.w[k], contacts.n[k])
     vr = weighted_sum(v, idx, w)
     vn = wp.dot(n, vr)
     target = -1.0e30
-    delta = c_h[k] - c_d[k]
+    delta = contacts.h[k] - contacts.d[k]
     if delta > 0.0 and inelastic != 0:
         target = 0.0
         if stiffness > 0.0:
@@ -1016,33 +1021,24 @@ def count_filter_contacts(
     x: Vec3Array,
     v: Vec3Array,
     inv_mass: FloatArray,
-    c_idx: Vec4iArray,
-    c_w: Vec4Array,
-    c_n: Vec3Array,
-    c_d: FloatArray,
-    c_h: FloatArray,
-    min_gap: float,
+    contacts: SelfContactList,
+    settings: SelfContactSettings,
     inelastic: int,
     stiffness: float,
     dt: float,
     dt_x: float,
-    acting: IntArray,
-    f_w: Vec4Array,
-    f_n: Vec3Array,
-    f_change: Vec2Array,
+    work: SelfContactFilter,
 ):
     # per vertex, the contacts of this filter pass that act on it (dv_n > 0); per contact its filter_change
     # (dv_n and the velocity target; W and n where dv_n > 0) for the pass's filter_self_contact_velocities
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        w, n, vr, dvn, tv = filter_change(
-            k, x, v, inv_mass, c_idx, c_w, c_n, c_d, c_h, min_gap, inelastic, stiffness, dt, dt_x
-        )
-        f_change[k] = wp.vec2(dvn, tv)
+        w, n, vr, dvn, tv = filter_change(k, x, v, inv_mass, contacts, settings.min_gap, inelastic, stiffness, dt, dt_x)
+        work.f_change[k] = wp.vec2(dvn, tv)
         if dvn > 0.0:
-            f_w[k] = w
-            f_n[k] = n
-            count_acting(c_idx[k], w, inv_mass, acting)
+            work.f_w[k] = w
+            work.f_n[k] = n
+            count_acting(contacts.idx[k], w, inv_mass, work.acting)
 
 
 @wp.kernel
@@ -1050,16 +1046,11 @@ def filter_self_contact_velocities(
     stride: int,
     counts: IntArray,
     inv_mass: FloatArray,
-    acting: IntArray,
-    c_idx: Vec4iArray,
-    f_w: Vec4Array,
-    f_n: Vec3Array,
-    f_change: Vec2Array,
-    mu: float,
+    contacts: SelfContactList,
+    work: SelfContactFilter,
+    settings: SelfContactSettings,
     v_slip: Vec3Array,
     interval: int,
-    dv: Vec3Array,
-    dv_end: Vec3Array,
 ):
     # per contact the normal change dv_n of filter_change where > 0 (found by this pass's count_filter_contacts,
     # from the same x and v), friction |dv_t| = min(mu dv_n, |v_t|)
@@ -1069,14 +1060,14 @@ def filter_self_contact_velocities(
     # on a vertex in this pass: count_filter_contacts)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        change = f_change[k]
+        change = work.f_change[k]
         dvn = change[0]
         if dvn > 0.0:
             tv = change[1]
-            w = f_w[k]
-            n = f_n[k]
-            idx = c_idx[k]
-            inv_m = held_capped_inverse_mass(idx, w, inv_mass, acting)
+            w = work.f_w[k]
+            n = work.f_n[k]
+            idx = contacts.idx[k]
+            inv_m = held_capped_inverse_mass(idx, w, inv_mass, work.acting)
             if inv_m > 0.0:
                 vs = weighted_sum(v_slip, idx, w)
                 vn_end = wp.dot(n, vs)
@@ -1089,14 +1080,14 @@ def filter_self_contact_velocities(
                 lt = wp.length(vt)
                 friction = wp.vec3(0.0)
                 if lt > 0.0:
-                    friction = (wp.min(mu * dvn_end, lt) / lt) * vt
+                    friction = (wp.min(settings.friction * dvn_end, lt) / lt) * vt
                 impulse = (dvn * n - friction) / inv_m
                 for j in range(4):
-                    wp.atomic_add(dv, idx[j], (w[j] * inv_mass[idx[j]]) * impulse)
+                    wp.atomic_add(work.dv, idx[j], (w[j] * inv_mass[idx[j]]) * impulse)
                 if interval != 0:
                     impulse_end = (dvn_end * n - friction) / inv_m
                     for j in range(4):
-                        wp.atomic_add(dv_end, idx[j], (w[j] * inv_mass[idx[j]]) * impulse_end)
+                        wp.atomic_add(work.dv_end, idx[j], (w[j] * inv_mass[idx[j]]) * impulse_end)
 
 
 @wp.kernel
@@ -1119,7 +1110,7 @@ def eval_filter_inverse_mass(
 
 @wp.kernel
 def apply_self_contact_velocities(
-    dv: Vec3Array,
+    work: SelfContactFilter,
     dt_x: float,
     dt_d: float,
     with_displacement: int,
@@ -1127,26 +1118,23 @@ def apply_self_contact_velocities(
     x: Vec3Array,
     v: Vec3Array,
     displacement: Vec3Array,
-    v_average: Vec3Array,
-    dv_end: Vec3Array,
-    acting: IntArray,
 ):
     # x += dt_x dv; v += dv (and a last step's displacement d += dt_d dv); over an interval the mean
     # velocity += dv, and the velocity the step goes on with (v, d) takes dv_end instead; dv = dv_end = 0,
     # the acting counts 0
     i = wp.tid()
-    dvi = dv[i]
+    dvi = work.dv[i]
     dv_on = dvi
     if with_average != 0:
-        v_average[i] = v_average[i] + dvi
-        dv_on = dv_end[i]
-        dv_end[i] = wp.vec3(0.0)
+        work.v_average[i] = work.v_average[i] + dvi
+        dv_on = work.dv_end[i]
+        work.dv_end[i] = wp.vec3(0.0)
     v[i] = v[i] + dv_on
     x[i] = x[i] + dt_x * dvi
     if with_displacement != 0:
         displacement[i] = displacement[i] + dt_d * dv_on
-    dv[i] = wp.vec3(0.0)
-    acting[i] = 0
+    work.dv[i] = wp.vec3(0.0)
+    work.acting[i] = 0
 
 
 @wp.kernel
@@ -1163,33 +1151,34 @@ def count_unresolved_self_contacts(
     stride: int,
     counts: IntArray,
     x: Vec3Array,
-    c_idx: Vec4iArray,
-    c_w: Vec4Array,
-    c_n: Vec3Array,
-    min_gap: float,
+    contacts: SelfContactList,
+    settings: SelfContactSettings,
     inv_mass: FloatArray,
 ):
     # contacts (with a free vertex) still closer than 0.99 min_gap after the filter (their gap found anew)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        idx = c_idx[k]
+        idx = contacts.idx[k]
         free = inv_mass[idx[0]] + inv_mass[idx[1]] + inv_mass[idx[2]] + inv_mass[idx[3]]
-        w, n, d = contact_geometry(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]], c_w[k], c_n[k])
-        if free > 0.0 and d < 0.99 * min_gap:
+        w, n, d = contact_geometry(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]], contacts.w[k], contacts.n[k])
+        if free > 0.0 and d < 0.99 * settings.min_gap:
             wp.atomic_add(counts, UNRESOLVED, 1)
 
 
 # -- inside the solvers ------------------------------------------------------------------------------
 @wp.func
-def increment_violation(
-    k: int, x: Vec3Array, dp: Vec3Array, c_idx: Vec4iArray, c_w: Vec4Array, c_n: Vec3Array, c_h: FloatArray
-):
+def increment_violation(k: int, x: Vec3Array, dp: Vec3Array, contacts: SelfContactList):
     # contact k at p = x + dp: its W, n (found anew, contact_geometry) and C = d - h (< 0: violated)
-    idx = c_idx[k]
+    idx = contacts.idx[k]
     w, n, d = contact_geometry(
-        x[idx[0]] + dp[idx[0]], x[idx[1]] + dp[idx[1]], x[idx[2]] + dp[idx[2]], x[idx[3]] + dp[idx[3]], c_w[k], c_n[k]
+        x[idx[0]] + dp[idx[0]],
+        x[idx[1]] + dp[idx[1]],
+        x[idx[2]] + dp[idx[2]],
+        x[idx[3]] + dp[idx[3]],
+        contacts.w[k],
+        contacts.n[k],
     )
-    return w, n, d - c_h[k]
+    return w, n, d - contacts.h[k]
 
 
 @wp.kernel
@@ -1199,18 +1188,15 @@ def count_violated_contacts(
     x: Vec3Array,
     dp: Vec3Array,
     inv_mass: FloatArray,
-    c_idx: Vec4iArray,
-    c_w: Vec4Array,
-    c_n: Vec3Array,
-    c_h: FloatArray,
+    contacts: SelfContactList,
     acting: IntArray,
 ):
     # per vertex, the contacts violated at p = x + dp (mass splitting over acting contacts)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        w, n, c = increment_violation(k, x, dp, c_idx, c_w, c_n, c_h)
+        w, n, c = increment_violation(k, x, dp, contacts)
         if c < 0.0:
-            count_acting(c_idx[k], w, inv_mass, acting)
+            count_acting(contacts.idx[k], w, inv_mass, acting)
 
 
 @wp.kernel
@@ -1221,10 +1207,7 @@ def project_self_contact_increments(
     dp: Vec3Array,
     inv_mass: FloatArray,
     acting: IntArray,
-    c_idx: Vec4iArray,
-    c_w: Vec4Array,
-    c_n: Vec3Array,
-    c_h: FloatArray,
+    contacts: SelfContactList,
     mu: float,
     delta: Vec3Array,
 ):
@@ -1235,9 +1218,9 @@ def project_self_contact_increments(
     # (count_violated_contacts; Jacobi: apply_increment_corrections)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        w, n, c = increment_violation(k, x, dp, c_idx, c_w, c_n, c_h)
+        w, n, c = increment_violation(k, x, dp, contacts)
         if c < 0.0:
-            idx = c_idx[k]
+            idx = contacts.idx[k]
             inv_m = held_capped_inverse_mass(idx, w, inv_mass, acting)
             if inv_m > 0.0:
                 u = weighted_sum(dp, idx, w)
@@ -1274,10 +1257,7 @@ def eval_self_contact_vertex_terms(
     x: Vec3Array,
     dx: Vec3Array,
     inv_mass: FloatArray,
-    c_idx: Vec4iArray,
-    c_w: Vec4Array,
-    c_n: Vec3Array,
-    c_h: FloatArray,
+    contacts: SelfContactList,
     stiffness: float,
     force: Vec3Array,
     hessian: wp.array(dtype=wp.mat33),
@@ -1287,10 +1267,10 @@ def eval_self_contact_vertex_terms(
     # Newton step; equal and opposite, sum_a f_a = k delta n sum W = 0)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        idx = c_idx[k]
-        w = c_w[k]
-        n = c_n[k]
-        d = penalty_depth(x, dx, idx, w, n, c_h[k])
+        idx = contacts.idx[k]
+        w = contacts.w[k]
+        n = contacts.n[k]
+        d = penalty_depth(x, dx, idx, w, n, contacts.h[k])
         if d > 0.0:
             nn = wp.outer(n, n)
             for j in range(4):

@@ -129,6 +129,19 @@ def _compose(a, b, col_count: int):
     return _csr(np.repeat(rows, counts), cols, len(a_off) - 1, col_count)
 
 
+def _struct(cls, **fields):
+    """An instance of the Warp struct ``cls`` with every one of its fields set from ``fields`` (a field left
+    unset would be a null array in the kernels)."""
+    missing = set(cls.vars) - set(fields)
+    unknown = set(fields) - set(cls.vars)
+    if missing or unknown:
+        raise WarpclothError(f"{cls.key}: fields missing {sorted(missing)}, unknown {sorted(unknown)}")
+    out = cls()
+    for name, value in fields.items():
+        setattr(out, name, value)
+    return out
+
+
 class SelfCollision:
     """Self-contact of one cloth model, bound once (every array allocated here).
 
@@ -251,7 +264,7 @@ class SelfCollision:
         (vt_off, vt_ex), (ee_off, ee_ex) = exclusion_tables(tris, edges, n, self.exclude_rings)
         self.vt_capacity = require_count("candidates_per_vertex", candidates_per_vertex, 1) * n
         self.ee_capacity = require_count("candidates_per_edge", candidates_per_edge, 1) * len(edges)
-        self.contact_capacity = require_count("contacts_per_element", contacts_per_element, 1) * (n + len(edges))
+        self._contact_capacity = require_count("contacts_per_element", contacts_per_element, 1) * (n + len(edges))
         self.edge_count = len(edges)
         self.bucket_count = buckets
         device = model.device
@@ -286,11 +299,11 @@ class SelfCollision:
             self.cand_ee = wp.zeros(self.ee_capacity, dtype=wp.vec2i)
             self.cand_vt_gap = wp.zeros(self.vt_capacity, dtype=float)
             self.cand_ee_gap = wp.zeros(self.ee_capacity, dtype=float)
-            self.contact_indices = wp.zeros(self.contact_capacity, dtype=wp.vec4i)
-            self.contact_weights = wp.zeros(self.contact_capacity, dtype=wp.vec4)
-            self.contact_normals = wp.zeros(self.contact_capacity, dtype=wp.vec3)
-            self.contact_gaps = wp.zeros(self.contact_capacity, dtype=float)
-            self.contact_thickness = wp.zeros(self.contact_capacity, dtype=float)
+            self.contact_indices = wp.zeros(self._contact_capacity, dtype=wp.vec4i)
+            self.contact_weights = wp.zeros(self._contact_capacity, dtype=wp.vec4)
+            self.contact_normals = wp.zeros(self._contact_capacity, dtype=wp.vec3)
+            self.contact_gaps = wp.zeros(self._contact_capacity, dtype=float)
+            self.contact_thickness = wp.zeros(self._contact_capacity, dtype=float)
             self.splits = wp.zeros(n, dtype=int)
             # a filter pass's per-contact change (W, n, (dv_n, velocity target)): found by its count, used by its filter
             self.filter_weights = wp.zeros(self.contact_capacity, dtype=wp.vec4)
@@ -321,6 +334,103 @@ class SelfCollision:
             self.ccd_touched = wp.zeros(n, dtype=int)
             self.ccd_rollback = wp.zeros(n, dtype=int)
             self.ccd_held = wp.zeros(n, dtype=wp.vec3)  # a holding collider's outward normal at the vertex, else 0
+        self._bind_structs()
+
+    def _bind_structs(self) -> None:
+        """The kernels' arguments that stay fixed after the bind, as Warp structs (made once: a launch, and a
+        captured frame, copies them by value; what changes between steps is in ``counts`` and ``scalars``)."""
+        self.topology = _struct(
+            sk.SelfContactMesh,
+            tris=self.tris,
+            edges=self.edges,
+            vt_exclude_offsets=self.vt_exclude_offsets,
+            vt_exclude=self.vt_exclude,
+            ee_exclude_offsets=self.ee_exclude_offsets,
+            ee_exclude=self.ee_exclude,
+        )
+        self.broad_phase = _struct(
+            sk.SelfContactGrid,
+            mask=self.bucket_count - 1,
+            ordered=int(self._ordered_buckets),
+            head_tri=self.head_tri,
+            next_tri=self.next_tri,
+            tri_lo=self.tri_lo,
+            tri_hi=self.tri_hi,
+            tri_cell=self.tri_cell,
+            tri_margin=self.tri_margin,
+            head_edge=self.head_edge,
+            next_edge=self.next_edge,
+            edge_lo=self.edge_lo,
+            edge_hi=self.edge_hi,
+            edge_cell=self.edge_cell,
+            edge_margin=self.edge_margin,
+            x_build=self.x_build,
+            margin=self.margin,
+            motion_speed=self.motion_speed,
+            cand_vt=self.cand_vt,
+            cand_vt_gap=self.cand_vt_gap,
+            cand_ee=self.cand_ee,
+            cand_ee_gap=self.cand_ee_gap,
+            vt_capacity=self.vt_capacity,
+            ee_capacity=self.ee_capacity,
+        )
+        self.contact_list = _struct(
+            sk.SelfContactList,
+            idx=self.contact_indices,
+            w=self.contact_weights,
+            n=self.contact_normals,
+            d=self.contact_gaps,
+            h=self.contact_thickness,
+            splits=self.splits,
+            capacity=self._contact_capacity,
+        )
+        self.filter_work = _struct(
+            sk.SelfContactFilter,
+            f_w=self.filter_weights,
+            f_n=self.filter_normals,
+            f_change=self.filter_changes,
+            acting=self.acting,
+            dv=self.dv,
+            dv_end=self.dv_end,
+            v_average=self.v_average,
+        )
+        self.params = _struct(
+            sk.SelfContactSettings,
+            thickness=self.thickness,
+            edge_thickness=self.edge_thickness,
+            skin=self.skin,
+            skin_max=self.skin_max,
+            cell_size=self.cell_size,
+            min_gap=self.min_gap,
+            friction=self.friction,
+        )
+        self.ccd_state = _struct(
+            ccd.CcdState,
+            moved=self.ccd_moved,
+            touched=self.ccd_touched,
+            rollback=self.ccd_rollback,
+            acting=self.acting,
+            held=self.ccd_held,
+            swept_length=self.swept_length,
+            hit_idx=self.hit_indices,
+            hit_w=self.hit_weights,
+            hit_n=self.hit_normals,
+            hit_depth=self.hit_depths,
+            capacity=self._contact_capacity,
+            eta=self.ccd_tolerance,
+        )
+
+    @property
+    def contact_capacity(self) -> int:
+        """The contact list's capacity (and the continuous response's per pass): the launches read it from the
+        bound structs, which setting it updates."""
+        return self._contact_capacity
+
+    @contact_capacity.setter
+    def contact_capacity(self, capacity: int) -> None:
+        self._contact_capacity = int(capacity)
+        self.contact_list.capacity = self._contact_capacity
+        self.ccd_state.capacity = self._contact_capacity
 
     def settings(self) -> dict:
         """The keyword arguments this object was made with (to bind the same settings to another model)."""
@@ -373,93 +483,29 @@ class SelfCollision:
         wp.launch(
             sk.eval_self_contact_motion,
             dim=n,
-            inputs=[x, v, self.x_build, self.margin, self.motion_sums, float(dt), self.splits, s, self.x_start]
-            + [self.motion_speed],
+            inputs=[x, v, self.broad_phase, self.motion_sums, float(dt), self.contact_list, s, self.x_start],
             device=d,
         )
-        wp.launch(
-            sk.decide_self_contact_rebuild,
-            dim=1,
-            inputs=[c, s, self.thickness, self.edge_thickness, self.skin, float(dt)],
-            device=d,
-        )
+        wp.launch(sk.decide_self_contact_rebuild, dim=1, inputs=[c, s, self.params, float(dt)], device=d)
 
     def _build(self, x, v, dt, edges: bool = True) -> None:
         """The hash and the candidate lists (every launch returns at once unless a rebuild is due);
         ``edges`` False: the vertex-triangle part only (for the bench)."""
         m, d, n = self.model, self.device, self.model.particle_count
-        c, s = self.counts, self.scalars
-        mask = self.bucket_count - 1
+        c, s, mesh, grid = self.counts, self.scalars, self.topology, self.broad_phase
         wp.launch(
             sk.clear_self_contact_cells,
             dim=max(self.bucket_count, n),
-            inputs=[c, x, v, self.motion_sums, float(dt), self.skin_max],
-            outputs=[self.x_build, self.margin, self.head_tri, self.head_edge, s, self.motion_speed],
+            inputs=[c, x, v, self.motion_sums, float(dt), self.params, grid, s],
             device=d,
         )
-        wp.launch(sk.size_self_contact_cells, dim=1, inputs=[c, self.cell_size], outputs=[s], device=d)
-        wp.launch(
-            sk.insert_self_contact_triangles,
-            dim=m.tri_count,
-            inputs=[c, x, self.tris, self.margin, mask],
-            outputs=[self.head_tri, self.next_tri, s, self.tri_lo, self.tri_hi, self.tri_cell, self.tri_margin],
-            device=d,
-        )
-        wp.launch(
-            sk.find_vertex_triangle_candidates,
-            dim=n,
-            inputs=[
-                c,
-                s,
-                x,
-                self.tris,
-                self.margin,
-                mask,
-                self.head_tri,
-                self.next_tri,
-                self.tri_lo,
-                self.tri_hi,
-                self.tri_cell,
-                self.tri_margin,
-                self.vt_exclude_offsets,
-                self.vt_exclude,
-                self.vt_capacity,
-            ],
-            outputs=[self.cand_vt, self.cand_vt_gap],
-            device=d,
-        )
+        wp.launch(sk.size_self_contact_cells, dim=1, inputs=[c, self.params, s], device=d)
+        wp.launch(sk.insert_self_contact_triangles, dim=m.tri_count, inputs=[c, x, mesh, grid, s], device=d)
+        wp.launch(sk.find_vertex_triangle_candidates, dim=n, inputs=[c, s, x, mesh, grid], device=d)
         if not edges:
             return
-        wp.launch(
-            sk.insert_self_contact_edges,
-            dim=self.edge_count,
-            inputs=[c, x, self.edges, self.margin, mask],
-            outputs=[self.head_edge, self.next_edge, s, self.edge_lo, self.edge_hi, self.edge_cell, self.edge_margin],
-            device=d,
-        )
-        wp.launch(
-            sk.find_edge_edge_candidates,
-            dim=self.edge_count,
-            inputs=[
-                c,
-                s,
-                x,
-                self.edges,
-                mask,
-                self.head_edge,
-                self.next_edge,
-                self.edge_lo,
-                self.edge_hi,
-                self.edge_cell,
-                self.edge_margin,
-                self.ee_exclude_offsets,
-                self.ee_exclude,
-                self.ee_capacity,
-                int(self._ordered_buckets),
-            ],
-            outputs=[self.cand_ee, self.cand_ee_gap],
-            device=d,
-        )
+        wp.launch(sk.insert_self_contact_edges, dim=self.edge_count, inputs=[c, x, mesh, grid, s], device=d)
+        wp.launch(sk.find_edge_edge_candidates, dim=self.edge_count, inputs=[c, s, x, mesh, grid], device=d)
 
     def _narrow(self, x, v, dt) -> None:
         """This step's contacts from the candidate lists."""
@@ -467,30 +513,8 @@ class SelfCollision:
         wp.launch(
             sk.eval_self_contacts,
             dim=n,
-            inputs=[
-                n,
-                self.counts,
-                self.scalars,
-                x,
-                v,
-                float(dt),
-                self.tris,
-                self.edges,
-                self.cand_vt,
-                self.cand_vt_gap,
-                self.cand_ee,
-                self.cand_ee_gap,
-                self.contact_capacity,
-                self.splits,
-                self.contact_indices,
-                self.contact_weights,
-                self.contact_normals,
-                self.contact_gaps,
-                self.contact_thickness,
-                self.thickness,
-                self.edge_thickness,
-                self.motion_speed,
-            ],
+            inputs=[n, self.counts, self.scalars, x, v, float(dt), self.topology, self.broad_phase]
+            + [self.contact_list, self.params],
             device=d,
         )
         self._finish()
@@ -500,7 +524,7 @@ class SelfCollision:
         wp.launch(
             sk.finish_self_contact_detect,
             dim=1,
-            inputs=[self.counts, self.vt_capacity, self.ee_capacity, self.contact_capacity],
+            inputs=[self.counts, self.broad_phase, self.contact_list],
             device=self.device,
         )
 
@@ -516,11 +540,7 @@ class SelfCollision:
                 x,
                 v,
                 self.model.particle_inv_mass,
-                self.splits,
-                self.contact_indices,
-                self.contact_weights,
-                self.contact_normals,
-                self.contact_thickness,
+                self.contact_list,
                 self.stiffness,
                 float(dt),
             ],
@@ -569,39 +589,25 @@ class SelfCollision:
         inv_mass = self.model.particle_inv_mass
         if colliders is not None and len(colliders.colliders):
             inv_mass = self.held_inverse_mass(x, colliders)
-        records = [self.contact_indices, self.contact_weights, self.contact_normals, self.contact_gaps]
-        records.append(self.contact_thickness)
-        changes = [self.filter_weights, self.filter_normals, self.filter_changes]
+        contacts, work, params = self.contact_list, self.filter_work, self.params
         for _ in range(self.iterations * (2 if steps > 1 else 1)):  # an interval's corrections are larger
             wp.launch(
                 sk.count_filter_contacts,
                 dim=n,
-                inputs=[n, self.counts, x, v, inv_mass, *records, self.min_gap, int(inelastic), k, float(dt), dt_x],
-                outputs=[self.acting, *changes],
+                inputs=[n, self.counts, x, v, inv_mass, contacts, params, int(inelastic), k, float(dt), dt_x, work],
                 device=d,
             )
             wp.launch(
                 sk.filter_self_contact_velocities,
                 dim=n,
-                inputs=[
-                    n,
-                    self.counts,
-                    inv_mass,
-                    self.acting,
-                    self.contact_indices,
-                    *changes,
-                    self.friction,
-                    v_out,
-                    int(average),
-                ],
-                outputs=[self.dv, self.dv_end],
+                inputs=[n, self.counts, inv_mass, contacts, work, params, v_out, int(average)],
                 device=d,
             )
             wp.launch(
                 sk.apply_self_contact_velocities,
                 dim=n,
-                inputs=[self.dv, dt_x, dt_d, int(displacement is not None), int(average)],
-                outputs=[x, v_out, disp, self.v_average, self.dv_end, self.acting],
+                inputs=[work, dt_x, dt_d, int(displacement is not None), int(average)],
+                outputs=[x, v_out, disp],
                 device=d,
             )
         if self.ccd_passes == 0:  # else after the continuous response, the step's last word
@@ -609,11 +615,10 @@ class SelfCollision:
 
     def _count_unresolved(self, x: wp.array) -> None:
         n = self.model.particle_count
-        records = [self.contact_indices, self.contact_weights, self.contact_normals]
         wp.launch(
             sk.count_unresolved_self_contacts,
             dim=n,
-            inputs=[n, self.counts, x, *records, self.min_gap, self.model.particle_inv_mass],
+            inputs=[n, self.counts, x, self.contact_list, self.params, self.model.particle_inv_mass],
             device=self.device,
         )
 
@@ -678,27 +683,24 @@ class SelfCollision:
             self.ccd_held.zero_()
         if held is not None:  # where no collider holds a vertex, the edge contacts' push direction does
             wp.launch(ccd.merge_ccd_held, dim=n, inputs=[held], outputs=[self.ccd_held], device=d)
-        hits = [self.hit_indices, self.hit_weights, self.hit_normals, self.hit_depths]
-        marks = [self.acting, self.ccd_rollback, self.ccd_touched]
         # the passes' kernels loop over their pairs and vertices (grid-stride): a pass that has nothing to do
         # returns at once, which on the CPU costs per thread launched (measured: 30 us a launch of 4096)
         lanes = n if wp.get_device(d).is_cuda else min(n, CPU_LANES)
-        find_inputs = [lanes, self.counts, self.x_start, x, self.ccd_moved, inv_mass, self.ccd_held]
-        find_inputs += [self.tris, self.edges, self.cand_vt, self.cand_ee, self.cand_vt_gap, self.cand_ee_gap]
-        find_inputs += [self.motion_speed, self.swept_length, self.ccd_tolerance]
-        apply_inputs = [lanes, dt_v, dt_d, int(displacement is not None), self.dv, x, v, disp, self.ccd_moved]
+        find_inputs = [lanes, self.counts, self.x_start, x, inv_mass, self.topology, self.broad_phase, self.params]
+        find_inputs.append(self.ccd_state)
+        apply_inputs = [lanes, dt_v, dt_d, int(displacement is not None), self.dv, x, v, disp, self.ccd_state]
 
         def find(mode: int, first: int = 0) -> None:
             wp.launch(ccd.begin_ccd_pass, dim=1, inputs=[self.counts, first], device=d)
             wp.launch(
                 ccd.find_ccd_collisions,
                 dim=lanes,
-                inputs=[*find_inputs, self.min_gap, mode, first, self.contact_capacity, *hits, *marks],
+                inputs=[*find_inputs, mode, first],
                 device=d,
             )
 
         def apply() -> None:
-            wp.launch(ccd.apply_ccd_corrections, dim=lanes, inputs=[*apply_inputs, *marks, self.counts], device=d)
+            wp.launch(ccd.apply_ccd_corrections, dim=lanes, inputs=[*apply_inputs, self.counts], device=d)
 
         for r in range(self.CCD_ROUNDS):
             self._cover_swept(x, r > 0)  # the list covers the motion so far (the round before's pushes included)
@@ -711,16 +713,7 @@ class SelfCollision:
                 wp.launch(
                     ccd.push_ccd_collisions,
                     dim=lanes,
-                    inputs=[
-                        lanes,
-                        self.counts,
-                        self.contact_capacity,
-                        inv_mass,
-                        self.ccd_held,
-                        self.acting,
-                        *hits,
-                        self.dv,
-                    ],
+                    inputs=[lanes, self.counts, inv_mass, self.ccd_state, self.dv],
                     device=d,
                 )
                 apply()
@@ -755,16 +748,11 @@ class SelfCollision:
         wp.launch(
             sk.eval_swept_motion,
             dim=n,
-            inputs=[x, self.x_start, self.x_build, self.margin, self.motion_sums, s, self.skin_max, int(skip_capped)]
+            inputs=[x, self.x_start, self.broad_phase, self.motion_sums, s, self.params, int(skip_capped)]
             + [self.swept, self.swept_length],
             device=d,
         )
-        wp.launch(
-            sk.decide_swept_rebuild,
-            dim=1,
-            inputs=[self.counts, s, self.thickness, self.edge_thickness, self.skin],
-            device=d,
-        )
+        wp.launch(sk.decide_swept_rebuild, dim=1, inputs=[self.counts, s, self.params], device=d)
         # the build's margins are MARGIN_STEPS dt |v - w|: here v = the swept motion over dt = 1 (MARGIN_STEPS 1:
         # the motion itself; more would widen these margins alike)
         self._build(self.x_start, self.swept, 1.0)
@@ -792,19 +780,18 @@ class SelfCollision:
         corrections equal and opposite, a vertex's mass split over its violated contacts (one Jacobi
         pass, in place on ``dp``). ``inv_mass``: the vertices' 1/m (default the model's; 0 moves none)."""
         n, d = self.model.particle_count, self.device
-        records = [self.contact_indices, self.contact_weights, self.contact_normals, self.contact_thickness]
         inv_mass = self.model.particle_inv_mass if inv_mass is None else inv_mass
         wp.launch(
             sk.count_violated_contacts,
             dim=n,
-            inputs=[n, self.counts, x, dp, inv_mass, *records],
+            inputs=[n, self.counts, x, dp, inv_mass, self.contact_list],
             outputs=[self.acting],
             device=d,
         )
         wp.launch(
             sk.project_self_contact_increments,
             dim=n,
-            inputs=[n, self.counts, x, dp, inv_mass, self.acting, *records, self.friction],
+            inputs=[n, self.counts, x, dp, inv_mass, self.acting, self.contact_list, self.friction],
             outputs=[self.dv],
             device=d,
         )
@@ -830,10 +817,7 @@ class SelfCollision:
                 x,
                 dx,
                 self.model.particle_inv_mass,
-                self.contact_indices,
-                self.contact_weights,
-                self.contact_normals,
-                self.contact_thickness,
+                self.contact_list,
                 self.stiffness if stiffness is None else float(stiffness),
             ],
             outputs=[self.vertex_force, self.vertex_hessian],
