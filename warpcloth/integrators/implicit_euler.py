@@ -147,15 +147,6 @@ class ImplicitEuler(Integrator):
         n, device = model.particle_count, model.device
         self.b, self.dv = scratch_like(model, 2)
         self.pin_dv = wp.zeros(n, dtype=wp.vec3)  # prescribed dv of kinematic pins (0 elsewhere)
-        # contacts seen by the solve (matrix="bsr"): normal per particle (0: none), prescribed dv, A z
-        self.contact_normal, self.contact_dv, self.contact_Az, self.contact_b = scratch_like(model, 4)
-        self.contact_friction = wp.zeros(n, dtype=float)
-        # collider velocity at the contact, friction impulse; per particle: mode (0 none, 1 slide, 2 stick,
-        # 3 slid and stopped), the solve's
-        # constraint impulse and "ended inside a collider", each kept for the next step's modes
-        self.contact_collider_v, self.contact_impulse, self.contact_friction_impulse = scratch_like(model, 3)
-        self.contact_mode = wp.zeros(n, dtype=int)
-        self.contact_entered = wp.zeros(n, dtype=int)
         self.preconditioner_used = self.preconditioner
         if self.preconditioner == "multigrid":
             reason = grid_structure_reason(model)
@@ -171,8 +162,10 @@ class ImplicitEuler(Integrator):
         # matrix="free" and no multigrid), the preconditioner and the operator CG apply, Jacobi's 1 / diag A
         self.A, self.M, self.A_op, self.inv_diag = self.system.A, self.system.M, self.system.A_op, self.system.inv_diag
         self.multigrid = self.system.multigrid
-        if self.system.bsr:
-            self.contact_values = wp.zeros_like(self.A.values)  # A before the contact filter (friction impulses)
+        #: The colliders' contacts seen by the solve, phase by phase (:class:`FilteredContacts`).
+        self.contacts = FilteredContacts(model, self.system, self.b, self.dv, enabled=self.matrix == "bsr")
+        # its per-particle arrays under the names the self-contact product, tests and diagnostics read
+        self.contact_normal, self.contact_mode = self.contacts.normal, self.contacts.mode
         # device-side convergence needs conditional graph nodes (CUDA driver and toolkit 12.4+)
         is_cuda = wp.get_device(device).is_cuda
         self._device_side = is_cuda and wp.is_conditional_graph_supported()
@@ -264,9 +257,7 @@ class ImplicitEuler(Integrator):
         if self.self_collision is not None and self.pcg is not None:
             self.pcg.reset()  # the captured chunks' self-contact product holds h^2 k
         self.dv.zero_()
-        self.contact_mode.zero_()  # no contact history across an outside change of the state
-        self.contact_impulse.zero_()
-        self.contact_entered.zero_()
+        self.contacts.reset()  # no contact history across an outside change of the state
         self.system.invalidate()
 
     def default_dt(self, model, drag_rate: float = 0.0) -> float:
@@ -278,8 +269,25 @@ class ImplicitEuler(Integrator):
         x, v, f = state.particle_q, state.particle_qd, state.particle_f
         self._x = x  # the positions the self-contact product reads (the step's start)
         eval_forces(m, x, v, control, f)
-        s = self.system
-        s.assemble(x, h, float(control.drag_rate))
+        self.system.assemble(x, h, float(control.drag_rate))
+        self.eval_rhs(x, v, f, h)
+        self.add_pinned_rhs(control, x, v, h)
+        self.add_self_contact_rhs(x, v, h)
+        filtered = self.contacts.before_solve(control, x, v, f, h)  # the colliders' filter on A dv = b
+        self.system.update_preconditioner(h, float(control.drag_rate), filtered)
+        self._solve()
+        self.contacts.after_solve(v)
+        wp.launch(
+            ik.integrate_implicit_euler,
+            dim=m.particle_count,
+            inputs=[x, v, self.dv, m.particle_inv_mass, h],
+            device=m.device,
+        )
+        self.contacts.finish(x)
+
+    def eval_rhs(self, x, v, f, h: float) -> None:
+        """b = h (f + h df/dx v), the springs' and the dihedral hinges' (-h^2 sum_e k_e g (g . v))."""
+        m, s = self.model, self.system
         wp.launch(
             ik.eval_rhs,
             dim=m.particle_count,
@@ -287,170 +295,47 @@ class ImplicitEuler(Integrator):
             outputs=[self.b],
             device=m.device,
         )
-        s.add_hinge_rhs(v, self.b, h)  # dihedral hinges: b += -h^2 sum_e k_e g (g . v)
-        if has_pin_tracks(control):  # pinned dv = (track(t + h) - x)/h - v, moved to the free rows' right side
-            control.kinematic_pins.delta(control, x, v, h, 1.0 / h, 1.0, self.pin_dv)
-            wp.launch(
-                pk.add_pinned_coupling,
-                dim=m.particle_count,
-                inputs=[s.springs, s.spring_B, m.particle_inv_mass, self.pin_dv],
-                outputs=[self.b],
-                device=m.device,
-            )
-            s.add_hinge_product(self.pin_dv, self.b, -h * h, -h, 0)  # and the hinges' -(h^2 k + h kd) g (g . dv_pin)
-        sc = self.self_collision
-        if sc is not None:  # self-contacts' repulsion and h^2 df/dx v in b
-            wp.launch(
-                ik.add_self_contact_rhs,
-                dim=m.particle_count,
-                inputs=[
-                    m.particle_count,
-                    sc.counts,
-                    sk.CONTACTS,
-                    x,
-                    v,
-                    m.particle_inv_mass,
-                    sc.contact_indices,
-                    sc.contact_weights,
-                    sc.contact_normals,
-                    sc.contact_thickness,
-                    sc.stiffness,
-                    h,
-                ],
-                outputs=[self.b],
-                device=m.device,
-            )
-        contacts = self.matrix == "bsr" and control.collision is not None and len(control.collision.colliders) > 0
-        if contacts:
-            self._filter_contacts(control, x, v, f, h)
-        s.update_preconditioner(h, float(control.drag_rate), contacts)
-        self._solve()
-        if contacts:
-            self._contact_friction(v)
+        s.add_hinge_rhs(v, self.b, h)
+
+    def add_pinned_rhs(self, control, x, v, h: float) -> None:
+        """Kinematic pins (nothing without): their dv = (track(t + h) - x) / h - v, prescribed, and its
+        coupling moved to the free rows' right side, b -= (h^2 K + h D) dv_pin (springs and hinges)."""
+        if not has_pin_tracks(control):
+            return
+        m, s = self.model, self.system
+        control.kinematic_pins.delta(control, x, v, h, 1.0 / h, 1.0, self.pin_dv)
         wp.launch(
-            ik.integrate_implicit_euler,
+            pk.add_pinned_coupling,
             dim=m.particle_count,
-            inputs=[x, v, self.dv, m.particle_inv_mass, h],
+            inputs=[s.springs, s.spring_B, m.particle_inv_mass, self.pin_dv],
+            outputs=[self.b],
             device=m.device,
         )
-        if contacts:
-            wp.launch(
-                ik.mark_entered,
-                dim=m.particle_count,
-                inputs=[x, m.particle_inv_mass, control.collision.params, self.contact_mode],
-                outputs=[self.contact_entered],
-                device=m.device,
-            )
+        s.add_hinge_product(self.pin_dv, self.b, -h * h, -h, 0)  # the hinges' -(h^2 k + h kd) g (g . dv_pin)
 
-    def _filter_contacts(self, control, x, v, f, h: float) -> None:
-        """Contacts seen by the solve (Baraff & Witkin 1998, sec. 5.3, the filter S), chosen per
-        particle by :func:`~warpcloth.kernels.implicit.eval_contact_modes`: a sliding contact gets
-        S = I - n n^T, the prescribed normal dv z = -min(0, v_r . n) n (it stops approaching;
-        v_r = v - v_c relative to the collider) and a kinetic friction impulse F on the right
-        side; a sticking one S = 0 and also z_t = -v_r,t (it moves with the collider). CG solves
-        S A S y = S (b + F - A z) for the rest, dv = S y + z; :meth:`_contact_friction` then keeps
-        each contact's impulse for the next step's modes and caps friction (Coulomb).
-
-        Why the modes keep history: a contact chosen by the force at the step's start alone
-        (f . n < 0) flipped every other step in the 16 x 16 drape, where the implicit coupling
-        pushes a particle at the cloth's line of contact in although its explicit force points out
-        (f . n = +0.003..0.03 N): unconstrained it fell 1.3 mm (26 % of the thickness) into the
-        sphere at 0.08 m/s, the projection pushed it back, and its neighbour rang at ~0.02 m/s
-        for good. Now a contact stays while the solve's impulse pushes (J . n > 0), and a particle
-        the solve moved inside becomes one. Friction applied after the solve is not seen by the
-        neighbours (with it, the drape's stick-slip contacts kept their neighbours moving at up to
-        0.05 m/s), so a contact that friction can hold sticks in the solve (released when the
-        solve's |J_t| > mu J_n) and a sliding one's friction is in the solve."""
-        m, s = self.model, self.system
+    def add_self_contact_rhs(self, x, v, h: float) -> None:
+        """The self-contacts' repulsion and their h^2 df/dx v in b (nothing without self-collision)."""
+        sc, m = self.self_collision, self.model
+        if sc is None:
+            return
         wp.launch(
-            ik.eval_contact_modes,
+            ik.add_self_contact_rhs,
             dim=m.particle_count,
             inputs=[
+                m.particle_count,
+                sc.counts,
+                sk.CONTACTS,
                 x,
                 v,
-                f,
-                m.particle_mass,
                 m.particle_inv_mass,
-                control.collision.params,
-                wp.vec3(*control.gravity),
+                sc.contact_indices,
+                sc.contact_weights,
+                sc.contact_normals,
+                sc.contact_thickness,
+                sc.stiffness,
                 h,
-                self.contact_entered,
-                self.contact_impulse,
             ],
-            outputs=[
-                self.contact_mode,
-                self.contact_normal,
-                self.contact_friction,
-                self.contact_collider_v,
-                self.contact_friction_impulse,
-            ],
-            device=m.device,
-        )
-        wp.launch(
-            ik.eval_contact_dv,
-            dim=m.particle_count,
-            inputs=[self.contact_mode, self.contact_normal, self.contact_collider_v, v],
-            outputs=[self.contact_dv],
-            device=m.device,
-        )
-        wp.copy(self.contact_values, self.A.values)
-        wp.copy(self.contact_b, self.b)
-        s.bsr_matvec(
-            self.contact_dv, self.contact_Az, self.contact_Az, 1.0, 0.0, row_part=s.row_part
-        )  # A before the filter
-        wp.launch(
-            ik.filter_system_rows,
-            dim=m.particle_count,
-            inputs=[s.row_offsets, s.block_columns, s.diag_block, self.contact_mode, self.contact_normal, s.row_part],
-            outputs=[self.A.values, self.inv_diag, s.row_part_solve],
-            device=m.device,
-        )
-        wp.launch(
-            ik.filter_rhs,
-            dim=m.particle_count,
-            inputs=[self.contact_mode, self.contact_normal, self.contact_Az, self.contact_friction_impulse],
-            outputs=[self.b, self.dv],
-            device=m.device,
-        )
-        s.invalidate()  # A.values now hold this step's filter: reassemble next step
-
-    def _contact_friction(self, v) -> None:
-        """dv = S y + z, the constraint impulse J = A dv - b of the unfiltered system on each
-        particle (kept for the next step's modes), then Coulomb's caps: a sliding contact that
-        friction reversed stops; a stuck one past the cone slips by the excess."""
-        m = self.model
-        wp.launch(
-            ik.unfilter_dv,
-            dim=m.particle_count,
-            inputs=[self.contact_mode, self.contact_normal, self.contact_dv],
-            outputs=[self.dv],
-            device=m.device,
-        )
-        self.system.bsr_matvec(
-            self.dv,
-            self.contact_b,
-            self.contact_Az,
-            -1.0,
-            1.0,
-            values=self.contact_values,
-            row_part=self.system.row_part,
-        )
-        wp.launch(
-            ik.apply_contact_friction,
-            dim=m.particle_count,
-            inputs=[
-                self.contact_mode,
-                self.contact_normal,
-                self.contact_friction,
-                self.contact_collider_v,
-                self.contact_Az,
-                v,
-                m.particle_mass,
-                self.contact_values,
-                self.system.diag_block,
-                self.contact_friction_impulse,
-            ],
-            outputs=[self.dv, self.contact_impulse],
+            outputs=[self.b],
             device=m.device,
         )
 
@@ -596,3 +481,159 @@ class ImplicitEuler(Integrator):
         self._host_stats = [0, 0, 0, 0.0, 0.0, 0]
         if self.model is not None:
             self._stats.zero_()
+
+
+class FilteredContacts:
+    """The colliders' contacts seen by implicit Euler's solve (Baraff & Witkin 1998, sec. 5.3), bound once to
+    a model and its system A dv = b, by phase of a step:
+
+    - :meth:`before_solve`: each particle's contact mode, and the filter S with the prescribed dv z on A and b;
+    - :meth:`after_solve`: dv = S y + z, the constraint impulses kept, Coulomb's caps on friction;
+    - :meth:`finish`: which particles ended inside a collider (they become contacts next step);
+    - :meth:`reset`: no contact history (an outside change of the state).
+
+    Active only with ``enabled`` (an assembled A, ``matrix="bsr"``) and colliders present; otherwise every
+    phase does nothing and the collider projection after the step alone acts. Nothing is allocated after
+    binding.
+    """
+
+    def __init__(self, model, system: ImplicitSystem, b, dv, enabled: bool):
+        n = model.particle_count
+        self.model, self.system, self.b, self.dv, self.enabled = model, system, b, dv, enabled
+        #: Whether this step's solve sees contacts (set by :meth:`before_solve`).
+        self.active = False
+        self._collision = None
+        # per particle: the contact's normal (0: none), prescribed dv, A z and b before the filter
+        self.normal, self.prescribed_dv, self.Az, self.unfiltered_b = scratch_like(model, 4)
+        self.friction = wp.zeros(n, dtype=float)
+        # collider velocity at the contact, friction impulse; per particle: mode (0 none, 1 slide, 2 stick,
+        # 3 slid and stopped), the solve's constraint impulse and "ended inside a collider", each kept for
+        # the next step's modes
+        self.collider_v, self.impulse, self.friction_impulse = scratch_like(model, 3)
+        self.mode = wp.zeros(n, dtype=int)
+        self.entered = wp.zeros(n, dtype=int)
+        # A before the contact filter (friction impulses)
+        self.unfiltered_values = wp.zeros_like(system.A.values) if system.bsr else None
+
+    def reset(self) -> None:
+        """No contact history: modes, impulses and "entered" zeroed."""
+        self.mode.zero_()
+        self.impulse.zero_()
+        self.entered.zero_()
+
+    def before_solve(self, control, x, v, f, h: float) -> bool:
+        """The contacts seen by the solve (the filter S), chosen per particle by
+        :func:`~warpcloth.kernels.implicit.eval_contact_modes`: a sliding contact gets S = I - n n^T, the
+        prescribed normal dv z = -min(0, v_r . n) n (it stops approaching; v_r = v - v_c relative to the
+        collider) and a kinetic friction impulse F on the right side; a sticking one S = 0 and also
+        z_t = -v_r,t (it moves with the collider). CG solves S A S y = S (b + F - A z) for the rest, dv =
+        S y + z; :meth:`after_solve` then keeps each contact's impulse for the next step's modes and caps
+        friction (Coulomb). Returns whether the solve sees contacts (A's values filtered).
+
+        Why the modes keep history: a contact chosen by the force at the step's start alone
+        (f . n < 0) flipped every other step in the 16 x 16 drape, where the implicit coupling
+        pushes a particle at the cloth's line of contact in although its explicit force points out
+        (f . n = +0.003..0.03 N): unconstrained it fell 1.3 mm (26 % of the thickness) into the
+        sphere at 0.08 m/s, the projection pushed it back, and its neighbour rang at ~0.02 m/s
+        for good. Now a contact stays while the solve's impulse pushes (J . n > 0), and a particle
+        the solve moved inside becomes one. Friction applied after the solve is not seen by the
+        neighbours (with it, the drape's stick-slip contacts kept their neighbours moving at up to
+        0.05 m/s), so a contact that friction can hold sticks in the solve (released when the
+        solve's |J_t| > mu J_n) and a sliding one's friction is in the solve."""
+        collision = control.collision
+        self.active = self.enabled and collision is not None and len(collision.colliders) > 0
+        self._collision = collision if self.active else None
+        if not self.active:
+            return False
+        m, s = self.model, self.system
+        wp.launch(
+            ik.eval_contact_modes,
+            dim=m.particle_count,
+            inputs=[
+                x,
+                v,
+                f,
+                m.particle_mass,
+                m.particle_inv_mass,
+                collision.params,
+                wp.vec3(*control.gravity),
+                h,
+                self.entered,
+                self.impulse,
+            ],
+            outputs=[self.mode, self.normal, self.friction, self.collider_v, self.friction_impulse],
+            device=m.device,
+        )
+        wp.launch(
+            ik.eval_contact_dv,
+            dim=m.particle_count,
+            inputs=[self.mode, self.normal, self.collider_v, v],
+            outputs=[self.prescribed_dv],
+            device=m.device,
+        )
+        wp.copy(self.unfiltered_values, s.A.values)
+        wp.copy(self.unfiltered_b, self.b)
+        s.bsr_matvec(self.prescribed_dv, self.Az, self.Az, 1.0, 0.0, row_part=s.row_part)  # A before the filter
+        wp.launch(
+            ik.filter_system_rows,
+            dim=m.particle_count,
+            inputs=[s.row_offsets, s.block_columns, s.diag_block, self.mode, self.normal, s.row_part],
+            outputs=[s.A.values, s.inv_diag, s.row_part_solve],
+            device=m.device,
+        )
+        wp.launch(
+            ik.filter_rhs,
+            dim=m.particle_count,
+            inputs=[self.mode, self.normal, self.Az, self.friction_impulse],
+            outputs=[self.b, self.dv],
+            device=m.device,
+        )
+        s.invalidate()  # A.values now hold this step's filter: reassemble next step
+        return True
+
+    def after_solve(self, v) -> None:
+        """dv = S y + z, the constraint impulse J = A dv - b of the unfiltered system on each particle
+        (kept for the next step's modes), then Coulomb's caps: a sliding contact that friction reversed
+        stops; a stuck one past the cone slips by the excess."""
+        if not self.active:
+            return
+        m, s = self.model, self.system
+        wp.launch(
+            ik.unfilter_dv,
+            dim=m.particle_count,
+            inputs=[self.mode, self.normal, self.prescribed_dv],
+            outputs=[self.dv],
+            device=m.device,
+        )
+        s.bsr_matvec(self.dv, self.unfiltered_b, self.Az, -1.0, 1.0, values=self.unfiltered_values, row_part=s.row_part)
+        wp.launch(
+            ik.apply_contact_friction,
+            dim=m.particle_count,
+            inputs=[
+                self.mode,
+                self.normal,
+                self.friction,
+                self.collider_v,
+                self.Az,
+                v,
+                m.particle_mass,
+                self.unfiltered_values,
+                s.diag_block,
+                self.friction_impulse,
+            ],
+            outputs=[self.dv, self.impulse],
+            device=m.device,
+        )
+
+    def finish(self, x) -> None:
+        """Marks the particles the step ended inside a collider (kept for the next step's modes)."""
+        if not self.active:
+            return
+        m = self.model
+        wp.launch(
+            ik.mark_entered,
+            dim=m.particle_count,
+            inputs=[x, m.particle_inv_mass, self._collision.params, self.mode],
+            outputs=[self.entered],
+            device=m.device,
+        )

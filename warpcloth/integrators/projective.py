@@ -137,34 +137,39 @@ class Projective(IncrementSolver):
         h = float(dt)
         x = state.particle_q
         self.assemble(h)
-        contacts = self.predict(state, control, h)  # a kinematic pin's dx: known, enters the residual
-        if contacts is None:
-            self.contact_state.zero_()  # none held
-        held = None
-        self_collision = self.self_collision
-        if self_collision is not None and contacts is not None:  # a layer on a collider stays there
-            held = self_collision.held_inverse_mass(x, control.collision)
+        colliders = self.predict(state, control, h)  # a kinematic pin's dx: known, enters the residual
+        held = self.held_inverse_mass(x, control)
         for _ in range(self.pd_iterations):
             self.local_step(x, h)
-            if self_collision is not None:  # the self-contacts as projective constraints of the global solve
+            if self.self_collision is not None:  # the self-contacts as projective constraints of the global solve
                 self.self_contact_step(x, h, held)
-            if (
-                self.pd_rigid_mode and contacts is None
-            ):  # every global solve: the first one only let the sheet gain energy again
+            # the rigid translation before every global solve (before the first one only, the sheet gained energy)
+            if self.pd_rigid_mode and colliders is None:
                 self.translation_step()
             self.global_step()
-            if self_collision is not None:  # self-contacts as constraints on dx, then the colliders (they win)
-                if self.pd_rigid_mode and contacts is None:
-                    # the truncated CG's residual no longer sums to zero where the contacts bent dx: the
-                    # total momentum moved by up to 7e-4 kg m/s a step in a free two-layer collision
-                    self.translation_step()
-                self_collision.project_increment(x, self.dx, held)
-            if contacts is not None:
-                self.solve_contacts(x, h, contacts)
-                edges = control.collision.edges(self.model)
-                if edges is not None:  # box and mesh edges against the cloth's edges and triangles
-                    edges.project_increment(x, self.dx)
-        self.finish(state, control, h, contacts)
+            if self.self_collision is not None:  # self-contacts as constraints on dx, then the colliders (they win)
+                self.project_self_contacts(x, held)
+            if colliders is not None:
+                self.solve_contacts(x, h, colliders)
+                self.contacts.after_iteration(x, self.dx)
+        self.finish(state, control, h)
+
+    def held_inverse_mass(self, x, control):
+        """With self-collision and colliders, the vertices' 1/m with 0 where a layer lies on a collider
+        (it stays there: :meth:`SelfCollision.held_inverse_mass
+        <warpcloth.sim.self_collision.SelfCollision.held_inverse_mass>`); else None (the model's)."""
+        if self.self_collision is None or self.contacts.colliders is None:
+            return None
+        return self.self_collision.held_inverse_mass(x, control.collision)
+
+    def project_self_contacts(self, x, held) -> None:
+        """The self-contacts as constraints on dx after a global solve (``held``: the vertices' 1/m, None the
+        model's); without colliders the global system's rigid translation first: the truncated CG's residual
+        no longer sums to zero where the contacts bent dx (the total momentum moved by up to 7e-4 kg m/s a
+        step in a free two-layer collision)."""
+        if self.pd_rigid_mode and self.contacts.colliders is None:
+            self.translation_step()
+        self.self_collision.project_increment(x, self.dx, held)
 
     def solve_contacts(self, x, h: float, contacts) -> None:
         """Contacts after a global step (:func:`warpcloth.kernels.projective.solve_contacts`): the

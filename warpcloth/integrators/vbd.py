@@ -184,15 +184,25 @@ class VBD(IncrementSolver):
             self.stretch_cap = wp.ones(1, dtype=float, device=model.device)  # the correction's largest step
 
     def step(self, state, control, dt):
-        m, h = self.model, float(dt)
+        h = float(dt)
         x = state.particle_q
-        contacts = self.predict(state, control, h)
-        sweep = self.color_sweep(x, h, contacts)
-        edges = control.collision.edges(m) if contacts is not None else None
-        if contacts is None and self.vbd_rigid_mode:
-            self.contact_state.zero_()  # none held (the rigid mode reads it; colliders may have been removed)
-        accelerate = self.vbd_chebyshev_rho > 0.0
-        if accelerate:
+        # the contact states cleared without colliders where the rigid mode reads them
+        colliders = self.predict(state, control, h, clear_contacts=self.vbd_rigid_mode > 0)
+        sweep = self.color_sweep(x, h, colliders)
+        self.begin_iterations(x, h)
+        for it, omega in enumerate(chebyshev_weights(self.vbd_iterations, self.vbd_chebyshev_rho)):
+            self.before_sweep(x, h, it)
+            for color in sweep:
+                color.launch()
+            self.after_sweep(x, h, it)
+            self.accelerate(x, h, omega)
+        self.finish(state, control, h)
+
+    def begin_iterations(self, x, h: float) -> None:
+        """Before the first sweep: the Chebyshev history dx^(n-1) = dx^(n-2) = dx, and h^2 times the
+        step's-start Hessian with its multigrid levels (where a coarse correction is on)."""
+        m = self.model
+        if self.vbd_chebyshev_rho > 0.0:
             wp.launch(
                 vk.copy_increment,
                 dim=m.particle_count,
@@ -205,56 +215,58 @@ class VBD(IncrementSolver):
             self.hessian.update_preconditioner(h, 0.0)
             if self.multigrid is not self.hessian.multigrid:  # the aggregation hierarchy (not the system's own)
                 self.multigrid.update()
-        for it, omega in enumerate(chebyshev_weights(self.vbd_iterations, self.vbd_chebyshev_rho)):
-            if self.hessian is not None and it % self.vbd_multigrid_every == 0:
-                self.coarse_correction(x, h, contacts)
-            # with colliders before every sweep (a step ends on a sweep, which holds the contacts); without,
-            # before the first one too: a first sweep from a guess whose mean lags leaves a shape error
-            if self.vbd_rigid_mode == 2 or (self.vbd_rigid_mode == 1 and (contacts is not None or it == 0)):
-                self.rigid_correction(x, h)
-            if self.self_collision is not None:  # the self-contacts' penalty at this sweep's start
-                self.self_collision.eval_vertex_terms(x, self.dx, self._contact_stiffness())
-            for color in sweep:
-                color.launch()
-            if self.self_collision is not None:  # and as constraints on dx (the next sweep holds the colliders)
-                self.self_collision.project_increment(x, self.dx)
-                # no next sweep after the last one: the colliders out along their normals here (the self-contacts'
-                # equal and opposite corrections pushed a lower layer into the ground: the fold ended 0.4 mm in,
-                # the stacked sheets entered it; measured)
-                if contacts is not None and it == self.vbd_iterations - 1:
-                    wp.launch(
-                        vk.push_out_increment,
-                        dim=m.particle_count,
-                        inputs=[x, m.particle_inv_mass, contacts],
-                        outputs=[self.dx],
-                        device=m.device,
-                    )
-            if edges is not None:  # box and mesh edges against the cloth's edges and triangles
-                edges.project_increment(x, self.dx)
-            if self.vbd_rigid_mode >= 1 and contacts is None:
-                self.rigid_correction(x, h)
-                if self.self_collision is not None:
-                    # the translation sees the contacts' penalty, not their constraints: those again (equal and
-                    # opposite, so the momentum the translation made exact stays; without, a free sheet went
-                    # into the pinned one it lay on)
-                    self.self_collision.project_increment(x, self.dx)
-            if accelerate:
+
+    def before_sweep(self, x, h: float, it: int) -> None:
+        """Before sweep ``it``: the coarse correction (every ``vbd_multigrid_every``-th), the rigid
+        translation (with colliders before every sweep, a step ends on a sweep, which holds the contacts;
+        without, before the first one too: a first sweep from a guess whose mean lags leaves a shape error),
+        and the self-contacts' penalty at the sweep's start."""
+        colliders, mode = self.contacts.colliders, self.vbd_rigid_mode
+        if self.hessian is not None and it % self.vbd_multigrid_every == 0:
+            self.coarse_correction(x, h, colliders)
+        if mode == 2 or (mode == 1 and (colliders is not None or it == 0)):
+            self.rigid_correction(x, h)
+        if self.self_collision is not None:
+            self.self_collision.eval_vertex_terms(x, self.dx, self._contact_stiffness())
+
+    def after_sweep(self, x, h: float, it: int) -> None:
+        """After sweep ``it``: the self-contacts as constraints on dx (the next sweep holds the colliders;
+        after the last one the colliders push out along their normals: the self-contacts' equal and opposite
+        corrections pushed a lower layer into the ground, the fold ended 0.4 mm in, the stacked sheets entered
+        it; measured), the colliders' edges, and without colliders the rigid translation (then the
+        self-contacts again: the translation sees their penalty, not their constraints; equal and opposite,
+        so the momentum it made exact stays; without, a free sheet went into the pinned one it lay on)."""
+        m, sc, colliders = self.model, self.self_collision, self.contacts.colliders
+        if sc is not None:
+            sc.project_increment(x, self.dx)
+            if colliders is not None and it == self.vbd_iterations - 1:
                 wp.launch(
-                    vk.apply_chebyshev,
+                    vk.push_out_increment,
                     dim=m.particle_count,
-                    inputs=[omega],
-                    outputs=[self.dx, self.dx_prev1, self.dx_prev2],
+                    inputs=[x, m.particle_inv_mass, colliders],
+                    outputs=[self.dx],
                     device=m.device,
                 )
-                if contacts is not None:  # the extrapolation may reach into a collider
-                    wp.launch(
-                        nk.project_increments,
-                        dim=m.particle_count,
-                        inputs=[x, m.particle_inv_mass, contacts, h],
-                        outputs=[self.dx, self.contact],
-                        device=m.device,
-                    )
-        self.finish(state, control, h, contacts)
+        self.contacts.after_iteration(x, self.dx)
+        if self.vbd_rigid_mode >= 1 and colliders is None:
+            self.rigid_correction(x, h)
+            if sc is not None:
+                sc.project_increment(x, self.dx)
+
+    def accelerate(self, x, h: float, omega: float) -> None:
+        """Chebyshev: dx <- omega (dx - dx^(n-2)) + dx^(n-2) (nothing where ``vbd_chebyshev_rho`` is 0),
+        then dx out of the colliders (the extrapolation may reach into one)."""
+        if self.vbd_chebyshev_rho <= 0.0:
+            return
+        m = self.model
+        wp.launch(
+            vk.apply_chebyshev,
+            dim=m.particle_count,
+            inputs=[omega],
+            outputs=[self.dx, self.dx_prev1, self.dx_prev2],
+            device=m.device,
+        )
+        self.contacts.project(x, self.dx, h)
 
     def coarse_correction(self, x, h: float, contacts=None) -> None:
         """dx += V(r): r = -h^2 grad G at dx, V one multigrid V-cycle of A = h^2 Hessian.
@@ -394,7 +406,7 @@ class VBD(IncrementSolver):
         (``contacts``: the colliders' struct, or None), rebuilt only when the positions array, h or
         the colliders change (cuts the Python cost of colours x iterations launches; a recorded
         launch keeps the struct arguments' values of its recording)."""
-        colliders = contacts if contacts is not None else self.no_colliders
+        colliders = contacts if contacts is not None else self.contacts.none
         sc = self.self_collision
         force, hessian = (
             (sc.vertex_force, sc.vertex_hessian) if sc is not None else (self.no_self_force, self.no_self_hessian)
