@@ -78,9 +78,7 @@ def config_from_args(scenario, args, command: str = "run"):
     if values.get("device") is None:  # the scenario's (a scenario file's [run] device), else the CLI's default
         values["device"] = scenario.defaults.device or BY_NAME["device"].default
     kwargs = config_values(values)
-    kwargs.update(
-        integrator=integrator, integrator_options=integrator_options_from_args(integrator, args), dt=values.get("dt")
-    )
+    kwargs.update(integrator=integrator, integrator_options=integrator_options_from_args(integrator, args))
     cfg = scenario.config(**kwargs)
     num_frames = getattr(args, "num_frames", None)
     if num_frames is not None:

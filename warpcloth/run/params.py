@@ -480,6 +480,16 @@ def _group_config(value):
     return tuple(value.split(",")) if value else None
 
 
+def _dt_config(value):
+    """ScenarioConfig's ``dt`` [s]: a value as given (the CLI's float, or a :class:`TimeStep`),
+    None for ``default`` (the integrator's own, computed where the model is built); ``max`` is
+    None too: a test list's search finds that dt and gives it (:meth:`RunSpec.config
+    <warpcloth.lab.testlist.RunSpec.config>`)."""
+    if not isinstance(value, TimeStep):
+        return value
+    return value.value if value.kind == "value" else None
+
+
 def _spring_params(kind: str, unit: str, default_doc: str) -> list[Param]:
     base = Param(
         kind,
@@ -909,7 +919,7 @@ PARAMS: tuple[Param, ...] = (
         xml_aliases=("timestep",),
         columns=("dt_request",),
         search=False,
-        config=None,
+        to_config=_dt_config,
         commands=("run", "sweep"),
         metavar="S",
         cli_type=float,
