@@ -103,7 +103,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from warpcloth.integrators import integrator_class, integrator_names, make_integrator
+    from warpcloth.integrators import check_integrator_name, integrator_names, make_integrator
     from warpcloth.sim.device import device_name as resolve_device
     from warpcloth.simulator import graph_capture_supported
 
@@ -117,7 +117,7 @@ def run(args) -> int:
             f"{', '.join(integrator_names())}",
         )
     for n in names:
-        integrator_class(n)
+        check_integrator_name(n, flag="--integrators")
     from warpcloth.scenarios import get_scenario
 
     scenario = get_scenario(args.scenario)  # unknown name or bad file: one line

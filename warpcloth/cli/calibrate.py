@@ -90,11 +90,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from warpcloth.integrators import integrator_class
+    from warpcloth.integrators import check_integrator_name
     from warpcloth.lab.calibrate import calibrate
     from warpcloth.sim.material import material_with
 
-    integrator_class(args.integrator or "implicit_euler")  # an unknown name: one line
+    check_integrator_name(args.integrator or "implicit_euler", flag="--integrator")
     options = integrator_options_from_args(args.integrator or "implicit_euler", args)
     values = {name: cli_value(BY_NAME[name], args) for name in MATERIAL_FLAGS}
     start = material_with(args.material, **values)

@@ -61,17 +61,12 @@ def param_values(args, command: str) -> dict:
 
 def config_from_args(scenario, args, command: str = "run"):
     """A ScenarioConfig from parsed flags (unset flags keep the scenario defaults)."""
-    from warpcloth.integrators import integrator_class, integrator_names
+    from warpcloth.integrators import check_integrator_name
 
     values = param_values(args, command)
-    if values.get("integrator") is not None and not values["integrator"].strip():
-        raise WarpclothError(f"--integrator is empty; choose one of {', '.join(integrator_names())}")
-    if values.get("integrator") == "all":
-        raise WarpclothError(
-            f"--integrator all is for test lists (warpcloth sweep); choose one of {', '.join(integrator_names())}"
-        )
+    if values.get("integrator") is not None:
+        check_integrator_name(values["integrator"], flag="--integrator")
     integrator = values.get("integrator") or scenario.defaults.integrator
-    integrator_class(integrator)  # unknown name -> clear error
     if values.get("size") is not None and (values.get("rows") is not None or values.get("cols") is not None):
         raise WarpclothError("give either --size or --rows and --cols, not both")
     check_applies(values, scenario.is_mesh, scenario.name)

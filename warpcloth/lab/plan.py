@@ -118,18 +118,14 @@ def make_plan(
     budget_ms=None,
 ) -> StudyPlan:
     """A :class:`StudyPlan` from a profile and explicit overrides (checked; one-line errors)."""
-    from warpcloth.integrators import integrator_names
+    from warpcloth.integrators import check_integrator_name, integrator_names
 
     if profile not in PROFILES:
         raise WarpclothError(f"unknown profile {profile!r}; choose one of {', '.join(PROFILES)}")
-    names = integrator_names()
-    if integrators is None:
-        integrators = list(names)
-    integrators = list(integrators)
+    integrators = list(integrator_names() if integrators is None else integrators)
     require(bool(integrators), "the integrator list is empty")
     for name in integrators:
-        if name not in names:
-            raise WarpclothError(f"unknown integrator {name!r}; choose from {', '.join(names)}")
+        check_integrator_name(name, flag="--integrators")
     base = dict(PROFILES[profile])
     if sizes is not None:
         sizes = list(sizes)

@@ -219,12 +219,10 @@ def choice(*choices: str, what: str):
 
 
 def integrator(text: str) -> str:
-    from warpcloth.integrators import integrator_names
+    """A registered integrator's name, or ``all`` (a test list's every one)."""
+    from warpcloth.integrators import check_integrator_name
 
-    names = integrator_names()
-    if text != "all" and text not in names:
-        raise ValueError(f"unknown integrator {_shown(text)}; choose from {', '.join(names)} (or 'all' in a test list)")
-    return text
+    return check_integrator_name(text, allow_all=True)
 
 
 def scenario(text: str) -> str:
