@@ -48,7 +48,7 @@ def measure(sim, config: ScenarioConfig) -> dict:
     (:func:`warpcloth.run.drape.fold_count`; a hanging corner counts as a fold)."""
     x = sim.state.particle_q.numpy()
     try:
-        folds = fold_count(x, sim.model.host["tris"], FOLD_CUT)
+        folds = fold_count(x, sim.model.host.tris, FOLD_CUT)
     except WarpclothError:  # the cloth does not reach the cut
         return {"folds": None, "fold_cut_m": FOLD_CUT}
     return {"folds": folds, "fold_cut_m": FOLD_CUT}

@@ -476,11 +476,8 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         )
 
     def pin_tracks(config: ScenarioConfig, model_):
-        rest = model_.host["q"].astype(np.float64)
-        return [
-            _track(t, rest, model_.host.get("groups", {}), f"{where}: [[tracks]] #{k + 1}")
-            for k, t in enumerate(tracks)
-        ]
+        rest = model_.host.q.astype(np.float64)
+        return [_track(t, rest, model_.host.groups, f"{where}: [[tracks]] #{k + 1}") for k, t in enumerate(tracks)]
 
     def control(config: ScenarioConfig, device: str) -> Control:
         drag = (0.0 if drag_given is None else drag_given) if config.drag is None else config.drag

@@ -48,7 +48,7 @@ def measure(sim, config: ScenarioConfig) -> dict:
     table's own corners are no peaks; a hanging corner's cone is a fold)."""
     x = sim.state.particle_q.numpy()
     try:
-        folds = fold_count(x, sim.model.host["tris"], FOLD_CUT, norm="square")
+        folds = fold_count(x, sim.model.host.tris, FOLD_CUT, norm="square")
     except WarpclothError:  # the cloth does not reach the cut
         return {"folds": None, "fold_cut_m": FOLD_CUT}
     return {"folds": folds, "fold_cut_m": FOLD_CUT}
