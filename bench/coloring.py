@@ -72,7 +72,7 @@ def main():
     cape = make_cape()
     cases = {
         "cape": (cape.vertices, cape.triangles),
-        "grid96 as a mesh": (grid.host["q"], grid.host["tris"]),
+        "grid96 as a mesh": (grid.host.q, grid.host.tris),
         "uv sphere": uv_sphere(136),
     }
     for name, (v, t) in cases.items():

@@ -69,7 +69,7 @@ def timed_run(name: str, integrator: str | None, frames: int, html: str | None, 
     if writer is not None:
         writer.close()
     x = sim.state.particle_q.numpy()
-    pairs, rest = sim.model.host["pairs"], sim.model.host["rest"]
+    pairs, rest = sim.model.host.pairs, sim.model.host.rest
     strain = np.linalg.norm(x[pairs[:, 1]] - x[pairs[:, 0]], axis=1) / rest - 1.0
     ms = 1000.0 * np.asarray(times)
     return {

@@ -32,7 +32,7 @@ FRAME = 1.0 / 60.0
 def build(size, device, mode):
     top = list(range(size))  # the top row of the hanging sheet
     model = build_grid_cloth(size, size, pins=top, device=device)
-    rest = model.host["q"].astype(np.float64)
+    rest = model.host.q.astype(np.float64)
     ball = dict(center=(0.5, -0.6, -0.2), radius=0.15)
     if mode == "new track":
         tracks, sphere = (PinTrack.keyframes(top, [0.0], [[0.0, 0.0, 0.0]]),), Sphere(**ball)

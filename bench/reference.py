@@ -97,7 +97,7 @@ def main(argv=None):
         f"flag {args.rows}x{args.cols}",
         f.model,
         lambda: Control(drag_rate=fc.drag_rate, wind_coefficient=fc.wind_coefficient, wind_schedule=fc.wind_schedule),
-        f.model.host["q"],
+        f.model.host.q,
         args.flag,
         0.01,
         [("explicit_euler", 1e-4), ("explicit_euler", 5e-5), ("rk4", 1 / 1000), ("rk4", 1 / 2000)]
@@ -110,7 +110,7 @@ def main(argv=None):
     t0 = time.perf_counter()
     eq = static_equilibrium(st.model, st.control)
     wall = time.perf_counter() - t0
-    moved = np.linalg.norm(eq.x - st.model.host["q"], axis=1).max()
+    moved = np.linalg.norm(eq.x - st.model.host.q, axis=1).max()
     print(
         f"static sheet {n}x{n}: residual {eq.residual:.3g} N in {wall * 1e3:.0f} ms; max displacement from rest "
         f"{moved:.4g} m"

@@ -47,7 +47,7 @@ from warpcloth.sim.self_collision import SelfCollision
 def folded(model, gap, slide=(0.5, 0.3)):
     """The sheet folded at x = 0.5 w, the far half ``gap`` above the near half and slid by
     ``slide`` grid spacings in x and z (so its vertices do not lie over the near half's)."""
-    q = model.host["q"].astype(np.float64).copy()
+    q = model.host.q.astype(np.float64).copy()
     x0 = q[:, 0].min()
     spacing = (q[:, 0].max() - x0) / (model.cols - 1)
     half = x0 + 0.5 * (q[:, 0].max() - x0)
@@ -140,7 +140,7 @@ def alternatives(size, thickness, repeats, device):
         grid.reserve(n)
         wp.launch(_boxes, t, [x, tris, r, lo, hi, centres])
         bvh = wp.Bvh(lo, hi)
-        mesh = wp.Mesh(points=wp.clone(x), indices=wp.array(model.host["tris"].reshape(-1), dtype=int))
+        mesh = wp.Mesh(points=wp.clone(x), indices=wp.array(model.host.tris.reshape(-1), dtype=int))
         reach = r + 0.75 * spacing * 1.5  # a triangle's box half diagonal, strained a little
 
     for fn in (lambda: grid.build(x, r + reach), lambda: bvh.refit(), lambda: mesh.refit()):
@@ -300,7 +300,7 @@ def main(argv=None):
             base = ms["explicit_euler step"]
             x = folded(model, 0.9 * a.thickness)
             t0 = time.perf_counter()
-            bad = count_self_intersections(x, model.host["tris"])
+            bad = count_self_intersections(x, model.host.tris)
             check_s = time.perf_counter() - t0
             print(
                 f"{size}x{size}, edge fraction {fraction:g}: {model.particle_count} vertices, "

@@ -210,7 +210,7 @@ def main(argv=None) -> None:
         print(f"\n# statics: scenario sheet {n}x{n}, dt = 1/60 s, {args.settle_time:g} s, default options")
         base = sheet.build(rows=n, cols=n, dt=DT, device="cpu")
         eq = static_equilibrium(base.model, base.control)
-        y0 = base.model.host["q"][:, 1].astype(np.float64)
+        y0 = base.model.host.q[:, 1].astype(np.float64)
         sag_ref = float((y0 - eq.x[:, 1]).max())
         print(f"float64 equilibrium: sag {sag_ref * 1e3:.4f} mm (residual {eq.residual:.1e} N)")
         settle = [("vbd", ("vbd", {})), ("projective", ("projective", {}))]

@@ -36,13 +36,13 @@ def small_grid(ks=5.0, kd=0.0, rows=3, cols=3, pins=(0,), device="cpu"):
 def reference_forces(model, x, v, gravity=(0.0, -9.81, 0.0), drag=0.0):
     """f = m g - m c v + sum of Provot spring forces, in float64 NumPy (design.md formula)."""
     h = model.host
-    p = h["pairs"]
+    p = h.pairs
     x = np.asarray(x, dtype=np.float64)
     v = np.asarray(v, dtype=np.float64)
-    rest = np.linalg.norm(h["q"][p[:, 1]].astype(np.float64) - h["q"][p[:, 0]], axis=1)
+    rest = np.linalg.norm(h.q[p[:, 1]].astype(np.float64) - h.q[p[:, 0]], axis=1)
     ks = model.spring_stiffness.numpy().astype(np.float64)
     kd = model.spring_damping.numpy().astype(np.float64)
-    m = h["mass"].astype(np.float64)
+    m = h.mass.astype(np.float64)
     d = x[p[:, 1]] - x[p[:, 0]]
     length = np.linalg.norm(d, axis=1)
     n = d / length[:, None]
@@ -56,13 +56,13 @@ def reference_forces(model, x, v, gravity=(0.0, -9.81, 0.0), drag=0.0):
 def reference_rk4(model, duration, steps, gravity=(0.0, -9.81, 0.0)):
     """Positions after ``duration`` from rest, by float64 RK4 with ``steps`` steps."""
     h = model.host
-    free = (h["inv_mass"] > 0)[:, None]
-    m = h["mass"].astype(np.float64)[:, None]
+    free = (h.inv_mass > 0)[:, None]
+    m = h.mass.astype(np.float64)[:, None]
 
     def acc(x, v):
         return np.where(free, reference_forces(model, x, v, gravity) / m, 0.0)
 
-    x = h["q"].astype(np.float64).copy()
+    x = h.q.astype(np.float64).copy()
     v = np.zeros_like(x)
     dt = duration / steps
     for _ in range(steps):
@@ -88,12 +88,12 @@ def backward_euler_step(model, x, v, h, gravity=(0.0, -9.81, 0.0), damping="axia
     from scipy.optimize import fsolve
 
     host = model.host
-    pairs = host["pairs"]
-    rest = np.linalg.norm(host["q"][pairs[:, 1]].astype(np.float64) - host["q"][pairs[:, 0]], axis=1)
+    pairs = host.pairs
+    rest = np.linalg.norm(host.q[pairs[:, 1]].astype(np.float64) - host.q[pairs[:, 0]], axis=1)
     ks = model.spring_stiffness.numpy().astype(np.float64)
     kd = model.spring_damping.numpy().astype(np.float64)
-    m = host["mass"].astype(np.float64)
-    free = host["inv_mass"] > 0
+    m = host.mass.astype(np.float64)
+    free = host.inv_mass > 0
 
     def residual(flat):
         dx = np.zeros_like(x)

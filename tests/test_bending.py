@@ -575,7 +575,7 @@ def test_strip_cantilever_with_springs_and_hinges_sags_like_the_linear_predictio
     model = build_grid_cloth(
         rows, cols, width, length, mass, spring_params=params, pins=pins, plane="horizontal", bend="none", device=DEVICE
     )
-    x0 = model.host["q"].astype(np.float64)
+    x0 = model.host.q.astype(np.float64)
     hinges = H.grid_hinges(x0, rows, cols, bend)
     d = hinges.to_device(DEVICE)
     gravity = wp.vec3(0.0, -9.81, 0.0)
@@ -614,14 +614,14 @@ def test_strip_cantilever_with_springs_and_hinges_sags_like_the_linear_predictio
     for e, qe in enumerate(hinges.indices):
         stiff[np.ix_(qe, qe)] += hinges.stiffness[e] * np.outer(c[e], c[e])
     free = np.setdiff1d(np.arange(model.particle_count), pins)
-    load = model.host["mass"][free] * 9.81
+    load = model.host.mass[free] * 9.81
     u = np.linalg.solve(stiff[np.ix_(free, free)], load)
     linear = u[np.isin(free, [cols - 1, 2 * cols - 1])].mean()
     assert abs(drop / linear - 1.0) < 0.02
     # the same strip as a 1-D chain: column c's two half-weight hinges are a rotational spring B W / h
     # carrying the moment of the loads beyond it; tip = sum_c theta_c (x_tip - x_c) = 266 F h^3 / (B W)
     # with F = 2 m g per column (6 segments); the continuum q L^4 / (8 B W) is 1.44x smaller at this coarseness
-    force = 2.0 * model.host["mass"][cols - 1] * 9.81
+    force = 2.0 * model.host.mass[cols - 1] * 9.81
     assert abs(drop / (266.0 * force * hh**3 / (bend * length)) - 1.0) < 0.03
     q_free, _ = run(False, steps, 0.0)  # no hinges, no drag: it hangs from the clamp
     assert x0[cols - 1, 1] - q_free[cols - 1, 1] > 20 * drop

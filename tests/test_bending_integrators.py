@@ -98,7 +98,7 @@ def dense_hinge_system(model, x, v, h, drag, jacobian="full"):
     theta, g, valid = hinge_angle_gradients(x, hinges.indices)
     k = hinges.stiffness.astype(np.float32).astype(np.float64)
     kd = hinges.damping.astype(np.float32).astype(np.float64)
-    c = hinge_rest_coefficients(model.host["q"], hinges.indices)
+    c = hinge_rest_coefficients(model.host.q, hinges.indices)
     n = model.particle_count
     f = np.zeros((n, 3))
     dfdx = np.zeros((3 * n, 3 * n))
@@ -139,9 +139,9 @@ def test_one_implicit_step_equals_dense_backward_euler_with_hinges(matrix, jacob
         integrator_options={"matrix": matrix, "jacobian": jacobian, "cg_tol": 1e-6, "strain_cap": 0.0},  # bare scheme
     )
     m = sim.model
-    x = m.host["q"].astype(np.float64) + rng.normal(scale=0.03, size=(m.particle_count, 3))
+    x = m.host.q.astype(np.float64) + rng.normal(scale=0.03, size=(m.particle_count, 3))
     v = rng.normal(scale=0.5, size=(m.particle_count, 3))
-    x[m.pinned], v[m.pinned] = m.host["q"][m.pinned], 0.0
+    x[m.pinned], v[m.pinned] = m.host.q[m.pinned], 0.0
     sim.state.particle_q.assign(x.astype(np.float32))
     sim.state.particle_qd.assign(v.astype(np.float32))
     x, v = sim.state.particle_q.numpy().astype(np.float64), sim.state.particle_qd.numpy().astype(np.float64)
@@ -200,7 +200,7 @@ def test_flat_cloth_falling_under_gravity_stays_flat(name):
         bend_rigidity=0.05,
         device="cpu",
     )
-    q = model.host["q"].astype(np.float64)
+    q = model.host.q.astype(np.float64)
     c, s = np.cos(0.5), np.sin(0.5)  # tilt the plane by 0.5 rad about x
     q[:, 1], q[:, 2] = 2.0 + s * (q[:, 2] - 0.25), c * (q[:, 2] - 0.25)
     options = {"iterations": 4} if name in ("pbd", "xpbd") else {}  # (fewer launches: a faster test)
@@ -311,7 +311,7 @@ def test_pbd_hinges_flatten_a_bent_strip():
     pins = [r * cols + c for r in range(2) for c in (0, 1)]
     model = build_grid_cloth(2, cols, 0.5, 0.1, 0.12, plane="horizontal", pins=pins, bend="dihedral", device="cpu")
     sim = Simulator(model, make_integrator("pbd"), Control(gravity=(0.0, 0.0, 0.0), device="cpu"))
-    q = model.host["q"].astype(np.float64)
+    q = model.host.q.astype(np.float64)
     s = q[:, 0] - q[1, 0]
     bent = s > 0
     q[bent, 0] = q[1, 0] + np.sin(s[bent])  # an arc of curvature 1 / m: 0.1 rad per 0.1 m cell

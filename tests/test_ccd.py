@@ -142,7 +142,7 @@ def moved_through(model, sc, motion, position_weight=1.0, colliders=None):
     """Positions at the step's start (detect), then the vertex moved by ``motion`` [m] in the step with the
     velocity that does so; prevent_crossings. Returns (x at the start, x moved, x after, v before, v after)."""
     dt = 1.0 / 60.0
-    q0 = model.host["q"].astype(np.float32)
+    q0 = model.host.q.astype(np.float32)
     v = np.zeros_like(q0)
     v[0] = np.array(motion) / dt
     x = wp.array(q0, dtype=wp.vec3, device="cpu")
@@ -179,9 +179,9 @@ def test_a_vertex_moved_through_a_triangle_ends_the_step_on_its_side(pinned, mot
     if pinned:
         np.testing.assert_array_equal(xe[1:4], q0[1:4])
     else:
-        dp = (model.host["mass"][:, None] * (ve - v)).sum(axis=0)
+        dp = (model.host.mass[:, None] * (ve - v)).sum(axis=0)
         assert np.abs(dp).max() <= 1e-7, dp
-    assert ix.count_self_intersections(xe, model.host["tris"]) == 0
+    assert ix.count_self_intersections(xe, model.host.tris) == 0
 
 
 def test_a_vertex_that_no_push_can_move_goes_back_to_the_steps_start():
@@ -220,7 +220,7 @@ def test_two_edges_crossing_in_a_step_end_apart():
     )
     sc = SelfCollision(model, thickness=0.005, friction=0.0, stiffness=10.0)
     dt = 1.0 / 60.0
-    q0 = model.host["q"].astype(np.float32)
+    q0 = model.host.q.astype(np.float32)
     v = np.zeros_like(q0)
     v[[0, 1, 5], 1] = -0.03 / dt
     x = wp.array(q0, dtype=wp.vec3, device="cpu")
@@ -237,7 +237,7 @@ def test_without_the_continuous_response_the_vertex_stays_through():
     """The negative control: ccd_passes 0 leaves the vertex of the test above where the motion put it."""
     model, _ = triangle_and_vertex(True)
     sc = SelfCollision(model, thickness=0.005, ccd_passes=0)
-    q0 = model.host["q"].astype(np.float32)
+    q0 = model.host.q.astype(np.float32)
     x = wp.array(q0, dtype=wp.vec3, device="cpu")
     vel = wp.zeros(len(q0), dtype=wp.vec3, device="cpu")
     sc.detect(x, vel, 1.0 / 60.0)
@@ -279,7 +279,7 @@ def edge_crossing_near_a_pin():
         triangles=np.array([[0, 1, 2], [3, 4, 5]]),
         device="cpu",
     )
-    x0 = model.host["q"].astype(np.float32)
+    x0 = model.host.q.astype(np.float32)
     x1 = x0.copy()
     x1[4, 1] -= 0.02  # c-d now passes 0.3 mm under a-b where they cross
     return model, SelfCollision(model, thickness=0.005, friction=0.0, stiffness=10.0), x0, x1
@@ -307,7 +307,7 @@ def test_a_continuous_collision_next_to_a_pin_does_not_throw_the_free_vertex():
     measured 1.6 mm). The default 8 passes add up to the crossing's undoing: d ends 0.4 mm above c's height, on
     a-b's side, below its start."""
     model, sc, x0, x1 = edge_crossing_near_a_pin()
-    assert ix.count_self_intersections(x1, model.host["tris"]) == 1  # c-d through the pinned triangle
+    assert ix.count_self_intersections(x1, model.host.tris) == 1  # c-d through the pinned triangle
     one = swept(sc, x0, x1, passes=1, rollbacks=0)
     assert sc.stats()["ccd_collisions"] == 1
     push = np.linalg.norm(one[4] - x1[4])
@@ -316,7 +316,7 @@ def test_a_continuous_collision_next_to_a_pin_does_not_throw_the_free_vertex():
     model, sc, x0, x1 = edge_crossing_near_a_pin()
     end = swept(sc, x0, x1)
     assert end[4, 1] <= x0[4, 1] + 1e-6, end[4]  # not thrown above its start
-    assert ix.count_self_intersections(end, model.host["tris"]) == 0
+    assert ix.count_self_intersections(end, model.host.tris) == 0
     assert sc.stats()["ccd_unresolved"] == 0
 
 
@@ -331,7 +331,7 @@ def test_a_motion_the_detect_did_not_predict_is_still_followed(swept_check):
     if not swept_check:
         sc._cover_swept = lambda x, skip_capped=False: None
     dt = 1.0 / 60.0
-    x0 = model.host["q"].astype(np.float32)
+    x0 = model.host.q.astype(np.float32)
     x0[0, 1] = 0.33
     x = wp.array(x0, dtype=wp.vec3, device="cpu")
     vel = wp.zeros(len(x0), dtype=wp.vec3, device="cpu")
@@ -346,7 +346,7 @@ def test_a_motion_the_detect_did_not_predict_is_still_followed(swept_check):
     if swept_check:
         assert stats["swept_rebuilds"] == 1 and stats["ccd_collisions"] >= 1, stats
         assert xe[0, 1] >= 0.3 + 0.99 * sc.min_gap, xe[0]  # above the triangle's plane (y = 0.3)
-        assert ix.count_self_intersections(xe, model.host["tris"]) == 0
+        assert ix.count_self_intersections(xe, model.host.tris) == 0
     else:
         assert stats["swept_rebuilds"] == 0 and stats["ccd_collisions"] == 0, stats
         np.testing.assert_array_equal(xe, x1)
@@ -369,7 +369,7 @@ def test_the_first_pass_follows_a_pair_that_closed_since_the_list_was_built():
     model, _ = triangle_and_vertex(True)
     sc = SelfCollision(model, thickness=0.005, friction=0.0, stiffness=10.0, skin=0.03)
     dt = 1.0 / 60.0
-    q = model.host["q"].astype(np.float32)
+    q = model.host.q.astype(np.float32)
     x = wp.array(q, dtype=wp.vec3, device="cpu")
     vel = wp.zeros(len(q), dtype=wp.vec3, device="cpu")
     sc.detect(x, vel, dt)  # the build: the pair 1 cm apart
@@ -383,7 +383,7 @@ def test_the_first_pass_follows_a_pair_that_closed_since_the_list_was_built():
     stats = sc.stats()
     assert stats["rebuilds"] == 1 and stats["swept_rebuilds"] == 0 and stats["ccd_collisions"] >= 1, stats
     assert xe[0, 1] >= 0.3 + 0.99 * sc.min_gap, xe[0]
-    assert ix.count_self_intersections(xe, model.host["tris"]) == 0
+    assert ix.count_self_intersections(xe, model.host.tris) == 0
 
 
 def two_layers_and_a_pinned_vertex():
@@ -424,7 +424,7 @@ def test_a_push_that_drives_one_layer_through_another_is_followed_too(rounds):
     model, sc = two_layers_and_a_pinned_vertex()
     sc.CCD_ROUNDS = rounds
     dt = 1.0 / 60.0
-    x0 = model.host["q"].astype(np.float32)
+    x0 = model.host.q.astype(np.float32)
     x = wp.array(x0, dtype=wp.vec3, device="cpu")
     sc.detect(x, wp.zeros(len(x0), dtype=wp.vec3, device="cpu"), dt)
     x1 = x0.copy()
@@ -434,7 +434,7 @@ def test_a_push_that_drives_one_layer_through_another_is_followed_too(rounds):
     xe = x.numpy()
     stats = sc.stats()
     assert stats["ccd_unresolved"] == 0 and stats["ccd_rollbacks"] == 0, stats
-    crossings = ix.count_self_intersections(xe, model.host["tris"])
+    crossings = ix.count_self_intersections(xe, model.host.tris)
     if rounds == 2:
         assert stats["swept_rebuilds"] == 2 and crossings == 0, (stats, crossings)
     else:

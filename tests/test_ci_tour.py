@@ -60,3 +60,12 @@ def test_every_warpcloth_line_of_the_ci_tour_parses_with_todays_flags():
             if exc.code != 0:  # --version exits 0
                 pytest.fail(f".ci/tour.sh line does not parse: {line}")
     assert commands > 20
+
+
+def test_ci_runs_the_readme_test_command_as_written_and_keeps_the_slowest_tests():
+    text = (REPO / "README.md").read_text()
+    block = text.split("Run the tests", 1)[1].split("```sh", 1)[1].split("```", 1)[0].strip()
+    assert block.count("\n") == 0 and "pytest" in block and "--durations=30" in block, block
+    run = [line for line in (REPO / ".ci" / "run").read_text().splitlines() if "pytest" in line and line[:1] != "#"]
+    assert len(run) == 1 and run[0] == block + " | tee test-durations.txt", run
+    assert "test-durations.txt" in (REPO / ".gitignore").read_text().splitlines()

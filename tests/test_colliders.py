@@ -120,7 +120,7 @@ def test_pins_win_over_contacts():
     )  # pin 0 below the ground
     sim = Simulator(model, "explicit_euler", Control(colliders=(Plane(),), device="cpu"))
     sim.simulate(50)
-    np.testing.assert_array_equal(sim.state.particle_q.numpy()[0], model.host["q"][0])
+    np.testing.assert_array_equal(sim.state.particle_q.numpy()[0], model.host.q[0])
 
 
 def test_colliders_can_be_replaced_and_captured_runs_follow():
@@ -279,7 +279,7 @@ def test_a_box_rounds_its_edges_by_the_cloth_it_holds_unless_told():
 
     model = build_grid_cloth(11, 11, 1.0, 1.0, 0.1, plane="horizontal", origin=(-0.5, 1.0, -0.5), device="cpu")
     spacing = 0.1
-    assert auto_edge_radius(model.host["q"], model.host["tris"]) == pytest.approx(1.2 * spacing / 2**0.5)
+    assert auto_edge_radius(model.host.q, model.host.tris) == pytest.approx(1.2 * spacing / 2**0.5)
     boxes = (Box(center=(0, 0.5, 0), half_extents=(0.2, 0.2, 0.2), thickness=0.004), Box(edge_radius=0.0), Plane())
     sim = Simulator(model, "explicit_euler", Control(colliders=boxes, device="cpu"))
     sim.simulate(1)

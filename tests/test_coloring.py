@@ -22,7 +22,7 @@ def test_meshes_are_coloured_by_warp_with_no_more_colours_than_greedy(mesh):
         model = build_mesh_cloth(cape.vertices, cape.triangles, device="cpu")
     else:  # a grid read as a mesh: no grid pattern (cols unknown)
         grid = build_grid_cloth(20, 20, device="cpu")
-        model = build_mesh_cloth(grid.host["q"], grid.host["tris"], device="cpu")
+        model = build_mesh_cloth(grid.host.q, grid.host.tris, device="cpu")
     pairs, n = _pairs(model), model.particle_count
     got = color_vertices(pairs, n)
     assert is_valid_vertex_coloring(pairs, got.colors)

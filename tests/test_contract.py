@@ -233,7 +233,7 @@ def test_free_cloth_keeps_its_momentum(name):
     q = sim.state.particle_q.numpy()
     c = q.mean(axis=0)
     sim.state.particle_q.assign(((q - c) * 1.05 + c).astype(np.float32))
-    m = model.host["mass"].astype(np.float64)[:, None]
+    m = model.host.mass.astype(np.float64)[:, None]
     per_frame = max(1, round((1.0 / 60.0) / sim.dt))
     worst, motion = 0.0, 0.0
     for _ in range(60):

@@ -125,7 +125,7 @@ def test_a_mesh_run_and_a_scenario_file_use_the_mesh_without_its_loose_vertices(
     from warpcloth.scenarios import get_scenario
 
     sim = get_scenario(str(scenario)).build()
-    assert sim.model.host["q"][sim.model.pinned].tolist() == [[0.0, 1.0, 0.0]]
+    assert sim.model.host.q[sim.model.pinned].tolist() == [[0.0, 1.0, 0.0]]
     scenario.write_text('[cloth]\nmesh = "loose.obj"\n[pins]\nindices = [2]\n')
     capsys.readouterr()
     with pytest.raises(SystemExit) as exc:

@@ -33,7 +33,7 @@ def _steps(dt):
 
 def _driven_run(integrator, interpolation="hermite", collider=True):
     model = build_grid_cloth(N, N, pins=CORNERS, device="cpu")
-    rest = model.host["q"].astype(np.float64)
+    rest = model.host.q.astype(np.float64)
     hand = PinTrack.driven(CORNERS, interpolation=interpolation, name="hand")
     colliders = (
         (Sphere(**SPHERE, track=ColliderTrack.driven(interpolation)), Plane(point=(0, -1, 0))) if collider else ()
@@ -56,7 +56,7 @@ def _driven_run(integrator, interpolation="hermite", collider=True):
 
 def _track_run(integrator, dt, times, interpolation="hermite", collider=True):
     model = build_grid_cloth(N, N, pins=CORNERS, device="cpu")
-    rest = model.host["q"].astype(np.float64)
+    rest = model.host.q.astype(np.float64)
     steps = _steps(dt)
     hosts = [k * steps * dt for k in range(1, len(times))]
     keys = np.concatenate([[-1.0], times])  # a key before 0: at t = 0 the pins move already, as the driven ones
@@ -118,7 +118,7 @@ def test_targets_write_into_the_captured_frame_and_never_recapture():
     ball = ColliderTrack.driven()
     sim = Simulator(model, "xpbd", Control(device="cpu", pin_tracks=(hand,), colliders=(Sphere(**SPHERE, track=ball),)))
     assert sim.graph_enabled
-    rest = model.host["q"].astype(np.float64)
+    rest = model.host.q.astype(np.float64)
     sim.set_pin_targets(rest[CORNERS])
     sim.simulate(4)
     graphs, captured, version = dict(sim._graphs), sim.capture_time, sim.step_version
@@ -136,7 +136,7 @@ def test_targets_write_into_the_captured_frame_and_never_recapture():
 def test_without_a_new_target_the_pins_hold_still():
     model = build_grid_cloth(N, N, pins=CORNERS, device="cpu")
     sim = Simulator(model, "explicit_euler", Control(device="cpu", pin_tracks=(PinTrack.driven(CORNERS),)))
-    target = model.host["q"][CORNERS] + np.float32(0.1)
+    target = model.host.q[CORNERS] + np.float32(0.1)
     sim.set_pin_targets(target)
     sim.simulate(20)
     sim.simulate(20)  # no target: held at the last one, at rest

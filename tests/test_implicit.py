@@ -41,9 +41,9 @@ def jacobian_blocks_np(xi, xj, rest, ks, kd, jacobian="full"):
 def dense_system(model, x, v, h, drag, jacobian="full"):
     """Dense A = M - h df/dv - h^2 df/dx and b = h (f + h df/dx v), pins as identity rows/zero columns."""
     n = model.particle_count
-    pairs, rest = model.host["pairs"], model.host["rest"].astype(np.float64)
+    pairs, rest = model.host.pairs, model.host.rest.astype(np.float64)
     ks, kd = model.spring_stiffness.numpy().astype(np.float64), model.spring_damping.numpy().astype(np.float64)
-    mass = model.host["mass"].astype(np.float64)
+    mass = model.host.mass.astype(np.float64)
     dfdx = np.zeros((3 * n, 3 * n))
     dfdv = np.zeros((3 * n, 3 * n))
     f = mass[:, None] * (GRAVITY[None, :] - drag * v)
@@ -82,9 +82,9 @@ def perturbed_sheet(rows=5, cols=6, seed=0, **overrides):
     rng = np.random.default_rng(seed)
     sim = sheet.build(rows=rows, cols=cols, integrator="implicit_euler", **overrides)
     m = sim.model
-    x = m.host["q"].astype(np.float64) + rng.normal(scale=0.03, size=(m.particle_count, 3))
+    x = m.host.q.astype(np.float64) + rng.normal(scale=0.03, size=(m.particle_count, 3))
     v = rng.normal(scale=0.5, size=(m.particle_count, 3))
-    x[m.pinned] = m.host["q"][m.pinned]
+    x[m.pinned] = m.host.q[m.pinned]
     v[m.pinned] = 0.0
     sim.state.particle_q.assign(x.astype(np.float32))
     sim.state.particle_qd.assign(v.astype(np.float32))
@@ -297,7 +297,7 @@ def test_stable_at_dt_1_30_where_explicit_euler_is_not():
     assert result.stable and result.steps == 30
     assert result.max_strain < 0.05
     q = sim.state.particle_q.numpy()
-    q0 = sim.model.host["q"]
+    q0 = sim.model.host.q
     assert np.all(np.isfinite(q))
     drop = float(np.mean(q0[:, 1] - q[:, 1]))
     assert drop > 1e-4  # it moved: the cloth sagged under its weight
@@ -323,7 +323,7 @@ def test_small_dt_agrees_with_rk4(stiffness, dt, tol):
 
     ref, rk4 = final("rk4", None)
     q, sim = final("implicit_euler", dt, integrator_options={"cg_tol": 1e-6})
-    moved = np.abs(ref - sim.model.host["q"]).max()
+    moved = np.abs(ref - sim.model.host.q).max()
     assert moved > 2e-4
     assert np.abs(q - ref).max() < tol
 
@@ -350,7 +350,7 @@ def test_equilibrium_sag_matches_rk4_within_one_percent():
         result = RunHarness(sim).run(10.0, stop_at_equilibrium=True, warm_up=False)
         assert result.equilibrium_reached
         q = sim.state.particle_q.numpy().astype(np.float64)
-        return np.mean(sim.model.host["q"][:, 1] - q[:, 1]), q
+        return np.mean(sim.model.host.q[:, 1] - q[:, 1]), q
 
     sag_rk4, q_rk4 = sag("rk4", None)
     sag_implicit, q_implicit = sag("implicit_euler", 1.0 / 60.0)

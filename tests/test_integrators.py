@@ -157,6 +157,29 @@ def test_unknown_integrator_and_option():
         make_integrator("rk4", cg_tol=1e-3)
 
 
+def test_a_name_is_checked_by_one_function_wherever_it_enters():
+    """check_integrator_name: the registry's names pass; 'all' only where a test list means every one;
+    anything else is one line naming the value (cut to 60 characters) and the choices."""
+    from warpcloth.integrators import check_integrator_name, integrator_names
+    from warpcloth.run.params import BY_NAME
+
+    assert [check_integrator_name(n) for n in integrator_names()] == integrator_names()
+    assert check_integrator_name("all", allow_all=True) == BY_NAME["integrator"].check("all") == "all"
+    choices = ", ".join(integrator_names())
+    for name, flag, message in (
+        ("all", None, f"unknown integrator 'all'; choose from {choices}"),
+        ("all", "--integrator", f"--integrator all is for test lists (warpcloth sweep); choose one of {choices}"),
+        (" ", "--integrator", f"--integrator is empty; choose one of {choices}"),
+        ("x" * 100, None, f"unknown integrator '{'x' * 56}...; choose from {choices}"),
+        (3, None, f"unknown integrator 3; choose from {choices}"),
+    ):
+        with pytest.raises(WarpclothError) as info:
+            check_integrator_name(name, flag=flag)
+        assert str(info.value) == message and "\n" not in message
+    with pytest.raises(WarpclothError, match=r"^integrator: unknown integrator 'rk5'; .* \(or 'all' in a test list\)$"):
+        BY_NAME["integrator"].check("rk5")
+
+
 from conftest import DEVICES, reproducible  # noqa: E402
 
 #: the solvers that hold contacts themselves (vbd also with its Chebyshev projection), and schemes

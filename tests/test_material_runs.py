@@ -59,7 +59,7 @@ def test_cli_material_values_build_the_cloth_of_that_material():
     np.testing.assert_allclose(m.spring_stiffness.numpy(), springs.stiffness, rtol=1e-6)
     np.testing.assert_allclose(m.spring_damping.numpy(), springs.damping, rtol=1e-6)
     assert m.spring_compression.numpy().tolist() == [0.25] * m.spring_count  # no bend springs: all membrane
-    assert m.host["mass"].sum() == pytest.approx(0.3 * 1.0 * 1.0, rel=1e-6)  # rho x area
+    assert m.host.mass.sum() == pytest.approx(0.3 * 1.0 * 1.0, rel=1e-6)  # rho x area
     # grid hinges: y-edges (across the columns) bend along the warp, x-edges along the weft
     rigidity = m.host.hinges.rigidity
     assert sorted(set(np.round(rigidity * 1e6, 9))) == [10.0, 30.0]
@@ -159,7 +159,7 @@ def test_scenario_file_takes_a_material_in_its_cloth_table(tmp_path):
     )
     model = get_scenario(str(good)).build(device="cpu").model
     assert model.material.stretch_weft == 300.0 and model.material.density == 0.25
-    assert model.host["mass"].sum() == pytest.approx(0.25 * cape_area(cape), rel=1e-6)
+    assert model.host.mass.sum() == pytest.approx(0.25 * cape_area(cape), rel=1e-6)
     bad = tmp_path / "bad.toml"
     for text, message in (
         ('material = "denim"\nmass = 0.3', "bad.toml: cloth.mass: does not go with cloth.material 'denim'"),

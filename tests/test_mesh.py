@@ -16,9 +16,9 @@ from warpcloth.sim.selection import parse_predicate, select_vertices
 
 def spring_set(model):
     """{(i, j, type): rest length} with i < j."""
-    p = model.host["pairs"]
+    p = model.host.pairs
     out = {}
-    for (i, j), t, r in zip(p.tolist(), model.spring_type.tolist(), model.host["rest"].tolist()):
+    for (i, j), t, r in zip(p.tolist(), model.spring_type.tolist(), model.host.rest.tolist()):
         out[(min(i, j), max(i, j), t)] = r
     return out
 
@@ -72,7 +72,7 @@ OCTAHEDRON = (
 def test_triangulated_grid_with_quads_is_the_provot_grid(rows, cols, triangulation):
     grid = build_grid_cloth(rows, cols, width=1.3, height=0.7)
     tris = grid_triangles(rows, cols) if triangulation == "grid" else alternating_triangles(rows, cols)
-    mesh = build_mesh_cloth(grid.host["q"], tris, quads=True)
+    mesh = build_mesh_cloth(grid.host.q, tris, quads=True)
     assert mesh.spring_counts() == grid.spring_counts()
     a, b = spring_set(mesh), spring_set(grid)
     assert a.keys() == b.keys()  # the same pairs with the same types
@@ -87,9 +87,7 @@ def test_grid_without_quads_has_edges_and_opposite_vertex_bends():
     boundary = 2 * (rows - 1) + 2 * (cols - 1)
     assert model.spring_counts() == {"structural": edges, "shear": 0, "bend": edges - boundary}
     # a bend across the horizontal edge [1,1]-[1,2] joins [2,1] and [0,2] (the opposite vertices)
-    pairs = {
-        tuple(sorted(p)) for p, ty in zip(model.host["pairs"].tolist(), model.spring_type) if ty == SpringType.BEND
-    }
+    pairs = {tuple(sorted(p)) for p, ty in zip(model.host.pairs.tolist(), model.spring_type) if ty == SpringType.BEND}
     assert tuple(sorted((2 * cols + 1, 0 * cols + 2))) in pairs
 
 
@@ -131,8 +129,8 @@ def test_lumped_masses_a_third_of_each_triangle():
     assert m[0] == pytest.approx(rho * cell / 6, rel=1e-6)  # corner [0,0]: one triangle
     assert m[cols - 1] == pytest.approx(rho * cell / 3, rel=1e-6)  # corner [0,cols-1]: two triangles
     model = build_mesh_cloth(q, t, total_mass=0.7)
-    assert model.host["mass"].astype(np.float64).sum() == pytest.approx(0.7, rel=1e-6)
-    assert np.ptp(build_mesh_cloth(q, t, total_mass=0.7, mass_mode="uniform").host["mass"]) == 0.0
+    assert model.host.mass.astype(np.float64).sum() == pytest.approx(0.7, rel=1e-6)
+    assert np.ptp(build_mesh_cloth(q, t, total_mass=0.7, mass_mode="uniform").host.mass) == 0.0
 
 
 # -- pins ----------------------------------------------------------------------------------
@@ -149,7 +147,7 @@ def test_pins_by_predicate_string_callable_and_group():
     groups = {"left": [0, cols, 2 * cols]}
     model = build_mesh_cloth(q, t, groups=groups, pin_groups=["left"], pins=[3])
     assert model.pinned.tolist() == [0, 3, cols, 2 * cols]
-    assert (model.host["inv_mass"][model.pinned] == 0).all()
+    assert (model.host.inv_mass[model.pinned] == 0).all()
     assert select_vertices(q, "(abs(x - 0.5) < 0.2) & (y >= 1.5) or not (z == 0)").tolist() == [1, 2]
 
 
@@ -202,7 +200,7 @@ def test_obj_quads_negative_indices_uv_and_groups(tmp_path):
     assert load_mesh(str(path)).uv is None
     model = build_mesh_cloth(mesh, pin_groups="left")
     assert model.pinned.tolist() == [0, 1, 3, 4]
-    assert model.host["uv"].shape == (12, 2)
+    assert model.host.uv.shape == (12, 2)
 
 
 def test_write_obj_round_trip(tmp_path):
@@ -260,12 +258,12 @@ def test_uvs_go_to_the_exported_usd(tmp_path):
 
     model = build_grid_cloth(3, 4)
     with UsdWriter(str(tmp_path / "g.usda"), model) as w:
-        w.write_frame(model.host["q"], 0.0)
+        w.write_frame(model.host.q, 0.0)
     stage = Usd.Stage.Open(str(tmp_path / "g.usda"))
     st = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/World/Cloth")).GetPrimvar("st")
     assert st.GetInterpolation() == UsdGeom.Tokens.faceVarying
     values = np.asarray(st.Get())
-    tris = model.host["tris"].reshape(-1)
+    tris = model.host.tris.reshape(-1)
     r, c = np.divmod(tris, 4)
     np.testing.assert_allclose(
         values, np.stack([c / 3, 1 - r / 2], axis=1), atol=1e-7
@@ -350,9 +348,7 @@ def test_mass_options_are_checked():
         build_mesh_cloth(v, t, mass_mode="lumped")
     with pytest.raises(WarpclothError, match="density must be > 0 kg/m\\^2, got -1"):
         build_mesh_cloth(v, t, density=-1)
-    assert build_mesh_cloth(v, t, density=0.5).host["mass"].astype(float).sum() == pytest.approx(
-        0.5 * 1.0 * 1.0, rel=1e-6
-    )
+    assert build_mesh_cloth(v, t, density=0.5).host.mass.astype(float).sum() == pytest.approx(0.5 * 1.0 * 1.0, rel=1e-6)
 
 
 def test_uvs_read_from_an_obj_go_to_the_exported_usd(tmp_path):
@@ -364,7 +360,7 @@ def test_uvs_read_from_an_obj_go_to_the_exported_usd(tmp_path):
     mesh = load_mesh(str(tmp_path / "strip.obj"))
     model = build_mesh_cloth(mesh)
     with UsdWriter(str(tmp_path / "s.usda"), model) as w:
-        w.write_frame(model.host["q"], 0.0)
+        w.write_frame(model.host.q, 0.0)
     stage = Usd.Stage.Open(str(tmp_path / "s.usda"))  # held: a prim is valid while its stage lives
     prim = stage.GetPrimAtPath("/World/Cloth")
     st = np.asarray(UsdGeom.PrimvarsAPI(prim).GetPrimvar("st").Get())

@@ -171,7 +171,7 @@ def test_mesh_from_obj_toml_cli_and_usd(tmp_path, capsys):
     assert main(argv) == 0, capsys.readouterr().err
     model = build_grid_cloth(4, 4, 0.5, 0.5, 0.1, plane="horizontal", device="cpu")
     with UsdWriter(str(tmp_path / "m.usda"), model, 30.0, colliders=(from_file,)) as w:
-        w.write_frame(model.host["q"], 0.0)
+        w.write_frame(model.host.q, 0.0)
     stage = Usd.Stage.Open(str(tmp_path / "m.usda"))  # held: a prim does not keep its stage alive
     prim = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Colliders/Mesh_0"))
     np.testing.assert_allclose(np.array(prim.GetPointsAttr().Get()), from_file.vertices, atol=1e-6)
@@ -323,7 +323,7 @@ def test_no_cube_mesh_edge_passes_through_a_cloth_draped_over_it(edge_radius, cl
     worst = 0
     for _ in range(60):
         sim.simulate(max(1, round(1.0 / 60.0 / sim.dt)))
-        worst = max(worst, ix.collider_edge_crossings(sim.state.particle_q.numpy(), model.host["tris"], [mesh]))
+        worst = max(worst, ix.collider_edge_crossings(sim.state.particle_q.numpy(), model.host.tris, [mesh]))
     assert (worst == 0) is clean, worst
 
 

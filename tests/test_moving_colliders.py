@@ -65,7 +65,7 @@ def test_a_moving_box_pushes_a_cloth_along_its_motion():
     )  # x in [0, 1], y in [-0.5, 0.5], z = 0
     sim = Simulator(model, "explicit_euler", Control(gravity=(0, 0, 0), colliders=(box,), device="cpu"))
     sim.simulate(int(round(0.5 / sim.dt)))
-    m = model.host["mass"].astype(np.float64)
+    m = model.host.mass.astype(np.float64)
     p = (m[:, None] * sim.state.particle_qd.numpy().astype(np.float64)).sum(axis=0)
     assert (
         p[2] > 0.25 * 0.2 * 1.0

@@ -147,6 +147,27 @@ def test_per_type_cli_flags_reach_the_model():
     assert p[SpringType.SHEAR].damping == pytest.approx(0.3)
 
 
+def test_dt_reaches_the_config_from_its_declaration_alone(tmp_path):
+    """dt goes the way of every Param (config_values): the CLI's float, a test list's value (a scenario
+    file's key: tests/test_scenario_files.py); ``default`` leaves the scenario's own (None: the integrator's)."""
+    from warpcloth.cli import config_from_args
+    from warpcloth.scenarios import get_scenario
+
+    assert params.BY_NAME["dt"].config_field == "dt"
+    assert params.config_values({"dt": 0.002}) == {"dt": 0.002}
+    assert params.config_values({"dt": params.TimeStep("value", 0.004)}) == {"dt": 0.004}
+    assert params.config_values({"dt": params.TimeStep("default")}) == {"dt": None}  # None: the scenario's
+    args = build_parser().parse_args(["run", "sheet", "--dt", "0.0025"])
+    assert config_from_args(get_scenario("sheet"), args).dt == 0.0025
+    assert config_from_args(get_scenario("sheet"), build_parser().parse_args(["run", "sheet"])).dt is None
+    xml = write(
+        tmp_path, '<test_list scenario="sheet"><test integrator="rk4" size="4" dt="1e-3 default max"/></test_list>'
+    )
+    value, default, most = parse_test_list(xml).runs
+    assert value.config().dt == 1e-3 and default.config().dt is None
+    assert most.config().dt is None and most.config(dt=2e-3).dt == 2e-3  # max: the dt its search found
+
+
 def test_adding_a_parameter_is_one_declaration(tmp_path, monkeypatch):
     """A new parameter declared once appears as an XML attribute (checked, with file:line), a
     CSV column, a run-key field and a CLI flag, with no other change but its use."""

@@ -28,6 +28,7 @@ from warpcloth.integrators.pbd import iteration_stiffness
 from warpcloth.run.harness import RunHarness
 from warpcloth.sim.coloring import color_springs, greedy_spring_colors, grid_spring_colors, is_valid_coloring
 from warpcloth.sim.grid import grid_springs
+from warpcloth.sim.model import HostArrays
 
 G = 9.81
 DT = 1.0 / 60.0
@@ -63,14 +64,7 @@ def custom_model(q, pairs, mass, pins=(), ks=100.0, kd=0.0, device="cpu") -> Clo
             tri_indices=wp.zeros(0, dtype=wp.vec3i),
             spring_params={t: SpringParams(ks, kd) for t in SpringType},
             bend=BendModel.NONE,
-            host={
-                "q": q,
-                "pairs": pairs,
-                "rest": rest,
-                "mass": mass,
-                "inv_mass": inv_mass,
-                "tris": np.zeros((0, 3), np.int32),
-            },
+            host=HostArrays(q=q, pairs=pairs, rest=rest, mass=mass, inv_mass=inv_mass, tris=np.zeros((0, 3), np.int32)),
         )
 
 
@@ -194,7 +188,7 @@ def pbd_sheet_sag(iterations, correction=True):
     sim.integrator.iteration_correction = correction
     result = harness.run(8.0, stop_at_equilibrium=True, warm_up=False)
     assert result.stable and result.equilibrium_reached
-    drop = sim.model.host["q"][:, 1] - sim.state.particle_q.numpy()[:, 1]
+    drop = sim.model.host.q[:, 1] - sim.state.particle_q.numpy()[:, 1]
     return float(drop.max())
 
 
@@ -248,7 +242,7 @@ def sheet_drop(integrator, duration, **options):
     sim = sheet.build(integrator=integrator, rows=8, cols=8, drag=5.0, integrator_options=options)
     result = RunHarness(sim).run(duration, warm_up=False)
     assert result.stable
-    return sim.model.host["q"][:, 1] - sim.state.particle_q.numpy()[:, 1]
+    return sim.model.host.q[:, 1] - sim.state.particle_q.numpy()[:, 1]
 
 
 def test_xpbd_sheet_sag_matches_rk4():
@@ -273,7 +267,7 @@ def test_free_fall_is_symplectic_euler(name, options):
     h, m = DT / sub, 20 * sub
     y = sim.state.particle_q.numpy()[:, 1]
     # float32 round-off of v = (p - x) / h: ~3e-5 m; x += h v_old instead would be off by h^2 g M / 2 = 9e-3 m
-    np.testing.assert_allclose(y - model.host["q"][:, 1], -h * h * G * m * (m + 1) / 2, atol=2e-4)
+    np.testing.assert_allclose(y - model.host.q[:, 1], -h * h * G * m * (m + 1) / 2, atol=2e-4)
     np.testing.assert_allclose(sim.state.particle_qd.numpy()[:, 1], -G * m * h, rtol=1e-3)
 
 
@@ -312,7 +306,7 @@ def test_stable_at_one_frame_step_with_defaults(name, scenario):
     assert result.equilibrium_criterion == "speed"
     assert result.max_strain < 0.5
     q = sim.state.particle_q.numpy()
-    assert np.all(np.isfinite(q)) and np.abs(q - sim.model.host["q"]).max() > 1e-3
+    assert np.all(np.isfinite(q)) and np.abs(q - sim.model.host.q).max() > 1e-3
 
 
 # -- colouring -----------------------------------------------------------------------------------

@@ -45,7 +45,7 @@ def test_track_followed_exactly_at_every_step_time(integrator):
     sim = Simulator(
         model, integrator, Control(drag_rate=0.5, pin_tracks=(track,)), dt=track_dt(integrator), use_graph=False
     )
-    rest = model.host["q"]
+    rest = model.host.q
     moved = 0.0
     for _ in range(int(0.05 / sim.dt)):
         sim.step()
@@ -63,7 +63,7 @@ def test_track_followed_exactly_at_every_step_time(integrator):
 
 def test_pinned_velocity_is_the_track_derivative():
     track = curve_track()
-    rest = hanging_grid().host["q"]
+    rest = hanging_grid().host.q
     for t in np.linspace(0.0005, 0.0395, 17):
         h = 1e-6
         numeric = (track.evaluate(t + h, rest)[0] - track.evaluate(t - h, rest)[0]) / (2 * h)
@@ -101,7 +101,7 @@ def test_swinging_rod_follows_the_analytic_path_with_bounded_strain(integrator):
     # +x
     x = sim.state.particle_q.numpy()[:cols]
     want = np.stack(
-        [model.host["q"][:cols, 0], 1.5 - 0.1 * np.cos(theta) * np.ones(cols), -0.1 * np.sin(theta) * np.ones(cols)],
+        [model.host.q[:cols, 0], 1.5 - 0.1 * np.cos(theta) * np.ones(cols), -0.1 * np.sin(theta) * np.ones(cols)],
         axis=1,
     )
     np.testing.assert_allclose(x, want, atol=2e-7)
@@ -121,7 +121,7 @@ def test_implicit_euler_couples_the_prescribed_pin_velocity():
     linear system with the pin's known dv moved to the right-hand side."""
     ks, kd, m, h = 40.0, 0.5, 0.1, 0.01
     model = single_spring(ks=ks, kd=kd, mass=m, rest=0.5, stretch=0.0)
-    q = model.host["q"].astype(np.float64)
+    q = model.host.q.astype(np.float64)
     track = PinTrack.keyframes([0], [0.0, 1.0], [[0, 0, 0], [0, 1.0, 0]])  # the pin starts up along the spring at 1 m/s
     sim = Simulator(model, "implicit_euler", Control(pin_tracks=[track]), dt=h, use_graph=False)
     sim.integrator.cg_tol = 1e-7
@@ -162,7 +162,7 @@ def test_set_pin_track_clears_and_replaces():
     sim.set_pin_track(PinTrack.rigid(TOP, velocity=(1.0, 0.0, 0.0)))
     sim.simulate(10)
     x = sim.state.particle_q.numpy()[TOP]
-    np.testing.assert_allclose(x[:, 0] - sim.model.host["q"][TOP, 0], 10 * 2e-4, atol=1e-7)
+    np.testing.assert_allclose(x[:, 0] - sim.model.host.q[TOP, 0], 10 * 2e-4, atol=1e-7)
     sim.set_pin_track()
     sim.simulate(10)
     assert np.array_equal(sim.state.particle_q.numpy()[TOP], x)  # without a track the pins stay
@@ -202,7 +202,7 @@ def test_runge_kutta_stages_see_the_pin_at_the_stage_times(integrator):
     with the pin at track(t + c_k h) in each stage (c = 0, 1/2 for midpoint; 0, 1/2, 1/2, 1 for RK4)."""
     ks, kd, m, h, rest = 40.0, 0.2, 0.1, 0.01, 0.5
     model = single_spring(ks=ks, kd=kd, mass=m, rest=rest, stretch=0.0)
-    q = model.host["q"].astype(np.float64)
+    q = model.host.q.astype(np.float64)
     track = PinTrack.rigid([0], velocity=(0.0, 1.0, 0.0))
     sim = Simulator(model, integrator, Control(pin_tracks=[track]), dt=h, use_graph=False)
     sim.step()

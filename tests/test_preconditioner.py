@@ -55,7 +55,7 @@ def test_preconditioner_is_symmetric_positive_definite(preconditioner):
     M = sim.integrator.M
     rng = np.random.default_rng(1)
     n = sim.model.particle_count
-    free = np.repeat(sim.model.host["inv_mass"] > 0, 3)
+    free = np.repeat(sim.model.host.inv_mass > 0, 3)
     for _ in range(3):
         x = rng.normal(size=3 * n) * free
         y = rng.normal(size=3 * n) * free

@@ -43,7 +43,7 @@ def test_cli_preview_draws_the_colliders(tmp_path, capsys):
     pictures = []
     for colliders in ((), (Sphere(center=(0.5, -0.5, 0), radius=0.3),)):
         w = PreviewWriter(str(tmp_path / f"p{len(colliders)}.png"), model, colliders=colliders)
-        w.write_frame(model.host["q"], 0.0)
+        w.write_frame(model.host.q, 0.0)
         pictures.append((tmp_path / f"p{len(colliders)}.png").read_bytes() if w.close() else None)
     assert pictures[0] != pictures[1]
 
@@ -52,7 +52,7 @@ def test_the_player_faces_a_hanging_flag():
     # the flag hangs in the x-y plane (normal along z): the camera's eye direction
     # (cos p sin y, sin p, cos p cos y) is within 0.4 rad of the normal, not at 90 degrees to it
     model = build_grid_cloth(10, 12, device="cpu")
-    view = default_view(model.host["q"], model.host["tris"])
+    view = default_view(model.host.q, model.host.tris)
     eye = np.array(
         [
             np.cos(view["pitch"]) * np.sin(view["yaw"]),
@@ -60,7 +60,7 @@ def test_the_player_faces_a_hanging_flag():
             np.cos(view["pitch"]) * np.cos(view["yaw"]),
         ]
     )
-    p, t = model.host["q"].astype(np.float64), model.host["tris"]
+    p, t = model.host.q.astype(np.float64), model.host.tris
     n = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]).sum(axis=0)
     assert abs(eye @ n / np.linalg.norm(n)) > 0.85
     flat = p[:, [0, 2, 1]]  # the same cloth lying horizontally: seen from above

@@ -12,8 +12,8 @@ def numpy_global_matrix(model, h):
     host = model.host
     ks = model.spring_stiffness.numpy().astype(np.float64)
     kd = model.spring_damping.numpy().astype(np.float64)
-    S = np.diag(host["mass"].astype(np.float64))
-    for (i, j), k, c in zip(host["pairs"], ks, kd):
+    S = np.diag(host.mass.astype(np.float64))
+    for (i, j), k, c in zip(host.pairs, ks, kd):
         w = h * h * k + h * c
         S[i, i] += w
         S[j, j] += w
@@ -46,8 +46,8 @@ def test_global_matrix_matches_a_numpy_assembly_and_follows_dt():
 def disturbed_grid(seed=3):
     model = small_grid(ks=40.0, kd=0.2)
     rng = np.random.default_rng(seed)
-    free = model.host["inv_mass"][:, None] > 0
-    x0 = model.host["q"].astype(np.float64) + np.where(free, rng.normal(0, 0.05, (9, 3)), 0.0)
+    free = model.host.inv_mass[:, None] > 0
+    x0 = model.host.q.astype(np.float64) + np.where(free, rng.normal(0, 0.05, (9, 3)), 0.0)
     v0 = np.where(free, rng.normal(0, 0.5, (9, 3)), 0.0)
     return model, x0, v0
 
@@ -81,12 +81,12 @@ def test_one_iteration_with_exact_cg_is_one_global_solve():
     model, x0, v0 = disturbed_grid(seed=5)
     h = 1.0 / 60.0
     host = model.host
-    pairs = host["pairs"]
-    rest = np.linalg.norm(host["q"][pairs[:, 1]].astype(np.float64) - host["q"][pairs[:, 0]], axis=1)
+    pairs = host.pairs
+    rest = np.linalg.norm(host.q[pairs[:, 1]].astype(np.float64) - host.q[pairs[:, 0]], axis=1)
     ks = model.spring_stiffness.numpy().astype(np.float64)
     kd = model.spring_damping.numpy().astype(np.float64)
-    m = host["mass"].astype(np.float64)
-    free = host["inv_mass"] > 0
+    m = host.mass.astype(np.float64)
+    free = host.inv_mass > 0
     x0 = x0.astype(np.float32).astype(np.float64)
     v0 = v0.astype(np.float32).astype(np.float64)
     dy = h * v0 + h * h * np.array([0.0, -9.81, 0.0])
@@ -117,7 +117,7 @@ def test_sheet_settles_on_the_static_equilibrium():
     sim = sheet.build(rows=16, cols=16, integrator="projective", dt=1.0 / 60.0)
     eq = static_equilibrium(sim.model, sim.control)
     sim.simulate(600)
-    y0 = sim.model.host["q"][:, 1].astype(np.float64)
+    y0 = sim.model.host.q[:, 1].astype(np.float64)
     sag = (y0 - sim.state.particle_q.numpy()[:, 1]).max()
     sag_ref = (y0 - eq.x[:, 1]).max()
     assert abs(sag - sag_ref) < 0.02 * sag_ref, (sag, sag_ref)

@@ -38,9 +38,9 @@ def test_single_spring_oscillates_with_the_exact_period():
     y(t) = -L0 - s cos(2 pi t / T), T = 2 pi sqrt(m/k): sampled every T/8 over two periods."""
     ks, mass, rest, s = 40.0, 0.1, 0.5, 0.05
     model = single_spring(ks=ks, mass=mass, rest=rest)
-    mass = float(model.host["mass"][1])  # the model's float32 value: the reference is exact for it
+    mass = float(model.host.mass[1])  # the model's float32 value: the reference is exact for it
     period = 2 * math.pi * math.sqrt(mass / ks)
-    x0 = model.host["q"].astype(np.float64)
+    x0 = model.host.q.astype(np.float64)
     x0[1, 1] -= s
     traj = reference_trajectory(model, Control(gravity=NO_GRAVITY), 2 * period, period / 8, x0=x0)
     k = np.arange(17)
@@ -59,7 +59,7 @@ def test_hanging_mass_released_at_rest_length_oscillates_about_m_g_over_k():
     with amplitude m g/k."""
     ks, mass, rest = 40.0, 0.1, 0.5
     model = single_spring(ks=ks, mass=mass, rest=rest)
-    mass = float(model.host["mass"][1])
+    mass = float(model.host.mass[1])
     omega = math.sqrt(ks / mass)
     frame_dt = 0.01
     traj = reference_trajectory(model, Control(), 0.5, frame_dt)
@@ -73,8 +73,8 @@ def test_damped_spring_matches_the_damped_oscillator():
     """Spring damping kd: m u'' = -k u - kd u' (u the stretch along the axis), exactly."""
     ks, kd, mass, rest, s = 40.0, 0.3, 0.1, 0.5, 0.05
     model = single_spring(ks=ks, mass=mass, rest=rest, kd=kd)
-    mass, kd = float(model.host["mass"][1]), float(model.spring_damping.numpy()[0])
-    x0 = model.host["q"].astype(np.float64)
+    mass, kd = float(model.host.mass[1]), float(model.spring_damping.numpy()[0])
+    x0 = model.host.q.astype(np.float64)
     x0[1, 1] -= s
     traj = reference_trajectory(model, Control(gravity=NO_GRAVITY), 1.0, 0.02, x0=x0)
     gamma = kd / (2 * mass)
@@ -116,25 +116,25 @@ def test_wind_force_on_a_single_triangle_is_the_analytic_one():
     model = _triangle_model()
     v = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -2.0], [0.0, 0.0, 4.0]])
     control = Control(gravity=NO_GRAVITY, wind_coefficient=0.6, wind_schedule=WindSchedule.constant((5.0, -3.0, 4.0)))
-    f = reference_forces(model, control, model.host["q"], v, t=0.0)
+    f = reference_forces(model, control, model.host.q, v, t=0.0)
     np.testing.assert_allclose(f, np.tile([0.0, 0.0, 0.6], (3, 1)), rtol=0, atol=1e-15)
     # the force does not depend on the winding (n and the projection both flip)
-    flipped = build_model(model.host["q"], np.zeros((0, 2)), [], [0.05] * 3, spring_params(1.0), triangles=[[0, 2, 1]])
-    np.testing.assert_allclose(reference_forces(flipped, control, model.host["q"], v), f, rtol=0, atol=1e-15)
+    flipped = build_model(model.host.q, np.zeros((0, 2)), [], [0.05] * 3, spring_params(1.0), triangles=[[0, 2, 1]])
+    np.testing.assert_allclose(reference_forces(flipped, control, model.host.q, v), f, rtol=0, atol=1e-15)
     # rotating the triangle, its velocities and the wind rotates the force
     R = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))[0]
     rotated = Control(
         gravity=NO_GRAVITY, wind_coefficient=0.6, wind_schedule=WindSchedule.constant(tuple(R @ [5.0, -3.0, 4.0]))
     )
     np.testing.assert_allclose(
-        reference_forces(model, rotated, model.host["q"] @ R.T, v @ R.T), f @ R.T, rtol=0, atol=1e-14
+        reference_forces(model, rotated, model.host.q @ R.T, v @ R.T), f @ R.T, rtol=0, atol=1e-14
     )
     # before the schedule's first start the air is still: n . (0 - v_mean) = -1, 0.2 N along -z
     late = Control(
         gravity=NO_GRAVITY, wind_coefficient=0.6, wind_schedule=WindSchedule(starts=(1.0,), winds=((5.0, -3.0, 4.0),))
     )
     np.testing.assert_allclose(
-        reference_forces(model, late, model.host["q"], v, t=0.5), np.tile([0.0, 0.0, -0.2], (3, 1)), rtol=0, atol=1e-15
+        reference_forces(model, late, model.host.q, v, t=0.5), np.tile([0.0, 0.0, -0.2], (3, 1)), rtol=0, atol=1e-15
     )
 
 
@@ -146,7 +146,7 @@ def test_a_free_triangle_follows_a_switching_wind_exactly():
     schedule = WindSchedule.gusts((1.0, 2.0, 3.0), on=0.3, off=0.2, base=(0.0, 0.0, -1.0))
     control = Control(gravity=NO_GRAVITY, drag_rate=drag, wind_coefficient=cw, wind_schedule=schedule)
     model = _triangle_model(mass)
-    mass = float(model.host["mass"][0])
+    mass = float(model.host.mass[0])
     duration, frame_dt = 1.2, 0.05
     traj = reference_trajectory(model, control, duration, frame_dt)
     rate = cw * area / (3 * mass) + drag  # v' = b W_n - rate v
@@ -171,7 +171,7 @@ def test_a_free_triangle_follows_a_switching_wind_exactly():
     expected = np.array([exact(t) for t in times])
     for vertex in range(3):
         assert np.abs(traj[:, vertex, 2] - expected).max() < 1e-10
-    assert np.abs(traj[:, :, :2] - model.host["q"][None, :, :2]).max() < 1e-12  # only along the normal
+    assert np.abs(traj[:, :, :2] - model.host.q[None, :, :2]).max() < 1e-12  # only along the normal
     assert abs(expected).max() > 0.05  # the wind moved it
 
 
@@ -216,7 +216,7 @@ def test_reference_forces_agree_with_the_warp_kernels(part, ks, kd, control, t):
     (float32 rounding), required < 1e-6."""
     model = build_grid_cloth(5, 6, 1.5, 1.0, 0.3, spring_params=spring_params(ks, kd), pins=[0, 6, 12], device="cpu")
     rng = np.random.default_rng(7)
-    x = (model.host["q"] + rng.normal(0.0, 0.03, model.host["q"].shape)).astype(np.float32)
+    x = (model.host.q + rng.normal(0.0, 0.03, model.host.q.shape)).astype(np.float32)
     v = rng.normal(0.0, 0.7, x.shape).astype(np.float32)
     ctl = Control(device="cpu", **control)
     ref = reference_forces(model, ctl, x, v, t)
@@ -259,8 +259,8 @@ def test_convergence_check_measures_the_integration_error():
     the exact solution of the single spring) to within a factor of 2."""
     ks, mass, rest, s = 40.0, 0.1, 0.5, 0.05
     model = single_spring(ks=ks, mass=mass, rest=rest)
-    period = 2 * math.pi * math.sqrt(float(model.host["mass"][1]) / ks)
-    x0 = model.host["q"].astype(np.float64)
+    period = 2 * math.pi * math.sqrt(float(model.host.mass[1]) / ks)
+    x0 = model.host.q.astype(np.float64)
     x0[1, 1] -= s
     control = Control(gravity=NO_GRAVITY)
     loose = dict(rtol=1e-5, atol=1e-7)
@@ -324,7 +324,7 @@ def test_flag_in_switching_wind_agrees_with_the_integrators():
     duration, frame_dt = 0.2, 0.02
     ref = reference_trajectory(model, control(), duration, frame_dt)
     size = cloth_size(model)
-    x0 = model.host["q"]
+    x0 = model.host.q
     assert trajectory_error(_run(model, "rk4", 1e-3, x0, control(), duration, frame_dt), ref, size) < 5e-6
     errors = [
         trajectory_error(_run(model, "explicit_euler", dt, x0, control(), duration, frame_dt), ref, size)
@@ -340,7 +340,7 @@ def test_flag_in_switching_wind_agrees_with_the_integrators():
 def test_single_hanging_mass_extends_by_m_g_over_k():
     ks, mass, rest = 40.0, 0.1, 0.5
     model = single_spring(ks=ks, mass=mass, rest=rest)
-    mass = float(model.host["mass"][1])
+    mass = float(model.host.mass[1])
     eq = static_equilibrium(model, Control(), tol=1e-13)
     assert eq.residual < 1e-13
     assert eq.x[1] == pytest.approx([0.0, -rest - mass * G / ks, 0.0], abs=1e-14)
@@ -365,9 +365,9 @@ def test_hanging_chain_extensions_are_the_weight_below_over_k():
     eq = static_equilibrium(model, Control())
     assert eq.residual < 1e-10
     ks = np.array([params[t].stiffness for t in types])
-    m32 = model.host["mass"].astype(np.float64)  # the model's masses (float32 values)
+    m32 = model.host.mass.astype(np.float64)  # the model's masses (float32 values)
     weight_below = G * np.cumsum(m32[::-1])[::-1][1:]
-    extension = -np.diff(eq.x[:, 1]) - model.host["rest"].astype(np.float64)
+    extension = -np.diff(eq.x[:, 1]) - model.host.rest.astype(np.float64)
     np.testing.assert_allclose(extension, weight_below / ks, rtol=1e-10)
     assert np.abs(eq.x[:, [0, 2]]).max() == 0.0
 
@@ -378,7 +378,7 @@ def test_stiffness_matrix_is_the_force_jacobian():
     model = build_grid_cloth(3, 4, 1.0, 0.7, 0.2, spring_params=spring_params(100.0), pins=[0], device="cpu")
     m64 = Float64Model.from_model(model, Control())
     rng = np.random.default_rng(2)
-    x = model.host["q"].astype(np.float64) + rng.normal(0.0, 0.05, (12, 3))
+    x = model.host.q.astype(np.float64) + rng.normal(0.0, 0.05, (12, 3))
     H = m64.stiffness_matrix(x).toarray()
     h = 1e-6
     numeric = np.empty_like(H)
@@ -403,7 +403,7 @@ def test_sheet_equilibrium_is_where_a_damped_float32_run_settles(stiffness):
     free = np.ones(sim.model.particle_count, bool)
     free[sim.model.pinned] = False
     assert np.abs(f[free]).max() < 1e-8  # the residual is the net force, checked independently
-    moved = np.linalg.norm(eq.x - sim.model.host["q"], axis=1).max()
+    moved = np.linalg.norm(eq.x - sim.model.host.q, axis=1).max()
     dt = 5e-4 if stiffness else 2.5e-4
     run = Simulator(sim.model, "explicit_euler", Control(drag_rate=5.0), dt=dt)
     run.simulate(int(round(2.0 / dt)))

@@ -102,7 +102,7 @@ def test_a_fixed_pin_stays_put_to_the_bit(swing):
 def _spring_on_a_moving_pin():
     ks, rest = 40.0, 0.5
     model = single_spring(ks=ks, mass=0.1, rest=rest)
-    omega = math.sqrt(ks / float(model.host["mass"][1]))
+    omega = math.sqrt(ks / float(model.host.mass[1]))
     return model, rest, omega
 
 

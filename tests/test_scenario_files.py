@@ -42,7 +42,7 @@ def test_curtain_rod_slides_stops_and_the_curtain_settles():
     result = RunHarness(sim).run(10.0, stop_at_equilibrium=True)
     assert result.stable, result.unstable_reason
     assert result.equilibrium_reached and result.time_to_equilibrium > curtain.SLIDE_TIME
-    q0, x = sim.model.host["q"], sim.state.particle_q.numpy()
+    q0, x = sim.model.host.q, sim.state.particle_q.numpy()
     top = np.arange(10)
     np.testing.assert_allclose(
         x[top] - q0[top], np.tile([curtain.SLIDE, 0, 0], (10, 1)), atol=1e-7
@@ -149,7 +149,7 @@ def test_scenario_file_runs_through_run(capsys, scenario_file):
     assert sim.model.pinned.tolist() == list(range(32))  # the predicate's top row and the tracked shoulders
     sim.simulate(int(round(0.2 / 0.005)))
     x = sim.state.particle_q.numpy()
-    np.testing.assert_allclose(x[:32] - sim.model.host["q"][:32], np.tile([0.03, 0, 0.01], (32, 1)), atol=2e-7)
+    np.testing.assert_allclose(x[:32] - sim.model.host.q[:32], np.tile([0.03, 0, 0.01], (32, 1)), atol=2e-7)
     # flags override the file
     code, out, err = run_cli(
         capsys, "run", str(scenario_file), "--integrator", "implicit_euler", "--duration", "0.05", "--json"

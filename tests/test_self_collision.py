@@ -43,7 +43,7 @@ def fold(integrator, self_collision=True):
 
 
 def intersections_per_frame(sim, seconds=2.6):
-    tris, counts = sim.model.host["tris"], []
+    tris, counts = sim.model.host.tris, []
     run_frames(sim, seconds, lambda s: counts.append(ix.count_self_intersections(s.state.particle_q.numpy(), tris)))
     return counts
 
@@ -92,13 +92,13 @@ def two_sheets(rows=6, gap=1.2 * H, height=0.02, speed=0.0, offset=(0.007, 0.011
     it, shifted by ``offset`` in x, z (so vertices do not lie over vertices); the lower moving up and
     the upper down at ``speed``; masses 1 : 1.5 (momentum not symmetric)."""
     a = build_grid_cloth(rows, rows, 0.2, 0.2, 0.01, plane="horizontal", origin=(-0.1, height, -0.1), device="cpu")
-    qa = a.host["q"].astype(np.float64)
+    qa = a.host.q.astype(np.float64)
     n = len(qa)
     q = np.concatenate([qa, qa + np.array([offset[0], gap, offset[1]])])
-    pairs = np.concatenate([a.host["pairs"], a.host["pairs"] + n])
+    pairs = np.concatenate([a.host.pairs, a.host.pairs + n])
     types = np.concatenate([a.spring_type, a.spring_type])
-    tris = np.concatenate([a.host["tris"], a.host["tris"] + n])
-    mass = np.concatenate([a.host["mass"], 1.5 * a.host["mass"]])
+    tris = np.concatenate([a.host.tris, a.host.tris + n])
+    mass = np.concatenate([a.host.mass, 1.5 * a.host.mass])
     model = build_model(q, pairs, types, mass, params(50.0, 0.01), triangles=tris, device="cpu")
     v = np.zeros_like(q)
     v[:n, 1], v[n:, 1] = speed, -speed
@@ -132,7 +132,7 @@ def test_two_stacked_sheets_keep_their_thickness_on_the_ground(integrator):
     gap = y[n:][over] - np.median(y[:n])  # the upper vertices over the lower sheet's inside
     assert over.sum() >= 4 and gap.min() >= sim.self_collision.min_gap * 0.99, gap
     assert 0.5 * H < np.median(gap) < 2.0 * H, np.median(gap)
-    assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host["tris"]) == 0
+    assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host.tris) == 0
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
@@ -143,17 +143,17 @@ def test_a_sheet_rests_on_a_pinned_sheet(integrator):
     translation mode once ignored the self-contacts and let the free sheet fall through (2.5 m below
     it after 1 s)."""
     a = build_grid_cloth(8, 8, 0.2, 0.2, 0.01, plane="horizontal", origin=(-0.1, 0.3, -0.1), device="cpu")
-    qa = a.host["q"].astype(np.float64)
+    qa = a.host.q.astype(np.float64)
     n = len(qa)
     q = np.concatenate([qa, qa + np.array([0.007, 1.2 * H, 0.011])])
     model = build_model(
         q,
-        np.concatenate([a.host["pairs"], a.host["pairs"] + n]),
+        np.concatenate([a.host.pairs, a.host.pairs + n]),
         np.concatenate([a.spring_type, a.spring_type]),
-        np.concatenate([a.host["mass"], a.host["mass"]]),
+        np.concatenate([a.host.mass, a.host.mass]),
         params(50.0, 0.01),
         pins=list(range(n)),
-        triangles=np.concatenate([a.host["tris"], a.host["tris"] + n]),
+        triangles=np.concatenate([a.host.tris, a.host.tris + n]),
         device="cpu",
     )
     sim = Simulator(model, integrator, Control(device="cpu"), self_collision={"thickness": H, "friction": 0.3})
@@ -163,7 +163,7 @@ def test_a_sheet_rests_on_a_pinned_sheet(integrator):
     gap = x[n:, 1][over] - 0.3
     assert over.sum() >= 4 and gap.min() >= sim.self_collision.min_gap * 0.99, gap
     assert 0.5 * H < np.median(gap) < 2.0 * H, np.median(gap)
-    assert ix.count_self_intersections(x, model.host["tris"]) == 0
+    assert ix.count_self_intersections(x, model.host.tris) == 0
 
 
 def test_stacked_sheets_merge_without_self_collision():
@@ -179,7 +179,7 @@ def test_stacked_sheets_merge_without_self_collision():
 
 # -- momentum of a free two-layer collision --------------------------------------------------------------
 def momentum(model, v):
-    return (model.host["mass"].astype(np.float64)[:, None] * v.astype(np.float64)).sum(axis=0)
+    return (model.host.mass.astype(np.float64)[:, None] * v.astype(np.float64)).sum(axis=0)
 
 
 #: projective's layers crumpled (up to 7 cm in y within 0.1 s; the upper one's mean ended 2.2 mm above the
@@ -211,7 +211,7 @@ def test_a_free_two_layer_collision_keeps_momentum(integrator):
     y = sim.state.particle_q.numpy()[:, 1]
     assert sim.self_collision.stats()["contacts_max"] > 10  # they met
     assert worst <= 1e-6, worst
-    assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host["tris"]) == 0
+    assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host.tris) == 0
     assert y[n:].mean() > y[:n].mean() + 0.5 * H
     # the layers stay flat but for their uncovered margins, which go on moving (measured 0.06 s: 7.9-11 mm in
     # y per layer for every integrator; projective's crumpled layers 65 mm)
@@ -318,7 +318,7 @@ def test_a_free_two_layer_collision_keeps_momentum_over_collision_intervals(inte
     # step, 1.017 h at 1 ms, 1.020 h at 4 ms; with x corrected over one step's dt instead of the
     # interval's, 1.086 h and 0.924 h)
     assert 0.95 * H < y[n:].mean() - y[:n].mean() < 1.05 * H
-    assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host["tris"]) == 0
+    assert ix.count_self_intersections(sim.state.particle_q.numpy(), model.host.tris) == 0
     assert worst <= 1e-6, worst
 
 
@@ -364,7 +364,7 @@ def test_the_default_drape_lands_stably_with_self_collision():
     assert r.self_collision["overflow_contacts"] == 0  # in-plane pairs are not contacts for the fall's speed
     # with a margin cap of twice the longest edge the landing overflowed the candidate list and left 11 pairs
     # of triangles through each other from 0.35 s on
-    assert ix.count_self_intersections(h.sim.state.particle_q.numpy(), h.sim.model.host["tris"]) == 0
+    assert ix.count_self_intersections(h.sim.state.particle_q.numpy(), h.sim.model.host.tris) == 0
 
 
 def test_pbd_friction_does_not_leave_the_drape_stretched():
@@ -399,7 +399,7 @@ def tablecloth_crossings(integrator, seconds=1.5, edges=False, sharp=False):
     if sharp:
         sharp_boxes(sim)
         sim.control.collision.edge_contacts = edges
-    tris, worst = sim.model.host["tris"], [0, 0]
+    tris, worst = sim.model.host.tris, [0, 0]
 
     def check(s):
         x = s.state.particle_q.numpy()
@@ -469,14 +469,14 @@ def test_a_cloth_edge_across_a_box_edge_is_pushed_out_to_the_thickness():
     box = Box(center=(0.0, 0.25, 0.25), half_extents=(0.5, 0.25, 0.25), thickness=0.004, edge_radius=0.0)  # sharp
     sim = Simulator(model, "explicit_euler", Control(gravity=(0.0, 0.0, 0.0), colliders=[box], device="cpu"), dt=1e-4)
     sim.control.collision.edge_contacts = True
-    assert ix.collider_edge_crossings(q, model.host["tris"], [box]) > 0
+    assert ix.collider_edge_crossings(q, model.host.tris, [box]) > 0
     sim.simulate(10)
     x = sim.state.particle_q.numpy().astype(np.float64)
     s = np.linspace(0.0, 1.0, 201)[:, None]
     segment = x[0] + s * (x[1] - x[0])
     gap = np.min(np.hypot(segment[:, 1] - 0.5, segment[:, 2] - 0.5))  # from the box's top edge (y = z = 0.5)
     assert gap >= 0.004 * 0.99 and gap < 0.006
-    assert ix.collider_edge_crossings(x, model.host["tris"], [box]) == 0
+    assert ix.collider_edge_crossings(x, model.host.tris, [box]) == 0
 
 
 def test_the_edge_projection_records_the_direction_it_pushed_each_vertex_out_in():
@@ -528,7 +528,7 @@ def test_the_edge_passes_stop_after_one_that_moves_no_vertex(offset):
     np.testing.assert_array_equal(v32, v200)
     assert active32.tolist() == [0, 0]  # the last pass moved no vertex (and the one before it, if it ran)
     if offset == 0.0:
-        assert ix.collider_edge_crossings(x32, model.host["tris"], [box]) == 0
+        assert ix.collider_edge_crossings(x32, model.host.tris, [box]) == 0
     else:
         np.testing.assert_array_equal(x32, q.astype(np.float32))
 
@@ -584,7 +584,7 @@ def test_implicit_eulers_contact_block_is_the_penalty_jacobian():
     xs = x.numpy().astype(np.float64)
     nv = model.particle_count
     C = np.zeros((3 * nv, 3 * nv))
-    free = model.host["inv_mass"] > 0
+    free = model.host.inv_mass > 0
     for idx, w, nrm in zip(c["indices"], c["weights"], c["normals"]):
         if H - nrm @ sum(wk * xs[i] for i, wk in zip(idx, w)) <= 0.0:
             continue
@@ -694,7 +694,7 @@ def test_check_intersections_reads_a_usd_file(tmp_path, capsys):
     assert main(["check-intersections", clean]) == 0
     assert "7 frames: 0 with self-intersections" in capsys.readouterr().out  # t = 0 and 6 frames
     model = build_grid_cloth(5, 5, 1.0, 1.0, 0.2, plane="horizontal", device="cpu")
-    q = model.host["q"].astype(np.float64)
+    q = model.host.q.astype(np.float64)
     folded = q.copy()
     folded[q[:, 0] > 0.5, 1] = 0.1 * np.sin(20.0 * q[q[:, 0] > 0.5, 2])  # a wave across the sheet's own plane
     folded[q[:, 0] > 0.5, 0] = 1.0 - q[q[:, 0] > 0.5, 0]  # folded over the other half

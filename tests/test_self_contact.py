@@ -61,7 +61,7 @@ def test_self_intersections_exclude_neighbours_and_find_a_piercing():
 
 def folded_positions(model, gap: float, noise: float = 0.0, seed: int = 0) -> np.ndarray:
     """A horizontal sheet folded at x = 0.5 w: the half beyond lies ``gap`` above the other."""
-    q = model.host["q"].astype(np.float64).copy()
+    q = model.host.q.astype(np.float64).copy()
     x0 = q[:, 0].min()
     half = x0 + 0.5 * (q[:, 0].max() - x0)
     fold = q[:, 0] > half + 1e-9
@@ -74,7 +74,7 @@ def folded_positions(model, gap: float, noise: float = 0.0, seed: int = 0) -> np
 
 def test_the_grid_broad_phase_finds_what_all_pairs_find():
     model = build_grid_cloth(12, 12, 1.0, 1.0, 0.2, plane="horizontal", device="cpu")
-    t = model.host["tris"]
+    t = model.host.tris
     q = folded_positions(model, 0.01)
     wave = (q[:, 0] < 0.3) & (q[:, 1] < 0.005)
     q[wave, 1] += 0.02 * np.sin(9.0 * q[wave, 2])  # the lower layer waves through the upper
@@ -94,7 +94,7 @@ def test_the_grid_broad_phase_finds_what_all_pairs_find():
 
 def test_collider_edges_through_the_cloth():
     model = build_grid_cloth(9, 9, 1.0, 1.0, 0.2, plane="horizontal", origin=(-0.5, 0.0, -0.5), device="cpu")
-    q, t = model.host["q"].astype(np.float64), model.host["tris"]
+    q, t = model.host.q.astype(np.float64), model.host.tris
     box = Box(center=(0.05, 0.0, 0.05), half_extents=(0.2, 0.2, 0.2))  # straddles the cloth: 4 vertical edges cross it
     assert ix.collider_edge_crossings(q, t, [box]) >= 4
     assert ix.collider_edge_crossings(q, t, [Box(center=(0.05, 0.3, 0.05), half_extents=(0.2, 0.2, 0.2))]) == 0
@@ -117,11 +117,11 @@ def test_the_checker_is_quick_at_64():
     model = build_grid_cloth(64, 64, 1.0, 1.0, 0.2, plane="horizontal", device="cpu")
     q = folded_positions(model, 0.005)
     start = time.perf_counter()
-    assert ix.count_self_intersections(q, model.host["tris"]) == 0
+    assert ix.count_self_intersections(q, model.host.tris) == 0
     q2 = q.copy()
     upper = q2[:, 1] > 0.0
     q2[upper, 1] = 0.005 * np.cos(30.0 * q2[upper, 2])  # the upper layer waves through the lower
-    assert ix.count_self_intersections(q2, model.host["tris"]) > 100
+    assert ix.count_self_intersections(q2, model.host.tris) > 100
     assert time.perf_counter() - start < 20.0  # generous on a shared machine; bench/ has the timing (< 1 s alone)
 
 
@@ -228,7 +228,7 @@ def _check_list_against_all_pairs(model, q, vel, h):
     m = sc.margin.numpy().astype(np.float64)
     vt, ee = sc.candidates()
     q = q.astype(np.float32).astype(np.float64)
-    t = model.host["tris"].astype(np.int64)
+    t = model.host.tris.astype(np.int64)
     edges = sc.edge_array().astype(np.int64)
     (vo, vx), (eo, ex) = exclusion_tables(t, edges, model.particle_count, 2)
     vi, ti = np.meshgrid(np.arange(len(q)), np.arange(len(t)), indexing="ij")
@@ -335,7 +335,7 @@ def test_a_kept_list_finds_every_contact_that_all_pairs_hold(case):
     x = wp.array(q1.astype(np.float32), dtype=wp.vec3, device="cpu")
     sc.detect(x, v, dt)
     assert sc.stats()["rebuilds"] == 1
-    t = model.host["tris"].astype(np.int64)
+    t = model.host.tris.astype(np.int64)
     edges = sc.edge_array().astype(np.int64)
     (vo, vx), (eo, ex) = exclusion_tables(t, edges, model.particle_count, 2)
     pairs = [
@@ -380,7 +380,7 @@ def test_a_kept_list_finds_every_contact_that_all_pairs_hold(case):
 
 def test_exclusion_tables_of_one_and_two_rings():
     model = build_grid_cloth(5, 5, 1.0, 1.0, 0.2, plane="horizontal", device="cpu")
-    t = model.host["tris"]
+    t = model.host.tris
     sc = SelfCollision(model, thickness=0.01, exclude_rings=1)
     edges = sc.edge_array()
     (vo, vx), (eo, ex) = exclusion_tables(t, edges, 25, 1)
@@ -510,7 +510,7 @@ def test_two_edges_that_would_cross_in_one_step_do_not():
     speed = 3.0 * h / dt  # B's edge moves 3 h in the step: from 1.5 h above A's edge to 1.5 h below
     model, q, vel = crossing_edges(speed, dt, h)
     control = Control(gravity=(0.0, 0.0, 0.0), device="cpu")
-    tris = model.host["tris"]
+    tris = model.host.tris
     # without the response the step ends with B's edge through A
     x, v, f = arrays(q, vel)
     eval_forces(model, x, v, control, f)
@@ -537,14 +537,14 @@ def two_sheets(rows=6, gap=0.02, speed=1.0, offset=(0.013, 0.0, 0.021)):
     """Two horizontal 0.2 m sheets, ``gap`` apart, the lower moving up and the upper down at
     ``speed``, shifted in x, z so that vertices do not sit over vertices."""
     a = build_grid_cloth(rows, rows, 0.2, 0.2, 0.01, plane="horizontal", device="cpu")
-    qa = a.host["q"].astype(np.float64)
+    qa = a.host.q.astype(np.float64)
     qb = qa + np.array([offset[0], gap, offset[2]])
     n = len(qa)
     q = np.concatenate([qa, qb])
-    pairs = np.concatenate([a.host["pairs"], a.host["pairs"] + n])
+    pairs = np.concatenate([a.host.pairs, a.host.pairs + n])
     types = np.concatenate([a.spring_type, a.spring_type])
-    tris = np.concatenate([a.host["tris"], a.host["tris"] + n])
-    mass = np.concatenate([a.host["mass"], 1.5 * a.host["mass"]])  # unequal layers: momentum is not symmetric
+    tris = np.concatenate([a.host.tris, a.host.tris + n])
+    mass = np.concatenate([a.host.mass, 1.5 * a.host.mass])  # unequal layers: momentum is not symmetric
     model = build_model(q, pairs, types, mass, params(50.0, 0.01), triangles=tris, device="cpu")
     v = np.zeros_like(q)
     v[:n, 1] = speed
@@ -553,7 +553,7 @@ def two_sheets(rows=6, gap=0.02, speed=1.0, offset=(0.013, 0.0, 0.021)):
 
 
 def momentum(model, v):
-    return (model.host["mass"].astype(np.float64)[:, None] * v.numpy().astype(np.float64)).sum(axis=0)
+    return (model.host.mass.astype(np.float64)[:, None] * v.numpy().astype(np.float64)).sum(axis=0)
 
 
 def test_a_two_sheet_collision_conserves_momentum_and_does_not_pass_through():
@@ -570,7 +570,7 @@ def test_a_two_sheet_collision_conserves_momentum_and_does_not_pass_through():
         worst = max(worst, float(np.max(np.abs(p_new - p))))
         p = p_new
         contacts = max(contacts, sc.stats()["contacts"])
-        assert ix.count_self_intersections(x.numpy(), model.host["tris"]) == 0
+        assert ix.count_self_intersections(x.numpy(), model.host.tris) == 0
     assert contacts > 20  # the sheets met (they close 0.02 m at 2 m/s in 0.01 s = 50 steps)
     assert worst <= 1e-6, worst
     y = x.numpy()
@@ -594,7 +594,7 @@ def test_the_response_without_the_filter_is_what_conserves_momentum_badly():
     before = v.numpy().astype(np.float64)
     sc.filter_velocities(x, v, dt)
     dv = v.numpy().astype(np.float64) - before
-    m = model.host["mass"].astype(np.float64)[:, None]
+    m = model.host.mass.astype(np.float64)[:, None]
     n = len(q) // 2
     assert np.abs(dv[:n]).max() > 0.1  # it acted
     lower, upper = (m[:n] * dv[:n]).sum(axis=0), (m[n:] * dv[n:]).sum(axis=0)
@@ -621,7 +621,7 @@ def drop_onto_the_ground(self_collision: bool, rows=16, seconds=1.5):
     from warpcloth import Plane, Simulator
 
     model = build_grid_cloth(rows, rows, 1.0, 1.0, 0.2, plane="vertical", origin=(-0.5, 1.03, 0.0), device="cpu")
-    q = model.host["q"].astype(np.float64).copy()
+    q = model.host.q.astype(np.float64).copy()
     q[:, 2] += 0.05 * np.sin(3.0 * q[:, 0]) + 0.1 * (q[:, 1] - 0.03)
     control = Control(colliders=[Plane(thickness=0.002, friction=0.5)], drag_rate=0.5, device="cpu")
     dt = Simulator(model, "explicit_euler", control).dt
@@ -629,7 +629,7 @@ def drop_onto_the_ground(self_collision: bool, rows=16, seconds=1.5):
     state.particle_q.assign(q.astype(np.float32))
     x, v, f = state.particle_q, state.particle_qd, state.particle_f
     sc = SelfCollision(model, thickness=0.01, friction=0.3) if self_collision else None
-    tris, worst, frame = model.host["tris"], 0, max(1, int(round(1 / 60 / dt)))
+    tris, worst, frame = model.host.tris, 0, max(1, int(round(1 / 60 / dt)))
     for k in range(int(seconds / dt)):
         if sc is not None:
             sc.detect(x, v, dt)
@@ -763,7 +763,7 @@ def test_bad_settings_are_refused():
         with pytest.raises(WarpclothError):
             SelfCollision(model, **kwargs)
     sc = SelfCollision(model, thickness=0.01)
-    x, v, _ = arrays(model.host["q"])
+    x, v, _ = arrays(model.host.q)
     with pytest.raises(WarpclothError):
         sc.filter_velocities(x, v, 1e-3, position_weight=0.0)
 
@@ -775,7 +775,7 @@ def test_check_usd_counts_each_frame(tmp_path):
     model = build_grid_cloth(9, 9, 1.0, 1.0, 0.2, plane="horizontal", origin=(-0.5, 0.0, -0.5), device="cpu")
     box = Box(center=(0.05, 0.3, 0.05), half_extents=(0.2, 0.2, 0.2))
     path = str(tmp_path / "frames.usda")
-    q = model.host["q"].astype(np.float64)
+    q = model.host.q.astype(np.float64)
     folded = folded_positions(model, 0.01)
     through = folded.copy()
     upper = through[:, 1] > 0.0

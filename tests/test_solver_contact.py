@@ -89,7 +89,7 @@ def test_pins_win_over_contacts(integrator):
     sim = Simulator(model, integrator, Control(colliders=(Plane(),), device="cpu"))
     sim.simulate(50)
     x = sim.state.particle_q.numpy()
-    np.testing.assert_array_equal(x[0], model.host["q"][0])
+    np.testing.assert_array_equal(x[0], model.host.q[0])
     assert x[1:, 1].min() > -1e-6  # the free ones are out
 
 

@@ -57,7 +57,7 @@ def test_vbd_keeps_a_free_cloths_momentum():
     q = sim.state.particle_q.numpy()
     c = q.mean(axis=0)
     sim.state.particle_q.assign(((q - c) * 1.05 + c).astype(np.float32))
-    m = model.host["mass"].astype(np.float64)[:, None]
+    m = model.host.mass.astype(np.float64)[:, None]
     worst = 0.0
     for _ in range(60):
         sim.simulate(1)
@@ -77,12 +77,12 @@ def _sheet_mesh_twin(n):
     grid = get_scenario("sheet").build(rows=n, cols=n, integrator="vbd")
     h = grid.model.host
     mesh = build_mesh_cloth(
-        h["q"],
+        h.q,
         grid_triangles(n, n),
-        total_mass=float(h["mass"].sum()),
+        total_mass=float(h.mass.sum()),
         mass_mode="uniform",
         quads=True,
-        pins=list(np.flatnonzero(h["inv_mass"] == 0)),
+        pins=list(np.flatnonzero(h.inv_mass == 0)),
         spring_params=grid.model.spring_params,
         device="cpu",
     )
@@ -113,7 +113,7 @@ def test_vbd_mesh_sheet_comes_to_the_grids_static_shape_before_equilibrium():
     grid, mesh = _sheet_mesh_twin(32)
     sim = Simulator(mesh, "vbd", grid.control, dt=H)
     eq = static_equilibrium(mesh, grid.control)
-    rest = mesh.host["q"].astype(np.float64)
+    rest = mesh.host.q.astype(np.float64)
     sag_ref = np.linalg.norm(eq.x - rest, axis=1).max()
     r = RunHarness(sim).run(6.0, stop_at_equilibrium=True)
     assert r.equilibrium_reached
@@ -151,10 +151,10 @@ def test_implicit_bsr_and_matrix_free_give_the_same_dv():
 # -- item 5: implicit_euler judges the true residual and names the float32 floor -----------------------
 def _float64_system_product(integ, model, x, drag):
     """A x in float64 from the step's spring blocks B_s and the masses (the model's A; pinned rows identity)."""
-    pairs = model.host["pairs"].astype(np.int64).reshape(-1, 2)
-    free = model.host["inv_mass"] > 0
+    pairs = model.host.pairs.astype(np.int64).reshape(-1, 2)
+    free = model.host.inv_mass > 0
     B = integ.system.spring_B.numpy().astype(np.float64)
-    y = (model.host["mass"].astype(np.float64) * (1.0 + H * drag))[:, None] * x
+    y = (model.host.mass.astype(np.float64) * (1.0 + H * drag))[:, None] * x
     i, j = pairs[:, 0], pairs[:, 1]
     xi, xj = np.where(free[i][:, None], x[i], 0.0), np.where(free[j][:, None], x[j], 0.0)
     np.add.at(y, i, np.einsum("sab,sb->sa", B, x[i] - xj))
@@ -265,7 +265,7 @@ def test_vbd_mesh_multigrid_settles_the_64x64_mesh_sheet():
 
     grid, mesh = _sheet_mesh_twin(64)
     sim = Simulator(mesh, "vbd", grid.control, dt=H)
-    rest = mesh.host["q"].astype(np.float64)
+    rest = mesh.host.q.astype(np.float64)
     sag_ref = np.linalg.norm(static_equilibrium(mesh, grid.control).x - rest, axis=1).max()
     sim.simulate(90)
     sag = np.linalg.norm(sim.state.particle_q.numpy().astype(np.float64) - rest, axis=1).max()

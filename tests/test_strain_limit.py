@@ -21,7 +21,7 @@ SOFT = (20.0, 20.0, 2.0)  # structural, shear, bend ks [N/m]: this sheet stretch
 def limited_strains(sim):
     m = sim.model
     q = sim.state.particle_q.numpy().astype(np.float64)
-    pairs, rest = m.host["pairs"], m.host["rest"].astype(np.float64)
+    pairs, rest = m.host.pairs, m.host.rest.astype(np.float64)
     strain = (np.linalg.norm(q[pairs[:, 1]] - q[pairs[:, 0]], axis=1) - rest) / rest
     return strain[np.isin(m.spring_type, [SpringType.STRUCTURAL, SpringType.SHEAR])]
 
@@ -62,7 +62,7 @@ def _one_spring(inv_mass, stretch):
         spring_type=np.array([SpringType.STRUCTURAL]),
         pinned=np.flatnonzero(np.asarray(inv_mass) == 0.0),
         particle_inv_mass=wp.array(np.asarray(inv_mass, dtype=np.float32), dtype=float),
-        host={"pairs": np.array([[0, 1]], dtype=np.int32), "rest": np.array([1.0], dtype=np.float32)},
+        host=SimpleNamespace(pairs=np.array([[0, 1]], dtype=np.int32), rest=np.array([1.0], dtype=np.float32)),
     )
     v = np.array([[0.1, 0.2, 0.3], [0.0, -0.1, 0.0]], dtype=np.float32)
     state = State(wp.array(q, dtype=wp.vec3), wp.array(v, dtype=wp.vec3), wp.zeros(2, dtype=wp.vec3))
@@ -98,7 +98,7 @@ def test_a_pinned_end_does_not_move():
 
 def test_colours_share_no_particle():
     model = build_grid_cloth(6, 7)
-    pairs = model.host["pairs"]
+    pairs = model.host.pairs
     colors = color_springs(pairs, model.particle_count)
     for c in np.unique(colors):
         ends = pairs[colors == c].ravel()

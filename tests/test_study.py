@@ -65,7 +65,7 @@ class _Start:
         self.x = x
 
     def start(self, model):
-        x = model.host["q"].astype(np.float64) if self.x is None else self.x
+        x = model.host.q.astype(np.float64) if self.x is None else self.x
         return np.asarray(x, dtype=np.float32).astype(np.float64)
 
 
@@ -78,7 +78,7 @@ def test_metrics_of_a_known_offset_and_a_slower_run():
     sim = STUDY_SHEET.build(rows=6, cols=6)
     shape = _Shape(sim.model)
     rng = np.random.default_rng(0)
-    q = sim.model.host["q"].astype(np.float64)
+    q = sim.model.host.q.astype(np.float64)
     ref = np.stack([q + 0.01 * k * rng.normal(size=q.shape) for k in range(5)])
     m = trajectory_metrics(ref + np.array([0.0, 0.003, 0.004]), ref, 1.0, shape, FRAME_DT)
     assert (
@@ -179,7 +179,7 @@ def test_contact_equilibrium_of_a_particle_on_a_frictionless_plane():
     )
     model = replace(model, width=1.0, height=1.0)
     g = -float(Control(device="cpu").gravity[1])
-    free_y = 0.5 - float(model.host["mass"][1]) * g / 10.0  # 0.4019 m (the float32 mass)
+    free_y = 0.5 - float(model.host.mass[1]) * g / 10.0  # 0.4019 m (the float32 mass)
     plane = Plane(point=(0.0, 0.45, 0.0), normal=(0.0, 1.0, 0.0), thickness=0.01)
     eq = contact_equilibrium(model, Control(drag_rate=0.0, device="cpu"), colliders=(plane,))
     assert eq.x[1, 1] == pytest.approx(0.46, abs=1e-9) and eq.contacts == 1 and eq.penetration <= 1e-9

@@ -114,8 +114,8 @@ def test_stage_with_colliders_validates(tmp_path):
     model = build_grid_cloth(4, 4, 0.5, 0.5, 0.1, plane="horizontal", origin=(0.0, 0.5, 0.0), device="cpu")
     path = str(tmp_path / "v.usda")
     with UsdWriter(path, model, FPS, colliders=COLLIDERS) as w:
-        w.write_frame(model.host["q"], 0.0)
-        w.write_frame(model.host["q"], 1 / FPS)
+        w.write_frame(model.host.q, 0.0)
+        w.write_frame(model.host.q, 1 / FPS)
     assert validation_errors(Usd.Stage.Open(path)) == []
 
 

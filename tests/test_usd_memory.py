@@ -10,7 +10,7 @@ from warpcloth.io.usd import UsdWriter
 
 
 def frames(model, n):
-    q = model.host["q"].astype(np.float32)
+    q = model.host.q.astype(np.float32)
     return [q + np.float32(0.001 * k) for k in range(n)]
 
 
@@ -80,7 +80,7 @@ def test_static_pins_read_back_in_every_chunk(tmp_path):
     from pxr import Usd, UsdGeom
 
     model = flag.build(rows=4, cols=5).model
-    q = model.host["q"].astype(np.float32)
+    q = model.host.q.astype(np.float32)
     path = str(tmp_path / "c.usdc")
     with UsdWriter(path, model, clip_frames=4) as w:
         for k in range(11):

@@ -85,7 +85,7 @@ def test_pins_time_sampled_when_they_move(tmp_path):
 
     sim = sheet.build(rows=4, cols=4)
     w = UsdWriter(str(tmp_path / "m.usda"), sim.model, 10.0)
-    q = sim.model.host["q"].copy()
+    q = sim.model.host.q.copy()
     w.write_frame(q, 0.0)
     w.write_frame(q, 0.1)
     q2 = q.copy()

@@ -65,10 +65,8 @@ def test_converged_vbd_is_backward_euler(rho):
     model = small_grid(ks=40.0, kd=0.2)
     h = 1.0 / 60.0
     rng = np.random.default_rng(3)
-    x0 = model.host["q"].astype(np.float64) + np.where(
-        model.host["inv_mass"][:, None] > 0, rng.normal(0, 0.05, (9, 3)), 0.0
-    )
-    v0 = np.where(model.host["inv_mass"][:, None] > 0, rng.normal(0, 0.5, (9, 3)), 0.0)
+    x0 = model.host.q.astype(np.float64) + np.where(model.host.inv_mass[:, None] > 0, rng.normal(0, 0.05, (9, 3)), 0.0)
+    v0 = np.where(model.host.inv_mass[:, None] > 0, rng.normal(0, 0.5, (9, 3)), 0.0)
     expected = backward_euler_step(model, x0, v0, h)
 
     def one_step(iterations):
@@ -95,7 +93,7 @@ def test_converged_vbd_matches_implicit_euler_on_a_small_step():
         sim = Simulator(model, make_integrator(name, **opts), Control(), dt=h)
         sim.simulate(3)
         results.append(sim.state.particle_q.numpy().astype(np.float64))
-    moved = np.abs(results[0] - model.host["q"]).max()
+    moved = np.abs(results[0] - model.host.q).max()
     assert moved > 1e-3
     assert np.abs(results[0] - results[1]).max() < 2e-5
 
@@ -110,7 +108,7 @@ def test_vbd_sheet_settles_on_the_static_equilibrium():
     sim = sheet.build(rows=16, cols=16, integrator="vbd", dt=1.0 / 60.0)
     eq = static_equilibrium(sim.model, sim.control)
     sim.simulate(600)
-    y0 = sim.model.host["q"][:, 1].astype(np.float64)
+    y0 = sim.model.host.q[:, 1].astype(np.float64)
     sag = (y0 - sim.state.particle_q.numpy()[:, 1]).max()
     sag_ref = (y0 - eq.x[:, 1]).max()
     assert abs(sag - sag_ref) < 0.02 * sag_ref, (sag, sag_ref)
@@ -168,7 +166,7 @@ def sheet_sag_error(rows, steps, **options):
     sim = sheet.build(rows=rows, cols=rows, integrator="vbd", dt=1.0 / 60.0, integrator_options=options)
     eq = static_equilibrium(sim.model, sim.control)
     sim.simulate(steps)
-    y0 = sim.model.host["q"][:, 1].astype(np.float64)
+    y0 = sim.model.host.q[:, 1].astype(np.float64)
     sag = (y0 - sim.state.particle_q.numpy()[:, 1]).max()
     sag_ref = (y0 - eq.x[:, 1]).max()
     return (sag - sag_ref) / sag_ref
@@ -191,8 +189,8 @@ def test_multigrid_correction_keeps_the_backward_euler_solution():
     model = small_grid(ks=40.0, kd=0.2, rows=8, cols=8, pins=(0, 7))
     h = 1.0 / 60.0
     rng = np.random.default_rng(5)
-    free = model.host["inv_mass"][:, None] > 0
-    x0 = model.host["q"].astype(np.float64) + np.where(free, rng.normal(0, 0.02, (64, 3)), 0.0)
+    free = model.host.inv_mass[:, None] > 0
+    x0 = model.host.q.astype(np.float64) + np.where(free, rng.normal(0, 0.02, (64, 3)), 0.0)
     v0 = np.where(free, rng.normal(0, 0.3, (64, 3)), 0.0)
     expected = backward_euler_step(model, x0, v0, h)
     integ = make_integrator("vbd", vbd_iterations=100)

@@ -13,7 +13,7 @@ v = np.c_[pts[:, 0] - 0.5, pts[:, 1] + 1.0, np.zeros(len(pts))]
 model = build_mesh_cloth(v, tri, total_mass=0.2, pins=[n - 2, n - 1], device="cpu")
 control = Control(drag_rate=1.0, device="cpu")
 eq = static_equilibrium(model, control)
-rest = model.host["q"].astype(np.float64)
+rest = model.host.q.astype(np.float64)
 sref = np.linalg.norm(eq.x - rest, axis=1).max()
 sim = Simulator(model, make_integrator("vbd"), control, dt=1 / 60)
 r = RunHarness(sim).run(8.0, stop_at_equilibrium=True)

@@ -29,7 +29,7 @@ for matrix in ("bsr", "free"):
         drag=0.0,
         device="cpu",
     )
-    top = float(sim.model.host["q"][:, 1].max())
+    top = float(sim.model.host.q[:, 1].max())
     t0 = time.perf_counter()
     sim.simulate(steps)
     wall = time.perf_counter() - t0

@@ -14,9 +14,9 @@ cases["cape quads"] = build_mesh_cloth(m, quads=True, device="cpu")
 cases["cape dihedral"] = build_mesh_cloth(m, bend="dihedral", device="cpu")
 for n in (32, 96):
     g = build_grid_cloth(n, n, device="cpu")
-    cases[f"grid{n} mesh twin"] = build_mesh_cloth(g.host["q"], grid_triangles(n, n), quads=True, device="cpu")
+    cases[f"grid{n} mesh twin"] = build_mesh_cloth(g.host.q, grid_triangles(n, n), quads=True, device="cpu")
     cases[f"grid{n} mesh choi_ko"] = build_mesh_cloth(
-        g.host["q"], grid_triangles(n, n), quads=True, bend="choi_ko", device="cpu"
+        g.host.q, grid_triangles(n, n), quads=True, bend="choi_ko", device="cpu"
     )
 rng = np.random.default_rng(0)
 pts = rng.random((3000, 2))
@@ -25,7 +25,7 @@ from scipy.spatial import Delaunay
 tri = Delaunay(pts).simplices
 cases["random delaunay 3000"] = build_mesh_cloth(np.c_[pts, np.zeros(len(pts))], tri, device="cpu")
 for name, model in cases.items():
-    pairs = model.host["pairs"]
+    pairs = model.host.pairs
     n = model.particle_count
     t0 = time.perf_counter()
     w = warp_vertex_colors(pairs, n)

@@ -17,7 +17,7 @@ integ = sys.argv[1]
 for n in map(int, sys.argv[2:]):
     top = list(range(n))
     model = build_grid_cloth(n, n, pins=top, device="cpu")
-    rest = model.host["q"].astype(np.float64)[top]
+    rest = model.host.q.astype(np.float64)[top]
     sim = Simulator(
         model,
         integ,

@@ -20,18 +20,18 @@ dur = float(sys.argv[2])
 grid = get_scenario("sheet").build(rows=n, cols=n, integrator="vbd", dt=1 / 60)
 h = grid.model.host
 mesh_model = build_mesh_cloth(
-    h["q"],
+    h.q,
     grid_triangles(n, n),
-    total_mass=float(h["mass"].sum()),
+    total_mass=float(h.mass.sum()),
     mass_mode="uniform",
     quads=True,
-    pins=list(np.flatnonzero(h["inv_mass"] == 0)),
+    pins=list(np.flatnonzero(h.inv_mass == 0)),
     device="cpu",
     spring_params=grid.model.spring_params,
 )
 assert mesh_model.spring_count == grid.model.spring_count, (mesh_model.spring_count, grid.model.spring_count)
 mesh = Simulator(mesh_model, make_integrator("vbd"), grid.control, dt=1 / 60)
-rest = h["q"].astype(np.float64)
+rest = h.q.astype(np.float64)
 eq = static_equilibrium(grid.model, grid.control)
 sag_ref = np.linalg.norm(eq.x - rest, axis=1).max()
 steps = int(round(dur * 60))

@@ -11,17 +11,17 @@ n = 32
 grid = get_scenario("sheet").build(rows=n, cols=n, integrator="vbd", dt=1 / 60)
 h = grid.model.host
 mm = build_mesh_cloth(
-    h["q"],
+    h.q,
     grid_triangles(n, n),
-    total_mass=float(h["mass"].sum()),
+    total_mass=float(h.mass.sum()),
     mass_mode="uniform",
     quads=True,
-    pins=list(np.flatnonzero(h["inv_mass"] == 0)),
+    pins=list(np.flatnonzero(h.inv_mass == 0)),
     device="cpu",
     spring_params=grid.model.spring_params,
 )
 eq = static_equilibrium(grid.model, grid.control)
-rest = h["q"].astype(np.float64)
+rest = h.q.astype(np.float64)
 sref = np.linalg.norm(eq.x - rest, axis=1).max()
 for opts in (
     {"vbd_rigid_mode": 0, "vbd_mesh_multigrid": 0, "vbd_iterations": 1},

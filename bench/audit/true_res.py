@@ -19,13 +19,13 @@ H = 1 / 60
 sim = sheet.build(rows=32, cols=32, integrator="implicit_euler", integrator_options={"cg_tol": tol})
 model, integ = sim.model, sim.integrator
 h = model.host
-P = h["pairs"].astype(np.int64)
+P = h.pairs.astype(np.int64)
 N = model.particle_count
-m = h["mass"].astype(np.float64)
-free = h["inv_mass"] > 0
+m = h.mass.astype(np.float64)
+free = h.inv_mass > 0
 ks = model.spring_stiffness.numpy().astype(np.float64)
 kd = model.spring_damping.numpy().astype(np.float64)
-L0 = h["rest"].astype(np.float64)
+L0 = h.rest.astype(np.float64)
 g = np.array(sim.control.gravity)
 c = float(sim.control.drag_rate)
 

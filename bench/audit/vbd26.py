@@ -55,7 +55,7 @@ for n in (16, 32):
 # slope: an 8x8 cloth lying on a real tilted frictionless plane (mesh model of rotated grid vertices) and the grid under tilted gravity
 th = math.radians(30)
 base = build_grid_cloth(8, 8, 0.3, 0.3, 0.05, plane="horizontal", origin=(0, 0, 0), device="cpu")
-q = base.host["q"].astype(np.float64)
+q = base.host.q.astype(np.float64)
 c, s = math.cos(th), math.sin(th)
 R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])  # rotate about z: x axis tilts up
 normal = R @ np.array([0, 1, 0])
@@ -99,7 +99,7 @@ sim = Simulator(model, make_integrator(name), Control(gravity=(0, 0, 0), drag_ra
 x = sim.state.particle_q.numpy().astype(np.float64)
 cen = x.mean(axis=0)
 sim.state.particle_q.assign(((x - cen) * 1.05 + cen).astype(np.float32))
-m = model.host["mass"].astype(np.float64)
+m = model.host.mass.astype(np.float64)
 worst = 0.0
 for f in range(120):
     sim.simulate(1)

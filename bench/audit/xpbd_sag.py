@@ -17,7 +17,7 @@ n = int(sys.argv[1])
 opts = {} if len(sys.argv) < 4 else {"iterations": int(sys.argv[2]), "substeps": int(sys.argv[3])}
 sim = get_scenario("sheet").build(rows=n, cols=n, integrator="xpbd", integrator_options=opts, dt=1 / 60)
 eq = static_equilibrium(sim.model, sim.control)
-rest = sim.model.host["q"].astype(np.float64)
+rest = sim.model.host.q.astype(np.float64)
 sag_ref = np.linalg.norm(eq.x - rest, axis=1).max()
 sim.simulate(60)  # warm-up/compile + 1 s
 times = []

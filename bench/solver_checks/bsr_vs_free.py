@@ -38,9 +38,9 @@ def peer(size, matrix, **opts):
 
 def reference_Ax(model, B, x):
     """float64 A x: A_ii = m_i I + sum_s B_s, A_ij = -B_s (free rows and columns only), pinned rows identity."""
-    pairs = model.host["pairs"].astype(np.int64).reshape(-1, 2)
-    m = model.host["mass"].astype(np.float64)
-    free = model.host["inv_mass"] > 0
+    pairs = model.host.pairs.astype(np.int64).reshape(-1, 2)
+    m = model.host.mass.astype(np.float64)
+    free = model.host.inv_mass > 0
     B = B.astype(np.float64)
     y = m[:, None] * x
     i, j = pairs[:, 0], pairs[:, 1]

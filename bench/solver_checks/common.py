@@ -39,11 +39,11 @@ def mesh_twin(model):
     from warpcloth.sim.grid import grid_triangles
 
     h = model.host
-    pins = list(np.flatnonzero(h["inv_mass"] == 0))
+    pins = list(np.flatnonzero(h.inv_mass == 0))
     return build_mesh_cloth(
-        h["q"],
+        h.q,
         grid_triangles(model.rows, model.cols),
-        total_mass=float(h["mass"].sum()),
+        total_mass=float(h.mass.sum()),
         mass_mode="uniform",
         quads=True,
         pins=pins,

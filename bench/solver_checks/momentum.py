@@ -27,7 +27,7 @@ def run(case, n, duration, dt=None, stretch=0.05):
     q = sim.state.particle_q.numpy()
     c = q.mean(axis=0)
     sim.state.particle_q.assign(((q - c) * (1.0 + stretch) + c).astype(np.float32))
-    m = model.host["mass"].astype(np.float64)
+    m = model.host.mass.astype(np.float64)
     worst, P = 0.0, np.zeros(3)
     per_frame = max(1, int(round((1.0 / 60.0) / sim.dt)))
     for _ in range(int(round(duration * 60))):

@@ -36,7 +36,7 @@ def main():
     if a.mesh:
         sim = Simulator(mesh_twin(sim.model), make_integrator(a.integrator, **opts), sim.control, dt=a.dt)
     eq = static_equilibrium(sim.model, sim.control)
-    rest = sim.model.host["q"].astype(np.float64)
+    rest = sim.model.host.q.astype(np.float64)
     sag_ref = float(np.max(np.linalg.norm(eq.x - rest, axis=1)))
     print(
         f"# sag against float64: {a.integrator} {opts or '(defaults)'} {'mesh' if a.mesh else 'grid'} {a.size}^2 "

@@ -21,11 +21,11 @@ EPS32 = float(np.finfo(np.float32).eps)
 
 def model_matrix(integ, model, h, drag):
     """The model's A = M (1 + h c) + sum_s B_s terms in float64 (pinned rows and columns: identity)."""
-    pairs = model.host["pairs"].astype(np.int64).reshape(-1, 2)
+    pairs = model.host.pairs.astype(np.int64).reshape(-1, 2)
     n = model.particle_count
-    free = model.host["inv_mass"] > 0
+    free = model.host.inv_mass > 0
     B = integ.system.spring_B.numpy().astype(np.float64)
-    m = model.host["mass"].astype(np.float64) * (1.0 + h * drag)
+    m = model.host.mass.astype(np.float64) * (1.0 + h * drag)
     rows, cols, vals = [], [], []
 
     def add(r, c, blocks):

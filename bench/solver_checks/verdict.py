@@ -33,7 +33,7 @@ def main():
     if a.mesh:
         sim = Simulator(mesh_twin(sim.model), make_integrator(a.integrator, **opts), sim.control, dt=sim.dt)
     eq = static_equilibrium(sim.model, sim.control)
-    rest = sim.model.host["q"].astype(np.float64)
+    rest = sim.model.host.q.astype(np.float64)
     sag_ref = float(np.max(np.linalg.norm(eq.x - rest, axis=1)))
     harness = RunHarness(sim)
     if a.per_particle_only:

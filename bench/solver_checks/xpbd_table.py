@@ -39,7 +39,7 @@ def main():
             )
             if ref is None:
                 eq = static_equilibrium(sim.model, sim.control)
-                rest = sim.model.host["q"].astype(np.float64)
+                rest = sim.model.host.q.astype(np.float64)
                 ref = float(np.max(np.linalg.norm(eq.x - rest, axis=1)))
             sim.simulate(a.timing_steps)  # warm-up (compile, capture)
             wp.synchronize()

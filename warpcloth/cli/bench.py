@@ -12,7 +12,7 @@ import warp as wp
 
 from warpcloth.cli.parse import Parser, guarded
 from warpcloth.errors import WarpclothError, require
-from warpcloth.integrators import integrator_class, integrator_names, make_integrator
+from warpcloth.integrators import check_integrator_name, integrator_names, make_integrator
 from warpcloth.io.files import check_output_path, sweep_stale_temporaries
 from warpcloth.io.preview import require_matplotlib
 from warpcloth.io.progress import Progress, format_seconds
@@ -118,7 +118,7 @@ def run(args) -> int:
             f"{', '.join(integrator_names())}",
         )
     for n in names:
-        integrator_class(n)
+        check_integrator_name(n, flag="--integrators")
 
     scenario = get_scenario(args.scenario)  # unknown name or bad file: one line
     if scenario.is_mesh:  # a mesh: its own particles, no grid sizes

@@ -9,7 +9,7 @@ import json
 
 from warpcloth.cli.model import add_integrator_options, integrator_options_from_args
 from warpcloth.errors import WarpclothError
-from warpcloth.integrators import integrator_class
+from warpcloth.integrators import check_integrator_name
 from warpcloth.lab.calibrate import TARGETS, UNKNOWNS, calibrate
 from warpcloth.run.params import BY_NAME, PARAMS, add_flags, argparse_type, cli_value
 from warpcloth.sim.material import material_with
@@ -89,7 +89,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    integrator_class(args.integrator or "implicit_euler")  # an unknown name: one line
+    check_integrator_name(args.integrator or "implicit_euler", flag="--integrator")
     options = integrator_options_from_args(args.integrator or "implicit_euler", args)
     values = {name: cli_value(BY_NAME[name], args) for name in MATERIAL_FLAGS}
     start = material_with(args.material, **values)

@@ -8,7 +8,13 @@ from __future__ import annotations
 import argparse
 
 from warpcloth.errors import WarpclothError, require_positive
-from warpcloth.integrators import all_options, integrator_class, integrator_names, option_help, option_owners
+from warpcloth.integrators import (
+    all_options,
+    check_integrator_name,
+    integrator_class,
+    option_help,
+    option_owners,
+)
 from warpcloth.run.params import BY_NAME, add_flags, check_applies, cli_value, config_values, params_for
 
 
@@ -60,23 +66,16 @@ def param_values(args, command: str) -> dict:
 def config_from_args(scenario, args, command: str = "run"):
     """A ScenarioConfig from parsed flags (unset flags keep the scenario defaults)."""
     values = param_values(args, command)
-    if values.get("integrator") is not None and not values["integrator"].strip():
-        raise WarpclothError(f"--integrator is empty; choose one of {', '.join(integrator_names())}")
-    if values.get("integrator") == "all":
-        raise WarpclothError(
-            f"--integrator all is for test lists (warpcloth sweep); choose one of {', '.join(integrator_names())}"
-        )
+    if values.get("integrator") is not None:
+        check_integrator_name(values["integrator"], flag="--integrator")
     integrator = values.get("integrator") or scenario.defaults.integrator
-    integrator_class(integrator)  # unknown name -> clear error
     if values.get("size") is not None and (values.get("rows") is not None or values.get("cols") is not None):
         raise WarpclothError("give either --size or --rows and --cols, not both")
     check_applies(values, scenario.is_mesh, scenario.name)
     if values.get("device") is None:  # the scenario's (a scenario file's [run] device), else the CLI's default
         values["device"] = scenario.defaults.device or BY_NAME["device"].default
     kwargs = config_values(values)
-    kwargs.update(
-        integrator=integrator, integrator_options=integrator_options_from_args(integrator, args), dt=values.get("dt")
-    )
+    kwargs.update(integrator=integrator, integrator_options=integrator_options_from_args(integrator, args))
     cfg = scenario.config(**kwargs)
     num_frames = getattr(args, "num_frames", None)
     if num_frames is not None:

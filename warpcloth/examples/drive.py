@@ -30,7 +30,7 @@ class Example:
         self.control = Control(pin_tracks=(self.hand,), colliders=(ball,))
         self.sim = Simulator(self.model, "xpbd", self.control)
         self.steps = max(1, round(frame_dt / self.sim.dt))
-        self.grip = self.model.host["q"][corner].astype(np.float64)
+        self.grip = self.model.host.q[corner].astype(np.float64)
         self.frame = 0
         self.usd = None
         if stage_path:

@@ -58,11 +58,28 @@ def integrator_names() -> list[str]:
     return list(_REGISTRY)
 
 
+def check_integrator_name(name, allow_all: bool = False, flag: str | None = None) -> str:
+    """``name`` if an integrator is registered under it (or ``all``, every one, where ``allow_all``:
+    a test list); else one line naming the value and the choices (``flag``: the CLI flag it came
+    from, named when it is empty or ``all``). The one check of a name, where it enters (the
+    ``integrator`` run parameter, the CLI's flags, a study's list, :func:`integrator_class`); what
+    follows trusts it."""
+    if isinstance(name, str) and (name in _REGISTRY or (allow_all and name == "all")):
+        return name
+    choices = ", ".join(_REGISTRY)
+    if flag and name == "all":
+        raise WarpclothError(f"{flag} all is for test lists (warpcloth sweep); choose one of {choices}")
+    if flag and isinstance(name, str) and not name.strip():
+        raise WarpclothError(f"{flag} is empty; choose one of {choices}")
+    text = repr(name) if len(repr(name)) <= 60 else repr(name)[:57] + "..."
+    raise WarpclothError(
+        f"unknown integrator {text}; choose from {choices}" + (" (or 'all' in a test list)" if allow_all else "")
+    )
+
+
 def integrator_class(name: str) -> type[Integrator]:
-    try:
-        return _REGISTRY[name]
-    except KeyError:
-        raise WarpclothError(f"unknown integrator {name!r}; choose from {', '.join(_REGISTRY)}") from None
+    """The class registered under ``name`` (an unknown name: one line, :func:`check_integrator_name`)."""
+    return _REGISTRY[check_integrator_name(name)]
 
 
 def all_options() -> dict[str, tuple[Option, list[str]]]:
@@ -101,6 +118,7 @@ __all__ = [
     "Integrator",
     "Option",
     "all_options",
+    "check_integrator_name",
     "explicit_euler_dt_bound",
     "stable_dt_estimate",
     "integrator_class",

@@ -250,7 +250,7 @@ def stable_dt_estimate(model, drag_rate: float = 0.0) -> float:
     sum_e k_e |g_i| sum_b |g_b|), which grow as 1/h^2 (bending limits dt as h^2).
     """
     ks_sum, kd_sum = _stiffness_rows(model)
-    mass = model.host["mass"].astype(np.float64)
+    mass = model.host.mass.astype(np.float64)
     omega2 = float(np.max(ks_sum / mass))
     c = float(np.max(kd_sum / mass)) + float(drag_rate)
     if omega2 <= 0.0:
@@ -266,7 +266,7 @@ def model_spectrum(model, drag_rate: float = 0.0) -> tuple[float, float, float]:
     default kd = 2 zeta sqrt(ks m) gives per spring type). Dihedral hinges count in both: their
     Gershgorin rows in omega_max, their kd_e / k_e in beta."""
     ks_sum, _ = _stiffness_rows(model)
-    mass = model.host["mass"].astype(np.float64)
+    mass = model.host.mass.astype(np.float64)
     omega_max = math.sqrt(float(np.max(ks_sum / mass))) if ks_sum.size else 0.0
     ks = model.spring_stiffness.numpy().astype(np.float64)
     kd = model.spring_damping.numpy().astype(np.float64)
@@ -334,7 +334,7 @@ def spring_adjacency(model) -> SpringAdjacency:
     """Each particle's springs (:func:`warpcloth.sim.coloring.particle_adjacency`) with the model's
     spring parameters, as one kernel argument (:class:`~warpcloth.kernels.springs.SpringAdjacency`);
     made once at bind."""
-    offsets, spring, other = particle_adjacency(model.host["pairs"], model.particle_count)
+    offsets, spring, other = particle_adjacency(model.host.pairs, model.particle_count)
     springs = SpringAdjacency()
     springs.offsets = wp.array(offsets, dtype=int, device=model.device)
     springs.spring = wp.array(spring, dtype=int, device=model.device)

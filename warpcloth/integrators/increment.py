@@ -70,7 +70,7 @@ class IncrementSolver(Integrator):
         #: The rigid translation mode's 3 x 3 Galerkin problem (:class:`~warpcloth.integrators.linalg.TranslationSolve`;
         #: its regular term 1e-6 of the free mass keeps it invertible where every free particle slides on one plane).
         host = model.host
-        free_mass = float(host["mass"].astype("float64")[host["inv_mass"] > 0].sum())
+        free_mass = float(host.mass.astype("float64")[host.inv_mass > 0].sum())
         self.rigid = TranslationSolve(model.particle_count, 1.0e-6 * free_mass, model.device)
         self._allocate_solver(model)
 

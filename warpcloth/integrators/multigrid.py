@@ -39,7 +39,7 @@ def grid_structure_reason(model) -> str | None:
     rows, cols, n = int(model.rows or 0), int(model.cols or 0), model.particle_count
     if rows * cols != n or min(rows, cols) < 2 * MIN_COARSE_SIDE - 1:
         return f"the model is not a grid of at least {2 * MIN_COARSE_SIDE - 1} x {2 * MIN_COARSE_SIDE - 1} particles"
-    pairs = model.host["pairs"].astype(np.int64)
+    pairs = model.host.pairs.astype(np.int64)
     if pairs.size:
         dr = np.abs(pairs[:, 0] // cols - pairs[:, 1] // cols)
         dc = np.abs(pairs[:, 0] % cols - pairs[:, 1] % cols)

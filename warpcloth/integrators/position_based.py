@@ -88,7 +88,7 @@ class PositionBasedIntegrator(Integrator):
         return self.default_dt_cap
 
     def _allocate(self, model) -> None:
-        self.coloring = color_springs(model.host["pairs"], model.particle_count, model.cols)
+        self.coloring = color_springs(model.host.pairs, model.particle_count, model.cols)
         self.spring_order = wp.array(self.coloring.order, dtype=wp.int32)
         self.spring_type = wp.array(np.asarray(model.spring_type, dtype=np.int32), dtype=wp.int32)
         self.particle_dp = scratch_like(model)

@@ -339,10 +339,10 @@ class Projective(IncrementSolver):
 def _largest_rates_per_mass(model) -> tuple[float, float]:
     """max_i sum_s ks_s / m_i and max_i sum_s kd_s / m_i over the free particles and their springs [1/s^2, 1/s]."""
     ks_sum, kd_sum = model.particle_spring_sums()
-    free = model.host["inv_mass"] > 0
+    free = model.host.inv_mass > 0
     if not free.any():
         return 0.0, 0.0
-    mass = model.host["mass"].astype(np.float64)[free]
+    mass = model.host.mass.astype(np.float64)[free]
     return float(np.max(ks_sum[free] / mass)), float(np.max(kd_sum[free] / mass))
 
 
@@ -365,14 +365,14 @@ def _hinge_matrix_terms(model, row_offsets, columns) -> tuple[np.ndarray, np.nda
     rows and columns. float32 arrays."""
     n = model.particle_count
     hinges = model.host.hinges
-    c = hinge_rest_coefficients(model.host["q"], hinges.indices)
+    c = hinge_rest_coefficients(model.host.q, hinges.indices)
     q = hinges.indices.astype(np.int64)
     a, b = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
     rows, cols = q[:, a.ravel()].ravel(), q[:, b.ravel()].ravel()
     cc = (c[:, a.ravel()] * c[:, b.ravel()]).ravel()
     k = np.repeat(hinges.stiffness, 16) * cc
     kd = np.repeat(hinges.damping, 16) * cc
-    free = model.host["inv_mass"] > 0
+    free = model.host.inv_mass > 0
     keep = free[rows] & free[cols]
     rows_csr = np.repeat(np.arange(n), np.diff(row_offsets))
     keys = rows_csr * n + columns.astype(np.int64)

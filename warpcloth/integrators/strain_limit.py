@@ -79,7 +79,7 @@ class StrainLimiter:
         self.tolerance = require_positive("strain limit tolerance", tolerance)
         h = model.host
         limited = np.flatnonzero(np.isin(model.spring_type, [SpringType.STRUCTURAL, SpringType.SHEAR]))
-        pairs = h["pairs"][limited]
+        pairs = h.pairs[limited]
         colors = greedy_spring_colors(pairs, model.particle_count)
         # springs with a pinned end get colours of their own, solved last in each pass: they are
         # one-sided (only the free end moves), so they end every pass exactly satisfied
@@ -90,8 +90,8 @@ class StrainLimiter:
         order = coloring.order
         #: (offset, count) of each colour in the sorted spring arrays.
         self.colors = list(zip(coloring.starts, coloring.counts))
-        max_length = (1.0 + self.tau) * h["rest"][limited].astype(np.float64)
-        pin, path = nearest_pin_paths(pairs, h["rest"][limited].astype(np.float64), model.particle_count, model.pinned)
+        max_length = (1.0 + self.tau) * h.rest[limited].astype(np.float64)
+        pin, path = nearest_pin_paths(pairs, h.rest[limited].astype(np.float64), model.particle_count, model.pinned)
         path[pin < 0] = 0.0
         with wp.ScopedDevice(model.device):
             self.spring_indices = wp.array(pairs[order].astype(np.int32), dtype=wp.vec2i)

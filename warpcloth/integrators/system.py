@@ -62,7 +62,7 @@ class ImplicitSystem:
 
     def _allocate(self, model) -> None:
         n, device = model.particle_count, model.device
-        pairs = model.host["pairs"].astype(np.int64).reshape(-1, 2)
+        pairs = model.host.pairs.astype(np.int64).reshape(-1, 2)
         #: K_s and B_s = h^2 K_s + h D_s per spring, shape (spring_count,).
         self.spring_K = wp.zeros(model.spring_count, dtype=wp.mat33)
         self.spring_B = wp.zeros(model.spring_count, dtype=wp.mat33)
@@ -155,7 +155,7 @@ class ImplicitSystem:
             self.hinge_gradient = wp.zeros((count, 4), dtype=wp.vec3)
             self.hinge_gradients = [self.hinge_gradient]
         else:
-            c = hinge_rest_coefficients(model.host["q"], idx)
+            c = hinge_rest_coefficients(model.host.q, idx)
             self.hinge_gradients = [
                 wp.array((c[:, :, None] * np.eye(3)[k]).astype(np.float32), dtype=wp.vec3) for k in range(3)
             ]

@@ -151,7 +151,7 @@ class VBD(IncrementSolver):
     coloring: VertexColoring
 
     def _allocate_solver(self, model) -> None:
-        pairs = model.host["pairs"]
+        pairs = model.host.pairs
         if model.hinge_count:  # no two vertices of a colour share a hinge either
             pairs = np.concatenate([pairs, hinge_pairs(model.host.hinges.indices)])
         self.coloring = color_vertices(pairs, model.particle_count, model.cols)

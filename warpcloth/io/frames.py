@@ -65,8 +65,8 @@ class FrameSinks:
 
 def spring_arrays(model) -> tuple[np.ndarray, np.ndarray]:
     """The model's springs as (pairs (S, 2) int64, rest lengths (S,) float64) on the host."""
-    pairs = np.asarray(model.host["pairs"], dtype=np.int64).reshape(-1, 2)
-    rest = np.asarray(model.host["rest"], dtype=np.float64).reshape(-1)
+    pairs = np.asarray(model.host.pairs, dtype=np.int64).reshape(-1, 2)
+    rest = np.asarray(model.host.rest, dtype=np.float64).reshape(-1)
     return pairs, rest
 
 

@@ -190,7 +190,7 @@ class HtmlWriter:
         self.fps = float(fps)
         self.title = str(title)
         self.info = dict(info or {})
-        self.tris = np.asarray(model.host["tris"], dtype="<u4").reshape(-1, 3)
+        self.tris = np.asarray(model.host.tris, dtype="<u4").reshape(-1, 3)
         self.pairs, self.rest = spring_arrays(model)
         self.pins = [int(i) for i in np.asarray(model.pinned).reshape(-1)]
         self.vertex_count = int(model.particle_count)

@@ -115,7 +115,7 @@ class PreviewWriter:
             check_frame_memory(model, expected_frames, "the GIF preview")
         self.fps = float(fps)
         self.title = title
-        self.tris = np.asarray(model.host["tris"], dtype=np.int64).reshape(-1, 3)
+        self.tris = np.asarray(model.host.tris, dtype=np.int64).reshape(-1, 3)
         self.pins = np.asarray(model.pinned, dtype=np.int64).reshape(-1)
         self.colliders = tuple(colliders or ())
         self.frames: list[np.ndarray] = []

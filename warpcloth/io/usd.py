@@ -328,7 +328,7 @@ class UsdWriter:
         root = UsdGeom.Xform.Define(self.stage, "/World")
         self.stage.SetDefaultPrim(root.GetPrim())
 
-        tris = model.host["tris"]
+        tris = model.host.tris
         self.mesh = UsdGeom.Mesh.Define(self.stage, "/World/Cloth")
         self.mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(tris)))
         self.mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(tris.reshape(-1).tolist()))
@@ -342,7 +342,7 @@ class UsdWriter:
             "pinned", Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.vertex
         )
         primvar.Set(Vt.IntArray(pinned.tolist()))
-        uv = model.host.get("uv")
+        uv = model.host.uv
         if uv is not None:  # texture coordinates per triangle corner (grids, meshes read with UVs)
             st = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar(
                 "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
@@ -367,7 +367,7 @@ class UsdWriter:
             self.mesh.GetPrim().SetCustomDataByKey(
                 "warpcloth:displayColor", f"spring strain, blue 0 to red {self.strain_scale:g}"
             )
-        rest = model.host["q"]
+        rest = model.host.q
         size = float(np.max(rest.max(axis=0) - rest.min(axis=0))) if len(rest) else 1.0
         self.colliders = ColliderPrims(
             self.stage, "/World/Colliders", colliders, plane_size=max(4.0, 10.0 * size), purpose=colliders_purpose

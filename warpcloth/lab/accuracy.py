@@ -103,7 +103,7 @@ class AccuracyProblem:
         )
         self.transient = transient
         self.size = cloth_size(sim.model)
-        x0 = swing_from_horizontal(sim.model) if transient.swing else sim.model.host["q"].astype(np.float64)
+        x0 = swing_from_horizontal(sim.model) if transient.swing else sim.model.host.q.astype(np.float64)
         self.x0 = _float32_exact(x0)
         t0 = time.perf_counter()
         ref = reference_for(sim.model, sim.control, transient.frames, self.x0, rtol=rtol, atol=atol)
@@ -159,7 +159,7 @@ class StaticProblem:
         eq = static_equilibrium(sim.model, sim.control)
         require(eq.residual < 1e-6, f"the float64 static equilibrium did not converge (residual {eq.residual:.3g} N)")
         self.x_eq = eq.x
-        self.rest = sim.model.host["q"].astype(np.float64)
+        self.rest = sim.model.host.q.astype(np.float64)
         self.size = cloth_size(sim.model)
         self.sag = float(np.max(np.linalg.norm(self.x_eq - self.rest, axis=1)))
 
@@ -226,7 +226,7 @@ def _perturbed(model, x0: np.ndarray, seed: int) -> np.ndarray:
     rng = np.random.default_rng(seed)
     d = rng.normal(size=x0.shape)
     d *= PERTURBATION / np.linalg.norm(d, axis=1, keepdims=True)
-    d[model.host["inv_mass"] <= 0] = 0.0
+    d[model.host.inv_mass <= 0] = 0.0
     d[np.asarray(model.pinned, dtype=np.int64)] = 0.0
     return x0 + d
 
@@ -247,7 +247,7 @@ class _Shape:
 
     def __init__(self, model):
         h = model.host
-        self.mass = h["mass"].astype(np.float64)
+        self.mass = h.mass.astype(np.float64)
         rows, cols = int(model.rows or 0), int(model.cols or 0)
         if rows * cols == model.particle_count and rows >= 1:
             grid = np.arange(rows * cols).reshape(rows, cols)
@@ -259,12 +259,12 @@ class _Shape:
         else:
             self.patches = [np.arange(model.particle_count)]
 
-        pairs = h["pairs"].astype(np.int64).reshape(-1, 2)
+        pairs = h.pairs.astype(np.int64).reshape(-1, 2)
         # stretch along the warp and the weft: structural springs (a shear spring's strain is the
         # cloth's shear, which a soft-shear fabric takes freely: the flag's diagonals strain 16 %)
         keep = np.asarray(model.spring_type) == int(SpringType.STRUCTURAL)
         self.pairs = pairs[keep]
-        self.rest = h["rest"].astype(np.float64)[keep]
+        self.rest = h.rest.astype(np.float64)[keep]
 
     def centroid(self, x):  # (F, N, 3) -> (F, 3)
         return np.einsum("n,fnk->fk", self.mass, x) / self.mass.sum()
@@ -417,7 +417,7 @@ class ContactProblem:
         self.transient = transient
         self.size = cloth_size(sim.model)
         self.x0 = transient.start(sim.model)
-        self.rest = sim.model.host["q"].astype(np.float64)
+        self.rest = sim.model.host.q.astype(np.float64)
         t0 = time.perf_counter()
         self.kappa = None
         if x_eq is None:

@@ -89,8 +89,8 @@ def default_devices() -> list[str]:
 def roofline_ms(model, repeats: int = 50) -> float:
     """Median time [ms] of the speed-of-light force pass on ``model``'s device."""
     h = model.host
-    order = np.argsort(h["pairs"][:, 0], kind="stable")
-    pairs = h["pairs"][order]
+    order = np.argsort(h.pairs[:, 0], kind="stable")
+    pairs = h.pairs[order]
     counts = np.bincount(pairs[:, 0], minlength=model.particle_count)
     offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
     d = model.device

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from warpcloth.errors import WarpclothError, require
-from warpcloth.integrators import integrator_names
+from warpcloth.integrators import check_integrator_name, integrator_names
 from warpcloth.lab.accuracy import DEFAULT_TOLERANCE, FRAME_DT, TOLERANCES, check_tolerance
 from warpcloth.scenarios import get_scenario
 from warpcloth.sim.device import require_memory, resolve_device
@@ -122,14 +122,10 @@ def make_plan(
     """A :class:`StudyPlan` from a profile and explicit overrides (checked; one-line errors)."""
     if profile not in PROFILES:
         raise WarpclothError(f"unknown profile {profile!r}; choose one of {', '.join(PROFILES)}")
-    names = integrator_names()
-    if integrators is None:
-        integrators = list(names)
-    integrators = list(integrators)
+    integrators = list(integrator_names() if integrators is None else integrators)
     require(bool(integrators), "the integrator list is empty")
     for name in integrators:
-        if name not in names:
-            raise WarpclothError(f"unknown integrator {name!r}; choose from {', '.join(names)}")
+        check_integrator_name(name, flag="--integrators")
     base = dict(PROFILES[profile])
     if sizes is not None:
         sizes = list(sizes)

@@ -86,19 +86,19 @@ class Float64Model:
             )
         control = control if control is not None else Control(device="cpu")
         h = model.host
-        n = int(h["q"].shape[0])
+        n = int(h.q.shape[0])
         free = np.ones(n, dtype=bool)
         free[np.asarray(model.pinned, dtype=np.int64)] = False
-        free &= h["inv_mass"] > 0
+        free &= h.inv_mass > 0
         return cls(
-            q0=h["q"].astype(np.float64),
-            mass=h["mass"].astype(np.float64),
+            q0=h.q.astype(np.float64),
+            mass=h.mass.astype(np.float64),
             free=free,
-            pairs=h["pairs"].astype(np.int64).reshape(-1, 2),
-            rest=h["rest"].astype(np.float64),
+            pairs=h.pairs.astype(np.int64).reshape(-1, 2),
+            rest=h.rest.astype(np.float64),
             ks=model.spring_stiffness.numpy().astype(np.float64),
             kd=model.spring_damping.numpy().astype(np.float64),
-            tris=h["tris"].astype(np.int64).reshape(-1, 3),
+            tris=h.tris.astype(np.int64).reshape(-1, 3),
             gravity=np.asarray(control.gravity, dtype=np.float64),
             drag_rate=float(control.drag_rate),
             wind_coefficient=float(control.wind_coefficient),
@@ -369,7 +369,7 @@ def swing_from_horizontal(model) -> np.ndarray:
     """Initial positions (N, 3) of the swinging transient: the rest shape rotated by 90 degrees
     about the x axis through particle 0, so a vertical sheet pinned along its top row starts
     horizontal (extending along +z), unstrained, and swings down under gravity."""
-    q = model.host["q"].astype(np.float64)
+    q = model.host.q.astype(np.float64)
     rel = q - q[0]
     out = q.copy()
     out[:, 1] = q[0, 1] + rel[:, 2]

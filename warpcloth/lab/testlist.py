@@ -148,16 +148,17 @@ class RunSpec:
         )
 
     def config(self, dt: float | None = None, duration: float | None = None):
-        """The :class:`~warpcloth.scenarios.ScenarioConfig` of this run."""
+        """The :class:`~warpcloth.scenarios.ScenarioConfig` of this run; ``dt`` [s] replaces the spec's
+        (the dt a ``max`` search found; None: the spec's value, or the integrator's default)."""
         values = dict(self.values)
         for kind in ("stiffness", "damping"):  # a partial per-type value: the builder fills the rest
             v = values.get(kind)
             if isinstance(v, tuple) and None in v:
                 values[kind] = {t: x for t, x in zip(SPRING_TYPES, v) if x is not None}
+        if dt is not None:
+            values["dt"] = dt
         kwargs = config_values(values)
-        kwargs.update(
-            integrator_options=dict(self.options), dt=dt, duration=self.duration if duration is None else duration
-        )
+        kwargs.update(integrator_options=dict(self.options), duration=self.duration if duration is None else duration)
         return get_scenario(self.scenario).config(**kwargs)
 
     def describe(self) -> str:

@@ -189,7 +189,7 @@ def tilted_start(model, degrees: float) -> np.ndarray:
     """Positions (N, 3) of the rest shape rotated by ``degrees`` about the x axis through
     particle 0, towards +z: 90 puts a sheet hanging from its top row horizontal (the swing's
     start, :func:`warpcloth.lab.reference.swing_from_horizontal`)."""
-    q = model.host["q"].astype(np.float64)
+    q = model.host.q.astype(np.float64)
     rel = q - q[0]
     a = math.radians(degrees)
     out = q.copy()
@@ -218,7 +218,7 @@ class StudyTransient:
 
     def start(self, model) -> np.ndarray:
         """The start positions (N, 3) float64, rounded to float32 (what the float32 runs start from)."""
-        x = tilted_start(model, self.tilt) if self.tilt else model.host["q"].astype(np.float64)
+        x = tilted_start(model, self.tilt) if self.tilt else model.host.q.astype(np.float64)
         return np.asarray(x, dtype=np.float32).astype(np.float64)
 
 

@@ -206,11 +206,11 @@ def force_floor(model, control) -> float:
     """The float32 force floor per unit weight, max_i sum_j ks_ij u / (m_i |g|) (see module doc),
     u the spacing of float32 numbers at the largest coordinate the cloth can reach."""
     h = model.host
-    reach = float(np.abs(h["q"]).max()) + model.width + model.height
+    reach = float(np.abs(h.q).max()) + model.width + model.height
     ulp = float(np.spacing(np.float32(reach)))
     ks_sum, _ = model.particle_spring_sums()
     g = max(control.gravity_magnitude, 1.0e-6)
-    return float(np.max(ks_sum * ulp / (h["mass"] * g)))
+    return float(np.max(ks_sum * ulp / (h.mass * g)))
 
 
 #: Patch sizes (free particles) of the coarse-grained net-force test, besides each connected piece whole.
@@ -261,8 +261,8 @@ def particle_aggregates(model, control) -> tuple[list[np.ndarray], np.ndarray, n
     springs crossing its boundary times u, per unit weight; u as in :func:`force_floor`)."""
     h = model.host
     n = model.particle_count
-    free = h["inv_mass"] > 0
-    pairs = h["pairs"].astype(np.int64).reshape(-1, 2)
+    free = h.inv_mass > 0
+    pairs = h.pairs.astype(np.int64).reshape(-1, 2)
     ends = np.concatenate([pairs[:, 0], pairs[:, 1]])
     others = np.concatenate([pairs[:, 1], pairs[:, 0]])
     order = np.argsort(ends, kind="stable")
@@ -273,10 +273,10 @@ def particle_aggregates(model, control) -> tuple[list[np.ndarray], np.ndarray, n
     levels = [_grow_patches(adjacency, free, t) for t in PATCH_SIZES if t < free.sum()]
     levels.append(_grow_patches(adjacency, free, n))  # connected pieces
     g = max(control.gravity_magnitude, 1.0e-6)
-    reach = float(np.abs(h["q"]).max()) + model.width + model.height
+    reach = float(np.abs(h.q).max()) + model.width + model.height
     ulp = float(np.spacing(np.float32(reach)))
     ks = model.spring_stiffness.numpy().astype(np.float64) if model.spring_count else np.zeros(0)
-    mass = h["mass"].astype(np.float64)
+    mass = h.mass.astype(np.float64)
     indices, weights, floors, offset = [], [], [], 0
     for label in levels:
         count = int(label.max()) + 1 if label.size and label.max() >= 0 else 0
@@ -324,8 +324,8 @@ def wind_power_bound(model, control, instability_strain: float) -> float:
     """
     if not control.has_wind or model.tri_count == 0:
         return 0.0
-    q = model.host["q"].astype(np.float64)
-    t = model.host["tris"]
+    q = model.host.q.astype(np.float64)
+    t = model.host.tris
     area = 0.5 * float(np.linalg.norm(np.cross(q[t[:, 1]] - q[t[:, 0]], q[t[:, 2]] - q[t[:, 0]]), axis=1).sum())
     w2 = max(float(np.dot(w, w)) for w in control.wind_schedule.winds)
     return control.wind_coefficient * area * (1.0 + instability_strain) ** 2 * w2 / 4.0

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from warpcloth.errors import FLOAT32_MAX, WarpclothError
-from warpcloth.integrators import integrator_names
+from warpcloth.integrators import check_integrator_name
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
 from warpcloth.run.parse import collider_specs
 from warpcloth.sim.device import device_name
@@ -218,10 +218,8 @@ def choice(*choices: str, what: str):
 
 
 def integrator(text: str) -> str:
-    names = integrator_names()
-    if text != "all" and text not in names:
-        raise ValueError(f"unknown integrator {_shown(text)}; choose from {', '.join(names)} (or 'all' in a test list)")
-    return text
+    """A registered integrator's name, or ``all`` (a test list's every one)."""
+    return check_integrator_name(text, allow_all=True)
 
 
 def scenario(text: str) -> str:
@@ -471,6 +469,16 @@ def _colliders_config(value):
 
 def _group_config(value):
     return tuple(value.split(",")) if value else None
+
+
+def _dt_config(value):
+    """ScenarioConfig's ``dt`` [s]: a value as given (the CLI's float, or a :class:`TimeStep`),
+    None for ``default`` (the integrator's own, computed where the model is built); ``max`` is
+    None too: a test list's search finds that dt and gives it (:meth:`RunSpec.config
+    <warpcloth.lab.testlist.RunSpec.config>`)."""
+    if not isinstance(value, TimeStep):
+        return value
+    return value.value if value.kind == "value" else None
 
 
 def _spring_params(kind: str, unit: str, default_doc: str) -> list[Param]:
@@ -902,7 +910,7 @@ PARAMS: tuple[Param, ...] = (
         xml_aliases=("timestep",),
         columns=("dt_request",),
         search=False,
-        config=None,
+        to_config=_dt_config,
         commands=("run", "sweep"),
         metavar="S",
         cli_type=float,

@@ -161,7 +161,7 @@ def _model(config: ScenarioConfig, device: str):
         model = _rim_floor(model, mat)
         if dihedral:
             q, rigidity = disc_hinges(n, index, v, mat.bend_warp, mat.bend_weft, mat.warp_angle)
-            hinges = build_hinges(model.host["q"], q, rigidity, 0.5, mat.bend_damping_time())
+            hinges = build_hinges(model.host.q, q, rigidity, 0.5, mat.bend_damping_time())
             model = dataclasses.replace(model.with_hinges(hinges), bend=BendModel.DIHEDRAL)
         return model
     check_rigidity(config.bend_rigidity)
@@ -180,8 +180,8 @@ def _model(config: ScenarioConfig, device: str):
     if dihedral:
         b = DEFAULT_BEND_RIGIDITY if config.bend_rigidity is None else float(config.bend_rigidity)
         q, rigidity = disc_hinges(n, index, v, b, b, 0.0)
-        hinges = build_hinges(model.host["q"], q, rigidity, 0.5)
-        damping = hinge_damping_for_ratio(model.host["q"], hinges, model.host["mass"], DEFAULT_BEND_DAMPING_RATIO)
+        hinges = build_hinges(model.host.q, q, rigidity, 0.5)
+        damping = hinge_damping_for_ratio(model.host.q, hinges, model.host.mass, DEFAULT_BEND_DAMPING_RATIO)
         model = dataclasses.replace(
             model.with_hinges(dataclasses.replace(hinges, damping=damping)), bend=BendModel.DIHEDRAL
         )
@@ -197,7 +197,7 @@ def _rim_floor(model, mat):
         return model
     ks[zero] = 0.5 * (min(mat.stretch_warp, mat.stretch_weft) - mat.shear)
     kd = model.spring_damping.numpy().astype(np.float64)
-    pairs, mass = model.host["pairs"], model.host["mass"].astype(np.float64)
+    pairs, mass = model.host.pairs, model.host.mass.astype(np.float64)
     kd[zero] = 2.0 * mat.stretch_damping_ratio * np.sqrt(ks[zero] * 0.5 * (mass[pairs[zero, 0]] + mass[pairs[zero, 1]]))
     with wp.ScopedDevice(model.device):
         return dataclasses.replace(
@@ -243,7 +243,7 @@ def measure(sim, config: ScenarioConfig) -> dict:
     x = sim.state.particle_q.numpy().astype(np.float64)
     result = cusick_drape(
         x,
-        sim.model.host["tris"],
+        sim.model.host.tris,
         up="y",
         center=OFFSET,
         specimen_radius=radius,

@@ -83,9 +83,7 @@ GUST_KEYS = {"wind", "on", "off", "base"}
 #: [run] takes the run parameters of warpcloth.run.params that set up a run (self-collision among
 #: them; ``fps`` is the old spelling of ``frame_rate``) and the integrator's options as a table.
 RUN_PARAMS = tuple(
-    p.name
-    for p in params_for("run")
-    if p.group in ("run", "integrator", "self_collision") and (p.config_field or p.name == "dt")
+    p.name for p in params_for("run") if p.group in ("run", "integrator", "self_collision") and p.config_field
 )
 RUN_KEYS = {"integrator_options", "fps", *RUN_PARAMS}
 #: The largest scenario file read [bytes] (a scenario file is a page of settings; keyframes of a
@@ -424,11 +422,8 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         )
 
     def pin_tracks(config: ScenarioConfig, model_):
-        rest = model_.host["q"].astype(np.float64)
-        return [
-            _track(t, rest, model_.host.get("groups", {}), f"{where}: [[tracks]] #{k + 1}")
-            for k, t in enumerate(tracks)
-        ]
+        rest = model_.host.q.astype(np.float64)
+        return [_track(t, rest, model_.host.groups, f"{where}: [[tracks]] #{k + 1}") for k, t in enumerate(tracks)]
 
     def control(config: ScenarioConfig, device: str) -> Control:
         drag = (0.0 if drag_given is None else drag_given) if config.drag is None else config.drag
@@ -466,9 +461,9 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
             given[name] = value
             continue
         given[name] = r.param(key, name)
-    dt = given.pop("dt", None)
     require(
-        dt is None or dt.kind != "max", f"{where}: run.dt must be a time step in s or 'default' (max is for test lists)"
+        given.get("dt") is None or not given["dt"].uses_max,
+        f"{where}: run.dt must be a time step in s or 'default' (max is for test lists)",
     )
     require(given.get("integrator") != "all", f"{where}: run.integrator must name one integrator, not 'all'")
     defaults = ScenarioConfig(
@@ -491,7 +486,7 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         material=material,
         **material_values,
     )
-    defaults = replace(defaults, dt=dt.value if dt is not None and dt.kind == "value" else None, **config_values(given))
+    defaults = replace(defaults, **config_values(given))
     # the file's options are its integrator's scene settings: a flag for one of them wins, and another
     # integrator chosen by a flag runs with its own (in the configuration, the CLI's options replaced them)
     integrator_defaults = {defaults.integrator: dict(options)} if options else {}

@@ -123,7 +123,7 @@ class ColliderSet:
         if self._rounded_for is model or not rounded:
             self._rounded_for = model
             return
-        auto = auto_edge_radius(model.host["q"], model.host["tris"])
+        auto = auto_edge_radius(model.host.q, model.host.tris)
         rest = self.rest.numpy()
         posed = self.params.numpy()
         for k in rounded:
@@ -282,7 +282,7 @@ class ColliderEdges:
 
     def __init__(self, model, collision: ColliderSet):
         self.model, self.collision = model, collision
-        tris = np.asarray(model.host["tris"], dtype=np.int64).reshape(-1, 3)
+        tris = np.asarray(model.host.tris, dtype=np.int64).reshape(-1, 3)
         n, device = model.particle_count, model.device
         order = collision.order
         self.first = collision.plane_count

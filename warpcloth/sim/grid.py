@@ -218,8 +218,8 @@ def build_grid_cloth(
             if bend_damping_ratio is None
             else require_non_negative("bend_damping_ratio", bend_damping_ratio, "")
         )
-        hinges = grid_hinges(model.host["q"], rows, cols, rigidity)
-        hinges = replace(hinges, damping=hinge_damping_for_ratio(model.host["q"], hinges, model.host["mass"], ratio))
+        hinges = grid_hinges(model.host.q, rows, cols, rigidity)
+        hinges = replace(hinges, damping=hinge_damping_for_ratio(model.host.q, hinges, model.host.mass, ratio))
         model = model.with_hinges(hinges)
     return model
 

@@ -912,7 +912,7 @@ def material_grid_cloth(
     )
     if bend == BendModel.DIHEDRAL:
         hinges = grid_hinges(
-            model.host["q"], rows, cols, mat.bend_warp, mat.bend_weft, mat.warp_angle, mat.bend_damping_time()
+            model.host.q, rows, cols, mat.bend_warp, mat.bend_weft, mat.warp_angle, mat.bend_damping_time()
         )
         model = model.with_hinges(hinges)
     return model
@@ -978,7 +978,7 @@ def material_mesh_cloth(
             vertex_uv = np.zeros((v.shape[0], 2))
             vertex_uv[t.ravel()] = corner_uvs(uv, t, v.shape[0]).astype(np.float64)
         hinges = mesh_hinges(
-            model.host["q"],
+            model.host.q,
             t,
             mat.bend_warp,
             mat.bend_weft,

@@ -469,9 +469,9 @@ def build_mesh_cloth(
             if bend_damping_ratio is None
             else require_non_negative("bend_damping_ratio", bend_damping_ratio, "")
         )
-        q = model.host["q"]
+        q = model.host.q
         hinges = build_hinges(q, triangle_hinges(t), rigidity, 1.0)
-        hinges = replace(hinges, damping=hinge_damping_for_ratio(q, hinges, model.host["mass"], ratio))
+        hinges = replace(hinges, damping=hinge_damping_for_ratio(q, hinges, model.host.mass, ratio))
         model = replace(model.with_hinges(hinges), bend=BendModel.DIHEDRAL)
     return model
 

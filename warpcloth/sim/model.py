@@ -49,8 +49,8 @@ class SpringParams:
 
 @dataclass(frozen=True, eq=False)
 class HostArrays:
-    """The host (NumPy) arrays a :class:`ClothModel` was built from (read-only by convention;
-    ``model.host["q"]`` and ``model.host.get("uv")`` read them as before).
+    """The host (NumPy) arrays a :class:`ClothModel` was built from, as typed fields
+    (``model.host.q``; read-only by convention: the device arrays were made from them).
 
     Attributes:
         q: rest positions [m], (N, 3) float32.
@@ -60,7 +60,7 @@ class HostArrays:
         inv_mass: inverse masses [1/kg], 0 where pinned, (N,) float32.
         tris: triangles, (T, 3) int32.
         uv: texture coordinates per triangle corner, (3T, 2), or None.
-        groups: named vertex groups of a mesh (name -> indices).
+        groups: named vertex groups of a mesh (name -> indices, int64); empty for a grid.
         hinges: the dihedral-bending hinges (:class:`~warpcloth.sim.hinges.Hinges`, float64), or None.
     """
 
@@ -73,19 +73,6 @@ class HostArrays:
     uv: np.ndarray | None = None
     groups: dict = field(default_factory=dict)
     hinges: Hinges | None = None
-
-    def __getitem__(self, name: str):
-        value = getattr(self, name, None) if name in self.__dataclass_fields__ else None
-        if value is None:
-            raise KeyError(name)
-        return value
-
-    def get(self, name: str, default=None):
-        value = getattr(self, name, None) if name in self.__dataclass_fields__ else None
-        return default if value is None else value
-
-    def __contains__(self, name: str) -> bool:
-        return self.get(name) is not None
 
 
 @dataclass(frozen=True, eq=False)  # identity equality and hash (its arrays have no value equality)
@@ -161,7 +148,7 @@ class ClothModel:
 
     @property
     def particle_count(self) -> int:
-        return int(self.host["q"].shape[0])
+        return int(self.host.q.shape[0])
 
     @property
     def spring_count(self) -> int:
@@ -212,13 +199,13 @@ class ClothModel:
         if not self.hinge_count:
             z = np.zeros(self.particle_count)
             return z, z.copy()
-        return hinge_row_sums(self.host["q"], self.host.hinges, self.particle_count)
+        return hinge_row_sums(self.host.q, self.host.hinges, self.particle_count)
 
     @property
     def particle_mass_value(self) -> float:
         """Mass of one particle [kg] (the total split evenly, seed 4.2.4; the smallest mass for
         a non-uniform model)."""
-        return float(self.host["mass"].min())
+        return float(self.host.mass.min())
 
     def spring_counts(self) -> dict[str, int]:
         """Number of springs of each type."""
@@ -230,7 +217,7 @@ class ClothModel:
 
     def particle_spring_sums(self) -> tuple[np.ndarray, np.ndarray]:
         """Per particle, the sums of ks [N/m] and kd [N s/m] of its springs (float64, host)."""
-        pairs = self.host["pairs"]
+        pairs = self.host.pairs
         ks_sum = np.zeros(self.particle_count)
         kd_sum = np.zeros(self.particle_count)
         ks = self.spring_stiffness.numpy().astype(np.float64)

@@ -183,7 +183,7 @@ class KinematicPins:
     def __init__(self, model, tracks, frame_times=None):
         self.device = model.device
         self.tracks = tuple(tracks)
-        rest = model.host["q"].astype(np.float64)
+        rest = model.host.q.astype(np.float64)
         n = model.particle_count
         pinned = np.zeros(n, dtype=bool)
         pinned[model.pinned] = True

@@ -245,11 +245,11 @@ class SelfCollision:
         stiffness = self._default_stiffness(model) if stiffness is None else stiffness
         self.stiffness = require_positive("self-collision stiffness", stiffness, "N/m")
         host = model.host
-        tris = np.asarray(host["tris"], dtype=np.int32).reshape(-1, 3)
+        tris = np.asarray(host.tris, dtype=np.int32).reshape(-1, 3)
         require(len(tris) > 0, "self-collision needs a model with triangles")
         n = model.particle_count
         edges = mesh_topology(tris, n).edges.astype(np.int32)
-        q = np.asarray(host["q"], dtype=np.float64)
+        q = np.asarray(host.q, dtype=np.float64)
         lengths = np.linalg.norm(q[edges[:, 1]] - q[edges[:, 0]], axis=1)
         longest = float(np.max(lengths))
         if exclude_rings is None:
