@@ -145,7 +145,7 @@ def test_obj_sequence_holds_one_obj_per_frame(tmp_path):
         sink.write_frame(points, t / cfg.fps)
     sink.close()
     assert sorted(p.name for p in target.iterdir()) == ["frame_0000.obj", "frame_0001.obj", "frame_0002.obj"]
-    tris = np.asarray(sim.model.host["tris"])
+    tris = np.asarray(sim.model.host.tris)
     for k, points in enumerate(frames):
         mesh = read_obj(str(target / f"frame_{k:04d}.obj"))
         np.testing.assert_allclose(mesh.vertices, points, rtol=1e-8, atol=1e-12)

@@ -407,7 +407,7 @@ class ObjSequenceWriter:
 
     def __init__(self, path: str, model):
         self.path = os.fspath(path)
-        self.tris = np.asarray(model.host["tris"], dtype=np.int64).reshape(-1, 3)
+        self.tris = np.asarray(model.host.tris, dtype=np.int64).reshape(-1, 3)
         self.groups = dict(model.host.groups or {})
         self.frames = 0
         self.folder = AtomicFolder(self.path, "OBJ sequence", OBJ_FRAME_NAMES)
