@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 import warp as wp
+
 from warpcloth.kernels import bending
 from warpcloth.kernels.forces import eval_springs
-
 from warpcloth.sim import hinges as hinge_lib
 from warpcloth.sim.grid import grid_positions, grid_springs
 

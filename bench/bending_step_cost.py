@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 import warp as wp
-from warpcloth.scenarios import sheet
 
 from warpcloth.integrators import integrator_names
+from warpcloth.scenarios import sheet
 
 
 def window(sim, steps: int) -> float:

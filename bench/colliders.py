@@ -26,9 +26,9 @@ import time
 
 import numpy as np
 import warp as wp
-from warpcloth.scenarios import sheet
 
 from warpcloth import Box, Capsule, Control, Plane, Simulator, Sphere, build_grid_cloth
+from warpcloth.scenarios import sheet
 
 APART = (
     Plane(point=(0, -5, 0)),

@@ -12,9 +12,9 @@ import time
 
 import numpy as np
 import warp as wp
-from warpcloth.scenarios.mesh import make_cape
 
 from warpcloth.io.provenance import machine
+from warpcloth.scenarios.mesh import make_cape
 from warpcloth.sim.coloring import (
     greedy_spring_colors,
     greedy_vertex_colors,

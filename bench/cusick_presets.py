@@ -19,6 +19,7 @@ import time
 
 def run_one(preset: str, n: int, device: str) -> dict:
     import warp as wp
+
     from warpcloth.scenarios import get_scenario
 
     wp.config.quiet = True

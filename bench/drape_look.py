@@ -37,9 +37,9 @@ CHROMIUM_FLAGS = [
 
 def timed_run(name: str, integrator: str | None, frames: int, html: str | None, device: str, bend=None) -> dict:
     import warp as wp
-    from warpcloth.scenarios import get_scenario
 
     from warpcloth.io.player import HtmlWriter
+    from warpcloth.scenarios import get_scenario
 
     wp.config.quiet = True
     scenario = get_scenario(name)

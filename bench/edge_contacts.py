@@ -16,6 +16,7 @@ import time
 from dataclasses import replace
 
 import warp as wp
+
 from warpcloth.scenarios import get_scenario
 
 

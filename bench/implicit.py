@@ -22,6 +22,7 @@ import statistics
 import time
 
 import warp as wp
+
 from warpcloth.scenarios import sheet
 
 

@@ -25,6 +25,7 @@ defaults (0.2 kg, ks 1000/1000/200 N/m, Provot bend springs).
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import os
@@ -43,7 +44,6 @@ MODELS = {
 def edge_scenario():
     """The draped sheet: a 1 m square dropped flat on a table, OVERHANG [m] of it beyond the edge."""
     from warpcloth.scenarios.common import Scenario, ScenarioConfig
-
     from warpcloth.sim.colliders import Box
     from warpcloth.sim.control import Control
 
@@ -73,10 +73,10 @@ def edge_scenario():
 def settle(scene: str, model: str, n: int, out: str, device: str) -> dict:
     """Run one (scene, model, size) to rest; its record (positions in ``out``)."""
     import warp as wp
-    from warpcloth.scenarios import get_scenario
 
     from warpcloth.run.harness import RunHarness
     from warpcloth.run.metrics import EquilibriumCriteria
+    from warpcloth.scenarios import get_scenario
 
     path = os.path.join(out, f"{scene}-{model}-{n}.npz")
     if os.path.exists(path):
@@ -126,7 +126,7 @@ def table(records: dict, sizes: list, scene: str, model: str, size_m: float = 1.
         "|---|---|---|---|---|---|",
     ]
     previous = None
-    for a, b in zip(sizes[:-1], sizes[1:]):
+    for a, b in itertools.pairwise(sizes):
         ra, rb = records.get((scene, model, a)), records.get((scene, model, b))
         if ra is None or rb is None:
             continue

@@ -15,9 +15,9 @@ import argparse
 import time
 
 import warp as wp
-from warpcloth.scenarios import sheet
 
 import warpcloth  # noqa: F401  (quiet Warp before init)
+from warpcloth.scenarios import sheet
 
 
 def time_steps(integrator: str, size: int, device: str, steps: int, options: dict):

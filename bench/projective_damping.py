@@ -7,10 +7,9 @@ float64 reference: the error (fraction of the cloth size) of implicit_euler and 
 the default drag and spring damping, and with either set to 0.
 """
 
-from warpcloth.scenarios import get_scenario
-
 from warpcloth.integrators import make_integrator
 from warpcloth.lab.accuracy import AccuracyProblem, Transient
+from warpcloth.scenarios import get_scenario
 
 
 def main() -> None:

@@ -15,6 +15,7 @@ consecutive levels every 6 frames (where in time the estimate grows).
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import time
 from dataclasses import replace
@@ -24,9 +25,8 @@ import warp as wp
 
 
 def top_row_swing(n: int, device: str):
-    from warpcloth.scenarios import sheet
-
     from warpcloth.lab.reference import swing_from_horizontal
+    from warpcloth.scenarios import sheet
 
     scenario = replace(sheet.SCENARIO, pins=lambda rows, cols: list(range(cols)))
     sim = scenario.build(rows=n, cols=n, device=device)
@@ -69,7 +69,7 @@ def main() -> None:
                 out[level] = run.run(pieces, [b << level for b in base])
                 wall = time.perf_counter() - t0
                 print(f"{n}x{n} level {level}: {sum(base) << level} steps, {wall:.1f} s", flush=True)
-            for lo, hi in zip(levels[:-1], levels[1:]):
+            for lo, hi in itertools.pairwise(levels):
                 per = np.linalg.norm(out[lo] - out[hi], axis=-1).max(axis=1) / size
                 every = " ".join(f"{v:.2g}" for v in per[::6])
                 print(

@@ -20,10 +20,10 @@ import statistics
 import time
 
 import warp as wp
-from warpcloth.scenarios import get_scenario
 
 from warpcloth.run.harness import Stopwatch
 from warpcloth.run.params import BY_NAME
+from warpcloth.scenarios import get_scenario
 from warpcloth.sim.self_collision import SelfCollision
 
 SNAPSHOTS = (0.6, 1.2, 1.8, 2.4, 3.0)

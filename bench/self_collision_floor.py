@@ -26,10 +26,10 @@ import statistics
 import time
 
 import warp as wp
-from warpcloth.kernels import self_contact as sk
-from warpcloth.scenarios import get_scenario
 
+from warpcloth.kernels import self_contact as sk
 from warpcloth.run.harness import Stopwatch
+from warpcloth.scenarios import get_scenario
 
 Vec3Array = wp.array(dtype=wp.vec3)
 IntArray = wp.array(dtype=int)

@@ -16,6 +16,7 @@ import collections
 import time
 
 import warp as wp
+
 from warpcloth.scenarios import get_scenario
 
 

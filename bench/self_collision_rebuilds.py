@@ -26,6 +26,7 @@ import argparse
 
 import numpy as np
 import warp as wp
+
 from warpcloth.scenarios import get_scenario
 
 

@@ -16,9 +16,9 @@ import statistics
 
 import warp as wp
 from self_collision import snapshot  # bench/self_collision.py (this script's folder leads sys.path)
-from warpcloth.scenarios import get_scenario
 
 from warpcloth.run.harness import Stopwatch
+from warpcloth.scenarios import get_scenario
 from warpcloth.sim.self_collision import SelfCollision
 
 

@@ -36,9 +36,9 @@ import time
 
 import numpy as np
 import warp as wp
-from warpcloth.kernels import self_contact as sk
 
 from warpcloth import Control, Simulator, build_grid_cloth
+from warpcloth.kernels import self_contact as sk
 from warpcloth.lab.intersections import count_self_intersections
 from warpcloth.run.harness import time_steps
 from warpcloth.sim.self_collision import SelfCollision
@@ -143,7 +143,7 @@ def alternatives(size, thickness, repeats, device):
         mesh = wp.Mesh(points=wp.clone(x), indices=wp.array(model.host.tris.reshape(-1), dtype=int))
         reach = r + 0.75 * spacing * 1.5  # a triangle's box half diagonal, strained a little
 
-    for fn in (lambda: grid.build(x, r + reach), lambda: bvh.refit(), lambda: mesh.refit()):
+    for fn in (lambda: grid.build(x, r + reach), bvh.refit, mesh.refit):
         fn()
 
     def hashgrid():
@@ -215,7 +215,7 @@ def _boxes(
 def _near(x: wp.array(dtype=wp.vec3), tri: wp.vec3i, i: int, r: float):
     if tri[0] == i or tri[1] == i or tri[2] == i:
         return 0
-    q, w = sk.closest_point_triangle(x[i], x[tri[0]], x[tri[1]], x[tri[2]])
+    q, _w = sk.closest_point_triangle(x[i], x[tri[0]], x[tri[1]], x[tri[2]])
     if wp.length(x[i] - q) <= r:
         return 1
     return 0

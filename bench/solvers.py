@@ -33,9 +33,9 @@ import time
 
 import numpy as np
 import warp as wp
-from warpcloth.scenarios import sheet
 
 from warpcloth.lab.reference import static_equilibrium
+from warpcloth.scenarios import sheet
 
 DT = 1.0 / 60.0
 CG_TOL = 1e-3

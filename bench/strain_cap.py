@@ -17,6 +17,7 @@ import platform
 
 import warp as wp
 from implicit import ms_per_step, spread  # bench/implicit.py: the same timing and summary
+
 from warpcloth.scenarios import get_scenario
 
 

@@ -14,8 +14,8 @@ import statistics
 import time
 
 import warp as wp
-from warpcloth.scenarios import get_scenario
 
+from warpcloth.scenarios import get_scenario
 from warpcloth.sim.self_collision import SelfCollision
 
 CHECK = SelfCollision._cover_swept

@@ -4,11 +4,11 @@ the value and what is allowed, before any allocation (issue: Python API errors).
 import math
 
 import pytest
-from warpcloth.scenarios import sheet
 
 from warpcloth import Control, Simulator, WarpclothError, build_grid_cloth, make_integrator
 from warpcloth.io.usd import UsdWriter
 from warpcloth.run.harness import RunHarness
+from warpcloth.scenarios import sheet
 from warpcloth.sim.control import WindSchedule
 
 INF, NAN = math.inf, math.nan

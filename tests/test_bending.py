@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
+
 from warpcloth.kernels import bending as K
 from warpcloth.kernels.forces import eval_particle_forces, eval_springs
 from warpcloth.kernels.integrate import integrate_explicit_euler
-
 from warpcloth.sim import hinges as H
 from warpcloth.sim.grid import build_grid_cloth, grid_springs, grid_triangles
 from warpcloth.sim.model import SpringParams, SpringType

@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from test_implicit import dense_system
-from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator
 from warpcloth.errors import WarpclothError
@@ -19,6 +18,7 @@ from warpcloth.lab.cantilever import (
     elastica_tip_drop,
     strip_tip_drop,
 )
+from warpcloth.scenarios import flag, sheet
 from warpcloth.sim.grid import build_grid_cloth, expected_spring_counts
 from warpcloth.sim.hinges import DEFAULT_BEND_RIGIDITY, grid_hinge_indices, hinge_angle_gradients
 from warpcloth.sim.material import PRESETS

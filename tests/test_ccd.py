@@ -6,10 +6,10 @@ side, equal and opposite where both sides are free."""
 import numpy as np
 import pytest
 import warp as wp
-from warpcloth.kernels import ccd
 
 from warpcloth import Control, Plane
 from warpcloth.errors import WarpclothError
+from warpcloth.kernels import ccd
 from warpcloth.lab import intersections as ix
 from warpcloth.sim.model import SpringParams, SpringType, build_model
 from warpcloth.sim.self_collision import SelfCollision
@@ -25,7 +25,7 @@ def _roots(q: wp.array(dtype=wp.vec4), out: wp.array(dtype=wp.vec3)):
 
 @wp.kernel
 def _vertex_triangle(x0: wp.array(dtype=wp.vec3), x1: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
-    hit, t, w, n, r0, r1 = ccd.vertex_triangle_ccd(x0[0], x0[1], x0[2], x0[3], x1[0], x1[1], x1[2], x1[3], ETA, ETA)
+    hit, t, _w, n, r0, r1 = ccd.vertex_triangle_ccd(x0[0], x0[1], x0[2], x0[3], x1[0], x1[1], x1[2], x1[3], ETA, ETA)
     out[0] = float(hit)
     out[1] = t
     out[2] = wp.dot(n, r0)
@@ -34,7 +34,7 @@ def _vertex_triangle(x0: wp.array(dtype=wp.vec3), x1: wp.array(dtype=wp.vec3), o
 
 @wp.kernel
 def _edge_edge(x0: wp.array(dtype=wp.vec3), x1: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
-    hit, t, w, n, r0, r1 = ccd.edge_edge_ccd(x0[0], x0[1], x0[2], x0[3], x1[0], x1[1], x1[2], x1[3], ETA, ETA)
+    hit, t, w, _n, _r0, _r1 = ccd.edge_edge_ccd(x0[0], x0[1], x0[2], x0[3], x1[0], x1[1], x1[2], x1[3], ETA, ETA)
     out[0] = float(hit)
     out[1] = t
     out[2] = w[1]

@@ -20,7 +20,7 @@ def run_cli(capsys, *argv):
 
 
 def test_run_json_parses_and_is_consistent(capsys):
-    code, out, err = run_cli(capsys, "run", "sheet", "--rows", "6", "--cols", "7", "--duration", "0.5", "--json")
+    code, out, _err = run_cli(capsys, "run", "sheet", "--rows", "6", "--cols", "7", "--duration", "0.5", "--json")
     assert code == 0
     d = json.loads(out)
     for key in [
@@ -82,7 +82,7 @@ def test_run_summary_and_flags(capsys, tmp_path):
 
 
 def test_num_frames_sets_duration(capsys):
-    code, out, err = run_cli(
+    code, out, _err = run_cli(
         capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "6", "--fps", "60", "--json"
     )
     assert code == 0
@@ -143,7 +143,7 @@ def test_missing_cuda_device_error(capsys):
 
     if wp.is_cuda_available():
         pytest.skip("a CUDA device is present")
-    code, out, err = run_cli(capsys, "run", "sheet", "--device", "cuda")
+    code, _out, err = run_cli(capsys, "run", "sheet", "--device", "cuda")
     assert code == 2 and "no CUDA device found" in err
 
 
@@ -195,7 +195,7 @@ def test_messages_name_the_input(capsys, argv, message):
         code = main(argv)
     except SystemExit as exc:  # argparse's own errors exit from parse_args
         code = exc.code
-    out, err = capsys.readouterr()
+    _out, err = capsys.readouterr()
     assert code == 2
     lines = [line for line in err.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith("warpcloth: error: ") and message in lines[0], err
@@ -309,7 +309,7 @@ def test_collider_and_pin_inputs_are_refused_in_one_short_line(capsys, argv, mes
     scenario = "mesh" if argv[0] == "--pin" else "sheet"
     with pytest.raises(SystemExit) as exc:
         raise SystemExit(main(["run", scenario, *argv, "--duration", "0.01"]))
-    out, err = capsys.readouterr()
+    _out, err = capsys.readouterr()
     lines = [line for line in err.splitlines() if line.strip()]
     assert exc.value.code == 2 and len(lines) == 1 and lines[0].startswith("warpcloth: error: "), err
     assert (message or "is a number, not a condition such as") in lines[0]
@@ -356,7 +356,7 @@ def test_more_inputs_are_refused_in_one_line(capsys, tmp_path, monkeypatch, argv
         code = main(argv)
     except SystemExit as exc:
         code = exc.code
-    out, err = capsys.readouterr()
+    _out, err = capsys.readouterr()
     lines = [line for line in err.splitlines() if line.strip()]
     assert code == 2 and len(lines) == 1 and lines[0].startswith("warpcloth: error: ") and message in lines[0], err
     assert len(lines[0]) < 250
@@ -397,7 +397,7 @@ def test_a_closed_stdout_is_one_line_exit_74(argv):
 
 
 def test_numpy_warnings_never_reach_stderr(capsys, recwarn):
-    code, out, err = run_cli(
+    _code, _out, err = run_cli(
         capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--width", "3e38", "--duration", "0.01", "--json"
     )
     assert "RuntimeWarning" not in err and "encountered" not in err, err

@@ -3,8 +3,8 @@ than the greedy colouring it replaces, greedy kept as the fallback; grids keep t
 
 import numpy as np
 import pytest
-from warpcloth.scenarios.mesh import make_cape
 
+from warpcloth.scenarios.mesh import make_cape
 from warpcloth.sim import coloring
 from warpcloth.sim.coloring import color_vertices, greedy_vertex_colors, is_valid_vertex_coloring, warp_vertex_colors
 from warpcloth.sim.grid import build_grid_cloth

@@ -185,9 +185,7 @@ def test_free_cloth_falls_along_its_plane_by_its_schemes_discrete_free_fall(name
     )
 
 
-@pytest.mark.parametrize(
-    "name,options", [(n, {}) for n in NAMES] + [("vbd", {"vbd_correction_strain": 0.1})], ids=lambda v: str(v)
-)
+@pytest.mark.parametrize("name,options", [(n, {}) for n in NAMES] + [("vbd", {"vbd_correction_strain": 0.1})], ids=str)
 def test_free_cloth_slides_down_a_frictionless_slope_at_g_sin(name, options):
     """An 8 x 8 cloth (0.3 m, 50 g) lying on a frictionless plane, gravity tilted 30 degrees, 0.5 s
     at the scheme's default dt: it stays on the surface and its mean velocity along the slope is

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 import warp as wp
 from helpers import spring_params
-from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, Simulator, WarpclothError, WindSchedule, build_grid_cloth
+from warpcloth.scenarios import flag, sheet
 from warpcloth.sim.device import resolve_device
 from warpcloth.sim.model import build_model
 

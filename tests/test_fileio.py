@@ -386,7 +386,7 @@ def test_sigterm_during_run_usd_removes_the_temporary(tmp_path):
         assert proc.poll() is None and no_temporaries(tmp_path), proc.communicate()
         time.sleep(0.5)  # inside the run loop
         proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=120)
+        _out, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             proc.kill()

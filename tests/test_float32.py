@@ -3,10 +3,10 @@ at realistic heights (y = 1.5 m, where ulp(y) = 1.2e-7 m) and small time steps."
 
 import numpy as np
 import pytest
-from warpcloth.scenarios import sheet
 
 from warpcloth import Control, Simulator, SpringParams, SpringType, make_integrator
 from warpcloth.run.harness import RunHarness
+from warpcloth.scenarios import sheet
 from warpcloth.sim.model import build_model
 
 G = 9.81

@@ -5,15 +5,15 @@ import pytest
 import warp as wp
 import warp.sparse as wps
 from warp.optim.linear import cg, preconditioner
-from warpcloth.kernels import implicit as ik
-from warpcloth.kernels import system as sk
-from warpcloth.scenarios import sheet
 
 from warpcloth.cli import main as cli_main
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators import make_integrator
 from warpcloth.integrators.implicit_euler import ImplicitEuler
+from warpcloth.kernels import implicit as ik
+from warpcloth.kernels import system as sk
 from warpcloth.run.harness import RunHarness
+from warpcloth.scenarios import sheet
 
 GRAVITY = np.array([0.0, -9.81, 0.0])
 
@@ -208,7 +208,7 @@ def test_matrix_free_operator_equals_dense_numpy_product(jacobian):
 
 
 def test_jacobi_diagonal_is_the_inverse_diagonal_of_A():
-    sim, x, v = perturbed_sheet(integrator_options={"matrix": "bsr"})
+    sim, _x, _v = perturbed_sheet(integrator_options={"matrix": "bsr"})
     integ = sim.integrator
     integ.system.assemble(sim.state.particle_q, 1.0 / 60.0, float(sim.control.drag_rate))
     np.testing.assert_allclose(integ.inv_diag.numpy().ravel(), 1.0 / np.diag(bsr_to_dense(integ.A)), rtol=1e-6)
@@ -321,7 +321,7 @@ def test_small_dt_agrees_with_rk4(stiffness, dt, tol):
         sim.simulate(int(round(duration / sim.dt)))
         return sim.state.particle_q.numpy().astype(np.float64), sim
 
-    ref, rk4 = final("rk4", None)
+    ref, _rk4 = final("rk4", None)
     q, sim = final("implicit_euler", dt, integrator_options={"cg_tol": 1e-6})
     moved = np.abs(ref - sim.model.host.q).max()
     assert moved > 2e-4

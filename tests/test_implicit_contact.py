@@ -10,10 +10,10 @@ import math
 import numpy as np
 import pytest
 from helpers import PER_SPRING_SCENE, box_edge_radius, deepest_in_drape, drape_sphere_depth
-from warpcloth.scenarios import get_scenario
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth
 from warpcloth.run.harness import RunHarness
+from warpcloth.scenarios import get_scenario
 from warpcloth.sim.colliders import ColliderTrack
 
 G = 9.81

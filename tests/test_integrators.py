@@ -227,7 +227,6 @@ def test_graph_replay_with_colliders_is_bit_identical(device, integrator, option
 @pytest.mark.parametrize("device", DEVICES)
 def test_graph_replay_with_strain_limit_is_bit_identical(device):
     from warpcloth.scenarios import flag
-
     from warpcloth.simulator import graph_capture_supported
 
     if not graph_capture_supported(device):

@@ -9,8 +9,6 @@ import math
 
 import numpy as np
 import pytest
-from warpcloth.scenarios import get_scenario
-from warpcloth.scenarios.cusick import disc_grid, disc_hinges
 
 from warpcloth.cli import main
 from warpcloth.cli.model import config_from_args
@@ -18,6 +16,8 @@ from warpcloth.errors import WarpclothError
 from warpcloth.lab import calibrate as cal
 from warpcloth.lab.testlist import parse_test_list
 from warpcloth.run.drape import fold_count
+from warpcloth.scenarios import get_scenario
+from warpcloth.scenarios.cusick import disc_grid, disc_hinges
 from warpcloth.sim.hinges import build_hinges
 from warpcloth.sim.material import PRESETS, Material, grid_spring_params, material, material_with
 
@@ -34,7 +34,7 @@ def one_line_error(capsys, *argv) -> str:
     with pytest.raises(SystemExit) as exc:
         raise SystemExit(main(list(argv)))
     assert exc.value.code == 2
-    out, err = capsys.readouterr()
+    _out, err = capsys.readouterr()
     lines = [line for line in err.splitlines() if line.strip() and "CUDA" not in line]
     assert len(lines) == 1 and lines[0].startswith("warpcloth: error: ") and "Traceback" not in err, err
     return lines[0]

@@ -510,7 +510,7 @@ def test_usd_layers_are_checked_before_the_stage_opens(tmp_path):
         load_mesh(str(tmp_path / "top.usda"))
     top.subLayerPaths.remove("./missing.usda")
     top.Save()
-    stage, layers = open_usd_stage(str(tmp_path / "top.usda"))
+    _stage, layers = open_usd_stage(str(tmp_path / "top.usda"))
     assert [os.path.basename(layer.identifier) for layer in layers] == ["top.usda", "cloth.usda"]
     assert load_mesh(str(tmp_path / "top.usda")).vertices.shape == (5, 3)
     assert MAX_MESH_FILE_BYTES == 2**31

@@ -16,9 +16,9 @@ from warpcloth.io.meshio import load_mesh_collider
 from warpcloth.sim.colliders import MeshCollider
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from helpers import free_particles, parse_collider  # noqa: E402
+from helpers import free_particles, parse_collider
 
-from bench.colliders import mesh_sphere  # noqa: E402
+from bench.colliders import mesh_sphere
 
 G = 9.81
 CUBE_V = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
@@ -140,11 +140,11 @@ def test_coulomb_friction_on_a_tilted_mesh():
 
 def test_mesh_from_obj_toml_cli_and_usd(tmp_path, capsys):
     from pxr import Usd, UsdGeom
-    from warpcloth.scenarios import get_scenario
 
     from warpcloth.cli import main
     from warpcloth.io.meshio import write_obj
     from warpcloth.io.usd import UsdWriter
+    from warpcloth.scenarios import get_scenario
 
     write_obj(str(tmp_path / "table.obj"), CUBE_V * 0.3 + (0.5, -0.3, 0.5), CUBE_T)
     from_file = load_mesh_collider(str(tmp_path / "table.obj"), thickness=0.01)

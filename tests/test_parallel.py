@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
-from parallel_toy import toy  # noqa: E402 - a job function the spawned workers import without Warp
+from parallel_toy import toy
 
 import warpcloth.lab.sweep as sweep
 from warpcloth.cli import main

@@ -9,8 +9,6 @@ discrete free fall; and the sheet's sag against rk4.
 import numpy as np
 import pytest
 import warp as wp
-from warpcloth.kernels import constraints as ck
-from warpcloth.scenarios import flag, sheet
 
 from warpcloth import (
     BendModel,
@@ -25,7 +23,9 @@ from warpcloth import (
 )
 from warpcloth.cli import main as cli_main
 from warpcloth.integrators.pbd import iteration_stiffness
+from warpcloth.kernels import constraints as ck
 from warpcloth.run.harness import RunHarness
+from warpcloth.scenarios import flag, sheet
 from warpcloth.sim.coloring import color_springs, greedy_spring_colors, grid_spring_colors, is_valid_coloring
 from warpcloth.sim.grid import grid_springs
 from warpcloth.sim.model import HostArrays

@@ -286,7 +286,7 @@ def test_moving_colliders_posed_at_every_frame(flag_page, tmp_path):
 
 def test_cli_run_shows_the_scenarios_and_the_command_lines_colliders(capsys, tmp_path):
     html = tmp_path / "t.html"
-    code, out, err = _run(
+    code, _out, err = _run(
         capsys,
         "run",
         "tablecloth",

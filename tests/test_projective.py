@@ -110,9 +110,8 @@ def test_one_iteration_with_exact_cg_is_one_global_solve():
 def test_sheet_settles_on_the_static_equilibrium():
     """16 x 16 scenario sheet, default options, dt = 1/60 s, 10 s: sag within 2 % of the float64
     equilibrium's."""
-    from warpcloth.scenarios import sheet
-
     from warpcloth.lab.reference import static_equilibrium
+    from warpcloth.scenarios import sheet
 
     sim = sheet.build(rows=16, cols=16, integrator="projective", dt=1.0 / 60.0)
     eq = static_equilibrium(sim.model, sim.control)

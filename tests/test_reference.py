@@ -4,6 +4,7 @@ kernels (a second implementation of the same model), and against warpcloth's flo
 Every test compares with a number that does not come from the code under test: a closed form, a
 hand-computed force, the Warp kernels, or the float32 integrators converging to it."""
 
+import itertools
 import math
 
 import numpy as np
@@ -157,7 +158,7 @@ def test_a_free_triangle_follows_a_switching_wind_exactly():
 
     def exact(t):
         z, w = 0.0, 0.0
-        for a, e in zip(edges[:-1], edges[1:]):
+        for a, e in itertools.pairwise(edges):
             h = min(t, e) - a
             if h <= 0:
                 break

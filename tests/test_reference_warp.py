@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from conftest import DEVICES
 from helpers import single_spring
-from warpcloth.scenarios import flag, sheet
 
 from warpcloth import Control, WarpclothError, WindSchedule
 from warpcloth.lab import reference_warp as rw
 from warpcloth.lab.reference import cloth_size, reference_trajectory, swing_from_horizontal, trajectory_error
+from warpcloth.scenarios import flag, sheet
 from warpcloth.sim.pins import PinTrack
 
 SWING_DURATION, SWING_FRAME = 0.3, 0.01

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import json
+from typing import ClassVar
 
 import pytest
 import test_contract as contract  # (a module attribute: pytest does not collect its tests twice)
@@ -40,7 +41,7 @@ class SubstepEuler(ExplicitEuler):
     )
 
     #: The options of every instance made (what ``run`` and ``sweep`` passed on).
-    made: list = []
+    made: ClassVar[list] = []
 
     def __init__(self, **options):
         super().__init__(**options)

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
-from warpcloth.kernels import forces
-from warpcloth.scenarios import flag
 
 from warpcloth import Simulator, WarpclothError, build_grid_cloth
+from warpcloth.kernels import forces
+from warpcloth.scenarios import flag
 from warpcloth.sim.device import deterministic, set_deterministic
 
 needs_mode = pytest.mark.skipif(not hasattr(wp, "DeterministicMode"), reason="Warp < 1.15 has no DeterministicMode")
@@ -68,9 +68,8 @@ def test_every_covered_kernel_compiles_in_deterministic_mode_for_cuda():
     import importlib
     import pkgutil
 
-    from warpcloth.kernels import self_contact
-
     import warpcloth
+    from warpcloth.kernels import self_contact
     from warpcloth.sim.device import _kernel_modules
 
     try:

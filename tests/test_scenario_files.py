@@ -161,7 +161,7 @@ def test_scenario_file_runs_through_sweep(capsys, scenario_file, tmp_path, monke
     monkeypatch.chdir(tmp_path)
     tests = tmp_path / "t.xml"
     tests.write_text('<test_list><test integrator="xpbd pbd" scenario="windy.toml" duration="0.1"/></test_list>')
-    code, out, err = run_cli(capsys, "sweep", str(tests), "--out", "r.csv", "--quiet")
+    code, _out, err = run_cli(capsys, "sweep", str(tests), "--out", "r.csv", "--quiet")
     assert code == 0, err
     rows = list(csv.DictReader(open(tmp_path / "r.csv")))
     assert [r["scenario"] for r in rows] == ["windy.toml", "windy.toml"]

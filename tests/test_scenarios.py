@@ -6,11 +6,11 @@ import os
 
 import numpy as np
 import pytest
-from warpcloth.scenarios import flag, get_scenario, sheet
 
 from warpcloth import WarpclothError
 from warpcloth.io.usd import UsdWriter
 from warpcloth.run.harness import RunHarness
+from warpcloth.scenarios import flag, get_scenario, sheet
 
 
 def test_sheet_reaches_equilibrium_and_sags_a_little():
@@ -256,9 +256,8 @@ def test_a_scene_runs_an_integrator_with_its_own_settings_unless_the_user_gives_
     assert drape.build(integrator="pbd", rows=6, cols=6).integrator.substeps == 8
     assert drape.build(integrator="xpbd", rows=6, cols=6).integrator.substeps == 4
     assert plain.build(integrator="projective", rows=6, cols=6).integrator.pd_iterations == 10
-    from warpcloth.scenarios import scenario_names
-
     from warpcloth.integrators import integrator_names, make_integrator
+    from warpcloth.scenarios import scenario_names
 
     for scenario in map(get_scenario, scenario_names()):  # every scene's settings: known integrators, options
         for name, options in scenario.integrator_defaults.items():

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 import warp as wp
 from helpers import sharp_boxes
-from warpcloth.scenarios import get_scenario
 
 from warpcloth import Box, Control, Plane, Simulator, build_grid_cloth
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators import integrator_names, make_integrator
 from warpcloth.lab import intersections as ix
+from warpcloth.scenarios import get_scenario
 from warpcloth.sim.model import SpringParams, SpringType, build_model
 from warpcloth.sim.self_collision import COUNT_NAMES, SelfCollision
 
@@ -573,7 +573,7 @@ def test_flat_triangles_one_ring_apart_on_the_ground_do_not_intersect():
 def test_implicit_eulers_contact_block_is_the_penalty_jacobian():
     """The product implicit Euler adds to A for the self-contacts is alpha h^2 k C with C = sum over
     overlapping contacts of (W W^T) kron (n n^T), assembled here in NumPy: symmetric, positive semi-definite."""
-    model, v0 = two_sheets(gap=0.003, rows=4)
+    model, _v0 = two_sheets(gap=0.003, rows=4)
     sim = Simulator(model, "implicit_euler", Control(gravity=(0, 0, 0), device="cpu"), self_collision={"thickness": H})
     integ, sc = sim.integrator, sim.self_collision
     x = sim.state.particle_q
@@ -621,7 +621,7 @@ def test_self_collision_is_on_where_the_scene_folds_and_a_run_reports_it():
 def test_an_overflow_is_reported_on_stderr(capsys):
     from warpcloth.run.harness import RunHarness
 
-    model, v0 = two_sheets(gap=0.004)
+    model, _v0 = two_sheets(gap=0.004)
     sc = SelfCollision(model, thickness=H, contacts_per_element=1, candidates_per_vertex=1, candidates_per_edge=1)
     sim = Simulator(model, "xpbd", Control(gravity=(0, 0, 0), device="cpu"), self_collision=sc)
     result = RunHarness(sim).run(0.05)

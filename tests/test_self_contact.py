@@ -8,12 +8,12 @@ allocation, overflow counted, capture and replay bit-identical."""
 import numpy as np
 import pytest
 import warp as wp
-from warpcloth.kernels import integrate as ik
-from warpcloth.kernels import self_contact as sk
 
 from warpcloth import Box, Control, MeshCollider, build_grid_cloth
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators.forces import eval_forces
+from warpcloth.kernels import integrate as ik
+from warpcloth.kernels import self_contact as sk
 from warpcloth.lab import intersections as ix
 from warpcloth.sim.model import SpringParams, SpringType, build_model
 from warpcloth.sim.self_collision import SelfCollision, exclusion_tables

@@ -69,9 +69,8 @@ def test_vbd_keeps_a_free_cloths_momentum():
 def _sheet_mesh_twin(n):
     """The scenario sheet (n x n, two corner pins) and the same sheet as a build_mesh_cloth model
     (its grid's triangles with quads: the same springs, masses and pins)."""
-    from warpcloth.scenarios import get_scenario
-
     from warpcloth import build_mesh_cloth
+    from warpcloth.scenarios import get_scenario
     from warpcloth.sim.grid import grid_triangles
 
     grid = get_scenario("sheet").build(rows=n, cols=n, integrator="vbd")
@@ -187,9 +186,8 @@ def test_implicit_tolerance_below_the_float32_floor_is_not_converged_and_names_t
     # cg_tol 1e-5 on the 32 x 32 sheet: float32 cannot get there (the exact solution rounded to float32
     # leaves 2-7.5e-5); the run is not converged and one warning line names the floor. Before: reported
     # converged (CG's recursive residual 4-9e-6, the true one 4-8e-4).
-    from warpcloth.scenarios import sheet
-
     from warpcloth.run.harness import RunHarness
+    from warpcloth.scenarios import sheet
 
     result = RunHarness(
         sheet.build(rows=32, cols=32, integrator="implicit_euler", integrator_options={"cg_tol": 1e-5})
@@ -244,9 +242,8 @@ def test_projective_free_fall_keeps_the_cloths_shape():
 def test_projective_without_damping_does_not_gain_energy_between_frames():
     # the 32 x 32 sheet, kd = 0, no drag, 2 s from rest: no frame gains more than 1e-4 of the energy
     # the fall released (measured 9.8e-6, float noise; implicit Euler 5.6e-6). Before: 2.5e-3.
-    from warpcloth.scenarios import get_scenario
-
     from warpcloth.run.harness import RunHarness
+    from warpcloth.scenarios import get_scenario
 
     harness = RunHarness(get_scenario("sheet").build(rows=32, cols=32, integrator="projective", damping=0.0, drag=0.0))
     e = [harness.energy()]

@@ -5,7 +5,6 @@ import math
 
 import pytest
 from helpers import displace, single_spring
-from warpcloth.scenarios import get_scenario, sheet
 
 from warpcloth import Control, Simulator, WarpclothError
 from warpcloth.cli import main
@@ -14,6 +13,7 @@ from warpcloth.integrators.midpoint import rk2_amplification
 from warpcloth.lab.maxdt import find_max_dt, format_result
 from warpcloth.run.harness import RunHarness
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
+from warpcloth.scenarios import get_scenario, sheet
 
 NO_GRAVITY = (0.0, 0.0, 0.0)
 KS, MASS = 40.0, 0.1
@@ -34,7 +34,7 @@ def spring_run(integrator, h_omega, duration, kd=0.0):
 def test_undamped_midpoint_is_flagged_within_two_seconds():
     # RK2 amplifies the undamped spring by sqrt(1 + 0.4^4/4) per step: its energy grows without
     # bound, while the strain stays far below any strain limit for the first seconds
-    sim, r = spring_run("midpoint", 0.4, 2.0)
+    _sim, r = spring_run("midpoint", 0.4, 2.0)
     assert not r.stable
     assert r.unstable_reason.startswith("energy growing without bound")
     assert r.unstable_time <= 2.0

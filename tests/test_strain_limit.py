@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 import warp as wp
-from warpcloth.scenarios import sheet
 
 from warpcloth.cli import main as cli_main
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators.strain_limit import StrainLimiter
+from warpcloth.scenarios import sheet
 from warpcloth.sim.coloring import greedy_spring_colors as color_springs
 from warpcloth.sim.grid import build_grid_cloth
 from warpcloth.sim.model import SpringType
@@ -89,7 +89,7 @@ def test_a_spring_within_its_limit_is_left_alone():
 
 
 def test_a_pinned_end_does_not_move():
-    model, state, q, v = _one_spring([0.0, 1.0], 3.0)
+    model, state, q, _v = _one_spring([0.0, 1.0], 3.0)
     StrainLimiter(model, TAU).apply(state, 0.01)
     q1 = state.particle_q.numpy()
     np.testing.assert_array_equal(q1[0], q[0].astype(np.float32))

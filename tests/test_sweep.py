@@ -11,7 +11,6 @@ import time
 from pathlib import Path
 
 import pytest
-from warpcloth.scenarios import get_scenario
 
 import warpcloth.lab.sweep as sweep
 from warpcloth import integrators
@@ -22,6 +21,7 @@ from warpcloth.integrators.explicit_euler import ExplicitEuler
 from warpcloth.lab.maxdt import find_max_dt
 from warpcloth.lab.testlist import ATTRIBUTES, parse_test_list
 from warpcloth.run.harness import RunHarness
+from warpcloth.scenarios import get_scenario
 from warpcloth.sim.grid import expected_spring_counts
 from warpcloth.sim.model import default_damping
 

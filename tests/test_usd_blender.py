@@ -11,9 +11,9 @@ import textwrap
 import numpy as np
 import pytest
 from pxr import Usd, UsdGeom
-from warpcloth.scenarios import get_scenario
 
 from warpcloth.io.usd import UsdWriter
+from warpcloth.scenarios import get_scenario
 
 
 def _write(path, scenario, frames=4, **kw):

@@ -4,9 +4,9 @@ import os
 
 import numpy as np
 import pytest
-from warpcloth.scenarios import flag
 
 from warpcloth.io.usd import UsdWriter
+from warpcloth.scenarios import flag
 
 
 def frames(model, n):

@@ -39,7 +39,7 @@ def test_provenance_round_trips(capsys, tmp_path):
         "--usd",
         str(usd),
     ]
-    code, out, err = _run(capsys, *argv)
+    code, _out, err = _run(capsys, *argv)
     assert code == 0, err
     stage = Usd.Stage.Open(str(usd))
     info = stage.GetRootLayer().customLayerData["warpcloth"]
@@ -61,7 +61,7 @@ def test_provenance_round_trips(capsys, tmp_path):
 
 def test_pins_written_once_with_extent(capsys, tmp_path):
     usd = tmp_path / "s.usda"
-    code, out, err = _run(capsys, "run", "sheet", "--rows", "6", "--cols", "7", "--num-frames", "5", "--usd", str(usd))
+    code, _out, err = _run(capsys, "run", "sheet", "--rows", "6", "--cols", "7", "--num-frames", "5", "--usd", str(usd))
     assert code == 0, err
     stage = Usd.Stage.Open(str(usd))
     pins = UsdGeom.Points(stage.GetPrimAtPath("/World/Pins"))
@@ -79,9 +79,8 @@ def test_pins_written_once_with_extent(capsys, tmp_path):
 
 
 def test_pins_time_sampled_when_they_move(tmp_path):
-    from warpcloth.scenarios import sheet
-
     from warpcloth.io.usd import UsdWriter
+    from warpcloth.scenarios import sheet
 
     sim = sheet.build(rows=4, cols=4)
     w = UsdWriter(str(tmp_path / "m.usda"), sim.model, 10.0)
@@ -101,7 +100,7 @@ def test_pins_time_sampled_when_they_move(tmp_path):
 
 def test_strain_display_color(capsys, tmp_path):
     usd = tmp_path / "c.usda"
-    code, out, err = _run(
+    code, _out, err = _run(
         capsys,
         "run",
         "flag",
@@ -131,7 +130,7 @@ def test_strain_display_color(capsys, tmp_path):
 
 def test_usdz_opens_and_validates(capsys, tmp_path):
     usdz = tmp_path / "f.usdz"
-    code, out, err = _run(
+    code, _out, err = _run(
         capsys,
         "run",
         "flag",
@@ -174,7 +173,7 @@ def validation_errors(stage) -> list:
 
 def test_usd_validation_passes_usda_and_can_fail(capsys, tmp_path):
     usd = tmp_path / "s.usda"
-    code, out, err = _run(capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "2", "--usd", str(usd))
+    code, _out, err = _run(capsys, "run", "sheet", "--rows", "4", "--cols", "4", "--num-frames", "2", "--usd", str(usd))
     assert code == 0, err
     assert validation_errors(Usd.Stage.Open(str(usd))) == []
     bare = Usd.Stage.CreateInMemory()  # no default prim, up axis or units: errors
@@ -188,11 +187,12 @@ def test_usd_validation_passes_usda_and_can_fail(capsys, tmp_path):
 def test_preview_png_and_gif(capsys, tmp_path):
     pytest.importorskip("matplotlib")
     png, gif = tmp_path / "p.png", tmp_path / "p.gif"
-    code, out, err = _run(
+    code, _out, err = _run(
         capsys, "run", "flag", "--rows", "5", "--cols", "6", "--num-frames", "4", "--preview", str(png)
     )
-    assert code == 0, err and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    code, out, err = _run(
+    assert code == 0, err
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    code, _out, err = _run(
         capsys,
         "run",
         "flag",
@@ -217,7 +217,7 @@ def test_preview_png_and_gif(capsys, tmp_path):
     stride = gif_stride(201)
     assert stride == 3 and im.info["duration"] == pytest.approx(1000 * stride / 100, abs=10)  # plays at simulated speed
     assert sorted(os.listdir(tmp_path)) == ["p.gif", "p.png"]
-    code, out, err = _run(capsys, "run", "flag", "--num-frames", "2", "--preview", str(tmp_path / "p.jpg"))
+    code, _out, err = _run(capsys, "run", "flag", "--num-frames", "2", "--preview", str(tmp_path / "p.jpg"))
     assert code == 2 and ".png, .gif" in err
 
 

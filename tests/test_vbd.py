@@ -101,9 +101,8 @@ def test_converged_vbd_matches_implicit_euler_on_a_small_step():
 def test_vbd_sheet_settles_on_the_static_equilibrium():
     """16 x 16 scenario sheet, default options, dt = 1/60 s, 10 s: the sag (lowest drop below
     the rest shape) within 2 % of the float64 equilibrium's."""
-    from warpcloth.scenarios import sheet
-
     from warpcloth.lab.reference import static_equilibrium
+    from warpcloth.scenarios import sheet
 
     sim = sheet.build(rows=16, cols=16, integrator="vbd", dt=1.0 / 60.0)
     eq = static_equilibrium(sim.model, sim.control)
@@ -159,9 +158,8 @@ def test_bad_options(options, message):
 def sheet_sag_error(rows, steps, **options):
     """Relative error of the scenario sheet's sag after ``steps`` steps of 1/60 s against the
     float64 equilibrium's."""
-    from warpcloth.scenarios import sheet
-
     from warpcloth.lab.reference import static_equilibrium
+    from warpcloth.scenarios import sheet
 
     sim = sheet.build(rows=rows, cols=rows, integrator="vbd", dt=1.0 / 60.0, integrator_options=options)
     eq = static_equilibrium(sim.model, sim.control)

@@ -6,6 +6,8 @@ A result that is produced but is not what was asked (e.g. a solver that missed i
 prints one line, ``warpcloth: warning: ...``, on stderr (:func:`warn`).
 """
 
+import math
+import numbers
 import sys
 
 
@@ -57,8 +59,6 @@ def require_int(name: str, value, minimum: int) -> int:
 def require_count(name: str, value, minimum: int = 0) -> int:
     """An integer count (``int`` or an integral NumPy integer, not a float, string or bool)
     >= ``minimum``, else raise: for step counts and iteration counts."""
-    import numbers
-
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise WarpclothError(f"{name} must be an integer >= {minimum}, got {value!r}")
     require(int(value) >= minimum, f"{name} must be an integer >= {minimum}, got {value!r}")
@@ -68,9 +68,7 @@ def require_count(name: str, value, minimum: int = 0) -> int:
 def require_indices(name: str, value, count: int):
     """A 1-D int64 array of particle indices in 0..count-1 from a sequence of integers (Python or
     NumPy ints, or integral floats); else raise naming the first bad entry."""
-    import numbers
-
-    import numpy as np
+    import numpy as np  # noqa: PLC0415 (keeps `warpcloth --version` free of NumPy)
 
     if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
         raise WarpclothError(
@@ -99,8 +97,6 @@ def require_vector(name: str, value, size: int = 3, unit: str = "") -> tuple:
 
 
 def _as_float(name: str, value) -> float:
-    import math
-
     if isinstance(value, (str, bytes, bool)):
         raise WarpclothError(f"{name} must be a number, got {value!r}")
     try:

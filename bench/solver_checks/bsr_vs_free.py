@@ -13,10 +13,10 @@ import argparse
 
 import numpy as np
 import warp as wp
-from warpcloth.kernels import implicit as ik
-from warpcloth.scenarios import sheet
 
 from warpcloth.integrators.forces import eval_forces
+from warpcloth.kernels import implicit as ik
+from warpcloth.scenarios import sheet
 
 DT = 1.0 / 60.0
 

@@ -12,9 +12,9 @@ import time
 import numpy as np
 import warp as wp
 from common import mesh_twin, parse_opts
-from warpcloth.scenarios import get_scenario
 
 from warpcloth import Simulator, make_integrator
+from warpcloth.scenarios import get_scenario
 
 
 def main():

@@ -11,9 +11,9 @@ import argparse
 import numpy as np
 import warp as wp
 from common import parse_case
-from warpcloth.scenarios import get_scenario
 
 from warpcloth.run.harness import RunHarness
+from warpcloth.scenarios import get_scenario
 
 
 def main():

@@ -12,10 +12,10 @@ import time
 import numpy as np
 import warp as wp
 from common import mesh_twin, parse_opts
-from warpcloth.scenarios import get_scenario
 
 from warpcloth import Simulator, make_integrator
 from warpcloth.lab.reference import static_equilibrium
+from warpcloth.scenarios import get_scenario
 
 
 def main():

@@ -14,6 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import warp as wp
+
 from warpcloth.scenarios import sheet
 
 EPS32 = float(np.finfo(np.float32).eps)

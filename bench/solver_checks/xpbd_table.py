@@ -12,9 +12,9 @@ import time
 
 import numpy as np
 import warp as wp
-from warpcloth.scenarios import get_scenario
 
 from warpcloth.lab.reference import static_equilibrium
+from warpcloth.scenarios import get_scenario
 
 
 def main():

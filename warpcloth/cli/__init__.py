@@ -26,7 +26,7 @@ from __future__ import annotations
 import importlib
 import sys
 
-from warpcloth.cli.parse import EXIT_USAGE, Parser, add_verbose, guarded  # noqa: F401  (EXIT_USAGE: importable from cli)
+from warpcloth.cli.parse import EXIT_USAGE, Parser, add_verbose, guarded
 from warpcloth.version import __version__
 
 #: The subcommands, in the order ``--help`` lists them: name -> (module, help line, whether the

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from warpcloth.errors import WarpclothError, require_positive
 from warpcloth.integrators import (
     all_options,
@@ -89,8 +91,6 @@ def config_from_args(scenario, args, command: str = "run"):
 def check_spacing(scenario, cfg) -> None:
     """Refuse a cloth whose particles float32 cannot tell apart (e.g. ``--height 1e-30``),
     naming the flag, rather than failing later on springs of rest length 0."""
-    import numpy as np
-
     try:
         rows, cols, width, height = int(cfg.rows), int(cfg.cols), float(cfg.width), float(cfg.height)
         origin = [float(v) for v in scenario.origin(cfg)]

@@ -14,6 +14,7 @@ import os
 import re
 import signal
 import sys
+import threading
 import warnings
 
 from warpcloth.errors import WarpclothError
@@ -67,7 +68,7 @@ MAX_QUOTED_ANY = 1000
 
 def _shorten(message: str, limit: int = MAX_QUOTED) -> str:
     """``message`` with every quoted value over ``limit`` characters cut to ``limit``."""
-    quoted = re.compile(r"'([^']{%d})[^']+'" % limit)
+    quoted = re.compile(rf"'([^']{{{limit}}})[^']+'")
     return quoted.sub(lambda m: f"'{m.group(1)}...' ({len(m.group(0)) - 2:,} characters)", str(message))
 
 
@@ -137,9 +138,7 @@ def guarded(args, body, interrupted_hint: str = "") -> int:
     """Run ``body()`` as a command: one-line errors (status 2 for bad input, 74 for an output
     that could not be written), a quiet exit when stdout's reader went away (141), and SIGTERM
     handled like Ctrl-C (143 and 130; temporary files are removed on the way out)."""
-    import threading
-
-    from warpcloth.sim.device import init_warp
+    from warpcloth.sim.device import init_warp  # noqa: PLC0415  (Warp starts when a command runs, not for --version or --help)
 
     init_warp(getattr(args, "verbose", False))
     if sys.stdout is None:  # started with stdout closed (`warpcloth list >&-`): writing to it is an error

@@ -7,8 +7,8 @@ import argparse
 import math
 import os
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from warpcloth.cli.model import DefaultDtExplained, add_model_arguments, check_spacing, config_from_args
 from warpcloth.errors import WarpclothError
@@ -16,8 +16,8 @@ from warpcloth.io.files import sweep_stale_temporaries
 from warpcloth.io.meshio import ObjSequenceWriter, check_obj_sequence_path
 from warpcloth.io.player import HtmlWriter, check_html_path
 from warpcloth.io.preview import PreviewWriter, check_preview_path
-from warpcloth.io.provenance import provenance
 from warpcloth.io.progress import RunProgress
+from warpcloth.io.provenance import provenance
 from warpcloth.io.usd import UsdWriter, check_usd_path, clip_folder_of
 from warpcloth.scenarios import get_scenario
 

@@ -8,9 +8,9 @@ ships it (``examples/cape.obj``, ``warpcloth list --examples``); this writes it 
 import sys
 
 import numpy as np
-from warpcloth.scenarios.mesh import make_cape
 
 from warpcloth.io.meshio import write_obj
+from warpcloth.scenarios.mesh import make_cape
 
 
 def main(argv=None) -> str:

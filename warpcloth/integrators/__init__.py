@@ -120,7 +120,6 @@ __all__ = [
     "all_options",
     "check_integrator_name",
     "explicit_euler_dt_bound",
-    "stable_dt_estimate",
     "integrator_class",
     "integrator_names",
     "make_integrator",
@@ -128,5 +127,6 @@ __all__ = [
     "option_owners",
     "register",
     "registered",
+    "stable_dt_estimate",
     "unregister",
 ]

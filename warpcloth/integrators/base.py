@@ -9,9 +9,10 @@ reads back to the host, so a frame of steps can be captured and replayed.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Callable, ClassVar
+from typing import ClassVar
 
 import numpy as np
 import warp as wp
@@ -164,7 +165,7 @@ class Integrator:
         return {o.name: getattr(self, o.name) for o in self.options}
 
     # -- binding -----------------------------------------------------------------------
-    def bind(self, model) -> "Integrator":
+    def bind(self, model) -> Integrator:
         """Allocate scratch arrays for ``model``. Rebinding to another model reallocates."""
         if self.model is not model:
             self.model = model

@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import sys
 from fractions import Fraction
+from typing import ClassVar
 
 import warp as wp
 from warp.optim.linear import cg
@@ -63,7 +64,7 @@ class ImplicitEuler(Integrator):
     """Baraff-Witkin implicit Euler with Jacobi-preconditioned CG (seed eq. 2.19-2.23)."""
 
     name = "implicit_euler"
-    study_grid = {
+    study_grid: ClassVar[dict] = {
         "full": (
             {"preconditioner": ("jacobi", "multigrid"), "cg_tol": (1e-2, 1e-3, 1e-5)},
             (Fraction(1, 2), 1, 2, 4, 8, 16),
@@ -74,7 +75,7 @@ class ImplicitEuler(Integrator):
     #: in the swing and the flag (structural and shear strain up to 0.20 at dt 1/30 s and 0.40 at 1/60 s
     #: on the 32 x 32 sheet without it), so a run with it is another configuration than the ones measured
     #: so far; the study measures the bare scheme (a grid over the cap would be its own axis).
-    study_fixed_options = {"strain_cap": 0.0}
+    study_fixed_options: ClassVar[dict] = {"strain_cap": 0.0}
     free_motion_rtol = 0.02  # a free cloth's centroid moves by a CG solve to cg_tol
 
     @classmethod

@@ -325,7 +325,7 @@ class Projective(IncrementSolver):
 
     def global_matrix(self):
         """S as a SciPy CSR matrix (host copy; for tests and diagnostics, not for stepping)."""
-        import scipy.sparse as sp
+        import scipy.sparse as sp  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
         n = self.model.particle_count
         return sp.csr_matrix(

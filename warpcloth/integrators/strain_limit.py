@@ -41,8 +41,8 @@ def nearest_pin_paths(pairs: np.ndarray, rest: np.ndarray, particle_count: int, 
     heap took 0.65-0.89 s (single runs; every implicit_euler simulator builds a limiter for its
     strain cap, whose spring colouring, ~0.3 s there, is the rest of its build). A spring listed
     twice counts with its shorter rest length."""
-    from scipy.sparse import csr_matrix
-    from scipy.sparse.csgraph import dijkstra
+    from scipy.sparse import csr_matrix  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
+    from scipy.sparse.csgraph import dijkstra  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
     n = int(particle_count)
     source = np.full(n, -1, dtype=np.int32)

@@ -395,4 +395,4 @@ class ImplicitSystem:
         )
 
 
-__all__ = ["ImplicitSystem", "JACOBIANS", "MATRICES", "PRECONDITIONERS"]
+__all__ = ["JACOBIANS", "MATRICES", "PRECONDITIONERS", "ImplicitSystem"]

@@ -21,9 +21,13 @@
 
 from __future__ import annotations
 
+import csv
 import ctypes
 import errno
 import hashlib
+import io
+import json
+import math
 import os
 import re
 import secrets
@@ -247,7 +251,7 @@ def check_output_path(path: str, what: str = "output", extensions: tuple | None 
     if extensions is not None and os.path.splitext(p)[1].lower() not in extensions:
         raise WarpclothError(f"{what} path {p!r} must end in one of {', '.join(extensions)}")
     full = os.path.abspath(p)
-    folder, name = os.path.split(full)
+    folder, _name = os.path.split(full)
     if os.path.isdir(full):
         raise WarpclothError(f"{what} path {p!r} is a folder, not a file")
     _check_name_and_parent(p, full, what)
@@ -585,8 +589,8 @@ class WriterLock:
         self.path = os.path.join(folder, lock_name)
         self.fd: int | None = None
 
-    def acquire(self) -> "WriterLock":
-        import fcntl
+    def acquire(self) -> WriterLock:
+        import fcntl  # noqa: PLC0415 (POSIX only)
 
         while True:
             try:
@@ -644,11 +648,11 @@ class WriterLock:
 
 
 __all__ = [
+    "EXIT_IO",
+    "TEMP_PREFIX",
     "AtomicFile",
     "AtomicFolder",
-    "EXIT_IO",
     "OutputError",
-    "TEMP_PREFIX",
     "WriterLock",
     "check_input_file",
     "check_output_folder",
@@ -667,8 +671,6 @@ __all__ = [
 def csv_cell(value) -> str:
     """A value as a CSV cell: None empty, booleans ``true``/``false``, floats at full precision
     (Python's shortest repr; ``inf``, ``nan``), dicts, lists and tuples as JSON."""
-    import json
-    import math
 
     if value is None:
         return ""
@@ -683,8 +685,6 @@ def csv_cell(value) -> str:
 
 def csv_line(row: dict, columns) -> str:
     """One CSV line (with its newline) of ``row`` in ``columns`` order; missing columns are empty."""
-    import csv
-    import io
 
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerow([csv_cell(row.get(c)) for c in columns])

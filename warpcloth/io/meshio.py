@@ -172,7 +172,7 @@ def _obj_index(text: str, count: int, where: str, what: str) -> int:
 def read_usd(path: str, prim: str | None = None) -> TriangleMesh:
     """Read a ``UsdGeom.Mesh`` (see the module docstring)."""
     try:
-        import pxr  # noqa: F401  (usd-core present?)
+        import pxr  # noqa: F401, PLC0415  (usd-core present?)
     except ImportError:  # pragma: no cover - usd-core is a dependency
         raise WarpclothError("reading USD meshes needs usd-core (pip install usd-core)") from None
     stage, layers = open_usd_stage(path)
@@ -190,7 +190,7 @@ def _usd_error(exc: BaseException) -> str:
 
 def _clip_assets(layer) -> list:
     """(asset path, what) of the value clips and clip manifests a layer's prims name."""
-    from pxr import Sdf
+    from pxr import Sdf  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
     out = []
 
@@ -233,7 +233,7 @@ def open_usd_stage(path: str):
     a missing one is an error, as USD would only warn). ``layers`` holds the opened layers:
     keep it while the stage is used (the stage then finds them open, and opens no file itself).
     """
-    from pxr import Ar, Sdf, Usd
+    from pxr import Ar, Sdf, Usd  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
     resolver = Ar.GetResolver()
     top = os.path.abspath(path)
@@ -281,7 +281,7 @@ def open_usd_stage(path: str):
 
 
 def _read_usd_mesh(stage, path: str, prim: str | None) -> TriangleMesh:
-    from pxr import Usd, UsdGeom
+    from pxr import Usd, UsdGeom  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
     if prim is None:
         meshes = [p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
@@ -427,7 +427,6 @@ class ObjSequenceWriter:
 
 
 __all__ = [
-    "load_mesh_collider",
     "MAX_MESH_FILE_BYTES",
     "MESH_FORMATS",
     "OBJ_FRAME_NAME",
@@ -435,6 +434,7 @@ __all__ = [
     "ObjSequenceWriter",
     "check_obj_sequence_path",
     "load_mesh",
+    "load_mesh_collider",
     "open_usd_stage",
     "read_obj",
     "read_usd",

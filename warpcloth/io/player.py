@@ -281,8 +281,8 @@ def default_view(frames, tris) -> dict:
     frames = [frames] if isinstance(frames, np.ndarray) and frames.ndim == 2 else list(frames)
     t = np.asarray(tris, dtype=np.int64).reshape(-1, 3)
     total, first = np.zeros(3), None
-    for p in frames[:: max(1, len(frames) // 16)]:
-        p = np.asarray(p, dtype=np.float64).reshape(-1, 3)
+    for frame in frames[:: max(1, len(frames) // 16)]:
+        p = np.asarray(frame, dtype=np.float64).reshape(-1, 3)
         n = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]).sum(axis=0) if t.size else np.zeros(3)
         first = n if first is None else first
         total += n if n @ first >= 0 else -n

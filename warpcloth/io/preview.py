@@ -31,7 +31,7 @@ PLOT_HINT = "pip install 'warpcloth[plot]' (from a clone: pip install -e '.[plot
 def require_matplotlib(what: str = "--preview") -> None:
     """One line naming the extra to install when matplotlib is missing (checked before a run)."""
     try:
-        import matplotlib  # noqa: F401
+        import matplotlib  # noqa: F401, PLC0415
     except ImportError:
         raise WarpclothError(f"{what} needs matplotlib: {PLOT_HINT}") from None
 
@@ -134,11 +134,11 @@ class PreviewWriter:
             self.frames, self.times = [p], [t]
 
     def _figure(self):
-        import matplotlib
+        import matplotlib  # noqa: PLC0415 (the optional [plot] extra)
 
         matplotlib.use("Agg", force=True)
-        import matplotlib.pyplot as plt
-        from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+        import matplotlib.pyplot as plt  # noqa: PLC0415 (the optional [plot] extra)
+        from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: PLC0415 (the optional [plot] extra)
 
         dpi = 100
         fig = plt.figure(figsize=(SIZE_PX[0] / dpi, SIZE_PX[1] / dpi), dpi=dpi)
@@ -161,7 +161,7 @@ class PreviewWriter:
         ax.set_zlabel("y [m]")
         ax.view_init(elev=18, azim=-60)
         self._bounds = (c - r, c + r)  # the axes' cube (a plane is drawn across it)
-        from matplotlib.ticker import MaxNLocator
+        from matplotlib.ticker import MaxNLocator  # noqa: PLC0415 (the optional [plot] extra)
 
         for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
             axis.set_major_locator(MaxNLocator(5))  # tick labels that do not run into each other
@@ -214,7 +214,7 @@ class PreviewWriter:
             raise OutputError(describe_write_error(exc, self.path, "preview")) from None
         try:
             if self.gif:
-                from matplotlib.animation import FuncAnimation, PillowWriter
+                from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: PLC0415 (the optional [plot] extra)
 
                 stride = gif_stride(len(self.frames))
                 keep = list(range(0, len(self.frames), stride))

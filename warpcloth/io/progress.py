@@ -171,4 +171,4 @@ class RunProgress:
         self.progress.close()
 
 
-__all__ = ["PLAIN_INTERVAL", "Progress", "RunProgress", "TTY_INTERVAL", "format_clock", "format_seconds"]
+__all__ = ["PLAIN_INTERVAL", "TTY_INTERVAL", "Progress", "RunProgress", "format_clock", "format_seconds"]

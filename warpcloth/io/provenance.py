@@ -6,8 +6,13 @@ Stored in a USD layer's ``customLayerData`` (under ``warpcloth``) and in the HTM
 from __future__ import annotations
 
 import datetime
+import os
+import platform
 import shlex
+import socket
 import sys
+
+import warp as wp
 
 from warpcloth.version import __version__
 
@@ -20,8 +25,6 @@ def command_line(argv=None, prefix=("warpcloth",)) -> str:
 
 def provenance(sim, scenario: str, fps: float, argv=None, extra: dict | None = None, prefix=("warpcloth",)) -> dict:
     """A JSON-able dict about the run of ``sim`` (a :class:`~warpcloth.simulator.Simulator`)."""
-    import warp as wp
-
     m = sim.model
     info = {
         "warpcloth_version": __version__,
@@ -73,11 +76,6 @@ def machine(device=None) -> dict:
         CUDA device, ``cuda:0 NAME``), ``driver`` (the CUDA driver's version, or None), ``warp``,
         ``python``, ``os`` and ``date`` (now, UTC, to the minute).
     """
-    import os
-    import platform
-    import socket
-
-    import warp as wp
 
     cpu = platform.processor() or platform.machine()
     try:
@@ -90,18 +88,18 @@ def machine(device=None) -> dict:
         try:
             d = wp.get_device(device)
             gpu = d.name if d.is_cuda else ""
-        except Exception:  # noqa: BLE001 - a device that is not there: no name
+        except Exception:
             gpu = ""
     gpus = []
     try:
         for d in wp.get_cuda_devices():
             gpus.append(f"{d} {wp.get_device(d).name}")
-    except Exception:  # noqa: BLE001 - no CUDA
+    except Exception:
         pass
     driver = None
     try:
         driver = wp.get_cuda_driver_version() if hasattr(wp, "get_cuda_driver_version") else None
-    except Exception:  # noqa: BLE001
+    except Exception:
         driver = None
     return {
         "host": socket.gethostname(),

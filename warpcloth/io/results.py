@@ -23,8 +23,8 @@ import io
 import os
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from warpcloth.errors import WarpclothError
 from warpcloth.io.files import (

@@ -23,6 +23,7 @@ clips: its samples stay in memory until it is written). docs/colliders.md, "USD"
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 
@@ -71,8 +72,6 @@ def clip_folder_of(path: str) -> tuple[str | None, int]:
 
 def _usd_failure(exc: BaseException, target: str, tmp: str) -> OutputError:
     """One line for a failed USD write (pxr's error text can be thousands of lines)."""
-    import errno
-
     text = str(exc)
     written = os.path.getsize(tmp) if os.path.exists(tmp) else None
     if "No space left" in text or (isinstance(exc, OSError) and exc.errno == errno.ENOSPC):
@@ -136,7 +135,7 @@ class ColliderPrims:
     """
 
     def __init__(self, stage, root: str, colliders, plane_size: float = 10.0, purpose: str = "guide"):
-        from pxr import Gf, UsdGeom, Vt
+        from pxr import Gf, UsdGeom, Vt  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
         if purpose not in COLLIDER_PURPOSES:
             raise WarpclothError(f"collider purpose must be one of {', '.join(COLLIDER_PURPOSES)}, got {purpose!r}")
@@ -227,7 +226,7 @@ class ColliderPrims:
         return shift, (w, x, y, z)
 
     def _set(self, c, ops, code, pose=None) -> None:
-        from pxr import Usd
+        from pxr import Usd  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
         Gf = self._Gf
         t, q = self._pose(c) if pose is None else pose
@@ -296,7 +295,7 @@ class UsdWriter:
         colliders=(),
         colliders_purpose: str = "guide",
     ):
-        from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+        from pxr import Gf, Sdf, Usd, UsdGeom, Vt  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
         self._Gf, self._Vt = Gf, Vt
         self.path = check_usd_path(path)
@@ -426,7 +425,7 @@ class UsdWriter:
 
     def _flush_clip(self) -> None:
         """Move every time sample of the stage's layer into a new value-clip layer on disk."""
-        from pxr import Sdf
+        from pxr import Sdf  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
         if self.frames_in_memory == 0:
             return
@@ -461,7 +460,7 @@ class UsdWriter:
 
     def _finish_clips(self) -> None:
         """Write the last chunk and the clip metadata on /World (when any chunk left memory)."""
-        from pxr import Sdf, Usd
+        from pxr import Sdf, Usd  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
         if not self._clips:
             return  # a short run: one file, as before
@@ -535,7 +534,7 @@ class UsdWriter:
                 if old is not None:
                     shutil.rmtree(old, ignore_errors=True)
             if self.usdz:
-                from pxr import UsdUtils
+                from pxr import UsdUtils  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
                 if not UsdUtils.CreateNewUsdzPackage(self._tmp, self._package):
                     raise OSError(f"USD could not package {self._tmp} as .usdz")

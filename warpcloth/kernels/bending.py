@@ -77,7 +77,7 @@ def hinge_angle_gradient(x0: wp.vec3, x1: wp.vec3, x2: wp.vec3, x3: wp.vec3):
 @wp.func
 def hinge_energy(x0: wp.vec3, x1: wp.vec3, x2: wp.vec3, x3: wp.vec3, rest: float, k: float):
     # E = 1/2 k wrap(theta - theta0)^2 [J];  0 for a degenerate hinge
-    theta, g0, g1, g2, g3, valid = hinge_angle_gradient(x0, x1, x2, x3)
+    theta, _g0, _g1, _g2, _g3, valid = hinge_angle_gradient(x0, x1, x2, x3)
     if valid == 0:
         return 0.0
     c = wrap_angle(theta - rest)
@@ -176,7 +176,7 @@ def eval_hinge_gradients(
     # theta [rad] and g_a = d theta / d x_a [1/m] per hinge, gradient shape (hinge_count, 4); zeros if degenerate
     e = wp.tid()
     q = hinge_indices[e]
-    theta, g0, g1, g2, g3, valid = hinge_angle_gradient(x[q[0]], x[q[1]], x[q[2]], x[q[3]])
+    theta, g0, g1, g2, g3, _valid = hinge_angle_gradient(x[q[0]], x[q[1]], x[q[2]], x[q[3]])
     hinge_angle_out[e] = theta
     hinge_gradient[e, 0] = g0
     hinge_gradient[e, 1] = g1
@@ -198,7 +198,7 @@ def eval_hinge_hessian_blocks(
     # d^2E/dx_a dx_b (= -df_a/dx_b); alpha = h^2, beta = h the block implicit Euler's A gains (PSD)
     e = wp.tid()
     q = hinge_indices[e]
-    theta, g0, g1, g2, g3, valid = hinge_angle_gradient(x[q[0]], x[q[1]], x[q[2]], x[q[3]])
+    _theta, g0, g1, g2, g3, _valid = hinge_angle_gradient(x[q[0]], x[q[1]], x[q[2]], x[q[3]])
     s = alpha * hinge_stiffness[e] + beta * hinge_damping[e]
     for a in range(4):
         ga = pick_vec3(a, g0, g1, g2, g3)

@@ -13,6 +13,7 @@ of 1e-7 m; a 1 cm pair's relative coordinates have ulps of 1e-9 m).
 """
 
 import warp as wp
+
 from warpcloth.kernels.collide import Collider, collider_contact
 from warpcloth.kernels.self_contact import (
     CAND_EE,

@@ -25,6 +25,7 @@ each frame. Details: docs/colliders.md.
 """
 
 import warp as wp
+
 from warpcloth.kernels.pins import rotate_axis_angle, track_keyframes
 
 wp.set_module_options({"enable_backward": False})

@@ -23,6 +23,7 @@ substeps accumulate (docs/stability.md, "Float32: increments, not rounded differ
 """
 
 import warp as wp
+
 from warpcloth.kernels.springs import compressed_stiffness
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)

@@ -25,6 +25,7 @@ static ``wp.Bvh`` each; the cloth feature is taken into that frame, y0 = rest_ce
 """
 
 import warp as wp
+
 from warpcloth.kernels.collide import BOX, MESH, Collider, box_contact, mesh_contact, surface_velocity
 from warpcloth.kernels.self_contact import boxes_overlap, closest_point_triangle, closest_points_edge_edge
 

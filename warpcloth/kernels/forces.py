@@ -1,6 +1,7 @@
 """Force kernels: springs (Hooke + damping, Provot), gravity, air drag, wind on triangles."""
 
 import warp as wp
+
 from warpcloth.kernels.springs import spring_force
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)

@@ -11,6 +11,7 @@ mass 0) get identity rows and zero columns, so their dv is 0.
 """
 
 import warp as wp
+
 from warpcloth.kernels.collide import Collider, collider_contact, surface_velocity
 from warpcloth.kernels.linalg import inverse_diagonal
 from warpcloth.kernels.self_contact import weighted_sum
@@ -319,7 +320,7 @@ def mark_entered(
     if inv_mass[i] == 0.0 or mode[i] != 0:
         return
     for k in range(colliders.shape[0]):
-        phi, n = collider_contact(colliders, k, x[i], colliders[k].thickness)
+        phi, _n = collider_contact(colliders, k, x[i], colliders[k].thickness)
         if phi < colliders[k].thickness:
             entered[i] = 1
 

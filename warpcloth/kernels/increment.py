@@ -10,6 +10,7 @@ x_j - x_i and dx_j - dx_i apart, never x + dx.
 """
 
 import warp as wp
+
 from warpcloth.kernels.bending import HingeAdjacency, hinge_angle_gradient, hinge_force_scale, pick_vec3
 from warpcloth.kernels.collide import (
     Collider,

@@ -1,6 +1,7 @@
 """Reductions for run metrics: strain, speeds, net force, finiteness. Read once per frame."""
 
 import warp as wp
+
 from warpcloth.kernels.bending import hinge_energy
 from warpcloth.kernels.springs import compressed_stiffness
 

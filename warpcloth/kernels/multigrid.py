@@ -3,6 +3,7 @@ Galerkin coarse operator P^T A P, the grid transfers P and P^T, and the (damped,
 smoothers."""
 
 import warp as wp
+
 from warpcloth.kernels.linalg import inverse_block
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)

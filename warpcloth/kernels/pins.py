@@ -2,6 +2,7 @@
 one rounding to float32 at the end)."""
 
 import warp as wp
+
 from warpcloth.kernels.springs import SpringAdjacency
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)
@@ -111,7 +112,7 @@ def eval_pin_keyframes_delta(
 ):
     # out_i = scale (track(t + offset) - x_i) - velocity_weight v_i  (dp = target - x; dv = (target - x)/h - v)
     p = wp.tid()
-    pos, vel = track_keyframes(time[0] + offset, times, values, tangents, cubic, p, particle.shape[0])
+    pos, _vel = track_keyframes(time[0] + offset, times, values, tangents, cubic, p, particle.shape[0])
     i = particle[p]
     out[i] = scale * (wp.vec3(pos - wp.vec3d(x[i]))) - velocity_weight * v[i]
 
@@ -153,7 +154,7 @@ def eval_pin_rigid_delta(
     out: wp.array(dtype=wp.vec3),
 ):
     p = wp.tid()
-    pos, vel = track_rigid(time[0] + offset, rest[p], center, axis, velocity, motion)
+    pos, _vel = track_rigid(time[0] + offset, rest[p], center, axis, velocity, motion)
     i = particle[p]
     out[i] = scale * (wp.vec3(pos - wp.vec3d(x[i]))) - velocity_weight * v[i]
 

@@ -21,6 +21,7 @@ too.
 """
 
 import warp as wp
+
 from warpcloth.kernels.bending import HingeAdjacency, vertex_hinge_terms
 from warpcloth.kernels.collide import Colliders
 from warpcloth.kernels.increment import (
@@ -185,7 +186,7 @@ def add_hinge_residual(
     i = wp.tid()
     if inertia.inv_mass[i] == 0.0 or contact.state[i] == 2:
         return
-    f, H = vertex_hinge_terms(i, x, dx, hinges, h)
+    f, _H = vertex_hinge_terms(i, x, dx, hinges, h)
     res = r[i] + (h * h) * f
     restart_cg(i, res, inv_diag[i], r, z, p, dot_terms)
 

@@ -4,6 +4,7 @@ atomics: the sums have a fixed order, so a run is bit-reproducible on every devi
 the RK4 stage update."""
 
 import warp as wp
+
 from warpcloth.kernels.pins import track_keyframes, track_rigid
 
 # forward only: no adjoints (half the compile time; warpcloth differentiates nothing)

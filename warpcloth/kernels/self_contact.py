@@ -23,6 +23,7 @@ contact count, not the capacity. The margins, bounds and settings: docs/self-col
 """
 
 import warp as wp
+
 from warpcloth.kernels.collide import Collider, collider_contact, segment_parameter
 
 wp.set_module_options({"enable_backward": False})
@@ -772,7 +773,7 @@ def find_vertex_triangle_candidates(
                             tri = mesh.tris[t]
                             excluded = sorted_contains(mesh.vt_exclude, e0, e1, t)
                             if tri[0] != i and tri[1] != i and tri[2] != i and not excluded:
-                                q, w = closest_point_triangle(p, x[tri[0]], x[tri[1]], x[tri[2]])
+                                q, _w = closest_point_triangle(p, x[tri[0]], x[tri[1]], x[tri[2]])
                                 gap = wp.length(p - q)
                                 if gap <= r_i + grid.tri_margin[t]:
                                     k = append_index(counts, CAND_VT, OVERFLOW_CANDIDATES, grid.vt_capacity)
@@ -1033,7 +1034,9 @@ def count_filter_contacts(
     # (dv_n and the velocity target; W and n where dv_n > 0) for the pass's filter_self_contact_velocities
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        w, n, vr, dvn, tv = filter_change(k, x, v, inv_mass, contacts, settings.min_gap, inelastic, stiffness, dt, dt_x)
+        w, n, _vr, dvn, tv = filter_change(
+            k, x, v, inv_mass, contacts, settings.min_gap, inelastic, stiffness, dt, dt_x
+        )
         work.f_change[k] = wp.vec2(dvn, tv)
         if dvn > 0.0:
             work.f_w[k] = w
@@ -1102,7 +1105,7 @@ def eval_filter_inverse_mass(
     if w > 0.0:
         for k in range(colliders.shape[0]):
             band = colliders[k].thickness + margin
-            phi, n = collider_contact(colliders, k, x[i], band)
+            phi, _n = collider_contact(colliders, k, x[i], band)
             if phi < band:
                 w = 0.0
     out[i] = w
@@ -1160,7 +1163,7 @@ def count_unresolved_self_contacts(
     for k in range(tid, counts[CONTACTS], stride):
         idx = contacts.idx[k]
         free = inv_mass[idx[0]] + inv_mass[idx[1]] + inv_mass[idx[2]] + inv_mass[idx[3]]
-        w, n, d = contact_geometry(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]], contacts.w[k], contacts.n[k])
+        _w, _n, d = contact_geometry(x[idx[0]], x[idx[1]], x[idx[2]], x[idx[3]], contacts.w[k], contacts.n[k])
         if free > 0.0 and d < 0.99 * settings.min_gap:
             wp.atomic_add(counts, UNRESOLVED, 1)
 
@@ -1194,7 +1197,7 @@ def count_violated_contacts(
     # per vertex, the contacts violated at p = x + dp (mass splitting over acting contacts)
     tid = wp.tid()
     for k in range(tid, counts[CONTACTS], stride):
-        w, n, c = increment_violation(k, x, dp, contacts)
+        w, _n, c = increment_violation(k, x, dp, contacts)
         if c < 0.0:
             count_acting(contacts.idx[k], w, inv_mass, acting)
 

@@ -15,6 +15,7 @@ particle -> (spring, neighbour, block) adjacency built once at bind: no atomics.
 """
 
 import warp as wp
+
 from warpcloth.kernels.linalg import inverse_block, inverse_diagonal
 from warpcloth.kernels.springs import SpringAdjacency, spring_damping_block, spring_stiffness_block
 

@@ -20,6 +20,7 @@ contact projection, the update from dx) are in :mod:`warpcloth.kernels.increment
 """
 
 import warp as wp
+
 from warpcloth.kernels.bending import HingeAdjacency, vertex_hinge_terms
 from warpcloth.kernels.collide import Colliders, contact_band, in_box, plane_contact, shape_contact
 from warpcloth.kernels.increment import (
@@ -136,7 +137,7 @@ def eval_increment_residual(
     for a in range(springs.offsets[i], springs.offsets[i + 1]):
         s = springs.spring[a]
         j = springs.other[a]
-        f, K = spring_gradient_hessian(
+        f, _K = spring_gradient_hessian(
             x[j] - xi,
             dx[j] - dxi,
             springs.rest_length[s],
@@ -147,7 +148,7 @@ def eval_increment_residual(
         )
         force = force + f
     if hinges.indices.shape[0] > 0:
-        fb, Hb = vertex_hinge_terms(i, x, dx, hinges, h)
+        fb, _Hb = vertex_hinge_terms(i, x, dx, hinges, h)
         force = force + fb
     r[i] = inertia.mass[i] * (inertia.dy[i] - dxi) + (h * h) * force
 
@@ -276,7 +277,7 @@ def mask_contacts(
     if contact.state[i] != 0:
         delta[i] = wp.vec3(0.0)
         return
-    pushed, hit = push_out(x[i] + dx[i], delta[i], colliders)
+    _pushed, hit = push_out(x[i] + dx[i], delta[i], colliders)
     if hit != 0:
         delta[i] = wp.vec3(0.0)
 
@@ -290,5 +291,5 @@ def push_out_increment(
     i = wp.tid()
     if inv_mass[i] == 0.0:
         return
-    d, hit = push_out(x[i], dx[i], colliders)
+    d, _hit = push_out(x[i], dx[i], colliders)
     dx[i] = d

@@ -27,6 +27,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import warp as wp
 
 from warpcloth.errors import WarpclothError, require
 from warpcloth.lab.reference import (
@@ -113,8 +114,6 @@ class AccuracyProblem:
     def run(self, sim, k: int) -> np.ndarray:
         """The float32 trajectory of ``sim`` (its current integrator) at dt = frame/k, from the
         transient's start: (frames + 1, N, 3)."""
-        import warp as wp
-
         require(int(k) >= 1, f"steps per frame must be >= 1, got {k!r}")
         sim.reset()
         sim.state.particle_q.assign(wp.array(self.x0.astype(np.float32), dtype=wp.vec3, device=sim.model.device))
@@ -285,7 +284,7 @@ class _Shape:
         return float(np.max(np.linalg.norm(d, axis=-1) / self.rest[None] - 1.0))
 
 
-def trajectory_metrics(traj, ref, size: float, shape: "_Shape", interval: float) -> dict:
+def trajectory_metrics(traj, ref, size: float, shape: _Shape, interval: float) -> dict:
     """The metrics (:data:`METRICS`) of ``traj`` against ``ref``, both (F, N, 3) at the same
     times ``interval`` [s] apart: point, centroid, patch (fractions of ``size``), damping (1 - sum
     of the kinetic energy / the reference's; numerical damping) and stretch (``traj``'s largest
@@ -359,8 +358,6 @@ class TransientProblem:
         """The float32 trajectory of ``sim`` (its current integrator) at dt = (1/60 s)/k from the
         start, sampled every stride frames: ((samples, N, 3) or None if stopped by ``wall_cap``
         [s], wall seconds)."""
-        import warp as wp
-
         stride, steps = sample_stride(k)
         sim.reset()
         sim.state.particle_q.assign(wp.array(self.x0.astype(np.float32), dtype=wp.vec3, device=sim.model.device))
@@ -450,8 +447,6 @@ class ContactProblem:
     def measure(self, sim, k: float, duration: float, wall_cap: float | None) -> StaticAccuracy:
         """Run ``sim`` from the start at dt = (1/60 s)/k until at rest (or ``duration`` simulated,
         ``wall_cap`` wall seconds); the error of where it stops."""
-        import warp as wp
-
         sim.reset()
         sim.state.particle_q.assign(wp.array(self.x0.astype(np.float32), dtype=wp.vec3, device=sim.model.device))
         sim.set_dt(FRAME_DT / k)
@@ -486,20 +481,20 @@ def check_tolerance(tolerance) -> float:
 
 
 __all__ = [
-    "AccuracyProblem",
-    "ContactProblem",
     "DEFAULT_TOLERANCE",
     "FLOOR_FRACTION",
     "FRAME_DT",
     "METRICS",
     "PERTURBATION",
-    "Reference",
-    "RunMetrics",
     "SCIPY_MAX_SIZE",
     "STATIC_METRICS",
+    "TOLERANCES",
+    "AccuracyProblem",
+    "ContactProblem",
+    "Reference",
+    "RunMetrics",
     "StaticAccuracy",
     "StaticProblem",
-    "TOLERANCES",
     "Transient",
     "TransientProblem",
     "check_tolerance",

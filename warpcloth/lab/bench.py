@@ -225,7 +225,7 @@ def bench_figure(rows: list[dict]):
     """The figure of :func:`plot`: wall seconds per simulated second against particles, one colour
     per integrator, a circle per CPU and a square per CUDA series, filled where the frames were
     replayed as graphs and hollow where launched one by one; the legend right of the axes."""
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415 (the optional [plot] extra)
 
     fig, ax = plt.subplots(figsize=(8, 5.5))
     keys = sorted({(r["integrator"], r["device"], r["graph"]) for r in rows})
@@ -267,10 +267,10 @@ def bench_figure(rows: list[dict]):
 
 def plot(path: str, rows: list[dict]) -> bool:
     try:
-        import matplotlib
+        import matplotlib  # noqa: PLC0415 (the optional [plot] extra)
 
         matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # noqa: PLC0415 (the optional [plot] extra)
     except ImportError:
         print(
             "bench: --plot needs matplotlib (pip install 'warpcloth[plot]', from a clone pip install -e '.[plot]'); "

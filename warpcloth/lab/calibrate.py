@@ -22,6 +22,8 @@ import math
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from warpcloth.errors import WarpclothError, require, require_int, require_positive
 from warpcloth.scenarios import get_scenario
 from warpcloth.scenarios.cantilever import ASTM_OVERHANG_RATIO
@@ -300,7 +302,7 @@ def _from_log(name: str, value: float) -> float:
 def _brent(name: str, x0: float, residuals, tolerance: float):
     """One unknown, one target: Brent's root of the residual in log(unknown), on a bracket grown
     by factors of 2 from the start (each side at most 10 times, within the bounds)."""
-    from scipy.optimize import brentq
+    from scipy.optimize import brentq  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
     lo_bound, hi_bound = (math.log(b) for b in UNKNOWNS[name])
 
@@ -330,8 +332,7 @@ def _brent(name: str, x0: float, residuals, tolerance: float):
 
 def _least_squares(fit: tuple, initial: dict, residuals, tolerance: float):
     """Several unknowns or targets: SciPy's trust-region least squares in log(unknowns), soft-L1 loss."""
-    import numpy as np
-    from scipy.optimize import least_squares
+    from scipy.optimize import least_squares  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
     lo = np.array([math.log(UNKNOWNS[n][0]) for n in fit])
     hi = np.array([math.log(UNKNOWNS[n][1]) for n in fit])

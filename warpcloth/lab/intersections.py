@@ -348,7 +348,7 @@ def check_frames(frames, triangles, times=None, segments_at=None) -> Intersectio
 
 def _usd_collider_segments(stage, root: str = "/World/Colliders"):
     """A function of the time code giving the edges of the file's box (Cube) and mesh colliders."""
-    from pxr import Usd, UsdGeom
+    from pxr import Usd, UsdGeom  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
     scope = stage.GetPrimAtPath(root)
     items = []
@@ -383,7 +383,7 @@ def _usd_collider_segments(stage, root: str = "/World/Colliders"):
 def check_usd(path: str, cloth: str = "/World/Cloth", colliders: str = "/World/Colliders") -> IntersectionReport:
     """Both counts at every time sample of the cloth's points in a USD file written by warpcloth
     (value clips resolved by USD); times in seconds (time code / timeCodesPerSecond)."""
-    from pxr import Usd, UsdGeom
+    from pxr import Usd, UsdGeom  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
     stage = Usd.Stage.Open(str(path))
     if stage is None:

@@ -30,6 +30,7 @@ import socket
 import time
 
 import numpy as np
+import warp as wp
 
 from warpcloth.integrators import make_integrator
 from warpcloth.lab.accuracy import FRAME_DT, ContactProblem, Reference, TransientProblem, steps_per_frame_at_most
@@ -71,7 +72,7 @@ class _Cache:
         if not self.folder:
             self.memory[name] = compute()
             return self.memory[name]
-        import fcntl
+        import fcntl  # noqa: PLC0415 (POSIX only)
 
         os.makedirs(self.folder, exist_ok=True)
         ignore = os.path.join(self.folder, ".gitignore")
@@ -105,8 +106,6 @@ class Measurements:
     """
 
     def __init__(self, plan: StudyPlan, out, on_row=None):
-        import warp as wp
-
         self.plan = plan
         self.out = out
         self.on_row = on_row  # called with each new row (tests: interrupt after N)
@@ -450,8 +449,6 @@ class Measurements:
             return {}
 
         def run():
-            import warp as wp
-
             sim = self.sim(scenario, n, device, integrator, options)
             sim.set_dt(dt)
             if start is not None:

@@ -27,11 +27,12 @@ from __future__ import annotations
 import multiprocessing
 import os
 import socket
+import threading
 import time
 import traceback
+from collections.abc import Callable, Hashable, Iterable, Iterator
 from dataclasses import dataclass, field
 from multiprocessing.connection import wait as wait_any
-from typing import Callable, Hashable, Iterable, Iterator
 
 from warpcloth.errors import WarpclothError
 from warpcloth.sim.device import init_warp
@@ -106,8 +107,6 @@ def _exit_with_driver() -> None:
     """Stop this worker process as soon as its driver is gone (``kill -9`` of the driver leaves
     nobody to read its rows, and its runs would go on for their whole wall cap): a thread waits
     on the parent's sentinel, which becomes readable when the parent process ends."""
-    import threading
-
     parent = multiprocessing.parent_process()
     if parent is None or getattr(parent, "sentinel", None) is None:
         return
@@ -139,7 +138,7 @@ def _worker_main(conn, fn, place: Place, init) -> None:
             for key, payload in batch:
                 try:
                     row = fn(payload, place)
-                except Exception as exc:  # noqa: BLE001 - reported, the worker goes on
+                except Exception as exc:
                     conn.send(("error", key, " ".join(f"{type(exc).__name__}: {exc}".split()), traceback.format_exc()))
                 else:
                     conn.send(("row", key, row))
@@ -358,7 +357,7 @@ RAY_INSTALL_HINT = "pip install 'warpcloth[cluster]' (from a clone: pip install 
 def import_ray():
     """The ``ray`` module, or an ImportError whose message says how to install it."""
     try:
-        import ray  # noqa: F401
+        import ray  # noqa: PLC0415 (the optional [cluster] extra)
     except ImportError:
         raise ImportError(f"Ray is not installed: {RAY_INSTALL_HINT}") from None
     return ray
@@ -367,7 +366,7 @@ def import_ray():
 def _ray_unit(fn, init, items, device):
     """A Ray task: run a unit's jobs in this Ray worker and return [(key, row | None, error)],
     the place and the node id. A CUDA job runs on the GPU Ray gave the task."""
-    import ray
+    import ray  # noqa: PLC0415 (the optional [cluster] extra)
 
     ctx = ray.get_runtime_context()
     place = Place(socket.gethostname(), f"ray:{os.getpid()}", None, os.getpid())
@@ -383,7 +382,7 @@ def _ray_unit(fn, init, items, device):
     for key, payload in items:
         try:
             out.append((key, fn(payload, place), ""))
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:
             out.append((key, None, " ".join(f"{type(exc).__name__}: {exc}".split())))
     return out, place, ctx.get_node_id()
 
@@ -454,7 +453,7 @@ class RayPool:
                 ray.init(**kwargs)
             else:
                 ray.init(address=self.address, **kwargs)
-        except Exception as exc:  # noqa: BLE001 - Ray's connection errors vary by version
+        except Exception as exc:
             raise ConnectionError(f"cannot connect to the Ray cluster: {' '.join(str(exc).split())[:300]}") from None
         self.started = True
 
@@ -491,7 +490,7 @@ class RayPool:
                     unit = in_flight.pop(ref)
                     try:
                         rows, place, node = ray.get(ref)
-                    except Exception as exc:  # noqa: BLE001 - the task failed after its retries
+                    except Exception as exc:
                         message = " ".join(f"{type(exc).__name__}: {exc}".split())[:300]
                         if self.on_event is not None:
                             self.on_event(
@@ -520,7 +519,7 @@ class RayPool:
             for ref in in_flight:
                 try:
                     ray.cancel(ref, force=True)
-                except Exception:  # noqa: BLE001
+                except Exception:
                     pass
 
     def close(self) -> None:
@@ -623,11 +622,11 @@ def run_jobs(
 
 __all__ = [
     "CONNECT_TIMEOUT",
+    "RAY_INSTALL_HINT",
     "Done",
     "Job",
     "LocalPool",
     "Place",
-    "RAY_INSTALL_HINT",
     "RayPool",
     "check_address",
     "check_count",

@@ -25,6 +25,7 @@ exactly the model the kernels integrate, with float64 arithmetic.
 
 from __future__ import annotations
 
+import itertools
 import math
 import warnings
 from dataclasses import dataclass
@@ -71,7 +72,7 @@ class Float64Model:
     wind_on: bool
 
     @classmethod
-    def from_model(cls, model, control: Control | None = None) -> "Float64Model":
+    def from_model(cls, model, control: Control | None = None) -> Float64Model:
         """Read ``model``'s host arrays and per-spring ks/kd, and ``control``'s gravity, drag and
         wind (default: ``Control()``, gravity only)."""
         if getattr(model, "hinge_count", 0):
@@ -289,7 +290,7 @@ def reference_trajectory(
     y = np.concatenate([x[free].ravel(), v[free].ravel()])
     bounds = [0.0] + wind_switch_times(m64.wind_schedule, 0.0, float(duration)) if m64.wind_on else [0.0]
     bounds = bounds + [float(duration)]
-    for a, b in zip(bounds[:-1], bounds[1:]):
+    for a, b in itertools.pairwise(bounds):
         wind = m64.wind(0.5 * (a + b)) if m64.wind_on else None
         inside = np.nonzero((times > a) & (times < b))[0]
         t_eval = np.concatenate([times[inside], [b]])
@@ -466,7 +467,7 @@ class _Penalty:
         return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_dof, n_dof))
 
 
-def _minimize(m64: Float64Model, x: np.ndarray, penalty: "_Penalty | None", tol: float, max_iter: int) -> Equilibrium:
+def _minimize(m64: Float64Model, x: np.ndarray, penalty: _Penalty | None, tol: float, max_iter: int) -> Equilibrium:
     """Newton (Levenberg-Marquardt where needed, Armijo line search) on the potential energy plus
     ``penalty``'s, from ``x``, until the largest net force on a free particle is <= ``tol`` [N]."""
     free = m64.free

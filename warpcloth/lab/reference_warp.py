@@ -24,6 +24,7 @@ update; no host synchronisation inside the loop (docs/reference.md).
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 import time
@@ -93,7 +94,7 @@ def stability_limit(m64: Float64Model, x: np.ndarray) -> StabilityLimit:
     of its start value for 1 s (32x32, 64x64), and an unstable run is rejected by the halving check
     anyway (a non-finite run's estimate is inf: h is halved).
     """
-    from scipy.sparse.linalg import eigsh
+    from scipy.sparse.linalg import eigsh  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
     free = m64.free
     fdof = (3 * np.nonzero(free)[0][:, None] + np.arange(3)[None, :]).ravel()
@@ -163,7 +164,7 @@ def _pieces(m64: Float64Model, tracks, duration: float, frames: int, frame_dt: f
     extra = sorted(t for t in cuts if np.min(np.abs(frame_times - t)) > snap)
     points = sorted([(t, k) for k, t in times.items()] + [(t, -1) for t in extra])
     pieces = []
-    for (a, _), (b, k) in zip(points[:-1], points[1:]):
+    for (a, _), (b, k) in itertools.pairwise(points):
         wind = tuple(float(w) for w in m64.wind(0.5 * (a + b))) if m64.wind_on else (0.0, 0.0, 0.0)
         pieces.append(_Piece(a, b, wind, k))
     return pieces

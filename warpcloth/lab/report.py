@@ -616,11 +616,11 @@ def scenario_tables(rows: list) -> list[str]:
 # -- plots -----------------------------------------------------------------------------------
 def plots(out_dir: str, data: Data, budget_ms: float, tolerance: float) -> list[str] | None:
     try:
-        import matplotlib
+        import matplotlib  # noqa: PLC0415 (the optional [plot] extra)
 
         matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        from matplotlib.ticker import NullFormatter
+        import matplotlib.pyplot as plt  # noqa: PLC0415 (the optional [plot] extra)
+        from matplotlib.ticker import NullFormatter  # noqa: PLC0415 (the optional [plot] extra)
     except ImportError:
         return None
     written = []
@@ -980,4 +980,4 @@ def write_report(out_dir: str, rows: list[dict], plan=None, command: str = "", s
     return ["results.csv", "report.md"] + (written or [])
 
 
-__all__ = ["CHANGES", "Data", "PLOTS", "config_label", "verdict", "write_report"]
+__all__ = ["CHANGES", "PLOTS", "Data", "config_label", "verdict", "write_report"]

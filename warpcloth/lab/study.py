@@ -96,7 +96,7 @@ class ParallelSettings:
         return f"in {self.workers} worker processes, timings {self.timing_workers} at a time"
 
     @classmethod
-    def check(cls, devices: list, workers=None, ray=None, timing_workers=None) -> "ParallelSettings":
+    def check(cls, devices: list, workers=None, ray=None, timing_workers=None) -> ParallelSettings:
         """Validated settings for a study on ``devices``; WarpclothError names the bad value."""
         check_count("--workers", workers)
         check_count("--timing-workers", timing_workers)
@@ -191,10 +191,10 @@ def run_parallel(study: Measurements, settings: ParallelSettings, progress=None,
                 failed += 1
                 note(f"{phase} of {i} {group_label(n)} on {d} failed after {done.attempts} attempt(s): {done.error}")
             else:
-                for row in done.row["rows"]:
-                    if row["key"] in study.out.done:  # a shared measurement (the floor) another worker wrote first
+                for measured in done.row["rows"]:
+                    if measured["key"] in study.out.done:  # a shared measurement (the floor) another worker wrote first
                         continue
-                    row = dict(row)
+                    row = dict(measured)
                     if done.place is not None:
                         row.update(host=done.place.host, worker=done.place.worker)
                     row["concurrent_runs"] = done.concurrent

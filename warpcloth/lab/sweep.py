@@ -26,6 +26,8 @@ import socket
 import time
 from dataclasses import dataclass, field
 
+import warp as wp
+
 from warpcloth.errors import WarpclothError
 from warpcloth.io.progress import Progress, format_clock
 from warpcloth.io.results import ResultsFile, ResultsFormat
@@ -89,8 +91,6 @@ OUTCOMES = ("equilibrium", "completed", "wall_cap", "unstable", "error")
 # -- one run ---------------------------------------------------------------------------------
 def parameter_row(spec: RunSpec) -> dict:
     """The columns known before a run starts (the parameter columns from the declarations)."""
-    import warp as wp
-
     row = {
         "test_id": spec.test_id,
         "options": " ".join(f"{k}={v}" for k, v in spec.options),
@@ -420,7 +420,7 @@ class ParallelPlan:
         )
 
     @classmethod
-    def check(cls, runs, workers=None, devices=None, ray=None) -> "ParallelPlan":
+    def check(cls, runs, workers=None, devices=None, ray=None) -> ParallelPlan:
         """Validate the parallel settings against the runs; WarpclothError names the problem."""
         if ray is not None:
             if workers is not None or devices:
@@ -437,8 +437,8 @@ class ParallelPlan:
         names = None
         if devices is not None:
             names = []
-            for d in devices:
-                d = str(d).strip()
+            for given in devices:
+                d = str(given).strip()
                 if not d.startswith("cuda"):
                     raise WarpclothError(
                         f"--devices: {d!r} is not a CUDA device; --devices lists the GPUs (cuda:0,cuda:1) "
@@ -497,10 +497,10 @@ def read_results(path: str) -> list[dict]:
 
 __all__ = [
     "COLUMNS",
+    "RESULTS",
     "CsvOutput",
     "MaxDtCache",
     "ParallelPlan",
-    "RESULTS",
     "SweepSummary",
     "execute_run",
     "format_row",

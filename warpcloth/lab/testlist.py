@@ -29,7 +29,7 @@ from warpcloth.errors import WarpclothError, warn
 from warpcloth.integrators import all_options, integrator_class, integrator_names
 from warpcloth.io.files import read_input
 from warpcloth.run import params
-from warpcloth.run.params import (  # noqa: F401  (SPRING_TYPES, TimeStep: importable from here)
+from warpcloth.run.params import (
     SPRING_TYPES,
     Param,
     TimeStep,

@@ -198,7 +198,7 @@ def node_count(
     ``min_prominence`` [m], 0.1 (R_max - R_min)), at least ``min_separation_deg`` apart, counted
     once per period (found on the profile repeated three times, kept in the middle period, so that
     a peak at the seam is seen whole)."""
-    from scipy.signal import find_peaks
+    from scipy.signal import find_peaks  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
     radius = np.asarray(radius, dtype=np.float64)
     n = radius.size
@@ -220,7 +220,7 @@ def skirt_outline(
     p = np.asarray(positions, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64)
     axes = _plane_axes(up)
-    k = [a for a in range(3) if a not in axes][0]
+    k = next(a for a in range(3) if a not in axes)
     d = p[:, k] - float(height)
     edges = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
     da, db = d[edges[:, 0]], d[edges[:, 1]]
@@ -299,9 +299,9 @@ def cusick_drape(
 
 
 __all__ = [
-    "DrapeResult",
     "PEDESTAL_RADIUS",
     "SPECIMEN_RADIUS",
+    "DrapeResult",
     "Shadow",
     "cusick_drape",
     "drape_coefficient",

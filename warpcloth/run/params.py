@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from warpcloth.errors import FLOAT32_MAX, WarpclothError
 from warpcloth.integrators import check_integrator_name
@@ -923,7 +924,7 @@ PARAMS: tuple[Param, ...] = (
         "> 0",
         "run",
         default_doc="the scenario's (10); in a test list sheet 60, flag 10",
-        sweep_default=lambda name: SWEEP_DURATION.get(name),
+        sweep_default=SWEEP_DURATION.get,
         search=False,
         commands=("run", "sweep"),
         from_scenario=True,
@@ -1213,8 +1214,7 @@ def config_values(values: dict) -> dict:
         if (
             field_name is None
             or p.name in ("stiffness", "damping")
-            or field_name in out
-            and out[field_name] is not None
+            or (field_name in out and out[field_name] is not None)
         ):
             continue
         value = values.get(p.name)
@@ -1268,12 +1268,12 @@ __all__ = [
     "Param",
     "TimeStep",
     "add_flags",
+    "argparse_type",
     "canonical",
     "config_values",
     "csv_columns",
     "markdown_table",
     "params_for",
-    "argparse_type",
 ]
 
 

@@ -18,8 +18,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from warpcloth.scenarios.common import Scenario, ScenarioConfig, scenario_material
 
+from warpcloth.scenarios.common import Scenario, ScenarioConfig, scenario_material
 from warpcloth.sim.colliders import Box
 from warpcloth.sim.control import Control
 from warpcloth.sim.elastica import ASTM_ANGLE, rigidity_from_overhang, tip_deflection

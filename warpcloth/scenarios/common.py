@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Callable
 
 import warp as wp
 
@@ -104,7 +104,7 @@ def scenario_material(cfg: ScenarioConfig):
     return material_with(cfg.material, **{k: getattr(cfg, k) for k in MATERIAL_FIELDS})
 
 
-def check_material_overrides(scenario: "Scenario", given: dict) -> None:
+def check_material_overrides(scenario: Scenario, given: dict) -> None:
     """Refuse per-spring values (mass, stiffness, damping) on a cloth made of a material, and a
     material's values on a per-spring cloth, naming what to give instead."""
     base = given.get("material", scenario.defaults.material)

@@ -8,7 +8,6 @@ A run ends at equilibrium. Run it with ``warpcloth run curtain`` (or
 """
 
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
-
 from warpcloth.sim.control import Control
 from warpcloth.sim.pins import PinTrack
 

@@ -26,10 +26,10 @@ import math
 
 import numpy as np
 import warp as wp
-from warpcloth.scenarios.common import Scenario, ScenarioConfig, check_rigidity, scenario_material
 
 from warpcloth.errors import WarpclothError
 from warpcloth.run.drape import PEDESTAL_RADIUS, SPECIMEN_RADIUS, cusick_drape
+from warpcloth.scenarios.common import Scenario, ScenarioConfig, check_rigidity, scenario_material
 from warpcloth.sim.colliders import MeshCollider
 from warpcloth.sim.control import Control
 from warpcloth.sim.hinges import (

@@ -97,10 +97,10 @@ _NOTED: set = set()  # old spellings already noted in this process
 
 def _toml():
     try:
-        import tomllib
+        import tomllib  # noqa: PLC0415 (tomllib is Python 3.11+; 3.10 reads tomli)
     except ImportError:  # Python 3.10
         try:
-            import tomli as tomllib
+            import tomli as tomllib  # noqa: PLC0415 (tomllib is Python 3.11+; 3.10 reads tomli)
         except ImportError:
             raise WarpclothError(
                 "reading scenario files (.toml) needs Python 3.11 (tomllib) or the tomli package (pip install tomli)"

@@ -5,7 +5,6 @@ Run it with ``warpcloth run flag [--integrator verlet ...]``.
 """
 
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
-
 from warpcloth.sim.control import Control, WindSchedule
 
 #: Gust wind velocity [m/s], and the calmer wind between gusts.

@@ -10,7 +10,6 @@ the laid part and down onto it. Without self-collision the upper layer falls thr
 """
 
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
-
 from warpcloth.sim.colliders import Plane
 from warpcloth.sim.control import Control
 from warpcloth.sim.pins import PinTrack

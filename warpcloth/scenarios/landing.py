@@ -3,7 +3,7 @@ the ground, settles (a run ends at equilibrium) and reports the folds of what ha
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from warpcloth.errors import WarpclothError
 from warpcloth.run.drape import fold_count

@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from warpcloth.scenarios.common import Scenario, ScenarioConfig, check_rigidity, scenario_material
 
 from warpcloth.io.meshio import load_mesh
+from warpcloth.scenarios.common import Scenario, ScenarioConfig, check_rigidity, scenario_material
 from warpcloth.sim.control import Control
 from warpcloth.sim.grid import grid_triangles
 from warpcloth.sim.material import material_mesh_cloth

@@ -5,7 +5,6 @@ or at its duration. Run it with ``warpcloth run sheet [--integrator rk4 ...]``.
 """
 
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
-
 from warpcloth.sim.control import Control
 
 

@@ -55,7 +55,7 @@ class ColliderTrack(Track):
         return self.offsets
 
     @classmethod
-    def keyframes(cls, times, offsets, interpolation: str = "linear", tangents=None) -> "ColliderTrack":
+    def keyframes(cls, times, offsets, interpolation: str = "linear", tangents=None) -> ColliderTrack:
         """Translation offsets [m] (K, 3) at K increasing times [s], added to the collider as
         given; ``interpolation`` ``"linear"``, ``"catmull_rom"`` or ``"hermite"`` (with
         ``tangents`` [m/s], (K, 3)), as :meth:`PinTrack.keyframes <warpcloth.sim.pins.PinTrack.keyframes>`;
@@ -76,7 +76,7 @@ class ColliderTrack(Track):
         swing_frequency: float = 0.0,
         swing_phase: float = 0.0,
         velocity=(0.0, 0.0, 0.0),
-    ) -> "ColliderTrack":
+    ) -> ColliderTrack:
         """A rigid motion: ``center`` c [m] on the rotation ``axis`` at t = 0, ``angular_velocity``
         omega [rad/s], a swing A [rad] at f [Hz] with phase phi [rad], translation ``velocity`` u [m/s]."""
         motion = check_rigid(
@@ -85,7 +85,7 @@ class ColliderTrack(Track):
         return cls(**motion)
 
     @classmethod
-    def from_table(cls, table) -> "ColliderTrack":
+    def from_table(cls, table) -> ColliderTrack:
         """A track from a scenario file's ``track = { kind = "rigid", velocity = [0.5, 0, 0] }`` or
         ``{ kind = "keyframes", times = [...], offsets = [[...], ...], interpolation = "linear" }``."""
         if not isinstance(table, dict):
@@ -123,7 +123,7 @@ class ColliderTrack(Track):
         return cls.rigid(**args)
 
     @classmethod
-    def driven(cls, interpolation: str = "linear") -> "ColliderTrack":
+    def driven(cls, interpolation: str = "linear") -> ColliderTrack:
         """A pose that your loop sets each frame: ``track.set(offset, rotation)`` (or
         :meth:`Simulator.set_collider_pose <warpcloth.simulator.Simulator.set_collider_pose>`)
         says where the collider is at the end of the next ``simulate()`` call, and its steps
@@ -595,17 +595,17 @@ def matrix_quat(m: np.ndarray) -> tuple:
 
 
 __all__ = [
-    "Box",
     "COLLIDER_TYPES",
+    "KINDS",
+    "Box",
     "Capsule",
     "ColliderDrive",
     "ColliderTrack",
-    "KINDS",
     "MeshCollider",
     "Plane",
     "Sphere",
     "describe",
-    "signed_distance",
     "matrix_quat",
     "quat_matrix",
+    "signed_distance",
 ]

@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import warp as wp
 
 from warpcloth.errors import WarpclothError
 
@@ -46,7 +47,7 @@ class Coloring:
     counts: tuple[int, ...]
 
     @classmethod
-    def from_colors(cls, colors) -> "Coloring":
+    def from_colors(cls, colors) -> Coloring:
         """Sort items by their colours (stable: within a colour, items keep their order)."""
         colors = np.asarray(colors, dtype=np.int32)
         order = np.argsort(colors, kind="stable").astype(np.int32)
@@ -164,8 +165,6 @@ def greedy_vertex_colors(pairs: np.ndarray, particle_count: int) -> np.ndarray:
 def warp_vertex_colors(pairs: np.ndarray, particle_count: int) -> np.ndarray | None:
     """Warp's MCS vertex colouring (``wp.utils.graph_coloring_assign``, on the CPU), or None where
     this Warp has none."""
-    import warp as wp
-
     assign = getattr(getattr(wp, "utils", None), "graph_coloring_assign", None)
     if assign is None or particle_count == 0:
         return None

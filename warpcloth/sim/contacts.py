@@ -148,7 +148,7 @@ class ColliderSet:
     def moving(self) -> bool:
         return bool(self._moving)
 
-    def edges(self, model) -> "ColliderEdges | None":
+    def edges(self, model) -> ColliderEdges | None:
         """The box and mesh colliders' edges and corners bound to ``model`` (:class:`ColliderEdges`, made
         at the first call for a model: host work, never inside a captured step), or None without them
         (or without cloth triangles, or with :attr:`edge_contacts` off)."""

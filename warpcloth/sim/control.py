@@ -58,12 +58,12 @@ class WindSchedule:
         object.__setattr__(self, "period", require_non_negative("wind schedule period", self.period, "s"))
 
     @classmethod
-    def constant(cls, wind) -> "WindSchedule":
+    def constant(cls, wind) -> WindSchedule:
         """The constant wind ``wind`` [m/s] from t = 0."""
         return cls(starts=(0.0,), winds=(require_vector("wind", wind, 3, "m/s"),))
 
     @classmethod
-    def gusts(cls, wind, on: float, off: float, base=(0.0, 0.0, 0.0)) -> "WindSchedule":
+    def gusts(cls, wind, on: float, off: float, base=(0.0, 0.0, 0.0)) -> WindSchedule:
         """Gusts of ``wind`` for ``on`` seconds, then ``base`` for ``off`` seconds, repeating."""
         wind = require_vector("gust wind", wind, 3, "m/s")
         base = require_vector("gust base wind", base, 3, "m/s")

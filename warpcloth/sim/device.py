@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import sys
+import tempfile
 
 import warp as wp
 
@@ -52,8 +53,6 @@ def resolve_device(device=None) -> wp.Device:
 
 def available_memory(device) -> int:
     """Bytes that ``device`` can still allocate: free GPU memory, or the host's available RAM."""
-    import os
-
     d = resolve_device(device)
     if d.is_cuda:
         return int(d.free_memory)
@@ -91,8 +90,6 @@ __all__ = ["available_memory", "device_name", "require_memory", "resolve_device"
 def init_warp(verbose: bool = False) -> None:
     """``wp.init()`` without Warp's start-up lines on stderr (e.g. "CUDA driver not found",
     printed by its native library) unless ``verbose``; they are shown if init fails."""
-    import tempfile
-
     if verbose:
         wp.config.quiet = False
         if hasattr(wp, "LOG_INFO"):
@@ -101,7 +98,7 @@ def init_warp(verbose: bool = False) -> None:
         return
     wp.config.quiet = True
     try:
-        from warp import context as _ctx
+        from warp import context as _ctx  # noqa: PLC0415 (Warp's runtime, read only to tell whether Warp has started)
 
         if getattr(_ctx, "runtime", None) is not None:
             return

@@ -32,14 +32,14 @@ _RTOL, _ATOL = 1e-12, 1e-14
 
 def _rhs(lam: float):
     def rhs(sig, u):  # sigma = s / L
-        th, dth, x, y = u
+        th, dth, _x, _y = u
         return [dth, -lam * (1.0 - sig) * math.cos(th), math.cos(th), -math.sin(th)]
 
     return rhs
 
 
 def _integrate(lam: float, tip_angle: float, t_eval=None):
-    from scipy.integrate import solve_ivp
+    from scipy.integrate import solve_ivp  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
     return solve_ivp(
         _rhs(lam), (1.0, 0.0), [tip_angle, 0.0, 0.0, 0.0], method="DOP853", rtol=_RTOL, atol=_ATOL, t_eval=t_eval
@@ -48,7 +48,7 @@ def _integrate(lam: float, tip_angle: float, t_eval=None):
 
 def tip_angle(lam: float) -> float:
     """The tip slope theta(L) [rad] of the elastica with lambda = w L^3 / B."""
-    from scipy.optimize import brentq
+    from scipy.optimize import brentq  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
     lam = require_positive("lambda = w L^3 / B", lam)
     return brentq(lambda th: _integrate(lam, th).y[0, -1], 0.0, 0.5 * math.pi, xtol=1e-15, rtol=1e-15)
@@ -95,7 +95,7 @@ def chord_angle_of(lam: float) -> float:
 
 def lambda_for_chord_angle(angle: float = ASTM_ANGLE) -> float:
     """The lambda = w L^3 / B at which the chord is ``angle`` [rad] below the horizontal (8.004 at 41.5 deg)."""
-    from scipy.optimize import brentq
+    from scipy.optimize import brentq  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
     angle = require_positive("angle", angle, "rad")
     require(angle <= math.radians(85.0), f"angle must be in (0, 85] degrees, got {math.degrees(angle):.6g}")

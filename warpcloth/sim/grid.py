@@ -8,6 +8,8 @@ seed eq. 2.2 (:func:`expected_spring_counts`).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from warpcloth.errors import (
@@ -194,7 +196,6 @@ def build_grid_cloth(
         share = np.outer(_end_halves(rows), _end_halves(cols)).ravel()
         masses = total_mass * share / share.sum()
     model = build_model(q, pairs, types, masses, spring_params, pins, grid_triangles(rows, cols), device)
-    from dataclasses import replace
 
     uv = grid_uvs(rows, cols)[model.host.tris].reshape(-1, 2)
     model = replace(

@@ -75,7 +75,7 @@ class Hinges:
     def hinge_count(self) -> int:
         return int(self.indices.shape[0])
 
-    def to_device(self, device=None) -> "HingeArrays":
+    def to_device(self, device=None) -> HingeArrays:
         """The arrays the kernels read, float32 on ``device``."""
         return HingeArrays(
             hinge_indices=wp.array(self.indices.astype(np.int32), dtype=wp.vec4i, device=device),

@@ -195,7 +195,7 @@ class Material:
         """Rayleigh coefficient beta_m = zeta_m / (pi f_ref) [s] for ``stretch_damping="rayleigh"``."""
         return self.stretch_damping_ratio / (math.pi * self.bend_damping_frequency)
 
-    def replace(self, **changes) -> "Material":
+    def replace(self, **changes) -> Material:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
@@ -206,7 +206,7 @@ class Material:
         return d
 
     @classmethod
-    def from_dict(cls, data: dict) -> "Material":
+    def from_dict(cls, data: dict) -> Material:
         """A material from a mapping of field names (unknown names are an error)."""
         require(isinstance(data, dict), f"a material must be a mapping of field names, got {type(data).__name__}")
         fields = [f.name for f in dataclasses.fields(cls)]
@@ -657,7 +657,7 @@ def mesh_spring_params(
         )
 
     faces, face_tris = _faces(topo, types, edge_spring, find, t)
-    normal, frame_u, frame_v = _face_frames(v, t, face_tris, uv, mat.warp_angle)
+    _normal, frame_u, frame_v = _face_frames(v, t, face_tris, uv, mat.warp_angle)
     tri_area = triangle_areas(v, t)
     face_area = np.array([tri_area[list(ft)].sum() for ft in face_tris])
     target = np.outer(face_area, _target(mat))  # A_f * C, reduced by the bend springs below
@@ -843,7 +843,7 @@ def _fit(m: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     scale = np.max(np.abs(rhs), axis=1, keepdims=True)
     bad = np.flatnonzero(np.any(coef < -1e-12 * scale, axis=1))
     if bad.size:
-        from scipy.optimize import nnls
+        from scipy.optimize import nnls  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
         size = m.shape[2]
         for f in bad:
@@ -992,11 +992,11 @@ def material_mesh_cloth(
 
 __all__ = [
     "GRAVITY",
-    "Material",
     "MATERIAL_VALUES",
-    "MaterialSprings",
     "PRESETS",
     "STRETCH_DAMPING_MODES",
+    "Material",
+    "MaterialSprings",
     "bend_spring_stiffness",
     "grid_spring_params",
     "material",

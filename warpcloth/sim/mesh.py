@@ -26,7 +26,7 @@ docs/meshes.md.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -450,7 +450,6 @@ def build_mesh_cloth(
         )
     pairs, types = mesh_springs(v, t, quads=quads, bend=bend_model in (BendModel.PROVOT, BendModel.CHOI_KO))
     model = build_model(v, pairs, types, masses, spring_params, pinned, t, device)
-    from dataclasses import replace
 
     host = replace(
         model.host,
@@ -506,12 +505,12 @@ __all__ = [
     "TriangleMesh",
     "build_mesh_cloth",
     "check_mesh",
-    "drop_loose_vertices",
     "corner_uvs",
+    "drop_loose_vertices",
     "lumped_masses",
+    "mesh_bend",
     "mesh_memory_estimate",
     "mesh_springs",
     "mesh_topology",
     "triangle_areas",
-    "mesh_bend",
 ]

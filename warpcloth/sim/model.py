@@ -11,7 +11,7 @@ fresh :class:`~warpcloth.sim.state.State`. The default spring parameters are her
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import warp as wp
@@ -168,11 +168,9 @@ class ClothModel:
         the order :mod:`warpcloth.kernels.bending`'s kernels take them."""
         return self.hinge_indices, self.hinge_rest_angle, self.hinge_stiffness, self.hinge_damping
 
-    def with_hinges(self, hinges: Hinges | None) -> "ClothModel":
+    def with_hinges(self, hinges: Hinges | None) -> ClothModel:
         """A new model with these dihedral-bending hinges (None: none), device copies on :attr:`device`;
         this model is left unchanged."""
-        from dataclasses import replace
-
         host = replace(self.host, hinges=hinges)
         if hinges is None:
             return replace(
@@ -231,12 +229,10 @@ class ClothModel:
         """A new :class:`~warpcloth.sim.state.State` at the rest configuration with zero velocity."""
         return State.from_model(self)
 
-    def with_spring_params(self, params: dict[SpringType, SpringParams]) -> "ClothModel":
+    def with_spring_params(self, params: dict[SpringType, SpringParams]) -> ClothModel:
         """A new model with per-spring stiffness and damping from per-type ``params`` (the same
         topology, masses and pins, shared); this model is left unchanged. A
         :class:`~warpcloth.simulator.Simulator` switches with :meth:`~warpcloth.simulator.Simulator.set_model`."""
-        from dataclasses import replace
-
         check_spring_params(params)
         ks = np.array([params[SpringType(t)].stiffness for t in self.spring_type], dtype=np.float32)
         kd = np.array([params[SpringType(t)].damping for t in self.spring_type], dtype=np.float32)

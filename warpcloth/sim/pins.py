@@ -52,7 +52,7 @@ class PinTrack(Track):
     @classmethod
     def keyframes(
         cls, particles, times, positions, interpolation: str = "linear", tangents=None, name: str = "track"
-    ) -> "PinTrack":
+    ) -> PinTrack:
         """Keyframed pins.
 
         Args:
@@ -90,7 +90,7 @@ class PinTrack(Track):
         swing_phase: float = 0.0,
         velocity=(0.0, 0.0, 0.0),
         name: str = "track",
-    ) -> "PinTrack":
+    ) -> PinTrack:
         """Pins moving rigidly: p(t) = c + u t + R(axis, theta(t)) (p0 - c), with
         theta(t) = omega t + A sin(2 pi f t + phi) [rad] and p0 each particle's rest position.
 
@@ -106,7 +106,7 @@ class PinTrack(Track):
         return cls(particles=tuple(idx.tolist()), name=name, **motion)
 
     @classmethod
-    def driven(cls, particles, interpolation: str = "linear", name: str = "driven") -> "PinTrack":
+    def driven(cls, particles, interpolation: str = "linear", name: str = "driven") -> PinTrack:
         """Pins that your loop moves each frame: ``track.set(positions)`` (or
         :meth:`Simulator.set_pin_targets <warpcloth.simulator.Simulator.set_pin_targets>`) says
         where they are at the end of the next ``simulate()`` call, and its steps interpolate to

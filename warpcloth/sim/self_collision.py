@@ -436,7 +436,7 @@ class SelfCollision:
         """The keyword arguments this object was made with (to bind the same settings to another model)."""
         return dict(self._settings)
 
-    def rebind(self, model) -> "SelfCollision":
+    def rebind(self, model) -> SelfCollision:
         """A new :class:`SelfCollision` with these settings bound to ``model``."""
         return SelfCollision(model, **self._settings)
 

@@ -22,7 +22,7 @@ class State:
     particle_f: wp.array
 
     @classmethod
-    def from_model(cls, model) -> "State":
+    def from_model(cls, model) -> State:
         with wp.ScopedDevice(model.device):
             return cls(
                 particle_q=wp.clone(model.particle_q),
@@ -30,7 +30,7 @@ class State:
                 particle_f=wp.zeros_like(model.particle_q),
             )
 
-    def assign(self, other: "State") -> None:
+    def assign(self, other: State) -> None:
         """Copy ``other`` into this state (no allocation)."""
         wp.copy(self.particle_q, other.particle_q)
         wp.copy(self.particle_qd, other.particle_qd)

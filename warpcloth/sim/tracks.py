@@ -155,7 +155,7 @@ class Track:
     swing_amplitude: float = 0.0
     swing_frequency: float = 0.0
     swing_phase: float = 0.0
-    drive: "FrameDrive | None" = None  # kind "driven": the host side (targets, device arrays)
+    drive: FrameDrive | None = None  # kind "driven": the host side (targets, device arrays)
 
     @property
     def keys(self) -> np.ndarray | None:
