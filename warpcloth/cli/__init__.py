@@ -10,6 +10,7 @@ one module each.
     warpcloth calibrate MATERIAL --target bending_length=0.021 [--target drape_coefficient=0.6] [--fit bend,...]
     warpcloth study --profile quick --out DIR [--workers N] [--resume | --overwrite] [--estimate]
     warpcloth check-intersections FILE.usd [--frames] [--json]
+    warpcloth advise --size N --budget-ms MS --tolerance T [--metric M] [--device D] [--results DIR]
 
 Bad input prints one line, ``warpcloth: error: ...``, and exits with status 2; an output that
 cannot be written during the work exits 74, SIGTERM 143, Ctrl-C 130, a closed stdout 141
@@ -54,6 +55,11 @@ COMMANDS = {
     "check-intersections": (
         "warpcloth.cli.intersections",
         "count self-intersections and collider edges through the cloth at every frame of a USD file",
+        True,
+    ),
+    "advise": (
+        "warpcloth.cli.advise",
+        "the cheapest measured configuration meeting a tolerance within a budget at a size, from a study's results",
         True,
     ),
 }
