@@ -46,6 +46,7 @@ say warpcloth run flag --preview flag.gif --usd flag.usdz --usd-color strain --s
 say warpcloth sweep --example quick --out quick2.csv
 say python -m warpcloth bench --sizes 8 --steps 20 --json --quiet
 say warpcloth study --profile quick --integrators xpbd --sizes 8 --out study-quick
+say warpcloth advise --size 64 --budget-ms 8 --tolerance 0.05
 
 # the docs' own example commands (docs/driving.md, docs/meshes.md, docs/colliders.md)
 say python -m warpcloth.examples.drive --num-frames 3 --size 8 --usd drive.usda
