@@ -258,7 +258,8 @@ def load_study(folder: str) -> Study:
             f"--results {folder}: results.csv is not a study's (missing column(s) {', '.join(missing)})"
         )
     try:
-        return Study(rows, source=path)
+        shipped = os.path.abspath(folder) == SHIPPED
+        return Study(rows, source="the CPU study shipped with warpcloth (docs/study/cpu)" if shipped else path)
     except (TypeError, ValueError) as exc:
         raise WarpclothError(f"--results {folder}: results.csv has a malformed row ({exc})") from None
 
@@ -324,12 +325,16 @@ def _describe(a: SizeAnswer, advice: Advice, run_n: int | None) -> list[str]:
 
 def format_advice(advice: Advice) -> str:
     """The advice for people: the question, the answer (or why there is none), the reproducing command."""
-    metric = "the pointwise e (else the finest metric its floor allows)" if advice.metric == "auto" else advice.metric
+    metric = (
+        "the pointwise e (else the finest metric its floor allows)"
+        if advice.metric == "auto"
+        else f"the {METRICS[advice.metric][2]}"
+    )
     sizes = ", ".join(f"{s}x{s}" for s in advice.sizes)
     lines = [
         f"{advice.n}x{advice.n} on {advice.device}: error ≤ {_pct(advice.tolerance)} of the cloth size by "
         f"{metric}, within {advice.budget_ms:g} ms per 1/60 s frame",
-        f"study: {advice.source} (measured sizes {sizes})",
+        f"study: {advice.source}; measured sizes {sizes}",
     ]
     if advice.kind == "outside":
         lines.append(
