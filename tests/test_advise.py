@@ -39,8 +39,9 @@ MEASURED = {
 }
 
 
-def write_study(folder: Path, rows=None, device="cpu") -> Path:
-    """A results.csv of floors, trials (swing and flag alike) and timings in the study's columns."""
+def write_study(folder: Path, rows=None, device="cpu", ill_posed=()) -> Path:
+    """A results.csv of floors, trials (swing and flag alike) and timings in the study's columns;
+    at the sizes ``ill_posed`` every metric's floor is 1 % (every verdict below 10 % refused)."""
     folder.mkdir(parents=True, exist_ok=True)
     out = []
     for n, point_floor in POINT_FLOORS.items():
@@ -57,8 +58,8 @@ def write_study(folder: Path, rows=None, device="cpu") -> Path:
                     "reference": "Warp RK4",
                     "reference_estimate_rel": 1e-6,
                     "floor_point_rel": point_floor,
-                    "floor_centroid_rel": 1e-7,
-                    "floor_patch_rel": 1e-6,
+                    "floor_centroid_rel": 0.01 if n in ill_posed else 1e-7,
+                    "floor_patch_rel": 0.01 if n in ill_posed else 1e-6,
                     "floor_damping_rel": 1e-7,
                     "floor_stretch_rel": 1e-7,
                 }
@@ -130,6 +131,20 @@ def test_refused_verdict_is_said_as_refused(study):
     a = advise(study, 32, 0.05, 8.0, metric="point")
     assert a.answer.status == "refused" and a.answer.best is None
     assert "refused" in format_advice(a) and "run it" not in format_advice(a)
+
+
+def test_refused_by_every_metric_is_said_as_refused_and_brackets_nothing(tmp_path):
+    study = load_study(str(write_study(tmp_path / "s", ill_posed=(32,))))
+    a = advise(study, 32, 0.05, 8.0)
+    assert a.answer.status == "refused" and a.answer.best is None
+    text = format_advice(a)
+    for what in ("pointwise e", "4 x 4 patch error", "centroid error"):
+        assert f"floor of the {what} is 1 %" in text
+    assert "refused" in text and "run it" not in text
+    between = advise(study, 48, 0.05, 8.0)  # refused at 32, pbd at 64: they differ
+    assert between.kind == "differ" and between.answer is None
+    # at 10 % the floors (1 %) are at the limit, not above it: judged again
+    assert advise(study, 32, 0.10, 8.0).answer.status == "answer"
 
 
 def test_outside_the_measured_range_is_not_answered(study):
