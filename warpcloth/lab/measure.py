@@ -7,20 +7,14 @@
   halving estimate, step) and the conditioning floor of every metric
   (:meth:`~warpcloth.lab.accuracy.TransientProblem.floor`, :meth:`~warpcloth.lab.accuracy.ContactProblem.floor`);
 * ``trial``: one configuration (:mod:`warpcloth.lab.configs`) on one dynamic transient: every
-  metric (:func:`~warpcloth.lab.accuracy.trajectory_metrics`). A configuration is "not run" only
-  where its cost per 1/60 s frame predicted from the group's ``calibration`` row (ms/step at the
-  integrator's defaults x :func:`~warpcloth.lab.configs.work` x steps per frame) exceeds the plan's
-  ``max_frame_ms``: the rows are a function of the profile and that stated calibration, never of
-  the load at each configuration; a run still going at twice the plan's ``run_wall_cap`` is
-  stopped (its row says so);
-* ``calibration`` (per device x integrator x size, once; reused on ``--resume``): ms/step of the
-  swing's sheet at the integrator's default options and dt, the fastest of 3 short windows;
+  metric; "not run" only where its ms per frame predicted from the group's ``calibration`` row
+  (measured once) exceeds the plan's ``max_frame_ms`` (:meth:`Measurements.trial`): the rows never
+  depend on the load at each configuration;
 * ``static``: a configuration run to rest on the contact transient: rest shape and sag against the
   float64 equilibrium with the contact, time to equilibrium;
 * ``timing``: every configuration that ran finite on both dynamic transients, on the swing's sheet
   from the swing's start: ms/step over ``timing_windows`` windows after a warm-up (compile) and an
-  untimed replay (graph capture), median and spread; re-timed (up to :data:`RETIMES` times, the
-  timing of least spread kept) where the spread (max - min) / median exceeds :data:`MAX_SPREAD`;
+  untimed replay (graph capture), median and spread (re-timed above :data:`MAX_SPREAD`);
   ms per 1/60 s frame, wall s per simulated s;
 * a fixed-mesh scenario (a file or a registered scenario): max stable dt, time to equilibrium
   and ms/step at it; no accuracy (:data:`~warpcloth.lab.results.MESH_NOTE`).
@@ -393,7 +387,12 @@ class Measurements:
         )
 
     def trial(self, name: str, c: Config, device: str, n: int) -> dict:
-        """The metrics of configuration ``c`` on dynamic transient ``name`` at ``n``."""
+        """The metrics of configuration ``c`` on dynamic transient ``name`` at ``n``
+        (:func:`~warpcloth.lab.accuracy.trajectory_metrics`). Not run where its cost per 1/60 s
+        frame predicted from the group's :meth:`calibration` (ms/step at the integrator's defaults
+        x :func:`~warpcloth.lab.configs.work` x steps per frame) exceeds the plan's
+        ``max_frame_ms``: a function of the profile and that stated calibration; a run still going
+        at twice the plan's ``run_wall_cap`` is stopped (its row says so)."""
         p = self.plan
         tr = TRANSIENTS[name]
         frames = p.window_frames(name, n)
