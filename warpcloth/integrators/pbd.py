@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import numpy as np
 import warp as wp
 
 from warpcloth.integrators.base import Option
@@ -41,6 +42,23 @@ from warpcloth.kernels import constraints as ck
 from warpcloth.sim.model import SpringType
 
 
+def material_bend_stiffness(model, h: float) -> float:
+    """The pbd bend stiffness k that takes the model's material: the fraction of a lone bend
+    constraint's error that xpbd's compliance 1/ks removes in one substep of length ``h`` [s],
+    k = ks h^2 w / (1 + ks h^2 w), w = w_i + w_j (Macklin et al. 2016, eq. 18 with lambda = 0), the
+    median over the bend springs between free particles (0 without any: nothing to bend). Rounded to 3
+    digits (an option a ``warpcloth run`` reproduces). pbd's own default, 1, is a rigid bend."""
+    t = np.asarray(model.spring_type)
+    w = model.host.inv_mass.astype(np.float64)
+    pairs = model.host.pairs.astype(np.int64).reshape(-1, 2)
+    ks = model.spring_stiffness.numpy().astype(np.float64)
+    bend = (t == int(SpringType.BEND)) & (w[pairs[:, 0]] > 0) & (w[pairs[:, 1]] > 0)
+    if not np.any(bend):
+        return 0.0
+    x = ks[bend] * h * h * (w[pairs[bend, 0]] + w[pairs[bend, 1]])
+    return float(f"{float(np.median(x / (1.0 + x))):.3g}")
+
+
 def iteration_stiffness(stiffness: float, iterations: int) -> float:
     """k' = 1 - (1 - k)^(1/n): the per-iteration stiffness whose n-fold application removes the
     fraction k of a constraint's error (Müller et al. 2007, section 3.3)."""
@@ -51,6 +69,9 @@ class PBD(PositionBasedIntegrator):
     """Position based dynamics (Müller et al. 2007), distance constraints with stiffness in [0, 1]."""
 
     name: ClassVar[str] = "pbd"
+    #: The study maps ``pbd_bend_stiffness`` from its material at each configuration's substep
+    #: (:func:`material_bend_stiffness`): the default 1 is a rigid bend, another material.
+    study_bend_from_material: ClassVar[bool] = True
 
     def rest_extension(self, mass: float, stiffness: float, gravity: float, dt: float) -> float:
         """pbd's stiffness k is a dimensionless fraction of a constraint projected per iteration, not

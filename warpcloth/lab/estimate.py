@@ -98,8 +98,9 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
     * stability: 6 trials of the swing's window (its sheet) at 1.5x the default dt for the
       explicit schemes, 1 trial for those stable at one frame, each at most the wall cap;
     * trials: every configuration x 2 transients, frames x k steps at the calibrated ms/step x
-      :func:`~warpcloth.lab.configs.work` per step; one predicted above the plan's caps is not run
-      (but the cheapest, which always runs);
+      :func:`~warpcloth.lab.configs.work` per step, each at most twice the plan's ``run_wall_cap``;
+      one whose ms per frame so predicted exceeds the plan's ``max_frame_ms`` is not run (the
+      study's own rule, from its calibration rows);
     * contact: 2 runs of :data:`CONTACT_REST_S` simulated, at most the wall cap;
     * timings: warm-up, capture and the timed windows of every configuration that ran;
 
@@ -135,14 +136,14 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
             stab += (6 if explicit else 1) * trial
             counts["stab"] += 1
             configs = configurations(i, dt0 if explicit else None, plan.level, n)
-            for first, c in enumerate(configs):
+            for c in configs:
                 per_step = ms / 1000.0 * work(i, c.option_dict)
                 run = 0.0
+                if plan.max_frame_ms is not None and 1000.0 * float(c.k) * per_step > plan.max_frame_ms:
+                    counts["trial"] += len(DYNAMIC)  # not run: a row each
+                    continue
                 for name in DYNAMIC:
-                    seconds = plan.window_frames(name, n) * float(c.k) * per_step
-                    if first and (seconds > cap or 1000.0 * float(c.k) * per_step > plan.max_frame_ms):
-                        seconds = 0.0  # predicted above the caps: not run (the cheapest always runs)
-                    run += seconds
+                    run += min(plan.window_frames(name, n) * float(c.k) * per_step, 2.0 * cap)
                     counts["trial"] += 1
                 trials += run
                 if run > 0:

@@ -27,6 +27,7 @@ COLUMNS = [
     "damping_rel",
     "max_strain_rel",
     "ref_max_strain_rel",
+    "strain_excess_rel",
     "stable",
     "floor_point_rel",
     "floor_centroid_rel",
@@ -43,6 +44,8 @@ COLUMNS = [
     "ms_per_step_min",
     "ms_per_step_max",
     "timed_windows",
+    "timing_spread_rel",
+    "retimed",
     "steps_per_window",
     "ms_per_frame",
     "wall_s_per_sim_s",
@@ -70,7 +73,8 @@ COLUMNS = [
 #: Descriptions of the columns (docs/study.md is generated from the same text).
 COLUMN_DOCS = {
     "measurement": "max_stable_dt, floor, trial (a configuration on a dynamic transient), static (one run to rest on "
-    "the contact transient), timing (a configuration's cost)",
+    "the contact transient), timing (a configuration's cost), calibration (a group's ms/step at the integrator's defaults: the "
+    "plan's not-run rule reads it)",
     "scenario": "the cloth: study_sheet, study_flag, study_contact (or a scenario file's)",
     "transient": "swing, flag or contact",
     "integrator": "integrator name",
@@ -90,9 +94,11 @@ COLUMN_DOCS = {
     "patch_error_rel": "max over frames and 4 x 4 patches |patch mean - the reference's| / size",
     "damping_rel": "numerical damping: 1 - (kinetic energy summed over the frames) / the reference's (< 0: energy "
     "gained)",
-    "max_strain_rel": "largest strain of a structural spring in the run (stretch along warp or weft; > 0.1: stretchy); "
-    "max_stable_dt: the largest of any spring at that dt",
+    "max_strain_rel": "largest strain of a structural spring in the run (stretch along warp or weft); max_stable_dt: "
+    "the largest of any spring at that dt",
     "ref_max_strain_rel": "the reference's largest strain",
+    "strain_excess_rel": "over-stretch: max over frames of (the run's largest structural strain - the reference's at the "
+    "same instant); > 0.02: over-stretched (the reference's own strain is not a defect)",
     "stable": "the run stayed finite",
     "floor_point_rel": "conditioning floor of e: float64 growth of a 1e-7 m perturbation of the start (2 seeds, max), "
     "/ size",
@@ -110,6 +116,8 @@ COLUMN_DOCS = {
     "ms_per_step_min": "fastest window [ms]",
     "ms_per_step_max": "slowest window [ms]",
     "timed_windows": "windows timed",
+    "timing_spread_rel": "spread of the timed windows: (slowest - fastest) / median (re-timed above 0.2)",
+    "retimed": "how many times the timing was taken again because its spread exceeded 0.2 (the least spread kept)",
     "steps_per_window": "steps per window",
     "ms_per_frame": "median ms per 1/60 s of simulated time (ms/step x k)",
     "wall_s_per_sim_s": "wall seconds per simulated second (median ms/step / dt)",

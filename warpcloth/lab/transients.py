@@ -19,8 +19,8 @@ springs' ks at the study's sizes, so the cloths' response is the membrane's.
   (:func:`warpcloth.lab.reference.contact_equilibrium`), unique because the plane is frictionless
   and convex and the sheet is held by its top row (a sphere's contact set is not unique).
 
-The windows depend on the size (:meth:`warpcloth.lab.plan.StudyPlan.window_frames`): the 1 s
-swing is ill-conditioned from 64 x 64 (docs/study.md, "Windows").
+Every size of a profile runs the same window (:meth:`warpcloth.lab.plan.StudyPlan.window_frames`);
+where the pointwise e is ill-conditioned at a size, the coarse metrics decide (docs/study.md, "Windows").
 """
 
 from __future__ import annotations
