@@ -247,6 +247,11 @@ COLLIDER_MESH = """        def Mesh "mesh_0"
         ("cube nan", {"colliders": CUBE.format(size="nan")}, "/World/Colliders/box_0 has size nan"),
         ("cube 0", {"colliders": CUBE.format(size="0")}, "/World/Colliders/box_0 has size 0.0"),
         (
+            "cube string",
+            {"colliders": CUBE.replace("double", "string").format(size='"big"')},
+            "/World/Colliders/box_0: size must be numbers, got a str",
+        ),
+        (
             "collider range",
             {"colliders": COLLIDER_MESH.format(counts="[3]", indices="[0, 1, 3]")},
             "/World/Colliders/mesh_0: faceVertexIndices[2] = 3 is out of range",
@@ -404,3 +409,20 @@ def test_a_really_full_disk_is_one_line_exit_74(tmp_path, capsys):
         assert not [n for n in os.listdir(folder) if n.startswith(".warpcloth-")]
     finally:
         subprocess.run(["umount", str(folder)], capture_output=True)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "words"),
+    [
+        ("point3f[] points = " + POINTS, 'string points = "abc"', "/World/Cloth: points must be numbers, got a str"),
+        ("point3f[] points = " + POINTS, "float[] points = [0, 1, 2, 3]", "points must be 3-vectors, got an array"),
+        ("int[] faceVertexCounts = [3, 3]", 'string faceVertexCounts = "x"', "faceVertexCounts must be integers"),
+        ("timeCodesPerSecond = 60", "timeCodesPerSecond = 0", "timeCodesPerSecond is 0.0; it must be a positive"),
+    ],
+)
+def test_attributes_of_the_wrong_type_are_one_line(tmp_path, capsys, old, new, words):
+    path = usda(tmp_path / "cloth.usda")
+    text = Path(path).read_text()
+    assert old in text
+    Path(path).write_text(text.replace(old, new))
+    refused(capsys, path, "cloth.usda", words)

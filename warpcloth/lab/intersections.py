@@ -362,11 +362,24 @@ def _first_bad(values: np.ndarray) -> int:
     return int(np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))[0])
 
 
+def _numbers(value, where: str, what: str, kinds: str = "iuf") -> np.ndarray:
+    """An attribute's value as a NumPy array (empty for None), refused unless it holds numbers of
+    the ``kinds`` (NumPy kind letters): a file may author ``string points`` or ``float[]`` counts."""
+    try:
+        a = np.asarray(value if value is not None else [])
+    except (TypeError, ValueError):
+        a = np.asarray([object()])
+    if a.size and a.dtype.kind not in kinds:
+        allowed = "integers" if kinds == "iu" else "numbers"
+        raise WarpclothError(f"{where}: {what} must be {allowed}, got a {type(value).__name__}")
+    return a
+
+
 def _triangles(mesh, where: str, points: int | None = None) -> np.ndarray:
     """The (T, 3) triangles of a ``UsdGeom.Mesh`` (its default topology), refused unless every face
     is a triangle, the counts match the indices and (given ``points``) every index names a point."""
-    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get() or [], dtype=np.int64)
-    indices = np.asarray(mesh.GetFaceVertexIndicesAttr().Get() or [], dtype=np.int64)
+    counts = _numbers(mesh.GetFaceVertexCountsAttr().Get(), where, "faceVertexCounts", "iu").astype(np.int64).ravel()
+    indices = _numbers(mesh.GetFaceVertexIndicesAttr().Get(), where, "faceVertexIndices", "iu").astype(np.int64).ravel()
     if counts.size == 0:
         raise WarpclothError(f"{where} has no faces (faceVertexCounts is empty or missing)")
     if not np.all(counts == 3):
@@ -392,10 +405,11 @@ def _check_indices(indices: np.ndarray, points: int, where: str) -> None:
 
 def _points(value, where: str) -> np.ndarray:
     """A points value as (N, 3) float64, refused when empty or not finite."""
-    x = np.asarray(value if value is not None else [], dtype=np.float64)
+    x = _numbers(value, where, "points").astype(np.float64)
     if x.size == 0:
         raise WarpclothError(f"{where} has no points")
-    x = x.reshape(-1, 3)
+    if x.ndim != 2 or x.shape[1] != 3:
+        raise WarpclothError(f"{where}: points must be 3-vectors, got an array of shape {x.shape}")
     if not np.isfinite(x).all():
         k = _first_bad(x)
         raise WarpclothError(f"{where}: point {k} = {tuple(float(v) for v in x[k])} is not finite")
@@ -415,8 +429,10 @@ def _usd_collider_segments(stage, path: str, root: str = "/World/Colliders"):
             name = prim.GetName().lower()
             where = f"{path}: collider {prim.GetPath()}"
             if prim.IsA(UsdGeom.Cube) and name.startswith("box"):
-                value = UsdGeom.Cube(prim).GetSizeAttr().Get()
-                size = 2.0 if value is None else float(value)
+                value = _numbers(UsdGeom.Cube(prim).GetSizeAttr().Get(), where, "size")
+                if value.size > 1:
+                    raise WarpclothError(f"{where}: its size must be one number, got {value.size}")
+                size = 2.0 if value.size == 0 else float(value.ravel()[0])
                 if not (np.isfinite(size) and size > 0):
                     raise WarpclothError(f"{where} has size {size}; a cube's size must be a positive finite number")
                 items.append((prim, where, 0.5 * size * _BOX_CORNERS[_BOX_EDGES]))
