@@ -426,3 +426,18 @@ def test_attributes_of_the_wrong_type_are_one_line(tmp_path, capsys, old, new, w
     assert old in text
     Path(path).write_text(text.replace(old, new))
     refused(capsys, path, "cloth.usda", words)
+
+
+def test_prim_paths_are_checked_not_skipped(tmp_path, capsys):
+    path = usda(tmp_path / "cloth.usda")
+    for argv, words in [
+        (["--cloth", "World"], "the cloth prim path must be an absolute USD path such as '/World/Cloth', got 'World'"),
+        (["--colliders", "bad path!"], "the colliders prim path must be an absolute USD path"),
+        (["--colliders", "/World/Nope"], "cloth.usda: no prim at '/World/Nope' (the colliders' scope)"),
+        (["--cloth", "/World/Nope"], "cloth.usda: no mesh at '/World/Nope'"),
+    ]:
+        code = main(["check-intersections", path, *argv])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and err.startswith("warpcloth: error: "), (argv, err)
+        assert words in err and "Warning" not in err, (argv, err)
+    assert main(["check-intersections", path, "--colliders", "/World/Colliders"]) == 0  # present, empty

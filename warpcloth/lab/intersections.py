@@ -348,6 +348,8 @@ def check_frames(frames, triangles, times=None, segments_at=None) -> Intersectio
     return report
 
 
+#: Where warpcloth's writer puts the colliders (a file without them has none).
+DEFAULT_COLLIDERS = "/World/Colliders"
 #: The extensions of the files :func:`check_usd` reads.
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
 #: The largest layer :func:`check_usd` opens [bytes]: warpcloth's writer keeps ~64 MiB of samples
@@ -423,6 +425,8 @@ def _usd_collider_segments(stage, path: str, root: str = "/World/Colliders"):
     from pxr import Usd, UsdGeom  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
     scope = stage.GetPrimAtPath(root)
+    if root != DEFAULT_COLLIDERS and not (scope and scope.IsValid()):  # the default may be absent: no colliders
+        raise WarpclothError(f"{path}: no prim at {root!r} (the colliders' scope)")
     items = []
     if scope and scope.IsValid():
         for prim in scope.GetChildren():
@@ -457,7 +461,7 @@ def _usd_collider_segments(stage, path: str, root: str = "/World/Colliders"):
     return at
 
 
-def check_usd(path: str, cloth: str = "/World/Cloth", colliders: str = "/World/Colliders") -> IntersectionReport:
+def check_usd(path: str, cloth: str = "/World/Cloth", colliders: str = DEFAULT_COLLIDERS) -> IntersectionReport:
     """Both counts at every time sample of the cloth's points in a USD file written by warpcloth
     (value clips resolved by USD); times in seconds (time code / timeCodesPerSecond).
 
@@ -476,6 +480,11 @@ def check_usd(path: str, cloth: str = "/World/Cloth", colliders: str = "/World/C
         raise WarpclothError(f"USD file must be a file name, got {path!r:.80}") from None
     if not isinstance(name, str) or os.path.splitext(name)[1].lower() not in USD_EXTENSIONS:
         raise WarpclothError(f"USD file {name!r} must end in one of {', '.join(USD_EXTENSIONS)}")
+    from pxr import Sdf  # noqa: PLC0415 (usd-core loads only where USD is read or written)
+
+    for what, prim, example in (("cloth", cloth, "/World/Cloth"), ("colliders", colliders, DEFAULT_COLLIDERS)):
+        if not isinstance(prim, str) or not prim.startswith("/") or not Sdf.Path.IsValidPathString(prim):
+            raise WarpclothError(f"the {what} prim path must be an absolute USD path such as {example!r}, got {prim!r}")
     stage, layers = open_usd_stage(name, max_bytes=MAX_USD_LAYER_BYTES, max_layers=MAX_USD_LAYERS)
     try:
         return _check_stage(stage, name, cloth, colliders)
@@ -487,7 +496,7 @@ def _check_stage(stage, path: str, cloth: str, colliders: str) -> IntersectionRe
     """:func:`check_usd` on an opened stage."""
     from pxr import Usd, UsdGeom  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
-    prim = stage.GetPrimAtPath(cloth) if isinstance(cloth, str) and cloth.startswith("/") else None
+    prim = stage.GetPrimAtPath(cloth)
     if not prim or not prim.IsA(UsdGeom.Mesh):
         raise WarpclothError(f"{path}: no mesh at {cloth!r}")
     where = f"{path}: {cloth}"
@@ -518,6 +527,7 @@ def _check_stage(stage, path: str, cloth: str, colliders: str) -> IntersectionRe
 
 
 __all__ = [
+    "DEFAULT_COLLIDERS",
     "MAX_USD_LAYERS",
     "MAX_USD_LAYER_BYTES",
     "USD_EXTENSIONS",
