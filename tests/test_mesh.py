@@ -505,7 +505,7 @@ def test_usd_layers_are_checked_before_the_stage_opens(tmp_path):
     top.Save()
     with pytest.raises(
         WarpclothError,
-        match=r"names './missing.usda' \(sublayer, reference or payload in top.usda\), which does not exist",
+        match=r"names './missing.usda' \(sublayer in top.usda\), which does not exist",
     ):
         load_mesh(str(tmp_path / "top.usda"))
     top.subLayerPaths.remove("./missing.usda")

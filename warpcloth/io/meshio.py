@@ -182,10 +182,17 @@ def read_usd(path: str, prim: str | None = None) -> TriangleMesh:
         del stage, layers
 
 
+#: pxr's error text starts with where in its C++ sources it was raised: ``Error in 'Sdf...' at line
+#: 323 in file .../usdaFileFormat.cpp : 'the message'``; the user needs only the message.
+_PXR_WHERE = re.compile(r"^Error in '.*?' at line \d+ in file \S+ : '(.*?)'?$")
+
+
 def _usd_error(exc: BaseException) -> str:
-    """The first line of pxr's error text (which can run to many lines), at most 200 characters."""
+    """The first line of pxr's error text (which can run to many lines) without the C++ source
+    location it starts with, at most 200 characters."""
     first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)
-    return first[:200]
+    m = _PXR_WHERE.match(first)
+    return (m.group(1) if m else first)[:200]
 
 
 def _clip_assets(layer) -> list:
@@ -225,52 +232,68 @@ def _clip_assets(layer) -> list:
     return out
 
 
-def open_usd_stage(path: str):
+def open_usd_stage(path: str, max_bytes: int = MAX_MESH_FILE_BYTES, max_layers: int = MAX_USD_LAYERS):
     """``(stage, layers)``: the USD stage of ``path`` composed from layers that were each checked
     before they were opened: the file itself and every sublayer, reference, payload, value clip
     and clip manifest it names, transitively (:func:`~warpcloth.io.files.check_input_file`: a
-    regular file, not a FIFO or a file of /proc, /sys, /dev, at most :data:`MAX_MESH_FILE_BYTES`;
-    a missing one is an error, as USD would only warn). ``layers`` holds the opened layers:
-    keep it while the stage is used (the stage then finds them open, and opens no file itself).
+    regular file, not a FIFO or a file of /proc, /sys, /dev, at most ``max_bytes``; a missing
+    one, one USD cannot read, and a sublayer that is the layer itself or one it is a sublayer of
+    (a cycle) are errors, where USD would only warn and compose without it). ``layers`` holds the
+    opened layers: keep it while the stage is used (the stage then finds them open, and opens no
+    file itself). At most ``max_layers`` layers in all.
     """
     from pxr import Ar, Sdf, Usd  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
     resolver = Ar.GetResolver()
     top = os.path.abspath(path)
-    check_input_file(top, "USD file", MAX_MESH_FILE_BYTES)
+    check_input_file(path, "USD file", max_bytes)
     layers, seen = [], set()
-    todo = [(top, None, "the file")]
+    todo = [(top, None, "the file", ())]  # (asset path, the layer naming it, what it is, sublayer chain)
     while todo:
-        asset, anchor, what = todo.pop()
+        asset, anchor, what, chain = todo.pop()
         name = top if anchor is None else f"{asset!r} ({what} in {os.path.basename(anchor.identifier)})"
         if asset is None:
-            raise WarpclothError(f"USD file {path!r} uses {what}, which warpcloth does not read in a mesh file")
+            raise WarpclothError(
+                f"USD file {path!r} uses {what}, which warpcloth does not read (name each clip in assetPaths)"
+            )
         identifier = (
             asset if anchor is None else resolver.CreateIdentifier(asset, Ar.ResolvedPath(str(anchor.resolvedPath)))
         )
-        if identifier in seen:
-            continue
-        seen.add(identifier)
-        if len(seen) > MAX_USD_LAYERS:
-            raise WarpclothError(f"USD file {path!r} names more than {MAX_USD_LAYERS} layers")
         outer = Ar.SplitPackageRelativePathOuter(identifier)[0] if Ar.IsPackageRelativePath(identifier) else identifier
         resolved = str(resolver.Resolve(outer)) if anchor is not None else outer
         if not resolved:
             raise WarpclothError(f"USD file {path!r} names {name}, which does not exist")
+        real = os.path.realpath(resolved)
+        if real in chain:
+            whose = "the layer itself" if real == chain[-1] else "a layer it is a sublayer of"
+            raise WarpclothError(f"USD file {path!r} names {name}, which is {whose} (a cycle of sublayers)")
+        if identifier in seen:
+            continue
+        seen.add(identifier)
+        if len(seen) > max_layers:
+            raise WarpclothError(f"USD file {path!r} names more than {max_layers} layers")
         try:
-            check_input_file(resolved, "layer" if anchor is not None else "USD file", MAX_MESH_FILE_BYTES)
+            what_file = "layer" if anchor is not None else "USD file"
+            check_input_file(resolved if anchor is not None else path, what_file, max_bytes)
         except WarpclothError as exc:
             raise WarpclothError(f"USD file {path!r} names {name}: {exc}" if anchor is not None else str(exc)) from None
         try:
             layer = Sdf.Layer.FindOrOpen(identifier)
+            error = None if layer is not None else "not a USD layer"
         except Exception as exc:
-            raise WarpclothError(f"cannot open USD file {path!r}: {_usd_error(exc)}") from None
+            layer, error = None, _usd_error(exc)
         if layer is None:
-            raise WarpclothError(f"cannot open USD file {path!r}: {name} is not a USD layer")
+            where = f"USD file {path!r}" if anchor is None else f"USD file {path!r} names {name}, which"
+            raise WarpclothError(f"{where} cannot be read as USD: {error}")
         layers.append(layer)
-        deps = [(a, "sublayer, reference or payload") for a in layer.GetCompositionAssetDependencies()]
-        for a, kind in deps + _clip_assets(layer):
-            todo.append((a, layer, kind))
+        subs = set(layer.subLayerPaths)
+        for a in layer.GetCompositionAssetDependencies():
+            if a in subs:  # a sublayer's layer stack is this one's: a cycle is refused
+                todo.append((a, layer, "sublayer", (*chain, real)))
+            else:
+                todo.append((a, layer, "reference or payload", ()))
+        for a, kind in _clip_assets(layer):
+            todo.append((a, layer, kind, ()))
     try:
         stage = Usd.Stage.Open(layers[0])
     except Exception as exc:

@@ -22,11 +22,13 @@ extent, pairs from sorted cell keys (vectorised), then an exact box test.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from warpcloth.errors import WarpclothError
+from warpcloth.io.meshio import open_usd_stage
 from warpcloth.sim.colliders import quat_matrix
 from warpcloth.sim.mesh import mesh_topology
 
@@ -346,32 +348,111 @@ def check_frames(frames, triangles, times=None, segments_at=None) -> Intersectio
     return report
 
 
-def _usd_collider_segments(stage, root: str = "/World/Colliders"):
-    """A function of the time code giving the edges of the file's box (Cube) and mesh colliders."""
+#: Where warpcloth's writer puts the colliders (a file without them has none).
+DEFAULT_COLLIDERS = "/World/Colliders"
+#: The extensions of the files :func:`check_usd` reads.
+USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+#: The largest layer :func:`check_usd` opens [bytes]: warpcloth's writer keeps ~64 MiB of samples
+#: a layer (value clips beyond), so a larger one is not a file it wrote, and USD reads it whole.
+MAX_USD_LAYER_BYTES = 2**30
+#: Layers one checked file may name, all told (a long run writes one value clip per chunk of frames).
+MAX_USD_LAYERS = 100_000
+
+
+def _first_bad(values: np.ndarray) -> int:
+    """The first row of ``values`` (K, ...) that is not all finite."""
+    return int(np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))[0])
+
+
+def _numbers(value, where: str, what: str, kinds: str = "iuf") -> np.ndarray:
+    """An attribute's value as a NumPy array (empty for None), refused unless it holds numbers of
+    the ``kinds`` (NumPy kind letters): a file may author ``string points`` or ``float[]`` counts."""
+    try:
+        a = np.asarray(value if value is not None else [])
+    except (TypeError, ValueError):
+        a = np.asarray([object()])
+    if a.size and a.dtype.kind not in kinds:
+        allowed = "integers" if kinds == "iu" else "numbers"
+        raise WarpclothError(f"{where}: {what} must be {allowed}, got a {type(value).__name__}")
+    return a
+
+
+def _triangles(mesh, where: str, points: int | None = None) -> np.ndarray:
+    """The (T, 3) triangles of a ``UsdGeom.Mesh`` (its default topology), refused unless every face
+    is a triangle, the counts match the indices and (given ``points``) every index names a point."""
+    counts = _numbers(mesh.GetFaceVertexCountsAttr().Get(), where, "faceVertexCounts", "iu").astype(np.int64).ravel()
+    indices = _numbers(mesh.GetFaceVertexIndicesAttr().Get(), where, "faceVertexIndices", "iu").astype(np.int64).ravel()
+    if counts.size == 0:
+        raise WarpclothError(f"{where} has no faces (faceVertexCounts is empty or missing)")
+    if not np.all(counts == 3):
+        k = int(np.flatnonzero(counts != 3)[0])
+        raise WarpclothError(f"{where}: face {k} has {int(counts[k])} vertices; the checker reads triangle meshes")
+    if indices.size != counts.sum():
+        raise WarpclothError(
+            f"{where}: faceVertexCounts sum to {int(counts.sum())} but there are {indices.size} faceVertexIndices"
+        )
+    if points is not None:
+        _check_indices(indices, points, where)
+    return indices.reshape(-1, 3)
+
+
+def _check_indices(indices: np.ndarray, points: int, where: str) -> None:
+    out = np.flatnonzero((indices.ravel() < 0) | (indices.ravel() >= points))
+    if out.size:
+        raise WarpclothError(
+            f"{where}: faceVertexIndices[{int(out[0])}] = {int(indices.ravel()[out[0]])} is out of range: "
+            f"its {points} points are 0..{points - 1}"
+        )
+
+
+def _points(value, where: str) -> np.ndarray:
+    """A points value as (N, 3) float64, refused when empty or not finite."""
+    x = _numbers(value, where, "points").astype(np.float64)
+    if x.size == 0:
+        raise WarpclothError(f"{where} has no points")
+    if x.ndim != 2 or x.shape[1] != 3:
+        raise WarpclothError(f"{where}: points must be 3-vectors, got an array of shape {x.shape}")
+    if not np.isfinite(x).all():
+        k = _first_bad(x)
+        raise WarpclothError(f"{where}: point {k} = {tuple(float(v) for v in x[k])} is not finite")
+    return x
+
+
+def _usd_collider_segments(stage, path: str, root: str = "/World/Colliders"):
+    """A function of the time code giving the edges of the file's box (Cube) and mesh colliders,
+    each checked: a finite positive cube size, a finite triangle mesh whose indices name its
+    points, a finite transform at each time."""
     from pxr import Usd, UsdGeom  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
     scope = stage.GetPrimAtPath(root)
+    if root != DEFAULT_COLLIDERS and not (scope and scope.IsValid()):  # the default may be absent: no colliders
+        raise WarpclothError(f"{path}: no prim at {root!r} (the colliders' scope)")
     items = []
     if scope and scope.IsValid():
         for prim in scope.GetChildren():
             name = prim.GetName().lower()
+            where = f"{path}: collider {prim.GetPath()}"
             if prim.IsA(UsdGeom.Cube) and name.startswith("box"):
-                size = float(UsdGeom.Cube(prim).GetSizeAttr().Get() or 2.0)
-                items.append(("box", prim, 0.5 * size * _BOX_CORNERS[_BOX_EDGES]))
+                value = _numbers(UsdGeom.Cube(prim).GetSizeAttr().Get(), where, "size")
+                if value.size > 1:
+                    raise WarpclothError(f"{where}: its size must be one number, got {value.size}")
+                size = 2.0 if value.size == 0 else float(value.ravel()[0])
+                if not (np.isfinite(size) and size > 0):
+                    raise WarpclothError(f"{where} has size {size}; a cube's size must be a positive finite number")
+                items.append((prim, where, 0.5 * size * _BOX_CORNERS[_BOX_EDGES]))
             elif prim.IsA(UsdGeom.Mesh) and name.startswith("mesh"):
                 mesh = UsdGeom.Mesh(prim)
-                counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
-                if counts.size and np.all(counts == 3):
-                    pts = np.asarray(mesh.GetPointsAttr().Get(), dtype=np.float64)
-                    tri = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64).reshape(-1, 3)
-                    items.append(("mesh", prim, mesh_segments(pts, tri)))
+                pts = _points(mesh.GetPointsAttr().Get(), where)
+                items.append((prim, where, mesh_segments(pts, _triangles(mesh, where, len(pts)))))
     cache = UsdGeom.XformCache()
 
     def at(code):
         out = []
         cache.SetTime(Usd.TimeCode(code))
-        for _, prim, local in items:
+        for prim, where, local in items:
             m = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64)  # row vectors: p' = [p 1] M
+            if not np.isfinite(m).all():
+                raise WarpclothError(f"{where}: its transform at time code {code:g} is not finite")
             flat = local.reshape(-1, 3)
             world = flat @ m[:3, :3] + m[3, :3]
             out.append(world.reshape(-1, 2, 3))
@@ -380,38 +461,76 @@ def _usd_collider_segments(stage, root: str = "/World/Colliders"):
     return at
 
 
-def check_usd(path: str, cloth: str = "/World/Cloth", colliders: str = "/World/Colliders") -> IntersectionReport:
+def check_usd(path: str, cloth: str = "/World/Cloth", colliders: str = DEFAULT_COLLIDERS) -> IntersectionReport:
     """Both counts at every time sample of the cloth's points in a USD file written by warpcloth
-    (value clips resolved by USD); times in seconds (time code / timeCodesPerSecond)."""
+    (value clips resolved by USD); times in seconds (time code / timeCodesPerSecond).
+
+    The file and every layer it names are checked before they are opened
+    (:func:`~warpcloth.io.meshio.open_usd_stage`, at most :data:`MAX_USD_LAYER_BYTES` a layer), and
+    the geometry before it is counted: a triangle mesh whose counts match its indices, indices
+    that name points, points at every frame finite and as many as the first frame's, colliders
+    likewise.
+
+    Raises:
+        WarpclothError: one line naming the file and what is wrong with it.
+    """
+    try:
+        name = os.fspath(path)
+    except TypeError:
+        raise WarpclothError(f"USD file must be a file name, got {path!r:.80}") from None
+    if not isinstance(name, str) or os.path.splitext(name)[1].lower() not in USD_EXTENSIONS:
+        raise WarpclothError(f"USD file {name!r} must end in one of {', '.join(USD_EXTENSIONS)}")
+    from pxr import Sdf  # noqa: PLC0415 (usd-core loads only where USD is read or written)
+
+    for what, prim, example in (("cloth", cloth, "/World/Cloth"), ("colliders", colliders, DEFAULT_COLLIDERS)):
+        if not isinstance(prim, str) or not prim.startswith("/") or not Sdf.Path.IsValidPathString(prim):
+            raise WarpclothError(f"the {what} prim path must be an absolute USD path such as {example!r}, got {prim!r}")
+    stage, layers = open_usd_stage(name, max_bytes=MAX_USD_LAYER_BYTES, max_layers=MAX_USD_LAYERS)
+    try:
+        return _check_stage(stage, name, cloth, colliders)
+    finally:
+        del stage, layers
+
+
+def _check_stage(stage, path: str, cloth: str, colliders: str) -> IntersectionReport:
+    """:func:`check_usd` on an opened stage."""
     from pxr import Usd, UsdGeom  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
-    stage = Usd.Stage.Open(str(path))
-    if stage is None:
-        raise WarpclothError(f"cannot open USD file {path!r}")
     prim = stage.GetPrimAtPath(cloth)
     if not prim or not prim.IsA(UsdGeom.Mesh):
         raise WarpclothError(f"{path}: no mesh at {cloth!r}")
+    where = f"{path}: {cloth}"
     mesh = UsdGeom.Mesh(prim)
-    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
-    if counts.size and not np.all(counts == 3):
-        raise WarpclothError(f"{path}: {cloth} has faces that are not triangles")
-    tris = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64).reshape(-1, 3)
+    tris = _triangles(mesh, where)
     attr = mesh.GetPointsAttr()
     codes = attr.GetTimeSamples() or [Usd.TimeCode.Default()]
-    fps = stage.GetTimeCodesPerSecond() or 1.0
-    segments_at = _usd_collider_segments(stage, colliders)
+    fps = stage.GetTimeCodesPerSecond()
+    if not (np.isfinite(fps) and fps > 0):
+        raise WarpclothError(f"{path}: timeCodesPerSecond is {fps}; it must be a positive finite number")
+    segments_at = _usd_collider_segments(stage, path, colliders)
     report = IntersectionReport()
+    count = None
     for code in codes:
-        x = np.asarray(attr.Get(code), dtype=np.float64)
-        report.times.append(float(code) / fps if not isinstance(code, Usd.TimeCode) else 0.0)
+        default = isinstance(code, Usd.TimeCode)
+        at = f"{where} at time code {code:g}" if not default else where
+        x = _points(attr.Get(code), at)
+        if count is None:
+            count = len(x)
+            _check_indices(tris, count, where)
+        elif len(x) != count:
+            raise WarpclothError(f"{at} has {len(x)} points, the first frame {count}")
+        report.times.append(float(code) / fps if not default else 0.0)
         report.self_intersections.append(count_self_intersections(x, tris))
-        c = code if not isinstance(code, Usd.TimeCode) else 0.0
-        segs = segments_at(c)
+        segs = segments_at(code if not default else 0.0)
         report.collider_crossings.append(int(len(segment_crossings(x, tris, segs))) if len(segs) else 0)
     return report
 
 
 __all__ = [
+    "DEFAULT_COLLIDERS",
+    "MAX_USD_LAYERS",
+    "MAX_USD_LAYER_BYTES",
+    "USD_EXTENSIONS",
     "IntersectionReport",
     "box_segments",
     "check_frames",
