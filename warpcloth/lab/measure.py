@@ -370,12 +370,14 @@ class Measurements:
                 }
             prob = self.problem(name, n, device)  # first: building it rebinds the cached sim's integrator
             sim = self.sim(tr.scenario.name, n, device, c.integrator, opts)
+            sim.integrator.reset_stats()  # this trial's capped solves only
             r = prob.measure(sim, float(c.k), wall_cap=2.0 * p.run_wall_cap)
+            capped = sim.integrator.capped_steps(sim.integrator.stats())  # a capped trial is no measurement
             if r.stable and steps > 0:
                 rate = r.wall / (steps * c.work() / float(c.k))
                 key_s = (c.integrator, n, device)
                 self._speed[key_s] = min(self._speed.get(key_s, math.inf), rate)
-            m = r.metrics or {}
+            m = {} if capped else r.metrics or {}
             return {
                 **out,
                 "stable": r.stable,
@@ -385,7 +387,9 @@ class Measurements:
                 "damping_rel": m.get("damping"),
                 "max_strain_rel": m.get("stretch"),
                 "ref_max_strain_rel": m.get("stretch_ref"),
-                "note": r.note,
+                "note": f"capped: the solve stopped at its iteration cap in {capped} steps (no measurement)"
+                if capped
+                else r.note,
                 "measure_wall_s": r.wall,
             }
 
