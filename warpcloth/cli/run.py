@@ -71,12 +71,21 @@ def summary(result) -> str:
             else f"NO ({reason} in {result.solver_capped_steps} of {result.steps} steps)"
         )
         lines.append(f"  solver converged: {converged}")
+        lines.append(f"  solver capped in {result.capped_steps} of {result.steps} steps")
+    if result.strain_limit_source:
+        which = "strain cap" if result.strain_limit_source == "strain_cap" else "strain limit"
+        lines.append(
+            f"  {which} ({100 * result.strain_limit_tau:g} %) engaged in {result.strain_capped_steps} of "
+            f"{result.steps} steps"
+        )
     if result.solver:
         lines.append(
             "  solver: "
             + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.solver.items())
         )
-    if result.measurements:
+    if "refused" in result.measurements:
+        lines.append(f"  not measured: {result.measurements['refused']}")
+    elif result.measurements:
         lines.append(
             "  measured: "
             + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in result.measurements.items())

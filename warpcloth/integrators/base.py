@@ -218,6 +218,16 @@ class Integrator:
         its tolerance; ``warning`` is one line for stderr when it did not converge, else None."""
         return None, 0, None
 
+    def capped_steps(self, stats: dict) -> int:
+        """The steps of the run whose :meth:`stats` are ``stats`` whose solve stopped at its iteration
+        cap above its tolerance (0 by default: no solve with a tolerance and a cap)."""
+        return 0
+
+    def cap_advice(self) -> list:
+        """The settings, besides a smaller dt, that let a solve stopped at its iteration cap converge
+        (``--flag`` phrases for a run's :attr:`~warpcloth.run.harness.RunResult.capped_cause`)."""
+        return []
+
     # -- time step -------------------------------------------------------------------------
     def default_dt(self, model, drag_rate: float = 0.0) -> float:
         """A time step [s] that is stable on ``model``: :attr:`default_dt_factor` times

@@ -478,6 +478,22 @@ class ImplicitEuler(Integrator):
             ),
         )
 
+    def capped_steps(self, stats: dict) -> int:
+        """The steps whose CG ended at ``cg_max_iter`` above ``cg_tol`` (counted on the device on CUDA)."""
+        return int(stats["cg_capped_steps"])
+
+    def cap_advice(self) -> list:
+        """A larger ``cg_max_iter``; a multigrid preconditioner where the model is a grid and another is
+        used (Jacobi's iterations grow as the grid refines; the V-cycle's do not: docs/solvers.md), else
+        block Jacobi in place of Jacobi (the refined cantilever strip converged with it, docs/materials.md)."""
+        advice = [f"a larger --cg-max-iter (now {self.cg_max_iter}, above --cg-tol {_sci(self.cg_tol)})"]
+        used = self.preconditioner_used
+        if used != "multigrid" and self.model is not None and not grid_structure_reason(self.model):
+            advice.append(f"--preconditioner multigrid (now {used})")
+        elif used == "jacobi":
+            advice.append("--preconditioner block_jacobi (now jacobi)")
+        return advice
+
     def reset_stats(self) -> None:
         self._host_stats = [0, 0, 0, 0.0, 0.0, 0]
         if self.model is not None:

@@ -15,6 +15,10 @@ its pins only slowly through such passes, so each step first applies long-range 
 shortest structural/shear path from particle i to its nearest pin. They are implied by the spring
 limits, so they change no answer, only the number of passes. At the end,
 v += (x_corrected - x_step) / dt keeps velocities consistent with the positions.
+
+Each step also counts, on the device, whether the limit moved any particle (it engaged: the step's
+result is not the model's own) and whether its passes stopped at ``max_passes``; :meth:`StrainLimiter.stats`
+reads the counts once (a run's result reports them: no silent capped step).
 """
 
 from __future__ import annotations
@@ -101,6 +105,9 @@ class StrainLimiter:
             self.condition = wp.zeros(1, dtype=wp.int32)
             self.passes = wp.zeros(1, dtype=wp.int32)
             self.attachment_max_length = wp.array(((1.0 + self.tau) * path).astype(np.float32), dtype=float)
+            self.engaged = wp.zeros(1, dtype=wp.int32)
+            #: [steps, steps the limit moved a particle in, steps whose passes stopped at max_passes]
+            self.counts = wp.zeros(3, dtype=wp.int64)
 
     def apply(self, state, dt: float) -> None:
         """Shorten over-stretched springs of ``state`` in place and update its velocities.
@@ -126,6 +133,27 @@ class StrainLimiter:
             outputs=[state.particle_qd],
             device=m.device,
         )
+        wp.launch(
+            sk.mark_strain_limit_engaged, dim=m.particle_count, inputs=[x, self.x_before, self.engaged], device=m.device
+        )
+        wp.launch(
+            sk.count_strain_limit_step,
+            dim=1,
+            inputs=[self.engaged, self.passes, self.max_passes, self.counts],
+            device=m.device,
+        )
+
+    def stats(self) -> dict:
+        """The steps counted since :meth:`reset_stats` (one read of the device counters): ``steps``,
+        ``engaged_steps`` (the limit moved a particle: a spring was longer than (1 + tau) L0 after the
+        integrator's step) and ``pass_capped_steps`` (its passes stopped at ``max_passes``, the limit
+        perhaps not met)."""
+        steps, engaged, capped = (int(c) for c in self.counts.numpy())
+        return {"tau": self.tau, "steps": steps, "engaged_steps": engaged, "pass_capped_steps": capped}
+
+    def reset_stats(self) -> None:
+        """Zero the step counters."""
+        self.counts.zero_()
 
     def _pass(self, x) -> None:
         """One pass over all colours, then set the loop flag if a spring is still too long."""

@@ -104,3 +104,32 @@ def check_strain_limit(
     if wp.length(x[ij[1]] - x[ij[0]]) > max_length + tolerance * max_length / (1.0 + tau):
         if passes[0] < max_passes:
             condition[0] = 1
+
+
+@wp.kernel
+def mark_strain_limit_engaged(
+    x: wp.array(dtype=wp.vec3),
+    x_before: wp.array(dtype=wp.vec3),
+    engaged: wp.array(dtype=wp.int32),
+):
+    # the limit engaged this step where it moved a particle (x != the step's result); every writer writes 1
+    i = wp.tid()
+    a = x[i]
+    b = x_before[i]
+    if a[0] != b[0] or a[1] != b[1] or a[2] != b[2]:
+        engaged[0] = 1
+
+
+@wp.kernel
+def count_strain_limit_step(
+    engaged: wp.array(dtype=wp.int32),
+    passes: wp.array(dtype=wp.int32),
+    max_passes: int,
+    counts: wp.array(dtype=wp.int64),
+):
+    # counts = [steps, steps the limit engaged in, steps that ran all max_passes passes]; one thread
+    counts[0] = counts[0] + wp.int64(1)
+    counts[1] = counts[1] + wp.int64(engaged[0])
+    if passes[0] >= max_passes:
+        counts[2] = counts[2] + wp.int64(1)
+    engaged[0] = 0

@@ -167,6 +167,10 @@ def measure(
                 "or size"
             )
         key = "bending_length_m" if name == "bending_length" else "drape_coefficient"
+        if "refused" in result.measurements:
+            raise WarpclothError(
+                f"calibrate: the {scenario.name} run measured nothing: {result.measurements['refused']}"
+            )
         if key not in result.measurements:
             raise WarpclothError(f"calibrate: the {scenario.name} run measured no {name} (the strip did not bend)")
         out[name] = float(result.measurements[key])

@@ -417,8 +417,10 @@ class Measurements:
                     }
             prob = self.problem(name, n, device)  # first: building it rebinds the cached sim's integrator
             sim = self.sim(tr.scenario.name, n, device, c.integrator, opts)
+            sim.integrator.reset_stats()  # this trial's capped solves only
             r = prob.measure(sim, float(c.k), wall_cap=2.0 * p.run_wall_cap)
-            m = r.metrics or {}
+            capped = sim.integrator.capped_steps(sim.integrator.stats())  # a capped trial is no measurement
+            m = {} if capped else r.metrics or {}
             return {
                 **out,
                 "stable": r.stable,
@@ -429,7 +431,9 @@ class Measurements:
                 "max_strain_rel": m.get("stretch"),
                 "ref_max_strain_rel": m.get("stretch_ref"),
                 "strain_excess_rel": m.get("stretch_excess"),
-                "note": r.note,
+                "note": f"capped: the solve stopped at its iteration cap in {capped} steps (no measurement)"
+                if capped
+                else r.note,
                 "measure_wall_s": r.wall,
             }
 

@@ -225,7 +225,27 @@ class RunResult:
     #: False when the integrator's iterative solver missed its own tolerance in at least one
     #: step; None where not applicable (no iterative solver with a tolerance).
     solver_converged: bool | None = None
+    #: Steps whose solve ended above its tolerance for any reason (at its iteration cap, or a true
+    #: residual under the float32 floor): the count behind ``solver_converged``.
     solver_capped_steps: int = 0
+    #: Steps whose solve stopped at its iteration cap above its tolerance (implicit_euler's CG at
+    #: ``cg_max_iter``, whatever its preconditioner; schemes with a fixed iteration count and no
+    #: tolerance, projective, vbd, xpbd, have no cap: 0), counted on the device.
+    capped_steps: int = 0
+    #: Steps in which the strain limit applied after the step moved a particle (a spring was longer
+    #: than (1 + tau) L0 after the integrator's step), counted on the device, and which limit it was:
+    #: ``"strain_cap"`` (the integrator's own, implicit_euler's ``strain_cap``, 10 % by default),
+    #: ``"strain_limit"`` (the user's ``--strain-limit``) or ``""`` (none applied).
+    strain_capped_steps: int = 0
+    strain_limit_source: str = ""
+    strain_limit_tau: float | None = None
+    #: Steps whose strain-limit passes stopped at their cap (the limit perhaps not met).
+    strain_limit_pass_capped_steps: int = 0
+    #: Why this run is not a measurement of its model, with the settings that fix it ("" where it is):
+    #: its solve stopped at an iteration cap, or the integrator's own strain cap engaged (either makes
+    #: the steps the solver's, not the model's). A strain limit the user set is part of the model asked
+    #: for: its engaging is counted (``strain_capped_steps``), not a cause.
+    capped_cause: str = ""
     #: Self-collision's counters over the run (:meth:`SelfCollision.stats
     #: <warpcloth.sim.self_collision.SelfCollision.stats>`: contacts, rebuilds, ``overflow_candidates`` and
     #: ``overflow_contacts`` (pairs that did not fit its lists), ``truncated_queries``, ``fast``,
@@ -253,6 +273,19 @@ class RunResult:
         """Frames of 1/fps simulated seconds produced per wall second."""
         return self.realtime_factor * self.fps
 
+    def refusal(self, what: str) -> dict | None:
+        """What a scenario's measurement of ``what`` (a bending length, a drape coefficient) reports
+        instead of it where :attr:`capped_cause` names one: ``refused`` (no ``what`` from this run,
+        the cause and the fix) and the counts; None where the run is a measurement."""
+        if not self.capped_cause:
+            return None
+        return {
+            "refused": f"no {what} from this run: {self.capped_cause}",
+            "capped_steps": self.capped_steps,
+            "strain_capped_steps": self.strain_capped_steps,
+            "steps": self.steps,
+        }
+
     def to_dict(self) -> dict:
         d = asdict(self)
         d["integration_ms_mean"] = self.integration_ms_mean
@@ -273,6 +306,26 @@ def _unstable_cause(sim, inside: list) -> str:
         f"the likeliest cause is the time step: dt = {sim.dt:.3g} s for {sim.integrator.name} on this cloth; "
         f"try a smaller --dt (warpcloth max-dt finds the largest stable one) or another integrator"
     )
+
+
+def _capped_cause(sim, result: RunResult) -> str:
+    """:attr:`RunResult.capped_cause`: the iteration-capped steps and the integrator's strain-cap steps
+    of ``result``, and the settings that fix them (the integrator's :meth:`cap_advice
+    <warpcloth.integrators.base.Integrator.cap_advice>`, a smaller dt, the cap off); "" where none."""
+    name, steps = result.integrator, result.steps
+    causes, fixes = [], [f"a smaller --dt (now {result.dt:.3g} s)"]
+    if result.capped_steps:
+        causes.append(f"{name}'s solve stopped at its iteration cap in {result.capped_steps} of {steps} steps")
+        fixes += sim.integrator.cap_advice()
+    if result.strain_capped_steps and result.strain_limit_source == "strain_cap":
+        causes.append(
+            f"{name}'s {100 * result.strain_limit_tau:g} % strain cap engaged in {result.strain_capped_steps} of "
+            f"{steps} steps"
+        )
+        fixes.append("--strain-cap 0 (the model's own stretch, where the solve converges)")
+    if not causes:
+        return ""
+    return " and ".join(causes) + "; fix: " + ", or ".join(fixes)
 
 
 class RunHarness:
@@ -394,6 +447,9 @@ class RunHarness:
         )
         if warm_up and not sim.warmed:  # once: a warm-up restarts the integrator's history
             result.compile_time = sim.warm_up()
+        limiter = sim.active_limiter
+        if limiter is not None:
+            limiter.reset_stats()  # this run's steps only (not the warm-up's, nor earlier steps')
         if warm_up and not self._metrics_warmed:  # the metrics' kernels compile outside the timing too
             t0 = time.perf_counter()
             self.measure()
@@ -507,8 +563,30 @@ class RunHarness:
         result.solver_converged, result.solver_capped_steps, warning = sim.integrator.convergence(result.solver)
         if warning:
             warn(warning)  # once per run
+        result.capped_steps = sim.integrator.capped_steps(result.solver)
+        self._report_strain_limit(sim, limiter, result)
+        result.capped_cause = _capped_cause(sim, result)
         self._report_self_collision(sim, result)
         return result
+
+    @staticmethod
+    def _report_strain_limit(sim, limiter, result: RunResult) -> None:
+        """The strain limit's counters into the result (one read, then zeroed), and one warning line
+        where the integrator's own strain cap engaged (the user's limit is a choice, not a warning)."""
+        if limiter is None:
+            return
+        stats = limiter.stats()
+        limiter.reset_stats()
+        result.strain_limit_source = "strain_limit" if limiter is sim.strain_limiter else "strain_cap"
+        result.strain_limit_tau = limiter.tau
+        result.strain_capped_steps = stats["engaged_steps"]
+        result.strain_limit_pass_capped_steps = stats["pass_capped_steps"]
+        if result.strain_limit_source == "strain_cap" and result.strain_capped_steps:
+            warn(
+                f"{result.integrator}: its {100 * limiter.tau:g} % strain cap engaged in {result.strain_capped_steps} "
+                f"of {result.steps} steps (springs stretched past it after the step were shortened): those steps are "
+                "not the model's own (a smaller --dt; --strain-cap 0 turns it off)"
+            )
 
     @staticmethod
     def _report_self_collision(sim, result: RunResult) -> None:

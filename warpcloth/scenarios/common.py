@@ -152,8 +152,10 @@ class Scenario:
         model: function (config, device) -> :class:`~warpcloth.sim.model.ClothModel` for a scenario
             that is not a Provot grid (a mesh); None: the grid of ``pins``, ``origin``, ``plane``.
         tracks: function (config, model) -> kinematic pin tracks (:class:`~warpcloth.sim.pins.PinTrack`).
-        measure: function (sim, config) -> dict of what the scenario measures at the end of a run
-            (a textile test's reading, a fold count), put in ``RunResult.measurements``; None: nothing.
+        measure: function (sim, config, result) -> dict of what the scenario measures at the end of a run
+            (a textile test's reading, a fold count), put in ``RunResult.measurements``; None: nothing. It
+            may read the run's :class:`~warpcloth.run.harness.RunResult` (a capped run is no measurement:
+            :meth:`~warpcloth.run.harness.RunResult.capped_cause`).
         kind: ``"grid"`` or ``"mesh"``: which cloth parameters apply (``--size`` or ``--mesh``); None:
             ``"mesh"`` where ``model`` is given. A ``model`` of kind ``"grid"`` builds its own cloth from
             rows, cols, width and height (the Cusick disc).
@@ -350,5 +352,5 @@ class Scenario:
             raise
         sinks.close()
         if self.measure is not None and result.stable:
-            result.measurements = dict(self.measure(sim, cfg))
+            result.measurements = dict(self.measure(sim, cfg, result))
         return result

@@ -236,9 +236,14 @@ def _control(config: ScenarioConfig, device: str) -> Control:
     return Control(drag_rate=DRAG if config.drag is None else config.drag, colliders=(table,), device=device)
 
 
-def measure(sim, config: ScenarioConfig) -> dict:
+def measure(sim, config: ScenarioConfig, result=None) -> dict:
     """Drape coefficient and node count of the disc at the end (:func:`warpcloth.run.drape.cusick_drape`),
-    with the published range of the material's DC."""
+    with the published range of the material's DC; neither from a run whose solve stopped at its
+    iteration cap or whose integrator's strain cap engaged (``result``: the run's
+    :class:`~warpcloth.run.harness.RunResult`, None: not checked): ``refused`` says why and what fixes it."""
+    refusal = None if result is None else result.refusal("drape coefficient")
+    if refusal:
+        return refusal
     radius = 0.5 * config.width
     x = sim.state.particle_q.numpy().astype(np.float64)
     result = cusick_drape(

@@ -51,7 +51,7 @@ def landing_scenario(
     def origin(config: ScenarioConfig) -> tuple:
         return (-0.5 * config.width, start_height, -0.5 * config.height)
 
-    def measure(sim, config: ScenarioConfig) -> dict:
+    def measure(sim, config: ScenarioConfig, result=None) -> dict:
         """The folds of the cloth hanging around the colliders: peaks of its level cut at ``fold_cut``."""
         x = sim.state.particle_q.numpy()
         try:
