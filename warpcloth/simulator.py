@@ -1,8 +1,10 @@
 """The stepping core: a cloth, its state, an integrator, the external forces and a time step.
 
-:class:`Simulator` advances the state (``step``, ``simulate``), switches integrators and time
-steps between steps, and captures a frame's steps as graphs (``wp.ScopedCapture``, at most
-:data:`GRAPH_CHUNK` steps each) to replay them. Running for a duration with frames, metrics,
+:class:`Simulator` advances the state (``step``, ``simulate``; ``step_states`` reads one state and
+writes another), switches integrators and time steps between steps, and captures a frame's steps
+as graphs (``wp.ScopedCapture``, at most :data:`GRAPH_CHUNK` steps each) to replay them. A
+:class:`Snapshot` holds everything a run carries between steps (``snapshot``, ``restore``: the
+checkpoints of :mod:`warpcloth.io.checkpoint`). Running for a duration with frames, metrics,
 verdicts, timing and outputs is the run harness's job, a layer above
 (:class:`warpcloth.run.harness.RunHarness`): this module knows nothing of it.
 """
