@@ -24,7 +24,11 @@ from warpcloth.io.checkpoint import (
     save_checkpoint,
 )
 from warpcloth.scenarios import get_scenario
+from warpcloth.sim.colliders import Box, ColliderTrack, Sphere
+from warpcloth.sim.control import Control
+from warpcloth.sim.grid import build_grid_cloth
 from warpcloth.sim.self_collision import COUNT_NAMES
+from warpcloth.simulator import Simulator
 
 STEPS = 4
 #: A small fold (its pins' track is the scenario's): the layers touch from about 0.2 s to 1 s.
@@ -226,3 +230,35 @@ def test_a_damaged_checkpoint_is_refused_in_one_line(tmp_path, damage):
     elif damage != "empty":
         assert "damaged or not a warpcloth checkpoint" in text
     assert os.path.exists(path)
+
+
+def moving_colliders_sim(integrator: str) -> Simulator:
+    """A falling sheet over a sphere and a box on one keyframed track (colliders' records are not in a
+    snapshot: they are posed anew from the restored clock at every step)."""
+    model = build_grid_cloth(rows=8, cols=8, plane="horizontal")
+    track = ColliderTrack.keyframes([0.0, 1.0], [[0.0, 0.0, 0.0], [0.0, 0.8, 0.3]])
+    colliders = (
+        Sphere(center=(0.5, -0.3, 0.5), radius=0.25, thickness=0.01, friction=0.3, track=track),
+        Box(center=(0.2, -0.2, 0.2), half_extents=(0.2, 0.1, 0.2), friction=0.2, track=track),
+    )
+    return Simulator(model, integrator, control=Control(colliders=colliders, device=model.device))
+
+
+@pytest.mark.parametrize("integrator", ["verlet", "pbd", "implicit_euler"])
+def test_moving_colliders_restore_and_step_states(integrator):
+    a = moving_colliders_sim(integrator)
+    a.warm_up()
+    a.simulate(20)
+    snap = a.snapshot()
+    a.simulate(30)
+    b = moving_colliders_sim(integrator)
+    b.restore(snap)
+    b.simulate(30)
+    assert same_state(a.state, b.state)
+    c, d = moving_colliders_sim(integrator), moving_colliders_sim(integrator)
+    s0, s1 = d.model.state(), d.model.state()
+    for _ in range(10):
+        c.step()
+        d.step_states(s0, s1)
+        s0, s1 = s1, s0
+    assert same_state(c.state, s0)
