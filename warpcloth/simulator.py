@@ -1,8 +1,10 @@
 """The stepping core: a cloth, its state, an integrator, the external forces and a time step.
 
-:class:`Simulator` advances the state (``step``, ``simulate``), switches integrators and time
-steps between steps, and captures a frame's steps as graphs (``wp.ScopedCapture``, at most
-:data:`GRAPH_CHUNK` steps each) to replay them. Running for a duration with frames, metrics,
+:class:`Simulator` advances the state (``step``, ``simulate``; ``step_states`` reads one state and
+writes another), switches integrators and time steps between steps, and captures a frame's steps
+as graphs (``wp.ScopedCapture``, at most :data:`GRAPH_CHUNK` steps each) to replay them. A
+:class:`Snapshot` holds everything a run carries between steps (``snapshot``, ``restore``: the
+checkpoints of :mod:`warpcloth.io.checkpoint`). Running for a duration with frames, metrics,
 verdicts, timing and outputs is the run harness's job, a layer above
 (:class:`warpcloth.run.harness.RunHarness`): this module knows nothing of it.
 """
@@ -10,7 +12,9 @@ verdicts, timing and outputs is the run harness's job, a layer above
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 
+import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_count, require_positive, warn
@@ -21,12 +25,40 @@ from warpcloth.sim.device import set_deterministic
 from warpcloth.sim.model import ClothModel
 from warpcloth.sim.pins import apply_pins
 from warpcloth.sim.self_collision import SelfCollision
+from warpcloth.sim.state import State
 
 #: Most steps in one captured graph: :meth:`Simulator.simulate` replays a graph of this many steps
 #: as often as it fits and one of the rest (capturing a long call whole, 800 steps of projective's
 #: ~700 launches each, took 57 s on the CPU, 1.2 s now; the replays are the same launches in the
 #: same order, so results stay bit-identical).
 GRAPH_CHUNK = 16
+
+
+@dataclass
+class Snapshot:
+    """Everything a :class:`Simulator` carries from one step to the next, on the host
+    (:meth:`Simulator.snapshot`, :meth:`Simulator.restore`; a checkpoint file holds one).
+
+    Attributes:
+        arrays: every device array the run owns besides the model's, by where it lives
+            (``state.particle_q``, ``integrator.displacement``, ``self_collision.cand_vt``,
+            ``control.time``, ...), each as its raw bytes (uint8): positions, velocities, the
+            integrator's history and scratch, the self-contact lists, the device clock and the
+            colliders' and pins' track state. A step reads only these and the model, so restoring
+            them all makes the next step the uninterrupted one's, bit for bit.
+        layout: per array, its Warp dtype's name and shape (checked where it is restored).
+        clock: the host clock: ``sim_time`` [s], ``steps``, and the step count and time
+            [s] it counts from since the last change of dt (``time_base``, ``base_steps``).
+        setup: what must be the same where it is restored: the integrator's name and options,
+            dt [s], the self-collision settings and the strain limit.
+        run: what the layer above records with it (the run harness's frame and step counts).
+    """
+
+    arrays: dict[str, np.ndarray]
+    layout: dict[str, tuple[str, tuple[int, ...]]]
+    clock: dict
+    setup: dict
+    run: dict = field(default_factory=dict)
 
 
 def graph_capture_supported(device) -> bool:
@@ -111,6 +143,7 @@ class Simulator:
         self._use_graph = use_graph
         self._graphs: dict[tuple, object] = {}
         self._warmed = False
+        self._last_out: State | None = None  # step_states' last output: a state_in that continues the history
         #: Counts changes to what a step does (integrator, dt, graph mode, model, pins): timings
         #: of one step are valid for one version.
         self.step_version = 0
@@ -338,6 +371,177 @@ class Simulator:
     def _count_steps(self, n: int) -> None:
         self.steps += n
         self.sim_time = self._time_base + (self.steps - self._base_steps) * self._dt
+
+    # -- state in, state out; snapshots ------------------------------------------------------
+    def step_states(self, state_in: State, state_out: State, control: Control | None = None, dt=None) -> None:
+        """One step from ``state_in`` into ``state_out`` (the two may be the same object), as
+        Newton's ``solver.step(state_in, state_out, control, contacts, dt)``: copies in, one
+        :meth:`step`, copies out (launches only).
+
+        Where ``state_in`` is the last ``state_out`` (or :attr:`state`), the step continues this
+        simulator's history (Verlet's displacement, the self-contact lists, the clock) and equals
+        the in-place :meth:`step` bit for bit; any other state starts the history anew from it, as
+        after :meth:`reset` (to branch with the history, :meth:`restore` a :meth:`snapshot`).
+        ``control``: None or this simulator's own :attr:`control` (tracks and colliders are bound
+        to it); ``dt`` [s]: None keeps the current step, another value is :meth:`set_dt`.
+        :attr:`state` holds the result too; a rigid-body solver that moves vertices between steps
+        writes them into ``state_out`` before passing it back in."""
+        if control is not None and control is not self.control:
+            raise WarpclothError(
+                "control must be None or this simulator's own control (sim.control): its tracks and colliders are "
+                "bound to it; build a Simulator per Control"
+            )
+        for name, s in (("state_in", state_in), ("state_out", state_out)):
+            if not isinstance(s, State):
+                raise WarpclothError(f"{name} must be a warpcloth State (model.state()), got {s!r:.80}")
+            if s.particle_count != self.model.particle_count or str(s.particle_q.device) != str(self.model.device):
+                raise WarpclothError(
+                    f"{name} has {s.particle_count} particles on {s.particle_q.device}; this simulator's model has "
+                    f"{self.model.particle_count} on {self.model.device}"
+                )
+        if dt is not None and float(dt) != self._dt:
+            self.set_dt(dt)
+        if state_in is not self.state:
+            if state_in is not self._last_out:
+                self._needs_begin = True  # a state from elsewhere: the history starts from it
+            self.state.assign(state_in)
+        self.step()
+        if state_out is not self.state:
+            state_out.assign(self.state)
+        self._last_out = state_out
+
+    def _prepare_arrays(self) -> None:
+        """Make what a step makes on first use (the strain limiter, the colliders' edge
+        contacts), so that a snapshot and a restore see the same arrays."""
+        self._bind_integrator_limiter()
+        if self.control.collision is not None:
+            self.control.collision.bind_model(self.model)
+            self.control.collision.edges(self.model)
+
+    def run_arrays(self) -> dict[str, wp.array]:
+        """Every device array this simulator's run owns besides the model's, by path (the
+        :attr:`Snapshot.arrays`): found by walking the state, the integrator, self-collision, the
+        control (tracks, colliders) and the strain limiters, so a scheme's own scratch is
+        included without a list kept by hand."""
+        self._prepare_arrays()
+        model_arrays = {id(a) for a in vars(self.model).values() if isinstance(a, wp.array)}
+        found: dict[str, wp.array] = {}
+        seen: set[int] = set()
+
+        def walk(path: str, obj) -> None:
+            if isinstance(obj, wp.array):
+                # not: the model's (read-only), empty ones, records of structs (colliders: they hold device
+                # addresses of meshes and BVHs, and are posed anew from the clock at every step) or uint64 (ids)
+                plain = isinstance(obj.dtype, type) and obj.dtype is not wp.uint64
+                if plain and id(obj) not in seen and id(obj) not in model_arrays and obj.size > 0:
+                    found[path] = obj
+                seen.add(id(obj))
+                return
+            if isinstance(obj, (list, tuple, dict)):
+                if id(obj) in seen:
+                    return
+                seen.add(id(obj))
+                items = sorted(obj.items(), key=lambda kv: str(kv[0])) if isinstance(obj, dict) else enumerate(obj)
+                for key, value in items:
+                    walk(f"{path}.{key}", value)
+                return
+            if isinstance(obj, ClothModel) or not type(obj).__module__.startswith("warpcloth."):
+                return
+            if id(obj) in seen or not hasattr(obj, "__dict__"):
+                return
+            seen.add(id(obj))
+            attrs = sorted(vars(obj).items(), key=lambda kv: (not isinstance(kv[1], wp.array), kv[0]))
+            for key, value in attrs:  # its own arrays first, then what it holds
+                walk(f"{path}.{key}", value)
+
+        for root, obj in (
+            ("state", self.state),
+            ("control", self.control),
+            ("self_collision", self.self_collision),
+            ("integrator", self.integrator),
+            ("strain_limiter", self.strain_limiter),
+            ("integrator_limiter", self.integrator_limiter),
+        ):
+            if obj is not None:
+                walk(root, obj)
+        return found
+
+    def setup(self) -> dict:
+        """What a :class:`Snapshot` must be restored into: the integrator, its options, dt, the
+        self-collision settings and the strain limit (values as text, compared as such)."""
+        sc = self.self_collision
+        limiter = self.active_limiter
+        return {
+            "integrator": self.integrator.name,
+            "options": ", ".join(f"{k}={v!r}" for k, v in sorted(self.integrator.option_values().items())),
+            "dt": repr(float(self._dt)),
+            "self_collision": "off"
+            if sc is None
+            else ", ".join(f"{k}={v!r}" for k, v in sorted(sc.settings().items())),
+            "strain_limit": "off" if limiter is None else repr(float(limiter.tau)),
+        }
+
+    def snapshot(self, run: dict | None = None) -> Snapshot:
+        """The run's state now, on the host (reads the device): restored with :meth:`restore`, the
+        next step is this run's next step, bit for bit. ``run``: what the caller records with it."""
+        if self._needs_begin:  # the history starts at the next step: start it now, so that it is saved
+            self._begin()
+        arrays, layout = {}, {}
+        for path, a in self.run_arrays().items():
+            host = np.ascontiguousarray(a.numpy())
+            arrays[path] = host.view(np.uint8).reshape(-1).copy()
+            layout[path] = (wp.types.type_repr(a.dtype), tuple(int(n) for n in a.shape))
+        clock = {
+            "sim_time": float(self.sim_time),
+            "steps": int(self.steps),
+            "time_base": float(self._time_base),
+            "base_steps": int(self._base_steps),
+        }
+        return Snapshot(arrays, layout, clock, self.setup(), dict(run or {}))
+
+    def restore(self, snapshot: Snapshot) -> None:
+        """Continue from ``snapshot`` (of a simulator of the same model and :meth:`setup`): every
+        run array and the clock as they were; compiles the step first where not done yet
+        (:meth:`warm_up`), so no later warm-up or capture restarts the history. Raises a
+        :class:`~warpcloth.errors.WarpclothError` naming the first thing that differs."""
+        if not isinstance(snapshot, Snapshot):
+            raise WarpclothError(f"restore needs a Snapshot (Simulator.snapshot), got {snapshot!r:.80}")
+        mine = self.setup()
+        for key, value in mine.items():
+            if snapshot.setup.get(key) != value:
+                raise WarpclothError(
+                    f"the snapshot was taken with {key} {snapshot.setup.get(key)}; this run has {key} {value}"
+                )
+        if not self._warmed:
+            self.warm_up()
+        self._begin()
+        arrays = self.run_arrays()
+        if set(arrays) != set(snapshot.arrays):
+            extra = sorted(set(snapshot.arrays) ^ set(arrays))
+            raise WarpclothError(
+                f"the snapshot's arrays do not match this run's ({len(extra)} differ, e.g. {extra[0]}): another setup"
+            )
+        for path, a in arrays.items():
+            want = (wp.types.type_repr(a.dtype), tuple(int(n) for n in a.shape))
+            got = (snapshot.layout[path][0], tuple(snapshot.layout[path][1]))
+            if got != want:
+                raise WarpclothError(
+                    f"the snapshot's {path} is {got[0]} {got[1]}; this run's is {want[0]} {want[1]}: another setup"
+                )
+        for path, a in arrays.items():
+            host = wp.empty(a.shape, dtype=a.dtype, device="cpu")
+            view = host.numpy().view(np.uint8).reshape(-1)
+            data = snapshot.arrays[path]
+            if data.size != view.size:
+                raise WarpclothError(f"the snapshot's {path} holds {data.size} bytes, not {view.size}: it is damaged")
+            view[:] = data
+            wp.copy(a, host)
+        clock = snapshot.clock
+        self.sim_time, self.steps = float(clock["sim_time"]), int(clock["steps"])
+        self._time_base, self._base_steps = float(clock["time_base"]), int(clock["base_steps"])
+        self._last_out = None
+        self._needs_begin = False
+        wp.synchronize_device(self.model.device)
 
     # -- stepping ------------------------------------------------------------------------
     def step(self) -> None:

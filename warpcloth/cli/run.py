@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 from warpcloth.cli.model import DefaultDtExplained, add_model_arguments, check_spacing, config_from_args
 from warpcloth.errors import WarpclothError
-from warpcloth.io.files import sweep_stale_temporaries
+from warpcloth.io.checkpoint import CheckpointWriter, check_checkpoint_path
+from warpcloth.io.files import check_input_file, sweep_stale_temporaries
 from warpcloth.io.meshio import ObjSequenceWriter, check_obj_sequence_path
 from warpcloth.io.player import HtmlWriter, check_html_path
 from warpcloth.io.preview import PreviewWriter, check_preview_path
@@ -245,6 +246,27 @@ OUTPUTS = (
         metavar="DIR",
         sample="frames",
     ),
+    Output(
+        flags=("--checkpoint",),
+        help="write the run's state to this .npz file at its end (and with --checkpoint-every, after every K-th "
+        "frame): --resume-from continues from it, bit-identically to an uninterrupted run on the same device",
+        check=check_checkpoint_path,
+        sink=lambda path, run, sim, cfg: CheckpointWriter(path, sim, every=run.option("checkpoint_every")),
+        report=False,
+        metavar="FILE",
+        options=(
+            (
+                ("--checkpoint-every",),
+                dict(
+                    type=int,
+                    default=None,
+                    metavar="K",
+                    help="with --checkpoint: also write it after every K-th frame (the file holds the latest)",
+                ),
+            ),
+        ),
+        sample="state.npz",
+    ),
 )
 
 
@@ -286,10 +308,16 @@ def run_scenario(scenario_name: str, args) -> int:
     cfg = config_from_args(scenario, args)
     check_spacing(scenario, cfg)
     writers = output_writers(scenario_name, args)
+    resume = getattr(args, "resume_from", None)
+    if resume is not None:
+        check_input_file(resume, "checkpoint")
+    every = getattr(args, "checkpoint_every", None)
+    if every is not None and (getattr(args, "checkpoint", None) is None or every < 1):
+        raise WarpclothError(f"--checkpoint-every {every} needs --checkpoint FILE and a whole number of frames >= 1")
     if not getattr(args, "quiet", False):
         writers.insert(0, lambda sim, cfg: RunProgress(cfg.duration, label=f"run {scenario_name}"))
     with DefaultDtExplained(args):
-        result = scenario.run(cfg, wall_cap=args.wall_cap, writers=writers)
+        result = scenario.run(cfg, wall_cap=args.wall_cap, writers=writers, resume_from=resume)
     quiet = getattr(args, "quiet", False)
     if args.json:
         print(result.to_json())

@@ -393,6 +393,7 @@ class RunHarness:
         wall_cap: float | None = None,
         frames=None,
         warm_up: bool = True,
+        resumed_steps: int = 0,
         **unknown,
     ) -> RunResult:
         """Run for ``duration`` seconds of simulated time, sampling a frame every 1/fps s.
@@ -409,6 +410,12 @@ class RunHarness:
                 the caller closes it), or None.
             warm_up: compile kernels before timing (:meth:`Simulator.warm_up
                 <warpcloth.simulator.Simulator.warm_up>` and the metrics' kernels).
+            resumed_steps: steps of this run taken before this call, by a run whose state the
+                simulator was restored to (:meth:`Simulator.restore
+                <warpcloth.simulator.Simulator.restore>`, a checkpoint): the run still ends
+                ``ceil(duration / dt)`` steps from its start and its frames fall where the
+                uninterrupted run's did, so its steps are that run's, bit for bit. The verdicts'
+                windows (equilibrium, energy) and the result's counts start at this call.
 
         A run that goes unstable stops there and is recorded as unstable; it never raises.
         Graph capture time is reported apart (``capture_time``) and excluded from ms/step.
@@ -416,12 +423,13 @@ class RunHarness:
         if unknown:
             raise WarpclothError(
                 f"RunHarness.run got an unknown keyword {sorted(unknown)[0]!r}; its keywords are duration, fps, "
-                "stop_at_equilibrium, wall_cap, frames, warm_up"
+                "stop_at_equilibrium, wall_cap, frames, warm_up, resumed_steps"
             )
         duration = require_positive("duration", duration, "s")
         fps = require_positive("fps", fps, "1/s")
         if wall_cap is not None:
             wall_cap = require_positive("wall cap", wall_cap, "s")
+        resumed_steps = require_count("resumed steps", resumed_steps)
         sim = self.sim
         m, dt = sim.model, sim.dt
         check_run_length(duration, fps, dt)
@@ -489,7 +497,7 @@ class RunHarness:
 
         loop_start = time.perf_counter()
         frame = 0
-        done = 0
+        done = resumed_steps  # the next frame follows from it (below)
         while done < total_steps:
             # the next frame that needs a step (frames shorter than a step are skipped at once)
             frame = max(frame + 1, math.floor((done + 1e-9) / steps_per_frame) + 1)
@@ -498,10 +506,10 @@ class RunHarness:
             if n <= 0:
                 continue
             t0 = time.perf_counter()
-            capped = self._advance(n, loop_start, wall_cap)
+            capped = self._advance(n, loop_start, wall_cap, probe=1 if done == 0 else sim.chunk_steps())
             t1 = time.perf_counter()
             result.integration_time += t1 - t0
-            done = sim.steps - start_steps
+            done = sim.steps - start_steps + resumed_steps
 
             metrics = self.measure()
             e, kinetic = self.probe.energies(sim.state)
@@ -652,23 +660,27 @@ class RunHarness:
                     f"move the cloth, or give the box a smaller edge_radius (0: sharp)"
                 )
 
-    def _advance(self, n: int, loop_start: float, wall_cap: float | None) -> bool:
+    def _advance(self, n: int, loop_start: float, wall_cap: float | None, probe: int = 1) -> bool:
         """Advance ``n`` steps in chunks of about :data:`CHUNK_SECONDS` of wall time, checking
-        the wall cap between chunks; True when the cap stopped it early."""
+        the wall cap between chunks; True when the cap stopped it early. Where a step's time is not
+        known yet, two calls of ``probe`` steps come first, the second timed: 1 at a run's start,
+        :meth:`Simulator.chunk_steps <warpcloth.simulator.Simulator.chunk_steps>` where a resumed run
+        starts (whole graphs, as the uninterrupted run's later frames take them)."""
         sim = self.sim
         device = sim.model.device
         done = 0
         step_seconds = self._step_seconds.get(sim.step_version)
         if step_seconds is None:  # size the chunks from a step timed after a first one
-            sim.simulate(1)  # may compile or capture
+            done = min(probe, n)
+            sim.simulate(done)  # may compile or capture
             wp.synchronize_device(device)
-            done = 1
-            if n < 2:
+            if n <= done:
                 return False
+            timed = min(probe, n - done)
             with Stopwatch(device) as watch:
-                sim.simulate(1)
-            step_seconds = self._step_seconds[sim.step_version] = max(watch.seconds, 1e-7)
-            done = 2
+                sim.simulate(timed)
+            step_seconds = self._step_seconds[sim.step_version] = max(watch.seconds / timed, 1e-7)
+            done += timed
         # whole graphs of steps, so that self-collision intervals do not depend on the machine's speed
         granule = sim.chunk_steps()
         chunk = max(granule, int(CHUNK_SECONDS / step_seconds) // granule * granule)

@@ -931,6 +931,22 @@ PARAMS: tuple[Param, ...] = (
         cli_type=float,
     ),
     Param(
+        "resume_from",
+        text_value,
+        "",
+        "continue a run from this checkpoint (written by --checkpoint of a run of the same scenario and flags): it "
+        "runs on to --duration counted from the first run's start, bit-identically to the uninterrupted run on the "
+        "same device; outputs get the remaining frames",
+        "a checkpoint file (.npz)",
+        "run",
+        commands=("run",),
+        columns=(),
+        key="never",
+        search=False,
+        config=None,
+        metavar="FILE",
+    ),
+    Param(
         "frame_rate",
         positive,
         "1/s",

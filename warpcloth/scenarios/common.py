@@ -9,6 +9,7 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError, require_int, require_non_negative, require_positive
 from warpcloth.integrators import make_integrator
+from warpcloth.io.checkpoint import resume_checkpoint
 from warpcloth.io.frames import FrameSinks
 from warpcloth.io.meshio import load_mesh_collider
 from warpcloth.io.usd import usd_frames
@@ -319,6 +320,7 @@ class Scenario:
         usd_path: str | None = None,
         wall_cap: float | None = None,
         writers=(),
+        resume_from: str | None = None,
         **overrides,
     ) -> RunResult:
         """Build and run; writes a USD file when ``usd_path`` is given.
@@ -328,6 +330,10 @@ class Scenario:
         ``close()`` and
         ``abort()`` (:class:`~warpcloth.io.frames.FrameSinks`). Every writer is closed after the
         run, or aborted (its target left as it was) when the run fails.
+
+        ``resume_from``: a checkpoint file (:mod:`warpcloth.io.checkpoint`) of a run of this scenario
+        and configuration: the run continues from it to ``duration`` (counted from the first run's
+        start), bit-identically to the uninterrupted run on the same device.
         """
         cfg = replace(config, **overrides) if config is not None else self.config(**overrides)
         require_positive("duration", cfg.duration, "s")
@@ -336,6 +342,7 @@ class Scenario:
             writers = (usd_frames(usd_path), *writers)  # checks the path now, before any work
         harness = self.harness(cfg)
         sim = harness.sim
+        resumed = resume_checkpoint(resume_from, sim).clock["steps"] if resume_from is not None else 0
         sinks = FrameSinks()
         try:
             for make in writers:
@@ -346,6 +353,7 @@ class Scenario:
                 stop_at_equilibrium=self.stop_at_equilibrium,
                 wall_cap=wall_cap,
                 frames=sinks if sinks else None,
+                resumed_steps=resumed,
             )
         except BaseException:
             sinks.abort()
