@@ -150,7 +150,7 @@ def test_per_type_cli_flags_reach_the_model():
 def test_dt_reaches_the_config_from_its_declaration_alone(tmp_path):
     """dt goes the way of every Param (config_values): the CLI's float, a test list's value (a scenario
     file's key: tests/test_scenario_files.py); ``default`` leaves the scenario's own (None: the integrator's)."""
-    from warpcloth.cli import config_from_args
+    from warpcloth.cli.model import config_from_args
     from warpcloth.scenarios import get_scenario
 
     assert params.BY_NAME["dt"].config_field == "dt"
