@@ -250,7 +250,7 @@ def test_configurations_cover_the_knobs_cheapest_first():
 def test_the_study_measures_implicit_euler_without_its_strain_cap(monkeypatch):
     """Its cap (0.1 by default) would bind in the swing and the flag: the study's runs keep it off, as in
     every measurement so far, its max-dt search too, and a grid's options still win."""
-    import warpcloth.lab.maxdt
+    import warpcloth.lab.measure
     from warpcloth.lab.configs import study_options
     from warpcloth.lab.measure import Measurements
     from warpcloth.lab.plan import make_plan
@@ -266,7 +266,7 @@ def test_the_study_measures_implicit_euler_without_its_strain_cap(monkeypatch):
         seen.append(config)
         raise RuntimeError("enough")
 
-    monkeypatch.setattr(warpcloth.lab.maxdt, "find_max_dt", find_max_dt)
+    monkeypatch.setattr(warpcloth.lab.measure, "find_max_dt", find_max_dt)  # the name measure calls
     m.out = type("Out", (), {"done": {}})()
     with pytest.raises(RuntimeError, match="enough"):
         m.max_stable_dt("study_sheet", "implicit_euler", "cpu", 4)

@@ -530,7 +530,7 @@ def test_timestep_max_searches_once_per_model(tmp_path, monkeypatch):
         searches.append(args[1])
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(maxdt, "find_max_dt", counted)
+    monkeypatch.setattr(sweep, "find_max_dt", counted)  # the name the sweep calls
     path = write(
         tmp_path,
         """
