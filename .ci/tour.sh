@@ -3,7 +3,7 @@
 # the extras README.md's install line names): what a user who did `pip install 'warpcloth[plot]'` types.
 # Between the two markers below: README.md's tour block, line for line and in order, each line as
 # printed but for the values of its sizes, frame and step counts and durations (--size, --rows, --cols,
-# --sizes, --num-frames, --steps, --duration, --max-runs), which may be added, changed or dropped
+# --sizes, --num-frames, --steps, --duration), which may be added, changed or dropped
 # (tests/test_ci_tour.py checks that). After them: the docs' own example commands and a few more.
 # Usage: .ci/tour.sh BIN  (BIN: the venv's bin folder)
 set -euo pipefail
@@ -35,7 +35,7 @@ say warpcloth run tablecloth --integrator xpbd --size 8 --num-frames 2
 say warpcloth run drape --material silk --compression 0.3 --size 8 --num-frames 2
 say warpcloth run cantilever --cols 12 --num-frames 2
 say warpcloth run cusick --material denim --size 8 --num-frames 2
-say warpcloth calibrate silk --target bending_length=0.015 --size 8 --max-runs 2
+say warpcloth calibrate silk --target bending_length=0.015 --size 8
 say warpcloth run fold --usd fold.usda --rows 12 --cols 6 --num-frames 3
 say warpcloth check-intersections fold.usda
 say warpcloth run drape --collider capsule:a=-0.6/0.1/0.35,b=0.6/0.1/0.35,radius=0.1,friction=0.5 \

@@ -9,9 +9,9 @@ import shlex
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-#: The flags whose values a CI tour line may add, change or drop: sizes, frame, step and run counts,
-#: durations (the README's 128 x 128 runs and 40-run searches, shortened); every other word is the README's.
-SHORTENED = ("--size", "--rows", "--cols", "--sizes", "--num-frames", "--steps", "--duration", "--max-runs")
+#: The flags whose values a CI tour line may add, change or drop: sizes (``--sizes``: the bench's and the
+#: study's), frame and step counts, durations; every other word is the README's.
+SHORTENED = ("--size", "--rows", "--cols", "--sizes", "--num-frames", "--steps", "--duration")
 BEGIN, END = "# -- README.md's tour --", "# -- end of README.md's tour --"
 
 
