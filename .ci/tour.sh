@@ -1,21 +1,23 @@
 #!/usr/bin/env bash
-# The README's tour (and the docs' example commands), short variants (few frames, small sheets),
-# run from an empty folder with an installed warpcloth: what a user who did `pip install warpcloth`
-# types. Every line of README.md's tour block has its line here, in the same order
-# (tests/test_ci_tour.py checks that). Usage: .ci/tour.sh BIN  (BIN: the venv's bin folder)
+# The README's tour, as printed, run from an empty folder with an installed warpcloth (the wheel with
+# the extras README.md's install line names): what a user who did `pip install 'warpcloth[plot]'` types.
+# Between the two markers below: README.md's tour block, line for line and in order, each line as
+# printed but for the values of its sizes, frame and step counts and durations (--size, --rows, --cols,
+# --sizes, --num-frames, --steps, --duration), which may be added, changed or dropped
+# (tests/test_ci_tour.py checks that). After them: the docs' own example commands and a few more.
+# Usage: .ci/tour.sh BIN  (BIN: the venv's bin folder)
 set -euo pipefail
 BIN="$1"
 export PATH="$BIN:$PATH"
 say() { printf '\n$ %s\n' "$*"; "$@"; }
 
+# -- README.md's tour --
 say python -m warpcloth.examples
-say warpcloth --version
 say warpcloth list
-say warpcloth list --examples
 say warpcloth run sheet --size 8 --num-frames 2
 say warpcloth run flag --integrator rk4 --size 8 --num-frames 2 --usd flag.usda
 say warpcloth run sheet --rows 16 --cols 16 --dt 5e-5 --stiffness 2000 --damping 0.05 --mass 0.3 --num-frames 2 --json
-say python -m warpcloth run flag --integrator verlet --size 8 --num-frames 2 --stage-path flag.usda
+say python -m warpcloth run flag --integrator verlet --num-frames 2 --size 8 --stage-path flag.usda
 say warpcloth run flag --integrator implicit_euler --cg-tol 1e-3 --jacobian approx --size 8 --num-frames 2
 say warpcloth run sheet --integrator xpbd --iterations 20 --substeps 8 --size 8 --num-frames 2
 say warpcloth run sheet --integrator vbd --vbd-iterations 10 --size 8 --num-frames 2
@@ -32,9 +34,9 @@ say warpcloth run drape --size 8 --num-frames 2
 say warpcloth run tablecloth --integrator xpbd --size 8 --num-frames 2
 say warpcloth run drape --material silk --compression 0.3 --size 8 --num-frames 2
 say warpcloth run cantilever --cols 12 --num-frames 2
-say warpcloth run cusick --size 8 --num-frames 2
-say warpcloth calibrate silk --target bending_length=0.015 --size 8 --max-runs 2
-say warpcloth run fold --rows 12 --cols 6 --num-frames 3 --usd fold.usda
+say warpcloth run cusick --material denim --size 8 --num-frames 2
+say warpcloth calibrate silk --target bending_length=0.015 --size 8
+say warpcloth run fold --usd fold.usda --rows 12 --cols 6 --num-frames 3
 say warpcloth check-intersections fold.usda
 say warpcloth run drape --collider capsule:a=-0.6/0.1/0.35,b=0.6/0.1/0.35,radius=0.1,friction=0.5 \
     --size 8 --num-frames 2
@@ -45,8 +47,14 @@ say warpcloth run flag --rows 16 --cols 16 --num-frames 3 --html flag.html
 say warpcloth run flag --preview flag.gif --usd flag.usdz --usd-color strain --size 8 --num-frames 3
 say warpcloth sweep --example quick --out quick2.csv
 say python -m warpcloth bench --sizes 8 --steps 20 --json --quiet
-say warpcloth study --profile quick --integrators xpbd --sizes 8 --out study-quick
+say warpcloth study --profile quick --sizes 8 --out study-quick
 say warpcloth advise --size 64 --budget-ms 8 --tolerance 0.05
+# -- end of README.md's tour --
+
+# beyond the tour: the top level's flags, the listing of the shipped files
+say warpcloth --version
+say warpcloth -V
+say warpcloth list --examples
 
 # the docs' own example commands (docs/driving.md, docs/meshes.md, docs/colliders.md)
 say python -m warpcloth.examples.drive --num-frames 3 --size 8 --usd drive.usda

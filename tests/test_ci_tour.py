@@ -1,32 +1,110 @@
-"""The CI's wheel tour (.ci/tour.sh) covers the README's tour: every command line of README.md's
-"A tour of the CLI" block has a line in the script, in the same order (same command and first
-argument; the script's are short variants, with fewer frames and smaller sheets)."""
+"""The CI's wheel tour (.ci/tour.sh) is the README's tour as printed: between its markers, one line
+per line of README.md's "A tour of the CLI" block, in order, each word the README's but for the values
+of the flags that shorten a run (:data:`SHORTENED`); the wheel is installed with the extras that the
+README's install line names; no tour line writes a results file an earlier one wrote (sweep and study
+refuse to overwrite)."""
 
 import re
+import shlex
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
+#: The flags whose values a CI tour line may add, change or drop: sizes (``--sizes``: the bench's and the
+#: study's), frame and step counts, durations; every other word is the README's.
+SHORTENED = ("--size", "--rows", "--cols", "--sizes", "--num-frames", "--steps", "--duration")
+BEGIN, END = "# -- README.md's tour --", "# -- end of README.md's tour --"
 
 
 def _readme_tour() -> list[str]:
+    """The tour block's command lines, comments dropped."""
     text = (REPO / "README.md").read_text()
     block = text.split("## A tour of the CLI", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
-    return [line.split("#", 1)[0].strip() for line in block.strip().splitlines() if line.strip()]
+    return [shlex.join(shlex.split(line, comments=True)) for line in block.splitlines() if line.strip()]
 
 
-def _key(command: str) -> tuple:
-    words = command.replace("python -m warpcloth ", "warpcloth ").split()
-    return tuple(words[:3]) if words[:2] == ["warpcloth", "run"] or words[:1] == ["python"] else tuple(words[:2])
+def _ci_tour_section() -> list[str]:
+    """.ci/tour.sh's lines between its markers (continuations joined), without the leading ``say``;
+    any other line there (a ``cd``, an ``rm``: the tour as printed would not have it) fails."""
+    text = (REPO / ".ci" / "tour.sh").read_text().replace("\\\n", " ")
+    assert text.count(BEGIN) == 1 and text.count(END) == 1, "the tour's markers in .ci/tour.sh"
+    lines = [line.strip() for line in text.split(BEGIN, 1)[1].split(END, 1)[0].splitlines()]
+    lines = [line for line in lines if line and not line.startswith("#")]
+    stray = [line for line in lines if not line.startswith("say ")]
+    assert not stray, f".ci/tour.sh runs lines the README's tour does not print: {stray}"
+    return [line[len("say ") :] for line in lines]
 
 
-def test_every_readme_tour_line_runs_in_the_ci_tour():
-    script = [m.group(1) for m in re.finditer(r"^say (.+)$", (REPO / ".ci" / "tour.sh").read_text(), re.M)]
-    keys = [_key(s) for s in script]
-    position = 0
+def unshortened(command: str) -> list[str]:
+    """The command's words without the :data:`SHORTENED` flags and their values."""
+    words, out, k = shlex.split(command), [], 0
+    while k < len(words):
+        flag = words[k].split("=", 1)[0]
+        if flag in SHORTENED:
+            k += 1 if "=" in words[k] else 2
+            continue
+        out.append(words[k])
+        k += 1
+    return out
+
+
+def test_unshortened_keeps_every_other_word():
+    assert unshortened("warpcloth run sheet --rows 64 --cols 64 --duration 2 --json") == [
+        "warpcloth",
+        "run",
+        "sheet",
+        "--json",
+    ]
+    assert unshortened("warpcloth run sheet --size=8 --num-frames 2") == ["warpcloth", "run", "sheet"]
+    # what the tour had differ from the README: a dropped flag, another output name, an extra integrator list
+    assert unshortened("warpcloth run cusick --material denim") != unshortened("warpcloth run cusick --size 8")
+    assert unshortened("sweep --example quick --out quick.csv") != unshortened("sweep --example quick --out quick2.csv")
+    assert unshortened("warpcloth study --profile quick") != unshortened(
+        "warpcloth study --profile quick --integrators xpbd"
+    )
+
+
+def test_the_ci_tour_is_the_readme_tour_line_for_line():
+    readme, ci = _readme_tour(), _ci_tour_section()
+    for k, (printed, run) in enumerate(zip(readme, ci)):
+        assert unshortened(printed) == unshortened(run), (
+            f"README tour line {k + 1} and .ci/tour.sh differ beyond {', '.join(SHORTENED)}:\n  {printed}\n  {run}"
+        )
+    assert len(ci) == len(readme), f"README's tour has {len(readme)} lines, .ci/tour.sh's section {len(ci)}"
+
+
+def test_no_tour_line_writes_a_results_file_an_earlier_one_wrote():
+    # sweep and study refuse an existing results file or folder (without --resume or --overwrite): the tour's
+    # second sweep wrote quick.csv again and stopped there
+    seen = {}
     for line in _readme_tour():
-        key = _key(line)
-        assert key in keys[position:], f"README tour line not in .ci/tour.sh (in order): {line}"
-        position = keys.index(key, position) + 1
+        words = shlex.split(line)
+        words = words[2:] if words[:3] == ["python", "-m", "warpcloth"] else words
+        if words[1:2] not in (["sweep"], ["study"]) or {"--resume", "--overwrite"} & set(words):
+            continue
+        for flag in ("--out", "-o"):
+            if flag in words:
+                target = words[words.index(flag) + 1]
+                assert target not in seen, f"{line!r} writes {target}, which {seen[target]!r} wrote"
+                seen[target] = line
+    assert len(seen) >= 3
+
+
+def _extras(text: str) -> set:
+    return {e.strip() for group in re.findall(r"\[([a-z, ]+)\]", text) for e in group.split(",")}
+
+
+def test_the_wheel_is_installed_with_the_extras_the_readme_names():
+    readme = (REPO / "README.md").read_text()
+    wheel = readme.split("From a wheel, in an empty folder:", 1)[1].split("\n\n", 1)[0]
+    installs = re.findall(r"`pip install ([^`]+)`", wheel)
+    assert len(installs) == 2 and len({frozenset(_extras(i)) for i in installs}) == 1, installs
+    named = _extras(installs[0])
+    ci = [line for line in (REPO / ".ci" / "run").read_text().splitlines() if "tour/venv/bin/pip" in line]
+    assert len(ci) == 1 and _extras(ci[0]) == named, (ci, named)
+    # what the tour's lines need: matplotlib draws bench --plot and run --preview (the plot extra)
+    tour = " ".join(_readme_tour())
+    if "--plot" in tour or "--preview" in tour:
+        assert "plot" in named
 
 
 def _tour_commands() -> list[str]:
@@ -38,8 +116,6 @@ def _tour_commands() -> list[str]:
 def test_every_warpcloth_line_of_the_ci_tour_parses_with_todays_flags():
     # the tour runs only in CI, after a wheel build; a flag renamed or removed (the study's
     # --accuracy-sizes) stopped it there with "unrecognized arguments" while every test passed
-    import shlex
-
     import pytest
 
     from warpcloth.cli import build_parser

@@ -115,7 +115,9 @@ def test_a_mesh_run_and_a_scenario_file_use_the_mesh_without_its_loose_vertices(
         + ["--usd", str(usd)]
     )
     out, err = capsys.readouterr()
-    assert code == 0 and "(4 particles" in out and "2 vertices in no face dropped" in err
+    assert code == 0 and "2 vertices in no face dropped" in err
+    # a mesh has no rows and columns: its summary names its vertices and triangles (it printed 1x4)
+    assert "mesh: explicit_euler on cpu, 4 vertices, 2 triangles (" in out and "1x4" not in out, out
     stage = Usd.Stage.Open(str(usd))  # kept: a prim of a stage that is gone is invalid
     points = UsdGeom.Mesh(stage.GetPrimAtPath("/World/Cloth")).GetPointsAttr()
     assert len(points.Get(points.GetTimeSamples()[0])) == 4
@@ -154,3 +156,37 @@ def test_a_cloth_starting_within_a_boxs_rounded_edge_is_warned_of(capsys):
             )
         else:
             assert lines == []
+
+
+def test_dash_capital_v_is_version(capsys):
+    for flag in ("-V", "--version"):
+        with pytest.raises(SystemExit) as exc:
+            main([flag])
+        assert exc.value.code == 0 and capsys.readouterr().out.startswith("warpcloth ")
+
+
+def test_a_grid_prints_rows_by_columns_and_a_mesh_its_vertices_and_triangles():
+    from warpcloth.cli.run import cloth_shape
+
+    assert cloth_shape(24, 32, 768, 1426) == "24x32"
+    assert cloth_shape(1, 320, 320, 576) == "320 vertices, 576 triangles"
+
+
+def test_the_fast_vertex_warning_says_it_counts_vertex_builds_and_what_to_do(capsys):
+    """A skin_max far below a falling cloth's motion: every vertex is capped at every list build, and
+    the warning counts those vertex-builds, over how many builds (it called them vertices: 25,604 on
+    a 4,096-vertex cloth)."""
+    from warpcloth import Simulator
+    from warpcloth.run.harness import RunHarness
+    from warpcloth.scenarios import get_scenario
+    from warpcloth.sim.self_collision import SelfCollision
+
+    model = get_scenario("sheet").build(rows=6, cols=6).model
+    sc = SelfCollision(model, thickness=0.005, skin=1e-5, skin_max=1e-9)  # rebuilt often, every margin cut
+    sim = Simulator(model, "xpbd", Control(device="cpu"), self_collision=sc)
+    result = RunHarness(sim).run(0.1)
+    fast, builds = result.self_collision["fast"], result.self_collision["rebuilds"]
+    assert builds > 1 and model.particle_count < fast <= model.particle_count * builds
+    lines = [line for line in capsys.readouterr().err.splitlines() if "may have missed pairs" in line]
+    assert len(lines) == 1 and f"{fast:,} vertex-builds over {builds:,} list builds" in lines[0], lines
+    assert "lower --dt" in lines[0] and "skin_max" in lines[0]

@@ -506,3 +506,62 @@ def test_too_many_frames_refused_before_the_run(capsys, tmp_path):
     )
     assert code == 2 and "would hold 12001 frames" in err and err.count("\n") == 1 and out == ""
     assert os.listdir(tmp_path) == []
+
+
+def _camera_in_node(page, lo, hi, yaw, pitch, w, h, b) -> tuple[float, np.ndarray]:
+    """The page's own camera math (between its markers) run in Node: the fitted distance and the
+    view-projection matrix (column-major, as WebGL takes it) for a window w x h whose control bar
+    covers the share b of its height."""
+    text = page.read_text()
+    math = text.split("// -- camera math", 1)[1].split("// -- end of camera math --", 1)[0]
+    c = [(a + z) / 2 for a, z in zip(lo, hi)]
+    radius = max(0.05, 0.5 * float(np.linalg.norm(np.subtract(hi, lo))))
+    script = (
+        "\n".join(math.splitlines()[1:])
+        + f"\nconst lo = {list(lo)}, hi = {list(hi)}, c = {c};"
+        + f"\nconst d = fitDistance(lo, hi, c, {yaw}, {pitch}, {w}, {h}, {b});"
+        + f"\nconst P = viewProjection(c, {radius}, {yaw}, {pitch}, d, {w}, {h}, {b});"
+        + "\nconsole.log(JSON.stringify({d: d, mvp: Array.from(P.mvp)}));"
+    )
+    done = subprocess.run(["node", "-e", script], capture_output=True, text=True, timeout=60, check=True)
+    out = json.loads(done.stdout)
+    return out["d"], np.array(out["mvp"], dtype=np.float64).reshape(4, 4)  # [column, row]
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="no Node.js installed")
+def test_the_camera_frames_every_frame_above_the_control_bar_and_the_strain_scale_is_fixed(tmp_path, flag_page):
+    """A cloth that starts hanging high and ends lying low and far to one side (as the fold does):
+    every vertex of every frame projects inside the window and above the control bar, for wide,
+    tall and very wide windows (the camera framed around the first frame: the fold ended in the
+    bottom third, its pins behind the bar). The strain legend's end is the fixed 10 % of the USD
+    colours on every page (it was each run's own 99th percentile)."""
+    from warpcloth.io.usd import DEFAULT_STRAIN_SCALE
+    from warpcloth.scenarios import sheet
+
+    model = sheet.build(rows=6, cols=6).model
+    rest = model.host.q.astype(np.float32)
+    page = tmp_path / "fall.html"
+    writer = HtmlWriter(str(page), model, 60.0)
+    for k in range(20):
+        s = k / 19.0
+        p = rest.copy()
+        lying = np.stack([p[:, 0], np.zeros(len(p), np.float32), p[:, 1] - rest[:, 1].min()], axis=1)
+        p = (1 - s) * p + s * (lying + np.array([1.5, 0.02, 0.8], np.float32))
+        writer.write_frame(p.astype(np.float32), k / 60.0)
+    writer.close()
+    data = read_player_data(str(page))
+    positions = data["positions"].reshape(-1, 3).astype(np.float64)
+    homogeneous = np.hstack([positions, np.ones((len(positions), 1))])
+    yaw, pitch = data["view"]["yaw"], data["view"]["pitch"]
+    for w, h, bar in ((1280, 720, 44), (700, 1000, 44), (1800, 400, 60)):
+        b = bar / h
+        d, mvp = _camera_in_node(page, data["bboxMin"], data["bboxMax"], yaw, pitch, w, h, b)
+        clip = homogeneous @ mvp  # row vector times the column-major matrix's transpose
+        assert np.all(clip[:, 3] > 0), (w, h)  # every vertex in front of the eye
+        x, y = clip[:, 0] / clip[:, 3], clip[:, 1] / clip[:, 3]
+        assert np.all(np.abs(x) <= 1.0) and np.all(y <= 1.0) and np.all(y >= -1.0 + 2.0 * b), (w, h, x, y)
+        # and framed, not merely far away: the box fills most of the view one way or the other
+        assert max(np.abs(x).max(), (np.abs(y - b) / (1.0 - b)).max()) > 0.6, (w, h, d)
+    assert data["strainScale"] == DEFAULT_STRAIN_SCALE == 0.1
+    flag = read_player_data(str(flag_page[0]))
+    assert flag["strainScale"] == data["strainScale"] and flag["maxStrain"] != data["maxStrain"]

@@ -65,6 +65,9 @@ def test_pins_written_once_with_extent(capsys, tmp_path):
     assert code == 0, err
     stage = Usd.Stage.Open(str(usd))
     pins = UsdGeom.Points(stage.GetPrimAtPath("/World/Pins"))
+    # markers for viewports, not geometry: Cycles rendered default-purpose pins as white balls
+    assert pins.GetPurposeAttr().Get() == UsdGeom.Tokens.guide
+    assert UsdGeom.Imageable(pins).ComputePurpose() == UsdGeom.Tokens.guide
     points = pins.GetPointsAttr()
     assert points.GetNumTimeSamples() == 0  # the pins do not move: one value
     p = np.array(points.Get())

@@ -75,7 +75,7 @@ def build_parser(commands=None) -> Parser:
     parser = Parser(
         prog="warpcloth", description="Mass-spring cloth simulator and integrator laboratory on NVIDIA Warp."
     )
-    parser.add_argument("--version", action="version", version=f"warpcloth {__version__}")
+    parser.add_argument("-V", "--version", action="version", version=f"warpcloth {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for name, (_, help_line, quiet) in COMMANDS.items():
         p = sub.add_parser(name, help=help_line)

@@ -42,11 +42,22 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
 
 
+def cloth_shape(rows: int, cols: int, particles: int, triangles: int) -> str:
+    """A grid as ``ROWSxCOLS``; a mesh (one row: grids have at least two) as ``N vertices, T triangles``."""
+    return f"{rows}x{cols}" if rows > 1 else f"{particles:,} vertices, {triangles:,} triangles"
+
+
 def summary(result) -> str:
     """A short human-readable summary of a RunResult."""
     lines = [
-        f"{result.scenario}: {result.integrator} on {result.device}, {result.rows}x{result.cols} "
-        f"({result.particles} particles, {result.springs} springs), dt={result.dt:.3g} s",
+        f"{result.scenario}: {result.integrator} on {result.device}, "
+        + (
+            f"{result.rows}x{result.cols} ({result.particles} particles, {result.springs} springs)"
+            if result.rows > 1
+            else f"{cloth_shape(result.rows, result.cols, result.particles, result.triangles)} "
+            f"({result.springs} springs)"
+        )
+        + f", dt={result.dt:.3g} s",
         f"  simulated {result.sim_time:.3f} s in {result.steps} steps, {result.wall_time:.2f} s wall "
         f"(+{result.compile_time:.2f} s compile"
         + (f", +{result.capture_time:.2f} s graph capture" if result.capture_time else "")
@@ -214,7 +225,8 @@ OUTPUTS = (
             path,
             sim.model,
             cfg.fps,
-            title=f"warpcloth {run.scenario}: {sim.integrator.name}, {sim.model.rows}x{sim.model.cols}, "
+            title=f"warpcloth {run.scenario}: {sim.integrator.name}, "
+            f"{cloth_shape(sim.model.rows, sim.model.cols, sim.model.particle_count, sim.model.tri_count)}, "
             f"dt={sim.dt:.3g} s",
             info=run.info(sim, cfg),
             expected_frames=run.frames(cfg),

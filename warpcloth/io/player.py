@@ -15,9 +15,10 @@ translation uint16 within the range it covers and, only if it turns, the rotatio
 int16 (14 bytes a frame, 6 if it only translates); a static collider has no per-frame data.
 
 Open ``out.html#t=0.5`` to seek to t = 0.5 s and pause; ``#t=0.5&strain=1`` also colours the
-cloth by strain (the legend runs from 0 to the 99th percentile of the vertices' strain in the
-frame where that is largest, rounded up; the run's largest strain is printed under it);
-``&colliders=0`` hides the colliders.
+cloth by strain (a fixed scale, blue 0 to red :data:`~warpcloth.io.usd.DEFAULT_STRAIN_SCALE`, 10 %,
+as the USD output's colours, so that two pages compare; the run's largest strain is printed under
+it); ``&colliders=0`` hides the colliders. The camera starts framing the whole animation's bounding
+box (every frame's cloth, above the control bar), seen from the side the cloth faces.
 """
 
 from __future__ import annotations
@@ -31,15 +32,13 @@ import numpy as np
 
 from warpcloth.errors import WarpclothError
 from warpcloth.io.files import check_output_path, write_atomic
-from warpcloth.io.frames import nice_scale, spring_arrays, vertex_strain
+from warpcloth.io.frames import spring_arrays, vertex_strain
+from warpcloth.io.usd import DEFAULT_STRAIN_SCALE
 from warpcloth.sim.colliders import matrix_quat
 
 HTML_EXTENSIONS = (".html", ".htm")
 #: Where the page template lives (package data).
 TEMPLATE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "player.html")
-#: The legend's end is this percentile of the vertices' strain in the frame where it is largest
-#: (rounded up to 1, 2, 2.5 or 5 x 10^k); strain above it is red.
-STRAIN_PERCENTILE = 99.0
 #: A plane's patch in the player is this many times the animation's bounding-box diagonal across
 #: (at least :data:`PLANE_PATCH_MIN` m).
 PLANE_PATCH = 3.0
@@ -197,7 +196,6 @@ class HtmlWriter:
         self.frames: list[np.ndarray] = []
         self.times: list[float] = []
         self.max_strain = 0.0
-        self.strain_p99 = 0.0
         self.colliders = tuple(colliders or ())
         for c in self.colliders:
             if getattr(c, "kind", None) not in ("plane", "sphere", "capsule", "box", "mesh"):
@@ -225,8 +223,6 @@ class HtmlWriter:
             poses.add(t)
         strain = vertex_strain(p, self.pairs, self.rest)
         self.max_strain = max(self.max_strain, float(strain.max(initial=0.0)))
-        if strain.size:  # the legend's scale: most of the cloth, not the few vertices at a pin
-            self.strain_p99 = max(self.strain_p99, float(np.percentile(strain, STRAIN_PERCENTILE)))
 
     def document(self) -> str:
         """The page as text."""
@@ -250,7 +246,8 @@ class HtmlWriter:
             "pins": self.pins,
             "colliders": collider_records(self.colliders, lo, hi, self.poses),
             "view": default_view(self.frames, self.tris),
-            "strainScale": nice_scale(self.strain_p99),
+            # fixed (it was the run's own 99th percentile, so one colour meant another strain on each page)
+            "strainScale": DEFAULT_STRAIN_SCALE,
             "maxStrain": self.max_strain,
             "info": self.info,
         }

@@ -14,7 +14,7 @@ stays a single file.
 
 Pipeline extras: the run's provenance in ``customLayerData`` (:mod:`warpcloth.io.provenance`);
 ``/World/Pins`` only where the cloth has pins (an empty point cloud crashed Blender 5.0's Cycles),
-written once while they do not move; colliders under ``/World/Colliders`` with ``purpose =
+``purpose = "guide"`` (markers, not rendered), written once while they do not move; colliders under ``/World/Colliders`` with ``purpose =
 "guide"`` by default (``colliders_purpose="render"`` draws them); ``color="strain"`` writes a vertex
 ``primvars:displayColor`` per frame from blue (0) to red (``strain_scale``, default 10 %); a
 ``.usdz`` target is a ``.usdc`` stage packaged with ``UsdUtils.CreateNewUsdzPackage`` (no value
@@ -351,6 +351,8 @@ class UsdWriter:
         self.pins = self.pins_attr = self.pins_extent_attr = None
         if self._pin_idx.size:  # no empty point cloud (Blender 5.0's Cycles crashed rendering one)
             self.pins = UsdGeom.Points.Define(self.stage, "/World/Pins")
+            # guide: a marker for viewports and tools, not geometry to render (Cycles drew them as white balls)
+            self.pins.CreatePurposeAttr(UsdGeom.Tokens.guide)
             self.pins.CreateWidthsAttr(Vt.FloatArray([0.02] * len(model.pinned)))
             self.pins_attr = self.pins.CreatePointsAttr()
             self.pins_extent_attr = self.pins.CreateExtentAttr()

@@ -196,6 +196,8 @@ class RunResult:
     springs: int
     dt: float
     fps: float
+    #: the cloth's triangles (a mesh's summary names them: a mesh has no rows and columns)
+    triangles: int = 0
     steps: int = 0
     frames: int = 0
     sim_time: float = 0.0
@@ -445,6 +447,7 @@ class RunHarness:
             cols=m.cols,
             particles=m.particle_count,
             springs=m.spring_count,
+            triangles=m.tri_count,
             dt=dt,
             fps=fps,
             equilibrium_criterion="speed+force"
@@ -613,9 +616,13 @@ class RunHarness:
             ],
             "contacts that did not fit its list (raise contacts_per_element)": stats["overflow_contacts"],
             "queries cut to the cells searched": stats["truncated_queries"],
-            "vertices moving faster than the list's largest margin covers (raise skin_max or lower dt)": stats["fast"],
+            # counted per vertex at each list build (a vertex fast over 100 builds counts 100)
+            f"vertex-builds over {stats['rebuilds']:,} list builds where a vertex moved farther in a step than the "
+            "list's largest margin covers (skin_max; lower --dt, or raise SelfCollision's skin_max in Python)": stats[
+                "fast"
+            ],
         }
-        said = [f"{count} {what}" for what, count in missed.items() if count]
+        said = [f"{count:,} {what}" for what, count in missed.items() if count]
         if said:
             warn("self-collision may have missed pairs: " + "; ".join(said))
         if stats["ccd_unresolved"]:

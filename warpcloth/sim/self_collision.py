@@ -832,8 +832,8 @@ class SelfCollision:
     def stats(self) -> dict:
         """Counters (reads the device): this step's candidates and contacts, and since the last
         :meth:`reset_stats`: rebuilds, overflows (pairs that did not fit), truncated queries, contacts
-        left closer than the minimum gap, detects, the largest lists, ``fast`` (rebuilds whose
-        vertices moved more than the list's largest skin covers: a pair may have been missed), the
+        left closer than the minimum gap, detects, the largest lists, ``fast`` (vertex-builds: at each
+        build, the vertices whose motion was more than ``skin_max`` covers: a pair may have been missed), the
         continuous response's ``ccd_collisions`` (pairs its first pass pushed), ``ccd_rollbacks`` and
         ``ccd_unresolved`` (pairs left crossing), ``swept_rebuilds`` (lists rebuilt over an interval's motion
         before or between the continuous response's rounds, also counted in ``rebuilds``); the list's radius
