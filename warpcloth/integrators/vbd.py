@@ -7,7 +7,7 @@
         dx_i <- dx_i - H_i^-1 g_i      (3 x 3 Newton step on vertex i's local energy)
         dx <- dx + P t                 (rigid translation correction, vbd_rigid_mode)
         [Chebyshev: dx <- omega_n (dx - dx^(n-2)) + dx^(n-2)]
-    v = dx / h ;  x += dx
+    [free cloth: dx <- dx + w x r]; v = dx / h ;  x += dx      (w: angular momentum, rotation_correction)
 
 g_i and H_i are the gradient and Hessian of the incremental potential m/(2h^2)|dx - dy|^2 + springs
 in dx_i (:mod:`warpcloth.kernels.vbd`): inertia, the spring forces with their clamped (PSD) Hessian,
