@@ -293,3 +293,100 @@ def push_out_increment(
         return
     d, _hit = push_out(x[i], dx[i], colliders)
     dx[i] = d
+
+
+# -- the rigid rotation of a free cloth's step (vbd's angular momentum; issue 51) -------------------
+@wp.kernel
+def rotation_mode_chunks(
+    x: wp.array(dtype=wp.vec3),
+    dx: wp.array(dtype=wp.vec3),
+    inertia: Inertia,
+    chunk: int,
+    count: int,
+    scalars: wp.array(dtype=wp.float64),
+    vectors: wp.array(dtype=wp.vec3d),
+    matrices: wp.array(dtype=wp.mat33d),
+):
+    # chunk c's float64 sums in index order (a fixed order), with p = (x_i - x_0) + dx_i (the step's end
+    # relative to particle 0's start: no float32 cancellation of |x|) and e = dx - dy:
+    # scalars[2c..] = sum m, sum m p.e;  vectors[3c..] = sum m p, sum m p x e, sum m e;
+    # matrices[2c..] = sum m p p^T, sum m p e^T
+    c = wp.tid()
+    sm = wp.float64(0.0)
+    spe = wp.float64(0.0)
+    sp = wp.vec3d()
+    spxe = wp.vec3d()
+    se = wp.vec3d()
+    spp = wp.mat33d()
+    spet = wp.mat33d()
+    x0 = x[0]
+    for i in range(c * chunk, wp.min((c + 1) * chunk, count)):
+        m = wp.float64(inertia.mass[i])
+        p = wp.vec3d((x[i] - x0) + dx[i])
+        e = wp.vec3d(dx[i]) - wp.vec3d(inertia.dy[i])
+        sm = sm + m
+        spe = spe + m * wp.dot(p, e)
+        sp = sp + m * p
+        spxe = spxe + m * wp.cross(p, e)
+        se = se + m * e
+        spp = spp + m * wp.outer(p, p)
+        spet = spet + m * wp.outer(p, e)
+    scalars[2 * c] = sm
+    scalars[2 * c + 1] = spe
+    vectors[3 * c] = sp
+    vectors[3 * c + 1] = spxe
+    vectors[3 * c + 2] = se
+    matrices[2 * c] = spp
+    matrices[2 * c + 1] = spet
+
+
+@wp.kernel
+def solve_rotation_mode(
+    scalars: wp.array(dtype=wp.float64),
+    vectors: wp.array(dtype=wp.vec3d),
+    matrices: wp.array(dtype=wp.mat33d),
+    out: wp.array(dtype=wp.vec3),
+):
+    # the rotation w about the mass centre cm of x + dx (relative to x_0) for which dx_i += w x r_i,
+    # r_i = p_i - cm, gives sum m r x (dx - dy) = 0: backward Euler's angular momentum law, met by the
+    # converged step (internal forces are central or rotation invariant; f_ext's torque is in dy).
+    # Exactly linear in w ((w x r) x (w x r) = 0): (J + sum m (r e^T - (r.e) I)) w = -sum m r x e,
+    # J = sum m (|r|^2 I - r r^T). sum m (w x r) = w x sum m r = 0: the momentum is unchanged.
+    # out[0] = w, out[1] = cm; w = 0 where the matrix is singular (a cloth on a line)
+    sm = wp.float64(0.0)
+    spe = wp.float64(0.0)
+    sp = wp.vec3d()
+    spxe = wp.vec3d()
+    se = wp.vec3d()
+    spp = wp.mat33d()
+    spet = wp.mat33d()
+    for c in range(scalars.shape[0] // 2):
+        sm = sm + scalars[2 * c]
+        spe = spe + scalars[2 * c + 1]
+        sp = sp + vectors[3 * c]
+        spxe = spxe + vectors[3 * c + 1]
+        se = se + vectors[3 * c + 2]
+        spp = spp + matrices[2 * c]
+        spet = spet + matrices[2 * c + 1]
+    eye = wp.identity(n=3, dtype=wp.float64)
+    cm = sp / sm
+    rxe = spxe - wp.cross(cm, se)  # sum m r x e
+    rr = spp - sm * wp.outer(cm, cm)  # sum m r r^T
+    re = spet - wp.outer(cm, se)  # sum m r e^T
+    A = (wp.trace(rr) * eye - rr) + (re - wp.trace(re) * eye)
+    w = wp.vec3d()
+    det = wp.determinant(A)
+    scale = wp.trace(rr)
+    if wp.abs(det) > wp.float64(1.0e-9) * scale * scale * scale:
+        w = -(wp.inverse(A) * rxe)
+    out[0] = wp.vec3(w)
+    out[1] = wp.vec3(cm)
+
+
+@wp.kernel
+def apply_rotation_mode(x: wp.array(dtype=wp.vec3), rotation: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3)):
+    # dx_i += w x (p_i - cm), p_i = (x_i - x_0) + dx_i  (w, cm: solve_rotation_mode)
+    i = wp.tid()
+    d = dx[i]
+    r = ((x[i] - x[0]) + d) - rotation[1]
+    dx[i] = d + wp.cross(rotation[0], r)
