@@ -26,6 +26,7 @@ from warpcloth.sim.model import ClothModel
 from warpcloth.sim.pins import apply_pins
 from warpcloth.sim.self_collision import SelfCollision
 from warpcloth.sim.state import State
+from warpcloth.sim.tracks import check_target
 
 #: Most steps in one captured graph: :meth:`Simulator.simulate` replays a graph of this many steps
 #: as often as it fits and one of the rest (capturing a long call whole, 800 steps of projective's
@@ -316,6 +317,12 @@ class Simulator:
             raise WarpclothError(
                 f"collider {index} ({colliders[index].kind}) is not driven: give it track=ColliderTrack.driven()"
             )
+        what = f"collider {index}'s"
+        offset = tuple(check_target(what, "offset", offset, "m").reshape(-1))
+        if velocity is not None:
+            velocity = tuple(check_target(what, "velocity", velocity, "m/s").reshape(-1))
+        if isinstance(rotation, wp.array):  # as offset and velocity: a device array is read back
+            rotation = tuple(rotation.numpy().reshape(-1).tolist())
         track.set(offset, rotation, velocity)
 
     def set_dt(self, dt: float) -> None:

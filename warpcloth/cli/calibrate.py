@@ -95,7 +95,13 @@ def run(args) -> int:
     start = material_with(args.material, **values)
     if start is None:
         raise WarpclothError("calibrate needs a material to start from: a preset, or custom with its values")
-    targets = dict(args.target)
+    targets = {}
+    for name, value in args.target:
+        if name in targets:
+            raise WarpclothError(
+                f"--target {name} is given twice ({targets[name]:g} and {value:g}): give each target once"
+            )
+        targets[name] = value
     quiet = getattr(args, "quiet", False) or args.json
 
     def progress(e):

@@ -17,7 +17,15 @@ from warpcloth.integrators import (
     option_help,
     option_owners,
 )
-from warpcloth.run.params import BY_NAME, add_flags, check_applies, cli_value, config_values, params_for
+from warpcloth.run.params import (
+    BY_NAME,
+    add_flags,
+    check_applies,
+    check_self_collision_settings,
+    cli_value,
+    config_values,
+    params_for,
+)
 
 
 def add_model_arguments(p: argparse.ArgumentParser, command: str = "max-dt", exclusive: dict | None = None) -> None:
@@ -79,6 +87,8 @@ def config_from_args(scenario, args, command: str = "run"):
     kwargs = config_values(values)
     kwargs.update(integrator=integrator, integrator_options=integrator_options_from_args(integrator, args))
     cfg = scenario.config(**kwargs)
+    on = scenario.self_collision_settings(cfg) is not None  # a bad value is refused as such first, on or off
+    check_self_collision_settings(values, on, scenario.name)
     num_frames = getattr(args, "num_frames", None)
     if num_frames is not None:
         require_positive("fps", cfg.fps, "1/s")

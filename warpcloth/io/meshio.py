@@ -114,11 +114,19 @@ def read_obj(path: str) -> TriangleMesh:
             except ValueError:
                 raise WarpclothError(f"{where}: vertex coordinates must be numbers, got {' '.join(args)!r}") from None
             require(len(args) >= 3, f"{where}: a vertex needs x y z, got {' '.join(args)!r}")
+            require(
+                all(abs(x) <= sys.float_info.max for x in verts[-1]),
+                f"{where}: vertex coordinates must be finite, got {' '.join(args)!r}",
+            )
         elif tag == "vt":
             try:
                 uv = [float(a) for a in args[:2]]
             except ValueError:
                 raise WarpclothError(f"{where}: texture coordinates must be numbers, got {' '.join(args)!r}") from None
+            require(
+                all(abs(x) <= sys.float_info.max for x in uv),
+                f"{where}: texture coordinates must be finite, got {' '.join(args)!r}",
+            )
             tex.append(uv + [0.0] * (2 - len(uv)))
         elif tag in ("g", "o"):
             current = args or ["default"]

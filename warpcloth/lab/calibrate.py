@@ -18,7 +18,11 @@ length). Every simulation is a full scenario run to rest: the cost is reported (
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
+import re
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -211,6 +215,8 @@ def calibrate(
         if name not in TARGETS:
             raise WarpclothError(f"unknown calibration target {name!r}; the targets are {', '.join(TARGETS)}")
         require_positive(name, value)
+    if "bending_length" in targets:
+        _check_reach(start, targets["bending_length"])
     if "drape_coefficient" in targets:
         require(
             targets["drape_coefficient"] < 1.0,
@@ -231,6 +237,7 @@ def calibrate(
     max_runs = require_int("max_runs", max_runs, 1)
     evaluations: list[Evaluation] = []
     cache: dict = {}
+    said: set = set()
     t0 = time.perf_counter()
 
     def key(values: dict) -> tuple:
@@ -242,7 +249,8 @@ def calibrate(
         if len(evaluations) * len(targets) >= max_runs:
             raise _OutOfRuns()
         t = time.perf_counter()
-        got = measure(apply(start, values), targets, size, integrator, device, options, bend)
+        with _warnings_once(said):
+            got = measure(apply(start, values), targets, size, integrator, device, options, bend)
         evaluations.append(Evaluation(dict(values), got, time.perf_counter() - t))
         if progress is not None:
             progress(evaluations[-1])
@@ -284,6 +292,36 @@ def calibrate(
 
 class _OutOfRuns(Exception):
     pass
+
+
+@contextlib.contextmanager
+def _warnings_once(said: set):
+    """The runs' warning lines (stderr) each said once per fit: a fit repeats one configuration many
+    times, and a warning such as a solver's missed tolerance would otherwise come at every run. Two
+    lines are the same warning when they differ only in their numbers."""
+    buffer = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(buffer):
+            yield
+    finally:
+        for line in buffer.getvalue().splitlines(keepends=True):
+            kind = re.sub(r"[-+]?\d[\d.]*(e[-+]?\d+)?", "#", line)
+            if kind not in said:
+                said.add(kind)
+                sys.stderr.write(line if line.endswith("\n") else line + "\n")
+        sys.stderr.flush()
+
+
+def _check_reach(start: Material, target: float) -> None:
+    """Refuse a bending length that no fit can reach: c = (B / w)^(1/3) and ``bend`` is a factor on
+    B within :data:`UNKNOWNS`, so c moves by at most that factor's cube root from the start's."""
+    c0 = (start.bending_rigidity(start.warp_angle) / start.weight()) ** (1.0 / 3.0)  # the strip's, as _initial
+    lo, hi = (c0 * b ** (1.0 / 3.0) for b in UNKNOWNS["bend"])
+    if not lo <= target <= hi:
+        raise WarpclothError(
+            f"bending_length {target!r} m is out of reach from {start.name}: its bending length is {c0:.4g} m and "
+            f"bend (a factor {UNKNOWNS['bend'][0]:g}..{UNKNOWNS['bend'][1]:g} on B = w c^3) reaches {lo:.4g}..{hi:.4g} m"
+        )
 
 
 def _cost(measured: dict, targets: dict) -> float:

@@ -1215,6 +1215,24 @@ def check_applies(values: dict, is_mesh: bool, scenario_name: str, spell=lambda 
             raise WarpclothError(f"{spell(p)} does not apply to scenario {scenario_name!r}: its cloth is {kind}")
 
 
+#: The settings of self-collision, which apply only where it is on.
+SELF_COLLISION_SETTINGS = ("self_collision_thickness", "self_collision_friction", "self_collision_interval")
+
+
+def check_self_collision_settings(values: dict, on: bool, scenario_name: str, spell=lambda p: p.flag) -> None:
+    """Self-collision's settings given where it is off are refused (as a material's values on a cloth
+    without a material): ``on`` is the run's self-collision, the scenario's own unless given."""
+    if on:
+        return
+    given = next((name for name in SELF_COLLISION_SETTINGS if values.get(name) is not None), None)
+    if given is not None:
+        switch = spell(BY_NAME["self_collision"])
+        raise WarpclothError(
+            f"{spell(BY_NAME[given])} applies with self-collision on, and it is off in scenario {scenario_name!r}: "
+            f"give {switch} on as well, or leave {spell(BY_NAME[given])} out"
+        )
+
+
 def config_values(values: dict) -> dict:
     """ScenarioConfig keyword arguments from parameter values (None: unset, and left out, so a
     scenario's own value, e.g. a scenario file's, stays)."""
@@ -1281,11 +1299,13 @@ __all__ = [
     "BY_NAME",
     "OLD_NAMES",
     "PARAMS",
+    "SELF_COLLISION_SETTINGS",
     "Param",
     "TimeStep",
     "add_flags",
     "argparse_type",
     "canonical",
+    "check_self_collision_settings",
     "config_values",
     "csv_columns",
     "markdown_table",

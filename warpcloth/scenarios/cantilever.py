@@ -19,10 +19,11 @@ import math
 
 import numpy as np
 
+from warpcloth.errors import warn
 from warpcloth.scenarios.common import Scenario, ScenarioConfig, scenario_material
 from warpcloth.sim.colliders import Box
 from warpcloth.sim.control import Control
-from warpcloth.sim.elastica import ASTM_ANGLE, rigidity_from_overhang, tip_deflection
+from warpcloth.sim.elastica import ASTM_ANGLE, MAX_CHORD_ANGLE, MAX_LAMBDA, rigidity_from_overhang, tip_deflection
 from warpcloth.sim.hinges import DEFAULT_BEND_RIGIDITY
 from warpcloth.sim.material import GRAVITY, material
 
@@ -92,7 +93,11 @@ def measure(sim, config: ScenarioConfig, result=None) -> dict:
     None of them from a run whose solve stopped at its iteration cap or whose integrator's strain cap
     engaged (``result``: the run's :class:`~warpcloth.run.harness.RunResult`; None: not checked): the
     strip's shape is then the solver's, not the material's (the refined strip at the default dt fell
-    short of the elastica by 38 % at 66 particles and 56 % at 130); ``refused`` says why and what fixes it."""
+    short of the elastica by 38 % at 66 particles and 56 % at 130); ``refused`` says why and what fixes it.
+
+    Each elastica figure only within its range (lambda = w L^3 / B <= 100, a chord <= 80.36 deg,
+    :data:`~warpcloth.sim.elastica.MAX_LAMBDA`): a strip that hangs nearly straight down (e.g. the
+    default per-spring cloth of ``--material none``) reports the rest, with one warning line."""
     refusal = None if result is None else result.refusal("bending length")
     if refusal:
         return refusal
@@ -112,10 +117,22 @@ def measure(sim, config: ScenarioConfig, result=None) -> dict:
         "astm_rigidity_Nm": weight * (0.5 * length) ** 3,
         "astm_reading_valid": abs(chord - ASTM_ANGLE) <= math.radians(0.5),
     }
-    if 0.0 < chord < math.radians(85.0):
+    if 0.0 < chord <= MAX_CHORD_ANGLE:
         b = rigidity_from_overhang(length, weight, chord)
         out.update(rigidity_Nm=b, bending_length_m=(b / weight) ** (1.0 / 3.0))
-    if rigidity:
+    elif chord > MAX_CHORD_ANGLE:
+        warn(
+            f"cantilever: the chord is {math.degrees(chord):.4g} deg below the clamp, beyond the elastica's "
+            f"{math.degrees(MAX_CHORD_ANGLE):.2f} deg: the strip hangs nearly straight down, so no bending length "
+            "or rigidity is read from it"
+        )
+    lam = weight * length**3 / rigidity if rigidity else None
+    if lam is not None and lam > MAX_LAMBDA:
+        warn(
+            f"cantilever: lambda = w L^3 / B = {lam:.4g} is beyond the elastica's {MAX_LAMBDA:g}: the strip's "
+            "weight overwhelms its rigidity (it hangs nearly straight down), so no elastica tip drop is reported"
+        )
+    elif rigidity:
         elastica = tip_deflection(length, rigidity, weight)[0]
         out.update(
             material_rigidity_Nm=rigidity,

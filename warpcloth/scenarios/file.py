@@ -344,8 +344,16 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         material_values["density"], density = density, None
     else:
         clash = next((k for k, v in material_values.items() if v is not None), None)
+        if material == "none" and density is not None:  # as the CLI's --material none --density
+            clash = "density"
         if clash is not None:
-            raise c.fail(clash, "is a material's value: give cloth.material (a preset, or custom)")
+            raise c.fail(
+                clash,
+                "is a material's value and cloth.material is 'none' (no material): give a material (a preset, or "
+                "custom), or the per-spring cloth's cloth.mass [kg], or cloth.density without material = 'none'"
+                if material == "none"
+                else "is a material's value: give cloth.material (a preset, or custom)",
+            )
     if density is not None:
         mass = float(lumped_masses(mesh.vertices, mesh.triangles, density=density, mode=mass_mode).sum())
     bend = cloth.get("bend", True)

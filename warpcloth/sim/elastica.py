@@ -14,6 +14,10 @@ theta_L = pi/2 gives theta = pi/2 everywhere). Shooting on theta'(0) fails for l
 Peirce's bending length c = (B / w)^(1/3); ASTM reads c = L / 2 at the overhang L where the chord
 from the clamp to the tip is 41.5 deg below the horizontal, then B = w c^3. The exact elastica
 reaches 41.5 deg at lambda = 8.004 (L / c = 2.0004), so the ASTM rule is exact to 0.02 % in c.
+
+The shooting is solved for lambda <= :data:`MAX_LAMBDA` (100, a chord of 80.36 deg): beyond about
+150 the tip angle is so near pi/2 that the integration from the free end loses the root (brentq
+finds a wrong one, or none). A heavier or limper strip, which hangs nearly straight down, is refused.
 """
 
 from __future__ import annotations
@@ -26,6 +30,10 @@ from warpcloth.errors import require, require_int, require_positive
 
 #: The ASTM D1388 / Peirce chord angle [rad] (41.5 degrees).
 ASTM_ANGLE = math.radians(41.5)
+
+#: The largest lambda = w L^3 / B the shooting solves (module docstring), and its chord angle [rad].
+MAX_LAMBDA = 100.0
+MAX_CHORD_ANGLE = math.radians(80.36)
 
 _RTOL, _ATOL = 1e-12, 1e-14
 
@@ -51,6 +59,11 @@ def tip_angle(lam: float) -> float:
     from scipy.optimize import brentq  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
     lam = require_positive("lambda = w L^3 / B", lam)
+    require(
+        lam <= MAX_LAMBDA,
+        f"lambda = w L^3 / B must be <= {MAX_LAMBDA:g} (a chord up to {math.degrees(MAX_CHORD_ANGLE):.2f} deg below the "
+        f"clamp), got {lam:.6g}: the strip hangs nearly straight down, where the elastica's shooting loses its root",
+    )
     return brentq(lambda th: _integrate(lam, th).y[0, -1], 0.0, 0.5 * math.pi, xtol=1e-15, rtol=1e-15)
 
 
@@ -98,10 +111,14 @@ def lambda_for_chord_angle(angle: float = ASTM_ANGLE) -> float:
     from scipy.optimize import brentq  # noqa: PLC0415 (SciPy loads only where this solve runs: stepping loads none)
 
     angle = require_positive("angle", angle, "rad")
-    require(angle <= math.radians(85.0), f"angle must be in (0, 85] degrees, got {math.degrees(angle):.6g}")
+    require(
+        angle <= MAX_CHORD_ANGLE,
+        f"angle must be in (0, {math.degrees(MAX_CHORD_ANGLE):.2f}] degrees (lambda <= {MAX_LAMBDA:g}), got "
+        f"{math.degrees(angle):.6g}",
+    )
     lo, hi = 1e-3, 10.0
     while chord_angle_of(hi) < angle:
-        lo, hi = hi, hi * 10.0
+        lo, hi = hi, min(hi * 10.0, MAX_LAMBDA)
     while chord_angle_of(lo) > angle:
         lo *= 0.1
     return brentq(lambda lam: chord_angle_of(lam) - angle, lo, hi, xtol=1e-12, rtol=1e-13)
@@ -139,6 +156,8 @@ def rigidity_from_overhang(overhang: float, weight: float, angle: float = ASTM_A
 
 __all__ = [
     "ASTM_ANGLE",
+    "MAX_CHORD_ANGLE",
+    "MAX_LAMBDA",
     "bending_length",
     "cantilever_elastica",
     "chord_angle_of",

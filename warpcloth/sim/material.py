@@ -196,7 +196,10 @@ class Material:
         return self.stretch_damping_ratio / (math.pi * self.bend_damping_frequency)
 
     def replace(self, **changes) -> Material:
-        """A copy with some fields changed (validated again)."""
+        """A copy with some fields changed (validated again); an unknown field is refused by name."""
+        fields = [f.name for f in dataclasses.fields(self)]
+        unknown = [k for k in changes if k not in fields]
+        require(not unknown, f"material: unknown field {unknown[0]!r} (fields: {', '.join(fields)})" if unknown else "")
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict:
@@ -882,8 +885,10 @@ def material_grid_cloth(
     height = require_positive("height", height, "m")
     origin = require_vector("origin", origin, 3, "m")
     device = resolve_device(device)
-    springs = grid_spring_params(mat, rows, cols, width, height, bend=bend)  # checks rows, cols
-    require_memory(f"a {rows} x {cols} cloth", grid_memory_estimate(rows, cols, bend), device)
+    minimum = 2 if bend in (BendModel.NONE, BendModel.DIHEDRAL) else 3  # as grid_spring_params
+    rows, cols = require_int("rows", rows, minimum), require_int("cols", cols, minimum)
+    require_memory(f"a {rows} x {cols} cloth", grid_memory_estimate(rows, cols, bend), device)  # before any array
+    springs = grid_spring_params(mat, rows, cols, width, height, bend=bend)
     q = grid_positions(rows, cols, width, height, origin, plane)
     model = build_model(
         q,

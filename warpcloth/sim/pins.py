@@ -66,7 +66,7 @@ class PinTrack(Track):
                 shaped like ``positions``). Before the first key and after the last the pins hold
                 still.
         """
-        idx = _particles(particles)
+        idx, name = _particles(particles), _name(name)
         t, v, tan = check_keyframes("pin track", times, positions, interpolation, tangents, idx.size)
         return cls(
             particles=tuple(idx.tolist()),
@@ -99,7 +99,7 @@ class PinTrack(Track):
             angular_velocity: omega [rad/s]; swing_amplitude: A [rad]; swing_frequency: f [Hz];
             swing_phase: phi [rad]; velocity: the translation velocity u [m/s].
         """
-        idx = _particles(particles)
+        idx, name = _particles(particles), _name(name)
         motion = check_rigid(
             "pin track", center, axis, angular_velocity, swing_amplitude, swing_frequency, swing_phase, velocity
         )
@@ -120,7 +120,7 @@ class PinTrack(Track):
                 (give each target's velocity too: ``set(positions, velocities)``, e.g. a hand's
                 velocity, which damping, drag and wind see).
         """
-        idx = _particles(particles)
+        idx, name = _particles(particles), _name(name)
         drive = FrameDrive(f"pin track {name!r}", idx.size, interpolation)
         return cls(particles=tuple(idx.tolist()), kind="driven", interpolation=interpolation, name=name, drive=drive)
 
@@ -160,6 +160,16 @@ class PinTrack(Track):
             raise WarpclothError("a driven pin track's arguments come from its drive (KinematicPins binds it)")
         keys, tangents = self.key_positions(rest).reshape(-1, 3), self.key_tangents(rest).reshape(-1, 3)
         return [particle, *self._keyframe_args(keys, tangents)]
+
+
+def _name(name) -> str:
+    """A track's name: non-empty printable text (it names the track in set_pin_targets(track=...) and
+    in messages)."""
+    require(
+        isinstance(name, str) and name != "" and name.isprintable(),
+        f"pin track name must be non-empty printable text, got {name!r:.80}",
+    )
+    return name
 
 
 def _particles(particles) -> np.ndarray:

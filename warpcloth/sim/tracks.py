@@ -22,6 +22,7 @@ The subclasses add what differs: the pinned particles, or a collider's pose.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
@@ -32,29 +33,62 @@ from warpcloth.errors import WarpclothError, require
 INTERPOLATIONS = ("linear", "catmull_rom", "hermite")
 
 
+#: The largest |coordinate| [m] (or |velocity| [m/s]) a driven target may have: as a mesh's vertices
+#: (:data:`warpcloth.sim.mesh.MAX_COORDINATE`), the kernels square distances in float32.
+MAX_TARGET = 1e18
+
+
 def _finite(what: str, name: str, a: np.ndarray) -> np.ndarray:
     if not np.all(np.isfinite(a)):
         raise WarpclothError(f"{what} {name} must be finite numbers, got {float(a[~np.isfinite(a)][0])!r}")
     return a
 
 
+def _in_range(what: str, name: str, a: np.ndarray, unit: str) -> np.ndarray:
+    """``a`` if every entry is finite and within +-:data:`MAX_TARGET`, else one line naming the first."""
+    _finite(what, name, a)
+    far = np.abs(a) > MAX_TARGET
+    if np.any(far):
+        raise WarpclothError(
+            f"{what} {name} must be within +-{MAX_TARGET:.0e} {unit} (float32 must hold squared distances), "
+            f"got {float(a[far][0])!r}"
+        )
+    return a
+
+
+def check_target(what: str, name: str, value, unit: str = "m") -> np.ndarray:
+    """A driven target (positions [m], an offset [m] or velocities [m/s]) as a float64 array: numbers
+    (a sequence, a NumPy array or a ``wp.array``), finite, within +-:data:`MAX_TARGET`; else one
+    :class:`WarpclothError` naming ``what`` and ``name``."""
+    return _in_range(what, name, _numbers(what, name, value), unit)
+
+
 def _numbers(what: str, name: str, value) -> np.ndarray:
-    """``value`` as a float64 array, or a :class:`WarpclothError` (text, booleans, tables and
-    ragged lists are not numbers)."""
+    """``value`` (a sequence, a NumPy array or a ``wp.array``) as a float64 array, or a
+    :class:`WarpclothError` (text, booleans, complex numbers, tables, generators and ragged lists
+    are not numbers)."""
 
     def bad():
-        return WarpclothError(f"{what} {name} must be numbers, got {value!r:.80}")
+        shown = " ".join(repr(value).split())  # an array's repr spans lines: the message is one
+        return WarpclothError(f"{what} {name} must be numbers, got {shown:.80}")
 
-    if isinstance(value, (str, bytes, bool, dict)) or value is None:
+    if isinstance(value, wp.array):
+        value = value.numpy()
+    if isinstance(value, np.ndarray) and value.dtype.kind in "iuf":  # the fast path of a frame's targets
+        return np.asarray(value, dtype=np.float64)
+    if isinstance(value, (str, bytes, bool, dict, set, frozenset)) or value is None or not hasattr(value, "__len__"):
+        if not isinstance(value, numbers.Real) or isinstance(value, bool):
+            raise bad()
+    try:
+        items = np.asarray(value, dtype=object).ravel()
+    except (TypeError, ValueError):
+        raise bad() from None
+    if any(isinstance(x, (bool, np.bool_, str, bytes, complex, np.complexfloating)) for x in items):
         raise bad()
     try:
         a = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError, OverflowError):
         raise bad() from None
-    if isinstance(value, (list, tuple)) and any(
-        isinstance(x, (bool, str)) for x in np.asarray(value, dtype=object).ravel()
-    ):
-        raise bad()
     return a
 
 
@@ -315,7 +349,7 @@ class FrameDrive:
     def set(self, positions, velocities=None) -> None:
         """Where the points are at the end of the next frame: ``positions`` (P, 3) [m] (a 3-vector
         for one point) and, for ``"hermite"``, their ``velocities`` (P, 3) [m/s] there."""
-        p = _finite(self.what, "target", np.array(positions, dtype=np.float64))
+        p = check_target(self.what, "target positions", positions, "m")
         require(
             p.size == 3 * self.points and p.shape in ((self.points, 3), (3,)),
             f"{self.what} target must have shape ({self.points}, 3), got {p.shape}",
@@ -328,7 +362,7 @@ class FrameDrive:
                 self.interpolation == "hermite",
                 f"{self.what} velocities need interpolation 'hermite' (linear moves at (p1 - p0) / frame time)",
             )
-            v = _finite(self.what, "velocities", np.array(velocities, dtype=np.float64))
+            v = check_target(self.what, "velocities", velocities, "m/s")
             require(
                 v.size == 3 * self.points, f"{self.what} velocities must have shape ({self.points}, 3), got {v.shape}"
             )
@@ -384,4 +418,14 @@ class FrameDrive:
         return interpolate(times, keys, tangents if self.interpolation == "hermite" else None, float(t))
 
 
-__all__ = ["INTERPOLATIONS", "FrameDrive", "HostWrite", "Track", "check_keyframes", "check_rigid", "interpolate"]
+__all__ = [
+    "INTERPOLATIONS",
+    "MAX_TARGET",
+    "FrameDrive",
+    "HostWrite",
+    "Track",
+    "check_keyframes",
+    "check_rigid",
+    "check_target",
+    "interpolate",
+]
