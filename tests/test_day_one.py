@@ -88,7 +88,7 @@ def test_loose_vertices_of_an_obj_are_dropped_with_one_note(tmp_path, capsys):
     err = [line for line in capsys.readouterr().err.splitlines() if "CUDA" not in line]
     assert (
         len(err) == 1
-        and err[0].startswith("note: mesh ")
+        and err[0].startswith("warpcloth: note: mesh ")
         and "loose.obj: 2 vertices in no face dropped (3, 6," in err[0]
     )
     assert "use the other 4" in err[0]

@@ -153,7 +153,7 @@ class ImplicitEuler(Integrator):
             reason = grid_structure_reason(model)
             if reason:
                 print(
-                    f"note: implicit_euler: multigrid needs a grid model ({reason}); using block_jacobi",
+                    f"warpcloth: note: implicit_euler: multigrid needs a grid model ({reason}); using block_jacobi",
                     file=sys.stderr,
                 )
                 self.preconditioner_used = "block_jacobi"

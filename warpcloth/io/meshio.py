@@ -72,7 +72,7 @@ def load_mesh(path: str, prim: str | None = None) -> TriangleMesh:
         shown = ", ".join(str(int(k) + first) for k in mesh.loose[:5]) + (", ..." if mesh.loose.size > 5 else "")
         count = f"{mesh.loose.size} vertices" if mesh.loose.size > 1 else "1 vertex"
         print(
-            f"note: mesh {path}: {count} in no face dropped ({shown}, numbered as in the file); "
+            f"warpcloth: note: mesh {path}: {count} in no face dropped ({shown}, numbered as in the file); "
             f"warpcloth and its outputs use the other {mesh.vertices.shape[0]}",
             file=sys.stderr,
         )
