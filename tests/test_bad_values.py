@@ -272,18 +272,3 @@ def test_self_collision_settings_need_self_collision_on(capsys, flag, value):
     assert _config("sheet", "--self-collision", "on", flag, value).self_collision is True
     cfg = _config("fold", flag, value)
     assert cfg.self_collision is None and get_scenario("fold").self_collision_settings(cfg) is not None
-
-
-def test_self_collision_settings_where_it_is_off_are_refused_on_every_route(tmp_path, capsys):
-    """The CLI's rule holds from Python and from a scenario file too: a thickness on a cloth that does
-    not collide with itself is refused, not silently dropped; where it is on (the fold) it is taken."""
-    with pytest.raises(WarpclothError, match="self_collision_thickness applies with self-collision on"):
-        get_scenario("sheet").build(rows=4, cols=4, self_collision_thickness=0.01, device="cpu")
-    sim = get_scenario("fold").build(rows=6, cols=4, self_collision_thickness=0.004, device="cpu")
-    assert sim.self_collision is not None and sim.self_collision.thickness == pytest.approx(0.004)
-    obj = tmp_path / "sq.obj"
-    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4 3\n")
-    toml = tmp_path / "s.toml"
-    toml.write_text('[cloth]\nmesh = "sq.obj"\n\n[run]\nself_collision_interval = 0.01\n')
-    line = one_line_error(capsys, "run", str(toml), "--num-frames", "1")
-    assert "self_collision_interval applies with self-collision on" in line

@@ -15,7 +15,7 @@ from warpcloth.io.meshio import load_mesh_collider
 from warpcloth.io.usd import usd_frames
 from warpcloth.run.harness import RunHarness, RunResult
 from warpcloth.run.metrics import DEFAULT_INSTABILITY_STRAIN
-from warpcloth.run.params import BY_NAME, SELF_COLLISION_SETTINGS, SPRING_TYPES, check_self_collision_settings
+from warpcloth.run.params import BY_NAME, SPRING_TYPES
 from warpcloth.run.parse import ColliderSpec
 from warpcloth.sim.control import Control
 from warpcloth.sim.device import resolve_device
@@ -292,8 +292,7 @@ class Scenario:
 
     def self_collision_settings(self, cfg: ScenarioConfig) -> dict | None:
         """The :class:`~warpcloth.sim.self_collision.SelfCollision` settings of a run (None: off); a bad
-        thickness or friction is refused whether it is on or not, and a setting given where it is off is
-        refused (the CLI's rule, :func:`~warpcloth.run.params.check_self_collision_settings`, for every route)."""
+        thickness or friction is refused whether it is on or not."""
         thickness, friction = cfg.self_collision_thickness, cfg.self_collision_friction
         interval = cfg.self_collision_interval
         settings = {
@@ -307,8 +306,6 @@ class Scenario:
         on = self.self_collision if cfg.self_collision is None else cfg.self_collision
         if on not in (True, False):
             raise WarpclothError(f"self_collision must be True, False or None (the scenario's), got {on!r:.80}")
-        given = {name: getattr(cfg, name) for name in SELF_COLLISION_SETTINGS}  # a scenario file, Python, a test list
-        check_self_collision_settings(given, on, self.name, spell=lambda p: p.name)
         return settings if on else None
 
     def harness(self, config: ScenarioConfig | None = None, **overrides) -> RunHarness:
