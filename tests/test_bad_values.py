@@ -272,3 +272,16 @@ def test_self_collision_settings_need_self_collision_on(capsys, flag, value):
     assert _config("sheet", "--self-collision", "on", flag, value).self_collision is True
     cfg = _config("fold", flag, value)
     assert cfg.self_collision is None and get_scenario("fold").self_collision_settings(cfg) is not None
+
+
+def test_a_scenario_files_self_collision_settings_need_self_collision_on(tmp_path, capsys):
+    """The CLI's rule for a scenario file's [run] keys: a setting where its self-collision is off is
+    refused in one line naming the file, not silently unused; with self_collision = true it is taken."""
+    obj = tmp_path / "sq.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4 3\n")
+    toml = tmp_path / "s.toml"
+    toml.write_text('[cloth]\nmesh = "sq.obj"\n\n[run]\nself_collision_interval = 0.01\n')
+    line = one_line_error(capsys, "run", str(toml), "--num-frames", "1")
+    assert "s.toml: [run] self_collision_interval applies with self-collision on" in line, line
+    toml.write_text('[cloth]\nmesh = "sq.obj"\n\n[run]\nself_collision = true\nself_collision_interval = 0.01\n')
+    assert load_scenario(str(toml)).defaults.self_collision_interval == pytest.approx(0.01)

@@ -35,7 +35,15 @@ from warpcloth.errors import WarpclothError, require, require_vector, warn
 from warpcloth.integrators import make_integrator
 from warpcloth.io.files import check_input_file, read_input
 from warpcloth.io.meshio import load_mesh, load_mesh_collider
-from warpcloth.run.params import BY_NAME, config_values, non_negative, params_for, positive
+from warpcloth.run.params import (
+    BY_NAME,
+    SELF_COLLISION_SETTINGS,
+    check_self_collision_settings,
+    config_values,
+    non_negative,
+    params_for,
+    positive,
+)
 from warpcloth.scenarios.common import Scenario, ScenarioConfig, check_rigidity, scenario_material
 from warpcloth.sim.colliders import COLLIDER_TYPES, ColliderTrack, MeshCollider
 from warpcloth.sim.control import GRAVITY, Control, WindSchedule
@@ -514,6 +522,9 @@ def _load(path: str, mtime_ns: int, size: int) -> Scenario:
         make_integrator(defaults.integrator, **options)
         scenario_material(defaults)
         resolve_pins(mesh.vertices, pin_indices, defaults.pin_group or (), defaults.pin_where, mesh.groups)
+        on = scenario.self_collision if defaults.self_collision is None else defaults.self_collision
+        given = {name: getattr(defaults, name) for name in SELF_COLLISION_SETTINGS}  # the CLI's rule, for [run]
+        check_self_collision_settings(given, on, scenario.name, spell=lambda p: f"[run] {p.name}")
     except WarpclothError as exc:
         raise WarpclothError(f"{where}: {exc}") from None
     return scenario
