@@ -241,6 +241,26 @@ def test_time_steps_times_exactly_the_steps_asked():
         time_steps(sim, windows=5, steps=3)
 
 
+def test_a_cpu_stopwatch_counts_the_threads_cpu_time_not_other_jobs_share():
+    """On the CPU a timed block reads the thread's CPU time: a block that sleeps 0.2 s (the
+    core given to other jobs) costs ~0, a block that computes costs what it computes."""
+    import time
+
+    from warpcloth.run.harness import Stopwatch
+
+    with Stopwatch("cpu") as idle:
+        time.sleep(0.2)
+    assert idle.seconds < 0.02
+    with Stopwatch("cpu") as busy:
+        t0 = time.perf_counter()
+        while time.perf_counter() - t0 < 0.1:
+            pass
+    assert 0.05 < busy.seconds < 0.5
+    with Stopwatch() as wall:  # no device: the wall clock
+        time.sleep(0.05)
+    assert wall.seconds >= 0.045
+
+
 def test_time_steps_keeps_to_its_windows_when_a_frame_of_steps_outlasts_them():
     """A frame of many steps (dt = 1e-5 s: 1667 steps a 60 Hz frame) is not a window's minimum:
     ``bench --seconds 0.5`` timed five whole frames of the 256 x 256 sheet (24.6 s on the CPU)."""

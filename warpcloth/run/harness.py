@@ -50,27 +50,33 @@ CHUNK_SECONDS = 0.2
 
 # -- timing ----------------------------------------------------------------------------------
 class Stopwatch:
-    """Wall time of a block of launches on ``device``, synchronised at both ends::
+    """Time of a block of launches on ``device``, synchronised at both ends::
 
-    with Stopwatch(device) as watch:
-        sim.simulate(n)
-    watch.seconds
+        with Stopwatch(device) as watch:
+            sim.simulate(n)
+        watch.seconds
+
+    On a CPU device it reads the calling thread's CPU time (``time.thread_time``): Warp's CPU
+    backend runs each kernel on the calling thread, so on a quiet machine this equals the wall
+    time, and on a shared one other jobs' share of the cores does not count (docs/study.md,
+    "Timings"). On a CUDA device (or none) it reads the wall clock after synchronising.
     """
 
     def __init__(self, device=None):
         self.device = device
         self.seconds = 0.0
+        self.clock = time.thread_time if device is not None and wp.get_device(device).is_cpu else time.perf_counter
 
     def __enter__(self):
         if self.device is not None:
             wp.synchronize_device(self.device)
-        self._t0 = time.perf_counter()
+        self._t0 = self.clock()
         return self
 
     def __exit__(self, *exc):
         if self.device is not None:
             wp.synchronize_device(self.device)
-        self.seconds = time.perf_counter() - self._t0
+        self.seconds = self.clock() - self._t0
         return False
 
 
