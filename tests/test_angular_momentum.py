@@ -5,7 +5,9 @@ tests/test_contract.py holds its linear momentum.
 - falling along its own plane in gravity (no torque about the centre of mass): L stays ~0 (vbd turned
   the cloth by -0.32 degrees in 0.5 s, |L| 8.1e-4 kg m^2/s, before its rotation correction);
 - stretched by 5 % and released without gravity (L = 0 by symmetry, the motion is not: Gauss-Seidel
-  sweeps and projections visit the particles in an order): L stays ~0 (vbd 1.9e-5 kg m^2/s before).
+  sweeps and projections visit the particles in an order): L stays ~0 (vbd 1.9e-5 kg m^2/s before;
+  pbd 5.3e-4 and xpbd 2.6e-4 while they projected along the predicted edge, 3e-9 along the substep's
+  start edge, SHAKE: :mod:`warpcloth.kernels.constraints`).
 
 The bound, 1e-6 kg m^2/s, is from what the schemes that keep it reach (float32 state, 1 s): implicit
 Euler, projective and vbd <= 3.5e-8; the explicit schemes <= 1.5e-7 over their ~5e4 steps of 2e-5 s.
@@ -19,19 +21,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_contract import UNDAMPED_DT
+from helpers import released_stretched_cloth
 
-from warpcloth import Control, Simulator, SpringParams, SpringType, build_grid_cloth, make_integrator
+from warpcloth import Control, Simulator, build_grid_cloth, make_integrator
 from warpcloth.integrators import integrator_names
-from warpcloth.sim.model import DEFAULT_STIFFNESS
 
 NAMES = integrator_names()
 G = 9.81
 #: |L| about the centre of mass [kg m^2/s] that a free cloth's step may leave (module docstring)
 L_BOUND = 1.0e-6
-#: Position-based schemes whose Gauss-Seidel projections still make angular momentum on the released
-#: cloth (measured: pbd 5.3e-4, xpbd 2.6e-4 kg m^2/s, 20 % and 6 % of its sum m |r x v|): open, issue 51
-MAKES_ANGULAR_MOMENTUM = {"pbd", "xpbd"}
 
 
 def angular_momentum(sim, mass: np.ndarray) -> np.ndarray:
@@ -61,28 +59,12 @@ def test_free_cloth_falling_along_its_plane_does_not_turn(name):
     assert worst <= L_BOUND, f"{name}: |L| reached {worst:.3g} kg m^2/s falling along its plane"
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="Gauss-Seidel projections (issue 51, open)"))
-        if n in MAKES_ANGULAR_MOMENTUM
-        else n
-        for n in NAMES
-    ],
-)
+@pytest.mark.parametrize("name", NAMES)
 def test_free_cloth_released_stretched_keeps_its_angular_momentum(name):
     """The contract's momentum cloth (16 x 16, kd 0, no gravity, no drag) released stretched by 5 %:
     |L - L0| <= 1e-6 kg m^2/s (L0 = 0), sampled every 1/60 s over 1 s at the scheme's default dt,
     while it moves (sum m |r| |v| > 1e-4 kg m^2/s)."""
-    params = {t: SpringParams(DEFAULT_STIFFNESS[t], 0.0) for t in SpringType}
-    model = build_grid_cloth(16, 16, 1.0, 1.0, 0.2, spring_params=params, plane="horizontal", device="cpu")
-    integrator = make_integrator(name)
-    dt = UNDAMPED_DT if integrator.no_stable_dt_reason(model) else None
-    sim = Simulator(model, integrator, Control(gravity=(0.0, 0.0, 0.0), drag_rate=0.0, device="cpu"), dt=dt)
-    q = sim.state.particle_q.numpy()
-    c = q.mean(axis=0)
-    sim.state.particle_q.assign(((q - c) * 1.05 + c).astype(np.float32))
-    m = model.host.mass.astype(np.float64)[:, None]
+    sim, m = released_stretched_cloth(name)
     L0 = angular_momentum(sim, m)
     per_frame = max(1, round((1.0 / 60.0) / sim.dt))
     worst, motion = 0.0, 0.0

@@ -76,7 +76,7 @@ def hanging_mass(mass=0.1, rest=0.5, ks=100.0, kd=0.0):
 # -- one projection ----------------------------------------------------------------------------
 
 
-def project_once(p, inv_mass, rest, xpbd=False, ks=1.0e3, kd=0.0, h=DT, phi=1.0):
+def project_once(p, inv_mass, rest, xpbd=False, ks=1.0e3, kd=0.0, h=DT, phi=1.0, along_start=0):
     """Positions after projecting the single constraint (0, 1) once with the real kernels
     (positions x = p, displacement dp = 0 at the start; p = x + dp after)."""
     with wp.ScopedDevice("cpu"):
@@ -87,10 +87,10 @@ def project_once(p, inv_mass, rest, xpbd=False, ks=1.0e3, kd=0.0, h=DT, phi=1.0)
         if xpbd:
             lam = wp.zeros(1, dtype=float)
             args += [wp.array([ks], dtype=float), wp.array([kd], dtype=float), wp.array([phi], dtype=float), w, x]
-            args += [float(h)]
+            args += [float(h), along_start]
             wp.launch(ck.solve_springs_xpbd, dim=1, inputs=args, outputs=[lam, dp])
             return x.numpy().astype(np.float64) + dp.numpy(), float(lam.numpy()[0])
-        args += [wp.array([0], dtype=wp.int32), wp.vec3(1.0, 1.0, 1.0), wp.array([phi], dtype=float), w, x]
+        args += [wp.array([0], dtype=wp.int32), wp.vec3(1.0, 1.0, 1.0), wp.array([phi], dtype=float), w, x, along_start]
         wp.launch(ck.solve_springs_pbd, dim=1, inputs=args, outputs=[dp])
         return x.numpy().astype(np.float64) + dp.numpy()
 

@@ -127,6 +127,7 @@ class PBD(PositionBasedIntegrator):
             m.spring_compression,
             m.particle_inv_mass,
             state.particle_q,
+            self.along_start(control),
         ]
         sweep = self.color_sweep(ck.solve_springs_pbd, params, [self.particle_dp])
         if m.hinge_count:  # dihedral hinges: C = theta - theta0 at the bend stiffness (no unit, like the springs')

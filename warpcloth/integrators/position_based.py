@@ -107,6 +107,14 @@ class PositionBasedIntegrator(Integrator):
             colors += self.hinge_coloring.color_count
         return {"colors": colors}
 
+    def along_start(self, control) -> int:
+        """1 on a free cloth (no pins, no colliders, no self-collision), else 0: its springs project along
+        the substep's start edge x_j - x_i (SHAKE), which keeps its angular momentum exactly where PBD's
+        predicted-edge direction turned it (pbd 5.3e-4 kg m^2/s, docs/solvers.md); elsewhere pins and
+        contacts exert real torques, and the springs keep the predicted direction (results unchanged)."""
+        m = self.model
+        return int(len(m.pinned) == 0 and control.collision is None and self.self_collision is None)
+
     # -- the three phases of Müller et al. 2007, Algorithm 1 ------------------------------------
     def velocity_keep(self) -> float:
         """(1 - k_damp)^(1/substeps): the velocity kept per substep, so that a whole step dt

@@ -63,6 +63,7 @@ class XPBD(PositionBasedIntegrator):
             m.particle_inv_mass,
             state.particle_q,
             h,
+            self.along_start(control),
         ]
         sweep = self.color_sweep(ck.solve_springs_xpbd, params, [self.spring_lambda, self.particle_dp])
         if m.hinge_count:  # dihedral hinges: C = theta - theta0, compliance 1 / k_e, damping kd_e

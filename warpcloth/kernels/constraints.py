@@ -20,6 +20,12 @@ dp = p - x of the (sub)step: the constraint sees p_j - p_i = (x_j - x_i) + (dp_j
 corrections add to dp, and the update is v = dp / h, x += dp. Forming p = x + h v and
 v = (p - x) / h in float32 rounds h v to a multiple of ulp(x) (~1.2e-7 m at 1.5 m), which many
 substeps accumulate (docs/stability.md, "Float32: increments, not rounded differences").
+
+**Angular momentum: the substep's edge direction (SHAKE).** With v = dp / h, a correction c changes
+L = sum m x_new x v_new by sum m x x c / h = -sum m dp x c / h: zero for c along the substep's start
+edge r = x_j - x_i (SHAKE, Ryckaert et al. 1977), not for c along the predicted d = p_j - p_i (PBD's
+gradient), which turns a free cloth (docs/solvers.md). ``along_start`` picks r, scaled so that the
+linearised C falls as PBD's / XPBD's does (n.r in place of |d| and of n.n = 1).
 """
 
 import warp as wp
@@ -40,6 +46,21 @@ def distance_correction_pbd(d: wp.vec3, wi: float, wj: float, rest: float, stiff
         return wp.vec3(0.0), wp.vec3(0.0)
     s = compressed_stiffness(length, rest, stiffness, phi) * (length - rest) / (length * w)
     return (s * wi) * d, (-s * wj) * d
+
+
+@wp.func
+def distance_correction_pbd_along(
+    d: wp.vec3, r: wp.vec3, wi: float, wj: float, rest: float, stiffness: float, phi: float
+):
+    # PBD's step along the substep's start edge r = x_j - x_i (SHAKE): dp_i = +s w_i r, dp_j = -s w_j r,
+    # s = k C / (w n.r), so that the linearised C(p + dp) = C - k C as PBD's; nothing where n.r <= 0
+    length = wp.length(d)
+    w = wi + wj
+    nr = wp.dot(d, r)
+    if length == 0.0 or w == 0.0 or nr <= 0.0:
+        return wp.vec3(0.0), wp.vec3(0.0)
+    s = compressed_stiffness(length, rest, stiffness, phi) * (length - rest) * length / (nr * w)
+    return (s * wi) * r, (-s * wj) * r
 
 
 @wp.func
@@ -70,6 +91,40 @@ def distance_correction_xpbd(
     ks = compressed_stiffness(length, rest, ks, phi)
     dlam = -(ks * h * h * c + kd * h * c_dot_h + lam) / ((ks * h * h + kd * h) * w + 1.0)
     return (-wi * dlam) * n, (wj * dlam) * n, dlam
+
+
+@wp.func
+def distance_correction_xpbd_along(
+    d: wp.vec3,
+    r: wp.vec3,
+    dpi: wp.vec3,
+    dpj: wp.vec3,
+    wi: float,
+    wj: float,
+    rest: float,
+    ks: float,
+    kd: float,
+    phi: float,
+    lam: float,
+    h: float,
+):
+    # XPBD's step along the substep's start edge, e = r/|r| (SHAKE): dp_i = -w_i e dlam, dp_j = +w_j e dlam,
+    # dlam as distance_correction_xpbd's with gradC(p) M^-1 e^T = w n.e in place of w; nothing where n.e <= 0
+    length = wp.length(d)
+    rl = wp.length(r)
+    w = wi + wj
+    if length == 0.0 or rl == 0.0 or w == 0.0:
+        return wp.vec3(0.0), wp.vec3(0.0), 0.0
+    n = d / length
+    e = r / rl
+    ne = wp.dot(n, e)
+    if ne <= 0.0:
+        return wp.vec3(0.0), wp.vec3(0.0), 0.0
+    c = length - rest
+    c_dot_h = wp.dot(n, dpj - dpi)
+    ks = compressed_stiffness(length, rest, ks, phi)
+    dlam = -(ks * h * h * c + kd * h * c_dot_h + lam) / ((ks * h * h + kd * h) * w * ne + 1.0)
+    return (-wi * dlam) * e, (wj * dlam) * e, dlam
 
 
 @wp.kernel
@@ -103,22 +158,26 @@ def solve_springs_pbd(
     spring_compression: wp.array(dtype=float),
     particle_inv_mass: wp.array(dtype=float),
     x: wp.array(dtype=wp.vec3),
+    along_start: int,
     dp: wp.array(dtype=wp.vec3),
 ):
-    # one colour: dp_i += dp_i', dp_j += dp_j' with k' of the spring's type, p - p = (x_j - x_i) + (dp_j - dp_i)
+    # one colour: dp_i += dp_i', dp_j += dp_j' with k' of the spring's type, p - p = (x_j - x_i) + (dp_j - dp_i);
+    # along_start: along x_j - x_i (SHAKE, keeps a free cloth's angular momentum), else along p_j - p_i
     s = spring_order[start + wp.tid()]
     ij = spring_indices[s]
     i = ij[0]
     j = ij[1]
-    d = (x[j] - x[i]) + (dp[j] - dp[i])
-    ci, cj = distance_correction_pbd(
-        d,
-        particle_inv_mass[i],
-        particle_inv_mass[j],
-        spring_rest_length[s],
-        type_stiffness[spring_type[s]],
-        spring_compression[s],
-    )
+    r = x[j] - x[i]
+    d = r + (dp[j] - dp[i])
+    wi = particle_inv_mass[i]
+    wj = particle_inv_mass[j]
+    k = type_stiffness[spring_type[s]]
+    ci = wp.vec3(0.0)
+    cj = wp.vec3(0.0)
+    if along_start != 0:
+        ci, cj = distance_correction_pbd_along(d, r, wi, wj, spring_rest_length[s], k, spring_compression[s])
+    else:
+        ci, cj = distance_correction_pbd(d, wi, wj, spring_rest_length[s], k, spring_compression[s])
     dp[i] = dp[i] + ci
     dp[j] = dp[j] + cj
 
@@ -135,30 +194,33 @@ def solve_springs_xpbd(
     particle_inv_mass: wp.array(dtype=float),
     x: wp.array(dtype=wp.vec3),
     h: float,
+    along_start: int,
     lam: wp.array(dtype=float),
     dp: wp.array(dtype=wp.vec3),
 ):
-    # one colour: lam += dlam, dp_i += dp_i', dp_j += dp_j'  (compliance alpha = 1/ks, damping beta = kd)
+    # one colour: lam += dlam, dp_i += dp_i', dp_j += dp_j'  (compliance alpha = 1/ks, damping beta = kd);
+    # along_start: along x_j - x_i (SHAKE, keeps a free cloth's angular momentum), else along gradC(p)
     s = spring_order[start + wp.tid()]
     ij = spring_indices[s]
     i = ij[0]
     j = ij[1]
     dpi = dp[i]
     dpj = dp[j]
-    d = (x[j] - x[i]) + (dpj - dpi)
-    ci, cj, dlam = distance_correction_xpbd(
-        d,
-        dpi,
-        dpj,
-        particle_inv_mass[i],
-        particle_inv_mass[j],
-        spring_rest_length[s],
-        spring_stiffness[s],
-        spring_damping[s],
-        spring_compression[s],
-        lam[s],
-        h,
-    )
+    r = x[j] - x[i]
+    d = r + (dpj - dpi)
+    wi = particle_inv_mass[i]
+    wj = particle_inv_mass[j]
+    ks = spring_stiffness[s]
+    kd = spring_damping[s]
+    rest = spring_rest_length[s]
+    phi = spring_compression[s]
+    ci = wp.vec3(0.0)
+    cj = wp.vec3(0.0)
+    dlam = float(0.0)
+    if along_start != 0:
+        ci, cj, dlam = distance_correction_xpbd_along(d, r, dpi, dpj, wi, wj, rest, ks, kd, phi, lam[s], h)
+    else:
+        ci, cj, dlam = distance_correction_xpbd(d, dpi, dpj, wi, wj, rest, ks, kd, phi, lam[s], h)
     lam[s] = lam[s] + dlam
     dp[i] = dpi + ci
     dp[j] = dpj + cj
