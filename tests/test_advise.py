@@ -6,13 +6,16 @@ from __future__ import annotations
 
 import csv
 import filecmp
+import json
 import math
+import shlex
 from pathlib import Path
 
 import pytest
 
 from warpcloth.cli import build_parser, main
 from warpcloth.cli.model import config_from_args
+from warpcloth.io.checkpoint import load_checkpoint
 from warpcloth.lab.advise import SHIPPED, advise, format_advice, load_study
 from warpcloth.lab.results import COLUMNS
 from warpcloth.scenarios import get_scenario
@@ -20,7 +23,7 @@ from warpcloth.scenarios import get_scenario
 REPO = Path(__file__).resolve().parents[1]
 
 EULER = ("explicit_euler", "", 21.0)
-PBD = ("pbd", "iterations=1 substeps=16", 0.5)
+PBD = ("pbd", "iterations=1 pbd_bend_stiffness=0.0123 substeps=16", 0.5)  # the bend as the study maps it
 IMPLICIT = ("implicit_euler", "cg_tol=0.001 preconditioner=jacobi", 4.0)
 
 #: size -> floor of the pointwise e (32: 1 % refuses it at any tolerance below 10 %)
@@ -116,7 +119,11 @@ def test_measured_size_gives_the_cheapest_within_budget_and_its_margin(study):
     assert math.isclose(a64.tolerance - a64.answer.best.error, 0.01)
     text = format_advice(a64)
     assert "margin 1 %" in text and "decided by: pointwise e" in text
-    assert "run it: warpcloth run sheet --size 64 --integrator pbd --dt 0.03333333333333333" in text
+    assert (
+        "run it: warpcloth run swing --size 64 --integrator pbd --dt 0.03333333333333333 --iterations 1 "
+        "--pbd-bend-stiffness 0.0123 --substeps 16\n" in text
+    )
+    assert "judged it on its swing and flag transients" in text and "'warpcloth run swing' is that swing" in text
 
 
 def test_refused_pointwise_falls_back_to_the_patch_metric_and_says_so(study):
@@ -168,7 +175,7 @@ def test_between_sizes_that_agree_answers_at_the_size_asked(study):
     a = advise(study, 48, 0.05, 8.0)  # pbd at 32 and at 64
     assert a.kind == "same" and a.answer.best.label.integrator == "pbd"
     text = format_advice(a)
-    assert "whose answers agree" in text and "warpcloth run sheet --size 48 --integrator pbd" in text
+    assert "whose answers agree" in text and "warpcloth run swing --size 48 --integrator pbd" in text
 
 
 def test_nothing_within_budget_names_the_closest_and_the_cheapest_over_it(study):
@@ -181,12 +188,12 @@ def test_nothing_within_budget_names_the_closest_and_the_cheapest_over_it(study)
 def test_flags_parse_with_the_run_parser_and_give_the_configuration(study):
     for n, integrator, expected in (
         (16, "explicit_euler", {}),
-        (64, "pbd", {"iterations": 1, "substeps": 16}),
+        (64, "pbd", {"iterations": 1, "pbd_bend_stiffness": 0.0123, "substeps": 16}),
     ):
         conf = advise(study, n, 0.05, 8.0).answer.best.label
         assert conf.integrator == integrator
         args, cfg = run_args(conf.run_flags(n))
-        assert args.scenario == "sheet" and (cfg.rows, cfg.cols, cfg.integrator) == (n, n, integrator)
+        assert args.scenario == "swing" and (cfg.rows, cfg.cols, cfg.integrator) == (n, n, integrator)
         assert cfg.dt == conf.dt
         assert cfg.integrator_options == expected
     # an integrator with fixed study options (implicit Euler's strain_cap 0): they are on the command line too
@@ -196,10 +203,38 @@ def test_flags_parse_with_the_run_parser_and_give_the_configuration(study):
     assert cfg.dt == pytest.approx(1 / 240)
 
 
-def test_the_command_runs(study):
-    conf = advise(study, 64, 0.05, 8.0).answer.best.label
-    flags = conf.run_flags(8)
-    assert main(["run", *flags, "--num-frames", "2", "--quiet"]) == 0
+def _printed_commands(text: str) -> list[list[str]]:
+    """The argv of every ``run it:`` line of advise's output, as printed."""
+    return [shlex.split(line.split("run it: ", 1)[1]) for line in text.splitlines() if "run it: " in line]
+
+
+@pytest.mark.parametrize("n", [16, 32])  # explicit Euler; pbd (the patch metric decides at 32)
+def test_the_printed_command_runs_the_configuration_it_names(tmp_path, capsys, n):
+    """The command as advise prints it (plus 2 frames) is accepted by ``warpcloth run`` and runs the
+    swing with the integrator, the exact dt and every option of the configuration."""
+    folder = write_study(tmp_path / "s")
+    assert main(["advise", "--size", str(n), "--budget-ms", "8", "--tolerance", "0.05", "--results", str(folder)]) == 0
+    (argv,) = _printed_commands(capsys.readouterr().out)
+    assert argv[:3] == ["warpcloth", "run", "swing"]
+    conf = advise(load_study(str(folder)), n, 0.05, 8.0).answer.best.label
+    assert conf.integrator == {16: "explicit_euler", 32: "pbd"}[n]
+    end = tmp_path / "end.npz"
+    assert main([*argv[1:], "--num-frames", "2", "--json", "--checkpoint", str(end)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert (summary["scenario"], summary["integrator"], summary["rows"], summary["cols"]) == (
+        "swing",
+        conf.integrator,
+        n,
+        n,
+    )
+    assert summary["dt"] == conf.dt and summary["stable"]
+    setup = load_checkpoint(str(end)).setup  # what the run's simulator was set up with
+    assert setup["integrator"] == conf.integrator and float(setup["dt"]) == conf.dt
+    ran = dict(item.split("=", 1) for item in setup["options"].split(", ") if item)
+    for name, value in conf.option_values().items():
+        assert float(ran[name]) == float(value), (name, ran[name], value)
+    if conf.integrator == "pbd":
+        assert float(ran["pbd_bend_stiffness"]) == 0.0123  # the study's material bend, not pbd's rigid default
 
 
 def _exit(argv, capsys) -> tuple[int, str]:
@@ -212,30 +247,38 @@ def _exit(argv, capsys) -> tuple[int, str]:
 
 
 @pytest.mark.parametrize(
-    "bad, word",
+    "bad, message",
     [
-        (["--size", "0"], "--size"),
-        (["--size", "-4"], "--size"),
-        (["--size", "nan"], "--size"),
-        (["--size", "12.5"], "--size"),
-        (["--budget-ms", "0"], "--budget-ms"),
-        (["--budget-ms", "-1"], "--budget-ms"),
-        (["--budget-ms", "nan"], "--budget-ms"),
-        (["--budget-ms", "inf"], "--budget-ms"),
-        (["--tolerance", "0"], "--tolerance"),
-        (["--tolerance", "-0.1"], "--tolerance"),
-        (["--tolerance", "nan"], "--tolerance"),
-        (["--metric", "speed"], "--metric"),
-        (["--device", "cuda"], "'cuda'"),
+        (["--size", "0"], "argument --size: '0' must be an integer >= 3"),
+        (["--size", "2"], "argument --size: '2' must be an integer >= 3"),
+        (["--size", "nan"], "argument --size: 'nan' is not an integer"),
+        (["--size", "12.5"], "argument --size: '12.5' is not an integer"),
+        (["--budget-ms", "0"], "argument --budget-ms: '0' must be > 0"),
+        (["--budget-ms", "-1"], "argument --budget-ms: '-1' must be > 0"),
+        (["--budget-ms", "nan"], "argument --budget-ms: 'nan' is not a finite number"),
+        (["--budget-ms", "inf"], "argument --budget-ms: 'inf' is not a finite number"),
+        (["--tolerance", "0"], "argument --tolerance: '0' must be > 0"),
+        (["--tolerance", "-0.1"], "argument --tolerance: '-0.1' must be > 0"),
+        (["--tolerance", "five"], "argument --tolerance: 'five' is not a number"),
+        (["--metric", "speed"], "argument --metric: invalid choice: 'speed'"),
+        (["--device", "cuda"], "unknown device 'cuda'"),
     ],
 )
-def test_bad_arguments_are_one_error_line(tmp_path, capsys, bad, word):
+def test_bad_arguments_are_one_error_line(tmp_path, capsys, bad, message):
     folder = write_study(tmp_path / "s")
     argv = {"--size": "16", "--budget-ms": "8", "--tolerance": "0.05", "--results": str(folder)}
     flags = [x for k, v in argv.items() for x in (k, v) if k != bad[0]]
     code, err = _exit(["advise", *flags, *bad], capsys)
     assert code == 2
-    assert err.startswith("warpcloth: error:") and "\n" not in err and word in err
+    assert err.startswith("warpcloth: error:") and "\n" not in err and message in err, err
+
+
+def test_a_bad_size_is_worded_as_run_words_it(capsys):
+    """advise's --size is checked by warpcloth.run.params, as ``warpcloth run --size``: one wording."""
+    for text in ("2", "12.5"):
+        advise_err = _exit(["advise", "--size", text, "--budget-ms", "8", "--tolerance", "0.05"], capsys)[1]
+        run_err = _exit(["run", "sheet", "--size", text], capsys)[1]
+        assert advise_err == run_err
 
 
 def test_bad_results_folders_are_one_error_line(tmp_path, capsys):

@@ -73,7 +73,7 @@ def test_metrics_of_a_known_offset_and_a_slower_run():
     """A rigid shift d: pointwise, centroid and patch errors all d / size, no damping; the same
     path at half the speed (frame differences halved): damping 1 - 1/4, e 0."""
     from warpcloth.lab.accuracy import _Shape, trajectory_metrics
-    from warpcloth.lab.transients import STUDY_SHEET
+    from warpcloth.scenarios.swing import STUDY_SHEET
 
     sim = STUDY_SHEET.build(rows=6, cols=6)
     shape = _Shape(sim.model)

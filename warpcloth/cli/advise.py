@@ -5,43 +5,40 @@ default the committed CPU study shipped in the package)."""
 from __future__ import annotations
 
 import argparse
-import math
 
 from warpcloth.lab.advise import AUTO_ORDER, METRICS, SHIPPED, advise, format_advice, load_study
+from warpcloth.run.params import Param, argparse_type, grid_dim, positive
 
-
-def _positive(kind: str, whole: bool = False):
-    def parse(text: str):
-        try:
-            value = int(text) if whole else float(text)
-        except ValueError:
-            value = None
-        if value is None or not math.isfinite(value) or value <= 0:
-            what = "a whole number >= 1" if whole else "a finite number > 0"
-            raise argparse.ArgumentTypeError(f"{kind} must be {what}, got {text!r}")
-        return value
-
-    return parse
+#: The numbers advise takes, parsed and worded as ``warpcloth run``'s (:mod:`warpcloth.run.params`):
+#: the size as a grid's side (``--size``, ``--rows``), the budget and tolerance as positive finite numbers.
+NUMBERS = (
+    Param("size", grid_dim, "", "the cloth: N x N particles", "integer >= 3", "cloth", commands=(), metavar="N"),
+    Param(
+        "budget_ms",
+        positive,
+        "ms",
+        "the budget [ms of computation per 1/60 s of simulated time, the study's cost]",
+        "number > 0",
+        "run",
+        commands=(),
+        metavar="MS",
+    ),
+    Param(
+        "tolerance",
+        positive,
+        "",
+        "the largest error allowed, as a fraction of the cloth size (0.05: 5 %%)",
+        "number > 0",
+        "run",
+        commands=(),
+        metavar="T",
+    ),
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--size", type=_positive("--size", whole=True), required=True, metavar="N", help="the cloth: N x N particles"
-    )
-    p.add_argument(
-        "--budget-ms",
-        type=_positive("--budget-ms"),
-        required=True,
-        metavar="MS",
-        help="the budget [ms of computation per 1/60 s of simulated time, the study's cost]",
-    )
-    p.add_argument(
-        "--tolerance",
-        type=_positive("--tolerance"),
-        required=True,
-        metavar="T",
-        help="the largest error allowed, as a fraction of the cloth size (0.05: 5 %%)",
-    )
+    for param in NUMBERS:
+        p.add_argument(param.flag, type=argparse_type(param), required=True, metavar=param.metavar, help=param.help)
     p.add_argument(
         "--metric",
         default="auto",
@@ -64,4 +61,4 @@ def run(args) -> int:
     return 0
 
 
-__all__ = ["add_arguments", "run"]
+__all__ = ["NUMBERS", "add_arguments", "run"]

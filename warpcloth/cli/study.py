@@ -157,8 +157,12 @@ def run(args) -> int:
     )
     if args.estimate:
         devices = available_devices(plan.devices, sys.stderr)
-        if not devices:
-            raise WarpclothError(f"none of the devices {', '.join(plan.devices)} is available")
+        if not devices:  # the estimate is a model of per-step costs timed on the devices: none, no estimate
+            where = "; docs/gpu.md gives the gpu profile's expected device time" if plan.profile == "gpu" else ""
+            raise WarpclothError(
+                f"no estimate: --estimate times steps on the plan's devices and none of {', '.join(plan.devices)} "
+                f"is available here{where}"
+            )
         quiet = getattr(args, "quiet", False)
         by_device = {d: estimate_plan(plan, calibrate(plan, d, None if quiet else sys.stderr), d) for d in devices}
         print(format_estimate(plan, by_device, args.workers or 1))

@@ -12,6 +12,9 @@ first of the 4 x 4 patch means and the centre of mass whose floor does (:data:`A
 Sizes: a measured size is answered there; a size between two measured ones is answered only when
 both give the same configuration (else both answers are said and none is chosen); a size outside
 the measured range is not answered (nothing is extrapolated).
+
+The command it prints, ``warpcloth run swing ...``, runs the configuration on the swing the study
+timed it on (:mod:`warpcloth.scenarios.swing`), with the exact dt and every option the study used.
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ from warpcloth.lab.frontier import Point, cheapest
 from warpcloth.lab.reference_warp import DEFAULT_TOLERANCE as REFERENCE_ACCEPTED
 from warpcloth.lab.results import read_rows
 from warpcloth.lab.transients import DYNAMIC
+from warpcloth.scenarios.swing import SCENARIO as SWING
+from warpcloth.scenarios.swing import STUDY_SHEET
 
 #: The metrics advise judges on: name -> (column of a trial row, its floor's column, name for people).
 #: damping is taken as its magnitude (|1 - kinetic energy / the reference's|).
@@ -57,9 +62,10 @@ NEEDED = (
     "ms_per_frame",
     *(c for m in METRICS.values() for c in m[:2]),
 )
-#: The ``warpcloth run`` scenario a study scenario's configuration is run on (the study's
-#: transients are the lab's: the swing's start from horizontal is not a run scenario's).
-RUN_SCENARIO = {"study_sheet": "sheet", "study_flag": "flag"}
+#: The ``warpcloth run`` scenario that reproduces a study scenario's timed runs: the study times
+#: every configuration on the swing's sheet from the swing's start, which ``warpcloth run swing``
+#: is, to the bit (:mod:`warpcloth.scenarios.swing`).
+RUN_SCENARIO = {STUDY_SHEET.name: SWING.name}
 #: The committed CPU study shipped in the package (a copy of docs/study/cpu/results.csv).
 SHIPPED = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data", "study_cpu")
 
@@ -95,7 +101,10 @@ class Configuration:
         return study_options(self.integrator, given)
 
     def run_flags(self, n: int) -> list[str]:
-        """The ``warpcloth run`` arguments that run this configuration on an n x n cloth."""
+        """The ``warpcloth run`` arguments that run this configuration on the n x n swing: the
+        exact dt and every option the study ran it with (its integrator's fixed study options and
+        the row's, values as the study wrote them: pbd's ``pbd_bend_stiffness`` mapped from the
+        material)."""
         flags = all_options()
         out = [RUN_SCENARIO.get(self.scenario, self.scenario), "--size", str(n), "--integrator", self.integrator]
         out += ["--dt", repr(self.dt)]
@@ -357,8 +366,8 @@ def format_advice(advice: Advice) -> str:
     a = advice.answer
     if a is not None and a.status == "answer":
         lines.append(
-            "The study measured it on its swing and flag transients (docs/study.md); the command runs the same "
-            "configuration on the run scenario of that cloth."
+            "The study judged it on its swing and flag transients and timed it on the swing (docs/study.md); "
+            "'warpcloth run swing' is that swing: the study's cloth, its top row pinned, released from horizontal."
         )
     return "\n".join(lines)
 

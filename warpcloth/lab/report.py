@@ -23,7 +23,8 @@ from warpcloth.lab.accuracy import DECIDING_METRICS, FLOOR_FRACTION, OVERSTRETCH
 from warpcloth.lab.frontier import Point, budget_frontier, cheapest, pareto_front
 from warpcloth.lab.plan import DEFAULT_BUDGET_MS, WHOLE_FRAME_MS
 from warpcloth.lab.results import COLUMN_DOCS, COLUMNS, MESH_NOTE
-from warpcloth.lab.transients import DYNAMIC, STUDY_MATERIAL, TRANSIENTS
+from warpcloth.lab.transients import DYNAMIC, TRANSIENTS
+from warpcloth.scenarios.swing import STUDY_MATERIAL
 
 PLOTS = {
     "work_precision.png": "Work-precision per size: ms per 1/60 s frame against pointwise e (the worse of the swing "

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
+import numpy as np
 import warp as wp
 
 from warpcloth.errors import WarpclothError, require_int, require_non_negative, require_positive
@@ -165,6 +166,10 @@ class Scenario:
         integrator_defaults: per integrator, option values this scene runs it with unless the
             configuration's ``integrator_options`` say otherwise (the solver work a scene needs, e.g.
             pbd's substeps on the drape; the integrator's own defaults elsewhere).
+        start: function (config, model) -> the positions (N, 3) [m] a run starts from, at rest
+            (velocities 0), rounded to float32 (the swing's sheet released from horizontal); None: the
+            model's rest shape. :meth:`Simulator.reset <warpcloth.simulator.Simulator.reset>` goes back
+            to the rest shape (a max-dt search's trials start from rest).
     """
 
     name: str
@@ -181,6 +186,7 @@ class Scenario:
     measure: Callable | None = None
     kind: str | None = None
     integrator_defaults: dict = field(default_factory=dict)
+    start: Callable | None = None
 
     def integrator_options(self, integrator: str, options: dict | None = None) -> dict:
         """The options this scene runs ``integrator`` with: its :attr:`integrator_defaults` for it,
@@ -279,7 +285,7 @@ class Scenario:
             control.collision.edge_contacts = True
         if self.tracks is not None:
             control.pin_tracks = tuple(self.tracks(cfg, model))
-        return Simulator(
+        sim = Simulator(
             model,
             integrator,
             control,
@@ -289,6 +295,19 @@ class Scenario:
             self_collision=self.self_collision_settings(cfg),
             deterministic=cfg.deterministic,
         )
+        if self.start is not None:
+            self._start(sim, cfg)
+        return sim
+
+    def _start(self, sim: Simulator, cfg: ScenarioConfig) -> None:
+        """Put ``sim`` at the scenario's :attr:`start` (float32 positions, velocities 0)."""
+        x0 = np.asarray(self.start(cfg, sim.model), dtype=np.float32)
+        if x0.shape != (sim.model.particle_count, 3) or not np.all(np.isfinite(x0)):
+            raise WarpclothError(
+                f"scenario {self.name!r}: its start must be {sim.model.particle_count} finite positions (N, 3), got "
+                f"an array of shape {x0.shape}"
+            )
+        sim.state.particle_q.assign(wp.array(x0, dtype=wp.vec3, device=sim.model.device))
 
     def self_collision_settings(self, cfg: ScenarioConfig) -> dict | None:
         """The :class:`~warpcloth.sim.self_collision.SelfCollision` settings of a run (None: off); a bad
