@@ -193,6 +193,12 @@ class HtmlWriter:
         self.pairs, self.rest = spring_arrays(model)
         self.pins = [int(i) for i in np.asarray(model.pinned).reshape(-1)]
         self.vertex_count = int(model.particle_count)
+        #: a model of several cloths: each one's name and particle and triangle ranges (the page colours each)
+        self.pieces = [
+            {"name": c.name, "first": c.particle_offset, "count": c.particle_count}
+            | {"firstTri": c.tri_offset, "triCount": c.tri_count}
+            for c in model.pieces
+        ]
         self.frames: list[np.ndarray] = []
         self.times: list[float] = []
         self.max_strain = 0.0
@@ -244,6 +250,7 @@ class HtmlWriter:
             "springs": _b64(self.pairs.astype("<u4")),
             "rest": _b64(self.rest.astype("<f4")),
             "pins": self.pins,
+            **({"pieces": self.pieces} if self.pieces else {}),
             "colliders": collider_records(self.colliders, lo, hi, self.poses),
             "view": default_view(self.frames, self.tris),
             # fixed (it was the run's own 99th percentile, so one colour meant another strain on each page)
