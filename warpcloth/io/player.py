@@ -17,8 +17,9 @@ int16 (14 bytes a frame, 6 if it only translates); a static collider has no per-
 Open ``out.html#t=0.5`` to seek to t = 0.5 s and pause; ``#t=0.5&strain=1`` also colours the
 cloth by strain (a fixed scale, blue 0 to red :data:`~warpcloth.io.usd.DEFAULT_STRAIN_SCALE`, 10 %,
 as the USD output's colours, so that two pages compare; the run's largest strain is printed under
-it); ``&colliders=0`` hides the colliders. The camera starts framing the whole animation's bounding
-box (every frame's cloth, above the control bar), seen from the side the cloth faces.
+it); ``&colliders=0`` hides the colliders. A model of several cloths draws each in its own colour.
+The camera starts framing the whole animation's bounding box (every frame's cloth, above the
+control bar), seen from the side the cloth faces.
 """
 
 from __future__ import annotations

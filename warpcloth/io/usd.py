@@ -1,6 +1,7 @@
 """USD export of an animated cloth mesh (and the colliders it meets, :class:`ColliderPrims`).
 
-One ``UsdGeomMesh`` (topology written once; points and extent time-sampled per frame), pinned
+One ``UsdGeomMesh`` ``/World/Cloth``, or for a model of several cloths (:class:`~warpcloth.sim.builder.ClothBuilder`)
+one per piece, ``/World/Cloth/<name>`` (topology written once; points and extent time-sampled per frame), pinned
 particles marked by a ``pinned`` vertex primvar and a ``UsdGeomPoints`` prim, the stage's
 ``timeCodesPerSecond`` equal to the frame rate, Y up, metres. The file is written to a temporary
 beside the target (:mod:`warpcloth.io.files`) and renamed over it when closed, so a reader never
