@@ -35,7 +35,10 @@ MIN_COARSE_SIDE = 4
 def grid_structure_reason(model) -> str | None:
     """Why ``model`` is not a grid the multigrid can coarsen (None when it is): the particles must
     be a rows x cols grid (particle [r, c] = r * cols + c) whose springs join particles at most
-    2 rows and 2 columns apart."""
+    2 rows and 2 columns apart, and one cloth (a model of several pieces is not one grid)."""
+    pieces = len(getattr(model, "pieces", ()))
+    if pieces > 1:  # one hierarchy of one grid's rows and columns (vbd: the aggregation one instead)
+        return f"the model holds {pieces} cloths (ClothBuilder) and the grid multigrid coarsens one grid"
     rows, cols, n = int(model.rows or 0), int(model.cols or 0), model.particle_count
     if rows * cols != n or min(rows, cols) < 2 * MIN_COARSE_SIDE - 1:
         return f"the model is not a grid of at least {2 * MIN_COARSE_SIDE - 1} x {2 * MIN_COARSE_SIDE - 1} particles"

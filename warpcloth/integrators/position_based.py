@@ -16,7 +16,7 @@ import warp as wp
 from warpcloth.integrators.base import Integrator, Option, scratch_like
 from warpcloth.integrators.forces import eval_external_forces
 from warpcloth.kernels import constraints as ck
-from warpcloth.sim.coloring import SpringColoring, color_springs
+from warpcloth.sim.coloring import SpringColoring, color_model
 from warpcloth.sim.hinges import color_hinges
 from warpcloth.sim.pins import has_pin_tracks
 
@@ -88,7 +88,7 @@ class PositionBasedIntegrator(Integrator):
         return self.default_dt_cap
 
     def _allocate(self, model) -> None:
-        self.coloring = color_springs(model.host.pairs, model.particle_count, model.cols)
+        self.coloring = color_model(model.host.pairs, model, vertices=False)
         self.spring_order = wp.array(self.coloring.order, dtype=wp.int32)
         self.spring_type = wp.array(np.asarray(model.spring_type, dtype=np.int32), dtype=wp.int32)
         self.particle_dp = scratch_like(model)

@@ -40,7 +40,7 @@ from warpcloth.integrators.system import ImplicitSystem
 from warpcloth.kernels import increment as nk
 from warpcloth.kernels import linalg as lk
 from warpcloth.kernels import vbd as vk
-from warpcloth.sim.coloring import VertexColoring, color_vertices
+from warpcloth.sim.coloring import VertexColoring, color_model
 from warpcloth.sim.hinges import hinge_pairs
 
 #: Fewest particles of a model that gets the aggregation multigrid (models that are not grids): the
@@ -154,7 +154,7 @@ class VBD(IncrementSolver):
         pairs = model.host.pairs
         if model.hinge_count:  # no two vertices of a colour share a hinge either
             pairs = np.concatenate([pairs, hinge_pairs(model.host.hinges.indices)])
-        self.coloring = color_vertices(pairs, model.particle_count, model.cols)
+        self.coloring = color_model(pairs, model, vertices=True)
         self.vertex_order = wp.array(self.coloring.order, dtype=int)
         self.dx_prev1, self.dx_prev2 = scratch_like(model, 2)  # the Chebyshev history
         # the rigid rotation of a free cloth's step (rotation_correction): float64 chunk sums, w and cm

@@ -17,8 +17,9 @@ int16 (14 bytes a frame, 6 if it only translates); a static collider has no per-
 Open ``out.html#t=0.5`` to seek to t = 0.5 s and pause; ``#t=0.5&strain=1`` also colours the
 cloth by strain (a fixed scale, blue 0 to red :data:`~warpcloth.io.usd.DEFAULT_STRAIN_SCALE`, 10 %,
 as the USD output's colours, so that two pages compare; the run's largest strain is printed under
-it); ``&colliders=0`` hides the colliders. The camera starts framing the whole animation's bounding
-box (every frame's cloth, above the control bar), seen from the side the cloth faces.
+it); ``&colliders=0`` hides the colliders. A model of several cloths draws each in its own colour.
+The camera starts framing the whole animation's bounding box (every frame's cloth, above the
+control bar), seen from the side the cloth faces.
 """
 
 from __future__ import annotations
@@ -193,6 +194,12 @@ class HtmlWriter:
         self.pairs, self.rest = spring_arrays(model)
         self.pins = [int(i) for i in np.asarray(model.pinned).reshape(-1)]
         self.vertex_count = int(model.particle_count)
+        #: a model of several cloths: each one's name and particle and triangle ranges (the page colours each)
+        self.pieces = [
+            {"name": c.name, "first": c.particle_offset, "count": c.particle_count}
+            | {"firstTri": c.tri_offset, "triCount": c.tri_count}
+            for c in model.pieces
+        ]
         self.frames: list[np.ndarray] = []
         self.times: list[float] = []
         self.max_strain = 0.0
@@ -244,6 +251,7 @@ class HtmlWriter:
             "springs": _b64(self.pairs.astype("<u4")),
             "rest": _b64(self.rest.astype("<f4")),
             "pins": self.pins,
+            **({"pieces": self.pieces} if self.pieces else {}),
             "colliders": collider_records(self.colliders, lo, hi, self.poses),
             "view": default_view(self.frames, self.tris),
             # fixed (it was the run's own 99th percentile, so one colour meant another strain on each page)

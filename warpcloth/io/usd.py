@@ -1,6 +1,7 @@
 """USD export of an animated cloth mesh (and the colliders it meets, :class:`ColliderPrims`).
 
-One ``UsdGeomMesh`` (topology written once; points and extent time-sampled per frame), pinned
+One ``UsdGeomMesh`` ``/World/Cloth``, or for a model of several cloths (:class:`~warpcloth.sim.builder.ClothBuilder`)
+one per piece, ``/World/Cloth/<name>`` (topology written once; points and extent time-sampled per frame), pinned
 particles marked by a ``pinned`` vertex primvar and a ``UsdGeomPoints`` prim, the stage's
 ``timeCodesPerSecond`` equal to the frame rate, Y up, metres. The file is written to a temporary
 beside the target (:mod:`warpcloth.io.files`) and renamed over it when closed, so a reader never
@@ -263,6 +264,64 @@ def usd_frames(path: str, color: str = "none", provenance=None, colliders: str =
     )
 
 
+class ClothPrim:
+    """One cloth mesh prim of a :class:`UsdWriter`: the prim, its time-sampled points and extent
+    attributes, its strain colours (or None) and its particles' slice of the model's."""
+
+    def __init__(self, mesh, particles: slice):
+        self.mesh = mesh
+        self.particles = particles
+        self.points_attr = mesh.CreatePointsAttr()
+        self.extent_attr = mesh.CreateExtentAttr()
+        self.color_attr = None
+
+    def write_points(self, points: np.ndarray, code: float | None, Vt, Gf) -> None:
+        """Points (n, 3) float32 and their extent at time ``code`` (None: the default value)."""
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        extent = Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))])
+        if code is None:
+            self.points_attr.Set(Vt.Vec3fArray.FromNumpy(points))
+            self.extent_attr.Set(extent)
+        else:
+            self.points_attr.Set(Vt.Vec3fArray.FromNumpy(points), code)
+            self.extent_attr.Set(extent, code)
+
+
+def _cloth_prims(stage, model) -> list[ClothPrim]:
+    """The cloth's mesh prims, topology written once: ``/World/Cloth`` for a model of one cloth; for a
+    model of pieces (:class:`~warpcloth.sim.builder.ClothBuilder`) an Xform ``/World/Cloth`` with one mesh
+    ``/World/Cloth/<piece name>`` per piece, its own triangles, pins and texture coordinates."""
+    from pxr import Sdf, UsdGeom, Vt  # noqa: PLC0415 (usd-core loads only where USD is read or written)
+
+    pinned_all = np.zeros(model.particle_count, dtype=np.int32)
+    pinned_all[model.pinned] = 1
+    uv_all = model.host.uv
+    if model.pieces:
+        UsdGeom.Xform.Define(stage, "/World/Cloth")
+    prims = []
+    for piece in model.cloth_pieces:
+        path = f"/World/Cloth/{piece.name}" if model.pieces else "/World/Cloth"
+        tris = model.host.tris[piece.triangles] - piece.particle_offset
+        mesh = UsdGeom.Mesh.Define(stage, path)
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(tris)))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(tris.reshape(-1).tolist()))
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        mesh.CreateDoubleSidedAttr(True)
+        cloth = ClothPrim(mesh, piece.particles)
+        primvar = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("pinned", Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.vertex)
+        primvar.Set(Vt.IntArray(pinned_all[piece.particles].tolist()))
+        if uv_all is not None:  # texture coordinates per triangle corner (grids, meshes read with UVs)
+            uv = np.asarray(uv_all, dtype=np.float32).reshape(-1, 2)[3 * piece.tri_offset : 3 * piece.triangles.stop]
+            st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
+                "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
+            )
+            st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(uv)))
+        if model.pieces and piece.material is not None:
+            mesh.GetPrim().SetCustomDataByKey("warpcloth:material", str(getattr(piece.material, "name", "")))
+        prims.append(cloth)
+    return prims
+
+
 class UsdWriter:
     """Writes a cloth model's frames to a USD stage.
 
@@ -327,26 +386,10 @@ class UsdWriter:
         root = UsdGeom.Xform.Define(self.stage, "/World")
         self.stage.SetDefaultPrim(root.GetPrim())
 
-        tris = model.host.tris
-        self.mesh = UsdGeom.Mesh.Define(self.stage, "/World/Cloth")
-        self.mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(tris)))
-        self.mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(tris.reshape(-1).tolist()))
-        self.mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-        self.mesh.CreateDoubleSidedAttr(True)
-        self.points_attr = self.mesh.CreatePointsAttr()
-        self.extent_attr = self.mesh.CreateExtentAttr()
-        pinned = np.zeros(model.particle_count, dtype=np.int32)
-        pinned[model.pinned] = 1
-        primvar = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar(
-            "pinned", Sdf.ValueTypeNames.IntArray, UsdGeom.Tokens.vertex
-        )
-        primvar.Set(Vt.IntArray(pinned.tolist()))
-        uv = model.host.uv
-        if uv is not None:  # texture coordinates per triangle corner (grids, meshes read with UVs)
-            st = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar(
-                "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
-            )
-            st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(uv, dtype=np.float32).reshape(-1, 2)))
+        #: the cloth's mesh prims: /World/Cloth, or for a model of pieces (ClothBuilder) /World/Cloth/<name> each
+        self.cloth_prims = _cloth_prims(self.stage, model)
+        self.mesh = self.cloth_prims[0].mesh  # the first (the only one of a one-cloth model)
+        self.points_attr, self.extent_attr = self.cloth_prims[0].points_attr, self.cloth_prims[0].extent_attr
         self._pin_idx = np.asarray(model.pinned, dtype=np.int64)
         self.pins = self.pins_attr = self.pins_extent_attr = None
         if self._pin_idx.size:  # no empty point cloud (Blender 5.0's Cycles crashed rendering one)
@@ -361,13 +404,15 @@ class UsdWriter:
         self.color_attr = None
         if self.color == "strain":
             self._springs = spring_arrays(model)
-            pv = UsdGeom.PrimvarsAPI(self.mesh).CreatePrimvar(
-                "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex
-            )
-            self.color_attr = pv.GetAttr()
-            self.mesh.GetPrim().SetCustomDataByKey(
-                "warpcloth:displayColor", f"spring strain, blue 0 to red {self.strain_scale:g}"
-            )
+            for cloth in self.cloth_prims:
+                pv = UsdGeom.PrimvarsAPI(cloth.mesh).CreatePrimvar(
+                    "displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex
+                )
+                cloth.color_attr = pv.GetAttr()
+                cloth.mesh.GetPrim().SetCustomDataByKey(
+                    "warpcloth:displayColor", f"spring strain, blue 0 to red {self.strain_scale:g}"
+                )
+            self.color_attr = self.cloth_prims[0].color_attr
         rest = model.host.q
         size = float(np.max(rest.max(axis=0) - rest.min(axis=0))) if len(rest) else 1.0
         self.colliders = ColliderPrims(
@@ -398,15 +443,15 @@ class UsdWriter:
         p = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
         if self.frames == 0:
             self._first_points = p.copy()  # the default value of a one-file stage (close)
-        self.points_attr.Set(Vt.Vec3fArray.FromNumpy(p), code)
-        lo, hi = p.min(axis=0), p.max(axis=0)
-        self.extent_attr.Set(Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))]), code)
+        for cloth in self.cloth_prims:
+            cloth.write_points(np.ascontiguousarray(p[cloth.particles]), code, Vt, Gf)
         if self._pin_idx.size:
             self._write_pins(np.ascontiguousarray(p[self._pin_idx]), code)
         self.colliders.write(code / self.fps if sim_time is None else float(sim_time), code)
         if self.color_attr is not None:
             rgb = strain_colors(vertex_strain(p, *self._springs), self.strain_scale)
-            self.color_attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(rgb)), code)
+            for cloth in self.cloth_prims:
+                cloth.color_attr.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(rgb[cloth.particles])), code)
         self.frames += 1
         if self.frames_in_memory == 0:
             self._clip_first = code
@@ -516,12 +561,8 @@ class UsdWriter:
             self._finish_clips()
             if not self._clips and self.frames:  # the first frame as the default too: a reader that asks for no
                 first = self._first_points  # time (a mesh input, a DCC's rest pose) gets the cloth, not nothing
-                self.points_attr.Set(self._Vt.Vec3fArray.FromNumpy(first))
-                self.extent_attr.Set(
-                    self._Vt.Vec3fArray(
-                        [self._Gf.Vec3f(*map(float, first.min(axis=0))), self._Gf.Vec3f(*map(float, first.max(axis=0)))]
-                    )
-                )
+                for cloth in self.cloth_prims:
+                    cloth.write_points(np.ascontiguousarray(first[cloth.particles]), None, self._Vt, self._Gf)
             self.stage.SetStartTimeCode(0.0)
             self.stage.SetEndTimeCode(max(0.0, self.last_code))
             if not self.stage.GetRootLayer().Save():

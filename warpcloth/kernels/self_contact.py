@@ -119,6 +119,7 @@ class SelfContactMesh:
     vt_exclude: IntArray
     ee_exclude_offsets: IntArray  # per edge, its row of ee_exclude (the edges it does not collide with)
     ee_exclude: IntArray
+    group: IntArray  # per vertex, its collision group: pairs of two groups are no candidates (pieces apart)
 
 
 @wp.struct
@@ -772,6 +773,7 @@ def find_vertex_triangle_candidates(
                         if grid.tri_cell[t] == wp.vec3i(ci, cj, ck):
                             tri = mesh.tris[t]
                             excluded = sorted_contains(mesh.vt_exclude, e0, e1, t)
+                            excluded = excluded or mesh.group[tri[0]] != mesh.group[i]
                             if tri[0] != i and tri[1] != i and tri[2] != i and not excluded:
                                 q, _w = closest_point_triangle(p, x[tri[0]], x[tri[1]], x[tri[2]])
                                 gap = wp.length(p - q)
@@ -819,7 +821,8 @@ def find_edge_edge_candidates(
                                 fc = mesh.edges[f][0]
                                 fd = mesh.edges[f][1]
                                 if fc != ea and fc != eb and fd != ea and fd != eb:
-                                    if not sorted_contains(mesh.ee_exclude, e0, e1, f):
+                                    apart = mesh.group[fc] != mesh.group[ea]
+                                    if not sorted_contains(mesh.ee_exclude, e0, e1, f) and not apart:
                                         c = x[fc]
                                         d = x[fd]
                                         st = closest_points_edge_edge(a, b, c, d)

@@ -204,6 +204,31 @@ def color_vertices(pairs: np.ndarray, particle_count: int, cols: int | None = No
     return Coloring.from_colors(colors)
 
 
+def color_model(pairs: np.ndarray, model, vertices: bool) -> Coloring:
+    """The colouring of a model's ``pairs`` (its springs, and for vbd its hinges' pairs): of the
+    particles (``vertices``, :func:`color_vertices`) or of the pairs (:func:`color_springs`), with the
+    model's ``cols`` for its grid pattern. A model of several cloths (``model.pieces``) is coloured
+    piece by piece, each with its own grid's columns, and colour k of every piece joined into colour k:
+    no pair joins two pieces, so each piece is swept in the same order as alone (the same results) and a
+    grid piece keeps its grid colouring."""
+    color = color_vertices if vertices else color_springs
+    pieces = getattr(model, "pieces", ())
+    if len(pieces) < 2:
+        return color(pairs, model.particle_count, model.cols)
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    offsets = np.array([p.particle_offset for p in pieces], dtype=np.int64)
+    owner = np.searchsorted(offsets, pairs[:, 0], side="right") - 1
+    colors = np.zeros(model.particle_count if vertices else len(pairs), dtype=np.int32)
+    for k, piece in enumerate(pieces):
+        mine = owner == k
+        local = color(pairs[mine] - piece.particle_offset, piece.particle_count, piece.cols).colors
+        if vertices:
+            colors[piece.particles] = local
+        else:
+            colors[mine] = local
+    return Coloring.from_colors(colors)
+
+
 def particle_adjacency(pairs: np.ndarray, particle_count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each particle's springs and neighbours, grouped by particle (CSR): ``(offsets, spring,
     other)``, particle i's entries being ``offsets[i]:offsets[i + 1]``; int32 arrays."""

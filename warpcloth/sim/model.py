@@ -62,6 +62,8 @@ class HostArrays:
         uv: texture coordinates per triangle corner, (3T, 2), or None.
         groups: named vertex groups of a mesh (name -> indices, int64); empty for a grid.
         hinges: the dihedral-bending hinges (:class:`~warpcloth.sim.hinges.Hinges`, float64), or None.
+        collision_group: per particle, its piece's self-collision group (int32), or None (one group): the
+            self-collision skips every pair of two groups (:class:`~warpcloth.sim.builder.ClothBuilder`).
     """
 
     q: np.ndarray
@@ -73,6 +75,45 @@ class HostArrays:
     uv: np.ndarray | None = None
     groups: dict = field(default_factory=dict)
     hinges: Hinges | None = None
+    collision_group: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class ClothPiece:
+    """One cloth of a model that holds several (:class:`~warpcloth.sim.builder.ClothBuilder`): its
+    particles are ``particle_offset .. particle_offset + particle_count - 1`` of the model, its
+    triangles ``tri_offset .. tri_offset + tri_count - 1`` (their indices are the model's).
+
+    Attributes:
+        name: the piece's name (unique in its model; the USD prim's name).
+        particle_offset, particle_count: its particle range.
+        tri_offset, tri_count: its triangle range.
+        material: its :class:`~warpcloth.sim.material.Material`, or None (per-spring parameters).
+        collision_group: its self-collision group: pieces of two groups do not collide with each other.
+        bend: its :class:`BendModel`.
+        rows, cols: its grid's size (a mesh: 1 x particle_count), for a grid's colouring.
+    """
+
+    name: str
+    particle_offset: int
+    particle_count: int
+    tri_offset: int
+    tri_count: int
+    material: object = None
+    collision_group: int = 0
+    bend: BendModel = BendModel.PROVOT
+    rows: int = 1
+    cols: int = 0
+
+    @property
+    def particles(self) -> slice:
+        """Its particles as a slice of the model's arrays."""
+        return slice(self.particle_offset, self.particle_offset + self.particle_count)
+
+    @property
+    def triangles(self) -> slice:
+        """Its triangles as a slice of the model's triangle arrays."""
+        return slice(self.tri_offset, self.tri_offset + self.tri_count)
 
 
 @dataclass(frozen=True, eq=False)  # identity equality and hash (its arrays have no value equality)
@@ -107,7 +148,9 @@ class ClothModel:
             Choi & Ko 2002); ones unless given to :func:`build_model` (a factor of 1 leaves every
             kernel's result bit-identical).
         material: the :class:`~warpcloth.sim.material.Material` the parameters came from, or None
-            (per-spring parameters).
+            (per-spring parameters, or pieces of different materials).
+        pieces: the :class:`ClothPiece` records of a model of several cloths
+            (:class:`~warpcloth.sim.builder.ClothBuilder`); empty for one cloth (:attr:`cloth_pieces`).
     """
 
     rows: int
@@ -135,11 +178,22 @@ class ClothModel:
     hinge_damping: wp.array | None = None
     spring_compression: wp.array | None = None
     material: object = None
+    pieces: tuple = ()
 
     def __post_init__(self):
         if self.spring_compression is None:  # every spring as stiff in compression as in tension
             count = int(self.spring_indices.shape[0])
             object.__setattr__(self, "spring_compression", wp.ones(count, dtype=float, device=self.device))
+
+    @property
+    def cloth_pieces(self) -> tuple[ClothPiece, ...]:
+        """The model's cloths: its :attr:`pieces`, or for a model of one cloth one piece named
+        ``"cloth"`` spanning every particle and triangle."""
+        if self.pieces:
+            return self.pieces
+        n, bend = self.particle_count, self.bend
+        whole = ClothPiece("cloth", 0, n, 0, self.tri_count, self.material, 0, bend, self.rows, self.cols)
+        return (whole,)
 
     @property
     def has_compression(self) -> bool:

@@ -280,6 +280,8 @@ class SelfCollision:
             self.vt_exclude = wp.array(vt_ex if vt_ex.size else np.zeros(1, np.int32), dtype=int)
             self.ee_exclude_offsets = wp.array(ee_off, dtype=int)
             self.ee_exclude = wp.array(ee_ex if ee_ex.size else np.zeros(1, np.int32), dtype=int)
+            group = host.collision_group  # the pieces' collision groups (ClothBuilder); None: one group
+            self.vertex_group = wp.array(np.zeros(n, np.int32) if group is None else group, dtype=int)
             self.head_tri = wp.full(buckets, -1, dtype=int)
             self.head_edge = wp.full(buckets, -1, dtype=int)
             self.next_tri = wp.zeros(len(tris), dtype=int)
@@ -347,6 +349,7 @@ class SelfCollision:
             vt_exclude=self.vt_exclude,
             ee_exclude_offsets=self.ee_exclude_offsets,
             ee_exclude=self.ee_exclude,
+            group=self.vertex_group,
         )
         self.broad_phase = _struct(
             sk.SelfContactGrid,
