@@ -6,14 +6,9 @@ kernels only index, predict and scatter.
 
 **Parallel projection: graph colouring, Gauss-Seidel colour by colour.** The springs are split
 at bind time (:mod:`warpcloth.sim.coloring`) into colours in which no two springs share a
-particle; on the Provot grid each spring direction and parity is one such independent set
-(12 colours, 16 with Choi-Ko bend springs). One launch projects one colour: its springs touch
-disjoint particles, so they are projected in parallel without atomics and the result equals a
-sequential Gauss-Seidel sweep in colour order. This was chosen over Jacobi projection with
-atomic accumulation because it converges like Gauss-Seidel (Jacobi needs a relaxation factor
-and more iterations for the same error), is deterministic (no atomics, bit-identical runs) and
-conserves the mass-weighted sum of corrections exactly per constraint. Its cost is one launch
-per colour per iteration.
+particle; one launch projects one colour in parallel without atomics, equal to a sequential
+Gauss-Seidel sweep in colour order: it converges like Gauss-Seidel, is deterministic and conserves
+the mass-weighted sum of corrections per constraint (docs/solvers.md, "Graph colouring").
 
 **Increments, not positions.** The predicted positions are carried as the displacement
 dp = p - x of the (sub)step: the constraint sees p_j - p_i = (x_j - x_i) + (dp_j - dp_i), the

@@ -2,7 +2,7 @@
 
 :func:`measure_fidelity` runs a scenario to rest on the CPU with a configuration, then solves the float64
 static equilibrium of the same model with its contacts from that rest (so the same folds): Newton on
-springs, hinges and gravity (``lab.reference._minimize``) with a frictionless penalty on every sphere,
+springs, hinges and gravity (``lab.reference.minimize``) with a frictionless penalty on every sphere,
 plane and rounded box, kappa raised until nothing is 1e-6 of the size inside; the wind at rest a load
 iterated to a fixed point. A particle resting on a collider or on another layer is held where it lies
 (static friction: a frictionless cloth slides off the sphere); the rest is solved for.
@@ -29,7 +29,7 @@ from scipy.spatial import cKDTree
 
 from warpcloth.errors import WarpclothError, require
 from warpcloth.lab.accuracy import OVERSTRETCH
-from warpcloth.lab.reference import Float64Model, _minimize, _Penalty, _scatter_add, cloth_size
+from warpcloth.lab.reference import Float64Model, Penalty, cloth_size, minimize, scatter_add
 from warpcloth.run.harness import RunHarness, time_steps
 from warpcloth.scenarios import get_scenario
 from warpcloth.sim.colliders import Box, Plane, Sphere, auto_edge_radius, quat_matrix
@@ -149,7 +149,7 @@ class _Hinges:
         f = np.zeros((self.n, 3))
         q = np.asarray(self.hinges.indices, dtype=np.int64).reshape(-1, 4)
         for k in range(4):
-            _scatter_add(f, q[:, k], -torque[:, None] * g[:, k])
+            scatter_add(f, q[:, k], -torque[:, None] * g[:, k])
         return f
 
     def penetration(self, x) -> float:
@@ -186,7 +186,7 @@ class _Load:
 
 
 class _Sum:
-    """Several energy terms as one penalty of ``reference._minimize``."""
+    """Several energy terms as one penalty of ``reference.minimize``."""
 
     def __init__(self, parts):
         self.parts = parts
@@ -279,12 +279,12 @@ def rest_equilibrium(sim, x0: np.ndarray, t: float = 0.0) -> RestEquilibrium:
             fw = m64.wind_forces(x, np.zeros_like(x), m64.wind(t))
             f = np.zeros_like(x)
             for k in range(3):
-                _scatter_add(f, m64.tris[:, k], fw)
+                scatter_add(f, m64.tris[:, k], fw)
             parts.append(_Load(f))
         start = x.copy()
         for _ in range(20):
-            terms = _Sum([*parts, _Penalty(round_colliders, kappa), _Boxes(boxes, kappa, auto)])
-            eq = _minimize(m64, x, terms, max(1e-9, 1e-14 * kappa * size), 200)
+            terms = _Sum([*parts, Penalty(round_colliders, kappa), _Boxes(boxes, kappa, auto)])
+            eq = minimize(m64, x, terms, max(1e-9, 1e-14 * kappa * size), 200)
             x = eq.x
             depth = float(max((terms.penetration(x[m64.free]) if m64.free.any() else 0.0), 0.0))
             if depth <= PENETRATION * size:

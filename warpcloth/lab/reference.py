@@ -147,12 +147,12 @@ class Float64Model:
         f = self.mass[:, None] * (self.gravity[None, :] - self.drag_rate * v)
         if self.pairs.shape[0]:
             fs = self.spring_forces(x, v)
-            _scatter_add(f, self.pairs[:, 0], fs)
-            _scatter_add(f, self.pairs[:, 1], -fs)
+            scatter_add(f, self.pairs[:, 0], fs)
+            scatter_add(f, self.pairs[:, 1], -fs)
         if wind is not None and self.wind_on and self.tris.shape[0]:
             fw = self.wind_forces(x, v, wind)
             for k in range(3):
-                _scatter_add(f, self.tris[:, k], fw)
+                scatter_add(f, self.tris[:, k], fw)
         return f
 
     # -- statics ---------------------------------------------------------------------------
@@ -191,7 +191,7 @@ class Float64Model:
         return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_dof, n_dof))
 
 
-def _scatter_add(f: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
+def scatter_add(f: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
     """f[index[k]] += values[k] for every k (repeated indices add up), one bincount per axis."""
     n = f.shape[0]
     for k in range(3):
@@ -404,10 +404,10 @@ def static_equilibrium(
     """
     m64 = Float64Model.from_model(model, control)
     x, _ = initial_state(m64, x0, None)
-    return _minimize(m64, x, None, tol, max_iter)
+    return minimize(m64, x, None, tol, max_iter)
 
 
-class _Penalty:
+class Penalty:
     """Frictionless contact with spheres and planes as the penalty energy 1/2 kappa phi^2 per
     particle, phi = max(0, penetration) of the collider's surface offset by its thickness."""
 
@@ -467,7 +467,7 @@ class _Penalty:
         return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_dof, n_dof))
 
 
-def _minimize(m64: Float64Model, x: np.ndarray, penalty: _Penalty | None, tol: float, max_iter: int) -> Equilibrium:
+def minimize(m64: Float64Model, x: np.ndarray, penalty: Penalty | None, tol: float, max_iter: int) -> Equilibrium:
     """Newton (Levenberg-Marquardt where needed, Armijo line search) on the potential energy plus
     ``penalty``'s, from ``x``, until the largest net force on a free particle is <= ``tol`` [N]."""
     free = m64.free
@@ -569,14 +569,14 @@ def contact_equilibrium(
     colliders = tuple(control.colliders if colliders is None and control is not None else colliders or ())
     size = cloth_size(model)
     if x0 is None:  # the rest shape with every free particle inside a collider moved out onto its surface
-        for phi, nrm, _ in _Penalty(colliders, 1.0).terms(x):
+        for phi, nrm, _ in Penalty(colliders, 1.0).terms(x):
             x[m64.free] += (phi[:, None] * nrm)[m64.free]
     if kappa is None:
         kappa = 100.0 * max(1.0, float(m64.ks.max()) if m64.ks.size else 1.0)
     for _ in range(20):
-        pen = _Penalty(colliders, kappa)
+        pen = Penalty(colliders, kappa)
         # the force's rounding grows with kappa: kappa x 1e-14 of the size is the attainable residual
-        eq = _minimize(m64, x, pen, max(tol, 1e-14 * kappa * size), max_iter)
+        eq = minimize(m64, x, pen, max(tol, 1e-14 * kappa * size), max_iter)
         x = eq.x
         depth = pen.penetration(x)
         if depth <= penetration_tol * size:
