@@ -242,8 +242,9 @@ def test_graph_flag_off_is_bit_identical_to_on_and_capture_is_apart(capsys, tmp_
 
 
 def test_a_scene_runs_an_integrator_with_its_own_settings_unless_the_user_gives_them():
-    """The fold runs projective with 20 local/global iterations and the drape pbd with 8 substeps (the
-    work those scenes need: docs/self-collision.md); the user's options win; other integrators and
+    """The fold runs projective with 20 local/global iterations, the drape pbd with 8 substeps and
+    xpbd with 1 iteration x 64 substeps (the work those scenes need: docs/self-collision.md,
+    docs/materials.md); the user's options win; other integrators and
     scenes keep the integrators' defaults."""
     fold, drape, plain = get_scenario("fold"), get_scenario("drape"), get_scenario("sheet")
     assert fold.build(integrator="projective", rows=6, cols=4).integrator.pd_iterations == 20
@@ -254,7 +255,9 @@ def test_a_scene_runs_an_integrator_with_its_own_settings_unless_the_user_gives_
         == 3
     )
     assert drape.build(integrator="pbd", rows=6, cols=6).integrator.substeps == 8
-    assert drape.build(integrator="xpbd", rows=6, cols=6).integrator.substeps == 4
+    xpbd = drape.build(integrator="xpbd", rows=6, cols=6).integrator
+    assert (xpbd.iterations, xpbd.substeps) == (1, 64)  # the drape's measured faithful default (docs/materials.md)
+    assert plain.build(integrator="xpbd", rows=6, cols=6).integrator.substeps == 4
     assert plain.build(integrator="projective", rows=6, cols=6).integrator.pd_iterations == 10
     from warpcloth.integrators import integrator_names, make_integrator
     from warpcloth.scenarios import scenario_names
