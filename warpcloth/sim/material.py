@@ -244,14 +244,16 @@ PRESETS: dict[str, Material] = {
         Material("cotton", 0.220, 4070.0, 4033.0, 52.4, 31.4e-6, 31.4e-6, source="W11:royal-target", note=_CEILING),
         Material(
             "denim",
-            0.324,
-            2028.0,
-            411.0,
-            26.7,
-            16.0e-6,
-            24.2e-6,
-            source="W11:11oz-black-denim",
-            note="warp := the file's v axis (assumed; the stiff, non-spandex direction)",
+            0.334,
+            8890.0,
+            8890.0,
+            122.5,
+            58.9e-6,
+            58.9e-6,
+            source="MK14",
+            estimated=("stretch_warp", "stretch_weft", "shear", "bend_weft"),
+            note="100 % cotton 3/1 twill jeans denim, enzyme washed: W and the bending length 2.62 cm measured "
+            "(B = W c^3; weft B := warp's, one length given); stretch and shear from KES of other denims [H16]",
         ),
         Material(
             "polyester", 0.128, 4055.0, 4004.0, 9.6, 12.9e-6, 7.8e-6, source="W11:white-dots-on-blk", note=_CEILING
