@@ -2,11 +2,15 @@
 
 import contextlib
 import os
+import shutil
+from dataclasses import replace
 
 import pytest
 import warp as wp
 
 import warpcloth  # noqa: F401  (sets Warp's log level before init)
+from warpcloth.lab.measure import Measurements
+from warpcloth.lab.plan import make_plan
 
 wp.init()
 
@@ -62,10 +66,49 @@ def count_allocations(monkeypatch):
     return start, stop
 
 
+@pytest.fixture(scope="session")
+def study_references(tmp_path_factory):
+    """The quick profile's 4x4 float64 references and conditioning floors (swing, flag, contact) in the
+    study's own cache format (``StudyPlan.reference_cache``: one file each, made under a lock), made once
+    per test session and shared by the xdist workers: about 20 s of CPU that every 4x4 quick study would
+    otherwise repeat. Studies whose tests are about rows, resuming, workers, Ray or the report start from
+    it: ``reference_cache=`` in a plan, or :func:`seed_references` for a study run through the CLI."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # this session's folder, shared by its workers (each has its own below it)
+    folder = root / "study-references-quick-4"
+    plan = replace(make_plan("quick", integrators=["explicit_euler"], sizes=[4]), reference_cache=str(folder))
+    study = Measurements(plan, out=None)
+    for transient in ("swing", "flag", "contact"):
+        study.problem(transient, 4, "cpu")
+    return folder
+
+
+def seed_references(references, out) -> None:
+    """Copy the shared references into ``out``/.references, where a study into ``out`` looks for them
+    (as a resumed study finds its own)."""
+    (out / ".references").mkdir(parents=True, exist_ok=True)
+    for f in references.glob("*.npz"):
+        shutil.copy(f, out / ".references" / f.name)
+
+
 @pytest.fixture
 def tmp_cwd(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     return tmp_path
+
+
+def pytest_collection_modifyitems(config, items):
+    """Under README's test command (``-n auto --dist loadgroup``) every test goes to whichever worker is
+    free, but the tests of a file that share a module-scoped fixture (a study, a sweep, a Ray cluster, a
+    reference) form one xdist group: they run on one worker, so the fixture is made once, not once per
+    worker."""
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None:
+            continue
+        if any(defs[-1].scope in ("module", "class", "package") for defs in info.name2fixturedefs.values()):
+            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::", 1)[0]))
 
 
 def pytest_report_header(config):

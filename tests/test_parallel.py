@@ -25,10 +25,10 @@ TINY = """
   <test id="t" integrator="explicit_euler verlet" dt="max max*0.5" maxdt_duration="0.5"/>
 </test_list>
 """
-# 8 independent runs of about 2 s each (flags: a sheet ends at equilibrium, within a second on a fast machine), long
+# 8 independent runs of about 1 s each (flags: a sheet ends at equilibrium, within a second on a fast machine), long
 # enough that a kill or an interrupt lands mid-sweep and the driver sees it before the last row (a fixed dt: no groups)
 SLOW = """
-<test_list size="8" duration="10" dt="5e-5" wall_cap="60">
+<test_list size="8" duration="5" dt="5e-5" wall_cap="60">
   <test id="s" integrator="explicit_euler verlet" scenario="flag" mass="0.2 0.25" drag="0 0.1"/>
 </test_list>
 """
@@ -436,14 +436,19 @@ def test_study_with_an_unreachable_ray_address_is_one_line_and_writes_nothing(tm
     assert not (out / "results.csv").exists()
 
 
-def test_study_via_ray_gives_the_serial_rows(ray_cluster, tmp_path):
+def test_study_via_ray_gives_the_serial_rows(ray_cluster, tmp_path, study_references):
     """The study of explicit_euler at 4x4 (stability, floors, trials, contact, timings) as Ray tasks:
-    the serial run's keys and values (not timings); the driver wrote every row once."""
+    the serial run's keys and values (not timings); the driver wrote every row once. The float64
+    references and floors are the session's (tests/conftest.py): placement is the point, and every
+    float32 run is measured again in the Ray tasks against them."""
+    from dataclasses import replace
+
     from warpcloth.lab.plan import make_plan
     from warpcloth.lab.results import read_rows
     from warpcloth.lab.study import run_study
 
     plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4])
+    plan = replace(plan, reference_cache=str(study_references))
     run_study(plan, tmp_path / "serial")
     run_study(plan, tmp_path / "ray", ray="auto")
     serial, par = read_rows(tmp_path / "serial" / "results.csv"), read_rows(tmp_path / "ray" / "results.csv")

@@ -6,9 +6,11 @@ import csv
 import math
 import os
 import socket
+from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import seed_references
 
 from warpcloth.errors import WarpclothError
 from warpcloth.lab.accuracy import FRAME_DT, AccuracyProblem, Transient, check_tolerance, steps_per_frame_at_most
@@ -127,7 +129,7 @@ def test_conditioning_floor_refuses_an_ill_posed_case_and_passes_a_well_posed_on
     ill = TransientProblem(sim, _Start(), 60)  # 1 s: e^14 x 1e-7 m, far beyond 10 % of any tolerance
     floor = ill.floor(sim)
     assert floor["point"] > 0.1 and refused(floor["point"], 0.10) and refused(floor["point"], 0.01)
-    sheet = TRANSIENTS["swing"].scenario.build(rows=5, cols=5)
+    sheet = TRANSIENTS["swing"].scenario.build(rows=4, cols=4)  # 4x4 (1.1e-7 measured; 5x5: 1.0e-7): a third cheaper
     well = TransientProblem(sheet, TRANSIENTS["swing"], 30)
     floor = well.floor(sheet)
     assert set(floor) == {"point", "centroid", "patch", "damping", "stretch"}
@@ -414,11 +416,12 @@ TINY = ["study", "--profile", "quick", "--integrators", "explicit_euler,vbd", "-
 
 
 @pytest.fixture(scope="module")
-def tiny_study(tmp_path_factory):
+def tiny_study(tmp_path_factory, study_references):
     out = tmp_path_factory.mktemp("study") / "out"
     import contextlib
     import io
 
+    seed_references(study_references, out)  # the session's 4x4 references and floors (checked below)
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         code = main(TINY + ["--devices", "cpu,cuda:7", "--out", str(out)])
@@ -538,8 +541,9 @@ def test_study_refuses_to_overwrite_without_a_flag(tiny_study, capsys):
     assert (out / "results.csv").read_bytes() == before
 
 
-def test_resume_after_an_interrupt_does_not_redo_finished_measurements(tmp_path):
+def test_resume_after_an_interrupt_does_not_redo_finished_measurements(tmp_path, study_references):
     plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4])
+    plan = replace(plan, reference_cache=str(study_references))  # the session's references: rows are the point
     seen = []
 
     def interrupt_after_five(row):
@@ -645,12 +649,13 @@ def same_rows(a: list, b: list) -> None:
         assert {c: r[c] for c in SAME} == {c: by_key[r["key"]][c] for c in SAME}, r["key"]
 
 
-def test_workers_2_gives_the_serial_rows(tiny_study, tmp_path):
+def test_workers_2_gives_the_serial_rows(tiny_study, tmp_path, study_references):
     """The tiny study (explicit_euler and vbd) in 2 worker processes: the same
     keys and stability/accuracy values as the serial run; the searches ran in both workers, the
     timings one at a time, and the driver wrote every row once."""
     _, serial_out, _ = tiny_study
     out = tmp_path / "par"
+    seed_references(study_references, out)  # the serial run's references; every run is measured again
     assert main(TINY + ["--devices", "cpu", "--workers", "2", "--out", str(out)]) == 0
     serial, par = read_rows(serial_out / "results.csv"), read_rows(out / "results.csv")
     same_rows(serial, par)
@@ -717,7 +722,7 @@ def write_scenario(tmp_path) -> str:
     return str(tmp_path / "patch.toml")
 
 
-def test_a_scenario_file_runs_through_the_quick_profile(tmp_path):
+def test_a_scenario_file_runs_through_the_quick_profile(tmp_path, study_references):
     """sheet, flag and a custom scenario file: the file's rows (stability, equilibrium, timing,
     at its own 16 particles and Provot-equal springs), no accuracy rows for it and the report
     saying why; the grid study as usual."""
@@ -725,6 +730,7 @@ def test_a_scenario_file_runs_through_the_quick_profile(tmp_path):
 
     path = write_scenario(tmp_path)
     out = tmp_path / "out"
+    seed_references(study_references, out)  # the grid's 4x4 references: the scenario file is the point
     assert (
         main(
             [
@@ -891,10 +897,11 @@ def test_out_is_required_but_with_estimate(capsys):
     )
 
 
-def test_an_interrupted_study_resumes_in_workers(tmp_path):
+def test_an_interrupted_study_resumes_in_workers(tmp_path, study_references):
     """Rows of an interrupted serial study are reused (not remeasured, not duplicated) when it
     resumes with --workers 2; the file ends with the keys of a whole study."""
     plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4])
+    plan = replace(plan, reference_cache=str(study_references))  # the session's references: rows are the point
     seen = []
 
     def interrupt_after_six(row):
