@@ -589,7 +589,7 @@ class Simulator:
         """Let the integrator start its history from the current state and wind W(t) (and with
         ``drive_steps``, the driven tracks' keys for a frame of that many steps first)."""
         self._rebase_clock()
-        self.control.rebase()
+        self.control.rebase(self._dt)
         self.control.update()
         if drive_steps is not None:
             self.control.upload_drives(self._dt, drive_steps, self.sim_time)
@@ -655,13 +655,7 @@ class Simulator:
                 steps=filter_steps,
             )
         if self.control.collision is not None and not self.integrator.collides_in_solver:
-            self.control.collision.project_velocity(
-                self.model,
-                self.state,
-                self._dt,
-                self.integrator.position_history(),
-                self.integrator.velocity_position_weight,
-            )
+            self._project_colliders()
         edges = self.control.collision.edges(self.model) if self.control.collision is not None else None
         if edges is not None:  # box and mesh edges against the cloth (after the solvers that hold them too)
             if detect_steps:  # a collision interval starts: the continuous response after it sees its pushes
@@ -674,6 +668,8 @@ class Simulator:
             # collider); it knows no contacts, so it may move a vertex back into a collider or a layer (the next step
             # meets it), but not a cloth triangle back over a collider's edge: the edge passes once more
             limiter.apply(self.state, self._dt)
+            if self.control.collision is not None and not self.integrator.collides_in_solver:
+                self._project_colliders()  # a vertex the limit pulled into a collider (26 mm at 5 m/s) out again
             if edges is not None:
                 edges.project(
                     self.state,
@@ -695,6 +691,17 @@ class Simulator:
                 steps=filter_steps,
                 held=edges.held if edges is not None else None,
             )
+
+    def _project_colliders(self) -> None:
+        """Every particle out of the colliders posed at the step's end, its normal velocity relative to them
+        removed, with friction (:meth:`ColliderSet.project_velocity <warpcloth.sim.contacts.ColliderSet.project_velocity>`)."""
+        self.control.collision.project_velocity(
+            self.model,
+            self.state,
+            self._dt,
+            self.integrator.position_history(),
+            self.integrator.velocity_position_weight,
+        )
 
     def simulate(self, steps: int) -> None:
         """Advance ``steps`` time steps (replaying a captured graph of them where enabled: one of

@@ -470,3 +470,69 @@ def add_self_contact_product(
                     if filtered != 0:
                         za = contact_filter(mode[a], normal[a]) * za
                     wp.atomic_add(z, a, za)
+
+
+@wp.kernel
+def translation_basis(
+    mode: wp.array(dtype=int),
+    normal: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    filtered: int,
+    t0: wp.array(dtype=wp.vec3),
+    t1: wp.array(dtype=wp.vec3),
+    t2: wp.array(dtype=wp.vec3),
+):
+    # T's columns T_k,i = S_i e_k (the solve's unknowns moved rigidly along axis k: S = I free, I - n n^T
+    # sliding, 0 sticking, with ``filtered``); pinned particles 0
+    i = wp.tid()
+    S = wp.identity(n=3, dtype=float)
+    if inv_mass[i] == 0.0:
+        S = wp.mat33(0.0)
+    elif filtered != 0:
+        S = contact_filter(mode[i], normal[i])
+    t0[i] = S * wp.vec3(1.0, 0.0, 0.0)
+    t1[i] = S * wp.vec3(0.0, 1.0, 0.0)
+    t2[i] = S * wp.vec3(0.0, 0.0, 1.0)
+
+
+@wp.kernel
+def translation_terms(
+    t0: wp.array(dtype=wp.vec3),
+    t1: wp.array(dtype=wp.vec3),
+    t2: wp.array(dtype=wp.vec3),
+    a0: wp.array(dtype=wp.vec3),
+    a1: wp.array(dtype=wp.vec3),
+    a2: wp.array(dtype=wp.vec3),
+    r: wp.array(dtype=wp.vec3),
+    b: wp.array(dtype=wp.vec3),
+    A: wp.array(dtype=wp.mat33),
+):
+    # particle i's share of T^T r and T^T A T (a_k = A T_k, r = b - A dv): summed in a fixed order by
+    # TranslationSolve
+    i = wp.tid()
+    b[i] = wp.vec3(wp.dot(t0[i], r[i]), wp.dot(t1[i], r[i]), wp.dot(t2[i], r[i]))
+    A[i] = wp.mat33(
+        wp.dot(t0[i], a0[i]),
+        wp.dot(t0[i], a1[i]),
+        wp.dot(t0[i], a2[i]),
+        wp.dot(t1[i], a0[i]),
+        wp.dot(t1[i], a1[i]),
+        wp.dot(t1[i], a2[i]),
+        wp.dot(t2[i], a0[i]),
+        wp.dot(t2[i], a1[i]),
+        wp.dot(t2[i], a2[i]),
+    )
+
+
+@wp.kernel
+def add_translation(
+    translation: wp.array(dtype=wp.vec3),
+    t0: wp.array(dtype=wp.vec3),
+    t1: wp.array(dtype=wp.vec3),
+    t2: wp.array(dtype=wp.vec3),
+    dv: wp.array(dtype=wp.vec3),
+):
+    # dv += T t (the Galerkin translation correction)
+    i = wp.tid()
+    t = translation[0]
+    dv[i] = dv[i] + t[0] * t0[i] + t[1] * t1[i] + t[2] * t2[i]

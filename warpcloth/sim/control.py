@@ -272,9 +272,13 @@ class Control:
         self.rebase()
         self.update()
 
-    def rebase(self) -> None:
-        """Count steps from the current time: after n steps of dt, t = t_now + n dt (on the device)."""
+    def rebase(self, dt: float | None = None) -> None:
+        """Count steps from the current time: after n steps of dt, t = t_now + n dt (on the device); with
+        ``dt``, moving colliders take it as the last step's before the first :meth:`advance` (a first
+        position-based step posed them at t, a sphere at 5 m/s 30 mm into the cloth it had met by t + dt)."""
         wp.launch(fk.rebase_time, dim=1, inputs=[self.time, self._time_base, self._clock], device=self.device)
+        if dt is not None and self.collision is not None and self.collision.moving:
+            wp.launch(ck.store_step, dim=1, inputs=[wp.float64(dt)], outputs=[self._step_dt], device=self.device)
 
     def update(self) -> None:
         """Evaluate W(time) into :attr:`wind` on the device, and start a step of the moving
