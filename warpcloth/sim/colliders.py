@@ -381,10 +381,8 @@ def closest_surface_points(vertices, triangles, points) -> tuple[np.ndarray, np.
             np.stack([1 - s_ac, zero, s_ac], 1),
             np.stack([zero, 1 - s_bc, s_bc], 1),
         ]
-        done = np.zeros(len(tri), dtype=bool)
         for region, fix in reversed(list(zip(regions, fixes))):  # the first region that holds wins
             w = np.where(region[:, None], fix, w)
-            done |= region
         w = np.where(np.isfinite(w), w, 1.0 / 3.0)
         q = w[:, :1] * a + w[:, 1:2] * b + w[:, 2:] * c
         k = int(np.argmin(np.einsum("ij,ij->i", q - p, q - p)))
