@@ -67,7 +67,8 @@ def test_attached_pins_follow_the_moving_triangles_exactly(integrator, driven):
         points, _ = track.evaluate(sim.sim_time, REST)
         expected = np.einsum("pj,pjc->pc", pins.weights, points[corners]).astype(np.float32)
         assert np.array_equal(sim.state.particle_q.numpy()[[4, 5, 6, 7]], expected)
-    assert np.abs(expected - rest[[4, 5, 6, 7]]).max() > 0.05  # they did move with it
+    at_rest = np.einsum("pj,pjc->pc", pins.weights, REST[corners])
+    assert np.abs(expected - at_rest).max() > 0.015  # they did move with it (a few cm)
 
 
 def test_attached_to_a_static_mesh_the_pins_hold_on_its_surface():
