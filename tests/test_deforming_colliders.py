@@ -15,12 +15,6 @@ from warpcloth import Control, Simulator, WarpclothError, build_grid_cloth, inte
 from warpcloth.sim.colliders import MeshCollider, MeshTrack
 
 G = 9.81
-KNOWN_EDGE_BUG = pytest.mark.xfail(
-    strict=True,
-    reason="known bug, not fixed yet: a particle above an edge of a deforming mesh loses contact for some steps "
-    "(explicit Euler, a flat mesh sliding at 0.5 m/s: steps 61-71 at x = 0.027 m over the edge z = 0), then is "
-    "pushed sideways out of a far vertex; over a face it is dragged exactly as by the same mesh on a rigid track",
-)
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "colliders.md"
 
 
@@ -134,8 +128,15 @@ def slid_cloth(integrator, mu, duration=0.3, speed=0.5):
     return x - x0, x, sim.sim_time
 
 
-@KNOWN_EDGE_BUG
-@pytest.mark.parametrize("integrator", integrator_names())
+#: vbd holds a cloth less than Coulomb's answer on a sliding mesh (0.078 m of 0.125 m at 0.3 s), the same to the
+#: bit with the same mesh on a rigid ColliderTrack: its own friction on a cloth (tests/test_friction_slope.py,
+#: issue 51), not the deforming mesh
+VBD_FRICTION = pytest.mark.xfail(strict=True, reason="vbd's friction on a cloth (issue 51, open)")
+
+
+@pytest.mark.parametrize(
+    "integrator", [pytest.param(n, marks=VBD_FRICTION) if n == "vbd" else n for n in integrator_names()]
+)
 def test_a_sliding_plane_drags_a_resting_cloth_by_friction(integrator):
     # Coulomb: the cloth accelerates at mu g until it moves with the plane (t_s = U / (mu g)), then sticks
     mu, speed = 0.5, 0.5
@@ -149,7 +150,6 @@ def test_a_sliding_plane_drags_a_resting_cloth_by_friction(integrator):
     assert np.abs(d0[:, 0]).max() < 1e-4  # without friction the plane slides under it
 
 
-@KNOWN_EDGE_BUG
 @pytest.mark.parametrize("integrator", integrator_names())
 def test_a_limb_at_2_m_per_s_never_passes_through_a_cloth(integrator):
     # a capsule-like limb (radius 4 cm) rises at 2 m/s through a cloth pinned at its corners, at the
@@ -176,6 +176,38 @@ def test_a_limb_at_2_m_per_s_never_passes_through_a_cloth(integrator):
     over = (np.abs(x[:, 0]) < 0.5 * length) & (np.abs(x[:, 2]) < 0.5 * r)
     assert over.sum() > 0 and np.all(x[over, 1] > start + rise)  # carried up on top of it
     assert deepest < 0.01 * r  # never inside (the faceted mesh lies within the capsule)
+
+
+@pytest.mark.parametrize("use_graph", [None, False])
+def test_a_particle_over_an_edge_of_a_sliding_mesh_is_dragged_at_every_step(use_graph):
+    # the case that lost contact: explicit Euler, a flat mesh sliding at 0.5 m/s under a particle
+    # resting over its edge z = 0; on the CPU a replayed capture kept the BVH of the captured pose
+    # (wp.Mesh.refit is not recorded there), missed the edge from step 61 (the particle 2.5 cm from
+    # the vertex it started over) and pushed it 2.8 cm out of that vertex at step 72
+    v, tri = plane_mesh(2.0)
+    ground = MeshCollider(
+        vertices=v,
+        triangles=tri,
+        thickness=0.002,
+        friction=0.5,
+        track=MeshTrack.keyframes([0.0, 1.0], [v, v + [0.5, 0.0, 0.0]]),
+    )
+    sim = Simulator(free_particles([[0.0, 0.002, 0.0]]), "explicit_euler", Control(colliders=(ground,), device="cpu"))
+    sim.set_dt(1.0 / 600.0)
+    sim.use_graph = use_graph
+    assert not sim.graph_enabled  # a deforming mesh's refit is a host call on the CPU: plain launches
+    x = [sim.state.particle_q.numpy()[0].astype(np.float64)]
+    for _ in range(90):
+        sim.simulate(1)
+        x.append(sim.state.particle_q.numpy()[0].astype(np.float64))
+    x = np.array(x)
+    assert np.abs(x[:, 1] - 0.002).max() < 1e-6  # held at the thickness above the edge at every step
+    assert np.abs(x[:, 2]).max() == 0.0
+    assert np.diff(x[:, 0]).max() < 0.5 / 600.0 * (1.0 + 1e-4)  # never faster than the mesh (no jump)
+    assert sim.state.particle_qd.numpy()[0, 0] == pytest.approx(0.5, rel=1e-5)  # dragged with it
+    sim.use_graph = True
+    with pytest.raises(WarpclothError, match=r"deforming mesh collider's refit is a host call"):
+        sim.simulate(1)
 
 
 def test_driven_points_equal_the_same_keyframes_to_the_bit_and_refit_in_place():
@@ -231,7 +263,6 @@ def test_mesh_track_mistakes_name_the_fix():
         MeshCollider(vertices=small, triangles=small_tri, track=track)
 
 
-@KNOWN_EDGE_BUG
 def test_the_documented_example_runs_and_prints_what_the_docs_say(capsys):
     # docs/colliders.md, "Deforming colliders and attachments": its python block, and the text block after it
     text = DOCS.read_text(encoding="utf-8")
