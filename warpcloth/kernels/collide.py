@@ -655,6 +655,22 @@ def posed_collider(
 
 
 @wp.func
+def pose_time(
+    time: wp.array(dtype=wp.float64),
+    offset: wp.float64,
+    step_dt: wp.array(dtype=wp.float64),
+    substep: wp.array(dtype=int),
+    use_substep: int,
+):
+    # the time a moving collider is posed at: the clock + offset, and where substeps pose it, the end of
+    # the coming substep (substep[0] of substep[1]) within the step of length step_dt
+    t = time[0] + offset
+    if use_substep != 0:
+        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
+    return t
+
+
+@wp.func
 def turn_point(y: wp.vec3, center: wp.vec3d, offset: wp.vec3d, start: wp.quatd, axis: wp.vec3d, theta: wp.float64):
     # c + d + R(axis, theta) R0 (y - c), R0 the rotation of the quaternion `start`, in float64, rounded once
     return wp.vec3(center + offset + rotate_axis_angle(axis, theta, wp.quat_rotate(start, wp.vec3d(y) - center)))
@@ -683,9 +699,7 @@ def eval_collider_pose(
     # collider `index` at t = time + offset (+ dt min(k + 1, S) / S, the end of substep k of S, with
     # use_substep): rigid y -> c + u t + R(axis, theta(t))(y - c), theta = omega t + A sin(2 pi f t + phi),
     # motion = (omega, A, f, phi); or keyframed translation y -> y + d(t); v_c(y) = d' + theta' axis x (y - c - d)
-    t = time[0] + offset
-    if use_substep != 0:
-        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
+    t = pose_time(time, offset, step_dt, substep, use_substep)
     zero = wp.float64(0.0)
     d = wp.vec3d(zero, zero, zero)
     dd = wp.vec3d(zero, zero, zero)
@@ -725,9 +739,7 @@ def eval_collider_driven_pose(
     # (frame_times, values: as a ColliderTrack's keyframes), and its turn about its own centre c,
     # R(t) = R(axis, s angle) R0 with s = (t - t0) / (t1 - t0), turn = (R0 as x y z w, (axis, angle));
     # y -> c + d + R(t)(y - c), v_c(y) = d' + (angle / (t1 - t0)) axis x (y - c - d)
-    t = time[0] + offset
-    if use_substep != 0:
-        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
+    t = pose_time(time, offset, step_dt, substep, use_substep)
     d, dd = track_keyframes(t, frame_times, values, tangents, cubic, 0, 1)
     r = rest[index]
     q = turn[0]
@@ -782,9 +794,7 @@ def eval_mesh_points(
 ):
     # a deforming mesh's vertex j at t (as eval_collider_pose's t): its keys interpolated in float64
     # and rounded once, its velocity dp/dt; bounds = [min, max] over the vertices (reset before)
-    t = time[0] + offset
-    if use_substep != 0:
-        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
+    t = pose_time(time, offset, step_dt, substep, use_substep)
     j = wp.tid()
     p, dp = track_keyframes(t, times, values, tangents, cubic, j, points.shape[0])
     q = wp.vec3(p)
