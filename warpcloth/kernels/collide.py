@@ -790,24 +790,26 @@ def eval_mesh_points(
     cubic: int,
     points: wp.array(dtype=wp.vec3),
     velocities: wp.array(dtype=wp.vec3),
-    bounds: wp.array(dtype=wp.vec3),
+    lo: wp.array(dtype=wp.vec3),
+    hi: wp.array(dtype=wp.vec3),
 ):
     # a deforming mesh's vertex j at t (as eval_collider_pose's t): its keys interpolated in float64
-    # and rounded once, its velocity dp/dt; bounds = [min, max] over the vertices (reset before)
+    # and rounded once, its velocity dp/dt; lo[0], hi[0] = min, max over the vertices (reset before;
+    # two arrays, so that Warp's deterministic mode reduces each with one operation)
     t = pose_time(time, offset, step_dt, substep, use_substep)
     j = wp.tid()
     p, dp = track_keyframes(t, times, values, tangents, cubic, j, points.shape[0])
     q = wp.vec3(p)
     points[j] = q
     velocities[j] = wp.vec3(dp)
-    wp.atomic_min(bounds, 0, q)
-    wp.atomic_max(bounds, 1, q)
+    wp.atomic_min(lo, 0, q)
+    wp.atomic_max(hi, 0, q)
 
 
 @wp.kernel
-def reset_bounds(bounds: wp.array(dtype=wp.vec3)):
-    bounds[0] = wp.vec3(1.0e30)
-    bounds[1] = wp.vec3(-1.0e30)
+def reset_bounds(lo: wp.array(dtype=wp.vec3), hi: wp.array(dtype=wp.vec3)):
+    lo[0] = wp.vec3(1.0e30)
+    hi[0] = wp.vec3(-1.0e30)
 
 
 @wp.kernel
@@ -831,12 +833,16 @@ def gather_creases(
 
 @wp.kernel
 def eval_deformed_record(
-    index: int, rest: wp.array(dtype=Collider), bounds: wp.array(dtype=wp.vec3), colliders: wp.array(dtype=Collider)
+    index: int,
+    rest: wp.array(dtype=Collider),
+    bounds_lo: wp.array(dtype=wp.vec3),
+    bounds_hi: wp.array(dtype=wp.vec3),
+    colliders: wp.array(dtype=Collider),
 ):
     # a deforming mesh's record: its box (the cheap rejection) around its points now, grown by its
     # thickness, its reach and its creases' rounding, with _mesh_half's float32 margin
-    lo = bounds[0]
-    hi = bounds[1]
+    lo = bounds_lo[0]
+    hi = bounds_hi[0]
     r = rest[index]
     half = 0.5 * (hi - lo) + wp.vec3(r.thickness + r.radius + r.rounding)
     m = colliders[index]

@@ -91,7 +91,7 @@ class ColliderSet:
             self.substep = wp.array([0, 1], dtype=int)  # (k, S): the position-based substep k of S
             self.frame_times = frame_times if frame_times is not None else wp.zeros(4, dtype=wp.float64)
             self._moving, self.drives, seen = [], [], set()
-            self._deforming = []  # (k, mesh, its points' keyframe arguments, creases or None, bounds scratch)
+            self._deforming = []  # (k, mesh, its points' keyframe arguments, creases or None, (min, max) scratch)
             for k, (c, record) in enumerate(zip(order, records)):
                 if c.track is None:
                     continue
@@ -165,7 +165,7 @@ class ColliderSet:
         if creases is not None:
             ends = wp.array(_convex_edges(c.vertices, c.triangles).astype(np.int32), dtype=wp.vec2i)
             creases = (creases, ends)
-        return k, self.meshes[k], keys, creases, wp.zeros(2, dtype=wp.vec3)
+        return k, self.meshes[k], keys, creases, (wp.zeros(1, dtype=wp.vec3), wp.zeros(1, dtype=wp.vec3))
 
     @property
     def moving(self) -> bool:
@@ -212,12 +212,12 @@ class ColliderSet:
         wp.Mesh's own arrays, its BVH refitted (``wp.Mesh.refit``, on the device, no allocation), its
         creases moved and their BVH refitted, its record's box set around it."""
         d = self.device
-        wp.launch(ck.reset_bounds, dim=1, inputs=[bounds], device=d)
+        wp.launch(ck.reset_bounds, dim=1, inputs=[*bounds], device=d)
         wp.launch(
             ck.eval_mesh_points,
             dim=mesh.points.shape[0],
             inputs=[self.time, wp.float64(offset), self.step_dt, self.substep, int(substep), *keys],
-            outputs=[mesh.points, mesh.velocities, bounds],
+            outputs=[mesh.points, mesh.velocities, *bounds],
             device=d,
         )
         mesh.refit()
@@ -227,7 +227,7 @@ class ColliderSet:
                 ck.gather_creases, dim=ends.shape[0], inputs=[mesh.points, ends], outputs=[a, b, lo, hi], device=d
             )
             bvh.refit()
-        wp.launch(ck.eval_deformed_record, dim=1, inputs=[k, self.rest, bounds], outputs=[self.params], device=d)
+        wp.launch(ck.eval_deformed_record, dim=1, inputs=[k, self.rest, *bounds], outputs=[self.params], device=d)
 
     def begin_step(self) -> None:
         """At a step's start (Control.update): count its substeps from 0 (S = the last step's count)
