@@ -3,9 +3,9 @@ the study").
 
 * **References.** At <= 12 x 12 the SciPy DOP853 integration (:mod:`warpcloth.lab.reference`);
   above, the float64 Warp RK4 with its halving run (:mod:`warpcloth.lab.reference_warp`),
-  accepted when the halving estimate is <= 1e-5 of the cloth size (DOP853 is its cross-check at
-  <= 12 x 12, tests/test_reference_warp.py). Static: the float64 equilibrium with the contact
-  (:func:`~warpcloth.lab.reference.contact_equilibrium`).
+  accepted *per metric* where that metric's halving estimate is <= 1e-5 (:func:`halving_estimates`,
+  :func:`reference_refusal`; DOP853 is its cross-check at <= 12 x 12). Static: the float64
+  equilibrium with the contact (:func:`~warpcloth.lab.reference.contact_equilibrium`).
 * **Metrics** (:func:`trajectory_metrics`, :data:`METRICS`), each a fraction of the cloth size or
   a ratio: pointwise e = max over frames and particles |x - x_ref| / size; coarse shape (the
   centre of mass, and the 4 x 4 patch means); damping (1 - the frames' kinetic energy summed over
@@ -16,8 +16,8 @@ the study").
 * **Conditioning floor** of a transient x size (:meth:`TransientProblem.floor`): the same metrics
   between the float64 reference and float64 runs from the start moved by a 1e-7 m random
   perturbation (2 seeds; the max). A verdict at tolerance t is refused where the floor exceeds
-  :data:`FLOOR_FRACTION` t (:func:`refused`); then the size is judged on the first of
-  :data:`DECIDING_METRICS` whose floor allows it (:func:`deciding_metric`).
+  :data:`FLOOR_FRACTION` t (:func:`refused`) or the reference is not accepted for the metric;
+  then the size is judged on the first of :data:`DECIDING_METRICS` both allow.
 * A trial's step is dt = (1/60 s) / k, k a whole number of steps per frame, or k = 1/2 (dt =
   1/30 s: compared every other frame).
 """
@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import warp as wp
@@ -41,6 +41,7 @@ from warpcloth.lab.reference import (
     swing_from_horizontal,
     trajectory_error,
 )
+from warpcloth.lab.reference_warp import DEFAULT_TOLERANCE as REFERENCE_TOLERANCE
 from warpcloth.lab.reference_warp import warp_reference, warp_trajectory
 from warpcloth.run.harness import RunHarness
 from warpcloth.sim.model import SpringType
@@ -69,6 +70,15 @@ OVERSTRETCH = 0.02
 #: refuses the verdict the coarse shape (4 x 4 patch means, then the centre of mass), whose
 #: floors grow more slowly with the conditioning (design.md, "One question at every size").
 DECIDING_METRICS = ("point", "patch", "centroid")
+#: The results.csv column of each metric's reference halving estimate (the Warp reference's
+#: estimate of that metric between its last two runs; a ``floor`` row's).
+REFERENCE_ESTIMATE_COLUMNS = {
+    "point": "reference_estimate_rel",
+    "centroid": "reference_estimate_centroid_rel",
+    "patch": "reference_estimate_patch_rel",
+    "damping": "reference_estimate_damping_rel",
+    "stretch": "reference_estimate_stretch_rel",
+}
 
 
 @dataclass(frozen=True)
@@ -198,8 +208,10 @@ class StaticProblem:
 class Reference:
     """A float64 reference trajectory: frames (frames + 1, N, 3); estimate: its error estimate
     as a fraction of the size (the Warp halving estimate; DOP853: None, its tolerances are 1e-10);
-    accepted: the estimate is within the Warp reference's tolerance; method; dt: the step of the
-    Warp run [s]; piece_steps: its steps per piece (for :func:`conditioning_floor`'s runs)."""
+    accepted: the pointwise estimate is within the Warp reference's tolerance; method; dt: the
+    step of the Warp run [s]; piece_steps: its steps per piece (for :meth:`TransientProblem.floor`'s
+    runs); estimates: the pointwise estimate of every halving; metric_estimates: each metric's
+    halving estimate of the last halving (:func:`halving_estimates`; empty for DOP853)."""
 
     frames: np.ndarray
     estimate: float | None
@@ -208,13 +220,30 @@ class Reference:
     dt: float | None = None
     piece_steps: tuple = ()
     estimates: tuple = ()
+    metric_estimates: dict = field(default_factory=dict)
+
+    def estimate_of(self, metric: str) -> float | None:
+        """The halving estimate of ``metric`` (None for DOP853; the pointwise one where the
+        metric's was not computed: it bounds the centroid's and the patches')."""
+        if self.method == "DOP853":
+            return None
+        return self.estimate if metric == "point" else self.metric_estimates.get(metric, self.estimate)
+
+    def accepted_for(self, metric: str) -> bool:
+        """Whether the reference is accepted for ``metric``: DOP853, or its halving estimate <=
+        the Warp reference's tolerance (1e-5)."""
+        e = self.estimate_of(metric)
+        return self.method == "DOP853" or (e is not None and e <= REFERENCE_TOLERANCE)
 
 
 def reference_for(model, control, frames: int, x0, rtol: float = 1e-10, atol: float = 1e-12) -> Reference:
     """The float64 reference of ``frames`` 1/60 s frames from ``x0`` (at rest): SciPy DOP853 up to
     :data:`SCIPY_MAX_SIZE` particles a side, the float64 Warp RK4 with its halving run above
     with at most one more halving (not accepted then: returned with ``accepted`` False, its
-    estimates saying by how much; a window that needs more is ill-conditioned, and its floor says so)."""
+    estimates saying by how much; a window that needs more is ill-conditioned, and its floor says so).
+    Each metric's halving estimate is kept (``metric_estimates``): a chaotic window's pointwise
+    estimate is the chaos-amplified difference of two runs and never converges, while its centre
+    of mass or patch means may (:meth:`Reference.accepted_for`)."""
     n = max(int(model.rows or 0), int(model.cols or 0)) or int(round(math.sqrt(model.particle_count)))
     if n <= SCIPY_MAX_SIZE:
         return Reference(
@@ -224,8 +253,21 @@ def reference_for(model, control, frames: int, x0, rtol: float = 1e-10, atol: fl
             "DOP853",
         )
 
-    r = warp_reference(model, control, frames * FRAME_DT, FRAME_DT, x0=x0, max_halvings=1, require_accepted=False)
-    return Reference(r.frames, r.relative_estimate, r.accepted, "Warp RK4", r.dt, r.piece_steps, tuple(r.estimates))
+    r = warp_reference(
+        model,
+        control,
+        frames * FRAME_DT,
+        FRAME_DT,
+        x0=x0,
+        max_halvings=1,
+        require_accepted=False,
+        metrics=halving_estimates(_Shape(model), cloth_size(model)),
+    )
+    last = r.metric_estimates[-1] if r.metric_estimates else None
+    per_metric = dict.fromkeys(METRICS, math.inf) if last is None else dict(last)
+    return Reference(
+        r.frames, r.relative_estimate, r.accepted, "Warp RK4", r.dt, r.piece_steps, tuple(r.estimates), per_metric
+    )
 
 
 def _perturbed(model, x0: np.ndarray, seed: int) -> np.ndarray:
@@ -326,17 +368,61 @@ def floor_of(metrics: dict) -> dict:
     return out
 
 
+def halving_estimates(shape: _Shape, size: float):
+    """The function (coarse frames, fine frames) -> each metric's halving estimate: the metrics
+    of two float64 runs against each other, as a floor is (:func:`floor_of`: the metric itself,
+    |damping|, the change of the largest strain); inf for every metric where a run is not finite."""
+
+    def estimate(coarse: np.ndarray, fine: np.ndarray) -> dict:
+        if not (np.all(np.isfinite(coarse)) and np.all(np.isfinite(fine))):
+            return dict.fromkeys(METRICS, math.inf)
+        return floor_of(trajectory_metrics(coarse, fine, size, shape, FRAME_DT))
+
+    return estimate
+
+
+def reference_estimate(row: dict, metric: str) -> float | None:
+    """The halving estimate of ``metric`` from a results.csv ``floor`` row
+    (:data:`REFERENCE_ESTIMATE_COLUMNS`). A row written before the per-metric estimates (no such
+    column, or empty) gives the pointwise estimate: for the centroid and the patches a bound (a
+    mass-weighted mean moves no more than its farthest particle), for damping and stretch the
+    rule those rows were judged by."""
+    value = row.get(REFERENCE_ESTIMATE_COLUMNS[metric])
+    return row.get("reference_estimate_rel") if value is None else value
+
+
+def reference_refusal(row: dict, transient: str, metric: str, name: str | None = None) -> str:
+    """Why the reference of a results.csv ``floor`` row is not accepted for ``metric`` (``name``:
+    what people call it) ("" where it is: DOP853, or the metric's halving estimate <=
+    :data:`REFERENCE_TOLERANCE`)."""
+    if row.get("reference") == "DOP853":
+        return ""
+    e = reference_estimate(row, metric)
+    if e is not None and math.isfinite(e) and e <= REFERENCE_TOLERANCE:
+        return ""
+    shown = "unknown" if e is None else f"{e:.2g}"
+    return (
+        f"the {transient} reference is not accepted for the {name or metric} (its halving estimate {shown} > "
+        f"{REFERENCE_TOLERANCE:g})"
+    )
+
+
 def refused(floor, tolerance: float) -> bool:
     """Whether a verdict at ``tolerance`` is refused: a floor above :data:`FLOOR_FRACTION` of it
     (or unknown)."""
     return floor is None or not math.isfinite(floor) or floor > FLOOR_FRACTION * tolerance
 
 
-def deciding_metric(floors: dict, tolerance: float) -> str | None:
+def deciding_metric(floors: dict, tolerance: float, estimates: dict | None = None) -> str | None:
     """The metric a verdict at ``tolerance`` rests on: the first of :data:`DECIDING_METRICS` whose
-    floor (``floors``: metric -> floor) does not refuse it (:func:`refused`); None when all do.
-    The window is never shortened instead: that would change the question, not the precision."""
+    floor (``floors``: metric -> floor) does not refuse it (:func:`refused`) and, with
+    ``estimates`` (metric -> the Warp reference's halving estimate), for which the reference is
+    accepted (<= :data:`REFERENCE_TOLERANCE`); None when none is. The window is never shortened
+    instead: that would change the question, not the precision."""
     for metric in DECIDING_METRICS:
+        e = None if estimates is None else estimates.get(metric)
+        if estimates is not None and not (e is not None and e <= REFERENCE_TOLERANCE):
+            continue
         if not refused(floors.get(metric), tolerance):
             return metric
     return None
@@ -517,6 +603,8 @@ __all__ = [
     "METRICS",
     "OVERSTRETCH",
     "PERTURBATION",
+    "REFERENCE_ESTIMATE_COLUMNS",
+    "REFERENCE_TOLERANCE",
     "SCIPY_MAX_SIZE",
     "STATIC_METRICS",
     "TOLERANCES",
@@ -530,8 +618,11 @@ __all__ = [
     "TransientProblem",
     "check_tolerance",
     "deciding_metric",
+    "halving_estimates",
     "over_stretched",
+    "reference_estimate",
     "reference_for",
+    "reference_refusal",
     "refused",
     "sample_stride",
     "steps_per_frame_at_most",

@@ -4,7 +4,8 @@ budget at a size, answered from a study's results.csv (docs/study.md, "Advice"),
 The rule is the study's (:func:`warpcloth.lab.frontier.cheapest` over the configurations timed
 within the budget): a configuration's error is the worse of the dynamic transients judged at that
 size, its cost the measured ms per 1/60 s frame. A transient is judged on a metric where its
-float64 reference was accepted and the metric's conditioning floor is at most
+float64 reference was accepted for that metric (its halving estimate of it <= 1e-5:
+:func:`~warpcloth.lab.accuracy.reference_refusal`) and the metric's conditioning floor is at most
 :data:`~warpcloth.lab.accuracy.FLOOR_FRACTION` of the tolerance; where no transient is, the verdict
 is refused. With ``metric="auto"`` the pointwise error decides where its floor allows it, else the
 first of the 4 x 4 patch means and the centre of mass whose floor does (:data:`AUTO_ORDER`).
@@ -27,10 +28,9 @@ from fractions import Fraction
 
 from warpcloth.errors import WarpclothError
 from warpcloth.integrators import all_options
-from warpcloth.lab.accuracy import FLOOR_FRACTION, FRAME_DT, refused
+from warpcloth.lab.accuracy import FLOOR_FRACTION, FRAME_DT, reference_refusal, refused
 from warpcloth.lab.configs import study_options
 from warpcloth.lab.frontier import Point, cheapest
-from warpcloth.lab.reference_warp import DEFAULT_TOLERANCE as REFERENCE_ACCEPTED
 from warpcloth.lab.results import read_rows
 from warpcloth.lab.transients import DYNAMIC
 from warpcloth.scenarios.swing import SCENARIO as SWING
@@ -192,9 +192,9 @@ class Study:
         f = self.floors.get((device, n, transient))
         if f is None:
             return f"no {transient} reference"
-        estimate = f["reference_estimate_rel"]
-        if f["reference"] != "DOP853" and (estimate is None or estimate > REFERENCE_ACCEPTED):
-            return f"the {transient} reference is not accepted (halving estimate {estimate} x size)"
+        why = reference_refusal(f, transient, metric, METRICS[metric][2])
+        if why:
+            return why
         floor = f[METRICS[metric][1]]
         if refused(floor, tolerance):
             return (
@@ -231,7 +231,7 @@ class Study:
             why = {t: self.refusal(device, n, t, m, tolerance) for t in DYNAMIC}
             judged = tuple(t for t in DYNAMIC if not why[t])
             if not judged:
-                reasons.append("; ".join(why.values()))
+                reasons.append(f"{METRICS[m][2]}: " + "; ".join(why.values()))
                 continue
             left_out = "; ".join(w for w in why.values() if w)
             pts = self.points(device, n, m, judged)
@@ -305,7 +305,10 @@ def _describe(a: SizeAnswer, advice: Advice, run_n: int | None) -> list[str]:
     """Lines for one size's answer (``run_n``: the size of the reproducing command; None: none)."""
     at = f"at {a.n}x{a.n}"
     if a.status == "refused":
-        return [f"{at}: refused: {a.why} (the float64 conditioning floor: no verdict at {_pct(advice.tolerance)})"]
+        return [
+            f"{at}: refused: {a.why} (no verdict at {_pct(advice.tolerance)}: the float64 conditioning floor, or the "
+            "reference not accepted for the metric)"
+        ]
     name = METRICS[a.metric][2]
     on = " and ".join(a.judged) + ("" if not a.why else f" (left out: {a.why})")
     if a.skipped:

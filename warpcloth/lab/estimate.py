@@ -7,32 +7,44 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from warpcloth.integrators import integrator_class, make_integrator
 from warpcloth.lab.accuracy import FRAME_DT, SCIPY_MAX_SIZE
 from warpcloth.lab.configs import configurations, static_configurations, steps_for, study_options, work
 from warpcloth.lab.plan import StudyPlan
 from warpcloth.lab.reference import Float64Model
-from warpcloth.lab.reference_warp import stability_limit
+from warpcloth.lab.reference_warp import RK4_STABILITY_RADIUS, stability_limit
 from warpcloth.lab.transients import DYNAMIC, TRANSIENTS
 from warpcloth.run.harness import time_steps
 
 #: SciPy DOP853 (<= 12 x 12): seconds per particle per simulated second (measured on the
 #: project's 2-core CPU: 5.1 s for an 8 x 8 sheet's 1 s swing, 15 s at 12 x 12).
 REFERENCE_S_PER_PARTICLE_S = 0.1
-#: The float64 Warp RK4 reference: seconds per particle per RK4 step on one CPU core (measured:
-#: 6.5 ms per step at 128 x 128, 0.43 ms at 32 x 32: about 0.4 us per particle); a CUDA device
-#: is modelled at :data:`GPU_REFERENCE_S_PER_STEP` per step (launch-bound at these sizes).
+#: The float64 Warp RK4 reference: seconds per particle per RK4 step of the swing on one quiet CPU
+#: core (measured: 6.5 ms per step at 128 x 128, 0.43 ms at 32 x 32: about 0.4 us per particle); a
+#: CUDA device is modelled at :data:`GPU_REFERENCE_S_PER_STEP` per step (launch-bound at these sizes).
 REFERENCE_S_PER_PARTICLE_STEP = 0.4e-6
 GPU_REFERENCE_S_PER_STEP = 0.25e-3
+#: A step with wind (the flag) launches 12 kernels, without (the swing) 8: 4 RK4 stages of the
+#: springs' forces, the triangles' wind and the particle update (kernels/reference64.py).
+WIND_STEP_FACTOR = 12.0 / 8.0
+#: Measured / modelled reference time on the 2026-12-05 standard regeneration (two workers on the
+#: shared 2-core CPU; the six floor rows at 16, 32, 64: docs/study.md, "Estimate"): the geometric
+#: mean of 3.1, 3.8, 4.1, 3.2, 2.4, 2.3 (CPU only: no GPU reference was measured in a study).
+REFERENCE_FACTOR = 3.1
+#: Halvings L of a Warp reference (runs at h, h/2, ..., h/2^L; h half the stability limit), as
+#: taken on the 2026-12-05 regeneration (results.csv ``reference_dt_s`` = h / 2^L): the swing 1 at
+#: 16x16 and 32x32 (and 24x24, measured alone) and 2 at 64x64, the flag 2 from 16x16 (chaotic:
+#: its pointwise estimate is not accepted at the first halving). Elsewhere the rule
+#: :func:`reference_halvings` extrapolates: 2, the most :func:`~warpcloth.lab.accuracy.reference_for` takes.
+REFERENCE_MAX_HALVINGS = 2
+SWING_ONE_HALVING_MAX_SIZE = 32
 #: The float64 contact equilibrium (Newton with a sparse direct solve): seconds ~ this x N^1.5
 #: (measured on the loaded 2-core CPU: 54 s at 64 x 64, 27 Newton steps; 7 s at 32 x 32).
 CONTACT_S = 54.0 / 4096**1.5
 #: Simulated seconds a contact run takes to come to rest (measured 1.7-2.4 s at 4 x 4 and 6 x 6).
 CONTACT_REST_S = 3.0
-#: Runs of a Warp reference and its floor: h, h/2, and two floor runs at h/2, in units of the h run.
-REFERENCE_RUNS = 7.0
 #: Measured / modelled on the standard profile's 16 x 16 groups (``--sizes 16 --workers 2`` on
 #: the project's 2-core CPU at load average ~7, 2026-12-02; docs/study.md, "Estimate"): the
 #: configuration runs took 2.5x the model (their frames' host copies and metrics, the workers
@@ -81,6 +93,40 @@ class PhaseEstimate:
     measurements: int
     seconds: float
     parallel: bool = True  # split over the workers (the timings are not)
+    details: list = field(default_factory=list)  # lines printed under the phase
+
+
+def reference_halvings(transient: str, n: int) -> int:
+    """L, the halvings a Warp reference of ``transient`` at n x n takes (:data:`REFERENCE_MAX_HALVINGS`):
+    1 for the swing up to :data:`SWING_ONE_HALVING_MAX_SIZE`, else 2 (the flag at every size, the
+    swing above: measured at 16, 32, 64; beyond 64 the most it may take)."""
+    return 1 if transient == "swing" and n <= SWING_ONE_HALVING_MAX_SIZE else REFERENCE_MAX_HALVINGS
+
+
+def reference_steps(frames: int, h: float, halvings: int) -> int:
+    """RK4 steps of a Warp reference and its floor: each of ``frames`` 1/60 s frames in
+    ceil(frame / h) steps at h (as :func:`~warpcloth.lab.reference_warp.warp_reference` cuts
+    the window), runs at h, h/2, ..., h/2^L, and the two floor runs at h/2^L:
+    S (2^(L+1) - 1) + 2 S 2^L = S (2^(L+2) - 1), S = frames x ceil(frame / h) (7 S at L = 1)."""
+    per_frame = max(1, math.ceil(FRAME_DT / h * (1.0 - 1e-12)))
+    return frames * per_frame * (2 ** (halvings + 2) - 1)
+
+
+def reference_seconds(transient: str, n: int, frames: int, omega: float, device: str = "cpu") -> tuple:
+    """(modelled seconds, halvings, steps, h) of the Warp reference and its floor of ``transient``
+    at n x n over ``frames`` frames: h = 0.5 x 2.61 / omega (half RK4's stability limit),
+    :func:`reference_steps` with :func:`reference_halvings`, per step :data:`REFERENCE_S_PER_PARTICLE_STEP`
+    x N x :data:`REFERENCE_FACTOR` on a CPU, x :data:`WIND_STEP_FACTOR` with wind (the flag);
+    on CUDA :data:`GPU_REFERENCE_S_PER_STEP` (launch-bound)."""
+    h = 0.5 * RK4_STABILITY_RADIUS / omega
+    halvings = reference_halvings(transient, n)
+    steps = reference_steps(frames, h, halvings)
+    if device.startswith("cuda"):
+        per = GPU_REFERENCE_S_PER_STEP  # launch-bound, on the high side of the flag's 12 launches too (docs/gpu.md)
+    else:
+        wind = TRANSIENTS[transient].scenario.name != TRANSIENTS["swing"].scenario.name
+        per = REFERENCE_S_PER_PARTICLE_STEP * n * n * REFERENCE_FACTOR * (WIND_STEP_FACTOR if wind else 1.0)
+    return steps * per, halvings, steps, h
 
 
 def _omega(n: int, device: str) -> float:
@@ -134,9 +180,10 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
     """Seconds per phase of ``plan`` on one device from ``costs`` (:func:`calibrate`). A model,
     not a measurement (docs/study.md, "Estimate"):
 
-    * references: DOP853 at :data:`REFERENCE_S_PER_PARTICLE_S`, or the Warp RK4 at half its
-      stability limit 2.61 / omega, :data:`REFERENCE_RUNS` runs of the window (with the floor's),
-      at :data:`REFERENCE_S_PER_PARTICLE_STEP`; the contact equilibrium at :data:`CONTACT_S` N^1.5;
+    * references: DOP853 at :data:`REFERENCE_S_PER_PARTICLE_S`, or the Warp RK4 from half its
+      stability limit 2.61 / omega with the halvings it takes and its floor's runs
+      (:func:`reference_seconds`; a line per reference in ``details``); the contact equilibrium at
+      :data:`CONTACT_S` N^1.5;
     * stability: 6 trials of the swing's window (its sheet) at 1.5x the default dt for the
       explicit schemes, 1 trial for those stable at one frame, each at most the wall cap;
     * trials: every configuration x 2 transients, frames x k steps at the calibrated ms/step x
@@ -151,6 +198,7 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
     measured on a standard run."""
     ref = stab = trials = contact = tim = 0.0
     counts = {"ref": 0, "stab": 0, "trial": 0, "contact": 0, "timing": 0}
+    ref_lines = []
     cap = plan.run_wall_cap
     for n in plan.all_sizes if plan.grid else []:
         particles = n * n
@@ -159,12 +207,13 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
             frames = plan.window_frames(name, n)
             if n <= SCIPY_MAX_SIZE:
                 ref += 3 * REFERENCE_S_PER_PARTICLE_S * particles * frames * FRAME_DT
-            else:
-                steps = frames * FRAME_DT / (0.5 * 2.61 / omega) if omega else 0.0
-                per = (
-                    GPU_REFERENCE_S_PER_STEP if device.startswith("cuda") else REFERENCE_S_PER_PARTICLE_STEP * particles
+            elif omega:
+                seconds, halvings, steps, h = reference_seconds(name, n, frames, omega, device)
+                ref += seconds
+                ref_lines.append(
+                    f"{name} {n}x{n}: h {h:.2g} s, {halvings} halving(s) (finest h/{2**halvings}), {steps} RK4 steps "
+                    f"with the floor's: {seconds / 60:.2g} min"
                 )
-                ref += REFERENCE_RUNS * steps * per
             counts["ref"] += 1
         contact_here = n <= plan.contact_max_size
         if contact_here:
@@ -200,7 +249,7 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
                 contact += min(seconds, plan.equilibrium_wall_cap or seconds)
                 counts["contact"] += 1
     phases = [
-        PhaseEstimate("references and floors (shared by the integrators)", counts["ref"], ref),
+        PhaseEstimate("references and floors (shared by the integrators)", counts["ref"], ref, details=ref_lines),
         PhaseEstimate("stability (max stable dt)", counts["stab"], stab),
         PhaseEstimate("configurations on the swing and the flag", counts["trial"], TRIAL_FACTOR * trials),
         PhaseEstimate("contact runs to rest", counts["contact"], contact),
@@ -229,6 +278,7 @@ def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1, recorded
     for d, phases in by_device.items():
         for ph in phases:
             lines.append(f"  {d:6s} {ph.phase:52s} {ph.measurements:5d} measurements  {ph.seconds / 60:7.1f} min")
+            lines += [f"         {line}" for line in ph.details]
         serial += total_seconds(phases, 1)
         parallel += total_seconds(phases, workers)
     lines.append(
@@ -266,16 +316,21 @@ __all__ = [
     "GPU_COMPILE_ALLOWANCE_S",
     "H200_COSTS",
     "RECORDED_ON",
-    "REFERENCE_RUNS",
+    "REFERENCE_FACTOR",
+    "REFERENCE_MAX_HALVINGS",
     "REFERENCE_S_PER_PARTICLE_S",
     "REFERENCE_S_PER_PARTICLE_STEP",
     "TIMING_FACTOR",
     "TRIAL_FACTOR",
+    "WIND_STEP_FACTOR",
     "WORKER_SPEEDUP",
     "PhaseEstimate",
     "calibrate",
     "estimate_plan",
     "format_estimate",
     "recorded_costs",
+    "reference_halvings",
+    "reference_seconds",
+    "reference_steps",
     "total_seconds",
 ]

@@ -37,7 +37,16 @@ import warp as wp
 
 from warpcloth.integrators import integrator_class, make_integrator
 from warpcloth.integrators.pbd import material_bend_stiffness
-from warpcloth.lab.accuracy import FRAME_DT, ContactProblem, Reference, TransientProblem, steps_per_frame_at_most
+from warpcloth.lab.accuracy import (
+    FRAME_DT,
+    METRICS,
+    REFERENCE_ESTIMATE_COLUMNS,
+    REFERENCE_TOLERANCE,
+    ContactProblem,
+    Reference,
+    TransientProblem,
+    steps_per_frame_at_most,
+)
 from warpcloth.lab.configs import Config, configurations, static_configurations, steps_for, study_options, work
 from warpcloth.lab.maxdt import find_max_dt
 from warpcloth.lab.plan import StudyPlan
@@ -234,6 +243,8 @@ class Measurements:
                 float(data["dt"]) if data["dt"] > 0 else None,
                 tuple(int(c) for c in data["piece_steps"]),
                 tuple(float(e) for e in data["estimates"]),
+                # a cache file made before the per-metric estimates has none: the pointwise one stands in
+                {m: float(data[f"estimate_{m}"]) for m in METRICS if f"estimate_{m}" in data},
             )
             prob = TransientProblem(sim, tr, frames, reference=ref)
         prob.cached = data
@@ -254,6 +265,7 @@ class Measurements:
             "dt": r.dt or -1.0,
             "piece_steps": np.asarray(r.piece_steps, dtype=np.int64),
             "estimates": np.asarray(r.estimates, dtype=np.float64),
+            **{f"estimate_{m}": v for m, v in r.metric_estimates.items()},
             "seconds": time.perf_counter() - t0,
             **{f"floor_{k}": v for k, v in floor.items()},
         }
@@ -288,6 +300,7 @@ class Measurements:
                 row.update(
                     reference=r.method,
                     reference_estimate_rel=r.estimate,
+                    **{REFERENCE_ESTIMATE_COLUMNS[m]: r.metric_estimates.get(m) for m in METRICS if m != "point"},
                     reference_dt_s=r.dt,
                     transient_s=frames * FRAME_DT,
                     ref_max_strain_rel=prob.shape.max_strain(r.frames),
@@ -296,13 +309,8 @@ class Measurements:
                         for k in ("point", "centroid", "patch", "damping", "stretch")
                     },
                 )
-                if r.method != "DOP853" and not r.accepted:
-                    row["note"] = (
-                        f"reference not accepted: halving estimates {', '.join(f'{e:.2g}' for e in r.estimates)} "
-                        "x size (> 1e-5): accuracy verdicts refused"
-                    )
-                elif r.method != "DOP853":
-                    row["note"] = "halving estimates " + ", ".join(f"{e:.2g}" for e in r.estimates)
+                if r.method != "DOP853":
+                    row["note"] = _acceptance_note(r)
             return row
 
         return self.once(key, self.base("floor", tr.scenario.name, "reference", device, n, transient=name), run)
@@ -630,6 +638,21 @@ class Measurements:
                 c.option_dict,
                 start=TRANSIENTS["swing"],
             )
+
+
+def _acceptance_note(r: Reference) -> str:
+    """A Warp reference's acceptance per metric, for a ``floor`` row's note."""
+    pointwise = ", ".join(f"{e:.2g}" for e in r.estimates)
+    refused = [m for m in METRICS if not r.accepted_for(m)]
+    if not refused:
+        return f"halving estimates {pointwise}; accepted for every metric"
+    accepted = [m for m in METRICS if r.accepted_for(m)]
+    estimates = ", ".join(f"{m} {r.estimate_of(m):.2g}" for m in refused)
+    return (
+        f"halving estimates {pointwise} x size; not accepted for {estimates} (> {REFERENCE_TOLERANCE:g}): "
+        "those verdicts refused"
+        + (f"; accepted for {', '.join(accepted)}" if accepted else "; accepted for no metric: every verdict refused")
+    )
 
 
 def _size(n) -> str:

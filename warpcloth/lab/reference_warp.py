@@ -28,7 +28,7 @@ import itertools
 import math
 import threading
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import warp as wp
@@ -386,6 +386,9 @@ class WarpReference:
         stability: the :class:`StabilityLimit` at the start.
         estimates: the relative halving estimate of each halving, in order.
         seconds: wall time of all runs [s].
+        metric_estimates: per halving, in order, ``metrics(x_h, x_{h/2})`` (a dict: the halving
+            estimate of each metric a caller judges, :func:`warpcloth.lab.accuracy.halving_estimates`);
+            empty without ``metrics``.
     """
 
     frames: np.ndarray
@@ -398,6 +401,7 @@ class WarpReference:
     estimates: list
     seconds: float
     piece_steps: tuple = ()  # the finest run's steps per piece of the time grid (for warp_trajectory)
+    metric_estimates: list = field(default_factory=list)
 
 
 def _pin_tracks(model, control) -> tuple:
@@ -422,6 +426,7 @@ def warp_reference(
     device=None,
     parallel: bool = False,
     require_accepted: bool = True,
+    metrics=None,
 ) -> WarpReference:
     """The float64 RK4 reference trajectory of ``model`` under ``control`` (None: gravity only)
     from (``x0``, ``v0``) at t = 0 (default: the rest shape, at rest), sampled at t_k = k frame_dt.
@@ -431,7 +436,11 @@ def warp_reference(
     halving estimate is max |x_h - x_{h/2}| over the frames and particles. Accepted when it is <=
     ``tolerance`` x cloth size; otherwise h is halved again (one more run each time), at most
     ``max_halvings`` times. ``parallel``: the first two runs in two threads (Warp's CPU kernels run
-    on one thread each). Raises :class:`WarpclothError` on bad input, and when no halving is
+    on one thread each). ``metrics``: a function (coarse frames, fine frames) -> dict, called on
+    every halving's pair (``metric_estimates``): the halving estimate of each metric a caller
+    judges, so a chaotic window whose pointwise estimate never converges can still be accepted
+    for the metrics that do (:func:`warpcloth.lab.accuracy.reference_for`); it does not change
+    when halving stops (the pointwise rule). Raises :class:`WarpclothError` on bad input, and when no halving is
     accepted if ``require_accepted`` (else returns the last with ``accepted`` False).
     """
     frames = frame_count(duration, frame_dt)
@@ -479,11 +488,13 @@ def warp_reference(
         coarse = runners[0].run(pieces, counts(0))
         fine = runners[0].run(pieces, counts(1))
     level = 1
-    estimates = []
+    estimates, metric_estimates = [], []
     while True:
         c, f = finite(coarse), finite(fine)
         e = float(np.max(np.linalg.norm(c - f, axis=-1))) if c is not None and f is not None else math.inf
         estimates.append(e / size)
+        if metrics is not None:
+            metric_estimates.append(metrics(coarse, fine) if c is not None and f is not None else None)
         if e <= tolerance * size or level > max_halvings:
             break
         level += 1
@@ -509,6 +520,7 @@ def warp_reference(
         estimates=estimates,
         seconds=time.perf_counter() - t_start,
         piece_steps=tuple(int(c) for c in fine_counts),
+        metric_estimates=metric_estimates,
     )
 
 

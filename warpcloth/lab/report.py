@@ -19,7 +19,18 @@ import sys
 from warpcloth.integrators import integrator_class
 from warpcloth.io.files import AtomicFile, write_atomic
 from warpcloth.io.provenance import machine
-from warpcloth.lab.accuracy import DECIDING_METRICS, FLOOR_FRACTION, OVERSTRETCH, TOLERANCES, over_stretched, refused
+from warpcloth.lab.accuracy import (
+    DECIDING_METRICS,
+    FLOOR_FRACTION,
+    METRICS,
+    OVERSTRETCH,
+    REFERENCE_TOLERANCE,
+    TOLERANCES,
+    over_stretched,
+    reference_estimate,
+    reference_refusal,
+    refused,
+)
 from warpcloth.lab.frontier import Point, budget_frontier, cheapest, pareto_front
 from warpcloth.lab.plan import DEFAULT_BUDGET_MS, WHOLE_FRAME_MS
 from warpcloth.lab.results import COLUMN_DOCS, COLUMNS, MESH_NOTE
@@ -121,14 +132,15 @@ class Data:
 
     def refusal_of(self, d, n, transient: str, metric: str, tolerance: float) -> str:
         """Why a verdict on ``metric`` at ``tolerance`` for ``transient`` at size ``n`` is refused
-        ("" if it is not): no reference, a Warp reference not accepted, or a floor above
-        :data:`FLOOR_FRACTION` of the tolerance."""
+        ("" if it is not): no reference, a Warp reference not accepted for that metric (its
+        halving estimate of it above 1e-5: :func:`~warpcloth.lab.accuracy.reference_refusal`), or
+        the metric's floor above :data:`FLOOR_FRACTION` of the tolerance."""
         f = self.floor(d, n, transient)
         if f is None:
             return f"no {transient} reference"
-        if f["reference"] != "DOP853" and (f["reference_estimate_rel"] is None or f["reference_estimate_rel"] > 1e-5):
-            estimate = _g(f["reference_estimate_rel"], "", 2)
-            return f"the {transient} reference is not accepted (halving estimate {estimate} x size)"
+        why = reference_refusal(f, transient, metric, METRIC_COLUMNS[metric][2])
+        if why:
+            return why
         floor = f.get(METRIC_COLUMNS[metric][1])
         if refused(floor, tolerance):
             what = METRIC_COLUMNS[metric][2]
@@ -154,6 +166,16 @@ class Data:
             if self.judged(d, n, metric, tolerance):
                 return metric
         return None
+
+    def passed_over(self, d, n, tolerance: float) -> list:
+        """The finer metrics the deciding one was chosen over at ``n``, each with why it was
+        refused: [(metric, why)] (empty where the pointwise e decides)."""
+        out = []
+        for metric in DECIDING_METRICS:
+            if self.judged(d, n, metric, tolerance):
+                break
+            out.append((metric, self.refusal(d, n, metric, tolerance)))
+        return out
 
     def decided(self, d, i, n, tolerance: float):
         """(the cheapest configuration of ``i`` reaching ``tolerance`` on the deciding metric at
@@ -240,7 +262,9 @@ def verdict(data: Data, plan_tolerance: float, budget_ms: float) -> list[str]:
                         if metric is not None and metric != "point":
                             out.append(
                                 f"At {n}x{n}, ≤ {_pct(tol)}: decided on the {_metric_name(metric)} over the same "
-                                f"window, the pointwise e refused ({data.refusal(d, n, 'point', tol)})."
+                                f"window; refused before it: "
+                                + "; ".join(f"the {_metric_name(m)} ({why})" for m, why in data.passed_over(d, n, tol))
+                                + "."
                             )
                         ex = "" if metric is None else data.excluded(d, n, metric, tol)
                         if ex:
@@ -337,12 +361,7 @@ def floor_table(data: Data) -> list[str]:
                         f"{n}x{n}",
                         _g(f["transient_s"], " s"),
                         f["reference"],
-                        _g(f["reference_estimate_rel"], "", 2)
-                        + (
-                            ""
-                            if f["reference"] == "DOP853" or (f["reference_estimate_rel"] or 0) <= 1e-5
-                            else " (not accepted)"
-                        ),
+                        _estimates_cell(f, t),
                         _pct(f["floor_point_rel"], 2),
                         _pct(f["floor_centroid_rel"], 2),
                         _pct(f["floor_patch_rel"], 2),
@@ -357,7 +376,7 @@ def floor_table(data: Data) -> list[str]:
                 "size",
                 "window",
                 "reference",
-                "halving estimate / size",
+                "halving estimates (per metric)",
                 "floor of e",
                 "floor of centroid",
                 "floor of patches",
@@ -369,14 +388,34 @@ def floor_table(data: Data) -> list[str]:
         out += [
             "",
             f"A floor is the float64 growth of a {1e-7:g} m random perturbation of the start (2 seeds, the max over "
-            f"the window); a verdict at tolerance t is refused where a floor exceeds {FLOOR_FRACTION:g} t or the Warp "
-            "reference's halving estimate exceeds 1e-5 of the size. Contact: the equilibrium solved again from "
+            f"the window); a verdict at tolerance t on a metric is refused where its floor exceeds {FLOOR_FRACTION:g} t "
+            "or the Warp reference's halving estimate of that metric (the metric between its last two runs, at h "
+            f"and h/2) exceeds {REFERENCE_TOLERANCE:g}: the reference is accepted per metric, so a chaotic window "
+            "whose pointwise estimate never converges is still judged on the metrics whose estimates do. Rows "
+            "written before the per-metric estimates show the pointwise one for every metric (for the centroid and "
+            "the patches a bound). Contact: the equilibrium solved again from "
             "itself moved by 1e-7 m. The float32 noise is rk4's least e over its configurations (down to 1/8 of its "
             "max stable dt): the rounding of float32 coordinates, grown by the same conditioning over many steps, "
             "which no float32 run beats.",
             "",
         ]
     return out
+
+
+_SHORT = {"point": "e", "centroid": "centroid", "patch": "patch", "damping": "damping", "stretch": "strain"}
+
+
+def _estimates_cell(f: dict, transient: str) -> str:
+    """A floor row's halving estimates per metric, "(not accepted)" after those above the tolerance."""
+    if f["reference"] == "DOP853":
+        return "–"
+    cells = []
+    for m in METRICS:
+        e = reference_estimate(f, m)
+        if m != "point" and f.get(f"reference_estimate_{m}_rel") is None:
+            continue  # a row written before the per-metric estimates
+        cells.append(f"{_SHORT[m]} {_g(e, '', 2)}" + (" (not accepted)" if reference_refusal(f, transient, m) else ""))
+    return ", ".join(cells)
 
 
 def deciding_table(data: Data, tolerances) -> list[str]:
@@ -393,15 +432,17 @@ def deciding_table(data: Data, tolerances) -> list[str]:
                 elif metric == "point":
                     cells.append("pointwise e")
                 else:
-                    cells.append(f"{_metric_name(metric)} (pointwise e refused)")
+                    passed = ", ".join(_metric_name(m) for m, _ in data.passed_over(d, n, tol))
+                    cells.append(f"{_metric_name(metric)} ({passed} refused)")
             body.append(cells)
         out += [f"### Deciding metric per size on {d}", ""]
         out += _table(["size"] + [f"≤ {_pct(t)}" for t in tolerances], body)
         out += [
             "",
-            "Every size is judged over the same window. Where the pointwise e's floor (or the reference) refuses a "
-            "verdict at a size, that size is judged on the first metric whose floor allows it: the 4 x 4 patch means, "
-            "then the centre of mass (their floors are in the table above); a window is never shortened instead.",
+            "Every size is judged over the same window. Where the pointwise e's floor, or the reference (not accepted "
+            "for it), refuses a verdict at a size, that size is judged on the first metric whose floor and reference "
+            "both allow it: the 4 x 4 patch means, then the centre of mass (their floors and the reference's halving "
+            "estimates are in the table above); a window is never shortened instead.",
             "",
         ]
     return out
@@ -955,7 +996,10 @@ def method_lines(plan) -> list[str]:
         "refuses a verdict at a size, the size is judged on the 4 x 4 patch means, else the centre of mass, over the "
         "same window, and the tables name that metric (docs/study.md, “Windows”).",
         "- **References**: SciPy DOP853 (rtol 1e-10) up to 12x12; above, the float64 Warp RK4 at half its stability "
-        "limit with a run at half the step, accepted when the halving estimate is ≤ 1e-5 of the size. Contact: the "
+        "limit with a run at half the step (one more halving where the pointwise estimate is above 1e-5), accepted "
+        "per metric: where that metric between the last two runs (its halving estimate) is ≤ 1e-5 (of the size for "
+        "e, the centroid and the patches). A chaotic transient's pointwise estimate never converges, but its coarse "
+        "shape's may: a verdict on a metric needs both its floor and its reference estimate to allow it. Contact: the "
         "float64 equilibrium with the frictionless contact (Newton on a penalty continuation, penetration ≤ 1e-9 of "
         "the size).",
         "- **Metrics** (each with its floor): pointwise e = max over frames (1/60 s apart; every other one at dt = "

@@ -38,6 +38,10 @@ COLUMNS = [
     "floor_sag_rel",
     "reference",
     "reference_estimate_rel",
+    "reference_estimate_centroid_rel",
+    "reference_estimate_patch_rel",
+    "reference_estimate_damping_rel",
+    "reference_estimate_stretch_rel",
     "reference_dt_s",
     "reference_s",
     "ms_per_step_median",
@@ -109,7 +113,15 @@ COLUMN_DOCS = {
     "floor_rest_rel": "floor of the rest-shape error (contact: the equilibrium solved again from a perturbed start)",
     "floor_sag_rel": "floor of the sag error",
     "reference": "the float64 reference: DOP853 (SciPy), Warp RK4 (with its halving run), Newton+contact",
-    "reference_estimate_rel": "the Warp reference's halving estimate / size (accepted at <= 1e-5)",
+    "reference_estimate_rel": "the Warp reference's halving estimate / size: max over frames and particles of "
+    "|x_h - x_h/2| of its last two runs (accepted for the pointwise e at <= 1e-5)",
+    "reference_estimate_centroid_rel": "the same two runs' centroid difference / size (the reference accepted for the "
+    "centroid error at <= 1e-5; empty in rows written before it: the pointwise estimate, a bound, stands for it)",
+    "reference_estimate_patch_rel": "the same for the 4 x 4 patch means (accepted for the patch error at <= 1e-5)",
+    "reference_estimate_damping_rel": "the same two runs' |damping| against each other (accepted for damping at "
+    "<= 1e-5)",
+    "reference_estimate_stretch_rel": "the same two runs' largest change of the largest strain at one instant "
+    "(accepted for stretch at <= 1e-5)",
     "reference_dt_s": "the Warp reference's step [s]",
     "reference_s": "wall seconds of the reference (and its floor runs)",
     "ms_per_step_median": "median over the timed windows [ms]",
