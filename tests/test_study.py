@@ -530,7 +530,8 @@ def test_a_tiny_profile_whose_pointwise_floor_refuses_falls_back_to_a_named_coar
     report = (tmp_path / "report.md").read_text()
     name = METRIC_COLUMNS[decided][2]
     assert f"At 4x4, ≤ {100 * tol:.3g} %: decided on the {name} over the same window" in report
-    assert f"| 4x4 | {name} (pointwise e refused)" in report
+    passed = ", ".join(METRIC_COLUMNS[m][2] for m in DECIDING_METRICS[: DECIDING_METRICS.index(decided)])
+    assert f"| 4x4 | {name} ({passed} refused)" in report  # every finer metric refused before it, named
 
 
 def test_study_refuses_to_overwrite_without_a_flag(tiny_study, capsys):
