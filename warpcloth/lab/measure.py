@@ -4,7 +4,7 @@
 * ``max_stable_dt`` (the swing's sheet): :func:`warpcloth.lab.maxdt.find_max_dt` up to one 60 FPS
   frame, trials as long as the swing's window at that size;
 * ``floor`` (per transient x size, shared by the integrators): the float64 reference (its method,
-  halving estimate, step) and the conditioning floor of every metric
+  halving estimate of every metric, step) and the conditioning floor of every metric
   (:meth:`~warpcloth.lab.accuracy.TransientProblem.floor`, :meth:`~warpcloth.lab.accuracy.ContactProblem.floor`);
 * ``trial``: one configuration (:mod:`warpcloth.lab.configs`) on one dynamic transient: every
   metric; "not run" only where its ms per frame predicted from the group's ``calibration`` row
