@@ -7,8 +7,9 @@ written to USD (docs/self-collision.md, "The checker").
 * :func:`collider_edge_crossings`: the (collider edge, cloth triangle) pairs that cross, for box
   colliders (their 12 edges) and triangle-mesh colliders (their unique edges);
 * :func:`check_frames` and :func:`check_usd`: both counts at every frame (a USD file as
-  :class:`~warpcloth.io.usd.UsdWriter` writes it: ``/World/Cloth`` points, time-sampled, and
-  ``/World/Colliders``).
+  :class:`~warpcloth.io.usd.UsdWriter` writes it: ``/World/Cloth`` points, time-sampled, or the
+  meshes of a model's pieces under it, checked as one cloth; ``/World/Colliders``, a deforming
+  mesh's edges at each frame's points).
 
 The tests are on closed sets: two triangles intersect when they share a point (touching and
 coplanar overlap count), a segment crosses a triangle when it has a point in it. A segment's ends'

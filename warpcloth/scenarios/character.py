@@ -41,18 +41,20 @@ SELF_THICKNESS = 0.01
 #: How far off the skin the garments' pinned rows ride [m] (a waistband, a collar).
 BAND = 0.02
 #: Cape: its top arc's height, radius about the body's axis and half-angle; its length; its hem radius.
-CAPE_TOP, CAPE_RADIUS, CAPE_ANGLE, CAPE_LENGTH, CAPE_HEM = 1.45, 0.17, math.radians(40.0), 0.6, 0.3
+#: The top arc lies on the band (the torso's top moved BAND out is 0.125 m round at y = 1.4 m).
+CAPE_TOP, CAPE_RADIUS, CAPE_ANGLE, CAPE_LENGTH, CAPE_HEM = 1.4, 0.125, math.radians(40.0), 0.55, 0.3
 #: Skirt: its waist's height and radius, its length and its hem's radius [m].
 SKIRT_TOP, SKIRT_WAIST, SKIRT_LENGTH, SKIRT_HEM = 1.03, 0.14 + BAND, 0.5, 0.38
 
 
 def make_cape(rows: int, cols: int) -> TriangleMesh:
-    """The cape: rows x cols vertices on a cone behind the body (-z), its top row an arc of
-    radius :data:`CAPE_RADIUS` at y = :data:`CAPE_TOP`, widening to :data:`CAPE_HEM` at the hem; two
-    triangles per cell; vertex group ``top`` = its first row."""
+    """The cape: rows x cols vertices behind the body (-z), its top row an arc of radius
+    :data:`CAPE_RADIUS` at y = :data:`CAPE_TOP`, its radius growing as the square root of the
+    distance down to :data:`CAPE_HEM` at the hem (clear of the back at once); two triangles per cell;
+    vertex group ``top`` = its first row; texture coordinates u around, v down."""
     r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
     s, u = r.ravel() / (rows - 1), c.ravel() / (cols - 1)
-    radius = CAPE_RADIUS + (CAPE_HEM - CAPE_RADIUS) * s
+    radius = CAPE_RADIUS + (CAPE_HEM - CAPE_RADIUS) * np.sqrt(s)  # flaring fast off the back, then hanging
     phi = CAPE_ANGLE * (2.0 * u - 1.0)
     q = np.stack([radius * np.sin(phi), CAPE_TOP - CAPE_LENGTH * s, -radius * np.cos(phi)], axis=1)
     tris = np.asarray(grid_triangles(rows, cols), dtype=np.int64)

@@ -109,6 +109,35 @@ def capsule_mesh(a, b, radius: float, segments: int = 12, rings: int = 4) -> tup
     return np.asarray(verts), np.asarray(tris, dtype=np.int64), np.asarray(s)
 
 
+def vertex_normals(vertices, triangles) -> np.ndarray:
+    """Unit vertex normals (..., V, 3) of ``vertices`` (..., V, 3) (one pose or K keyframes): the
+    area-weighted normals of the faces around each vertex (triangles wound outward)."""
+    v, t = np.asarray(vertices, dtype=np.float64), np.asarray(triangles, dtype=np.int64)
+    face = np.cross(v[..., t[:, 1], :] - v[..., t[:, 0], :], v[..., t[:, 2], :] - v[..., t[:, 0], :])
+    n = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(n, (..., t[:, k], slice(None)), face)
+    return n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)
+
+
+def offset_collider(collider: MeshCollider, distance: float) -> MeshCollider:
+    """A mesh collider's surface moved ``distance`` [m] out along its vertex normals, at rest and at
+    every key of its :class:`~warpcloth.sim.colliders.MeshTrack` (a static mesh stays static): a
+    surface to :func:`~warpcloth.sim.colliders.attach` a garment's pinned rows to, so that they ride
+    just off the skin (pins on the skin itself put the chords between them inside a convex body)."""
+    require(isinstance(collider, MeshCollider), f"offset_collider takes a MeshCollider, got {collider!r:.80}")
+    d = require_non_negative("offset distance", distance, "m")
+    tris = collider.triangles
+    rest = collider.vertices + d * vertex_normals(collider.vertices, tris)
+    track = collider.track
+    if isinstance(track, MeshTrack) and track.kind == "keyframes":
+        keys = track.points + d * vertex_normals(track.points, tris)
+        track = MeshTrack.keyframes(track.times, keys, interpolation=track.interpolation)
+    else:
+        require(track is None, "offset_collider: the mesh must be static or on MeshTrack keyframes")
+    return MeshCollider(vertices=rest, triangles=tris, track=track, source=f"{collider.source} offset {d:g} m")
+
+
 def _rotation(axis, angle: float) -> np.ndarray:
     x, y, z = np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)
     k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
@@ -190,18 +219,10 @@ class Mannequin:
         moved = np.einsum("bij,vj->vbi", m[:, :, :3], x) + m[None, :, :, 3]  # (V, B, 3)
         return np.einsum("vb,vbi->vi", self.weights, moved)
 
-    def normals(self) -> np.ndarray:
-        """Unit vertex normals (V, 3) of the bind pose (area-weighted face normals)."""
-        v, t = self.vertices, self.triangles
-        face = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
-        n = np.zeros_like(v)
-        for k in range(3):
-            np.add.at(n, t[:, k], face)
-        return n / np.linalg.norm(n, axis=1, keepdims=True)
-
     def offset(self, distance: float) -> np.ndarray:
-        """The bind pose moved ``distance`` [m] out along its vertex normals."""
-        return self.vertices + require_non_negative("offset distance", distance, "m") * self.normals()
+        """The bind pose moved ``distance`` [m] out along its vertex normals (:func:`vertex_normals`)."""
+        d = require_non_negative("offset distance", distance, "m")
+        return self.vertices + d * vertex_normals(self.vertices, self.triangles)
 
     def track(self, duration: float, fps: float = 60.0, vertices: np.ndarray | None = None) -> MeshTrack:
         """:class:`~warpcloth.sim.colliders.MeshTrack` keyframes of :meth:`pose` at every 1/fps from 0
@@ -221,4 +242,4 @@ class Mannequin:
         )
 
 
-__all__ = ["BONES", "CAPSULES", "EASE_IN", "Mannequin", "capsule_mesh"]
+__all__ = ["BONES", "CAPSULES", "EASE_IN", "Mannequin", "capsule_mesh", "offset_collider", "vertex_normals"]
