@@ -6,10 +6,13 @@ band (the skin moved out) at every frame."""
 import numpy as np
 import pytest
 
-from warpcloth.lab.intersections import check_frames, mesh_segments
+from warpcloth.errors import WarpclothError
+from warpcloth.io.usd import UsdWriter
+from warpcloth.lab.intersections import check_frames, check_usd, mesh_segments
 from warpcloth.scenarios import character as ch
 from warpcloth.scenarios import get_scenario
-from warpcloth.sim.colliders import closest_surface_points
+from warpcloth.sim.builder import ClothBuilder
+from warpcloth.sim.colliders import MeshCollider, MeshTrack, closest_surface_points
 from warpcloth.sim.mannequin import BONES, CAPSULES, EASE_IN, Mannequin, capsule_mesh
 
 
@@ -107,3 +110,32 @@ def test_character_scene_small_has_no_intersection_and_pins_follow_the_body(body
     assert (outward > 0).all()  # every cloth vertex outside the body
     moved = np.linalg.norm(frames[-1][list(tracks[1].particles)] - model.host.q[list(tracks[1].particles)], axis=1)
     assert moved.max() > 0.01  # the waist turned with the body
+
+
+def test_garments_without_a_material_are_refused():
+    with pytest.raises(WarpclothError, match="made of materials.*not none"):
+        ch.build(material="none", rows=6, cols=6, duration=0.1, device="cpu")
+
+
+def test_check_usd_reads_pieces_as_one_cloth_and_a_deforming_collider_per_frame(tmp_path):
+    """check-intersections on what the character writes: /World/Cloth/<piece> meshes (one cloth: the
+    pieces against each other too) and a deforming mesh collider's points at each frame."""
+    b = ClothBuilder()
+    b.add_grid(3, 3, 1.0, 1.0, total_mass=0.1, plane="horizontal", name="a")
+    b.add_grid(3, 3, 1.0, 1.0, total_mass=0.1, plane="horizontal", origin=(0.0, 0.5, 0.0), name="b")
+    model = b.finalize("cpu")
+    q = model.host.q.astype(np.float64)
+    quad = np.array([[0.2, -1.0, 0.25], [0.8, -1.0, 0.25], [0.8, -0.5, 0.25], [0.2, -0.5, 0.25]])
+    keys = np.stack([quad, quad + [0.0, 0.75, 0.0], quad])  # frame 1: its edges through piece a (y = 0)
+    wall = MeshCollider(vertices=quad, triangles=[[0, 1, 2], [0, 2, 3]], track=MeshTrack.keyframes([0, 1, 2], keys))
+    crossed = q.copy()
+    a_points = q[:9] - q[:9].min(axis=0)  # piece b turned upright through piece a's middle (frame 2)
+    crossed[9:] = np.stack([a_points[:, 0], a_points[:, 2] - 0.5, np.full(9, 0.5)], axis=1)
+    path = str(tmp_path / "pieces.usda")
+    with UsdWriter(path, model, fps=1.0, colliders=(wall,)) as usd:
+        for k, x in enumerate((q, q, crossed)):
+            usd.write_frame(x, float(k))
+    report = check_usd(path)
+    assert report.frames == 3
+    assert report.collider_crossings[0] == 0 and report.collider_crossings[1] > 0 and report.collider_crossings[2] == 0
+    assert report.self_intersections[:2] == [0, 0] and report.self_intersections[2] > 0

@@ -19,6 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from warpcloth.errors import WarpclothError
 from warpcloth.scenarios.common import Scenario, ScenarioConfig, scenario_material
 from warpcloth.sim.builder import ClothBuilder
 from warpcloth.sim.colliders import attach, closest_surface_points
@@ -108,12 +109,18 @@ def on_band(mesh: TriangleMesh, group: str, body: Mannequin) -> TriangleMesh:
 
 def _model(config: ScenarioConfig, device: str):
     (rows, cols), (rings, around) = garment_sizes(config)
-    cape = scenario_material(config) or "cotton"
+    cape = scenario_material(config)
+    if cape is None:
+        raise WarpclothError(
+            "the character scene's garments are made of materials: give the cape's --material as a preset "
+            "(or custom), not none"
+        )
     body = _body()
     b = ClothBuilder()
-    b.add_mesh(on_band(make_cape(rows, cols), "top", body), material=cape, pin_groups=["top"], quads=True, name="cape")
+    common = {"quads": True, "bend": config.bend}
+    b.add_mesh(on_band(make_cape(rows, cols), "top", body), material=cape, pin_groups=["top"], name="cape", **common)
     skirt = on_band(make_skirt(rings, around), "waist", body)
-    b.add_mesh(skirt, material=SKIRT_MATERIAL, pin_groups=["waist"], quads=True, name="skirt")
+    b.add_mesh(skirt, material=SKIRT_MATERIAL, pin_groups=["waist"], name="skirt", **common)
     return b.finalize(device)
 
 
