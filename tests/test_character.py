@@ -112,9 +112,13 @@ def test_character_scene_small_has_no_intersection_and_pins_follow_the_body(body
     assert moved.max() > 0.01  # the waist turned with the body
 
 
-def test_garments_without_a_material_are_refused():
+def test_garments_without_a_material_or_of_another_size_are_refused():
     with pytest.raises(WarpclothError, match="made of materials.*not none"):
         ch.build(material="none", rows=6, cols=6, duration=0.1, device="cpu")
+    with pytest.raises(WarpclothError, match="rows must be"):
+        ch.build(rows=2, cols=6, duration=0.1, device="cpu")
+    with pytest.raises(WarpclothError, match="--width and --height do not apply"):
+        ch.build(rows=6, cols=6, width=2.0, duration=0.1, device="cpu")
 
 
 def test_check_usd_reads_pieces_as_one_cloth_and_a_deforming_collider_per_frame(tmp_path):

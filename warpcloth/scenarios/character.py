@@ -4,12 +4,13 @@ The body is the procedural :class:`~warpcloth.sim.mannequin.Mannequin` (capsules
 bones, marching in place and turning), a deforming mesh collider on MeshTrack keyframes at the run's
 fps. Two garments of two materials in one model (:class:`~warpcloth.sim.builder.ClothBuilder`): a
 cape (the run's material, cotton by default) of rows x cols hanging behind the shoulders, and a
-skirt (:data:`SKIRT_MATERIAL`) flaring from the waist, a tube of ``rows * 2 // 3`` rings of
-``2 * cols`` vertices. Their top rows are pinned with :func:`~warpcloth.sim.colliders.attach` to the
+skirt (:data:`SKIRT_MATERIAL`) flaring from the waist, a tube of ``rows`` rings of ``2 * cols``
+vertices. Their top rows are pinned with :func:`~warpcloth.sim.colliders.attach` to the
 body's skin moved :data:`BAND` out along its normals (skinned as the body), so the pins ride the
 moving body while each pinned row's edges stay off the skin. Self-collision is on (both garments in
-one collision group: the cape's hem meets the skirt). The run lasts its duration (no equilibrium:
-the body keeps moving). docs/character.md.
+one collision group: the cape's hem meets the skirt). xpbd at 1 iteration x 16 substeps: on the CPU a
+deforming collider runs plain launches, so a frame costs its substeps' launches. The run lasts its
+duration (no equilibrium: the body keeps moving). docs/character.md.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from warpcloth.errors import WarpclothError
+from warpcloth.errors import WarpclothError, require_int
 from warpcloth.scenarios.common import Scenario, ScenarioConfig, scenario_material
 from warpcloth.sim.builder import ClothBuilder
 from warpcloth.sim.colliders import attach, closest_surface_points
@@ -87,8 +88,15 @@ def make_skirt(rings: int, around: int) -> TriangleMesh:
 
 
 def garment_sizes(config: ScenarioConfig) -> tuple[tuple[int, int], tuple[int, int]]:
-    """((cape rows, cols), (skirt rings, around)) of a configuration's rows and cols."""
-    return (config.rows, config.cols), (config.rows, 2 * config.cols)
+    """((cape rows, cols), (skirt rings, around)) of a configuration's rows and cols (each at least 3);
+    the garments' sizes are the body's, so a width or height other than 1 is refused."""
+    rows, cols = require_int("rows", config.rows, 3), require_int("cols", config.cols, 3)
+    if (config.width, config.height) != (1.0, 1.0):
+        raise WarpclothError(
+            f"the character's garments are cut to the body: --width and --height do not apply (got "
+            f"{config.width:g} x {config.height:g}); --rows and --cols set their resolution"
+        )
+    return (rows, cols), (rows, 2 * cols)
 
 
 def _body() -> Mannequin:
