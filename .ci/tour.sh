@@ -43,6 +43,7 @@ say warpcloth run drape --collider capsule:a=-0.6/0.1/0.35,b=0.6/0.1/0.35,radius
 say warpcloth run mesh --mesh examples/cape.obj --pin-group shoulders --usd cape.usda --num-frames 2
 say warpcloth run mesh --mesh cape.usda --prim /World/Cloth --pin 'y > 0.95 * y.max()' --num-frames 2
 say warpcloth run examples/cape.toml --num-frames 2
+say warpcloth run character --usd c.usdc --html c.html --size 6 --num-frames 3
 say warpcloth run flag --rows 16 --cols 16 --num-frames 3 --html flag.html
 say warpcloth run flag --preview flag.gif --usd flag.usdz --usd-color strain --size 8 --num-frames 3
 say warpcloth sweep --example quick --out quick2.csv

@@ -17,7 +17,11 @@ EXIT_INTERSECTING = 1
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", help="a USD file written by warpcloth (warpcloth run ... --usd FILE)")
-    p.add_argument("--cloth", default="/World/Cloth", help="the cloth's mesh prim (default /World/Cloth)")
+    p.add_argument(
+        "--cloth",
+        default="/World/Cloth",
+        help="the cloth's mesh prim, or the prim over a model's pieces, checked as one cloth (default /World/Cloth)",
+    )
     p.add_argument("--colliders", default="/World/Colliders", help="the colliders' scope (default /World/Colliders)")
     p.add_argument("--frames", action="store_true", help="one line per frame with its counts")
     p.add_argument("--json", action="store_true", help="the counts of every frame as JSON")

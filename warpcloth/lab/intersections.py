@@ -7,8 +7,9 @@ written to USD (docs/self-collision.md, "The checker").
 * :func:`collider_edge_crossings`: the (collider edge, cloth triangle) pairs that cross, for box
   colliders (their 12 edges) and triangle-mesh colliders (their unique edges);
 * :func:`check_frames` and :func:`check_usd`: both counts at every frame (a USD file as
-  :class:`~warpcloth.io.usd.UsdWriter` writes it: ``/World/Cloth`` points, time-sampled, and
-  ``/World/Colliders``).
+  :class:`~warpcloth.io.usd.UsdWriter` writes it: ``/World/Cloth`` points, time-sampled, or the
+  meshes of a model's pieces under it, checked as one cloth; ``/World/Colliders``, a deforming
+  mesh's edges at each frame's points).
 
 The tests are on closed sets: two triangles intersect when they share a point (touching and
 coplanar overlap count), a segment crosses a triangle when it has a point in it. A segment's ends'
@@ -443,13 +444,24 @@ def _usd_collider_segments(stage, path: str, root: str = "/World/Colliders"):
             elif prim.IsA(UsdGeom.Mesh) and name.startswith("mesh"):
                 mesh = UsdGeom.Mesh(prim)
                 pts = _points(mesh.GetPointsAttr().Get(), where)
-                items.append((prim, where, mesh_segments(pts, _triangles(mesh, where, len(pts)))))
+                tris = _triangles(mesh, where, len(pts))
+                if mesh.GetPointsAttr().GetNumTimeSamples():  # a deforming mesh: its edges at each time
+                    items.append((prim, where, (mesh.GetPointsAttr(), tris, len(pts))))
+                else:
+                    items.append((prim, where, mesh_segments(pts, tris)))
     cache = UsdGeom.XformCache()
 
     def at(code):
         out = []
         cache.SetTime(Usd.TimeCode(code))
-        for prim, where, local in items:
+        for prim, where, edges in items:
+            local = edges
+            if isinstance(edges, tuple):
+                attr, tris, count = edges
+                pts = _points(attr.Get(Usd.TimeCode(code)), f"{where} at time code {code:g}")
+                if len(pts) != count:
+                    raise WarpclothError(f"{where} at time code {code:g} has {len(pts)} points, its topology {count}")
+                local = mesh_segments(pts, tris)
             m = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64)  # row vectors: p' = [p 1] M
             if not np.isfinite(m).all():
                 raise WarpclothError(f"{where}: its transform at time code {code:g} is not finite")
@@ -492,17 +504,40 @@ def check_usd(path: str, cloth: str = "/World/Cloth", colliders: str = DEFAULT_C
         del stage, layers
 
 
+def _piece_meshes(pieces, path: str):
+    """([(points attribute, point count, name)] of each piece's mesh, their triangles (T, 3) with
+    indices offset by the pieces before)."""
+    from pxr import Usd, UsdGeom  # noqa: PLC0415 (usd-core loads only where USD is read or written)
+
+    attrs, tris, offset = [], [], 0
+    for p in pieces:
+        mesh, name = UsdGeom.Mesh(p), f"{path}: {p.GetPath()}"
+        attr = mesh.GetPointsAttr()
+        n = len(_points(attr.Get((attr.GetTimeSamples() or [Usd.TimeCode.Default()])[0]), name))
+        tris.append(_triangles(mesh, name, n) + offset)
+        attrs.append((attr, n, name))
+        offset += n
+    return attrs, np.concatenate(tris)
+
+
 def _check_stage(stage, path: str, cloth: str, colliders: str) -> IntersectionReport:
     """:func:`check_usd` on an opened stage."""
     from pxr import Usd, UsdGeom  # noqa: PLC0415 (usd-core loads only where USD is read or written)
 
     prim = stage.GetPrimAtPath(cloth)
-    if not prim or not prim.IsA(UsdGeom.Mesh):
-        raise WarpclothError(f"{path}: no mesh at {cloth!r}")
+    pieces = (
+        [prim]
+        if prim and prim.IsA(UsdGeom.Mesh)
+        else [c for c in (prim.GetChildren() if prim else ()) if c.IsA(UsdGeom.Mesh)]
+    )
+    if not pieces:
+        raise WarpclothError(f"{path}: no mesh at {cloth!r} (nor, for a model of several pieces, meshes under it)")
     where = f"{path}: {cloth}"
-    mesh = UsdGeom.Mesh(prim)
-    tris = _triangles(mesh, where)
-    attr = mesh.GetPointsAttr()
+    if len(pieces) == 1 and pieces[0] == prim:
+        attrs, tris = [(UsdGeom.Mesh(prim).GetPointsAttr(), None, where)], _triangles(UsdGeom.Mesh(prim), where)
+    else:  # a model of several pieces (/World/Cloth/<name>): one cloth, their triangles end to end
+        attrs, tris = _piece_meshes(pieces, path)
+    attr = attrs[0][0]
     codes = attr.GetTimeSamples() or [Usd.TimeCode.Default()]
     fps = stage.GetTimeCodesPerSecond()
     if not (np.isfinite(fps) and fps > 0):
@@ -513,7 +548,11 @@ def _check_stage(stage, path: str, cloth: str, colliders: str) -> IntersectionRe
     for code in codes:
         default = isinstance(code, Usd.TimeCode)
         at = f"{where} at time code {code:g}" if not default else where
-        x = _points(attr.Get(code), at)
+        parts = [_points(a.Get(code), at if n is None else f"{w} at time code {code:g}") for a, n, w in attrs]
+        for (_, n, w), part in zip(attrs, parts):
+            if n is not None and len(part) != n:
+                raise WarpclothError(f"{w} at time code {code:g} has {len(part)} points, its first frame {n}")
+        x = np.concatenate(parts)
         if count is None:
             count = len(x)
             _check_indices(tris, count, where)

@@ -10,14 +10,27 @@ or a :class:`Scenario` object given to :func:`register` from Python.
 from __future__ import annotations
 
 from warpcloth.errors import WarpclothError
-from warpcloth.scenarios import cantilever, curtain, cusick, drape, flag, fold, mesh, pair, sheet, swing, tablecloth
+from warpcloth.scenarios import (
+    cantilever,
+    character,
+    curtain,
+    cusick,
+    drape,
+    flag,
+    fold,
+    mesh,
+    pair,
+    sheet,
+    swing,
+    tablecloth,
+)
 from warpcloth.scenarios.common import Scenario, ScenarioConfig
 from warpcloth.scenarios.file import is_scenario_file, load_scenario
 
 #: The built-in scenarios by name, in the order ``warpcloth list`` shows them.
 _BUILT_IN = {
     m.SCENARIO.name: m.SCENARIO
-    for m in (sheet, flag, curtain, mesh, drape, tablecloth, fold, cantilever, cusick, swing, pair)
+    for m in (sheet, flag, curtain, mesh, drape, tablecloth, fold, cantilever, cusick, swing, pair, character)
 }
 _REGISTERED: dict[str, Scenario] = {}
 
