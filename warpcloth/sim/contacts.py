@@ -91,7 +91,7 @@ class ColliderSet:
             self.substep = wp.array([0, 1], dtype=int)  # (k, S): the position-based substep k of S
             self.frame_times = frame_times if frame_times is not None else wp.zeros(4, dtype=wp.float64)
             self._moving, self.drives, seen = [], [], set()
-            self._deforming = []  # (k, mesh, its points' keyframe arguments, creases or None, (min, max) scratch)
+            self._deforming = []  # (k, mesh, its points' keyframe arguments, creases or None, (min, max, speed) scratch)
             for k, (c, record) in enumerate(zip(order, records)):
                 if c.track is None:
                     continue
@@ -165,7 +165,7 @@ class ColliderSet:
         if creases is not None:
             ends = wp.array(_convex_edges(c.vertices, c.triangles).astype(np.int32), dtype=wp.vec2i)
             creases = (creases, ends)
-        return k, self.meshes[k], keys, creases, (wp.zeros(1, dtype=wp.vec3), wp.zeros(1, dtype=wp.vec3))
+        return k, self.meshes[k], keys, creases, (wp.zeros(1, dtype=wp.vec3), wp.zeros(1, dtype=wp.vec3), wp.zeros(1))
 
     @property
     def moving(self) -> bool:
