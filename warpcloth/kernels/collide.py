@@ -60,7 +60,10 @@ class Collider:
     crease_a: wp.array(dtype=wp.vec3)  # their ends, in the mesh's own frame [m]
     crease_b: wp.array(dtype=wp.vec3)
     deforming: int  # 1: a MESH whose points the step moves (world frame, moving = 0; v_c from its vertices' velocities)
-    speed: float  # a deforming MESH's fastest vertex at its pose [m/s] (bounds v_c for swept_mesh_contact; else 0)
+    motion: wp.array(
+        dtype=wp.vec3
+    )  # a deforming MESH's vertices' mean velocity over the (sub)step ending at its pose [m/s]
+    speed: float  # the largest of those [m/s] (swept_mesh_contact's bound on the surface's motion; else 0)
 
 
 @wp.struct
@@ -466,6 +469,22 @@ def surface_velocity(colliders: wp.array(dtype=Collider), k: int, y: wp.vec3):
 
 
 @wp.func
+def deformed_surface_motion(colliders: wp.array(dtype=Collider), k: int, y: wp.vec3):
+    # a deforming mesh's mean velocity over the (sub)step at the surface point nearest y: its vertices'
+    # (motion) interpolated barycentrically there, as wp.mesh_eval_velocity does (0: no surface within reach)
+    reach = colliders[k].thickness + wp.max(colliders[k].radius, colliders[k].rounding) + 1.0e-3
+    mesh = colliders[k].mesh
+    query = wp.mesh_query_point_no_sign(mesh, y, reach)
+    if not query.result:
+        return wp.vec3(0.0)
+    motion = colliders[k].motion
+    a = motion[wp.mesh_get_index(mesh, 3 * query.face)]
+    b = motion[wp.mesh_get_index(mesh, 3 * query.face + 1)]
+    c = motion[wp.mesh_get_index(mesh, 3 * query.face + 2)]
+    return a * query.u + b * query.v + c * (1.0 - query.u - query.v)
+
+
+@wp.func
 def swept_mesh_contact(
     colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, r: wp.vec3, h: float, phi: float, n: wp.vec3
 ):
@@ -495,7 +514,7 @@ def swept_mesh_contact(
         vc = colliders[k].velocity + wp.cross(colliders[k].omega, x - colliders[k].origin)
     elif colliders[k].deforming != 0:
         if contact or wp.length(r) + h * colliders[k].speed > far:  # else |s| <= far: not cast
-            vc = deformed_surface_velocity(colliders, k, x)
+            vc = deformed_surface_motion(colliders, k, x)
     s = r - h * vc
     length = wp.length(s)
     if length == 0.0:
@@ -871,29 +890,32 @@ def eval_mesh_points(
     cubic: int,
     points: wp.array(dtype=wp.vec3),
     velocities: wp.array(dtype=wp.vec3),
+    motion: wp.array(dtype=wp.vec3),
     lo: wp.array(dtype=wp.vec3),
     hi: wp.array(dtype=wp.vec3),
     fastest: wp.array(dtype=float),
 ):
     # a deforming mesh's vertex j at t (as eval_collider_pose's t): its keys interpolated in float64
-    # and rounded once; its velocity the mean over the (sub)step ending at t, (p(t) - p(t0)) / (t - t0)
-    # (dp/dt at t where t0 = t): the surface's motion over the (sub)step the contacts meet (a key's end
-    # within it moved the surface, at a velocity of 0 after it); lo[0], hi[0] = min, max over the
-    # vertices, fastest[0] the largest velocity (reset before; an array each, so that Warp's
+    # and rounded once, its velocity dp/dt, and its mean velocity over the (sub)step ending at t,
+    # (p(t) - p(t0)) / (t - t0) (dp/dt where t0 = t: swept_mesh_contact's surface motion; a key's end
+    # within the step moved the surface though dp/dt after it is 0); lo[0], hi[0] = min, max over the
+    # vertices, fastest[0] the largest mean velocity (reset before; an array each, so that Warp's
     # deterministic mode reduces each with one operation)
     t = pose_time(time, offset, step_dt, substep, use_substep)
     t0 = pose_start_time(time, offset, step_dt, substep, use_substep)
     j = wp.tid()
     p, dp = track_keyframes(t, times, values, tangents, cubic, j, points.shape[0])
+    mean = dp
     if t0 < t:
         p0, _dp0 = track_keyframes(t0, times, values, tangents, cubic, j, points.shape[0])
-        dp = (p - p0) / (t - t0)
+        mean = (p - p0) / (t - t0)
     q = wp.vec3(p)
     points[j] = q
     velocities[j] = wp.vec3(dp)
+    motion[j] = wp.vec3(mean)
     wp.atomic_min(lo, 0, q)
     wp.atomic_max(hi, 0, q)
-    wp.atomic_max(fastest, 0, wp.length(velocities[j]))
+    wp.atomic_max(fastest, 0, wp.length(motion[j]))
 
 
 @wp.kernel
