@@ -60,6 +60,10 @@ class Collider:
     crease_a: wp.array(dtype=wp.vec3)  # their ends, in the mesh's own frame [m]
     crease_b: wp.array(dtype=wp.vec3)
     deforming: int  # 1: a MESH whose points the step moves (world frame, moving = 0; v_c from its vertices' velocities)
+    motion: wp.array(
+        dtype=wp.vec3
+    )  # a deforming MESH's vertices' mean velocity over the (sub)step ending at its pose [m/s]
+    speed: float  # the largest of those [m/s] (swept_mesh_contact's bound on the surface's motion; else 0)
 
 
 @wp.struct
@@ -464,6 +468,82 @@ def surface_velocity(colliders: wp.array(dtype=Collider), k: int, y: wp.vec3):
     return colliders[k].velocity + wp.cross(colliders[k].omega, y - colliders[k].origin)
 
 
+@wp.func
+def deformed_surface_motion(colliders: wp.array(dtype=Collider), k: int, y: wp.vec3):
+    # a deforming mesh's mean velocity over the (sub)step at the surface point nearest y: its vertices'
+    # (motion) interpolated barycentrically there, as wp.mesh_eval_velocity does (0: no surface within reach)
+    reach = colliders[k].thickness + wp.max(colliders[k].radius, colliders[k].rounding) + 1.0e-3
+    mesh = colliders[k].mesh
+    query = wp.mesh_query_point_no_sign(mesh, y, reach)
+    if not query.result:
+        return wp.vec3(0.0)
+    motion = colliders[k].motion
+    a = motion[wp.mesh_get_index(mesh, 3 * query.face)]
+    b = motion[wp.mesh_get_index(mesh, 3 * query.face + 1)]
+    c = motion[wp.mesh_get_index(mesh, 3 * query.face + 2)]
+    return a * query.u + b * query.v + c * (1.0 - query.u - query.v)
+
+
+@wp.func
+def swept_mesh_contact(
+    colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, r: wp.vec3, h: float, phi: float, n: wp.vec3
+):
+    # mesh collider k's (phi, n) at x (shape_contact's), its side told by the particle's path: r its
+    # displacement over the (sub)step of h seconds that ends at x, s = r - h v_c relative to the surface,
+    # so it started at y = x - s on the surface as posed now. Where the ray y -> x first enters a face
+    # (s.n_f < 0), the particle crossed the surface there: its contact is the crossing point c lifted
+    # by the thickness, x -> c + thickness n_f (phi = thickness - |c + thickness n_f - x|, n along that
+    # move: the response stops it where it crossed, as a continuous check would), not the nearest
+    # point's, which past a thin limb's medial axis lies on its far side. Cast only where the nearest
+    # point can be wrong: in contact and moving along its n (entering through a face moves against its
+    # normal), or out of contact with |s| > phi (it may have gone through)
+    thickness = colliders[k].thickness
+    reach = wp.max(colliders[k].radius, colliders[k].rounding)
+    rotation = colliders[k].rotation
+    moving = colliders[k].moving
+    local = x - colliders[k].a
+    if moving != 0:
+        local = wp.transpose(rotation) * local
+    half = colliders[k].b
+    if wp.abs(local[0]) > half[0] or wp.abs(local[1]) > half[1] or wp.abs(local[2]) > half[2]:
+        return phi, n  # outside its box (grown by thickness and reach): no surface it could have crossed
+    contact = phi < thickness
+    far = wp.min(phi, thickness + reach)  # x's distance to the surface, or more (none within the query's reach)
+    vc = wp.vec3(0.0)
+    if moving != 0:
+        vc = colliders[k].velocity + wp.cross(colliders[k].omega, x - colliders[k].origin)
+    elif colliders[k].deforming != 0:
+        if contact or wp.length(r) + h * colliders[k].speed > far:  # else |s| <= far: not cast
+            vc = deformed_surface_motion(colliders, k, x)
+    s = r - h * vc
+    length = wp.length(s)
+    if length == 0.0:
+        return phi, n
+    if contact:
+        if wp.dot(s, n) <= 0.0:
+            return phi, n
+    elif length <= far:
+        return phi, n
+    end = x
+    d = s
+    if moving != 0:  # the mesh's own frame (its BVH's)
+        end = colliders[k].rest_center + local
+        d = wp.transpose(rotation) * s
+    d = d / length
+    query = wp.mesh_query_ray(colliders[k].mesh, end - length * d, d, length)
+    if not query.result:
+        return phi, n
+    if wp.dot(d, query.normal) >= 0.0:  # it leaves a face first: it started inside (the nearest point stands)
+        return phi, n
+    move = thickness * query.normal - (length - query.t) * d  # from x to the crossing point lifted
+    if moving != 0:
+        move = rotation * move
+    distance = wp.length(move)
+    if distance == 0.0:
+        return phi, n
+    return thickness - distance, move / distance
+
+
 @wp.func(inline=True)
 def velocity_response(
     colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, v: wp.vec3, phi: float, n: wp.vec3, dt: float
@@ -505,6 +585,8 @@ def collide_velocity(
     if in_box(xi, box):
         for k in range(plane_count, colliders.shape[0]):
             phi, n = shape_contact(colliders, k, xi, contact_band(colliders, k))
+            if colliders[k].kind == MESH:  # the side it came from (its step's displacement dt v)
+                phi, n = swept_mesh_contact(colliders, k, xi, dt * vi, dt, phi, n)
             xi, vi, got = velocity_response(colliders, k, xi, vi, phi, n, h)
             hit = hit + got
     if hit != 0:
@@ -593,6 +675,8 @@ def collide_displacement(
         for k in range(plane_count, colliders.shape[0]):
             p = xi + d
             phi, n = shape_contact(colliders, k, p, contact_band(colliders, k))
+            if colliders[k].kind == MESH:  # the side it came from (its substep's displacement d)
+                phi, n = swept_mesh_contact(colliders, k, p, d, motion_time, phi, n)
             d, nc, got = displacement_response(colliders, k, p, d, nc, phi, n, friction, motion_time)
             hit = hit + got
     if hit != 0:  # written only where a collider moved d (a small correction on a large nc counts too)
@@ -667,6 +751,22 @@ def pose_time(
     t = time[0] + offset
     if use_substep != 0:
         t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
+    return t
+
+
+@wp.func
+def pose_start_time(
+    time: wp.array(dtype=wp.float64),
+    offset: wp.float64,
+    step_dt: wp.array(dtype=wp.float64),
+    substep: wp.array(dtype=int),
+    use_substep: int,
+):
+    # the start of the (sub)step whose end pose_time gives: the clock (a pose at an offset from it), or
+    # where substeps pose, the coming substep's start
+    t = time[0]
+    if use_substep != 0:
+        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1]) - 1) / wp.float64(substep[1])
     return t
 
 
@@ -790,26 +890,39 @@ def eval_mesh_points(
     cubic: int,
     points: wp.array(dtype=wp.vec3),
     velocities: wp.array(dtype=wp.vec3),
+    motion: wp.array(dtype=wp.vec3),
     lo: wp.array(dtype=wp.vec3),
     hi: wp.array(dtype=wp.vec3),
+    fastest: wp.array(dtype=float),
 ):
     # a deforming mesh's vertex j at t (as eval_collider_pose's t): its keys interpolated in float64
-    # and rounded once, its velocity dp/dt; lo[0], hi[0] = min, max over the vertices (reset before;
-    # two arrays, so that Warp's deterministic mode reduces each with one operation)
+    # and rounded once, its velocity dp/dt, and its mean velocity over the (sub)step ending at t,
+    # (p(t) - p(t0)) / (t - t0) (dp/dt where t0 = t: swept_mesh_contact's surface motion; a key's end
+    # within the step moved the surface though dp/dt after it is 0); lo[0], hi[0] = min, max over the
+    # vertices, fastest[0] the largest mean velocity (reset before; an array each, so that Warp's
+    # deterministic mode reduces each with one operation)
     t = pose_time(time, offset, step_dt, substep, use_substep)
+    t0 = pose_start_time(time, offset, step_dt, substep, use_substep)
     j = wp.tid()
     p, dp = track_keyframes(t, times, values, tangents, cubic, j, points.shape[0])
+    mean = dp
+    if t0 < t:
+        p0, _dp0 = track_keyframes(t0, times, values, tangents, cubic, j, points.shape[0])
+        mean = (p - p0) / (t - t0)
     q = wp.vec3(p)
     points[j] = q
     velocities[j] = wp.vec3(dp)
+    motion[j] = wp.vec3(mean)
     wp.atomic_min(lo, 0, q)
     wp.atomic_max(hi, 0, q)
+    wp.atomic_max(fastest, 0, wp.length(motion[j]))
 
 
 @wp.kernel
-def reset_bounds(lo: wp.array(dtype=wp.vec3), hi: wp.array(dtype=wp.vec3)):
+def reset_bounds(lo: wp.array(dtype=wp.vec3), hi: wp.array(dtype=wp.vec3), fastest: wp.array(dtype=float)):
     lo[0] = wp.vec3(1.0e30)
     hi[0] = wp.vec3(-1.0e30)
+    fastest[0] = 0.0
 
 
 @wp.kernel
@@ -837,10 +950,12 @@ def eval_deformed_record(
     rest: wp.array(dtype=Collider),
     bounds_lo: wp.array(dtype=wp.vec3),
     bounds_hi: wp.array(dtype=wp.vec3),
+    fastest: wp.array(dtype=float),
     colliders: wp.array(dtype=Collider),
 ):
     # a deforming mesh's record: its box (the cheap rejection) around its points now, grown by its
-    # thickness, its reach and its creases' rounding, with _mesh_half's float32 margin
+    # thickness, its reach and its creases' rounding, with _mesh_half's float32 margin; its fastest
+    # vertex's speed
     lo = bounds_lo[0]
     hi = bounds_hi[0]
     r = rest[index]
@@ -850,4 +965,5 @@ def eval_deformed_record(
     m.bound_center = m.a
     m.b = half * (1.0 + 1.0e-5) + wp.vec3(1.0e-6)
     m.rounding = r.rounding
+    m.speed = fastest[0]
     colliders[index] = m

@@ -80,7 +80,11 @@ class ColliderSet:
             ]  # kept alive: the records hold their ids
             # a mesh's convex creases and open edges (the capsules of its edge_radius): a wp.Bvh each, kept alive
             self.creases = [_crease_arrays(c) if c.kind == "mesh" else None for c in order]
-            records = [_record(c, m, e) for c, m, e in zip(order, self.meshes, self.creases)]
+            # a deforming mesh's vertices' mean velocity over the (sub)step (kernels.collide.eval_mesh_points)
+            self.motions = [
+                wp.zeros(len(c.vertices), dtype=wp.vec3) if c.kind == "mesh" and c.deforming else None for c in order
+            ]
+            records = [_record(c, m, e, v) for c, m, e, v in zip(order, self.meshes, self.creases, self.motions)]
             self.rest = wp.array(records, dtype=ck.Collider)
             self.params = wp.array(records, dtype=ck.Collider)
             self._box = wp.zeros(
@@ -91,7 +95,7 @@ class ColliderSet:
             self.substep = wp.array([0, 1], dtype=int)  # (k, S): the position-based substep k of S
             self.frame_times = frame_times if frame_times is not None else wp.zeros(4, dtype=wp.float64)
             self._moving, self.drives, seen = [], [], set()
-            self._deforming = []  # (k, mesh, its points' keyframe arguments, creases or None, (min, max) scratch)
+            self._deforming = []  # (k, mesh, its points' keyframe arguments, creases or None, (min, max, speed) scratch)
             for k, (c, record) in enumerate(zip(order, records)):
                 if c.track is None:
                     continue
@@ -165,7 +169,7 @@ class ColliderSet:
         if creases is not None:
             ends = wp.array(_convex_edges(c.vertices, c.triangles).astype(np.int32), dtype=wp.vec2i)
             creases = (creases, ends)
-        return k, self.meshes[k], keys, creases, (wp.zeros(1, dtype=wp.vec3), wp.zeros(1, dtype=wp.vec3))
+        return k, self.meshes[k], keys, creases, (wp.zeros(1, dtype=wp.vec3), wp.zeros(1, dtype=wp.vec3), wp.zeros(1))
 
     @property
     def moving(self) -> bool:
@@ -217,7 +221,7 @@ class ColliderSet:
             ck.eval_mesh_points,
             dim=mesh.points.shape[0],
             inputs=[self.time, wp.float64(offset), self.step_dt, self.substep, int(substep), *keys],
-            outputs=[mesh.points, mesh.velocities, *bounds],
+            outputs=[mesh.points, mesh.velocities, self.motions[k], *bounds],
             device=d,
         )
         mesh.refit()
@@ -566,9 +570,10 @@ def _mesh_half(c, rounding: float = 0.0):
     return wp.vec3(*(half * (1.0 + 1e-5) + 1e-6))
 
 
-def _record(c, mesh=None, creases=None):
+def _record(c, mesh=None, creases=None, motion=None):
     """The rest :class:`~warpcloth.kernels.collide.Collider` record of a collider (``mesh``: the
-    wp.Mesh of a MeshCollider, ``creases`` its :func:`_crease_arrays`)."""
+    wp.Mesh of a MeshCollider, ``creases`` its :func:`_crease_arrays`, ``motion`` a deforming one's
+    per-vertex mean velocities)."""
     r = ck.Collider()
     r.kind = KINDS.index(c.kind)
     r.radius = float(getattr(c, "radius", 0.0))
@@ -593,6 +598,8 @@ def _record(c, mesh=None, creases=None):
             r.rounding = c.rounding(0.0)  # edge_radius None: 0 until bind_model
         r.b = _mesh_half(c, r.rounding)
         r.deforming = int(c.deforming)
+        if motion is not None:
+            r.motion = motion
     else:
         r.a = r.bound_center = wp.vec3(*c.center)
         r.b = wp.vec3(*c.half_extents)
