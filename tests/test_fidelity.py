@@ -38,9 +38,23 @@ def test_xpbd_at_its_own_defaults_does_not_reproduce_the_drape():
 
 
 def test_a_capped_solve_fails_the_rule():
-    # CG held to 2 iterations: every step stops at its cap; the cantilever is then no measurement of its material
-    f = measure_fidelity("cantilever", "implicit_euler", {"cg_max_iter": 2, "preconditioner": "jacobi"}, duration=0.3)
-    assert f.capped_steps > 0 and "capped" in f.failures and not f.meets
+    # a 6 x 6 cotton sheet hung by its top row under implicit Euler, CG held to 12 Jacobi iterations: every step
+    # stops at its cap, yet it comes to rest on the equilibrium (strain 1.00x, shape 5e-6 of the size, measured):
+    # the cap alone fails it. With 200 iterations (no step capped) the same run meets the rule.
+    capped, converged = (
+        measure_fidelity(
+            "sheet",
+            "implicit_euler",
+            {"cg_max_iter": n, "preconditioner": "jacobi"},
+            rows=6,
+            cols=6,
+            material="cotton",
+            duration=4.0,
+        )
+        for n in (12, 200)
+    )
+    assert capped.capped_steps > 0 and capped.failures == ["capped"] and not capped.meets, capped.failures
+    assert converged.capped_steps == 0 and converged.meets, converged.failures
 
 
 def test_rest_equilibrium_is_the_float64_static_equilibrium_without_contacts():
