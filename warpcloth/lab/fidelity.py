@@ -448,7 +448,7 @@ def measure_fidelity(
     base = cfg
     cfg = replace(cfg, integrator_options=scenario.integrator_options(cfg.integrator, options))
     sim, result, peak = _run(scenario, cfg, still_air)
-    windy = still_air and sim.control.has_wind
+    windy, wind_peak = still_air and sim.control.has_wind, math.nan
     if wind_duration is None:
         wind_duration = scenario.config().duration
     if windy and result.stable:
