@@ -2,6 +2,7 @@
 
     python bench/fidelity.py [--scenes drape,tablecloth,...] [--size N] [--only default] [--json out.json]
     python bench/fidelity.py --scenes warpcloth/examples/cape.toml --breeze --pick 0,1
+    python bench/fidelity.py --scenes tablecloth --size 16 --duration 20 --speeds
 
 Each scene (a scenario or a scenario file) runs to rest on the CPU with its default configuration and the
 candidates below (warpcloth.lab.fidelity.measure_fidelity); prints the largest structural strain at rest
@@ -12,16 +13,20 @@ measured in motion in its wind as well; ``--breeze`` prints, for such a scene, t
 the picked candidates and of the converged dynamics (explicit Euler at a quarter of its dt), and times those
 candidates interleaved 1 s into the wind (7 rounds of time_steps, thread CPU ms per 1/60 s frame). These are
 the figures of docs/materials.md's "Fidelity of the shipped scenes"; tests/test_fidelity.py holds each
-default to the rule at a reduced size.
+default to the rule at a reduced size. ``--speeds`` prints a scene's default run every 0.5 s: the largest
+particle speed, where that particle is, and how many move faster than the equilibrium detector's 5 mm/s.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import time
 from dataclasses import replace
+
+import numpy as np
 
 from warpcloth.lab.fidelity import measure_fidelity, motion_peak_strain
 from warpcloth.run.harness import time_steps
@@ -97,6 +102,22 @@ def breeze(scene: str, chosen: list) -> None:
         print(f"{integrator or 'default'} {options or ''}: {statistics.median(ms):.2f} ms/frame [{spread}]")
 
 
+def speeds(scene: str, duration: float | None, **size) -> None:
+    """The default run of ``scene`` every 0.5 s: its fastest particle (speed, position), how many above 5 mm/s."""
+    scenario = get_scenario(scene)
+    cfg = scenario.config(device="cpu", **size, **({"duration": duration} if duration else {}))
+    sim = scenario.build(replace(cfg, integrator_options=scenario.integrator_options(cfg.integrator, None)))
+    frame = max(1, math.ceil((1.0 / 60.0) / sim.dt - 1e-9))
+    while sim.sim_time < cfg.duration - 1e-9:
+        sim.simulate(30 * frame)
+        v = np.linalg.norm(sim.state.particle_qd.numpy(), axis=1)
+        k = int(np.argmax(v))
+        where = np.round(sim.state.particle_q.numpy()[k], 3)
+        print(
+            f"t {sim.sim_time:5.2f} s: fastest {1e3 * v[k]:7.2f} mm/s (particle {k} at {where}); {np.sum(v > 5e-3)} > 5 mm/s"
+        )
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", default=",".join(CANDIDATES))
@@ -109,7 +130,12 @@ def main(argv=None) -> None:
     ap.add_argument("--pick", default=None, help="candidates by index (0: the default), e.g. 1,3")
     ap.add_argument("--json", default=None, help="append every row as a JSON line to this file")
     ap.add_argument("--breeze", action="store_true", help="a wind scene's peak strains and interleaved timing")
+    ap.add_argument("--speeds", action="store_true", help="a scene's default run: its fastest particle every 0.5 s")
     args = ap.parse_args(argv)
+    if args.speeds:
+        for scene in args.scenes.split(","):
+            speeds(scene, args.duration, **({"rows": args.rows or args.size, "cols": args.size} if args.size else {}))
+        return
     if args.breeze:
         for scene in args.scenes.split(","):
             chosen = CANDIDATES[scene]
