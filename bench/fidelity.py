@@ -3,6 +3,7 @@
     python bench/fidelity.py [--scenes drape,tablecloth,...] [--size N] [--only default] [--json out.json]
     python bench/fidelity.py --scenes warpcloth/examples/cape.toml --breeze --pick 0,1
     python bench/fidelity.py --scenes tablecloth --size 16 --duration 20 --speeds
+    python bench/fidelity.py --scenes warpcloth/examples/cape.toml --duration 8 --speeds --pick 0,1
 
 Each scene (a scenario or a scenario file) runs to rest on the CPU with its default configuration and the
 candidates below (warpcloth.lab.fidelity.measure_fidelity); prints the largest structural strain at rest
@@ -13,8 +14,9 @@ measured in motion in its wind as well; ``--breeze`` prints, for such a scene, t
 the picked candidates and of the converged dynamics (explicit Euler at a quarter of its dt), and times those
 candidates interleaved 1 s into the wind (7 rounds of time_steps, thread CPU ms per 1/60 s frame). These are
 the figures of docs/materials.md's "Fidelity of the shipped scenes"; tests/test_fidelity.py holds each
-default to the rule at a reduced size. ``--speeds`` prints a scene's default run every 0.5 s: the largest
-particle speed, where that particle is, and how many move faster than the equilibrium detector's 5 mm/s.
+default to the rule at a reduced size. ``--speeds`` prints a run of the picked candidates (default: the
+scene's default) every 0.5 s: the largest particle speed, where that particle is, and how many move faster
+than the equilibrium detector's 5 mm/s.
 """
 
 from __future__ import annotations
@@ -66,7 +68,7 @@ CANDIDATES = {
     ],
     CAPE: [
         (None, None, None),
-        ("explicit_euler", {}, None),
+        ("implicit_euler", {"preconditioner": "block_jacobi"}, None),
         ("xpbd", {}, None),
         ("xpbd", {"iterations": 2, "substeps": 32}, None),
         ("xpbd", {"iterations": 1, "substeps": 64}, None),
@@ -102,11 +104,14 @@ def breeze(scene: str, chosen: list) -> None:
         print(f"{integrator or 'default'} {options or ''}: {statistics.median(ms):.2f} ms/frame [{spread}]")
 
 
-def speeds(scene: str, duration: float | None, **size) -> None:
-    """The default run of ``scene`` every 0.5 s: its fastest particle (speed, position), how many above 5 mm/s."""
+def speeds(scene: str, duration: float | None, integrator=None, options=None, **size) -> None:
+    """A run of ``scene`` (``integrator`` and ``options``, None: its default) every 0.5 s: its fastest particle
+    (speed, position) and how many move faster than 5 mm/s."""
     scenario = get_scenario(scene)
     cfg = scenario.config(device="cpu", **size, **({"duration": duration} if duration else {}))
-    sim = scenario.build(replace(cfg, integrator_options=scenario.integrator_options(cfg.integrator, None)))
+    cfg = replace(cfg, integrator=integrator or cfg.integrator)
+    sim = scenario.build(replace(cfg, integrator_options=scenario.integrator_options(cfg.integrator, options)))
+    print(f"{scenario.name} {cfg.integrator} {options or ''}")
     frame = max(1, math.ceil((1.0 / 60.0) / sim.dt - 1e-9))
     while sim.sim_time < cfg.duration - 1e-9:
         sim.simulate(30 * frame)
@@ -134,7 +139,9 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     if args.speeds:
         for scene in args.scenes.split(","):
-            speeds(scene, args.duration, **({"rows": args.rows or args.size, "cols": args.size} if args.size else {}))
+            size = {"rows": args.rows or args.size, "cols": args.size} if args.size else {}
+            for integrator, options, _ in [CANDIDATES[scene][int(k)] for k in (args.pick or "0").split(",")]:
+                speeds(scene, args.duration, integrator, options, **size)
         return
     if args.breeze:
         for scene in args.scenes.split(","):

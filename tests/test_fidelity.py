@@ -18,10 +18,10 @@ from warpcloth.sim.colliders import Box, quat_matrix
 
 #: Each scene at a size the CPU affords in seconds (its default integrator configuration; the drape at 16 x 16:
 #: 1.04x the equilibrium's strain, shape 0.06 %, +0.45 % in motion, about 9 s of CPU; the fold, cotton under
-#: explicit Euler, at 12 x 6: 0.14x, shape 1.77 %, +1.56 %). The cape (320 particles, implicit Euler with block
-#: Jacobi) flaps in its breeze without end, so it rests in still air (1.00x, shape 0.09 %, at rest at 7.5 s) and is
-#: held in motion in its breeze too (peak 0.47 %; the converged dynamics' 0.55 %). The tablecloth meets the rule
-#: but for rest (test_the_tablecloth_meets_the_rule_but_for_rest).
+#: explicit Euler, at 12 x 6: 0.14x, shape 1.77 %, +1.56 %). The cape (320 particles, explicit Euler) flaps in its
+#: breeze without end, so it rests in still air (1.00x, shape 0.03 %, at rest at 8.8 s) and is held in motion in its
+#: breeze too (peak 0.57 %; the converged dynamics' 0.55 %): about 9 s of CPU. The tablecloth meets the rule but
+#: for rest (test_the_tablecloth_meets_the_rule_but_for_rest).
 CAPE = str(Path(__file__).resolve().parents[1] / "warpcloth" / "examples" / "cape.toml")
 SCENES = [
     ("cantilever", {}),
