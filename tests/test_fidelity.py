@@ -1,9 +1,12 @@
 """The fidelity rule (docs/materials.md, "Fidelity of the shipped scenes"): every shipped scene that names a
 material reproduces it at its default integrator configuration, at a reduced size: at rest within 2 % of the
 cloth's size and 1.5x the largest strain of the float64 equilibrium with its contacts, no more stretch in
-motion than the study's 2 %, and no capped step (a capped run fails, never passes)."""
+motion than the study's 2 %, and no capped step (a capped run fails, never passes). A scene whose wind never
+lets it rest (the cape) rests in still air and is held in motion in its wind too."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,12 +17,21 @@ from warpcloth.scenarios import get_scenario
 from warpcloth.sim.colliders import Box, quat_matrix
 
 #: Each scene at a size the CPU affords in seconds (its default integrator configuration; the drape at 16 x 16:
-#: 1.04x the equilibrium's strain, shape 0.06 %, +0.45 % in motion, about 9 s of CPU). The tablecloth (at 24 x 24
-#: still moving after its 10 s), the fold and the cape are not held here yet (docs/materials.md).
-SCENES = [("cantilever", {}), ("drape", {"rows": 16, "cols": 16})]
+#: 1.04x the equilibrium's strain, shape 0.06 %, +0.45 % in motion, about 9 s of CPU; the fold, cotton under
+#: explicit Euler, at 12 x 6: 0.14x, shape 1.77 %, +1.56 %). The cape (320 particles, explicit Euler) flaps in its
+#: breeze without end, so it rests in still air (1.00x, shape 0.03 %, at rest at 8.8 s) and is held in motion in its
+#: breeze too (peak 0.57 %; the converged dynamics' 0.55 %): about 9 s of CPU. The tablecloth meets the rule but
+#: for rest (test_the_tablecloth_meets_the_rule_but_for_rest).
+CAPE = str(Path(__file__).resolve().parents[1] / "warpcloth" / "examples" / "cape.toml")
+SCENES = [
+    ("cantilever", {}),
+    ("drape", {"rows": 16, "cols": 16}),
+    ("fold", {"rows": 12, "cols": 6}),
+    (CAPE, {"still_air": True, "duration": 12.0}),  # 12 s to rest in still air; its breeze its own 3 s
+]
 
 
-@pytest.mark.parametrize(("scene", "size"), SCENES, ids=[s for s, _ in SCENES])
+@pytest.mark.parametrize(("scene", "size"), SCENES, ids=[Path(s).stem for s, _ in SCENES])
 def test_scene_default_reproduces_its_material(scene, size):
     f = measure_fidelity(scene, **size)
     assert f.meets, (
@@ -27,6 +39,15 @@ def test_scene_default_reproduces_its_material(scene, size):
         f"vs the equilibrium's {f.strain_eq:.4g}, shape {f.shape:.4g}, peak {f.peak_strain:.4g}, capped "
         f"{f.capped_steps}/{f.strain_capped_steps})"
     )
+
+
+def test_the_tablecloth_meets_the_rule_but_for_rest():
+    # its default (xpbd 2 x 32) at 12 x 12: strain 0.99x the equilibrium's, shape 0.15 %, +0.18 % in motion, but not
+    # at rest in its 10 s: from 8 s on, 0-16 particles lying on the table's rounded edges and corners move at 4-10
+    # mm/s (the detector's bound: 5 mm/s for 0.5 s) while their positions stay put to 1 mm (measured to 20 s at
+    # 16 x 16, docs/materials.md). Known and open (issue 51); when it comes to rest, move it to SCENES.
+    f = measure_fidelity("tablecloth", rows=12, cols=12)
+    assert f.failures == ["not at rest"], f.failures
 
 
 def test_xpbd_at_its_own_defaults_does_not_reproduce_the_drape():
@@ -37,9 +58,23 @@ def test_xpbd_at_its_own_defaults_does_not_reproduce_the_drape():
 
 
 def test_a_capped_solve_fails_the_rule():
-    # CG held to 2 iterations: every step stops at its cap; the cantilever is then no measurement of its material
-    f = measure_fidelity("cantilever", "implicit_euler", {"cg_max_iter": 2, "preconditioner": "jacobi"}, duration=0.3)
-    assert f.capped_steps > 0 and "capped" in f.failures and not f.meets
+    # a 6 x 6 cotton sheet hung by its top row under implicit Euler, CG held to 12 Jacobi iterations: every step
+    # stops at its cap, yet it comes to rest on the equilibrium (strain 1.00x, shape 5e-6 of the size, measured):
+    # the cap alone fails it. With 200 iterations (no step capped) the same run meets the rule.
+    capped, converged = (
+        measure_fidelity(
+            "sheet",
+            "implicit_euler",
+            {"cg_max_iter": n, "preconditioner": "jacobi"},
+            rows=6,
+            cols=6,
+            material="cotton",
+            duration=4.0,
+        )
+        for n in (12, 200)
+    )
+    assert capped.capped_steps > 0 and capped.failures == ["capped"] and not capped.meets, capped.failures
+    assert converged.capped_steps == 0 and converged.meets, converged.failures
 
 
 def test_rest_equilibrium_is_the_float64_static_equilibrium_without_contacts():

@@ -185,8 +185,13 @@ def test_a_pressed_contacts_friction_is_sized_by_its_own_momentum_not_the_spring
     passed on to its neighbours (they left at 4-7 m/s); the run went unstable at 0.25 s (strain 3.3).
     Sized by the particle's approach momentum and its weight it stays stable through the landing (its
     peak, 0.35 at 0.1 s, is the strip's buckling under the hand before the friction matters). Without
-    the strain cap, which would hide the ejected neighbours' stretch."""
-    r = get_scenario("fold").harness(integrator="implicit_euler", integrator_options={"strain_cap": 0.0}).run(0.5)
+    the strain cap, which would hide the ejected neighbours' stretch. The fold of then: per-spring, 0.15 kg (the
+    fold is cotton since issue 51's fidelity rule; the cotton fold under implicit Euler without its strain cap at
+    1/60 s reaches strain 1.45 by 0.5 s, a case not examined here)."""
+    fold = get_scenario("fold")
+    r = fold.harness(
+        integrator="implicit_euler", integrator_options={"strain_cap": 0.0}, material="none", mass=0.15
+    ).run(0.5)
     assert r.stable, (r.unstable_reason, r.max_strain)
     assert r.max_strain < 0.4
 

@@ -13,8 +13,9 @@ particle against the equilibrium's, the peak strain in motion, capped steps, and
 rule: at rest; shape <= :data:`SHAPE_TOLERANCE`; strain <= :data:`STRAIN_RATIO` x the equilibrium's
 (plus what float32 positions resolve, :func:`strain_resolution`); peak strain in motion at most
 :data:`~warpcloth.lab.accuracy.OVERSTRETCH` above the equilibrium's or, where measured, the converged
-dynamics' peak (:data:`MOTION_REFERENCE`); no capped step. ``python bench/fidelity.py`` prints the
-table of docs/materials.md.
+dynamics' peak (:data:`MOTION_REFERENCE`); no capped step. A scene whose wind never lets it rest (the
+cape flaps in its breeze) is measured with ``still_air``: at rest with its wind stilled, in motion in its wind
+too. ``python bench/fidelity.py`` prints the table of docs/materials.md.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from warpcloth.lab.reference import Float64Model, Penalty, cloth_size, minimize,
 from warpcloth.run.harness import RunHarness, time_steps
 from warpcloth.scenarios import get_scenario
 from warpcloth.sim.colliders import Box, Plane, Sphere, auto_edge_radius, quat_matrix
+from warpcloth.sim.control import WindSchedule
 from warpcloth.sim.hinges import hinge_angle_gradients, hinge_energies, wrap_angle
 from warpcloth.sim.model import SpringType
 
@@ -387,29 +389,75 @@ class Fidelity:
         return not self.failures
 
 
-def _run(scenario, cfg):
-    """(simulator, RunResult, peak structural strain over the frames) of a run of ``cfg`` to rest."""
-    harness = RunHarness(scenario.build(cfg), scenario=scenario.name, instability_strain=cfg.instability_strain)
+#: ``still_air``'s wind: still air W = 0 [m/s] (the air's drag on the cloth's normal motion stays).
+STILL_AIR = WindSchedule.constant((0.0, 0.0, 0.0))
+
+
+def _run(scenario, cfg, still_air: bool = False, to_rest: bool = True):
+    """(simulator, RunResult, peak structural strain over the frames) of a run of ``cfg`` to rest (where the
+    scene stops there and ``to_rest``; else for its duration); with ``still_air``, its wind stilled."""
+    sim = scenario.build(cfg)
+    if still_air and sim.control.has_wind:
+        sim.control.wind_schedule = STILL_AIR
+    harness = RunHarness(sim, scenario=scenario.name, instability_strain=cfg.instability_strain)
     peak = _PeakStrain(harness.sim.model)
-    result = harness.run(cfg.duration, fps=cfg.fps, stop_at_equilibrium=scenario.stop_at_equilibrium, frames=peak)
+    stop = scenario.stop_at_equilibrium and to_rest
+    result = harness.run(cfg.duration, fps=cfg.fps, stop_at_equilibrium=stop, frames=peak)
     return harness.sim, result, peak.peak
 
 
+def motion_peak_strain(
+    scene: str, integrator: str | None = None, options: dict | None = None, dt_scale: float = 1.0, **overrides
+) -> float:
+    """The peak structural strain of ``scene`` run as it is (its wind on, no stop at rest) for its duration
+    with ``integrator`` and ``options`` (None: the scene's), at ``dt_scale`` x that configuration's step (a
+    converged reference: explicit Euler at a fraction of its stable step). Raises if the run is not stable."""
+    scenario = get_scenario(scene)
+    cfg = scenario.config(device="cpu", **overrides)
+    if integrator is not None:
+        cfg = replace(cfg, integrator=integrator)
+    cfg = replace(cfg, integrator_options=scenario.integrator_options(cfg.integrator, options))
+    if dt_scale != 1.0:
+        cfg = replace(cfg, dt=scenario.build(cfg).dt * dt_scale)
+    _, result, peak = _run(scenario, cfg, to_rest=False)
+    require(result.stable, f"{scenario.name} under {cfg.integrator} went unstable: {result.unstable_reason}")
+    return peak
+
+
 def measure_fidelity(
-    scene: str, integrator: str | None = None, options: dict | None = None, motion_reference: bool = True, **overrides
+    scene: str,
+    integrator: str | None = None,
+    options: dict | None = None,
+    motion_reference: bool = True,
+    still_air: bool = False,
+    wind_duration: float | None = None,
+    **overrides,
 ) -> Fidelity:
     """Run ``scene`` (a scenario's name or file) on the CPU with ``integrator`` and ``options`` (None: the
     scene's default, and its options for it) and ``overrides`` (ScenarioConfig fields: rows, cols, dt,
     duration, material, ...) to rest, and measure it against its float64 equilibrium (module docstring).
     ``motion_reference``: where the peak strain in motion exceeds the equilibrium's by more than
-    OVERSTRETCH and the rest meets the rule, run :data:`MOTION_REFERENCE` too and judge against its peak."""
+    OVERSTRETCH and the rest meets the rule, run :data:`MOTION_REFERENCE` too and judge against its peak.
+    ``still_air``: the rest is the scene's with its wind stilled (:data:`STILL_AIR`), the motion both that
+    run's and a run of the scene as it is, in its wind, for ``wind_duration`` [s] (None: the scene's own
+    duration; its peak in ``extra["wind_peak"]``, its capped steps counted too); the motion reference runs both."""
     scenario = get_scenario(scene)
     cfg = scenario.config(device="cpu", **overrides)
     if integrator is not None:
         cfg = replace(cfg, integrator=integrator)
     base = cfg
     cfg = replace(cfg, integrator_options=scenario.integrator_options(cfg.integrator, options))
-    sim, result, peak = _run(scenario, cfg)
+    sim, result, peak = _run(scenario, cfg, still_air)
+    windy, wind_peak = still_air and sim.control.has_wind, math.nan
+    if wind_duration is None:
+        wind_duration = scenario.config().duration
+    if windy and result.stable:
+        _, wind_result, wind_peak = _run(scenario, replace(cfg, duration=wind_duration), to_rest=False)
+        peak = max(peak, wind_peak)
+        result.stable = wind_result.stable
+        result.capped_steps += wind_result.capped_steps
+        result.strain_capped_steps += wind_result.strain_capped_steps
+        result.capped_cause = result.capped_cause or wind_result.capped_cause
     out = Fidelity(
         scene=scenario.name,
         integrator=cfg.integrator,
@@ -424,6 +472,8 @@ def measure_fidelity(
         capped_cause=result.capped_cause,
         peak_strain=peak,
     )
+    if windy:
+        out.extra["wind_peak"] = wind_peak
     if not result.stable:
         return out
     x = sim.state.particle_q.numpy().astype(np.float64)
@@ -443,18 +493,24 @@ def measure_fidelity(
     if motion_reference and out.stretch_excess > OVERSTRETCH and not rest_failures:
         name, opts = MOTION_REFERENCE
         ref_cfg = replace(base, integrator=name, integrator_options=dict(opts), dt=None)
-        _, ref_result, ref_peak = _run(scenario, ref_cfg)
+        _, ref_result, ref_peak = _run(scenario, ref_cfg, still_air)
         require(ref_result.stable, f"the motion reference {name} {opts} went unstable on {scenario.name}")
+        if windy:
+            _, ref_result, ref_wind = _run(scenario, replace(ref_cfg, duration=wind_duration), to_rest=False)
+            require(ref_result.stable, f"the motion reference {name} {opts} went unstable on {scenario.name}'s wind")
+            ref_peak = max(ref_peak, ref_wind)
         out.peak_reference = ref_peak
     return out
 
 
 __all__ = [
     "SHAPE_TOLERANCE",
+    "STILL_AIR",
     "STRAIN_RATIO",
     "Fidelity",
     "RestEquilibrium",
     "measure_fidelity",
+    "motion_peak_strain",
     "rest_equilibrium",
     "structural_strain",
 ]
