@@ -27,7 +27,7 @@ say warpcloth run sheet --rows 20 --cols 20 --stiffness 100 --strain-limit 0.1 -
 say warpcloth max-dt sheet --integrator explicit_euler --size 6
 say warpcloth sweep examples/quick.xml --out quick.csv
 say warpcloth sweep examples/quick.xml -o q.csv --workers 2
-say warpcloth bench --sizes 8 --steps 10 --roofline --out bench.csv --plot bench.png
+say warpcloth bench --sizes 4 --steps 2 --roofline --out bench.csv --plot bench.png
 say warpcloth bench --scenario examples/cape.toml --integrators xpbd,implicit_euler --steps 10
 say warpcloth run curtain --size 8 --num-frames 2
 say warpcloth run drape --size 8 --num-frames 2
@@ -47,7 +47,7 @@ say warpcloth run character --usd c.usdc --html c.html --size 6 --num-frames 3
 say warpcloth run flag --rows 16 --cols 16 --num-frames 3 --html flag.html
 say warpcloth run flag --preview flag.gif --usd flag.usdz --usd-color strain --size 8 --num-frames 3
 say warpcloth sweep --example quick --out quick2.csv
-say python -m warpcloth bench --sizes 8 --steps 10 --json --quiet
+say python -m warpcloth bench --sizes 4 --steps 2 --json --quiet
 say warpcloth study --profile quick --sizes 4 --out study-quick
 say warpcloth advise --size 64 --budget-ms 8 --tolerance 0.05
 # -- end of README.md's tour --

@@ -1,16 +1,23 @@
 """Shared fixtures: tests run on the CPU device; CUDA-parametrised cases skip without a GPU."""
 
 import contextlib
+import importlib
 import os
+import pkgutil
 import shutil
 from dataclasses import replace
 
 import pytest
 import warp as wp
 
-import warpcloth  # noqa: F401  (sets Warp's log level before init)
+import warpcloth.kernels  # warpcloth sets Warp's log level before init; its kernel modules: kernels_compiled_once
 from warpcloth.lab.measure import Measurements
 from warpcloth.lab.plan import make_plan
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX: each worker compiles what it needs, as Warp does
+    fcntl = None
 
 wp.init()
 
@@ -64,6 +71,40 @@ def count_allocations(monkeypatch):
         monkeypatch.setattr(CpuDefaultAllocator, "allocate", original)
 
     return start, stop
+
+
+@pytest.fixture(scope="session", autouse=True)
+def kernels_compiled_once(tmp_path_factory):
+    """Under xdist (README's test command) the workers compile warpcloth's kernel modules between them,
+    each module once, before their first test. Warp compiles a module missing from its cache in every
+    process that loads it, and the workers, given neighbouring tests, load the same modules at about the
+    same time: with an empty cache (CI) each worker compiled most of the 21 modules (156 s of CPU for all
+    of them at the CPU's block size, measured). Here each worker walks the modules from its own offset
+    and compiles (or loads from the cache) each one no other worker holds the lock of, then waits for
+    the locks of those it skipped and loads them from the cache. The CPU's default block size, as a
+    launch uses it (the same cache entries)."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    if not worker or fcntl is None:
+        return
+    package = warpcloth.kernels
+    modules = [importlib.import_module(m.name) for m in pkgutil.iter_modules(package.__path__, package.__name__ + ".")]
+    count = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
+    start = int(worker.removeprefix("gw") or 0) * len(modules) // count
+    locks = tmp_path_factory.getbasetemp().parent / "warp-compile-locks"  # this session's, shared by its workers
+    locks.mkdir(exist_ok=True)
+    skipped = []
+    for module in modules[start:] + modules[:start]:
+        with open(locks / f"{module.__name__}.lock", "w") as lock:
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                skipped.append(module)  # another worker is compiling it
+                continue
+            wp.load_module(module, device="cpu")
+    for module in skipped:
+        with open(locks / f"{module.__name__}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # until the other worker has it in the cache
+            wp.load_module(module, device="cpu")
 
 
 @pytest.fixture(scope="session")

@@ -6,6 +6,7 @@ the settings that fix it."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from fractions import Fraction
 
 import numpy as np
@@ -114,7 +115,7 @@ def test_schemes_without_a_capped_solve_report_zero():
     assert np.isfinite(sim.state.particle_q.numpy()).all()
 
 
-def test_the_study_records_a_capped_trial_as_capped_not_as_a_measurement():
+def test_the_study_records_a_capped_trial_as_capped_not_as_a_measurement(study_references):
     class Out:  # a worker's stand-in for results.csv
         def __init__(self):
             self.done = {}
@@ -122,7 +123,8 @@ def test_the_study_records_a_capped_trial_as_capped_not_as_a_measurement():
         def write(self, row):
             self.done[row["key"]] = row
 
-    m = Measurements(make_plan("quick", integrators=["implicit_euler"], sizes=[4]), out=Out())
+    plan = make_plan("quick", integrators=["implicit_euler"], sizes=[4])
+    m = Measurements(replace(plan, reference_cache=str(study_references)), out=Out())  # the session's references
     capped = m.trial("swing", Config("implicit_euler", (("cg_max_iter", 1),), Fraction(1)), "cpu", 4)
     assert capped["stable"] and capped["note"].startswith("capped: the solve stopped at its iteration cap in")
     assert capped["error_rel"] is None and capped["centroid_error_rel"] is None and capped["max_strain_rel"] is None

@@ -237,7 +237,7 @@ def test_pbd_bend_stiffness_is_mapped_from_the_material_into_the_options():
 
 
 # -- the plan is a function of the profile and its calibration (issue 50) -------------------------
-def test_not_run_is_decided_by_the_stated_calibration_not_the_load():
+def test_not_run_is_decided_by_the_stated_calibration_not_the_load(study_references):
     from dataclasses import replace
     from fractions import Fraction
     from types import SimpleNamespace
@@ -245,7 +245,8 @@ def test_not_run_is_decided_by_the_stated_calibration_not_the_load():
     from warpcloth.lab import measure
     from warpcloth.lab.configs import Config
 
-    plan = replace(make_plan("quick", integrators=["xpbd"], sizes=[4]), max_frame_ms=10.0)
+    plan = make_plan("quick", integrators=["xpbd"], sizes=[4])
+    plan = replace(plan, max_frame_ms=10.0, reference_cache=str(study_references))  # the session's references
     out = SimpleNamespace(done={})
     out.write = lambda row: out.done.__setitem__(row["key"], row)
     m = measure.Measurements(plan, out)
