@@ -25,8 +25,7 @@ say warpcloth run flag --integrator projective --pd-iterations 10 --pd-cg-iterat
 say warpcloth run sheet --rows 16 --cols 16 --integrator implicit_euler --preconditioner multigrid --num-frames 2
 say warpcloth run sheet --rows 20 --cols 20 --stiffness 100 --strain-limit 0.1 --num-frames 2
 say warpcloth max-dt sheet --integrator explicit_euler --size 6
-say warpcloth sweep examples/quick.xml --out quick.csv
-say warpcloth sweep examples/quick.xml -o q.csv --workers 2
+say warpcloth sweep examples/quick.xml --out quick.csv --workers 2
 say warpcloth bench --sizes 4 --steps 2 --roofline --out bench.csv --plot bench.png
 say warpcloth bench --scenario examples/cape.toml --integrators xpbd,implicit_euler --steps 10
 say warpcloth run curtain --size 8 --num-frames 2
