@@ -140,14 +140,14 @@ VBD_FRICTION = pytest.mark.xfail(strict=True, reason="vbd's friction on a cloth 
 def test_a_sliding_plane_drags_a_resting_cloth_by_friction(integrator):
     # Coulomb: the cloth accelerates at mu g until it moves with the plane (t_s = U / (mu g)), then sticks
     mu, speed = 0.5, 0.5
-    d, x, t = slid_cloth(integrator, mu, 0.3, speed)
+    d, x, t = slid_cloth(integrator, mu, 0.2, speed)  # t_s = 0.102 s: both phases inside the run
     t_s = speed / (mu * G)
     expected = 0.5 * mu * G * t_s**2 + speed * (t - t_s)
     assert d[:, 0].mean() == pytest.approx(expected, rel=0.03)
     assert np.abs(d[:, 2]).max() < 1e-4  # no sideways drift
     assert np.abs(x[:, 1] - 0.002).max() < 1e-4  # on the moving surface at the thickness
-    d0, _, _ = slid_cloth(integrator, 0.0, 0.3, speed)
-    assert np.abs(d0[:, 0]).max() < 1e-4  # without friction the plane slides under it
+    d0, _, _ = slid_cloth(integrator, 0.0, 0.05, speed)
+    assert np.abs(d0[:, 0]).max() < 1e-4  # without friction the plane slides under it (friction: ~6 mm by 0.05 s)
 
 
 #: The limb lifts the corner-pinned 40 cm cloth 10 cm (its top from 0 to 0.10 m; about 5 % strain): a cloth that
