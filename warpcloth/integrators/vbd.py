@@ -152,6 +152,8 @@ class VBD(IncrementSolver):
     coloring: VertexColoring
 
     def _allocate_solver(self, model) -> None:
+        # a collider's friction is a lagged term of the potential (its translation slides a cloth as a whole)
+        self.contacts.coulomb = 0
         pairs = model.host.pairs
         if model.hinge_count:  # no two vertices of a colour share a hinge either
             pairs = np.concatenate([pairs, hinge_pairs(model.host.hinges.indices)])

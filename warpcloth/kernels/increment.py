@@ -45,6 +45,7 @@ class ContactState:
     velocity: wp.array(dtype=wp.vec3)  # the collider's velocity there [m/s]
     force: wp.array(dtype=wp.vec3)  # the colliders' force on the vertex in its local problem [N]
     state: wp.array(dtype=int)  # 0 free, 1 sliding, 2 sticking
+    friction: wp.array(dtype=float)  # mu of a contact whose friction is the step's potential's (vbd), else 0
 
 
 @wp.kernel
@@ -110,6 +111,11 @@ def newton_increment(g: wp.vec3, H: wp.mat33):
     return -(wp.inverse(H) * g)
 
 
+#: IPC's smooth static friction (Li et al. 2020, eq. 14; Chen et al. 2024): below this tangential speed
+#: [m/s] relative to the collider, friction is a stiff spring (a cloth held by it creeps at ~0.6 of it)
+FRICTION_SPEED = wp.constant(1.0e-5)
+
+
 @wp.func(inline=True)
 def contact_response(
     colliders: wp.array(dtype=Collider),
@@ -121,6 +127,7 @@ def contact_response(
     h: float,
     H: wp.mat33,
     Hinv: wp.mat33,
+    coulomb: int,
 ):
     # the vertex's local problem min 1/2 e^T H e - c^T e (e = its displacement from d, the unconstrained
     # minimiser; c the collider's force) with p = x + d within collider k's thickness, the surface
@@ -130,11 +137,23 @@ def contact_response(
     # p + H^-1 c is on the surface. With H isotropic this is the projection along n and friction as
     # position-based solvers' (up to mu times the depth); an anisotropic H (stiff springs along the
     # surface) needs the solve: projecting along n alone lets the normal force's H^-1 coupling slide
-    # the contact. Returns d, hit (1: a contact) and v_c
+    # the contact. coulomb 0 with friction (vbd: friction is a term of the vertex's potential,
+    # lagged_friction): c = lambda n, p + H^-1 c on the surface, hit 2 (sticking) where its slip over the
+    # step is within FRICTION_SPEED h, else 1. Returns d, hit (1, 2: a contact) and v_c
     depth = colliders[k].thickness - phi
     if depth <= 0.0:
         return d, 0, wp.vec3(0.0), wp.vec3(0.0)
     vc = surface_velocity(colliders, k, p)
+    if coulomb == 0 and colliders[k].mu > 0.0:
+        qn = Hinv * n
+        dn = wp.dot(n, qn)
+        if dn > 0.0:
+            e = d + (depth / dn) * qn
+            slip = (e - h * vc) - wp.dot(e - h * vc, n) * n
+            hit = int(1)
+            if wp.length(slip) < FRICTION_SPEED * h:
+                hit = 2
+            return e, hit, vc, (depth / dn) * n
     r = d + depth * n - h * vc
     stick = depth * n - (r - wp.dot(r, n) * n)
     c = H * stick
@@ -153,36 +172,75 @@ def contact_response(
 
 
 @wp.func
-def project_increment(xi: wp.vec3, d: wp.vec3, colliders: Colliders, h: float, H: wp.mat33, Hinv: wp.mat33):
-    # x_i + d out of every collider with friction (contact_response, the vertex's local Hessian H):
-    # planes first, the others when x_i + d is in the box around them (as kernels.collide's
-    # responses); returns d, the last contact's normal (0: none), its collider velocity, the
-    # colliders' force on the vertex and the state (0: free, 1: sliding, 2: sticking)
+def project_increment(
+    xi: wp.vec3, d: wp.vec3, colliders: Colliders, h: float, H: wp.mat33, Hinv: wp.mat33, coulomb: int
+):
+    # x_i + d out of every collider with friction (contact_response, the vertex's local Hessian H;
+    # coulomb 0: the normal force only, friction being the potential's): planes first, the others
+    # when x_i + d is in the box around them (as kernels.collide's responses); returns d, the last
+    # contact's normal (0: none), its collider velocity, the colliders' force on the vertex, the state
+    # (0: free, 1: sliding, 2: sticking) and, with coulomb 0, the last contact's mu (else 0)
     normal = wp.vec3(0.0)
     velocity = wp.vec3(0.0)
     force = wp.vec3(0.0)
     state = int(0)
+    mu = float(0.0)
     records = colliders.records
     for k in range(colliders.plane_count):
         p = xi + d
         phi, n = plane_contact(p, records[k].a, records[k].b)
-        d, hit, vc, c = contact_response(records, k, p, d, phi, n, h, H, Hinv)
+        d, hit, vc, c = contact_response(records, k, p, d, phi, n, h, H, Hinv, coulomb)
         if hit != 0:
             normal = n
             velocity = vc
             force = force + c
             state = hit
+            if coulomb == 0:
+                mu = records[k].mu
     if in_box(xi + d, colliders.box):
         for k in range(colliders.plane_count, records.shape[0]):
             p = xi + d
             phi, n = shape_contact(records, k, p, contact_band(records, k))
-            d, hit, vc, c = contact_response(records, k, p, d, phi, n, h, H, Hinv)
+            d, hit, vc, c = contact_response(records, k, p, d, phi, n, h, H, Hinv, coulomb)
             if hit != 0:
                 normal = n
                 velocity = vc
                 force = force + c
                 state = hit
-    return d, normal, velocity, force, state
+                if coulomb == 0:
+                    mu = records[k].mu
+    return d, normal, velocity, force, state, mu
+
+
+@wp.func
+def lagged_friction(i: int, dx: wp.array(dtype=wp.vec3), contact: ContactState, h: float):
+    # vertex i's Coulomb friction as a term of the step's potential, its normal force lambda and normal n
+    # lagged from the last contact pass (contact.friction: mu, 0 none): D(u) = mu lambda f0(|u|), u = T (dx_i
+    # - h v_c) the slip over the step, T = I - n n^T, f0' = f1 = 2 y / e - y^2 / e^2 below e = FRICTION_SPEED
+    # h, 1 above. Returns its force -grad D = -mu lambda f1 / y u and Hessian mu lambda (f1' u^ u^T + f1 / y
+    # (T - u^ u^T)) (positive semi-definite: f1' >= 0); sliding (y >= e), no stiffness along the slip
+    mu = contact.friction[i]
+    if mu == 0.0 or contact.state[i] == 0:
+        return wp.vec3(0.0), wp.mat33(0.0)
+    n = contact.normal[i]
+    lam = wp.max(wp.dot(contact.force[i], n), 0.0)
+    T = wp.identity(n=3, dtype=float) - wp.outer(n, n)
+    u = T * (dx[i] - h * contact.velocity[i])
+    y = wp.length(u)
+    e = FRICTION_SPEED * h
+    ml = mu * lam
+    f1_y = float(0.0)
+    df1 = float(0.0)
+    if y >= e:
+        f1_y = 1.0 / y
+    else:
+        f1_y = (2.0 - y / e) / e
+        df1 = 2.0 / e - 2.0 * y / (e * e)
+    K = (ml * f1_y) * T
+    if y > 0.0:
+        uh = u / y
+        K = K + (ml * (df1 - f1_y)) * wp.outer(uh, uh)
+    return (-ml * f1_y) * u, K
 
 
 @wp.kernel
@@ -191,22 +249,24 @@ def project_increments(
     particle_inv_mass: wp.array(dtype=float),
     colliders: Colliders,
     h: float,
+    coulomb: int,
     dx: wp.array(dtype=wp.vec3),
     contact: ContactState,
 ):
     # every free particle's x + dx out of the colliders with friction (after a Chebyshev extrapolation,
-    # or projective dynamics' global step), its contact's normal (0: none) and collider velocity
-    # kept; pinned particles stay
+    # or projective dynamics' global step; coulomb as project_increment's), its contact's normal (0: none)
+    # and collider velocity kept; pinned particles stay
     i = wp.tid()
     if particle_inv_mass[i] == 0.0:
         return
     eye = wp.identity(n=3, dtype=float)
-    d, n, vc, c, state = project_increment(x[i], dx[i], colliders, h, eye, eye)
+    d, n, vc, c, state, mu = project_increment(x[i], dx[i], colliders, h, eye, eye, coulomb)
     dx[i] = d
     contact.normal[i] = n
     contact.velocity[i] = vc
     contact.force[i] = c
     contact.state[i] = state
+    contact.friction[i] = mu
 
 
 @wp.kernel
@@ -254,9 +314,10 @@ def update_from_increment_contact(
 @wp.func
 def rigid_mode_projector(i: int, inv_mass: wp.array(dtype=float), contact: ContactState):
     # how particle i takes part in a rigid translation t of the cloth: P_i t with P_i = I (free),
-    # I - n n^T (sliding on a frictionless collider: along its surface), 0 (pinned, or a contact with
-    # friction: sticking, or sliding with a friction force -- the mode cannot see the contacts'
-    # Coulomb cone as a whole, and translating them let the drape slide for good, measured)
+    # I - n n^T (sliding on a frictionless collider, or one whose friction is the potential's, vbd's
+    # lagged_friction, which rigid_mode_terms adds: along its surface), 0 (pinned, sticking, or sliding
+    # with a projected friction force -- the mode cannot see the contacts' Coulomb cone as a whole, and
+    # translating them let the drape slide for good, measured; vbd's sticking ones are held too)
     if inv_mass[i] == 0.0:
         return wp.mat33(0.0)
     state = contact.state[i]
@@ -351,6 +412,10 @@ def rigid_mode_terms(
             c = contact.force[i]
         bi = Pi * (inertia.mass[i] * (inertia.dy[i] - dx[i]) + h2 * c)
         Ai = inertia.mass[i] * Pi
+        if contact.friction[i] > 0.0:  # friction in the potential (vbd): the translation slides it as a whole
+            ff, Kf = lagged_friction(i, dx, contact, h)
+            bi = bi + h2 * (Pi * ff)
+            Ai = Ai + h2 * (Pi * Kf * Pi)
     xi = x[i]
     dxi = dx[i]
     for a in range(springs.offsets[i], springs.offsets[i + 1]):
