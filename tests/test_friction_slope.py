@@ -4,9 +4,10 @@ translation, which alone moves a stiff cloth as a whole).
 
 The single particle of tests/test_colliders.py has no neighbours to hold it; a cloth's Gauss-Seidel
 sweeps move each vertex with its neighbours fixed, so a scheme that slides a particle may still hold
-a cloth. vbd takes a collider's friction as a lagged term of its potential (IPC's smooth Coulomb
-friction, :func:`warpcloth.kernels.increment.lagged_friction`), which its rigid translation sees too:
-it slides at 1.0000005 of the rate and holds at mu 0.7 (2.9e-6 m in 0.5 s).
+a cloth. vbd holds a contact where the Coulomb cone holds its projected local problem (as projective)
+and takes a sliding one's friction as a lagged term of its potential (IPC's smooth Coulomb friction,
+:func:`warpcloth.kernels.increment.lagged_friction`), which its rigid translation sees too: it slides
+at 1.000001 of the rate and does not move at mu 0.7.
 """
 
 from __future__ import annotations

@@ -137,13 +137,21 @@ def contact_response(
     # p + H^-1 c is on the surface. With H isotropic this is the projection along n and friction as
     # position-based solvers' (up to mu times the depth); an anisotropic H (stiff springs along the
     # surface) needs the solve: projecting along n alone lets the normal force's H^-1 coupling slide
-    # the contact. coulomb 0 with friction (vbd: friction is a term of the vertex's potential,
-    # lagged_friction): c = lambda n, p + H^-1 c on the surface, hit 2 (sticking) where its slip over the
-    # step is within FRICTION_SPEED h, else 1. Returns d, hit (1, 2: a contact) and v_c
+    # the contact. coulomb 0 with friction (vbd): sticking (hit 2) where the Coulomb cone holds the
+    # projected stick, as with 1; else sliding, friction a term of the vertex's potential (lagged_friction):
+    # c = lambda n, p + H^-1 c on the surface, hit 1 (2 if its slip over the step is within FRICTION_SPEED
+    # h). Returns d, hit (1, 2: a contact) and v_c
     depth = colliders[k].thickness - phi
     if depth <= 0.0:
         return d, 0, wp.vec3(0.0), wp.vec3(0.0)
     vc = surface_velocity(colliders, k, p)
+    if coulomb == 0 and colliders[k].mu > 0.0:
+        r0 = d + depth * n - h * vc
+        stick0 = depth * n - (r0 - wp.dot(r0, n) * n)
+        c0 = H * stick0
+        cn0 = wp.dot(c0, n)
+        if wp.length(c0 - cn0 * n) <= colliders[k].mu * cn0:
+            return d + stick0, 2, vc, c0
     if coulomb == 0 and colliders[k].mu > 0.0:
         qn = Hinv * n
         dn = wp.dot(n, qn)
@@ -218,9 +226,10 @@ def lagged_friction(i: int, dx: wp.array(dtype=wp.vec3), contact: ContactState, 
     # lagged from the last contact pass (contact.friction: mu, 0 none): D(u) = mu lambda f0(|u|), u = T (dx_i
     # - h v_c) the slip over the step, T = I - n n^T, f0' = f1 = 2 y / e - y^2 / e^2 below e = FRICTION_SPEED
     # h, 1 above. Returns its force -grad D = -mu lambda f1 / y u and Hessian mu lambda (f1' u^ u^T + f1 / y
-    # (T - u^ u^T)) (positive semi-definite: f1' >= 0); sliding (y >= e), no stiffness along the slip
+    # (T - u^ u^T)) (positive semi-definite: f1' >= 0); sliding (y >= e), no stiffness along the slip. Only
+    # a contact the last pass found sliding (state 1): a sticking one is projected (contact_response)
     mu = contact.friction[i]
-    if mu == 0.0 or contact.state[i] == 0:
+    if mu == 0.0 or contact.state[i] == 0 or contact.state[i] == 2:
         return wp.vec3(0.0), wp.mat33(0.0)
     n = contact.normal[i]
     lam = wp.max(wp.dot(contact.force[i], n), 0.0)
