@@ -19,26 +19,20 @@ import time
 from warpcloth.lab.fidelity import measure_fidelity
 
 CAPE = "warpcloth/examples/cape.toml"
+#: The landing scenes' candidates (drape and tablecloth measure the same configurations).
+LANDING = [
+    (None, None, None),
+    ("xpbd", {"iterations": 1, "substeps": 64}, None),
+    ("xpbd", {"iterations": 2, "substeps": 32}, None),
+    ("implicit_euler", {"preconditioner": "multigrid"}, None),
+    ("projective", {}, None),
+    ("xpbd", {"iterations": 1, "substeps": 48}, None),
+    ("xpbd", {"iterations": 1, "substeps": 32}, None),
+]
 #: scene -> its candidates: (integrator, options, dt [s] or None: the default); (None, None, None): the default.
 CANDIDATES = {
-    "drape": [
-        (None, None, None),
-        ("xpbd", {"iterations": 1, "substeps": 64}, None),
-        ("xpbd", {"iterations": 2, "substeps": 32}, None),
-        ("implicit_euler", {"preconditioner": "multigrid"}, None),
-        ("projective", {}, None),
-        ("xpbd", {"iterations": 1, "substeps": 48}, None),
-        ("xpbd", {"iterations": 1, "substeps": 32}, None),
-    ],
-    "tablecloth": [
-        (None, None, None),
-        ("xpbd", {"iterations": 1, "substeps": 64}, None),
-        ("xpbd", {"iterations": 2, "substeps": 32}, None),
-        ("implicit_euler", {"preconditioner": "multigrid"}, None),
-        ("projective", {}, None),
-        ("xpbd", {"iterations": 1, "substeps": 48}, None),
-        ("xpbd", {"iterations": 1, "substeps": 32}, None),
-    ],
+    "drape": LANDING,
+    "tablecloth": LANDING,
     "fold": [
         (None, None, None),
         ("xpbd", {}, None),

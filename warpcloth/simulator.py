@@ -81,9 +81,10 @@ class Simulator:
         dt: time step [s]; default the integrator's :meth:`~Integrator.default_dt`.
         use_graph: capture a frame's steps once with ``wp.ScopedCapture`` and replay it (CUDA
             graphs; Warp's API capture on the CPU). None: wherever the device and the
-            integrator support it. Results are bit-identical either way on the CPU; on CUDA with
-            ``deterministic`` (otherwise the order of the GPU's atomic sums differs from launch to
-            launch, and so do the last bits).
+            integrator support it (not on the CPU with a deforming mesh collider, whose refit
+            is a host call the capture does not record). Results are bit-identical either way on
+            the CPU; on CUDA with ``deterministic`` (otherwise the order of the GPU's atomic sums
+            differs from launch to launch, and so do the last bits).
         strain_limit: Provot's deformation constraint tau (> 0, e.g. 0.1 for 10 %) applied after
             every step of a force-based integrator (:mod:`warpcloth.integrators.strain_limit`); None: the
             integrator's own, if it has one (implicit_euler's ``strain_cap`` option, 0.1 by default;
@@ -354,12 +355,18 @@ class Simulator:
         supported = graph_capture_supported(self.model.device) and self.integrator.capturable_on(self.model.device)
         if self.active_limiter is not None and wp.get_device(self.model.device).is_cuda:
             supported = supported and wp.is_conditional_graph_supported()  # its pass loop is capture_while
+        collision = self.control.collision
+        # a deforming mesh refits its wp.Mesh each pose: a host call on the CPU that Warp's API capture
+        # does not record (Warp 1.19 records wp.Bvh.refit, not wp.Mesh.refit), so a replay would query
+        # a BVH left at the captured pose and miss the surface under a particle
+        refit_on_host = collision is not None and collision.deforming and wp.get_device(self.model.device).is_cpu
         if self._use_graph is None:
-            return supported
-        if self._use_graph and not supported:
+            return supported and not refit_on_host
+        if self._use_graph and (not supported or refit_on_host):
+            why = " (a deforming mesh collider's refit is a host call there)" if refit_on_host else ""
             raise WarpclothError(
                 f"graph capture is not available for integrator {self.integrator.name!r} on {self.model.device} "
-                f"with Warp {wp.config.version}"
+                f"with Warp {wp.config.version}{why}"
             )
         return bool(self._use_graph)
 
@@ -711,6 +718,7 @@ class Simulator:
             return
         self._drive(steps)
         if not self.graph_enabled:
+            self._warm_deforming()
             for chunk in self._chunks(steps):
                 for detect_steps, filter_steps in self._schedule(chunk):
                     self._launch_step(detect_steps, filter_steps)
@@ -721,6 +729,17 @@ class Simulator:
         for chunk in chunks:
             wp.capture_launch(graphs[chunk])
         self._count_steps(steps)
+
+    def _warm_deforming(self) -> None:
+        """Before the first plain-launch step with a deforming mesh collider (on the CPU its frames
+        are not captured): the warm-up a capture does first, so that a position-based step's first
+        substeps pose the mesh at t + dt (k + 1)/S with the integrator's S, not with S = 1 (the
+        whole step's motion pushed into the first substep, 0.9 m/s up off a sphere breathing at
+        0.19 m/s, pbd at dt = 1/600 s)."""
+        collision = self.control.collision
+        if not self._warmed and collision is not None and collision.deforming:
+            self.warm_up()
+            self._begin()
 
     def _graph(self, steps: int):
         """The captured graph of ``steps`` steps (captured on first use, kept per step count and

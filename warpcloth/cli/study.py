@@ -9,7 +9,7 @@ import sys
 
 from warpcloth.errors import WarpclothError
 from warpcloth.lab.accuracy import DEFAULT_TOLERANCE
-from warpcloth.lab.estimate import calibrate, estimate_plan, format_estimate
+from warpcloth.lab.estimate import RECORDED_ON, calibrate, estimate_plan, format_estimate, recorded_costs
 from warpcloth.lab.plan import PROFILES, make_plan
 from warpcloth.lab.study import available_devices, run_study
 
@@ -58,7 +58,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="quick",
         choices=list(PROFILES),
         help="quick (tiny sizes, a few minutes on 2 CPU cores), standard (sizes 16-128 on the CPU, the committed "
-        "study), gpu (64-512 on cuda)",
+        "study), gpu (64 and 128 on cuda, <= 8 min of device time)",
     )
     p.add_argument(
         "--integrators", type=_list("integrators"), default=None, metavar="A,B", help="integrators (default: all)"
@@ -157,12 +157,16 @@ def run(args) -> int:
     )
     if args.estimate:
         devices = available_devices(plan.devices, sys.stderr)
-        if not devices:  # the estimate is a model of per-step costs timed on the devices: none, no estimate
-            where = "; docs/gpu.md gives the gpu profile's expected device time" if plan.profile == "gpu" else ""
-            raise WarpclothError(
-                f"no estimate: --estimate times steps on the plan's devices and none of {', '.join(plan.devices)} "
-                f"is available here{where}"
-            )
+        if not devices:  # a model of per-step costs timed on the devices; for CUDA, those recorded on an H200
+            costs = recorded_costs(plan) if all(d.startswith("cuda") for d in plan.devices) else None
+            if costs is None:
+                raise WarpclothError(
+                    f"no estimate: --estimate times steps on the plan's devices and none of "
+                    f"{', '.join(plan.devices)} is available here (no recorded costs for this plan either)"
+                )
+            phases = {plan.devices[0]: estimate_plan(plan, costs, plan.devices[0])}
+            print(format_estimate(plan, phases, args.workers or 1, recorded=RECORDED_ON))
+            return 0
         quiet = getattr(args, "quiet", False)
         by_device = {d: estimate_plan(plan, calibrate(plan, d, None if quiet else sys.stderr), d) for d in devices}
         print(format_estimate(plan, by_device, args.workers or 1))

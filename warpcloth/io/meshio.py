@@ -27,7 +27,7 @@ import numpy as np
 
 from warpcloth.errors import WarpclothError, require
 from warpcloth.io.files import AtomicFolder, check_input_file, check_output_folder, read_input, write_atomic
-from warpcloth.sim.colliders import MeshCollider
+from warpcloth.sim.colliders import MeshCollider, MeshTrack
 from warpcloth.sim.device import require_memory
 from warpcloth.sim.mesh import TriangleMesh, check_mesh, drop_loose_vertices
 
@@ -81,9 +81,54 @@ def load_mesh(path: str, prim: str | None = None) -> TriangleMesh:
 
 def load_mesh_collider(path: str, prim: str | None = None, **settings) -> MeshCollider:
     """The mesh of an OBJ or USD file (:func:`load_mesh`) as a :class:`~warpcloth.sim.colliders.MeshCollider`
-    with ``settings`` (thickness, friction, reach, track)."""
-    mesh = load_mesh(os.path.expanduser(os.fspath(path)), prim)
+    with ``settings`` (thickness, friction, reach, track). A USD mesh whose points are time-sampled
+    (a skinned or baked body) deforms: its track is a :class:`~warpcloth.sim.colliders.MeshTrack`
+    of those samples (:func:`read_usd_points_samples`), unless ``settings`` give a track."""
+    path = os.path.expanduser(os.fspath(path))
+    mesh = load_mesh(path, prim)
+    if "track" not in settings and MESH_FORMATS.get(os.path.splitext(path)[1].lower()) == "USD":
+        samples = read_usd_points_samples(path, prim)
+        if samples is not None:
+            times, points = samples
+            keep = np.setdiff1d(np.arange(points.shape[1]), mesh.loose)  # as load_mesh dropped the loose ones
+            settings = {**settings, "track": MeshTrack.keyframes(times, points[:, keep])}
     return MeshCollider(vertices=mesh.vertices, triangles=mesh.triangles, source=str(path), **settings)
+
+
+def read_usd_points_samples(path: str, prim: str | None = None):
+    """(times [s] (K,), world points (K, V, 3) [m]) of a USD mesh's time-sampled points (the prim
+    :func:`load_mesh` reads: ``prim``, or the first ``UsdGeom.Mesh``), each sample in its prim's
+    world transform at that time and times from the stage's ``timeCodesPerSecond``; None where the
+    points hold fewer than two samples. The file and every layer it names are checked before they
+    are opened (:func:`open_usd_stage`); a sample of another vertex count is an error."""
+    from pxr import Usd, UsdGeom  # noqa: PLC0415 (usd-core loads only where USD is read or written)
+
+    stage, layers = open_usd_stage(path)
+    try:
+        if prim is None:
+            p = next((m for m in stage.Traverse() if m.IsA(UsdGeom.Mesh)), None)
+        else:
+            p = stage.GetPrimAtPath(prim)
+        if p is None or not p.IsValid() or not p.IsA(UsdGeom.Mesh):
+            return None
+        attr = UsdGeom.Mesh(p).GetPointsAttr()
+        codes = attr.GetTimeSamples()
+        if len(codes) < 2:
+            return None
+        per_second = stage.GetTimeCodesPerSecond() or 24.0
+        frames = []
+        for code in codes:
+            local = np.asarray(attr.Get(Usd.TimeCode(code)), dtype=np.float64).reshape(-1, 3)
+            xf = np.asarray(UsdGeom.Xformable(p).ComputeLocalToWorldTransform(Usd.TimeCode(code)), dtype=np.float64)
+            if frames and local.shape != frames[0].shape:
+                raise WarpclothError(
+                    f"USD mesh {p.GetPath()} in {path!r}: its points at time code {code:g} are {len(local)}, "
+                    f"not {len(frames[0])}: a deforming collider keeps its vertices"
+                )
+            frames.append(local @ xf[:3, :3] + xf[3, :3])
+        return np.asarray(codes, dtype=np.float64) / float(per_second), np.stack(frames)
+    finally:
+        del layers
 
 
 def _fan(count: int) -> np.ndarray:
@@ -469,5 +514,6 @@ __all__ = [
     "open_usd_stage",
     "read_obj",
     "read_usd",
+    "read_usd_points_samples",
     "write_obj",
 ]

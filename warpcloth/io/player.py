@@ -112,6 +112,23 @@ class ColliderPoses:
         return out
 
 
+class MeshFrames:
+    """A deforming mesh collider's vertices at each frame written (``collider.at(t)``), stored as
+    :meth:`record` says."""
+
+    def __init__(self, collider):
+        self.collider = collider
+        self.frames: list[np.ndarray] = []
+
+    def add(self, t: float) -> None:
+        self.frames.append(np.asarray(self.collider.at(float(t)).vertices, dtype=np.float32))
+
+    def record(self) -> dict:
+        """``frames``: uint16 x y z per vertex, frames one after another, within [``min``, ``max``] (base64)."""
+        q, lo, hi = quantise(np.stack(self.frames))
+        return {"frames": _b64(q), "min": _floats(lo), "max": _floats(hi)}
+
+
 def collider_records(colliders, lo, hi, poses: dict | None = None) -> list[dict]:
     """The player's JSON record of each collider (as given, i.e. at its track's time-0 offset):
     ``kind`` (plane, sphere, capsule, box, mesh), ``thickness``, ``friction`` and
@@ -124,7 +141,8 @@ def collider_records(colliders, lo, hi, poses: dict | None = None) -> list[dict]
       [``verticesMin``, ``verticesMax``], base64) and ``triangles`` (uint32, base64);
 
     and, for a collider with an entry in ``poses`` (index -> :class:`ColliderPoses`), ``motion``:
-    its pose at every frame (:meth:`ColliderPoses.record`)."""
+    its pose at every frame (:meth:`ColliderPoses.record`); a deforming mesh's (a :class:`MeshFrames`)
+    ``deform``: its vertices at every frame (:meth:`MeshFrames.record`)."""
     poses = poses or {}
     diagonal = float(np.linalg.norm(np.asarray(hi, dtype=np.float64) - np.asarray(lo, dtype=np.float64)))
     records = []
@@ -157,7 +175,7 @@ def collider_records(colliders, lo, hi, poses: dict | None = None) -> list[dict]
             raise WarpclothError(f"the HTML player cannot draw a collider of kind {c.kind!r}")
         rec.update(thickness=float(c.thickness), friction=float(c.friction))
         if k in poses:
-            rec["motion"] = poses[k].record()
+            rec["deform" if isinstance(poses[k], MeshFrames) else "motion"] = poses[k].record()
         records.append(rec)
     return records
 
@@ -210,7 +228,9 @@ class HtmlWriter:
                     f"the HTML player's colliders must be warpcloth.sim.colliders objects, got {c!r:.80}"
                 )
         self.poses = {
-            k: ColliderPoses(c) for k, c in enumerate(self.colliders) if getattr(c, "track", None) is not None
+            k: MeshFrames(c) if c.kind == "mesh" and c.deforming else ColliderPoses(c)
+            for k, c in enumerate(self.colliders)
+            if getattr(c, "track", None) is not None
         }
         self._closed = False
 
@@ -300,7 +320,8 @@ def default_view(frames, tris) -> dict:
 def read_player_data(path: str) -> dict:
     """The JSON data of a player page written by :class:`HtmlWriter`, with the frames decoded
     to float32 (F, N, 3) under ``"positions"`` (for tests and tools); a mesh collider's record
-    gains ``"vertexPositions"`` (V, 3) and ``"triangleIndices"`` (T, 3), a moving collider's
+    gains ``"vertexPositions"`` (V, 3) and ``"triangleIndices"`` (T, 3) (a deforming one's ``"deform"``
+    ``"vertexFrames"`` (F, V, 3)), a moving collider's
     ``"motion"`` gains ``"translations"`` (F, 3) and ``"rotations"`` (F, 4; x y z w, normalised;
     the identity when it only translates), decoded."""
     with open(path, encoding="utf-8") as fh:
@@ -322,6 +343,10 @@ def read_player_data(path: str) -> dict:
             c["triangleIndices"] = np.frombuffer(base64.b64decode(c["triangles"]), dtype="<u4").reshape(
                 c["triangleCount"], 3
             )
+        d = c.get("deform")
+        if d:
+            v = np.frombuffer(base64.b64decode(d["frames"]), dtype="<u2").reshape(-1, c["vertexCount"], 3)
+            d["vertexFrames"] = np.array(d["min"]) + v * ((np.array(d["max"]) - np.array(d["min"])) / 65535.0)
         m = c.get("motion")
         if m:
             t = np.frombuffer(base64.b64decode(m["translation"]), dtype="<u2").reshape(-1, 3)

@@ -123,7 +123,8 @@ class ColliderPrims:
     * capsule: ``UsdGeom.Capsule`` along its local Z (radius, height = |b - a|), oriented a -> b;
     * box: ``UsdGeom.Cube`` of size 2 scaled by the half extents, oriented by its rotation;
     * mesh: ``UsdGeom.Mesh`` of its triangles as given, in world coordinates (identity transform,
-      or its track's rigid transform when it moves);
+      or its track's rigid transform when it moves; a deforming mesh's points and extent get a time
+      sample at every frame written);
     * plane: ``UsdGeom.Mesh``, a square quad ``plane_size`` across in its local XZ plane (normal +Y
       turned onto the plane's normal), centred on its point.
 
@@ -140,8 +141,9 @@ class ColliderPrims:
 
         if purpose not in COLLIDER_PURPOSES:
             raise WarpclothError(f"collider purpose must be one of {', '.join(COLLIDER_PURPOSES)}, got {purpose!r}")
-        self._Gf = Gf
+        self._Gf, self._Vt = Gf, Vt
         self.items = []
+        self.deforming = []  # (collider, its UsdGeom.Mesh) of the meshes on a MeshTrack: points sampled per frame
         colliders = tuple(colliders or ())
         if not colliders:
             return
@@ -172,6 +174,8 @@ class ColliderPrims:
                 prim.CreateExtentAttr(
                     Vt.Vec3fArray([Gf.Vec3f(*map(float, v.min(axis=0))), Gf.Vec3f(*map(float, v.max(axis=0)))])
                 )
+                if c.deforming:
+                    self.deforming.append((c, prim))
             elif c.kind == "box":
                 prim = UsdGeom.Cube.Define(stage, path)
                 prim.CreateSizeAttr(2.0)
@@ -199,7 +203,7 @@ class ColliderPrims:
                 ops.append(xf.AddScaleOp())
                 ops[2].Set(Gf.Vec3f(*map(float, c.half_extents)))
             self.items.append((c, ops))
-            if c.track is None:
+            if c.track is None or (c.kind == "mesh" and c.deforming):  # a deforming mesh's points move, not it
                 self._set(c, ops, None)
 
     def _pose(self, c):
@@ -237,8 +241,15 @@ class ColliderPrims:
 
     def write(self, sim_time: float, code: float) -> None:
         """A time sample of every moving collider's transform, posed at ``sim_time`` [s]."""
+        for c, prim in self.deforming:  # the points and their extent, a time sample each
+            v = np.ascontiguousarray(c.at(sim_time).vertices, dtype=np.float32)
+            prim.GetPointsAttr().Set(self._Vt.Vec3fArray.FromNumpy(v), code)
+            lo, hi = v.min(axis=0), v.max(axis=0)
+            prim.GetExtentAttr().Set(
+                self._Vt.Vec3fArray([self._Gf.Vec3f(*map(float, lo)), self._Gf.Vec3f(*map(float, hi))]), code
+            )
         for c, ops in self.items:
-            if c.track is not None:
+            if c.track is not None and not (c.kind == "mesh" and c.deforming):
                 if c.kind == "mesh":
                     self._set(c, ops, code, self._mesh_pose(c, sim_time))
                 else:

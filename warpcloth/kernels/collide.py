@@ -59,6 +59,7 @@ class Collider:
     crease_bvh: wp.uint64  # a MESH's convex creases and open edges: a wp.Bvh of their boxes (0: none)
     crease_a: wp.array(dtype=wp.vec3)  # their ends, in the mesh's own frame [m]
     crease_b: wp.array(dtype=wp.vec3)
+    deforming: int  # 1: a MESH whose points the step moves (world frame, moving = 0; v_c from its vertices' velocities)
 
 
 @wp.struct
@@ -442,10 +443,23 @@ def collider_contact(colliders: wp.array(dtype=Collider), k: int, x: wp.vec3, ba
     return shape_contact(colliders, k, x, band)
 
 
+@wp.func
+def deformed_surface_velocity(colliders: wp.array(dtype=Collider), k: int, y: wp.vec3):
+    # a deforming mesh's velocity at the surface point nearest y: its vertices' velocities
+    # interpolated barycentrically there (0 where no surface is within the contact's reach)
+    reach = colliders[k].thickness + wp.max(colliders[k].radius, colliders[k].rounding) + 1.0e-3
+    query = wp.mesh_query_point_no_sign(colliders[k].mesh, y, reach)
+    if not query.result:
+        return wp.vec3(0.0)
+    return wp.mesh_eval_velocity(colliders[k].mesh, query.face, query.u, query.v)
+
+
 @wp.func(inline=True)
 def surface_velocity(colliders: wp.array(dtype=Collider), k: int, y: wp.vec3):
-    # v_c(y) = u + w x (y - o) of collider k (0 for a static one)
+    # v_c(y) = u + w x (y - o) of collider k (0 for a static one; a deforming mesh's from its vertices)
     if colliders[k].moving == 0:
+        if colliders[k].deforming != 0:
+            return deformed_surface_velocity(colliders, k, y)
         return wp.vec3(0.0)
     return colliders[k].velocity + wp.cross(colliders[k].omega, y - colliders[k].origin)
 
@@ -641,6 +655,22 @@ def posed_collider(
 
 
 @wp.func
+def pose_time(
+    time: wp.array(dtype=wp.float64),
+    offset: wp.float64,
+    step_dt: wp.array(dtype=wp.float64),
+    substep: wp.array(dtype=int),
+    use_substep: int,
+):
+    # the time a moving collider is posed at: the clock + offset, and where substeps pose it, the end of
+    # the coming substep (substep[0] of substep[1]) within the step of length step_dt
+    t = time[0] + offset
+    if use_substep != 0:
+        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
+    return t
+
+
+@wp.func
 def turn_point(y: wp.vec3, center: wp.vec3d, offset: wp.vec3d, start: wp.quatd, axis: wp.vec3d, theta: wp.float64):
     # c + d + R(axis, theta) R0 (y - c), R0 the rotation of the quaternion `start`, in float64, rounded once
     return wp.vec3(center + offset + rotate_axis_angle(axis, theta, wp.quat_rotate(start, wp.vec3d(y) - center)))
@@ -669,9 +699,7 @@ def eval_collider_pose(
     # collider `index` at t = time + offset (+ dt min(k + 1, S) / S, the end of substep k of S, with
     # use_substep): rigid y -> c + u t + R(axis, theta(t))(y - c), theta = omega t + A sin(2 pi f t + phi),
     # motion = (omega, A, f, phi); or keyframed translation y -> y + d(t); v_c(y) = d' + theta' axis x (y - c - d)
-    t = time[0] + offset
-    if use_substep != 0:
-        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
+    t = pose_time(time, offset, step_dt, substep, use_substep)
     zero = wp.float64(0.0)
     d = wp.vec3d(zero, zero, zero)
     dd = wp.vec3d(zero, zero, zero)
@@ -711,9 +739,7 @@ def eval_collider_driven_pose(
     # (frame_times, values: as a ColliderTrack's keyframes), and its turn about its own centre c,
     # R(t) = R(axis, s angle) R0 with s = (t - t0) / (t1 - t0), turn = (R0 as x y z w, (axis, angle));
     # y -> c + d + R(t)(y - c), v_c(y) = d' + (angle / (t1 - t0)) axis x (y - c - d)
-    t = time[0] + offset
-    if use_substep != 0:
-        t = t + step_dt[0] * wp.float64(wp.min(substep[0] + 1, substep[1])) / wp.float64(substep[1])
+    t = pose_time(time, offset, step_dt, substep, use_substep)
     d, dd = track_keyframes(t, frame_times, values, tangents, cubic, 0, 1)
     r = rest[index]
     q = turn[0]
@@ -749,3 +775,79 @@ def eval_collider_driven_pose(
 def store_step(value: wp.float64, out: wp.array(dtype=wp.float64)):
     # out = dt of the step just taken (the next step poses the moving colliders with it)
     out[0] = value
+
+
+@wp.kernel
+def eval_mesh_points(
+    time: wp.array(dtype=wp.float64),
+    offset: wp.float64,
+    step_dt: wp.array(dtype=wp.float64),
+    substep: wp.array(dtype=int),
+    use_substep: int,
+    times: wp.array(dtype=wp.float64),
+    values: wp.array(dtype=wp.vec3d),
+    tangents: wp.array(dtype=wp.vec3d),
+    cubic: int,
+    points: wp.array(dtype=wp.vec3),
+    velocities: wp.array(dtype=wp.vec3),
+    lo: wp.array(dtype=wp.vec3),
+    hi: wp.array(dtype=wp.vec3),
+):
+    # a deforming mesh's vertex j at t (as eval_collider_pose's t): its keys interpolated in float64
+    # and rounded once, its velocity dp/dt; lo[0], hi[0] = min, max over the vertices (reset before;
+    # two arrays, so that Warp's deterministic mode reduces each with one operation)
+    t = pose_time(time, offset, step_dt, substep, use_substep)
+    j = wp.tid()
+    p, dp = track_keyframes(t, times, values, tangents, cubic, j, points.shape[0])
+    q = wp.vec3(p)
+    points[j] = q
+    velocities[j] = wp.vec3(dp)
+    wp.atomic_min(lo, 0, q)
+    wp.atomic_max(hi, 0, q)
+
+
+@wp.kernel
+def reset_bounds(lo: wp.array(dtype=wp.vec3), hi: wp.array(dtype=wp.vec3)):
+    lo[0] = wp.vec3(1.0e30)
+    hi[0] = wp.vec3(-1.0e30)
+
+
+@wp.kernel
+def gather_creases(
+    points: wp.array(dtype=wp.vec3),
+    ends: wp.array(dtype=wp.vec2i),
+    a: wp.array(dtype=wp.vec3),
+    b: wp.array(dtype=wp.vec3),
+    lo: wp.array(dtype=wp.vec3),
+    hi: wp.array(dtype=wp.vec3),
+):
+    # a deforming mesh's crease segments (their ends' vertices) and their boxes, for the crease BVH's refit
+    e = wp.tid()
+    p = points[ends[e][0]]
+    q = points[ends[e][1]]
+    a[e] = p
+    b[e] = q
+    lo[e] = wp.min(p, q)
+    hi[e] = wp.max(p, q)
+
+
+@wp.kernel
+def eval_deformed_record(
+    index: int,
+    rest: wp.array(dtype=Collider),
+    bounds_lo: wp.array(dtype=wp.vec3),
+    bounds_hi: wp.array(dtype=wp.vec3),
+    colliders: wp.array(dtype=Collider),
+):
+    # a deforming mesh's record: its box (the cheap rejection) around its points now, grown by its
+    # thickness, its reach and its creases' rounding, with _mesh_half's float32 margin
+    lo = bounds_lo[0]
+    hi = bounds_hi[0]
+    r = rest[index]
+    half = 0.5 * (hi - lo) + wp.vec3(r.thickness + r.radius + r.rounding)
+    m = colliders[index]
+    m.a = 0.5 * (lo + hi)
+    m.bound_center = m.a
+    m.b = half * (1.0 + 1.0e-5) + wp.vec3(1.0e-6)
+    m.rounding = r.rounding
+    colliders[index] = m

@@ -1,6 +1,7 @@
 """An estimate of a study plan's wall time (``warpcloth study --estimate``): per-step costs
-measured now (:func:`calibrate`), a model of each phase (:func:`estimate_plan`), and the text
-(:func:`format_estimate`). A model, not a measurement: docs/study.md, "Estimate"."""
+measured now (:func:`calibrate`), or for a CUDA plan where no GPU is, those recorded on an H200
+(:func:`recorded_costs`); a model of each phase (:func:`estimate_plan`), and the text
+(:func:`format_estimate`). A model, not a measurement: docs/study.md, "Estimate"; docs/gpu.md."""
 
 from __future__ import annotations
 
@@ -40,6 +41,38 @@ TRIAL_FACTOR = 2.5
 TIMING_FACTOR = 3.4
 #: Two search workers on 2 cores gave 1.6x, not 2x (measured on the same run).
 WORKER_SPEEDUP = {1: 1.0, 2: 1.6}
+#: Kernel compilation of a study on a fresh CUDA machine [s]: an allowance, not measured on a GPU
+#: (20x a cold ``warpcloth run sheet``'s 6 s on the CPU, bench/results/cold-compile.txt, for the
+#: study's 22 kernel modules and Warp's own; docs/gpu.md); a CUDA estimate adds it once.
+GPU_COMPILE_ALLOWANCE_S = 120.0
+#: Where :data:`H200_COSTS` were measured (:func:`format_estimate` names it).
+RECORDED_ON = "one NVIDIA H200 on 2026-12-04 (bench/results/cuda-h200.txt)"
+#: :func:`calibrate`'s costs recorded on :data:`RECORDED_ON` for the study's sheet at 64 x 64 and
+#: 128 x 128 (its ``calibrate`` lines: k0 steps per 1/60 s frame, ms per step; k0 is what the code
+#: gives today), and the sheet's highest frequency [rad/s] (Lanczos on the CPU: the device does not
+#: change it). Its larger sizes were another cloth (clamped membrane springs: docs/gpu.md).
+H200_COSTS = {
+    ("explicit_euler", 64): (142, 0.00846),
+    ("midpoint", 64): (218, 0.0159),
+    ("rk4", 64): (128, 0.032),
+    ("verlet", 64): (142, 0.00874),
+    ("implicit_euler", 64): (1, 2.73),
+    ("pbd", 64): (1, 1.35),
+    ("xpbd", 64): (1, 1.66),
+    ("vbd", 64): (1, 1.84),
+    ("projective", 64): (1, 3.07),
+    ("explicit_euler", 128): (341, 0.0108),
+    ("midpoint", 128): (435, 0.0208),
+    ("rk4", 128): (307, 0.0417),
+    ("verlet", 128): (341, 0.0111),
+    ("implicit_euler", 128): (1, 6.24),
+    ("pbd", 128): (1, 1.41),
+    ("xpbd", 128): (1, 1.72),
+    ("vbd", 128): (1, 2.48),
+    ("projective", 128): (1, 5.3),
+    ("omega", 64): 8923.9,
+    ("omega", 128): 17749.3,
+}
 
 
 @dataclass
@@ -88,6 +121,15 @@ def calibrate(plan: StudyPlan, device: str, stream=None) -> dict:
     return out
 
 
+def recorded_costs(plan: StudyPlan) -> dict | None:
+    """:data:`H200_COSTS` for every integrator x size of ``plan`` (:func:`calibrate`'s form), or
+    None where one is not recorded (or the plan has no grid): then there is no figure to give."""
+    need = [key for n in plan.all_sizes for key in [("omega", n)] + [(i, n) for i in plan.integrators]]
+    if not plan.grid or any(key not in H200_COSTS for key in need):
+        return None
+    return {key: H200_COSTS[key] for key in need}
+
+
 def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[PhaseEstimate]:
     """Seconds per phase of ``plan`` on one device from ``costs`` (:func:`calibrate`). A model,
     not a measurement (docs/study.md, "Estimate"):
@@ -103,6 +145,7 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
       study's own rule, from its calibration rows);
     * contact: 2 runs of :data:`CONTACT_REST_S` simulated, at most the wall cap;
     * timings: warm-up, capture and the timed windows of every configuration that ran;
+    * on a CUDA device, kernel compilation: :data:`GPU_COMPILE_ALLOWANCE_S` (an allowance);
 
     the configurations and the timings scaled by :data:`TRIAL_FACTOR` and :data:`TIMING_FACTOR`,
     measured on a standard run."""
@@ -156,13 +199,16 @@ def estimate_plan(plan: StudyPlan, costs: dict, device: str = "cpu") -> list[Pha
                 seconds = CONTACT_REST_S * FRAME_DT**-1 * float(c.k) * ms / 1000.0
                 contact += min(seconds, plan.equilibrium_wall_cap or seconds)
                 counts["contact"] += 1
-    return [
+    phases = [
         PhaseEstimate("references and floors (shared by the integrators)", counts["ref"], ref),
         PhaseEstimate("stability (max stable dt)", counts["stab"], stab),
         PhaseEstimate("configurations on the swing and the flag", counts["trial"], TRIAL_FACTOR * trials),
         PhaseEstimate("contact runs to rest", counts["contact"], contact),
         PhaseEstimate("timings (one at a time)", counts["timing"], TIMING_FACTOR * tim, parallel=False),
     ]
+    if device.startswith("cuda"):
+        phases.append(PhaseEstimate("compilation (an allowance, not measured)", 0, GPU_COMPILE_ALLOWANCE_S, False))
+    return phases
 
 
 def total_seconds(phases: list, workers: int = 1) -> float:
@@ -172,8 +218,9 @@ def total_seconds(phases: list, workers: int = 1) -> float:
     return sum(ph.seconds / (speedup if ph.parallel else 1) for ph in phases)
 
 
-def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1) -> str:
-    """The estimate as text: per device, per phase, and in all."""
+def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1, recorded: str | None = None) -> str:
+    """The estimate as text: per device, per phase, and in all. ``recorded``: where the per-step
+    costs were measured when they were not measured now (:data:`RECORDED_ON`)."""
     lines = [
         f"estimate of profile {plan.profile}: integrators {', '.join(plan.integrators)}; sizes "
         f"{', '.join(map(str, plan.all_sizes))} (every size with a float64 reference); configurations {plan.level}"
@@ -186,12 +233,19 @@ def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1) -> str:
         parallel += total_seconds(phases, workers)
     lines.append(
         f"  total about {serial / 60:.0f} min serially"
+        + (f" ({serial / 60:.1f} min of device time)" if recorded else "")
         + (
             f", about {parallel / 60:.0f} min with --workers {workers} (the searches split, the timings not)"
             if workers > 1
             else ""
         )
     )
+    if recorded:
+        lines.append(
+            f"  a model from the per-step costs recorded on {recorded}, not measured here (no such device here); "
+            "see docs/gpu.md"
+        )
+        return "\n".join(lines)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     if load is not None:
         lines.append(
@@ -209,6 +263,9 @@ def format_estimate(plan: StudyPlan, by_device: dict, workers: int = 1) -> str:
 __all__ = [
     "CONTACT_REST_S",
     "CONTACT_S",
+    "GPU_COMPILE_ALLOWANCE_S",
+    "H200_COSTS",
+    "RECORDED_ON",
     "REFERENCE_RUNS",
     "REFERENCE_S_PER_PARTICLE_S",
     "REFERENCE_S_PER_PARTICLE_STEP",
@@ -219,5 +276,6 @@ __all__ = [
     "calibrate",
     "estimate_plan",
     "format_estimate",
+    "recorded_costs",
     "total_seconds",
 ]

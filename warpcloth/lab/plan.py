@@ -4,14 +4,20 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 from dataclasses import dataclass, field
 
 from warpcloth.errors import WarpclothError, require
 from warpcloth.integrators import check_integrator_name, integrator_names
 from warpcloth.lab.accuracy import DEFAULT_TOLERANCE, FRAME_DT, TOLERANCES, check_tolerance
+from warpcloth.lab.transients import TRANSIENTS
 from warpcloth.scenarios import get_scenario
+from warpcloth.scenarios.swing import STUDY_MATERIAL
 from warpcloth.sim.device import require_memory, resolve_device
 from warpcloth.sim.grid import grid_memory_estimate
+from warpcloth.sim.material import grid_spring_params
+from warpcloth.sim.model import BendModel
 
 #: The study's grid transients (lab/transients.py): swing and flag frame by frame, contact at rest.
 SCENARIOS = ("swing", "flag", "contact")
@@ -100,16 +106,21 @@ PROFILES = {
     # (docs/study.md, "Estimate"); the swing's 0.6 s at every size: 1 s is ill-conditioned from 64x64, where the
     # pointwise e is refused and the coarse metrics decide (docs/study.md, "Windows")
     "standard": dict(sizes=[16, 32, 64, 128], run_wall_cap=60.0, maxdt_wall_cap=30.0, equilibrium_wall_cap=30.0),
-    # a GPU (H100/H200): 64-512 on cuda, within 8 min of device time (--estimate)
+    # a GPU (H100/H200): the standard profile's question (swing 0.6 s, flag 0.5 s, every size with its float64
+    # reference, the study's cloth) at 64 and 128 with the quick configuration grids and shorter timings, modelled at
+    # <= 8 min of device time with compilation from the H200's recorded step costs (docs/gpu.md). Not above 128: from
+    # 245x245 the study's bend springs are stiffer than its membrane (make_plan refuses a size that would clamp it),
+    # and at 192 the float64 reference alone models at 1.7 min there.
     "gpu": dict(
-        sizes=[64, 128, 256, 512],
+        sizes=[64, 128],
         devices=["cuda"],
         windows=(("swing", 36), ("flag", 30)),
+        level="quick",
         run_wall_cap=20.0,
         maxdt_wall_cap=10.0,
         equilibrium_wall_cap=20.0,
-        timing_windows=5,
-        window_seconds=0.05,
+        timing_windows=3,
+        window_seconds=0.02,
     ),
 }
 
@@ -158,6 +169,7 @@ def make_plan(
     grid, files = check_scenarios(scenarios)
     if grid:
         check_memory(base["sizes"], devices)
+        check_material(base["sizes"])
     return StudyPlan(
         profile=profile,
         integrators=integrators,
@@ -181,6 +193,49 @@ def check_memory(sizes, devices) -> None:
             continue
         for n in sorted(sizes, reverse=True):  # the largest first: the one that fails
             require_memory(f"the study's {n} x {n} cloth (--sizes)", grid_memory_estimate(n, n), device)
+
+
+def clamped_transient(n: int) -> str | None:
+    """The first of the study's transients whose n x n cloth of the study's material would have
+    membrane springs clamped at 0 N/m by :func:`~warpcloth.sim.material.grid_spring_params` (its
+    Provot bend springs, which grow as h^-4, stiffer than the membrane: another material), or None.
+    Decided on a 5 x 5 patch at the same spacing: it has every kind of spring the n x n grid has
+    (boundary and interior, line ends and middles) with the same stiffness, so it clamps exactly
+    when the whole grid does (tests/test_gpu_estimate.py), in a millisecond at any n."""
+    for name, transient in TRANSIENTS.items():
+        cfg = transient.scenario.defaults
+        patch = 4.0 / (n - 1)
+        with contextlib.redirect_stderr(io.StringIO()):  # its warning: the refusal below says it instead
+            springs = grid_spring_params(
+                STUDY_MATERIAL, 5, 5, cfg.width * patch, cfg.height * patch, bend=BendModel.PROVOT
+            )
+        if springs.clamped:
+            return name
+    return None
+
+
+def largest_unclamped_size(below: int) -> int:
+    """The largest n < ``below`` whose study cloth is not clamped (:func:`clamped_transient`; the
+    bend springs stiffen monotonically as the spacing shrinks, so a bisection finds it)."""
+    lo, hi = 3, below  # lo holds, hi clamps
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if clamped_transient(mid) else (mid, hi)
+    return lo
+
+
+def check_material(sizes) -> None:
+    """Refuse a size whose cloth would not be the study's material (:func:`clamped_transient`): a
+    study asks one question of one cloth at every size (docs/study.md, "One cloth at every size")."""
+    for n in sorted(set(sizes)):
+        name = clamped_transient(n)
+        if name is not None:
+            largest = largest_unclamped_size(n)
+            raise WarpclothError(
+                f"--sizes: at {n} x {n} the study's {name} cloth would have membrane springs clamped at 0 N/m (its "
+                f"bend springs, growing as h^-4, are stiffer than the membrane there): another material, not the "
+                f"study's; sizes up to {largest} x {largest} hold it"
+            )
 
 
 def check_scenarios(scenarios) -> tuple[bool, list]:
@@ -224,8 +279,11 @@ __all__ = [
     "SCENARIOS",
     "WHOLE_FRAME_MS",
     "StudyPlan",
+    "check_material",
     "check_scenarios",
+    "clamped_transient",
     "group_label",
+    "largest_unclamped_size",
     "make_plan",
     "plan_groups",
 ]

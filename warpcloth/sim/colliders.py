@@ -20,7 +20,8 @@ import warp as wp
 
 from warpcloth.errors import WarpclothError, require, require_non_negative, require_positive, require_vector
 from warpcloth.sim.mesh import check_mesh
-from warpcloth.sim.tracks import FrameDrive, HostWrite, Track, check_keyframes, check_rigid
+from warpcloth.sim.pins import PinTrack
+from warpcloth.sim.tracks import FrameDrive, HostWrite, Track, check_keyframes, check_rigid, interpolate
 
 #: Collider kinds in the order of their kernel launches (the kernels' ``kind`` argument).
 KINDS = ("plane", "sphere", "capsule", "box", "mesh")
@@ -33,10 +34,14 @@ def _material(thickness, friction):
 
 
 def _track(c):
-    if c.track is not None and not isinstance(c.track, ColliderTrack):
-        raise WarpclothError(
-            f"{c.kind} track must be a ColliderTrack (ColliderTrack.keyframes, .rigid or .driven), got {c.track!r:.80}"
-        )
+    if c.track is None or isinstance(c.track, ColliderTrack):
+        return
+    if c.kind == "mesh" and isinstance(c.track, MeshTrack):
+        return
+    also = " or, for a mesh, a MeshTrack (its vertices over time)" if c.kind == "mesh" else ""
+    raise WarpclothError(
+        f"{c.kind} track must be a ColliderTrack (ColliderTrack.keyframes, .rigid or .driven){also}, got {c.track!r:.80}"
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -247,6 +252,182 @@ class ColliderDrive(FrameDrive):
             k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
             r = (math.cos(theta) * np.eye(3) + math.sin(theta) * k + (1 - math.cos(theta)) * np.outer(axis, axis)) @ r
         return r, self.center, d[0]
+
+
+@dataclass(frozen=True, eq=False)
+class MeshTrack(Track):
+    """A deforming :class:`MeshCollider`'s vertices over time (its ``track``): keyframed points
+    ``points`` (K, V, 3) [m] at K increasing ``times`` (a skinned body's frames, a USD mesh's
+    time-sampled points), or points that your loop sets each frame (:meth:`driven`). The steps
+    interpolate them on the device (linear by default: between frames each vertex moves at
+    v = (p_new - p_old) / frame time, the velocity friction is relative to), write them into the
+    mesh's own device arrays and refit its BVH (``wp.Mesh.refit``): no allocation, no capture.
+    The mesh as given (``vertices``) is its rest pose: attachments (:func:`attach`) are found there."""
+
+    points: np.ndarray | None = None  # (K, V, 3) [m]
+
+    @property
+    def keys(self) -> np.ndarray | None:
+        return self.points
+
+    @classmethod
+    def keyframes(cls, times, points, interpolation: str = "linear", tangents=None) -> MeshTrack:
+        """The mesh's V vertices at K increasing ``times`` [s]: ``points`` (K, V, 3) [m]; held
+        before the first key and after the last; ``interpolation`` as :meth:`ColliderTrack.keyframes`."""
+        v = np.asarray(points, dtype=np.float64) if not isinstance(points, (str, bytes)) else points
+        count = int(np.shape(v)[1]) if np.ndim(v) == 3 else 0
+        require(count > 0, f"mesh track points must have shape (K, V, 3), got {np.shape(points)}")
+        t, v, tan = check_keyframes("mesh track", times, v, interpolation, tangents, count)
+        return cls(kind="keyframes", times=t, points=v, tangents=tan, interpolation=interpolation)
+
+    @classmethod
+    def driven(cls, interpolation: str = "linear") -> MeshTrack:
+        """Points that your loop sets each frame: ``track.set(points)`` says where the V vertices
+        are at the end of the next ``simulate()`` call (a :class:`~warpcloth.sim.tracks.FrameDrive`:
+        the steps interpolate to it; one copy into the arrays a captured frame reads). Give one
+        driven track to one collider."""
+        return cls(kind="driven", interpolation=interpolation, drive=MeshDrive(interpolation))
+
+    def set(self, points, velocities=None) -> None:
+        """A driven track's vertices (V, 3) [m] at the end of the next frame (and, ``"hermite"``,
+        their velocities [m/s]); attachments to the mesh (:func:`attach`) follow."""
+        require(self.kind == "driven", f"mesh track is {self.kind}, not driven: only MeshTrack.driven takes points")
+        self.drive.set(points, velocities)
+
+    def evaluate(self, t: float, rest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(points (V, 3) [m], velocities (V, 3) [m/s]) at time t [s] on the host, float64 (the
+        kernels' formulas); ``rest`` (V, 3): the mesh as given (a driven track before its first frame)."""
+        if self.kind == "driven":
+            return self.drive.evaluate(t)
+        cubic = self.interpolation != "linear"
+        return interpolate(self.times, self.points, self._key_tangents(rest) if cubic else None, float(t))
+
+    def pose(self, t: float):
+        raise WarpclothError("a mesh track deforms its mesh: it has no rigid pose (use collider.at(t))")
+
+
+class MeshDrive(FrameDrive):
+    """The :class:`~warpcloth.sim.tracks.FrameDrive` of a driven :class:`MeshTrack`: its V points
+    are the mesh's vertices (known when the track is given to a :class:`MeshCollider`); the driven
+    pin tracks of attachments to it (:func:`attach`) take the barycentric points of each target."""
+
+    def __init__(self, interpolation: str = "linear"):
+        super().__init__("driven mesh collider", 0, interpolation)
+        self.followers = []  # (FrameDrive of an attachment's pins, faces (P, 3) vertex indices, weights (P, 3))
+
+    def attach_mesh(self, vertices: np.ndarray) -> None:
+        """Start at the mesh's ``vertices`` (V, 3) (a second mesh of another vertex count is refused)."""
+        count = len(vertices)
+        if self.points == 0:
+            self.points = count
+            self.velocity = np.zeros((count, 3))
+            self.start(vertices)
+        require(
+            self.points == count,
+            f"a driven mesh track moves one mesh: this one has {self.points} vertices, not {count}; "
+            "give each mesh collider its own MeshTrack.driven()",
+        )
+
+    def set(self, positions, velocities=None) -> None:
+        require(self.points > 0, "a driven mesh track takes points once it is a MeshCollider's track")
+        super().set(positions, velocities)
+        p, v = self._pending
+        for drive, faces, weights in self.followers:
+            drive.set(
+                _barycentric(p, faces, weights), _barycentric(v, faces, weights) if velocities is not None else None
+            )
+
+
+def _barycentric(points: np.ndarray, faces: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """sum_j w_j p[face_j] (P, 3) of ``points`` (..., V, 3), float64."""
+    p = np.asarray(points, dtype=np.float64)
+    return np.einsum("...pjc,pj->...pc", p[..., faces, :], weights)
+
+
+def closest_surface_points(vertices, triangles, points) -> tuple[np.ndarray, np.ndarray]:
+    """(triangle index (P,), barycentric weights (P, 3)) of the point of the mesh ``vertices`` (V, 3),
+    ``triangles`` (T, 3) nearest each of ``points`` (P, 3), on the host in float64 (Ericson's
+    closest point on a triangle, every triangle tried: attachments are found once, at rest)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
+    ab, ac = b - a, c - a
+    faces, weights = [], []
+    for p in np.asarray(points, dtype=np.float64).reshape(-1, 3):
+        ap, bp, cp = p - a, p - b, p - c
+        d1, d2 = np.einsum("ij,ij->i", ab, ap), np.einsum("ij,ij->i", ac, ap)
+        d3, d4 = np.einsum("ij,ij->i", ab, bp), np.einsum("ij,ij->i", ac, bp)
+        d5, d6 = np.einsum("ij,ij->i", ab, cp), np.einsum("ij,ij->i", ac, cp)
+        va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            denom = va + vb + vc
+            w = np.stack([va, vb, vc], axis=1) / denom[:, None]  # inside the face
+            regions = [
+                (d1 <= 0) & (d2 <= 0),  # vertex a
+                (d3 >= 0) & (d4 <= d3),  # vertex b
+                (d6 >= 0) & (d5 <= d6),  # vertex c
+                (vc <= 0) & (d1 >= 0) & (d3 <= 0),  # edge ab
+                (vb <= 0) & (d2 >= 0) & (d6 <= 0),  # edge ac
+                (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0),  # edge bc
+            ]
+            s_ab, s_ac = d1 / (d1 - d3), d2 / (d2 - d6)
+            s_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        one, zero = np.ones_like(d1), np.zeros_like(d1)
+        fixes = [
+            np.stack([one, zero, zero], 1),
+            np.stack([zero, one, zero], 1),
+            np.stack([zero, zero, one], 1),
+            np.stack([1 - s_ab, s_ab, zero], 1),
+            np.stack([1 - s_ac, zero, s_ac], 1),
+            np.stack([zero, 1 - s_bc, s_bc], 1),
+        ]
+        for region, fix in reversed(list(zip(regions, fixes))):  # the first region that holds wins
+            w = np.where(region[:, None], fix, w)
+        w = np.where(np.isfinite(w), w, 1.0 / 3.0)
+        q = w[:, :1] * a + w[:, 1:2] * b + w[:, 2:] * c
+        k = int(np.argmin(np.einsum("ij,ij->i", q - p, q - p)))
+        faces.append(k)
+        weights.append(w[k])
+    return np.asarray(faces, dtype=np.int64), np.asarray(weights, dtype=np.float64).reshape(-1, 3)
+
+
+def attach(collider, cloth_points, particles, name: str = "attached") -> PinTrack:
+    """Pins attached to a mesh collider's surface: each of ``particles`` (P pinned cloth vertex
+    indices, e.g. a pin group's) is tied to the point of the mesh nearest its rest position
+    ``cloth_points[i]`` [m] (the mesh as given: its rest pose), as a triangle and barycentric
+    weights w, and follows sum_j w_j p_j(t) of that triangle's vertices as the mesh deforms. Returns
+    a :class:`~warpcloth.sim.pins.PinTrack` for the control's pin tracks: keyframed (the weights
+    applied to the mesh track's keys: with linear or Hermite keys, the same point as the weights
+    applied to the interpolated vertices), driven (it takes the barycentric points of each
+    ``track.set(points)``), or held (a static mesh). The pinned particles start on the surface.
+    Its ``faces`` (P,) and ``weights`` (P, 3) attributes say where each is tied."""
+    require(isinstance(collider, MeshCollider), f"attach: the collider must be a MeshCollider, got {collider!r:.80}")
+    track = collider.track
+    require(
+        track is None or isinstance(track, MeshTrack),
+        "attach: the mesh must be static or deform on a MeshTrack (for a rigid ColliderTrack, give the pins a "
+        "PinTrack of the same motion)",
+    )
+    idx = np.asarray(particles, dtype=np.int64).reshape(-1)
+    x = np.asarray(cloth_points, dtype=np.float64).reshape(-1, 3)
+    require(idx.size > 0, "attach: no particles given (an empty pin group?)")
+    bad = idx[(idx < 0) | (idx >= len(x))]
+    require(bad.size == 0, f"attach: particle {int(bad[0]) if bad.size else 0} is out of range 0..{len(x) - 1}")
+    faces, weights = closest_surface_points(collider.vertices, collider.triangles, x[idx])
+    corners = collider.triangles[faces]
+    if track is None:
+        pins = PinTrack.keyframes(idx, [0.0], _barycentric(collider.vertices, corners, weights)[None], name=name)
+    elif track.kind == "driven":
+        pins = PinTrack.driven(idx, interpolation=track.interpolation, name=name)
+        pins.drive.start(_barycentric(track.drive.position, corners, weights))
+        track.drive.followers.append((pins.drive, corners, weights))
+    else:
+        keys = _barycentric(track.points, corners, weights)
+        tangents = _barycentric(track.tangents, corners, weights) if track.tangents is not None else None
+        pins = PinTrack.keyframes(idx, track.times, keys, track.interpolation, tangents, name=name)
+    object.__setattr__(pins, "faces", faces)
+    object.__setattr__(pins, "weights", weights)
+    return pins
 
 
 def _quat_mul(a, b) -> np.ndarray:
@@ -478,6 +659,34 @@ class MeshCollider(_Posed):
                 self, "edge_radius", require_non_negative("mesh collider edge_radius", self.edge_radius, "m")
             )
         _track(self)
+        if isinstance(self.track, MeshTrack):
+            if self.track.kind == "driven":
+                self.track.drive.attach_mesh(self.vertices)
+            elif self.track.points.shape[1] != len(self.vertices):
+                raise WarpclothError(
+                    f"{what}: its mesh track moves {self.track.points.shape[1]} vertices, the mesh has "
+                    f"{len(self.vertices)}"
+                )
+
+    @property
+    def deforming(self) -> bool:
+        """Whether its vertices move on a :class:`MeshTrack`."""
+        return isinstance(self.track, MeshTrack)
+
+    def at(self, t: float):
+        """This collider at time t [s] as a static one (a deforming mesh's points then)."""
+        if not self.deforming:
+            return super().at(t)
+        points, _ = self.track.evaluate(float(t), self.vertices)
+        return MeshCollider(
+            vertices=points,
+            triangles=self.triangles,
+            thickness=self.thickness,
+            friction=self.friction,
+            reach=self.reach,
+            source=self.source,
+            edge_radius=self.edge_radius,
+        )
 
     def rounding(self, auto_radius: float) -> float:
         """The radius about its convex creases beyond its thickness [m] (as :meth:`Box.rounding`)."""
@@ -602,8 +811,12 @@ __all__ = [
     "ColliderDrive",
     "ColliderTrack",
     "MeshCollider",
+    "MeshDrive",
+    "MeshTrack",
     "Plane",
     "Sphere",
+    "attach",
+    "closest_surface_points",
     "describe",
     "matrix_quat",
     "quat_matrix",

@@ -72,6 +72,7 @@ class ColliderSet:
                 wp.Mesh(
                     points=wp.array(c.vertices, dtype=wp.vec3),
                     indices=wp.array(c.triangles.reshape(-1).astype(np.int32), dtype=int),
+                    velocities=wp.zeros(len(c.vertices), dtype=wp.vec3) if c.deforming else None,
                 )
                 if c.kind == "mesh"
                 else None
@@ -90,8 +91,12 @@ class ColliderSet:
             self.substep = wp.array([0, 1], dtype=int)  # (k, S): the position-based substep k of S
             self.frame_times = frame_times if frame_times is not None else wp.zeros(4, dtype=wp.float64)
             self._moving, self.drives, seen = [], [], set()
+            self._deforming = []  # (k, mesh, its points' keyframe arguments, creases or None, (min, max) scratch)
             for k, (c, record) in enumerate(zip(order, records)):
                 if c.track is None:
+                    continue
+                if c.kind == "mesh" and c.deforming:
+                    self._deforming.append(self._bind_deforming(k, c, seen))
                     continue
                 if c.track.kind != "driven":
                     self._moving.append((ck.eval_collider_pose, k, c.track.launch_args()))
@@ -144,9 +149,32 @@ class ColliderSet:
         where = {id(c): k for k, c in enumerate(self.order)}
         return [float(values[where[id(c)]]) for c in self.colliders]
 
+    def _bind_deforming(self, k: int, c, seen: set) -> tuple:
+        """A deforming mesh's pose arguments: its keys (a MeshTrack's, or a driven one's frame keys)."""
+        track = c.track
+        if track.kind == "driven":
+            if id(track.drive) in seen:
+                raise WarpclothError("a driven mesh track moves one mesh: give each its own MeshTrack.driven()")
+            seen.add(id(track.drive))
+            keys = [self.frame_times, *track.drive.bind(self.device)]
+            self.drives.append(track.drive)
+        else:
+            tangents = track._key_tangents(c.vertices).reshape(-1, 3)
+            keys = track._keyframe_args(track.points.reshape(-1, 3), tangents)
+        creases = self.creases[k]
+        if creases is not None:
+            ends = wp.array(_convex_edges(c.vertices, c.triangles).astype(np.int32), dtype=wp.vec2i)
+            creases = (creases, ends)
+        return k, self.meshes[k], keys, creases, (wp.zeros(1, dtype=wp.vec3), wp.zeros(1, dtype=wp.vec3))
+
     @property
     def moving(self) -> bool:
-        return bool(self._moving)
+        return bool(self._moving) or bool(self._deforming)
+
+    @property
+    def deforming(self) -> bool:
+        """Whether a mesh collider deforms (a :class:`~warpcloth.sim.colliders.MeshTrack`)."""
+        return bool(self._deforming)
 
     def edges(self, model) -> ColliderEdges | None:
         """The box and mesh colliders' edges and corners bound to ``model`` (:class:`ColliderEdges`, made
@@ -154,6 +182,10 @@ class ColliderSet:
         (or without cloth triangles, or with :attr:`edge_contacts` off)."""
         if not self.edge_contacts or not any(c.kind in ("box", "mesh") for c in self.colliders) or model.tri_count == 0:
             return None
+        if self._deforming:
+            raise WarpclothError(
+                "edge_contacts hold the cloth off rigid colliders' edges; a deforming mesh's move: turn edge_contacts off"
+            )
         if self._edges is None or self._edges.model is not model:
             self._edges = ColliderEdges(model, self)
         return self._edges
@@ -170,13 +202,37 @@ class ColliderSet:
                 outputs=[self.params],
                 device=self.device,
             )
-        if self._moving:
+        for k, mesh, keys, creases, bounds in self._deforming:
+            self._deform(k, mesh, keys, creases, bounds, offset, substep)
+        if self.moving:
             self._bound()
+
+    def _deform(self, k, mesh, keys, creases, bounds, offset: float, substep: bool) -> None:
+        """A deforming mesh at t (as :meth:`pose`): its points and vertex velocities written into its
+        wp.Mesh's own arrays, its BVH refitted (``wp.Mesh.refit``, on the device, no allocation), its
+        creases moved and their BVH refitted, its record's box set around it."""
+        d = self.device
+        wp.launch(ck.reset_bounds, dim=1, inputs=[*bounds], device=d)
+        wp.launch(
+            ck.eval_mesh_points,
+            dim=mesh.points.shape[0],
+            inputs=[self.time, wp.float64(offset), self.step_dt, self.substep, int(substep), *keys],
+            outputs=[mesh.points, mesh.velocities, *bounds],
+            device=d,
+        )
+        mesh.refit()
+        if creases is not None:
+            (bvh, a, b, lo, hi), ends = creases
+            wp.launch(
+                ck.gather_creases, dim=ends.shape[0], inputs=[mesh.points, ends], outputs=[a, b, lo, hi], device=d
+            )
+            bvh.refit()
+        wp.launch(ck.eval_deformed_record, dim=1, inputs=[k, self.rest, *bounds], outputs=[self.params], device=d)
 
     def begin_step(self) -> None:
         """At a step's start (Control.update): count its substeps from 0 (S = the last step's count)
         and pose the moving colliders at the first substep's end."""
-        if self._moving:
+        if self.moving:
             wp.launch(ck.begin_collider_step, dim=1, inputs=[self.substep], device=self.device)
             self.pose(substep=True)
 
@@ -260,7 +316,7 @@ class ColliderSet:
 
     def end_substep(self) -> None:
         """A position-based substep ends: moving colliders take the next one's pose."""
-        if self._moving:
+        if self.moving:
             wp.launch(ck.next_collider_substep, dim=1, inputs=[self.substep], device=self.device)
             self.pose(substep=True)
 
@@ -536,6 +592,7 @@ def _record(c, mesh=None, creases=None):
             r.crease_bvh, r.crease_a, r.crease_b = creases[0].id, creases[1], creases[2]
             r.rounding = c.rounding(0.0)  # edge_radius None: 0 until bind_model
         r.b = _mesh_half(c, r.rounding)
+        r.deforming = int(c.deforming)
     else:
         r.a = r.bound_center = wp.vec3(*c.center)
         r.b = wp.vec3(*c.half_extents)

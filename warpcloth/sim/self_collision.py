@@ -177,7 +177,9 @@ class SelfCollision:
             (vertex-triangle candidates: per vertex, edge-edge: per edge, contacts: per vertex + edge).
             128 candidates: the default 64 x 64 drape's landing needs up to 78 a vertex and 64 an edge
             under pbd, xpbd and vbd (at 64 each, 2,000-160,000 candidates did not fit over a run, and the
-            run warned; 12 bytes a candidate: 25 MB at 64 x 64, 100 MB at 128 x 128).
+            run warned; 12 bytes a candidate: 25 MB at 64 x 64, 100 MB at 128 x 128). 16 contacts: the
+            default drape under xpbd 1 x 64 (its material's setting) overflowed 8 by 59,511 contacts in
+            its first 0.7 s, and none at 16 (about 52 bytes a contact: 13 MB at 64 x 64).
         interval: the collision time step [s] of the schemes that only filter (explicit Euler, midpoint,
             RK4, Verlet: their ``self_contact_filter`` is ``"full"``): contacts are found at the start
             of an interval of whole steps no longer than this and the velocity filter acts at its end,
@@ -208,7 +210,7 @@ class SelfCollision:
         edge_fraction: float = 1.0,
         candidates_per_vertex: int = 128,
         candidates_per_edge: int = 128,
-        contacts_per_element: int = 8,
+        contacts_per_element: int = 16,
         interval: float = 0.001,
         ccd_passes: int = 8,
     ):
