@@ -26,9 +26,9 @@ from warpcloth.kernels.collide import Colliders, contact_band, in_box, plane_con
 from warpcloth.kernels.increment import (
     ContactState,
     Inertia,
-    lagged_friction,
     newton_increment,
     project_increment,
+    sliding_friction,
     vertex_gradient_hessian,
 )
 from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
@@ -54,9 +54,9 @@ def solve_vertices_vbd(
 ):
     # one colour: dx_i <- dx_i - H_i^-1 g_i  (module docstring; dihedral hinges add -f_i to g_i and their
     # Gauss-Newton (k + kd/h) g g^T to H_i; self-contacts (self_force non-empty) their penalty's force and
-    # Hessian, evaluated before the sweep; a collider's friction its lagged term, lagged_friction), then out
-    # of the colliders along their normals (project_increment; no colliders: empty records), the contact's
-    # normal (0: none), collider velocity, normal force and mu kept; pinned particles stay
+    # Hessian, evaluated before the sweep), then out of the colliders with friction (project_increment;
+    # no colliders: empty records), the contact's normal (0: none), collider velocity, force, state and
+    # the rigid translation's friction (sliding_friction) kept; pinned particles stay
     i = order[start + wp.tid()]
     if inertia.inv_mass[i] == 0.0:
         return
@@ -70,21 +70,20 @@ def solve_vertices_vbd(
     if self_force.shape[0] > 0:
         g = g - self_force[i]
         H = H + self_hessian[i]
-    if colliders.records.shape[0] > 0:
-        ff, Kf = lagged_friction(i, dx, contact, h)
-        g = g - ff
-        H = H + Kf
     d = dxi + newton_increment(g, H)
     if colliders.records.shape[0] > 0:
         Hinv = wp.mat33(0.0)
         if wp.abs(wp.determinant(H)) >= 1.0e-30:
             Hinv = wp.inverse(H)
-        d, n, vc, c, state, mu = project_increment(xi, d, colliders, h, H, Hinv, 0)
+        d, n, vc, c, state, mu = project_increment(xi, d, colliders, h, H, Hinv)
         contact.normal[i] = n
         contact.velocity[i] = vc
         contact.force[i] = c
         contact.state[i] = state
-        contact.friction[i] = mu
+        f = sliding_friction(mu, contact.resting[i], inertia.dy[i], vc, n, h, inertia.mass[i])
+        contact.friction[i] = f
+        if state == 2 or (mu > 0.0 and f == 0.0):  # held (translation_friction)
+            wp.atomic_add(contact.held, 0, 1)
     dx[i] = d
 
 
