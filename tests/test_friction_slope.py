@@ -2,12 +2,13 @@
 slid at 0.6 % of g (sin - mu cos) at 1/60 s, its friction-sliding contacts held out of its rigid
 translation, which alone moves a stiff cloth as a whole).
 
-The single particle of tests/test_colliders.py has no neighbours to hold it; a cloth's Gauss-Seidel
+The single particle of tests/test_solver_contact.py has no neighbours to hold it; a cloth's Gauss-Seidel
 sweeps move each vertex with its neighbours fixed, so a scheme that slides a particle may still hold
-a cloth. vbd holds a contact where the Coulomb cone holds its projected local problem (as projective)
-and takes a sliding one's friction as a lagged term of its potential (IPC's smooth Coulomb friction,
-:func:`warpcloth.kernels.increment.lagged_friction`), which its rigid translation sees too: it slides
-at 1.000001 of the rate and does not move at mu 0.7.
+a cloth. vbd's rigid translation now slides a contact that rested on its collider and whose own free
+motion leaves the Coulomb cone, where no contact with friction is held, with its kinetic friction as
+IPC's lagged smooth Coulomb friction
+(:func:`warpcloth.kernels.increment.sliding_friction`, ``lagged_friction``): it slides at 1.000005 of
+the rate and does not move at mu 0.7 (docs/solvers.md, "Friction on a slope").
 """
 
 from __future__ import annotations
