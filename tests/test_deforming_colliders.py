@@ -128,15 +128,7 @@ def slid_cloth(integrator, mu, duration=0.3, speed=0.5):
     return x - x0, x, sim.sim_time
 
 
-#: vbd holds a cloth less than Coulomb's answer on a sliding mesh (0.078 m of 0.125 m at 0.3 s), the same to the
-#: bit with the same mesh on a rigid ColliderTrack: its own friction on a cloth (tests/test_friction_slope.py,
-#: issue 51), not the deforming mesh
-VBD_FRICTION = pytest.mark.xfail(strict=True, reason="vbd's friction on a cloth (issue 51, open)")
-
-
-@pytest.mark.parametrize(
-    "integrator", [pytest.param(n, marks=VBD_FRICTION) if n == "vbd" else n for n in integrator_names()]
-)
+@pytest.mark.parametrize("integrator", integrator_names())
 def test_a_sliding_plane_drags_a_resting_cloth_by_friction(integrator):
     # Coulomb: the cloth accelerates at mu g until it moves with the plane (t_s = U / (mu g)), then sticks
     mu, speed = 0.5, 0.5

@@ -2,12 +2,13 @@
 slid at 0.6 % of g (sin - mu cos) at 1/60 s, its friction-sliding contacts held out of its rigid
 translation, which alone moves a stiff cloth as a whole).
 
-The single particle of tests/test_colliders.py has no neighbours to hold it; a cloth's Gauss-Seidel
+The single particle of tests/test_solver_contact.py has no neighbours to hold it; a cloth's Gauss-Seidel
 sweeps move each vertex with its neighbours fixed, so a scheme that slides a particle may still hold
-a cloth. vbd still does (xfail below): its rigid translation, which alone moves a stiff cloth as a
-whole, holds every contact with friction; taking its sliding contacts into the translation with
-their kinetic friction as a whole slid the cloth at 1.00002 of the rate and held it at mu 0.7, but
-raised the default 64 x 64 tablecloth's landing strain from 12 % to 33 % (docs/solvers.md, vbd).
+a cloth. vbd's rigid translation now slides a contact that rested on its collider and whose own free
+motion leaves the Coulomb cone, where no contact with friction is held, with its kinetic friction as
+IPC's lagged smooth Coulomb friction
+(:func:`warpcloth.kernels.increment.sliding_friction`, ``lagged_friction``): it slides at 1.000005 of
+the rate and does not move at mu 0.7 (docs/solvers.md, "Friction on a slope").
 """
 
 from __future__ import annotations
@@ -38,19 +39,7 @@ def slide(name: str, mu: float) -> Simulator:
     return sim
 
 
-#: Schemes that still hold a cloth that should slide (issue 51, open): vbd slides at 0.6 % of the rate
-HOLDS_A_SLIDING_CLOTH = {"vbd"}
-
-
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="vbd's friction (issue 51, open)"))
-        if n in HOLDS_A_SLIDING_CLOTH
-        else n
-        for n in integrator_names()
-    ],
-)
+@pytest.mark.parametrize("name", integrator_names())
 def test_cloth_slides_down_a_slope_at_g_sin_minus_mu_cos(name):
     """mu = 0.3: on the surface, mean velocity along the slope n h g (sin 30 - 0.3 cos 30) to the
     scheme's free-motion tolerance (1e-3 for the exact schemes, 2 % for the solvers); mu = 0.7 > tan 30:

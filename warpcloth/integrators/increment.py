@@ -124,10 +124,17 @@ class IncrementContacts:
         # and force, state (0 free, 1 slide, 2 stick)
         self.normal, self.velocity, self.force = scratch_like(model, 3)
         self.mode = wp.zeros(model.particle_count, dtype=int)
-        #: Those four arrays as one kernel argument (:class:`~warpcloth.kernels.increment.ContactState`).
+        # and mu of a sliding contact (0: none, or sticking; vbd's rigid translation takes its friction)
+        self.friction = wp.zeros(model.particle_count, dtype=float)
+        # and 1 where the last step ended with the particle on a collider
+        self.resting = wp.zeros(model.particle_count, dtype=int)
+        #: Those seven arrays as one kernel argument (:class:`~warpcloth.kernels.increment.ContactState`).
         self.state = nk.ContactState()
         self.state.normal, self.state.velocity = self.normal, self.velocity
-        self.state.force, self.state.state = self.force, self.mode
+        self.state.force, self.state.state, self.state.friction = self.force, self.mode, self.friction
+        # and how many contacts with friction the last sweep held (vbd's rigid translation)
+        self.held = wp.zeros(1, dtype=int)
+        self.state.resting, self.state.held = self.resting, self.held
         # the colliders as one kernel argument: none (empty records), and the control's (filled when it changes)
         self.none = ck.Colliders()
         self.none.records, self.none.box = wp.zeros(0, dtype=ck.Collider), wp.zeros(2, dtype=wp.vec3)

@@ -246,6 +246,8 @@ class VBD(IncrementSolver):
             self.coarse_correction(x, h, colliders)
         if mode == 2 or (mode == 1 and (colliders is not None or it == 0)):
             self.rigid_correction(x, h)
+        if colliders is not None:  # the sweep counts the contacts with friction it holds (translation_friction)
+            self.contacts.held.zero_()
         if self.self_collision is not None:
             self.self_collision.eval_vertex_terms(x, self.dx, self._contact_stiffness())
 
@@ -372,7 +374,8 @@ class VBD(IncrementSolver):
         """dx += P t: the Galerkin correction of the rigid translation mode (3 unknowns), t =
         (T^T A T)^-1 T^T r, r = -h^2 grad G at dx (colliders' forces of the last sweep included),
         A = h^2 times the potential's Hessian at dx, T's columns P_i e_k (P_i: I free, the tangent
-        projector sliding without friction, 0 pinned, sticking or with friction;
+        projector sliding without friction or with its kinetic friction in the mode (sliding_friction), 0 pinned,
+        sticking or sliding with the sweep's friction;
         :func:`~warpcloth.kernels.increment.rigid_mode_terms`; with self-collision the contacts' penalty
         too, :func:`~warpcloth.kernels.increment.add_self_contact_rigid_terms`). Springs between free particles do
         not resist a translation, so on a free cloth T^T A T = M I and afterwards sum m dx = sum m dy

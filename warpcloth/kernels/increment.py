@@ -45,6 +45,9 @@ class ContactState:
     velocity: wp.array(dtype=wp.vec3)  # the collider's velocity there [m/s]
     force: wp.array(dtype=wp.vec3)  # the colliders' force on the vertex in its local problem [N]
     state: wp.array(dtype=int)  # 0 free, 1 sliding, 2 sticking
+    friction: wp.array(dtype=float)  # mu m a_n of a contact the rigid translation slides (sliding_friction) [N]
+    resting: wp.array(dtype=int)  # 1: on a collider at the end of the last step, else 0
+    held: wp.array(dtype=int)  # [1]: contacts the last sweep held (sticking, or sliding_friction 0 with mu > 0)
 
 
 @wp.kernel
@@ -110,6 +113,11 @@ def newton_increment(g: wp.vec3, H: wp.mat33):
     return -(wp.inverse(H) * g)
 
 
+#: IPC's smooth static friction (Li et al. 2020, eq. 14; Chen et al. 2024): below this tangential speed
+#: [m/s] relative to the collider, the rigid translation's friction is a stiff spring (lagged_friction)
+FRICTION_SPEED = wp.constant(1.0e-5)
+
+
 @wp.func(inline=True)
 def contact_response(
     colliders: wp.array(dtype=Collider),
@@ -130,7 +138,7 @@ def contact_response(
     # p + H^-1 c is on the surface. With H isotropic this is the projection along n and friction as
     # position-based solvers' (up to mu times the depth); an anisotropic H (stiff springs along the
     # surface) needs the solve: projecting along n alone lets the normal force's H^-1 coupling slide
-    # the contact. Returns d, hit (1: a contact) and v_c
+    # the contact. Returns d, hit (1: sliding, 2: sticking) and v_c
     depth = colliders[k].thickness - phi
     if depth <= 0.0:
         return d, 0, wp.vec3(0.0), wp.vec3(0.0)
@@ -157,11 +165,13 @@ def project_increment(xi: wp.vec3, d: wp.vec3, colliders: Colliders, h: float, H
     # x_i + d out of every collider with friction (contact_response, the vertex's local Hessian H):
     # planes first, the others when x_i + d is in the box around them (as kernels.collide's
     # responses); returns d, the last contact's normal (0: none), its collider velocity, the
-    # colliders' force on the vertex and the state (0: free, 1: sliding, 2: sticking)
+    # colliders' force on the vertex, the state (0: free, 1: sliding, 2: sticking) and the last
+    # contact's mu where it slides (else 0; vbd's rigid translation may take its friction, sliding_friction)
     normal = wp.vec3(0.0)
     velocity = wp.vec3(0.0)
     force = wp.vec3(0.0)
     state = int(0)
+    mu = float(0.0)
     records = colliders.records
     for k in range(colliders.plane_count):
         p = xi + d
@@ -172,6 +182,9 @@ def project_increment(xi: wp.vec3, d: wp.vec3, colliders: Colliders, h: float, H
             velocity = vc
             force = force + c
             state = hit
+            mu = float(0.0)
+            if hit == 1:
+                mu = records[k].mu
     if in_box(xi + d, colliders.box):
         for k in range(colliders.plane_count, records.shape[0]):
             p = xi + d
@@ -182,7 +195,64 @@ def project_increment(xi: wp.vec3, d: wp.vec3, colliders: Colliders, h: float, H
                 velocity = vc
                 force = force + c
                 state = hit
-    return d, normal, velocity, force, state
+                mu = float(0.0)
+                if hit == 1:
+                    mu = records[k].mu
+    return d, normal, velocity, force, state, mu
+
+
+@wp.func
+def sliding_friction(mu: float, resting: int, dy: wp.vec3, vc: wp.vec3, n: wp.vec3, h: float, mass: float):
+    # the kinetic friction mu m a_n [N] with which vbd's rigid translation slides a contact the sweep found
+    # sliding (mu > 0), or 0 (the translation holds it): only a contact that rested on its collider at
+    # the step's start (no normal velocity relative to it) and whose own free motion over the step, u =
+    # dy - h v_c, leaves the Coulomb cone (|T u| > mu a_n h^2, a_n h^2 = -u.n its load: the cloth as a rigid
+    # body, its springs not acting). A landing contact, or one only its neighbours drag, is held as before
+    # (taking those in made the 64 x 64 tablecloth's landing peak strain 0.18-0.28; docs/solvers.md)
+    u = dy - h * vc
+    load = -wp.dot(u, n)
+    if mu == 0.0 or resting == 0 or load <= 0.0 or wp.length(u + load * n) <= mu * load:
+        return 0.0
+    return mu * mass * load / (h * h)
+
+
+@wp.func
+def translation_friction(i: int, contact: ContactState):
+    # contact i's kinetic friction in the rigid translation (sliding_friction), where the last sweep held
+    # no contact (sticking, or sliding with a friction the translation does not take: a rigid body slides
+    # only where none of its contacts holds it; with one held, every contact with friction is held in the
+    # translation, as before: the tablecloth's landing, docs/solvers.md), else 0
+    if contact.held[0] != 0:
+        return 0.0
+    return contact.friction[i]
+
+
+@wp.func
+def lagged_friction(i: int, dx: wp.array(dtype=wp.vec3), contact: ContactState, h: float):
+    # the kinetic friction of vertex i's sliding contact (sliding_friction: contact.friction = mu lambda)
+    # as a function of its slip over the step, for vbd's rigid translation (IPC's lagged smooth Coulomb
+    # friction, Li et al. 2020; Chen et al. 2024): D(u) = mu lambda f0(|u|), u = T (dx_i - h v_c), T = I
+    # - n n^T, f0' = f1 = 2 y / e - y^2 / e^2 below e = FRICTION_SPEED h, 1 above. Returns -grad D =
+    # -mu lambda f1 / y u and its Hessian mu lambda (f1' u^ u^T + f1 / y (T - u^ u^T)) (positive
+    # semi-definite: f1' >= 0)
+    ml = contact.friction[i]
+    n = contact.normal[i]
+    T = wp.identity(n=3, dtype=float) - wp.outer(n, n)
+    u = T * (dx[i] - h * contact.velocity[i])
+    y = wp.length(u)
+    e = FRICTION_SPEED * h
+    f1_y = float(0.0)
+    df1 = float(0.0)
+    if y >= e:
+        f1_y = 1.0 / y
+    else:
+        f1_y = (2.0 - y / e) / e
+        df1 = 2.0 / e - 2.0 * y / (e * e)
+    K = (ml * f1_y) * T
+    if y > 0.0:
+        uh = u / y
+        K = K + (ml * (df1 - f1_y)) * wp.outer(uh, uh)
+    return (-ml * f1_y) * u, K
 
 
 @wp.kernel
@@ -195,18 +265,19 @@ def project_increments(
     contact: ContactState,
 ):
     # every free particle's x + dx out of the colliders with friction (after a Chebyshev extrapolation,
-    # or projective dynamics' global step), its contact's normal (0: none) and collider velocity
-    # kept; pinned particles stay
+    # or projective dynamics' global step), its contact's normal (0: none), collider velocity, force,
+    # state and sliding mu kept; pinned particles stay
     i = wp.tid()
     if particle_inv_mass[i] == 0.0:
         return
     eye = wp.identity(n=3, dtype=float)
-    d, n, vc, c, state = project_increment(x[i], dx[i], colliders, h, eye, eye)
+    d, n, vc, c, state, _mu = project_increment(x[i], dx[i], colliders, h, eye, eye)
     dx[i] = d
     contact.normal[i] = n
     contact.velocity[i] = vc
     contact.force[i] = c
     contact.state[i] = state
+    contact.friction[i] = 0.0
 
 
 @wp.kernel
@@ -244,8 +315,11 @@ def update_from_increment_contact(
     d = dx[i]
     vi = d / h
     n = contact.normal[i]
+    resting = int(0)
     if wp.dot(n, n) > 0.0:
         vi = vi - wp.dot(vi - contact.velocity[i], n) * n
+        resting = 1
+    contact.resting[i] = resting
     v[i] = vi
     x[i] = x[i] + d
 
@@ -254,9 +328,10 @@ def update_from_increment_contact(
 @wp.func
 def rigid_mode_projector(i: int, inv_mass: wp.array(dtype=float), contact: ContactState):
     # how particle i takes part in a rigid translation t of the cloth: P_i t with P_i = I (free),
-    # I - n n^T (sliding on a frictionless collider: along its surface), 0 (pinned, or a contact with
-    # friction: sticking, or sliding with a friction force -- the mode cannot see the contacts'
-    # Coulomb cone as a whole, and translating them let the drape slide for good, measured)
+    # I - n n^T (sliding on a frictionless collider, or one whose kinetic friction the translation takes,
+    # sliding_friction, lagged_friction: along its surface), 0 (pinned, sticking, or sliding with the
+    # sweep's friction force -- the mode cannot see the contacts' Coulomb cones as a whole, and
+    # translating them let the drape slide for good, measured)
     if inv_mass[i] == 0.0:
         return wp.mat33(0.0)
     state = contact.state[i]
@@ -267,7 +342,7 @@ def rigid_mode_projector(i: int, inv_mass: wp.array(dtype=float), contact: Conta
         n = contact.normal[i]
         c = contact.force[i]
         cn = wp.dot(c, n)
-        if wp.length(c - cn * n) > 1.0e-4 * wp.abs(cn):
+        if translation_friction(i, contact) == 0.0 and wp.length(c - cn * n) > 1.0e-4 * wp.abs(cn):
             return wp.mat33(0.0)
         return eye - wp.outer(n, n)
     return eye
@@ -349,8 +424,12 @@ def rigid_mode_terms(
         c = wp.vec3(0.0)
         if contact.state[i] != 0:
             c = contact.force[i]
-        bi = Pi * (inertia.mass[i] * (inertia.dy[i] - dx[i]) + h2 * c)
         Ai = inertia.mass[i] * Pi
+        if translation_friction(i, contact) > 0.0:  # the sweep's friction force replaced by the translation's own
+            ff, Kf = lagged_friction(i, dx, contact, h)
+            c = ff  # (the normal force is out of P_i's range)
+            Ai = Ai + h2 * (Pi * Kf * Pi)
+        bi = Pi * (inertia.mass[i] * (inertia.dy[i] - dx[i]) + h2 * c)
     xi = x[i]
     dxi = dx[i]
     for a in range(springs.offsets[i], springs.offsets[i + 1]):

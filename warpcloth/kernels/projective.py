@@ -229,7 +229,7 @@ def solve_contacts(
             Hinv = wp.inverse(H)
         else:
             H = eye
-    d, n, vc, c, state = project_increment(xi, d, colliders, h, H, Hinv)
+    d, n, vc, c, state, _mu = project_increment(xi, d, colliders, h, H, Hinv)
     out[i] = d
     contact.normal[i] = n
     contact.velocity[i] = vc

@@ -28,6 +28,7 @@ from warpcloth.kernels.increment import (
     Inertia,
     newton_increment,
     project_increment,
+    sliding_friction,
     vertex_gradient_hessian,
 )
 from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
@@ -54,8 +55,8 @@ def solve_vertices_vbd(
     # one colour: dx_i <- dx_i - H_i^-1 g_i  (module docstring; dihedral hinges add -f_i to g_i and their
     # Gauss-Newton (k + kd/h) g g^T to H_i; self-contacts (self_force non-empty) their penalty's force and
     # Hessian, evaluated before the sweep), then out of the colliders with friction (project_increment;
-    # no colliders: empty records), the contact's normal (0: none) and collider velocity kept; pinned
-    # particles stay
+    # no colliders: empty records), the contact's normal (0: none), collider velocity, force, state and
+    # the rigid translation's friction (sliding_friction) kept; pinned particles stay
     i = order[start + wp.tid()]
     if inertia.inv_mass[i] == 0.0:
         return
@@ -74,11 +75,15 @@ def solve_vertices_vbd(
         Hinv = wp.mat33(0.0)
         if wp.abs(wp.determinant(H)) >= 1.0e-30:
             Hinv = wp.inverse(H)
-        d, n, vc, c, state = project_increment(xi, d, colliders, h, H, Hinv)
+        d, n, vc, c, state, mu = project_increment(xi, d, colliders, h, H, Hinv)
         contact.normal[i] = n
         contact.velocity[i] = vc
         contact.force[i] = c
         contact.state[i] = state
+        f = sliding_friction(mu, contact.resting[i], inertia.dy[i], vc, n, h, inertia.mass[i])
+        contact.friction[i] = f
+        if state == 2 or (mu > 0.0 and f == 0.0):  # held (translation_friction)
+            wp.atomic_add(contact.held, 0, 1)
     dx[i] = d
 
 
