@@ -66,6 +66,9 @@ STRETCH_DAMPING_MODES = ("ratio", "rayleigh")
 #: A mesh face fitted within this relative energy error keeps its material even where one of its
 #: springs is at 0 N/m (the others carry it; NNLS's small Tikhonov term alone leaves ~1e-6).
 FIT_TOLERANCE = 1e-3
+#: A mesh whose springs store an energy off the material's by more than this (relative, for some
+#: uniform strain) is warned about even where no spring is at 0 (triangles and fabrics' low shear).
+MEMBRANE_WARNING = 0.1
 
 #: Field names that describe the fabric (the ones a preset's ``estimated`` flags may name).
 PHYSICAL_FIELDS = ("density", "stretch_warp", "stretch_weft", "shear", "bend_warp", "bend_weft")
@@ -909,33 +912,37 @@ def _side_families(sides: np.ndarray, slot: np.ndarray) -> tuple[np.ndarray, np.
 def _warn_zero_springs(ks, types, mat: Material, where: str, faces, low, high) -> int:
     """Count the structural and shear springs at 0 N/m in faces whose fit is off (relative energy
     error above :data:`FIT_TOLERANCE`; a zero in a face fitted within it loses nothing: its other
-    springs carry the material) and warn, by family, with what the lattice then does and what to do."""
+    springs carry the material) and warn, by family, with what the lattice then does and what to
+    do; without such springs, warn where the fit is off by more than :data:`MEMBRANE_WARNING`."""
     inexact = np.flatnonzero(np.maximum(-low, high) > FIT_TOLERANCE)
     in_bad = np.zeros(ks.shape[0], dtype=bool)
     for f in inexact:
         in_bad[faces[f]] = True
-    quads = any(len(faces[f]) == 6 for f in inexact)
+    if any(len(faces[f]) == 6 for f in inexact):
+        fix = (
+            "its quads are too far from rectangles, or too long and thin, for this material (their skewed sides "
+            "or diagonals alone are stiffer than it): refine the mesh, make its quads closer to squares, or use "
+            "a material with more shear"
+        )
+    else:
+        fix = "a triangle's three springs carry no shear far from stretch / 3: use quads=True on a grid-like mesh"
+    effect = (
+        f"the lattice's energy is up to {100 * np.max(high):.3g} % above and {100 * np.max(-low):.3g} % below "
+        f"the material's under some uniform strain"
+    )
     total = 0
     for family in (SpringType.STRUCTURAL, SpringType.SHEAR):
         mine = types == int(family)
         zero = int(np.count_nonzero(mine & in_bad & (ks <= 0.0)))
         total += zero
-        if not zero:
-            continue
-        if quads:
-            fix = (
-                "its quads are too far from rectangles, or too long and thin, for this material (their skewed sides "
-                "or diagonals alone are stiffer than it): refine the mesh, make its quads closer to squares, or use "
-                "a material with more shear"
+        if zero:
+            warn(
+                f"material {mat.name!r} on {where}: {zero:,} of {int(mine.sum()):,} {family.name.lower()} springs "
+                f"got stiffness 0 N/m: its faces cannot carry stretch {mat.stretch_warp:g}/{mat.stretch_weft:g} "
+                f"N/m with shear {mat.shear:g} N/m, and {effect}; {fix}"
             )
-        else:
-            fix = "a triangle carries no shear much below stretch / 3: use quads=True on a grid-like mesh"
-        warn(
-            f"material {mat.name!r} on {where}: {zero:,} of {int(mine.sum()):,} {family.name.lower()} springs got "
-            f"stiffness 0 N/m: its faces cannot carry stretch {mat.stretch_warp:g}/{mat.stretch_weft:g} N/m with "
-            f"shear {mat.shear:g} N/m, and the lattice's energy is up to {100 * np.max(high):.3g} % above and "
-            f"{100 * np.max(-low):.3g} % below the material's under some uniform strain; {fix}"
-        )
+    if not total and max(np.max(high), np.max(-low)) > MEMBRANE_WARNING:
+        warn(f"material {mat.name!r} on {where}: {effect} (membrane_error); {fix}")
     return total
 
 
