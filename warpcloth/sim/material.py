@@ -853,13 +853,11 @@ def _lattice_axes(v, pairs, faces, mat: Material, where: str) -> np.ndarray:
         direction[:, p] = d / np.linalg.norm(d, axis=1, keepdims=True)
     score = np.abs(direction[:, :, 0]) + 1e-9 * np.abs(direction[:, :, 2])  # along x; z breaks ties
     label, conflicted = _side_families(sides, slot)
-    pick = np.empty(quads.size, dtype=np.int64)  # the warp pair of each quad
-    for comp in np.unique(label[:, 0]):
-        members = np.flatnonzero(label[:, 0] == comp)
-        fam = label[members, 1]  # the family of pair 0 in each quad
-        family_score = [np.sum(np.where(fam == f, score[members, 0], score[members, 1])) for f in (0, 1)]
-        warp_family = 0 if family_score[0] >= family_score[1] else 1
-        pick[members] = np.where(fam == warp_family, 0, 1)
+    _, comp = np.unique(label[:, 0], return_inverse=True)  # the connected region of each quad
+    fam = label[:, 1]  # the family of each quad's pair 0
+    family_score = [np.bincount(comp, np.where(fam == f, score[:, 0], score[:, 1])) for f in (0, 1)]
+    warp_family = np.where(family_score[0] >= family_score[1], 0, 1)[comp]
+    pick = np.where(fam == warp_family, 0, 1)  # the warp pair of each quad
     if conflicted.any():
         mine = np.flatnonzero(conflicted)
         pick[mine] = np.where(score[mine, 0] >= score[mine, 1], 0, 1)
