@@ -137,6 +137,8 @@ def test_polyester_on_a_coarse_cone_warns_by_family_naming_mesh_and_material(cap
     assert r.clamped == int(np.sum(r.stiffness[shear] == 0.0)) == int(shear.sum())
     assert r.membrane_error > 1.0
     capsys.readouterr()
+    quiet = mesh_spring_params("polyester", q, t, pairs, types, uv=uv, warn_fit=False)  # a caller that mends them
+    assert quiet.clamped == r.clamped and capsys.readouterr().err == ""
     for name in ("cotton", "silk", "denim"):  # more shear: the same cone is exact, nothing to say
         r = mesh_spring_params(name, q, t, pairs, types, uv=uv)
         assert r.clamped == 0 and r.membrane_error < 1e-9 and np.all(r.stiffness[types != SpringType.BEND] > 0)

@@ -630,6 +630,7 @@ def mesh_spring_params(
     stretch_damping: str = "ratio",
     gravity: float = GRAVITY,
     name: str | None = None,
+    warn_fit: bool = True,
 ) -> MaterialSprings:
     """Spring parameters of ``mat`` on a mesh cloth's springs (``pairs``, ``types`` as from
     :func:`~warpcloth.sim.mesh.mesh_springs`, in that order).
@@ -654,7 +655,8 @@ def mesh_spring_params(
     largest relative energy error of any face) says how far the lattice is from the material.
     Masses: rho times the vertex area (a third of each adjacent triangle). Damping as in
     :func:`grid_spring_params`. Structural or shear springs the fit leaves at 0 N/m are counted
-    (``clamped``) and warned about by family, naming the mesh (``name``) and the material.
+    (``clamped``) and warned about by family, naming the mesh (``name``) and the material;
+    ``warn_fit=False`` (a caller that mends them itself, and says so) only counts them.
     """
     mat = material(mat)
     gravity = require_positive("gravity", gravity, "m/s^2")
@@ -722,7 +724,7 @@ def mesh_spring_params(
         delta = fitted - target[group] / face_area[group][:, None]
         low[group], high[group] = _relative_energy_range(delta, target_unit)
     error = float(max(np.max(-low), np.max(high)))
-    clamped = _warn_zero_springs(ks, types, mat, where, faces, low, high)
+    clamped = _warn_zero_springs(ks, types, mat, where, faces, low, high, warn_fit)
     mass = lumped_masses(v, t, density=mat.density)
     kd = _damping(mat, ks, types, pairs, mass, stretch_damping)
     return MaterialSprings(pairs.astype(np.int32), types, ks, kd, _compression(mat, types), mass, error, clamped)
@@ -907,7 +909,7 @@ def _side_families(sides: np.ndarray, slot: np.ndarray) -> tuple[np.ndarray, np.
     return label, conflicted
 
 
-def _warn_zero_springs(ks, types, mat: Material, where: str, faces, low, high) -> int:
+def _warn_zero_springs(ks, types, mat: Material, where: str, faces, low, high, say: bool = True) -> int:
     """Count the structural and shear springs at 0 N/m in faces whose fit is off (relative energy
     error above :data:`FIT_TOLERANCE`; a zero in a face fitted within it loses nothing: its other
     springs carry the material) and warn, by family, with what the lattice then does and what to
@@ -933,13 +935,13 @@ def _warn_zero_springs(ks, types, mat: Material, where: str, faces, low, high) -
         mine = types == int(family)
         zero = int(np.count_nonzero(mine & in_bad & (ks <= 0.0)))
         total += zero
-        if zero:
+        if zero and say:
             warn(
                 f"material {mat.name!r} on {where}: {zero:,} of {int(mine.sum()):,} {family.name.lower()} springs "
                 f"got stiffness 0 N/m: its faces cannot carry stretch {mat.stretch_warp:g}/{mat.stretch_weft:g} "
                 f"N/m with shear {mat.shear:g} N/m, and {effect}; {fix}"
             )
-    if not total and max(np.max(high), np.max(-low)) > MEMBRANE_WARNING:
+    if say and not total and max(np.max(high), np.max(-low)) > MEMBRANE_WARNING:
         warn(f"material {mat.name!r} on {where}: {effect} (membrane_error); {fix}")
     return total
 
@@ -1086,13 +1088,15 @@ def material_mesh_cloth(
     quads: bool = False,
     bend: bool | str = True,
     device: str | None = None,
+    warn_fit: bool = True,
 ) -> ClothModel:
     """A cloth from a triangle mesh (as :func:`~warpcloth.sim.mesh.build_mesh_cloth`, same
     arguments) made of ``mat``: per-spring ks, kd and compression factors from
     :func:`mesh_spring_params` (warp = the UV u axis where the mesh has UVs; else on quads the side
     family nearer global +x, on triangles global +x), masses
     rho times the vertex area, and with ``bend="dihedral"`` hinges of the material's B_warp /
-    B_weft (:func:`~warpcloth.sim.hinges.mesh_hinges`) with Rayleigh damping beta_b k_e."""
+    B_weft (:func:`~warpcloth.sim.hinges.mesh_hinges`) with Rayleigh damping beta_b k_e. Springs
+    the fit leaves at 0 N/m are warned about unless ``warn_fit=False`` (:func:`mesh_spring_params`)."""
     mat = material(mat)
     name = None
     if isinstance(vertices, TriangleMesh):
@@ -1111,7 +1115,7 @@ def material_mesh_cloth(
     pinned = resolve_pins(v, pins, pin_groups, pin_where, groups)
     bend_model = mesh_bend(bend)
     pairs, types = mesh_springs(v, t, quads=quads, bend=bend_model in (BendModel.PROVOT, BendModel.CHOI_KO))
-    springs = mesh_spring_params(mat, v, t, pairs, types, uv=uv, name=name)
+    springs = mesh_spring_params(mat, v, t, pairs, types, uv=uv, name=name, warn_fit=warn_fit)
     model = build_model(
         v,
         pairs,
