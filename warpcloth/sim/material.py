@@ -63,6 +63,13 @@ GRAVITY = 9.81
 #: How membrane springs are damped: a damping ratio per spring (default) or Rayleigh kd = beta ks.
 STRETCH_DAMPING_MODES = ("ratio", "rayleigh")
 
+#: A mesh face fitted within this relative energy error keeps its material even where one of its
+#: springs is at 0 N/m (the others carry it; NNLS's small Tikhonov term alone leaves ~1e-6).
+FIT_TOLERANCE = 1e-3
+#: A mesh whose springs store an energy off the material's by more than this (relative, for some
+#: uniform strain) is warned about even where no spring is at 0 (triangles and fabrics' low shear).
+MEMBRANE_WARNING = 0.1
+
 #: Field names that describe the fabric (the ones a preset's ``estimated`` flags may name).
 PHYSICAL_FIELDS = ("density", "stretch_warp", "stretch_weft", "shear", "bend_warp", "bend_weft")
 
@@ -402,10 +409,17 @@ def _voigt(c5: np.ndarray) -> np.ndarray:
 
 def _relative_energy_error(delta5: np.ndarray, target5: np.ndarray) -> np.ndarray:
     """max over strains |e^T dD e| / (e^T D e): the largest generalized eigenvalue magnitude."""
+    low, high = _relative_energy_range(delta5, target5)
+    return np.maximum(-low, high)
+
+
+def _relative_energy_range(delta5: np.ndarray, target5: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """min and max over strains of e^T dD e / (e^T D e) (the extreme generalized eigenvalues):
+    min < 0 where the lattice is softer than the material for some strain, max > 0 stiffer."""
     chol = np.linalg.cholesky(_voigt(target5))
     inv = np.linalg.inv(chol)
-    x = inv @ _voigt(delta5) @ inv.T
-    return np.max(np.abs(np.linalg.eigvalsh(x)), axis=-1)
+    eig = np.linalg.eigvalsh(inv @ _voigt(delta5) @ inv.T)
+    return eig[..., 0], eig[..., -1]
 
 
 def bend_spring_stiffness(rigidity, segment, weight) -> np.ndarray:
@@ -615,14 +629,18 @@ def mesh_spring_params(
     uv=None,
     stretch_damping: str = "ratio",
     gravity: float = GRAVITY,
+    name: str | None = None,
+    warn_fit: bool = True,
 ) -> MaterialSprings:
     """Spring parameters of ``mat`` on a mesh cloth's springs (``pairs``, ``types`` as from
     :func:`~warpcloth.sim.mesh.mesh_springs`, in that order).
 
     Faces: each triangle, or, where a shear spring lies on an interior edge (``quads=True``
     meshes), the quad of the two triangles with both diagonals. Per face, in its rest material
-    frame (warp = the UV u axis if ``uv`` is given, else global +x projected into the face,
-    turned by ``warp_angle``), with edge springs k of direction n_k, length L_k and face area A:
+    frame (warp = the UV u axis if ``uv`` is given; without uv, on a quad the one of its two side
+    directions that the whole connected quad region's side family nearer global +x gives
+    (:func:`_lattice_axes`), on a triangle global +x projected into it; turned by ``warp_angle``),
+    with edge springs k of direction n_k, length L_k and face area A:
     unknowns c_k = ks_k L_k^2 / A >= 0 fit the 5 components of the fully symmetric tensor
     (C11, C22, C12 = G, 0, 0) in the Frobenius norm (weights sqrt(1, 1, 6, 4, 4)): the minimum-norm
     least-squares solution where it is >= 0, else non-negative least squares. The face adds
@@ -636,7 +654,9 @@ def mesh_spring_params(
     right triangle (one diagonal) leaves a shear-stretch coupling: ``membrane_error`` (the
     largest relative energy error of any face) says how far the lattice is from the material.
     Masses: rho times the vertex area (a third of each adjacent triangle). Damping as in
-    :func:`grid_spring_params`.
+    :func:`grid_spring_params`. Structural or shear springs the fit leaves at 0 N/m are counted
+    (``clamped``) and warned about by family, naming the mesh (``name``) and the material;
+    ``warn_fit=False`` (a caller that mends them itself, and says so) only counts them.
     """
     mat = material(mat)
     gravity = require_positive("gravity", gravity, "m/s^2")
@@ -662,7 +682,9 @@ def mesh_spring_params(
         )
 
     faces, face_tris = _faces(topo, types, edge_spring, find, t)
-    _normal, frame_u, frame_v = _face_frames(v, t, face_tris, uv, mat.warp_angle)
+    where = f"mesh {name!r}" if name else f"a mesh of {n:,} vertices"
+    axes = None if uv is not None else _lattice_axes(v, pairs, faces, mat, where)
+    _normal, frame_u, frame_v = _face_frames(v, t, face_tris, uv, mat.warp_angle, axes)
     tri_area = triangle_areas(v, t)
     face_area = np.array([tri_area[list(ft)].sum() for ft in face_tris])
     target = np.outer(face_area, _target(mat))  # A_f * C, reduced by the bend springs below
@@ -685,7 +707,7 @@ def mesh_spring_params(
         nb = _in_frame(rest[is_bend[sb]], frame_u[sf], frame_v[sf])
         np.subtract.at(target, sf, (sw * kb[sb] * length[is_bend[sb]] ** 2)[:, None] * _quartic(nb))
 
-    error = 0.0
+    low, high = np.zeros(len(faces)), np.zeros(len(faces))  # per face: the energy's relative range
     target_unit = _target(mat)
     for size in sorted({len(e) for e in faces}):
         group = [f for f, e in enumerate(faces) if len(e) == size]
@@ -700,10 +722,12 @@ def mesh_spring_params(
         np.add.at(ks, springs.ravel(), (coef * face_area[group][:, None] / length[springs] ** 2).ravel())
         fitted = np.einsum("fks,fs->fk", m, coef) / _FROB
         delta = fitted - target[group] / face_area[group][:, None]
-        error = max(error, float(np.max(_relative_energy_error(delta, target_unit))))
+        low[group], high[group] = _relative_energy_range(delta, target_unit)
+    error = float(max(np.max(-low), np.max(high)))
+    clamped = _warn_zero_springs(ks, types, mat, where, faces, low, high, warn_fit)
     mass = lumped_masses(v, t, density=mat.density)
     kd = _damping(mat, ks, types, pairs, mass, stretch_damping)
-    return MaterialSprings(pairs.astype(np.int32), types, ks, kd, _compression(mat, types), mass, error, 0)
+    return MaterialSprings(pairs.astype(np.int32), types, ks, kd, _compression(mat, types), mass, error, clamped)
 
 
 def _faces(topo, types, edge_spring, find, t):
@@ -734,8 +758,9 @@ def _faces(topo, types, edge_spring, find, t):
     return faces, face_tris
 
 
-def _face_frames(v, t, face_tris, uv, warp_angle):
-    """Per face: unit normal, warp and weft directions (3-D, in the face's plane)."""
+def _face_frames(v, t, face_tris, uv, warp_angle, axes=None):
+    """Per face: unit normal, warp and weft directions (3-D, in the face's plane). Without uv,
+    ``axes`` (F, 3; NaN where none) gives a face's first axis (before ``warp_angle``)."""
     a, b, c = (v[t[:, k]] for k in range(3))
     e1, e2 = b - a, c - a
     tri_n = np.cross(e1, e2)  # |n| = 2 area
@@ -769,6 +794,9 @@ def _face_frames(v, t, face_tris, uv, warp_angle):
     if uv is None:  # a face perpendicular to x takes global z as its first axis
         weak = np.linalg.norm(ax, axis=1) < 1e-6
         ax[weak] = _in_plane(np.broadcast_to([0.0, 0.0, 1.0], ref_u.shape), normal)[weak]
+        if axes is not None:  # a quad's own side direction (_lattice_axes)
+            given = np.all(np.isfinite(axes), axis=1)
+            ax[given] = _in_plane(axes[given], normal[given])
     ax /= np.linalg.norm(ax, axis=1, keepdims=True)
     ay = np.cross(normal, ax)
     if uv is None:  # the second axis along +y, or +z where y is (nearly) along the normal or the first axis
@@ -793,6 +821,129 @@ def _in_frame(d, fu, fv):
     """Unit 2-D material-frame directions of 3-D vectors d (projected into each face)."""
     p = np.stack([np.einsum("si,si->s", d, fu), np.einsum("si,si->s", d, fv)], axis=1)
     return p / np.linalg.norm(p, axis=1, keepdims=True)
+
+
+def _lattice_axes(v, pairs, faces, mat: Material, where: str) -> np.ndarray:
+    """Without uv, each quad face's first material axis (F, 3; NaN on triangle faces): the mean
+    direction of one of its two pairs of opposite sides. The side families are followed from quad
+    to quad across shared sides (a tube's rings stay one family, its meridians the other), and in
+    each connected quad region the family more nearly along global +x (by the summed |cos| of its
+    sides; z where no side has an x component) is the warp: the quad's frame is then its own, so a
+    rectangle is fitted exactly (a frame at an angle to the sides needs C1112 != 0, which four
+    spring directions cannot carry, and the fit drives springs to 0). Where the families cannot be
+    followed consistently (an odd number of quads around a vertex), each quad takes its own nearer
+    side and an anisotropic material is warned about."""
+    axes = np.full((len(faces), 3), np.nan)
+    quads = np.array([f for f, s in enumerate(faces) if len(s) == 6], dtype=np.int64)
+    if quads.size == 0:
+        return axes
+    sides = np.array([faces[f][:4] for f in quads], dtype=np.int64)  # (Q, 4) structural springs
+    ends = pairs[sides]  # (Q, 4, 2)
+    disjoint = ~np.any(ends[:, :, None, :, None] == ends[:, None, :, None, :], axis=(3, 4))  # (Q, 4, 4)
+    opposite0 = np.argmax(disjoint[:, 0, :], axis=1)  # side 0's opposite side
+    slot = np.ones((quads.size, 4), dtype=np.int64)  # which pair (0 or 1) each side is in
+    slot[:, 0] = 0
+    slot[np.arange(quads.size), opposite0] = 0
+    vec = v[pairs[sides, 1]] - v[pairs[sides, 0]]  # (Q, 4, 3)
+    direction = np.zeros((quads.size, 2, 3))
+    for p in (0, 1):
+        ab = np.argsort(slot != p, axis=1, kind="stable")[:, :2]  # (Q, 2) the pair's two sides
+        d0 = vec[np.arange(quads.size), ab[:, 0]]
+        d1 = vec[np.arange(quads.size), ab[:, 1]]
+        d1 = np.where((np.einsum("qi,qi->q", d0, d1) < 0.0)[:, None], -d1, d1)
+        d = d0 / np.linalg.norm(d0, axis=1, keepdims=True) + d1 / np.linalg.norm(d1, axis=1, keepdims=True)
+        direction[:, p] = d / np.linalg.norm(d, axis=1, keepdims=True)
+    score = np.abs(direction[:, :, 0]) + 1e-9 * np.abs(direction[:, :, 2])  # along x; z breaks ties
+    label, conflicted = _side_families(sides, slot)
+    _, comp = np.unique(label[:, 0], return_inverse=True)  # the connected region of each quad
+    fam = label[:, 1]  # the family of each quad's pair 0
+    family_score = [np.bincount(comp, np.where(fam == f, score[:, 0], score[:, 1])) for f in (0, 1)]
+    warp_family = np.where(family_score[0] >= family_score[1], 0, 1)[comp]
+    pick = np.where(fam == warp_family, 0, 1)  # the warp pair of each quad
+    if conflicted.any():
+        mine = np.flatnonzero(conflicted)
+        pick[mine] = np.where(score[mine, 0] >= score[mine, 1], 0, 1)
+        if mat.stretch_warp != mat.stretch_weft or mat.bend_warp != mat.bend_weft:
+            warn(
+                f"material {mat.name!r} on {where}: without texture coordinates the warp of "
+                f"{int(conflicted.sum()):,} quads cannot follow the mesh's side families (an odd number of quads "
+                "around a vertex); there each quad takes as warp its side nearer global +x, so warp and weft "
+                "may swap between neighbours: give the mesh uv (u along the warp) to set the warp"
+            )
+    chosen = direction[np.arange(quads.size), pick]
+    chosen = np.where((chosen[:, :1] < 0.0) | ((chosen[:, :1] == 0.0) & (chosen[:, 2:] < 0.0)), -chosen, chosen)
+    axes[quads] = chosen
+    return axes
+
+
+def _side_families(sides: np.ndarray, slot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Follow the side families across shared sides: per quad (component, family of its pair 0),
+    and whether its component met a contradiction (quads around a vertex of odd valence)."""
+    q_count = sides.shape[0]
+    flat = sides.ravel()
+    order = np.argsort(flat, kind="stable")
+    same = np.flatnonzero(flat[order][1:] == flat[order][:-1])  # a side shared by two quads
+    a, b = order[same] // 4, order[same + 1] // 4
+    parity = slot.ravel()[order[same]] ^ slot.ravel()[order[same + 1]]
+    adjacency = [[] for _ in range(q_count)]
+    for x, y, p in zip(a.tolist(), b.tolist(), parity.tolist()):
+        adjacency[x].append((y, p))
+        adjacency[y].append((x, p))
+    label = np.full((q_count, 2), -1, dtype=np.int64)
+    bad_component = set()
+    for start in range(q_count):
+        if label[start, 0] >= 0:
+            continue
+        label[start] = (start, 0)
+        stack = [start]
+        while stack:
+            x = stack.pop()
+            for y, p in adjacency[x]:
+                fam = label[x, 1] ^ p
+                if label[y, 0] < 0:
+                    label[y] = (start, fam)
+                    stack.append(y)
+                elif label[y, 1] != fam:
+                    bad_component.add(start)
+    conflicted = np.isin(label[:, 0], list(bad_component))
+    return label, conflicted
+
+
+def _warn_zero_springs(ks, types, mat: Material, where: str, faces, low, high, say: bool = True) -> int:
+    """Count the structural and shear springs at 0 N/m in faces whose fit is off (relative energy
+    error above :data:`FIT_TOLERANCE`; a zero in a face fitted within it loses nothing: its other
+    springs carry the material) and warn, by family, with what the lattice then does and what to
+    do; without such springs, warn where the fit is off by more than :data:`MEMBRANE_WARNING`."""
+    inexact = np.flatnonzero(np.maximum(-low, high) > FIT_TOLERANCE)
+    in_bad = np.zeros(ks.shape[0], dtype=bool)
+    for f in inexact:
+        in_bad[faces[f]] = True
+    if any(len(faces[f]) == 6 for f in inexact):
+        fix = (
+            "its quads are too far from rectangles, or too long and thin, for this material (their skewed sides "
+            "or diagonals alone are stiffer than it): refine the mesh, make its quads closer to squares, or use "
+            "a material with more shear"
+        )
+    else:
+        fix = "a triangle's three springs carry no shear far from stretch / 3: use quads=True on a grid-like mesh"
+    effect = (
+        f"the lattice's energy is up to {100 * np.max(high):.3g} % above and {100 * np.max(-low):.3g} % below "
+        f"the material's under some uniform strain"
+    )
+    total = 0
+    for family in (SpringType.STRUCTURAL, SpringType.SHEAR):
+        mine = types == int(family)
+        zero = int(np.count_nonzero(mine & in_bad & (ks <= 0.0)))
+        total += zero
+        if zero and say:
+            warn(
+                f"material {mat.name!r} on {where}: {zero:,} of {int(mine.sum()):,} {family.name.lower()} springs "
+                f"got stiffness 0 N/m: its faces cannot carry stretch {mat.stretch_warp:g}/{mat.stretch_weft:g} "
+                f"N/m with shear {mat.shear:g} N/m, and {effect}; {fix}"
+            )
+    if say and not total and max(np.max(high), np.max(-low)) > MEMBRANE_WARNING:
+        warn(f"material {mat.name!r} on {where}: {effect} (membrane_error); {fix}")
+    return total
 
 
 def _bend_faces(v, topo, bend_pairs, tri_face):
@@ -937,15 +1088,20 @@ def material_mesh_cloth(
     quads: bool = False,
     bend: bool | str = True,
     device: str | None = None,
+    warn_fit: bool = True,
 ) -> ClothModel:
     """A cloth from a triangle mesh (as :func:`~warpcloth.sim.mesh.build_mesh_cloth`, same
     arguments) made of ``mat``: per-spring ks, kd and compression factors from
-    :func:`mesh_spring_params` (warp = the UV u axis where the mesh has UVs, else global +x), masses
+    :func:`mesh_spring_params` (warp = the UV u axis where the mesh has UVs; else on quads the side
+    family nearer global +x, on triangles global +x), masses
     rho times the vertex area, and with ``bend="dihedral"`` hinges of the material's B_warp /
-    B_weft (:func:`~warpcloth.sim.hinges.mesh_hinges`) with Rayleigh damping beta_b k_e."""
+    B_weft (:func:`~warpcloth.sim.hinges.mesh_hinges`) with Rayleigh damping beta_b k_e. Springs
+    the fit leaves at 0 N/m are warned about unless ``warn_fit=False`` (:func:`mesh_spring_params`)."""
     mat = material(mat)
+    name = None
     if isinstance(vertices, TriangleMesh):
         mesh = vertices
+        name = mesh.source
         vertices, triangles = mesh.vertices, mesh.triangles
         uv = mesh.uv if uv is None else uv
         groups = {**mesh.groups, **(groups or {})}
@@ -959,7 +1115,7 @@ def material_mesh_cloth(
     pinned = resolve_pins(v, pins, pin_groups, pin_where, groups)
     bend_model = mesh_bend(bend)
     pairs, types = mesh_springs(v, t, quads=quads, bend=bend_model in (BendModel.PROVOT, BendModel.CHOI_KO))
-    springs = mesh_spring_params(mat, v, t, pairs, types, uv=uv)
+    springs = mesh_spring_params(mat, v, t, pairs, types, uv=uv, name=name, warn_fit=warn_fit)
     model = build_model(
         v,
         pairs,
