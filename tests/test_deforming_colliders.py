@@ -189,17 +189,8 @@ def slab_mesh(height: float, size: float = 0.2):
     return v, tri
 
 
-#: vbd and projective hold their contacts in kernels/increment.py (project_increments): the nearest point's side
-#: only, not yet the swept check of the other integrators (kernels/collide.py, swept_mesh_contact); open
-SWEPT_OPEN = pytest.mark.xfail(
-    strict=True, reason="the increment solvers' contacts take the nearest point's side (open)"
-)
-
-
 @pytest.mark.parametrize("height", [0.04, 0.02])
-@pytest.mark.parametrize(
-    "integrator", [pytest.param(n, marks=SWEPT_OPEN) if n in ("vbd", "projective") else n for n in integrator_names()]
-)
+@pytest.mark.parametrize("integrator", integrator_names())
 def test_a_slab_rising_2_m_per_s_carries_a_particle_at_60_hz(integrator, height):
     # a 4 cm slab moves 3.3 cm a 1/60 s step: past its mid-plane the nearest face is its bottom (the nearest
     # point pushed the particle out below, through it); a 2 cm slab passes the particle within one step (no

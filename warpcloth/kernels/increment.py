@@ -13,6 +13,7 @@ import warp as wp
 
 from warpcloth.kernels.bending import HingeAdjacency, hinge_angle_gradient, hinge_force_scale, pick_vec3
 from warpcloth.kernels.collide import (
+    MESH,
     Collider,
     Colliders,
     contact_band,
@@ -20,6 +21,7 @@ from warpcloth.kernels.collide import (
     plane_contact,
     shape_contact,
     surface_velocity,
+    swept_mesh_contact,
 )
 from warpcloth.kernels.self_contact import CONTACTS, penalty_depth
 from warpcloth.kernels.springs import SpringAdjacency, spring_gradient_hessian
@@ -189,6 +191,8 @@ def project_increment(xi: wp.vec3, d: wp.vec3, colliders: Colliders, h: float, H
         for k in range(colliders.plane_count, records.shape[0]):
             p = xi + d
             phi, n = shape_contact(records, k, p, contact_band(records, k))
+            if records[k].kind == MESH:  # the side it came from (its step's increment d)
+                phi, n = swept_mesh_contact(records, k, p, d, h, phi, n)
             d, hit, vc, c = contact_response(records, k, p, d, phi, n, h, H, Hinv)
             if hit != 0:
                 normal = n
