@@ -374,6 +374,9 @@ def _read_usd_mesh(stage, path: str, prim: str | None) -> TriangleMesh:
         )
     mesh = UsdGeom.Mesh(p)
     time = Usd.TimeCode.Default()
+    if mesh.GetPointsAttr().Get(time) is None and mesh.GetPointsAttr().GetNumTimeSamples():
+        # points only time-sampled (an animated mesh as a DCC exports it): the mesh at its first sample
+        time = Usd.TimeCode.EarliestTime()
     points = mesh.GetPointsAttr().Get(time)
     require(points is not None and len(points) > 0, f"USD mesh {p.GetPath()} in {path!r} is empty: no points")
     local = np.asarray(points, dtype=np.float64)
