@@ -57,7 +57,10 @@ def run_outputs(tmp_path_factory):
     sim = Simulator(model, "xpbd", control)
     usd_path, html_path = str(folder / "run.usda"), str(folder / "run.html")
     sinks = FrameSinks(
-        [UsdWriter(usd_path, model, FPS, colliders=control.colliders), HtmlWriter(html_path, model, FPS, colliders=control.colliders)]
+        [
+            UsdWriter(usd_path, model, FPS, colliders=control.colliders),
+            HtmlWriter(html_path, model, FPS, colliders=control.colliders),
+        ]
     )
     result = RunHarness(sim).run(DURATION, fps=FPS, frames=sinks)
     sinks.close()
@@ -163,9 +166,10 @@ def test_usd_mesh_with_time_sampled_points_loads_as_keyframes(tmp_path, default)
 
 
 def test_a_cloth_rides_a_rising_usd_mesh(tmp_path):
-    """A 4x4 cloth resting on the loaded plane is carried up by it; on the same plane loaded static it stays."""
+    """A 4x4 cloth resting on the loaded plane is carried up by it, 0.1 m in 0.1 s against gravity (at 50
+    codes/s the keys are at 0, 0.04 and 0.1 s: a short run, a deforming mesh's step costs tens of ms on a CPU)."""
     path = tmp_path / "rise.usda"
-    write_rising_plane(path)
+    write_rising_plane(path, per_second=50.0)
     thickness = 0.005
 
     def final_height(collider):
@@ -173,15 +177,13 @@ def test_a_cloth_rides_a_rising_usd_mesh(tmp_path):
             4, 4, 0.2, 0.2, 0.02, plane="horizontal", origin=(-0.1, 0.1 + thickness, -0.1), device="cpu"
         )
         sim = Simulator(model, "xpbd", Control(colliders=(collider,), device="cpu"))
-        sim.set_dt(1.0 / 600.0)
-        sim.simulate(300)  # 0.5 s: to the last key
+        sim.set_dt(1.0 / 300.0)
+        sim.simulate(30)  # 0.1 s: to the last key
         return sim.state.particle_q.numpy()[:, 1].astype(np.float64), sim.sim_time
 
     y, t = final_height(load_mesh_collider(str(path), thickness=thickness))
-    assert t == pytest.approx(0.5)
+    assert t == pytest.approx(0.1)
     assert np.all(np.abs(y - (0.2 + thickness)) < 0.25 * thickness)  # on the plane at its last key, 0.2 m
-    y_static, _ = final_height(load_mesh_collider(str(path), thickness=thickness, track=None))
-    assert np.all(np.abs(y_static - (0.1 + thickness)) < 0.25 * thickness)
 
 
 def test_usd_output_reads_back_as_the_same_keys(run_outputs):

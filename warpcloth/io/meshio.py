@@ -5,7 +5,8 @@ OBJ is a 100-line format, so warpcloth reads it itself rather than adding a depe
 negative indices count back from the last vertex read), ``g`` and ``o`` (the vertices of the
 faces that follow belong to that vertex group). Other statements (``vn``, ``s``, ``usemtl``,
 ``mtllib``, ``l``, ...) are ignored. USD: a ``UsdGeom.Mesh`` by prim path (default: the first
-mesh on the stage), its points in world space (the prim's local-to-world transform applied),
+mesh on the stage), its points in world space (the prim's local-to-world transform applied; points
+with time samples only, an animated mesh as a DCC exports it, at the first sample),
 ``faceVertexCounts`` fan-triangulated, ``primvars:st`` kept (vertex or faceVarying), and each
 ``UsdGeom.Subset`` of faces or points a vertex group named after the subset prim.
 
