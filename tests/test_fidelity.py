@@ -20,13 +20,14 @@ from warpcloth.sim.colliders import Box, quat_matrix
 #: 1.04x the equilibrium's strain, shape 0.06 %, +0.45 % in motion, about 9 s of CPU; the fold, cotton under
 #: explicit Euler, at 12 x 6: 0.14x, shape 1.77 %, +1.56 %). The cape (320 particles, explicit Euler) flaps in its
 #: breeze without end, so it rests in still air (1.00x, shape 0.03 %, at rest at 8.8 s) and is held in motion in its
-#: breeze too (peak 0.57 %; the converged dynamics' 0.55 %): about 9 s of CPU. The tablecloth meets the rule but
-#: for rest (test_the_tablecloth_meets_the_rule_but_for_rest).
+#: breeze too (peak 0.57 %; the converged dynamics' 0.55 %): about 9 s of CPU. The tablecloth (xpbd 2 x 32) at
+#: 12 x 12: 1.01x, shape 0.03 %, peak +0.32 %, at rest at 9.4 s, about 10 s of CPU (docs/materials.md).
 CAPE = str(Path(__file__).resolve().parents[1] / "warpcloth" / "examples" / "cape.toml")
 SCENES = [
     ("cantilever", {}),
     ("drape", {"rows": 16, "cols": 16}),
     ("fold", {"rows": 12, "cols": 6}),
+    ("tablecloth", {"rows": 12, "cols": 12}),
     (CAPE, {"still_air": True, "duration": 12.0}),  # 12 s to rest in still air; its breeze its own 3 s
 ]
 
@@ -39,15 +40,6 @@ def test_scene_default_reproduces_its_material(scene, size):
         f"vs the equilibrium's {f.strain_eq:.4g}, shape {f.shape:.4g}, peak {f.peak_strain:.4g}, capped "
         f"{f.capped_steps}/{f.strain_capped_steps})"
     )
-
-
-def test_the_tablecloth_meets_the_rule_but_for_rest():
-    # its default (xpbd 2 x 32) at 12 x 12: strain 0.99x the equilibrium's, shape 0.15 %, +0.18 % in motion, but not
-    # at rest in its 10 s: from 8 s on, 0-16 particles lying on the table's rounded edges and corners move at 4-10
-    # mm/s (the detector's bound: 5 mm/s for 0.5 s) while their positions stay put to 1 mm (measured to 20 s at
-    # 16 x 16, docs/materials.md). Known and open (issue 51); when it comes to rest, move it to SCENES.
-    f = measure_fidelity("tablecloth", rows=12, cols=12)
-    assert f.failures == ["not at rest"], f.failures
 
 
 def test_xpbd_at_its_own_defaults_does_not_reproduce_the_drape():

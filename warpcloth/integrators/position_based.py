@@ -203,10 +203,15 @@ class PositionBasedIntegrator(Integrator):
         )
         if relax:
             # friction held the vertices it stuck and let their neighbours go: one more sweep over the
-            # springs, then the contacts again (normal only), so that a substep does not end on springs
-            # that friction alone stretched (pbd's drape landing: peak strain 0.56 -> 0.35)
+            # springs, then the contacts again, so that a substep does not end on springs that friction
+            # alone stretched (pbd's drape landing: peak strain 0.56 -> 0.35); then friction once more, on the
+            # normal correction the first pass left unspent and the sweep's own, so that a vertex static
+            # friction holds ends the substep at rest (the sweep alone slid it a few micrometres a substep,
+            # millimetres a second: the tablecloth's rest, docs/solvers.md)
             self._iterate(state, sweep, contacts, edges)
-            contacts.end_substep()
+            contacts.project_displacement(
+                self.model, state.particle_q, self.particle_dp, self.contact_normal, friction=True, end_substep=True
+            )
 
     def _iterate(self, state, sweep, contacts, edges) -> None:
         """One iteration: the sweep over the springs, then the self-contacts, then the colliders (they

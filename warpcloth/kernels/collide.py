@@ -197,8 +197,11 @@ def rounded_box_contact(
         return phi, n
     move = out_of_rounded_box(p, half, thickness + rounding, thickness) - p
     length = wp.length(move)
-    if length == 0.0:
-        return phi, n
+    if length < 1.0e-6 and near > 0.0:
+        # x on its capsule to within a micrometre: that capsule's own (phi, n). move / length there is float32's
+        # rounding of x (~3e-8 m at 0.5 m), not a direction, and a move of 0 is a contact at the thickness (the
+        # box's own phi, centimetres, turned the position-based friction pass off for that substep)
+        return near - rounding, rotation * wp.cw_mul(w_near / near, s)
     return thickness - length, rotation * (move / length)
 
 
@@ -608,13 +611,16 @@ def respond_displacement(dp: wp.vec3, phi: float, n: wp.vec3, thickness: float):
 
 @wp.func(inline=True)
 def friction_displacement(dp: wp.vec3, motion: wp.vec3, n: wp.vec3, normal_correction: float, mu: float):
-    # cancel the tangential dp - motion (the collider's) up to mu times the normal correction
+    # cancel the tangential dp - motion (the collider's) up to mu times the normal correction; returns the
+    # normal correction left unspent (Coulomb: |tangential correction| <= mu x normal correction, summed over
+    # the substep's friction passes)
     r = dp - motion
     dpt = r - wp.dot(r, n) * n
     lt = wp.length(dpt)
-    if lt == 0.0:
-        return dp
-    return dp - (wp.min(mu * normal_correction, lt) / lt) * dpt
+    if lt == 0.0 or mu <= 0.0:
+        return dp, normal_correction
+    used = wp.min(mu * normal_correction, lt)
+    return dp - (used / lt) * dpt, wp.max(normal_correction - used / mu, 0.0)
 
 
 @wp.func(inline=True)
@@ -636,7 +642,7 @@ def displacement_response(
         d, dn = respond_displacement(d, phi, n, colliders[k].thickness)
         return d, nc + dn, int(dn > 0.0)
     if phi <= colliders[k].thickness + 1.0e-6:
-        d = friction_displacement(d, motion_time * surface_velocity(colliders, k, p), n, nc, colliders[k].mu)
+        d, nc = friction_displacement(d, motion_time * surface_velocity(colliders, k, p), n, nc, colliders[k].mu)
         return d, nc, 1
     return d, nc, 0
 
