@@ -183,7 +183,10 @@ def test_the_drape_settles_on_the_sphere(integrator):
     rho = np.linalg.norm(x[:, [0, 2]], axis=1)
     centre = np.argmin(rho)  # resting on the top, at the sphere's surface + thickness
     expected = drape.RADIUS + math.sqrt((drape.RADIUS + drape.THICKNESS) ** 2 - rho[centre] ** 2)
-    assert expected - 1e-5 < x[centre, 1] < expected + 3e-3  # on it (pbd's stiff bending bridges 2.5 mm)
+    # on it; pbd's rigid bend constraints bridge the top: 2.5 mm, 3.17 mm since a vertex static friction
+    # holds ends its substep at rest (its held vertices hold the tent; docs/solvers.md); the others within 3 mm
+    bridge = 4e-3 if integrator == "pbd" else 3e-3
+    assert expected - 1e-5 < x[centre, 1] < expected + bridge
     assert x[:, 1].min() < drape.RADIUS  # and hanging down its sides
 
 
