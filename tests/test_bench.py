@@ -6,7 +6,7 @@ import math
 import pytest
 
 from warpcloth.cli.bench import main
-from warpcloth.lab.bench import COLUMNS
+from warpcloth.lab.bench import COLUMNS, format_table
 
 
 def test_bench_tiny_end_to_end(tmp_path, capsys):
@@ -164,3 +164,12 @@ def test_bench_plot_tells_graph_replay_from_launches_and_keeps_its_legend_off_th
     legend = (ax.get_legend() or fig.legends[0]).get_window_extent()
     assert legend.x0 >= ax.get_window_extent().x1  # right of the plot, not over the data
     assert plot(str(tmp_path / "b.png"), rows) and (tmp_path / "b.png").stat().st_size > 0
+
+
+def test_the_table_prints_a_grid_as_rows_x_cols_and_a_mesh_or_pieces_as_mesh():
+    # a model of several pieces (or a mesh) has one row: "1x8192" read as a grid it is not (issue 49)
+    row = dict.fromkeys(COLUMNS, 0.0)
+    row.update(integrator="vbd", device="cpu", graph=True, floor_multiple="", speedup_vs_cpu="")
+    grid = format_table([{**row, "rows": 16, "cols": 8, "particles": 128}]).splitlines()[-1]
+    mesh = format_table([{**row, "rows": 1, "cols": 8192, "particles": 8192}]).splitlines()[-1]
+    assert " 16x8 " in grid and " mesh " in mesh and "1x8192" not in mesh

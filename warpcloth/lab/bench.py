@@ -294,6 +294,12 @@ def plot(path: str, rows: list[dict]) -> bool:
     return True
 
 
+def grid_size(rows: int, cols: int) -> str:
+    """A grid's ``ROWSxCOLS``; ``mesh`` for a mesh or several pieces (one row: a grid has at least two;
+    its particle count is the next column)."""
+    return f"{rows}x{cols}" if rows > 1 else "mesh"
+
+
 def format_table(rows: list[dict]) -> str:
     head = (
         f"{'integrator':15s} {'device':7s} {'graph':5s} {'size':>9s} {'particles':>9s} {'ms/step':>10s} "
@@ -309,7 +315,7 @@ def format_table(rows: list[dict]) -> str:
 
         lines.append(
             f"{r['integrator']:15s} {r['device']:7s} {('yes' if r['graph'] else 'no'):5s} "
-            f"{str(r['rows']) + 'x' + str(r['cols']):>9s} {r['particles']:>9d} {r['ms_per_step_median']:>10.4f} "
+            f"{grid_size(r['rows'], r['cols']):>9s} {r['particles']:>9d} {r['ms_per_step_median']:>10.4f} "
             f"{'[' + format(r['ms_per_step_min'], '.4g') + '-' + format(r['ms_per_step_max'], '.4g') + ']':>19s} "
             f"{r['wall_s_per_sim_s']:>12.4g} {r['realtime_factor']:>9.3f} {fmt(r['floor_multiple'], '>8.2f')} "
             f"{fmt(r['speedup_vs_cpu'], '>7.1f')}"
