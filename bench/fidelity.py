@@ -4,6 +4,7 @@
     python bench/fidelity.py --scenes warpcloth/examples/cape.toml --breeze --pick 0,1
     python bench/fidelity.py --scenes tablecloth --size 16 --duration 20 --speeds
     python bench/fidelity.py --scenes warpcloth/examples/cape.toml --duration 8 --speeds --pick 0,1
+    python bench/fidelity.py --scenes character --moving --size 16 --duration 1.5
 
 Each scene (a scenario or a scenario file) runs to rest on the CPU with its default configuration and the
 candidates below (warpcloth.lab.fidelity.measure_fidelity); prints the largest structural strain at rest
@@ -16,7 +17,10 @@ candidates interleaved 1 s into the wind (7 rounds of time_steps, thread CPU ms 
 the figures of docs/materials.md's "Fidelity of the shipped scenes"; tests/test_fidelity.py holds each
 default to the rule at a reduced size. ``--speeds`` prints a run of the picked candidates (default: the
 scene's default) every 0.5 s: the largest particle speed, where that particle is, and how many move faster
-than the equilibrium detector's 5 mm/s.
+than the equilibrium detector's 5 mm/s. ``--moving`` judges a scene that never rests (MOVING: the character's
+walking body) in motion only: each garment's peak strain per candidate against the converged dynamics'
+(MOVING_REFERENCES, two refinements), with CPU process ms per frame (intersections: ``warpcloth run ... --usd``
+then ``warpcloth check-intersections``, docs/character.md).
 """
 
 from __future__ import annotations
@@ -30,7 +34,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from warpcloth.lab.fidelity import measure_fidelity, motion_peak_strain
+from warpcloth.lab.accuracy import OVERSTRETCH
+from warpcloth.lab.fidelity import measure_fidelity, motion_peak_strain, motion_piece_peaks
 from warpcloth.run.harness import time_steps
 from warpcloth.scenarios import get_scenario
 
@@ -75,6 +80,42 @@ CANDIDATES = {
         ("projective", {}, None),
     ],
 }
+
+#: Scenes that never rest (the character's body walks for the whole run): judged in motion only, each piece's
+#: peak strain at most OVERSTRETCH above the converged dynamics' (the larger of MOVING_REFERENCES' two
+#: refinements, shown to agree). scene -> its candidates (integrator, options; None: the default).
+MOVING = {
+    "character": [
+        (None, None),
+        ("xpbd", {"iterations": 1, "substeps": 32}),
+        ("xpbd", {"iterations": 2, "substeps": 16}),
+        ("xpbd", {"iterations": 1, "substeps": 64}),
+        ("implicit_euler", {}),
+        ("vbd", {}),
+        ("projective", {}),
+    ]
+}
+MOVING_REFERENCES = [("xpbd", {"iterations": 1, "substeps": 128}), ("xpbd", {"iterations": 1, "substeps": 256})]
+
+
+def moving(scene: str, chosen: list, **size) -> None:
+    """Each piece's peak strain in motion of the converged references and the candidates (module docstring)."""
+    refs = {}
+    for integrator, options in MOVING_REFERENCES:
+        peaks, cpu, frames, _ = motion_piece_peaks(scene, integrator, options, **size)
+        print(f"reference {integrator} {options}: " + ", ".join(f"{k} {100 * v:.2f} %" for k, v in peaks.items()))
+        for k, v in peaks.items():
+            refs[k] = max(refs.get(k, -math.inf), v)
+    for integrator, options in chosen:
+        peaks, cpu, frames, result = motion_piece_peaks(scene, integrator, options, **size)
+        excess = {k: v - refs[k] for k, v in peaks.items()}
+        ok = result.stable and not result.capped_cause and all(e <= OVERSTRETCH for e in excess.values())
+        cells = ", ".join(f"{k} {100 * peaks[k]:.2f} % ({100 * excess[k]:+.2f})" for k in peaks)
+        print(
+            f"{integrator or 'default'} {options or ''}: {cells}; {1e3 * cpu / frames:.1f} ms/frame; "
+            f"capped {result.capped_steps}; {'meets' if ok else 'fails'}",
+            flush=True,
+        )
 
 
 def _label(f) -> str:
@@ -136,7 +177,16 @@ def main(argv=None) -> None:
     ap.add_argument("--json", default=None, help="append every row as a JSON line to this file")
     ap.add_argument("--breeze", action="store_true", help="a wind scene's peak strains and interleaved timing")
     ap.add_argument("--speeds", action="store_true", help="a scene's default run: its fastest particle every 0.5 s")
+    ap.add_argument("--moving", action="store_true", help="a scene that never rests: its pieces' peak strains")
     args = ap.parse_args(argv)
+    if args.moving:
+        for scene in args.scenes.split(","):
+            size = {"rows": args.size, "cols": args.size} if args.size else {}
+            if args.duration:
+                size["duration"] = args.duration
+            chosen = MOVING[scene]
+            moving(scene, [chosen[int(k)] for k in args.pick.split(",")] if args.pick else chosen, **size)
+        return
     if args.speeds:
         for scene in args.scenes.split(","):
             size = {"rows": args.rows or args.size, "cols": args.size} if args.size else {}
