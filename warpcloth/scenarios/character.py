@@ -8,7 +8,7 @@ skirt (:data:`SKIRT_MATERIAL`) flaring from the waist, a tube of ``rows`` rings 
 vertices. Their top rows are pinned with :func:`~warpcloth.sim.colliders.attach` to the
 body's skin moved :data:`BAND` out along its normals (skinned as the body), so the pins ride the
 moving body while each pinned row's edges stay off the skin. Self-collision is on (both garments in
-one collision group: the cape's hem meets the skirt). xpbd at 2 iterations x 16 substeps (the fidelity
+one collision group: the cape's hem meets the skirt). xpbd at 1 iteration x 32 substeps (the fidelity
 rule in motion, :data:`XPBD`): on the CPU a deforming collider runs plain launches, so a frame costs its
 substeps' launches. The run lasts its
 duration (no equilibrium: the body keeps moving). docs/character.md.
@@ -50,14 +50,15 @@ CAPE_TOP, CAPE_RADIUS, CAPE_ANGLE, CAPE_LENGTH, CAPE_HEM = 1.4, 0.125, math.radi
 #: Skirt: its waist's height and radius, its length and its hem's radius [m].
 SKIRT_TOP, SKIRT_WAIST, SKIRT_LENGTH, SKIRT_HEM = 1.03, 0.14 + BAND, 0.5, 0.38
 
-#: The solver: the cheapest configuration that meets the fidelity rule in motion (docs/materials.md, each
-#: garment's peak strain at most 2 % above the converged xpbd 1 x 128's) with no intersection over 3 s. At
-#: 16 x 16, 1.5 s: 2 x 16 peaks cape 2.14 %, skirt 2.54 % (+1.33, +1.95 over 1 x 128's 0.81 %, 0.58 %), 160
-#: ms/frame; 1 x 16 cape 2.70 %, skirt 3.02 % (+2.44: fails), 161 ms; 1 x 32 meets at +0.83, 233 ms; vbd and
+#: The solver: the cheapest configuration measured to meet the fidelity rule in motion (docs/materials.md, each
+#: garment's peak strain at most 2 % above the converged dynamics', xpbd 1 x 128 and 1 x 256) by more than the
+#: skirt's reference spread (0.58 % and 1.06 %), with no intersection over 3 s. At 16 x 16, 1.5 s: 1 x 32 peaks
+#: cape 0.95 %, skirt 1.41 % (+0.14, +0.83 over 1 x 128's), 233 ms/frame; 2 x 16 cape 2.14 %, skirt 2.54 % (+1.95:
+#: 0.05 from the bound, inside that spread: undecided), 160 ms; 1 x 16 skirt 3.02 % (+2.44: fails), 161 ms; vbd and
 #: projective meet at 1.5 s but self-intersect (vbd, from 1.7 s) or go unstable (projective, 2.8 s) within
 #: 3 s; implicit Euler hits its strain cap. `python bench/fidelity.py --scenes character --moving --size 16
 #: --duration 1.5`, then `warpcloth run character -i NAME --usd c.usdc` and `warpcloth check-intersections`.
-XPBD = {"iterations": 2, "substeps": 16}
+XPBD = {"iterations": 1, "substeps": 32}
 
 
 def make_cape(rows: int, cols: int) -> TriangleMesh:
