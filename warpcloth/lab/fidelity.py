@@ -426,12 +426,10 @@ def _run(scenario, cfg, still_air: bool = False, to_rest: bool = True):
     return harness.sim, result, peak.peak
 
 
-def motion_peak_strain(
-    scene: str, integrator: str | None = None, options: dict | None = None, dt_scale: float = 1.0, **overrides
-) -> float:
-    """The peak structural strain of ``scene`` run as it is (its wind on, no stop at rest) for its duration
-    with ``integrator`` and ``options`` (None: the scene's), at ``dt_scale`` x that configuration's step (a
-    converged reference: explicit Euler at a fraction of its stable step). Raises if the run is not stable."""
+def _motion_config(scene: str, integrator, options, dt_scale: float, overrides: dict):
+    """(scenario, config) of ``scene`` on the CPU with ``integrator`` and ``options`` (None: the scene's) at
+    ``dt_scale`` x that configuration's step: the run :func:`motion_peak_strain` and
+    :func:`motion_piece_peaks` measure."""
     scenario = get_scenario(scene)
     cfg = scenario.config(device="cpu", **overrides)
     if integrator is not None:
@@ -439,6 +437,16 @@ def motion_peak_strain(
     cfg = replace(cfg, integrator_options=scenario.integrator_options(cfg.integrator, options))
     if dt_scale != 1.0:
         cfg = replace(cfg, dt=scenario.build(cfg).dt * dt_scale)
+    return scenario, cfg
+
+
+def motion_peak_strain(
+    scene: str, integrator: str | None = None, options: dict | None = None, dt_scale: float = 1.0, **overrides
+) -> float:
+    """The peak structural strain of ``scene`` run as it is (its wind on, no stop at rest) for its duration
+    with ``integrator`` and ``options`` (None: the scene's), at ``dt_scale`` x that configuration's step (a
+    converged reference: explicit Euler at a fraction of its stable step). Raises if the run is not stable."""
+    scenario, cfg = _motion_config(scene, integrator, options, dt_scale, overrides)
     _, result, peak = _run(scenario, cfg, to_rest=False)
     require(result.stable, f"{scenario.name} under {cfg.integrator} went unstable: {result.unstable_reason}")
     return peak
@@ -450,13 +458,7 @@ def motion_piece_peaks(
     """:func:`motion_peak_strain` per piece of a model of several (a structural spring counts for the piece
     of its particles): (piece name -> peak strain, CPU process seconds of the run, frames, RunResult). A
     scene that never rests (the character's walking body) is judged by these against a converged run's."""
-    scenario = get_scenario(scene)
-    cfg = scenario.config(device="cpu", **overrides)
-    if integrator is not None:
-        cfg = replace(cfg, integrator=integrator)
-    cfg = replace(cfg, integrator_options=scenario.integrator_options(cfg.integrator, options))
-    if dt_scale != 1.0:
-        cfg = replace(cfg, dt=scenario.build(cfg).dt * dt_scale)
+    scenario, cfg = _motion_config(scene, integrator, options, dt_scale, overrides)
     sim = scenario.build(cfg)
     harness = RunHarness(sim, scenario=scenario.name, instability_strain=cfg.instability_strain)
     peaks = _PiecePeaks(harness.sim.model)
