@@ -11,6 +11,7 @@ import math
 import numpy as np
 import pytest
 
+from warpcloth.scenarios.character import tube
 from warpcloth.sim.grid import grid_triangles, grid_uvs
 from warpcloth.sim.material import PRESETS, material, material_grid_cloth, material_mesh_cloth, mesh_spring_params
 from warpcloth.sim.mesh import TriangleMesh, mesh_springs
@@ -26,25 +27,6 @@ def rotation(about_x_deg, about_z_deg):
     rx = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
     rz = np.array([[math.cos(b), -math.sin(b), 0], [math.sin(b), math.cos(b), 0], [0, 0, 1]])
     return rx @ rz
-
-
-def tube(rings, around, top, bottom, length):
-    """A closed tube (a cone where top != bottom) about +y: ``rings`` rings of ``around`` vertices,
-    two triangles per quad, uv per corner with u around (the seam's corners take u = 1) and v down."""
-    r, c = np.meshgrid(np.arange(rings), np.arange(around), indexing="ij")
-    s, phi = r.ravel() / (rings - 1), 2.0 * math.pi * c.ravel() / around
-    radius = top + (bottom - top) * s
-    q = np.stack([radius * np.sin(phi), -length * s, radius * np.cos(phi)], axis=1)
-    tris, uv = [], []
-    for i in range(rings - 1):
-        v0, v1 = 1.0 - i / (rings - 1), 1.0 - (i + 1) / (rings - 1)
-        for j in range(around):
-            k = (j + 1) % around
-            a, b, c2, d = i * around + j, i * around + k, (i + 1) * around + k, (i + 1) * around + j
-            u0, u1 = j / around, (j + 1) / around
-            tris += [(a, c2, b), (a, d, c2)]
-            uv += [[(u0, v0), (u1, v1), (u1, v0)], [(u0, v0), (u0, v1), (u1, v1)]]
-    return q, np.asarray(tris, dtype=np.int64), np.asarray(uv)
 
 
 def springs_of(model):

@@ -76,25 +76,33 @@ def make_cape(rows: int, cols: int) -> TriangleMesh:
     return TriangleMesh(vertices=q, triangles=tris, uv=uv, groups={"top": np.arange(cols)}, source="cape")
 
 
-def make_skirt(rings: int, around: int) -> TriangleMesh:
-    """The skirt: a closed tube of ``rings`` rings of ``around`` vertices, from the waist (radius
-    :data:`SKIRT_WAIST` at y = :data:`SKIRT_TOP`) to the hem (:data:`SKIRT_HEM`, :data:`SKIRT_LENGTH`
-    lower); vertex group ``waist`` = its first ring."""
+def tube(rings: int, around: int, top: float, bottom: float, length: float):
+    """A closed tube about +y hanging from y = 0 (a cone where the radii ``top`` != ``bottom``) [m]: ``rings``
+    rings of ``around`` vertices, two triangles per quad, uv per corner with u around (the seam's corners
+    take u = 1, not 0) and v down: (vertices, triangles, uv)."""
     r, c = np.meshgrid(np.arange(rings), np.arange(around), indexing="ij")
     s, phi = r.ravel() / (rings - 1), 2.0 * math.pi * c.ravel() / around
-    radius = SKIRT_WAIST + (SKIRT_HEM - SKIRT_WAIST) * s
-    q = np.stack([radius * np.sin(phi), SKIRT_TOP - SKIRT_LENGTH * s, radius * np.cos(phi)], axis=1)
+    radius = top + (bottom - top) * s
+    q = np.stack([radius * np.sin(phi), -length * s, radius * np.cos(phi)], axis=1)
     tris, uv = [], []
     for i in range(rings - 1):
         v0, v1 = 1.0 - i / (rings - 1), 1.0 - (i + 1) / (rings - 1)
         for j in range(around):
             k = (j + 1) % around
             a, b, c2, d = i * around + j, i * around + k, (i + 1) * around + k, (i + 1) * around + j
-            u0, u1 = j / around, (j + 1) / around  # the seam's corners take u = 1, not 0
+            u0, u1 = j / around, (j + 1) / around
             tris += [(a, c2, b), (a, d, c2)]
             uv += [[(u0, v0), (u1, v1), (u1, v0)], [(u0, v0), (u0, v1), (u1, v1)]]
+    return q, np.asarray(tris, dtype=np.int64), np.asarray(uv)
+
+
+def make_skirt(rings: int, around: int) -> TriangleMesh:
+    """The skirt: a closed tube of ``rings`` rings of ``around`` vertices, from the waist (radius
+    :data:`SKIRT_WAIST` at y = :data:`SKIRT_TOP`) to the hem (:data:`SKIRT_HEM`, :data:`SKIRT_LENGTH`
+    lower); vertex group ``waist`` = its first ring."""
+    q, tris, uv = tube(rings, around, SKIRT_WAIST, SKIRT_HEM, SKIRT_LENGTH)
     return TriangleMesh(
-        vertices=q, triangles=np.asarray(tris), uv=np.asarray(uv), groups={"waist": np.arange(around)}, source="skirt"
+        vertices=q + [0.0, SKIRT_TOP, 0.0], triangles=tris, uv=uv, groups={"waist": np.arange(around)}, source="skirt"
     )
 
 
