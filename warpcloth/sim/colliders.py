@@ -678,24 +678,16 @@ class MeshCollider(_Posed):
         if not self.deforming:
             return super().at(t)
         points, _ = self.track.evaluate(float(t), self.vertices)
-        return MeshCollider(
-            vertices=points,
-            triangles=self.triangles,
-            thickness=self.thickness,
-            friction=self.friction,
-            reach=self.reach,
-            source=self.source,
-            edge_radius=self.edge_radius,
-        )
+        return self._static_with(points)
 
     def rounding(self, auto_radius: float) -> float:
         """The radius about its convex creases beyond its thickness [m] (as :meth:`Box.rounding`)."""
         return _rounding(self, auto_radius)
 
-    def _moved(self, move, r):
-        shift = np.asarray(move((0.0, 0.0, 0.0)))  # T of y -> R y + T
+    def _static_with(self, vertices) -> MeshCollider:
+        """This collider's settings on ``vertices``, without a track (:meth:`at`, :meth:`_moved`)."""
         return MeshCollider(
-            vertices=shift + self.vertices @ r.T,
+            vertices=vertices,
             triangles=self.triangles,
             thickness=self.thickness,
             friction=self.friction,
@@ -703,6 +695,10 @@ class MeshCollider(_Posed):
             source=self.source,
             edge_radius=self.edge_radius,
         )
+
+    def _moved(self, move, r):
+        shift = np.asarray(move((0.0, 0.0, 0.0)))  # T of y -> R y + T
+        return self._static_with(shift + self.vertices @ r.T)
 
     @staticmethod
     def check_settings(
