@@ -9,7 +9,17 @@
 set -euo pipefail
 BIN="$1"
 export PATH="$BIN:$PATH"
-say() { printf '\n$ %s\n' "$*"; "$@"; }
+# say: print the command, run it, record its wall seconds; the ten slowest are listed at the end (where CI's time goes)
+times="$(mktemp)"
+trap 'rm -f "$times"' EXIT
+say() {
+    printf '\n$ %s\n' "$*"
+    local t0
+    t0=$(date +%s%N)
+    "$@"
+    local ms=$((($(date +%s%N) - t0) / 1000000))
+    printf '%d.%d\t%s\n' $((ms / 1000)) $((ms % 1000 / 100)) "$*" >>"$times"
+}
 
 # -- README.md's tour --
 say python -m warpcloth.examples
@@ -62,4 +72,5 @@ say python -m warpcloth.examples.make_cape
 say warpcloth run mesh --mesh cape.obj --pin 'y > 0.95 * y.max()' --num-frames 2
 say warpcloth run drape --size 8 --num-frames 2 --usd drape.usdc --usd-colliders render
 say warpcloth run drape --size 8 --num-frames 2 --html d.html
-echo "tour: every command ran"
+echo "tour: every command ran; the slowest (wall s):"
+sort -rn "$times" | head -10
