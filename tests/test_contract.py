@@ -220,12 +220,12 @@ def test_free_cloth_slides_down_a_frictionless_slope_at_g_sin(name, options):
 @pytest.mark.parametrize("name", NAMES)
 def test_free_cloth_keeps_its_momentum(name):
     """A free, symmetric 16 x 16 cloth (kd 0, no gravity, no drag) released stretched by 5 %: its
-    linear momentum |sum m v| stays <= 1e-4 kg m/s, sampled every 1/60 s over 1 s at the scheme's
+    linear momentum |sum m v| stays <= 1e-4 kg m/s, sampled every 1/60 s over 0.5 s at the scheme's
     default dt (the total |m v| of the oscillation is ~1e-2 kg m/s; vbd made 0.03 kg m/s)."""
     sim, m = released_stretched_cloth(name)
     per_frame = max(1, round((1.0 / 60.0) / sim.dt))
     worst, motion = 0.0, 0.0
-    for _ in range(60):
+    for _ in range(30):
         sim.simulate(per_frame)
         p = m * sim.state.particle_qd.numpy().astype(np.float64)
         worst = max(worst, float(np.linalg.norm(p.sum(axis=0))))
