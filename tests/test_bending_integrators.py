@@ -365,7 +365,7 @@ def test_graph_replay_is_bit_identical_with_hinges(name):
     if not b.integrator.capturable_on("cpu"):
         pytest.skip(f"{name} is not capturable on the CPU")
     a.use_graph, b.use_graph = False, True
-    for n in (7, 3, 7):
+    for n in (4, 2, 4):  # a captured count, a second one, the first replayed
         a.simulate(n)
         b.simulate(n)
     assert np.array_equal(a.state.particle_q.numpy(), b.state.particle_q.numpy())
@@ -382,10 +382,10 @@ def test_step_with_hinges_allocates_no_memory(name, graph, count_allocations):
         pytest.skip("no CPU capture")
     sim.use_graph = graph
     sim.simulate(2)
-    sim.simulate(5)
     sim.simulate(3)
-    created = start()
-    sim.simulate(5)
+    sim.simulate(2)
+    created = start()  # counted: replays (or launches) of the two step counts run above, 5 steps (8 before)
     sim.simulate(3)
+    sim.simulate(2)
     stop()
-    assert created == [], f"{name} allocated {len(created)} buffers in 8 steps"
+    assert created == [], f"{name} allocated {len(created)} buffers in 5 steps"
