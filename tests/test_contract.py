@@ -128,7 +128,7 @@ def test_step_allocates_no_memory(name, graph, count_allocations):
     sim.simulate(2)  # begin(), first launches, captures of both step counts below
     sim.simulate(3)
     sim.simulate(2)
-    created = start()  # counted: replays (or launches) of the two step counts run above, 5 steps (8 before)
+    created = start()  # counted: replays (or launches) of the two step counts run above, 5 steps
     sim.simulate(3)
     sim.simulate(2)
     stop()
