@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_contract import simulate_frames
 from test_implicit import dense_system
 
 from warpcloth import Control, Simulator
@@ -208,7 +209,7 @@ def test_flat_cloth_falling_under_gravity_stays_flat(name):
     sim.set_dt(min(sim.dt, 1.0 / 60.0))
     sim.state.particle_q.assign(q.astype(np.float32))
     steps = int(np.ceil(0.4 / sim.dt))  # >= 24: a first-order scheme's (n + 1) / n stays within 5 %
-    sim.simulate(steps)
+    simulate_frames(sim, steps)
     x = sim.state.particle_q.numpy().astype(np.float64)
     t = steps * sim.dt
     fall = (q[:, 1] - x[:, 1]).mean()
@@ -331,12 +332,10 @@ def dihedral_flag(name, **overrides):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_pins_do_not_move_by_one_bit_with_hinges(name):
-    """8 steps (0.13 s at 1/60 s; the cloth falls ~9 cm), at least 0.02 s for the explicit schemes' small
-    dt (~2 mm): a pin that moves moves in the first step."""
     sim = dihedral_flag(name)
     pins = sim.model.pinned
     before = sim.state.particle_q.numpy()[pins].copy()
-    sim.simulate(max(8, round(0.02 / sim.dt)))
+    simulate_frames(sim, 20)
     after = sim.state.particle_q.numpy()
     assert np.all(np.isfinite(after))
     assert np.array_equal(after[pins], before)
@@ -346,14 +345,11 @@ def test_pins_do_not_move_by_one_bit_with_hinges(name):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_rest_stays_at_rest_with_hinges(name):
-    """15 steps (1/4 s at 1/60 s; 30 before), at least 0.03 s for the explicit schemes (as before): hinge
-    rest angles 1e-3 rad off move implicit_euler's cloth 4.2e-5 m in 15 steps (1.1e-4 m in 30), pbd's 1.4 mm
-    in 10; the explicit schemes' 7e-7 m in 33 steps, here as before."""
     sim = dihedral_flag(name)
     sim.control.gravity = (0.0, 0.0, 0.0)
     sim.control.wind_coefficient = 0.0
     x0 = sim.state.particle_q.numpy().copy()
-    sim.simulate(max(15, round(0.03 / sim.dt)))
+    simulate_frames(sim, 30)
     assert np.abs(sim.state.particle_q.numpy() - x0).max() < 1e-5
     assert np.abs(sim.state.particle_qd.numpy()).max() < 1e-4
 

@@ -3,6 +3,7 @@ at realistic heights (y = 1.5 m, where ulp(y) = 1.2e-7 m) and small time steps."
 
 import numpy as np
 import pytest
+from test_contract import simulate_frames
 
 from warpcloth import Control, Simulator, SpringParams, SpringType, make_integrator
 from warpcloth.run.harness import RunHarness
@@ -36,7 +37,7 @@ def drop_ratio(integrator, dt, duration=0.2, y=Y0, substeps=0):
     model = falling_pair(y)
     sim = Simulator(model, integrator, Control(device="cpu"), dt=dt)
     steps = int(round(duration / dt))
-    sim.simulate(steps)
+    simulate_frames(sim, steps)
     drop = y - sim.state.particle_q.numpy()[:, 1].astype(np.float64)
     if substeps:
         h, m = dt / substeps, steps * substeps
@@ -83,7 +84,7 @@ def test_xpbd_static_extension_at_realistic_height(substeps):
         Control(drag_rate=20.0, device="cpu"),
         dt=1.0 / 60.0,
     )
-    sim.simulate(150)  # drag (which does not move the equilibrium) settles it within 2.5 s
+    simulate_frames(sim, 150)  # drag (which does not move the equilibrium) settles it within 2.5 s
     q = sim.state.particle_q.numpy().astype(np.float64)
     extension = (q[0, 1] - q[1, 1]) - 0.5
     assert extension == pytest.approx(mass * G / ks, rel=1e-4)

@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 import pytest
+from test_contract import simulate_frames
 
 from warpcloth import Control, Plane, Simulator, build_grid_cloth, make_integrator
 from warpcloth.integrators import integrator_names
@@ -36,7 +37,7 @@ def slide(name: str, mu: float) -> Simulator:
         device="cpu",
     )
     sim = Simulator(model, make_integrator(name), control)
-    sim.simulate(max(1, round(DURATION / sim.dt)))
+    simulate_frames(sim, max(1, round(DURATION / sim.dt)))
     return sim
 
 
