@@ -6,7 +6,6 @@ import math
 import numpy as np
 import pytest
 from helpers import PER_SPRING_SCENE, free_particles, parse_collider, sharp_boxes
-from test_contract import simulate_frames
 
 from warpcloth import (
     Box,
@@ -34,7 +33,7 @@ def test_a_dropped_particle_rests_at_the_thickness(integrator):
         Control(colliders=(Plane(thickness=0.01),), device="cpu"),
         dt=1e-3,
     )
-    simulate_frames(sim, 800)  # it lands after 0.32 s
+    sim.simulate(800)  # it lands after 0.32 s
     assert float(sim.state.particle_q.numpy()[0, 1]) == pytest.approx(0.01, abs=1e-6)
     assert abs(float(sim.state.particle_qd.numpy()[0, 1])) < 1e-4
 
@@ -50,7 +49,7 @@ def slide(integrator, theta, mu, duration=0.5, dt=1e-3):
         dt=dt,
     )
     x0 = sim.state.particle_q.numpy()[0].astype(np.float64)
-    simulate_frames(sim, int(round(duration / dt)))
+    sim.simulate(int(round(duration / dt)))
     x = sim.state.particle_q.numpy()[0].astype(np.float64)
     return float(np.dot(x - x0, down)), float(np.dot(x - x0, np.array(n)))
 
