@@ -364,9 +364,11 @@ def test_the_default_drape_lands_stably_with_self_collision():
     """The default drape (cotton 64 x 64, xpbd at 1/60 s, self-collision on) lands on its sphere
     without passing the instability strain (0.5); it went unstable at 0.37 s when a contact's normal
     found anew nearly across its detection's (a pair found side by side in the cloth's plane, then
-    one over the other in a wrinkle) was taken as a pass-through and pushed to the far side."""
+    one over the other in a wrinkle) was taken as a pass-through and pushed to the far side. 0.45 s: past those
+    failures (0.35-0.37 s) and the landing's peak strain (measured per frame: 0.066 at 0.37 s, 0.02-0.03 from
+    0.47 s to 0.7 s, the test's earlier end)."""
     h = get_scenario("drape").harness()
-    r = h.run(0.7)
+    r = h.run(0.45)
     assert r.stable, r.unstable_reason
     assert r.max_strain < 0.5
     assert r.self_collision["overflow_contacts"] == 0  # in-plane pairs are not contacts for the fall's speed
