@@ -22,12 +22,13 @@ H = 0.005  # the thickness of these tests [m]
 
 
 def run_frames(sim, seconds, check=None):
-    """Advance ``sim`` frame by frame (1/60 s) for ``seconds``; ``check(sim)`` after each frame."""
+    """Advance ``sim`` frame by frame (1/60 s) for ``seconds``; ``check(sim)`` after each frame, and a check
+    that returns True ends the run there (a negative control that has seen what it needs)."""
     frame = max(1, round((1.0 / 60.0) / sim.dt))
     while sim.sim_time < seconds - 1e-9:
         sim.simulate(frame)
-        if check is not None:
-            check(sim)
+        if check is not None and check(sim):
+            return
 
 
 def known_failures(names, reason, strict=True):
@@ -42,9 +43,15 @@ def fold(integrator, self_collision=True):
     return get_scenario("fold").build(rows=24, cols=8, integrator=integrator, self_collision=self_collision)
 
 
-def intersections_per_frame(sim, seconds=2.6):
+def intersections_per_frame(sim, seconds=2.6, enough=None):
+    """The self-intersecting triangle pairs at each frame; ``enough``: stop at the first frame with more."""
     tris, counts = sim.model.host.tris, []
-    run_frames(sim, seconds, lambda s: counts.append(ix.count_self_intersections(s.state.particle_q.numpy(), tris)))
+
+    def check(s):
+        counts.append(ix.count_self_intersections(s.state.particle_q.numpy(), tris))
+        return enough is not None and counts[-1] > enough
+
+    run_frames(sim, seconds, check)
     return counts
 
 
@@ -80,7 +87,7 @@ def test_the_fold_has_no_intersection_at_any_frame(integrator):
 
 def test_the_fold_passes_through_itself_without_self_collision():
     """The check above can fail: vbd without the response lets the upper layer through the lower."""
-    assert max(intersections_per_frame(fold("vbd", self_collision=False))) > 10
+    assert max(intersections_per_frame(fold("vbd", self_collision=False), enough=10)) > 10
 
 
 # -- two stacked sheets on the ground ------------------------------------------------------------------
@@ -357,9 +364,11 @@ def test_the_default_drape_lands_stably_with_self_collision():
     """The default drape (cotton 64 x 64, xpbd at 1/60 s, self-collision on) lands on its sphere
     without passing the instability strain (0.5); it went unstable at 0.37 s when a contact's normal
     found anew nearly across its detection's (a pair found side by side in the cloth's plane, then
-    one over the other in a wrinkle) was taken as a pass-through and pushed to the far side."""
+    one over the other in a wrinkle) was taken as a pass-through and pushed to the far side. 0.45 s: past those
+    failures (0.35-0.37 s) and the landing's peak strain (measured per frame: 0.066 at 0.37 s, 0.02-0.03 from
+    0.47 s to 0.7 s, the test's earlier end)."""
     h = get_scenario("drape").harness()
-    r = h.run(0.7)
+    r = h.run(0.45)
     assert r.stable, r.unstable_reason
     assert r.max_strain < 0.5
     assert r.self_collision["overflow_contacts"] == 0  # in-plane pairs are not contacts for the fall's speed
@@ -391,10 +400,11 @@ def test_vbd_holds_the_default_fold_with_a_penalty_as_stiff_as_its_springs():
 
 
 # -- the tablecloth: no box edge through the cloth -----------------------------------------------------
-def tablecloth_crossings(integrator, seconds=1.5, edges=False, sharp=False):
+def tablecloth_crossings(integrator, seconds=1.5, edges=False, sharp=False, stop_at_a_crossing=False):
     """The worst frame's (box edges through the cloth, self-intersecting triangle pairs) of the 12 x 12
     tablecloth: by default as a user gets it (the box's edges rounded for the cloth, edge contacts off);
-    ``sharp``: the box with sharp edges; ``edges``: with the edge contacts (--collider-edges)."""
+    ``sharp``: the box with sharp edges; ``edges``: with the edge contacts (--collider-edges);
+    ``stop_at_a_crossing``: end at the first frame where a box edge crosses the cloth (a negative control)."""
     sim = get_scenario("tablecloth").build(rows=12, cols=12, integrator=integrator, collider_edges=edges)
     assert sim.control.collision.edge_contacts is edges  # the run parameter (--collider-edges) reaches the colliders
     if sharp:
@@ -406,6 +416,7 @@ def tablecloth_crossings(integrator, seconds=1.5, edges=False, sharp=False):
         x = s.state.particle_q.numpy()
         worst[0] = max(worst[0], ix.collider_edge_crossings(x, tris, s.control.colliders, s.sim_time))
         worst[1] = max(worst[1], ix.count_self_intersections(x, tris))
+        return stop_at_a_crossing and worst[0] > 0
 
     run_frames(sim, seconds, check)
     return worst
@@ -422,7 +433,7 @@ def test_no_box_edge_passes_through_the_tablecloth(integrator):
 def test_the_box_edge_shows_through_a_sharp_box():
     """The check above can fail: with sharp edges (edge_radius 0) and the vertices' contacts alone the
     table's edge crosses the cloth."""
-    assert tablecloth_crossings("explicit_euler", sharp=True)[0] > 0
+    assert tablecloth_crossings("explicit_euler", sharp=True, stop_at_a_crossing=True)[0] > 0
 
 
 @pytest.mark.parametrize("integrator", integrator_names())

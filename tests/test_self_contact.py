@@ -614,10 +614,11 @@ def test_the_repulsion_force_is_equal_and_opposite():
     np.testing.assert_allclose(forces.sum(axis=0), 0.0, atol=1e-6 * np.abs(forces).sum())
 
 
-def drop_onto_the_ground(self_collision: bool, rows=16, seconds=1.5):
+def drop_onto_the_ground(self_collision: bool, rows=16, seconds=1.5, enough=None):
     """A vertical 1 m sheet, its lowest row 3 cm above the ground, slightly curved so that it folds:
     it falls and piles up on itself. Returns the worst count of self-intersecting triangle pairs
-    over the frames (1/60 s), the final one and the SelfCollision (or None)."""
+    over the frames (1/60 s), the final one and the SelfCollision (or None); ``enough``: a count past
+    which it stops at once (all a negative control needs to see)."""
     from warpcloth import Plane, Simulator
 
     model = build_grid_cloth(rows, rows, 1.0, 1.0, 0.2, plane="vertical", origin=(-0.5, 1.03, 0.0), device="cpu")
@@ -645,12 +646,14 @@ def drop_onto_the_ground(self_collision: bool, rows=16, seconds=1.5):
         control.collision.project_velocity(model, state, dt)  # colliders after: they win
         if k % frame == 0:
             worst = max(worst, ix.count_self_intersections(x.numpy(), tris))
+            if enough is not None and worst > enough:
+                return worst, worst, sc
     assert x.numpy()[:, 1].max() < 0.35  # it fell and lies piled on the ground
     return worst, ix.count_self_intersections(x.numpy(), tris), sc
 
 
 def test_a_sheet_dropped_onto_the_ground_piles_without_passing_through_itself():
-    worst, final, _ = drop_onto_the_ground(False)
+    worst, _, _ = drop_onto_the_ground(False, enough=10)
     assert worst > 10  # the scene does make the cloth pass through itself without the response
     worst, final, sc = drop_onto_the_ground(True)
     assert worst == 0 and final == 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import shutil
 import socket
 from dataclasses import replace
 
@@ -542,10 +543,14 @@ def test_study_refuses_to_overwrite_without_a_flag(tiny_study, capsys):
     assert (out / "results.csv").read_bytes() == before
 
 
-def test_resume_after_an_interrupt_does_not_redo_finished_measurements(tmp_path, study_references):
+@pytest.fixture(scope="module")
+def interrupted(tmp_path_factory, study_references):
+    """The quick study of explicit_euler at 4x4 (the session's references: rows are the point) interrupted
+    after its fifth row, a row cut by a kill after them: (plan, folder, the five keys, the file before the
+    cut row). The serial and the worker resumes below each start from a copy of it."""
     plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4])
-    plan = replace(plan, reference_cache=str(study_references))  # the session's references: rows are the point
-    seen = []
+    plan = replace(plan, reference_cache=str(study_references))
+    folder, seen = tmp_path_factory.mktemp("interrupted"), []
 
     def interrupt_after_five(row):
         seen.append(row["key"])
@@ -553,21 +558,40 @@ def test_resume_after_an_interrupt_does_not_redo_finished_measurements(tmp_path,
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run_study(plan, tmp_path, on_row=interrupt_after_five)
-    first = (tmp_path / "results.csv").read_bytes()
-    assert first.count(b"\n") == 6  # header + the five finished rows, flushed
-    with open(tmp_path / "results.csv", "ab") as fh:
+        run_study(plan, folder, on_row=interrupt_after_five)
+    first = (folder / "results.csv").read_bytes()
+    with open(folder / "results.csv", "ab") as fh:
         fh.write(b"timing,sheet,cut sho")  # a row cut by a kill
+    return plan, folder, seen, first
+
+
+def resume_copy(interrupted, to, **kwargs):
+    """Resume a copy of the interrupted study in ``to``: (the summary, the keys it measured)."""
+    plan, folder, _, _ = interrupted
+    shutil.copytree(folder, to)
     again = []
-    summary = run_study(plan, tmp_path, resume=True, on_row=lambda r: again.append(r["key"]))
-    data = (tmp_path / "results.csv").read_bytes()
+    return run_study(plan, to, resume=True, on_row=lambda r: again.append(r["key"]), **kwargs), again
+
+
+@pytest.fixture(scope="module")
+def resumed(interrupted, tmp_path_factory):
+    """The interrupted study resumed serially: (its folder, the summary, the keys it measured)."""
+    out = tmp_path_factory.mktemp("resumed") / "out"
+    return (out, *resume_copy(interrupted, out))
+
+
+def test_resume_after_an_interrupt_does_not_redo_finished_measurements(interrupted, resumed):
+    plan, _, seen, first = interrupted
+    out, summary, again = resumed
+    assert first.count(b"\n") == 6  # header + the five finished rows, flushed
+    data = (out / "results.csv").read_bytes()
     assert data.startswith(first) and b"cut sho" not in data
     assert not set(again) & set(seen)  # nothing finished was measured again
     assert summary["measured"] == len(again) > 0 and summary["reused"] >= 5
-    keys = [r["key"] for r in read_rows(tmp_path / "results.csv")]
+    keys = [r["key"] for r in read_rows(out / "results.csv")]
     assert len(keys) == len(set(keys)) == 5 + len(again)
-    again.clear()
-    summary = run_study(plan, tmp_path, resume=True, on_row=lambda r: again.append(r["key"]))
+    again = []
+    summary = run_study(plan, out, resume=True, on_row=lambda r: again.append(r["key"]))
     assert summary["measured"] == 0 and not again  # a finished study resumes to nothing
 
 
@@ -898,27 +922,15 @@ def test_out_is_required_but_with_estimate(capsys):
     )
 
 
-def test_an_interrupted_study_resumes_in_workers(tmp_path, study_references):
+def test_an_interrupted_study_resumes_in_workers(interrupted, resumed, tmp_path):
     """Rows of an interrupted serial study are reused (not remeasured, not duplicated) when it
-    resumes with --workers 2; the file ends with the keys of a whole study."""
-    plan = make_plan("quick", integrators=["explicit_euler"], sizes=[4])
-    plan = replace(plan, reference_cache=str(study_references))  # the session's references: rows are the point
-    seen = []
-
-    def interrupt_after_six(row):
-        seen.append(row["key"])
-        if len(seen) == 6:
-            raise KeyboardInterrupt
-
-    with pytest.raises(KeyboardInterrupt):
-        run_study(plan, tmp_path / "a", on_row=interrupt_after_six)
-    again = []
-    summary = run_study(plan, tmp_path / "a", resume=True, workers=2, on_row=lambda r: again.append(r["key"]))
+    resumes with --workers 2; the file ends with the keys of the whole study (the serial resume's)."""
+    _, _, seen, _ = interrupted
+    summary, again = resume_copy(interrupted, tmp_path / "a", workers=2)
     assert not set(again) & set(seen) and summary["measured"] == len(again) > 0
     keys = [r["key"] for r in read_rows(tmp_path / "a" / "results.csv")]
-    assert len(keys) == len(set(keys)) == 6 + len(again)
-    run_study(plan, tmp_path / "b")
-    assert sorted(keys) == sorted(r["key"] for r in read_rows(tmp_path / "b" / "results.csv"))
+    assert len(keys) == len(set(keys)) == 5 + len(again)
+    assert sorted(keys) == sorted(r["key"] for r in read_rows(resumed[0] / "results.csv"))
 
 
 def test_the_max_dt_plot_draws_points_at_the_search_bound_hollow(tmp_path, monkeypatch):
