@@ -139,6 +139,7 @@ def tmp_cwd(tmp_path, monkeypatch):
     return tmp_path
 
 
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Under README's test command (``-n auto --dist loadgroup``) every test goes to whichever worker is
     free, but the tests of a file that share a module-scoped fixture (a study, a sweep, a Ray cluster, a
