@@ -58,7 +58,7 @@ say warpcloth run flag --preview flag.gif --usd flag.usdz --usd-color strain --s
 say warpcloth sweep --example quick --out quick2.csv
 say python -m warpcloth bench --sizes 4 --steps 2 --json --quiet
 say warpcloth study --profile quick --sizes 4 --out study-quick
-say warpcloth advise --size 64 --budget-ms 8 --tolerance 0.05
+say warpcloth advise --size 32 --budget-ms 8 --tolerance 0.05
 # -- end of README.md's tour --
 
 # beyond the tour: the top level's flags, the listing of the shipped files
