@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
 import shutil
 import socket
 from dataclasses import replace
@@ -676,7 +677,7 @@ def same_rows(a: list, b: list) -> None:
 
 def test_workers_2_gives_the_serial_rows(tiny_study, tmp_path, study_references):
     """The tiny study (explicit_euler and vbd) in 2 worker processes: the same
-    keys and stability/accuracy values as the serial run; the searches ran in both workers, the
+    keys and stability/accuracy values as the serial run; the searches ran in the worker processes, the
     timings one at a time, and the driver wrote every row once."""
     _, serial_out, _ = tiny_study
     out = tmp_path / "par"
@@ -686,11 +687,15 @@ def test_workers_2_gives_the_serial_rows(tiny_study, tmp_path, study_references)
     same_rows(serial, par)
     assert {r["worker"] for r in serial} == {"main"} and {r["concurrent_runs"] for r in serial} == {1}
     searches = [r for r in par if r["measurement"] not in ("timing", "floor")]
-    assert {r["worker"] for r in searches} == {"local:1", "local:2"}  # one group per worker
+    # the searches ran in the worker processes, not the driver; which worker took which group is the
+    # pool's (in the full suite at load ~3 one worker started late and the other took both groups)
+    assert searches and {r["worker"] for r in searches} <= {"local:1", "local:2"}
     timed = [r for r in par if r["measurement"] == "timing"]
     assert timed and all(r["concurrent_runs"] == 1 for r in timed)
     assert all(r["host"] == socket.gethostname() for r in par)
-    assert "at most 1 timed run(s) at once, at most 2 search run(s) at once" in (out / "report.md").read_text()
+    assert re.search(
+        r"at most 1 timed run\(s\) at once, at most [12] search run\(s\) at once", (out / "report.md").read_text()
+    )
 
 
 def test_parallel_settings_warn_above_the_cores_and_devices(monkeypatch):
