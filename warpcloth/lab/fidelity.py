@@ -320,7 +320,7 @@ def strain_resolution(model, x) -> float:
 
 class _PiecePeaks:
     """A frame sink keeping each piece's largest structural strain over a run's frames (a model of several
-    garments: the character's cape and skirt), and the whole model's."""
+    garments: the character's cape and skirt)."""
 
     def __init__(self, model):
         self.model, n = model, model.particle_count
@@ -330,12 +330,10 @@ class _PiecePeaks:
             mask[piece.particle_offset : piece.particle_offset + piece.particle_count] = True
             self.masks[piece.name] = mask
         self.peaks = dict.fromkeys(self.masks, -math.inf)
-        self.peak = -math.inf  # the largest of the pieces'
 
     def write_frame(self, points, sim_time=None) -> None:
         for name, mask in self.masks.items():
             self.peaks[name] = max(self.peaks[name], structural_strain(self.model, points, mask))
-        self.peak = max(self.peaks.values())
 
 
 class _PeakStrain:
