@@ -2,7 +2,8 @@
 
 :class:`Simulator` advances the state (``step``, ``simulate``; ``step_states`` reads one state and
 writes another), switches integrators and time steps between steps, and captures a frame's steps
-as graphs (``wp.ScopedCapture``, at most :data:`GRAPH_CHUNK` steps each) to replay them. A
+as graphs (``wp.ScopedCapture``: on CUDA at most :data:`GRAPH_CHUNK` steps each, on the CPU at
+most :data:`CPU_GRAPH_STEPS`) to replay them. A
 :class:`Snapshot` holds everything a run carries between steps (``snapshot``, ``restore``: the
 checkpoints of :mod:`warpcloth.io.checkpoint`). Running for a duration with frames, metrics,
 verdicts, timing and outputs is the run harness's job, a layer above
@@ -28,11 +29,21 @@ from warpcloth.sim.self_collision import SelfCollision
 from warpcloth.sim.state import State
 from warpcloth.sim.tracks import check_target
 
-#: Most steps in one captured graph: :meth:`Simulator.simulate` replays a graph of this many steps
-#: as often as it fits and one of the rest (capturing a long call whole, 800 steps of projective's
-#: ~700 launches each, took 57 s on the CPU, 1.2 s now; the replays are the same launches in the
-#: same order, so results stay bit-identical).
+#: Most steps in one chunk: :meth:`Simulator.simulate` calls of more steps run as chunks of this
+#: many and the rest (capturing a long call whole, 800 steps of projective's ~700 launches each,
+#: took 57 s on the CPU, 1.2 s in chunks). On CUDA a chunk is one captured graph. Either way the
+#: replays are the same launches in the same order, so results stay bit-identical.
 GRAPH_CHUNK = 16
+
+#: Most steps in one captured graph on the CPU (:meth:`Simulator._pieces`): there Warp records a
+#: launch into a graph in about 1 ms of Python, twenty times a plain launch, so a chunk is cut into
+#: graphs of this many steps, most of them alike; a replay costs 2.2 us per graph more than its
+#: launches (0.65 us each), 0.6 us a step in graphs of four.
+CPU_GRAPH_STEPS = 4
+
+#: Most graphs a simulator keeps (a run alternates between two step counts, a chunk and a rest,
+#: each of a few pieces).
+MAX_GRAPHS = 16
 
 
 @dataclass
@@ -711,8 +722,9 @@ class Simulator:
         )
 
     def simulate(self, steps: int) -> None:
-        """Advance ``steps`` time steps (replaying a captured graph of them where enabled: one of
-        at most :data:`GRAPH_CHUNK` steps replayed as often as it fits, and one of the rest)."""
+        """Advance ``steps`` time steps (replaying captured graphs of them where enabled: in chunks of
+        at most :data:`GRAPH_CHUNK` steps and the rest, each chunk one graph on CUDA, one graph per step
+        on the CPU; :meth:`_pieces`)."""
         steps = require_count("steps", steps)
         if steps == 0:
             return
@@ -725,9 +737,13 @@ class Simulator:
                     self._count_steps(1)
             return
         chunks = self._chunks(steps)
-        graphs = {n: self._graph(n) for n in dict.fromkeys(chunks)}  # at most two counts, looked up once
+        pieces = {n: self._pieces(n) for n in dict.fromkeys(chunks)}  # at most two counts
+        key = self._capture_key()
+        distinct = dict.fromkeys(p for n in pieces for p in pieces[n])
+        graphs = {p: self._graph(p, key) for p in distinct}  # all captured before any replay
         for chunk in chunks:
-            wp.capture_launch(graphs[chunk])
+            for piece in pieces[chunk]:
+                wp.capture_launch(graphs[piece])
         self._count_steps(steps)
 
     def _warm_deforming(self) -> None:
@@ -741,20 +757,31 @@ class Simulator:
             self.warm_up()
             self._begin()
 
-    def _graph(self, steps: int):
-        """The captured graph of ``steps`` steps (captured on first use, kept per step count and
-        capture key)."""
-        key = (steps, self._capture_key())
+    def _pieces(self, chunk: int) -> list[tuple]:
+        """A chunk of ``chunk`` steps as the schedules of the graphs that replay it (each a tuple of
+        :meth:`_schedule`'s ``(detect, filter)`` per step): on CUDA the whole chunk, one graph launch;
+        on the CPU runs of :data:`CPU_GRAPH_STEPS` steps, so that a frame's capture records a few steps,
+        not up to two chunks (explicit Euler on the 16 x 16 flag, 45 steps a frame: its first frame
+        0.048 s of CPU in graphs of 16 and 13 steps, 0.007 s in graphs of one; docs/architecture.md)."""
+        schedule = self._schedule(chunk)
+        if wp.get_device(self.model.device).is_cpu:
+            return [tuple(schedule[i : i + CPU_GRAPH_STEPS]) for i in range(0, len(schedule), CPU_GRAPH_STEPS)]
+        return [tuple(schedule)]
+
+    def _graph(self, piece: tuple, capture_key: tuple):
+        """The captured graph of the steps ``piece`` (a tuple of ``(detect, filter)``, :meth:`_pieces`),
+        captured on first use and kept per piece and :meth:`_capture_key`."""
+        key = (piece, capture_key)
         graph = self._graphs.get(key)
         if graph is None:
             if not self._warmed:  # load every kernel before capturing (older CUDA drivers require it)
                 self.warm_up()
                 self._begin()
-            if len(self._graphs) >= 4:  # frames alternate between at most two step counts, each a chunk and a rest
+            if len(self._graphs) >= MAX_GRAPHS:
                 self._graphs.clear()
             t0 = time.perf_counter()
             with wp.ScopedCapture(device=self.model.device) as capture:
-                for detect_steps, filter_steps in self._schedule(steps):
+                for detect_steps, filter_steps in piece:
                     self._launch_step(detect_steps, filter_steps)
             graph = self._graphs[key] = capture.graph
             self.capture_time += time.perf_counter() - t0
