@@ -113,6 +113,7 @@ def worker_warpcloth(args) -> dict:
         device="cpu",
         use_graph=True,
     )
+    sim.use_graph = True  # captured from its first frame (None may defer capture on the CPU)
     sim.warm_up()  # compile and load (state restored)
     sim.simulate(args.substeps)  # capture the frame's graph (one frame advanced)
     wp.synchronize_device(sim.model.device)
