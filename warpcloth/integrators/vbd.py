@@ -244,7 +244,7 @@ class VBD(IncrementSolver):
         colliders, mode = self.contacts.colliders, self.vbd_rigid_mode
         if self.hessian is not None and it % self.vbd_multigrid_every == 0:
             self.coarse_correction(x, h, colliders)
-        if mode == 2 or (mode == 1 and (colliders is not None or it == 0)):
+        if mode == 2 or (mode in (1, 3) and (colliders is not None or it == 0)):
             self.rigid_correction(x, h)
         if colliders is not None:  # the sweep counts the contacts with friction it holds (translation_friction)
             self.contacts.held.zero_()
@@ -270,7 +270,8 @@ class VBD(IncrementSolver):
                     device=m.device,
                 )
         self.contacts.after_iteration(x, self.dx)
-        if self.vbd_rigid_mode >= 1 and colliders is None:
+        mode = self.vbd_rigid_mode
+        if mode >= 1 and colliders is None and (mode != 3 or it == self.vbd_iterations - 1):
             self.rigid_correction(x, h)
             if sc is not None:
                 sc.project_increment(x, self.dx)
@@ -309,58 +310,58 @@ class VBD(IncrementSolver):
             outputs=[self.residual],
             device=m.device,
         )
-        if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
-            wp.launch(
-                vk.add_contact_forces,
-                dim=m.particle_count,
-                inputs=[self.contact, h],
-                outputs=[self.residual],
-                device=m.device,
-            )
-        self.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
-        if contacts is not None:
-            wp.launch(
-                vk.mask_contacts,
-                dim=m.particle_count,
-                inputs=[x, self.dx, self.contact, contacts],
-                outputs=[self.delta],
-                device=m.device,
-            )
-            # the step along the masked correction that minimises the step's quadratic model
-            offsets, columns, _ = self.multigrid.csr[0]
-            wp.launch(
-                lk.block_gemv,
-                dim=m.particle_count,
-                inputs=[offsets, columns, self.multigrid.A[0].values, self.delta, self.delta_image, 1.0, 0.0],
-                outputs=[self.delta_image],
-                device=m.device,
-            )
-            self.line_sums.zero_()
-            wp.launch(
-                vk.correction_dots,
-                dim=m.particle_count,
-                inputs=[self.delta, self.residual, self.delta_image],
-                outputs=[self.line_sums],
-                device=m.device,
-            )
-            if self.vbd_correction_strain > 0.0:  # without it add_scaled_increment ignores the cap
-                self.stretch_cap.fill_(1.0)
-                wp.launch(
-                    vk.correction_stretch_cap,
-                    dim=m.spring_count,
-                    inputs=[x, self.dx, self.delta, m.spring_indices, m.spring_rest_length, self.vbd_correction_strain],
-                    outputs=[self.stretch_cap],
-                    device=m.device,
-                )
-            wp.launch(
-                vk.add_scaled_increment,
-                dim=m.particle_count,
-                inputs=[self.delta, self.line_sums, self.stretch_cap, int(self.vbd_correction_strain > 0.0)],
-                outputs=[self.dx],
-                device=m.device,
-            )
+        if contacts is None:  # dx <- V(r) + dx: written by the V-cycle's last smoothing (no pass of its own)
+            self.multigrid.apply(self.residual, self.dx, self.dx, 1.0, 1.0)
             return
-        wp.launch(vk.add_increment, dim=m.particle_count, inputs=[self.delta], outputs=[self.dx], device=m.device)
+        # contacts (the last sweep's, or the last step's) hold their normal force
+        wp.launch(
+            vk.add_contact_forces,
+            dim=m.particle_count,
+            inputs=[self.contact, h],
+            outputs=[self.residual],
+            device=m.device,
+        )
+        self.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
+        wp.launch(
+            vk.mask_contacts,
+            dim=m.particle_count,
+            inputs=[x, self.dx, self.contact, contacts],
+            outputs=[self.delta],
+            device=m.device,
+        )
+        # the step along the masked correction that minimises the step's quadratic model
+        offsets, columns, _ = self.multigrid.csr[0]
+        wp.launch(
+            lk.block_gemv,
+            dim=m.particle_count,
+            inputs=[offsets, columns, self.multigrid.A[0].values, self.delta, self.delta_image, 1.0, 0.0],
+            outputs=[self.delta_image],
+            device=m.device,
+        )
+        self.line_sums.zero_()
+        wp.launch(
+            vk.correction_dots,
+            dim=m.particle_count,
+            inputs=[self.delta, self.residual, self.delta_image],
+            outputs=[self.line_sums],
+            device=m.device,
+        )
+        if self.vbd_correction_strain > 0.0:  # without it add_scaled_increment ignores the cap
+            self.stretch_cap.fill_(1.0)
+            wp.launch(
+                vk.correction_stretch_cap,
+                dim=m.spring_count,
+                inputs=[x, self.dx, self.delta, m.spring_indices, m.spring_rest_length, self.vbd_correction_strain],
+                outputs=[self.stretch_cap],
+                device=m.device,
+            )
+        wp.launch(
+            vk.add_scaled_increment,
+            dim=m.particle_count,
+            inputs=[self.delta, self.line_sums, self.stretch_cap, int(self.vbd_correction_strain > 0.0)],
+            outputs=[self.dx],
+            device=m.device,
+        )
 
     def _contact_stiffness(self) -> float:
         """The self-contacts' penalty stiffness of the sweeps and the rigid mode [N/m]: ``vbd_contact_scale``
