@@ -20,8 +20,8 @@ Local sweeps alone resolve a large sheet's long, stiff modes very slowly and nev
 as a whole, so two corrections that are zero where the gradient is zero (the converged answer is
 unchanged) are applied: a multigrid V-cycle of h^2 times implicit Euler's A
 (``vbd_multigrid_every``; on non-grid models an aggregation hierarchy, ``vbd_mesh_multigrid``) and
-the exact Galerkin step of the rigid translation (``vbd_rigid_mode``, after every sweep and once
-before the first). Measurements behind each: docs/solvers.md, "vbd".
+the exact Galerkin step of the rigid translation (``vbd_rigid_mode``, before the first sweep and
+after the last). Measurements behind each: docs/solvers.md, "vbd".
 """
 
 from __future__ import annotations
@@ -116,10 +116,11 @@ class VBD(IncrementSolver):
         Option(
             "vbd_rigid_mode",
             int,
-            1,
-            "rigid translation correction: 1 after every sweep and before the first (with colliders: before every "
-            "sweep; the cloth's mean motion solved exactly, conserves momentum), 2 before and after every sweep, 0 off",
-            check=lambda v: None if v in (0, 1, 2) else "must be 0, 1 or 2",
+            3,
+            "rigid translation correction (the cloth's mean motion solved exactly, conserves momentum): 3 before the "
+            "first sweep and after the last, 1 after every sweep and before the first, 2 before and after every "
+            "sweep (with colliders 1 and 3: before every sweep), 0 off",
+            check=lambda v: None if v in (0, 1, 2, 3) else "must be 0, 1, 2 or 3",
         ),
         Option(
             "vbd_contact_scale",
@@ -239,8 +240,8 @@ class VBD(IncrementSolver):
     def before_sweep(self, x, h: float, it: int) -> None:
         """Before sweep ``it``: the coarse correction (every ``vbd_multigrid_every``-th), the rigid
         translation (with colliders before every sweep, a step ends on a sweep, which holds the contacts;
-        without, before the first one too: a first sweep from a guess whose mean lags leaves a shape error),
-        and the self-contacts' penalty at the sweep's start."""
+        without, before the first one too: a first sweep from a guess whose mean lags leaves a shape error;
+        mode 2 before every sweep), and the self-contacts' penalty at the sweep's start."""
         colliders, mode = self.contacts.colliders, self.vbd_rigid_mode
         if self.hessian is not None and it % self.vbd_multigrid_every == 0:
             self.coarse_correction(x, h, colliders)
@@ -382,7 +383,9 @@ class VBD(IncrementSolver):
         not resist a translation, so on a free cloth T^T A T = M I and afterwards sum m dx = sum m dy
         exactly: the step's momentum change is h F_ext, as backward Euler's. Zero where r is zero.
 
-        Called after every sweep and before the first; with colliders before every sweep instead,
+        Called before the first sweep and after the last (mode 3, the default: the one after the last
+        makes the momentum exact; after every sweep too, mode 1, cost 9 more per 10 sweeps and changed
+        little, docs/solvers.md); with colliders before every sweep instead,
         so that a step ends on a sweep, which holds the contacts (after it, the translation moved
         free particles near the sphere 5.5e-5 m into it on the 16 x 16 drape; projecting them out
         there with an identity Hessian, as after a Chebyshev extrapolation, lost the sweeps' contact
