@@ -3,9 +3,9 @@
     dy = h v + h^2 f_ext / m ;  dx = h v              (initial guess x + h v)
     repeat vbd_iterations times:
         [every vbd_multigrid_every-th iteration: dx <- dx + V(-h^2 grad G(dx))]
+        [first and last iteration, before and after its sweep: dx <- dx + P t]   (rigid translation)
         colour by colour (Gauss-Seidel over vertex colours):
         dx_i <- dx_i - H_i^-1 g_i      (3 x 3 Newton step on vertex i's local energy)
-        dx <- dx + P t                 (rigid translation correction, vbd_rigid_mode)
         [Chebyshev: dx <- omega_n (dx - dx^(n-2)) + dx^(n-2)]
     [free cloth: dx <- dx + w x r]; v = dx / h ;  x += dx      (w: angular momentum, rotation_correction)
 
