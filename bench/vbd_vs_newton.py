@@ -2,6 +2,7 @@
 
     python bench/vbd_vs_newton.py [--sizes 32 64] [--pairs 5] [--steps 20] [--substeps 10] [--iterations 10]
         [--peer ../shared/peers/newton/bench_cloth.py] [--peer-python /work/newton-venv/bin/python] [--bare]
+        [--opt vbd_multigrid_every=2 ...]
 
 The workload of the Newton peer (bench_cloth.py, solver vbd_springs): a 1 m x 1 m, 1 kg sheet of n x n
 particles hanging from its two top corners, gravity, no collisions, no drag; every spring 1000 N/m with
@@ -12,8 +13,9 @@ structural, shear and bend springs (5826 at 32^2). A frame is 1/60 s of ``--subs
 by both. Each run is its own process, the two alternating A B A B; each times ``--steps`` frames after an
 untimed frame that compiles and captures, with time.process_time (Newton's own ms/step is wall time).
 ``--bare`` adds warpcloth's vbd without its multigrid and rigid-translation corrections (the sweeps only,
-Newton's algorithm). Physical comparability: each run's sag (pins' height minus the lowest particle) and
-largest structural-edge stretch after its frames. Results: bench/results/vbd-vs-newton-cpu.txt.
+Newton's algorithm); ``--opt key=value`` sets an option of warpcloth's vbd (not the bare run's). Physical
+comparability: each run's sag (pins' height minus the lowest particle) and largest structural-edge stretch
+after its frames. Results: bench/results/vbd-vs-newton-cpu.txt.
 """
 
 from __future__ import annotations
@@ -100,6 +102,8 @@ def worker_warpcloth(args) -> dict:
     options = {"vbd_iterations": args.iterations}
     if args.worker == "warpcloth-bare":
         options.update(vbd_multigrid_every=0, vbd_rigid_mode=0)
+    else:
+        options.update(parse_options(args.opt))
     sim = sheet.build(
         rows=args.size,
         cols=args.size,
@@ -113,6 +117,7 @@ def worker_warpcloth(args) -> dict:
         device="cpu",
         use_graph=True,
     )
+    sim.use_graph = True  # captured from its first frame (None may defer capture on the CPU)
     sim.warm_up()  # compile and load (state restored)
     sim.simulate(args.substeps)  # capture the frame's graph (one frame advanced)
     wp.synchronize_device(sim.model.device)
@@ -136,6 +141,18 @@ def worker_warpcloth(args) -> dict:
     }
 
 
+def parse_options(pairs) -> dict:
+    """``key=value`` strings as vbd options (int, else float)."""
+    options = {}
+    for pair in pairs:
+        key, _, value = pair.partition("=")
+        try:
+            options[key] = int(value)
+        except ValueError:
+            options[key] = float(value)
+    return options
+
+
 def spread(values) -> str:
     """median [min-max]."""
     return f"{statistics.median(values):.3g} [{min(values):.3g}-{max(values):.3g}]"
@@ -144,6 +161,7 @@ def spread(values) -> str:
 def run_worker(python: str, code: str, size: int, args) -> dict:
     cmd = [python, os.path.abspath(__file__), "--worker", code, "--size", str(size), "--steps", str(args.steps)]
     cmd += ["--substeps", str(args.substeps), "--iterations", str(args.iterations), "--peer", args.peer]
+    cmd += [f"--opt={pair}" for pair in args.opt]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
     return json.loads(out)
 
@@ -158,6 +176,7 @@ def main(argv=None) -> None:
     p.add_argument("--peer", default=DEFAULT_PEER)
     p.add_argument("--peer-python", default=DEFAULT_PEER_PYTHON, help="a Python with newton installed")
     p.add_argument("--bare", action="store_true", help="also time warpcloth's vbd without its corrections")
+    p.add_argument("--opt", action="append", default=[], help="key=value: an option of warpcloth's vbd (repeatable)")
     p.add_argument("--worker", choices=["newton", "warpcloth", "warpcloth-bare"], help=argparse.SUPPRESS)
     p.add_argument("--size", type=int, help=argparse.SUPPRESS)
     args = p.parse_args(argv)

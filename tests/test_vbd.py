@@ -144,6 +144,7 @@ def test_vertex_coloring_check_and_greedy_fallback():
     [
         ({"vbd_iterations": 0}, "vbd_iterations must be an integer >= 1"),
         ({"vbd_multigrid_every": -1}, "vbd_multigrid_every must be an integer >= 0"),
+        ({"vbd_rigid_mode": 4}, "vbd_rigid_mode must be 0, 1, 2 or 3"),
         ({"vbd_chebyshev_rho": 1.0}, "vbd_chebyshev_rho must be in"),
         ({"vbd_chebyshev_rho": -0.1}, "vbd_chebyshev_rho must be in"),
         ({"vbd_contact_scale": 0.0}, "vbd_contact_scale must be > 0"),

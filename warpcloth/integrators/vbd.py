@@ -3,9 +3,9 @@
     dy = h v + h^2 f_ext / m ;  dx = h v              (initial guess x + h v)
     repeat vbd_iterations times:
         [every vbd_multigrid_every-th iteration: dx <- dx + V(-h^2 grad G(dx))]
+        [first and last iteration, before and after its sweep: dx <- dx + P t]   (rigid translation)
         colour by colour (Gauss-Seidel over vertex colours):
         dx_i <- dx_i - H_i^-1 g_i      (3 x 3 Newton step on vertex i's local energy)
-        dx <- dx + P t                 (rigid translation correction, vbd_rigid_mode)
         [Chebyshev: dx <- omega_n (dx - dx^(n-2)) + dx^(n-2)]
     [free cloth: dx <- dx + w x r]; v = dx / h ;  x += dx      (w: angular momentum, rotation_correction)
 
@@ -20,8 +20,8 @@ Local sweeps alone resolve a large sheet's long, stiff modes very slowly and nev
 as a whole, so two corrections that are zero where the gradient is zero (the converged answer is
 unchanged) are applied: a multigrid V-cycle of h^2 times implicit Euler's A
 (``vbd_multigrid_every``; on non-grid models an aggregation hierarchy, ``vbd_mesh_multigrid``) and
-the exact Galerkin step of the rigid translation (``vbd_rigid_mode``, after every sweep and once
-before the first). Measurements behind each: docs/solvers.md, "vbd".
+the exact Galerkin step of the rigid translation (``vbd_rigid_mode``, before the first sweep and
+after the last). Measurements behind each: docs/solvers.md, "vbd".
 """
 
 from __future__ import annotations
@@ -116,10 +116,11 @@ class VBD(IncrementSolver):
         Option(
             "vbd_rigid_mode",
             int,
-            1,
-            "rigid translation correction: 1 after every sweep and before the first (with colliders: before every "
-            "sweep; the cloth's mean motion solved exactly, conserves momentum), 2 before and after every sweep, 0 off",
-            check=lambda v: None if v in (0, 1, 2) else "must be 0, 1 or 2",
+            3,
+            "rigid translation correction (the cloth's mean motion solved exactly, conserves momentum): 3 before the "
+            "first sweep and after the last, 1 after every sweep and before the first, 2 before and after every "
+            "sweep (with colliders 1 and 3: before every sweep), 0 off",
+            check=lambda v: None if v in (0, 1, 2, 3) else "must be 0, 1, 2 or 3",
         ),
         Option(
             "vbd_contact_scale",
@@ -239,12 +240,12 @@ class VBD(IncrementSolver):
     def before_sweep(self, x, h: float, it: int) -> None:
         """Before sweep ``it``: the coarse correction (every ``vbd_multigrid_every``-th), the rigid
         translation (with colliders before every sweep, a step ends on a sweep, which holds the contacts;
-        without, before the first one too: a first sweep from a guess whose mean lags leaves a shape error),
-        and the self-contacts' penalty at the sweep's start."""
+        without, before the first one too: a first sweep from a guess whose mean lags leaves a shape error;
+        mode 2 before every sweep), and the self-contacts' penalty at the sweep's start."""
         colliders, mode = self.contacts.colliders, self.vbd_rigid_mode
         if self.hessian is not None and it % self.vbd_multigrid_every == 0:
             self.coarse_correction(x, h, colliders)
-        if mode == 2 or (mode == 1 and (colliders is not None or it == 0)):
+        if mode == 2 or (mode in (1, 3) and (colliders is not None or it == 0)):
             self.rigid_correction(x, h)
         if colliders is not None:  # the sweep counts the contacts with friction it holds (translation_friction)
             self.contacts.held.zero_()
@@ -270,7 +271,8 @@ class VBD(IncrementSolver):
                     device=m.device,
                 )
         self.contacts.after_iteration(x, self.dx)
-        if self.vbd_rigid_mode >= 1 and colliders is None:
+        mode = self.vbd_rigid_mode
+        if mode >= 1 and colliders is None and (mode != 3 or it == self.vbd_iterations - 1):
             self.rigid_correction(x, h)
             if sc is not None:
                 sc.project_increment(x, self.dx)
@@ -309,58 +311,58 @@ class VBD(IncrementSolver):
             outputs=[self.residual],
             device=m.device,
         )
-        if contacts is not None:  # contacts (the last sweep's, or the last step's) hold their normal force
-            wp.launch(
-                vk.add_contact_forces,
-                dim=m.particle_count,
-                inputs=[self.contact, h],
-                outputs=[self.residual],
-                device=m.device,
-            )
-        self.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
-        if contacts is not None:
-            wp.launch(
-                vk.mask_contacts,
-                dim=m.particle_count,
-                inputs=[x, self.dx, self.contact, contacts],
-                outputs=[self.delta],
-                device=m.device,
-            )
-            # the step along the masked correction that minimises the step's quadratic model
-            offsets, columns, _ = self.multigrid.csr[0]
-            wp.launch(
-                lk.block_gemv,
-                dim=m.particle_count,
-                inputs=[offsets, columns, self.multigrid.A[0].values, self.delta, self.delta_image, 1.0, 0.0],
-                outputs=[self.delta_image],
-                device=m.device,
-            )
-            self.line_sums.zero_()
-            wp.launch(
-                vk.correction_dots,
-                dim=m.particle_count,
-                inputs=[self.delta, self.residual, self.delta_image],
-                outputs=[self.line_sums],
-                device=m.device,
-            )
-            if self.vbd_correction_strain > 0.0:  # without it add_scaled_increment ignores the cap
-                self.stretch_cap.fill_(1.0)
-                wp.launch(
-                    vk.correction_stretch_cap,
-                    dim=m.spring_count,
-                    inputs=[x, self.dx, self.delta, m.spring_indices, m.spring_rest_length, self.vbd_correction_strain],
-                    outputs=[self.stretch_cap],
-                    device=m.device,
-                )
-            wp.launch(
-                vk.add_scaled_increment,
-                dim=m.particle_count,
-                inputs=[self.delta, self.line_sums, self.stretch_cap, int(self.vbd_correction_strain > 0.0)],
-                outputs=[self.dx],
-                device=m.device,
-            )
+        if contacts is None:  # dx <- V(r) + dx: written by the V-cycle's last smoothing (no pass of its own)
+            self.multigrid.apply(self.residual, self.dx, self.dx, 1.0, 1.0)
             return
-        wp.launch(vk.add_increment, dim=m.particle_count, inputs=[self.delta], outputs=[self.dx], device=m.device)
+        # contacts (the last sweep's, or the last step's) hold their normal force
+        wp.launch(
+            vk.add_contact_forces,
+            dim=m.particle_count,
+            inputs=[self.contact, h],
+            outputs=[self.residual],
+            device=m.device,
+        )
+        self.multigrid.apply(self.residual, self.delta, self.delta, 1.0, 0.0)
+        wp.launch(
+            vk.mask_contacts,
+            dim=m.particle_count,
+            inputs=[x, self.dx, self.contact, contacts],
+            outputs=[self.delta],
+            device=m.device,
+        )
+        # the step along the masked correction that minimises the step's quadratic model
+        offsets, columns, _ = self.multigrid.csr[0]
+        wp.launch(
+            lk.block_gemv,
+            dim=m.particle_count,
+            inputs=[offsets, columns, self.multigrid.A[0].values, self.delta, self.delta_image, 1.0, 0.0],
+            outputs=[self.delta_image],
+            device=m.device,
+        )
+        self.line_sums.zero_()
+        wp.launch(
+            vk.correction_dots,
+            dim=m.particle_count,
+            inputs=[self.delta, self.residual, self.delta_image],
+            outputs=[self.line_sums],
+            device=m.device,
+        )
+        if self.vbd_correction_strain > 0.0:  # without it add_scaled_increment ignores the cap
+            self.stretch_cap.fill_(1.0)
+            wp.launch(
+                vk.correction_stretch_cap,
+                dim=m.spring_count,
+                inputs=[x, self.dx, self.delta, m.spring_indices, m.spring_rest_length, self.vbd_correction_strain],
+                outputs=[self.stretch_cap],
+                device=m.device,
+            )
+        wp.launch(
+            vk.add_scaled_increment,
+            dim=m.particle_count,
+            inputs=[self.delta, self.line_sums, self.stretch_cap, int(self.vbd_correction_strain > 0.0)],
+            outputs=[self.dx],
+            device=m.device,
+        )
 
     def _contact_stiffness(self) -> float:
         """The self-contacts' penalty stiffness of the sweeps and the rigid mode [N/m]: ``vbd_contact_scale``
@@ -381,7 +383,9 @@ class VBD(IncrementSolver):
         not resist a translation, so on a free cloth T^T A T = M I and afterwards sum m dx = sum m dy
         exactly: the step's momentum change is h F_ext, as backward Euler's. Zero where r is zero.
 
-        Called after every sweep and before the first; with colliders before every sweep instead,
+        Called before the first sweep and after the last (mode 3, the default: the one after the last
+        makes the momentum exact; after every sweep too, mode 1, cost 9 more per 10 sweeps and changed
+        little, docs/solvers.md); with colliders before every sweep instead,
         so that a step ends on a sweep, which holds the contacts (after it, the translation moved
         free particles near the sphere 5.5e-5 m into it on the 16 x 16 drape; projecting them out
         there with an identity Hessian, as after a Chebyshev extrapolation, lost the sweeps' contact

@@ -159,13 +159,6 @@ def eval_increment_residual(
 
 
 @wp.kernel
-def add_increment(delta: wp.array(dtype=wp.vec3), dx: wp.array(dtype=wp.vec3)):
-    # dx += delta  (the multigrid correction; zero on pinned particles)
-    i = wp.tid()
-    dx[i] = dx[i] + delta[i]
-
-
-@wp.kernel
 def correction_dots(
     delta: wp.array(dtype=wp.vec3),
     r: wp.array(dtype=wp.vec3),
