@@ -247,14 +247,23 @@ def moving_colliders_sim(integrator: str) -> Simulator:
     return Simulator(model, integrator, control=Control(colliders=colliders, device=model.device))
 
 
+def sphere_gap(sim) -> float:
+    """The smallest distance [m] of a particle from the sheet's sphere surface, posed at the sim's clock."""
+    sphere = sim.control.colliders[0].at(sim.sim_time)
+    return float(
+        np.min(np.linalg.norm(sim.state.particle_q.numpy() - np.asarray(sphere.center), axis=1)) - sphere.radius
+    )
+
+
 @pytest.mark.parametrize("integrator", ["verlet", "pbd", "implicit_euler"])
 def test_moving_colliders_restore_and_step_states(integrator):
-    # the rising sphere meets the falling sheet at t = 0.04 s: at dt = 1/60 s (pbd, implicit_euler) restored at
-    # 1/6 s, in contact, and run 1/4 s on (20 and 30 steps before); verlet (dt 6e-4 s) keeps 20 and 30 steps
+    # the rising sphere meets the falling sheet at 0.05 s (pbd), 0.1 s (implicit_euler) and 0.12 s (verlet, dt
+    # 6e-4 s): restored in contact (1/6 s at dt = 1/60 s; 0.126 s, 210 steps, for verlet) and run on in it
     a = moving_colliders_sim(integrator)
-    first, then = (10, 15) if a.dt >= 1.0 / 60.0 else (20, 30)
+    first, then = (10, 15) if a.dt >= 1.0 / 60.0 else (210, 60)
     a.warm_up()
     simulate_frames(a, first)
+    assert sphere_gap(a) <= 0.0105  # within the sphere's thickness (0.01 m): the snapshot holds a contact
     snap = a.snapshot()
     simulate_frames(a, then)
     b = moving_colliders_sim(integrator)
