@@ -12,6 +12,7 @@ verdicts, timing and outputs is the run harness's job, a layer above
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 
@@ -44,6 +45,32 @@ CPU_GRAPH_STEPS = 4
 #: Most graphs a simulator keeps (a run alternates between two step counts, a chunk and a rest,
 #: each of a few pieces).
 MAX_GRAPHS = 16
+
+
+@functools.lru_cache(maxsize=256)
+def interval_schedule(steps: int, interval: int) -> tuple[tuple[int, int], ...]:
+    """Per step of a chunk of ``steps`` steps, its self-collision work ``(detect, filter)``: the
+    steps of the collision interval it starts (contacts found for them) and of the one it ends
+    (the velocity filter over them), else 0; the chunk's intervals are as even as whole steps
+    allow, none longer than ``interval`` steps (every step (1, 1) where that is 1). Cached: a run
+    asks for the same one or two chunks every frame."""
+    count = -(-steps // interval)
+    plan = []
+    for i in range(count):
+        m = (i + 1) * steps // count - i * steps // count
+        plan += [(m if j == 0 else 0, m if j == m - 1 else 0) for j in range(m)]
+    return tuple(plan)
+
+
+@functools.lru_cache(maxsize=256)
+def graph_pieces(chunk: int, interval: int, cpu: bool) -> tuple[tuple[tuple[int, int], ...], ...]:
+    """The schedules of the graphs that replay a chunk (:meth:`Simulator._pieces`): on CUDA the
+    whole chunk, on the CPU runs of :data:`CPU_GRAPH_STEPS` steps. Cached, as
+    :func:`interval_schedule`."""
+    schedule = interval_schedule(chunk, interval)
+    if cpu:
+        return tuple(schedule[i : i + CPU_GRAPH_STEPS] for i in range(0, len(schedule), CPU_GRAPH_STEPS))
+    return (schedule,)
 
 
 @dataclass
@@ -625,32 +652,24 @@ class Simulator:
         return 1 if sc is None else sc.interval_steps(self._dt, self.integrator.self_contact_filter)
 
     def chunk_steps(self) -> int:
-        """Steps of one captured graph: :data:`GRAPH_CHUNK`, or a multiple of the self-collision
+        """Steps of one chunk (on CUDA one captured graph): :data:`GRAPH_CHUNK`, or a multiple of the self-collision
         interval where that is longer than a step. :meth:`simulate` calls of multiples of it give the
         same collision intervals however a run is split into calls (the run layer's chunks are)."""
         k = self._interval_steps()
         return GRAPH_CHUNK if k == 1 else k * max(1, GRAPH_CHUNK // k)
 
     def _chunks(self, steps: int) -> list[int]:
-        """A call of ``steps`` steps as the step counts of its captured graphs: whole chunks of
+        """A call of ``steps`` steps as the step counts of its chunks: whole chunks of
         :meth:`chunk_steps` steps and the rest. Plain launches follow the same chunks, so both stay
         bit-identical."""
         chunk = min(steps, self.chunk_steps())
         full, rest = divmod(steps, chunk)
         return [chunk] * full + ([rest] if rest else [])
 
-    def _schedule(self, steps: int) -> list[tuple[int, int]]:
-        """Per step of a chunk of ``steps`` steps, its self-collision work ``(detect, filter)``: the
-        steps of the collision interval it starts (contacts found for them) and of the one it ends
-        (the velocity filter over them), else 0; the chunk's intervals are as even as whole steps
-        allow, none longer than :meth:`_interval_steps` (every step (1, 1) where that is 1)."""
-        k = self._interval_steps()
-        count = -(-steps // k)
-        plan = []
-        for i in range(count):
-            m = (i + 1) * steps // count - i * steps // count
-            plan += [(m if j == 0 else 0, m if j == m - 1 else 0) for j in range(m)]
-        return plan
+    def _schedule(self, steps: int) -> tuple[tuple[int, int], ...]:
+        """Per step of a chunk of ``steps`` steps, its self-collision work (:func:`interval_schedule`
+        with this simulator's :meth:`_interval_steps`)."""
+        return interval_schedule(steps, self._interval_steps())
 
     def _launch_step(self, detect_steps: int = 1, filter_steps: int = 1) -> None:
         self.control.update()
@@ -757,16 +776,13 @@ class Simulator:
             self.warm_up()
             self._begin()
 
-    def _pieces(self, chunk: int) -> list[tuple]:
+    def _pieces(self, chunk: int) -> tuple[tuple, ...]:
         """A chunk of ``chunk`` steps as the schedules of the graphs that replay it (each a tuple of
         :meth:`_schedule`'s ``(detect, filter)`` per step): on CUDA the whole chunk, one graph launch;
         on the CPU runs of :data:`CPU_GRAPH_STEPS` steps, so that a frame's capture records a few steps,
         not up to two chunks (explicit Euler on the 16 x 16 flag, 45 steps a frame: its first frame
         0.042 s of CPU in graphs of 16 and 13 steps, 0.012 s in graphs of 4 and 1; docs/architecture.md)."""
-        schedule = self._schedule(chunk)
-        if wp.get_device(self.model.device).is_cpu:
-            return [tuple(schedule[i : i + CPU_GRAPH_STEPS]) for i in range(0, len(schedule), CPU_GRAPH_STEPS)]
-        return [tuple(schedule)]
+        return graph_pieces(chunk, self._interval_steps(), wp.get_device(self.model.device).is_cpu)
 
     def _graph(self, piece: tuple, capture_key: tuple):
         """The captured graph of the steps ``piece`` (a tuple of ``(detect, filter)``, :meth:`_pieces`),
