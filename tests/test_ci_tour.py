@@ -13,6 +13,8 @@ REPO = Path(__file__).resolve().parent.parent
 #: study's), frame and step counts, durations; every other word is the README's.
 SHORTENED = ("--size", "--rows", "--cols", "--sizes", "--num-frames", "--steps", "--duration")
 BEGIN, END = "# -- README.md's tour --", "# -- end of README.md's tour --"
+#: The lines that open and close the tour's two streams (.ci/tour.sh runs them side by side).
+STREAM_FRAMES = ("first() {", "}", "second() {")
 
 
 def _readme_tour() -> list[str]:
@@ -24,11 +26,13 @@ def _readme_tour() -> list[str]:
 
 def _ci_tour_section() -> list[str]:
     """.ci/tour.sh's lines between its markers (continuations joined), without the leading ``say``;
-    any other line there (a ``cd``, an ``rm``: the tour as printed would not have it) fails."""
+    any other line there (a ``cd``, an ``rm``: the tour as printed would not have it) fails but the
+    frames of its two streams (``first() {``, ``second() {``, ``}``: functions the script runs side by
+    side, each in order)."""
     text = (REPO / ".ci" / "tour.sh").read_text().replace("\\\n", " ")
     assert text.count(BEGIN) == 1 and text.count(END) == 1, "the tour's markers in .ci/tour.sh"
     lines = [line.strip() for line in text.split(BEGIN, 1)[1].split(END, 1)[0].splitlines()]
-    lines = [line for line in lines if line and not line.startswith("#")]
+    lines = [line for line in lines if line and not line.startswith("#") and line not in STREAM_FRAMES]
     stray = [line for line in lines if not line.startswith("say ")]
     assert not stray, f".ci/tour.sh runs lines the README's tour does not print: {stray}"
     return [line[len("say ") :] for line in lines]
