@@ -120,8 +120,11 @@ def test_the_pose_equals_the_track_at_every_step_time(integrator):
     assert not np.allclose(colliders[1].at(sim.sim_time).center, colliders[1].center)  # it did move
 
 
+@pytest.mark.parametrize("pieces", [1, 4])
 @pytest.mark.parametrize("integrator", ["explicit_euler", "xpbd"])
-def test_captured_and_plain_runs_agree_to_the_bit(integrator):
+def test_captured_and_plain_runs_agree_to_the_bit(integrator, pieces):
+    import warpcloth.simulator as simulator
+
     def run(graph):
         ground = Plane(friction=0.4, track=ColliderTrack.keyframes([0.0, 0.5], [[0, 0, 0], [0.3, 0.1, 0]]))
         ball = Sphere(
@@ -133,11 +136,18 @@ def test_captured_and_plain_runs_agree_to_the_bit(integrator):
         for _ in range(6):
             sim.simulate(10)
         sim.simulate(37)  # more than a chunk holds: chunks of GRAPH_CHUNK steps, and the rest
-        if graph:  # on the CPU chunks cut into graphs of up to 4 steps: 10 = 4 + 4 + 2, 37 = 16 + 16 + 5 (4 + 1)
-            assert sorted(len(key[0]) for key in sim._graphs) == [1, 2, 4]
+        if graph:  # on the CPU chunks cut into graphs of up to P steps: P = 4: 10 = 4 + 4 + 2, 37 = 16 + 16 + 5 (4 + 1)
+            assert sorted(len(key[0]) for key in sim._graphs) == ([1] if pieces == 1 else [1, 2, 4])
         return sim.state.particle_q.numpy()
 
-    np.testing.assert_array_equal(run(True), run(False))
+    default = simulator.CPU_GRAPH_STEPS
+    simulator.CPU_GRAPH_STEPS = pieces  # graphs of one step (the default) or of four
+    simulator.graph_pieces.cache_clear()
+    try:
+        np.testing.assert_array_equal(run(True), run(False))
+    finally:
+        simulator.CPU_GRAPH_STEPS = default
+        simulator.graph_pieces.cache_clear()
 
 
 def test_tracks_from_a_scenario_file(tmp_path):

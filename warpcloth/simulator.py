@@ -38,9 +38,12 @@ GRAPH_CHUNK = 16
 
 #: Most steps in one captured graph on the CPU (:meth:`Simulator._pieces`): there Warp records a
 #: launch into a graph in about 1 ms of Python, twenty times a plain launch, so a chunk is cut into
-#: graphs of this many steps, most of them alike; a replay costs about 3 us a graph more than its
-#: launches (0.65 us each): 1.5 % of explicit Euler's 16 x 16 frame in graphs of four.
-CPU_GRAPH_STEPS = 4
+#: graphs of this many steps, most of them alike, and a run captures each distinct one once. A replay
+#: costs about 1.5 us a graph more than its launches (0.65 us each): explicit Euler's 16 x 16 frame
+#: (45 steps) 2.16 ms in graphs of one step, 2.10 in graphs of four (its first frame 0.006 s
+#: against 0.012), rk4's 7.58 and 7.55; two test files of small cloths 38 s of CPU against 48 s
+#: (docs/architecture.md).
+CPU_GRAPH_STEPS = 1
 
 #: Most graphs a simulator keeps (a run alternates between two step counts, a chunk and a rest,
 #: each of a few pieces).
@@ -779,9 +782,10 @@ class Simulator:
     def _pieces(self, chunk: int) -> tuple[tuple, ...]:
         """A chunk of ``chunk`` steps as the schedules of the graphs that replay it (each a tuple of
         :meth:`_schedule`'s ``(detect, filter)`` per step): on CUDA the whole chunk, one graph launch;
-        on the CPU runs of :data:`CPU_GRAPH_STEPS` steps, so that a frame's capture records a few steps,
-        not up to two chunks (explicit Euler on the 16 x 16 flag, 45 steps a frame: its first frame
-        0.042 s of CPU in graphs of 16 and 13 steps, 0.012 s in graphs of 4 and 1; docs/architecture.md)."""
+        on the CPU runs of :data:`CPU_GRAPH_STEPS` steps, so that a frame's capture records a step or
+        a few, not up to two chunks (explicit Euler on the 16 x 16 flag, 45 steps a frame: its first frame
+        0.042 s of CPU in graphs of 16 and 13 steps, 0.012 s in graphs of 4 and 1, 0.006 s in graphs of
+        one step; docs/architecture.md)."""
         return graph_pieces(chunk, self._interval_steps(), wp.get_device(self.model.device).is_cpu)
 
     def _graph(self, piece: tuple, capture_key: tuple):
