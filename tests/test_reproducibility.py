@@ -93,3 +93,18 @@ def test_every_covered_kernel_compiles_in_deterministic_mode_for_cuda():
             assert len(source) > 1000, module.name
     finally:
         set_deterministic(False)
+
+
+def test_every_kernel_module_compiles_without_adjoints():
+    # nothing differentiates through warpcloth's kernels, and Warp's adjoint code roughly doubles a module's
+    # compile time (CI compiles every module from an empty cache); kernels/ccd.py compiled it until now
+    import importlib
+    import pkgutil
+
+    import warpcloth.kernels as package
+
+    names = [m.name for m in pkgutil.iter_modules(package.__path__, package.__name__ + ".")]
+    assert len(names) > 15
+    for name in names:
+        importlib.import_module(name)
+        assert wp.get_module(name).options["enable_backward"] is False, name

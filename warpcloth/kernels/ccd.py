@@ -42,6 +42,8 @@ from warpcloth.kernels.self_contact import (
     rounding_slack,
 )
 
+wp.set_module_options({"enable_backward": False})
+
 NOT_DETERMINISTIC = "the continuous response's collision lists are built in the GPU's thread order"
 
 #: the pushes' over-relaxation where a vertex's mass is split over c > 1 pushes (Jacobi passes then reach at
