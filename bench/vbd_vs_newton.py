@@ -1,8 +1,8 @@
 """warpcloth's vbd against Newton's VBD (vbd_springs) at equal work, in process CPU time (issue 51).
 
     python bench/vbd_vs_newton.py [--sizes 32 64] [--pairs 5] [--steps 20] [--substeps 10] [--iterations 10]
-        [--peer ../shared/peers/newton/bench_cloth.py] [--peer-python /work/newton-venv/bin/python] [--bare]
-        [--opt vbd_multigrid_every=2 ...]
+        [--peer-iterations 40] [--peer ../shared/peers/newton/bench_cloth.py]
+        [--peer-python /work/newton-venv/bin/python] [--bare] [--opt vbd_multigrid_every=2 ...]
 
 The workload of the Newton peer (bench_cloth.py, solver vbd_springs): a 1 m x 1 m, 1 kg sheet of n x n
 particles hanging from its two top corners, gravity, no collisions, no drag; every spring 1000 N/m with
@@ -10,8 +10,9 @@ kd = 1e-4 N s/m (taken implicitly along the spring by both: kd/h n n^T). Springs
 triangle edge plus the flip edge across each interior edge (5766 at 32^2), warpcloth's Provot's
 structural, shear and bend springs (5826 at 32^2). A frame is 1/60 s of ``--substeps`` steps of
 ``--iterations`` sweeps each (Newton's cloth_hanging default 10 x 10), replayed as one captured graph
-by both. Each run is its own process, the two alternating A B A B; each times ``--steps`` frames after an
-untimed frame that compiles and captures, with time.process_time (Newton's own ms/step is wall time).
+by both (``--peer-iterations``: Newton's sweeps where they differ, for the cost at equal accuracy). Each
+run is its own process, the two alternating A B A B; each times ``--steps`` frames after an untimed frame
+that compiles and captures, with time.process_time (Newton's own ms/step is wall time).
 ``--bare`` adds warpcloth's vbd without its multigrid and rigid-translation corrections (the sweeps only,
 Newton's algorithm); ``--opt key=value`` sets an option of warpcloth's vbd (not the bare run's). Physical
 comparability: each run's sag (pins' height minus the lowest particle) and largest structural-edge stretch
@@ -159,8 +160,9 @@ def spread(values) -> str:
 
 
 def run_worker(python: str, code: str, size: int, args) -> dict:
+    iterations = args.peer_iterations if code == "newton" and args.peer_iterations else args.iterations
     cmd = [python, os.path.abspath(__file__), "--worker", code, "--size", str(size), "--steps", str(args.steps)]
-    cmd += ["--substeps", str(args.substeps), "--iterations", str(args.iterations), "--peer", args.peer]
+    cmd += ["--substeps", str(args.substeps), "--iterations", str(iterations), "--peer", args.peer]
     cmd += [f"--opt={pair}" for pair in args.opt]
     out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
     return json.loads(out)
@@ -173,6 +175,9 @@ def main(argv=None) -> None:
     p.add_argument("--steps", type=int, default=20, help="timed frames of 1/60 s per run")
     p.add_argument("--substeps", type=int, default=10)
     p.add_argument("--iterations", type=int, default=10, help="sweeps per substep")
+    p.add_argument(
+        "--peer-iterations", type=int, default=None, help="Newton's sweeps per substep (default --iterations)"
+    )
     p.add_argument("--peer", default=DEFAULT_PEER)
     p.add_argument("--peer-python", default=DEFAULT_PEER_PYTHON, help="a Python with newton installed")
     p.add_argument("--bare", action="store_true", help="also time warpcloth's vbd without its corrections")
@@ -196,8 +201,9 @@ def main(argv=None) -> None:
         f"{os.getloadavg()[0]:.1f}, warp {wp.config.version}; peer {args.peer_python}"
     )
     print(
-        f"# frame 1/60 s = {args.substeps} substeps x {args.iterations} sweeps, {args.steps} timed frames per run, "
-        "graph capture on, process CPU ms per frame"
+        f"# frame 1/60 s = {args.substeps} substeps x {args.iterations} sweeps"
+        + (f" (newton: {args.peer_iterations})" if args.peer_iterations else "")
+        + f", {args.steps} timed frames per run, graph capture on, process CPU ms per frame"
     )
     codes = [("warpcloth", sys.executable), ("newton", args.peer_python)]
     if args.bare:
