@@ -1,6 +1,5 @@
 """What the CPU's graph size costs a replayed frame: the N x N flag under one integrator, one simulator
-per graph size P (:data:`warpcloth.simulator.CPU_GRAPH_STEPS` set in this process, the pieces' cache
-cleared), each warmed and captured, then 7 interleaved windows of 40 frames each; process CPU ms per
+per graph size P (:data:`warpcloth.simulator.CPU_GRAPH_STEPS` set in this process), each warmed and captured, then 7 interleaved windows of 40 frames each; process CPU ms per
 frame, median [range].
 
     python bench/capture_pieces.py explicit_euler 16 1,4,16
@@ -18,17 +17,12 @@ from warpcloth.scenarios import flag
 wp.config.quiet = True
 
 
-def use(P: int) -> None:
-    S.CPU_GRAPH_STEPS = P
-    S.graph_pieces.cache_clear()
-
-
 def main() -> None:
     name, size = sys.argv[1], int(sys.argv[2])
     sizes = [int(p) for p in sys.argv[3].split(",")]
     sims = {}
     for P in sizes:
-        use(P)
+        S.CPU_GRAPH_STEPS = P
         sim = flag.build(rows=size, cols=size, integrator=name)
         sim.use_graph = True
         n = max(1, round((1 / 60) / sim.dt))
@@ -38,7 +32,7 @@ def main() -> None:
     res = {P: [] for P in sizes}
     for _ in range(7):
         for P in sizes:
-            use(P)
+            S.CPU_GRAPH_STEPS = P
             sim, n = sims[P]
             t = time.process_time()
             for _ in range(40):

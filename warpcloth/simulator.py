@@ -66,14 +66,11 @@ def interval_schedule(steps: int, interval: int) -> tuple[tuple[int, int], ...]:
 
 
 @functools.lru_cache(maxsize=256)
-def graph_pieces(chunk: int, interval: int, cpu: bool) -> tuple[tuple[tuple[int, int], ...], ...]:
-    """The schedules of the graphs that replay a chunk (:meth:`Simulator._pieces`): on CUDA the
-    whole chunk, on the CPU runs of :data:`CPU_GRAPH_STEPS` steps. Cached, as
-    :func:`interval_schedule`."""
+def graph_pieces(chunk: int, interval: int, per_graph: int) -> tuple[tuple[tuple[int, int], ...], ...]:
+    """The schedules of the graphs that replay a chunk (:meth:`Simulator._pieces`): its
+    :func:`interval_schedule` in runs of ``per_graph`` steps. Cached, as :func:`interval_schedule`."""
     schedule = interval_schedule(chunk, interval)
-    if cpu:
-        return tuple(schedule[i : i + CPU_GRAPH_STEPS] for i in range(0, len(schedule), CPU_GRAPH_STEPS))
-    return (schedule,)
+    return tuple(schedule[i : i + per_graph] for i in range(0, len(schedule), per_graph))
 
 
 @dataclass
@@ -786,7 +783,8 @@ class Simulator:
         a few, not up to two chunks (explicit Euler on the 16 x 16 flag, 45 steps a frame: its first frame
         0.042 s of CPU in graphs of 16 and 13 steps, 0.012 s in graphs of 4 and 1, 0.006 s in graphs of
         one step; docs/architecture.md)."""
-        return graph_pieces(chunk, self._interval_steps(), wp.get_device(self.model.device).is_cpu)
+        per_graph = CPU_GRAPH_STEPS if wp.get_device(self.model.device).is_cpu else chunk
+        return graph_pieces(chunk, self._interval_steps(), per_graph)
 
     def _graph(self, piece: tuple, capture_key: tuple):
         """The captured graph of the steps ``piece`` (a tuple of ``(detect, filter)``, :meth:`_pieces`),
