@@ -124,6 +124,15 @@ def free_particles(positions, mass: float = 0.1, device="cpu"):
     return build_model(positions, np.zeros((0, 2)), np.zeros(0), [mass] * len(positions), free, device=device)
 
 
+def sphere_depth(sphere, x):
+    """How far each point of ``x`` is inside ``sphere`` grown by its thickness [m] (< 0: outside)."""
+    return (
+        sphere.thickness
+        + sphere.radius
+        - np.linalg.norm(np.asarray(x, dtype=np.float64) - np.asarray(sphere.center), axis=1)
+    )
+
+
 def drape_sphere_depth(x):
     """How far each particle is inside the drape scenario's sphere grown by its thickness [m] (< 0: outside)."""
     from warpcloth.scenarios import drape

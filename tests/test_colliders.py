@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import PER_SPRING_SCENE, free_particles, parse_collider, sharp_boxes
+from helpers import PER_SPRING_SCENE, free_particles, parse_collider, sharp_boxes, sphere_depth
 
 from warpcloth import (
     Box,
@@ -69,10 +69,6 @@ def test_coulomb_friction_on_an_incline(integrator):
     assert s_free == pytest.approx(0.5 * G * math.sin(theta) * t**2, rel=0.02)
 
 
-def depth_into(sphere, x):
-    return sphere.thickness + sphere.radius - np.linalg.norm(x - np.asarray(sphere.center), axis=1)
-
-
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 def test_a_cloth_dropped_on_a_sphere_never_goes_inside(integrator):
     sphere = Sphere(center=(0.5, 0.0, 0.5), radius=0.3, thickness=0.005, friction=0.3)
@@ -86,7 +82,7 @@ def test_a_cloth_dropped_on_a_sphere_never_goes_inside(integrator):
     deepest, touched = 0.0, False
     for _ in range(40):  # 0.67 s: it lands at 0.16 s and drapes
         sim.simulate(max(1, round(1.0 / 60.0 / sim.dt)))
-        d = depth_into(sphere, sim.state.particle_q.numpy().astype(np.float64))
+        d = sphere_depth(sphere, sim.state.particle_q.numpy().astype(np.float64))
         deepest, touched = max(deepest, d.max()), touched or d.max() > -1e-3
     assert touched  # it did reach the sphere
     assert deepest < 1e-5

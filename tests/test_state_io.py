@@ -12,6 +12,7 @@ import zipfile
 
 import numpy as np
 import pytest
+from helpers import sphere_depth
 from test_contract import simulate_frames
 
 from warpcloth.cli import main
@@ -247,14 +248,6 @@ def moving_colliders_sim(integrator: str) -> Simulator:
     return Simulator(model, integrator, control=Control(colliders=colliders, device=model.device))
 
 
-def sphere_gap(sim) -> float:
-    """The smallest distance [m] of a particle from the sheet's sphere surface, posed at the sim's clock."""
-    sphere = sim.control.colliders[0].at(sim.sim_time)
-    return float(
-        np.min(np.linalg.norm(sim.state.particle_q.numpy() - np.asarray(sphere.center), axis=1)) - sphere.radius
-    )
-
-
 @pytest.mark.parametrize("integrator", ["verlet", "pbd", "implicit_euler"])
 def test_moving_colliders_restore_and_step_states(integrator):
     # the rising sphere meets the falling sheet at 0.05 s (pbd), 0.1 s (implicit_euler) and 0.12 s (verlet, dt
@@ -263,7 +256,8 @@ def test_moving_colliders_restore_and_step_states(integrator):
     first, then = (10, 15) if a.dt >= 1.0 / 60.0 else (210, 60)
     a.warm_up()
     simulate_frames(a, first)
-    assert sphere_gap(a) <= 0.0105  # within the sphere's thickness (0.01 m): the snapshot holds a contact
+    # within 0.5 mm of the sphere grown by its thickness (0.01 m), posed at the clock: the snapshot holds a contact
+    assert sphere_depth(a.control.colliders[0].at(a.sim_time), a.state.particle_q.numpy()).max() >= -0.0005
     snap = a.snapshot()
     simulate_frames(a, then)
     b = moving_colliders_sim(integrator)
